@@ -1,0 +1,300 @@
+//! FRF sets: complex frequency responses per excitation × channel × spectral line.
+
+use crate::{c64, CoreError};
+use serde::{Deserialize, Serialize};
+
+/// What an FRF measures per newton of force.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, schemars::JsonSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Quantity {
+    /// Displacement / force, m/N.
+    Receptance,
+    /// Velocity / force, m/(N s) = iω·receptance.
+    Mobility,
+    /// Acceleration / force, m/(N s²) = −ω²·receptance.
+    Accelerance,
+}
+
+impl Quantity {
+    pub const NAMES: &'static str = "receptance, mobility, accelerance";
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Quantity::Receptance => "receptance",
+            Quantity::Mobility => "mobility",
+            Quantity::Accelerance => "accelerance",
+        }
+    }
+
+    /// SI unit of the FRF values.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Quantity::Receptance => "m/N",
+            Quantity::Mobility => "m/(N s)",
+            Quantity::Accelerance => "m/(N s^2)",
+        }
+    }
+
+    /// The factor `(iω)^k` that turns a receptance into this quantity at ω (rad/s).
+    pub fn from_receptance_factor(self, omega: f64) -> c64 {
+        match self {
+            Quantity::Receptance => c64::new(1.0, 0.0),
+            Quantity::Mobility => c64::new(0.0, omega),
+            Quantity::Accelerance => c64::new(-omega * omega, 0.0),
+        }
+    }
+
+    /// Power `k` of `iω` relative to receptance.
+    pub fn order(self) -> i32 {
+        match self {
+            Quantity::Receptance => 0,
+            Quantity::Mobility => 1,
+            Quantity::Accelerance => 2,
+        }
+    }
+}
+
+impl std::str::FromStr for Quantity {
+    type Err = CoreError;
+    fn from_str(s: &str) -> Result<Self, CoreError> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "receptance" | "displacement" | "compliance" => Ok(Quantity::Receptance),
+            "mobility" | "velocity" => Ok(Quantity::Mobility),
+            "accelerance" | "inertance" | "acceleration" => Ok(Quantity::Accelerance),
+            _ => Err(CoreError::Unknown {
+                kind: "quantity",
+                value: s.into(),
+                expected: Quantity::NAMES,
+            }),
+        }
+    }
+}
+
+/// Checks a frequency axis: non-empty, finite, non-negative and strictly increasing.
+pub fn validate_frequency_axis(hz: &[f64]) -> Result<(), CoreError> {
+    if hz.is_empty() {
+        return Err(CoreError::FrequencyAxis("no spectral lines".into()));
+    }
+    for (i, f) in hz.iter().enumerate() {
+        if !f.is_finite() || *f < 0.0 {
+            return Err(CoreError::FrequencyAxis(format!(
+                "line {i}: frequency {f} Hz is not a finite non-negative number"
+            )));
+        }
+        if i > 0 && *f <= hz[i - 1] {
+            return Err(CoreError::FrequencyAxis(format!(
+                "line {i}: frequency {f} Hz does not increase (previous {} Hz)",
+                hz[i - 1]
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// FRFs of one test: values indexed `[excitation][channel][line]` in that memory order,
+/// excitation and channel order as in the [`crate::Geometry`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrfSet {
+    pub quantity: Quantity,
+    pub frequency_hz: Vec<f64>,
+    pub n_excitations: usize,
+    pub n_channels: usize,
+    pub values: Vec<c64>,
+}
+
+impl FrfSet {
+    /// A zero-filled set of the given shape.
+    pub fn zeros(
+        quantity: Quantity,
+        frequency_hz: Vec<f64>,
+        n_excitations: usize,
+        n_channels: usize,
+    ) -> Self {
+        let n = n_excitations * n_channels * frequency_hz.len();
+        Self {
+            quantity,
+            frequency_hz,
+            n_excitations,
+            n_channels,
+            values: vec![c64::new(0.0, 0.0); n],
+        }
+    }
+
+    pub fn n_lines(&self) -> usize {
+        self.frequency_hz.len()
+    }
+
+    fn offset(&self, excitation: usize, channel: usize) -> usize {
+        (excitation * self.n_channels + channel) * self.n_lines()
+    }
+
+    /// The FRF of one channel for one excitation.
+    pub fn frf(&self, excitation: usize, channel: usize) -> &[c64] {
+        let o = self.offset(excitation, channel);
+        &self.values[o..o + self.n_lines()]
+    }
+
+    pub fn frf_mut(&mut self, excitation: usize, channel: usize) -> &mut [c64] {
+        let o = self.offset(excitation, channel);
+        let n = self.n_lines();
+        &mut self.values[o..o + n]
+    }
+
+    /// All channels of one excitation (a SIMO data set), `[channel][line]`.
+    pub fn excitation_block(&self, excitation: usize) -> &[c64] {
+        let o = self.offset(excitation, 0);
+        &self.values[o..o + self.n_channels * self.n_lines()]
+    }
+
+    /// Checks shape, axis and finiteness; errors name the excitation, channel and line.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        validate_frequency_axis(&self.frequency_hz)?;
+        let expect = self.n_excitations * self.n_channels * self.n_lines();
+        if self.values.len() != expect {
+            return Err(CoreError::FrfShape(format!(
+                "{} values for {} excitations × {} channels × {} lines (expected {expect})",
+                self.values.len(),
+                self.n_excitations,
+                self.n_channels,
+                self.n_lines()
+            )));
+        }
+        if let Some(i) = self
+            .values
+            .iter()
+            .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+        {
+            let nl = self.n_lines();
+            let (e, c, l) = (
+                i / (nl * self.n_channels),
+                (i / nl) % self.n_channels,
+                i % nl,
+            );
+            return Err(CoreError::FrfShape(format!(
+                "excitation {e}, channel {c}, line {l} ({} Hz): value {} is not finite",
+                self.frequency_hz[l], self.values[i]
+            )));
+        }
+        Ok(())
+    }
+
+    /// The same data expressed as another quantity. Converting to receptance from
+    /// mobility or accelerance at 0 Hz is undefined; such lines become an error.
+    pub fn to_quantity(&self, target: Quantity) -> Result<FrfSet, CoreError> {
+        if target == self.quantity {
+            return Ok(self.clone());
+        }
+        let nl = self.n_lines();
+        let mut factors = Vec::with_capacity(nl);
+        for &f in &self.frequency_hz {
+            let w = 2.0 * std::f64::consts::PI * f;
+            let from = self.quantity.from_receptance_factor(w);
+            let to = target.from_receptance_factor(w);
+            if from.norm() == 0.0 {
+                return Err(CoreError::FrequencyAxis(format!(
+                    "cannot convert {} to {} at {f} Hz (division by iω = 0); drop the 0 Hz line first",
+                    self.quantity.name(),
+                    target.name()
+                )));
+            }
+            factors.push(to / from);
+        }
+        let mut out = self.clone();
+        out.quantity = target;
+        for (i, v) in out.values.iter_mut().enumerate() {
+            *v *= factors[i % nl];
+        }
+        Ok(out)
+    }
+
+    /// Restricts to lines with `fmin ≤ f ≤ fmax`.
+    pub fn band(&self, fmin: f64, fmax: f64) -> FrfSet {
+        let keep: Vec<usize> = (0..self.n_lines())
+            .filter(|&l| self.frequency_hz[l] >= fmin && self.frequency_hz[l] <= fmax)
+            .collect();
+        let mut out = FrfSet::zeros(
+            self.quantity,
+            keep.iter().map(|&l| self.frequency_hz[l]).collect(),
+            self.n_excitations,
+            self.n_channels,
+        );
+        for e in 0..self.n_excitations {
+            for c in 0..self.n_channels {
+                let src = self.frf(e, c);
+                let dst = out.frf_mut(e, c);
+                for (k, &l) in keep.iter().enumerate() {
+                    dst[k] = src[l];
+                }
+            }
+        }
+        out
+    }
+
+    /// Keeps only the listed excitations, in that order.
+    pub fn select_excitations(&self, which: &[usize]) -> FrfSet {
+        let mut out = FrfSet::zeros(
+            self.quantity,
+            self.frequency_hz.clone(),
+            which.len(),
+            self.n_channels,
+        );
+        for (k, &e) in which.iter().enumerate() {
+            let n = self.n_channels * self.n_lines();
+            out.values[k * n..(k + 1) * n].copy_from_slice(self.excitation_block(e));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantity_conversion_round_trips() {
+        let mut s = FrfSet::zeros(Quantity::Receptance, vec![0.5, 1.0, 2.0], 2, 3);
+        for (i, v) in s.values.iter_mut().enumerate() {
+            *v = c64::new(i as f64 + 1.0, -(i as f64) * 0.5);
+        }
+        let a = s.to_quantity(Quantity::Accelerance).unwrap();
+        let w = 2.0 * std::f64::consts::PI * 2.0;
+        assert!((a.frf(1, 2)[2] - s.frf(1, 2)[2] * (-w * w)).norm() < 1e-12);
+        let back = a
+            .to_quantity(Quantity::Mobility)
+            .unwrap()
+            .to_quantity(Quantity::Receptance)
+            .unwrap();
+        for (x, y) in back.values.iter().zip(&s.values) {
+            assert!((x - y).norm() < 1e-12 * y.norm());
+        }
+    }
+
+    #[test]
+    fn zero_hz_conversion_to_receptance_is_refused() {
+        let s = FrfSet::zeros(Quantity::Accelerance, vec![0.0, 1.0], 1, 1);
+        assert!(s
+            .to_quantity(Quantity::Receptance)
+            .unwrap_err()
+            .to_string()
+            .contains("0 Hz"));
+    }
+
+    #[test]
+    fn validate_names_bad_line() {
+        let mut s = FrfSet::zeros(Quantity::Receptance, vec![1.0, 2.0], 2, 2);
+        *s.frf_mut(1, 0).last_mut().unwrap() = c64::new(f64::NAN, 0.0);
+        let e = s.validate().unwrap_err().to_string();
+        assert!(e.contains("excitation 1, channel 0, line 1"), "{e}");
+        let bad_axis = FrfSet::zeros(Quantity::Receptance, vec![1.0, 1.0], 1, 1);
+        assert!(bad_axis.validate().is_err());
+    }
+
+    #[test]
+    fn quantity_parses_names() {
+        assert_eq!(
+            "Inertance".parse::<Quantity>().unwrap(),
+            Quantity::Accelerance
+        );
+        assert!("furlongs".parse::<Quantity>().is_err());
+    }
+}

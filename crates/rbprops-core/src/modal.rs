@@ -1,0 +1,106 @@
+//! Real modes of a rigid body on a linear suspension.
+
+use crate::{c64, CoreError, Mat6, Vec6};
+use nalgebra::RowVector6;
+
+/// One real mode about an origin O, mass-normalised: `φᵀ M0 φ = 1`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigidMode {
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    /// `φ0 = [u; θ]` about the origin of the geometry.
+    pub shape: Vec6,
+}
+
+impl RigidMode {
+    pub fn omega(&self) -> f64 {
+        2.0 * std::f64::consts::PI * self.frequency_hz
+    }
+
+    /// Modal constant of channel row `a` and force column `b`: `A = (aᵀφ)(bᵀφ)` (1/kg).
+    pub fn modal_constant(&self, a: &RowVector6<f64>, b: &Vec6) -> f64 {
+        (a * self.shape)[0] * b.dot(&self.shape)
+    }
+}
+
+/// Receptance of the modal sum `H(ω) = Σ_r A_r / (ω_r² − ω² + 2iζ_r ω_r ω)` (DOMAIN.md).
+pub fn modal_receptance(modes: &[RigidMode], a: &RowVector6<f64>, b: &Vec6, omega: f64) -> c64 {
+    modes
+        .iter()
+        .map(|m| {
+            let wr = m.omega();
+            c64::new(m.modal_constant(a, b), 0.0)
+                / c64::new(wr * wr - omega * omega, 2.0 * m.damping_ratio * wr * omega)
+        })
+        .sum()
+}
+
+/// Undamped modes of `K φ = ω² M φ`, mass-normalised (`ΦᵀMΦ = I`), ascending in frequency.
+/// Each shape's largest-magnitude entry is made positive so results are reproducible.
+/// Negative eigenvalues (an unstable suspension) are an error.
+pub fn rigid_body_modes(m: &Mat6, k: &Mat6) -> Result<Vec<(f64, Vec6)>, CoreError> {
+    let chol = nalgebra::Cholesky::new(*m)
+        .ok_or_else(|| CoreError::Inertia("mass matrix is not positive definite".into()))?;
+    let l = chol.l();
+    let linv = l
+        .try_inverse()
+        .ok_or_else(|| CoreError::Inertia("mass matrix is singular".into()))?;
+    let a = linv * k * linv.transpose();
+    let a = (a + a.transpose()) / 2.0;
+    let eig = a.symmetric_eigen();
+    let mut idx: Vec<usize> = (0..6).collect();
+    idx.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    let scale = eig.eigenvalues.abs().max().max(f64::MIN_POSITIVE);
+    let mut out = Vec::with_capacity(6);
+    for i in idx {
+        let w2 = eig.eigenvalues[i];
+        if w2 < -1e-12 * scale {
+            return Err(CoreError::Inertia(format!(
+                "suspension is unstable: eigenvalue ω² = {w2:.4e} < 0"
+            )));
+        }
+        let mut phi: Vec6 = linv.transpose() * eig.eigenvectors.column(i);
+        let imax = phi.iamax();
+        if phi[imax] < 0.0 {
+            phi = -phi;
+        }
+        out.push((w2.max(0.0).sqrt(), phi));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{RigidBodyProperties, Vec3};
+
+    #[test]
+    fn modes_are_mass_normalised_and_diagonalise_k() {
+        let props = RigidBodyProperties::from_moments_and_products(
+            15.69,
+            Vec3::new(0.1, -0.05, 0.2),
+            [0.357, 0.394, 0.317],
+            crate::inertia::ProductsOfInertia {
+                xy: 0.077,
+                xz: -0.087,
+                yz: -0.069,
+            },
+        );
+        let m = props.mass_matrix().0;
+        let mut k = Mat6::zeros();
+        for (i, v) in [100.0, 200.0, 300.0, 5.0, 7.0, 9.0].iter().enumerate() {
+            k[(i, i)] = *v;
+        }
+        k[(0, 4)] = 3.0;
+        k[(4, 0)] = 3.0;
+        let modes = rigid_body_modes(&m, &k).unwrap();
+        let phi = Mat6::from_columns(&modes.iter().map(|(_, p)| *p).collect::<Vec<_>>());
+        let id = phi.transpose() * m * phi;
+        assert!((id - Mat6::identity()).norm() < 1e-12);
+        let om = phi.transpose() * k * phi;
+        for i in 0..6 {
+            assert!((om[(i, i)] - modes[i].0.powi(2)).abs() < 1e-10 * modes[5].0.powi(2));
+        }
+        assert!(modes.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+}

@@ -1,0 +1,240 @@
+//! Records that cross stage boundaries. They are plain data (arrays, not nalgebra
+//! types) with `serde` + `schemars` derives so that `rbprops-formats` can write them as
+//! JSON messages with a JSON schema (MCAP) and as CSV tables.
+//!
+//! Field names carry their units. Complex numbers are `[re, im]` pairs.
+
+use crate::c64;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// Which program produced a part of the record, with what, from what.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct StageProvenance {
+    /// Program name (`frf-sim`, `modal-fit`, …).
+    pub tool: String,
+    /// rbprops version.
+    pub version: String,
+    /// Command-line arguments after the program name.
+    pub args: Vec<String>,
+    /// SHA-256 (hex) of the input bytes, or of the spec for a simulation.
+    pub input_sha256: String,
+}
+
+/// Products of inertia `{xy, xz, yz}` in the DOMAIN.md sense (`J_xy = ∫xy dm`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+pub struct Products {
+    pub xy: f64,
+    pub xz: f64,
+    pub yz: f64,
+}
+
+/// Mass, CoM and inertia at the CoM.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct PropertiesRecord {
+    pub mass_kg: f64,
+    /// Centre of mass in the geometry's frame (m).
+    pub com_m: [f64; 3],
+    /// Inertia tensor about the CoM (row-major; off-diagonals are minus the products).
+    pub inertia_cm_kg_m2: [[f64; 3]; 3],
+}
+
+impl PropertiesRecord {
+    pub fn from_properties(p: &crate::RigidBodyProperties) -> Self {
+        let j = &p.inertia_cm;
+        Self {
+            mass_kg: p.mass,
+            com_m: [p.com.x, p.com.y, p.com.z],
+            inertia_cm_kg_m2: [
+                [j[(0, 0)], j[(0, 1)], j[(0, 2)]],
+                [j[(1, 0)], j[(1, 1)], j[(1, 2)]],
+                [j[(2, 0)], j[(2, 1)], j[(2, 2)]],
+            ],
+        }
+    }
+    pub fn to_properties(&self) -> crate::RigidBodyProperties {
+        let j = &self.inertia_cm_kg_m2;
+        crate::RigidBodyProperties {
+            mass: self.mass_kg,
+            com: crate::Vec3::from(self.com_m),
+            inertia_cm: crate::Mat3::from_fn(|r, c| j[r][c]),
+        }
+    }
+}
+
+/// A true (simulated) real mode about the geometry's origin.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TrueModeRecord {
+    /// 1-based mode number within its set-up, ascending frequency.
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    /// Mass-normalised shape `[u_x, u_y, u_z, θ_x, θ_y, θ_z]` about the origin.
+    pub shape: [f64; 6],
+}
+
+/// The true modes of one suspension set-up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TrueSetupRecord {
+    pub setup: String,
+    /// Mount stiffness about the origin, 6×6 row-major (N/m, N, N m/rad).
+    pub stiffness: [[f64; 6]; 6],
+    pub modes: Vec<TrueModeRecord>,
+}
+
+/// One effect of the physics catalogue that a simulation switched on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct EffectRecord {
+    /// Stable snake_case id (`gravity_stiffness`, `sensor_mass`, …).
+    pub id: String,
+    /// Its parameters as given in the spec (free-form JSON object).
+    pub parameters: serde_json::Value,
+}
+
+/// Ground truth written by `frf-sim`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TruthRecord {
+    pub campaign: String,
+    pub properties: PropertiesRecord,
+    pub setups: Vec<TrueSetupRecord>,
+    pub effects: Vec<EffectRecord>,
+    pub seed: u64,
+    /// Relative noise level (fraction of |H|) and absolute floor (FRF units).
+    pub noise_relative: f64,
+    pub noise_floor: f64,
+}
+
+/// One identified mode of one excitation (output of `modal-fit`).
+///
+/// Residues are *modal constants* in the receptance form of DOMAIN.md:
+/// `H_i(ω) = Σ_r A_ir / (ω_r² − ω² + 2iζ_r ω_r ω)` with `A_ir` in 1/kg, whatever quantity
+/// the input FRFs were. For a proportionally damped rigid body `A_ir = (s_iᵀφ_r)(f_kᵀφ_r)`,
+/// real; the imaginary part measures modal complexity.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ModeEstimate {
+    pub excitation: String,
+    pub setup: String,
+    /// 1-based mode number within this excitation, ascending frequency.
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub frequency_std_hz: f64,
+    pub damping_ratio: f64,
+    pub damping_std: f64,
+    /// Modal constants per channel (geometry channel order), `[re, im]`, 1/kg.
+    #[schemars(with = "Vec<[f64; 2]>")]
+    pub residues: Vec<c64>,
+    /// Standard error of each residue (same for re and im), 1/kg.
+    pub residue_std: Vec<f64>,
+    /// 0..1: how sure the pole selection is that this is one physical mode.
+    pub confidence: f64,
+    /// Mode phase collinearity (1 = real mode).
+    pub mpc: f64,
+    /// True when the excitation barely excites this mode: its numbers are unreliable.
+    pub weak: bool,
+    pub warnings: Vec<String>,
+}
+
+/// Per-excitation summary of the identification.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ExcitationFitRecord {
+    pub excitation: String,
+    pub setup: String,
+    /// `lsce`, `lscf` or `circle`.
+    pub method: String,
+    /// Model order chosen (number of modes in the band).
+    pub model_order: usize,
+    pub band_hz: [f64; 2],
+    pub n_lines: usize,
+    /// Normalised fit error per channel: ‖H_meas − H_synth‖² / ‖H_meas‖² over the band.
+    pub fit_error: Vec<f64>,
+    pub warnings: Vec<String>,
+}
+
+/// Output of `modal-fit`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+pub struct ModalFitRecord {
+    pub residue_convention: String,
+    pub excitations: Vec<ExcitationFitRecord>,
+    pub modes: Vec<ModeEstimate>,
+}
+
+/// A mode chosen for the inertia estimate: which excitation's shape is used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SelectedMode {
+    pub setup: String,
+    /// 1-based physical mode number within the set-up (matched across excitations).
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub excitation: String,
+    /// The mode number within that excitation's `ModeEstimate`s.
+    pub excitation_mode: usize,
+    /// NI of the chosen excitation at the mode (dB re 1 FRF unit).
+    pub ni_db: f64,
+    /// NI margin over the runner-up excitation (dB); NaN-free: 0 when there is none.
+    pub margin_db: f64,
+    pub runner_up: Option<String>,
+    /// Excitation strength `f_kᵀq` (1/kg); ≤ 0 means not excited.
+    pub strength: f64,
+    /// `ni`, `hybrid_mif`, `prf_mif` or `manual`.
+    pub criterion: String,
+}
+
+/// A mode no excitation excites above the noise.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct MissingMode {
+    pub setup: String,
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub tried: Vec<String>,
+    pub reason: String,
+}
+
+/// Output of `ni-select`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+pub struct SelectionRecord {
+    pub selected: Vec<SelectedMode>,
+    pub missing: Vec<MissingMode>,
+    pub warnings: Vec<String>,
+}
+
+/// One estimator's result (output of `rb-solve`); the JSON interface of `--format json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct InertiaEstimate {
+    /// `bretl_conti`, `toivola_nuutila`, `mass_line`, `model_fit`.
+    pub method: String,
+    pub setup: String,
+    /// Origin the estimator worked about, geometry frame (m).
+    pub origin_m: [f64; 3],
+    pub mass_kg: f64,
+    pub mass_std_kg: f64,
+    pub com_m: [f64; 3],
+    pub com_std_m: [f64; 3],
+    pub inertia_cm_kg_m2: [[f64; 3]; 3],
+    pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
+    pub products_of_inertia_kg_m2: Products,
+    pub products_of_inertia_std_kg_m2: Products,
+    /// Principal moments (ascending) and their axes (columns of the 3×3).
+    pub principal_moments_kg_m2: [f64; 3],
+    pub principal_axes: [[f64; 3]; 3],
+    /// Mount stiffness about the origin `K0 = Φ0⁻ᵀΩ²Φ0⁻¹` when six modes exist.
+    pub mount_stiffness: Option<[[f64; 6]; 6]>,
+    /// Estimator residual (dimensionless, defined per method).
+    pub residual: f64,
+    /// How the standard errors were obtained (`linearised`, `monte_carlo`, `none`).
+    pub uncertainty_method: String,
+    pub modes_used: Vec<usize>,
+    pub excitations_used: Vec<String>,
+    /// Relative errors vs reference values when given: mass, com, inertia, sum.
+    pub errors: Option<ErrorsRecord>,
+    pub physically_consistent: bool,
+    pub warnings: Vec<String>,
+}
+
+/// The paper's relative error measures.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ErrorsRecord {
+    pub mass: f64,
+    pub com: f64,
+    pub inertia: f64,
+    pub sum: f64,
+}
