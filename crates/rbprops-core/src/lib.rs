@@ -17,6 +17,7 @@ pub mod geometry;
 pub mod inertia;
 pub mod modal;
 pub mod records;
+pub mod rigid;
 
 pub use error::CoreError;
 pub use frf::{FrfSet, Quantity};
@@ -25,6 +26,7 @@ pub use geometry::{
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, RigidMode};
+pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.
 #[allow(non_camel_case_types)]
