@@ -1,0 +1,343 @@
+//! Shared drawing machinery: the SVG document, a cartesian chart with our
+//! axes, legends, footnotes and polyline clipping.
+
+use plotters::chart::{ChartBuilder, ChartContext};
+use plotters::coord::cartesian::Cartesian2d;
+use plotters::coord::Shift;
+use plotters::drawing::{DrawingArea, IntoDrawingArea};
+use plotters::element::Text;
+use plotters::prelude::SVGBackend;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+use plotters::style::{Color, IntoFont, RGBAColor, ShapeStyle, TextStyle, WHITE};
+
+use crate::axis::{Axis, AxisSpec};
+use crate::error::PlotError;
+use crate::style::{finish_svg, LegendPosition, PlotSize};
+
+pub(crate) const FONT: &str = "sans-serif";
+pub(crate) type Root<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(crate) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<Axis, Axis>>;
+
+/// Name used for a plot in error messages.
+pub(crate) fn plot_name(title: &str) -> String {
+    if title.trim().is_empty() {
+        "untitled".to_string()
+    } else {
+        title.to_string()
+    }
+}
+
+/// Convert any plotters error into ours.
+pub(crate) fn render_err<E: std::fmt::Debug>(plot: &str) -> impl Fn(E) -> PlotError + '_ {
+    move |e| PlotError::Render {
+        plot: plot.to_string(),
+        message: format!("{e:?}"),
+    }
+}
+
+/// Create an SVG document of `size`, let `draw` fill it, and return the text.
+pub(crate) fn render_svg<F>(plot: &str, size: PlotSize, draw: F) -> Result<String, PlotError>
+where
+    F: FnOnce(&Root<'_>) -> Result<(), PlotError>,
+{
+    if size.width < 200 || size.height < 150 {
+        return Err(PlotError::InvalidSize {
+            plot: plot.to_string(),
+            width: size.width,
+            height: size.height,
+        });
+    }
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (size.width, size.height)).into_drawing_area();
+        root.fill(&WHITE).map_err(render_err(plot))?;
+        draw(&root)?;
+        root.present().map_err(render_err(plot))?;
+    }
+    Ok(finish_svg(buf))
+}
+
+/// Space reserved around the plotting area, in pixels.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Margins {
+    pub left: u32,
+    pub bottom: u32,
+    pub right: u32,
+    /// Extra space above the plotting area (to align with a titled neighbour).
+    pub top: u32,
+}
+
+impl Default for Margins {
+    fn default() -> Self {
+        Margins {
+            left: 80,
+            bottom: 55,
+            right: 0,
+            top: 0,
+        }
+    }
+}
+
+/// Build a titled cartesian chart on `area` with the given axes.
+pub(crate) fn chart<'a, 'b>(
+    plot: &str,
+    area: &'a Root<'b>,
+    title: &str,
+    x: &AxisSpec,
+    y: &AxisSpec,
+    margins: Margins,
+) -> Result<Chart<'a, 'b>, PlotError> {
+    let mut builder = ChartBuilder::on(area);
+    if !title.is_empty() {
+        builder.caption(title, (FONT, 22).into_font());
+    }
+    builder
+        .margin(12)
+        .margin_top(12 + margins.top)
+        .margin_right(20)
+        .x_label_area_size(margins.bottom)
+        .y_label_area_size(margins.left);
+    if margins.right > 0 {
+        builder.right_y_label_area_size(margins.right);
+    }
+    builder
+        .build_cartesian_2d(x.coord(), y.coord())
+        .map_err(render_err(plot))
+}
+
+/// Grid, ticks and axis descriptions.
+pub(crate) fn draw_mesh(
+    plot: &str,
+    chart: &mut Chart<'_, '_>,
+    x: &AxisSpec,
+    y: &AxisSpec,
+    x_desc: &str,
+    y_desc: &str,
+    x_grid: bool,
+) -> Result<(), PlotError> {
+    let xf = |v: &f64| x.label(*v);
+    let yf = |v: &f64| y.label(*v);
+    let mut mesh = chart.configure_mesh();
+    mesh.x_label_formatter(&xf)
+        .y_label_formatter(&yf)
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .bold_line_style(RGBAColor(0, 0, 0, 0.15))
+        .light_line_style(RGBAColor(0, 0, 0, 0.05));
+    if !x_grid {
+        mesh.disable_x_mesh();
+    }
+    mesh.draw().map_err(render_err(plot))
+}
+
+/// Height taken by a chart title drawn with `chart` (plotters: text height
+/// plus twice min(height/2, 5) padding).
+pub(crate) fn title_height(root: &Root<'_>, title: &str) -> u32 {
+    if title.is_empty() {
+        return 0;
+    }
+    let style = TextStyle::from((FONT, 22).into_font());
+    let h = root
+        .estimate_text_size(title, &style)
+        .map(|(_, h)| h)
+        .unwrap_or(0);
+    h + 2 * (h / 2).min(5)
+}
+
+/// Draw the legend collected from `.label()` calls, if requested.
+pub(crate) fn draw_legend<'a, 'b: 'a>(
+    plot: &str,
+    chart: &mut Chart<'a, 'b>,
+    position: LegendPosition,
+) -> Result<(), PlotError> {
+    let Some(pos) = position.to_plotters() else {
+        return Ok(());
+    };
+    chart
+        .configure_series_labels()
+        .position(pos)
+        .margin(10)
+        .label_font((FONT, 14))
+        .background_style(RGBAColor(255, 255, 255, 0.85))
+        .border_style(RGBAColor(0, 0, 0, 0.5))
+        .draw()
+        .map_err(render_err(plot))
+}
+
+/// Small grey note at the bottom-left corner of the canvas, e.g. telling the
+/// reader how many points could not be shown.
+pub(crate) fn footnote(plot: &str, root: &Root<'_>, text: &str) -> Result<(), PlotError> {
+    let (_, h) = root.dim_in_pixel();
+    let style = text_style(
+        12,
+        RGBAColor(90, 90, 90, 1.0),
+        Pos::new(HPos::Left, VPos::Bottom),
+    );
+    root.draw(&Text::new(text.to_string(), (6, h as i32 - 4), style))
+        .map_err(render_err(plot))
+}
+
+/// Footnote text for `n` skipped points, or `None` if nothing was skipped.
+pub(crate) fn skipped_note(n: usize, why: &str) -> Option<String> {
+    match n {
+        0 => None,
+        1 => Some(format!("1 point not shown ({why})")),
+        n => Some(format!("{n} points not shown ({why})")),
+    }
+}
+
+/// Split a plot-space polyline (with `None` for unplottable points) into the
+/// visible pieces inside `[x.lo, x.hi] × [y.lo, y.hi]`. Gaps break the line
+/// rather than bridging across missing data; segments crossing the border are
+/// cut at the border (Liang–Barsky), since plotters does not clip paths.
+pub(crate) fn clip_polyline(
+    points: &[Option<(f64, f64)>],
+    x: &AxisSpec,
+    y: &AxisSpec,
+) -> Vec<Vec<(f64, f64)>> {
+    let mut pieces: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut current: Vec<(f64, f64)> = Vec::new();
+    let flush = |current: &mut Vec<(f64, f64)>, pieces: &mut Vec<Vec<(f64, f64)>>| {
+        if !current.is_empty() {
+            pieces.push(std::mem::take(current));
+        }
+    };
+    let inside = |p: (f64, f64)| x.contains(p.0) && y.contains(p.1);
+    let mut prev: Option<(f64, f64)> = None;
+    for p in points {
+        match (*p, prev) {
+            (None, _) => {
+                flush(&mut current, &mut pieces);
+                prev = None;
+            }
+            (Some(q), None) => {
+                if inside(q) {
+                    current.push(q);
+                }
+                prev = Some(q);
+            }
+            (Some(q), Some(pq)) => {
+                match clip_segment(pq, q, x, y) {
+                    Some((a, b)) => {
+                        if current.last() != Some(&a) {
+                            flush(&mut current, &mut pieces);
+                            current.push(a);
+                        }
+                        current.push(b);
+                        if b != q {
+                            flush(&mut current, &mut pieces);
+                        }
+                    }
+                    None => flush(&mut current, &mut pieces),
+                }
+                prev = Some(q);
+            }
+        }
+    }
+    flush(&mut current, &mut pieces);
+    pieces
+}
+
+fn clip_segment(
+    a: (f64, f64),
+    b: (f64, f64),
+    x: &AxisSpec,
+    y: &AxisSpec,
+) -> Option<((f64, f64), (f64, f64))> {
+    let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    for (p, q) in [
+        (-dx, a.0 - x.lo),
+        (dx, x.hi - a.0),
+        (-dy, a.1 - y.lo),
+        (dy, y.hi - a.1),
+    ] {
+        if p == 0.0 {
+            if q < 0.0 {
+                return None;
+            }
+        } else {
+            let r = q / p;
+            if p < 0.0 {
+                t0 = t0.max(r);
+            } else {
+                t1 = t1.min(r);
+            }
+        }
+    }
+    if t0 > t1 {
+        return None;
+    }
+    let at = |t: f64| {
+        if t == 0.0 {
+            a
+        } else if t == 1.0 {
+            b
+        } else {
+            (a.0 + t * dx, a.1 + t * dy)
+        }
+    };
+    Some((at(t0), at(t1)))
+}
+
+/// A label text style of `size` px in colour `c`.
+pub(crate) fn text_style(size: u32, c: RGBAColor, pos: Pos) -> TextStyle<'static> {
+    TextStyle {
+        font: (FONT, size).into_font(),
+        color: c.to_backend_color(),
+        pos,
+    }
+}
+
+/// Solid filled style.
+pub(crate) fn fill(c: RGBAColor) -> ShapeStyle {
+    ShapeStyle {
+        color: c,
+        filled: true,
+        stroke_width: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::axis::{Fit, Scale};
+
+    fn unit_axes() -> (AxisSpec, AxisSpec) {
+        let a =
+            AxisSpec::resolve("t", "x", Scale::Linear, None, Some((0.0, 1.0)), Fit::Tight).unwrap();
+        (a.clone(), a)
+    }
+
+    #[test]
+    fn gaps_break_the_line() {
+        let (x, y) = unit_axes();
+        let pts = [
+            Some((0.1, 0.1)),
+            Some((0.2, 0.2)),
+            None,
+            Some((0.4, 0.4)),
+            Some((0.5, 0.5)),
+        ];
+        let pieces = clip_polyline(&pts, &x, &y);
+        assert_eq!(
+            pieces,
+            vec![vec![(0.1, 0.1), (0.2, 0.2)], vec![(0.4, 0.4), (0.5, 0.5)]]
+        );
+    }
+
+    #[test]
+    fn excursions_are_cut_at_the_border() {
+        let (x, y) = unit_axes();
+        let pts = [Some((0.0, 0.5)), Some((0.5, 1.5)), Some((1.0, 0.5))];
+        let pieces = clip_polyline(&pts, &x, &y);
+        assert_eq!(pieces.len(), 2);
+        assert_eq!(pieces[0], vec![(0.0, 0.5), (0.25, 1.0)]);
+        assert_eq!(pieces[1], vec![(0.75, 1.0), (1.0, 0.5)]);
+        // A segment entirely outside disappears.
+        let out = [Some((2.0, 2.0)), Some((3.0, 3.0))];
+        assert!(clip_polyline(&out, &x, &y).is_empty());
+    }
+}
