@@ -142,4 +142,52 @@ fn main() {
             ..Default::default()
         }),
     );
+
+    let sets: Vec<String> = ["I", "II", "III", "IV", "V"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    write(
+        "bar_chart.svg",
+        bar_chart(&BarChart {
+            title: "Mass estimate per data set".into(),
+            groups: sets.clone(),
+            series: (0..3)
+                .map(|o| {
+                    BarSeries::new(
+                        format!("origin {}", ["I", "II", "III"][o]),
+                        (0..5)
+                            .map(|g| 12.0 + 0.3 * ((g * 3 + o) as f64).sin())
+                            .collect(),
+                    )
+                    .with_errors((0..5).map(|g| 0.1 + 0.05 * g as f64).collect())
+                })
+                .collect(),
+            x_label: "Data set".into(),
+            y_label: "m [kg]".into(),
+            references: vec![ReferenceLine {
+                y: 12.1,
+                label: "true value".into(),
+            }],
+            y_range: Some((11.0, 13.0)),
+            legend: LegendPosition::LowerRight,
+            ..Default::default()
+        }),
+    );
+    write(
+        "scatter.svg",
+        scatter_plot(&ScatterPlot {
+            title: "Estimated vs true inertia".into(),
+            x_label: "true [kg m²]".into(),
+            y_label: "estimated [kg m²]".into(),
+            series: vec![
+                ScatterSeries::new("Ixx, Iyy, Izz", vec![0.5, 0.8, 1.1], vec![0.52, 0.77, 1.13])
+                    .with_errors(vec![0.03, 0.04, 0.05]),
+                ScatterSeries::new("products", vec![-0.05, 0.02, 0.1], vec![-0.04, 0.03, 0.08]),
+            ],
+            identity_line: true,
+            legend: LegendPosition::UpperLeft,
+            ..Default::default()
+        }),
+    );
 }

@@ -104,6 +104,8 @@ pub(crate) struct AxisSpec {
     pub scale: Scale,
     /// Decimal places for linear labels (`None`: scientific notation).
     decimals: Option<usize>,
+    /// Category names; tick at `i + 0.5` is labelled `categories[i]`.
+    categories: Vec<String>,
 }
 
 /// How an automatic range is widened around the data.
@@ -179,6 +181,7 @@ impl AxisSpec {
             light,
             scale,
             decimals,
+            categories: vec![],
         }
     }
 
@@ -215,6 +218,7 @@ impl AxisSpec {
             light,
             scale: Scale::Log10,
             decimals: None,
+            categories: vec![],
         }
     }
 
@@ -229,18 +233,22 @@ impl AxisSpec {
             light: vec![],
             scale: Scale::Linear,
             decimals: Some(0),
+            categories: vec![],
         }
     }
 
-    /// Ticks at explicit positions with no light grid (categorical axes).
-    pub fn categorical(lo: f64, hi: f64, ticks: Vec<f64>) -> AxisSpec {
+    /// Categorical axis over `[0, n]`: category `i` occupies `[i, i+1]` and is
+    /// labelled at its centre. Without categories: a unit axis with no ticks.
+    pub fn categorical(categories: Vec<String>) -> AxisSpec {
+        let n = categories.len();
         AxisSpec {
-            lo,
-            hi,
-            bold: ticks,
+            lo: 0.0,
+            hi: n.max(1) as f64,
+            bold: (0..n).map(|i| i as f64 + 0.5).collect(),
             light: vec![],
             scale: Scale::Linear,
             decimals: Some(0),
+            categories,
         }
     }
 
@@ -260,6 +268,13 @@ impl AxisSpec {
 
     /// Tick label text for a plot-space tick position.
     pub fn label(&self, v: f64) -> String {
+        if !self.categories.is_empty() {
+            let i = (v - 0.5).round();
+            return match self.categories.get(i as usize) {
+                Some(l) if i >= 0.0 => l.clone(),
+                _ => String::new(),
+            };
+        }
         match self.scale {
             Scale::Log10 => decade_label(v),
             _ => format_number(v, self.decimals),
@@ -472,6 +487,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!((a.lo, a.hi), (-120.0, -20.0));
+    }
+
+    #[test]
+    fn categorical_labels_at_centres() {
+        let a = AxisSpec::categorical(vec!["I".into(), "II".into()]);
+        assert_eq!((a.lo, a.hi), (0.0, 2.0));
+        assert_eq!(a.bold, vec![0.5, 1.5]);
+        assert_eq!(a.label(1.5), "II");
+        assert_eq!(a.label(2.5), "");
+        assert_eq!(a.label(-0.5), "");
     }
 
     #[test]

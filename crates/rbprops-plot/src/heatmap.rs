@@ -8,7 +8,7 @@ use plotters::style::{RGBAColor, ShapeStyle};
 use crate::axis::{extent, format_number, AxisSpec, Fit, Scale};
 use crate::canvas::{
     chart, draw_mesh, fill, footnote, plot_name, render_err, render_svg, text_style, title_height,
-    Margins,
+    Margins, FONT,
 };
 use crate::error::PlotError;
 use crate::style::{PlotSize, Rgb};
@@ -116,8 +116,9 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
     let t_of = |v: f64| (v - scale.lo) / (scale.hi - scale.lo);
 
     // Cell (r, c) occupies [c, c+1] × [nr-1-r, nr-r] so that row 0 is on top.
-    let x = AxisSpec::categorical(0.0, nc as f64, (0..nc).map(|c| c as f64 + 0.5).collect());
-    let y = AxisSpec::categorical(0.0, nr as f64, (0..nr).map(|r| r as f64 + 0.5).collect());
+    let x = AxisSpec::categorical(h.column_labels.clone());
+    // Row 0 at the top: the axis lists rows bottom-up.
+    let y = AxisSpec::categorical(h.row_labels.iter().rev().cloned().collect());
     let longest_row = h
         .row_labels
         .iter()
@@ -133,16 +134,14 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
         let (w, _) = root.dim_in_pixel();
         let (main, bar) = root.split_horizontally(w.saturating_sub(150));
         let mut ch = chart(&plot, &main, &h.title, &x, &y, margins)?;
-        let col_label = |v: &f64| label_at(&h.column_labels, *v, false);
-        let row_label = |v: &f64| label_at(&h.row_labels, *v, true);
         ch.configure_mesh()
             .disable_mesh()
-            .x_label_formatter(&col_label)
-            .y_label_formatter(&row_label)
+            .x_label_formatter(&|v: &f64| x.label(*v))
+            .y_label_formatter(&|v: &f64| y.label(*v))
             .x_desc(h.x_label.as_str())
             .y_desc(h.y_label.as_str())
-            .label_style((crate::canvas::FONT, 14))
-            .axis_desc_style((crate::canvas::FONT, 16))
+            .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
             .draw()
             .map_err(render_err(&plot))?;
         let cells: Vec<(usize, usize, f64)> = h
@@ -201,7 +200,7 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
         .map_err(render_err(&plot))?;
 
         // Colour bar: 64 bands over the value scale.
-        let unit = AxisSpec::categorical(0.0, 1.0, vec![]);
+        let unit = AxisSpec::categorical(vec![]);
         let bar_axis = AxisSpec::resolve(
             &plot,
             "value",
@@ -240,17 +239,6 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
     })
 }
 
-/// Label of the category whose centre is at `v` (rows counted from the top).
-fn label_at(labels: &[String], v: f64, from_top: bool) -> String {
-    let i = (v - 0.5).round();
-    if i < 0.0 || i as usize >= labels.len() {
-        return String::new();
-    }
-    let i = i as usize;
-    let i = if from_top { labels.len() - 1 - i } else { i };
-    labels[i].clone()
-}
-
 /// Font size that fits a printed value in a cell.
 fn cell_font(size: PlotSize, nr: usize, nc: usize) -> u32 {
     let cell_w = size.width.saturating_sub(300) / nc.max(1) as u32;
@@ -269,14 +257,5 @@ mod tests {
         assert_eq!(viridis(-3.0), viridis(0.0));
         assert_eq!(viridis(7.0), viridis(1.0));
         assert_eq!(viridis(0.5), Rgb(33, 144, 141));
-    }
-
-    #[test]
-    fn category_labels_from_centres() {
-        let l: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
-        assert_eq!(label_at(&l, 0.5, false), "a");
-        assert_eq!(label_at(&l, 0.5, true), "c");
-        assert_eq!(label_at(&l, 2.5, true), "a");
-        assert_eq!(label_at(&l, 3.5, false), "");
     }
 }

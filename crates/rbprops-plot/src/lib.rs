@@ -13,17 +13,21 @@
 //! the curve, and are counted in a footnote printed on the figure.
 
 mod axis;
+mod bar;
 mod canvas;
 mod error;
 mod heatmap;
 mod line;
+mod scatter;
 mod stabilisation;
 mod style;
 
 pub use axis::Scale;
+pub use bar::{bar_chart, BarChart, BarSeries, ReferenceLine};
 pub use error::PlotError;
 pub use heatmap::{heat_map, viridis, HeatMap};
 pub use line::{line_plot, LinePlot, Series, VerticalMarker};
+pub use scatter::{scatter_plot, ScatterPlot, ScatterSeries};
 pub use stabilisation::{
     stabilisation_diagram, BackgroundCurve, PoleClass, StabilisationDiagram, StabilisationPole,
 };

@@ -1,0 +1,198 @@
+//! Scatter plot of x/y points with optional y error bars, e.g. estimated vs
+//! true values.
+
+use plotters::element::{Circle, PathElement};
+use plotters::style::ShapeStyle;
+
+use crate::axis::{extent, AxisSpec, Fit, Scale};
+use crate::canvas::{
+    chart, draw_legend, draw_mesh, fill, footnote, plot_name, render_err, render_svg, skipped_note,
+    Margins,
+};
+use crate::error::PlotError;
+use crate::line::check_series;
+use crate::style::{stroke, LegendPosition, LineStyle, PlotSize, Rgb};
+
+/// One named set of points.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScatterSeries {
+    pub name: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    /// Optional symmetric error half-widths in y (e.g. 1.96σ), one per point.
+    pub y_errors: Option<Vec<f64>>,
+    pub color: Option<Rgb>,
+}
+
+impl ScatterSeries {
+    pub fn new(name: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
+        ScatterSeries {
+            name: name.into(),
+            x,
+            y,
+            ..Default::default()
+        }
+    }
+
+    pub fn with_errors(mut self, half_widths: Vec<f64>) -> Self {
+        self.y_errors = Some(half_widths);
+        self
+    }
+
+    pub fn with_color(mut self, color: Rgb) -> Self {
+        self.color = Some(color);
+        self
+    }
+}
+
+/// Input of [`scatter_plot`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ScatterPlot {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub x_scale: Scale,
+    pub y_scale: Scale,
+    pub series: Vec<ScatterSeries>,
+    /// Draw the identity line y = x (estimated vs true).
+    pub identity_line: bool,
+    pub x_range: Option<(f64, f64)>,
+    pub y_range: Option<(f64, f64)>,
+    pub legend: LegendPosition,
+    pub size: PlotSize,
+}
+
+/// Render a scatter plot: one filled `<circle>` per plottable point in the
+/// series colour, one black `<polyline>` per error bar, and a dashed grey
+/// identity line if requested (only meaningful for equal scales). Points that
+/// are non-finite (or non-positive on a log/dB axis) are skipped and counted in
+/// the footnote; an error bar whose ends cannot be shown is clipped.
+///
+/// Errors: no series, empty series, length mismatches, no plottable point,
+/// invalid ranges.
+pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
+    let plot = plot_name(&p.title);
+    if p.series.is_empty() {
+        return Err(PlotError::Empty {
+            plot,
+            what: "series list",
+        });
+    }
+    // Per point: plot-space centre and (low, high) y ends of the error bar.
+    type Point = ((f64, f64), Option<(f64, f64)>);
+    let mut pts: Vec<Vec<Point>> = Vec::new();
+    let mut skipped = 0usize;
+    for s in &p.series {
+        check_series(&plot, &s.name, s.x.len(), s.y.len())?;
+        if let Some(e) = &s.y_errors {
+            if e.len() != s.x.len() {
+                return Err(PlotError::LengthMismatch {
+                    plot,
+                    series: s.name.clone(),
+                    what: "y_errors",
+                    expected: s.x.len(),
+                    found: e.len(),
+                });
+            }
+        }
+        let mut v = Vec::new();
+        for i in 0..s.x.len() {
+            match (p.x_scale.transform(s.x[i]), p.y_scale.transform(s.y[i])) {
+                (Some(tx), Some(ty)) => {
+                    let bar = s
+                        .y_errors
+                        .as_ref()
+                        .map(|e| e[i])
+                        .filter(|e| e.is_finite() && *e > 0.0)
+                        .map(|e| {
+                            // A lower end that is not plottable (log axis) runs to the axis bottom.
+                            let lo = p.y_scale.transform(s.y[i] - e).unwrap_or(f64::NEG_INFINITY);
+                            let hi = p.y_scale.transform(s.y[i] + e).unwrap_or(ty);
+                            (lo, hi)
+                        });
+                    v.push(((tx, ty), bar));
+                }
+                _ => skipped += 1,
+            }
+        }
+        pts.push(v);
+    }
+    let all = || pts.iter().flatten();
+    let xe = extent(all().map(|q| q.0 .0));
+    let ye = extent(
+        all()
+            .flat_map(|q| [Some(q.0 .1), q.1.map(|b| b.0), q.1.map(|b| b.1)])
+            .flatten(),
+    );
+    let (Some(mut xe), Some(mut ye)) = (xe, ye) else {
+        return Err(PlotError::NoPlottableData { plot, skipped });
+    };
+    if p.identity_line && p.x_scale == p.y_scale {
+        // Same limits on both axes so the identity line is the diagonal.
+        let lo = xe.0.min(ye.0);
+        let hi = xe.1.max(ye.1);
+        xe = (lo, hi);
+        ye = (lo, hi);
+    }
+    let x = AxisSpec::resolve(&plot, "x", p.x_scale, Some(xe), p.x_range, Fit::Nice)?;
+    let y = AxisSpec::resolve(&plot, "y", p.y_scale, Some(ye), p.y_range, Fit::Nice)?;
+
+    render_svg(&plot, p.size, |root| {
+        let mut ch = chart(&plot, root, &p.title, &x, &y, Margins::default())?;
+        draw_mesh(&plot, &mut ch, &x, &y, &p.x_label, &p.y_label, true)?;
+        if p.identity_line {
+            let lo = x.lo.max(y.lo);
+            let hi = x.hi.min(y.hi);
+            if hi > lo {
+                let style = stroke(Rgb::GREY, LineStyle::Dashed, 1);
+                ch.draw_series(std::iter::once(PathElement::new(
+                    vec![(lo, lo), (hi, hi)],
+                    style,
+                )))
+                .map_err(render_err(&plot))?
+                .label("y = x")
+                .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
+            }
+        }
+        let whisker = ShapeStyle {
+            color: Rgb::BLACK.rgba(1.0),
+            filled: false,
+            stroke_width: 1,
+        };
+        for v in &pts {
+            ch.draw_series(v.iter().filter(|q| x.contains(q.0 .0)).filter_map(|q| {
+                let (lo, hi) = q.1?;
+                let (lo, hi) = (lo.clamp(y.lo, y.hi), hi.clamp(y.lo, y.hi));
+                let (cx, cap) = (q.0 .0, 0.006 * (x.hi - x.lo));
+                Some(PathElement::new(
+                    vec![
+                        (cx - cap, lo),
+                        (cx + cap, lo),
+                        (cx, lo),
+                        (cx, hi),
+                        (cx - cap, hi),
+                        (cx + cap, hi),
+                    ],
+                    whisker,
+                ))
+            }))
+            .map_err(render_err(&plot))?;
+        }
+        for (i, (s, v)) in p.series.iter().zip(&pts).enumerate() {
+            let colour = s.color.unwrap_or_else(|| Rgb::palette(i)).rgba(1.0);
+            ch.draw_series(
+                v.iter()
+                    .filter(|q| x.contains(q.0 .0) && y.contains(q.0 .1))
+                    .map(|q| Circle::new(q.0, 4, fill(colour))),
+            )
+            .map_err(render_err(&plot))?
+            .label(s.name.clone())
+            .legend(move |(px, py)| Circle::new((px + 8, py), 4, fill(colour)));
+        }
+        draw_legend(&plot, &mut ch, p.legend)?;
+        if let Some(note) = skipped_note(skipped, "non-finite, or ≤ 0 on a log/dB axis") {
+            footnote(&plot, root, &note)?;
+        }
+        Ok(())
+    })
+}
