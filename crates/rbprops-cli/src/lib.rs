@@ -1,0 +1,171 @@
+//! Shared plumbing of the rbprops executables: input/output selection, provenance,
+//! progress on stderr and error reporting. Numerics live in the library crates.
+
+use anyhow::{bail, Context, Result};
+use rbprops_core::records::StageProvenance;
+use rbprops_formats::{mcap_file, RunRecord};
+use std::io::{IsTerminal, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// The MCAP magic bytes, to recognise a stream on stdin.
+const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// An input as read: the record and the digest of its bytes (for provenance).
+pub struct Input {
+    pub record: RunRecord,
+    pub sha256: String,
+    pub name: String,
+}
+
+/// Reads a run from a path, or MCAP from stdin when the path is absent or `-`.
+pub fn read_input(path: Option<&Path>) -> Result<Input> {
+    match path {
+        None => read_stdin(),
+        Some(p) if p.as_os_str() == "-" => read_stdin(),
+        Some(p) => {
+            let name = p.display().to_string();
+            let ext = p
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if matches!(ext.as_deref(), Some("uff") | Some("unv")) {
+                return uff_input(p);
+            }
+            let record = rbprops_formats::read_path(p)?;
+            let sha256 = if p.is_dir() {
+                digest_dir(p)?
+            } else {
+                rbprops_formats::sha256_hex(&std::fs::read(p).with_context(|| name.clone())?)
+            };
+            Ok(Input {
+                record,
+                sha256,
+                name,
+            })
+        }
+    }
+}
+
+fn uff_input(p: &Path) -> Result<Input> {
+    bail!(
+        "{}: UFF input is not supported by this build yet",
+        p.display()
+    )
+}
+
+fn digest_dir(p: &Path) -> Result<String> {
+    let mut names: Vec<PathBuf> = std::fs::read_dir(p)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    names.sort();
+    let mut all = Vec::new();
+    for n in names {
+        all.extend_from_slice(n.file_name().unwrap().to_string_lossy().as_bytes());
+        all.extend_from_slice(&std::fs::read(&n)?);
+    }
+    Ok(rbprops_formats::sha256_hex(&all))
+}
+
+fn read_stdin() -> Result<Input> {
+    let stdin = std::io::stdin();
+    if stdin.is_terminal() {
+        bail!("no input: name an input file, or pipe an MCAP stream into stdin (e.g. `frf-sim --example demo | …`)");
+    }
+    let mut bytes = Vec::new();
+    stdin
+        .lock()
+        .read_to_end(&mut bytes)
+        .context("reading stdin")?;
+    if bytes.is_empty() {
+        bail!("<stdin>: empty input (did the previous stage fail?)");
+    }
+    if !bytes.starts_with(MCAP_MAGIC) {
+        bail!("<stdin>: not an MCAP stream (stdin carries MCAP; name CSV directories or UFF files as paths)");
+    }
+    let record = mcap_file::read(&bytes, "<stdin>")?;
+    Ok(Input {
+        record,
+        sha256: rbprops_formats::sha256_hex(&bytes),
+        name: "<stdin>".into(),
+    })
+}
+
+/// Writes a run to a path (format from the path, atomically) or as MCAP to stdout.
+/// Refuses to write binary MCAP to a terminal.
+pub fn write_output(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
+    match path {
+        Some(p) if p.as_os_str() != "-" => {
+            let ext = p
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if matches!(ext.as_deref(), Some("uff") | Some("unv")) {
+                bail!(
+                    "{}: UFF output is not supported by this build yet",
+                    p.display()
+                );
+            }
+            Ok(rbprops_formats::write_path(rec, p)?)
+        }
+        _ => {
+            let stdout = std::io::stdout();
+            if stdout.is_terminal() {
+                bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
+            }
+            let bytes = mcap_file::write(rec)?;
+            let mut lock = stdout.lock();
+            lock.write_all(&bytes).context("writing stdout")?;
+            lock.flush().context("writing stdout")?;
+            Ok(())
+        }
+    }
+}
+
+/// Provenance of this run of `tool`.
+pub fn provenance(tool: &str, input_sha256: &str) -> StageProvenance {
+    StageProvenance {
+        tool: tool.into(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        args: std::env::args().skip(1).collect(),
+        input_sha256: input_sha256.into(),
+    }
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal.
+pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let pb = indicatif::ProgressBar::new(len);
+    pb.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+        )
+        .unwrap()
+        .progress_chars("=> "),
+    );
+    pb.set_prefix(what.to_string());
+    pb
+}
+
+/// Runs a stage's main body, printing `error: …` with its causes and exiting 1 on error.
+pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitCode {
+    match body() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{tool}: error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Prints warnings on stderr, prefixed by the tool name.
+pub fn warn_all<'a>(tool: &str, warnings: impl IntoIterator<Item = &'a String>) {
+    for w in warnings {
+        eprintln!("{tool}: warning: {w}");
+    }
+}
+
+/// Writes a text file (a plot, a report) atomically, creating its directory.
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    Ok(rbprops_formats::atomic::write_file(path, text.as_bytes())?)
+}

@@ -1,0 +1,411 @@
+//! MCAP: one channel per topic, `json` message encoding with `jsonschema` schemas.
+
+use crate::wire::{self, FrfAxisMsg, FrfMsg};
+use crate::{topics, FormatError, JsonTopic, RawTopic, RunRecord};
+use rbprops_core::FrfSet;
+use std::collections::BTreeMap;
+use std::io::Cursor;
+
+/// Profile written in the MCAP header.
+pub const PROFILE: &str = "rbprops";
+
+fn mcap_err(e: mcap::McapError) -> FormatError {
+    FormatError::Mcap {
+        file: "<output>".into(),
+        detail: e.to_string(),
+    }
+}
+
+struct Out {
+    w: mcap::Writer<Cursor<Vec<u8>>>,
+    seq: u32,
+}
+
+impl Out {
+    fn channel(
+        &mut self,
+        topic: &str,
+        schema_name: &str,
+        schema_encoding: &str,
+        schema: &[u8],
+        msg_encoding: &str,
+    ) -> Result<u16, FormatError> {
+        let sid = self
+            .w
+            .add_schema(schema_name, schema_encoding, schema)
+            .map_err(mcap_err)?;
+        self.w
+            .add_channel(sid, topic, msg_encoding, &BTreeMap::new())
+            .map_err(mcap_err)
+    }
+    fn message(&mut self, channel_id: u16, data: &[u8]) -> Result<(), FormatError> {
+        // Log time is the sequence number: runs must be byte-identical, so no clocks.
+        let header = mcap::records::MessageHeader {
+            channel_id,
+            sequence: self.seq,
+            log_time: self.seq as u64,
+            publish_time: self.seq as u64,
+        };
+        self.seq += 1;
+        self.w
+            .write_to_known_channel(&header, data)
+            .map_err(mcap_err)
+    }
+    fn json_topic(&mut self, t: &JsonTopic) -> Result<(), FormatError> {
+        let schema = serde_json::to_vec(&t.schema).expect("schema serialises");
+        let id = self.channel(&t.name, &t.schema_name, "jsonschema", &schema, "json")?;
+        for m in &t.messages {
+            self.message(id, &serde_json::to_vec(m).expect("json serialises"))?;
+        }
+        Ok(())
+    }
+    fn typed<T: serde::Serialize + schemars::JsonSchema>(
+        &mut self,
+        topic: &str,
+        msgs: &[T],
+    ) -> Result<(), FormatError> {
+        let mut tmp = RunRecord::default();
+        tmp.set(topic, msgs);
+        self.json_topic(&tmp.topics[0])
+    }
+}
+
+/// Serialises a run to MCAP bytes (zstd chunks, single-threaded so output is reproducible).
+pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
+    let opts = mcap::WriteOptions::new()
+        .profile(PROFILE)
+        .library(format!("rbprops {}", env!("CARGO_PKG_VERSION")))
+        .compression(Some(mcap::Compression::Zstd))
+        .compression_threads(0);
+    let w = opts.create(Cursor::new(Vec::new())).map_err(mcap_err)?;
+    let mut out = Out { w, seq: 0 };
+    let geometry = if rec.frf.is_some() {
+        rec.geometry()?
+    } else {
+        None
+    };
+    let mut frf_written = false;
+    let write_frf = |out: &mut Out, frf: &FrfSet| -> Result<(), FormatError> {
+        let g = geometry.as_ref().ok_or_else(|| {
+            FormatError::other("<output>", "an FRF set needs a geometry topic for its ids")
+        })?;
+        out.typed(topics::FRF_AXIS, &[wire::frf_axis(frf, g)])?;
+        let msgs: Vec<FrfMsg> = (0..frf.n_excitations)
+            .map(|e| FrfMsg {
+                excitation: g.excitations[e].id.clone(),
+                values_f64le: wire::encode_values(frf.excitation_block(e)),
+            })
+            .collect();
+        out.typed(topics::FRF, &msgs)
+    };
+    for t in &rec.topics {
+        out.json_topic(t)?;
+        if t.name == topics::GEOMETRY {
+            if let Some(frf) = &rec.frf {
+                write_frf(&mut out, frf)?;
+                frf_written = true;
+            }
+        }
+    }
+    if let (Some(frf), false) = (&rec.frf, frf_written) {
+        write_frf(&mut out, frf)?;
+    }
+    for r in &rec.raw_topics {
+        let id = out.channel(
+            &r.name,
+            &r.schema_name,
+            &r.schema_encoding,
+            &r.schema_data,
+            &r.message_encoding,
+        )?;
+        for m in &r.messages {
+            out.message(id, m)?;
+        }
+    }
+    out.w.finish().map_err(mcap_err)?;
+    Ok(out.w.into_inner().into_inner())
+}
+
+/// Parses MCAP bytes. `file` names the source in errors.
+pub fn read(bytes: &[u8], file: &str) -> Result<RunRecord, FormatError> {
+    precheck(bytes).map_err(|detail| FormatError::Mcap {
+        file: file.into(),
+        detail,
+    })?;
+    let mut rec = RunRecord::default();
+    let mut axis: Option<FrfAxisMsg> = None;
+    let mut frf_msgs: Vec<FrfMsg> = Vec::new();
+    for (i, m) in messages(bytes)
+        .map_err(|detail| FormatError::Mcap {
+            file: file.into(),
+            detail,
+        })?
+        .into_iter()
+        .enumerate()
+    {
+        let topic = m.topic.clone();
+        let schema = m.schema.clone();
+        let is_json = m.encoding == "json";
+        if !is_json {
+            let pos = rec
+                .raw_topics
+                .iter()
+                .position(|t| t.name == topic)
+                .unwrap_or_else(|| {
+                    rec.raw_topics.push(RawTopic {
+                        name: topic.clone(),
+                        schema_name: schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+                        schema_encoding: schema
+                            .as_ref()
+                            .map(|s| s.encoding.clone())
+                            .unwrap_or_default(),
+                        schema_data: schema.as_ref().map(|s| s.data.clone()).unwrap_or_default(),
+                        message_encoding: m.encoding.clone(),
+                        messages: Vec::new(),
+                    });
+                    rec.raw_topics.len() - 1
+                });
+            rec.raw_topics[pos].messages.push(m.data);
+            continue;
+        }
+        let value: serde_json::Value = serde_json::from_slice(&m.data).map_err(|e| {
+            FormatError::record(
+                file,
+                format!("topic {topic}, message {i}"),
+                format!("invalid JSON: {e}"),
+            )
+        })?;
+        let ctx = || format!("topic {topic}, message {i}");
+        match topic.as_str() {
+            topics::FRF_AXIS => {
+                if axis.is_some() {
+                    return Err(FormatError::record(
+                        file,
+                        ctx(),
+                        "a second FRF axis message",
+                    ));
+                }
+                axis = Some(
+                    serde_json::from_value(value)
+                        .map_err(|e| FormatError::record(file, ctx(), e))?,
+                );
+            }
+            topics::FRF => frf_msgs.push(
+                serde_json::from_value(value).map_err(|e| FormatError::record(file, ctx(), e))?,
+            ),
+            _ => {
+                let pos = rec
+                    .topics
+                    .iter()
+                    .position(|t| t.name == topic)
+                    .unwrap_or_else(|| {
+                        let schema_json = schema
+                            .as_ref()
+                            .filter(|s| s.encoding == "jsonschema")
+                            .and_then(|s| serde_json::from_slice(&s.data).ok())
+                            .unwrap_or(serde_json::Value::Bool(true));
+                        rec.topics.push(JsonTopic {
+                            name: topic.clone(),
+                            schema_name: schema
+                                .as_ref()
+                                .map(|s| s.name.clone())
+                                .unwrap_or_default(),
+                            schema: schema_json,
+                            messages: Vec::new(),
+                        });
+                        rec.topics.len() - 1
+                    });
+                rec.topics[pos].messages.push(value);
+            }
+        }
+    }
+    if let Some(axis) = axis {
+        rec.frf = Some(assemble_frf(&rec, axis, frf_msgs, file)?);
+    } else if !frf_msgs.is_empty() {
+        return Err(FormatError::record(
+            file,
+            topics::FRF,
+            "FRF messages without an FRF axis message",
+        ));
+    }
+    Ok(rec)
+}
+
+fn assemble_frf(
+    rec: &RunRecord,
+    axis: FrfAxisMsg,
+    msgs: Vec<FrfMsg>,
+    file: &str,
+) -> Result<FrfSet, FormatError> {
+    let g = rec
+        .geometry()
+        .map_err(|e| FormatError::other(file, e))?
+        .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
+    wire::check_ids_match(&axis, &g, file)?;
+    let mut frf = FrfSet::zeros(
+        axis.quantity,
+        axis.frequency_hz.clone(),
+        axis.excitations.len(),
+        axis.channels.len(),
+    );
+    if msgs.len() != axis.excitations.len() {
+        return Err(FormatError::record(
+            file,
+            topics::FRF,
+            format!(
+                "{} FRF messages for {} excitations",
+                msgs.len(),
+                axis.excitations.len()
+            ),
+        ));
+    }
+    let n = frf.n_channels * frf.n_lines();
+    for (k, m) in msgs.iter().enumerate() {
+        if m.excitation != axis.excitations[k] {
+            return Err(FormatError::record(
+                file,
+                format!("{} message {k}", topics::FRF),
+                format!(
+                    "excitation '{}' where '{}' was expected",
+                    m.excitation, axis.excitations[k]
+                ),
+            ));
+        }
+        let v = wire::decode_values(&m.values_f64le, n).map_err(|e| {
+            FormatError::record(
+                file,
+                format!("{} excitation '{}'", topics::FRF, m.excitation),
+                e,
+            )
+        })?;
+        frf.values[k * n..(k + 1) * n].copy_from_slice(&v);
+    }
+    frf.validate()
+        .map_err(|e| FormatError::record(file, topics::FRF, e))?;
+    Ok(frf)
+}
+
+/// Largest decompressed chunk accepted (a corrupt size field must not exhaust memory).
+const MAX_CHUNK_BYTES: u64 = 1 << 32;
+
+/// Walks the top-level records before the mcap crate does: every length must lie inside
+/// the file and chunk sizes must be sane, because a corrupt length field would otherwise
+/// make the reader try to allocate exabytes and abort the process.
+fn precheck(bytes: &[u8]) -> Result<(), String> {
+    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+    if bytes.len() < 2 * MAGIC.len() || !bytes.starts_with(MAGIC) {
+        return Err("missing MCAP magic bytes".into());
+    }
+    let u64_at = |p: usize| -> Option<u64> {
+        bytes
+            .get(p..p + 8)
+            .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+    };
+    let mut pos = MAGIC.len();
+    let end = bytes.len() - MAGIC.len();
+    while pos < end {
+        let op = bytes[pos];
+        let len =
+            u64_at(pos + 1).ok_or_else(|| format!("record at byte {pos}: truncated header"))?;
+        let body = pos + 9;
+        if len > (end - body.min(end)) as u64 {
+            return Err(format!("record at byte {pos} (opcode 0x{op:02x}): length {len} runs past the end of the file"));
+        }
+        if op == 0x06 {
+            let unc = u64_at(body + 16).ok_or_else(|| format!("chunk at byte {pos}: truncated"))?;
+            if unc > MAX_CHUNK_BYTES {
+                return Err(format!(
+                    "chunk at byte {pos}: uncompressed size {unc} is implausible"
+                ));
+            }
+        }
+        if op == 0x02 {
+            // Footer: the rest is the closing magic.
+            break;
+        }
+        pos = body + len as usize;
+    }
+    Ok(())
+}
+
+#[derive(Clone)]
+struct SchemaInfo {
+    name: String,
+    encoding: String,
+    data: Vec<u8>,
+}
+
+struct RawMsg {
+    topic: String,
+    encoding: String,
+    schema: Option<SchemaInfo>,
+    data: Vec<u8>,
+}
+
+/// All messages in file order, read with the sans-I/O reader and a record-length limit so
+/// corrupt length fields give an error rather than a huge allocation.
+fn messages(bytes: &[u8]) -> Result<Vec<RawMsg>, String> {
+    use mcap::records::Record;
+    use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
+    precheck(bytes)?;
+    let limit = (256usize << 20).saturating_add(bytes.len().saturating_mul(16));
+    let mut reader = LinearReader::new_with_options(
+        LinearReaderOptions::default().with_record_length_limit(limit),
+    );
+    let mut pos = 0usize;
+    let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, (String, String, u16)> = BTreeMap::new();
+    let mut out = Vec::new();
+    while let Some(event) = reader.next_event() {
+        match event.map_err(|e| e.to_string())? {
+            LinearReadEvent::ReadRequest(need) => {
+                let n = need.min(bytes.len() - pos);
+                reader.insert(n).copy_from_slice(&bytes[pos..pos + n]);
+                reader.notify_read(n);
+                pos += n;
+            }
+            LinearReadEvent::Record { opcode, data } => {
+                match mcap::parse_record(opcode, data).map_err(|e| e.to_string())? {
+                    Record::Schema { header, data } => {
+                        schemas.insert(
+                            header.id,
+                            SchemaInfo {
+                                name: header.name,
+                                encoding: header.encoding,
+                                data: data.into_owned(),
+                            },
+                        );
+                    }
+                    Record::Channel(c) => {
+                        channels.insert(c.id, (c.topic, c.message_encoding, c.schema_id));
+                    }
+                    Record::Message { header, data } => {
+                        let (topic, encoding, sid) =
+                            channels.get(&header.channel_id).cloned().ok_or_else(|| {
+                                format!(
+                                    "message {} refers to channel {} which was never defined",
+                                    out.len(),
+                                    header.channel_id
+                                )
+                            })?;
+                        let schema = if sid == 0 {
+                            None
+                        } else {
+                            Some(schemas.get(&sid).cloned().ok_or_else(|| {
+                                format!("channel '{topic}' refers to undefined schema {sid}")
+                            })?)
+                        };
+                        out.push(RawMsg {
+                            topic,
+                            encoding,
+                            schema,
+                            data: data.into_owned(),
+                        });
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,248 @@
+//! Wire messages for the geometry and the FRFs (the other topics are the records of
+//! `rbprops_core::records` as they are).
+
+use crate::FormatError;
+use base64::Engine;
+use rbprops_core::{
+    c64, Channel, Excitation, FrfSet, Geometry, Point, Quantity, SuspensionSetup, Vec3,
+};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct PointMsg {
+    pub id: String,
+    pub position_m: [f64; 3],
+}
+
+/// A response channel: unit sensing direction at a point.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ChannelMsg {
+    pub id: String,
+    pub point: String,
+    pub position_m: [f64; 3],
+    pub direction: [f64; 3],
+}
+
+/// A force input: unit direction at a point, in a suspension set-up.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ExcitationMsg {
+    pub id: String,
+    pub point: String,
+    pub setup: String,
+    pub position_m: [f64; 3],
+    pub direction: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SetupMsg {
+    pub id: String,
+    pub description: String,
+}
+
+/// The test geometry (topic `/rbprops/geometry`, one message). Right-handed frame, metres.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct GeometryMsg {
+    pub points: Vec<PointMsg>,
+    pub channels: Vec<ChannelMsg>,
+    pub excitations: Vec<ExcitationMsg>,
+    pub setups: Vec<SetupMsg>,
+}
+
+impl GeometryMsg {
+    pub fn from_geometry(g: &Geometry) -> Self {
+        let a = |v: &Vec3| [v.x, v.y, v.z];
+        GeometryMsg {
+            points: g
+                .points
+                .iter()
+                .map(|p| PointMsg {
+                    id: p.id.clone(),
+                    position_m: a(&p.position),
+                })
+                .collect(),
+            channels: g
+                .channels
+                .iter()
+                .map(|c| ChannelMsg {
+                    id: c.id.clone(),
+                    point: c.point.clone(),
+                    position_m: a(&c.position),
+                    direction: a(&c.direction),
+                })
+                .collect(),
+            excitations: g
+                .excitations
+                .iter()
+                .map(|e| ExcitationMsg {
+                    id: e.id.clone(),
+                    point: e.point.clone(),
+                    setup: e.setup.clone(),
+                    position_m: a(&e.position),
+                    direction: a(&e.direction),
+                })
+                .collect(),
+            setups: g
+                .setups
+                .iter()
+                .map(|s| SetupMsg {
+                    id: s.id.clone(),
+                    description: s.description.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    /// Converts and validates (unit directions, unique ids, known set-ups).
+    pub fn to_geometry(&self) -> Result<Geometry, FormatError> {
+        let v = Vec3::from;
+        let g = Geometry {
+            points: self
+                .points
+                .iter()
+                .map(|p| Point {
+                    id: p.id.clone(),
+                    position: v(p.position_m),
+                })
+                .collect(),
+            channels: self
+                .channels
+                .iter()
+                .map(|c| Channel {
+                    id: c.id.clone(),
+                    point: c.point.clone(),
+                    position: v(c.position_m),
+                    direction: v(c.direction),
+                })
+                .collect(),
+            excitations: self
+                .excitations
+                .iter()
+                .map(|e| Excitation {
+                    id: e.id.clone(),
+                    point: e.point.clone(),
+                    setup: e.setup.clone(),
+                    position: v(e.position_m),
+                    direction: v(e.direction),
+                })
+                .collect(),
+            setups: self
+                .setups
+                .iter()
+                .map(|s| SuspensionSetup {
+                    id: s.id.clone(),
+                    description: s.description.clone(),
+                })
+                .collect(),
+        };
+        g.validate()
+            .map_err(|e| FormatError::record("<record>", "geometry", e))?;
+        Ok(g)
+    }
+}
+
+/// Frequency axis and layout of the FRFs (topic `/rbprops/frf_axis`, one message).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FrfAxisMsg {
+    pub quantity: Quantity,
+    /// SI unit of the values (`m/N`, `m/(N s)`, `m/(N s^2)`).
+    pub unit: String,
+    /// Excitation ids in the order of the `/rbprops/frf` messages.
+    pub excitations: Vec<String>,
+    /// Channel ids in the order of each message's values.
+    pub channels: Vec<String>,
+    pub frequency_hz: Vec<f64>,
+}
+
+/// FRFs of one excitation (topic `/rbprops/frf`, one message per excitation).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FrfMsg {
+    pub excitation: String,
+    /// Base64 of little-endian IEEE-754 f64, laid out `[channel][line][re, im]`.
+    #[schemars(extend("contentEncoding" = "base64"))]
+    pub values_f64le: String,
+}
+
+pub fn encode_values(values: &[c64]) -> String {
+    let mut bytes = Vec::with_capacity(values.len() * 16);
+    for v in values {
+        bytes.extend_from_slice(&v.re.to_le_bytes());
+        bytes.extend_from_slice(&v.im.to_le_bytes());
+    }
+    base64::engine::general_purpose::STANDARD.encode(bytes)
+}
+
+pub fn decode_values(s: &str, expect: usize) -> Result<Vec<c64>, String> {
+    let bytes = base64::engine::general_purpose::STANDARD
+        .decode(s)
+        .map_err(|e| format!("values are not valid base64: {e}"))?;
+    if bytes.len() != expect * 16 {
+        return Err(format!(
+            "{} bytes of values, expected {} ({} complex numbers)",
+            bytes.len(),
+            expect * 16,
+            expect
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(16)
+        .map(|c| {
+            c64::new(
+                f64::from_le_bytes(c[..8].try_into().unwrap()),
+                f64::from_le_bytes(c[8..].try_into().unwrap()),
+            )
+        })
+        .collect())
+}
+
+/// Header for an FRF set with the geometry's ids.
+pub fn frf_axis(frf: &FrfSet, geometry: &Geometry) -> FrfAxisMsg {
+    FrfAxisMsg {
+        quantity: frf.quantity,
+        unit: frf.quantity.unit().into(),
+        excitations: geometry.excitations.iter().map(|e| e.id.clone()).collect(),
+        channels: geometry.channels.iter().map(|c| c.id.clone()).collect(),
+        frequency_hz: frf.frequency_hz.clone(),
+    }
+}
+
+/// Checks that the FRF header's ids are exactly the geometry's, in order.
+pub fn check_ids_match(
+    axis: &FrfAxisMsg,
+    geometry: &Geometry,
+    file: &str,
+) -> Result<(), FormatError> {
+    let ge: Vec<&str> = geometry.excitations.iter().map(|e| e.id.as_str()).collect();
+    let gc: Vec<&str> = geometry.channels.iter().map(|c| c.id.as_str()).collect();
+    if axis
+        .excitations
+        .iter()
+        .map(String::as_str)
+        .ne(ge.iter().copied())
+    {
+        return Err(FormatError::record(
+            file,
+            "FRF axis",
+            format!(
+                "excitations {:?} differ from the geometry's {:?}",
+                axis.excitations, ge
+            ),
+        ));
+    }
+    if axis
+        .channels
+        .iter()
+        .map(String::as_str)
+        .ne(gc.iter().copied())
+    {
+        return Err(FormatError::record(
+            file,
+            "FRF axis",
+            format!(
+                "channels {:?} differ from the geometry's {:?}",
+                axis.channels, gc
+            ),
+        ));
+    }
+    Ok(())
+}
