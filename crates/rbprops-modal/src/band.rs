@@ -1,0 +1,102 @@
+//! The data one fit works on: the lines of a band and the FRFs of a set of channels.
+
+use crate::ModalError;
+use rbprops_core::{c64, FrfSet, Quantity};
+use std::f64::consts::PI;
+
+/// FRFs of several channels on one band (any quantity, any axis).
+#[derive(Debug, Clone)]
+pub struct BandData {
+    pub quantity: Quantity,
+    pub frequency_hz: Vec<f64>,
+    /// `ω = 2πf`, rad/s.
+    pub omega: Vec<f64>,
+    /// `[channel][line]` in the measured quantity.
+    pub channels: Vec<Vec<c64>>,
+    /// Index of the band's first line in the full axis.
+    pub first_line: usize,
+}
+
+impl BandData {
+    /// Lines of excitation `e` inside `band` (Hz, inclusive). Refuses empty bands and
+    /// non-finite values, naming the channel and line.
+    pub fn extract(
+        frf: &FrfSet,
+        e: usize,
+        band: Option<(f64, f64)>,
+        name: &str,
+    ) -> Result<Self, ModalError> {
+        let bad = |reason: String| ModalError::BadInput {
+            excitation: name.to_string(),
+            reason,
+        };
+        let axis = &frf.frequency_hz;
+        let (lo, hi) = band.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
+        let keep: Vec<usize> = (0..axis.len())
+            .filter(|&l| axis[l] >= lo && axis[l] <= hi)
+            .collect();
+        if keep.is_empty() {
+            return Err(bad(format!(
+                "band [{lo}, {hi}] Hz holds no spectral line (axis {} to {} Hz)",
+                axis.first().copied().unwrap_or(f64::NAN),
+                axis.last().copied().unwrap_or(f64::NAN)
+            )));
+        }
+        if keep.windows(2).any(|w| w[1] != w[0] + 1) {
+            return Err(bad("frequency axis is not sorted".into()));
+        }
+        let mut channels = Vec::with_capacity(frf.n_channels);
+        for c in 0..frf.n_channels {
+            let h = frf.frf(e, c);
+            let v: Vec<c64> = keep.iter().map(|&l| h[l]).collect();
+            if let Some(k) = v
+                .iter()
+                .position(|z| !(z.re.is_finite() && z.im.is_finite()))
+            {
+                return Err(bad(format!(
+                    "channel {c}, line {} ({} Hz): value {} is not finite",
+                    keep[k], axis[keep[k]], v[k]
+                )));
+            }
+            channels.push(v);
+        }
+        let frequency_hz: Vec<f64> = keep.iter().map(|&l| axis[l]).collect();
+        if let Some(w) = frequency_hz.windows(2).find(|w| !(w[1] > w[0])) {
+            return Err(bad(format!(
+                "frequency axis does not increase ({} then {} Hz)",
+                w[0], w[1]
+            )));
+        }
+        Ok(Self {
+            quantity: frf.quantity,
+            omega: frequency_hz.iter().map(|f| 2.0 * PI * f).collect(),
+            frequency_hz,
+            channels,
+            first_line: keep[0],
+        })
+    }
+
+    pub fn n_lines(&self) -> usize {
+        self.omega.len()
+    }
+
+    /// `(iω)^k` of the measured quantity relative to receptance, per line.
+    pub fn quantity_factor(&self) -> Vec<c64> {
+        self.omega
+            .iter()
+            .map(|&w| self.quantity.from_receptance_factor(w))
+            .collect()
+    }
+
+    /// Root-mean-square magnitude of each channel (0 for an all-zero channel).
+    pub fn channel_rms(&self) -> Vec<f64> {
+        self.channels
+            .iter()
+            .map(|h| (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt())
+            .collect()
+    }
+
+    pub fn band_hz(&self) -> [f64; 2] {
+        [self.frequency_hz[0], *self.frequency_hz.last().unwrap()]
+    }
+}

@@ -1,0 +1,573 @@
+//! Orchestration: poles → selection → refinement → residues → records, per excitation,
+//! in parallel over excitations.
+
+use crate::band::BandData;
+use crate::circle;
+use crate::lsce;
+use crate::lscf;
+use crate::lsfd::{self, Residuals};
+use crate::options::{FitOptions, Method, PoleMode};
+use crate::pole::{mpc, Pole};
+use crate::stabilisation::{self, StabilisationDiagram};
+use crate::ModalError;
+use rayon::prelude::*;
+use rbprops_core::records::{ExcitationFitRecord, ModalFitRecord, ModeEstimate};
+use rbprops_core::{c64, FrfSet, Geometry, Quantity};
+use std::f64::consts::PI;
+
+/// The residue convention written into every [`ModalFitRecord`].
+pub const RESIDUE_CONVENTION: &str = "modal constants A (1/kg) of the receptance form \
+H(w) = sum_r A_r/(w_r^2 - w^2 + 2i zeta_r w_r w), A_r = 2i w_d,r R_r from the pole-residue \
+form R_r/(iw - lambda_r) + conj(R_r)/(iw - conj(lambda_r)), lambda_r = -zeta_r w_r + i w_d,r, \
+whatever the input quantity";
+
+/// Plot data of one excitation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExcitationDiagnostics {
+    pub excitation: String,
+    /// Poles per model order with their stability class (for PerSetup: the set-up's).
+    pub stabilisation: StabilisationDiagram,
+    pub quantity: Quantity,
+    /// Lines of the fitted band.
+    pub frequency_hz: Vec<f64>,
+    /// Synthesised FRFs `[channel][line]` in the measured quantity, same lines.
+    pub synthesised: Vec<Vec<c64>>,
+    /// The final poles `λ_r` (rad/s), ascending frequency.
+    pub poles_rad_s: Vec<c64>,
+}
+
+/// Result of one excitation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExcitationFit {
+    pub record: ExcitationFitRecord,
+    pub modes: Vec<ModeEstimate>,
+    pub diagnostics: ExcitationDiagnostics,
+}
+
+/// Result of a campaign.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalFitOutput {
+    pub record: ModalFitRecord,
+    /// One per excitation, geometry order (empty plot data for a failed excitation).
+    pub diagnostics: Vec<ExcitationDiagnostics>,
+}
+
+/// Poles shared by the channels they were estimated from.
+#[derive(Debug, Clone)]
+struct PoleSet {
+    poles: Vec<Pole>,
+    /// Standard deviations of (f Hz, ζ) per pole.
+    std: Vec<(f64, f64)>,
+    confidence: Vec<f64>,
+    /// Per-pole warnings (close modes, …).
+    mode_warnings: Vec<Vec<String>>,
+    diagram: StabilisationDiagram,
+    warnings: Vec<String>,
+}
+
+fn check_shapes(geometry: &Geometry, frf: &FrfSet) -> Result<(), ModalError> {
+    if frf.n_excitations != geometry.excitations.len() {
+        return Err(ModalError::Shape(format!(
+            "{} excitations in the FRF set, {} in the geometry",
+            frf.n_excitations,
+            geometry.excitations.len()
+        )));
+    }
+    if frf.n_channels != geometry.channels.len() {
+        return Err(ModalError::Shape(format!(
+            "{} channels in the FRF set, {} in the geometry",
+            frf.n_channels,
+            geometry.channels.len()
+        )));
+    }
+    if frf.values.len() != frf.n_excitations * frf.n_channels * frf.n_lines() {
+        return Err(ModalError::Shape(format!(
+            "{} values for {}×{}×{}",
+            frf.values.len(),
+            frf.n_excitations,
+            frf.n_channels,
+            frf.n_lines()
+        )));
+    }
+    Ok(())
+}
+
+/// Channels with signal, and warnings for the others.
+fn live_channels(band: &BandData, geometry: &Geometry, name: &str) -> (Vec<usize>, Vec<String>) {
+    let rms = band.channel_rms();
+    let mut live = Vec::new();
+    let mut warnings = Vec::new();
+    for (c, r) in rms.iter().enumerate() {
+        if *r > 0.0 {
+            live.push(c);
+        } else {
+            warnings.push(format!(
+                "excitation '{name}': channel '{}' is identically zero in the band; it is left out of the pole estimate and its residues are 0",
+                geometry.channels[c].id
+            ));
+        }
+    }
+    (live, warnings)
+}
+
+/// Standard deviation of `(f, ζ)` from the covariance of `(Re λ, Im λ)`.
+fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
+    let (re, im) = (p.0.re, p.0.im);
+    let a = p.0.norm();
+    let gf = [re / a / (2.0 * PI), im / a / (2.0 * PI)];
+    let gz = [-im * im / (a * a * a), re * im / (a * a * a)];
+    let q = |g: [f64; 2]| {
+        (g[0] * g[0] * cov[0][0] + 2.0 * g[0] * g[1] * cov[0][1] + g[1] * g[1] * cov[1][1])
+            .max(0.0)
+            .sqrt()
+    };
+    (q(gf), q(gz))
+}
+
+/// Poles from the channels `chans` of `band` (one excitation, or a whole set-up).
+fn estimate_poles(
+    band: &BandData,
+    chans: &[Vec<c64>],
+    opts: &FitOptions,
+    name: &str,
+) -> Result<PoleSet, ModalError> {
+    let n = band.n_lines();
+    let mut warnings = Vec::new();
+    // Each order n needs n + 1 numerator and n denominator coefficients per channel
+    // from 2N real equations; keep a margin of 2 so the fit is overdetermined.
+    let n_max = opts.max_order.min(n.saturating_sub(2));
+    if n_max < 2 || n < 4 {
+        return Err(ModalError::BadInput {
+            excitation: name.into(),
+            reason: format!(
+                "{n} lines in the band: too few for even one mode (need at least 4 lines)"
+            ),
+        });
+    }
+    if n_max < opts.max_order {
+        warnings.push(format!(
+            "excitation '{name}': only {n} lines in the band, maximum model order reduced from {} to {n_max}",
+            opts.max_order
+        ));
+    }
+    let orders = match opts.method {
+        Method::Lscf | Method::Circle => lscf::sweep(band, chans, n_max),
+        Method::Lsce => lsce::sweep(band, chans, n_max).map_err(|reason| ModalError::Axis {
+            excitation: name.into(),
+            method: "LSCE",
+            reason,
+        })?,
+    };
+    let band_w = (band.omega[0], *band.omega.last().unwrap());
+    let sel = stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes);
+    warnings.extend(
+        sel.warnings
+            .iter()
+            .map(|w| format!("excitation '{name}': {w}")),
+    );
+    if sel.modes.is_empty() {
+        return Err(ModalError::NoModes {
+            excitation: name.into(),
+            reason: format!(
+                "{} poles in the diagram up to order {n_max}, none stable in frequency, damping and shape",
+                sel.diagram.poles.len()
+            ),
+        });
+    }
+    let mut poles: Vec<Pole> = sel.modes.iter().map(|m| m.pole).collect();
+    let mut std: Vec<(f64, f64)> = sel.modes.iter().map(|m| m.spread).collect();
+    let confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
+    let mut mode_warnings = vec![Vec::new(); poles.len()];
+    let res = Residuals::for_band(opts.residual_terms, band);
+    if opts.refine && opts.method != Method::Circle {
+        let rows = 2 * n;
+        let unknowns = 2 * poles.len() + 2;
+        if rows <= unknowns + 2 * poles.len() {
+            warnings.push(format!(
+                "excitation '{name}': {n} lines are too few to refine {} poles; LSCF poles kept",
+                poles.len()
+            ));
+        } else {
+            let r = lsfd::refine(&poles, band, chans, res);
+            // Refinement is local: reject it if it moved a pole by more than a couple of
+            // bandwidths (it then found a different minimum, e.g. swapped two modes).
+            let moved = poles
+                .iter()
+                .zip(&r.poles)
+                .map(|(a, b)| a.distance_in_bandwidths(b))
+                .fold(0.0, f64::max);
+            if moved > 3.0
+                || r.poles
+                    .iter()
+                    .any(|p| p.damping() >= opts.tolerances.max_damping)
+            {
+                warnings.push(format!(
+                    "excitation '{name}': pole refinement moved a pole by {moved:.1} half-bandwidths; kept the stabilisation-diagram poles"
+                ));
+            } else {
+                if !r.converged {
+                    warnings.push(format!(
+                        "excitation '{name}': pole refinement did not converge in {} iterations",
+                        r.iterations
+                    ));
+                }
+                poles = r.poles.clone();
+                std = poles
+                    .iter()
+                    .zip(&r.covariance)
+                    .map(|(p, c)| modal_std(p, c))
+                    .collect();
+            }
+        }
+    }
+    // Sort ascending (refinement may reorder two close poles).
+    let mut idx: Vec<usize> = (0..poles.len()).collect();
+    idx.sort_by(|&a, &b| poles[a].omega_n().total_cmp(&poles[b].omega_n()));
+    let poles: Vec<Pole> = idx.iter().map(|&i| poles[i]).collect();
+    let std: Vec<(f64, f64)> = idx.iter().map(|&i| std[i]).collect();
+    let mut confidence: Vec<f64> = idx.iter().map(|&i| confidence[i]).collect();
+    // Close pairs: say plainly when two poles cannot be told apart.
+    for i in 0..poles.len() {
+        for j in i + 1..poles.len() {
+            let d = poles[i].distance_in_bandwidths(&poles[j]);
+            let sep_hz = (poles[j].frequency_hz() - poles[i].frequency_hz()).abs();
+            let unc = 2.0 * (std[i].0.powi(2) + std[j].0.powi(2)).sqrt();
+            if d < 0.25 || (unc > 0.0 && sep_hz < unc) {
+                let msg = format!(
+                    "modes {} and {} ({:.5} and {:.5} Hz, {:.2} half-bandwidths apart) cannot be separated: treat them as one repeated root",
+                    i + 1,
+                    j + 1,
+                    poles[i].frequency_hz(),
+                    poles[j].frequency_hz(),
+                    d
+                );
+                warnings.push(format!("excitation '{name}': {msg}"));
+                mode_warnings[i].push(msg.clone());
+                mode_warnings[j].push(msg);
+                confidence[i] *= 0.5;
+                confidence[j] *= 0.5;
+            } else if d < 2.0 {
+                let msg = format!(
+                    "close to mode {} ({:.2} half-bandwidths): resolved, but sensitive to noise",
+                    if i < j { j + 1 } else { i + 1 },
+                    d
+                );
+                mode_warnings[i].push(msg.clone());
+                mode_warnings[j]
+                    .push(msg.replace(&format!("mode {}", j + 1), &format!("mode {}", i + 1)));
+            }
+        }
+    }
+    Ok(PoleSet {
+        poles,
+        std,
+        confidence,
+        mode_warnings,
+        diagram: sel.diagram,
+        warnings,
+    })
+}
+
+/// Fits one excitation. With [`PoleMode::PerSetup`] the poles come from all
+/// excitations of its set-up (recomputed here; [`fit_campaign`] shares them).
+pub fn fit_excitation(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    excitation: usize,
+    opts: &FitOptions,
+) -> Result<ExcitationFit, ModalError> {
+    opts.validate()?;
+    check_shapes(geometry, frf)?;
+    if excitation >= frf.n_excitations {
+        return Err(ModalError::NoSuchExcitation {
+            index: excitation,
+            n: frf.n_excitations,
+        });
+    }
+    let shared = match opts.poles {
+        PoleMode::PerExcitation => None,
+        PoleMode::PerSetup => {
+            let setup = &geometry.excitations[excitation].setup;
+            Some(setup_poles(geometry, frf, setup, opts)?)
+        }
+    };
+    fit_one(geometry, frf, excitation, opts, shared.as_ref())
+}
+
+fn setup_poles(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    setup: &str,
+    opts: &FitOptions,
+) -> Result<PoleSet, ModalError> {
+    let members: Vec<usize> = (0..geometry.excitations.len())
+        .filter(|&e| geometry.excitations[e].setup == setup)
+        .collect();
+    let name = format!("set-up {setup}");
+    let mut all: Option<BandData> = None;
+    let mut chans = Vec::new();
+    for &e in &members {
+        let ename = &geometry.excitations[e].id;
+        let b = BandData::extract(frf, e, opts.band_hz, ename)?;
+        let (live, _) = live_channels(&b, geometry, ename);
+        chans.extend(live.iter().map(|&c| b.channels[c].clone()));
+        all.get_or_insert(b);
+    }
+    let band = all.ok_or_else(|| ModalError::BadInput {
+        excitation: name.clone(),
+        reason: "no excitation belongs to this set-up".into(),
+    })?;
+    if chans.is_empty() {
+        return Err(ModalError::BadInput {
+            excitation: name,
+            reason: "every channel is zero".into(),
+        });
+    }
+    estimate_poles(&band, &chans, opts, &name)
+}
+
+fn fit_one(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    e: usize,
+    opts: &FitOptions,
+    shared: Option<&PoleSet>,
+) -> Result<ExcitationFit, ModalError> {
+    let ex = &geometry.excitations[e];
+    let name = ex.id.as_str();
+    let band = BandData::extract(frf, e, opts.band_hz, name)?;
+    let (live, mut warnings) = live_channels(&band, geometry, name);
+    if live.is_empty() {
+        return Err(ModalError::BadInput {
+            excitation: name.into(),
+            reason: "every channel is identically zero in the band".into(),
+        });
+    }
+    let live_data: Vec<Vec<c64>> = live.iter().map(|&c| band.channels[c].clone()).collect();
+    let own;
+    let ps = match shared {
+        Some(p) => p,
+        None => {
+            own = estimate_poles(&band, &live_data, opts, name)?;
+            &own
+        }
+    };
+    warnings.extend(ps.warnings.iter().cloned());
+    let no = band.channels.len();
+    let nm = ps.poles.len();
+    let k = band.quantity.order();
+
+    // Modal constants, their std, per-mode extra info.
+    let mut a_all: Vec<Vec<c64>> = vec![vec![c64::new(0.0, 0.0); no]; nm];
+    let mut a_std: Vec<Vec<f64>> = vec![vec![0.0; no]; nm];
+    let mut poles = ps.poles.clone();
+    let mut fstd: Vec<(f64, f64)> = ps.std.clone();
+    let mut mode_warn = ps.mode_warnings.clone();
+    let synth: Vec<Vec<c64>>;
+    match opts.method {
+        Method::Circle => {
+            let cf = circle::fit(&band, &ps.poles, opts.circle_min_separation);
+            for (m, mode) in cf.modes.iter().enumerate() {
+                poles[m] = mode.pole;
+                fstd[m] = mode.std;
+                a_all[m] = mode.modal_constants.clone();
+                a_std[m] = mode.modal_constant_std.clone();
+                mode_warn[m].extend(mode.warnings.iter().cloned());
+            }
+            warnings.extend(
+                cf.warnings
+                    .iter()
+                    .map(|w| format!("excitation '{name}': {w}")),
+            );
+            synth = cf.synthesised;
+        }
+        Method::Lscf | Method::Lsce => {
+            let res = Residuals::for_band(opts.residual_terms, &band);
+            let rf = lsfd::fit_residues(&ps.poles, &band, &band.channels, res);
+            if rf.basis_conditioning < 1e-8 {
+                warnings.push(format!(
+                    "excitation '{name}': the residue basis is nearly singular (conditioning {:.1e}); two poles are not separable with these data",
+                    rf.basis_conditioning
+                ));
+            }
+            for m in 0..nm {
+                let p = &ps.poles[m];
+                for o in 0..no {
+                    a_all[m][o] = p.modal_constant(rf.residues[m][o]);
+                    a_std[m][o] = 2.0 * p.omega_d() * rf.residue_std[m][o];
+                }
+            }
+            synth = lsfd::synthesise(&ps.poles, &rf, &band);
+        }
+    }
+
+    let fit_error: Vec<f64> = (0..no)
+        .map(|o| {
+            let meas: f64 = band.channels[o].iter().map(|z| z.norm_sqr()).sum();
+            let err: f64 = band.channels[o]
+                .iter()
+                .zip(&synth[o])
+                .map(|(a, b)| (a - b).norm_sqr())
+                .sum();
+            if meas > 0.0 {
+                err / meas
+            } else {
+                0.0
+            }
+        })
+        .collect();
+
+    // Peak Norm Indicator of each mode alone in the measured quantity.
+    let ni: Vec<f64> = (0..nm)
+        .map(|m| {
+            let w = poles[m].omega_n();
+            let na = a_all[m].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+            na * w.powi(k) / (2.0 * poles[m].damping().max(1e-12) * w * w)
+        })
+        .collect();
+    let ni_max = ni.iter().cloned().fold(0.0, f64::max);
+    let mut modes = Vec::with_capacity(nm);
+    for m in 0..nm {
+        let mut mw = mode_warn[m].clone();
+        let rel_db = if ni_max > 0.0 && ni[m] > 0.0 {
+            20.0 * (ni[m] / ni_max).log10()
+        } else {
+            f64::NEG_INFINITY
+        };
+        let na = a_all[m].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+        let ns = a_std[m].iter().map(|s| s * s).sum::<f64>().sqrt();
+        let mut weak = false;
+        if rel_db < -opts.weak_below_db {
+            weak = true;
+            mw.push(format!(
+                "barely excited: peak NI {rel_db:.1} dB below the excitation's strongest mode"
+            ));
+        }
+        if ns > na / 3.0 {
+            weak = true;
+            mw.push(format!(
+                "residue vector uncertain: ‖σ_A‖ = {ns:.3e} vs ‖A‖ = {na:.3e}"
+            ));
+        }
+        modes.push(ModeEstimate {
+            excitation: name.into(),
+            setup: ex.setup.clone(),
+            mode: m + 1,
+            frequency_hz: poles[m].frequency_hz(),
+            frequency_std_hz: fstd[m].0,
+            damping_ratio: poles[m].damping(),
+            damping_std: fstd[m].1,
+            residues: a_all[m].clone(),
+            residue_std: a_std[m].clone(),
+            confidence: ps.confidence[m].clamp(0.0, 1.0),
+            mpc: mpc(&a_all[m]),
+            weak,
+            warnings: mw,
+        });
+    }
+    let record = ExcitationFitRecord {
+        excitation: name.into(),
+        setup: ex.setup.clone(),
+        method: opts.method.name().into(),
+        model_order: nm,
+        band_hz: band.band_hz(),
+        n_lines: band.n_lines(),
+        fit_error,
+        warnings,
+    };
+    Ok(ExcitationFit {
+        record,
+        modes,
+        diagnostics: ExcitationDiagnostics {
+            excitation: name.into(),
+            stabilisation: ps.diagram.clone(),
+            quantity: band.quantity,
+            frequency_hz: band.frequency_hz.clone(),
+            synthesised: synth,
+            poles_rad_s: poles.iter().map(|p| p.0).collect(),
+        },
+    })
+}
+
+/// Fits every excitation in parallel (rayon). A failing excitation becomes a record
+/// with `model_order = 0` and the reason in its warnings; the others still complete.
+/// Errors only for invalid options or a geometry that does not match the FRF set.
+pub fn fit_campaign(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    opts: &FitOptions,
+) -> Result<ModalFitOutput, ModalError> {
+    opts.validate()?;
+    check_shapes(geometry, frf)?;
+    let setups: Vec<String> = {
+        let mut s: Vec<String> = geometry
+            .excitations
+            .iter()
+            .map(|e| e.setup.clone())
+            .collect();
+        s.sort();
+        s.dedup();
+        s
+    };
+    let shared: Vec<(String, Result<PoleSet, ModalError>)> = match opts.poles {
+        PoleMode::PerExcitation => Vec::new(),
+        PoleMode::PerSetup => setups
+            .par_iter()
+            .map(|s| (s.clone(), setup_poles(geometry, frf, s, opts)))
+            .collect(),
+    };
+    let results: Vec<Result<ExcitationFit, ModalError>> = (0..frf.n_excitations)
+        .into_par_iter()
+        .map(|e| {
+            let setup = &geometry.excitations[e].setup;
+            match shared.iter().find(|(s, _)| s == setup) {
+                None => fit_one(geometry, frf, e, opts, None),
+                Some((_, Ok(ps))) => fit_one(geometry, frf, e, opts, Some(ps)),
+                Some((_, Err(err))) => Err(err.clone()),
+            }
+        })
+        .collect();
+    let mut record = ModalFitRecord {
+        residue_convention: RESIDUE_CONVENTION.into(),
+        excitations: Vec::new(),
+        modes: Vec::new(),
+    };
+    let mut diagnostics = Vec::new();
+    for (e, r) in results.into_iter().enumerate() {
+        let ex = &geometry.excitations[e];
+        match r {
+            Ok(fit) => {
+                record.excitations.push(fit.record);
+                record.modes.extend(fit.modes);
+                diagnostics.push(fit.diagnostics);
+            }
+            Err(err) => {
+                record.excitations.push(ExcitationFitRecord {
+                    excitation: ex.id.clone(),
+                    setup: ex.setup.clone(),
+                    method: opts.method.name().into(),
+                    model_order: 0,
+                    band_hz: opts.band_hz.map(|(a, b)| [a, b]).unwrap_or([
+                        frf.frequency_hz.first().copied().unwrap_or(0.0),
+                        frf.frequency_hz.last().copied().unwrap_or(0.0),
+                    ]),
+                    n_lines: 0,
+                    fit_error: Vec::new(),
+                    warnings: vec![format!("fit failed: {err}")],
+                });
+                diagnostics.push(ExcitationDiagnostics {
+                    excitation: ex.id.clone(),
+                    stabilisation: StabilisationDiagram::default(),
+                    quantity: frf.quantity,
+                    frequency_hz: Vec::new(),
+                    synthesised: Vec::new(),
+                    poles_rad_s: Vec::new(),
+                });
+            }
+        }
+    }
+    Ok(ModalFitOutput {
+        record,
+        diagnostics,
+    })
+}

@@ -1,0 +1,40 @@
+//! Modal identification per excitation (rbprops stage `modal-fit`, issue 3).
+//!
+//! For each excitation (a SIMO data set: one force, all channels) the modes in the band
+//! are identified: natural frequency, damping ratio, complex modal constant per channel
+//! with standard errors, and fit quality. Pipeline of the default method:
+//!
+//! 1. poles per model order by LSCF ([`lscf`]) or LSCE ([`lsce`]);
+//! 2. stabilisation diagram and automatic selection by clustering ([`stabilisation`]);
+//! 3. joint refinement of the poles by variable-projection least squares ([`lsfd::refine`]);
+//! 4. residues and residual terms by LSFD ([`lsfd::fit_residues`]);
+//! 5. records: modal constants `A = 2iω_d R` (see [`pole`]) in the receptance form of
+//!    DOMAIN.md, whatever the input quantity.
+//!
+//! [`Method::Circle`] replaces steps 3–4 by Kennedy–Pancu circle fits ([`circle`]).
+//!
+//! Excitations run in parallel with rayon; every per-excitation computation is
+//! sequential and seeded by nothing, so results are identical for any thread count.
+//! The crate does no I/O.
+
+pub mod band;
+pub mod circle;
+pub mod error;
+mod fit;
+pub mod linalg;
+pub mod lsce;
+pub mod lscf;
+pub mod lsfd;
+pub mod options;
+pub mod pole;
+pub mod stabilisation;
+pub mod testdata;
+
+pub use error::ModalError;
+pub use fit::{
+    fit_campaign, fit_excitation, ExcitationDiagnostics, ExcitationFit, ModalFitOutput,
+    RESIDUE_CONVENTION,
+};
+pub use options::{FitOptions, Method, PoleMode, StabilisationTolerances};
+pub use pole::{mac, mpc, Pole};
+pub use stabilisation::{DiagramPole, StabilisationDiagram, StabilityClass};

@@ -1,0 +1,188 @@
+//! Least-squares complex frequency-domain estimator (LSCF; Guillaume et al., "A
+//! poly-reference implementation of the least-squares complex frequency-domain
+//! estimator", IMAC 2003), single-reference (SIMO) common-denominator form.
+//!
+//! Model per channel `o`: `H_o(ω) ≈ N_o(z)/d(z)` with `z = e^{iωΔt}`, `Δt = π/ω_max`,
+//! polynomials of degree `n` with *real* coefficients (conjugate pole pairs). The
+//! linearised equation error `ε_o = w_o (N_o(z) − H_o d(z))` is minimised in least
+//! squares. With `X = [z^j]`, `Y_o = [−H_o z^j]` the normal matrices are
+//! `R = Re XᴴX`, `S_o = Re XᴴY_o`, `T_o = Re Y_oᴴY_o`; eliminating the numerators gives
+//! the reduced equations `M α = 0`, `M = Σ_o (T_o − S_oᵀ R⁻¹ S_o)`, solved with the
+//! highest coefficient fixed to 1. Poles are `λ = ln(z_r)/Δt` for the roots `z_r` of `d`.
+//!
+//! All three normal matrices are Toeplitz in the basis index (`z^j` on the unit circle),
+//! so they are built from `O(N·n)` sums of `H z^m`, `|H|² cos(mθ)` and `cos(mθ)` rather
+//! than `O(N·n²)` products; any (non-uniform) axis works.
+
+use crate::band::BandData;
+use crate::linalg;
+use crate::pole::Pole;
+use faer::Mat;
+use rbprops_core::c64;
+
+/// Poles of one model order with a shape (relative residue per channel) for each.
+#[derive(Debug, Clone)]
+pub struct OrderPoles {
+    /// Denominator degree `n` (number of poles of the polynomial, both half-planes).
+    pub order: usize,
+    pub poles: Vec<Pole>,
+    /// Per pole, residue-like vector over the channels (scale arbitrary; for MAC).
+    pub shapes: Vec<Vec<c64>>,
+}
+
+/// Toeplitz sums of the LSCF normal equations for orders up to `n_max`.
+struct Sums {
+    /// `r(m) = Σ_k cos(mθ_k)`.
+    r: Vec<f64>,
+    /// Per channel `g(m) = Σ_k h_k z_k^m` for m = 0..=n_max and `g(−m)`.
+    g_pos: Vec<Vec<c64>>,
+    g_neg: Vec<Vec<c64>>,
+    /// Per channel `t(m) = Σ_k |h_k|² cos(mθ_k)`.
+    t: Vec<Vec<f64>>,
+}
+
+fn sums(theta: &[f64], chans: &[Vec<c64>], n_max: usize) -> Sums {
+    let no = chans.len();
+    let mut s = Sums {
+        r: vec![0.0; n_max + 1],
+        g_pos: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
+        g_neg: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
+        t: vec![vec![0.0; n_max + 1]; no],
+    };
+    let mut zp = vec![c64::new(0.0, 0.0); n_max + 1];
+    for (k, &th) in theta.iter().enumerate() {
+        // Powers z^m by recurrence, re-anchored every 16 steps to bound rounding drift.
+        let z = c64::new(th.cos(), th.sin());
+        zp[0] = c64::new(1.0, 0.0);
+        for m in 1..=n_max {
+            zp[m] = if m % 16 == 0 {
+                let a = th * m as f64;
+                c64::new(a.cos(), a.sin())
+            } else {
+                zp[m - 1] * z
+            };
+        }
+        for m in 0..=n_max {
+            s.r[m] += zp[m].re;
+        }
+        for o in 0..no {
+            let h = chans[o][k];
+            let h2 = h.norm_sqr();
+            let (gp, gn, t) = (&mut s.g_pos[o], &mut s.g_neg[o], &mut s.t[o]);
+            for m in 0..=n_max {
+                let p = zp[m];
+                gp[m] += h * p;
+                gn[m] += h * p.conj();
+                t[m] += h2 * p.re;
+            }
+        }
+    }
+    s
+}
+
+/// The LSCF stabilisation sweep: poles for every order `2..=n_max`.
+///
+/// `chans` are the channels to use (already restricted to non-zero ones); each is
+/// weighted by the inverse of its RMS so that every channel counts equally.
+pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPoles> {
+    let w_max = *band.omega.last().unwrap();
+    let dt = std::f64::consts::PI / w_max;
+    let theta: Vec<f64> = band.omega.iter().map(|w| w * dt).collect();
+    let weighted: Vec<Vec<c64>> = chans
+        .iter()
+        .map(|h| {
+            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt();
+            h.iter().map(|z| z / rms).collect()
+        })
+        .collect();
+    let s = sums(&theta, &weighted, n_max);
+    let no = weighted.len();
+    let mut out = Vec::new();
+    for n in 2..=n_max {
+        let p = n + 1;
+        let r = Mat::from_fn(p, p, |j, l| s.r[j.abs_diff(l)]);
+        // S_o[j,l] = −Re Σ h z^{l−j}
+        let mut s_all = Mat::<f64>::zeros(p, p * no);
+        for o in 0..no {
+            for j in 0..p {
+                for l in 0..p {
+                    let g = if l >= j {
+                        s.g_pos[o][l - j]
+                    } else {
+                        s.g_neg[o][j - l]
+                    };
+                    s_all[(j, o * p + l)] = -g.re;
+                }
+            }
+        }
+        let Some(x_all) = linalg::solve_square(&r, &s_all) else {
+            continue;
+        };
+        let mut m = Mat::<f64>::zeros(p, p);
+        for o in 0..no {
+            for j in 0..p {
+                for l in 0..p {
+                    let mut v = s.t[o][j.abs_diff(l)];
+                    for q in 0..p {
+                        v -= s_all[(q, o * p + j)] * x_all[(q, o * p + l)];
+                    }
+                    m[(j, l)] += v;
+                }
+            }
+        }
+        // α_n = 1:  M[0..n,0..n] α' = −M[0..n, n]
+        let a = Mat::from_fn(n, n, |i, j| m[(i, j)]);
+        let b = Mat::from_fn(n, 1, |i, _| -m[(i, n)]);
+        let Some(alpha) = linalg::solve_square(&a, &b) else {
+            continue;
+        };
+        let mut coef: Vec<f64> = (0..n).map(|i| alpha[(i, 0)]).collect();
+        coef.push(1.0);
+        let companion = Mat::from_fn(n, n, |i, j| {
+            if i == 0 {
+                -coef[n - 1 - j]
+            } else if j + 1 == i {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let Some(roots) = linalg::eigenvalues(&companion) else {
+            continue;
+        };
+        // Numerators β_o = −R⁻¹ S_o α, evaluated at each root for the shape vectors.
+        let mut poles = Vec::new();
+        let mut shapes = Vec::new();
+        for zr in roots {
+            if zr.norm() == 0.0 || zr.im <= 0.0 {
+                continue;
+            }
+            let lam = zr.ln() / dt;
+            let pole = Pole(lam);
+            let dprime: c64 = (1..=n)
+                .map(|j| c64::new(coef[j] * j as f64, 0.0) * zr.powi(j as i32 - 1))
+                .sum();
+            let shape: Vec<c64> = (0..no)
+                .map(|o| {
+                    let mut num = c64::new(0.0, 0.0);
+                    let mut zj = c64::new(1.0, 0.0);
+                    for j in 0..p {
+                        let beta_j: f64 =
+                            -(0..p).map(|l| x_all[(j, o * p + l)] * coef[l]).sum::<f64>();
+                        num += zj * beta_j;
+                        zj *= zr;
+                    }
+                    num / dprime
+                })
+                .collect();
+            poles.push(pole);
+            shapes.push(shape);
+        }
+        out.push(OrderPoles {
+            order: n,
+            poles,
+            shapes,
+        });
+    }
+    out
+}

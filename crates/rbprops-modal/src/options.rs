@@ -1,0 +1,162 @@
+//! Fit options and their defaults.
+
+/// Which estimator provides the poles (and, for `Circle`, the modal parameters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Least-squares complex frequency-domain estimator (common denominator, real
+    /// coefficients, z-domain basis), stabilisation diagram, then pole refinement and
+    /// LSFD residues. Works on any frequency axis (uniform or not, baseband or zoom).
+    Lscf,
+    /// Least-squares complex exponential: poles from the impulse responses (inverse DFT
+    /// of the band-limited FRFs). Needs a uniform axis starting at 0 Hz; the truncation of
+    /// the FRF at the band edge leaks into the impulse responses and biases the poles of
+    /// low-frequency modes unless the refinement step corrects them.
+    Lsce,
+    /// Kennedy–Pancu circle fit per mode and channel (modes located by LSCF), neighbours'
+    /// contributions subtracted iteratively with their own circle-fit models. Only for
+    /// modes separated by several half-power bandwidths.
+    Circle,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Lscf => "lscf",
+            Method::Lsce => "lsce",
+            Method::Circle => "circle",
+        }
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = crate::ModalError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "lscf" | "plscf" | "polymax" => Ok(Method::Lscf),
+            "lsce" => Ok(Method::Lsce),
+            "circle" | "circle-fit" | "kennedy-pancu" => Ok(Method::Circle),
+            _ => Err(crate::ModalError::Options(format!(
+                "unknown method '{s}' (expected lscf, lsce or circle)"
+            ))),
+        }
+    }
+}
+
+/// Whose FRFs the poles are estimated from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum PoleMode {
+    /// Each excitation gets its own poles (independent SIMO fits).
+    PerExcitation,
+    /// One pole set per suspension set-up from all its excitations' channels (the
+    /// poles are global properties of the set-up); residues still per excitation.
+    PerSetup,
+}
+
+/// Stabilisation-diagram and pole-selection tolerances. All are relative: frequency and
+/// damping relative to the pole's own values, clustering distance in units of the
+/// pole's half-power half-bandwidth `ζω_r` (so close modes are never merged by a fixed
+/// window).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StabilisationTolerances {
+    /// |Δf|/f between consecutive orders for a pole to be frequency-stable.
+    pub frequency: f64,
+    /// |Δζ|/ζ between consecutive orders for damping stability.
+    pub damping: f64,
+    /// 1 − MAC between consecutive orders for shape stability.
+    pub shape: f64,
+    /// Poles with damping above this are computational (or not of interest).
+    pub max_damping: f64,
+    /// Two stable poles belong to the same mode when they are closer than this many
+    /// half-power half-bandwidths (and their shapes agree within `shape`).
+    pub cluster_bandwidths: f64,
+    /// A cluster is a physical mode when it holds at least this fraction of the
+    /// orders from its first appearance to the maximum order.
+    pub min_presence: f64,
+}
+
+impl Default for StabilisationTolerances {
+    fn default() -> Self {
+        Self {
+            frequency: 0.01,
+            damping: 0.05,
+            shape: 0.02,
+            max_damping: 0.2,
+            cluster_bandwidths: 0.5,
+            min_presence: 0.4,
+        }
+    }
+}
+
+/// Options of [`crate::fit_campaign`] / [`crate::fit_excitation`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
+    pub method: Method,
+    /// Band to fit (Hz, inclusive); `None` = the whole axis.
+    pub band_hz: Option<(f64, f64)>,
+    /// Force the number of modes in the band (the strongest stable clusters are kept).
+    pub n_modes: Option<usize>,
+    /// Highest denominator order of the stabilisation diagram (2 per mode). Reduced
+    /// automatically when the band has too few lines.
+    pub max_order: usize,
+    pub poles: PoleMode,
+    /// Lower (`1/(iω)²` in receptance, only when the band starts above 0 Hz) and upper
+    /// (constant receptance) residual terms in the residue fit.
+    pub residual_terms: bool,
+    /// Refine poles and residues jointly by Gauss–Newton on the frequency-domain
+    /// least-squares error (variable projection). Needed for accuracy beyond ~1e-4.
+    pub refine: bool,
+    pub tolerances: StabilisationTolerances,
+    /// A mode whose peak Norm Indicator is more than this many dB below the
+    /// excitation's strongest mode is flagged `weak`.
+    pub weak_below_db: f64,
+    /// Circle fit: warn when another mode is closer than this many half-power bandwidths.
+    pub circle_min_separation: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            method: Method::Lscf,
+            band_hz: None,
+            n_modes: None,
+            max_order: 32,
+            poles: PoleMode::PerExcitation,
+            residual_terms: true,
+            refine: true,
+            tolerances: StabilisationTolerances::default(),
+            weak_below_db: 20.0,
+            circle_min_separation: 3.0,
+        }
+    }
+}
+
+impl FitOptions {
+    pub fn validate(&self) -> Result<(), crate::ModalError> {
+        let bad = |s: String| Err(crate::ModalError::Options(s));
+        if let Some((a, b)) = self.band_hz {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                return bad(format!("band [{a}, {b}] Hz is empty or not finite"));
+            }
+        }
+        if self.max_order < 2 {
+            return bad(format!("max_order {} < 2", self.max_order));
+        }
+        if self.n_modes == Some(0) {
+            return bad("n_modes = 0".into());
+        }
+        let t = &self.tolerances;
+        for (name, v) in [
+            ("frequency", t.frequency),
+            ("damping", t.damping),
+            ("shape", t.shape),
+            ("max_damping", t.max_damping),
+            ("cluster_bandwidths", t.cluster_bandwidths),
+            ("min_presence", t.min_presence),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("tolerance {name} = {v} must be positive"));
+            }
+        }
+        Ok(())
+    }
+}

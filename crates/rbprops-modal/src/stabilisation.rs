@@ -1,0 +1,278 @@
+//! Stabilisation diagram and automatic pole selection.
+//!
+//! Classification (per order, against the nearest physical pole of the previous
+//! order): frequency-stable when `|Δf|/f < tol_f`, damping-stable when `|Δζ|/ζ < tol_ζ`,
+//! shape-stable when `1 − MAC < tol_φ`; stable = all three.
+//!
+//! Selection clusters the stable poles. The distance between two poles is measured in
+//! half-power half-bandwidths `ζω_r` of the narrower one (relative to the data, not a
+//! fixed Hz window) and two poles with dissimilar shapes never join. A cluster takes at
+//! most one pole per model order: two poles that the *same* model separates are two
+//! modes, however close, so close modes are never merged. Clusters present in too few
+//! orders are computational and rejected.
+
+use crate::lscf::OrderPoles;
+use crate::options::StabilisationTolerances;
+use crate::pole::{mac, Pole};
+use rbprops_core::c64;
+
+/// Stability class of a pole in the diagram.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum StabilityClass {
+    /// Physical (decaying, in band) but not stable against the previous order.
+    New,
+    /// Frequency stable only.
+    Frequency,
+    /// Frequency and damping stable.
+    Damping,
+    /// Frequency and shape stable.
+    Shape,
+    /// Frequency, damping and shape stable.
+    Stable,
+    /// Rejected outright: unstable (growing), overdamped or outside the band.
+    Computational,
+}
+
+impl StabilityClass {
+    pub fn symbol(self) -> &'static str {
+        match self {
+            StabilityClass::New => "o",
+            StabilityClass::Frequency => "f",
+            StabilityClass::Damping => "d",
+            StabilityClass::Shape => "v",
+            StabilityClass::Stable => "s",
+            StabilityClass::Computational => "x",
+        }
+    }
+}
+
+/// One point of the stabilisation diagram.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagramPole {
+    pub order: usize,
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    pub class: StabilityClass,
+    /// Index of the selected mode (0-based, ascending frequency) this pole supports.
+    pub mode: Option<usize>,
+}
+
+/// The stabilisation diagram of one excitation (or set-up): plot data.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StabilisationDiagram {
+    pub poles: Vec<DiagramPole>,
+    pub max_order: usize,
+}
+
+/// A selected mode: representative pole and shape, and how sure the selection is.
+#[derive(Debug, Clone)]
+pub struct SelectedPole {
+    pub pole: Pole,
+    pub shape: Vec<c64>,
+    /// Stable poles supporting it.
+    pub support: usize,
+    /// Fraction of orders (from its first appearance) in which it is stable.
+    pub presence: f64,
+    /// Standard deviation of (f Hz, ζ) over the supporting poles: the scatter of the
+    /// estimate across model orders, used as its uncertainty when not refined.
+    pub spread: (f64, f64),
+}
+
+/// Output of the selection.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    pub diagram: StabilisationDiagram,
+    pub modes: Vec<SelectedPole>,
+    pub warnings: Vec<String>,
+}
+
+fn physical(p: &Pole, band_w: (f64, f64), tol: &StabilisationTolerances) -> bool {
+    let z = p.damping();
+    let w = p.omega_n();
+    z > 0.0 && z < tol.max_damping && w >= band_w.0 && w <= band_w.1
+}
+
+/// Classifies every pole and selects the physical modes.
+///
+/// `band_w` is the band in rad/s. `n_modes` forces the number of modes (the best
+/// supported clusters are kept).
+pub fn select(
+    orders: &[OrderPoles],
+    band_w: (f64, f64),
+    tol: &StabilisationTolerances,
+    n_modes: Option<usize>,
+) -> Selection {
+    let mut diagram = StabilisationDiagram {
+        poles: Vec::new(),
+        max_order: orders.iter().map(|o| o.order).max().unwrap_or(0),
+    };
+    // (diagram index, order index, pole index) of the stable poles.
+    let mut stable: Vec<(usize, usize, usize)> = Vec::new();
+    for (oi, op) in orders.iter().enumerate() {
+        let prev = if oi > 0 { Some(&orders[oi - 1]) } else { None };
+        for (pi, p) in op.poles.iter().enumerate() {
+            let class = if !physical(p, band_w, tol) {
+                StabilityClass::Computational
+            } else if let Some(prev) = prev {
+                let best = prev
+                    .poles
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, q)| physical(q, band_w, tol))
+                    .min_by(|a, b| {
+                        let da = (a.1.omega_n() - p.omega_n()).abs();
+                        let db = (b.1.omega_n() - p.omega_n()).abs();
+                        da.total_cmp(&db)
+                    });
+                match best {
+                    None => StabilityClass::New,
+                    Some((qi, q)) => {
+                        let df = (q.omega_n() - p.omega_n()).abs() / p.omega_n();
+                        let dz = (q.damping() - p.damping()).abs() / p.damping();
+                        let dm = 1.0 - mac(&op.shapes[pi], &prev.shapes[qi]);
+                        match (df < tol.frequency, dz < tol.damping, dm < tol.shape) {
+                            (false, _, _) => StabilityClass::New,
+                            (true, true, true) => StabilityClass::Stable,
+                            (true, true, false) => StabilityClass::Damping,
+                            (true, false, true) => StabilityClass::Shape,
+                            (true, false, false) => StabilityClass::Frequency,
+                        }
+                    }
+                }
+            } else {
+                StabilityClass::New
+            };
+            if class == StabilityClass::Stable {
+                stable.push((diagram.poles.len(), oi, pi));
+            }
+            diagram.poles.push(DiagramPole {
+                order: op.order,
+                frequency_hz: p.frequency_hz(),
+                damping_ratio: p.damping(),
+                class,
+                mode: None,
+            });
+        }
+    }
+
+    // Cluster, highest orders first (their poles are the best converged).
+    struct Cluster {
+        anchor: Pole,
+        shape: Vec<c64>,
+        members: Vec<(usize, usize, usize)>,
+        lowest_order: usize,
+    }
+    let mut clusters: Vec<Cluster> = Vec::new();
+    for oi in (0..orders.len()).rev() {
+        let here: Vec<&(usize, usize, usize)> = stable.iter().filter(|s| s.1 == oi).collect();
+        // All candidate (distance, pole, cluster) pairs, then greedy smallest-first.
+        let mut pairs = Vec::new();
+        for (a, s) in here.iter().enumerate() {
+            let p = &orders[oi].poles[s.2];
+            for (ci, c) in clusters.iter().enumerate() {
+                let d = p.distance_in_bandwidths(&c.anchor);
+                let shape_ok = 1.0 - mac(&orders[oi].shapes[s.2], &c.shape) < 5.0 * tol.shape;
+                if d < tol.cluster_bandwidths && shape_ok {
+                    pairs.push((d, a, ci));
+                }
+            }
+        }
+        pairs.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+        let mut pole_used = vec![false; here.len()];
+        let mut cluster_used = vec![false; clusters.len()];
+        for (_, a, ci) in pairs {
+            if pole_used[a] || cluster_used[ci] {
+                continue;
+            }
+            pole_used[a] = true;
+            cluster_used[ci] = true;
+            clusters[ci].members.push(*here[a]);
+            clusters[ci].lowest_order = orders[oi].order;
+        }
+        for (a, s) in here.iter().enumerate() {
+            if !pole_used[a] {
+                clusters.push(Cluster {
+                    anchor: orders[oi].poles[s.2],
+                    shape: orders[oi].shapes[s.2].clone(),
+                    members: vec![**s],
+                    lowest_order: orders[oi].order,
+                });
+            }
+        }
+    }
+
+    let n_max = diagram.max_order;
+    let n_orders = orders.len().max(1);
+    let min_support = 3usize.max(n_orders / 8);
+    let mut ranked: Vec<(usize, f64, usize)> = clusters
+        .iter()
+        .enumerate()
+        .map(|(ci, c)| {
+            let span = n_max + 1 - c.lowest_order;
+            (ci, c.members.len() as f64 / span as f64, c.members.len())
+        })
+        .collect();
+    let mut warnings = Vec::new();
+    let keep: Vec<usize> = match n_modes {
+        None => ranked
+            .iter()
+            .filter(|(_, pres, n)| *pres >= tol.min_presence && *n >= min_support)
+            .map(|r| r.0)
+            .collect(),
+        Some(k) => {
+            ranked.sort_by(|a, b| b.2.cmp(&a.2).then(b.1.total_cmp(&a.1)).then(a.0.cmp(&b.0)));
+            if ranked.len() < k {
+                warnings.push(format!(
+                    "{k} modes requested but the stabilisation diagram shows only {} stable pole clusters",
+                    ranked.len()
+                ));
+            }
+            ranked.iter().take(k).map(|r| r.0).collect()
+        }
+    };
+    let mut modes: Vec<(usize, SelectedPole)> = keep
+        .iter()
+        .map(|&ci| {
+            let c = &clusters[ci];
+            // The highest-order member (first pushed) is the representative.
+            let (_, oi, pi) = c.members[0];
+            let span = n_max + 1 - c.lowest_order;
+            let fz: Vec<(f64, f64)> = c
+                .members
+                .iter()
+                .map(|&(_, oi, pi)| {
+                    let p = orders[oi].poles[pi];
+                    (p.frequency_hz(), p.damping())
+                })
+                .collect();
+            let nf = fz.len() as f64;
+            let (mf, mz) = fz
+                .iter()
+                .fold((0.0, 0.0), |a, b| (a.0 + b.0 / nf, a.1 + b.1 / nf));
+            let var = fz.iter().fold((0.0, 0.0), |a, b| {
+                (a.0 + (b.0 - mf).powi(2) / nf, a.1 + (b.1 - mz).powi(2) / nf)
+            });
+            (
+                ci,
+                SelectedPole {
+                    pole: orders[oi].poles[pi],
+                    shape: orders[oi].shapes[pi].clone(),
+                    support: c.members.len(),
+                    presence: (c.members.len() as f64 / span as f64).min(1.0),
+                    spread: (var.0.sqrt(), var.1.sqrt()),
+                },
+            )
+        })
+        .collect();
+    modes.sort_by(|a, b| a.1.pole.omega_n().total_cmp(&b.1.pole.omega_n()));
+    for (mi, (ci, _)) in modes.iter().enumerate() {
+        for &(di, _, _) in &clusters[*ci].members {
+            diagram.poles[di].mode = Some(mi);
+        }
+    }
+    Selection {
+        diagram,
+        modes: modes.into_iter().map(|m| m.1).collect(),
+        warnings,
+    }
+}
