@@ -1,0 +1,825 @@
+//! Splitting a universal file into datasets and parsing the typed ones.
+//!
+//! A dataset is framed by two delimiter lines holding `-1` (format I6). The line after
+//! the opening delimiter holds the dataset number in columns 1–6; for a binary dataset
+//! (58b) column 7 holds `b` followed by `I6,I6,I12,I12` = byte order (1 little, 2 big
+//! endian), floating-point format (2 = IEEE 754), number of ASCII lines that follow and
+//! number of binary bytes after them.
+
+use crate::error::{DatasetLocation, UffError};
+use crate::fortran::{check_tail, column, parse_int, parse_real};
+use crate::model::*;
+use rbprops_core::c64;
+
+/// A line of the file: its bytes (without the line end) and its 1-based number.
+#[derive(Clone, Copy)]
+struct Line<'a> {
+    bytes: &'a [u8],
+    number: usize,
+}
+
+#[derive(Clone)]
+struct Cursor<'a> {
+    data: &'a [u8],
+    pos: usize,
+    next_line: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn next(&mut self) -> Option<Line<'a>> {
+        if self.pos >= self.data.len() {
+            return None;
+        }
+        let rest = &self.data[self.pos..];
+        let (mut line, adv) = match rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (&rest[..i], i + 1),
+            None => (rest, rest.len()),
+        };
+        if let Some(stripped) = line.strip_suffix(b"\r") {
+            line = stripped;
+        }
+        self.pos += adv;
+        let number = self.next_line;
+        self.next_line += 1;
+        Some(Line {
+            bytes: line,
+            number,
+        })
+    }
+
+    fn take(&mut self, n: usize) -> Option<&'a [u8]> {
+        let end = self.pos.checked_add(n)?;
+        if end > self.data.len() {
+            return None;
+        }
+        let out = &self.data[self.pos..end];
+        self.pos = end;
+        // Line numbers after binary data are approximate: count the newlines skipped.
+        self.next_line += out.iter().filter(|&&b| b == b'\n').count();
+        Some(out)
+    }
+}
+
+fn is_delimiter(bytes: &[u8]) -> bool {
+    trim_ascii(bytes) == b"-1"
+}
+
+fn trim_ascii(b: &[u8]) -> &[u8] {
+    let start = b
+        .iter()
+        .position(|c| !c.is_ascii_whitespace())
+        .unwrap_or(b.len());
+    let end = b
+        .iter()
+        .rposition(|c| !c.is_ascii_whitespace())
+        .map_or(start, |e| e + 1);
+    &b[start..end.max(start)]
+}
+
+/// A record as text whose byte columns equal its character columns: non-ASCII bytes
+/// become '?', so fixed-width fields can be cut by column.
+fn ascii_text(b: &[u8]) -> String {
+    b.iter()
+        .map(|&c| if c.is_ascii() { c as char } else { '?' })
+        .collect()
+}
+
+/// Free text (ID lines, names): lossy UTF-8, trailing blanks removed.
+fn free_text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).trim_end().to_string()
+}
+
+/// Context for errors inside one dataset.
+pub(crate) struct Ctx<'f> {
+    pub file: &'f str,
+    pub at: DatasetLocation,
+}
+
+impl Ctx<'_> {
+    pub fn err(&self, field: impl Into<String>, problem: impl Into<String>) -> UffError {
+        UffError::Field {
+            file: self.file.to_string(),
+            at: self.at.clone(),
+            field: field.into(),
+            problem: problem.into(),
+        }
+    }
+}
+
+/// Parses a universal file. `file_name` is only used in error messages.
+pub fn parse(bytes: &[u8], file_name: &str) -> Result<UffFile, UffError> {
+    let mut cur = Cursor {
+        data: bytes,
+        pos: 0,
+        next_line: 1,
+    };
+    let mut datasets = Vec::new();
+    let structure = |line: usize, problem: String| UffError::Structure {
+        file: file_name.to_string(),
+        line,
+        problem,
+    };
+    loop {
+        // Find the opening delimiter; only blank lines may come between datasets.
+        let open = loop {
+            match cur.next() {
+                None => {
+                    if datasets.is_empty() {
+                        return Err(structure(
+                            cur.next_line,
+                            "no datasets (a universal file starts each dataset with a line '    -1')"
+                                .into(),
+                        ));
+                    }
+                    return Ok(UffFile {
+                        file_name: file_name.to_string(),
+                        datasets,
+                    });
+                }
+                Some(l) if is_delimiter(l.bytes) => break l,
+                Some(l) if trim_ascii(l.bytes).is_empty() => continue,
+                Some(l) => {
+                    return Err(structure(
+                        l.number,
+                        format!(
+                            "text '{}' outside any dataset (expected the delimiter '    -1')",
+                            free_text(trim_ascii(l.bytes))
+                                .chars()
+                                .take(40)
+                                .collect::<String>()
+                        ),
+                    ))
+                }
+            }
+        };
+        let header = cur.next().ok_or_else(|| {
+            structure(
+                open.number,
+                "file ends right after a dataset delimiter (truncated?)".into(),
+            )
+        })?;
+        let htext = ascii_text(header.bytes);
+        let number = parse_int(column(&htext, 0, 6))
+            .map_err(|e| structure(header.number, format!("dataset number (columns 1-6): {e}")))?;
+        let at = DatasetLocation {
+            index: datasets.len() + 1,
+            number,
+            line: open.number,
+        };
+        let ctx = Ctx {
+            file: file_name,
+            at,
+        };
+        let binary_flag = htext.as_bytes().get(6).map(|c| c.to_ascii_lowercase()) == Some(b'b');
+        let mut lines: Vec<Line> = Vec::new();
+        let mut binary: Option<(BinaryLayout, &[u8])> = None;
+        if binary_flag {
+            let field = |start, width, name: &str| {
+                parse_int(column(&htext, start, width))
+                    .map_err(|e| ctx.err(format!("binary header {name}"), e))
+            };
+            let order = field(7, 6, "field 3 (byte ordering)")?;
+            let fp = field(13, 6, "field 4 (floating-point format)")?;
+            let n_ascii = field(19, 12, "field 5 (number of ASCII lines)")?;
+            let n_bytes = field(31, 12, "field 6 (number of bytes)")?;
+            let little_endian = match order {
+                1 => true,
+                2 => false,
+                o => {
+                    return Err(ctx.err(
+                        "binary header field 3 (byte ordering)",
+                        format!("unknown code {o} (1 little endian, 2 big endian)"),
+                    ))
+                }
+            };
+            if fp != 2 {
+                return Err(ctx.err(
+                    "binary header field 4 (floating-point format)",
+                    format!("code {fp} is not supported (only 2 = IEEE 754)"),
+                ));
+            }
+            if !(0..=1000).contains(&n_ascii) {
+                return Err(ctx.err(
+                    "binary header field 5 (number of ASCII lines)",
+                    format!("{n_ascii} is not a plausible line count"),
+                ));
+            }
+            for k in 0..n_ascii {
+                let l = cur.next().ok_or_else(|| {
+                    ctx.err(
+                        format!("ASCII line {} of {n_ascii}", k + 1),
+                        "file ends inside the dataset header (truncated)",
+                    )
+                })?;
+                lines.push(l);
+            }
+            let n = usize::try_from(n_bytes).map_err(|_| {
+                ctx.err(
+                    "binary header field 6 (number of bytes)",
+                    format!("{n_bytes} is negative"),
+                )
+            })?;
+            // pyuff (2.5) writes half the true byte count for complex 58b data; when the
+            // announced count is not followed by the delimiter, the count implied by the
+            // dataset's own record 7 is tried before giving up.
+            let mut candidates = vec![n];
+            if number == 58 {
+                if let Some(e) = expected_58b_bytes(&lines).filter(|&e| e != n) {
+                    candidates.push(e);
+                }
+            }
+            let mut found = None;
+            for &len in &candidates {
+                let mut probe = cur.clone();
+                let Some(data) = probe.take(len) else {
+                    continue;
+                };
+                let mut close = probe.next();
+                if matches!(close, Some(l) if l.bytes.is_empty()) {
+                    close = probe.next();
+                }
+                if matches!(close, Some(l) if is_delimiter(l.bytes)) {
+                    found = Some((data, probe));
+                    break;
+                }
+            }
+            let Some((data, after)) = found else {
+                return Err(ctx.err(
+                    "binary header field 6 (number of bytes)",
+                    if bytes.len() - cur.pos < n {
+                        format!(
+                            "the header announces {n} bytes but only {} remain (truncated)",
+                            bytes.len() - cur.pos
+                        )
+                    } else {
+                        format!("no closing '    -1' right after the announced {n} bytes of binary data")
+                    },
+                ));
+            };
+            cur = after;
+            binary = Some((BinaryLayout { little_endian }, data));
+        } else {
+            loop {
+                match cur.next() {
+                    Some(l) if is_delimiter(l.bytes) => break,
+                    Some(l) => lines.push(l),
+                    None => {
+                        return Err(ctx.err(
+                            "closing delimiter",
+                            "file ends before the dataset's closing '    -1' (truncated)",
+                        ))
+                    }
+                }
+            }
+        }
+        let record = match number {
+            58 => Record::Function(Box::new(parse_58(&ctx, &lines, binary)?)),
+            15 | 2411 if binary.is_none() => Record::Nodes(parse_nodes(&ctx, number, &lines)?),
+            164 if binary.is_none() => Record::Units(parse_164(&ctx, &lines)?),
+            2420 if binary.is_none() => Record::CoordinateSystems(parse_2420(&ctx, &lines)?),
+            18 if binary.is_none() => Record::CoordinateSystems(parse_18(&ctx, &lines)?),
+            _ => Record::Unknown {
+                number,
+                text: lines
+                    .iter()
+                    .map(|l| free_text(l.bytes))
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            },
+        };
+        datasets.push(Dataset {
+            location: ctx.at,
+            record,
+        });
+    }
+}
+
+/// The byte count a 58b dataset's records 7 implies (None if record 7 is unreadable).
+fn expected_58b_bytes(lines: &[Line]) -> Option<usize> {
+    let r7 = ascii_text(lines.get(6)?.bytes);
+    let code = parse_int(column(&r7, 0, 10)).ok()?;
+    let n = usize::try_from(parse_int(column(&r7, 10, 10)).ok()?).ok()?;
+    let even = parse_int(column(&r7, 20, 10)).ok()? == 1;
+    let t = OrdinateType::from_code(code)?;
+    let per_point = match (t.is_complex(), even) {
+        (false, true) => 1,
+        (true, false) => 3,
+        _ => 2,
+    };
+    let size = if t.is_double() { 8 } else { 4 };
+    n.checked_mul(per_point)?.checked_mul(size)
+}
+
+/// Reads one fixed-width record: `(start, width, name)` triples.
+struct Rec<'c, 'f> {
+    ctx: &'c Ctx<'f>,
+    text: String,
+    label: String,
+}
+
+impl<'c, 'f> Rec<'c, 'f> {
+    fn new(
+        ctx: &'c Ctx<'f>,
+        line: Option<&Line>,
+        label: impl Into<String>,
+    ) -> Result<Self, UffError> {
+        let label = label.into();
+        let line = line.ok_or_else(|| ctx.err(&label, "missing (dataset truncated)"))?;
+        Ok(Self {
+            ctx,
+            text: ascii_text(line.bytes),
+            label: format!("{label} (line {})", line.number),
+        })
+    }
+    fn int(&self, start: usize, width: usize, name: &str) -> Result<i64, UffError> {
+        parse_int(column(&self.text, start, width))
+            .map_err(|e| self.ctx.err(format!("{} {name}", self.label), e))
+    }
+    fn int_or_zero(&self, start: usize, width: usize, name: &str) -> Result<i64, UffError> {
+        if column(&self.text, start, width).trim().is_empty() {
+            Ok(0)
+        } else {
+            self.int(start, width, name)
+        }
+    }
+    fn real(&self, start: usize, width: usize, name: &str) -> Result<f64, UffError> {
+        parse_real(column(&self.text, start, width))
+            .map_err(|e| self.ctx.err(format!("{} {name}", self.label), e))
+    }
+    fn text(&self, start: usize, width: usize) -> String {
+        column(&self.text, start, width).trim().to_string()
+    }
+    fn end(&self, end: usize) -> Result<(), UffError> {
+        check_tail(&self.text, end).map_err(|e| self.ctx.err(self.label.clone(), e))
+    }
+}
+
+/// Reads `n` reals laid out `widths` per line (the last line may be short) starting at
+/// line `first` of `lines`; returns the values and the index of the next line.
+fn read_reals(
+    ctx: &Ctx,
+    lines: &[Line],
+    first: usize,
+    widths: &[usize],
+    n: usize,
+    what: &str,
+) -> Result<(Vec<f64>, usize), UffError> {
+    let mut out = Vec::new();
+    let mut li = first;
+    while out.len() < n {
+        let line = lines.get(li).ok_or_else(|| {
+            ctx.err(
+                what,
+                format!(
+                    "found {} of {n} values before the dataset ended (truncated?)",
+                    out.len()
+                ),
+            )
+        })?;
+        let text = ascii_text(line.bytes);
+        let k = widths.len().min(n - out.len());
+        let mut col = 0;
+        for (j, &w) in widths[..k].iter().enumerate() {
+            let v = parse_real(column(&text, col, w)).map_err(|e| {
+                ctx.err(
+                    format!(
+                        "{what}, line {} value {} (columns {}-{})",
+                        line.number,
+                        j + 1,
+                        col + 1,
+                        col + w
+                    ),
+                    e,
+                )
+            })?;
+            out.push(v);
+            col += w;
+        }
+        check_tail(&text, col).map_err(|e| ctx.err(format!("{what}, line {}", line.number), e))?;
+        li += 1;
+    }
+    Ok((out, li))
+}
+
+fn parse_164(ctx: &Ctx, lines: &[Line]) -> Result<Units, UffError> {
+    let r = Rec::new(ctx, lines.first(), "record 1")?;
+    let code = r.int(0, 10, "field 1 (units code)")?;
+    let description = r.text(10, 20);
+    let temperature_mode = r.int_or_zero(30, 10, "field 3 (temperature mode)")?;
+    r.end(40)?;
+    if !(1..=9).contains(&code) {
+        return Err(ctx.err(
+            "record 1 field 1 (units code)",
+            format!("unknown units code {code} (expected 1..9)"),
+        ));
+    }
+    let (f, _) = read_reals(ctx, lines, 1, &[25, 25, 25], 4, "record 2 (unit factors)")?;
+    Ok(Units {
+        code,
+        description,
+        temperature_mode,
+        length_factor: f[0],
+        force_factor: f[1],
+        temperature_factor: f[2],
+        temperature_offset: f[3],
+    })
+}
+
+fn parse_nodes(ctx: &Ctx, number: i64, lines: &[Line]) -> Result<NodeSet, UffError> {
+    let mut nodes = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if trim_ascii(lines[i].bytes).is_empty() {
+            i += 1;
+            continue;
+        }
+        let r = Rec::new(
+            ctx,
+            lines.get(i),
+            format!("node {} record 1", nodes.len() + 1),
+        )?;
+        let label = r.int(0, 10, "field 1 (node label)")?;
+        let definition_cs = r.int_or_zero(10, 10, "field 2 (coordinate system)")?;
+        let displacement_cs = r.int_or_zero(20, 10, "field 3 (displacement coordinate system)")?;
+        let color = r.int_or_zero(30, 10, "field 4 (color)")?;
+        let coordinates = if number == 15 {
+            let c = [
+                r.real(40, 13, "field 5 (x)")?,
+                r.real(53, 13, "field 6 (y)")?,
+                r.real(66, 13, "field 7 (z)")?,
+            ];
+            r.end(79)?;
+            i += 1;
+            c
+        } else {
+            r.end(40)?;
+            let (c, next) = read_reals(
+                ctx,
+                lines,
+                i + 1,
+                &[25, 25, 25],
+                3,
+                &format!("node {label} record 2 (coordinates)"),
+            )?;
+            i = next;
+            [c[0], c[1], c[2]]
+        };
+        nodes.push(Node {
+            label,
+            definition_cs,
+            displacement_cs,
+            color,
+            coordinates,
+        });
+    }
+    Ok(NodeSet {
+        format: if number == 15 {
+            NodeFormat::D15
+        } else {
+            NodeFormat::D2411
+        },
+        nodes,
+    })
+}
+
+fn cs_kind(ctx: &Ctx, r: &Rec, code: i64) -> Result<CsKind, UffError> {
+    CsKind::from_code(code).ok_or_else(|| {
+        ctx.err(
+            format!("{} field 2 (coordinate system type)", r.label),
+            format!("unknown type code {code} (0 Cartesian, 1 cylindrical, 2 spherical)"),
+        )
+    })
+}
+
+fn parse_2420(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> {
+    let r1 = Rec::new(ctx, lines.first(), "record 1")?;
+    let part_uid = r1.int(0, 10, "field 1 (part UID)")?;
+    let part_name = lines.get(1).map(|l| free_text(l.bytes)).unwrap_or_default();
+    if lines.len() < 2 {
+        return Err(ctx.err("record 2 (part name)", "missing (dataset truncated)"));
+    }
+    let mut systems = Vec::new();
+    let mut i = 2;
+    while i < lines.len() {
+        if trim_ascii(lines[i].bytes).is_empty() {
+            i += 1;
+            continue;
+        }
+        let n = systems.len() + 1;
+        let r3 = Rec::new(ctx, lines.get(i), format!("system {n} record 3"))?;
+        let label = r3.int(0, 10, "field 1 (label)")?;
+        let code = r3.int(10, 10, "field 2 (type)")?;
+        let kind = cs_kind(ctx, &r3, code)?;
+        let color = r3.int_or_zero(20, 10, "field 3 (color)")?;
+        r3.end(40)?;
+        let name_line = lines.get(i + 1).ok_or_else(|| {
+            ctx.err(
+                format!("system {label} record 4 (name)"),
+                "missing (truncated)",
+            )
+        })?;
+        let (m, next) = read_reals(
+            ctx,
+            lines,
+            i + 2,
+            &[25, 25, 25],
+            12,
+            &format!("system {label} records 5-8 (transformation matrix)"),
+        )?;
+        systems.push(CoordinateSystem {
+            label,
+            kind,
+            color,
+            name: free_text(name_line.bytes).trim().to_string(),
+            definition: CsDefinition::Matrix {
+                rows: [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
+                origin: [m[9], m[10], m[11]],
+            },
+        });
+        i = next;
+    }
+    Ok(CoordinateSystemSet {
+        dataset: 2420,
+        part_uid: Some(part_uid),
+        part_name,
+        systems,
+    })
+}
+
+fn parse_18(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> {
+    let mut systems = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        if trim_ascii(lines[i].bytes).is_empty() {
+            i += 1;
+            continue;
+        }
+        let n = systems.len() + 1;
+        let r1 = Rec::new(ctx, lines.get(i), format!("system {n} record 1"))?;
+        let label = r1.int(0, 10, "field 1 (coordinate system number)")?;
+        let code = r1.int(10, 10, "field 2 (type)")?;
+        let kind = cs_kind(ctx, &r1, code)?;
+        let reference_cs = r1.int_or_zero(20, 10, "field 3 (reference system)")?;
+        let color = r1.int_or_zero(30, 10, "field 4 (color)")?;
+        let method = r1.int_or_zero(40, 10, "field 5 (method of definition)")?;
+        r1.end(50)?;
+        let name_line = lines.get(i + 1).ok_or_else(|| {
+            ctx.err(
+                format!("system {label} record 2 (name)"),
+                "missing (truncated)",
+            )
+        })?;
+        let (p, next) = read_reals(
+            ctx,
+            lines,
+            i + 2,
+            &[13, 13, 13, 13, 13, 13],
+            9,
+            &format!("system {label} record 3 (definition points)"),
+        )?;
+        systems.push(CoordinateSystem {
+            label,
+            kind,
+            color,
+            name: free_text(name_line.bytes).trim().to_string(),
+            definition: CsDefinition::ThreePoints {
+                reference_cs,
+                method,
+                origin: [p[0], p[1], p[2]],
+                x_point: [p[3], p[4], p[5]],
+                xz_point: [p[6], p[7], p[8]],
+            },
+        });
+        i = next;
+    }
+    Ok(CoordinateSystemSet {
+        dataset: 18,
+        part_uid: None,
+        part_name: String::new(),
+        systems,
+    })
+}
+
+fn parse_axis(ctx: &Ctx, line: Option<&Line>, which: &str) -> Result<AxisInfo, UffError> {
+    let r = Rec::new(ctx, line, which)?;
+    let info = AxisInfo {
+        data_type: r.int(0, 10, "field 1 (specific data type)")?,
+        length_exp: r.int_or_zero(10, 5, "field 2 (length units exponent)")?,
+        force_exp: r.int_or_zero(15, 5, "field 3 (force units exponent)")?,
+        temperature_exp: r.int_or_zero(20, 5, "field 4 (temperature units exponent)")?,
+        label: r.text(26, 20),
+        units_label: r.text(47, 20),
+    };
+    r.end(67)?;
+    Ok(info)
+}
+
+fn parse_58(
+    ctx: &Ctx,
+    lines: &[Line],
+    binary: Option<(BinaryLayout, &[u8])>,
+) -> Result<Function, UffError> {
+    let mut id_lines: [String; 5] = Default::default();
+    for (k, id) in id_lines.iter_mut().enumerate() {
+        let l = lines.get(k).ok_or_else(|| {
+            ctx.err(
+                format!("record {} (ID line {})", k + 1, k + 1),
+                "missing (dataset truncated)",
+            )
+        })?;
+        *id = free_text(l.bytes);
+    }
+    let r6 = Rec::new(ctx, lines.get(5), "record 6")?;
+    let function_type = r6.int(0, 5, "field 1 (function type)")?;
+    if !(0..=27).contains(&function_type) {
+        return Err(ctx.err(
+            format!("{} field 1 (function type)", r6.label),
+            format!("unknown function type code {function_type} (expected 0..27; 4 = FRF)"),
+        ));
+    }
+    let function_id = r6.int_or_zero(5, 10, "field 2 (function identification number)")?;
+    let version = r6.int_or_zero(15, 5, "field 3 (version number)")?;
+    let load_case = r6.int_or_zero(20, 10, "field 4 (load case)")?;
+    let response_entity = r6.text(31, 10);
+    let response_node = r6.int(41, 10, "field 6 (response node)")?;
+    let response_direction = r6.int(51, 4, "field 7 (response direction)")?;
+    let reference_entity = r6.text(56, 10);
+    let reference_node = r6.int_or_zero(66, 10, "field 9 (reference node)")?;
+    let reference_direction = r6.int_or_zero(76, 4, "field 10 (reference direction)")?;
+    r6.end(80)?;
+    for (dir, name) in [
+        (response_direction, "field 7 (response direction)"),
+        (reference_direction, "field 10 (reference direction)"),
+    ] {
+        if !(-6..=6).contains(&dir) {
+            return Err(ctx.err(
+                format!("{} {name}", r6.label),
+                format!("unknown direction code {dir} (expected -6..6)"),
+            ));
+        }
+    }
+    let r7 = Rec::new(ctx, lines.get(6), "record 7")?;
+    let code = r7.int(0, 10, "field 1 (ordinate data type)")?;
+    let ordinate_type = OrdinateType::from_code(code).ok_or_else(|| {
+        ctx.err(
+            format!("{} field 1 (ordinate data type)", r7.label),
+            format!("unknown code {code} (2 real single, 4 real double, 5 complex single, 6 complex double)"),
+        )
+    })?;
+    let n = r7.int(10, 10, "field 2 (number of values)")?;
+    let spacing = r7.int(20, 10, "field 3 (abscissa spacing)")?;
+    let abscissa_min = r7.real(30, 13, "field 4 (abscissa minimum)")?;
+    let abscissa_increment = r7.real(43, 13, "field 5 (abscissa increment)")?;
+    let z_value = if column(&r7.text, 56, 13).trim().is_empty() {
+        0.0
+    } else {
+        r7.real(56, 13, "field 6 (z-axis value)")?
+    };
+    r7.end(69)?;
+    let even = match spacing {
+        0 => false,
+        1 => true,
+        s => {
+            return Err(ctx.err(
+                format!("{} field 3 (abscissa spacing)", r7.label),
+                format!("unknown code {s} (0 uneven, 1 even)"),
+            ))
+        }
+    };
+    if n <= 0 {
+        return Err(ctx.err(
+            format!("{} field 2 (number of values)", r7.label),
+            format!("{n} values: a function needs at least one"),
+        ));
+    }
+    let n = n as usize;
+    let abscissa_axis = parse_axis(ctx, lines.get(7), "record 8 (abscissa)")?;
+    let numerator = parse_axis(ctx, lines.get(8), "record 9 (ordinate numerator)")?;
+    let denominator = parse_axis(ctx, lines.get(9), "record 10 (ordinate denominator)")?;
+    let z_axis = parse_axis(ctx, lines.get(10), "record 11 (z axis)")?;
+
+    let per_point = match (ordinate_type.is_complex(), even) {
+        (false, true) => 1,
+        (false, false) | (true, true) => 2,
+        (true, false) => 3,
+    };
+    let n_numbers = n.checked_mul(per_point).ok_or_else(|| {
+        ctx.err(
+            "record 7 field 2 (number of values)",
+            format!("{n} is too large"),
+        )
+    })?;
+    let (numbers, layout) = if let Some((layout, data)) = binary {
+        if lines.len() != 11 {
+            return Err(ctx.err(
+                "binary header field 5 (number of ASCII lines)",
+                format!(
+                    "dataset 58b has 11 ASCII records, the header announces {}",
+                    lines.len()
+                ),
+            ));
+        }
+        let size = if ordinate_type.is_double() { 8 } else { 4 };
+        let expect = n_numbers.checked_mul(size);
+        if expect != Some(data.len()) {
+            return Err(ctx.err(
+                "binary header field 6 (number of bytes)",
+                format!(
+                    "{} bytes, but {n} values of ordinate type {} need {}",
+                    data.len(),
+                    code,
+                    expect.map_or("more than addressable".to_string(), |e| e.to_string())
+                ),
+            ));
+        }
+        let v: Vec<f64> = data
+            .chunks_exact(size)
+            .map(|c| match (size, layout.little_endian) {
+                (8, true) => f64::from_le_bytes(c.try_into().expect("8 bytes")),
+                (8, false) => f64::from_be_bytes(c.try_into().expect("8 bytes")),
+                (_, true) => f32::from_le_bytes(c.try_into().expect("4 bytes")) as f64,
+                (_, false) => f32::from_be_bytes(c.try_into().expect("4 bytes")) as f64,
+            })
+            .collect();
+        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+            return Err(ctx.err(
+                "record 12 (binary data)",
+                format!("value {} of {} is not finite ({})", i + 1, v.len(), v[i]),
+            ));
+        }
+        (v, Some(layout))
+    } else {
+        let widths: &[usize] = match (ordinate_type.is_double(), ordinate_type.is_complex(), even) {
+            (false, _, _) => &[13, 13, 13, 13, 13, 13],
+            (true, _, true) => &[20, 20, 20, 20],
+            (true, false, false) => &[13, 20, 13, 20],
+            (true, true, false) => &[13, 20, 20],
+        };
+        // Cheap guard against absurd counts before reading line by line.
+        let lines_needed = n_numbers.div_ceil(widths.len());
+        if lines_needed > lines.len().saturating_sub(11) {
+            return Err(ctx.err(
+                "record 12 (data values)",
+                format!(
+                    "{n} values need {lines_needed} data lines, the dataset has {} (truncated?)",
+                    lines.len().saturating_sub(11)
+                ),
+            ));
+        }
+        let (v, next) = read_reals(ctx, lines, 11, widths, n_numbers, "record 12 (data values)")?;
+        if let Some(extra) = lines[next..]
+            .iter()
+            .find(|l| !trim_ascii(l.bytes).is_empty())
+        {
+            return Err(ctx.err(
+                format!("record 12 (data values), line {}", extra.number),
+                format!("more data than the {n} values record 7 announces"),
+            ));
+        }
+        (v, None)
+    };
+    let mut abscissa = Vec::with_capacity(n);
+    let mut ordinate = Vec::with_capacity(n);
+    for k in 0..n {
+        let p = &numbers[k * per_point..(k + 1) * per_point];
+        let (x, y) = match (even, ordinate_type.is_complex()) {
+            (true, false) => (
+                abscissa_min + k as f64 * abscissa_increment,
+                c64::new(p[0], 0.0),
+            ),
+            (true, true) => (
+                abscissa_min + k as f64 * abscissa_increment,
+                c64::new(p[0], p[1]),
+            ),
+            (false, false) => (p[0], c64::new(p[1], 0.0)),
+            (false, true) => (p[0], c64::new(p[1], p[2])),
+        };
+        abscissa.push(x);
+        ordinate.push(y);
+    }
+    Ok(Function {
+        id_lines,
+        function_type,
+        function_id,
+        version,
+        load_case,
+        response_entity,
+        response_node,
+        response_direction,
+        reference_entity,
+        reference_node,
+        reference_direction,
+        ordinate_type,
+        even,
+        abscissa_min,
+        abscissa_increment,
+        z_value,
+        abscissa_axis,
+        numerator,
+        denominator,
+        z_axis,
+        binary: layout,
+        abscissa,
+        ordinate,
+    })
+}
