@@ -15,6 +15,10 @@ use crate::error::PlotError;
 use crate::style::{finish_svg, LegendPosition, PlotSize};
 
 pub(crate) const FONT: &str = "sans-serif";
+/// Font sizes in plotters units (the SVG backend writes size/1.24 px).
+pub(crate) const LABEL_SIZE: u32 = 16;
+pub(crate) const DESC_SIZE: u32 = 18;
+pub(crate) const TITLE_SIZE: u32 = 24;
 pub(crate) type Root<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 pub(crate) type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<Axis, Axis>>;
 
@@ -89,7 +93,7 @@ pub(crate) fn chart<'a, 'b>(
 ) -> Result<Chart<'a, 'b>, PlotError> {
     let mut builder = ChartBuilder::on(area);
     if !title.is_empty() {
-        builder.caption(title, (FONT, 22).into_font());
+        builder.caption(title, (FONT, TITLE_SIZE).into_font());
     }
     builder
         .margin(12)
@@ -122,8 +126,8 @@ pub(crate) fn draw_mesh(
         .y_label_formatter(&yf)
         .x_desc(x_desc)
         .y_desc(y_desc)
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
+        .label_style((FONT, LABEL_SIZE))
+        .axis_desc_style((FONT, DESC_SIZE))
         .bold_line_style(RGBAColor(0, 0, 0, 0.15))
         .light_line_style(RGBAColor(0, 0, 0, 0.05));
     if !x_grid {
@@ -138,7 +142,7 @@ pub(crate) fn title_height(root: &Root<'_>, title: &str) -> u32 {
     if title.is_empty() {
         return 0;
     }
-    let style = TextStyle::from((FONT, 22).into_font());
+    let style = TextStyle::from((FONT, TITLE_SIZE).into_font());
     let h = root
         .estimate_text_size(title, &style)
         .map(|(_, h)| h)
@@ -159,7 +163,7 @@ pub(crate) fn draw_legend<'a, 'b: 'a>(
         .configure_series_labels()
         .position(pos)
         .margin(10)
-        .label_font((FONT, 14))
+        .label_font((FONT, LABEL_SIZE))
         .background_style(RGBAColor(255, 255, 255, 0.85))
         .border_style(RGBAColor(0, 0, 0, 0.5))
         .draw()

@@ -8,7 +8,7 @@ use plotters::style::{RGBAColor, ShapeStyle};
 use crate::axis::{extent, format_number, AxisSpec, Fit, Scale};
 use crate::canvas::{
     chart, draw_mesh, fill, footnote, plot_name, render_err, render_svg, text_style, title_height,
-    Margins, FONT,
+    Margins, DESC_SIZE, FONT, LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::style::{PlotSize, Rgb};
@@ -140,8 +140,8 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
             .y_label_formatter(&|v: &f64| y.label(*v))
             .x_desc(h.x_label.as_str())
             .y_desc(h.y_label.as_str())
-            .label_style((FONT, 14))
-            .axis_desc_style((FONT, 16))
+            .label_style((FONT, LABEL_SIZE))
+            .axis_desc_style((FONT, DESC_SIZE))
             .draw()
             .map_err(render_err(&plot))?;
         let cells: Vec<(usize, usize, f64)> = h

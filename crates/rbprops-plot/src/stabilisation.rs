@@ -7,7 +7,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
     chart, clip_polyline, draw_legend, draw_mesh, footnote, plot_name, render_err, render_svg,
-    skipped_note, text_style, Margins, FONT,
+    skipped_note, text_style, Margins, DESC_SIZE, FONT, LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::line::{check_series, draw_vertical_markers, VerticalMarker};
@@ -182,8 +182,8 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             ch.configure_secondary_axes()
                 .y_label_formatter(&y2f)
                 .y_desc(bg.axis_label.as_str())
-                .label_style((FONT, 14))
-                .axis_desc_style((FONT, 16))
+                .label_style((FONT, LABEL_SIZE))
+                .axis_desc_style((FONT, DESC_SIZE))
                 .draw()
                 .map_err(render_err(&plot))?;
             let style = stroke(Rgb(150, 150, 150), LineStyle::Solid, 1);
