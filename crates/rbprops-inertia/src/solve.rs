@@ -1,0 +1,738 @@
+//! The `rb-solve` stage: selected modes (and optionally FRFs) in, [`InertiaEstimate`]s out.
+
+use crate::consistency::nearest_consistent;
+use crate::error::InertiaError;
+use crate::lsq::LinearConstraint;
+use crate::mass_line::{choose_band, mass_line, mass_line_values, MassLineBand, MassLineOptions};
+use crate::modal_estimators::{bretl_conti, describe_null_space, mount_stiffness, toivola_nuutila};
+use crate::params::{params_of, N_PARAMS};
+use crate::shapes::{
+    resolve_origin, rigid_shapes, OriginChoice, RigidFrame, RigidShape, ShapeDiagnostics,
+};
+use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
+use rbprops_core::records::{
+    ErrorsRecord, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord, SelectionRecord,
+};
+use rbprops_core::{c64, FrfSet, Geometry, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6};
+use serde::{Deserialize, Serialize};
+
+/// The estimators.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Estimator {
+    /// Paper Eq. (2), six modes.
+    BretlConti,
+    /// Paper Eq. (10), four or more modes.
+    ToivolaNuutila,
+    /// Inertia restraint (mass line) from the FRFs, Lee et al. 1999.
+    MassLine,
+}
+
+impl Estimator {
+    /// The `method` string of [`InertiaEstimate`].
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::BretlConti => "bretl_conti",
+            Estimator::ToivolaNuutila => "toivola_nuutila",
+            Estimator::MassLine => "mass_line",
+        }
+    }
+}
+
+/// Knowledge that does not come from the measurement. Used by the least-squares
+/// estimators (Toivola–Nuutila, mass line) only; every estimate that used it says so in
+/// its first warning.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct SideInformation {
+    /// Exact mass (kg), imposed as a constraint.
+    pub known_mass_kg: Option<f64>,
+    /// Exact centre of mass, geometry frame (m), imposed as the constraints `m c = (mc)`.
+    pub known_com_m: Option<[f64; 3]>,
+    /// Nominal properties: fix only the parameter combinations the data leave undetermined.
+    pub nominal: Option<PropertiesRecord>,
+}
+
+impl SideInformation {
+    pub fn is_empty(&self) -> bool {
+        self.known_mass_kg.is_none() && self.known_com_m.is_none() && self.nominal.is_none()
+    }
+}
+
+/// Options of [`solve`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SolveOptions {
+    /// Default: all three (the mass line is skipped with a warning when no FRFs are given).
+    pub estimators: Vec<Estimator>,
+    /// Default: the geometry's origin.
+    pub origin: OriginChoice,
+    /// Reference properties for the paper's relative errors.
+    pub reference: Option<PropertiesRecord>,
+    pub mass_line: MassLineOptions,
+    pub side_information: SideInformation,
+    /// 0 (default): linearised propagation; otherwise Monte Carlo with this many draws.
+    pub monte_carlo_samples: usize,
+    /// Seed of the Monte Carlo draws (default 0).
+    pub seed: u64,
+}
+
+impl Default for SolveOptions {
+    fn default() -> Self {
+        Self {
+            estimators: vec![
+                Estimator::BretlConti,
+                Estimator::ToivolaNuutila,
+                Estimator::MassLine,
+            ],
+            origin: OriginChoice::GeometryOrigin,
+            reference: None,
+            mass_line: MassLineOptions::default(),
+            side_information: SideInformation::default(),
+            monte_carlo_samples: 0,
+            seed: 0,
+        }
+    }
+}
+
+/// Everything [`solve`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolveOutput {
+    /// One estimate per estimator and set-up, followed (for each inconsistent one) by its
+    /// nearest physically consistent version, method `<method>_projected`.
+    pub estimates: Vec<InertiaEstimate>,
+    pub shapes: Vec<ShapeDiagnostics>,
+    /// The mass-line band actually used.
+    pub mass_line_band: Option<MassLineBand>,
+    pub warnings: Vec<String>,
+}
+
+/// Relative rigid-body residual above which a shape is flagged.
+pub const SHAPE_RESIDUAL_WARNING: f64 = 0.1;
+/// Complexity angle above which a mode is flagged (rad).
+pub const COMPLEXITY_WARNING_RAD: f64 = 0.2;
+
+/// Runs the requested estimators. Per set-up, the selected modes give Bretl–Conti and
+/// Toivola–Nuutila estimates; the mass line uses all excitations of `frf` jointly (it does
+/// not depend on the suspension). An estimator that cannot run adds a warning naming the
+/// cause; if none produces a result the causes are returned as [`InertiaError::NoEstimate`].
+pub fn solve(
+    geometry: &Geometry,
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    frf: Option<&FrfSet>,
+    opts: &SolveOptions,
+) -> Result<SolveOutput, InertiaError> {
+    geometry.validate()?;
+    let origin = resolve_origin(geometry, &opts.origin)?;
+    let frame = RigidFrame::new(geometry, origin)?;
+    let mut warnings = Vec::new();
+    if let Err(e) = geometry.check_rigid_observability() {
+        warnings.push(format!(
+            "geometry: {e}; the channel set still resolves six rigid motions (cond(SᵀS) = {:.3e})",
+            frame.basis.condition
+        ));
+    }
+    for m in &selection.missing {
+        warnings.push(format!(
+            "set-up '{}' mode {} ({:.4} Hz) is missing: {}",
+            m.setup, m.mode, m.frequency_hz, m.reason
+        ));
+    }
+    let propagation = if opts.monte_carlo_samples > 0 {
+        Propagation::MonteCarlo {
+            samples: opts.monte_carlo_samples,
+            seed: opts.seed,
+        }
+    } else {
+        Propagation::Linearised
+    };
+    let side = SideConstraints::new(&opts.side_information, &origin)?;
+    let mut estimates = Vec::new();
+    let mut failures = Vec::new();
+    let mut all_shapes = Vec::new();
+
+    let mut setups: Vec<&str> = Vec::new();
+    for s in &selection.selected {
+        if !setups.contains(&s.setup.as_str()) {
+            setups.push(&s.setup);
+        }
+    }
+    for setup in &setups {
+        let sel: Vec<_> = selection
+            .selected
+            .iter()
+            .filter(|s| s.setup == *setup)
+            .cloned()
+            .collect();
+        let (shapes, errors) = rigid_shapes(&frame, modal, &sel);
+        for e in errors {
+            warnings.push(format!("{e}; the mode is left out"));
+        }
+        shape_warnings(&shapes, &mut warnings);
+        all_shapes.extend(shapes.iter().map(|s| s.diagnostics(&frame)));
+        for est in [Estimator::BretlConti, Estimator::ToivolaNuutila] {
+            if !opts.estimators.contains(&est) {
+                continue;
+            }
+            match modal_estimate(est, &frame, setup, &shapes, &side, propagation) {
+                Ok(parts) => estimates.extend(parts.finish(&origin, opts.reference.as_ref())?),
+                Err(e) => failures.push(format!("set-up '{setup}': {e}")),
+            }
+        }
+    }
+    let mut band = None;
+    if opts.estimators.contains(&Estimator::MassLine) {
+        match frf {
+            None => failures.push("mass_line: no FRFs were given".into()),
+            Some(frf) => {
+                match mass_line_estimate(
+                    &frame,
+                    geometry,
+                    modal,
+                    selection,
+                    frf,
+                    opts,
+                    &side,
+                    propagation,
+                ) {
+                    Ok((parts, b)) => {
+                        band = Some(b);
+                        estimates.extend(parts.finish(&origin, opts.reference.as_ref())?);
+                    }
+                    Err(e) => failures.push(e.to_string()),
+                }
+            }
+        }
+    }
+    if estimates.is_empty() {
+        if failures.is_empty() {
+            failures.push("no modes were selected and no estimator was requested".into());
+        }
+        return Err(InertiaError::NoEstimate(failures));
+    }
+    warnings.extend(failures);
+    Ok(SolveOutput {
+        estimates,
+        shapes: all_shapes,
+        mass_line_band: band,
+        warnings,
+    })
+}
+
+fn shape_warnings(shapes: &[RigidShape], warnings: &mut Vec<String>) {
+    for s in shapes {
+        let id = format!(
+            "set-up '{}' mode {} (excitation '{}')",
+            s.selected.setup, s.selected.mode, s.selected.excitation
+        );
+        if s.core.relative_residual > SHAPE_RESIDUAL_WARNING {
+            warnings.push(format!(
+                "{id}: the shape is {:.1} % away from rigid-body motion (‖A − Sq‖/‖A‖)",
+                100.0 * s.core.relative_residual
+            ));
+        }
+        if s.core.complexity_angle_rad.abs() > COMPLEXITY_WARNING_RAD {
+            warnings.push(format!(
+                "{id}: complex residues (rotated by {:.3} rad onto the real line)",
+                s.core.complexity_angle_rad
+            ));
+        }
+        if s.estimate.weak {
+            warnings.push(format!(
+                "{id}: the modal fit marked this mode as weakly excited"
+            ));
+        }
+    }
+}
+
+/// Side information as constraints about the working origin.
+struct SideConstraints {
+    constraints: Vec<LinearConstraint>,
+    nominal: Option<[f64; N_PARAMS]>,
+    labels: Vec<String>,
+}
+
+impl SideConstraints {
+    fn new(side: &SideInformation, origin: &Vec3) -> Result<Self, InertiaError> {
+        let mut constraints = Vec::new();
+        let mut labels = Vec::new();
+        if let Some(m) = side.known_mass_kg {
+            if !(m > 0.0 && m.is_finite()) {
+                return Err(InertiaError::SideInformation(format!(
+                    "known mass {m} kg is not positive"
+                )));
+            }
+            let mut row = [0.0; N_PARAMS];
+            row[0] = 1.0;
+            let label = format!("known mass {m} kg");
+            constraints.push(LinearConstraint {
+                row,
+                value: m,
+                label: label.clone(),
+            });
+            labels.push(label);
+        }
+        if let Some(c) = side.known_com_m {
+            if c.iter().any(|x| !x.is_finite()) {
+                return Err(InertiaError::SideInformation(format!(
+                    "known centre of mass {c:?} is not finite"
+                )));
+            }
+            let co = Vec3::from(c) - origin;
+            // m c_o,i − (m c)_i = 0: linear and homogeneous in p, whether or not m is known.
+            for i in 0..3 {
+                let mut row = [0.0; N_PARAMS];
+                row[0] = co[i];
+                row[1 + i] = -1.0;
+                constraints.push(LinearConstraint {
+                    row,
+                    value: 0.0,
+                    label: format!("known centre of mass, {} component", ["x", "y", "z"][i]),
+                });
+            }
+            labels.push(format!("known centre of mass {c:?} m"));
+        }
+        let nominal = match &side.nominal {
+            None => None,
+            Some(rec) => {
+                let p = rec.to_properties();
+                p.validate()?;
+                labels.push(format!(
+                    "nominal values (mass {} kg) fix the combinations the data leave undetermined",
+                    rec.mass_kg
+                ));
+                Some(params_of(&p.with_origin_at(origin).mass_matrix()))
+            }
+        };
+        Ok(Self {
+            constraints,
+            nominal,
+            labels,
+        })
+    }
+
+    fn label(&self) -> Option<String> {
+        (!self.labels.is_empty()).then(|| {
+            format!(
+                "SIDE INFORMATION (not from the measurement): {}",
+                self.labels.join("; ")
+            )
+        })
+    }
+}
+
+/// An estimate before packaging.
+struct EstimateParts {
+    method: &'static str,
+    setup: String,
+    /// About the working origin.
+    mass_matrix: MassMatrix6,
+    std: Option<[f64; N_PROPS]>,
+    uncertainty_method: String,
+    mount_stiffness: Option<Mat6>,
+    residual: f64,
+    modes_used: Vec<usize>,
+    excitations_used: Vec<String>,
+    warnings: Vec<String>,
+}
+
+/// Properties in the geometry frame from a mass matrix about `origin`.
+fn properties_about(m0: &MassMatrix6, origin: &Vec3) -> RigidBodyProperties {
+    let p = m0.properties();
+    RigidBodyProperties {
+        com: p.com + origin,
+        ..p
+    }
+}
+
+fn finite(x: f64, what: &str) -> Result<f64, InertiaError> {
+    if x.is_finite() {
+        Ok(x)
+    } else {
+        Err(InertiaError::NonFinite { what: what.into() })
+    }
+}
+
+impl EstimateParts {
+    fn finish(
+        self,
+        origin: &Vec3,
+        reference: Option<&PropertiesRecord>,
+    ) -> Result<Vec<InertiaEstimate>, InertiaError> {
+        let props = properties_about(&self.mass_matrix, origin);
+        for v in property_vector(&props) {
+            finite(v, &format!("{} properties", self.method))?;
+        }
+        let violations = props.consistency_violations();
+        let mut est = self.package(&props, origin, reference, self.warnings.clone());
+        est.physically_consistent = violations.is_empty();
+        est.warnings.extend(violations.iter().cloned());
+        let mut out = vec![est];
+        if !violations.is_empty() && props.mass > 0.0 {
+            let fixed = nearest_consistent(&props);
+            let mut w = self.warnings.clone();
+            w.push(format!(
+                "nearest physically consistent version of the {} estimate: same mass, CoM and principal axes, principal moments projected onto the triangle-inequality cone; standard errors are those of the unprojected estimate",
+                self.method
+            ));
+            let mut p = self.package(&fixed, origin, reference, w);
+            p.method = format!("{}_projected", self.method);
+            p.physically_consistent = fixed.consistency_violations().is_empty();
+            out.push(p);
+        }
+        Ok(out)
+    }
+
+    fn package(
+        &self,
+        props: &RigidBodyProperties,
+        origin: &Vec3,
+        reference: Option<&PropertiesRecord>,
+        warnings: Vec<String>,
+    ) -> InertiaEstimate {
+        let rec = PropertiesRecord::from_properties(props);
+        let std = self.std.unwrap_or([0.0; N_PROPS]);
+        let j_std = [
+            [std[4], std[7], std[8]],
+            [std[7], std[5], std[9]],
+            [std[8], std[9], std[6]],
+        ];
+        let pr = props.products_of_inertia();
+        let (moments, axes) = props.principal();
+        let errors = reference.map(|r| {
+            // Paper Figs. 14–17: CoM error relative to the CoM's distance from the origin.
+            let e = props
+                .with_origin_at(origin)
+                .relative_errors(&r.to_properties().with_origin_at(origin));
+            ErrorsRecord {
+                mass: e.mass,
+                com: e.com,
+                inertia: e.inertia,
+                sum: e.sum,
+            }
+        });
+        InertiaEstimate {
+            method: self.method.to_string(),
+            setup: self.setup.clone(),
+            origin_m: (*origin).into(),
+            mass_kg: rec.mass_kg,
+            mass_std_kg: std[0],
+            com_m: rec.com_m,
+            com_std_m: [std[1], std[2], std[3]],
+            inertia_cm_kg_m2: rec.inertia_cm_kg_m2,
+            inertia_cm_std_kg_m2: j_std,
+            products_of_inertia_kg_m2: Products {
+                xy: pr.xy,
+                xz: pr.xz,
+                yz: pr.yz,
+            },
+            products_of_inertia_std_kg_m2: Products {
+                xy: std[7],
+                xz: std[8],
+                yz: std[9],
+            },
+            principal_moments_kg_m2: moments.into(),
+            principal_axes: std::array::from_fn(|r| std::array::from_fn(|c| axes[(r, c)])),
+            mount_stiffness: self
+                .mount_stiffness
+                .map(|k| std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)]))),
+            residual: self.residual,
+            uncertainty_method: self.uncertainty_method.clone(),
+            modes_used: self.modes_used.clone(),
+            excitations_used: self.excitations_used.clone(),
+            errors,
+            physically_consistent: true,
+            warnings,
+        }
+    }
+}
+
+fn distinct(ids: impl Iterator<Item = String>) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for id in ids {
+        if !out.contains(&id) {
+            out.push(id);
+        }
+    }
+    out
+}
+
+/// Flattened `[re, im]` residues of the shapes and their standard deviations.
+fn residue_inputs(shapes: &[RigidShape], warnings: &mut Vec<String>) -> (Vec<f64>, Vec<f64>) {
+    let mut x = Vec::new();
+    let mut s = Vec::new();
+    for sh in shapes {
+        let est = &sh.estimate;
+        let ok = est.residue_std.len() == est.residues.len()
+            && est.residue_std.iter().all(|v| v.is_finite() && *v >= 0.0);
+        if !ok {
+            warnings.push(format!(
+                "mode {} (excitation '{}'): {} residue standard errors for {} residues (or invalid values); its uncertainty is taken as zero",
+                sh.selected.mode,
+                sh.selected.excitation,
+                est.residue_std.len(),
+                est.residues.len()
+            ));
+        }
+        for (i, z) in est.residues.iter().enumerate() {
+            let si = if ok { est.residue_std[i] } else { 0.0 };
+            x.extend([z.re, z.im]);
+            s.extend([si, si]);
+        }
+    }
+    (x, s)
+}
+
+/// Mass-normalised shapes from a flattened residue vector (for uncertainty propagation).
+fn shapes_from_inputs(
+    frame: &RigidFrame,
+    shapes: &[RigidShape],
+    x: &[f64],
+) -> Result<Vec<Vec6>, InertiaError> {
+    let mut off = 0;
+    let mut out = Vec::with_capacity(shapes.len());
+    for sh in shapes {
+        let n = sh.estimate.residues.len();
+        let res: Vec<c64> = (0..n)
+            .map(|i| c64::new(x[off + 2 * i], x[off + 2 * i + 1]))
+            .collect();
+        off += 2 * n;
+        let core = frame
+            .shape(sh.excitation, &res)
+            .map_err(|reason| InertiaError::Mode {
+                setup: sh.selected.setup.clone(),
+                mode: sh.selected.mode,
+                excitation: sh.selected.excitation.clone(),
+                reason,
+            })?;
+        out.push(core.phi0);
+    }
+    Ok(out)
+}
+
+fn uncertainty<F>(
+    f: F,
+    x: &[f64],
+    sigma: &[f64],
+    how: Propagation,
+    warnings: &mut Vec<String>,
+) -> (Option<[f64; N_PROPS]>, String)
+where
+    F: Fn(&[f64]) -> Result<[f64; N_PROPS], InertiaError> + Sync,
+{
+    if sigma.iter().all(|s| *s == 0.0) {
+        warnings.push("no input standard errors: the reported standard errors are zero".into());
+        return (None, "none".into());
+    }
+    match propagate(f, x, sigma, how) {
+        Ok(s) => (Some(s), how.name().into()),
+        Err(e) => {
+            warnings.push(format!(
+                "uncertainty propagation failed ({e}); standard errors are reported as zero"
+            ));
+            (None, "none".into())
+        }
+    }
+}
+
+fn modal_estimate(
+    est: Estimator,
+    frame: &RigidFrame,
+    setup: &str,
+    shapes: &[RigidShape],
+    side: &SideConstraints,
+    how: Propagation,
+) -> Result<EstimateParts, InertiaError> {
+    let phi0: Vec<Vec6> = shapes.iter().map(|s| s.core.phi0).collect();
+    let omegas: Vec<f64> = shapes.iter().map(RigidShape::omega).collect();
+    let origin = frame.origin;
+    let mut warnings = Vec::new();
+    let (mass_matrix, residual) = match est {
+        Estimator::BretlConti => {
+            let bc = bretl_conti(&phi0)?;
+            if bc.condition > 1e4 {
+                warnings.push(format!(
+                    "Φ0 is poorly conditioned (cond = {:.3e}): the estimate is sensitive to shape errors",
+                    bc.condition
+                ));
+            }
+            (bc.mass_matrix, bc.residual)
+        }
+        Estimator::ToivolaNuutila => {
+            if let Some(l) = side.label() {
+                warnings.push(l);
+            }
+            let tn = toivola_nuutila(&phi0, &side.constraints, None)?;
+            if tn.rank < N_PARAMS {
+                let description = describe_null_space(&tn, &phi0);
+                if side.nominal.is_none() {
+                    return Err(InertiaError::Unidentifiable {
+                        method: "toivola_nuutila",
+                        rank: tn.rank,
+                        description,
+                    });
+                }
+                warnings.push(format!(
+                    "rank {} of 10: {description}; the nominal values fix it",
+                    tn.rank
+                ));
+            } else if tn.condition > 1e6 {
+                warnings.push(format!(
+                    "the orthogonality equations are poorly conditioned (cond = {:.3e})",
+                    tn.condition
+                ));
+            }
+            let tn = toivola_nuutila(&phi0, &side.constraints, side.nominal.as_ref())?;
+            (tn.mass_matrix, tn.residual)
+        }
+        Estimator::MassLine => unreachable!("the mass line is not a modal estimator"),
+    };
+    let k0 = if phi0.len() == 6 {
+        match mount_stiffness(&phi0, &omegas) {
+            Ok(k) => Some(k),
+            Err(e) => {
+                warnings.push(format!("mount stiffness: {e}"));
+                None
+            }
+        }
+    } else {
+        None
+    };
+    let (x, sigma) = residue_inputs(shapes, &mut warnings);
+    let f = |xs: &[f64]| -> Result<[f64; N_PROPS], InertiaError> {
+        let ph = shapes_from_inputs(frame, shapes, xs)?;
+        let m0 = match est {
+            Estimator::BretlConti => bretl_conti(&ph)?.mass_matrix,
+            _ => toivola_nuutila(&ph, &side.constraints, side.nominal.as_ref())?.mass_matrix,
+        };
+        Ok(property_vector(&properties_about(&m0, &origin)))
+    };
+    let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    Ok(EstimateParts {
+        method: est.name(),
+        setup: setup.to_string(),
+        mass_matrix,
+        std,
+        uncertainty_method: method,
+        mount_stiffness: k0,
+        residual,
+        modes_used: shapes.iter().map(|s| s.selected.mode).collect(),
+        excitations_used: distinct(shapes.iter().map(|s| s.selected.excitation.clone())),
+        warnings,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn mass_line_estimate(
+    frame: &RigidFrame,
+    geometry: &Geometry,
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    frf: &FrfSet,
+    opts: &SolveOptions,
+    side: &SideConstraints,
+    how: Propagation,
+) -> Result<(EstimateParts, MassLineBand), InertiaError> {
+    frf.validate()?;
+    if frf.n_excitations != geometry.excitations.len() || frf.n_channels != geometry.channels.len()
+    {
+        return Err(InertiaError::MassLine(format!(
+            "the FRF set has {} excitations × {} channels, the geometry {} × {}",
+            frf.n_excitations,
+            frf.n_channels,
+            geometry.excitations.len(),
+            geometry.channels.len()
+        )));
+    }
+    let highest_rigid = selection
+        .selected
+        .iter()
+        .map(|s| s.frequency_hz)
+        .chain(selection.missing.iter().map(|m| m.frequency_hz))
+        .fold(f64::NAN, f64::max);
+    let highest_rigid = if highest_rigid.is_finite() {
+        highest_rigid
+    } else {
+        modal
+            .modes
+            .iter()
+            .map(|m| m.frequency_hz)
+            .fold(0.0, f64::max)
+    };
+    let band = choose_band(frf, highest_rigid, &opts.mass_line)?;
+    let ml = mass_line_values(frf, &band)?;
+    let excitations: Vec<usize> = (0..frf.n_excitations).collect();
+    let mut warnings = Vec::new();
+    if let Some(l) = side.label() {
+        warnings.push(l);
+    }
+    warnings.push(format!(
+        "mass-line band {:.4}–{:.4} Hz ({} lines, {})",
+        band.lo_hz,
+        band.hi_hz,
+        band.n_lines,
+        if band.automatic {
+            match band.first_elastic_hz {
+                Some(fe) => format!("automatic; first elastic resonance near {fe:.4} Hz"),
+                None => "automatic; no elastic resonance found below the top of the data".into(),
+            }
+        } else {
+            "given".into()
+        }
+    ));
+    let sol = mass_line(frame, &excitations, &ml.values, &side.constraints, None)?;
+    if sol.rank < N_PARAMS && side.nominal.is_none() {
+        return Err(InertiaError::Unidentifiable {
+            method: "mass_line",
+            rank: sol.rank,
+            description: "the excitations' moment arms do not span three independent directions"
+                .into(),
+        });
+    }
+    let sol = mass_line(
+        frame,
+        &excitations,
+        &ml.values,
+        &side.constraints,
+        side.nominal.as_ref(),
+    )?;
+    for (k, r) in sol.rigid_residual.iter().enumerate() {
+        if *r > SHAPE_RESIDUAL_WARNING {
+            warnings.push(format!(
+                "excitation '{}': the mass line is {:.1} % away from rigid-body motion",
+                frame.excitation_ids[k],
+                100.0 * r
+            ));
+        }
+    }
+    let nch = frf.n_channels;
+    let x: Vec<f64> = ml.values.iter().flatten().copied().collect();
+    let sigma: Vec<f64> = ml.std.iter().flatten().copied().collect();
+    let origin = frame.origin;
+    let f = |xs: &[f64]| -> Result<[f64; N_PROPS], InertiaError> {
+        let vals: Vec<Vec<f64>> = xs.chunks(nch).map(<[f64]>::to_vec).collect();
+        let s = mass_line(
+            frame,
+            &excitations,
+            &vals,
+            &side.constraints,
+            side.nominal.as_ref(),
+        )?;
+        Ok(property_vector(&properties_about(&s.mass_matrix, &origin)))
+    };
+    let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    let setup = distinct(geometry.excitations.iter().map(|e| e.setup.clone())).join("+");
+    Ok((
+        EstimateParts {
+            method: Estimator::MassLine.name(),
+            setup,
+            mass_matrix: sol.mass_matrix,
+            std,
+            uncertainty_method: method,
+            mount_stiffness: None,
+            residual: sol.residual,
+            modes_used: Vec::new(),
+            excitations_used: frame.excitation_ids.clone(),
+            warnings,
+        },
+        band,
+    ))
+}
