@@ -1,0 +1,1084 @@
+//! Best-mode selection across excitations (the paper's Section 2 and Figs. 4/11–13).
+
+use crate::indicators::{
+    hybrid_mif, local_spacing, norm_indicator, power_db, prf_mif_from, principal_responses,
+    window_lines, DEFAULT_PRF_RANK_TOLERANCE,
+};
+use crate::manual::ManualSet;
+use crate::matching::{mac, match_candidates, reference_member, Candidate, MatchTolerances};
+use crate::peaks::find_peaks;
+use crate::NiError;
+use rbprops_core::records::{MissingMode, ModalFitRecord, SelectedMode, SelectionRecord};
+use rbprops_core::{real_modal_constants, FrfSet, Geometry, Mat6, Quantity, RigidBasis, Vec6};
+use serde::{Deserialize, Serialize};
+
+/// Which indicator ranks the excitations at a mode.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum Criterion {
+    /// Highest Norm Indicator at the mode (paper Eq. 12): the most excited mode.
+    #[default]
+    Ni,
+    /// Deepest hybrid-MIF dip at the mode: the purest normal-mode response.
+    HybridMif,
+    /// Deepest PRF-MIF dip at the mode.
+    PrfMif,
+}
+
+impl Criterion {
+    pub const NAMES: &'static str = "ni, hybrid_mif, prf_mif";
+    /// The name written in `SelectedMode::criterion`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Criterion::Ni => "ni",
+            Criterion::HybridMif => "hybrid_mif",
+            Criterion::PrfMif => "prf_mif",
+        }
+    }
+}
+
+impl std::str::FromStr for Criterion {
+    type Err = NiError;
+    fn from_str(s: &str) -> Result<Self, NiError> {
+        match s.trim().to_ascii_lowercase().replace('-', "_").as_str() {
+            "ni" | "norm_indicator" => Ok(Criterion::Ni),
+            "hybrid_mif" | "hybrid" => Ok(Criterion::HybridMif),
+            "prf_mif" | "prf" => Ok(Criterion::PrfMif),
+            _ => Err(NiError::Options(format!(
+                "unknown criterion '{s}' (expected one of: {})",
+                Criterion::NAMES
+            ))),
+        }
+    }
+}
+
+/// Options of [`select_modes`]. `Default` gives the documented defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct SelectOptions {
+    /// Ranking criterion (default NI).
+    pub criterion: Criterion,
+    /// A manual set overrides the criterion (it is still compared with NI's choice).
+    pub manual: Option<ManualSet>,
+    /// Match and select across suspension set-ups as if they were one (default false:
+    /// each set-up is processed on its own and a manual set spanning set-ups is refused).
+    pub force_mixed_setups: bool,
+    /// Process only this set-up (default: every set-up of the geometry).
+    pub setup: Option<String>,
+    /// Least MAC for two well-excited estimates to be the same mode (default 0.8).
+    pub mac_threshold: f64,
+    /// Largest relative frequency difference of one mode across excitations (default 0.05).
+    pub frequency_tolerance: f64,
+    /// An estimate counts as excited "above the noise" only if its strength `f_kᵀq` is at
+    /// most this many dB below the strongest (mode, excitation) of the set-up (default 40).
+    pub min_strength_db: f64,
+    /// … and its strength is at least this many standard errors (propagated from the
+    /// residue standard errors) above zero (default 3). Ignored when no residue_std is given.
+    pub min_snr: f64,
+    /// An excitation "excites mostly" the modes within this many dB of its own strongest
+    /// mode (default 20), the paper's "F0x excites mostly modes 1, 4 and 6".
+    pub mostly_db: f64,
+    /// Least prominence of an NI peak to be reported (default 3 dB).
+    pub peak_prominence_db: f64,
+    /// Relative singular-value threshold of the PRFs kept in the PRF MIF (default 1e-4).
+    pub prf_rank_tolerance: f64,
+}
+
+impl Default for SelectOptions {
+    fn default() -> Self {
+        Self {
+            criterion: Criterion::Ni,
+            manual: None,
+            force_mixed_setups: false,
+            setup: None,
+            mac_threshold: 0.8,
+            frequency_tolerance: 0.05,
+            min_strength_db: 40.0,
+            min_snr: 3.0,
+            mostly_db: 20.0,
+            peak_prominence_db: 3.0,
+            prf_rank_tolerance: DEFAULT_PRF_RANK_TOLERANCE,
+        }
+    }
+}
+
+impl SelectOptions {
+    fn validate(&self) -> Result<(), NiError> {
+        let check = |name: &str, v: f64, lo: f64, hi: f64| {
+            if !(v >= lo && v <= hi) {
+                Err(NiError::Options(format!(
+                    "{name} = {v} is outside [{lo}, {hi}]"
+                )))
+            } else {
+                Ok(())
+            }
+        };
+        check("mac_threshold", self.mac_threshold, 0.0, 1.0)?;
+        check("frequency_tolerance", self.frequency_tolerance, 1e-9, 1.0)?;
+        check("min_strength_db", self.min_strength_db, 0.0, 1000.0)?;
+        check("min_snr", self.min_snr, 0.0, 1e12)?;
+        check("mostly_db", self.mostly_db, 0.0, 1000.0)?;
+        check("peak_prominence_db", self.peak_prominence_db, 0.0, 1000.0)?;
+        check("prf_rank_tolerance", self.prf_rank_tolerance, 0.0, 1.0)
+    }
+}
+
+/// How one excitation does at one physical mode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ModeExcitation {
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub excitation: String,
+    /// Its mode number in `modal-fit`'s output, when it identified this mode.
+    pub excitation_mode: Option<usize>,
+    /// `modal-fit` flagged the estimate weak.
+    pub weak: bool,
+    /// Highest NI within the mode's half-power band (dB).
+    pub ni_db: f64,
+    /// Lowest hybrid MIF / PRF MIF within the same band (0 = pure normal-mode response).
+    pub hybrid_mif: f64,
+    pub prf_mif: f64,
+    /// Measured strength `f_kᵀq` (1/kg) of its own estimate, and its standard error
+    /// (None without residue standard errors).
+    pub strength: Option<f64>,
+    pub strength_std: Option<f64>,
+    /// `10 log10(f_kᵀq)` (dB re 1/kg) when positive.
+    pub strength_db: Option<f64>,
+    /// `(f_kᵀφ_ref)²` with `φ_ref` the mode's mass-normalised reference shape (from its
+    /// best estimate): what this excitation should put into the mode, identified or not.
+    pub predicted_strength: Option<f64>,
+    /// Rigid-body residual `‖A − Sq‖/‖A‖` of its estimate.
+    pub rigid_residual: Option<f64>,
+    /// MAC of its estimate with the reference shape.
+    pub mac_to_reference: Option<f64>,
+    /// Usable for the selection (identified, not weak, above the noise).
+    pub eligible: bool,
+    /// Why it is not eligible.
+    pub reason: Option<String>,
+}
+
+/// One physical mode of a set-up: its estimates across excitations and their ranking.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ModeGroup {
+    pub setup: String,
+    /// 1-based, ascending frequency within the set-up.
+    pub mode: usize,
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    /// Excitation whose estimate gives the reference shape.
+    pub reference_excitation: String,
+    /// Every excitation of the set-up: eligible ones first in the order of the criterion
+    /// used, then the others by NI.
+    pub ranking: Vec<ModeExcitation>,
+    /// The choice each criterion would make (None: nothing eligible).
+    pub choice_ni: Option<String>,
+    pub choice_hybrid_mif: Option<String>,
+    pub choice_prf_mif: Option<String>,
+    /// Largest measured strength `f_kᵀq`.
+    pub choice_strength: Option<String>,
+}
+
+/// An NI peak.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct NiPeak {
+    pub frequency_hz: f64,
+    pub level_db: f64,
+    pub prominence_db: f64,
+    /// The physical mode it belongs to, if any.
+    pub mode: Option<usize>,
+}
+
+/// What the NI and the identified modes say about one excitation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ExcitationSummary {
+    pub excitation: String,
+    pub setup: String,
+    /// NI peaks with at least the requested prominence, no more than `min_strength_db`
+    /// below the excitation's highest NI.
+    pub peaks: Vec<NiPeak>,
+    /// Physical modes it excites above the noise (eligible).
+    pub modes_excited: Vec<usize>,
+    /// The subset within `mostly_db` of its strongest mode (the paper's "mostly").
+    pub modes_mostly_excited: Vec<usize>,
+    /// Modes of the set-up it does not excite above the noise.
+    pub modes_not_excited: Vec<usize>,
+    /// Per physical mode of the set-up.
+    pub modes: Vec<ModeExcitation>,
+}
+
+/// Indicator curves of one excitation over the frequency axis.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ExcitationCurves {
+    pub excitation: String,
+    pub setup: String,
+    pub ni_db: Vec<f64>,
+    pub hybrid_mif: Vec<f64>,
+    pub prf_mif: Vec<f64>,
+    /// Singular values of the principal responses (descending) and how many are kept.
+    pub prf_singular_values: Vec<f64>,
+    pub prf_rank: usize,
+    /// `20 log10 |PRF_j(ω)|` of the kept principal response functions.
+    pub prf_db: Vec<Vec<f64>>,
+}
+
+/// Plot data: the NI (Figs. 4/11), hybrid MIF (Fig. 12) and PRF MIF (Fig. 13) curves.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct IndicatorCurves {
+    pub frequency_hz: Vec<f64>,
+    pub quantity: Quantity,
+    pub excitations: Vec<ExcitationCurves>,
+}
+
+/// Mode × excitation matrices of one set-up, for a heat map. Indexed `[mode][excitation]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct StrengthMatrix {
+    pub setup: String,
+    pub modes: Vec<usize>,
+    pub frequency_hz: Vec<f64>,
+    pub excitations: Vec<String>,
+    /// `10 log10(f_kᵀq)` of the excitation's own estimate (None: not identified or ≤ 0).
+    pub measured_db: Vec<Vec<Option<f64>>>,
+    /// `10 log10((f_kᵀφ_ref)²)` from the reference shape (None: not excited at all).
+    pub predicted_db: Vec<Vec<Option<f64>>>,
+    /// NI at the mode (dB).
+    pub ni_db: Vec<Vec<f64>>,
+}
+
+/// Everything [`select_modes`] finds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct SelectionOutput {
+    /// The selected set with provenance, the missing modes and warnings.
+    pub record: SelectionRecord,
+    pub excitation_summaries: Vec<ExcitationSummary>,
+    /// The matched physical modes, set-up by set-up.
+    pub matches: Vec<ModeGroup>,
+    pub curves: IndicatorCurves,
+    /// One matrix per processed set-up.
+    pub strength_db: Vec<StrengthMatrix>,
+    /// Modes where NI, hybrid MIF, PRF MIF, the strength ranking (or the manual set)
+    /// choose different excitations.
+    pub criterion_disagreements: Vec<String>,
+}
+
+/// Above this rigid-body residual an estimate gets a warning: its shape is far from
+/// rigid motion (sensor error, flexibility, a spurious mode).
+const RIGID_RESIDUAL_WARNING: f64 = 0.1;
+
+/// One identified mode with its rigid-body reduction.
+struct Member {
+    estimate: usize,
+    excitation: usize,
+    q: Vec6,
+    strength: f64,
+    strength_std: Option<f64>,
+    relative_residual: f64,
+    reliable: bool,
+    /// Why not reliable.
+    why: Option<String>,
+}
+
+/// A set of excitations processed together: one set-up, or several when forced.
+struct Pool {
+    label: String,
+    excitations: Vec<usize>,
+}
+
+/// Decides, for every physical mode, which excitation gives its best shape.
+///
+/// Steps: (1) validates the inputs against each other; (2) computes NI (Eq. 12), hybrid
+/// MIF and PRF MIF of every excitation; (3) reduces every `ModeEstimate` to its rigid
+/// motion `q = (SᵀS)⁻¹SᵀA` (Eq. 5) and its strength `f_kᵀq = (f_kᵀφ0)²`; (4) matches the
+/// estimates of a set-up's excitations into physical modes by frequency and MAC
+/// (see [`crate::matching`]); (5) for each mode ranks the excitations that excite it above
+/// the noise by the criterion and selects the best, or follows the manual set; a mode no
+/// excitation excites above the noise becomes a `MissingMode` naming the excitations tried
+/// and why each failed, and the others are still selected.
+pub fn select_modes(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    modal: &ModalFitRecord,
+    opts: &SelectOptions,
+) -> Result<SelectionOutput, NiError> {
+    opts.validate()?;
+    geometry.validate()?;
+    frf.validate()?;
+    if frf.n_excitations != geometry.excitations.len() {
+        return Err(NiError::Inconsistent(format!(
+            "the FRF set has {} excitations, the geometry {}",
+            frf.n_excitations,
+            geometry.excitations.len()
+        )));
+    }
+    if frf.n_channels != geometry.channels.len() {
+        return Err(NiError::Inconsistent(format!(
+            "the FRF set has {} channels, the geometry {}",
+            frf.n_channels,
+            geometry.channels.len()
+        )));
+    }
+    let rows = geometry.channel_matrix();
+    let basis = RigidBasis::new(rows.clone())?;
+    let gram: Mat6 = rows.iter().map(|r| r.transpose() * r).sum();
+    let gram_inv = basis.gram_inverse();
+    let columns: Vec<Vec6> = geometry.excitations.iter().map(|e| e.column()).collect();
+    let estimate_excitations = validate_estimates(geometry, frf, modal)?;
+
+    let (pools, mut warnings) = plan_pools(geometry, opts)?;
+
+    // Indicator curves of every excitation in scope.
+    let in_scope: Vec<usize> = pools.iter().flat_map(|p| p.excitations.clone()).collect();
+    let mut curves = IndicatorCurves {
+        frequency_hz: frf.frequency_hz.clone(),
+        quantity: frf.quantity,
+        excitations: Vec::new(),
+    };
+    let mut curve_of = vec![usize::MAX; geometry.excitations.len()];
+    for &k in &in_scope {
+        curve_of[k] = curves.excitations.len();
+        curves
+            .excitations
+            .push(excitation_curves(geometry, frf, k, opts));
+    }
+
+    let mut out = SelectionOutput {
+        record: SelectionRecord::default(),
+        excitation_summaries: Vec::new(),
+        matches: Vec::new(),
+        curves,
+        strength_db: Vec::new(),
+        criterion_disagreements: Vec::new(),
+    };
+    let tol = MatchTolerances {
+        mac_threshold: opts.mac_threshold,
+        frequency_tolerance: opts.frequency_tolerance,
+    };
+    let mut any_modes = false;
+    for pool in &pools {
+        // (3) rigid-body reduction of the pool's estimates.
+        let mut members = Vec::new();
+        for (i, est) in modal.modes.iter().enumerate() {
+            let k = estimate_excitations[i];
+            if !pool.excitations.contains(&k) {
+                continue;
+            }
+            let (re, _) = real_modal_constants(&est.residues);
+            let fit = basis.fit(&re)?;
+            let f = &columns[k];
+            let strength = f.dot(&fit.q);
+            let strength_std = if est.residue_std.is_empty() {
+                None
+            } else {
+                let ms = est.residue_std.iter().map(|s| s * s).sum::<f64>()
+                    / est.residue_std.len() as f64;
+                let var = ms * (f.transpose() * gram_inv * f)[0];
+                (var > 0.0).then(|| var.sqrt())
+            };
+            let why = if est.weak {
+                Some("modal-fit flagged it weak".to_string())
+            } else if !(strength > 0.0) {
+                Some(format!("fᵀq = {strength:.3e} ≤ 0: not excited"))
+            } else if let Some(sd) = strength_std.filter(|sd| strength < opts.min_snr * sd) {
+                Some(format!(
+                    "fᵀq = {strength:.3e} ± {sd:.1e} is below {} standard errors",
+                    opts.min_snr
+                ))
+            } else {
+                None
+            };
+            if fit.relative_residual > RIGID_RESIDUAL_WARNING {
+                warnings.push(format!(
+                    "excitation '{}' mode {}: its shape is {:.0}% away from rigid-body motion",
+                    est.excitation,
+                    est.mode,
+                    100.0 * fit.relative_residual
+                ));
+            }
+            members.push(Member {
+                estimate: i,
+                excitation: k,
+                q: fit.q,
+                strength,
+                strength_std,
+                relative_residual: fit.relative_residual,
+                reliable: why.is_none(),
+                why,
+            });
+        }
+        if members.is_empty() {
+            if opts.setup.is_some() || opts.manual.is_some() {
+                return Err(NiError::NoModes {
+                    setup: pool.label.clone(),
+                });
+            }
+            warnings.push(format!(
+                "set-up '{}': no identified modes, nothing selected",
+                pool.label
+            ));
+            continue;
+        }
+        any_modes = true;
+        let result = process_pool(
+            pool,
+            geometry,
+            frf,
+            modal,
+            opts,
+            &members,
+            &columns,
+            &gram,
+            &tol,
+            &out.curves,
+            &curve_of,
+        )?;
+        out.record.selected.extend(result.selected);
+        out.record.missing.extend(result.missing);
+        warnings.extend(result.warnings);
+        out.excitation_summaries.extend(result.summaries);
+        out.matches.extend(result.groups);
+        out.strength_db.push(result.matrix);
+        out.criterion_disagreements.extend(result.disagreements);
+    }
+    if !any_modes {
+        return Err(NiError::NoModes {
+            setup: pools
+                .iter()
+                .map(|p| p.label.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        });
+    }
+    out.record.warnings = warnings;
+    Ok(out)
+}
+
+/// Checks every estimate against the geometry; returns each one's excitation index.
+fn validate_estimates(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    modal: &ModalFitRecord,
+) -> Result<Vec<usize>, NiError> {
+    let mut out = Vec::with_capacity(modal.modes.len());
+    let mut seen = std::collections::BTreeSet::new();
+    for est in &modal.modes {
+        let bad = |message: String| NiError::BadEstimate {
+            excitation: est.excitation.clone(),
+            mode: est.mode,
+            message,
+        };
+        let k = geometry
+            .excitation_index(&est.excitation)
+            .ok_or_else(|| bad("the geometry has no such excitation".into()))?;
+        let setup = &geometry.excitations[k].setup;
+        if &est.setup != setup {
+            return Err(bad(format!(
+                "the record puts it in set-up '{}', the geometry in '{setup}'",
+                est.setup
+            )));
+        }
+        if !seen.insert((k, est.mode)) {
+            return Err(bad("appears twice in the modal record".into()));
+        }
+        if est.residues.len() != frf.n_channels {
+            return Err(bad(format!(
+                "{} residues for {} channels",
+                est.residues.len(),
+                frf.n_channels
+            )));
+        }
+        if !(est.frequency_hz.is_finite() && est.frequency_hz > 0.0) {
+            return Err(bad(format!(
+                "frequency {} Hz is not positive",
+                est.frequency_hz
+            )));
+        }
+        if !(est.damping_ratio.is_finite() && est.damping_ratio >= 0.0) {
+            return Err(bad(format!(
+                "damping ratio {} is not a finite non-negative number",
+                est.damping_ratio
+            )));
+        }
+        if est
+            .residues
+            .iter()
+            .any(|z| !(z.re.is_finite() && z.im.is_finite()))
+        {
+            return Err(bad("a residue is not finite".into()));
+        }
+        if !est.residue_std.is_empty()
+            && (est.residue_std.len() != frf.n_channels
+                || est
+                    .residue_std
+                    .iter()
+                    .any(|s| !(s.is_finite() && *s >= 0.0)))
+        {
+            return Err(bad(format!(
+                "residue_std must be empty or {} finite non-negative values",
+                frf.n_channels
+            )));
+        }
+        out.push(k);
+    }
+    Ok(out)
+}
+
+/// Which excitations are processed together, honouring `setup`, the manual set and
+/// `force_mixed_setups`.
+fn plan_pools(
+    geometry: &Geometry,
+    opts: &SelectOptions,
+) -> Result<(Vec<Pool>, Vec<String>), NiError> {
+    let mut warnings = Vec::new();
+    let known = || {
+        geometry
+            .setups
+            .iter()
+            .map(|s| s.id.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut scope: Vec<String> = match &opts.setup {
+        Some(s) => {
+            if !geometry.setups.iter().any(|x| &x.id == s) {
+                return Err(NiError::UnknownSetup {
+                    setup: s.clone(),
+                    known: known(),
+                });
+            }
+            vec![s.clone()]
+        }
+        None => geometry
+            .setups
+            .iter()
+            .filter(|s| geometry.excitations.iter().any(|e| e.setup == s.id))
+            .map(|s| s.id.clone())
+            .collect(),
+    };
+    if let Some(manual) = &opts.manual {
+        let mut setups: Vec<(String, Vec<String>)> = Vec::new();
+        for e in &manual.entries {
+            let Some(k) = geometry.excitation_index(&e.excitation) else {
+                return Err(NiError::Manual(format!(
+                    "mode {} names excitation '{}', which the geometry does not define (known: {})",
+                    e.mode,
+                    e.excitation,
+                    geometry
+                        .excitations
+                        .iter()
+                        .map(|x| x.id.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )));
+            };
+            let s = &geometry.excitations[k].setup;
+            match setups.iter_mut().find(|(id, _)| id == s) {
+                Some((_, list)) => list.push(e.excitation.clone()),
+                None => setups.push((s.clone(), vec![e.excitation.clone()])),
+            }
+        }
+        if let Some(only) = &opts.setup {
+            if let Some((s, list)) = setups.iter().find(|(s, _)| s != only) {
+                return Err(NiError::Manual(format!(
+                    "excitation(s) {} belong to set-up '{s}', not to the requested set-up '{only}'",
+                    list.join(", ")
+                )));
+            }
+        }
+        if setups.len() > 1 && !opts.force_mixed_setups {
+            return Err(NiError::MixedSetups(format!(
+                "the manual set takes modes from {}; a different suspension gives different modes",
+                setups
+                    .iter()
+                    .map(|(s, l)| format!("set-up '{s}' ({})", l.join(", ")))
+                    .collect::<Vec<_>>()
+                    .join(" and ")
+            )));
+        }
+        scope = setups.into_iter().map(|(s, _)| s).collect();
+    }
+    let excitations_of = |ids: &[String]| -> Vec<usize> {
+        (0..geometry.excitations.len())
+            .filter(|&k| ids.contains(&geometry.excitations[k].setup))
+            .collect()
+    };
+    let pools = if opts.force_mixed_setups && scope.len() > 1 {
+        let label = scope.join("+");
+        warnings.push(format!(
+            "set-ups {} were forced together: their modes are matched as one suspension's",
+            scope.join(", ")
+        ));
+        vec![Pool {
+            label,
+            excitations: excitations_of(&scope),
+        }]
+    } else {
+        scope
+            .iter()
+            .map(|s| Pool {
+                label: s.clone(),
+                excitations: excitations_of(std::slice::from_ref(s)),
+            })
+            .collect()
+    };
+    Ok((pools, warnings))
+}
+
+fn excitation_curves(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    k: usize,
+    opts: &SelectOptions,
+) -> ExcitationCurves {
+    let prf = principal_responses(frf, k);
+    let rank = prf.rank(opts.prf_rank_tolerance);
+    ExcitationCurves {
+        excitation: geometry.excitations[k].id.clone(),
+        setup: geometry.excitations[k].setup.clone(),
+        ni_db: norm_indicator(frf, k),
+        hybrid_mif: hybrid_mif(frf, k),
+        prf_mif: prf_mif_from(frf, &prf, opts.prf_rank_tolerance),
+        prf_db: prf.responses[..rank]
+            .iter()
+            .map(|p| p.iter().map(|h| power_db(h.norm_sqr())).collect())
+            .collect(),
+        prf_singular_values: prf.singular_values,
+        prf_rank: rank,
+    }
+}
+
+struct PoolResult {
+    selected: Vec<SelectedMode>,
+    missing: Vec<MissingMode>,
+    warnings: Vec<String>,
+    summaries: Vec<ExcitationSummary>,
+    groups: Vec<ModeGroup>,
+    matrix: StrengthMatrix,
+    disagreements: Vec<String>,
+}
+
+fn db10(x: f64) -> Option<f64> {
+    (x > 0.0 && x.is_finite()).then(|| 10.0 * x.log10())
+}
+
+/// Index of the best entry by `key` (larger is better) among `items`; ties go to the
+/// higher NI, then to geometry order.
+fn best_by(items: &[&ModeExcitation], key: impl Fn(&ModeExcitation) -> f64) -> Option<usize> {
+    (0..items.len()).max_by(|&a, &b| {
+        key(items[a])
+            .total_cmp(&key(items[b]))
+            .then(items[a].ni_db.total_cmp(&items[b].ni_db))
+            .then(b.cmp(&a))
+    })
+}
+
+fn criterion_key(c: Criterion) -> impl Fn(&ModeExcitation) -> f64 {
+    move |m: &ModeExcitation| match c {
+        Criterion::Ni => m.ni_db,
+        Criterion::HybridMif => -m.hybrid_mif,
+        Criterion::PrfMif => -m.prf_mif,
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn process_pool(
+    pool: &Pool,
+    geometry: &Geometry,
+    frf: &FrfSet,
+    modal: &ModalFitRecord,
+    opts: &SelectOptions,
+    members: &[Member],
+    columns: &[Vec6],
+    gram: &Mat6,
+    tol: &MatchTolerances,
+    curves: &IndicatorCurves,
+    curve_of: &[usize],
+) -> Result<PoolResult, NiError> {
+    let mut warnings = Vec::new();
+    let cands: Vec<Candidate> = members
+        .iter()
+        .map(|m| Candidate {
+            excitation: m.excitation,
+            frequency_hz: modal.modes[m.estimate].frequency_hz,
+            q: m.q,
+            strength: m.strength,
+            reliable: m.reliable,
+        })
+        .collect();
+    let groups = match_candidates(&cands, gram, tol);
+    let n_modes = groups.len();
+    if n_modes > 6 {
+        warnings.push(format!(
+            "set-up '{}': {n_modes} distinct modes matched, more than the six rigid-body modes \
+             (spurious or elastic modes in the modal record?)",
+            pool.label
+        ));
+    } else if n_modes < 6 {
+        warnings.push(format!(
+            "set-up '{}': only {n_modes} of the six rigid-body modes were identified by any excitation",
+            pool.label
+        ));
+    }
+    let strongest = members
+        .iter()
+        .filter(|m| m.reliable)
+        .map(|m| m.strength)
+        .fold(0.0f64, f64::max);
+    let floor_db = db10(strongest).map(|d| d - opts.min_strength_db);
+
+    let ex_id = |k: usize| geometry.excitations[k].id.clone();
+    let mut mode_groups = Vec::with_capacity(n_modes);
+    let mut selected = Vec::new();
+    let mut missing = Vec::new();
+    let mut disagreements = Vec::new();
+    let mut per_excitation: Vec<Vec<ModeExcitation>> = vec![Vec::new(); pool.excitations.len()];
+
+    for (gi, group) in groups.iter().enumerate() {
+        let mode = gi + 1;
+        let r = reference_member(group, &cands);
+        let rm = &members[r];
+        let rest = &modal.modes[rm.estimate];
+        let (f_r, zeta) = (rest.frequency_hz, rest.damping_ratio);
+        let phi_ref = (rm.strength > 0.0).then(|| rm.q / rm.strength.sqrt());
+        let half_width = (2.0 * zeta * f_r).max(1.5 * local_spacing(&frf.frequency_hz, f_r));
+        let lines = window_lines(&frf.frequency_hz, f_r, half_width);
+
+        let mut table: Vec<ModeExcitation> = Vec::with_capacity(pool.excitations.len());
+        for &k in &pool.excitations {
+            let c = &curves.excitations[curve_of[k]];
+            let ni_db = c.ni_db[lines.clone()]
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            let hyb = c.hybrid_mif[lines.clone()]
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min);
+            let prf = c.prf_mif[lines.clone()]
+                .iter()
+                .copied()
+                .fold(f64::INFINITY, f64::min);
+            let member = group
+                .iter()
+                .map(|&i| &members[i])
+                .find(|m| m.excitation == k);
+            let predicted_strength = phi_ref.map(|p| columns[k].dot(&p).powi(2));
+            let mut row = ModeExcitation {
+                mode,
+                frequency_hz: f_r,
+                excitation: ex_id(k),
+                excitation_mode: None,
+                weak: false,
+                ni_db,
+                hybrid_mif: hyb,
+                prf_mif: prf,
+                strength: None,
+                strength_std: None,
+                strength_db: None,
+                predicted_strength,
+                rigid_residual: None,
+                mac_to_reference: None,
+                eligible: false,
+                reason: None,
+            };
+            match member {
+                None => {
+                    row.reason = Some(format!("no mode identified near {f_r:.4} Hz"));
+                }
+                Some(m) => {
+                    let est = &modal.modes[m.estimate];
+                    row.excitation_mode = Some(est.mode);
+                    row.weak = est.weak;
+                    row.strength = Some(m.strength);
+                    row.strength_std = m.strength_std;
+                    row.strength_db = db10(m.strength);
+                    row.rigid_residual = Some(m.relative_residual);
+                    row.mac_to_reference = Some(mac(&m.q, &rm.q, gram));
+                    row.reason = m.why.clone();
+                    if row.reason.is_none() {
+                        if let (Some(s_db), Some(floor)) = (row.strength_db, floor_db) {
+                            if s_db < floor {
+                                row.reason = Some(format!(
+                                    "fᵀq = {:.3e} is {:.1} dB below the set-up's strongest (limit {} dB)",
+                                    m.strength,
+                                    floor + opts.min_strength_db - s_db,
+                                    opts.min_strength_db
+                                ));
+                            }
+                        }
+                    }
+                    row.eligible = row.reason.is_none();
+                }
+            }
+            table.push(row);
+        }
+
+        let eligible: Vec<&ModeExcitation> = table.iter().filter(|m| m.eligible).collect();
+        let pick = |c: Criterion| {
+            best_by(&eligible, criterion_key(c)).map(|i| eligible[i].excitation.clone())
+        };
+        let choice_ni = pick(Criterion::Ni);
+        let choice_hybrid = pick(Criterion::HybridMif);
+        let choice_prf = pick(Criterion::PrfMif);
+        let choice_strength = best_by(&eligible, |m| m.strength.unwrap_or(0.0))
+            .map(|i| eligible[i].excitation.clone());
+
+        // Ranking by the criterion in use: eligible first.
+        let key = criterion_key(opts.criterion);
+        let mut ranking = table.clone();
+        ranking.sort_by(|a, b| {
+            b.eligible
+                .cmp(&a.eligible)
+                .then_with(|| {
+                    if a.eligible {
+                        key(b).total_cmp(&key(a))
+                    } else {
+                        std::cmp::Ordering::Equal
+                    }
+                })
+                .then(b.ni_db.total_cmp(&a.ni_db))
+        });
+
+        let describe = |c: &Option<String>| c.clone().unwrap_or_else(|| "none".into());
+        let choices = [&choice_ni, &choice_hybrid, &choice_prf, &choice_strength];
+        if choices.iter().any(|c| *c != choices[0]) {
+            disagreements.push(format!(
+                "set-up '{}' mode {mode} ({f_r:.4} Hz): NI picks {}, hybrid MIF {}, PRF MIF {}, strength fᵀq {}",
+                pool.label,
+                describe(&choice_ni),
+                describe(&choice_hybrid),
+                describe(&choice_prf),
+                describe(&choice_strength)
+            ));
+        }
+
+        // The choice.
+        let manual_choice = opts
+            .manual
+            .as_ref()
+            .map(|m| m.excitation_for(mode).map(str::to_string));
+        let (chosen, criterion_name): (Option<String>, &str) = match &manual_choice {
+            Some(Some(ex)) => (Some(ex.clone()), "manual"),
+            Some(None) => (None, "manual"),
+            None => (
+                match opts.criterion {
+                    Criterion::Ni => choice_ni.clone(),
+                    Criterion::HybridMif => choice_hybrid.clone(),
+                    Criterion::PrfMif => choice_prf.clone(),
+                },
+                opts.criterion.name(),
+            ),
+        };
+        let tried: Vec<String> = table.iter().map(|m| m.excitation.clone()).collect();
+        let why_each = table
+            .iter()
+            .map(|m| {
+                format!(
+                    "{}: {}",
+                    m.excitation,
+                    m.reason.as_deref().unwrap_or("eligible")
+                )
+            })
+            .collect::<Vec<_>>()
+            .join("; ");
+        match (&manual_choice, chosen) {
+            (Some(None), _) => warnings.push(format!(
+                "set-up '{}' mode {mode} ({f_r:.4} Hz) is not in the manual set: not selected",
+                pool.label
+            )),
+            (Some(Some(ex)), _) if !table.iter().any(|m| &m.excitation == ex) => {
+                return Err(NiError::Manual(format!(
+                    "mode {mode}: excitation '{ex}' is not in set-up '{}'",
+                    pool.label
+                )));
+            }
+            (Some(Some(ex)), _) if table.iter().any(|m| &m.excitation == ex && m.excitation_mode.is_none()) => {
+                missing.push(MissingMode {
+                    setup: pool.label.clone(),
+                    mode,
+                    frequency_hz: f_r,
+                    tried: vec![ex.clone()],
+                    reason: format!(
+                        "the manual set takes mode {mode} ({f_r:.4} Hz) from '{ex}', which did not identify it"
+                    ),
+                });
+            }
+            (_, None) => missing.push(MissingMode {
+                setup: pool.label.clone(),
+                mode,
+                frequency_hz: f_r,
+                tried,
+                reason: format!(
+                    "mode {mode} ({f_r:.4} Hz) is not excited above the noise by any excitation of set-up '{}': {why_each}",
+                    pool.label
+                ),
+            }),
+            (_, Some(ex)) => {
+                let row = table.iter().find(|m| m.excitation == ex).expect("checked above");
+                if !row.eligible {
+                    warnings.push(format!(
+                        "set-up '{}' mode {mode}: the manual choice '{ex}' is not reliable ({})",
+                        pool.label,
+                        row.reason.as_deref().unwrap_or("")
+                    ));
+                }
+                if criterion_name == "manual" && choice_ni.as_ref().is_some_and(|c| c != &ex) {
+                    disagreements.push(format!(
+                        "set-up '{}' mode {mode} ({f_r:.4} Hz): the manual set takes {ex}, NI picks {}",
+                        pool.label,
+                        describe(&choice_ni)
+                    ));
+                }
+                // Runner-up: the best other eligible excitation under the same criterion
+                // (NI for a manual choice).
+                let rk = criterion_key(if criterion_name == "manual" { Criterion::Ni } else { opts.criterion });
+                let others: Vec<&ModeExcitation> =
+                    eligible.iter().copied().filter(|m| m.excitation != ex).collect();
+                let runner = best_by(&others, rk).map(|i| others[i]);
+                let member = group
+                    .iter()
+                    .map(|&i| &members[i])
+                    .find(|m| ex_id(m.excitation) == ex)
+                    .expect("a row with an excitation mode has a member");
+                let est = &modal.modes[member.estimate];
+                selected.push(SelectedMode {
+                    setup: pool.label.clone(),
+                    mode,
+                    frequency_hz: est.frequency_hz,
+                    excitation: ex.clone(),
+                    excitation_mode: est.mode,
+                    ni_db: row.ni_db,
+                    margin_db: runner.map_or(0.0, |r| row.ni_db - r.ni_db),
+                    runner_up: runner.map(|r| r.excitation.clone()),
+                    strength: member.strength,
+                    criterion: criterion_name.to_string(),
+                });
+            }
+        }
+
+        for (slot, row) in per_excitation.iter_mut().zip(&table) {
+            slot.push(row.clone());
+        }
+        mode_groups.push(ModeGroup {
+            setup: pool.label.clone(),
+            mode,
+            frequency_hz: f_r,
+            damping_ratio: zeta,
+            reference_excitation: ex_id(rm.excitation),
+            ranking,
+            choice_ni,
+            choice_hybrid_mif: choice_hybrid,
+            choice_prf_mif: choice_prf,
+            choice_strength,
+        });
+    }
+    if let Some(manual) = &opts.manual {
+        for e in &manual.entries {
+            if e.mode > n_modes {
+                return Err(NiError::Manual(format!(
+                    "mode {} (from '{}') does not exist: set-up '{}' has {n_modes} matched modes",
+                    e.mode, e.excitation, pool.label
+                )));
+            }
+        }
+    }
+
+    // Per-excitation summaries, with the NI peaks attributed to the modes.
+    let mut summaries = Vec::with_capacity(pool.excitations.len());
+    for (slot, &k) in per_excitation.into_iter().zip(&pool.excitations) {
+        let c = &curves.excitations[curve_of[k]];
+        let top = c.ni_db.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let peaks: Vec<NiPeak> = find_peaks(&c.ni_db, opts.peak_prominence_db)
+            .into_iter()
+            .filter(|p| c.ni_db[p.line] >= top - opts.min_strength_db)
+            .map(|p| {
+                let f = frf.frequency_hz[p.line];
+                let spacing = local_spacing(&frf.frequency_hz, f);
+                let mode = mode_groups
+                    .iter()
+                    .filter(|g| {
+                        let hw = (2.0 * g.damping_ratio * g.frequency_hz).max(1.5 * spacing);
+                        (f - g.frequency_hz).abs() <= hw
+                    })
+                    .min_by(|a, b| {
+                        (f - a.frequency_hz)
+                            .abs()
+                            .total_cmp(&(f - b.frequency_hz).abs())
+                    })
+                    .map(|g| g.mode);
+                NiPeak {
+                    frequency_hz: f,
+                    level_db: c.ni_db[p.line],
+                    prominence_db: p.prominence,
+                    mode,
+                }
+            })
+            .collect();
+        for p in peaks.iter().filter(|p| p.mode.is_none()) {
+            warnings.push(format!(
+                "NI of '{}' peaks at {:.4} Hz ({:.1} dB) where no mode was identified",
+                c.excitation, p.frequency_hz, p.level_db
+            ));
+        }
+        let excited: Vec<&ModeExcitation> = slot.iter().filter(|m| m.eligible).collect();
+        let own_top = excited
+            .iter()
+            .filter_map(|m| m.strength)
+            .fold(0.0f64, f64::max);
+        let mostly: Vec<usize> = excited
+            .iter()
+            .filter(|m| {
+                m.strength
+                    .is_some_and(|s| s >= own_top * 10f64.powf(-opts.mostly_db / 10.0))
+            })
+            .map(|m| m.mode)
+            .collect();
+        summaries.push(ExcitationSummary {
+            excitation: c.excitation.clone(),
+            setup: c.setup.clone(),
+            peaks,
+            modes_excited: excited.iter().map(|m| m.mode).collect(),
+            modes_mostly_excited: mostly,
+            modes_not_excited: slot
+                .iter()
+                .filter(|m| !m.eligible)
+                .map(|m| m.mode)
+                .collect(),
+            modes: slot,
+        });
+    }
+
+    let matrix = StrengthMatrix {
+        setup: pool.label.clone(),
+        modes: mode_groups.iter().map(|g| g.mode).collect(),
+        frequency_hz: mode_groups.iter().map(|g| g.frequency_hz).collect(),
+        excitations: pool.excitations.iter().map(|&k| ex_id(k)).collect(),
+        measured_db: (0..n_modes)
+            .map(|r| {
+                summaries
+                    .iter()
+                    .map(|s| s.modes[r].strength.and_then(db10))
+                    .collect()
+            })
+            .collect(),
+        predicted_db: (0..n_modes)
+            .map(|r| {
+                summaries
+                    .iter()
+                    .map(|s| s.modes[r].predicted_strength.and_then(db10))
+                    .collect()
+            })
+            .collect(),
+        ni_db: (0..n_modes)
+            .map(|r| summaries.iter().map(|s| s.modes[r].ni_db).collect())
+            .collect(),
+    };
+    Ok(PoolResult {
+        selected,
+        missing,
+        warnings,
+        summaries,
+        groups: mode_groups,
+        matrix,
+        disagreements,
+    })
+}
