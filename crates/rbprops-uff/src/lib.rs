@@ -67,9 +67,10 @@
 //!
 //! # Precision of a round trip
 //! - ASCII 58: values in 20-column `E` fields with 13 significant digits (relative error
-//!   ≤ 5e-14). Frequencies: record 7 and the uneven abscissa are 13-column fields; a value
-//!   whose shortest exact decimal form fits in 12 characters (e.g. `0.0125`) is written
-//!   exactly, others to 7 significant digits. Even spacing is used when the written start
+//!   ≤ 5e-13 per component). Frequencies: record 7 and the uneven abscissa are 13-column
+//!   fields; a value whose shortest exact decimal form fits in 12 characters (e.g.
+//!   `0.0125`) is written exactly, others with as many digits as fit (at least 7
+//!   significant digits). Even spacing is used when the written start
 //!   and step reproduce the axis to 1e-12.
 //! - Binary 58b: bit-exact (uneven spacing with double abscissae unless the even header
 //!   reproduces the axis bit for bit).

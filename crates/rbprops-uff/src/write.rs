@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 #[derive(Debug, Clone, PartialEq)]
 pub struct WriteOptions {
     /// Write FRFs as binary 58b (little-endian IEEE doubles, bit-exact) instead of ASCII
-    /// 58 (`E20.12`-style fields, 13 significant digits). Default: false.
+    /// 58 (20-column `E` fields, 13 significant digits). Default: false.
     pub binary: bool,
     /// Node dataset: 2411 (double precision, exact; default) or 15 (`E13.5` fields,
     /// about 7 significant digits).
