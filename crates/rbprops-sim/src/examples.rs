@@ -1,0 +1,40 @@
+//! Built-in campaigns. The TOML files under `fixtures/specs/` are the single source;
+//! they are compiled in with `include_str!`.
+
+const EXAMPLES: &[(&str, &str)] = &[
+    (
+        "test-case-1",
+        include_str!("../../../fixtures/specs/test-case-1.toml"),
+    ),
+    (
+        "test-case-2",
+        include_str!("../../../fixtures/specs/test-case-2.toml"),
+    ),
+    ("demo", include_str!("../../../fixtures/specs/demo.toml")),
+    (
+        "close-modes",
+        include_str!("../../../fixtures/specs/close-modes.toml"),
+    ),
+    (
+        "missing-mode",
+        include_str!("../../../fixtures/specs/missing-mode.toml"),
+    ),
+];
+
+const NAMES: &[&str] = &[
+    "test-case-1",
+    "test-case-2",
+    "demo",
+    "close-modes",
+    "missing-mode",
+];
+
+/// The TOML text of a built-in campaign.
+pub fn example(name: &str) -> Option<&'static str> {
+    EXAMPLES.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+}
+
+/// Names of the built-in campaigns.
+pub fn example_names() -> &'static [&'static str] {
+    NAMES
+}

@@ -1,0 +1,26 @@
+//! **rbprops-sim**: simulated FRF campaigns of a rigid body on a linear suspension, the
+//! physics behind `frf-sim`. No I/O: specs come in as text, results go out as data.
+//!
+//! Model per suspension set-up (DOMAIN.md conventions, `e^{+iωt}`):
+//! `H(ω) = S (K + iωC − ω²M0)⁻¹ F`, with `M0` the rigid-body mass matrix about the
+//! geometry origin, `K = Σ T(a)ᵀ k T(a)` the mount stiffness, `C` modal or Rayleigh
+//! damping, `S` the stacked channel rows `sᵀT(p)` and `F` the force columns `T(p)ᵀd`;
+//! converted to mobility (`iωH`) or accelerance (`−ω²H`) as asked, then noise is added
+//! (see [`noise`]).
+
+pub mod effects;
+pub mod error;
+pub mod examples;
+pub mod model;
+pub mod noise;
+pub mod simulate;
+pub mod spec;
+pub mod suspension;
+
+pub use error::{SimError, SpecError, SpecIssue};
+pub use examples::{example, example_names};
+pub use model::DynamicModel;
+pub use simulate::{
+    build_models, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,
+};
+pub use spec::CampaignSpec;

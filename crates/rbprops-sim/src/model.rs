@@ -1,0 +1,143 @@
+//! The linear dynamic model of one suspension set-up:
+//! `H(ω) = S (K + iωC − ω²M)⁻¹ F` (receptance), plus any additive terms effects define.
+//!
+//! Effects of the physics catalogue act on this structure (see [`crate::effects`]), so
+//! that a fitter can rebuild the same model with other effect parameters.
+
+use nalgebra::{Matrix6, RowVector6, Vector6};
+use rbprops_core::{c64, rigid_body_modes, Mat6, RigidMode, Vec6};
+
+/// A force input of a set-up's model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelInput {
+    /// Index of the excitation in the campaign (spec and `FrfSet` order).
+    pub excitation: usize,
+    /// Generalised force column about O, `T(p)ᵀ d` nominally.
+    pub column: Vec6,
+}
+
+/// An extra mode outside the rigid-body model (an elastic mode, say), added to the
+/// receptance as `ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtraMode {
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    /// Mass-normalised modal displacement along each channel (campaign channel order).
+    pub at_channels: Vec<f64>,
+    /// Mass-normalised modal displacement along each excitation's force (campaign order).
+    pub at_excitations: Vec<f64>,
+}
+
+impl ExtraMode {
+    /// The mode's receptance term between channel `c` and excitation `e`.
+    pub fn receptance(&self, c: usize, e: usize, omega: f64) -> c64 {
+        let wm = std::f64::consts::TAU * self.frequency_hz;
+        c64::new(self.at_channels[c] * self.at_excitations[e], 0.0)
+            / c64::new(
+                wm * wm - omega * omega,
+                2.0 * self.damping_ratio * wm * omega,
+            )
+    }
+}
+
+/// Mass, stiffness, viscous damping, output rows and input columns of one set-up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DynamicModel {
+    pub setup: String,
+    /// 6×6 mass matrix about O (body plus any attached masses).
+    pub mass: Mat6,
+    /// 6×6 stiffness about O (springs plus any geometric stiffness).
+    pub stiffness: Mat6,
+    /// 6×6 viscous damping about O.
+    pub damping: Mat6,
+    /// Output rows, one per channel (campaign order): `sᵀT(p)` nominally.
+    pub outputs: Vec<RowVector6<f64>>,
+    /// Inputs of this set-up's excitations.
+    pub inputs: Vec<ModelInput>,
+    /// Modes outside the rigid-body model, added to every FRF of this set-up.
+    pub extra_modes: Vec<ExtraMode>,
+}
+
+/// The receptance of a set of modes between generalised coordinates,
+/// `G(ω) = Σ_r φ_r φ_rᵀ / (ω_r² − ω² + 2iζ_r ω_r ω)` (classical damping).
+pub fn modal_compliance(modes: &[RigidMode], omega: f64) -> Matrix6<c64> {
+    let mut g = Matrix6::<c64>::zeros();
+    for m in modes {
+        let wr = m.omega();
+        let d = c64::new(1.0, 0.0)
+            / c64::new(wr * wr - omega * omega, 2.0 * m.damping_ratio * wr * omega);
+        for i in 0..6 {
+            for j in 0..6 {
+                g[(i, j)] += d * (m.shape[i] * m.shape[j]);
+            }
+        }
+    }
+    g
+}
+
+impl DynamicModel {
+    /// Dynamic stiffness `Z(ω) = K + iωC − ω²M`.
+    pub fn dynamic_stiffness(&self, omega: f64) -> Matrix6<c64> {
+        Matrix6::from_fn(|i, j| {
+            c64::new(
+                self.stiffness[(i, j)] - omega * omega * self.mass[(i, j)],
+                omega * self.damping[(i, j)],
+            )
+        })
+    }
+
+    /// Receptance between generalised coordinates by direct solution, `G = Z(ω)⁻¹`.
+    /// Returns `None` when `Z` is singular at `ω` (an undamped resonance on the line).
+    pub fn direct_compliance(&self, omega: f64) -> Option<Matrix6<c64>> {
+        let z = self.dynamic_stiffness(omega);
+        let g = z.lu().try_inverse()?;
+        // An ill-conditioned Z yields a finite but meaningless inverse: check Z G = I.
+        let resid = (z * g - Matrix6::<c64>::identity()).norm();
+        (resid.is_finite() && resid < 1e-6).then_some(g)
+    }
+
+    /// Real undamped modes of `(K, M)`, mass-normalised and ascending, each with the
+    /// damping ratio `ζ_r = φ_rᵀ C φ_r / (2ω_r)` (exact for classical damping).
+    pub fn modes(&self) -> Result<Vec<RigidMode>, String> {
+        let modes = rigid_body_modes(&self.mass, &self.stiffness).map_err(|e| e.to_string())?;
+        Ok(modes
+            .into_iter()
+            .map(|(w, phi)| RigidMode {
+                frequency_hz: w / std::f64::consts::TAU,
+                damping_ratio: if w > 0.0 {
+                    (phi.transpose() * self.damping * phi)[0] / (2.0 * w)
+                } else {
+                    0.0
+                },
+                shape: phi,
+            })
+            .collect())
+    }
+
+    /// Largest off-diagonal of `ΦᵀCΦ` relative to its diagonal: 0 for classical damping.
+    pub fn damping_coupling(&self, modes: &[RigidMode]) -> f64 {
+        let phi = Mat6::from_columns(&modes.iter().map(|m| m.shape).collect::<Vec<Vector6<f64>>>());
+        let cm = phi.transpose() * self.damping * phi;
+        let diag = cm.diagonal().abs().max().max(f64::MIN_POSITIVE);
+        let mut off = 0.0f64;
+        for i in 0..6 {
+            for j in 0..6 {
+                if i != j {
+                    off = off.max(cm[(i, j)].abs());
+                }
+            }
+        }
+        off / diag
+    }
+}
+
+/// Assembles `C = M Φ diag(2ζ_r ω_r) Φᵀ M`, which gives mode r the ratio ζ_r exactly
+/// (ΦᵀMΦ = I, so ΦᵀCΦ = diag(2ζ_r ω_r)).
+pub fn modal_damping_matrix(mass: &Mat6, modes: &[(f64, Vec6)], ratios: &[f64]) -> Mat6 {
+    let mut c = Mat6::zeros();
+    for ((w, phi), z) in modes.iter().zip(ratios) {
+        let mphi = mass * phi;
+        c += 2.0 * z * w * mphi * mphi.transpose();
+    }
+    (c + c.transpose()) / 2.0
+}

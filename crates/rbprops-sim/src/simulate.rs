@@ -1,0 +1,322 @@
+//! The simulator: spec → models per set-up → FRFs (+ effects, noise) and the truth.
+
+use crate::effects::{parse_effect, BuildContext, Effect, OutputBlock};
+use crate::error::SimError;
+use crate::model::{modal_compliance, modal_damping_matrix, DynamicModel, ModelInput};
+use crate::noise::{add_noise, excitation_rng};
+use crate::spec::{CampaignSpec, DampingModel};
+use rayon::prelude::*;
+use rbprops_core::records::{PropertiesRecord, TrueModeRecord, TrueSetupRecord, TruthRecord};
+use rbprops_core::{c64, rigid_body_modes, FrfSet, Geometry, Mat6, RigidMode};
+
+/// Largest number of complex values one simulation may produce (about 8 GB).
+pub const MAX_VALUES: usize = 500_000_000;
+
+/// How the receptance between generalised coordinates is computed per line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SolveMethod {
+    /// `G = (K + iωC − ω²M)⁻¹` by LU: valid for any damping.
+    #[default]
+    Direct,
+    /// Modal sum `G = Σ φφᵀ/(ω_r² − ω² + 2iζ_rω_rω)`: only for classical damping
+    /// (refused otherwise).
+    Modal,
+}
+
+/// Options of [`simulate_with`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SimOptions {
+    pub method: SolveMethod,
+}
+
+/// A simulated campaign.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Simulation {
+    pub geometry: Geometry,
+    pub frf: FrfSet,
+    pub truth: TruthRecord,
+}
+
+/// Simulates a campaign with the default options ([`SolveMethod::Direct`]).
+pub fn simulate(spec: &CampaignSpec) -> Result<Simulation, SimError> {
+    simulate_with(spec, &SimOptions::default())
+}
+
+/// A set-up's model with its true modes.
+#[derive(Debug, Clone)]
+pub struct SetupModel {
+    pub model: DynamicModel,
+    pub modes: Vec<RigidMode>,
+}
+
+/// Builds the models of every set-up (structure effects, nominal damping, damping
+/// effects) exactly as [`simulate_with`] does.
+pub fn build_models(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    effects: &[Box<dyn Effect>],
+) -> Result<Vec<SetupModel>, SimError> {
+    let props = spec.properties();
+    let m0 = props.mass_matrix().0;
+    let outputs = geometry.channel_matrix();
+    let mut out = Vec::with_capacity(spec.setups.len());
+    for (si, s) in spec.setups.iter().enumerate() {
+        let setup_err = |problem: String| SimError::Setup {
+            setup: s.id.clone(),
+            problem,
+        };
+        let ctx = BuildContext {
+            spec,
+            properties: &props,
+            geometry,
+            setup_index: si,
+        };
+        let mut model = DynamicModel {
+            setup: s.id.clone(),
+            mass: m0,
+            stiffness: spec.setup_stiffness(si),
+            damping: Mat6::zeros(),
+            outputs: outputs.clone(),
+            inputs: geometry
+                .excitations
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.setup == s.id)
+                .map(|(k, e)| ModelInput {
+                    excitation: k,
+                    column: e.column(),
+                })
+                .collect(),
+            extra_modes: Vec::new(),
+        };
+        for (i, e) in effects.iter().enumerate() {
+            e.modify_structure(&ctx, &mut model)
+                .map_err(|problem| effect_err(i, e.as_ref(), problem))?;
+        }
+        let undamped = rigid_body_modes(&model.mass, &model.stiffness)
+            .map_err(|e| setup_err(e.to_string()))?;
+        let w_max = undamped[5].0;
+        if !(undamped[0].0 > 1e-6 * w_max) {
+            return Err(setup_err(format!(
+                "a rigid-body direction is free (lowest mode {:.3e} Hz): no suspension mode there",
+                undamped[0].0 / std::f64::consts::TAU
+            )));
+        }
+        let d = &spec.damping;
+        model.damping = match d.model {
+            DampingModel::Modal => {
+                let ratios: Vec<f64> = match (&d.ratios, d.ratio) {
+                    (Some(r), _) => r.clone(),
+                    (None, r) => vec![r.unwrap_or(0.0); 6],
+                };
+                modal_damping_matrix(&model.mass, &undamped, &ratios)
+            }
+            DampingModel::Proportional => {
+                d.alpha.unwrap_or(0.0) * model.mass + d.beta.unwrap_or(0.0) * model.stiffness
+            }
+        };
+        for (i, e) in effects.iter().enumerate() {
+            e.modify_damping(&ctx, &mut model)
+                .map_err(|problem| effect_err(i, e.as_ref(), problem))?;
+        }
+        let modes = model.modes().map_err(setup_err)?;
+        out.push(SetupModel { model, modes });
+    }
+    Ok(out)
+}
+
+fn effect_err(index: usize, e: &dyn Effect, problem: String) -> SimError {
+    SimError::Effect {
+        index,
+        id: e.id().to_string(),
+        problem,
+    }
+}
+
+/// Per set-up, the channel-by-coordinate receptance `P(ω) = S G(ω)` on every line,
+/// stored `[channel][coordinate][line]` so an excitation's FRF is `P f` line by line.
+struct TransferTable {
+    n_lines: usize,
+    values: Vec<c64>,
+}
+
+impl TransferTable {
+    fn build(
+        sm: &SetupModel,
+        omegas: &[f64],
+        method: SolveMethod,
+    ) -> Result<TransferTable, SimError> {
+        let n_ch = sm.model.outputs.len();
+        let nl = omegas.len();
+        let mut values = vec![c64::new(0.0, 0.0); n_ch * 6 * nl];
+        for (l, &w) in omegas.iter().enumerate() {
+            let g = match method {
+                SolveMethod::Direct => {
+                    sm.model
+                        .direct_compliance(w)
+                        .ok_or_else(|| SimError::Setup {
+                            setup: sm.model.setup.clone(),
+                            problem: format!(
+                                "dynamic stiffness is singular at {:.6} Hz (an undamped resonance on a line?)",
+                                w / std::f64::consts::TAU
+                            ),
+                        })?
+                }
+                SolveMethod::Modal => modal_compliance(&sm.modes, w),
+            };
+            for (c, row) in sm.model.outputs.iter().enumerate() {
+                for j in 0..6 {
+                    let mut acc = c64::new(0.0, 0.0);
+                    for k in 0..6 {
+                        acc += g[(k, j)] * row[k];
+                    }
+                    values[(c * 6 + j) * nl + l] = acc;
+                }
+            }
+        }
+        Ok(TransferTable {
+            n_lines: nl,
+            values,
+        })
+    }
+
+    /// Receptance FRFs of all channels for force column `f`, `[channel][line]`.
+    fn apply(&self, f: &rbprops_core::Vec6, out: &mut [c64]) {
+        let nl = self.n_lines;
+        for (c, dst) in out.chunks_exact_mut(nl).enumerate() {
+            dst.fill(c64::new(0.0, 0.0));
+            for j in 0..6 {
+                if f[j] == 0.0 {
+                    continue;
+                }
+                let src = &self.values[(c * 6 + j) * nl..(c * 6 + j + 1) * nl];
+                for (d, s) in dst.iter_mut().zip(src) {
+                    *d += s * f[j];
+                }
+            }
+        }
+    }
+}
+
+/// Simulates a campaign: validates the spec, builds each set-up's model, computes the
+/// FRFs `H = S (K + iωC − ω²M)⁻¹ F` in the spec's quantity, applies output effects and
+/// noise, and records the truth. Excitations are computed in parallel; the result is
+/// bit-identical for any number of threads.
+pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simulation, SimError> {
+    spec.validate()?;
+    let geometry = spec.geometry()?;
+    let effects: Vec<Box<dyn Effect>> = spec
+        .effects
+        .iter()
+        .map(|e| parse_effect(e).expect("validated effect"))
+        .collect();
+    let freq = spec.frequency_axis();
+    let n_ch = geometry.channels.len();
+    let n_ex = geometry.excitations.len();
+    let nl = freq.len();
+    let total = n_ch.saturating_mul(n_ex).saturating_mul(nl);
+    if total > MAX_VALUES {
+        return Err(SimError::TooLarge(format!(
+            "{n_ex} excitations × {n_ch} channels × {nl} lines = {total} values (limit {MAX_VALUES})"
+        )));
+    }
+    let omegas: Vec<f64> = freq.iter().map(|f| std::f64::consts::TAU * f).collect();
+    let models = build_models(spec, &geometry, &effects)?;
+    if options.method == SolveMethod::Modal {
+        for sm in &models {
+            let coupling = sm.model.damping_coupling(&sm.modes);
+            if coupling > 1e-9 {
+                return Err(SimError::Setup {
+                    setup: sm.model.setup.clone(),
+                    problem: format!(
+                        "damping is not classical (modal coupling {coupling:.2e}): use the direct solve"
+                    ),
+                });
+            }
+        }
+    }
+    let tables = models
+        .par_iter()
+        .map(|sm| TransferTable::build(sm, &omegas, options.method))
+        .collect::<Result<Vec<_>, _>>()?;
+    // Which set-up and input serve each excitation.
+    let mut route = vec![(0usize, 0usize); n_ex];
+    for (si, sm) in models.iter().enumerate() {
+        for (ii, inp) in sm.model.inputs.iter().enumerate() {
+            route[inp.excitation] = (si, ii);
+        }
+    }
+    let factors: Vec<c64> = omegas
+        .iter()
+        .map(|&w| spec.quantity.from_receptance_factor(w))
+        .collect();
+    let mut frf = FrfSet::zeros(spec.quantity, freq.clone(), n_ex, n_ch);
+    let block = n_ch * nl;
+    if block > 0 {
+        frf.values
+            .par_chunks_mut(block)
+            .enumerate()
+            .for_each(|(e, values)| {
+                let (si, ii) = route[e];
+                let sm = &models[si];
+                tables[si].apply(&sm.model.inputs[ii].column, values);
+                for x in &sm.model.extra_modes {
+                    for (c, dst) in values.chunks_exact_mut(nl).enumerate() {
+                        for (d, &w) in dst.iter_mut().zip(&omegas) {
+                            *d += x.receptance(c, e, w);
+                        }
+                    }
+                }
+                let mut ob = OutputBlock {
+                    excitation: e,
+                    frequency_hz: &freq,
+                    n_channels: n_ch,
+                    values,
+                };
+                for eff in &effects {
+                    eff.transform_output(&mut ob);
+                }
+                for dst in values.chunks_exact_mut(nl) {
+                    for (d, f) in dst.iter_mut().zip(&factors) {
+                        *d *= f;
+                    }
+                }
+                let mut rng = excitation_rng(spec.seed, e);
+                add_noise(values, spec.noise.relative, spec.noise.floor, &mut rng);
+            });
+    }
+    frf.validate()?;
+    let truth = TruthRecord {
+        campaign: spec.name.clone(),
+        properties: PropertiesRecord::from_properties(&spec.properties()),
+        setups: models
+            .iter()
+            .map(|sm| TrueSetupRecord {
+                setup: sm.model.setup.clone(),
+                stiffness: std::array::from_fn(|i| {
+                    std::array::from_fn(|j| sm.model.stiffness[(i, j)])
+                }),
+                modes: sm
+                    .modes
+                    .iter()
+                    .enumerate()
+                    .map(|(r, m)| TrueModeRecord {
+                        mode: r + 1,
+                        frequency_hz: m.frequency_hz,
+                        damping_ratio: m.damping_ratio,
+                        shape: std::array::from_fn(|i| m.shape[i]),
+                    })
+                    .collect(),
+            })
+            .collect(),
+        effects: effects.iter().map(|e| e.record()).collect(),
+        seed: spec.seed,
+        noise_relative: spec.noise.relative,
+        noise_floor: spec.noise.floor,
+    };
+    Ok(Simulation {
+        geometry,
+        frf,
+        truth,
+    })
+}
