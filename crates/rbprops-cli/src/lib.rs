@@ -7,6 +7,8 @@ use rbprops_formats::{mcap_file, RunRecord};
 use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
+pub mod plots;
+
 /// The MCAP magic bytes, to recognise a stream on stdin.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
@@ -168,4 +170,12 @@ pub fn warn_all<'a>(tool: &str, warnings: impl IntoIterator<Item = &'a String>) 
 /// Writes a text file (a plot, a report) atomically, creating its directory.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
     Ok(rbprops_formats::atomic::write_file(path, text.as_bytes())?)
+}
+
+/// Writes named SVG documents into `dir` (created if needed).
+pub fn write_plots(dir: &Path, plots: &[(String, String)]) -> Result<()> {
+    for (name, svg) in plots {
+        write_text(&dir.join(name), svg)?;
+    }
+    Ok(())
 }

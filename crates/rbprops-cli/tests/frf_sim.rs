@@ -159,3 +159,31 @@ fn bad_spec_fails_clearly_without_output() {
     let out = frf_sim().args(["--example", "nope"]).output().unwrap();
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("test-case-1"));
 }
+
+#[test]
+fn convert_mcap_csv_mcap_is_byte_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.mcap");
+    let csv = dir.path().join("a_csv");
+    let b = dir.path().join("b.mcap");
+    run_ok(frf_sim().args(["--example", "test-case-1", "-o"]).arg(&a));
+    let rbprops = env!("CARGO_BIN_EXE_rbprops");
+    run_ok(
+        Command::new(rbprops)
+            .arg("convert")
+            .arg(&a)
+            .arg("-o")
+            .arg(&csv),
+    );
+    run_ok(
+        Command::new(rbprops)
+            .arg("convert")
+            .arg(&csv)
+            .arg("-o")
+            .arg(&b),
+    );
+    assert!(
+        std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap(),
+        "MCAP → CSV → MCAP changed bytes"
+    );
+}

@@ -16,6 +16,10 @@ use serde_json::{Map, Value};
 /// Column linking a child row to its parent row.
 pub const PARENT: &str = "_parent";
 
+/// Cell prefix of a field whose rows live in a child table (`=> table.csv`); it keeps
+/// the field's place among the columns. Strings starting so are written quoted.
+pub const CHILD_REF: &str = "=>";
+
 /// One flat table.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Table {
@@ -30,7 +34,11 @@ pub struct Table {
 pub fn cell_text(v: &Value) -> String {
     match v {
         Value::String(s) => {
-            if s.is_empty() || s.trim() != s || serde_json::from_str::<Value>(s).is_ok() {
+            if s.is_empty()
+                || s.trim() != s
+                || s.starts_with(CHILD_REF)
+                || serde_json::from_str::<Value>(s).is_ok()
+            {
                 serde_json::to_string(s).expect("string serialises")
             } else {
                 s.clone()
@@ -112,6 +120,7 @@ fn to_tables_inner(
                         children[pos]
                             .1
                             .extend(x.as_array().unwrap().iter().map(|c| (Some(i), c)));
+                        row.push((k.clone(), format!("{CHILD_REF} {name}_{k}.csv")));
                     } else {
                         flatten_inline(k, x, &mut row);
                     }
@@ -202,7 +211,12 @@ pub fn from_tables(name: &str, all: &[Table]) -> Result<Vec<Value>, String> {
             if h == PARENT {
                 continue;
             }
-            if let Some(x) = cell_value(text) {
+            if text.starts_with(CHILD_REF) {
+                // Placeholder keeping the field's position; the child table fills it.
+                let segs: Vec<&str> = h.split('.').collect();
+                set_path(&mut v, &segs, Value::Array(Vec::new()))
+                    .map_err(|e| format!("{name}: row {}, column {h}: {e}", r + 1))?;
+            } else if let Some(x) = cell_value(text) {
                 let segs: Vec<&str> = h.split('.').collect();
                 set_path(&mut v, &segs, x)
                     .map_err(|e| format!("{name}: row {}, column {h}: {e}", r + 1))?;
@@ -261,7 +275,7 @@ mod tests {
     #[test]
     fn nested_records_round_trip_exactly() {
         let msgs = vec![
-            json!({"a": 0.1, "s": "42", "e": "", "t": "plain text", "v": [1.0, 2.5e-300], "m": [[1,2],[3,4]], "o": {"x": -0.0}, "kids": [{"k": 1}, {"k": 2, "w": ["x"]}], "empty": [], "none": null}),
+            json!({"a": 0.1, "s": "42", "arrow": "=> x.csv", "e": "", "t": "plain text", "v": [1.0, 2.5e-300], "m": [[1,2],[3,4]], "o": {"x": -0.0}, "kids": [{"k": 1}, {"k": 2, "w": ["x"]}], "empty": [], "none": null}),
             json!({"a": 1e300, "s": "true", "e": " pad", "t": "[oops", "v": [], "m": [[5,6],[7,8]], "o": {"x": 3}, "kids": [], "empty": []}),
         ];
         let mut tables = Vec::new();

@@ -28,6 +28,9 @@ struct Args {
     /// Output: FILE.mcap, or a directory for CSV; default MCAP on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    /// Write FRF magnitude plots (one SVG per excitation) into this directory.
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 fn main() -> std::process::ExitCode {
@@ -67,6 +70,12 @@ fn main() -> std::process::ExitCode {
             spec.seed = seed;
         }
         let sim = rbprops_sim::simulate(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+        if let Some(dir) = &args.plot {
+            rbprops_cli::write_plots(
+                dir,
+                &rbprops_cli::plots::frf_magnitudes(&sim.geometry, &sim.frf)?,
+            )?;
+        }
         let mut rec = RunRecord::default();
         rec.push_provenance(rbprops_cli::provenance(
             "frf-sim",
