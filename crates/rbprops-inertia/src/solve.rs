@@ -658,7 +658,12 @@ fn mass_line_estimate(
             .fold(0.0, f64::max)
     };
     let band = choose_band(frf, highest_rigid, &opts.mass_line)?;
-    let ml = mass_line_values(frf, &band)?;
+    let ml = mass_line_values(
+        frf,
+        &band,
+        opts.mass_line.rigid_terms,
+        opts.mass_line.flex_terms,
+    )?;
     let excitations: Vec<usize> = (0..frf.n_excitations).collect();
     let mut warnings = Vec::new();
     if let Some(l) = side.label() {
