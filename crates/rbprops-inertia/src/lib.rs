@@ -14,6 +14,9 @@
 //!
 //! No I/O: data in, data (or typed errors) out.
 
+// `!(x > 0.0)` is deliberate: it also rejects NaN. Index loops mirror the equations.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
 pub mod consistency;
 pub mod error;
 pub mod lsq;
