@@ -8,6 +8,7 @@ use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
 pub mod plots;
+pub mod table;
 
 /// The MCAP magic bytes, to recognise a stream on stdin.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -158,6 +159,30 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitC
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// True when stdout is a terminal (print tables, not data).
+pub fn stdout_is_terminal() -> bool {
+    std::io::stdout().is_terminal()
+}
+
+/// Parses `FMIN:FMAX` (Hz).
+pub fn parse_band(s: &str) -> Result<(f64, f64)> {
+    let (a, b) = s
+        .split_once(':')
+        .with_context(|| format!("band '{s}' is not FMIN:FMAX"))?;
+    let (a, b): (f64, f64) = (
+        a.trim()
+            .parse()
+            .with_context(|| format!("band '{s}': bad FMIN"))?,
+        b.trim()
+            .parse()
+            .with_context(|| format!("band '{s}': bad FMAX"))?,
+    );
+    if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+        bail!("band '{s}': need 0 ≤ FMIN < FMAX");
+    }
+    Ok((a, b))
 }
 
 /// Prints warnings on stderr, prefixed by the tool name.

@@ -1,0 +1,104 @@
+//! `modal-fit`: modal identification of every excitation (SIMO), in parallel.
+
+use clap::{Parser, ValueEnum};
+use rbprops_formats::topics;
+use rbprops_modal::{FitOptions, Method, PoleMode};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, ValueEnum)]
+enum MethodArg {
+    /// Least-squares complex frequency domain (pLSCF) poles + LSFD residues (default).
+    Lscf,
+    /// Least-squares complex exponential (time domain; needs a uniform baseband axis).
+    Lsce,
+    /// Kennedy–Pancu circle fit per mode and channel (well-separated modes only).
+    Circle,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum PolesArg {
+    /// Poles estimated per excitation.
+    Excitation,
+    /// One consistent pole set per suspension set-up, from all its excitations.
+    Setup,
+}
+
+/// Identify natural frequencies, damping ratios and residues (modal constants, 1/kg) with
+/// standard errors, for every excitation. Adds the `modal_fit` topic.
+#[derive(Parser)]
+#[command(name = "modal-fit", version, about)]
+struct Args {
+    /// Input run (MCAP, CSV directory); default MCAP on stdin.
+    input: Option<PathBuf>,
+    /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    #[arg(long, value_enum, default_value = "lscf")]
+    method: MethodArg,
+    /// Band FMIN:FMAX in Hz (default: the whole axis).
+    #[arg(long)]
+    band: Option<String>,
+    /// Number of modes in the band (default: from the stabilisation diagram).
+    #[arg(long)]
+    modes: Option<usize>,
+    /// Highest model order of the stabilisation diagram.
+    #[arg(long)]
+    max_order: Option<usize>,
+    #[arg(long, value_enum, default_value = "excitation")]
+    poles: PolesArg,
+    /// Leave out the lower/upper residual terms of the residue fit.
+    #[arg(long)]
+    no_residuals: bool,
+    /// Write stabilisation diagrams and measured-vs-synthesised FRF overlays here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+fn main() -> std::process::ExitCode {
+    rbprops_cli::run("modal-fit", || {
+        let args = Args::parse();
+        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let mut rec = input.record;
+        let (geometry, frf) = rec.require_geometry_and_frf()?;
+        let mut opts = FitOptions {
+            method: match args.method {
+                MethodArg::Lscf => Method::Lscf,
+                MethodArg::Lsce => Method::Lsce,
+                MethodArg::Circle => Method::Circle,
+            },
+            poles: match args.poles {
+                PolesArg::Excitation => PoleMode::PerExcitation,
+                PolesArg::Setup => PoleMode::PerSetup,
+            },
+            n_modes: args.modes,
+            residual_terms: !args.no_residuals,
+            ..Default::default()
+        };
+        if let Some(b) = &args.band {
+            opts.band_hz = Some(rbprops_cli::parse_band(b)?);
+        }
+        if let Some(o) = args.max_order {
+            opts.max_order = o;
+        }
+        let out = rbprops_modal::fit_campaign(&geometry, frf, &opts)?;
+        for e in &out.record.excitations {
+            for w in &e.warnings {
+                eprintln!("modal-fit: warning: excitation {}: {w}", e.excitation);
+            }
+        }
+        for m in &out.record.modes {
+            for w in &m.warnings {
+                eprintln!(
+                    "modal-fit: warning: excitation {} mode {} ({:.4} Hz): {w}",
+                    m.excitation, m.mode, m.frequency_hz
+                );
+            }
+        }
+        if let Some(dir) = &args.plot {
+            rbprops_cli::write_plots(dir, &rbprops_cli::plots::modal_fit(&geometry, frf, &out)?)?;
+        }
+        rec.push_provenance(rbprops_cli::provenance("modal-fit", &input.sha256))?;
+        rec.set(topics::MODAL_FIT, &[out.record]);
+        rbprops_cli::write_output(&rec, args.output.as_deref())
+    })
+}

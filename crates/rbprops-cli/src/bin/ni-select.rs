@@ -1,0 +1,116 @@
+//! `ni-select`: Norm Indicator, mode matching across excitations, best-mode sets.
+
+use anyhow::{Context, Result};
+use clap::{Parser, ValueEnum};
+use rbprops_core::records::ModalFitRecord;
+use rbprops_formats::topics;
+use rbprops_ni::{Criterion, ManualSet, SelectOptions};
+use std::io::Write;
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Crit {
+    Ni,
+    HybridMif,
+    PrfMif,
+}
+
+/// For every rigid-body mode, choose the excitation that gives its best shape (NI, Eq. 12),
+/// after matching modes across excitations of a set-up by frequency and MAC.
+#[derive(Parser)]
+#[command(name = "ni-select", version, about)]
+struct Args {
+    /// Input run (MCAP, CSV directory); default MCAP on stdin.
+    input: Option<PathBuf>,
+    /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Selection criterion.
+    #[arg(long, value_enum, default_value = "ni")]
+    criterion: Crit,
+    /// Manual set, e.g. `1:F2,2:F2,3:F3,4:F3,5:F1,6:F1` (mode:excitation), or @FILE (TOML or CSV).
+    #[arg(long)]
+    set: Option<String>,
+    /// Only this suspension set-up.
+    #[arg(long)]
+    setup: Option<String>,
+    /// Combine modes across set-ups (wrong physics: a different suspension gives different modes).
+    #[arg(long)]
+    force_mixed_setups: bool,
+    /// Least MAC for two estimates to be the same mode.
+    #[arg(long)]
+    mac_threshold: Option<f64>,
+    /// Print the per-excitation summary ("F0x excites mostly modes 1, 4, 6") on stderr.
+    #[arg(long)]
+    summary: bool,
+    /// Write NI, hybrid MIF, PRF MIF curves and the strength heat map into this directory.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+fn manual(s: &str) -> Result<ManualSet> {
+    if let Some(path) = s.strip_prefix('@') {
+        let text = std::fs::read_to_string(path).with_context(|| path.to_string())?;
+        let r = if path.ends_with(".csv") {
+            ManualSet::from_csv(&text)
+        } else {
+            ManualSet::from_toml(&text)
+        };
+        return r.with_context(|| path.to_string());
+    }
+    Ok(rbprops_ni::parse_manual_set(s)?)
+}
+
+fn main() -> std::process::ExitCode {
+    rbprops_cli::run("ni-select", || {
+        let args = Args::parse();
+        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let mut rec = input.record;
+        let (geometry, frf) = rec.require_geometry_and_frf()?;
+        let modal: ModalFitRecord = rec
+            .get_one(topics::MODAL_FIT)?
+            .with_context(|| format!("{}: no modal_fit topic (run modal-fit first)", input.name))?;
+        let mut opts = SelectOptions {
+            criterion: match args.criterion {
+                Crit::Ni => Criterion::Ni,
+                Crit::HybridMif => Criterion::HybridMif,
+                Crit::PrfMif => Criterion::PrfMif,
+            },
+            setup: args.setup.clone(),
+            force_mixed_setups: args.force_mixed_setups,
+            ..Default::default()
+        };
+        if let Some(s) = &args.set {
+            opts.manual = Some(manual(s)?);
+        }
+        if let Some(m) = args.mac_threshold {
+            opts.mac_threshold = m;
+        }
+        let out = rbprops_ni::select_modes(&geometry, frf, &modal, &opts)?;
+        rbprops_cli::warn_all("ni-select", &out.record.warnings);
+        for m in &out.record.missing {
+            eprintln!("ni-select: warning: set-up {} mode {} ({:.4} Hz) not excited above the noise by {:?}: {}", m.setup, m.mode, m.frequency_hz, m.tried, m.reason);
+        }
+        rbprops_cli::warn_all("ni-select", &out.criterion_disagreements);
+        if args.summary {
+            let mut err = std::io::stderr().lock();
+            for s in &out.excitation_summaries {
+                writeln!(
+                    err,
+                    "{} (set-up {}): excites modes {:?}, mostly {:?}; not {:?}",
+                    s.excitation,
+                    s.setup,
+                    s.modes_excited,
+                    s.modes_mostly_excited,
+                    s.modes_not_excited
+                )?;
+            }
+        }
+        if let Some(dir) = &args.plot {
+            rbprops_cli::write_plots(dir, &rbprops_cli::plots::indicators(&out)?)?;
+        }
+        rec.push_provenance(rbprops_cli::provenance("ni-select", &input.sha256))?;
+        rec.set(topics::SELECTION, &[out.record]);
+        rbprops_cli::write_output(&rec, args.output.as_deref())
+    })
+}

@@ -1,0 +1,171 @@
+//! `rb-solve`: the ten inertia properties from the selected modes (and the FRFs).
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, ValueEnum};
+use rbprops_core::records::{
+    InertiaEstimate, ModalFitRecord, PropertiesRecord, SelectionRecord, TruthRecord,
+};
+use rbprops_formats::topics;
+use rbprops_inertia::{Estimator, OriginChoice, SolveOptions};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum OutFormat {
+    /// Human-readable table (default when stdout is a terminal).
+    Table,
+    /// JSON array of estimates (the stable interface for scripts).
+    Json,
+    /// The run record as MCAP (default when stdout is not a terminal).
+    Mcap,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Method {
+    BretlConti,
+    ToivolaNuutila,
+    MassLine,
+}
+
+/// Estimate mass, centre of mass and inertia tensor (Bretl–Conti, Toivola–Nuutila, mass
+/// line) with standard errors, from `modal-fit` + `ni-select` output.
+#[derive(Parser)]
+#[command(name = "rb-solve", version, about)]
+struct Args {
+    /// Input run (MCAP, CSV directory); default MCAP on stdin.
+    input: Option<PathBuf>,
+    /// Write the run record (with the estimates topic) here: FILE.mcap or a CSV directory.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// What to print on stdout.
+    #[arg(long, value_enum)]
+    format: Option<OutFormat>,
+    /// Estimators to run (default: all three).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    method: Vec<Method>,
+    /// Origin: `x,y,z` in metres, or a channel / measurement-point id (e.g. an accelerometer).
+    #[arg(long)]
+    origin: Option<String>,
+    /// Reference properties (JSON `{mass_kg, com_m, inertia_cm_kg_m2}`); default: the truth topic if present.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Do not compare with the truth topic even if present.
+    #[arg(long)]
+    no_reference: bool,
+    /// Known mass (kg), imposed as side information.
+    #[arg(long)]
+    known_mass: Option<f64>,
+    /// Nominal properties (JSON like --reference): regularise only what the data leave undetermined.
+    #[arg(long)]
+    nominal: Option<PathBuf>,
+    /// Mass-line band FMIN:FMAX in Hz (default: automatic).
+    #[arg(long)]
+    mass_line_band: Option<String>,
+    /// Monte Carlo draws for the uncertainty (0 = linearised propagation).
+    #[arg(long, default_value_t = 0)]
+    monte_carlo: usize,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Write a figure of the estimates with 95 % error bars into this directory.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+}
+
+fn read_props(p: &PathBuf) -> Result<PropertiesRecord> {
+    let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+    serde_json::from_str(&text).with_context(|| {
+        format!(
+            "{}: expected JSON {{mass_kg, com_m, inertia_cm_kg_m2}}",
+            p.display()
+        )
+    })
+}
+
+fn origin(s: &str) -> OriginChoice {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() == 3 {
+        if let (Ok(x), Ok(y), Ok(z)) = (
+            parts[0].trim().parse(),
+            parts[1].trim().parse(),
+            parts[2].trim().parse(),
+        ) {
+            return OriginChoice::Point([x, y, z]);
+        }
+    }
+    OriginChoice::Channel(s.to_string())
+}
+
+fn main() -> std::process::ExitCode {
+    rbprops_cli::run("rb-solve", || {
+        let args = Args::parse();
+        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let mut rec = input.record;
+        let (geometry, frf) = rec.require_geometry_and_frf()?;
+        let frf = frf.clone();
+        let modal: ModalFitRecord = rec
+            .get_one(topics::MODAL_FIT)?
+            .with_context(|| format!("{}: no modal_fit topic (run modal-fit first)", input.name))?;
+        let selection: SelectionRecord = rec
+            .get_one(topics::SELECTION)?
+            .with_context(|| format!("{}: no selection topic (run ni-select first)", input.name))?;
+        let mut opts = SolveOptions::default();
+        if !args.method.is_empty() {
+            opts.estimators = args
+                .method
+                .iter()
+                .map(|m| match m {
+                    Method::BretlConti => Estimator::BretlConti,
+                    Method::ToivolaNuutila => Estimator::ToivolaNuutila,
+                    Method::MassLine => Estimator::MassLine,
+                })
+                .collect();
+        }
+        if let Some(o) = &args.origin {
+            opts.origin = origin(o);
+        }
+        opts.reference = match (&args.reference, args.no_reference) {
+            (Some(p), _) => Some(read_props(p)?),
+            (None, false) => rec
+                .get_one::<TruthRecord>(topics::TRUTH)?
+                .map(|t| t.properties),
+            (None, true) => None,
+        };
+        opts.side_information.known_mass_kg = args.known_mass;
+        if let Some(p) = &args.nominal {
+            opts.side_information.nominal = Some(read_props(p)?);
+        }
+        if let Some(b) = &args.mass_line_band {
+            opts.mass_line.band_hz = Some(rbprops_cli::parse_band(b)?);
+        }
+        opts.monte_carlo_samples = args.monte_carlo;
+        opts.seed = args.seed;
+        let out = rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?;
+        rbprops_cli::warn_all("rb-solve", &out.warnings);
+        if out.estimates.is_empty() {
+            bail!("no estimator produced an estimate (see the warnings above)");
+        }
+        rec.push_provenance(rbprops_cli::provenance("rb-solve", &input.sha256))?;
+        rec.set(topics::ESTIMATES, &out.estimates);
+        if let Some(dir) = &args.plot {
+            rbprops_cli::write_plots(dir, &rbprops_cli::plots::estimates(&out.estimates)?)?;
+        }
+        let format = args.format.unwrap_or(
+            if rbprops_cli::stdout_is_terminal() || args.output.is_some() {
+                OutFormat::Table
+            } else {
+                OutFormat::Mcap
+            },
+        );
+        if let Some(p) = &args.output {
+            rbprops_cli::write_output(&rec, Some(p))?;
+        }
+        match format {
+            OutFormat::Table => print!("{}", rbprops_cli::table::estimates(&out.estimates)),
+            OutFormat::Json => println!(
+                "{}",
+                serde_json::to_string_pretty::<Vec<InertiaEstimate>>(&out.estimates)?
+            ),
+            OutFormat::Mcap => rbprops_cli::write_output(&rec, None)?,
+        }
+        Ok(())
+    })
+}
