@@ -90,11 +90,12 @@ fn mif_ratio<'a>(frf: &FrfSet, hs: impl Iterator<Item = &'a c64>) -> f64 {
 ///
 /// `MIF_k(ω) = Σ_i |Re H_ik(ω)| · |H_ik(ω)| / Σ_i |H_ik(ω)|²`,   `|H| = sqrt(Re² + Im²)`.
 ///
-/// The published formula could not be retrieved for this project; this is the standard
-/// single-reference MIF that mixes real parts with moduli (the "hybrid" of Breitbach's
-/// real-part-squared form and the modulus), which is what the paper describes: "MIF of
-/// all FRFs measured with three triaxial accelerometers, using both real and imaginary
-/// parts". It lies in [0, 1], is near 1 away from resonances and dips towards 0 at each
+/// The published formula could not be retrieved for this project (searches found only
+/// secondary descriptions of MIF/MMIF/CMIF). This is the standard single-reference MIF
+/// that weights each FRF's real part by its modulus, so it uses both the real and the
+/// imaginary parts of every FRF, which is what the paper says of it: "MIF of all FRFs
+/// measured with three triaxial accelerometers, using both real and imaginary parts".
+/// Reading "hybrid" as this real-part × modulus product is our interpretation. It lies in [0, 1], is near 1 away from resonances and dips towards 0 at each
 /// lightly damped normal mode that dominates the response there, whatever its level: it
 /// tells where modes are, not how strongly the excitation drives them. For one mode alone
 /// it equals `|ω_r² − ω²| / |ω_r² − ω² + 2iζω_rω|` exactly. `Re` is taken on the
@@ -339,8 +340,8 @@ mod tests {
         let mut r = s.clone();
         for l in 0..f.len() {
             let h: Vec<c64> = (0..3).map(|c| s.frf(0, c)[l]).collect();
-            for i in 0..3 {
-                r.frf_mut(0, i)[l] = (0..3).map(|j| h[j] * rot[i][j]).sum();
+            for (i, row) in rot.iter().enumerate() {
+                r.frf_mut(0, i)[l] = h.iter().zip(row).map(|(x, w)| x * w).sum();
             }
         }
         let a = prf_mif(&s, 0, 1e-8);

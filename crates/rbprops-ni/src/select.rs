@@ -378,13 +378,15 @@ pub fn select_modes(
                 Some("modal-fit flagged it weak".to_string())
             } else if !(strength > 0.0) {
                 Some(format!("fᵀq = {strength:.3e} ≤ 0: not excited"))
-            } else if let Some(sd) = strength_std.filter(|sd| strength < opts.min_snr * sd) {
-                Some(format!(
-                    "fᵀq = {strength:.3e} ± {sd:.1e} is below {} standard errors",
-                    opts.min_snr
-                ))
             } else {
-                None
+                strength_std
+                    .filter(|sd| strength < opts.min_snr * sd)
+                    .map(|sd| {
+                        format!(
+                            "fᵀq = {strength:.3e} ± {sd:.1e} is below {} standard errors",
+                            opts.min_snr
+                        )
+                    })
             };
             if fit.relative_residual > RIGID_RESIDUAL_WARNING {
                 warnings.push(format!(

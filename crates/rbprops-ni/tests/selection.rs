@@ -25,7 +25,7 @@ fn check_against_truth(model: &Model, out: &SelectionOutput, setup: &str) {
         .collect();
     assert_eq!(sel.len(), 6, "set-up {setup}: {:?}", out.record);
     let truth = model.modes_of(setup);
-    let mut seen = vec![false; 6];
+    let mut seen = [false; 6];
     for s in &sel {
         let r = model.true_mode_near(setup, s.frequency_hz);
         assert!(!seen[r], "true mode {} selected twice", r + 1);
@@ -767,5 +767,64 @@ fn output_serialises_without_nan() {
     assert_eq!(back.record, out.record);
     for s in &out.record.selected {
         assert!(s.ni_db.is_finite() && s.margin_db.is_finite() && s.strength.is_finite());
+    }
+}
+
+#[test]
+fn selection_does_not_depend_on_the_frf_quantity() {
+    // NI compares excitations at the same frequency, where the factor −ω² between
+    // receptance and accelerance is common to all: same choices, NI shifted by 40 log10 ω.
+    let m = test_case_one();
+    let rec = estimates(&m, EstimateSpec::default());
+    let hz = axis(0.1, 1.5, 0.0005);
+    let rcp = frfs(&m, &hz);
+    let acc = rcp
+        .to_quantity(rbprops_core::Quantity::Accelerance)
+        .unwrap();
+    let opts = SelectOptions::default();
+    let a = select_modes(&m.geometry, &rcp, &rec, &opts).unwrap();
+    let b = select_modes(&m.geometry, &acc, &rec, &opts).unwrap();
+    assert_eq!(a.record.selected.len(), b.record.selected.len());
+    for (x, y) in a.record.selected.iter().zip(&b.record.selected) {
+        assert_eq!(
+            (x.mode, &x.excitation, &x.runner_up),
+            (y.mode, &y.excitation, &y.runner_up)
+        );
+        assert!(
+            (x.margin_db - y.margin_db).abs() < 0.05,
+            "{} vs {}",
+            x.margin_db,
+            y.margin_db
+        );
+        let w = 2.0 * std::f64::consts::PI * x.frequency_hz;
+        assert!((y.ni_db - x.ni_db - 40.0 * w.log10()).abs() < 0.1);
+    }
+    // The MIFs use the receptance phase, so they are identical.
+    for (x, y) in a.curves.excitations.iter().zip(&b.curves.excitations) {
+        for (p, q) in x.hybrid_mif.iter().zip(&y.hybrid_mif) {
+            assert!((p - q).abs() < 1e-9);
+        }
+    }
+}
+
+#[test]
+fn principal_responses_count_the_excited_modes() {
+    let m = test_case_one();
+    let rec = estimates(&m, EstimateSpec::default());
+    let out = run(&m, &rec, &SelectOptions::default());
+    let rank = |ex: &str| {
+        out.curves
+            .excitations
+            .iter()
+            .find(|c| c.excitation == ex)
+            .unwrap()
+            .prf_rank
+    };
+    // Set-up A (noise-free, decoupled): as many significant PRFs as modes with non-zero
+    // participation; B couples everything and F2y drives all six.
+    assert_eq!((rank("F0x"), rank("F0y"), rank("F0z")), (2, 2, 3));
+    assert_eq!(rank("F2y"), 6);
+    for c in &out.curves.excitations {
+        assert_eq!(c.prf_db.len(), c.prf_rank);
     }
 }
