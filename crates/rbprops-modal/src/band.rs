@@ -76,6 +76,18 @@ impl BandData {
         })
     }
 
+    /// The lines up to `f_hi` Hz (a sub-band for pole estimation).
+    pub fn up_to(&self, f_hi: f64) -> BandData {
+        let n = self.frequency_hz.partition_point(|&f| f <= f_hi);
+        BandData {
+            quantity: self.quantity,
+            frequency_hz: self.frequency_hz[..n].to_vec(),
+            omega: self.omega[..n].to_vec(),
+            channels: self.channels.iter().map(|h| h[..n].to_vec()).collect(),
+            first_line: self.first_line,
+        }
+    }
+
     pub fn n_lines(&self) -> usize {
         self.omega.len()
     }

@@ -150,16 +150,50 @@ fn estimate_poles(
             opts.max_order
         ));
     }
-    let orders = match opts.method {
-        Method::Lscf | Method::Circle => lscf::sweep(band, chans, n_max),
-        Method::Lsce => lsce::sweep(band, chans, n_max).map_err(|reason| ModalError::Axis {
-            excitation: name.into(),
-            method: "LSCE",
-            reason,
-        })?,
-    };
-    let band_w = (band.omega[0], *band.omega.last().unwrap());
-    let sel = stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes);
+    // Pole-estimation band. Polynomial (z-domain) estimators need a model order that
+    // grows with the band relative to where the modes are: rigid-body modes in the
+    // bottom quarter of a baseband need ~5× more orders than the same modes filling the
+    // band. So when the stable modes all sit low, the sweep is repeated on the lines up
+    // to twice the highest stable mode (or half the band when none is stable). The
+    // refinement and the residues still use the whole band.
+    let mut sub = band.clone();
+    let mut sel;
+    loop {
+        let nm = opts.max_order.min(sub.n_lines().saturating_sub(2));
+        let sub_chans: Vec<Vec<c64>> = chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
+        let orders = match opts.method {
+            Method::Lscf | Method::Circle => lscf::sweep(&sub, &sub_chans, nm),
+            Method::Lsce => {
+                lsce::sweep(&sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
+                    excitation: name.into(),
+                    method: "LSCE",
+                    reason,
+                })?
+            }
+        };
+        let band_w = (sub.omega[0], *sub.omega.last().unwrap());
+        sel = stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes);
+        let top = *sub.frequency_hz.last().unwrap();
+        let target = match sel
+            .modes
+            .iter()
+            .map(|m| m.pole.frequency_hz())
+            .reduce(f64::max)
+        {
+            Some(f) => 2.0 * f,
+            None => 0.5 * top,
+        };
+        let lines = sub.frequency_hz.partition_point(|&f| f <= target);
+        if target < 0.6 * top && lines >= 4 * opts.max_order.max(8) {
+            warnings.push(format!(
+                "excitation '{name}': poles estimated on {:.4}–{target:.4} Hz, where the modes are (residues on the whole band)",
+                sub.frequency_hz[0]
+            ));
+            sub = sub.up_to(target);
+            continue;
+        }
+        break;
+    }
     warnings.extend(
         sel.warnings
             .iter()
@@ -205,6 +239,11 @@ fn estimate_poles(
                     "excitation '{name}': pole refinement moved a pole by {moved:.1} half-bandwidths; kept the stabilisation-diagram poles"
                 ));
             } else {
+                if r.singular {
+                    warnings.push(format!(
+                        "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
+                    ));
+                }
                 if !r.converged {
                     warnings.push(format!(
                         "excitation '{name}': pole refinement did not converge in {} iterations",

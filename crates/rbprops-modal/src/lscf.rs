@@ -32,19 +32,19 @@ pub struct OrderPoles {
 
 /// Toeplitz sums of the LSCF normal equations for orders up to `n_max`.
 struct Sums {
-    /// `r(m) = Σ_k cos(mθ_k)`.
-    r: Vec<f64>,
-    /// Per channel `g(m) = Σ_k h_k z_k^m` for m = 0..=n_max and `g(−m)`.
+    /// Per channel `r(m) = Σ_k w_k² cos(mθ_k)`.
+    r: Vec<Vec<f64>>,
+    /// Per channel `g(m) = Σ_k w_k² h_k z_k^m` for m = 0..=n_max and `g(−m)`.
     g_pos: Vec<Vec<c64>>,
     g_neg: Vec<Vec<c64>>,
-    /// Per channel `t(m) = Σ_k |h_k|² cos(mθ_k)`.
+    /// Per channel `t(m) = Σ_k w_k² |h_k|² cos(mθ_k)`.
     t: Vec<Vec<f64>>,
 }
 
-fn sums(theta: &[f64], chans: &[Vec<c64>], n_max: usize) -> Sums {
+fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
     let mut s = Sums {
-        r: vec![0.0; n_max + 1],
+        r: vec![vec![0.0; n_max + 1]; no],
         g_pos: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
         g_neg: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
         t: vec![vec![0.0; n_max + 1]; no],
@@ -62,15 +62,14 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], n_max: usize) -> Sums {
                 zp[m - 1] * z
             };
         }
-        for m in 0..=n_max {
-            s.r[m] += zp[m].re;
-        }
         for o in 0..no {
-            let h = chans[o][k];
-            let h2 = h.norm_sqr();
-            let (gp, gn, t) = (&mut s.g_pos[o], &mut s.g_neg[o], &mut s.t[o]);
+            let w2 = weights[o][k];
+            let h = chans[o][k] * w2;
+            let h2 = chans[o][k].norm_sqr() * w2;
+            let (r, gp, gn, t) = (&mut s.r[o], &mut s.g_pos[o], &mut s.g_neg[o], &mut s.t[o]);
             for m in 0..=n_max {
                 let p = zp[m];
+                r[m] += w2 * p.re;
                 gp[m] += h * p;
                 gn[m] += h * p.conj();
                 t[m] += h2 * p.re;
@@ -88,21 +87,27 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
     let w_max = *band.omega.last().unwrap();
     let dt = std::f64::consts::PI / w_max;
     let theta: Vec<f64> = band.omega.iter().map(|w| w * dt).collect();
-    let weighted: Vec<Vec<c64>> = chans
+    // Per-line weights w² = 1/|H|² (floored at 1e-6 of the channel's RMS): relative
+    // equation errors, the maximum-likelihood weighting for noise proportional to |H|,
+    // and every line counts, not only the resonance peaks and the mass line.
+    let weights: Vec<Vec<f64>> = chans
         .iter()
         .map(|h| {
-            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt();
-            h.iter().map(|z| z / rms).collect()
+            let ms = h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64;
+            h.iter()
+                .map(|z| 1.0 / z.norm_sqr().max(1e-12 * ms))
+                .collect()
         })
         .collect();
-    let s = sums(&theta, &weighted, n_max);
-    let no = weighted.len();
+    let s = sums(&theta, chans, &weights, n_max);
+    let no = chans.len();
     let mut out = Vec::new();
     for n in 2..=n_max {
         let p = n + 1;
-        let r = Mat::from_fn(p, p, |j, l| s.r[j.abs_diff(l)]);
-        // S_o[j,l] = −Re Σ h z^{l−j}
+        // S_o[j,l] = −Re Σ w² h z^{l−j}
         let mut s_all = Mat::<f64>::zeros(p, p * no);
+        let mut x_all = Mat::<f64>::zeros(p, p * no);
+        let mut singular = false;
         for o in 0..no {
             for j in 0..p {
                 for l in 0..p {
@@ -114,10 +119,22 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
                     s_all[(j, o * p + l)] = -g.re;
                 }
             }
+            let r = Mat::from_fn(p, p, |j, l| s.r[o][j.abs_diff(l)]);
+            let so = Mat::from_fn(p, p, |j, l| s_all[(j, o * p + l)]);
+            match linalg::solve_square(&r, &so) {
+                Some(x) => {
+                    for j in 0..p {
+                        for l in 0..p {
+                            x_all[(j, o * p + l)] = x[(j, l)];
+                        }
+                    }
+                }
+                None => singular = true,
+            }
         }
-        let Some(x_all) = linalg::solve_square(&r, &s_all) else {
+        if singular {
             continue;
-        };
+        }
         let mut m = Mat::<f64>::zeros(p, p);
         for o in 0..no {
             for j in 0..p {

@@ -207,176 +207,253 @@ pub struct Refined {
     pub poles: Vec<Pole>,
     /// Covariance of `(Re λ, Im λ)` per pole (rad/s)².
     pub covariance: Vec<[[f64; 2]; 2]>,
+    /// `JᵀJ` was singular: some pole is not identifiable (two poles coincide).
+    pub singular: bool,
     pub iterations: usize,
     pub converged: bool,
     /// Weighted cost before and after.
     pub cost: (f64, f64),
 }
 
-fn cost_and_coeffs(
-    poles: &[Pole],
-    band: &BandData,
-    data: &Mat<f64>,
-    res: Residuals,
-) -> (f64, Mat<f64>, Vec<f64>, TallQr, Mat<f64>) {
-    let cols = basis_columns(poles, band, res);
-    let (a, scale) = stack(&cols);
-    let qr = TallQr::new(a.clone());
-    let (x, rss) = qr.solve(data);
-    (rss.iter().sum(), x, scale, qr, a)
+/// The LSFD solution for one trial pole set (weighted data).
+struct Trial {
+    cost: f64,
+    /// Normalised basis columns (complex, before stacking) and their scales.
+    cols: Vec<Vec<c64>>,
+    qr: TallQr,
+    /// Residues `R = a + ib` per mode and channel.
+    residues: Vec<Vec<c64>>,
+    /// Residual vectors per channel (complex).
+    resid: Vec<Vec<c64>>,
+    n_cols: usize,
+}
+
+fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], res: Residuals) -> Trial {
+    let raw = basis_columns(poles, band, res);
+    let (a, scale) = stack(&raw);
+    let cols: Vec<Vec<c64>> = raw
+        .iter()
+        .zip(&scale)
+        .map(|(c, s)| c.iter().map(|z| z / *s).collect())
+        .collect();
+    let qr = TallQr::new(a);
+    let (x, rss) = qr.solve(&stack_data(data));
+    let no = data.len();
+    let p = cols.len();
+    let resid: Vec<Vec<c64>> = (0..no)
+        .map(|o| {
+            let mut r = data[o].clone();
+            for j in 0..p {
+                let c = x[(j, o)];
+                for (rk, bk) in r.iter_mut().zip(&cols[j]) {
+                    *rk -= bk * c;
+                }
+            }
+            r
+        })
+        .collect();
+    let residues = (0..poles.len())
+        .map(|m| {
+            (0..no)
+                .map(|o| {
+                    c64::new(
+                        x[(2 * m, o)] / scale[2 * m],
+                        x[(2 * m + 1, o)] / scale[2 * m + 1],
+                    )
+                })
+                .collect()
+        })
+        .collect();
+    Trial {
+        cost: rss.iter().sum(),
+        cols,
+        qr,
+        residues,
+        resid,
+        n_cols: p,
+    }
+}
+
+/// Real inner product of real-stacked complex vectors: `Re Σ conj(a) b`.
+fn dot(a: &[c64], b: &[c64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| x.re * y.re + x.im * y.im)
+        .sum()
 }
 
 /// Levenberg–Marquardt on the variable-projection functional (Golub & Pereyra; Kaufman's
 /// Jacobian `J = −P⊥ (∂Φ/∂θ) c`): minimises `Σ_o ‖w_o (h_o − Φ(λ) c_o)‖²` over the poles,
-/// the residues being the LSFD solution for each trial set. For noise-free data this
-/// converges to the exact poles, which the polynomial (LSCF/LSCE) estimators only
-/// approach; with noise it is the least-squares estimate, and `σ²(JᵀJ)⁻¹` its covariance.
+/// the residues being the LSFD solution for each trial set (`w_o` = 1/RMS of channel o).
+/// For noise-free data this converges to the exact poles, which the polynomial
+/// (LSCF/LSCE) estimators only approach; with noise it is the least-squares estimate,
+/// and `σ²(JᵀJ)⁻¹` its covariance.
+///
+/// Cost: with `∂Φ/∂Re λ_m · c = a d1 + b d2`, `∂Φ/∂Im λ_m · c = a d2 − b d1`
+/// (`d1 = q(u + u')`, `d2 = q·i(u − u')`, `u = (iω−λ)⁻²`, `u' = (iω−λ*)⁻²`, `R = a + ib`),
+/// `JᵀJ` and `Jᵀr` only need the Gram matrix `DᵀP⊥D` of the `2M` vectors `d` and `Dᵀr_o`:
+/// O(N·M·(M + p + channels)) per iteration instead of forming J.
 pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> Refined {
     let n = band.n_lines();
     let no = chans.len();
-    let weighted: Vec<Vec<c64>> = chans
+    let data: Vec<Vec<c64>> = chans
         .iter()
         .map(|h| {
             let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt();
             h.iter().map(|z| z / rms).collect()
         })
         .collect();
-    let data = stack_data(&weighted);
     let q = band.quantity_factor();
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
-    let (mut cost, mut x, mut scale, mut qr, mut a) = cost_and_coeffs(&cur, band, &data, res);
-    let cost0 = cost;
+    let mut t = trial(&cur, band, &data, res);
+    let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
-    let mut gram = Mat::<f64>::zeros(np, np);
-    for it in 0..30 {
+    let mut jtj = Mat::<f64>::zeros(np, np);
+    for it in 0..40 {
         iterations = it + 1;
-        // v_{j,o} = (∂Φ/∂θ_j) c_o:  ∂/∂Reλ → q(R u + R* u'),  ∂/∂Imλ → q(iR u − iR* u'),
-        // with u = 1/(s−λ)², u' = 1/(s−λ*)² and R = a + ib the residue of channel o.
-        let mut v = Mat::<f64>::zeros(2 * n, np * no);
-        for (m, p) in cur.iter().enumerate() {
-            let u: Vec<(c64, c64)> = band
-                .omega
-                .iter()
-                .enumerate()
-                .map(|(k, &w)| {
-                    let s = c64::new(0.0, w);
-                    let a1 = 1.0 / (s - p.0);
-                    let a2 = 1.0 / (s - p.0.conj());
-                    (q[k] * a1 * a1, q[k] * a2 * a2)
-                })
-                .collect();
-            for o in 0..no {
-                let r = c64::new(
-                    x[(2 * m, o)] / scale[2 * m],
-                    x[(2 * m + 1, o)] / scale[2 * m + 1],
-                );
-                let i = c64::new(0.0, 1.0);
-                for k in 0..n {
-                    let dre = r * u[k].0 + r.conj() * u[k].1;
-                    let dim = i * r * u[k].0 - i * r.conj() * u[k].1;
-                    let (cre, cim) = ((2 * m) * no + o, (2 * m + 1) * no + o);
-                    v[(k, cre)] = dre.re;
-                    v[(k + n, cre)] = dre.im;
-                    v[(k, cim)] = dim.re;
-                    v[(k + n, cim)] = dim.im;
+        // Derivative vectors d1_m, d2_m.
+        let mut d: Vec<Vec<c64>> = Vec::with_capacity(np);
+        for p in &cur {
+            let mut d1 = Vec::with_capacity(n);
+            let mut d2 = Vec::with_capacity(n);
+            for (k, &w) in band.omega.iter().enumerate() {
+                let s = c64::new(0.0, w);
+                let a1 = 1.0 / (s - p.0);
+                let a2 = 1.0 / (s - p.0.conj());
+                let (u, u2) = (a1 * a1, a2 * a2);
+                d1.push(q[k] * (u + u2));
+                d2.push(q[k] * c64::new(0.0, 1.0) * (u - u2));
+            }
+            d.push(d1);
+            d.push(d2);
+        }
+        // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD.
+        let pc = t.n_cols;
+        let mut y = Mat::<f64>::zeros(pc, np);
+        for j in 0..np {
+            for i in 0..pc {
+                let mut v = dot(&t.cols[i], &d[j]);
+                for l in 0..i {
+                    v -= t.qr.r(l, i) * y[(l, j)];
                 }
+                y[(i, j)] = v / t.qr.r(i, i);
             }
         }
-        // P⊥v = v − Φ Φ⁺ v
-        let (coef, _) = qr.solve(&v);
-        let pv = &v - &a * &coef;
-        let resid = &data - &a * &x;
+        let mut gd = Mat::<f64>::zeros(np, np);
+        for i in 0..np {
+            for j in 0..=i {
+                let mut v = dot(&d[i], &d[j]);
+                for l in 0..pc {
+                    v -= y[(l, i)] * y[(l, j)];
+                }
+                gd[(i, j)] = v;
+                gd[(j, i)] = v;
+            }
+        }
+        // JᵀJ and Jᵀr over channels; e-vectors: θ=Re λ_m → (a, b) on (d1, d2),
+        // θ=Im λ_m → (−b, a).
         let mut g = vec![0.0; np];
-        for j in 0..np {
-            for l in 0..=j {
-                let mut s = 0.0;
-                for o in 0..no {
-                    let (cj, cl) = (j * no + o, l * no + o);
-                    for k in 0..2 * n {
-                        s += pv[(k, cj)] * pv[(k, cl)];
+        for v in jtj.col_iter_mut() {
+            for x in v.iter_mut() {
+                *x = 0.0;
+            }
+        }
+        let dr: Vec<Vec<f64>> = (0..np)
+            .map(|j| (0..no).map(|o| dot(&d[j], &t.resid[o])).collect())
+            .collect();
+        for o in 0..no {
+            let e = |j: usize| -> (usize, f64, f64) {
+                let m = j / 2;
+                let r = t.residues[m][o];
+                if j % 2 == 0 {
+                    (m, r.re, r.im)
+                } else {
+                    (m, -r.im, r.re)
+                }
+            };
+            for j in 0..np {
+                let (mj, x1, x2) = e(j);
+                g[j] += x1 * dr[2 * mj][o] + x2 * dr[2 * mj + 1][o];
+                for k in 0..=j {
+                    let (mk, y1, y2) = e(k);
+                    let v = x1 * (y1 * gd[(2 * mj, 2 * mk)] + y2 * gd[(2 * mj, 2 * mk + 1)])
+                        + x2 * (y1 * gd[(2 * mj + 1, 2 * mk)] + y2 * gd[(2 * mj + 1, 2 * mk + 1)]);
+                    jtj[(j, k)] += v;
+                    if k != j {
+                        jtj[(k, j)] += v;
                     }
                 }
-                gram[(j, l)] = s;
-                gram[(l, j)] = s;
             }
-            let mut s = 0.0;
-            for o in 0..no {
-                for k in 0..2 * n {
-                    s += pv[(k, j * no + o)] * resid[(k, o)];
-                }
-            }
-            g[j] = s;
         }
-        // LM step with Marquardt scaling; retry with more damping until the cost drops.
+        // LM step with Marquardt scaling; more damping until the cost drops.
         let mut accepted = false;
         for _ in 0..12 {
             let lhs = Mat::from_fn(np, np, |i, j| {
-                gram[(i, j)] + if i == j { mu * gram[(i, i)] } else { 0.0 }
+                jtj[(i, j)] + if i == j { mu * jtj[(i, i)] } else { 0.0 }
             });
             let rhs = Mat::from_fn(np, 1, |i, _| g[i]);
             let Some(step) = linalg::solve_square(&lhs, &rhs) else {
                 mu *= 10.0;
                 continue;
             };
-            let trial: Vec<Pole> = cur
+            let cand: Vec<Pole> = cur
                 .iter()
                 .enumerate()
                 .map(|(m, p)| Pole(p.0 + c64::new(step[(2 * m, 0)], step[(2 * m + 1, 0)])))
                 .collect();
-            if trial.iter().any(|p| !(p.0.re < 0.0 && p.0.im > 0.0)) {
+            if cand.iter().any(|p| !(p.0.re < 0.0 && p.0.im > 0.0)) {
                 mu *= 10.0;
                 continue;
             }
-            let (c2, x2, s2, qr2, a2) = cost_and_coeffs(&trial, band, &data, res);
-            if c2 <= cost {
+            let t2 = trial(&cand, band, &data, res);
+            if t2.cost <= t.cost {
                 let rel_step = (0..nm)
                     .map(|m| {
                         c64::new(step[(2 * m, 0)], step[(2 * m + 1, 0)]).norm()
                             / cur[m].half_bandwidth().max(1e-300)
                     })
                     .fold(0.0, f64::max);
-                let small = rel_step < 1e-9 || (cost - c2) <= 1e-14 * cost;
-                cur = trial;
-                (cost, x, scale, qr, a) = (c2, x2, s2, qr2, a2);
+                let small = rel_step < 1e-9 || (t.cost - t2.cost) <= 1e-12 * t.cost;
+                cur = cand;
+                t = t2;
                 mu = (mu / 10.0).max(1e-12);
                 accepted = true;
-                if small {
-                    converged = true;
-                }
+                converged = small;
                 break;
             }
             mu *= 10.0;
         }
         if !accepted {
-            // No descent direction left: at the minimum to working precision.
+            // No descent left: at the minimum to working precision.
             converged = true;
         }
         if converged {
             break;
         }
     }
-    // Covariance σ²(JᵀJ)⁻¹ at the final point (gram from the last linearisation).
-    let dof = (2 * n * no).saturating_sub(no * a.ncols() + np).max(1) as f64;
-    let s2 = cost / dof;
-    let inv = linalg::solve_square(&gram, &Mat::identity(np, np));
+    // Covariance σ²(JᵀJ)⁻¹ (JᵀJ of the last linearisation).
+    let dof = (2 * n * no).saturating_sub(no * t.n_cols + np).max(1) as f64;
+    let s2 = t.cost / dof;
+    let inv = linalg::solve_square(&jtj, &Mat::identity(np, np));
     let covariance = (0..nm)
         .map(|m| match &inv {
             Some(ci) => [
                 [s2 * ci[(2 * m, 2 * m)], s2 * ci[(2 * m, 2 * m + 1)]],
                 [s2 * ci[(2 * m + 1, 2 * m)], s2 * ci[(2 * m + 1, 2 * m + 1)]],
             ],
-            None => [[f64::INFINITY, 0.0], [0.0, f64::INFINITY]],
+            None => [[0.0; 2]; 2],
         })
         .collect();
     Refined {
         poles: cur,
         covariance,
+        singular: inv.is_none(),
         iterations,
         converged,
-        cost: (cost0, cost),
+        cost: (cost0, t.cost),
     }
 }

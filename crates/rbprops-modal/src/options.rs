@@ -119,7 +119,7 @@ impl Default for FitOptions {
             method: Method::Lscf,
             band_hz: None,
             n_modes: None,
-            max_order: 32,
+            max_order: 40,
             poles: PoleMode::PerExcitation,
             residual_terms: true,
             refine: true,

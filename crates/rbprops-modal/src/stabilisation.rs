@@ -4,7 +4,8 @@
 //! order): frequency-stable when `|Δf|/f < tol_f`, damping-stable when `|Δζ|/ζ < tol_ζ`,
 //! shape-stable when `1 − MAC < tol_φ`; stable = all three.
 //!
-//! Selection clusters the stable poles. The distance between two poles is measured in
+//! Selection clusters the poles that are frequency stable and damping or shape stable
+//! (a cluster needs at least one fully stable pole). The distance between two poles is measured in
 //! half-power half-bandwidths `ζω_r` of the narrower one (relative to the data, not a
 //! fixed Hz window) and two poles with dissimilar shapes never join. A cluster takes at
 //! most one pole per model order: two poles that the *same* model separates are two
@@ -142,7 +143,14 @@ pub fn select(
             } else {
                 StabilityClass::New
             };
-            if class == StabilityClass::Stable {
+            // Clusters are built from poles stable in frequency and in damping or shape;
+            // a cluster must contain at least one fully stable pole to be kept. With noise
+            // the damping of a real mode wanders more between orders than its frequency
+            // and shape, so requiring all three everywhere would starve real modes.
+            if matches!(
+                class,
+                StabilityClass::Stable | StabilityClass::Shape | StabilityClass::Damping
+            ) {
                 stable.push((diagram.poles.len(), oi, pi));
             }
             diagram.poles.push(DiagramPole {
@@ -204,9 +212,15 @@ pub fn select(
     let n_max = diagram.max_order;
     let n_orders = orders.len().max(1);
     let min_support = 3usize.max(n_orders / 8);
+    let fully_stable = |c: &Cluster| {
+        c.members
+            .iter()
+            .any(|&(di, _, _)| diagram.poles[di].class == StabilityClass::Stable)
+    };
     let mut ranked: Vec<(usize, f64, usize)> = clusters
         .iter()
         .enumerate()
+        .filter(|(_, c)| fully_stable(c))
         .map(|(ci, c)| {
             let span = n_max + 1 - c.lowest_order;
             (ci, c.members.len() as f64 / span as f64, c.members.len())
