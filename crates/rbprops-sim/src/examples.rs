@@ -38,3 +38,40 @@ pub fn example(name: &str) -> Option<&'static str> {
 pub fn example_names() -> &'static [&'static str] {
     NAMES
 }
+
+const EFFECT_EXAMPLES: &[(&str, &str)] = &[
+    (
+        "nominal",
+        include_str!("../../../fixtures/specs/effects/nominal.toml"),
+    ),
+    (
+        "gravity_stiffness",
+        include_str!("../../../fixtures/specs/effects/gravity_stiffness.toml"),
+    ),
+    (
+        "sensor_mass",
+        include_str!("../../../fixtures/specs/effects/sensor_mass.toml"),
+    ),
+    (
+        "channel_gain",
+        include_str!("../../../fixtures/specs/effects/channel_gain.toml"),
+    ),
+    (
+        "excitation_gain",
+        include_str!("../../../fixtures/specs/effects/excitation_gain.toml"),
+    ),
+    (
+        "global_gain",
+        include_str!("../../../fixtures/specs/effects/global_gain.toml"),
+    ),
+    (
+        "sensor_misorientation",
+        include_str!("../../../fixtures/specs/effects/sensor_misorientation.toml"),
+    ),
+];
+
+/// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect
+/// on, plus `nominal` without any. Pairs of (effect id or `nominal`, TOML text).
+pub fn effect_examples() -> &'static [(&'static str, &'static str)] {
+    EFFECT_EXAMPLES
+}

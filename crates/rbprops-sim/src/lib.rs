@@ -18,7 +18,7 @@ pub mod spec;
 pub mod suspension;
 
 pub use error::{SimError, SpecError, SpecIssue};
-pub use examples::{example, example_names};
+pub use examples::{effect_examples, example, example_names};
 pub use model::DynamicModel;
 pub use simulate::{
     build_models, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,

@@ -1,6 +1,6 @@
 //! The simulator: spec → models per set-up → FRFs (+ effects, noise) and the truth.
 
-use crate::effects::{parse_effect, BuildContext, Effect, OutputBlock};
+use crate::effects::{parse_effects, BuildContext, Effect, OutputBlock};
 use crate::error::SimError;
 use crate::model::{modal_compliance, modal_damping_matrix, DynamicModel, ModelInput};
 use crate::noise::{add_noise, excitation_rng};
@@ -205,11 +205,11 @@ impl TransferTable {
 pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simulation, SimError> {
     spec.validate()?;
     let geometry = spec.geometry()?;
-    let effects: Vec<Box<dyn Effect>> = spec
-        .effects
-        .iter()
-        .map(|e| parse_effect(e).expect("validated effect"))
-        .collect();
+    let effects = parse_effects(spec).map_err(|(index, problem)| SimError::Effect {
+        index,
+        id: spec.effects[index].id.clone(),
+        problem,
+    })?;
     let freq = spec.frequency_axis();
     let n_ch = geometry.channels.len();
     let n_ex = geometry.excitations.len();

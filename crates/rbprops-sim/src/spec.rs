@@ -286,8 +286,13 @@ impl CampaignSpec {
             );
         }
         for (i, e) in self.effects.iter().enumerate() {
-            if let Err(problem) = crate::effects::parse_effect(e) {
-                is.push(format!("effect[{i}]"), problem);
+            match crate::effects::parse_effect(e) {
+                Err(problem) => is.push(format!("effect[{i}]"), problem),
+                Ok(eff) => {
+                    if let Err(problem) = eff.check(self) {
+                        is.push(format!("effect[{i}] '{}'", e.id), problem);
+                    }
+                }
             }
         }
         if is.0.is_empty() {
@@ -421,7 +426,9 @@ impl CampaignSpec {
                     ),
                 }
             }
-            if body_ok && is.0.len() == before && !s.springs.is_empty() {
+            // With effects (gravity adds stiffness) the check runs on the final model in
+            // `simulate` instead.
+            if body_ok && is.0.len() == before && !s.springs.is_empty() && self.effects.is_empty() {
                 if let Err(problem) = self.check_setup_modes(i) {
                     is.push(path, format!("set-up '{}': {problem}", s.id));
                 }

@@ -1,6 +1,15 @@
 //! The physics catalogue: effects that modify the nominal model (see
 //! `/work/shared/research/missing-physics.md`). Each effect is switched on in the spec as
 //! `[[effect]] id = "..."` with its parameters.
+//!
+//! Implemented: `gravity_stiffness`, `sensor_mass`, `channel_gain`, `excitation_gain`,
+//! `global_gain`, `sensor_misorientation`. Each effect is a plain struct deserialised from
+//! its spec table (unknown parameters are refused) that implements [`Effect`].
+
+pub mod gains;
+pub mod gravity;
+pub mod mass;
+pub mod orientation;
 
 use crate::model::DynamicModel;
 use crate::spec::{CampaignSpec, EffectSpec};
@@ -52,6 +61,15 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String>;
     /// The parameters as a JSON object, for `TruthRecord.effects`.
     fn parameters_json(&self) -> serde_json::Value;
+    /// Checks the parameters against the campaign (ids exist, counts match, bounds).
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        Ok(())
+    }
+    /// Effects apply in ascending order (stable in spec order): masses (0) before
+    /// everything else (1), so that gravity sees the loaded body.
+    fn order(&self) -> u8 {
+        1
+    }
     fn modify_structure(
         &self,
         _ctx: &BuildContext,
@@ -72,17 +90,52 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
 }
 
 /// Ids of the effects this version knows.
-pub const KNOWN_EFFECTS: &[&str] = &[];
+pub const KNOWN_EFFECTS: &[&str] = &[
+    "gravity_stiffness",
+    "sensor_mass",
+    "channel_gain",
+    "excitation_gain",
+    "global_gain",
+    "sensor_misorientation",
+];
+
+fn params<T: serde::de::DeserializeOwned>(spec: &EffectSpec) -> Result<T, String> {
+    toml::Value::Table(spec.parameters.clone())
+        .try_into()
+        .map_err(|e| format!("effect '{}': {}", spec.id, e.to_string().trim()))
+}
 
 /// Builds an effect from its spec entry; the error says what is wrong.
 pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
-    Err(format!(
-        "unknown effect id '{}' (known: {})",
-        spec.id,
-        if KNOWN_EFFECTS.is_empty() {
-            "none in this version".to_string()
-        } else {
-            KNOWN_EFFECTS.join(", ")
+    let e: Box<dyn Effect> = match spec.id.as_str() {
+        "gravity_stiffness" => {
+            let g: gravity::GravityStiffness = params(spec)?;
+            g.check_self()?;
+            Box::new(g)
         }
-    ))
+        "sensor_mass" => Box::new(params::<mass::SensorMass>(spec)?),
+        "channel_gain" => Box::new(params::<gains::ChannelGain>(spec)?),
+        "excitation_gain" => Box::new(params::<gains::ExcitationGain>(spec)?),
+        "global_gain" => Box::new(params::<gains::GlobalGain>(spec)?),
+        "sensor_misorientation" => Box::new(params::<orientation::SensorMisorientation>(spec)?),
+        other => {
+            return Err(format!(
+                "unknown effect id '{other}' (known: {})",
+                KNOWN_EFFECTS.join(", ")
+            ))
+        }
+    };
+    Ok(e)
+}
+
+/// Parses and orders a spec's effects ([`Effect::order`], then spec order).
+pub fn parse_effects(spec: &CampaignSpec) -> Result<Vec<Box<dyn Effect>>, (usize, String)> {
+    let mut v = Vec::with_capacity(spec.effects.len());
+    for (i, e) in spec.effects.iter().enumerate() {
+        let eff = parse_effect(e).map_err(|p| (i, p))?;
+        eff.check(spec).map_err(|p| (i, p))?;
+        v.push(eff);
+    }
+    v.sort_by_key(|e| e.order());
+    Ok(v)
 }

@@ -1,0 +1,188 @@
+//! Calibration errors (research note E10): real, frequency-independent factors.
+//! - `channel_gain`: channel c reads `g_c` times its true value (`S` row c × g_c);
+//! - `excitation_gain`: the force of excitation e is `g_e` times what was recorded
+//!   (force column × g_e), as with a force-gauge sensitivity error;
+//! - `global_gain`: every FRF × g (indistinguishable from 1/mass).
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+fn gain_info(name: String) -> ParamInfo {
+    ParamInfo {
+        name,
+        unit: "1",
+        lower: 0.0,
+        upper: f64::INFINITY,
+        plausible: (0.9, 1.1),
+    }
+}
+
+fn check_gain(what: &str, g: f64) -> Result<(), String> {
+    if g.is_finite() && g > 0.0 {
+        Ok(())
+    } else {
+        Err(format!("{what}: gain must be positive and finite, got {g}"))
+    }
+}
+
+fn replace_values(
+    map: &BTreeMap<String, f64>,
+    values: &[f64],
+) -> Result<BTreeMap<String, f64>, String> {
+    if values.len() != map.len() {
+        return Err(format!(
+            "expected {} values, got {}",
+            map.len(),
+            values.len()
+        ));
+    }
+    let out: BTreeMap<String, f64> = map.keys().cloned().zip(values.iter().copied()).collect();
+    for (k, g) in &out {
+        check_gain(k, *g)?;
+    }
+    Ok(out)
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelGain {
+    /// Gain per channel id (`1x`, `2:3`, …).
+    pub gains: BTreeMap<String, f64>,
+}
+
+impl Effect for ChannelGain {
+    fn id(&self) -> &'static str {
+        "channel_gain"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.gains
+            .keys()
+            .map(|k| gain_info(format!("gains.{k}")))
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.gains.values().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        Ok(Box::new(ChannelGain {
+            gains: replace_values(&self.gains, values)?,
+        }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        let channels = spec.channels();
+        for (k, g) in &self.gains {
+            check_gain(k, *g)?;
+            if !channels.iter().any(|c| &c.id == k) {
+                return Err(format!("gains: channel '{k}' is not defined"));
+            }
+        }
+        Ok(())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
+            if let Some(g) = self.gains.get(&ch.id) {
+                model.outputs[c] *= *g;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExcitationGain {
+    /// Gain per excitation id.
+    pub gains: BTreeMap<String, f64>,
+}
+
+impl Effect for ExcitationGain {
+    fn id(&self) -> &'static str {
+        "excitation_gain"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.gains
+            .keys()
+            .map(|k| gain_info(format!("gains.{k}")))
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.gains.values().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        Ok(Box::new(ExcitationGain {
+            gains: replace_values(&self.gains, values)?,
+        }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        for (k, g) in &self.gains {
+            check_gain(k, *g)?;
+            if !spec.excitations.iter().any(|e| &e.id == k) {
+                return Err(format!("gains: excitation '{k}' is not defined"));
+            }
+        }
+        Ok(())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            if let Some(g) = self
+                .gains
+                .get(&ctx.geometry.excitations[input.excitation].id)
+            {
+                input.column *= *g;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GlobalGain {
+    pub gain: f64,
+}
+
+impl Effect for GlobalGain {
+    fn id(&self) -> &'static str {
+        "global_gain"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec![gain_info("gain".into())]
+    }
+    fn values(&self) -> Vec<f64> {
+        vec![self.gain]
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        match values {
+            [g] => {
+                check_gain("gain", *g)?;
+                Ok(Box::new(GlobalGain { gain: *g }))
+            }
+            _ => Err(format!("expected 1 value, got {}", values.len())),
+        }
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        check_gain("gain", self.gain)
+    }
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        for row in &mut model.outputs {
+            *row *= self.gain;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,99 @@
+//! `sensor_misorientation`: each listed sensor is mounted rotated by a small rotation
+//! vector ψ (rad) (research note E8). Its true sensing axes are `R(ψ) s_k`, with
+//! `R(ψ) = exp([ψ]×)` (Rodrigues), so channel k reads `(R s_k)ᵀ u(p) = s_kᵀ Rᵀ u(p)`:
+//! a triaxial sensor reports its point's motion rotated by `Rᵀ`. Output rows become
+//! `(R s_k)ᵀ T(p)`.
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use rbprops_core::{rigid_transform, Mat3, Vec3};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorMisorientation {
+    /// Rotation vector (rad) per sensor id.
+    pub rotations_rad: BTreeMap<String, [f64; 3]>,
+}
+
+/// `exp([ψ]×)` by Rodrigues' formula.
+pub fn rotation(psi: &Vec3) -> Mat3 {
+    nalgebra::Rotation3::new(*psi).into_inner()
+}
+
+impl Effect for SensorMisorientation {
+    fn id(&self) -> &'static str {
+        "sensor_misorientation"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.rotations_rad
+            .keys()
+            .flat_map(|k| {
+                ["x", "y", "z"].map(|a| ParamInfo {
+                    name: format!("rotations_rad.{k}.{a}"),
+                    unit: "rad",
+                    lower: -std::f64::consts::PI,
+                    upper: std::f64::consts::PI,
+                    plausible: (-0.09, 0.09),
+                })
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.rotations_rad.values().flatten().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != 3 * self.rotations_rad.len() {
+            return Err(format!(
+                "expected {} values, got {}",
+                3 * self.rotations_rad.len(),
+                values.len()
+            ));
+        }
+        let rotations_rad = self
+            .rotations_rad
+            .keys()
+            .zip(values.chunks_exact(3))
+            .map(|(k, v)| (k.clone(), [v[0], v[1], v[2]]))
+            .collect();
+        let e = SensorMisorientation { rotations_rad };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        for k in self.rotations_rad.keys() {
+            if !spec.sensors.iter().any(|s| &s.id == k) {
+                return Err(format!("rotations_rad: sensor '{k}' is not defined"));
+            }
+        }
+        Ok(())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
+            if let Some(psi) = self.rotations_rad.get(&ch.point) {
+                let s = rotation(&Vec3::from(*psi)) * ch.direction;
+                model.outputs[c] = s.transpose() * rigid_transform(&ch.position);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl SensorMisorientation {
+    fn check_values(&self) -> Result<(), String> {
+        for (k, v) in &self.rotations_rad {
+            if v.iter().any(|x| !x.is_finite()) || Vec3::from(*v).norm() > std::f64::consts::PI {
+                return Err(format!(
+                    "rotations_rad.{k}: need a finite rotation vector of at most π rad, got {v:?}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
