@@ -8,6 +8,7 @@ use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
 pub mod plots;
+pub mod stages;
 pub mod table;
 
 /// The MCAP magic bytes, to recognise a stream on stdin.

@@ -2,8 +2,6 @@
 
 use anyhow::{bail, Context};
 use clap::Parser;
-use rbprops_formats::{topics, RunRecord};
-use rbprops_sim::CampaignSpec;
 use std::path::PathBuf;
 
 /// Simulate a test campaign: writes geometry, FRFs and the ground truth (MCAP to stdout,
@@ -64,26 +62,13 @@ fn main() -> std::process::ExitCode {
             print!("{text}");
             return Ok(());
         }
-        let mut spec =
-            CampaignSpec::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-        if let Some(seed) = args.seed {
-            spec.seed = seed;
-        }
-        let sim = rbprops_sim::simulate(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+        let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(
                 dir,
                 &rbprops_cli::plots::frf_magnitudes(&sim.geometry, &sim.frf)?,
             )?;
         }
-        let mut rec = RunRecord::default();
-        rec.push_provenance(rbprops_cli::provenance(
-            "frf-sim",
-            &rbprops_formats::sha256_hex(text.as_bytes()),
-        ))?;
-        rec.set_geometry(&sim.geometry);
-        rec.frf = Some(sim.frf);
-        rec.set(topics::TRUTH, &[sim.truth]);
         rbprops_cli::write_output(&rec, args.output.as_deref())
     })
 }

@@ -1,7 +1,6 @@
 //! `modal-fit`: modal identification of every excitation (SIMO), in parallel.
 
 use clap::{Parser, ValueEnum};
-use rbprops_formats::topics;
 use rbprops_modal::{FitOptions, Method, PoleMode};
 use std::path::PathBuf;
 
@@ -59,7 +58,6 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         let input = rbprops_cli::read_input(args.input.as_deref())?;
         let mut rec = input.record;
-        let (geometry, frf) = rec.require_geometry_and_frf()?;
         let mut opts = FitOptions {
             method: match args.method {
                 MethodArg::Lscf => Method::Lscf,
@@ -80,7 +78,7 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }
-        let out = rbprops_modal::fit_campaign(&geometry, frf, &opts)?;
+        let out = rbprops_cli::stages::modal_fit(&mut rec, &opts, &input.sha256)?;
         for e in &out.record.excitations {
             for w in &e.warnings {
                 eprintln!("modal-fit: warning: excitation {}: {w}", e.excitation);
@@ -95,10 +93,9 @@ fn main() -> std::process::ExitCode {
             }
         }
         if let Some(dir) = &args.plot {
+            let (geometry, frf) = rec.require_geometry_and_frf()?;
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::modal_fit(&geometry, frf, &out)?)?;
         }
-        rec.push_provenance(rbprops_cli::provenance("modal-fit", &input.sha256))?;
-        rec.set(topics::MODAL_FIT, &[out.record]);
         rbprops_cli::write_output(&rec, args.output.as_deref())
     })
 }

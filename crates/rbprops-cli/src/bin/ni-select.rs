@@ -2,8 +2,6 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
-use rbprops_core::records::ModalFitRecord;
-use rbprops_formats::topics;
 use rbprops_ni::{Criterion, ManualSet, SelectOptions};
 use std::io::Write;
 use std::path::PathBuf;
@@ -66,10 +64,6 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         let input = rbprops_cli::read_input(args.input.as_deref())?;
         let mut rec = input.record;
-        let (geometry, frf) = rec.require_geometry_and_frf()?;
-        let modal: ModalFitRecord = rec
-            .get_one(topics::MODAL_FIT)?
-            .with_context(|| format!("{}: no modal_fit topic (run modal-fit first)", input.name))?;
         let mut opts = SelectOptions {
             criterion: match args.criterion {
                 Crit::Ni => Criterion::Ni,
@@ -86,7 +80,8 @@ fn main() -> std::process::ExitCode {
         if let Some(m) = args.mac_threshold {
             opts.mac_threshold = m;
         }
-        let out = rbprops_ni::select_modes(&geometry, frf, &modal, &opts)?;
+        let out = rbprops_cli::stages::ni_select(&mut rec, &opts, &input.sha256)
+            .with_context(|| input.name.clone())?;
         rbprops_cli::warn_all("ni-select", &out.record.warnings);
         for m in &out.record.missing {
             eprintln!("ni-select: warning: set-up {} mode {} ({:.4} Hz) not excited above the noise by {:?}: {}", m.setup, m.mode, m.frequency_hz, m.tried, m.reason);
@@ -109,8 +104,6 @@ fn main() -> std::process::ExitCode {
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::indicators(&out)?)?;
         }
-        rec.push_provenance(rbprops_cli::provenance("ni-select", &input.sha256))?;
-        rec.set(topics::SELECTION, &[out.record]);
         rbprops_cli::write_output(&rec, args.output.as_deref())
     })
 }

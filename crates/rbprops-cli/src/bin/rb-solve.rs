@@ -2,10 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, ValueEnum};
-use rbprops_core::records::{
-    InertiaEstimate, ModalFitRecord, PropertiesRecord, SelectionRecord, TruthRecord,
-};
-use rbprops_formats::topics;
+use rbprops_core::records::{InertiaEstimate, PropertiesRecord};
 use rbprops_inertia::{Estimator, OriginChoice, SolveOptions};
 use std::path::PathBuf;
 
@@ -99,14 +96,6 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         let input = rbprops_cli::read_input(args.input.as_deref())?;
         let mut rec = input.record;
-        let (geometry, frf) = rec.require_geometry_and_frf()?;
-        let frf = frf.clone();
-        let modal: ModalFitRecord = rec
-            .get_one(topics::MODAL_FIT)?
-            .with_context(|| format!("{}: no modal_fit topic (run modal-fit first)", input.name))?;
-        let selection: SelectionRecord = rec
-            .get_one(topics::SELECTION)?
-            .with_context(|| format!("{}: no selection topic (run ni-select first)", input.name))?;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
             opts.estimators = args
@@ -122,13 +111,9 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = &args.origin {
             opts.origin = origin(o);
         }
-        opts.reference = match (&args.reference, args.no_reference) {
-            (Some(p), _) => Some(read_props(p)?),
-            (None, false) => rec
-                .get_one::<TruthRecord>(topics::TRUTH)?
-                .map(|t| t.properties),
-            (None, true) => None,
-        };
+        if let Some(p) = &args.reference {
+            opts.reference = Some(read_props(p)?);
+        }
         opts.side_information.known_mass_kg = args.known_mass;
         if let Some(p) = &args.nominal {
             opts.side_information.nominal = Some(read_props(p)?);
@@ -138,13 +123,12 @@ fn main() -> std::process::ExitCode {
         }
         opts.monte_carlo_samples = args.monte_carlo;
         opts.seed = args.seed;
-        let out = rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?;
+        let out = rbprops_cli::stages::rb_solve(&mut rec, &opts, !args.no_reference, &input.sha256)
+            .with_context(|| input.name.clone())?;
         rbprops_cli::warn_all("rb-solve", &out.warnings);
         if out.estimates.is_empty() {
             bail!("no estimator produced an estimate (see the warnings above)");
         }
-        rec.push_provenance(rbprops_cli::provenance("rb-solve", &input.sha256))?;
-        rec.set(topics::ESTIMATES, &out.estimates);
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::estimates(&out.estimates)?)?;
         }

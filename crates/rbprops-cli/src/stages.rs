@@ -1,0 +1,86 @@
+//! The pipeline stages as functions on a [`RunRecord`]: the executables and the campaign
+//! runner call the same code, so a campaign row equals the single run exactly.
+
+use anyhow::{Context, Result};
+use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord, TruthRecord};
+use rbprops_formats::{topics, RunRecord};
+
+/// `frf-sim`: a campaign spec (TOML text) to a fresh record. `source` names it in errors.
+pub fn simulate(
+    text: &str,
+    source: &str,
+    seed: Option<u64>,
+) -> Result<(RunRecord, rbprops_sim::Simulation)> {
+    let mut spec = rbprops_sim::CampaignSpec::from_toml_str(text)
+        .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    if let Some(seed) = seed {
+        spec.seed = seed;
+    }
+    let sim = rbprops_sim::simulate(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let mut rec = RunRecord::default();
+    rec.push_provenance(crate::provenance(
+        "frf-sim",
+        &rbprops_formats::sha256_hex(text.as_bytes()),
+    ))?;
+    rec.set_geometry(&sim.geometry);
+    rec.frf = Some(sim.frf.clone());
+    rec.set(topics::TRUTH, std::slice::from_ref(&sim.truth));
+    Ok((rec, sim))
+}
+
+/// `modal-fit` on a record: adds the `modal_fit` topic.
+pub fn modal_fit(
+    rec: &mut RunRecord,
+    opts: &rbprops_modal::FitOptions,
+    input_sha256: &str,
+) -> Result<rbprops_modal::ModalFitOutput> {
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let out = rbprops_modal::fit_campaign(&geometry, frf, opts)?;
+    rec.push_provenance(crate::provenance("modal-fit", input_sha256))?;
+    rec.set(topics::MODAL_FIT, std::slice::from_ref(&out.record));
+    Ok(out)
+}
+
+/// `ni-select` on a record: adds the `selection` topic.
+pub fn ni_select(
+    rec: &mut RunRecord,
+    opts: &rbprops_ni::SelectOptions,
+    input_sha256: &str,
+) -> Result<rbprops_ni::SelectionOutput> {
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let modal: ModalFitRecord = rec
+        .get_one(topics::MODAL_FIT)?
+        .context("no modal_fit topic (run modal-fit first)")?;
+    let out = rbprops_ni::select_modes(&geometry, frf, &modal, opts)?;
+    rec.push_provenance(crate::provenance("ni-select", input_sha256))?;
+    rec.set(topics::SELECTION, std::slice::from_ref(&out.record));
+    Ok(out)
+}
+
+/// `rb-solve` on a record: adds the `estimates` topic. With `use_truth`, the truth topic
+/// (when present and no reference is set) provides the reference for relative errors.
+pub fn rb_solve(
+    rec: &mut RunRecord,
+    opts: &rbprops_inertia::SolveOptions,
+    use_truth: bool,
+    input_sha256: &str,
+) -> Result<rbprops_inertia::SolveOutput> {
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let frf = frf.clone();
+    let modal: ModalFitRecord = rec
+        .get_one(topics::MODAL_FIT)?
+        .context("no modal_fit topic (run modal-fit first)")?;
+    let selection: SelectionRecord = rec
+        .get_one(topics::SELECTION)?
+        .context("no selection topic (run ni-select first)")?;
+    let mut opts = opts.clone();
+    if opts.reference.is_none() && use_truth {
+        opts.reference = rec
+            .get_one::<TruthRecord>(topics::TRUTH)?
+            .map(|t| t.properties);
+    }
+    let out = rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?;
+    rec.push_provenance(crate::provenance("rb-solve", input_sha256))?;
+    rec.set::<InertiaEstimate>(topics::ESTIMATES, &out.estimates);
+    Ok(out)
+}
