@@ -43,7 +43,7 @@ impl Frame {
         }
     }
     /// Global position of a point given in this frame (SI).
-    fn to_global(&self, p: Vec3) -> Vec3 {
+    fn to_global(self, p: Vec3) -> Vec3 {
         self.origin + self.rows[0] * p.x + self.rows[1] * p.y + self.rows[2] * p.z
     }
 }
@@ -157,7 +157,7 @@ impl<'a> Frames<'a> {
                 let v = pxz - o;
                 let z = v - x * (x.dot(&v) / x.norm_squared());
                 let (nx, nz) = (x.norm(), z.norm());
-                if !(nx > 0.0 && nz > 1e-9 * v.norm().max(nx)) || !nx.is_finite() {
+                if !(nx > 0.0 && nz > 1e-9 * v.norm().max(nx) && nx.is_finite()) {
                     return Err(self.err(
                         &at,
                         format!("{what} record 3 (definition points)"),
@@ -296,7 +296,7 @@ fn scaling(
         (q, Some(u)) => {
             let hit = quantities.iter().find_map(|&cand| {
                 let m = motion(cand.order());
-                let full = m.mul(force.powi(-1));
+                let full = m.times(force.powi(-1));
                 if u.same_dimension(&m) {
                     Some((cand, false))
                 } else if u.same_dimension(&full) {

@@ -1,7 +1,7 @@
 //! Universal File Format (UFF, `.uff`/`.unv`) in and out for **rbprops**.
 //!
 //! [`parse`] reads a file's bytes into typed datasets ([`UffFile`]); [`to_campaign`]
-//! turns them into an SI [`Geometry`] and one [`FrfSet`]; [`from_campaign`] writes a
+//! turns them into an SI [`rbprops_core::Geometry`] and one [`rbprops_core::FrfSet`]; [`from_campaign`] writes a
 //! campaign back. The crate does no I/O: callers pass bytes and a file name (used only in
 //! error messages).
 //!
@@ -64,6 +64,8 @@
 //! the directions themselves, so directions round-trip bit-exactly. ID line 1 is a
 //! readable description, ID line 4 `setup=<id> <description>`, ID line 5 the tags above
 //! (omitted when an id contains blanks or '=' or the line would exceed 80 characters).
+//! Not carried: set-ups no excitation uses, and the ids of points no channel or excitation
+//! uses unless every point id is a positive integer (they come back as node labels).
 //!
 //! # Precision of a round trip
 //! - ASCII 58: values in 20-column `E` fields with 13 significant digits (relative error
@@ -76,6 +78,14 @@
 //!   reproduces the axis bit for bit).
 //! - 2411 nodes and 2420 systems: 17 significant digits (exact). Dataset 15: 12-column
 //!   fields as above.
+//!
+//! # Independent checks (pyuff)
+//! `scripts/make_uff_fixtures.py` writes `fixtures/uff/*.uff` with pyuff and JSON sidecars
+//! of the exact values; `tests/pyuff_fixtures.rs` reads them to the printed precision.
+//! The test `tests/written_for_pyuff.rs` writes `fixtures/uff/written/rbprops_{ascii,binary}
+//! .{uff,json}`; CI then runs, for both,
+//! `python3 scripts/check_uff_with_pyuff.py fixtures/uff/written/rbprops_ascii.uff
+//! fixtures/uff/written/rbprops_ascii.json` (exit status 1 on any mismatch).
 
 pub mod campaign;
 pub mod error;

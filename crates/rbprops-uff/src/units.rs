@@ -37,7 +37,7 @@ impl Unit {
             time: self.time * k,
         }
     }
-    pub fn mul(self, o: Unit) -> Unit {
+    pub fn times(self, o: Unit) -> Unit {
         Unit {
             factor: self.factor * o.factor,
             length: self.length + o.length,
@@ -118,7 +118,7 @@ fn product(s: &str) -> Option<Unit> {
     let mut any = false;
     for tok in s.split(['*', ' ', '·']).filter(|t| !t.is_empty()) {
         // "**" splits into empty pieces around it; rejoin handled by factor() on "s**2"
-        u = u.mul(factor(tok)?);
+        u = u.times(factor(tok)?);
         any = true;
     }
     any.then_some(u)
@@ -158,7 +158,7 @@ pub fn parse_label(label: &str) -> Option<Unit> {
     let mut u = Unit::ONE;
     for (p, den) in parts {
         let f = product(&p)?;
-        u = u.mul(if den { f.powi(-1) } else { f });
+        u = u.times(if den { f.powi(-1) } else { f });
     }
     Some(u)
 }

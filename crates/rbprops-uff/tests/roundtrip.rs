@@ -208,3 +208,33 @@ fn writer_rejects_inconsistent_input() {
     let e = from_campaign(&g, &frf, &WriteOptions::default()).unwrap_err();
     assert!(e.to_string().contains("8 channels"), "{e}");
 }
+
+#[test]
+fn realistic_size_round_trip() {
+    // 3 excitations × 9 channels × 4001 lines (0-50 Hz at 12.5 mHz), both encodings.
+    let spec = Spec {
+        point_ids: ids(4),
+        misoriented: true,
+        quantity: Quantity::Accelerance,
+        frequency_hz: even_axis(4001, 0.0125),
+        seed: 77,
+    };
+    let (g, frf) = campaign(&spec);
+    for binary in [false, true] {
+        let t = std::time::Instant::now();
+        let opts = WriteOptions {
+            binary,
+            ..Default::default()
+        };
+        let (g2, f2, bytes) = round_trip(&g, &frf, &opts);
+        eprintln!(
+            "{} {} bytes: write + parse + map in {:.0} ms (debug build)",
+            if binary { "58b" } else { "58" },
+            bytes.len(),
+            t.elapsed().as_secs_f64() * 1e3
+        );
+        assert_eq!(g2, g);
+        assert_eq!(f2.frequency_hz, frf.frequency_hz);
+        assert!(worst_relative(&f2, &frf) <= if binary { 0.0 } else { 5e-13 });
+    }
+}
