@@ -207,6 +207,19 @@ fn campaign_errors_name_datasets_and_pairs() {
     assert!(
         e.contains("dataset #3") && e.contains("dataset #6") && e.contains("abscissa"),
         "{e}"
+    ); // Dataset 5 holds a mobility among accelerances.
+    let five = dataset(5).replace(
+        "        12    1    0    0 Acceleration         m/s^2 ",
+        "        11    1    0    0 Velocity             m/s   ",
+    );
+    assert_ne!(five, dataset(5));
+    let mixed: String = (1..=n)
+        .map(|k| if k == 5 { five.clone() } else { dataset(k) })
+        .collect();
+    let e = err(&mixed);
+    assert!(
+        e.contains("dataset #3") && e.contains("dataset #5") && e.contains("mobility"),
+        "{e}"
     );
 }
 
