@@ -1,3 +1,4 @@
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too.
 //! **rbprops-sim**: simulated FRF campaigns of a rigid body on a linear suspension, the
 //! physics behind `frf-sim`. No I/O: specs come in as text, results go out as data.
 //!

@@ -56,7 +56,7 @@ mod tests {
             stiffness: Mat3::new(3.0, 1.0, 0.5, 1.0, 4.0, -0.2, 0.5, -0.2, 2.0),
         };
         let q = rbprops_core::Vec6::new(1e-3, -2e-3, 3e-3, 0.01, -0.02, 0.005);
-        let u = s.at.clone();
+        let u = s.at;
         let du = q.fixed_rows::<3>(0).into_owned() + q.fixed_rows::<3>(3).cross(&u);
         let e_spring = 0.5 * (du.transpose() * s.stiffness * du)[0];
         let e_k = 0.5 * (q.transpose() * spring_stiffness(&s) * q)[0];
