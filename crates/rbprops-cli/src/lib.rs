@@ -7,8 +7,11 @@ use rbprops_formats::{mcap_file, RunRecord};
 use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
+pub mod campaign;
 pub mod plots;
+pub mod report;
 pub mod stages;
+pub mod summary;
 pub mod table;
 
 /// The MCAP magic bytes, to recognise a stream on stdin.
@@ -31,7 +34,7 @@ pub fn read_input(path: Option<&Path>) -> Result<Input> {
             let ext = p
                 .extension()
                 .map(|e| e.to_string_lossy().to_ascii_lowercase());
-            if matches!(ext.as_deref(), Some("uff") | Some("unv")) {
+            if matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58b")) {
                 return uff_input(p);
             }
             let record = rbprops_formats::read_path(p)?;
@@ -49,11 +52,32 @@ pub fn read_input(path: Option<&Path>) -> Result<Input> {
     }
 }
 
+/// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry and FRFs.
 fn uff_input(p: &Path) -> Result<Input> {
-    bail!(
-        "{}: UFF input is not supported by this build yet",
-        p.display()
-    )
+    let name = p.display().to_string();
+    let bytes = std::fs::read(p).with_context(|| name.clone())?;
+    let uff = rbprops_uff::parse(&bytes, &name)?;
+    let (geometry, frf) = rbprops_uff::to_campaign(&uff)?;
+    let mut record = RunRecord::default();
+    record.set_geometry(&geometry);
+    record.frf = Some(frf);
+    Ok(Input {
+        record,
+        sha256: rbprops_formats::sha256_hex(&bytes),
+        name,
+    })
+}
+
+/// Writes the geometry and FRFs of a run as UFF: datasets 164, 2411 and 58 (ASCII, complex
+/// double) for `.uff`/`.unv`, binary 58b for `.58b`. Other topics are not carried.
+fn uff_output(rec: &RunRecord, p: &Path, binary: bool) -> Result<()> {
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let opts = rbprops_uff::WriteOptions {
+        binary,
+        ..Default::default()
+    };
+    let bytes = rbprops_uff::from_campaign(&geometry, frf, &opts)?;
+    Ok(rbprops_formats::atomic::write_file(p, &bytes)?)
 }
 
 fn digest_dir(p: &Path) -> Result<String> {
@@ -103,10 +127,10 @@ pub fn write_output(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
                 .extension()
                 .map(|e| e.to_string_lossy().to_ascii_lowercase());
             if matches!(ext.as_deref(), Some("uff") | Some("unv")) {
-                bail!(
-                    "{}: UFF output is not supported by this build yet",
-                    p.display()
-                );
+                return uff_output(rec, p, false);
+            }
+            if matches!(ext.as_deref(), Some("58b")) {
+                return uff_output(rec, p, true);
             }
             Ok(rbprops_formats::write_path(rec, p)?)
         }

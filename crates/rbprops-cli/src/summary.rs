@@ -1,0 +1,165 @@
+//! One summary row per estimate: the table of campaigns, golden files and reports.
+
+use anyhow::Result;
+use rbprops_core::records::InertiaEstimate;
+use rbprops_formats::{topics, RunRecord};
+use serde::{Deserialize, Serialize};
+
+/// A row of the summary table (CSV columns in this order).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SummaryRow {
+    pub campaign: String,
+    /// Mode set: `ni` (automatic) or the manual set's label.
+    pub set: String,
+    /// Origin label (`geometry` or the point/channel id or coordinates).
+    pub origin: String,
+    pub method: String,
+    pub setup: String,
+    pub mass_kg: f64,
+    pub com_x_m: f64,
+    pub com_y_m: f64,
+    pub com_z_m: f64,
+    pub jxx: f64,
+    pub jyy: f64,
+    pub jzz: f64,
+    /// Products of inertia (∫xy dm), not tensor entries.
+    pub jxy: f64,
+    pub jxz: f64,
+    pub jyz: f64,
+    pub mass_std_kg: f64,
+    pub com_std_m: f64,
+    pub err_mass: Option<f64>,
+    pub err_com: Option<f64>,
+    pub err_inertia: Option<f64>,
+    pub err_sum: Option<f64>,
+    pub modes: String,
+    pub warnings: String,
+}
+
+impl SummaryRow {
+    pub fn from_estimate(campaign: &str, set: &str, origin: &str, e: &InertiaEstimate) -> Self {
+        let j = &e.inertia_cm_kg_m2;
+        let p = &e.products_of_inertia_kg_m2;
+        let s = &e.com_std_m;
+        SummaryRow {
+            campaign: campaign.into(),
+            set: set.into(),
+            origin: origin.into(),
+            method: e.method.clone(),
+            setup: e.setup.clone(),
+            mass_kg: e.mass_kg,
+            com_x_m: e.com_m[0],
+            com_y_m: e.com_m[1],
+            com_z_m: e.com_m[2],
+            jxx: j[0][0],
+            jyy: j[1][1],
+            jzz: j[2][2],
+            jxy: p.xy,
+            jxz: p.xz,
+            jyz: p.yz,
+            mass_std_kg: e.mass_std_kg,
+            com_std_m: (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt(),
+            err_mass: e.errors.map(|x| x.mass),
+            err_com: e.errors.map(|x| x.com),
+            err_inertia: e.errors.map(|x| x.inertia),
+            err_sum: e.errors.map(|x| x.sum),
+            modes: e
+                .modes_used
+                .iter()
+                .map(|m| m.to_string())
+                .collect::<Vec<_>>()
+                .join(" "),
+            warnings: e.warnings.join(" | "),
+        }
+    }
+
+    /// The numeric columns with their names (for tolerance checks).
+    pub fn numbers(&self) -> Vec<(&'static str, Option<f64>)> {
+        vec![
+            ("mass_kg", Some(self.mass_kg)),
+            ("com_x_m", Some(self.com_x_m)),
+            ("com_y_m", Some(self.com_y_m)),
+            ("com_z_m", Some(self.com_z_m)),
+            ("jxx", Some(self.jxx)),
+            ("jyy", Some(self.jyy)),
+            ("jzz", Some(self.jzz)),
+            ("jxy", Some(self.jxy)),
+            ("jxz", Some(self.jxz)),
+            ("jyz", Some(self.jyz)),
+            ("err_mass", self.err_mass),
+            ("err_com", self.err_com),
+            ("err_inertia", self.err_inertia),
+            ("err_sum", self.err_sum),
+        ]
+    }
+}
+
+/// Rows for every estimate in a run record.
+pub fn rows(rec: &RunRecord, campaign: &str, set: &str, origin: &str) -> Result<Vec<SummaryRow>> {
+    let est: Vec<InertiaEstimate> = rec.get(topics::ESTIMATES)?;
+    Ok(est
+        .iter()
+        .map(|e| SummaryRow::from_estimate(campaign, set, origin, e))
+        .collect())
+}
+
+/// CSV text of the rows (header included); floats in shortest round-trip form.
+pub fn to_csv(rows: &[SummaryRow]) -> Result<String> {
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for r in rows {
+        w.serialize(r)?;
+    }
+    if rows.is_empty() {
+        return Ok(String::new());
+    }
+    Ok(String::from_utf8(w.into_inner()?)?)
+}
+
+pub fn from_csv(text: &str) -> Result<Vec<SummaryRow>> {
+    let mut r = csv::Reader::from_reader(text.as_bytes());
+    Ok(r.deserialize().collect::<Result<Vec<SummaryRow>, _>>()?)
+}
+
+/// Compares rows with golden rows: same keys, every number within
+/// `|a − b| ≤ abs_tol + rel_tol·|b|`. Returns a readable list of differences.
+pub fn compare(
+    actual: &[SummaryRow],
+    golden: &[SummaryRow],
+    rel_tol: f64,
+    abs_tol: f64,
+) -> Vec<String> {
+    let key = |r: &SummaryRow| {
+        format!(
+            "{}/{}/{}/{}/{}",
+            r.campaign, r.set, r.origin, r.method, r.setup
+        )
+    };
+    let mut diffs = Vec::new();
+    for g in golden {
+        let Some(a) = actual.iter().find(|a| key(a) == key(g)) else {
+            diffs.push(format!("{}: missing from this run", key(g)));
+            continue;
+        };
+        for ((name, x), (_, y)) in a.numbers().into_iter().zip(g.numbers()) {
+            match (x, y) {
+                (Some(x), Some(y)) if (x - y).abs() <= abs_tol + rel_tol * y.abs() => {}
+                (None, None) => {}
+                (x, y) => diffs.push(format!("{}: {name} = {x:?}, golden {y:?} (tolerance {rel_tol:e} rel + {abs_tol:e} abs)", key(g))),
+            }
+        }
+        if a.modes != g.modes {
+            diffs.push(format!(
+                "{}: modes used '{}', golden '{}'",
+                key(g),
+                a.modes,
+                g.modes
+            ));
+        }
+    }
+    for a in actual {
+        if !golden.iter().any(|g| key(g) == key(a)) {
+            diffs.push(format!("{}: new row, not in the golden file", key(a)));
+        }
+    }
+    diffs
+}

@@ -1,0 +1,9 @@
+#!/usr/bin/env bash
+# Reproduce both of the paper's test cases: tables, figures and reports under out/paper/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo build --release -q -p rbprops-cli
+start=$(date +%s.%N)
+pipelines/test-case-1.sh out/paper/test-case-1
+pipelines/test-case-2.sh out/paper/test-case-2
+echo "paper: regenerated in $(echo "$(date +%s.%N) - $start" | bc) s (build excluded)" >&2
