@@ -1,0 +1,547 @@
+//! Candidate effects for screening: rbprops-sim's physics catalogue, completed by local
+//! implementations (of rbprops-sim's own [`Effect`] trait) for ids the catalogue does
+//! not offer yet. Each candidate starts at its neutral ("absent") parameter values.
+//!
+//! Local effects (equations; all neutral at 0):
+//! - `channel_gain` (E10): channel i reads (1+ε_i)·H_i.
+//! - `excitation_gain` (E12 sensitivity): excitation e's FRFs scaled by (1+δ_e).
+//! - `global_gain` (E10 global): every FRF scaled by (1+κ). Absorbed by the free mass.
+//! - `sensor_misorientation` (E8): the channels at a point sense along R(ψ) s, with
+//!   R(ψ) = exp([ψ]×) (Rodrigues), three angles per sensor point.
+//! - `sensor_mass` (E7): point mass m_p at each sensor point, M += m_p T(p)ᵀT(p).
+//!   Absorbed by the free inertia.
+//! - `gravity_stiffness` (E1): rbprops-sim's cord geometric stiffness (every spring read
+//!   as a vertical cord of length ℓ) reparametrised so that "absent" is a point of the
+//!   parameter space: `K(φ) = φ₁·lateral(ℓ = 1) + φ₂·load term`, φ₁ = 1/ℓ (1/m), φ₂ the
+//!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
+//!   still leaving the load term) has no neutral value, so a score test needs this form.
+//! - `nonproportional_damping` (E5): dashpots at the spring points,
+//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
+//! - `force_direction` (E12): excitation e pushes along normalise(d + β₁u₁ + β₂u₂),
+//!   u₁, u₂ ⟂ d.
+
+use rbprops_core::geometry::cross_matrix;
+use rbprops_core::{rigid_transform, Geometry, Mat3, Mat6, Vec3};
+use rbprops_sim::effects::{BuildContext, Effect, OutputBlock, ParamInfo};
+use rbprops_sim::model::DynamicModel;
+use rbprops_sim::CampaignSpec;
+
+/// The catalogue entry of a candidate: what it is and how to reveal or separate it.
+#[derive(Debug)]
+pub struct Candidate {
+    pub id: String,
+    pub title: String,
+    /// The effect at its neutral parameter values.
+    pub effect: Box<dyn Effect>,
+    pub neutral: Vec<f64>,
+    /// Typical parameter magnitude (finite-difference step scale).
+    pub scales: Vec<f64>,
+    /// "rbprops-sim" or "rbprops-check (local)".
+    pub source: &'static str,
+    /// What measurement or side information would reveal it when the free parameters
+    /// absorb it.
+    pub reveal: &'static str,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    ChannelGain,
+    ExcitationGain,
+    GlobalGain,
+    SensorMisorientation,
+    SensorMass,
+    GravityStiffness,
+    MountDashpots,
+    ForceDirection,
+}
+
+const ALL: [Kind; 8] = [
+    Kind::GravityStiffness,
+    Kind::SensorMisorientation,
+    Kind::ChannelGain,
+    Kind::ExcitationGain,
+    Kind::ForceDirection,
+    Kind::MountDashpots,
+    Kind::SensorMass,
+    Kind::GlobalGain,
+];
+
+impl Kind {
+    fn id(self) -> &'static str {
+        match self {
+            Kind::ChannelGain => "channel_gain",
+            Kind::ExcitationGain => "excitation_gain",
+            Kind::GlobalGain => "global_gain",
+            Kind::SensorMisorientation => "sensor_misorientation",
+            Kind::SensorMass => "sensor_mass",
+            Kind::GravityStiffness => "gravity_stiffness",
+            Kind::MountDashpots => "nonproportional_damping",
+            Kind::ForceDirection => "force_direction",
+        }
+    }
+    fn title(self) -> &'static str {
+        match self {
+            Kind::ChannelGain => "per-channel calibration error",
+            Kind::ExcitationGain => "force-gauge sensitivity error per excitation",
+            Kind::GlobalGain => "global calibration error",
+            Kind::SensorMisorientation => "sensor misorientation",
+            Kind::SensorMass => "sensor mass",
+            Kind::GravityStiffness => "gravity (pendulum) stiffness of the suspension",
+            Kind::MountDashpots => "non-proportional damping at the suspension",
+            Kind::ForceDirection => "force direction error",
+        }
+    }
+    fn reveal(self) -> &'static str {
+        match self {
+            Kind::GlobalGain => {
+                "a weighed mass (--weighed-mass) or a calibration against a known mass"
+            }
+            Kind::SensorMass => {
+                "known sensor masses (--sensor-mass) or a run with the sensors moved"
+            }
+            Kind::GravityStiffness => "a second suspension length, or the measured cord geometry",
+            Kind::MountDashpots => {
+                "a second record length or window (separates processing damping)"
+            }
+            Kind::ChannelGain => "a back-to-back calibration of the channels",
+            Kind::ExcitationGain => "a hammer calibration against a known mass",
+            Kind::SensorMisorientation => "a rotation check of each triaxial sensor",
+            Kind::ForceDirection => "more excitations than six, or a force direction check",
+        }
+    }
+}
+
+/// A locally implemented catalogue effect (see the module docs for the equations).
+#[derive(Debug, Clone)]
+pub struct LocalEffect {
+    kind: Kind,
+    names: Vec<String>,
+    values: Vec<f64>,
+    /// Channel index → point index (sensor groups), for misorientation.
+    groups: Vec<Vec<usize>>,
+    /// Point positions (sensor points), for sensor_mass.
+    points: Vec<Vec3>,
+}
+
+fn sensor_groups(g: &Geometry) -> (Vec<String>, Vec<Vec<usize>>, Vec<Vec3>) {
+    let mut ids: Vec<String> = Vec::new();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    let mut pos = Vec::new();
+    for (i, c) in g.channels.iter().enumerate() {
+        match ids.iter().position(|p| *p == c.point) {
+            Some(k) => groups[k].push(i),
+            None => {
+                ids.push(c.point.clone());
+                groups.push(vec![i]);
+                pos.push(c.position);
+            }
+        }
+    }
+    (ids, groups, pos)
+}
+
+impl LocalEffect {
+    fn neutral(kind: Kind, spec: &CampaignSpec, g: &Geometry) -> LocalEffect {
+        let (pids, groups, points) = sensor_groups(g);
+        let names: Vec<String> = match kind {
+            Kind::ChannelGain => g
+                .channels
+                .iter()
+                .map(|c| format!("{}.gain_error", c.id))
+                .collect(),
+            Kind::ExcitationGain => g
+                .excitations
+                .iter()
+                .map(|e| format!("{}.gain_error", e.id))
+                .collect(),
+            Kind::GlobalGain => vec!["gain_error".into()],
+            Kind::SensorMisorientation => pids
+                .iter()
+                .flat_map(|p| ["rx", "ry", "rz"].map(|a| format!("{p}.{a}_rad")))
+                .collect(),
+            Kind::SensorMass => pids.iter().map(|p| format!("{p}.mass_kg")).collect(),
+            Kind::GravityStiffness => vec![
+                "inverse_cord_length_per_m".into(),
+                "load_term_factor".into(),
+            ],
+            Kind::MountDashpots => spec
+                .setups
+                .iter()
+                .flat_map(|s| ["x", "y", "z"].map(|a| format!("{}.dashpot_{a}_n_s_per_m", s.id)))
+                .collect(),
+            Kind::ForceDirection => g
+                .excitations
+                .iter()
+                .flat_map(|e| ["tilt1", "tilt2"].map(|a| format!("{}.{a}_rad", e.id)))
+                .collect(),
+        };
+        LocalEffect {
+            kind,
+            values: vec![0.0; names.len()],
+            names,
+            groups,
+            points,
+        }
+    }
+
+    fn info(&self, i: usize) -> ParamInfo {
+        let (unit, lo, hi, pl) = match self.kind {
+            Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => {
+                ("1", -0.5, 0.5, (-0.05, 0.05))
+            }
+            Kind::SensorMisorientation | Kind::ForceDirection => ("rad", -0.5, 0.5, (-0.1, 0.1)),
+            Kind::SensorMass => ("kg", 0.0, f64::INFINITY, (0.0, 0.5)),
+            Kind::GravityStiffness if i == 0 => ("1/m", 0.0, 100.0, (0.2, 10.0)),
+            Kind::GravityStiffness => ("1", 0.0, 3.0, (0.5, 1.5)),
+            Kind::MountDashpots => ("N s/m", 0.0, f64::INFINITY, (0.0, 100.0)),
+        };
+        ParamInfo {
+            name: self.names[i].clone(),
+            unit,
+            lower: lo,
+            upper: hi,
+            plausible: pl,
+        }
+    }
+
+    fn scale(&self, spec: &CampaignSpec) -> Vec<f64> {
+        let m = spec.body.mass_kg;
+        (0..self.values.len())
+            .map(|i| match self.kind {
+                Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => 0.01,
+                Kind::SensorMisorientation | Kind::ForceDirection => 0.01,
+                Kind::SensorMass => 0.01 * m,
+                Kind::GravityStiffness => {
+                    if i == 0 {
+                        1.0
+                    } else {
+                        1.0
+                    }
+                }
+                Kind::MountDashpots => {
+                    // 1 % critical damping of the stiffest spring of the set-up, roughly.
+                    let k = spec
+                        .setups
+                        .iter()
+                        .flat_map(|s| s.springs.iter())
+                        .map(|s| {
+                            s.stiffness_n_per_m
+                                .map(|k| k[0].max(k[1]).max(k[2]))
+                                .unwrap_or(100.0)
+                        })
+                        .fold(1.0, f64::max);
+                    0.02 * (k * m).sqrt()
+                }
+            })
+            .collect()
+    }
+}
+
+fn rodrigues(psi: &Vec3) -> Mat3 {
+    let t = psi.norm();
+    let k = cross_matrix(psi);
+    if t < 1e-12 {
+        return Mat3::identity() + k;
+    }
+    Mat3::identity() + k * (t.sin() / t) + k * k * ((1.0 - t.cos()) / (t * t))
+}
+
+/// Geometric stiffness of cords along ẑ through rbprops-sim's own
+/// [`rbprops_sim::effects::gravity::geometric_stiffness`], split into its two parts:
+/// `K(φ) = φ₁ [K_geo(ℓ = 1) − K_geo(ℓ → ∞)] + φ₂ K_geo(ℓ → ∞)`, exact for
+/// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1) reproduces the catalogue effect.
+fn gravity_stiffness(
+    ctx: &BuildContext,
+    model: &DynamicModel,
+    phi: &[f64],
+) -> Result<Mat6, String> {
+    use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
+    let z = Vec3::new(0.0, 0.0, 1.0);
+    let cords = |len: f64| -> Vec<Cord> {
+        ctx.spec
+            .springs(ctx.setup_index)
+            .iter()
+            .map(|s| Cord {
+                at: s.at,
+                length: len,
+                axial_stiffness: (z.transpose() * s.stiffness * z)[0],
+            })
+            .collect()
+    };
+    let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;
+    let (kinf, _) = geometric_stiffness(&model.mass, &cords(1e12), STANDARD_GRAVITY, &z)?;
+    Ok((k1 - kinf) * phi[0] + kinf * phi[1])
+}
+
+impl Effect for LocalEffect {
+    fn id(&self) -> &'static str {
+        self.kind.id()
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        (0..self.values.len()).map(|i| self.info(i)).collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.values.clone()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != self.values.len() {
+            return Err(format!(
+                "{} expects {} parameters, got {}",
+                self.id(),
+                self.values.len(),
+                values.len()
+            ));
+        }
+        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+            return Err(format!("{}: parameter {v} is not finite", self.id()));
+        }
+        let mut e = self.clone();
+        e.values = values.to_vec();
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::Value::Object(
+            self.names
+                .iter()
+                .zip(&self.values)
+                .map(|(n, v)| (n.clone(), serde_json::json!(v)))
+                .collect(),
+        )
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        match self.kind {
+            Kind::SensorMisorientation => {
+                for (k, chans) in self.groups.iter().enumerate() {
+                    let psi = Vec3::new(
+                        self.values[3 * k],
+                        self.values[3 * k + 1],
+                        self.values[3 * k + 2],
+                    );
+                    let r = rodrigues(&psi);
+                    for &c in chans {
+                        let ch = &ctx.geometry.channels[c];
+                        model.outputs[c] =
+                            (r * ch.direction).transpose() * rigid_transform(&ch.position);
+                    }
+                }
+            }
+            Kind::SensorMass => {
+                for (p, m) in self.points.iter().zip(&self.values) {
+                    let t = rigid_transform(p);
+                    model.mass += (t.transpose() * t) * *m;
+                }
+            }
+            Kind::GravityStiffness => {
+                model.stiffness += gravity_stiffness(ctx, model, &self.values)?;
+                model.stiffness = (model.stiffness + model.stiffness.transpose()) * 0.5;
+            }
+            Kind::ForceDirection => {
+                for inp in &mut model.inputs {
+                    let e = &ctx.geometry.excitations[inp.excitation];
+                    let d = e.direction;
+                    let helper = if d.x.abs() < 0.9 {
+                        Vec3::x()
+                    } else {
+                        Vec3::y()
+                    };
+                    let u1 = d.cross(&helper).normalize();
+                    let u2 = d.cross(&u1);
+                    let (b1, b2) = (
+                        self.values[2 * inp.excitation],
+                        self.values[2 * inp.excitation + 1],
+                    );
+                    let d2 = (d + u1 * b1 + u2 * b2).normalize();
+                    inp.column = rigid_transform(&e.position).transpose() * d2;
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+    fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        if self.kind == Kind::MountDashpots {
+            let c = Mat3::from_diagonal(&Vec3::new(
+                self.values[3 * ctx.setup_index],
+                self.values[3 * ctx.setup_index + 1],
+                self.values[3 * ctx.setup_index + 2],
+            ));
+            for s in ctx.spec.springs(ctx.setup_index) {
+                let t = rigid_transform(&s.at);
+                model.damping += t.transpose() * c * t;
+            }
+        }
+        Ok(())
+    }
+    fn transform_output(&self, block: &mut OutputBlock) {
+        let nl = block.frequency_hz.len();
+        match self.kind {
+            Kind::ChannelGain => {
+                for (c, v) in block.values.chunks_exact_mut(nl).enumerate() {
+                    let g = 1.0 + self.values[c];
+                    v.iter_mut().for_each(|x| *x *= g);
+                }
+            }
+            Kind::ExcitationGain => {
+                let g = 1.0 + self.values[block.excitation];
+                block.values.iter_mut().for_each(|x| *x *= g);
+            }
+            Kind::GlobalGain => {
+                let g = 1.0 + self.values[0];
+                block.values.iter_mut().for_each(|x| *x *= g);
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The parameter table of a neutral ("absent") instance of a catalogue effect, for the
+/// ids whose spec form is known; `None` for others (an empty table is then tried).
+fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Table> {
+    let mut t = toml::Table::new();
+    let ones = |ids: Vec<String>, v: toml::Value| -> toml::Value {
+        toml::Value::Table(ids.into_iter().map(|k| (k, v.clone())).collect())
+    };
+    let sensors: Vec<String> = spec.sensors.iter().map(|s| s.id.clone()).collect();
+    match id {
+        "channel_gain" => {
+            t.insert(
+                "gains".into(),
+                ones(
+                    g.channels.iter().map(|c| c.id.clone()).collect(),
+                    1.0.into(),
+                ),
+            );
+        }
+        "excitation_gain" => {
+            t.insert(
+                "gains".into(),
+                ones(
+                    g.excitations.iter().map(|e| e.id.clone()).collect(),
+                    1.0.into(),
+                ),
+            );
+        }
+        "global_gain" => {
+            t.insert("gain".into(), 1.0.into());
+        }
+        "sensor_misorientation" => {
+            let zero = toml::Value::Array(vec![0.0.into(), 0.0.into(), 0.0.into()]);
+            t.insert("rotations_rad".into(), ones(sensors, zero));
+        }
+        "sensor_mass" => {
+            t.insert("masses_kg".into(), ones(sensors, 0.0.into()));
+        }
+        _ => return None,
+    }
+    Some(t)
+}
+
+/// Ids for which the local form is used even though the catalogue has the effect,
+/// because the catalogue's parametrisation has no neutral point (see module docs).
+const REPARAMETRISED: &[&str] = &["gravity_stiffness"];
+
+/// The candidate list for a spec: rbprops-sim's catalogue
+/// ([`rbprops_sim::effects::KNOWN_EFFECTS`]) at neutral parameter values, completed by
+/// the local effects the catalogue does not offer (yet). Effects already switched on in
+/// the nominal spec are not candidates. Also returns notes on catalogue effects that
+/// could not be screened.
+pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, Vec<String>) {
+    let mut out: Vec<Candidate> = Vec::new();
+    let mut notes = Vec::new();
+    let in_spec: Vec<&str> = spec.effects.iter().map(|e| e.id.as_str()).collect();
+    for &id in rbprops_sim::effects::KNOWN_EFFECTS {
+        if in_spec.contains(&id) || REPARAMETRISED.contains(&id) {
+            continue;
+        }
+        let entry = rbprops_sim::spec::EffectSpec {
+            id: id.to_string(),
+            parameters: neutral_entry(id, spec, geometry).unwrap_or_default(),
+        };
+        match rbprops_sim::effects::parse_effect(&entry) {
+            Ok(e) if !e.values().is_empty() => {
+                let neutral = e.values();
+                let scales = e
+                    .parameters()
+                    .iter()
+                    .map(|p| ((p.plausible.1 - p.plausible.0).abs() / 5.0).max(1e-9))
+                    .collect();
+                let kind = ALL.iter().find(|k| k.id() == id);
+                out.push(Candidate {
+                    id: id.to_string(),
+                    title: kind.map(|k| k.title()).unwrap_or(id).to_string(),
+                    effect: e,
+                    neutral,
+                    scales,
+                    source: "rbprops-sim",
+                    reveal: kind.map(|k| k.reveal()).unwrap_or("side information on this effect"),
+                });
+            }
+            Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),
+            Err(problem) => notes.push(format!(
+                "catalogue effect '{id}': no neutral form known to the model check ({problem}); not screened"
+            )),
+        }
+    }
+    for k in ALL {
+        if in_spec.contains(&k.id()) || out.iter().any(|c| c.id == k.id()) {
+            continue;
+        }
+        let e = LocalEffect::neutral(k, spec, geometry);
+        out.push(Candidate {
+            id: k.id().to_string(),
+            title: k.title().to_string(),
+            neutral: e.values(),
+            scales: e.scale(spec),
+            effect: Box::new(e),
+            source: if rbprops_sim::effects::KNOWN_EFFECTS.contains(&k.id()) {
+                "rbprops-sim (reparametrised for screening)"
+            } else {
+                "rbprops-check (local)"
+            },
+            reveal: k.reveal(),
+        });
+    }
+    (out, notes)
+}
+
+/// The spec entry of a fitted effect: the catalogue's own form where one exists
+/// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters.
+pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, String> {
+    let parameters = if e.id() == "gravity_stiffness"
+        && e.parameters()
+            .first()
+            .is_some_and(|p| p.name == "inverse_cord_length_per_m")
+    {
+        let v = e.values();
+        if !(v[0] > 0.0) {
+            return Err("gravity_stiffness: fitted 1/ℓ is not positive".into());
+        }
+        let mut t = toml::Table::new();
+        t.insert(
+            "cord_length_m".into(),
+            toml::Value::Array(vec![(1.0 / v[0]).into()]),
+        );
+        t
+    } else {
+        toml::Table::try_from(e.parameters_json())
+            .map_err(|err| format!("effect '{}': parameters do not map to TOML: {err}", e.id()))?
+    };
+    Ok(rbprops_sim::spec::EffectSpec {
+        id: e.id().to_string(),
+        parameters,
+    })
+}
+
+/// A local effect by id with given values (for fixtures and tests: the recording side).
+pub fn local_effect(
+    id: &str,
+    spec: &CampaignSpec,
+    values: &[f64],
+) -> Result<Box<dyn Effect>, String> {
+    let g = spec.geometry().map_err(|e| e.to_string())?;
+    let k = ALL
+        .iter()
+        .find(|k| k.id() == id)
+        .ok_or_else(|| format!("no local effect '{id}'"))?;
+    LocalEffect::neutral(*k, spec, &g).with_values(values)
+}

@@ -1,0 +1,270 @@
+//! Localisation: where the noise-normalised residual sits, by excitation × channel ×
+//! frequency band, split into output-rigid / non-rigid parts (σ-weighted projection on
+//! the span of the channel rows sᵀT(p)) and in-phase / quadrature parts (relative to the
+//! model FRF's phase).
+//!
+//! A cell with n real residual entries and χ² has z = (χ² − n)/√(2n) (≈ N(0,1) under the
+//! noise model); cells with z > 5 are flagged.
+
+use crate::predict::Layout;
+use rbprops_core::c64;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct Band {
+    pub name: String,
+    pub from_hz: f64,
+    pub to_hz: f64,
+}
+
+/// One cell of the residual map.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ResidualCell {
+    pub excitation: String,
+    pub channel: String,
+    pub band: String,
+    /// Number of real residual entries.
+    pub n: usize,
+    pub chi2: f64,
+    pub z: f64,
+    /// χ² of the part that is not rigid-body motion of the sensors.
+    pub chi2_non_rigid: f64,
+    /// χ² in phase and in quadrature with the model FRF.
+    pub chi2_in_phase: f64,
+    pub chi2_quadrature: f64,
+}
+
+/// Totals over a group of cells (per sensor point, per excitation, per band).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ResidualTotal {
+    pub group: String,
+    pub n: usize,
+    pub chi2_nu: f64,
+    pub z: f64,
+    pub non_rigid_fraction: f64,
+    pub quadrature_fraction: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ResidualMap {
+    pub bands: Vec<Band>,
+    pub cells: Vec<ResidualCell>,
+    pub per_sensor: Vec<ResidualTotal>,
+    pub per_excitation: Vec<ResidualTotal>,
+    pub per_band: Vec<ResidualTotal>,
+    /// Cells with z > 5, strongest first: "excitation/channel/band (z)".
+    pub flagged: Vec<String>,
+}
+
+/// Bands from the model's suspension modes (lowest f_lo, highest f_hi, in Hz).
+pub fn bands(f_lo: f64, f_hi: f64, axis: &[f64]) -> Vec<Band> {
+    let (a, b) = (axis[0], axis[axis.len() - 1]);
+    let sub = 0.7 * f_lo;
+    let top = 1.5 * f_hi;
+    let edge = top.max(b - 0.2 * (b - a));
+    vec![
+        Band {
+            name: "sub-suspension".into(),
+            from_hz: a,
+            to_hz: sub.max(a),
+        },
+        Band {
+            name: "suspension modes".into(),
+            from_hz: sub.max(a),
+            to_hz: top.min(b),
+        },
+        Band {
+            name: "mass line".into(),
+            from_hz: top.min(b),
+            to_hz: edge.min(b),
+        },
+        Band {
+            name: "upper edge".into(),
+            from_hz: edge.min(b),
+            to_hz: b,
+        },
+    ]
+}
+
+fn z(chi2: f64, n: usize) -> f64 {
+    if n == 0 {
+        0.0
+    } else {
+        (chi2 - n as f64) / (2.0 * n as f64).sqrt()
+    }
+}
+
+/// The residual map of data `y` against model `m` with noise σ (all `[exc][ch][line]`).
+pub fn residual_map(
+    layout: &Layout,
+    y: &[c64],
+    m: &[c64],
+    sigma: &[f64],
+    bands: Vec<Band>,
+) -> ResidualMap {
+    let g = &layout.spec_geometry;
+    let nl = layout.n_lines();
+    let nch = layout.channel_map.len();
+    let nex = layout.excitation_map.len();
+    let band_of = |f: f64| -> usize {
+        bands
+            .iter()
+            .position(|b| f >= b.from_hz && f < b.to_hz)
+            .unwrap_or(bands.len() - 1)
+    };
+    let nb = bands.len();
+    // acc[(e, c, b)] = (n, chi2, nonrigid, inphase, quad)
+    let mut acc = vec![(0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64); nex * nch * nb];
+    let rows: Vec<_> = layout
+        .channel_map
+        .iter()
+        .map(|&sc| g.channels[sc].row())
+        .collect();
+    for e in 0..nex {
+        for l in 0..nl {
+            let b = band_of(layout.frequency_hz[l]);
+            // Weighted residual and rows over the channels with information on this line.
+            let mut idx = Vec::new();
+            let mut rho = Vec::new();
+            for c in 0..nch {
+                let i = (e * nch + c) * nl + l;
+                if sigma[i] > 0.0 {
+                    idx.push(c);
+                    rho.push((y[i] - m[i]) * (std::f64::consts::SQRT_2 / sigma[i]));
+                }
+            }
+            if idx.is_empty() {
+                continue;
+            }
+            let w = nalgebra::DMatrix::from_fn(idx.len(), 6, |r, k| {
+                rows[idx[r]][k] / sigma[(e * nch + idx[r]) * nl + l]
+            });
+            // Projector on the weighted rigid-motion span (rank-revealing via SVD).
+            let svd = w.svd(true, false);
+            let u = svd.u.expect("requested");
+            let smax = svd.singular_values.max();
+            let keep: Vec<usize> = (0..svd.singular_values.len())
+                .filter(|&k| svd.singular_values[k] > 1e-9 * smax)
+                .collect();
+            let mut rigid = vec![c64::new(0.0, 0.0); idx.len()];
+            for &k in &keep {
+                let col = u.column(k);
+                let mut dot = c64::new(0.0, 0.0);
+                for r in 0..idx.len() {
+                    dot += rho[r] * col[r];
+                }
+                for r in 0..idx.len() {
+                    rigid[r] += dot * col[r];
+                }
+            }
+            for (r, &c) in idx.iter().enumerate() {
+                let i = (e * nch + c) * nl + l;
+                let a = &mut acc[(e * nch + c) * nb + b];
+                a.0 += 2;
+                a.1 += rho[r].norm_sqr();
+                a.2 += (rho[r] - rigid[r]).norm_sqr();
+                let ph = if m[i].norm() > 0.0 {
+                    m[i].conj() / m[i].norm()
+                } else {
+                    c64::new(1.0, 0.0)
+                };
+                let rot = rho[r] * ph;
+                a.3 += rot.re * rot.re;
+                a.4 += rot.im * rot.im;
+            }
+        }
+    }
+    let mut cells = Vec::new();
+    let ex_id = |e: usize| g.excitations[layout.excitation_map[e]].id.clone();
+    let ch_id = |c: usize| g.channels[layout.channel_map[c]].id.clone();
+    for e in 0..nex {
+        for c in 0..nch {
+            for (b, band) in bands.iter().enumerate() {
+                let a = acc[(e * nch + c) * nb + b];
+                if a.0 == 0 {
+                    continue;
+                }
+                cells.push(ResidualCell {
+                    excitation: ex_id(e),
+                    channel: ch_id(c),
+                    band: band.name.clone(),
+                    n: a.0,
+                    chi2: a.1,
+                    z: z(a.1, a.0),
+                    chi2_non_rigid: a.2,
+                    chi2_in_phase: a.3,
+                    chi2_quadrature: a.4,
+                });
+            }
+        }
+    }
+    let total = |group: String, sel: &dyn Fn(&ResidualCell) -> bool| -> ResidualTotal {
+        let (mut n, mut c2, mut nr, mut q) = (0usize, 0.0, 0.0, 0.0);
+        for cell in cells.iter().filter(|c| sel(c)) {
+            n += cell.n;
+            c2 += cell.chi2;
+            nr += cell.chi2_non_rigid;
+            q += cell.chi2_quadrature;
+        }
+        ResidualTotal {
+            group,
+            n,
+            chi2_nu: if n > 0 { c2 / n as f64 } else { 0.0 },
+            z: z(c2, n),
+            non_rigid_fraction: if c2 > 0.0 { nr / c2 } else { 0.0 },
+            quadrature_fraction: if c2 > 0.0 { q / c2 } else { 0.0 },
+        }
+    };
+    let mut points: Vec<String> = Vec::new();
+    for &sc in &layout.channel_map {
+        let p = &g.channels[sc].point;
+        if !points.contains(p) {
+            points.push(p.clone());
+        }
+    }
+    let per_sensor = points
+        .iter()
+        .map(|p| {
+            let chans: Vec<String> = g
+                .channels
+                .iter()
+                .filter(|c| &c.point == p)
+                .map(|c| c.id.clone())
+                .collect();
+            total(format!("sensor {p}"), &|c: &ResidualCell| {
+                chans.contains(&c.channel)
+            })
+        })
+        .collect();
+    let per_excitation = (0..nex)
+        .map(|e| {
+            let id = ex_id(e);
+            total(format!("excitation {id}"), &|c: &ResidualCell| {
+                c.excitation == id
+            })
+        })
+        .collect();
+    let per_band = bands
+        .iter()
+        .map(|b| {
+            total(format!("band {}", b.name), &|c: &ResidualCell| {
+                c.band == b.name
+            })
+        })
+        .collect();
+    let mut strong: Vec<&ResidualCell> = cells.iter().filter(|c| c.z > 5.0).collect();
+    strong.sort_by(|a, b| b.z.total_cmp(&a.z));
+    let flagged = strong
+        .iter()
+        .take(20)
+        .map(|c| format!("{}/{}/{} (z {:.1})", c.excitation, c.channel, c.band, c.z))
+        .collect();
+    ResidualMap {
+        bands,
+        cells,
+        per_sensor,
+        per_excitation,
+        per_band,
+        flagged,
+    }
+}

@@ -1,0 +1,148 @@
+//! The stable, machine-readable model-check report (`--format json`, MCAP topic
+//! `/rbprops/model_check`) and its one-paragraph human verdict.
+
+use crate::locate::ResidualMap;
+use crate::noise::NoiseModel;
+use serde::{Deserialize, Serialize};
+
+/// A fitted parameter with its standard error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct FittedParameter {
+    pub name: String,
+    pub unit: String,
+    pub value: f64,
+    pub standard_error: f64,
+}
+
+/// An effect accepted with statistical evidence.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct AcceptedEffect {
+    /// Physics-catalogue id (`gravity_stiffness`, ...).
+    pub id: String,
+    pub title: String,
+    /// "rbprops-sim" or "rbprops-check (local)".
+    pub source: String,
+    pub parameters: Vec<FittedParameter>,
+    /// χ² decrease when the effect was added, and its degrees of freedom (identifiable rank).
+    pub delta_chi2: f64,
+    pub dof: usize,
+    /// Likelihood-ratio threshold χ²_{d, 1−α/N_candidates}.
+    pub lr_threshold: f64,
+    pub delta_bic: f64,
+    /// Relative change of each inertia quantity caused by adding this effect.
+    pub inertia_change: Vec<RelativeChange>,
+}
+
+/// Effects that fit about equally well and could not be separated on these data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct AmbiguousFamily {
+    pub ids: Vec<String>,
+    /// ΔBIC of each member relative to the model without it.
+    pub delta_bic: Vec<f64>,
+    /// Largest canonical correlation between their residual signatures.
+    pub canonical_correlation: f64,
+    /// The measurement that would separate them.
+    pub separating_measurement: String,
+}
+
+/// Effects the free parameters absorb completely: they cannot be seen in FRFs alone.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct NotObservable {
+    pub id: String,
+    pub title: String,
+    /// Which free parameters absorb it.
+    pub reason: String,
+    /// What would reveal it.
+    pub would_reveal: String,
+}
+
+/// Screening statistics of one candidate at one step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ScreenEntry {
+    pub step: usize,
+    pub id: String,
+    /// Identifiable rank d_c after projecting out the current model's parameters.
+    pub rank: usize,
+    pub n_parameters: usize,
+    /// Score statistic S_c and its threshold.
+    pub score: f64,
+    pub threshold: f64,
+    /// χ² decrease of the full refit (when refitted).
+    pub refit_delta_chi2: Option<f64>,
+    pub refit_delta_bic: Option<f64>,
+    pub decision: String,
+}
+
+/// A nominal-model parameter the baseline fit corrected.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct CorrectedParameter {
+    pub name: String,
+    pub nominal: f64,
+    pub fitted: f64,
+    pub standard_error: f64,
+    /// (fitted − nominal)/standard error.
+    pub z: f64,
+    /// |z| > 3.
+    pub significant: bool,
+}
+
+/// An inertia estimate with standard errors: m, c, moments and CAD products.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct InertiaEstimateReport {
+    pub label: String,
+    pub mass_kg: f64,
+    pub com_m: [f64; 3],
+    pub moments_kg_m2: [f64; 3],
+    /// Products J_xy, J_xz, J_yz = ∫xy dm, ... (tensor entries are their negatives).
+    pub products_kg_m2: [f64; 3],
+    /// The tensor about the CoM (off-diagonals = −products).
+    pub inertia_cm_kg_m2: [[f64; 3]; 3],
+    /// Standard errors in the order m, c_x, c_y, c_z, J_xx, J_yy, J_zz, J_xy, J_xz, J_yz
+    /// (0 where a quantity was fixed).
+    pub standard_errors: [f64; 10],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct RelativeChange {
+    pub quantity: String,
+    /// (after − before)/|before| (for CoM: change in m divided by the body size).
+    pub relative: f64,
+}
+
+/// The model-check report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct ModelCheckReport {
+    pub campaign: String,
+    pub verdict: String,
+    pub accepted: Vec<AcceptedEffect>,
+    pub ambiguous: Vec<AmbiguousFamily>,
+    pub not_observable: Vec<NotObservable>,
+    /// χ²/ν of the nominal spec as given (no parameter fitted).
+    pub chi2_nu_nominal: f64,
+    /// χ²/ν after the baseline fit of the nominal model's own parameters.
+    pub chi2_nu_before: f64,
+    /// χ²/ν of the final model (baseline + accepted effects).
+    pub chi2_nu_after: f64,
+    pub nu_before: f64,
+    pub nu_after: f64,
+    /// Band [1 − 3√(2/ν), 1 + max(3√(2/ν), 0.05)] in which χ²/ν is consistent with noise.
+    pub noise_band: [f64; 2],
+    /// χ²/ν_after inside the noise band and no residual cell with z > 5.
+    pub noise_floor_reached: bool,
+    pub noise: NoiseModel,
+    /// Values used (complex FRF values with noise information).
+    pub n_values: usize,
+    pub corrected_parameters: Vec<CorrectedParameter>,
+    pub inertia_nominal: InertiaEstimateReport,
+    /// Baseline fit (nominal physics, fitted parameters).
+    pub inertia_before: InertiaEstimateReport,
+    /// Final fit (accepted effects included): the FRF-level inertia estimate.
+    pub inertia_after: InertiaEstimateReport,
+    pub inertia_change: Vec<RelativeChange>,
+    pub screening: Vec<ScreenEntry>,
+    pub residuals_before: ResidualMap,
+    pub residuals_after: ResidualMap,
+    /// Statistical settings and caveats.
+    pub method: Vec<String>,
+    pub warnings: Vec<String>,
+}

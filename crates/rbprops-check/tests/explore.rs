@@ -1,0 +1,84 @@
+mod common;
+use common::*;
+use rbprops_check::{check, CheckOptions};
+
+#[test]
+#[ignore]
+fn explore() {
+    let lines: usize = std::env::var("LINES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(400);
+    let eff = std::env::var("EFF").unwrap_or_default();
+    let nom = nominal(lines);
+    let mut truth = nom.clone();
+    truth.body.mass_kg *= 1.02;
+    let effects: Vec<(&str, Vec<f64>)> = match eff.as_str() {
+        "gravity" => vec![("gravity_stiffness", vec![1.0, 1.0])],
+        "gain" => vec![(
+            "channel_gain",
+            vec![0.0, 0.03, 0.0, 0.0, 0.0, -0.02, 0.0, 0.0, 0.0],
+        )],
+        "misor" => vec![(
+            "sensor_misorientation",
+            vec![0.0, 0.0, 0.0, 0.03, -0.02, 0.04, 0.0, 0.0, 0.0],
+        )],
+        "dash" => vec![("nonproportional_damping", vec![5.0, 5.0, 20.0])],
+        "smass" => vec![("sensor_mass", vec![0.1, 0.1, 0.1])],
+        "global" => vec![("global_gain", vec![0.03])],
+        _ => vec![],
+    };
+    let sim_eff: Vec<&str> = match eff.as_str() {
+        "sgravity" => vec!["id = \"gravity_stiffness\"\ncord_length_m = [1.0]"],
+        "sgain" => vec!["id = \"channel_gain\"\ngains = { 2x = 1.03, 3z = 0.98 }"],
+        "smisor" => {
+            vec!["id = \"sensor_misorientation\"\nrotations_rad = { 2 = [0.03, -0.02, 0.04] }"]
+        }
+        "ssmass" => vec!["id = \"sensor_mass\"\nmass_kg = 0.1"],
+        "sglobal" => vec!["id = \"global_gain\"\ngain = 1.03"],
+        "sexc" => vec!["id = \"excitation_gain\"\ngains = { force2 = 1.04 }"],
+        "two" => vec![
+            "id = \"gravity_stiffness\"\ncord_length_m = [1.0]",
+            "id = \"channel_gain\"\ngains = { 2x = 1.03, 3z = 0.98 }",
+        ],
+        _ => vec![],
+    };
+    let (g, frf) = if eff.starts_with('s') || eff == "two" {
+        record_sim(&truth, &sim_eff, 0.01, 7)
+    } else {
+        record(&truth, &effects, 0.01, 7)
+    };
+    let t = std::time::Instant::now();
+    let out = check(&nom, &g, &frf, &CheckOptions::default()).unwrap();
+    let r = &out.report;
+    println!("time {:?}", t.elapsed());
+    println!("{}", r.verdict);
+    println!("noise {:?}", r.noise);
+    for s in &r.screening {
+        println!(
+            "{} {} rank {}/{} score {:.1} thr {:.1} refit {:?} {:?} -> {}",
+            s.step,
+            s.id,
+            s.rank,
+            s.n_parameters,
+            s.score,
+            s.threshold,
+            s.refit_delta_chi2,
+            s.refit_delta_bic,
+            s.decision
+        );
+    }
+    for a in &r.accepted {
+        println!("{} {:?}", a.id, a.parameters);
+    }
+    println!(
+        "chi2 nominal {:.3} before {:.3} after {:.3} band {:?}",
+        r.chi2_nu_nominal, r.chi2_nu_before, r.chi2_nu_after, r.noise_band
+    );
+    println!("flagged before {:?}", r.residuals_before.flagged);
+    println!(
+        "mass {} {} {}",
+        r.inertia_nominal.mass_kg, r.inertia_before.mass_kg, r.inertia_after.mass_kg
+    );
+    println!("warnings {:?}", r.warnings);
+}
