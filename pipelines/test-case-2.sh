@@ -25,7 +25,7 @@ for example in test-case-2 demo; do
     | "$BIN/modal-fit" --plot "$D/figures/modal" \
     | tee "$D/fit.mcap" \
     | "$BIN/ni-select" --summary --plot "$D/figures/ni" 2>"$D/ni-summary.txt" \
-    | "$BIN/rb-solve" -o "$D/ni.mcap" --format json --method bretl-conti,toivola-nuutila,mass-line > "$D/ni.json" 2>>"$D/warnings.txt"
+    | "$BIN/rb-solve" -o "$D/ni.mcap" --format json --method bretl-conti,toivola-nuutila > "$D/ni.json" 2>>"$D/warnings.txt"
   {
     "$BIN/rbprops" summary "$D/ni.mcap" --campaign $example --set ni
     for set in set-I set-II set-III set-IV set-V; do
