@@ -43,12 +43,34 @@ pub fn jacobian(
     scales: &[f64],
     r0: &[f64],
 ) -> Result<DMatrix<f64>, CheckError> {
+    jacobian_with(f, theta, scales, r0, true)
+}
+
+/// Finite-difference Jacobian, central or forward (half the cost; used while iterating,
+/// where the step direction need not be exact).
+pub fn jacobian_with(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    central: bool,
+) -> Result<DMatrix<f64>, CheckError> {
     let n = r0.len();
     let cols: Vec<Result<Vec<f64>, CheckError>> = (0..theta.len())
         .into_par_iter()
         .map(|j| {
-            let h = 1e-5 * scales[j].abs().max(1e-12);
+            let h = if central { 1e-5 } else { 1e-7f64 } * scales[j].abs().max(1e-12);
             let mut tp = theta.to_vec();
+            if !central {
+                if let Ok(p) = f(&tp
+                    .iter()
+                    .enumerate()
+                    .map(|(i, t)| if i == j { t + h } else { *t })
+                    .collect::<Vec<_>>())
+                {
+                    return Ok(p.iter().zip(r0).map(|(a, b)| (a - b) / h).collect());
+                }
+            }
             tp[j] += h;
             let mut tm = theta.to_vec();
             tm[j] -= h;
@@ -89,7 +111,7 @@ pub fn fit(
         problem: format!("cannot evaluate the starting model: {e}"),
     })?;
     let mut c2 = chi2(&r);
-    let mut jm = jacobian(f, &theta, &bounds.scales, &r)?;
+    let mut jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     let mut lambda = 1e-3;
     let mut converged = false;
     let mut it = 0;
@@ -142,11 +164,13 @@ pub fn fit(
             converged = true;
             break;
         }
-        jm = jacobian(f, &theta, &bounds.scales, &r)?;
         if converged {
             break;
         }
+        jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     }
+    // Central differences at the solution, for standard errors and score tests.
+    let jm = jacobian(f, &theta, &bounds.scales, &r)?;
     Ok(Fit {
         theta,
         residual: r,

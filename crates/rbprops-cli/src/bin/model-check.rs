@@ -1,0 +1,376 @@
+//! `model-check`: why do a simulation and a recording differ? Locates the mismatch,
+//! names the missing physics, fits it and shows the fit improve against the noise
+//! (the numerics are in `rbprops-check`).
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, ValueEnum};
+use rbprops_check::{CheckOptions, CheckOutcome, NoiseModel};
+use rbprops_formats::topics;
+use rbprops_plot::{heat_map, line_plot, HeatMap, LinePlot, LineStyle, Scale, Series};
+use rbprops_sim::CampaignSpec;
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, ValueEnum)]
+enum OutFormat {
+    /// The short verdict and the main numbers.
+    Text,
+    /// The full report as JSON.
+    Json,
+    /// The input run plus the report topic, as MCAP on stdout.
+    Mcap,
+}
+
+/// Check a recording against the nominal simulation: noise floor, baseline fit of the
+/// nominal parameters, residual maps, missing-physics screening and refit.
+#[derive(Parser)]
+#[command(name = "model-check", version, about)]
+struct Args {
+    /// The nominal campaign spec (TOML, as frf-sim reads it). Omit with --example.
+    spec: Option<PathBuf>,
+    /// The recording: MCAP file, CSV directory, or `-`/absent for MCAP on stdin.
+    #[arg(short, long)]
+    input: Option<PathBuf>,
+    /// Use a built-in campaign as the nominal spec.
+    #[arg(long, conflicts_with = "spec")]
+    example: Option<String>,
+    /// Output format (default: text on a terminal or with -o, else MCAP).
+    #[arg(long, value_enum)]
+    format: Option<OutFormat>,
+    /// Write the run with the report topic: FILE.mcap, or a directory for CSV.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Write the improved campaign spec (fitted parameters, accepted effects) here.
+    #[arg(long)]
+    improved_spec: Option<PathBuf>,
+    /// Write measured/nominal/improved FRF overlays and residual maps (SVG) here.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// Weighed mass (kg): fixes the mass, which makes a global gain error observable.
+    #[arg(long)]
+    weighed_mass: Option<f64>,
+    /// Known sensor mass: `POINT=KG` (repeatable) or `KG` for every sensor point.
+    #[arg(long)]
+    sensor_mass: Vec<String>,
+    /// Known noise, relative part (fraction of |H|), instead of estimating it.
+    #[arg(long)]
+    noise_relative: Option<f64>,
+    /// Known noise, absolute floor (FRF units).
+    #[arg(long, requires = "noise_relative")]
+    noise_floor: Option<f64>,
+    /// Family-wise false-positive rate per selection step.
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// At most this many effects are accepted.
+    #[arg(long, default_value_t = 4)]
+    max_effects: usize,
+    /// Screen only these effect ids (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<String>,
+}
+
+fn main() -> std::process::ExitCode {
+    rbprops_cli::run("model-check", || {
+        let args = Args::parse();
+        let (text, source) = match (&args.spec, &args.example) {
+            (Some(p), _) => (
+                std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
+                p.display().to_string(),
+            ),
+            (None, Some(name)) => match rbprops_sim::example(name) {
+                Some(t) => (t.to_string(), format!("example '{name}'")),
+                None => bail!(
+                    "unknown example '{name}' (available: {})",
+                    rbprops_sim::example_names().join(", ")
+                ),
+            },
+            (None, None) => bail!("give the nominal campaign spec (TOML) or --example NAME"),
+        };
+        let spec =
+            CampaignSpec::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let mut rec = input.record;
+        let (geometry, frf) = rec
+            .require_geometry_and_frf()
+            .with_context(|| input.name.clone())?;
+        let frf = frf.clone();
+        let mut opts = CheckOptions {
+            alpha: args.alpha,
+            max_effects: args.max_effects,
+            weighed_mass_kg: args.weighed_mass,
+            sensor_masses_kg: sensor_masses(&args.sensor_mass, &geometry)?,
+            only: (!args.only.is_empty()).then(|| args.only.clone()),
+            ..Default::default()
+        };
+        if let Some(a) = args.noise_relative {
+            let n = frf.n_channels;
+            opts.noise = Some(NoiseModel {
+                relative: vec![a; n],
+                floor: vec![args.noise_floor.unwrap_or(0.0); n],
+                source: "given (--noise-relative/--noise-floor)".into(),
+                variance_scale_se: 0.0,
+            });
+        }
+        let out = rbprops_check::check(&spec, &geometry, &frf, &opts)
+            .with_context(|| format!("{} against {source}", input.name))?;
+        rbprops_cli::warn_all("model-check", &out.report.warnings);
+        if let Some(p) = &args.improved_spec {
+            let mut s = out.improved_spec.clone();
+            s.description = format!(
+                "{} [improved by model-check: {}]",
+                s.description, out.report.verdict
+            );
+            rbprops_cli::write_text(p, &s.to_toml_string())?;
+        }
+        if let Some(dir) = &args.plot {
+            rbprops_cli::write_plots(dir, &plots(&out, &geometry)?)?;
+        }
+        rec.push_provenance(rbprops_cli::provenance("model-check", &input.sha256))?;
+        rec.set(topics::MODEL_CHECK, &[out.report.clone()]);
+        if let Some(p) = &args.output {
+            rbprops_cli::write_output(&rec, Some(p))?;
+        }
+        let format = args.format.unwrap_or(
+            if rbprops_cli::stdout_is_terminal() || args.output.is_some() {
+                OutFormat::Text
+            } else {
+                OutFormat::Mcap
+            },
+        );
+        match format {
+            OutFormat::Text => print!("{}", summary(&out)),
+            OutFormat::Json => println!("{}", serde_json::to_string_pretty(&out.report)?),
+            OutFormat::Mcap => rbprops_cli::write_output(&rec, None)?,
+        }
+        Ok(())
+    })
+}
+
+fn sensor_masses(items: &[String], g: &rbprops_core::Geometry) -> Result<Vec<(String, f64)>> {
+    let mut points: Vec<String> = Vec::new();
+    for c in &g.channels {
+        if !points.contains(&c.point) {
+            points.push(c.point.clone());
+        }
+    }
+    let mut out = Vec::new();
+    for it in items {
+        match it.split_once('=') {
+            Some((p, m)) => out.push((p.trim().to_string(), parse_kg(m)?)),
+            None => {
+                let m = parse_kg(it)?;
+                out.extend(points.iter().map(|p| (p.clone(), m)));
+            }
+        }
+    }
+    Ok(out)
+}
+
+fn parse_kg(s: &str) -> Result<f64> {
+    let m: f64 = s
+        .trim()
+        .parse()
+        .with_context(|| format!("sensor mass '{s}': not a number"))?;
+    if !(m.is_finite() && m >= 0.0) {
+        bail!("sensor mass {m}: must be finite and ≥ 0 kg");
+    }
+    Ok(m)
+}
+
+fn summary(out: &CheckOutcome) -> String {
+    let r = &out.report;
+    let mut s = format!("{}\n\n", r.verdict);
+    s += &format!(
+        "χ²/ν: nominal {:.3}, baseline fit {:.3}, final {:.3} (noise band {:.3}–{:.3}, ν = {:.0})\n",
+        r.chi2_nu_nominal, r.chi2_nu_before, r.chi2_nu_after, r.noise_band[0], r.noise_band[1], r.nu_after
+    );
+    for a in &r.accepted {
+        s += &format!(
+            "accepted {} (Δχ² {:.1}, ΔBIC {:.1}, {} dof):\n",
+            a.id, a.delta_chi2, a.delta_bic, a.dof
+        );
+        for p in &a.parameters {
+            s += &format!(
+                "  {:<40} {:>12.6} ± {:.2e} {}\n",
+                p.name, p.value, p.standard_error, p.unit
+            );
+        }
+    }
+    for f in &r.ambiguous {
+        s += &format!(
+            "ambiguous: {} — to separate: {}\n",
+            f.ids.join(" / "),
+            f.separating_measurement
+        );
+    }
+    for n in &r.not_observable {
+        s += &format!(
+            "not observable: {} — {}; would need {}\n",
+            n.id, n.reason, n.would_reveal
+        );
+    }
+    s += "\ninertia              nominal        before (±SE)              after (±SE)\n";
+    let q = |e: &rbprops_check::report::InertiaEstimateReport| {
+        [
+            e.mass_kg,
+            e.com_m[0],
+            e.com_m[1],
+            e.com_m[2],
+            e.moments_kg_m2[0],
+            e.moments_kg_m2[1],
+            e.moments_kg_m2[2],
+            e.products_kg_m2[0],
+            e.products_kg_m2[1],
+            e.products_kg_m2[2],
+        ]
+    };
+    let (n, b, a) = (
+        q(&r.inertia_nominal),
+        q(&r.inertia_before),
+        q(&r.inertia_after),
+    );
+    for i in 0..10 {
+        s += &format!(
+            "{:<12} {:>12.6} {:>12.6} ±{:<10.2e} {:>12.6} ±{:<10.2e}\n",
+            rbprops_check::params::INERTIA_NAMES[i],
+            n[i],
+            b[i],
+            r.inertia_before.standard_errors[i],
+            a[i],
+            r.inertia_after.standard_errors[i]
+        );
+    }
+    s += "(products J_xy = ∫xy dm etc.; the tensor's off-diagonal entries are their negatives)\n";
+    if !r.residuals_after.flagged.is_empty() {
+        s += &format!(
+            "remaining flagged cells: {}\n",
+            r.residuals_after.flagged.join(", ")
+        );
+    }
+    s
+}
+
+fn plots(out: &CheckOutcome, g: &rbprops_core::Geometry) -> Result<Vec<(String, String)>> {
+    let r = &out.report;
+    let l = &out.layout;
+    let nl = l.n_lines();
+    let nch = l.channel_map.len();
+    let mut files = Vec::new();
+    // Overlays in the flagged cells of the baseline residual (strongest first, up to 6).
+    let mut cells: Vec<&rbprops_check::locate::ResidualCell> = r
+        .residuals_before
+        .cells
+        .iter()
+        .filter(|c| c.z > 5.0)
+        .collect();
+    cells.sort_by(|a, b| b.z.total_cmp(&a.z));
+    let mut seen = Vec::new();
+    for c in cells {
+        let key = (c.excitation.clone(), c.channel.clone());
+        if seen.contains(&key) || seen.len() >= 6 {
+            continue;
+        }
+        seen.push(key);
+        let e = g
+            .excitations
+            .iter()
+            .position(|x| x.id == c.excitation)
+            .unwrap_or(0);
+        let ch = g
+            .channels
+            .iter()
+            .position(|x| x.id == c.channel)
+            .unwrap_or(0);
+        let at = |v: &[rbprops_core::c64]| -> Vec<f64> {
+            v[(e * nch + ch) * nl..(e * nch + ch + 1) * nl]
+                .iter()
+                .map(|x| x.norm())
+                .collect()
+        };
+        let f = l.frequency_hz.clone();
+        let plot = LinePlot {
+            title: format!(
+                "{} / {}: measured vs nominal vs improved",
+                c.excitation, c.channel
+            ),
+            x_label: "Frequency [Hz]".into(),
+            y_label: format!("|H| [{}]", l.quantity.unit()),
+            y_scale: Scale::Log10,
+            series: vec![
+                Series::new("measured", f.clone(), at(&out.measured)),
+                Series::new("nominal spec", f.clone(), at(&out.nominal))
+                    .with_style(LineStyle::Dotted),
+                Series::new("baseline fit", f.clone(), at(&out.baseline))
+                    .with_style(LineStyle::Dashed),
+                Series::new("improved", f, at(&out.improved)).with_style(LineStyle::Dashed),
+            ],
+            ..Default::default()
+        };
+        files.push((
+            format!(
+                "overlay_{}_{}.svg",
+                rbprops_cli::plots::sanitize(&c.excitation),
+                rbprops_cli::plots::sanitize(&c.channel)
+            ),
+            line_plot(&plot)?,
+        ));
+    }
+    // Residual maps: χ²/n per channel (rows) × excitation (columns), before and after.
+    for (name, map) in [
+        ("before", &r.residuals_before),
+        ("after", &r.residuals_after),
+    ] {
+        let rows: Vec<String> = l
+            .channel_map
+            .iter()
+            .map(|&c| l.spec_geometry.channels[c].id.clone())
+            .collect();
+        let cols: Vec<String> = l
+            .excitation_map
+            .iter()
+            .map(|&e| l.spec_geometry.excitations[e].id.clone())
+            .collect();
+        let values = rows
+            .iter()
+            .map(|ch| {
+                cols.iter()
+                    .map(|ex| {
+                        let (mut n, mut c2) = (0usize, 0.0);
+                        for c in map
+                            .cells
+                            .iter()
+                            .filter(|c| &c.channel == ch && &c.excitation == ex)
+                        {
+                            n += c.n;
+                            c2 += c.chi2;
+                        }
+                        if n > 0 {
+                            (c2 / n as f64).log10()
+                        } else {
+                            f64::NAN
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let hm = HeatMap {
+            title: format!(
+                "noise-normalised residual {name} ({})",
+                if name == "before" {
+                    "baseline fit"
+                } else {
+                    "final model"
+                }
+            ),
+            row_labels: rows,
+            column_labels: cols,
+            values,
+            x_label: "excitation".into(),
+            y_label: "channel".into(),
+            value_label: "log10 χ²/n (0 = noise)".into(),
+            decimals: 2,
+            ..Default::default()
+        };
+        files.push((format!("residual_map_{name}.svg"), heat_map(&hm)?));
+    }
+    Ok(files)
+}
