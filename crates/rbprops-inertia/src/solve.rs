@@ -104,6 +104,9 @@ pub struct SolveOutput {
     pub warnings: Vec<String>,
 }
 
+/// Largest relative standard error of the mass for a mass-line estimate to be reported.
+pub const MASS_LINE_MAX_RELATIVE_STD: f64 = 0.05;
+
 /// Relative rigid-body residual above which a shape is flagged.
 pub const SHAPE_RESIDUAL_WARNING: f64 = 0.1;
 /// Complexity angle above which a mode is flagged (rad).
@@ -724,6 +727,20 @@ fn mass_line_estimate(
         Ok(property_vector(&properties_about(&s.mass_matrix, &origin)))
     };
     let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    // A mass line fitted on a band too short or too noisy gives numbers that look like an
+    // estimate (even a negative mass); refuse them instead of reporting them.
+    let m = sol.mass_matrix.mass();
+    let sd_m = std.map(|s| s[0]).unwrap_or(0.0);
+    if !(m > 0.0) || !sd_m.is_finite() || sd_m > MASS_LINE_MAX_RELATIVE_STD * m {
+        return Err(InertiaError::MassLine(format!(
+            "mass line unreliable on {:.3}–{:.3} Hz: m = {m:.4} ± {:.2e} kg (more than {:.0} % standard error); \
+             the band between the rigid-body and the first elastic modes is too short or too noisy — give one with --mass-line-band",
+            band.lo_hz,
+            band.hi_hz,
+            sd_m,
+            100.0 * MASS_LINE_MAX_RELATIVE_STD
+        )));
+    }
     let setup = distinct(geometry.excitations.iter().map(|e| e.setup.clone())).join("+");
     Ok((
         EstimateParts {
