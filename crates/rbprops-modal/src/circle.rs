@@ -99,7 +99,7 @@ fn wrap(a: f64) -> f64 {
 }
 
 /// Circle fit of one channel's mobility points `y` at `w` around a first guess `wr0`.
-fn fit_channel(w: &[f64], y: &[c64], wr0: f64) -> Option<Circ> {
+fn fit_channel(w: &[f64], y: &[c64], wr0: f64, zeta0: f64) -> Option<Circ> {
     let (centre, radius, rms_dev) = kasa(y)?;
     let ang: Vec<f64> = y.iter().map(|p| (p - centre).arg()).collect();
     // Unwrap along frequency (the points sweep clockwise once around the circle).
@@ -108,48 +108,70 @@ fn fit_channel(w: &[f64], y: &[c64], wr0: f64) -> Option<Circ> {
         let prev = *un.last().unwrap();
         un.push(prev + wrap(ang[k] - ang[k - 1]));
     }
-    let mut wr = wr0;
-    let mut zeta = 0.0;
-    let mut phi0 = 0.0;
-    for _ in 0..4 {
-        // Resonance direction: angle at the current ω_r by linear interpolation.
-        let k = w.partition_point(|&x| x < wr).clamp(1, w.len() - 1);
-        let t = ((wr - w[k - 1]) / (w[k] - w[k - 1])).clamp(0.0, 1.0);
-        phi0 = un[k - 1] + t * (un[k] - un[k - 1]);
-        // ω tan(ψ/2) = a − b ω²
-        let (mut s11, mut s12, mut s22, mut r1, mut r2) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (i, &wk) in w.iter().enumerate() {
-            let psi = un[i] - phi0;
-            if psi.abs() >= PI * 0.95 {
-                continue;
+    // Gauss–Newton on the angle residuals r_k = θ_k − φ0 − 2 atan(x_k),
+    // x_k = (a − bω̂_k²)/ω̂_k (ω̂ = ω/ω_0 for conditioning), from the first guess
+    // (ω_r = ω_0, ζ = ζ_0, φ0 = angle at ω_0). Three unknowns, well conditioned over a
+    // window of a few bandwidths (unlike the linearised relaxations of this relation).
+    let k0 = w.partition_point(|&x| x < wr0).clamp(1, w.len() - 1);
+    let t0 = ((wr0 - w[k0 - 1]) / (w[k0] - w[k0 - 1])).clamp(0.0, 1.0);
+    let mut phi0 = un[k0 - 1] + t0 * (un[k0] - un[k0 - 1]);
+    let x: Vec<f64> = w.iter().map(|wk| wk / wr0).collect();
+    let (mut a, mut b) = (1.0 / (2.0 * zeta0), 1.0 / (2.0 * zeta0));
+    let cost = |a: f64, b: f64, phi0: f64| -> f64 {
+        x.iter()
+            .zip(&un)
+            .map(|(xk, th)| (th - phi0 - 2.0 * ((a - b * xk * xk) / xk).atan()).powi(2))
+            .sum()
+    };
+    let mut c = cost(a, b, phi0);
+    for _ in 0..50 {
+        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
+        let mut jtr = nalgebra::Vector3::<f64>::zeros();
+        for (xk, th) in x.iter().zip(&un) {
+            let xx = (a - b * xk * xk) / xk;
+            let r = th - phi0 - 2.0 * xx.atan();
+            let g = -2.0 / (1.0 + xx * xx);
+            let jrow = nalgebra::Vector3::new(g / xk, -g * xk, -1.0);
+            jtj += jrow * jrow.transpose();
+            jtr += jrow * r;
+        }
+        let step = jtj.lu().solve(&(-jtr))?;
+        let mut lam = 1.0;
+        let mut improved = false;
+        for _ in 0..20 {
+            let (a2, b2, p2) = (a + lam * step[0], b + lam * step[1], phi0 + lam * step[2]);
+            let c2 = cost(a2, b2, p2);
+            if a2 > 0.0 && b2 > 0.0 && c2 <= c {
+                improved = c - c2 > 1e-15 * c.max(1e-300);
+                (a, b, phi0, c) = (a2, b2, p2, c2);
+                break;
             }
-            let lhs = wk * (psi / 2.0).tan();
-            let (c1, c2) = (1.0, -wk * wk);
-            s11 += c1 * c1;
-            s12 += c1 * c2;
-            s22 += c2 * c2;
-            r1 += c1 * lhs;
-            r2 += c2 * lhs;
+            lam *= 0.5;
         }
-        let det = s11 * s22 - s12 * s12;
-        if !(det.abs() > 0.0) {
-            return None;
+        if !improved {
+            break;
         }
-        let a = (r1 * s22 - r2 * s12) / det;
-        let b = (s11 * r2 - s12 * r1) / det;
-        if !(a > 0.0 && b > 0.0) {
-            return None;
-        }
-        wr = (a / b).sqrt();
-        zeta = 1.0 / (2.0 * (a * b).sqrt());
     }
+    if !(a > 0.0 && b > 0.0 && a.is_finite() && b.is_finite()) {
+        return None;
+    }
+    let wr = wr0 * (a / b).sqrt();
+    let zeta = 1.0 / (2.0 * (a * b).sqrt());
     Some(Circ {
         wr,
         zeta,
         radius,
         phi0,
         rms_dev,
-        ok: wr.is_finite() && zeta.is_finite() && zeta > 0.0,
+        // A channel votes only when its circle is a clean SDOF circle near the guess:
+        // points on the circle (rms deviation < 5 % of the radius), resonance inside the
+        // window, damping below 0.5.
+        ok: wr.is_finite()
+            && zeta.is_finite()
+            && zeta > 0.0
+            && zeta < 0.5
+            && (wr - wr0).abs() < (w[w.len() - 1] - w[0])
+            && rms_dev < 0.05 * radius,
     })
 }
 
@@ -240,7 +262,7 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
                         v
                     })
                     .collect();
-                fits.push(fit_channel(&w, &y, wr0));
+                fits.push(fit_channel(&w, &y, wr0, z0));
             }
             // Consensus ω_r and ζ: weighted by the squared diameter (large circles are
             // the reliable ones); tiny circles (< 1e-3 of the largest) do not vote.
@@ -371,5 +393,29 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
         modes,
         warnings,
         synthesised,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn single_channel_sdof_circle_is_exact() {
+        let (wr, z) = (2.0 * PI * 1.3, 0.015);
+        for a in [c64::new(0.7, 0.0), c64::new(-0.2, 0.05)] {
+            let w: Vec<f64> = (0..25)
+                .map(|k| wr * (1.0 - 2.0 * z + 4.0 * z * k as f64 / 24.0))
+                .collect();
+            let y: Vec<c64> = w
+                .iter()
+                .map(|&x| sdof_mobility(wr, z, a, x) + c64::new(0.01, -0.02))
+                .collect();
+            let c = fit_channel(&w, &y, wr * 1.001, 0.012).unwrap();
+            assert!((c.wr - wr).abs() < 1e-9 * wr, "{} vs {wr}", c.wr);
+            assert!((c.zeta - z).abs() < 1e-9, "{} vs {z}", c.zeta);
+            let a_est = c64::from_polar(2.0 * c.zeta * c.wr * 2.0 * c.radius, c.phi0);
+            assert!((a_est - a).norm() < 1e-6 * a.norm(), "{a_est} vs {a}");
+        }
     }
 }

@@ -110,6 +110,14 @@ fn live_channels(band: &BandData, geometry: &Geometry, name: &str) -> (Vec<usize
     (live, warnings)
 }
 
+/// Upper 1e-4 quantile of χ² with `k` degrees of freedom (Wilson–Hilferty).
+fn chi2_threshold(k: usize) -> f64 {
+    let k = k as f64;
+    let z = 3.719; // standard normal upper 1e-4 quantile
+    let c = 2.0 / (9.0 * k);
+    k * (1.0 - c + z * c.sqrt()).powi(3)
+}
+
 /// Standard deviation of `(f, ζ)` from the covariance of `(Re λ, Im λ)`.
 fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
     let (re, im) = (p.0.re, p.0.im);
@@ -130,6 +138,17 @@ fn estimate_poles(
     chans: &[Vec<c64>],
     opts: &FitOptions,
     name: &str,
+) -> Result<PoleSet, ModalError> {
+    estimate_poles_from(band, chans, opts, name, None)
+}
+
+/// As [`estimate_poles`], with the pole-estimation sub-band capped at `cap_hz`.
+fn estimate_poles_from(
+    band: &BandData,
+    chans: &[Vec<c64>],
+    opts: &FitOptions,
+    name: &str,
+    cap_hz: Option<f64>,
 ) -> Result<PoleSet, ModalError> {
     let n = band.n_lines();
     let mut warnings = Vec::new();
@@ -156,7 +175,10 @@ fn estimate_poles(
     // band. So when the stable modes all sit low, the sweep is repeated on the lines up
     // to twice the highest stable mode (or half the band when none is stable). The
     // refinement and the residues still use the whole band.
-    let mut sub = band.clone();
+    let mut sub = match cap_hz {
+        Some(f) => band.up_to(f),
+        None => band.clone(),
+    };
     let mut sel;
     loop {
         let nm = opts.max_order.min(sub.n_lines().saturating_sub(2));
@@ -210,7 +232,8 @@ fn estimate_poles(
     }
     let mut poles: Vec<Pole> = sel.modes.iter().map(|m| m.pole).collect();
     let mut std: Vec<(f64, f64)> = sel.modes.iter().map(|m| m.spread).collect();
-    let confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
+
+    let mut confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
     let mut mode_warnings = vec![Vec::new(); poles.len()];
     let res = Residuals::for_band(opts.residual_terms, band);
     if opts.refine && opts.method != Method::Circle {
@@ -222,23 +245,123 @@ fn estimate_poles(
                 poles.len()
             ));
         } else {
-            let r = lsfd::refine(&poles, band, chans, res);
-            // Refinement is local: reject it if it moved a pole by more than a couple of
-            // bandwidths (it then found a different minimum, e.g. swapped two modes).
-            let moved = poles
-                .iter()
-                .zip(&r.poles)
-                .map(|(a, b)| a.distance_in_bandwidths(b))
-                .fold(0.0, f64::max);
-            if moved > 3.0
-                || r.poles
+            // Refinement is local. A pole it pushes more than ten half-bandwidths away,
+            // out of the band or past the damping limit is not supported by the data
+            // (a computational pole that looked stable): drop it and refine again.
+            let mut r = lsfd::refine(&poles, band, chans, res);
+            let band_w = (band.omega[0], *band.omega.last().unwrap());
+            loop {
+                let bad = poles
                     .iter()
-                    .any(|p| p.damping() >= opts.tolerances.max_damping)
-            {
+                    .zip(&r.poles)
+                    .enumerate()
+                    .map(|(i, (a, b))| {
+                        let off = b.damping() >= opts.tolerances.max_damping
+                            || b.omega_n() < band_w.0
+                            || b.omega_n() > band_w.1;
+                        (
+                            i,
+                            if off {
+                                f64::INFINITY
+                            } else {
+                                a.distance_in_bandwidths(b)
+                            },
+                        )
+                    })
+                    .filter(|(_, d)| *d > 10.0)
+                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+                let Some((i, d)) = bad else { break };
                 warnings.push(format!(
-                    "excitation '{name}': pole refinement moved a pole by {moved:.1} half-bandwidths; kept the stabilisation-diagram poles"
+                    "excitation '{name}': pole at {:.4} Hz dropped: the refinement could not hold it (moved {d:.1} half-bandwidths or left the band), so it is computational",
+                    poles[i].frequency_hz()
                 ));
-            } else {
+                poles.remove(i);
+                // A spurious high pole can hide that the modes sit low in the band:
+                // redo the diagram on the lines up to twice the highest remaining mode.
+                let top_sub = *sub.frequency_hz.last().unwrap();
+                if let Some(f_top) = poles.iter().map(|p| p.frequency_hz()).reduce(f64::max) {
+                    let lines = band.frequency_hz.partition_point(|&f| f <= 2.0 * f_top);
+                    if cap_hz.is_none()
+                        && 2.0 * f_top < 0.6 * top_sub
+                        && lines >= 4 * opts.max_order.max(8)
+                    {
+                        let mut ps =
+                            estimate_poles_from(band, chans, opts, name, Some(2.0 * f_top))?;
+                        let mut w = warnings.clone();
+                        w.append(&mut ps.warnings);
+                        ps.warnings = w;
+                        return Ok(ps);
+                    }
+                }
+                std.remove(i);
+                confidence.remove(i);
+                mode_warnings.remove(i);
+                if poles.is_empty() {
+                    break;
+                }
+                r = lsfd::refine(&poles, band, chans, res);
+            }
+            if poles.is_empty() {
+                return Err(ModalError::NoModes {
+                    excitation: name.into(),
+                    reason: "every selected pole was dropped by the refinement".into(),
+                });
+            }
+            {
+                let mut r = r;
+                if opts.n_modes.is_none() {
+                    // Model-order test on the residual: a weak mode beside a strong one
+                    // is often only intermittently stable in the diagram. Try each
+                    // rejected cluster as an extra mode; keep it when the cost drop is
+                    // significant for the 2 + 2·channels parameters it adds (χ², p=1e-4).
+                    let no = chans.len();
+                    let dof_added = 2 + 2 * no;
+                    let threshold = chi2_threshold(dof_added);
+                    for cand in &sel.candidates {
+                        let mut trial_poles = r.poles.clone();
+                        if trial_poles
+                            .iter()
+                            .any(|p| p.distance_in_bandwidths(&cand.pole) < 0.25)
+                        {
+                            continue;
+                        }
+                        trial_poles.push(cand.pole);
+                        if 2 * n <= 2 * (2 * trial_poles.len() + 2) {
+                            break;
+                        }
+                        let r2 = lsfd::refine(&trial_poles, band, chans, res);
+                        let added = *r2.poles.last().unwrap();
+                        let dof = (2 * n * no)
+                            .saturating_sub(no * (2 * r2.poles.len() + 2) + 2 * r2.poles.len())
+                            .max(1) as f64;
+                        let s2 = r2.cost.1 / dof;
+                        let separate = r2.poles[..r2.poles.len() - 1]
+                            .iter()
+                            .all(|p| p.distance_in_bandwidths(&added) > 0.25);
+                        let physical = added.damping() > 0.0
+                            && added.damping() < opts.tolerances.max_damping
+                            && added.omega_n() >= band.omega[0]
+                            && added.omega_n() <= *band.omega.last().unwrap();
+                        if physical
+                            && separate
+                            && !r2.singular
+                            && added.distance_in_bandwidths(&cand.pole) < 3.0
+                            && (r.cost.1 - r2.cost.1) / s2 > threshold
+                        {
+                            warnings.push(format!(
+                                "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, cost −{:.1}σ²)",
+                                added.frequency_hz(),
+                                (r.cost.1 - r2.cost.1) / s2
+                            ));
+                            std.push(cand.spread);
+                            confidence.push(0.5 * cand.presence);
+                            mode_warnings.push(vec![
+                                "found by the residual model-order test, not stable throughout the diagram".into(),
+                            ]);
+                            r = r2;
+                        }
+                    }
+                }
                 if r.singular {
                     warnings.push(format!(
                         "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
@@ -265,6 +388,8 @@ fn estimate_poles(
     let poles: Vec<Pole> = idx.iter().map(|&i| poles[i]).collect();
     let std: Vec<(f64, f64)> = idx.iter().map(|&i| std[i]).collect();
     let mut confidence: Vec<f64> = idx.iter().map(|&i| confidence[i]).collect();
+    let mut mode_warnings: Vec<Vec<String>> =
+        idx.iter().map(|&i| mode_warnings[i].clone()).collect();
     // Close pairs: say plainly when two poles cannot be told apart.
     for i in 0..poles.len() {
         for j in i + 1..poles.len() {

@@ -41,9 +41,46 @@ impl Residuals {
     }
 }
 
-/// Complex basis columns (before real stacking), each already multiplied by `q(ω)`.
-fn basis_columns(poles: &[Pole], band: &BandData, res: Residuals) -> Vec<Vec<c64>> {
-    let q = band.quantity_factor();
+/// Per-line weights shared by all channels: `w_k = 1/√(mean_o |h_ok/rms_o|²)`.
+///
+/// Noise in measured FRFs is roughly proportional to |H| (1 % per line in the tests), so
+/// unweighted least squares lets the resonance peaks dominate and makes the residual
+/// variance meaningless for a model-order test. A weight common to all channels keeps
+/// the basis shared (one QR for all channels) while equalising the lines.
+pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
+    let n = chans[0].len();
+    let rms: Vec<f64> = chans
+        .iter()
+        .map(|h| (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt())
+        .collect();
+    let live: Vec<usize> = (0..chans.len()).filter(|&o| rms[o] > 0.0).collect();
+    if live.is_empty() {
+        return vec![1.0; n];
+    }
+    let level: Vec<f64> = (0..n)
+        .map(|k| {
+            live.iter()
+                .map(|&o| chans[o][k].norm_sqr() / (rms[o] * rms[o]))
+                .sum::<f64>()
+                / live.len() as f64
+        })
+        .collect();
+    let mean = level.iter().sum::<f64>() / n as f64;
+    level
+        .iter()
+        .map(|l| 1.0 / l.max(1e-12 * mean).sqrt())
+        .collect()
+}
+
+/// Complex basis columns (before real stacking), each multiplied by `q(ω)` and the line
+/// weight.
+fn basis_columns(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Vec<Vec<c64>> {
+    let q: Vec<c64> = band
+        .quantity_factor()
+        .iter()
+        .zip(w)
+        .map(|(q, w)| q * *w)
+        .collect();
     let mut cols = Vec::with_capacity(2 * poles.len() + res.count());
     for p in poles {
         let mut c1 = Vec::with_capacity(band.n_lines());
@@ -94,10 +131,10 @@ fn stack(cols: &[Vec<c64>]) -> (Mat<f64>, Vec<f64>) {
     (a, scale)
 }
 
-fn stack_data(chans: &[Vec<c64>]) -> Mat<f64> {
+fn stack_data(chans: &[Vec<c64>], w: &[f64]) -> Mat<f64> {
     let n = chans[0].len();
     Mat::from_fn(2 * n, chans.len(), |i, j| {
-        let z = chans[j][i % n];
+        let z = chans[j][i % n] * w[i % n];
         if i < n {
             z.re
         } else {
@@ -129,12 +166,13 @@ pub fn fit_residues(
     chans: &[Vec<c64>],
     res: Residuals,
 ) -> ResidueFit {
-    let cols = basis_columns(poles, band, res);
+    let w = line_weights(chans);
+    let cols = basis_columns(poles, band, res, &w);
     let (a, scale) = stack(&cols);
     let rows = a.nrows();
     let p = a.ncols();
     let qr = TallQr::new(a);
-    let (x, rss) = qr.solve(&stack_data(chans));
+    let (x, rss) = qr.solve(&stack_data(chans, &w));
     let ginv = qr.inverse_gram();
     let rd = qr.r_diag();
     let basis_conditioning =
@@ -228,8 +266,8 @@ struct Trial {
     n_cols: usize,
 }
 
-fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], res: Residuals) -> Trial {
-    let raw = basis_columns(poles, band, res);
+fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], w: &[f64], res: Residuals) -> Trial {
+    let raw = basis_columns(poles, band, res, w);
     let (a, scale) = stack(&raw);
     let cols: Vec<Vec<c64>> = raw
         .iter()
@@ -237,12 +275,12 @@ fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], res: Residuals) -> 
         .map(|(c, s)| c.iter().map(|z| z / *s).collect())
         .collect();
     let qr = TallQr::new(a);
-    let (x, rss) = qr.solve(&stack_data(data));
+    let (x, rss) = qr.solve(&stack_data(data, w));
     let no = data.len();
     let p = cols.len();
     let resid: Vec<Vec<c64>> = (0..no)
         .map(|o| {
-            let mut r = data[o].clone();
+            let mut r: Vec<c64> = data[o].iter().zip(w).map(|(z, wk)| z * *wk).collect();
             for j in 0..p {
                 let c = x[(j, o)];
                 for (rk, bk) in r.iter_mut().zip(&cols[j]) {
@@ -303,11 +341,17 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
             h.iter().map(|z| z / rms).collect()
         })
         .collect();
-    let q = band.quantity_factor();
+    let lw = line_weights(&data);
+    let q: Vec<c64> = band
+        .quantity_factor()
+        .iter()
+        .zip(&lw)
+        .map(|(q, w)| q * *w)
+        .collect();
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
-    let mut t = trial(&cur, band, &data, res);
+    let mut t = trial(&cur, band, &data, &lw, res);
     let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
@@ -409,7 +453,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 mu *= 10.0;
                 continue;
             }
-            let t2 = trial(&cand, band, &data, res);
+            let t2 = trial(&cand, band, &data, &lw, res);
             if t2.cost <= t.cost {
                 let rel_step = (0..nm)
                     .map(|m| {

@@ -84,6 +84,9 @@ pub struct SelectedPole {
 pub struct Selection {
     pub diagram: StabilisationDiagram,
     pub modes: Vec<SelectedPole>,
+    /// Rejected clusters with at least two poles, best supported first: candidates for
+    /// a residual-driven model-order test (a weak mode next to a strong one).
+    pub candidates: Vec<SelectedPole>,
     pub warnings: Vec<String>,
 }
 
@@ -244,40 +247,70 @@ pub fn select(
             ranked.iter().take(k).map(|r| r.0).collect()
         }
     };
-    let mut modes: Vec<(usize, SelectedPole)> = keep
-        .iter()
-        .map(|&ci| {
-            let c = &clusters[ci];
-            // The highest-order member (first pushed) is the representative.
-            let (_, oi, pi) = c.members[0];
-            let span = n_max + 1 - c.lowest_order;
-            let fz: Vec<(f64, f64)> = c
-                .members
-                .iter()
-                .map(|&(_, oi, pi)| {
-                    let p = orders[oi].poles[pi];
-                    (p.frequency_hz(), p.damping())
-                })
-                .collect();
-            let nf = fz.len() as f64;
-            let (mf, mz) = fz
-                .iter()
-                .fold((0.0, 0.0), |a, b| (a.0 + b.0 / nf, a.1 + b.1 / nf));
-            let var = fz.iter().fold((0.0, 0.0), |a, b| {
-                (a.0 + (b.0 - mf).powi(2) / nf, a.1 + (b.1 - mz).powi(2) / nf)
-            });
-            (
-                ci,
-                SelectedPole {
-                    pole: orders[oi].poles[pi],
-                    shape: orders[oi].shapes[pi].clone(),
-                    support: c.members.len(),
-                    presence: (c.members.len() as f64 / span as f64).min(1.0),
-                    spread: (var.0.sqrt(), var.1.sqrt()),
-                },
-            )
-        })
+    let summarise = |ci: usize| -> SelectedPole {
+        let c = &clusters[ci];
+        // The highest-order member (first pushed) is the representative.
+        let (_, oi, pi) = c.members[0];
+        let span = n_max + 1 - c.lowest_order;
+        let fz: Vec<(f64, f64)> = c
+            .members
+            .iter()
+            .map(|&(_, oi, pi)| {
+                let p = orders[oi].poles[pi];
+                (p.frequency_hz(), p.damping())
+            })
+            .collect();
+        let nf = fz.len() as f64;
+        let (mf, mz) = fz
+            .iter()
+            .fold((0.0, 0.0), |a, b| (a.0 + b.0 / nf, a.1 + b.1 / nf));
+        let var = fz.iter().fold((0.0, 0.0), |a, b| {
+            (a.0 + (b.0 - mf).powi(2) / nf, a.1 + (b.1 - mz).powi(2) / nf)
+        });
+        SelectedPole {
+            pole: orders[oi].poles[pi],
+            shape: orders[oi].shapes[pi].clone(),
+            support: c.members.len(),
+            presence: (c.members.len() as f64 / span as f64).min(1.0),
+            spread: (var.0.sqrt(), var.1.sqrt()),
+        }
+    };
+    let mut modes: Vec<(usize, SelectedPole)> =
+        keep.iter().map(|&ci| (ci, summarise(ci))).collect();
+    let mut rest: Vec<usize> = (0..clusters.len())
+        .filter(|ci| !keep.contains(ci) && clusters[*ci].members.len() >= 2)
         .collect();
+    rest.sort_by(|&a, &b| {
+        clusters[b]
+            .members
+            .len()
+            .cmp(&clusters[a].members.len())
+            .then(a.cmp(&b))
+    });
+    let mut candidates: Vec<SelectedPole> = rest.iter().take(4).map(|&ci| summarise(ci)).collect();
+    // Also the physical poles of the highest order that no kept or candidate cluster
+    // explains: a weak mode beside a strong one may appear only there.
+    if let Some(top) = orders.last() {
+        for (pi, p) in top.poles.iter().enumerate() {
+            if candidates.len() >= 6 || !physical(p, band_w, tol) {
+                continue;
+            }
+            let near = modes
+                .iter()
+                .map(|m| &m.1.pole)
+                .chain(candidates.iter().map(|c| &c.pole))
+                .any(|q| q.distance_in_bandwidths(p) < tol.cluster_bandwidths);
+            if !near {
+                candidates.push(SelectedPole {
+                    pole: *p,
+                    shape: top.shapes[pi].clone(),
+                    support: 1,
+                    presence: 1.0 / (n_max + 1 - top.order) as f64,
+                    spread: (0.0, 0.0),
+                });
+            }
+        }
+    }
     modes.sort_by(|a, b| a.1.pole.omega_n().total_cmp(&b.1.pole.omega_n()));
     for (mi, (ci, _)) in modes.iter().enumerate() {
         for &(di, _, _) in &clusters[*ci].members {
@@ -287,6 +320,7 @@ pub fn select(
     Selection {
         diagram,
         modes: modes.into_iter().map(|m| m.1).collect(),
+        candidates,
         warnings,
     }
 }
