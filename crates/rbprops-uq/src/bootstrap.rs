@@ -1,0 +1,452 @@
+//! The bootstrap driver: replicates in parallel, statistics, and their transfer into the
+//! [`InertiaEstimate`] records.
+
+use crate::error::UqError;
+use crate::model::FittedModel;
+use crate::noise::ChannelNoise;
+use crate::reidentify::{full_refit, refine_group, MatchTolerances, Reidentify, ReplicateModes};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
+use rbprops_core::{FrfSet, Geometry};
+use rbprops_inertia::{solve, Estimator, SolveOptions, SolveOutput};
+use rbprops_modal::PoleMode;
+
+/// Number of properties: m, c (3), J tensor entries xx, yy, zz, xy, xz, yz (about the
+/// CoM, geometry frame; tensor off-diagonals are minus the products of inertia).
+pub const N_PROPS: usize = 10;
+
+/// Names of the properties in [`N_PROPS`] order.
+pub const PROPERTY_NAMES: [&str; N_PROPS] = [
+    "m", "cx", "cy", "cz", "Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz",
+];
+
+/// Options of [`bootstrap`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct BootstrapOptions {
+    /// Number of replicates B (default 100).
+    pub replicates: usize,
+    /// Replicate b draws its noise from a ChaCha8 stream seeded by `(seed, b)`.
+    pub seed: u64,
+    /// Default [`Reidentify::Refine`].
+    pub reidentify: Reidentify,
+    /// Whether the modal fit carried residual terms (the modal-fit default, true).
+    pub residual_terms: bool,
+    /// Poles per excitation or per set-up; `None` (default) infers it from the record.
+    pub pole_mode: Option<PoleMode>,
+    pub tolerances: MatchTolerances,
+    /// Warn when more than this fraction of the replicates fail (default 0.05).
+    pub failure_warning_fraction: f64,
+}
+
+impl Default for BootstrapOptions {
+    fn default() -> Self {
+        Self {
+            replicates: 100,
+            seed: 0,
+            reidentify: Reidentify::Refine,
+            residual_terms: true,
+            pole_mode: None,
+            tolerances: MatchTolerances::default(),
+            failure_warning_fraction: 0.05,
+        }
+    }
+}
+
+/// Bootstrap distribution of one estimate (one modal estimator on one set-up).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BootstrapEstimate {
+    pub method: String,
+    pub setup: String,
+    /// The estimate from the measured data.
+    pub estimate: [f64; N_PROPS],
+    /// Standard error: the sample standard deviation of the replicates.
+    pub std: [f64; N_PROPS],
+    /// Replicate mean minus the estimate (the bootstrap's bias estimate).
+    pub bias: [f64; N_PROPS],
+    /// Percentile 95 % interval `[q2.5, q97.5]` of the replicates.
+    pub percentile_95: [[f64; 2]; N_PROPS],
+    /// The successful replicates' property vectors, in replicate order.
+    pub samples: Vec<[f64; N_PROPS]>,
+    pub failed: usize,
+    /// Distinct failure reasons (at most five).
+    pub failure_reasons: Vec<String>,
+}
+
+impl BootstrapEstimate {
+    /// The std-based 95 % interval `estimate ± 1.96 std`.
+    pub fn normal_95(&self) -> [[f64; 2]; N_PROPS] {
+        std::array::from_fn(|k| {
+            let h = rbprops_inertia::Z95 * self.std[k];
+            [self.estimate[k] - h, self.estimate[k] + h]
+        })
+    }
+}
+
+/// The noise model of one excitation (per channel, geometry order).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExcitationNoise {
+    pub excitation: String,
+    pub channels: Vec<ChannelNoise>,
+}
+
+/// Everything [`bootstrap`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BootstrapOutput {
+    pub estimates: Vec<BootstrapEstimate>,
+    pub noise: Vec<ExcitationNoise>,
+    pub replicates: usize,
+    /// The pole mode used (given or inferred).
+    pub pole_mode: PoleMode,
+    pub warnings: Vec<String>,
+}
+
+/// The property vector of an estimate in [`N_PROPS`] order.
+pub fn estimate_vector(e: &InertiaEstimate) -> [f64; N_PROPS] {
+    let j = &e.inertia_cm_kg_m2;
+    [
+        e.mass_kg, e.com_m[0], e.com_m[1], e.com_m[2], j[0][0], j[1][1], j[2][2], j[0][1], j[0][2],
+        j[1][2],
+    ]
+}
+
+struct Target {
+    method: String,
+    setup: String,
+    modes_used: Vec<usize>,
+    estimate: [f64; N_PROPS],
+}
+
+/// Seed of replicate `b`: the run's seed, the replicate index and a tag.
+fn replicate_rng(seed: u64, b: usize) -> ChaCha8Rng {
+    let mut s = [0u8; 32];
+    s[..8].copy_from_slice(&seed.to_le_bytes());
+    s[8..16].copy_from_slice(&(b as u64).to_le_bytes());
+    s[16..28].copy_from_slice(b"rbprops-uq:b");
+    ChaCha8Rng::from_seed(s)
+}
+
+/// Parametric FRF-level bootstrap of the modal estimates (Bretl–Conti and
+/// Toivola–Nuutila) in `original` (the output of `rbprops_inertia::solve` on the
+/// measured data with `solve_opts`); see the crate documentation for the procedure.
+/// Mass-line and `_projected` estimates are not bootstrapped themselves (the latter get
+/// their base estimate's errors in [`apply`]).
+#[allow(clippy::too_many_arguments)]
+pub fn bootstrap(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    solve_opts: &SolveOptions,
+    original: &[InertiaEstimate],
+    opts: &BootstrapOptions,
+) -> Result<BootstrapOutput, UqError> {
+    if opts.replicates < 2 {
+        return Err(UqError::Options(format!(
+            "{} replicates: at least 2 are needed for a standard deviation",
+            opts.replicates
+        )));
+    }
+    let modal_names = [
+        Estimator::BretlConti.name(),
+        Estimator::ToivolaNuutila.name(),
+    ];
+    let targets: Vec<Target> = original
+        .iter()
+        .filter(|e| modal_names.contains(&e.method.as_str()))
+        .map(|e| Target {
+            method: e.method.clone(),
+            setup: e.setup.clone(),
+            modes_used: e.modes_used.clone(),
+            estimate: estimate_vector(e),
+        })
+        .collect();
+    if targets.is_empty() {
+        return Err(UqError::Nothing(vec![
+            "no Bretl–Conti or Toivola–Nuutila estimate to bootstrap".into(),
+        ]));
+    }
+    let model = FittedModel::new(
+        geometry,
+        frf,
+        modal,
+        selection,
+        opts.residual_terms,
+        opts.pole_mode,
+    )?;
+    let mut ropts = solve_opts.clone();
+    ropts.estimators.retain(|e| *e != Estimator::MassLine);
+    ropts.reference = None;
+    ropts.monte_carlo_samples = 0;
+    let required: Vec<(String, usize)> = selection
+        .selected
+        .iter()
+        .map(|s| (s.excitation.clone(), s.excitation_mode))
+        .collect();
+
+    let replicate = |b: usize| -> Result<Vec<Result<[f64; N_PROPS], String>>, String> {
+        let mut rng = replicate_rng(opts.seed, b);
+        let data: Vec<_> = model.excitations.iter().map(|e| e.draw(&mut rng)).collect();
+        let modes: Vec<ReplicateModes> = match &opts.reidentify {
+            Reidentify::Refine => {
+                let mut v = Vec::new();
+                for g in &model.groups {
+                    v.extend(refine_group(&model, g, &data, modal, &opts.tolerances)?);
+                }
+                v
+            }
+            Reidentify::Full(fo) => full_refit(
+                geometry,
+                frf,
+                &model,
+                &data,
+                modal,
+                fo,
+                &required,
+                &opts.tolerances,
+            )?,
+        };
+        let mut modal_b = modal.clone();
+        modal_b
+            .modes
+            .retain(|m| !modes.iter().any(|r| r.excitation == m.excitation));
+        for r in &modes {
+            modal_b.modes.extend(r.modes.iter().cloned());
+        }
+        let mut selection_b = selection.clone();
+        for s in &mut selection_b.selected {
+            if let Some(r) = modes.iter().find(|r| r.excitation == s.excitation) {
+                let n = r
+                    .mode_map
+                    .iter()
+                    .find(|(a, _)| *a == s.excitation_mode)
+                    .map(|(_, n)| *n)
+                    .ok_or_else(|| {
+                        format!(
+                            "excitation '{}' mode {} was not found again",
+                            s.excitation, s.excitation_mode
+                        )
+                    })?;
+                s.excitation_mode = n;
+                if let Some(m) = r.modes.iter().find(|m| m.mode == n) {
+                    s.frequency_hz = m.frequency_hz;
+                }
+            }
+        }
+        let out =
+            solve(geometry, &modal_b, &selection_b, None, &ropts).map_err(|e| e.to_string())?;
+        Ok(targets
+            .iter()
+            .map(|t| {
+                let e = out
+                    .estimates
+                    .iter()
+                    .find(|e| e.method == t.method && e.setup == t.setup)
+                    .ok_or_else(|| {
+                        let why: Vec<&str> = out
+                            .warnings
+                            .iter()
+                            .filter(|w| w.contains(&t.method) || w.contains("left out"))
+                            .map(String::as_str)
+                            .collect();
+                        format!("{} gave no estimate ({})", t.method, why.join("; "))
+                    })?;
+                if e.modes_used != t.modes_used {
+                    return Err(format!(
+                        "{} used modes {:?} instead of {:?}",
+                        t.method, e.modes_used, t.modes_used
+                    ));
+                }
+                let v = estimate_vector(e);
+                if v.iter().all(|x| x.is_finite()) {
+                    Ok(v)
+                } else {
+                    Err(format!("{}: non-finite properties", t.method))
+                }
+            })
+            .collect())
+    };
+    // Collected in replicate order whatever the thread count: the statistics below are
+    // sequential sums over that order, so the output is bit-identical.
+    let results: Vec<_> = (0..opts.replicates)
+        .into_par_iter()
+        .map(replicate)
+        .collect();
+
+    let mut warnings = Vec::new();
+    let mut estimates = Vec::new();
+    for (t_idx, t) in targets.iter().enumerate() {
+        let mut samples = Vec::new();
+        let mut reasons: Vec<String> = Vec::new();
+        let mut failed = 0;
+        for r in &results {
+            let one = match r {
+                Ok(v) => v[t_idx].clone(),
+                Err(e) => Err(e.clone()),
+            };
+            match one {
+                Ok(v) => samples.push(v),
+                Err(e) => {
+                    failed += 1;
+                    if reasons.len() < 5 && !reasons.contains(&e) {
+                        reasons.push(e);
+                    }
+                }
+            }
+        }
+        let id = format!("{} (set-up '{}')", t.method, t.setup);
+        if samples.len() < 2 {
+            warnings.push(format!(
+                "bootstrap of {id}: {failed} of {} replicates failed ({}); its standard errors are left as they were",
+                opts.replicates,
+                reasons.join("; ")
+            ));
+            continue;
+        }
+        if failed as f64 > opts.failure_warning_fraction * opts.replicates as f64 {
+            warnings.push(format!(
+                "bootstrap of {id}: {failed} of {} replicates failed ({}); the standard errors come from the others and may be too small",
+                opts.replicates,
+                reasons.join("; ")
+            ));
+        }
+        estimates.push(statistics(t, samples, failed, reasons));
+    }
+    if estimates.is_empty() {
+        return Err(UqError::Nothing(warnings));
+    }
+    Ok(BootstrapOutput {
+        estimates,
+        noise: model
+            .excitations
+            .iter()
+            .map(|e| ExcitationNoise {
+                excitation: e.id.clone(),
+                channels: e.noise.clone(),
+            })
+            .collect(),
+        replicates: opts.replicates,
+        pole_mode: model.pole_mode,
+        warnings,
+    })
+}
+
+/// Linear-interpolation quantile (type 7) of sorted values.
+fn quantile(sorted: &[f64], p: f64) -> f64 {
+    let h = (sorted.len() - 1) as f64 * p;
+    let lo = h.floor() as usize;
+    let hi = (lo + 1).min(sorted.len() - 1);
+    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
+}
+
+fn statistics(
+    t: &Target,
+    samples: Vec<[f64; N_PROPS]>,
+    failed: usize,
+    failure_reasons: Vec<String>,
+) -> BootstrapEstimate {
+    let n = samples.len() as f64;
+    let mean: [f64; N_PROPS] =
+        std::array::from_fn(|k| samples.iter().map(|s| s[k]).sum::<f64>() / n);
+    let std = std::array::from_fn(|k| {
+        (samples
+            .iter()
+            .map(|s| (s[k] - mean[k]).powi(2))
+            .sum::<f64>()
+            / (n - 1.0))
+            .sqrt()
+    });
+    let percentile_95 = std::array::from_fn(|k| {
+        let mut v: Vec<f64> = samples.iter().map(|s| s[k]).collect();
+        v.sort_by(f64::total_cmp);
+        [quantile(&v, 0.025), quantile(&v, 0.975)]
+    });
+    BootstrapEstimate {
+        method: t.method.clone(),
+        setup: t.setup.clone(),
+        estimate: t.estimate,
+        std,
+        bias: std::array::from_fn(|k| mean[k] - t.estimate[k]),
+        percentile_95,
+        samples,
+        failed,
+        failure_reasons,
+    }
+}
+
+/// Writes the bootstrap standard errors into the matching estimates (same method and
+/// set-up; `<method>_projected` takes its base method's) and sets
+/// `uncertainty_method = "bootstrap"`. Returns how many estimates were updated.
+pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize {
+    let mut n = 0;
+    for e in estimates.iter_mut() {
+        let base = e.method.strip_suffix("_projected").unwrap_or(&e.method);
+        let Some(b) = boot
+            .estimates
+            .iter()
+            .find(|b| b.method == base && b.setup == e.setup)
+        else {
+            continue;
+        };
+        let s = &b.std;
+        e.mass_std_kg = s[0];
+        e.com_std_m = [s[1], s[2], s[3]];
+        e.inertia_cm_std_kg_m2 = [[s[4], s[7], s[8]], [s[7], s[5], s[9]], [s[8], s[9], s[6]]];
+        e.products_of_inertia_std_kg_m2.xy = s[7];
+        e.products_of_inertia_std_kg_m2.xz = s[8];
+        e.products_of_inertia_std_kg_m2.yz = s[9];
+        e.uncertainty_method = "bootstrap".into();
+        if b.failed > 0 {
+            e.warnings.push(format!(
+                "bootstrap: {} of {} replicates failed; standard errors from the other {}",
+                b.failed,
+                b.failed + b.samples.len(),
+                b.samples.len()
+            ));
+        }
+        n += 1;
+    }
+    n
+}
+
+/// `rbprops_inertia::solve` followed by [`bootstrap`] and [`apply`]: the estimates of the
+/// measured data with bootstrap standard errors for the modal estimators (the mass line
+/// keeps its own). If the bootstrap cannot run, the solve's linearised errors stay and a
+/// warning says why; the second value is then `None`.
+pub fn solve_with_bootstrap(
+    geometry: &Geometry,
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    frf: &FrfSet,
+    solve_opts: &SolveOptions,
+    opts: &BootstrapOptions,
+) -> Result<(SolveOutput, Option<BootstrapOutput>), UqError> {
+    let mut out = solve(geometry, modal, selection, Some(frf), solve_opts)?;
+    match bootstrap(
+        geometry,
+        frf,
+        modal,
+        selection,
+        solve_opts,
+        &out.estimates,
+        opts,
+    ) {
+        Ok(boot) => {
+            apply(&mut out.estimates, &boot);
+            out.warnings.extend(boot.warnings.iter().cloned());
+            Ok((out, Some(boot)))
+        }
+        Err(e) => {
+            out.warnings.push(format!(
+                "bootstrap: {e}; the modal estimates keep their {} standard errors",
+                if solve_opts.monte_carlo_samples > 0 {
+                    "Monte Carlo"
+                } else {
+                    "linearised"
+                }
+            ));
+            Ok((out, None))
+        }
+    }
+}

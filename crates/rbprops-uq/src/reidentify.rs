@@ -1,0 +1,233 @@
+//! Modal re-identification of one bootstrap replicate.
+
+use crate::model::FittedModel;
+use rbprops_core::records::{ModalFitRecord, ModeEstimate};
+use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_modal::band::BandData;
+use rbprops_modal::lsfd::{self, Residuals};
+use rbprops_modal::{fit_campaign, fit_excitation, mac, mpc, FitOptions, PoleMode};
+
+/// How a replicate's modes are identified.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reidentify {
+    /// The modal fit's final stages, started from the record's poles: variable-projection
+    /// refinement of the poles ([`lsfd::refine`], jointly over the group's live channels)
+    /// and LSFD residues ([`lsfd::fit_residues`]) on the replicate's band. The pole
+    /// estimates of the modal fit are exactly such a least-squares optimum (the
+    /// stabilisation diagram only supplies starting values), so this reproduces the
+    /// estimator's scatter at a fraction of the cost. Mode numbers are kept.
+    Refine,
+    /// The whole modal identification (stabilisation diagram, selection, refinement,
+    /// residues) with these options, then each selected mode is found again by MAC
+    /// and pole distance.
+    Full(FitOptions),
+}
+
+/// Tolerances of the re-identification.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MatchTolerances {
+    /// A replicate pole further than this many half-power half-bandwidths from the
+    /// record's pole is not the same mode (the modal fit drops poles that move > 10).
+    pub max_shift_bandwidths: f64,
+    /// [`Reidentify::Full`]: lowest MAC between the record's and the replicate's residues.
+    pub min_mac: f64,
+    /// Poles with damping at or above this are not physical (the fit's default 0.2).
+    pub max_damping: f64,
+}
+
+impl Default for MatchTolerances {
+    fn default() -> Self {
+        Self {
+            max_shift_bandwidths: 10.0,
+            min_mac: 0.9,
+            max_damping: 0.2,
+        }
+    }
+}
+
+/// The modes of one refitted excitation and the map from the record's mode numbers to
+/// the replicate's.
+#[derive(Debug, Clone)]
+pub struct ReplicateModes {
+    pub excitation: String,
+    pub modes: Vec<ModeEstimate>,
+    pub mode_map: Vec<(usize, usize)>,
+}
+
+fn band_with(band: &BandData, data: &[Vec<c64>]) -> BandData {
+    BandData {
+        channels: data.to_vec(),
+        ..band.clone()
+    }
+}
+
+/// Re-identifies one group of [`FittedModel::groups`] by [`Reidentify::Refine`].
+/// `data[i]` is the replicate's band data of `model.excitations[i]`.
+pub fn refine_group(
+    model: &FittedModel,
+    group: &[usize],
+    data: &[Vec<Vec<c64>>],
+    modal: &ModalFitRecord,
+    tol: &MatchTolerances,
+) -> Result<Vec<ReplicateModes>, String> {
+    let first = &model.excitations[group[0]];
+    let bands: Vec<BandData> = group
+        .iter()
+        .map(|&i| band_with(&model.excitations[i].band, &data[i]))
+        .collect();
+    let chans: Vec<Vec<c64>> = group
+        .iter()
+        .zip(&bands)
+        .flat_map(|(&i, b)| {
+            model.excitations[i]
+                .live
+                .iter()
+                .map(|&c| b.channels[c].clone())
+        })
+        .collect();
+    let res = Residuals::for_band(model.residuals_enabled, &bands[0]);
+    let refined = lsfd::refine(&first.poles, &bands[0], &chans, res);
+    let (w_lo, w_hi) = (bands[0].omega[0], *bands[0].omega.last().unwrap());
+    for (m, (p0, p)) in first.poles.iter().zip(&refined.poles).enumerate() {
+        let d = p0.distance_in_bandwidths(p);
+        if !(d <= tol.max_shift_bandwidths)
+            || !(p.damping() > 0.0 && p.damping() < tol.max_damping)
+            || p.omega_n() < w_lo
+            || p.omega_n() > w_hi
+        {
+            return Err(format!(
+                "excitation '{}' mode {}: the refined pole ({:.5} Hz, ζ {:.4}) moved {d:.1} half-bandwidths from {:.5} Hz or left the band / damping range",
+                first.id,
+                first.mode_numbers[m],
+                p.frequency_hz(),
+                p.damping(),
+                p0.frequency_hz()
+            ));
+        }
+    }
+    let mut out = Vec::with_capacity(group.len());
+    for (&i, band) in group.iter().zip(&bands) {
+        let e = &model.excitations[i];
+        let fit = lsfd::fit_residues(&refined.poles, band, &band.channels, res);
+        let mut modes = Vec::with_capacity(e.poles.len());
+        for (m, p) in refined.poles.iter().enumerate() {
+            let number = e.mode_numbers[m];
+            let orig = modal
+                .modes
+                .iter()
+                .find(|x| x.excitation == e.id && x.mode == number)
+                .expect("the model was built from these modes");
+            let residues: Vec<c64> = fit.residues[m]
+                .iter()
+                .map(|r| p.modal_constant(*r))
+                .collect();
+            modes.push(ModeEstimate {
+                frequency_hz: p.frequency_hz(),
+                damping_ratio: p.damping(),
+                mpc: mpc(&residues),
+                // Zero input errors: the replicate's estimate needs no propagation.
+                residue_std: vec![0.0; residues.len()],
+                residues,
+                ..orig.clone()
+            });
+        }
+        out.push(ReplicateModes {
+            excitation: e.id.clone(),
+            modes,
+            mode_map: e.mode_numbers.iter().map(|&n| (n, n)).collect(),
+        });
+    }
+    Ok(out)
+}
+
+/// Re-identifies every excitation of `model` by [`Reidentify::Full`]: the replicate's
+/// band data replace the measured lines, the modal fit runs with `opts`, and each of the
+/// record's modes of the refitted excitations is matched to the replicate mode of highest
+/// pole proximity among those with MAC ≥ `min_mac` (a mode with no match is an error only
+/// if `required` lists it).
+pub fn full_refit(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    model: &FittedModel,
+    data: &[Vec<Vec<c64>>],
+    modal: &ModalFitRecord,
+    opts: &FitOptions,
+    required: &[(String, usize)],
+    tol: &MatchTolerances,
+) -> Result<Vec<ReplicateModes>, String> {
+    let mut frf_b = frf.clone();
+    for (e, d) in model.excitations.iter().zip(data) {
+        for (c, h) in d.iter().enumerate() {
+            let dst = frf_b.frf_mut(e.excitation, c);
+            dst[e.band.first_line..e.band.first_line + h.len()].copy_from_slice(h);
+        }
+    }
+    let fits: Vec<(String, Vec<ModeEstimate>)> = match opts.poles {
+        PoleMode::PerSetup => {
+            let out = fit_campaign(geometry, &frf_b, opts).map_err(|e| e.to_string())?;
+            model
+                .excitations
+                .iter()
+                .map(|e| {
+                    let modes = out
+                        .record
+                        .modes
+                        .iter()
+                        .filter(|m| m.excitation == e.id)
+                        .cloned()
+                        .collect();
+                    (e.id.clone(), modes)
+                })
+                .collect()
+        }
+        PoleMode::PerExcitation => model
+            .excitations
+            .iter()
+            .map(|e| {
+                fit_excitation(geometry, &frf_b, e.excitation, opts)
+                    .map(|f| (e.id.clone(), f.modes))
+                    .map_err(|err| format!("excitation '{}': {err}", e.id))
+            })
+            .collect::<Result<_, _>>()?,
+    };
+    let mut out = Vec::new();
+    for (e, (id, mut modes)) in model.excitations.iter().zip(fits) {
+        for m in &mut modes {
+            m.residue_std.iter_mut().for_each(|s| *s = 0.0);
+        }
+        let mut map = Vec::new();
+        for (k, &number) in e.mode_numbers.iter().enumerate() {
+            let orig = modal
+                .modes
+                .iter()
+                .find(|x| x.excitation == id && x.mode == number)
+                .expect("the model was built from these modes");
+            let p0 = e.poles[k];
+            let best = modes
+                .iter()
+                .filter(|m| mac(&m.residues, &orig.residues) >= tol.min_mac)
+                .map(|m| {
+                    let p = rbprops_modal::Pole::from_modal(m.frequency_hz, m.damping_ratio);
+                    (m.mode, p0.distance_in_bandwidths(&p))
+                })
+                .filter(|(_, d)| *d <= tol.max_shift_bandwidths)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            match best {
+                Some((n, _)) if !map.iter().any(|(_, m)| *m == n) => map.push((number, n)),
+                _ if required.iter().any(|(x, n)| *x == id && *n == number) => {
+                    return Err(format!(
+                        "excitation '{id}' mode {number} ({:.5} Hz) was not found again (MAC ≥ {} within {} half-bandwidths, not taken by another mode)",
+                        orig.frequency_hz, tol.min_mac, tol.max_shift_bandwidths
+                    ))
+                }
+                _ => {}
+            }
+        }
+        out.push(ReplicateModes {
+            excitation: id,
+            modes,
+            mode_map: map,
+        });
+    }
+    Ok(out)
+}
