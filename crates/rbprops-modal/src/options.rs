@@ -8,9 +8,8 @@ pub enum Method {
     /// LSFD residues. Works on any frequency axis (uniform or not, baseband or zoom).
     Lscf,
     /// Least-squares complex exponential: poles from the impulse responses (inverse DFT
-    /// of the band-limited FRFs). Needs a uniform axis starting at 0 Hz; the truncation of
-    /// the FRF at the band edge leaks into the impulse responses and biases the poles of
-    /// low-frequency modes unless the refinement step corrects them.
+    /// of the band-limited FRFs), then the same selection, refinement and LSFD as LSCF.
+    /// Needs a uniform axis starting at 0 Hz (no zoom band, no gaps).
     Lsce,
     /// Kennedy–Pancu circle fit per mode and channel (modes located by LSCF), neighbours'
     /// contributions subtracted iteratively with their own circle-fit models. Only for
