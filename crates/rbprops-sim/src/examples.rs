@@ -68,10 +68,54 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "sensor_misorientation",
         include_str!("../../../fixtures/specs/effects/sensor_misorientation.toml"),
     ),
+    (
+        "elastic_mode",
+        include_str!("../../../fixtures/specs/effects/elastic_mode.toml"),
+    ),
+    (
+        "nonproportional_damping",
+        include_str!("../../../fixtures/specs/effects/nonproportional_damping.toml"),
+    ),
+    (
+        "exponential_window",
+        include_str!("../../../fixtures/specs/effects/exponential_window.toml"),
+    ),
+    (
+        "record_truncation",
+        include_str!("../../../fixtures/specs/effects/record_truncation.toml"),
+    ),
+    (
+        "sensor_position",
+        include_str!("../../../fixtures/specs/effects/sensor_position.toml"),
+    ),
+    (
+        "force_direction",
+        include_str!("../../../fixtures/specs/effects/force_direction.toml"),
+    ),
+    (
+        "force_location",
+        include_str!("../../../fixtures/specs/effects/force_location.toml"),
+    ),
+    (
+        "force_gauge_mass",
+        include_str!("../../../fixtures/specs/effects/force_gauge_mass.toml"),
+    ),
+    (
+        "transducer_highpass",
+        include_str!("../../../fixtures/specs/effects/transducer_highpass.toml"),
+    ),
+    (
+        "sensor_tilt_gravity",
+        include_str!("../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
+    ),
+    (
+        "suspension_coupling",
+        include_str!("../../../fixtures/specs/effects/suspension_coupling.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect
-/// on, plus `nominal` without any. Pairs of (effect id or `nominal`, TOML text).
+/// on and 1 % noise, plus `nominal` without any. Pairs of (effect id or `nominal`, TOML text).
 pub fn effect_examples() -> &'static [(&'static str, &'static str)] {
     EFFECT_EXAMPLES
 }

@@ -14,6 +14,7 @@ pub mod error;
 pub mod examples;
 pub mod model;
 pub mod noise;
+pub mod observe;
 pub mod simulate;
 pub mod spec;
 pub mod suspension;
@@ -22,6 +23,6 @@ pub use error::{SimError, SpecError, SpecIssue};
 pub use examples::{effect_examples, example, example_names};
 pub use model::DynamicModel;
 pub use simulate::{
-    build_models, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,
+    build_models, predict, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,
 };
 pub use spec::CampaignSpec;

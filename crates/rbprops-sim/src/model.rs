@@ -14,6 +14,38 @@ pub struct ModelInput {
     pub excitation: usize,
     /// Generalised force column about O, `T(p)ᵀ d` nominally.
     pub column: Vec6,
+    /// Mass attached to the body only while this excitation is measured (e.g. the mass
+    /// below a force gauge), about O: the model for this input is `Z(s) + s² M_a`.
+    pub attached_mass: Mat6,
+}
+
+/// How the records are observed: signal processing and the sensor equation. The
+/// default observes the plain FRF `s^k S G(s) F` at `s = iω` (k = quantity order).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Observation {
+    /// Exponential window `e^{−σt}` on force and response (σ, 1/s): every FRF is its
+    /// transfer function at `s = iω + σ` (see [`crate::effects::processing`]).
+    pub window_decay_per_s: f64,
+    /// Record length T (s): every FRF is the finite transform `∫_0^T y(t) e^{−st} dt` of
+    /// its impulse response, not the infinite one.
+    pub record_length_s: Option<f64>,
+    /// Specific-force term of each channel, `g dᵀ[0 | [ẑ]×]` (accelerometers sense
+    /// `a + g ẑ×θ`); empty when gravity is not in the sensor equation. It adds
+    /// `s^{k−2} g_c G(s) F` to channel c.
+    pub gravity_rows: Vec<RowVector6<f64>>,
+    /// First-order high-pass time constants per channel (empty: none); channel c is
+    /// multiplied by `Π iωτ/(1 + iωτ)` over its list.
+    pub highpass_time_constants_s: Vec<Vec<f64>>,
+}
+
+impl Observation {
+    /// True when the plain FRF is observed (the fast path of the simulator applies).
+    pub fn is_plain(&self) -> bool {
+        self.window_decay_per_s == 0.0
+            && self.record_length_s.is_none()
+            && self.gravity_rows.is_empty()
+            && self.highpass_time_constants_s.iter().all(|v| v.is_empty())
+    }
 }
 
 /// An extra mode outside the rigid-body model (an elastic mode, say), added to the
@@ -40,6 +72,16 @@ impl ExtraMode {
     }
 }
 
+impl ExtraMode {
+    /// The mode's receptance term at a complex Laplace variable `s`:
+    /// `ψ_c ψ_e / (ω_m² + 2ζ_m ω_m s + s²)` (equals [`Self::receptance`] at `s = iω`).
+    pub fn receptance_at(&self, c: usize, e: usize, s: c64) -> c64 {
+        let wm = std::f64::consts::TAU * self.frequency_hz;
+        c64::new(self.at_channels[c] * self.at_excitations[e], 0.0)
+            / (s * s + s * (2.0 * self.damping_ratio * wm) + wm * wm)
+    }
+}
+
 /// Mass, stiffness, viscous damping, output rows and input columns of one set-up.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicModel {
@@ -56,6 +98,8 @@ pub struct DynamicModel {
     pub inputs: Vec<ModelInput>,
     /// Modes outside the rigid-body model, added to every FRF of this set-up.
     pub extra_modes: Vec<ExtraMode>,
+    /// How the FRFs are observed (window, record length, gravity in the sensors, filters).
+    pub observation: Observation,
 }
 
 /// The receptance of a set of modes between generalised coordinates,

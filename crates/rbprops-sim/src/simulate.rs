@@ -85,9 +85,11 @@ pub fn build_models(
                 .map(|(k, e)| ModelInput {
                     excitation: k,
                     column: e.column(),
+                    attached_mass: Mat6::zeros(),
                 })
                 .collect(),
             extra_modes: Vec::new(),
+            observation: Default::default(),
         };
         for (i, e) in effects.iter().enumerate() {
             e.modify_structure(&ctx, &mut model)
@@ -198,19 +200,21 @@ impl TransferTable {
     }
 }
 
-/// Simulates a campaign: validates the spec, builds each set-up's model, computes the
-/// FRFs `H = S (K + iωC − ω²M)⁻¹ F` in the spec's quantity, applies output effects and
-/// noise, and records the truth. Excitations are computed in parallel; the result is
-/// bit-identical for any number of threads.
-pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simulation, SimError> {
-    spec.validate()?;
-    let geometry = spec.geometry()?;
-    let effects = parse_effects(spec).map_err(|(index, problem)| SimError::Effect {
-        index,
-        id: spec.effects[index].id.clone(),
-        problem,
-    })?;
-    let freq = spec.frequency_axis();
+/// Noise-free FRFs of a campaign in the spec's quantity on the axis `frequency_hz`, with
+/// the given (ordered, see [`parse_effects`]) effects, and the set-up models used.
+/// This is [`simulate_with`] without noise: a model fitter calls it with varied effects.
+/// Inputs with a plain observation use the per-set-up transfer table (`H = S G F`, then
+/// output effects and the quantity factor); the others use
+/// [`crate::observe::observed_block`] (window, record length, gravity in the sensors,
+/// filters, attached masses), always by direct solution.
+pub fn predict(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    effects: &[Box<dyn Effect>],
+    frequency_hz: &[f64],
+    options: &SimOptions,
+) -> Result<(FrfSet, Vec<SetupModel>), SimError> {
+    let freq = frequency_hz.to_vec();
     let n_ch = geometry.channels.len();
     let n_ex = geometry.excitations.len();
     let nl = freq.len();
@@ -221,7 +225,7 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         )));
     }
     let omegas: Vec<f64> = freq.iter().map(|f| std::f64::consts::TAU * f).collect();
-    let models = build_models(spec, &geometry, &effects)?;
+    let models = build_models(spec, geometry, effects)?;
     if options.method == SolveMethod::Modal {
         for sm in &models {
             let coupling = sm.model.damping_coupling(&sm.modes);
@@ -237,7 +241,13 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
     }
     let tables = models
         .par_iter()
-        .map(|sm| TransferTable::build(sm, &omegas, options.method))
+        .map(|sm| {
+            if sm.model.observation.is_plain() {
+                TransferTable::build(sm, &omegas, options.method).map(Some)
+            } else {
+                Ok(None)
+            }
+        })
         .collect::<Result<Vec<_>, _>>()?;
     // Which set-up and input serve each excitation.
     let mut route = vec![(0usize, 0usize); n_ex];
@@ -256,31 +266,84 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         frf.values
             .par_chunks_mut(block)
             .enumerate()
-            .for_each(|(e, values)| {
+            .map(|(e, values)| -> Result<(), SimError> {
                 let (si, ii) = route[e];
                 let sm = &models[si];
-                tables[si].apply(&sm.model.inputs[ii].column, values);
-                for x in &sm.model.extra_modes {
-                    for (c, dst) in values.chunks_exact_mut(nl).enumerate() {
-                        for (d, &w) in dst.iter_mut().zip(&omegas) {
-                            *d += x.receptance(c, e, w);
-                        }
-                    }
-                }
+                let input = &sm.model.inputs[ii];
                 let mut ob = OutputBlock {
                     excitation: e,
                     frequency_hz: &freq,
                     n_channels: n_ch,
                     values,
                 };
-                for eff in &effects {
-                    eff.transform_output(&mut ob);
-                }
-                for dst in values.chunks_exact_mut(nl) {
-                    for (d, f) in dst.iter_mut().zip(&factors) {
-                        *d *= f;
+                match &tables[si] {
+                    Some(table) if input.attached_mass == Mat6::zeros() => {
+                        table.apply(&input.column, ob.values);
+                        for x in &sm.model.extra_modes {
+                            for (c, dst) in ob.values.chunks_exact_mut(nl).enumerate() {
+                                for (d, &w) in dst.iter_mut().zip(&omegas) {
+                                    *d += x.receptance(c, e, w);
+                                }
+                            }
+                        }
+                        for eff in effects {
+                            eff.transform_output(&mut ob);
+                        }
+                        for dst in ob.values.chunks_exact_mut(nl) {
+                            for (d, f) in dst.iter_mut().zip(&factors) {
+                                *d *= f;
+                            }
+                        }
+                    }
+                    _ => {
+                        crate::observe::observed_block(
+                            &sm.model,
+                            input,
+                            &omegas,
+                            spec.quantity,
+                            ob.values,
+                        )
+                        .map_err(|problem| SimError::Setup {
+                            setup: sm.model.setup.clone(),
+                            problem: format!(
+                                "excitation '{}': {problem}",
+                                geometry.excitations[e].id
+                            ),
+                        })?;
+                        // Output effects are per-line gains, so they commute with the
+                        // quantity factor.
+                        for eff in effects {
+                            eff.transform_output(&mut ob);
+                        }
                     }
                 }
+                Ok(())
+            })
+            .collect::<Result<(), SimError>>()?;
+    }
+    Ok((frf, models))
+}
+
+/// Simulates a campaign: validates the spec, builds each set-up's model, computes the
+/// FRFs `H = S (K + iωC − ω²M)⁻¹ F` in the spec's quantity (through [`predict`]), applies
+/// output effects and noise, and records the truth. Excitations are computed in
+/// parallel; the result is bit-identical for any number of threads.
+pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simulation, SimError> {
+    spec.validate()?;
+    let geometry = spec.geometry()?;
+    let effects = parse_effects(spec).map_err(|(index, problem)| SimError::Effect {
+        index,
+        id: spec.effects[index].id.clone(),
+        problem,
+    })?;
+    let freq = spec.frequency_axis();
+    let (mut frf, models) = predict(spec, &geometry, &effects, &freq, options)?;
+    let block = geometry.channels.len() * freq.len();
+    if block > 0 {
+        frf.values
+            .par_chunks_mut(block)
+            .enumerate()
+            .for_each(|(e, values)| {
                 let mut rng = excitation_rng(spec.seed, e);
                 add_noise(values, spec.noise.relative, spec.noise.floor, &mut rng);
             });

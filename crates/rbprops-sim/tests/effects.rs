@@ -362,6 +362,24 @@ fn effects_rebuild_from_their_parameter_vectors() {
             "id = \"sensor_misorientation\"\nrotations_rad = { \"1\" = [0.01, 0.0, -0.01] }",
             3,
         ),
+        (
+            "id = \"elastic_mode\"\nfrequency_hz = 40.0\ndamping_ratio = 0.01\nchannels = { \"1x\" = 0.2, \"2z\" = -0.1 }\nexcitations = { force1 = 0.3 }",
+            5,
+        ),
+        (
+            "id = \"nonproportional_damping\"\naxial_n_s_per_m = [1.0, 2.0, 3.0, 4.0]\nlateral_n_s_per_m = [0.5]",
+            5,
+        ),
+        ("id = \"exponential_window\"\ndecay_per_s = 0.3", 1),
+        ("id = \"exponential_window\"\ntime_constant_s = 4.0", 1),
+        ("id = \"record_truncation\"\nrecord_length_s = 12.0", 1),
+        ("id = \"sensor_position\"\noffsets_m = { \"3\" = [0.001, 0.0, -0.002] }", 3),
+        ("id = \"force_direction\"\nrotations_rad = { force2 = [0.05, 0.0, 0.02] }", 3),
+        ("id = \"force_location\"\noffsets_m = { force3 = [0.002, 0.003, 0.0] }", 3),
+        ("id = \"force_gauge_mass\"\nmasses_kg = { force1 = 0.01, force3 = 0.02 }", 2),
+        ("id = \"transducer_highpass\"\ntime_constant_s = 1.0\ntime_constants_s = { \"2x\" = 3.0 }", 2),
+        ("id = \"sensor_tilt_gravity\"", 1),
+        ("id = \"suspension_coupling\"\nrotational_n_m_per_rad = [0.1, 0.2, 0.3]", 4),
     ] {
         let spec: EffectSpec = toml::from_str(table).unwrap();
         let e = parse_effect(&spec).unwrap();
@@ -403,6 +421,8 @@ fn effect_fixtures_are_test_case_2_plus_one_effect() {
         let base = tc2();
         s.name = base.name.clone();
         s.description = base.description.clone();
+        assert_eq!(s.noise.relative, 0.01, "{id}: 1 % noise");
+        s.noise = base.noise.clone();
         s.effects.clear();
         assert_eq!(s, base, "{id}");
     }

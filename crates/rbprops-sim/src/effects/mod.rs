@@ -3,13 +3,23 @@
 //! `[[effect]] id = "..."` with its parameters.
 //!
 //! Implemented: `gravity_stiffness`, `sensor_mass`, `channel_gain`, `excitation_gain`,
-//! `global_gain`, `sensor_misorientation`. Each effect is a plain struct deserialised from
+//! `global_gain`, `sensor_misorientation` (structure and rows); `elastic_mode`
+//! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
+//! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
+//! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
+//! `sensor_tilt_gravity` ([`sensors`]); `suspension_coupling` ([`mounts`]). Each effect is a plain struct deserialised from
 //! its spec table (unknown parameters are refused) that implements [`Effect`].
 
+pub mod damping;
+pub mod elastic;
 pub mod gains;
 pub mod gravity;
 pub mod mass;
+pub mod mounts;
 pub mod orientation;
+pub mod placement;
+pub mod processing;
+pub mod sensors;
 
 use crate::model::DynamicModel;
 use crate::spec::{CampaignSpec, EffectSpec};
@@ -49,7 +59,10 @@ pub struct OutputBlock<'a> {
 /// An effect of the physics catalogue. Effects act in three places, in this order:
 /// on the structure (M, K, outputs, inputs, extra modes) before the nominal damping is
 /// assembled from the resulting modes; on the damping after it; and on the computed
-/// receptance FRFs (before quantity conversion and noise).
+/// receptance FRFs (before quantity conversion and noise). `transform_output` must act
+/// as a per-line, per-channel gain (it then commutes with the quantity conversion): for
+/// inputs observed through [`crate::observe`] it receives values already in the
+/// campaign's quantity.
 pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Stable snake_case id, as written in the spec.
     fn id(&self) -> &'static str;
@@ -66,7 +79,8 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
         Ok(())
     }
     /// Effects apply in ascending order (stable in spec order): masses (0) before
-    /// everything else (1), so that gravity sees the loaded body.
+    /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
+    /// equation (2) last, so that it sees the final output rows.
     fn order(&self) -> u8 {
         1
     }
@@ -97,7 +111,28 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "excitation_gain",
     "global_gain",
     "sensor_misorientation",
+    "elastic_mode",
+    "nonproportional_damping",
+    "exponential_window",
+    "record_truncation",
+    "sensor_position",
+    "force_direction",
+    "force_location",
+    "force_gauge_mass",
+    "transducer_highpass",
+    "sensor_tilt_gravity",
+    "suspension_coupling",
 ];
+
+/// Checks that an optional set-up id names a set-up of the spec.
+pub(crate) fn check_setup(spec: &CampaignSpec, setup: Option<&str>) -> Result<(), String> {
+    match setup {
+        Some(id) if !spec.setups.iter().any(|s| s.id == id) => {
+            Err(format!("setup: set-up '{id}' is not defined"))
+        }
+        _ => Ok(()),
+    }
+}
 
 fn params<T: serde::de::DeserializeOwned>(spec: &EffectSpec) -> Result<T, String> {
     toml::Value::Table(spec.parameters.clone())
@@ -118,6 +153,17 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "excitation_gain" => Box::new(params::<gains::ExcitationGain>(spec)?),
         "global_gain" => Box::new(params::<gains::GlobalGain>(spec)?),
         "sensor_misorientation" => Box::new(params::<orientation::SensorMisorientation>(spec)?),
+        "elastic_mode" => Box::new(params::<elastic::ElasticMode>(spec)?),
+        "nonproportional_damping" => Box::new(params::<damping::NonproportionalDamping>(spec)?),
+        "exponential_window" => Box::new(params::<processing::ExponentialWindow>(spec)?),
+        "record_truncation" => Box::new(params::<processing::RecordTruncation>(spec)?),
+        "sensor_position" => Box::new(params::<placement::SensorPosition>(spec)?),
+        "force_direction" => Box::new(params::<placement::ForceDirection>(spec)?),
+        "force_location" => Box::new(params::<placement::ForceLocation>(spec)?),
+        "force_gauge_mass" => Box::new(params::<placement::ForceGaugeMass>(spec)?),
+        "transducer_highpass" => Box::new(params::<sensors::TransducerHighpass>(spec)?),
+        "sensor_tilt_gravity" => Box::new(params::<sensors::SensorTiltGravity>(spec)?),
+        "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
         other => {
             return Err(format!(
                 "unknown effect id '{other}' (known: {})",

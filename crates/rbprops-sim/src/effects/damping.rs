@@ -1,0 +1,157 @@
+//! `nonproportional_damping`: viscous dashpots at the suspension attachment points
+//! (research note E5), added to the nominal damping:
+//!
+//! `ΔC = Σ_i T(a_i)ᵀ [c_a,i e eᵀ + c_l,i (I − e eᵀ)] T(a_i)`
+//!
+//! with `a_i` the spring attachment points of the set-up, `e` the cord axis (`axis`,
+//! default +z), `c_a` axial and `c_l` lateral damping coefficients (N s/m). A dashpot
+//! dissipates `½ q̇ᵀ T(a)ᵀ c T(a) q̇`, hence the form. In general `ΦᵀΔCΦ` is not diagonal:
+//! the modes become complex (checked against a state-space eigen-solution in the tests),
+//! and the simulator's modal solve refuses the model; the truth record's damping ratios
+//! are then the diagonal approximation `φ_rᵀCφ_r/(2ω_r)`.
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use rbprops_core::{rigid_transform, Mat3, Vec3};
+use serde::{Deserialize, Serialize};
+
+fn default_axis() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NonproportionalDamping {
+    /// Set-up with the dashpots; all set-ups when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
+    /// Axial coefficient (N s/m) per spring, or one value for all.
+    pub axial_n_s_per_m: Vec<f64>,
+    /// Lateral coefficient (N s/m) per spring, or one value for all (default 0).
+    #[serde(default)]
+    pub lateral_n_s_per_m: Vec<f64>,
+    /// Cord axis (unit vector, geometry frame).
+    #[serde(default = "default_axis")]
+    pub axis: [f64; 3],
+}
+
+fn per_spring(v: &[f64], n: usize) -> Vec<f64> {
+    match v.len() {
+        0 => vec![0.0; n],
+        1 => vec![v[0]; n],
+        _ => v.to_vec(),
+    }
+}
+
+impl NonproportionalDamping {
+    fn check_values(&self) -> Result<(), String> {
+        if self.axial_n_s_per_m.is_empty() {
+            return Err("axial_n_s_per_m: give one coefficient per spring or one for all".into());
+        }
+        for (what, v) in [
+            ("axial_n_s_per_m", &self.axial_n_s_per_m),
+            ("lateral_n_s_per_m", &self.lateral_n_s_per_m),
+        ] {
+            if let Some((i, c)) = v
+                .iter()
+                .enumerate()
+                .find(|(_, c)| !(c.is_finite() && **c >= 0.0))
+            {
+                return Err(format!("{what}[{i}]: must be finite and ≥ 0, got {c}"));
+            }
+        }
+        let n = Vec3::from(self.axis).norm();
+        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+            return Err(format!("axis: not a unit vector (|d| = {n:.6})"));
+        }
+        Ok(())
+    }
+}
+
+impl Effect for NonproportionalDamping {
+    fn id(&self) -> &'static str {
+        "nonproportional_damping"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let info = |name: String| ParamInfo {
+            name,
+            unit: "N s/m",
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible: (0.0, 20.0),
+        };
+        (0..self.axial_n_s_per_m.len())
+            .map(|i| info(format!("axial_n_s_per_m[{i}]")))
+            .chain(
+                (0..self.lateral_n_s_per_m.len()).map(|i| info(format!("lateral_n_s_per_m[{i}]"))),
+            )
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.axial_n_s_per_m
+            .iter()
+            .chain(&self.lateral_n_s_per_m)
+            .copied()
+            .collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let na = self.axial_n_s_per_m.len();
+        if values.len() != na + self.lateral_n_s_per_m.len() {
+            return Err(format!(
+                "expected {} values, got {}",
+                na + self.lateral_n_s_per_m.len(),
+                values.len()
+            ));
+        }
+        let e = NonproportionalDamping {
+            axial_n_s_per_m: values[..na].to_vec(),
+            lateral_n_s_per_m: values[na..].to_vec(),
+            ..self.clone()
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::check_setup(spec, self.setup.as_deref())?;
+        for (i, s) in spec.setups.iter().enumerate() {
+            if self.setup.as_ref().is_some_and(|id| id != &s.id) {
+                continue;
+            }
+            for (what, v) in [
+                ("axial_n_s_per_m", &self.axial_n_s_per_m),
+                ("lateral_n_s_per_m", &self.lateral_n_s_per_m),
+            ] {
+                if v.len() > 1 && v.len() != s.springs.len() {
+                    return Err(format!(
+                        "{what} has {} values but set-up '{}' (setup[{i}]) has {} springs",
+                        v.len(),
+                        s.id,
+                        s.springs.len()
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+    fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+            return Ok(());
+        }
+        let springs = ctx.spec.springs(ctx.setup_index);
+        let e = Vec3::from(self.axis);
+        let axial = e * e.transpose();
+        let lateral = Mat3::identity() - axial;
+        let ca = per_spring(&self.axial_n_s_per_m, springs.len());
+        let cl = per_spring(&self.lateral_n_s_per_m, springs.len());
+        for ((s, a), l) in springs.iter().zip(ca).zip(cl) {
+            let t = rigid_transform(&s.at);
+            model.damping += t.transpose() * (a * axial + l * lateral) * t;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,164 @@
+//! `elastic_mode`: an elastic mode of the article (research note E13), above or inside
+//! the band, as an extra mode of the model:
+//!
+//! `H_ce(ω) += ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)`
+//!
+//! with `ψ_c` the mass-normalised modal displacement along channel c (1/√kg) and `ψ_e`
+//! that along excitation e's force. An elastic degree of freedom η with unit modal mass,
+//! stiffness ω_m² and damping 2ζ_m ω_m, uncoupled from the rigid coordinates (the
+//! suspension is soft), read as `y_c = S_c q + ψ_c η` and forced by `ψ_e f`, gives
+//! exactly this term (tested with the augmented 7-DOF model). Channels and excitations
+//! not listed have zero participation. Below ω_m it is the residual flexibility
+//! `ψ_c ψ_e/ω_m²` (an accelerance growing as ω²).
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::{DynamicModel, ExtraMode};
+use crate::spec::CampaignSpec;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElasticMode {
+    /// Set-up in which the mode is seen; all set-ups when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
+    pub frequency_hz: f64,
+    pub damping_ratio: f64,
+    /// Mass-normalised shape along each channel (1/√kg), by channel id.
+    #[serde(default)]
+    pub channels: BTreeMap<String, f64>,
+    /// Mass-normalised shape along each excitation's force (1/√kg), by excitation id.
+    #[serde(default)]
+    pub excitations: BTreeMap<String, f64>,
+}
+
+impl ElasticMode {
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
+            return Err(format!(
+                "frequency_hz must be positive and finite, got {}",
+                self.frequency_hz
+            ));
+        }
+        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
+            return Err(format!(
+                "damping_ratio must be in [0, 1), got {}",
+                self.damping_ratio
+            ));
+        }
+        for (what, map) in [
+            ("channels", &self.channels),
+            ("excitations", &self.excitations),
+        ] {
+            if let Some((k, v)) = map.iter().find(|(_, v)| !v.is_finite()) {
+                return Err(format!("{what}.{k}: shape value {v} is not finite"));
+            }
+        }
+        if self.channels.is_empty() || self.excitations.is_empty() {
+            return Err(
+                "give the shape at one channel and one excitation at least (channels, excitations)"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
+}
+
+impl Effect for ElasticMode {
+    fn id(&self) -> &'static str {
+        "elastic_mode"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let shape = |name: String| ParamInfo {
+            name,
+            unit: "1/sqrt(kg)",
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            plausible: (-0.5, 0.5),
+        };
+        let mut v = vec![
+            ParamInfo {
+                name: "frequency_hz".into(),
+                unit: "Hz",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (10.0, 500.0),
+            },
+            ParamInfo {
+                name: "damping_ratio".into(),
+                unit: "1",
+                lower: 0.0,
+                upper: 1.0,
+                plausible: (0.001, 0.05),
+            },
+        ];
+        v.extend(self.channels.keys().map(|k| shape(format!("channels.{k}"))));
+        v.extend(
+            self.excitations
+                .keys()
+                .map(|k| shape(format!("excitations.{k}"))),
+        );
+        v
+    }
+    fn values(&self) -> Vec<f64> {
+        let mut v = vec![self.frequency_hz, self.damping_ratio];
+        v.extend(self.channels.values());
+        v.extend(self.excitations.values());
+        v
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let n = 2 + self.channels.len() + self.excitations.len();
+        if values.len() != n {
+            return Err(format!("expected {n} values, got {}", values.len()));
+        }
+        let mut e = self.clone();
+        e.frequency_hz = values[0];
+        e.damping_ratio = values[1];
+        let mut it = values[2..].iter();
+        for v in e.channels.values_mut().chain(e.excitations.values_mut()) {
+            *v = *it.next().expect("length checked");
+        }
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        let channels = spec.channels();
+        for k in self.channels.keys() {
+            if !channels.iter().any(|c| &c.id == k) {
+                return Err(format!("channels: channel '{k}' is not defined"));
+            }
+        }
+        for k in self.excitations.keys() {
+            if !spec.excitations.iter().any(|e| &e.id == k) {
+                return Err(format!("excitations: excitation '{k}' is not defined"));
+            }
+        }
+        super::check_setup(spec, self.setup.as_deref())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+            return Ok(());
+        }
+        let g = ctx.geometry;
+        model.extra_modes.push(ExtraMode {
+            frequency_hz: self.frequency_hz,
+            damping_ratio: self.damping_ratio,
+            at_channels: g
+                .channels
+                .iter()
+                .map(|c| self.channels.get(&c.id).copied().unwrap_or(0.0))
+                .collect(),
+            at_excitations: g
+                .excitations
+                .iter()
+                .map(|e| self.excitations.get(&e.id).copied().unwrap_or(0.0))
+                .collect(),
+        });
+        Ok(())
+    }
+}

@@ -1,0 +1,328 @@
+//! Where the sensors and forces really are (research notes E9, E12):
+//!
+//! - `sensor_position`: sensor j sits at `p_j + δp_j`. A row `rᵀ = sᵀT(p)` becomes
+//!   `sᵀT(p + δp) = rᵀ + [0 | −sᵀ[δp]×]` (T is affine in p), with `s` the row's current
+//!   translational part, so gains and misorientations compose.
+//! - `force_direction`: excitation e pushes along `R(β_e) d_e` (β a rotation vector,
+//!   `R = exp([β]×)`) through its nominal point p_e: the column `[f; p×f]` becomes
+//!   `[R f; p × R f]`.
+//! - `force_location`: excitation e acts at `p_e + δr_e`: the column's moment part
+//!   gains `δr × f` (a shift along the force changes nothing).
+//! - `force_gauge_mass`: a mass m_b between the force gauge and the structure, moving
+//!   with the driving point p. The gauge measures `f_g`, the structure receives
+//!   `f_g d − m_b ü(p)`, so `Z(s) q = T(p)ᵀ d f_g − s² m_b T(p)ᵀT(p) q`: for that
+//!   excitation only the model is `Z(s) + s² m_b T(p)ᵀT(p)` (a point mass present while
+//!   it is measured). In terms of the nominal FRFs (Woodbury, tested):
+//!   `y = H d + ω² m_b H₃ (I − ω² m_b D)⁻¹ D d`, with H₃ the channels' receptances to unit
+//!   forces along x, y, z at p and D the 3×3 driving-point receptance.
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use rbprops_core::{cross_matrix, rigid_transform, Vec3};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Parameter descriptions of a map id → 3-vector.
+fn vec3_info(
+    map: &BTreeMap<String, [f64; 3]>,
+    field: &str,
+    unit: &'static str,
+    bound: f64,
+    plausible: f64,
+) -> Vec<ParamInfo> {
+    map.keys()
+        .flat_map(|k| {
+            ["x", "y", "z"].map(|a| ParamInfo {
+                name: format!("{field}.{k}.{a}"),
+                unit,
+                lower: -bound,
+                upper: bound,
+                plausible: (-plausible, plausible),
+            })
+        })
+        .collect()
+}
+
+fn vec3_values(map: &BTreeMap<String, [f64; 3]>) -> Vec<f64> {
+    map.values().flatten().copied().collect()
+}
+
+fn vec3_replace(
+    map: &BTreeMap<String, [f64; 3]>,
+    values: &[f64],
+) -> Result<BTreeMap<String, [f64; 3]>, String> {
+    if values.len() != 3 * map.len() {
+        return Err(format!(
+            "expected {} values, got {}",
+            3 * map.len(),
+            values.len()
+        ));
+    }
+    Ok(map
+        .keys()
+        .zip(values.chunks_exact(3))
+        .map(|(k, v)| (k.clone(), [v[0], v[1], v[2]]))
+        .collect())
+}
+
+fn vec3_check(map: &BTreeMap<String, [f64; 3]>, field: &str, bound: f64) -> Result<(), String> {
+    if map.is_empty() {
+        return Err(format!("{field}: list at least one entry"));
+    }
+    for (k, v) in map {
+        if v.iter().any(|x| !x.is_finite()) || Vec3::from(*v).norm() > bound {
+            return Err(format!(
+                "{field}.{k}: need a finite vector of norm at most {bound}, got {v:?}"
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn sensors_exist(
+    spec: &CampaignSpec,
+    field: &str,
+    ids: impl Iterator<Item = String>,
+) -> Result<(), String> {
+    for k in ids {
+        if !spec.sensors.iter().any(|s| s.id == k) {
+            return Err(format!("{field}: sensor '{k}' is not defined"));
+        }
+    }
+    Ok(())
+}
+
+fn excitations_exist(
+    spec: &CampaignSpec,
+    field: &str,
+    ids: impl Iterator<Item = String>,
+) -> Result<(), String> {
+    for k in ids {
+        if !spec.excitations.iter().any(|e| e.id == k) {
+            return Err(format!("{field}: excitation '{k}' is not defined"));
+        }
+    }
+    Ok(())
+}
+
+/// Largest position error accepted (m).
+const MAX_OFFSET_M: f64 = 1.0;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorPosition {
+    /// Position error δp (m) per sensor id.
+    pub offsets_m: BTreeMap<String, [f64; 3]>,
+}
+
+impl Effect for SensorPosition {
+    fn id(&self) -> &'static str {
+        "sensor_position"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+    }
+    fn values(&self) -> Vec<f64> {
+        vec3_values(&self.offsets_m)
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let offsets_m = vec3_replace(&self.offsets_m, values)?;
+        vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
+        Ok(Box::new(SensorPosition { offsets_m }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
+        sensors_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
+            if let Some(d) = self.offsets_m.get(&ch.point) {
+                let row = &mut model.outputs[c];
+                let s = Vec3::new(row[0], row[1], row[2]);
+                let dm = -(s.transpose() * cross_matrix(&Vec3::from(*d)));
+                for i in 0..3 {
+                    row[3 + i] += dm[i];
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceDirection {
+    /// Rotation vector β (rad) of the force direction, per excitation id.
+    pub rotations_rad: BTreeMap<String, [f64; 3]>,
+}
+
+impl Effect for ForceDirection {
+    fn id(&self) -> &'static str {
+        "force_direction"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec3_info(
+            &self.rotations_rad,
+            "rotations_rad",
+            "rad",
+            std::f64::consts::PI,
+            0.17,
+        )
+    }
+    fn values(&self) -> Vec<f64> {
+        vec3_values(&self.rotations_rad)
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let rotations_rad = vec3_replace(&self.rotations_rad, values)?;
+        vec3_check(&rotations_rad, "rotations_rad", std::f64::consts::PI)?;
+        Ok(Box::new(ForceDirection { rotations_rad }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        vec3_check(&self.rotations_rad, "rotations_rad", std::f64::consts::PI)?;
+        excitations_exist(spec, "rotations_rad", self.rotations_rad.keys().cloned())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            let ex = &ctx.geometry.excitations[input.excitation];
+            if let Some(b) = self.rotations_rad.get(&ex.id) {
+                let f = Vec3::new(input.column[0], input.column[1], input.column[2]);
+                let df = super::orientation::rotation(&Vec3::from(*b)) * f - f;
+                let dm = ex.position.cross(&df);
+                for i in 0..3 {
+                    input.column[i] += df[i];
+                    input.column[3 + i] += dm[i];
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceLocation {
+    /// Position error δr (m) of the force point, per excitation id.
+    pub offsets_m: BTreeMap<String, [f64; 3]>,
+}
+
+impl Effect for ForceLocation {
+    fn id(&self) -> &'static str {
+        "force_location"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+    }
+    fn values(&self) -> Vec<f64> {
+        vec3_values(&self.offsets_m)
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let offsets_m = vec3_replace(&self.offsets_m, values)?;
+        vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
+        Ok(Box::new(ForceLocation { offsets_m }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
+        excitations_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            let ex = &ctx.geometry.excitations[input.excitation];
+            if let Some(d) = self.offsets_m.get(&ex.id) {
+                let f = Vec3::new(input.column[0], input.column[1], input.column[2]);
+                let dm = Vec3::from(*d).cross(&f);
+                for i in 0..3 {
+                    input.column[3 + i] += dm[i];
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ForceGaugeMass {
+    /// Mass below the force gauge (kg), per excitation id.
+    pub masses_kg: BTreeMap<String, f64>,
+}
+
+impl ForceGaugeMass {
+    fn check_values(&self) -> Result<(), String> {
+        if self.masses_kg.is_empty() {
+            return Err("masses_kg: list at least one excitation".into());
+        }
+        for (k, m) in &self.masses_kg {
+            if !(m.is_finite() && *m >= 0.0) {
+                return Err(format!("masses_kg.{k}: must be finite and ≥ 0, got {m}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Effect for ForceGaugeMass {
+    fn id(&self) -> &'static str {
+        "force_gauge_mass"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.masses_kg
+            .keys()
+            .map(|k| ParamInfo {
+                name: format!("masses_kg.{k}"),
+                unit: "kg",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.0, 0.02),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.masses_kg.values().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != self.masses_kg.len() {
+            return Err(format!(
+                "expected {} values, got {}",
+                self.masses_kg.len(),
+                values.len()
+            ));
+        }
+        let e = ForceGaugeMass {
+            masses_kg: self
+                .masses_kg
+                .keys()
+                .cloned()
+                .zip(values.iter().copied())
+                .collect(),
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        excitations_exist(spec, "masses_kg", self.masses_kg.keys().cloned())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            let ex = &ctx.geometry.excitations[input.excitation];
+            if let Some(m) = self.masses_kg.get(&ex.id) {
+                let t = rigid_transform(&ex.position);
+                input.attached_mass += *m * t.transpose() * t;
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,176 @@
+//! Processing-induced effects (research note E6).
+//!
+//! - `exponential_window`: force and response records multiplied by `w(t) = e^{−σt}`
+//!   (σ = 1/τ). For a transient inside the record the windowed transform of any signal
+//!   is its Laplace transform at `s = iω + σ`, and the force's window cancels, so every
+//!   measured FRF is its transfer function at `s = iω + σ`:
+//!   `A_w(ω) = A(iω + σ)`. For a modal model every pole λ_r moves to `λ_r − σ`
+//!   (`ζ'_r ω'_r = ζ_r ω_r + σ`, the modes stay real), and the accelerance mass line
+//!   `s² S Z(s)⁻¹ F → S M⁻¹ F` is unchanged. The accelerance factor is `(iω + σ)²`,
+//!   not `−ω²`.
+//! - `record_truncation`: records of length T without a window. The FRF is the finite
+//!   transform `∫_0^T y(t) e^{−iωt} dt` of the impulse response; for a modal model
+//!   `H_T(ω) = Σ_r R_r (1 − e^{(λ_r − iω)T})/(iω − λ_r) + c.c.`, which at the DFT bins
+//!   `ω_k = 2πk/T` scales each residue by `(1 − e^{λ_r T})`. Computed for any damping by
+//!   [`crate::observe`] from the state at T.
+//!
+//! Both change how the data are observed, not the structure: the truth modes stay the
+//! physical ones.
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExponentialWindow {
+    /// Decay rate σ (1/s); or give `time_constant_s` τ = 1/σ instead.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decay_per_s: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_constant_s: Option<f64>,
+}
+
+impl ExponentialWindow {
+    /// σ (1/s).
+    pub fn sigma(&self) -> f64 {
+        match (self.decay_per_s, self.time_constant_s) {
+            (Some(s), _) => s,
+            (None, Some(t)) => 1.0 / t,
+            (None, None) => f64::NAN,
+        }
+    }
+    fn check_values(&self) -> Result<(), String> {
+        match (self.decay_per_s, self.time_constant_s) {
+            (Some(s), None) if s.is_finite() && s >= 0.0 => Ok(()),
+            (Some(s), None) => Err(format!("decay_per_s must be finite and ≥ 0, got {s}")),
+            (None, Some(t)) if t.is_finite() && t > 0.0 => Ok(()),
+            (None, Some(t)) => Err(format!("time_constant_s must be positive, got {t}")),
+            _ => Err("give exactly one of decay_per_s (σ) and time_constant_s (τ = 1/σ)".into()),
+        }
+    }
+}
+
+impl Effect for ExponentialWindow {
+    fn id(&self) -> &'static str {
+        "exponential_window"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec![if self.time_constant_s.is_some() {
+            ParamInfo {
+                name: "time_constant_s".into(),
+                unit: "s",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (1.5, 10.0),
+            }
+        } else {
+            ParamInfo {
+                name: "decay_per_s".into(),
+                unit: "1/s",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.0, 0.7),
+            }
+        }]
+    }
+    fn values(&self) -> Vec<f64> {
+        vec![self
+            .decay_per_s
+            .or(self.time_constant_s)
+            .unwrap_or(f64::NAN)]
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let [v] = values else {
+            return Err(format!("expected 1 value, got {}", values.len()));
+        };
+        let mut e = self.clone();
+        if e.time_constant_s.is_some() {
+            e.time_constant_s = Some(*v);
+        } else {
+            e.decay_per_s = Some(*v);
+        }
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
+    }
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        model.observation.window_decay_per_s += self.sigma();
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordTruncation {
+    /// Record length T (s).
+    pub record_length_s: f64,
+}
+
+impl RecordTruncation {
+    fn check_values(&self) -> Result<(), String> {
+        if self.record_length_s.is_finite() && self.record_length_s > 0.0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "record_length_s must be positive and finite, got {}",
+                self.record_length_s
+            ))
+        }
+    }
+}
+
+impl Effect for RecordTruncation {
+    fn id(&self) -> &'static str {
+        "record_truncation"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec![ParamInfo {
+            name: "record_length_s".into(),
+            unit: "s",
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible: (4.0, 64.0),
+        }]
+    }
+    fn values(&self) -> Vec<f64> {
+        vec![self.record_length_s]
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let [v] = values else {
+            return Err(format!("expected 1 value, got {}", values.len()));
+        };
+        let e = RecordTruncation {
+            record_length_s: *v,
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
+    }
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        if model.observation.record_length_s.is_some() {
+            return Err("record_truncation is given twice".into());
+        }
+        model.observation.record_length_s = Some(self.record_length_s);
+        Ok(())
+    }
+}

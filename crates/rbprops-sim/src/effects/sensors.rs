@@ -1,0 +1,219 @@
+//! The sensor chain beyond geometry (research notes E2, E11):
+//!
+//! - `transducer_highpass`: the IEPE discharge / AC coupling of a response channel is a
+//!   first-order high-pass, so the channel's FRF is multiplied by `iωτ/(1 + iωτ)`
+//!   (evaluated at `s = iω + σ` under an exponential window, like every factor). The
+//!   force channel is taken as unfiltered (a quartz gauge, τ ≥ 100 s); a common filter
+//!   on force and response would cancel.
+//! - `sensor_tilt_gravity`: an accelerometer senses specific force. A small body
+//!   rotation θ turns gravity `−g ẑ` (ẑ up) in body axes into `−g(ẑ − θ×ẑ)`, so the
+//!   sensed specific force is `a + g ẑ − g θ×ẑ = a + g ẑ + g [ẑ]×θ`; without the static
+//!   part, channel c reads `s_cᵀ(a + g [ẑ]×θ)`, i.e. the row gains the term
+//!   `g s_cᵀ [0 | [ẑ]×]` in accelerance (`/s²` for mobility and receptance, obtained by
+//!   integrating the accelerometer signal). Horizontal channels see it, only through
+//!   rotation about horizontal axes; poles do not move. `s_c` is the row's current
+//!   translational part (gains and misorientation compose), so this effect applies
+//!   after the other output effects.
+
+use super::{BuildContext, Effect, ParamInfo};
+use crate::effects::gravity::STANDARD_GRAVITY;
+use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use nalgebra::RowVector6;
+use rbprops_core::{cross_matrix, Vec3};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TransducerHighpass {
+    /// Time constant τ (s) of every response channel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_constant_s: Option<f64>,
+    /// Time constant τ (s) per channel id; overrides `time_constant_s` for those listed.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub time_constants_s: BTreeMap<String, f64>,
+}
+
+impl TransducerHighpass {
+    fn all(&self) -> Vec<f64> {
+        self.time_constant_s
+            .iter()
+            .chain(self.time_constants_s.values())
+            .copied()
+            .collect()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.time_constant_s.is_none() && self.time_constants_s.is_empty() {
+            return Err(
+                "give time_constant_s (all channels) and/or time_constants_s (per channel)".into(),
+            );
+        }
+        if let Some(t) = self.all().iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+            return Err(format!(
+                "time constants must be positive and finite, got {t}"
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Effect for TransducerHighpass {
+    fn id(&self) -> &'static str {
+        "transducer_highpass"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.time_constant_s
+            .iter()
+            .map(|_| "time_constant_s".to_string())
+            .chain(
+                self.time_constants_s
+                    .keys()
+                    .map(|k| format!("time_constants_s.{k}")),
+            )
+            .map(|name| ParamInfo {
+                name,
+                unit: "s",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.5, 10.0),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.all()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let n = self.all().len();
+        if values.len() != n {
+            return Err(format!("expected {n} values, got {}", values.len()));
+        }
+        let mut e = self.clone();
+        let mut it = values.iter();
+        if e.time_constant_s.is_some() {
+            e.time_constant_s = it.next().copied();
+        }
+        for v in e.time_constants_s.values_mut() {
+            *v = *it.next().expect("length checked");
+        }
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        let channels = spec.channels();
+        for k in self.time_constants_s.keys() {
+            if !channels.iter().any(|c| &c.id == k) {
+                return Err(format!("time_constants_s: channel '{k}' is not defined"));
+            }
+        }
+        Ok(())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        let n = ctx.geometry.channels.len();
+        let hp = &mut model.observation.highpass_time_constants_s;
+        hp.resize(n, Vec::new());
+        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
+            if let Some(t) = self
+                .time_constants_s
+                .get(&ch.id)
+                .copied()
+                .or(self.time_constant_s)
+            {
+                hp[c].push(t);
+            }
+        }
+        Ok(())
+    }
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+fn default_g() -> f64 {
+    STANDARD_GRAVITY
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorTiltGravity {
+    #[serde(default = "default_g")]
+    pub g_m_per_s2: f64,
+    /// Upward unit vector in the geometry frame.
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+}
+
+impl SensorTiltGravity {
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 >= 0.0) {
+            return Err(format!(
+                "g_m_per_s2 must be finite and ≥ 0, got {}",
+                self.g_m_per_s2
+            ));
+        }
+        let n = Vec3::from(self.up).norm();
+        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
+        }
+        Ok(())
+    }
+}
+
+impl Effect for SensorTiltGravity {
+    fn id(&self) -> &'static str {
+        "sensor_tilt_gravity"
+    }
+    fn order(&self) -> u8 {
+        2
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec![ParamInfo {
+            name: "g_m_per_s2".into(),
+            unit: "m/s2",
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible: (9.78, 9.84),
+        }]
+    }
+    fn values(&self) -> Vec<f64> {
+        vec![self.g_m_per_s2]
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let [g] = values else {
+            return Err(format!("expected 1 value, got {}", values.len()));
+        };
+        let e = SensorTiltGravity {
+            g_m_per_s2: *g,
+            ..self.clone()
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
+    }
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        let zx = self.g_m_per_s2 * cross_matrix(&Vec3::from(self.up));
+        let rows = &mut model.observation.gravity_rows;
+        rows.resize(model.outputs.len(), RowVector6::zeros());
+        for (g, row) in rows.iter_mut().zip(&model.outputs) {
+            let s = Vec3::new(row[0], row[1], row[2]);
+            let t = s.transpose() * zx;
+            for i in 0..3 {
+                g[3 + i] += t[i];
+            }
+        }
+        Ok(())
+    }
+}

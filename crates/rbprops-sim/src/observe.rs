@@ -1,0 +1,196 @@
+//! The general observation of a model's FRFs: exponential window, finite record,
+//! gravity in the sensor equation, transducer high-pass and masses attached during one
+//! excitation ([`crate::model::Observation`], [`crate::model::ModelInput::attached_mass`]).
+//!
+//! With `s = iω + σ` (σ the window decay, 0 without window), `Z(s) = K + sC + s²(M + M_a)`
+//! and `x(s) = Z(s)⁻¹ f`, channel c of quantity order k (0 receptance, 1 mobility,
+//! 2 accelerance) reads
+//!
+//! `y_c = h_c(s) [ S_c Y_k(s) + g_c s^{k−2} X(s) + Σ_m ψ_c ψ_e η_{m,k}(s) ]`
+//!
+//! where `Y_k = s^k x` for an infinite record and, for a record of length T, the finite
+//! transform of the impulse response: with `(q_T, v_T)` the state at T after the unit
+//! impulse (`exp(A T)` of the first-order form), the free response after T has the
+//! transform `Q_T = Z(s)⁻¹[(M + M_a)(s q_T + v_T) + C q_T]`, and
+//! `Y_0 = x − e^{−sT} Q_T`, `Y_1 = s x − e^{−sT}(s Q_T − q_T)`,
+//! `Y_2 = s² x − e^{−sT}(s² Q_T − s q_T − v_T)` (`X = Y_0`; an extra mode likewise with its
+//! scalar state). `h_c = Π sτ/(1 + sτ)` is the high-pass product of channel c.
+//! The direct term of the accelerance (`S M⁻¹ f` at t = 0) is inside `s² x`.
+
+use crate::model::{DynamicModel, ModelInput};
+use nalgebra::{SMatrix, SVector, Vector2};
+use rbprops_core::{c64, Mat6, Quantity, Vec6};
+
+type Mat6c = nalgebra::Matrix6<c64>;
+type Vec6c = nalgebra::Vector6<c64>;
+
+fn cplx6(v: &Vec6) -> Vec6c {
+    v.map(|x| c64::new(x, 0.0))
+}
+
+/// State `(q, v)` at time T after a unit impulse through `f` (rigid part).
+fn rigid_state_at(
+    mass: &Mat6,
+    model: &DynamicModel,
+    f: &Vec6,
+    t: f64,
+) -> Result<(Vec6, Vec6), String> {
+    let minv = mass
+        .try_inverse()
+        .ok_or("mass matrix is singular".to_string())?;
+    let mut a = SMatrix::<f64, 12, 12>::zeros();
+    a.fixed_view_mut::<6, 6>(0, 6).copy_from(&Mat6::identity());
+    a.fixed_view_mut::<6, 6>(6, 0)
+        .copy_from(&(-minv * model.stiffness));
+    a.fixed_view_mut::<6, 6>(6, 6)
+        .copy_from(&(-minv * model.damping));
+    let mut x0 = SVector::<f64, 12>::zeros();
+    x0.fixed_rows_mut::<6>(6).copy_from(&(minv * f));
+    let xt = (a * t).exp() * x0;
+    if !xt.iter().all(|x| x.is_finite()) {
+        return Err(format!("the state at T = {t} s is not finite"));
+    }
+    Ok((xt.fixed_rows::<6>(0).into(), xt.fixed_rows::<6>(6).into()))
+}
+
+/// Scalar state `(η, η̇)` at T of `η̈ + 2ζω η̇ + ω² η = δ(t)`.
+fn mode_state_at(wm: f64, zeta: f64, t: f64) -> Vector2<f64> {
+    let a = nalgebra::Matrix2::new(0.0, 1.0, -wm * wm, -2.0 * zeta * wm);
+    (a * t).exp() * Vector2::new(0.0, 1.0)
+}
+
+/// `Y_k` from the untruncated transform `x` and, when truncated, the tail transform
+/// `qt` with the state `(q0, v0)` at T and `e = e^{−sT}`.
+fn derivative_transform<T>(k: i32, s: c64, x: T, tail: Option<(T, T, T, c64)>) -> T
+where
+    T: Clone
+        + std::ops::Mul<c64, Output = T>
+        + std::ops::Sub<T, Output = T>
+        + std::ops::Add<T, Output = T>,
+{
+    let full = match k {
+        0 => x,
+        1 => x * s,
+        _ => x * (s * s),
+    };
+    match tail {
+        None => full,
+        Some((qt, q0, v0, e)) => {
+            let t = match k {
+                0 => qt,
+                1 => qt * s - q0,
+                _ => qt * (s * s) - q0 * s - v0,
+            };
+            full - t * e
+        }
+    }
+}
+
+/// Observed FRFs of one input, `[channel][line]`, in `quantity` (see the module docs).
+pub fn observed_block(
+    model: &DynamicModel,
+    input: &ModelInput,
+    omegas: &[f64],
+    quantity: Quantity,
+    out: &mut [c64],
+) -> Result<(), String> {
+    let obs = &model.observation;
+    let nl = omegas.len();
+    let n_ch = model.outputs.len();
+    let k = quantity.order();
+    let mass = model.mass + input.attached_mass;
+    let f = input.column;
+    let e = input.excitation;
+    let sigma = obs.window_decay_per_s;
+    let rigid_tail = match obs.record_length_s {
+        Some(t) => Some((t, rigid_state_at(&mass, model, &f, t)?)),
+        None => None,
+    };
+    let mode_tails: Vec<Option<Vector2<f64>>> = model
+        .extra_modes
+        .iter()
+        .map(|m| {
+            obs.record_length_s
+                .map(|t| mode_state_at(std::f64::consts::TAU * m.frequency_hz, m.damping_ratio, t))
+        })
+        .collect();
+    let rows: Vec<Vec6c> = model
+        .outputs
+        .iter()
+        .map(|r| cplx6(&r.transpose()))
+        .collect();
+    let grows: Vec<Vec6c> = obs
+        .gravity_rows
+        .iter()
+        .map(|r| cplx6(&r.transpose()))
+        .collect();
+    let fc = cplx6(&f);
+    for (l, &w) in omegas.iter().enumerate() {
+        let s = c64::new(sigma, w);
+        let z = Mat6c::from_fn(|i, j| {
+            c64::new(model.stiffness[(i, j)], 0.0)
+                + s * model.damping[(i, j)]
+                + s * s * mass[(i, j)]
+        });
+        let lu = z.lu();
+        let x = lu.solve(&fc).ok_or_else(|| {
+            format!(
+                "dynamic stiffness is singular at {:.6} Hz (s = {s})",
+                w / std::f64::consts::TAU
+            )
+        })?;
+        let tail = match &rigid_tail {
+            Some((t, (q0, v0))) => {
+                let rhs = (mass * (q0 * 1.0)).map(|v| c64::new(v, 0.0)) * s
+                    + cplx6(&(mass * v0 + model.damping * q0));
+                let qt = lu.solve(&rhs).ok_or("singular dynamic stiffness")?;
+                Some((qt, cplx6(q0), cplx6(v0), (-s * *t).exp()))
+            }
+            None => None,
+        };
+        let yk = derivative_transform(k, s, x, tail);
+        let disp = if grows.is_empty() {
+            None
+        } else {
+            let x0 = derivative_transform(0, s, x, tail);
+            if k < 2 && s.norm() == 0.0 {
+                return Err(
+                    "gravity in the sensor equation makes a receptance or mobility infinite at 0 Hz: \
+                     start the band above 0 Hz or simulate accelerance"
+                        .into(),
+                );
+            }
+            Some(x0 * s.powi(k - 2))
+        };
+        for c in 0..n_ch {
+            let mut y = rows[c].dot(&yk);
+            if let Some(d) = &disp {
+                y += grows[c].dot(d);
+            }
+            for (m, st) in model.extra_modes.iter().zip(&mode_tails) {
+                let wm = std::f64::consts::TAU * m.frequency_hz;
+                let den = s * s + s * (2.0 * m.damping_ratio * wm) + wm * wm;
+                let eta = c64::new(1.0, 0.0) / den;
+                let tail = st.map(|st| {
+                    let qt = (s * st[0] + st[1] + 2.0 * m.damping_ratio * wm * st[0]) / den;
+                    let t = obs.record_length_s.unwrap_or(0.0);
+                    (
+                        qt,
+                        c64::new(st[0], 0.0),
+                        c64::new(st[1], 0.0),
+                        (-s * t).exp(),
+                    )
+                });
+                y += derivative_transform(k, s, eta, tail)
+                    * (m.at_channels[c] * m.at_excitations[e]);
+            }
+            if let Some(taus) = obs.highpass_time_constants_s.get(c) {
+                for &tau in taus {
+                    y *= s * tau / (s * tau + 1.0);
+                }
+            }
+            out[c * nl + l] = y;
+        }
+    }
+    Ok(())
+}
