@@ -3,6 +3,8 @@
 //! moved sensors and forces in the spec, the Woodbury form of a mass below the gauge,
 //! the high-pass factor and the specific-force formula.
 
+#![allow(clippy::needless_range_loop)] // index-heavy linear algebra reads clearer with indices
+
 use nalgebra::{DMatrix, DVector, Vector3};
 use rbprops_core::{c64, Mat6, Quantity, Vec3, Vec6};
 use rbprops_sim::effects::parse_effects;
@@ -95,6 +97,7 @@ fn elastic_mode_is_an_added_elastic_dof() {
             }
         }
     }
+    eprintln!("{}: worst = {:e}", module_path!(), worst);
     assert!(worst < 1e-10, "elastic DOF vs simulator: {worst:e}");
     assert_eq!(out.truth.effects[0].id, "elastic_mode");
     // The rigid modes of the truth are untouched.
@@ -147,6 +150,7 @@ fn nonproportional_damping_matches_the_complex_mode_expansion() {
         let mpc = (((sxx + syy + ev) / 2.0 - (sxx + syy - ev) / 2.0) / (sxx + syy)).powi(2);
         min_mpc = min_mpc.min(mpc);
     }
+    eprintln!("{}: min_mpc = {:e}", module_path!(), min_mpc);
     assert!(
         min_mpc < 0.999,
         "dashpots should make complex modes (MPC {min_mpc})"
@@ -171,6 +175,7 @@ fn nonproportional_damping_matches_the_complex_mode_expansion() {
             worst = worst.max(max_dev(out.frf.frf(e, ch), &expect));
         }
     }
+    eprintln!("{}: worst = {:e}", module_path!(), worst);
     assert!(
         worst < 1e-9,
         "complex-mode expansion vs simulator: {worst:e}"
@@ -256,6 +261,7 @@ fn exponential_window_shifts_every_pole_by_sigma() {
                 worst = worst.max(max_dev(out.frf.frf(e, ch), &expect));
             }
         }
+        eprintln!("{}: worst = {:e}", module_path!(), worst);
         assert!(
             worst < 1e-9,
             "{q:?}: windowed FRF vs shifted modal sum {worst:e}"
@@ -346,7 +352,9 @@ fn record_truncation_is_the_finite_transform_of_the_impulse_response() {
                 effect = effect.max(max_dev(plain.frf.frf(e, ch), &expect));
             }
         }
+        eprintln!("{}: worst = {:e}", module_path!(), worst);
         assert!(worst < 1e-8, "{q:?}: truncated FRF vs analytic {worst:e}");
+        eprintln!("{}: effect = {:e}", module_path!(), effect);
         assert!(
             effect > 1e-2,
             "{q:?}: truncation should matter at T = {t_rec} s ({effect:e})"
@@ -408,7 +416,9 @@ fn placement_errors_equal_moving_the_points_in_the_spec() {
                 change = change.max(max_dev(nominal.frf.frf(e, ch), b.frf.frf(e, ch)));
             }
         }
+        eprintln!("{}: worst = {:e}", module_path!(), worst);
         assert!(worst < 1e-12, "{table}: {worst:e}");
+        eprintln!("{}: change = {:e}", module_path!(), change);
         assert!(
             change > 1e-3,
             "{table}: the error must be visible ({change:e})"
@@ -481,7 +491,9 @@ fn force_gauge_mass_matches_the_woodbury_form() {
         // Other excitations are measured without the mass.
         assert_eq!(loaded.frf.frf(0, ch), nominal.frf.frf(0, ch));
     }
+    eprintln!("{}: worst = {:e}", module_path!(), worst);
     assert!(worst < 1e-9, "gauge mass vs Woodbury: {worst:e}");
+    eprintln!("{}: change = {:e}", module_path!(), change);
     assert!(change > 1e-3, "the mass must matter: {change:e}");
 }
 
@@ -552,7 +564,9 @@ fn sensor_tilt_gravity_adds_the_specific_force_term() {
             }
         }
     }
+    eprintln!("{}: worst = {:e}", module_path!(), worst);
     assert!(worst < 1e-9, "specific-force formula: {worst:e}");
+    eprintln!("{}: effect = {:e}", module_path!(), effect);
     assert!(
         effect > 1e-2,
         "horizontal channels must see the tilt: {effect:e}"
