@@ -329,6 +329,17 @@ fn estimate_poles_from(
                         if 2 * n <= 2 * (2 * trial_poles.len() + 2) {
                             break;
                         }
+                        // Cheap screen: the drop with the candidate as it is (one QR);
+                        // only promising candidates get the full refinement.
+                        let dof0 = (2 * n * no)
+                            .saturating_sub(
+                                no * (2 * trial_poles.len() + 2) + 2 * trial_poles.len(),
+                            )
+                            .max(1) as f64;
+                        let c_screen = lsfd::weighted_cost(&trial_poles, band, chans, res);
+                        if (r.cost.1 - c_screen) / (c_screen / dof0) < 0.25 * threshold {
+                            continue;
+                        }
                         let r2 = lsfd::refine(&trial_poles, band, chans, res);
                         let added = *r2.poles.last().unwrap();
                         let dof = (2 * n * no)

@@ -320,6 +320,21 @@ fn dot(a: &[c64], b: &[c64]) -> f64 {
         .sum()
 }
 
+/// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimises, for fixed
+/// poles (one QR): used to screen candidate poles cheaply.
+pub fn weighted_cost(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> f64 {
+    let n = band.n_lines();
+    let data: Vec<Vec<c64>> = chans
+        .iter()
+        .map(|h| {
+            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt();
+            h.iter().map(|z| z / rms).collect()
+        })
+        .collect();
+    let lw = line_weights(&data);
+    trial(poles, band, &data, &lw, res).cost
+}
+
 /// Levenberg–Marquardt on the variable-projection functional (Golub & Pereyra; Kaufman's
 /// Jacobian `J = −P⊥ (∂Φ/∂θ) c`): minimises `Σ_o ‖w_o (h_o − Φ(λ) c_o)‖²` over the poles,
 /// the residues being the LSFD solution for each trial set (`w_o` = 1/RMS of channel o).

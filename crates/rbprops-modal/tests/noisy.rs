@@ -9,7 +9,7 @@ use rbprops_modal::{fit_campaign, testdata, FitOptions};
 
 #[test]
 fn one_percent_noise_twenty_seeds() {
-    let base = testdata::test_case(12.5, 4096, Quantity::Accelerance);
+    let base = testdata::test_case(12.5, 2048, Quantity::Accelerance);
     let (mut wf, mut wz, mut wm) = (0.0f64, 0.0f64, 1.0f64);
     let mut std_ratio = Vec::new();
     for seed in 0..20 {
