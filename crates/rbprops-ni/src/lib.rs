@@ -20,6 +20,7 @@
 // `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which must be refused.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod consolidate;
 pub mod error;
 pub mod indicators;
 pub mod manual;
@@ -27,6 +28,7 @@ pub mod matching;
 pub mod peaks;
 pub mod select;
 
+pub use consolidate::{estimate_quality, RIGID_BODY_MODES};
 pub use error::NiError;
 pub use indicators::{
     hybrid_mif, norm_indicator, prf_mif, principal_responses, PrincipalResponses, NI_FLOOR_DB,
@@ -35,5 +37,5 @@ pub use manual::{parse_manual_set, ManualEntry, ManualSet};
 pub use matching::mac;
 pub use select::{
     select_modes, Criterion, ExcitationCurves, ExcitationSummary, IndicatorCurves, ModeExcitation,
-    ModeGroup, NiPeak, SelectOptions, SelectionOutput, StrengthMatrix,
+    ModeGroup, NiPeak, RejectedEstimate, SelectOptions, SelectionOutput, StrengthMatrix,
 };

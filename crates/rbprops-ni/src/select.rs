@@ -1,5 +1,6 @@
 //! Best-mode selection across excitations (the paper's Section 2 and Figs. 4/11–13).
 
+use crate::consolidate::{consolidate, estimate_quality, Evidence, RIGID_BODY_MODES};
 use crate::indicators::{
     hybrid_mif, local_spacing, norm_indicator, power_db, prf_mif_from, principal_responses,
     window_lines, DEFAULT_PRF_RANK_TOLERANCE,
@@ -83,6 +84,15 @@ pub struct SelectOptions {
     pub peak_prominence_db: f64,
     /// Relative singular-value threshold of the PRFs kept in the PRF MIF (default 1e-4).
     pub prf_rank_tolerance: f64,
+    /// An estimate whose modal-fit confidence is below this (default 0.5) is used for a
+    /// mode only when no excitation gives an eligible estimate at or above it: a split
+    /// pole's halves share the true residue and have low confidence.
+    #[serde(default = "default_min_confidence")]
+    pub min_confidence: f64,
+}
+
+fn default_min_confidence() -> f64 {
+    0.5
 }
 
 impl Default for SelectOptions {
@@ -99,6 +109,7 @@ impl Default for SelectOptions {
             mostly_db: 20.0,
             peak_prominence_db: 3.0,
             prf_rank_tolerance: DEFAULT_PRF_RANK_TOLERANCE,
+            min_confidence: default_min_confidence(),
         }
     }
 }
@@ -120,7 +131,8 @@ impl SelectOptions {
         check("min_snr", self.min_snr, 0.0, 1e12)?;
         check("mostly_db", self.mostly_db, 0.0, 1000.0)?;
         check("peak_prominence_db", self.peak_prominence_db, 0.0, 1000.0)?;
-        check("prf_rank_tolerance", self.prf_rank_tolerance, 0.0, 1.0)
+        check("prf_rank_tolerance", self.prf_rank_tolerance, 0.0, 1.0)?;
+        check("min_confidence", self.min_confidence, 0.0, 1.0)
     }
 }
 
@@ -152,6 +164,11 @@ pub struct ModeExcitation {
     pub rigid_residual: Option<f64>,
     /// MAC of its estimate with the reference shape.
     pub mac_to_reference: Option<f64>,
+    /// modal-fit's confidence in its estimate.
+    pub confidence: Option<f64>,
+    /// Estimate quality `confidence · cos²α · 1/(1 + (r/0.1)²)`
+    /// ([`crate::estimate_quality`]).
+    pub quality: Option<f64>,
     /// Usable for the selection (identified, not weak, above the noise).
     pub eligible: bool,
     /// Why it is not eligible.
@@ -259,6 +276,22 @@ pub struct SelectionOutput {
     /// Modes where NI, hybrid MIF, PRF MIF, the strength ranking (or the manual set)
     /// choose different excitations.
     pub criterion_disagreements: Vec<String>,
+    /// Estimates left out of the physical modes (split poles, copies of a neighbour's
+    /// shape, candidates beyond the six rigid-body modes), each with its reason.
+    pub rejected: Vec<RejectedEstimate>,
+}
+
+/// An estimate of the modal record that is not part of any physical mode.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct RejectedEstimate {
+    pub setup: String,
+    pub excitation: String,
+    /// Its mode number in `modal-fit`'s output.
+    pub excitation_mode: usize,
+    pub frequency_hz: f64,
+    /// Frequency of the candidate mode it was matched into.
+    pub group_frequency_hz: f64,
+    pub reason: String,
 }
 
 /// Above this rigid-body residual an estimate gets a warning: its shape is far from
@@ -273,6 +306,8 @@ struct Member {
     strength: f64,
     strength_std: Option<f64>,
     relative_residual: f64,
+    /// Rotation of the residues onto the real line (rad).
+    phase: f64,
     reliable: bool,
     /// Why not reliable.
     why: Option<String>,
@@ -348,6 +383,7 @@ pub fn select_modes(
         curves,
         strength_db: Vec::new(),
         criterion_disagreements: Vec::new(),
+        rejected: Vec::new(),
     };
     let tol = MatchTolerances {
         mac_threshold: opts.mac_threshold,
@@ -362,7 +398,7 @@ pub fn select_modes(
             if !pool.excitations.contains(&k) {
                 continue;
             }
-            let (re, _) = real_modal_constants(&est.residues);
+            let (re, phase) = real_modal_constants(&est.residues);
             let fit = basis.fit(&re)?;
             let f = &columns[k];
             let strength = f.dot(&fit.q);
@@ -403,6 +439,7 @@ pub fn select_modes(
                 strength,
                 strength_std,
                 relative_residual: fit.relative_residual,
+                phase,
                 reliable: why.is_none(),
                 why,
             });
@@ -440,6 +477,7 @@ pub fn select_modes(
         out.matches.extend(result.groups);
         out.strength_db.push(result.matrix);
         out.criterion_disagreements.extend(result.disagreements);
+        out.rejected.extend(result.rejected);
     }
     if !any_modes {
         return Err(NiError::NoModes {
@@ -649,6 +687,7 @@ fn excitation_curves(
 }
 
 struct PoolResult {
+    rejected: Vec<RejectedEstimate>,
     selected: Vec<SelectedMode>,
     missing: Vec<MissingMode>,
     warnings: Vec<String>,
@@ -706,22 +745,63 @@ fn process_pool(
             reliable: m.reliable,
         })
         .collect();
-    let groups = match_candidates(&cands, gram, tol);
+    let evidence: Vec<Evidence> = members
+        .iter()
+        .map(|m| {
+            let est = &modal.modes[m.estimate];
+            Evidence {
+                label: format!(
+                    "{} mode {} ({:.4} Hz)",
+                    est.excitation, est.mode, est.frequency_hz
+                ),
+                confidence: est.confidence,
+                phase: m.phase,
+                rigid_residual: m.relative_residual,
+                weak: est.weak,
+                quality: estimate_quality(est.confidence, m.phase, m.relative_residual),
+            }
+        })
+        .collect();
+    let matched = match_candidates(&cands, gram, tol);
+    let n_matched = matched.len();
+    let consolidated = consolidate(matched, &cands, &evidence, gram, tol, &pool.label);
+    let groups = consolidated.groups;
     let n_modes = groups.len();
-    if n_modes > 6 {
+    if n_matched > RIGID_BODY_MODES {
         warnings.push(format!(
-            "set-up '{}': {n_modes} distinct modes matched, more than the six rigid-body modes \
-             (spurious or elastic modes in the modal record?)",
+            "set-up '{}': {n_matched} distinct modes matched, more than the six rigid-body modes \
+             (split, leakage, noise or elastic poles in the modal record); {n_modes} kept",
             pool.label
         ));
-    } else if n_modes < 6 {
+    }
+    warnings.extend(consolidated.warnings);
+    let rejected: Vec<RejectedEstimate> = consolidated
+        .rejected
+        .iter()
+        .map(|r| {
+            let est = &modal.modes[members[r.candidate].estimate];
+            RejectedEstimate {
+                setup: pool.label.clone(),
+                excitation: est.excitation.clone(),
+                excitation_mode: est.mode,
+                frequency_hz: est.frequency_hz,
+                group_frequency_hz: r.group_frequency_hz,
+                reason: r.reason.clone(),
+            }
+        })
+        .collect();
+    if n_modes < RIGID_BODY_MODES {
         warnings.push(format!(
             "set-up '{}': only {n_modes} of the six rigid-body modes were identified by any excitation",
             pool.label
         ));
     }
-    let strongest = members
+    // Rejected estimates (a split pole's halves can be "stronger" than the mode) do not
+    // set the noise floor.
+    let strongest = groups
         .iter()
+        .flatten()
+        .map(|&i| &members[i])
         .filter(|m| m.reliable)
         .map(|m| m.strength)
         .fold(0.0f64, f64::max);
@@ -779,6 +859,8 @@ fn process_pool(
                 predicted_strength,
                 rigid_residual: None,
                 mac_to_reference: None,
+                confidence: None,
+                quality: None,
                 eligible: false,
                 reason: None,
             };
@@ -795,6 +877,12 @@ fn process_pool(
                     row.strength_db = db10(m.strength);
                     row.rigid_residual = Some(m.relative_residual);
                     row.mac_to_reference = Some(mac(&m.q, &rm.q, gram));
+                    row.confidence = Some(est.confidence);
+                    row.quality = Some(estimate_quality(
+                        est.confidence,
+                        m.phase,
+                        m.relative_residual,
+                    ));
                     row.reason = m.why.clone();
                     if row.reason.is_none() {
                         if let (Some(s_db), Some(floor)) = (row.strength_db, floor_db) {
@@ -812,6 +900,23 @@ fn process_pool(
                 }
             }
             table.push(row);
+        }
+        // A low-confidence estimate (typically half of a split pole) gives way to any
+        // confident one of the same mode.
+        if table
+            .iter()
+            .any(|r| r.eligible && r.confidence.is_some_and(|c| c >= opts.min_confidence))
+        {
+            for row in table.iter_mut().filter(|r| r.eligible) {
+                if let Some(c) = row.confidence.filter(|&c| c < opts.min_confidence) {
+                    row.eligible = false;
+                    row.reason = Some(format!(
+                        "modal-fit confidence {c:.2} is below {} and another excitation gives a \
+                         confident estimate of this mode",
+                        opts.min_confidence
+                    ));
+                }
+            }
         }
 
         let eligible: Vec<&ModeExcitation> = table.iter().filter(|m| m.eligible).collect();
@@ -1075,6 +1180,7 @@ fn process_pool(
             .collect(),
     };
     Ok(PoolResult {
+        rejected,
         selected,
         missing,
         warnings,
