@@ -57,6 +57,17 @@ pub fn ni_select(
     Ok(out)
 }
 
+/// How `rb-solve` obtains the standard errors of the modal estimates.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum Uncertainty {
+    /// `rbprops_inertia` propagation of the residue standard errors (linearised, or Monte
+    /// Carlo with `SolveOptions::monte_carlo_samples`).
+    #[default]
+    Linearised,
+    /// FRF-level parametric bootstrap (`rbprops_uq`).
+    Bootstrap(rbprops_uq::BootstrapOptions),
+}
+
 /// `rb-solve` on a record: adds the `estimates` topic. With `use_truth`, the truth topic
 /// (when present and no reference is set) provides the reference for relative errors.
 pub fn rb_solve(
@@ -65,6 +76,21 @@ pub fn rb_solve(
     use_truth: bool,
     input_sha256: &str,
 ) -> Result<rbprops_inertia::SolveOutput> {
+    rb_solve_with(rec, opts, &Uncertainty::Linearised, use_truth, input_sha256).map(|(o, _)| o)
+}
+
+/// [`rb_solve`] with a choice of [`Uncertainty`]; with the bootstrap, also its output
+/// (`None` when it could not run: the warnings say why and the linearised errors stay).
+pub fn rb_solve_with(
+    rec: &mut RunRecord,
+    opts: &rbprops_inertia::SolveOptions,
+    uncertainty: &Uncertainty,
+    use_truth: bool,
+    input_sha256: &str,
+) -> Result<(
+    rbprops_inertia::SolveOutput,
+    Option<rbprops_uq::BootstrapOutput>,
+)> {
     let (geometry, frf) = rec.require_geometry_and_frf()?;
     let frf = frf.clone();
     let modal: ModalFitRecord = rec
@@ -79,8 +105,16 @@ pub fn rb_solve(
             .get_one::<TruthRecord>(topics::TRUTH)?
             .map(|t| t.properties);
     }
-    let out = rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?;
+    let (out, boot) = match uncertainty {
+        Uncertainty::Linearised => (
+            rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?,
+            None,
+        ),
+        Uncertainty::Bootstrap(b) => {
+            rbprops_uq::solve_with_bootstrap(&geometry, &modal, &selection, &frf, &opts, b)?
+        }
+    };
     rec.push_provenance(crate::provenance("rb-solve", input_sha256))?;
     rec.set::<InertiaEstimate>(topics::ESTIMATES, &out.estimates);
-    Ok(out)
+    Ok((out, boot))
 }

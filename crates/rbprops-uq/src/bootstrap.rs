@@ -275,6 +275,18 @@ pub fn bootstrap(
         .collect();
 
     let mut warnings = Vec::new();
+    for e in &model.excitations {
+        let n: usize = e.misfit_lines.iter().sum();
+        if n > 0 {
+            let worst = (0..e.misfit_lines.len())
+                .max_by_key(|&c| e.misfit_lines[c])
+                .unwrap_or(0);
+            warnings.push(format!(
+                "bootstrap: excitation '{}': the modal model misses structure on {n} channel-lines (most on channel '{}': {} lines); they are not counted as noise and every replicate keeps the measured values there",
+                e.id, geometry.channels[worst].id, e.misfit_lines[worst]
+            ));
+        }
+    }
     let mut estimates = Vec::new();
     for (t_idx, t) in targets.iter().enumerate() {
         let mut samples = Vec::new();

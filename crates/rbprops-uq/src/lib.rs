@@ -17,8 +17,12 @@
 //! 2. **Noise model** ([`noise`]): per excitation k and channel i,
 //!    `E|H − S|² = σ²_kil = a²_ki |S_kil|² + b²_ki`, fitted by maximum likelihood to the
 //!    residual measured − synthesised, with a degrees-of-freedom correction for the
-//!    parameters the modal fit spent.
-//! 3. **Replicates** b = 1..B: `H*_kil = S_kil + σ_kil (n₁ + i n₂)/√2` with standard
+//!    parameters the modal fit spent. Structured misfit (a run of lines whose residual
+//!    power is far above the noise, e.g. a weakly excited mode the fit left out) is not
+//!    noise: such lines are found by a moving average of `|r|²/σ²`, left out of the noise
+//!    fit, and the bootstrap's centre takes the measured values there (`S'` below), so
+//!    every replicate carries the misfit the measurement carries.
+//! 3. **Replicates** b = 1..B: `H*_kil = S'_kil + σ_kil (n₁ + i n₂)/√2` with standard
 //!    normals from a ChaCha8 stream seeded by `(seed, b)`, drawn excitation by excitation,
 //!    channel by channel, line by line.
 //! 4. **Re-identification** ([`Reidentify`]): by default the modal fit's final stages from
@@ -59,5 +63,5 @@ pub use bootstrap::{
 };
 pub use error::UqError;
 pub use model::{ExcitationModel, FittedModel};
-pub use noise::{fit_channel_noise, ChannelNoise};
+pub use noise::{fit_channel, fit_channel_noise, ChannelFit, ChannelNoise};
 pub use reidentify::{MatchTolerances, Reidentify, ReplicateModes};

@@ -2,7 +2,7 @@
 //! residues of the modal fit re-synthesised on the fit's band, and the noise model.
 
 use crate::error::UqError;
-use crate::noise::{fit_channel_noise, ChannelNoise};
+use crate::noise::{fit_channel, ChannelNoise};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
@@ -28,14 +28,19 @@ pub struct ExcitationModel {
     pub mode_numbers: Vec<usize>,
     /// LSFD synthesis `[channel][line]` of the measured band with these poles.
     pub synthesised: Vec<Vec<c64>>,
+    /// The bootstrap's centre: the synthesis, except on lines of structured misfit where
+    /// it is the measured value (so every replicate carries the misfit the data carry).
+    pub centre: Vec<Vec<c64>>,
     pub noise: Vec<ChannelNoise>,
+    /// Per channel, the number of misfit lines.
+    pub misfit_lines: Vec<usize>,
 }
 
 impl ExcitationModel {
     /// Synthesised FRFs plus one noise draw, `[channel][line]`, drawn channel by channel
     /// and line by line from `rng` (so a replicate's data depend only on its seed).
     pub fn draw(&self, rng: &mut ChaCha8Rng) -> Vec<Vec<c64>> {
-        self.synthesised
+        self.centre
             .iter()
             .zip(&self.noise)
             .map(|(s, nz)| {
@@ -208,13 +213,33 @@ impl FittedModel {
                 let p = 2.0 * nm
                     + (res.upper as usize + res.lower as usize) as f64
                     + 2.0 * nm / live.max(1) as f64;
-                e.noise = e
+                let fits: Vec<_> = e
                     .band
                     .channels
                     .iter()
                     .zip(&e.synthesised)
-                    .map(|(h, s)| fit_channel_noise(h, s, p))
+                    .map(|(h, s)| fit_channel(h, s, p))
                     .collect();
+                e.centre = fits
+                    .iter()
+                    .enumerate()
+                    .map(|(c, f)| {
+                        (0..e.band.n_lines())
+                            .map(|l| {
+                                if f.misfit[l] {
+                                    e.band.channels[c][l]
+                                } else {
+                                    e.synthesised[c][l]
+                                }
+                            })
+                            .collect()
+                    })
+                    .collect();
+                e.misfit_lines = fits
+                    .iter()
+                    .map(|f| f.misfit.iter().filter(|m| **m).count())
+                    .collect();
+                e.noise = fits.into_iter().map(|f| f.noise).collect();
             }
         }
     }
@@ -291,8 +316,10 @@ fn excitation_model(
         live,
         mode_numbers: modes.iter().map(|m| m.mode).collect(),
         poles,
+        centre: synthesised.clone(),
         synthesised,
         noise: Vec::new(),
+        misfit_lines: Vec::new(),
         band,
     })
 }

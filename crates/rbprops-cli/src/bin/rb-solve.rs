@@ -16,6 +16,14 @@ enum OutFormat {
     Mcap,
 }
 
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum UncertaintyKind {
+    /// FRF-level parametric bootstrap of the modal estimators (rbprops-uq).
+    Bootstrap,
+    /// Propagation of the residue standard errors (or Monte Carlo with --monte-carlo).
+    Linearised,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum Method {
     BretlConti,
@@ -57,7 +65,15 @@ struct Args {
     /// Mass-line band FMIN:FMAX in Hz (default: automatic).
     #[arg(long)]
     mass_line_band: Option<String>,
-    /// Monte Carlo draws for the uncertainty (0 = linearised propagation).
+    /// How the modal estimators' standard errors are obtained (the mass line always
+    /// propagates its own). The bootstrap is the calibrated one (see rbprops-uq); the
+    /// default stays linearised while the campaign runner (`stages::rb_solve`) does.
+    #[arg(long, value_enum, default_value = "linearised")]
+    uncertainty: UncertaintyKind,
+    /// Bootstrap replicates (with --uncertainty bootstrap; the seed is --seed).
+    #[arg(long, default_value_t = 100)]
+    bootstrap: usize,
+    /// Monte Carlo draws for the linearised uncertainty (0 = linearised propagation).
     #[arg(long, default_value_t = 0)]
     monte_carlo: usize,
     #[arg(long, default_value_t = 0)]
@@ -123,8 +139,24 @@ fn main() -> std::process::ExitCode {
         }
         opts.monte_carlo_samples = args.monte_carlo;
         opts.seed = args.seed;
-        let out = rbprops_cli::stages::rb_solve(&mut rec, &opts, !args.no_reference, &input.sha256)
-            .with_context(|| input.name.clone())?;
+        let uncertainty = match args.uncertainty {
+            UncertaintyKind::Linearised => rbprops_cli::stages::Uncertainty::Linearised,
+            UncertaintyKind::Bootstrap => {
+                rbprops_cli::stages::Uncertainty::Bootstrap(rbprops_uq::BootstrapOptions {
+                    replicates: args.bootstrap,
+                    seed: args.seed,
+                    ..Default::default()
+                })
+            }
+        };
+        let (out, _) = rbprops_cli::stages::rb_solve_with(
+            &mut rec,
+            &opts,
+            &uncertainty,
+            !args.no_reference,
+            &input.sha256,
+        )
+        .with_context(|| input.name.clone())?;
         rbprops_cli::warn_all("rb-solve", &out.warnings);
         if out.estimates.is_empty() {
             bail!("no estimator produced an estimate (see the warnings above)");
