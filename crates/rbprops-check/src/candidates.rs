@@ -394,6 +394,52 @@ impl Effect for LocalEffect {
     }
 }
 
+/// Human title and "what would reveal or separate it" for a catalogue id.
+pub fn describe(id: &str) -> (&'static str, &'static str) {
+    if let Some(k) = ALL.iter().find(|k| k.id() == id) {
+        return (k.title(), k.reveal());
+    }
+    match id {
+        "sensor_position" => (
+            "sensor position error",
+            "a measured sensor layout (or a second sensor layout)",
+        ),
+        "force_location" => (
+            "force location error",
+            "marked impact points, or more excitations than six",
+        ),
+        "force_gauge_mass" => (
+            "mass below the force gauge",
+            "a known mass calibration of the hammer or shaker",
+        ),
+        "exponential_window" => (
+            "exponential window (processing damping)",
+            "the window used, or a second record length / window",
+        ),
+        "record_truncation" => (
+            "record truncation (leakage)",
+            "the record length, or a longer record",
+        ),
+        "transducer_highpass" => (
+            "transducer / acquisition high-pass",
+            "the channels' time constants, or data below the suspension modes",
+        ),
+        "sensor_tilt_gravity" => (
+            "gravity seen by tilting accelerometers",
+            "data well below the suspension modes, or a rotation sensor",
+        ),
+        "suspension_coupling" => (
+            "suspension rotational / lateral coupling stiffness",
+            "a second suspension length, or the mount's measured stiffness",
+        ),
+        "elastic_mode" => (
+            "elastic mode above the band (residual flexibility)",
+            "data closer to the first elastic mode",
+        ),
+        _ => ("catalogue effect", "side information on this effect"),
+    }
+}
+
 /// The parameter table of a neutral ("absent") instance of a catalogue effect, for the
 /// ids whose spec form is known; `None` for others (an empty table is then tried).
 fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Table> {
@@ -402,6 +448,8 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         toml::Value::Table(ids.into_iter().map(|k| (k, v.clone())).collect())
     };
     let sensors: Vec<String> = spec.sensors.iter().map(|s| s.id.clone()).collect();
+    let excitations: Vec<String> = g.excitations.iter().map(|e| e.id.clone()).collect();
+    let zero3 = || toml::Value::Array(vec![0.0.into(), 0.0.into(), 0.0.into()]);
     match id {
         "channel_gain" => {
             t.insert(
@@ -431,6 +479,41 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         "sensor_mass" => {
             t.insert("masses_kg".into(), ones(sensors, 0.0.into()));
         }
+        "sensor_position" => {
+            t.insert("offsets_m".into(), ones(sensors, zero3()));
+        }
+        "force_direction" => {
+            t.insert("rotations_rad".into(), ones(excitations, zero3()));
+        }
+        "force_location" => {
+            t.insert("offsets_m".into(), ones(excitations, zero3()));
+        }
+        "force_gauge_mass" => {
+            t.insert("masses_kg".into(), ones(excitations, 0.0.into()));
+        }
+        "exponential_window" => {
+            t.insert("decay_per_s".into(), 0.0.into());
+        }
+        "nonproportional_damping" => {
+            t.insert(
+                "axial_n_s_per_m".into(),
+                toml::Value::Array(vec![0.0.into()]),
+            );
+            t.insert(
+                "lateral_n_s_per_m".into(),
+                toml::Value::Array(vec![0.0.into()]),
+            );
+        }
+        "suspension_coupling" => {
+            t.insert("rotational_n_m_per_rad".into(), zero3());
+            t.insert("lateral_n_per_m".into(), 0.0.into());
+        }
+        "sensor_tilt_gravity" => {
+            t.insert("g_m_per_s2".into(), 0.0.into());
+        }
+        // Neutral only at infinity (1/T, 1/τ, or a mode shape product that is bilinear
+        // at zero): not screened until a reparametrised local form exists.
+        "record_truncation" | "transducer_highpass" | "elastic_mode" => return None,
         _ => return None,
     }
     Some(t)
@@ -453,9 +536,15 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
         if in_spec.contains(&id) || REPARAMETRISED.contains(&id) {
             continue;
         }
+        let Some(parameters) = neutral_entry(id, spec, geometry) else {
+            notes.push(format!(
+                "catalogue effect '{id}' is not screened: its parametrisation has no neutral (\"absent\") value the model check can start from"
+            ));
+            continue;
+        };
         let entry = rbprops_sim::spec::EffectSpec {
             id: id.to_string(),
-            parameters: neutral_entry(id, spec, geometry).unwrap_or_default(),
+            parameters,
         };
         match rbprops_sim::effects::parse_effect(&entry) {
             Ok(e) if !e.values().is_empty() => {
@@ -465,15 +554,15 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                     .iter()
                     .map(|p| ((p.plausible.1 - p.plausible.0).abs() / 5.0).max(1e-9))
                     .collect();
-                let kind = ALL.iter().find(|k| k.id() == id);
+                let (title, reveal) = describe(id);
                 out.push(Candidate {
                     id: id.to_string(),
-                    title: kind.map(|k| k.title()).unwrap_or(id).to_string(),
+                    title: title.to_string(),
                     effect: e,
                     neutral,
                     scales,
                     source: "rbprops-sim",
-                    reveal: kind.map(|k| k.reveal()).unwrap_or("side information on this effect"),
+                    reveal,
                 });
             }
             Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),

@@ -77,6 +77,40 @@ pub struct CheckOutcome {
     pub sigma: Vec<f64>,
 }
 
+/// An effect in the model. Its free parameters are the `kept` coordinates of φ; the
+/// others stay at their neutral values. A coordinate is dropped for each exact gauge
+/// of the effect (a direction with no signature once the current model's parameters
+/// are free: a common gain the mass absorbs, a rotation of a force about itself), so a
+/// gauge can neither drift nor take over the inertia parameters, while the kept
+/// parameters keep their own units and bounds.
+#[derive(Debug, Clone)]
+struct Act {
+    c: usize,
+    kept: Vec<usize>,
+    /// Unit directions in φ-space the data cannot see at first order (reported).
+    gauge: Vec<Vec<f64>>,
+}
+
+impl Act {
+    fn full(c: usize, n: usize) -> Act {
+        Act {
+            c,
+            kept: (0..n).collect(),
+            gauge: Vec::new(),
+        }
+    }
+    fn dim(&self) -> usize {
+        self.kept.len()
+    }
+    fn phi(&self, neutral: &[f64], alpha: &[f64]) -> Vec<f64> {
+        let mut phi = neutral.to_vec();
+        for (&j, a) in self.kept.iter().zip(alpha) {
+            phi[j] = *a;
+        }
+        phi
+    }
+}
+
 /// The fitting problem: data, weights, parametrisation and candidates.
 struct Problem<'a> {
     baseline: Baseline,
@@ -97,7 +131,7 @@ impl<'a> Problem<'a> {
     fn build(
         &self,
         theta: &[f64],
-        active: &[usize],
+        active: &[Act],
     ) -> Result<(CampaignSpec, Vec<Box<dyn Effect>>), CheckError> {
         let spec = self.baseline.apply(&theta[..self.n_base()]);
         let mut effects: Vec<Box<dyn Effect>> = self
@@ -106,25 +140,22 @@ impl<'a> Problem<'a> {
             .map(|e| e.with_values(&e.values()).map_err(CheckError::Model))
             .collect::<Result<_, _>>()?;
         let mut k = self.n_base();
-        for &c in active {
-            let cand = &self.cands[c];
-            let n = cand.neutral.len();
-            effects.push(
-                cand.effect
-                    .with_values(&theta[k..k + n])
-                    .map_err(CheckError::Model)?,
-            );
+        for a in active {
+            let cand = &self.cands[a.c];
+            let n = a.dim();
+            let phi = a.phi(&cand.neutral, &theta[k..k + n]);
+            effects.push(cand.effect.with_values(&phi).map_err(CheckError::Model)?);
             k += n;
         }
         Ok((spec, effects))
     }
 
-    fn model(&self, theta: &[f64], active: &[usize]) -> Result<Vec<c64>, CheckError> {
+    fn model(&self, theta: &[f64], active: &[Act]) -> Result<Vec<c64>, CheckError> {
         let (spec, effects) = self.build(theta, active)?;
         predict(&spec, self.layout, &effects)
     }
 
-    fn residual(&self, theta: &[f64], active: &[usize]) -> Result<Vec<f64>, CheckError> {
+    fn residual(&self, theta: &[f64], active: &[Act]) -> Result<Vec<f64>, CheckError> {
         let m = self.model(theta, active)?;
         let mut r = Vec::with_capacity(2 * self.used.len());
         for &i in &self.used {
@@ -135,7 +166,7 @@ impl<'a> Problem<'a> {
         Ok(r)
     }
 
-    fn bounds(&self, active: &[usize]) -> Bounds {
+    fn bounds(&self, active: &[Act]) -> Bounds {
         let nb = self.n_base();
         let mut lower = vec![f64::NEG_INFINITY; nb];
         let mut upper = vec![f64::INFINITY; nb];
@@ -144,13 +175,14 @@ impl<'a> Problem<'a> {
             lower[0] = m.ln();
             upper[0] = m.ln();
         }
-        for &c in active {
-            let cand = &self.cands[c];
-            for p in cand.effect.parameters() {
-                lower.push(p.lower);
-                upper.push(p.upper);
+        for a in active {
+            let cand = &self.cands[a.c];
+            let infos = cand.effect.parameters();
+            for &j in &a.kept {
+                lower.push(infos[j].lower);
+                upper.push(infos[j].upper);
+                scales.push(cand.scales[j]);
             }
-            scales.extend_from_slice(&cand.scales);
         }
         Bounds {
             lower,
@@ -163,7 +195,7 @@ impl<'a> Problem<'a> {
         &self,
         stage: &str,
         theta0: &[f64],
-        active: &[usize],
+        active: &[Act],
         max_iter: usize,
     ) -> Result<Fit, CheckError> {
         let f = |t: &[f64]| self.residual(t, active);
@@ -219,25 +251,34 @@ struct Score {
     rank: usize,
     score: f64,
     basis: DMatrix<f64>,
-    /// Gauss–Newton start for the candidate's parameters.
+    /// Free coordinates of φ (one dropped per exact gauge).
+    kept: Vec<usize>,
+    /// Gauss–Newton start of the kept coordinates.
     start: Vec<f64>,
+    /// Unit φ-space directions without first-order signature.
+    gauge: Vec<Vec<f64>>,
     /// Fraction of the candidate's signature each parameter group explains alone.
     absorbed_by: Vec<(String, f64)>,
 }
 
-/// Relative singular value below which a candidate direction counts as absorbed.
+/// Relative singular value below which a candidate direction counts as absorbed (no
+/// power to detect it at first order).
 const ABSORBED: f64 = 1e-4;
+/// Below this it is an exact gauge (a symmetry such as a common gain ↔ mass): such
+/// directions are removed from the refit. Directions between the two are absorbed only
+/// at first order and stay free in the refit, where the non-linear model can use them.
+const GAUGE: f64 = 1e-7;
 
 fn score_candidate(
     p: &Problem,
     cur: &Fit,
-    active: &[usize],
+    active: &[Act],
     c: usize,
     q0: &DMatrix<f64>,
 ) -> Result<Score, CheckError> {
     let cand = &p.cands[c];
     let mut act = active.to_vec();
-    act.push(c);
+    act.push(Act::full(c, cand.neutral.len()));
     let theta = &cur.theta;
     let f = |phi: &[f64]| {
         let mut t = theta.clone();
@@ -265,18 +306,114 @@ fn score_candidate(
     let score = proj.norm_squared();
     // Gauss–Newton step on the candidate's parameters alone (projected problem):
     // r + J̃ δ ≈ 0 → δ = −V Σ⁻¹ Uᵀ r in normalised coordinates.
-    let mut start = cand.neutral.clone();
+    let np = cand.neutral.len();
+    let sv = |k: usize| svd.singular_values.get(k).copied().unwrap_or(0.0);
+    // Null directions (exact gauges) in normalised coordinates; V is complete (np×np)
+    // only when rows ≥ columns, which holds (one row per residual entry).
+    let null: Vec<usize> = (0..np).filter(|&k| sv(k) <= GAUGE).collect();
+    // Pivoted elimination: one coordinate per gauge direction is dropped.
+    let mut vecs: Vec<Vec<f64>> = null
+        .iter()
+        .map(|&k| (0..np).map(|j| vt[(k, j)]).collect())
+        .collect();
+    let mut dropped: Vec<usize> = Vec::new();
+    for i in 0..vecs.len() {
+        let v = vecs[i].clone();
+        let Some(j) = (0..np)
+            .filter(|j| !dropped.contains(j))
+            .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
+        else {
+            break;
+        };
+        if v[j].abs() < 1e-12 {
+            continue;
+        }
+        dropped.push(j);
+        for w in vecs.iter_mut().skip(i + 1) {
+            let f = w[j] / v[j];
+            w.iter_mut().zip(&v).for_each(|(x, y)| *x -= f * y);
+        }
+    }
+    let kept: Vec<usize> = (0..np).filter(|j| !dropped.contains(j)).collect();
+    // Gauss–Newton step in normalised coordinates over the detectable directions,
+    // δ = −Σ_k v_k (u_kᵀ r)/s_k, then shifted along the gauges so the dropped
+    // coordinates stay neutral (the gauges leave the residual unchanged).
+    let mut delta = vec![0.0; np];
     for (kk, &k) in keep.iter().enumerate() {
         let coef = -proj[kk] / svd.singular_values[k];
-        for (j, s) in start.iter_mut().enumerate() {
-            if norms[j] > 0.0 {
-                *s += coef * vt[(k, j)] / norms[j];
+        for (j, d) in delta.iter_mut().enumerate() {
+            *d += coef * vt[(k, j)];
+        }
+    }
+    if !dropped.is_empty() {
+        let g = dropped.len();
+        let a = DMatrix::from_fn(g, null.len(), |r, c| vt[(null[c], dropped[r])]);
+        let b = nalgebra::DVector::from_iterator(g, dropped.iter().map(|&j| -delta[j]));
+        if let Some(beta) = a.svd(true, true).solve(&b, 1e-12).ok() {
+            for (c, &k) in null.iter().enumerate() {
+                for (j, d) in delta.iter_mut().enumerate() {
+                    *d += beta[c] * vt[(k, j)];
+                }
             }
         }
     }
-    for (s, pi) in start.iter_mut().zip(cand.effect.parameters()) {
-        *s = s.clamp(pi.lower, pi.upper);
+    let mut step: Vec<f64> = kept
+        .iter()
+        .map(|&j| {
+            if norms[j] > 0.0 {
+                delta[j] / norms[j]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // Shrink the start towards neutral until it respects the effect's bounds.
+    let infos = cand.effect.parameters();
+    let probe = Act {
+        c,
+        kept: kept.clone(),
+        gauge: Vec::new(),
+    };
+    let at = |step: &[f64]| -> Vec<f64> {
+        kept.iter()
+            .zip(step)
+            .map(|(&j, d)| cand.neutral[j] + d)
+            .collect()
+    };
+    for _ in 0..60 {
+        let phi = probe.phi(&cand.neutral, &at(&step));
+        if phi
+            .iter()
+            .zip(&infos)
+            .all(|(v, pi)| *v >= pi.lower && *v <= pi.upper)
+            && cand.effect.with_values(&phi).is_ok()
+        {
+            break;
+        }
+        step.iter_mut().for_each(|a| *a *= 0.5);
     }
+    let start = at(&step);
+    let gauge: Vec<Vec<f64>> = (0..np)
+        .filter(|&k| sv(k) <= ABSORBED)
+        .map(|k| {
+            let v: Vec<f64> = (0..np)
+                .map(|j| {
+                    if norms[j] > 0.0 {
+                        vt[(k, j)] / norms[j]
+                    } else {
+                        vt[(k, j)]
+                    }
+                })
+                .collect();
+            let n = v
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE);
+            v.iter().map(|x| x / n).collect()
+        })
+        .collect();
     // Which parameter groups absorb the signature (for the not-observable report).
     let mut absorbed_by = Vec::new();
     if keep.is_empty() {
@@ -321,7 +458,9 @@ fn score_candidate(
         rank: keep.len(),
         score,
         basis,
+        kept,
         start,
+        gauge,
         absorbed_by,
     })
 }
@@ -530,7 +669,7 @@ pub fn check(
     let nu_base = n_real - free_base as f64;
     let base_pred = p.model(&base.theta, &[])?;
     // Stages 3–4: forward selection with backward checks.
-    let mut active: Vec<usize> = Vec::new();
+    let mut active: Vec<Act> = Vec::new();
     let mut cur = base.clone();
     let mut screening = Vec::new();
     let mut not_observable: Vec<NotObservable> = Vec::new();
@@ -542,7 +681,7 @@ pub fn check(
     for step in 1..=options.max_effects {
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
         let todo: Vec<usize> = (0..p.cands.len())
-            .filter(|c| !active.contains(c) && !excluded.contains(c))
+            .filter(|c| !active.iter().any(|a| a.c == *c) && !excluded.contains(c))
             .collect();
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
             .par_iter()
@@ -567,7 +706,16 @@ pub fn check(
                         id: cand.id.clone(),
                         title: cand.title.clone(),
                         reason: if by.is_empty() {
-                            "its FRF signature lies in the span of the nominal model's free parameters".into()
+                            let joint: Vec<String> = s
+                                .absorbed_by
+                                .iter()
+                                .filter(|(_, f)| *f > 0.01)
+                                .map(|(n, _)| n.clone())
+                                .collect();
+                            format!(
+                                "absorbed without trace by the free {} together",
+                                joint.join(", ")
+                            )
                         } else {
                             format!("absorbed without trace by the free {}", by.join(" and "))
                         },
@@ -625,9 +773,31 @@ pub fn check(
             .par_iter()
             .map(|(c, s, _)| {
                 let mut act = active.clone();
-                act.push(*c);
+                act.push(Act {
+                    c: *c,
+                    kept: s.kept.clone(),
+                    gauge: Vec::new(),
+                });
+                // The Gauss–Newton start can overshoot when the effect is strongly
+                // non-linear: halve it until it is no worse than the current model.
+                let cand = &p.cands[*c];
+                let neutral: Vec<f64> = s.kept.iter().map(|&j| cand.neutral[j]).collect();
+                let mut alpha = s.start.clone();
                 let mut t0 = cur.theta.clone();
-                t0.extend_from_slice(&s.start);
+                t0.extend_from_slice(&alpha);
+                for _ in 0..40 {
+                    match p.residual(&t0, &act) {
+                        Ok(r) if lm::chi2(&r) <= cur.chi2 => break,
+                        _ => {
+                            alpha
+                                .iter_mut()
+                                .zip(&neutral)
+                                .for_each(|(a, n)| *a = n + 0.5 * (*a - n));
+                            t0.truncate(cur.theta.len());
+                            t0.extend_from_slice(&alpha);
+                        }
+                    }
+                }
                 (
                     *c,
                     p.fit(
@@ -661,11 +831,17 @@ pub fn check(
                 }
             };
             let dchi2 = cur.chi2 - f.chi2;
-            let d = s.rank;
+            let d = s.kept.len();
             let dbic = dchi2 - d as f64 * ln_n;
             let thr = chi2_isf(options.alpha / n_cand, d as f64);
-            let k0 = f.theta.len() - cand.neutral.len();
-            let phi = &f.theta[k0..];
+            let k0 = f.theta.len() - d;
+            let alpha = &f.theta[k0..];
+            let phi = &Act {
+                c,
+                kept: s.kept.clone(),
+                gauge: Vec::new(),
+            }
+            .phi(&cand.neutral, alpha);
             let infos = cand.effect.parameters();
             let mut why = Vec::new();
             if !(dchi2 > thr) {
@@ -683,13 +859,14 @@ pub fn check(
                 }
             }
             // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).
-            let nu = n_real - (free_base + active_dims(&p, &active) + d) as f64;
+            let nu = n_real - (free_base + active_dims(&active) + d) as f64;
             let cov = fit_covariance(&f, nu);
-            let np = phi.len();
+            // In α coordinates (identifiable directions only).
+            let np = d;
             let cphi = cov.view((k0, k0), (np, np)).into_owned();
             let dphi = nalgebra::DVector::from_iterator(
                 np,
-                phi.iter().zip(&cand.neutral).map(|(a, b)| a - b),
+                alpha.iter().zip(&s.kept).map(|(a, &j)| a - cand.neutral[j]),
             );
             let eig = cphi.symmetric_eigen();
             let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
@@ -803,14 +980,23 @@ pub fn check(
             best.dbic,
             change,
         ));
-        active.push(best.c);
+        let best_score = &refit.iter().find(|x| x.0 == best.c).expect("refitted").1;
+        active.push(Act {
+            c: best.c,
+            kept: best_score.kept.clone(),
+            gauge: best_score.gauge.clone(),
+        });
         cur = best.fit.clone();
         // Backward check: drop an earlier effect whose removal no longer costs significance.
         if active.len() > 1 {
             let mut k = 0;
             while k + 1 < active.len() {
-                let without: Vec<usize> =
-                    active.iter().cloned().filter(|&c| c != active[k]).collect();
+                let without: Vec<Act> = active
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| *i != k)
+                    .map(|(_, a)| a.clone())
+                    .collect();
                 let theta_wo = drop_params(&p, &cur.theta, &active, k);
                 let f_wo = p.fit("backward", &theta_wo, &without, options.max_iterations)?;
                 let (_, _, d, thr, _, _) = accepted_stats[k];
@@ -818,7 +1004,7 @@ pub fn check(
                     set_decision(
                         &mut screening,
                         step,
-                        &p.cands[active[k]].id,
+                        &p.cands[active[k].c].id,
                         "dropped in the backward check".into(),
                     );
                     accepted_stats.remove(k);
@@ -831,7 +1017,7 @@ pub fn check(
         }
     }
     // Final numbers.
-    let free_final = free_base + active_dims(&p, &active);
+    let free_final = free_base + active_dims(&active);
     let nu_after = n_real - free_final as f64;
     let final_pred = p.model(&cur.theta, &active)?;
     let cov_base = fit_covariance(&base, nu_base);
@@ -896,24 +1082,30 @@ pub fn check(
     let mut accepted = Vec::new();
     let mut offset = nb;
     let mut improved_effects = Vec::new();
-    for (k, &c) in active.iter().enumerate() {
-        let cand = &p.cands[c];
-        let n = cand.neutral.len();
+    for (k, a) in active.iter().enumerate() {
+        let cand = &p.cands[a.c];
+        let d = a.dim();
         let infos = cand.effect.parameters();
-        let params = (0..n)
+        // φ = neutral + B α, Cov φ = B Cov α Bᵀ.
+        let phi = a.phi(&cand.neutral, &cur.theta[offset..offset + d]);
+        let ca = cov_final.view((offset, offset), (d, d)).into_owned();
+        let mut cphi = DMatrix::zeros(phi.len(), phi.len());
+        for (r, &i) in a.kept.iter().enumerate() {
+            for (c, &j) in a.kept.iter().enumerate() {
+                cphi[(i, j)] = ca[(r, c)];
+            }
+        }
+        let params = (0..phi.len())
             .map(|j| FittedParameter {
                 name: infos[j].name.clone(),
                 unit: infos[j].unit.to_string(),
-                value: cur.theta[offset + j],
-                standard_error: cov_final[(offset + j, offset + j)].max(0.0).sqrt(),
+                value: phi[j],
+                standard_error: cphi[(j, j)].max(0.0).sqrt(),
             })
             .collect();
-        let eff = cand
-            .effect
-            .with_values(&cur.theta[offset..offset + n])
-            .map_err(CheckError::Model)?;
+        let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
         improved_effects.push(effect_spec(eff.as_ref())?);
-        offset += n;
+        offset += d;
         let (_, dchi2, d, thr, dbic, ch) = accepted_stats[k].clone();
         if ambiguous.iter().any(|a| a.ids[0] == cand.id) {
             continue;
@@ -928,6 +1120,7 @@ pub fn check(
             lr_threshold: thr,
             delta_bic: dbic,
             inertia_change: ch,
+            gauge_directions: a.gauge.clone(),
         });
     }
     let (mut improved_spec, fx) = p.build(&cur.theta, &[])?;
@@ -1018,16 +1211,16 @@ fn set_decision(screening: &mut [ScreenEntry], step: usize, id: &str, d: String)
     }
 }
 
-fn active_dims(p: &Problem, active: &[usize]) -> usize {
-    active.iter().map(|&c| p.cands[c].neutral.len()).sum()
+fn active_dims(active: &[Act]) -> usize {
+    active.iter().map(Act::dim).sum()
 }
 
 /// θ without the parameters of the k-th active effect.
-fn drop_params(p: &Problem, theta: &[f64], active: &[usize], k: usize) -> Vec<f64> {
+fn drop_params(p: &Problem, theta: &[f64], active: &[Act], k: usize) -> Vec<f64> {
     let mut out = theta[..p.n_base()].to_vec();
     let mut off = p.n_base();
-    for (i, &c) in active.iter().enumerate() {
-        let n = p.cands[c].neutral.len();
+    for (i, a) in active.iter().enumerate() {
+        let n = a.dim();
         if i != k {
             out.extend_from_slice(&theta[off..off + n]);
         }

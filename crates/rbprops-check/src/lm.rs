@@ -126,11 +126,41 @@ pub fn fit(
             for i in 0..m.nrows() {
                 m[(i, i)] += lambda * a[(i, i)].max(1e-12 * dmax);
             }
-            let Some(ch) = m.cholesky() else {
+            // Active set: a parameter at a bound whose step points outward is frozen and
+            // the step re-solved for the others (a clamped step is often no descent).
+            let mut frozen = vec![false; theta.len()];
+            let mut delta = DVector::zeros(theta.len());
+            let mut solved = false;
+            for _ in 0..=theta.len() {
+                let free: Vec<usize> = (0..theta.len()).filter(|&i| !frozen[i]).collect();
+                let mf = DMatrix::from_fn(free.len(), free.len(), |r, c| m[(free[r], free[c])]);
+                let gf = DVector::from_iterator(free.len(), free.iter().map(|&i| -g[i]));
+                let Some(ch) = mf.cholesky() else {
+                    break;
+                };
+                let df = ch.solve(&gf);
+                delta.fill(0.0);
+                for (k, &i) in free.iter().enumerate() {
+                    delta[i] = df[k];
+                }
+                let mut again = false;
+                for &i in &free {
+                    let at_lo = theta[i] <= bounds.lower[i] && delta[i] < 0.0;
+                    let at_hi = theta[i] >= bounds.upper[i] && delta[i] > 0.0;
+                    if at_lo || at_hi {
+                        frozen[i] = true;
+                        again = true;
+                    }
+                }
+                if !again {
+                    solved = true;
+                    break;
+                }
+            }
+            if !solved {
                 lambda *= 10.0;
                 continue;
-            };
-            let delta = ch.solve(&(-&g));
+            }
             let mut t2: Vec<f64> = theta.iter().zip(delta.iter()).map(|(t, d)| t + d).collect();
             clamp(&mut t2, bounds);
             match f(&t2) {

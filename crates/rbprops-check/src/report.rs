@@ -31,6 +31,11 @@ pub struct AcceptedEffect {
     pub delta_bic: f64,
     /// Relative change of each inertia quantity caused by adding this effect.
     pub inertia_change: Vec<RelativeChange>,
+    /// Unit directions in parameter space the data cannot see (e.g. a common gain,
+    /// which the mass absorbs): the parameters are determined only up to adding any
+    /// multiple of these, and the values reported have no component along them
+    /// relative to the neutral values (exact gauges) or an arbitrary one (first-order).
+    pub gauge_directions: Vec<Vec<f64>>,
 }
 
 /// Effects that fit about equally well and could not be separated on these data.

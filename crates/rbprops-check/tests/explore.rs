@@ -37,6 +37,9 @@ fn explore() {
         "ssmass" => vec!["id = \"sensor_mass\"\nmass_kg = 0.1"],
         "sglobal" => vec!["id = \"global_gain\"\ngain = 1.03"],
         "sexc" => vec!["id = \"excitation_gain\"\ngains = { force2 = 1.04 }"],
+        "sdash" => vec![
+            "id = \"nonproportional_damping\"\naxial_n_s_per_m = [6.0]\nlateral_n_s_per_m = [0.0]",
+        ],
         "two" => vec![
             "id = \"gravity_stiffness\"\ncord_length_m = [1.0]",
             "id = \"channel_gain\"\ngains = { 2x = 1.03, 3z = 0.98 }",
@@ -81,4 +84,33 @@ fn explore() {
         r.inertia_nominal.mass_kg, r.inertia_before.mass_kg, r.inertia_after.mass_kg
     );
     println!("warnings {:?}", r.warnings);
+}
+
+#[test]
+#[ignore]
+fn explore_weighed() {
+    let nom = nominal(400);
+    let mut truth = nom.clone();
+    truth.body.mass_kg *= 1.02;
+    let (g, frf) = record_sim(&truth, &["id = \"global_gain\"\ngain = 1.04"], 0.01, 33);
+    let opts = CheckOptions {
+        weighed_mass_kg: Some(truth.body.mass_kg),
+        ..Default::default()
+    };
+    let r = check(&nom, &g, &frf, &opts).unwrap().report;
+    for s in &r.screening {
+        println!(
+            "{} {} rank {}/{} score {:.1} thr {:.1} refit {:?} {:?} -> {}",
+            s.step,
+            s.id,
+            s.rank,
+            s.n_parameters,
+            s.score,
+            s.threshold,
+            s.refit_delta_chi2,
+            s.refit_delta_bic,
+            s.decision
+        );
+    }
+    println!("{:?}", r.not_observable);
 }
