@@ -513,15 +513,110 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         }
         // Neutral only at infinity (1/T, 1/τ, or a mode shape product that is bilinear
         // at zero): not screened until a reparametrised local form exists.
-        "record_truncation" | "transducer_highpass" | "elastic_mode" => return None,
+        "record_truncation" | "elastic_mode" => return None,
         _ => return None,
     }
     Some(t)
 }
 
-/// Ids for which the local form is used even though the catalogue has the effect,
+/// Ids for which a local form is used even though the catalogue has the effect,
 /// because the catalogue's parametrisation has no neutral point (see module docs).
-const REPARAMETRISED: &[&str] = &["gravity_stiffness"];
+const REPARAMETRISED: &[&str] = &["gravity_stiffness", "transducer_highpass"];
+
+/// A catalogue effect whose parameters (a time constant, a length) are neutral only at
+/// infinity, fitted through their reciprocals: φ = 1/τ, with φ = 0 meaning "absent" (no
+/// effect at all) and φ > 0 building the catalogue effect with τ = 1/φ.
+#[derive(Debug)]
+pub struct Reciprocal {
+    id: &'static str,
+    names: Vec<String>,
+    unit: &'static str,
+    values: Vec<f64>,
+    inner: Option<Box<dyn Effect>>,
+    build: fn(&[f64]) -> Result<Option<Box<dyn Effect>>, String>,
+}
+
+/// `transducer_highpass` with one time constant τ for every channel, through 1/τ.
+fn highpass_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
+    if v[0] < 0.0 || !v[0].is_finite() {
+        return Err(format!("1/τ must be finite and ≥ 0, got {}", v[0]));
+    }
+    if v[0] == 0.0 {
+        return Ok(None);
+    }
+    let mut t = toml::Table::new();
+    t.insert("time_constant_s".into(), (1.0 / v[0]).into());
+    rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
+        id: "transducer_highpass".into(),
+        parameters: t,
+    })
+    .map(Some)
+}
+
+impl Effect for Reciprocal {
+    fn id(&self) -> &'static str {
+        self.id
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.names
+            .iter()
+            .map(|n| ParamInfo {
+                name: n.clone(),
+                unit: self.unit,
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.0, 2.0),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.values.clone()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != self.values.len() {
+            return Err(format!(
+                "{} expects {} values, got {}",
+                self.id,
+                self.values.len(),
+                values.len()
+            ));
+        }
+        Ok(Box::new(Reciprocal {
+            id: self.id,
+            names: self.names.clone(),
+            unit: self.unit,
+            values: values.to_vec(),
+            inner: (self.build)(values)?,
+            build: self.build,
+        }))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        match &self.inner {
+            Some(e) => e.parameters_json(),
+            None => serde_json::json!({}),
+        }
+    }
+    fn order(&self) -> u8 {
+        self.inner.as_ref().map_or(1, |e| e.order())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        match &self.inner {
+            Some(e) => e.modify_structure(ctx, model),
+            None => Ok(()),
+        }
+    }
+    fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        match &self.inner {
+            Some(e) => e.modify_damping(ctx, model),
+            None => Ok(()),
+        }
+    }
+    fn transform_output(&self, block: &mut OutputBlock) {
+        if let Some(e) = &self.inner {
+            e.transform_output(block);
+        }
+    }
+}
 
 /// The candidate list for a spec: rbprops-sim's catalogue
 /// ([`rbprops_sim::effects::KNOWN_EFFECTS`]) at neutral parameter values, completed by
@@ -590,12 +685,49 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             reveal: k.reveal(),
         });
     }
+    if rbprops_sim::effects::KNOWN_EFFECTS.contains(&"transducer_highpass")
+        && !in_spec.contains(&"transducer_highpass")
+    {
+        let (title, reveal) = describe("transducer_highpass");
+        out.push(Candidate {
+            id: "transducer_highpass".into(),
+            title: title.into(),
+            effect: Box::new(Reciprocal {
+                id: "transducer_highpass",
+                names: vec!["inverse_time_constant_per_s".into()],
+                unit: "1/s",
+                values: vec![0.0],
+                inner: None,
+                build: highpass_build,
+            }),
+            neutral: vec![0.0],
+            scales: vec![0.05],
+            source: "rbprops-sim (reparametrised for screening)",
+            reveal,
+        });
+    }
     (out, notes)
 }
 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists
 /// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters.
 pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, String> {
+    if e.id() == "transducer_highpass"
+        && e.parameters()
+            .first()
+            .is_some_and(|p| p.name == "inverse_time_constant_per_s")
+    {
+        let v = e.values();
+        if !(v[0] > 0.0) {
+            return Err("transducer_highpass: fitted 1/τ is not positive".into());
+        }
+        let mut t = toml::Table::new();
+        t.insert("time_constant_s".into(), (1.0 / v[0]).into());
+        return Ok(rbprops_sim::spec::EffectSpec {
+            id: e.id().to_string(),
+            parameters: t,
+        });
+    }
     let parameters = if e.id() == "gravity_stiffness"
         && e.parameters()
             .first()

@@ -490,3 +490,41 @@ fn null_fixtures_claim_nothing_and_correct_the_parameters() {
         );
     }
 }
+
+#[test]
+fn transducer_highpass_is_found() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"transducer_highpass\"\ntime_constant_s = 2.0"],
+        REL,
+        17,
+    );
+    let r = run(&nom, &g, &frf, &given_noise(9));
+    assert_found(&r, &["transducer_highpass"], &truth.properties());
+    within(
+        param(&r, "transducer_highpass", "inverse_time_constant_per_s"),
+        0.5,
+        4.0,
+    );
+}
+
+#[test]
+fn sensor_position_error_is_found() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"sensor_position\"\noffsets_m = { 2 = [0.0, 0.006, -0.004] }"],
+        REL,
+        18,
+    );
+    let r = run(&nom, &g, &frf, &given_noise(9));
+    assert_named(&r, &["sensor_position"]);
+    // A common shift of all sensors moves the CoM instead (gauge): compare modulo gauge.
+    let mut t = vec![0.0; 9];
+    t[4] = 0.006;
+    t[5] = -0.004;
+    within_mod_gauge(&r, "sensor_position", &t, 4.0);
+}
