@@ -337,7 +337,7 @@ fn estimate_poles_from(
                             )
                             .max(1) as f64;
                         let c_screen = lsfd::weighted_cost(&trial_poles, band, chans, res);
-                        if (r.cost.1 - c_screen) / (c_screen / dof0) < 0.25 * threshold {
+                        if (r.cost.1 - c_screen) / (c_screen / dof0) < threshold {
                             continue;
                         }
                         let r2 = lsfd::refine(&trial_poles, band, chans, res);

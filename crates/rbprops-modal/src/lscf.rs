@@ -34,9 +34,10 @@ pub struct OrderPoles {
 struct Sums {
     /// Per channel `r(m) = Σ_k w_k² cos(mθ_k)`.
     r: Vec<Vec<f64>>,
-    /// Per channel `g(m) = Σ_k w_k² h_k z_k^m` for m = 0..=n_max and `g(−m)`.
-    g_pos: Vec<Vec<c64>>,
-    g_neg: Vec<Vec<c64>>,
+    /// Per channel `Re g(m)`, `g(m) = Σ_k w_k² h_k z_k^m`, m = 0..=n_max.
+    g_pos: Vec<Vec<f64>>,
+    /// Per channel `Re g(−m)`.
+    g_neg: Vec<Vec<f64>>,
     /// Per channel `t(m) = Σ_k w_k² |h_k|² cos(mθ_k)`.
     t: Vec<Vec<f64>>,
 }
@@ -45,8 +46,8 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     let no = chans.len();
     let mut s = Sums {
         r: vec![vec![0.0; n_max + 1]; no],
-        g_pos: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
-        g_neg: vec![vec![c64::new(0.0, 0.0); n_max + 1]; no],
+        g_pos: vec![vec![0.0; n_max + 1]; no],
+        g_neg: vec![vec![0.0; n_max + 1]; no],
         t: vec![vec![0.0; n_max + 1]; no],
     };
     let mut zp = vec![c64::new(0.0, 0.0); n_max + 1];
@@ -67,11 +68,15 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
             let h = chans[o][k] * w2;
             let h2 = chans[o][k].norm_sqr() * w2;
             let (r, gp, gn, t) = (&mut s.r[o], &mut s.g_pos[o], &mut s.g_neg[o], &mut s.t[o]);
+            // Only real parts enter the normal matrices: Re(h z^m) = a − b and
+            // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
             for m in 0..=n_max {
                 let p = zp[m];
+                let a = h.re * p.re;
+                let b = h.im * p.im;
                 r[m] += w2 * p.re;
-                gp[m] += h * p;
-                gn[m] += h * p.conj();
+                gp[m] += a - b;
+                gn[m] += a + b;
                 t[m] += h2 * p.re;
             }
         }
@@ -101,53 +106,84 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
         .collect();
     let s = sums(&theta, chans, &weights, n_max);
     let no = chans.len();
+    // All normal matrices are nested in the order (leading blocks), so the reduction
+    // is updated one basis function at a time: per channel the Cholesky factor L of
+    // R_o, Y_o = L⁻¹S_o and G_o = Y_oᵀY_o (so S_oᵀR_o⁻¹S_o = G_o) grow by one row and
+    // column per order — O(n²) per order instead of O(n³).
+    let pm = n_max + 1;
+    let mut l = vec![vec![0.0f64; pm * pm]; no];
+    let mut y = vec![vec![0.0f64; pm * pm]; no];
+    let mut g = vec![vec![0.0f64; pm * pm]; no];
+    let s_at = |o: usize, j: usize, k: usize| -> f64 {
+        // S_o[j,k] = −Re Σ w² h z^{k−j}
+        if k >= j {
+            -s.g_pos[o][k - j]
+        } else {
+            -s.g_neg[o][j - k]
+        }
+    };
     let mut out = Vec::new();
-    for n in 2..=n_max {
-        let p = n + 1;
-        // S_o[j,l] = −Re Σ w² h z^{l−j}
-        let mut s_all = Mat::<f64>::zeros(p, p * no);
-        let mut x_all = Mat::<f64>::zeros(p, p * no);
-        let mut singular = false;
+    for q in 0..pm {
+        // Extend every channel's factors with basis function q.
         for o in 0..no {
-            for j in 0..p {
-                for l in 0..p {
-                    let g = if l >= j {
-                        s.g_pos[o][l - j]
-                    } else {
-                        s.g_neg[o][j - l]
-                    };
-                    s_all[(j, o * p + l)] = -g.re;
+            let (lo, yo, go) = (&mut l[o], &mut y[o], &mut g[o]);
+            let r = &s.r[o];
+            for k in 0..q {
+                let mut v = r[q - k];
+                for m in 0..k {
+                    v -= lo[q * pm + m] * lo[k * pm + m];
+                }
+                lo[q * pm + k] = v / lo[k * pm + k];
+            }
+            let mut d = r[0];
+            for m in 0..q {
+                d -= lo[q * pm + m] * lo[q * pm + m];
+            }
+            if !(d > 0.0) {
+                return out;
+            }
+            lo[q * pm + q] = d.sqrt();
+            // New column q of Y (rows < q), then new row q (columns ≤ q).
+            for i in 0..q {
+                let mut v = s_at(o, i, q);
+                for m in 0..i {
+                    v -= lo[i * pm + m] * yo[m * pm + q];
+                }
+                yo[i * pm + q] = v / lo[i * pm + i];
+            }
+            for j in 0..=q {
+                let mut v = s_at(o, q, j);
+                for m in 0..q {
+                    v -= lo[q * pm + m] * yo[m * pm + j];
+                }
+                yo[q * pm + j] = v / lo[q * pm + q];
+            }
+            // G = YᵀY: the new row adds to the old block; the new column is computed.
+            for j in 0..q {
+                for k in 0..q {
+                    go[j * pm + k] += yo[q * pm + j] * yo[q * pm + k];
                 }
             }
-            let r = Mat::from_fn(p, p, |j, l| s.r[o][j.abs_diff(l)]);
-            let so = Mat::from_fn(p, p, |j, l| s_all[(j, o * p + l)]);
-            match linalg::solve_square(&r, &so) {
-                Some(x) => {
-                    for j in 0..p {
-                        for l in 0..p {
-                            x_all[(j, o * p + l)] = x[(j, l)];
-                        }
-                    }
+            for j in 0..=q {
+                let mut v = 0.0;
+                for i in 0..=q {
+                    v += yo[i * pm + j] * yo[i * pm + q];
                 }
-                None => singular = true,
+                go[j * pm + q] = v;
+                go[q * pm + j] = v;
             }
         }
-        if singular {
+        let n = q;
+        if n < 2 {
             continue;
         }
-        let mut m = Mat::<f64>::zeros(p, p);
-        for o in 0..no {
-            for j in 0..p {
-                for l in 0..p {
-                    let mut v = s.t[o][j.abs_diff(l)];
-                    for q in 0..p {
-                        v -= s_all[(q, o * p + j)] * x_all[(q, o * p + l)];
-                    }
-                    m[(j, l)] += v;
-                }
-            }
-        }
-        // α_n = 1:  M[0..n,0..n] α' = −M[0..n, n]
+        let p = n + 1;
+        // M = Σ_o (T_o − G_o), leading p×p block; α_n = 1.
+        let m = Mat::from_fn(p, p, |j, k| {
+            (0..no)
+                .map(|o| s.t[o][j.abs_diff(k)] - g[o][j * pm + k])
+                .sum::<f64>()
+        });
         let a = Mat::from_fn(n, n, |i, j| m[(i, j)]);
         let b = Mat::from_fn(n, 1, |i, _| -m[(i, n)]);
         let Some(alpha) = linalg::solve_square(&a, &b) else {
@@ -167,7 +203,24 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
         let Some(roots) = linalg::eigenvalues(&companion) else {
             continue;
         };
-        // Numerators β_o = −R⁻¹ S_o α, evaluated at each root for the shape vectors.
+        // Numerators β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α), for the shape vectors.
+        let betas: Vec<Vec<f64>> = (0..no)
+            .map(|o| {
+                let (lo, yo) = (&l[o], &y[o]);
+                let ya: Vec<f64> = (0..p)
+                    .map(|i| (0..p).map(|j| yo[i * pm + j] * coef[j]).sum())
+                    .collect();
+                let mut beta = vec![0.0; p];
+                for i in (0..p).rev() {
+                    let mut v = ya[i];
+                    for k in i + 1..p {
+                        v -= lo[k * pm + i] * beta[k];
+                    }
+                    beta[i] = v / lo[i * pm + i];
+                }
+                beta.iter().map(|b| -b).collect()
+            })
+            .collect();
         let mut poles = Vec::new();
         let mut shapes = Vec::new();
         for zr in roots {
@@ -175,24 +228,22 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
                 continue;
             }
             let lam = zr.ln() / dt;
-            let pole = Pole(lam);
             let dprime: c64 = (1..=n)
                 .map(|j| c64::new(coef[j] * j as f64, 0.0) * zr.powi(j as i32 - 1))
                 .sum();
-            let shape: Vec<c64> = (0..no)
-                .map(|o| {
+            let shape: Vec<c64> = betas
+                .iter()
+                .map(|beta| {
                     let mut num = c64::new(0.0, 0.0);
                     let mut zj = c64::new(1.0, 0.0);
-                    for j in 0..p {
-                        let beta_j: f64 =
-                            -(0..p).map(|l| x_all[(j, o * p + l)] * coef[l]).sum::<f64>();
-                        num += zj * beta_j;
+                    for bj in beta {
+                        num += zj * *bj;
                         zj *= zr;
                     }
                     num / dprime
                 })
                 .collect();
-            poles.push(pole);
+            poles.push(Pole(lam));
             shapes.push(shape);
         }
         out.push(OrderPoles {
