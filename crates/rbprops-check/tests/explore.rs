@@ -114,3 +114,28 @@ fn explore_weighed() {
     }
     println!("{:?}", r.not_observable);
 }
+
+#[test]
+#[ignore]
+fn explore_predict_cost() {
+    use rbprops_check::predict::{predict, Layout};
+    let nom = nominal(400);
+    let (g, frf) = record_sim(&nom, &[], 0.01, 1);
+    let layout = Layout::new(&nom, &g, &frf).unwrap();
+    let t = std::time::Instant::now();
+    for _ in 0..100 {
+        predict(&nom, &layout, &[]).unwrap();
+    }
+    println!("predict: {:?} per call", t.elapsed() / 100);
+    let b = rbprops_check::params::Baseline::new(&nom);
+    let t = std::time::Instant::now();
+    for _ in 0..100 {
+        let _ = b.apply(&b.initial());
+    }
+    println!("apply: {:?} per call", t.elapsed() / 100);
+    let t = std::time::Instant::now();
+    for _ in 0..100 {
+        rbprops_sim::build_models(&nom, &layout.spec_geometry, &[]).unwrap();
+    }
+    println!("build_models: {:?} per call", t.elapsed() / 100);
+}
