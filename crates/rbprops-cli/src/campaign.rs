@@ -97,25 +97,8 @@ pub fn run_all(
                     set: "ni".into(),
                     origin: "geometry".into(),
                     method: "error".into(),
-                    setup: String::new(),
-                    mass_kg: 0.0,
-                    com_x_m: 0.0,
-                    com_y_m: 0.0,
-                    com_z_m: 0.0,
-                    jxx: 0.0,
-                    jyy: 0.0,
-                    jzz: 0.0,
-                    jxy: 0.0,
-                    jxz: 0.0,
-                    jyz: 0.0,
-                    mass_std_kg: 0.0,
-                    com_std_m: 0.0,
-                    err_mass: None,
-                    err_com: None,
-                    err_inertia: None,
-                    err_sum: None,
-                    modes: String::new(),
                     warnings: format!("{e:#}"),
+                    ..Default::default()
                 }]
             });
             progress.inc(1);

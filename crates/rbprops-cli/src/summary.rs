@@ -6,7 +6,7 @@ use rbprops_formats::{topics, RunRecord};
 use serde::{Deserialize, Serialize};
 
 /// A row of the summary table (CSV columns in this order).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct SummaryRow {
     pub campaign: String,
     /// Mode set: `ni` (automatic) or the manual set's label.
