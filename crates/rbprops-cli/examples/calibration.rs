@@ -30,6 +30,7 @@ struct Tally {
     rows: Vec<([f64; N_PROPS], [f64; N_PROPS], [f64; N_PROPS])>,
     rel_errors: Vec<[f64; 3]>,
     failed_replicates: usize,
+    failure_reasons: Vec<String>,
 }
 
 fn main() -> anyhow::Result<()> {
@@ -101,6 +102,11 @@ fn main() -> anyhow::Result<()> {
             let t = &mut tally[k];
             t.runs += 1;
             t.failed_replicates += bs.failed;
+            for r in &bs.failure_reasons {
+                if t.failure_reasons.len() < 4 && !t.failure_reasons.contains(r) {
+                    t.failure_reasons.push(r.clone());
+                }
+            }
             for i in 0..N_PROPS {
                 let err = (v[i] - tv[i]).abs();
                 t.covered[0][i] += (err <= rbprops_inertia::Z95 * sl[i]) as usize;
@@ -126,6 +132,9 @@ fn main() -> anyhow::Result<()> {
             "{m}: {} runs, {} failed replicates; 95 % interval coverage per property:",
             t.runs, t.failed_replicates
         );
+        for r in &t.failure_reasons {
+            println!("  failure: {r}");
+        }
         println!(
             "  {:22} {}",
             "",

@@ -45,9 +45,29 @@
 //! are reduced in replicate order, so the output is identical for any thread count.
 //!
 //! # Calibration (demo campaign: Test Case II, 1 % relative FRF noise)
-//! Measured over 50 seeds with `cargo run --release -p rbprops-cli --example
-//! calibration -- 50`; see that example for the numbers, and the crate README in the
-//! report. Both interval kinds are checked there.
+//! `cargo run --release -p rbprops-cli --example calibration -- 50` (50 seeds, B = 100),
+//! coverage of the 95 % intervals, properties m cx cy cz Jxx Jyy Jzz Jxy Jxz Jyz:
+//!
+//! | | m | cx | cy | cz | Jxx | Jyy | Jzz | Jxy | Jxz | Jyz |
+//! |---|---|---|---|---|---|---|---|---|---|---|
+//! | TN linearised | 98 | 98 | 98 | 94 | 86 | 88 | 92 | 80 | 80 | 88 |
+//! | TN bootstrap ±1.96σ | 100 | 98 | 98 | 92 | 90 | 92 | 96 | 96 | 96 | 98 |
+//! | TN bootstrap percentile | 94 | 96 | 88 | 90 | 90 | 90 | 92 | 94 | 96 | 96 |
+//! | BC linearised | 98 | 98 | 6 | 90 | 88 | 88 | 92 | 78 | 80 | 88 |
+//! | BC bootstrap ±1.96σ | 100 | 92 | 26 | 96 | 90 | 92 | 96 | 96 | 96 | 98 |
+//! | BC bootstrap percentile | 92 | 86 | 24 | 94 | 92 | 90 | 92 | 94 | 96 | 96 |
+//!
+//! The bootstrap σ matches the spread of the estimates over the seeds (sd/σ 0.7–1.1 for
+//! every property; the linearised σ is too small by up to 1.5× for the inertia). The
+//! std-based interval calibrates better than the percentile one and is the one written
+//! into the records. Bretl–Conti's c_y is *biased*, not under-dispersed: its error is
+//! −2.6 bootstrap σ on average with the right spread, the same in every seed (the
+//! force1 fit leaves out the 1.13 Hz mode and BC's exact inverse passes the resulting
+//! shape error of modes 1 and 3 to c_y; Toivola–Nuutila is unbiased on the same shapes).
+//! A bias that is the same in every replicate cannot be seen by any resampling.
+//! About 2 % of replicates fail (a weakly excited mode whose damping the refinement
+//! drives to 0); 3.5 s per run with B = 100 (35 ms per replicate) on a shared 2-core
+//! machine.
 //!
 //! No I/O: data in, data (or typed errors) out.
 
