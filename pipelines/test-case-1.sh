@@ -15,11 +15,11 @@ CASE=test-case-1
   | "$BIN/modal-fit" --plot "$OUT/figures/modal" \
   | tee "$OUT/fit.mcap" \
   | "$BIN/ni-select" --summary --plot "$OUT/figures/ni" 2>"$OUT/ni-summary.txt" \
-  | "$BIN/rb-solve" -o "$OUT/ni.mcap" --format json --method bretl-conti,toivola-nuutila --plot "$OUT/figures/estimates" > "$OUT/ni.json"
+  | "$BIN/rb-solve" --uncertainty linearised -o "$OUT/ni.mcap" --format json --method bretl-conti,toivola-nuutila --plot "$OUT/figures/estimates" > "$OUT/ni.json"
 
 run_set() { # label setup manual-set
   "$BIN/ni-select" "$OUT/fit.mcap" --setup "$2" --set "$3" 2>>"$OUT/warnings.txt" \
-    | "$BIN/rb-solve" -o "$OUT/$1.mcap" --format json --method bretl-conti,toivola-nuutila > "$OUT/$1.json" 2>>"$OUT/warnings.txt"
+    | "$BIN/rb-solve" --uncertainty linearised -o "$OUT/$1.mcap" --format json --method bretl-conti,toivola-nuutila > "$OUT/$1.json" 2>>"$OUT/warnings.txt"
   "$BIN/rbprops" summary "$OUT/$1.mcap" --campaign $CASE --set "$1"
 }
 

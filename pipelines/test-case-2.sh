@@ -25,13 +25,13 @@ for example in test-case-2 demo; do
     | "$BIN/modal-fit" --plot "$D/figures/modal" \
     | tee "$D/fit.mcap" \
     | "$BIN/ni-select" --summary --plot "$D/figures/ni" 2>"$D/ni-summary.txt" \
-    | "$BIN/rb-solve" -o "$D/ni.mcap" --format json --method bretl-conti,toivola-nuutila > "$D/ni.json" 2>>"$D/warnings.txt"
+    | "$BIN/rb-solve" --uncertainty linearised -o "$D/ni.mcap" --format json --method bretl-conti,toivola-nuutila > "$D/ni.json" 2>>"$D/warnings.txt"
   {
     "$BIN/rbprops" summary "$D/ni.mcap" --campaign $example --set ni
     for set in set-I set-II set-III set-IV set-V; do
       "$BIN/ni-select" "$D/fit.mcap" --set "${SETS[$set]}" -o "$D/$set.sel.mcap" 2>>"$D/warnings.txt"
       for origin in 1 2 3; do
-        "$BIN/rb-solve" "$D/$set.sel.mcap" --origin $origin --method bretl-conti,toivola-nuutila \
+        "$BIN/rb-solve" --uncertainty linearised "$D/$set.sel.mcap" --origin $origin --method bretl-conti,toivola-nuutila \
           -o "$D/$set.origin-$origin.mcap" --format json > /dev/null 2>>"$D/warnings.txt"
         "$BIN/rbprops" summary "$D/$set.origin-$origin.mcap" --campaign $example --set $set --origin "accelerometer $origin" | tail -n +2
       done

@@ -53,8 +53,13 @@ fn walk(dir: &Path, out: &mut Vec<Item>) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Runs one item through the pipeline with default options.
-pub fn run_item(item: &Item, campaign: &str) -> Result<Vec<SummaryRow>> {
+/// Runs one item through the pipeline with default options (and the given uncertainty
+/// method, the executables' default being the bootstrap with 100 replicates, seed 0).
+pub fn run_item(
+    item: &Item,
+    campaign: &str,
+    uncertainty: &crate::stages::Uncertainty,
+) -> Result<Vec<SummaryRow>> {
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
             let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
@@ -70,7 +75,7 @@ pub fn run_item(item: &Item, campaign: &str) -> Result<Vec<SummaryRow>> {
     let name = item.path().display().to_string();
     crate::stages::modal_fit(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
     crate::stages::ni_select(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
-    crate::stages::rb_solve(&mut rec, &Default::default(), true, &sha)
+    crate::stages::rb_solve_with(&mut rec, &Default::default(), uncertainty, true, &sha)
         .with_context(|| name.clone())?;
     summary::rows(&rec, campaign, "ni", "geometry")
 }
@@ -80,6 +85,7 @@ pub fn run_item(item: &Item, campaign: &str) -> Result<Vec<SummaryRow>> {
 pub fn run_all(
     items: &[Item],
     root: &Path,
+    uncertainty: &crate::stages::Uncertainty,
     progress: &indicatif::ProgressBar,
 ) -> (Vec<SummaryRow>, usize) {
     let results: Vec<Vec<SummaryRow>> = items
@@ -91,7 +97,7 @@ pub fn run_all(
                 .unwrap_or(item.path())
                 .display()
                 .to_string();
-            let rows = run_item(item, &campaign).unwrap_or_else(|e| {
+            let rows = run_item(item, &campaign, uncertainty).unwrap_or_else(|e| {
                 vec![SummaryRow {
                     campaign: campaign.clone(),
                     set: "ni".into(),

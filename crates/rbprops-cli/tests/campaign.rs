@@ -45,7 +45,7 @@ fn pipeline(input: &[&str], out: &Path) {
         .stdin(sel.stdout.take().unwrap())
         .arg("-o")
         .arg(out)
-        .args(["--format", "json"])
+        .args(["--format", "json", "--uncertainty", "linearised"])
         .output()
         .unwrap();
     for c in [&mut sim, &mut fit, &mut sel] {
@@ -73,6 +73,7 @@ fn campaign_rows_equal_single_runs_exactly() {
     ok(bin("rbprops")
         .arg("campaign")
         .arg(&specs)
+        .args(["--uncertainty", "linearised"])
         .arg("-o")
         .arg(&summary)
         .output()
@@ -148,7 +149,14 @@ fn test_case_2_gives_the_same_properties_from_mcap_csv_and_uff() {
             .unwrap());
         let sel = ok(bin("ni-select").arg(&fit).output().unwrap());
         let mut solve = bin("rb-solve")
-            .args(["--format", "json", "--method", "toivola-nuutila"])
+            .args([
+                "--format",
+                "json",
+                "--method",
+                "toivola-nuutila",
+                "--uncertainty",
+                "linearised",
+            ])
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .spawn()

@@ -66,9 +66,9 @@ struct Args {
     #[arg(long)]
     mass_line_band: Option<String>,
     /// How the modal estimators' standard errors are obtained (the mass line always
-    /// propagates its own). The bootstrap is the calibrated one (see rbprops-uq); the
-    /// default stays linearised while the campaign runner (`stages::rb_solve`) does.
-    #[arg(long, value_enum, default_value = "linearised")]
+    /// propagates its own). The FRF-level bootstrap is the calibrated one (see rbprops-uq
+    /// and docs/results.md); linearised propagation is faster but under-covers J.
+    #[arg(long, value_enum, default_value = "bootstrap")]
     uncertainty: UncertaintyKind,
     /// Bootstrap replicates (with --uncertainty bootstrap; the seed is --seed).
     #[arg(long, default_value_t = 100)]

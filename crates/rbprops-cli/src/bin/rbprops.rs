@@ -28,6 +28,10 @@ enum Command {
         dir: PathBuf,
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Standard errors as rb-solve computes them: `bootstrap` (default, 100 replicates,
+        /// seed 0, as rb-solve) or `linearised` (faster).
+        #[arg(long, default_value = "bootstrap")]
+        uncertainty: String,
     },
     /// Summary rows (the campaign table's columns) of finished runs.
     Summary {
@@ -65,7 +69,16 @@ fn main() -> std::process::ExitCode {
             let inp = rbprops_cli::read_input(input.as_deref())?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
-        Command::Campaign { dir, output } => {
+        Command::Campaign {
+            dir,
+            output,
+            uncertainty,
+        } => {
+            let uncertainty = match uncertainty.as_str() {
+                "bootstrap" => rbprops_cli::stages::Uncertainty::Bootstrap(Default::default()),
+                "linearised" => rbprops_cli::stages::Uncertainty::Linearised,
+                other => bail!("--uncertainty {other}: expected bootstrap or linearised"),
+            };
             let items = rbprops_cli::campaign::discover(&dir)?;
             if items.is_empty() {
                 bail!(
@@ -74,7 +87,7 @@ fn main() -> std::process::ExitCode {
                 );
             }
             let pb = rbprops_cli::progress(items.len() as u64, "campaign");
-            let (rows, failed) = rbprops_cli::campaign::run_all(&items, &dir, &pb);
+            let (rows, failed) = rbprops_cli::campaign::run_all(&items, &dir, &uncertainty, &pb);
             pb.finish_and_clear();
             let csv = rbprops_cli::summary::to_csv(&rows)?;
             match &output {
