@@ -714,7 +714,7 @@ pub fn check(
                                 .collect();
                             format!(
                                 "absorbed without trace by the free {} together",
-                                joint.join(", ")
+                                joint.join(" and ")
                             )
                         } else {
                             format!("absorbed without trace by the free {}", by.join(" and "))
