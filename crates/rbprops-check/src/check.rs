@@ -629,7 +629,7 @@ pub fn check(
         fixed_effects.push(local_effect("sensor_mass", spec, &vals).map_err(CheckError::Model)?);
     }
     let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
-    warnings.extend(notes);
+    method.extend(notes);
     if let Some(only) = &options.only {
         cands.retain(|c| only.contains(&c.id));
     }

@@ -12,8 +12,27 @@
 //!    accepted / ambiguous / not-observable effects and the inertia before/after with
 //!    standard errors ([`report`]).
 //!
-//! Models are evaluated with rbprops-sim's own builder ([`predict`]), so the nominal
-//! model and each candidate are the code that generates recordings. No I/O.
+//! Models are evaluated with rbprops-sim's own noise-free simulator ([`predict`]), so the
+//! nominal model and each candidate are the code that generates recordings. No I/O.
+//!
+//! Statistics (research note §6, `missing-physics.md`): normalised residual
+//! r = √2 (Y − Ŷ)/σ split into real and imaginary parts, χ² = ‖r‖², ν = 2N − p. A
+//! candidate c is screened by its score S_c = ‖Q_cᵀ r‖² (Q_c: orthonormal basis of its
+//! Jacobian with the current model's Jacobian projected out; rank d_c), significant above
+//! χ²_{d_c, 1−α/N_cand}. The strongest are refitted (all parameters free) and one is
+//! accepted only if Δχ² > χ²_{d,1−α/N_cand}, ΔBIC = Δχ² − d ln(2N) > 10, its Wald
+//! statistic exceeds χ²_{d,0.999} and no parameter is pinned at a bound; a rival within
+//! ΔBIC 10 whose signature has canonical correlation > 0.9 makes an ambiguous family.
+//! After each acceptance a backward check drops earlier effects that no longer pass.
+//! Effects with rank 0 (absorbed by the free parameters) are reported not observable,
+//! with what would reveal them; exact gauges (a common gain, a common sensor shift) are
+//! removed from the refit by holding one coordinate per gauge at its neutral value.
+//! The noise floor is reached when χ²/ν_after ∈ [1 − 3s, 1 + max(3s, 0.05)],
+//! s² = 2/ν + (relative SE of the noise variance)², and no residual cell has z > 5.
+//!
+//! Not implemented (see the report's `method` field): held-out cross-validation (A2),
+//! bootstrap calibration of the screening threshold, line-to-line noise correlation
+//! (κ = 1 assumed).
 //!
 //! ```no_run
 //! # fn demo(spec: &rbprops_sim::CampaignSpec, g: &rbprops_core::Geometry, frf: &rbprops_core::FrfSet) {

@@ -198,6 +198,21 @@ fn end_to_end_with_data_only_noise() {
     assert_eq!(r.accepted.len(), 1, "{}", r.verdict);
     assert_eq!(r.accepted[0].id, "gravity_stiffness");
     assert!(r.noise_floor_reached, "{}", r.verdict);
+    // The stable JSON keys of the report.
+    let v = serde_json::to_value(&r).unwrap();
+    for key in [
+        "accepted",
+        "ambiguous",
+        "not_observable",
+        "chi2_nu_before",
+        "chi2_nu_after",
+        "noise_floor_reached",
+        "corrected_parameters",
+        "inertia_before",
+        "inertia_after",
+    ] {
+        assert!(v.get(key).is_some(), "report lacks '{key}'");
+    }
     let p = &r.accepted[0].parameters[0];
     assert!((p.value - 1.0).abs() < 4.0 * p.standard_error, "{p:?}");
 }
