@@ -17,6 +17,10 @@
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
 //!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
+//! - `residual_flexibility` (E13): elastic modes above the band seen as a general
+//!   residual flexibility matrix R (channels × excitations, m/N): one undamped mode at
+//!   4× the top of the band per excitation, `H += R_ce ω_e²/(ω_e² − ω²)`. (The
+//!   catalogue's `elastic_mode` is bilinear in its shapes, with no usable neutral point.)
 //! - `force_direction` (E12): excitation e pushes along normalise(d + β₁u₁ + β₂u₂),
 //!   u₁, u₂ ⟂ d.
 
@@ -53,9 +57,11 @@ enum Kind {
     GravityStiffness,
     MountDashpots,
     ForceDirection,
+    ResidualFlexibility,
 }
 
-const ALL: [Kind; 8] = [
+const ALL: [Kind; 9] = [
+    Kind::ResidualFlexibility,
     Kind::GravityStiffness,
     Kind::SensorMisorientation,
     Kind::ChannelGain,
@@ -77,6 +83,7 @@ impl Kind {
             Kind::GravityStiffness => "gravity_stiffness",
             Kind::MountDashpots => "nonproportional_damping",
             Kind::ForceDirection => "force_direction",
+            Kind::ResidualFlexibility => "residual_flexibility",
         }
     }
     fn title(self) -> &'static str {
@@ -89,6 +96,7 @@ impl Kind {
             Kind::GravityStiffness => "gravity (pendulum) stiffness of the suspension",
             Kind::MountDashpots => "non-proportional damping at the suspension",
             Kind::ForceDirection => "force direction error",
+            Kind::ResidualFlexibility => "elastic modes above the band (residual flexibility)",
         }
     }
     fn reveal(self) -> &'static str {
@@ -107,6 +115,9 @@ impl Kind {
             Kind::ExcitationGain => "a hammer calibration against a known mass",
             Kind::SensorMisorientation => "a rotation check of each triaxial sensor",
             Kind::ForceDirection => "more excitations than six, or a force direction check",
+            Kind::ResidualFlexibility => {
+                "data closer to the first elastic mode, or its measured frequency"
+            }
         }
     }
 }
@@ -121,6 +132,9 @@ pub struct LocalEffect {
     groups: Vec<Vec<usize>>,
     /// Point positions (sensor points), for sensor_mass.
     points: Vec<Vec3>,
+    /// Frequency (Hz) of the modes that carry the residual flexibility: 4× the top of
+    /// the band, so their ω² growth is what an elastic mode above the band shows.
+    extra_hz: f64,
 }
 
 fn sensor_groups(g: &Geometry) -> (Vec<String>, Vec<Vec<usize>>, Vec<Vec3>) {
@@ -169,6 +183,15 @@ impl LocalEffect {
                 .iter()
                 .flat_map(|s| ["x", "y", "z"].map(|a| format!("{}.dashpot_{a}_n_s_per_m", s.id)))
                 .collect(),
+            Kind::ResidualFlexibility => g
+                .excitations
+                .iter()
+                .flat_map(|e| {
+                    g.channels
+                        .iter()
+                        .map(move |c| format!("{}.{}.receptance_m_per_n", c.id, e.id))
+                })
+                .collect(),
             Kind::ForceDirection => g
                 .excitations
                 .iter()
@@ -181,6 +204,7 @@ impl LocalEffect {
             names,
             groups,
             points,
+            extra_hz: 4.0 * spec.frequency.stop_hz,
         }
     }
 
@@ -190,6 +214,7 @@ impl LocalEffect {
                 ("1", -0.5, 0.5, (-0.05, 0.05))
             }
             Kind::SensorMisorientation | Kind::ForceDirection => ("rad", -0.5, 0.5, (-0.1, 0.1)),
+            Kind::ResidualFlexibility => ("m/N", f64::NEG_INFINITY, f64::INFINITY, (-1e-4, 1e-4)),
             Kind::SensorMass => ("kg", 0.0, f64::INFINITY, (0.0, 0.5)),
             Kind::GravityStiffness if i == 0 => ("1/m", 0.0, 100.0, (0.2, 10.0)),
             Kind::GravityStiffness => ("1", 0.0, 3.0, (0.5, 1.5)),
@@ -210,6 +235,10 @@ impl LocalEffect {
             .map(|i| match self.kind {
                 Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => 0.01,
                 Kind::SensorMisorientation | Kind::ForceDirection => 0.01,
+                Kind::ResidualFlexibility => {
+                    let w = std::f64::consts::TAU * spec.frequency.stop_hz.max(1e-3);
+                    1e-3 / (m * w * w)
+                }
                 Kind::SensorMass => 0.01 * m,
                 Kind::GravityStiffness => {
                     if i == 0 {
@@ -334,6 +363,28 @@ impl Effect for LocalEffect {
             Kind::GravityStiffness => {
                 model.stiffness += gravity_stiffness(ctx, model, &self.values)?;
                 model.stiffness = (model.stiffness + model.stiffness.transpose()) * 0.5;
+            }
+            Kind::ResidualFlexibility => {
+                // One undamped mode at f_e per excitation, unit at that excitation's
+                // force: the receptance gains R_ce ω_e²/(ω_e² − ω²) ≈ R_ce (1 + ω²/ω_e²),
+                // a general (any rank) residual flexibility matrix R.
+                let n_ch = ctx.geometry.channels.len();
+                let n_ex = ctx.geometry.excitations.len();
+                let we = std::f64::consts::TAU * self.extra_hz;
+                for e in 0..n_ex {
+                    let col = &self.values[e * n_ch..(e + 1) * n_ch];
+                    if col.iter().all(|v| *v == 0.0) {
+                        continue;
+                    }
+                    let mut at_ex = vec![0.0; n_ex];
+                    at_ex[e] = 1.0;
+                    model.extra_modes.push(rbprops_sim::model::ExtraMode {
+                        frequency_hz: self.extra_hz,
+                        damping_ratio: 0.0,
+                        at_channels: col.iter().map(|r| r * we * we).collect(),
+                        at_excitations: at_ex,
+                    });
+                }
             }
             Kind::ForceDirection => {
                 for inp in &mut model.inputs {
@@ -712,6 +763,12 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists
 /// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters.
 pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, String> {
+    if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
+        return Err(format!(
+            "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
+            e.id()
+        ));
+    }
     if e.id() == "transducer_highpass"
         && e.parameters()
             .first()

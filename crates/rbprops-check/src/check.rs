@@ -1104,7 +1104,13 @@ pub fn check(
             })
             .collect();
         let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
-        improved_effects.push(effect_spec(eff.as_ref())?);
+        match effect_spec(eff.as_ref()) {
+            Ok(e) => improved_effects.push(e),
+            Err(e) => warnings.push(format!(
+                "'{}' is not written to the improved spec: {e}",
+                cand.id
+            )),
+        }
         offset += d;
         let (_, dchi2, d, thr, dbic, ch) = accepted_stats[k].clone();
         if ambiguous.iter().any(|a| a.ids[0] == cand.id) {

@@ -528,3 +528,19 @@ fn sensor_position_error_is_found() {
     t[5] = -0.004;
     within_mod_gauge(&r, "sensor_position", &t, 4.0);
 }
+
+/// An elastic mode at 35 Hz (band 0–12.5 Hz), simulated by rbprops-sim's `elastic_mode`,
+/// is found as residual flexibility (E13).
+#[test]
+fn elastic_mode_above_the_band_is_found_as_residual_flexibility() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"elastic_mode\"\nfrequency_hz = 35.0\ndamping_ratio = 0.02\nchannels = { 1x = 0.12, 2z = -0.15, 3y = 0.1 }\nexcitations = { force1 = 0.15, force3 = -0.1 }"],
+        REL,
+        19,
+    );
+    let r = run(&nom, &g, &frf, &given_noise(9));
+    assert_found(&r, &["residual_flexibility"], &truth.properties());
+}
