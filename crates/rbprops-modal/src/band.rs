@@ -88,6 +88,36 @@ impl BandData {
         }
     }
 
+    /// Indices of every `stride`-th line of `n` (always keeping the first and the
+    /// last), so that at most about `max_lines` remain; all lines when `n <= max_lines`.
+    ///
+    /// Why: the pole estimators and the refinement's first iterations need a few lines
+    /// per half-power bandwidth, not every line of a 4,096-line spectrum, and their cost
+    /// is linear in the number of lines.
+    pub fn decimation_indices(n: usize, max_lines: usize) -> Vec<usize> {
+        let stride = n.div_ceil(max_lines.max(2)).max(1);
+        let mut keep: Vec<usize> = (0..n).step_by(stride).collect();
+        if n > 0 && *keep.last().unwrap() != n - 1 {
+            keep.push(n - 1);
+        }
+        keep
+    }
+
+    /// The given lines (ascending indices into this band).
+    pub fn lines(&self, keep: &[usize]) -> BandData {
+        BandData {
+            quantity: self.quantity,
+            frequency_hz: keep.iter().map(|&k| self.frequency_hz[k]).collect(),
+            omega: keep.iter().map(|&k| self.omega[k]).collect(),
+            channels: self
+                .channels
+                .iter()
+                .map(|h| keep.iter().map(|&k| h[k]).collect())
+                .collect(),
+            first_line: self.first_line,
+        }
+    }
+
     pub fn n_lines(&self) -> usize {
         self.omega.len()
     }

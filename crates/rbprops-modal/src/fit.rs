@@ -132,6 +132,20 @@ fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
     (q(gf), q(gz))
 }
 
+/// Lines of the LSCF stabilisation sweep (decimated to about this many).
+const SWEEP_LINES: usize = 1024;
+/// Lines of the refinement and the residual model-order test; the final refinement
+/// (poles and their covariance) runs on every line, starting from their result.
+const REFINE_LINES: usize = 1024;
+
+/// The lines `keep` of every channel.
+fn select_lines(chans: &[Vec<c64>], keep: &[usize]) -> Vec<Vec<c64>> {
+    chans
+        .iter()
+        .map(|h| keep.iter().map(|&k| h[k]).collect())
+        .collect()
+}
+
 /// Poles from the channels `chans` of `band` (one excitation, or a whole set-up).
 fn estimate_poles(
     band: &BandData,
@@ -182,10 +196,18 @@ fn estimate_poles_from(
     let mut sel;
     loop {
         let nm = opts.max_order.min(sub.n_lines().saturating_sub(2));
-        let sub_chans: Vec<Vec<c64>> = chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
         let orders = match opts.method {
-            Method::Lscf | Method::Circle => lscf::sweep(&sub, &sub_chans, nm),
+            Method::Lscf | Method::Circle => {
+                // LSCF works on any axis: decimate the lines and solve even orders only.
+                let keep = BandData::decimation_indices(sub.n_lines(), SWEEP_LINES);
+                let dec = sub.lines(&keep);
+                let dec_chans = select_lines(chans, &keep);
+                let nm = nm.min(dec.n_lines().saturating_sub(2));
+                lscf::sweep_orders(&dec, &dec_chans, nm, 2)
+            }
             Method::Lsce => {
+                let sub_chans: Vec<Vec<c64>> =
+                    chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
                 lsce::sweep(&sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
                     excitation: name.into(),
                     method: "LSCE",
@@ -236,8 +258,15 @@ fn estimate_poles_from(
     let mut confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
     let mut mode_warnings = vec![Vec::new(); poles.len()];
     let res = Residuals::for_band(opts.residual_terms, band);
+    // Refinement and model-order test on decimated lines (same first and last line, so
+    // the same residual terms and band limits); the final refinement uses every line.
+    let keep = BandData::decimation_indices(n, REFINE_LINES);
+    let decimated = keep.len() < n;
+    let rband = band.lines(&keep);
+    let rchans = select_lines(chans, &keep);
+    let rn = rband.n_lines();
     if opts.refine && opts.method != Method::Circle {
-        let rows = 2 * n;
+        let rows = 2 * rn;
         let unknowns = 2 * poles.len() + 2;
         if rows <= unknowns + 2 * poles.len() {
             warnings.push(format!(
@@ -248,7 +277,7 @@ fn estimate_poles_from(
             // Refinement is local. A pole it pushes more than ten half-bandwidths away,
             // out of the band or past the damping limit is not supported by the data
             // (a computational pole that looked stable): drop it and refine again.
-            let mut r = lsfd::refine(&poles, band, chans, res);
+            let mut r = lsfd::refine(&poles, &rband, &rchans, res);
             let band_w = (band.omega[0], *band.omega.last().unwrap());
             loop {
                 let bad = poles
@@ -299,7 +328,7 @@ fn estimate_poles_from(
                 if poles.is_empty() {
                     break;
                 }
-                r = lsfd::refine(&poles, band, chans, res);
+                r = lsfd::refine(&poles, &rband, &rchans, res);
             }
             if poles.is_empty() {
                 return Err(ModalError::NoModes {
@@ -326,23 +355,23 @@ fn estimate_poles_from(
                             continue;
                         }
                         trial_poles.push(cand.pole);
-                        if 2 * n <= 2 * (2 * trial_poles.len() + 2) {
+                        if 2 * rn <= 2 * (2 * trial_poles.len() + 2) {
                             break;
                         }
                         // Cheap screen: the drop with the candidate as it is (one QR);
                         // only promising candidates get the full refinement.
-                        let dof0 = (2 * n * no)
+                        let dof0 = (2 * rn * no)
                             .saturating_sub(
                                 no * (2 * trial_poles.len() + 2) + 2 * trial_poles.len(),
                             )
                             .max(1) as f64;
-                        let c_screen = lsfd::weighted_cost(&trial_poles, band, chans, res);
+                        let c_screen = lsfd::weighted_cost(&trial_poles, &rband, &rchans, res);
                         if (r.cost.1 - c_screen) / (c_screen / dof0) < threshold {
                             continue;
                         }
-                        let r2 = lsfd::refine(&trial_poles, band, chans, res);
+                        let r2 = lsfd::refine(&trial_poles, &rband, &rchans, res);
                         let added = *r2.poles.last().unwrap();
-                        let dof = (2 * n * no)
+                        let dof = (2 * rn * no)
                             .saturating_sub(no * (2 * r2.poles.len() + 2) + 2 * r2.poles.len())
                             .max(1) as f64;
                         let s2 = r2.cost.1 / dof;
@@ -372,6 +401,9 @@ fn estimate_poles_from(
                             r = r2;
                         }
                     }
+                }
+                if decimated {
+                    r = lsfd::refine(&r.poles, band, chans, res);
                 }
                 if r.singular {
                     warnings.push(format!(

@@ -89,6 +89,21 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
 /// `chans` are the channels to use (already restricted to non-zero ones); each is
 /// weighted by the inverse of its RMS so that every channel counts equally.
 pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPoles> {
+    sweep_orders(band, chans, n_max, 1)
+}
+
+/// As [`sweep`], solving only every `step`-th order (`n % step == 0`). The reduced
+/// normal equations are still built incrementally through every order; only the
+/// companion eigenvalue problems (the dominant cost) are skipped. With real
+/// coefficients the physical poles come in conjugate pairs, so even orders (`step = 2`)
+/// lose nothing but the odd orders' single real root.
+pub fn sweep_orders(
+    band: &BandData,
+    chans: &[Vec<c64>],
+    n_max: usize,
+    step: usize,
+) -> Vec<OrderPoles> {
+    let step = step.max(1);
     let w_max = *band.omega.last().unwrap();
     let dt = std::f64::consts::PI / w_max;
     let theta: Vec<f64> = band.omega.iter().map(|w| w * dt).collect();
@@ -174,7 +189,7 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPole
             }
         }
         let n = q;
-        if n < 2 {
+        if n < 2 || n % step != 0 {
             continue;
         }
         let p = n + 1;

@@ -212,8 +212,9 @@ pub fn select(
         }
     }
 
-    let n_max = diagram.max_order;
     let n_orders = orders.len().max(1);
+    // Orders of the diagram from `lowest` up (the sweep may skip orders, e.g. odd ones).
+    let orders_from = |lowest: usize| orders.iter().filter(|o| o.order >= lowest).count().max(1);
     let min_support = 3usize.max(n_orders / 8);
     let fully_stable = |c: &Cluster| {
         c.members
@@ -225,7 +226,7 @@ pub fn select(
         .enumerate()
         .filter(|(_, c)| fully_stable(c))
         .map(|(ci, c)| {
-            let span = n_max + 1 - c.lowest_order;
+            let span = orders_from(c.lowest_order);
             (ci, c.members.len() as f64 / span as f64, c.members.len())
         })
         .collect();
@@ -251,7 +252,7 @@ pub fn select(
         let c = &clusters[ci];
         // The highest-order member (first pushed) is the representative.
         let (_, oi, pi) = c.members[0];
-        let span = n_max + 1 - c.lowest_order;
+        let span = orders_from(c.lowest_order);
         let fz: Vec<(f64, f64)> = c
             .members
             .iter()
@@ -305,7 +306,7 @@ pub fn select(
                     pole: *p,
                     shape: top.shapes[pi].clone(),
                     support: 1,
-                    presence: 1.0 / (n_max + 1 - top.order) as f64,
+                    presence: 1.0 / orders_from(top.order) as f64,
                     spread: (0.0, 0.0),
                 });
             }

@@ -1,0 +1,50 @@
+//! Per-excitation cost of the default fit on 9 channels × 4,096 lines (the issue's
+//! workload shape). Usage: `RAYON_NUM_THREADS=1 cargo run --release -p rbprops-modal
+//! --example timing -- [excitations]`; prints ms per excitation.
+
+use rbprops_core::{FrfSet, Quantity};
+use rbprops_modal::{fit_campaign, testdata, FitOptions};
+use std::time::Instant;
+
+fn main() {
+    let batch: usize = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(24);
+    let base = testdata::test_case(12.5, 4096, Quantity::Accelerance);
+    let mut geometry = base.geometry.clone();
+    let per = base.frf.n_channels * base.frf.n_lines();
+    let mut values = Vec::with_capacity(batch * per);
+    let mut excitations = Vec::new();
+    for b in 0..batch {
+        let noisy = base.with_noise(0.01, 1000 + b as u64);
+        let e = b % base.frf.n_excitations;
+        values.extend_from_slice(noisy.frf.excitation_block(e));
+        let mut ex = base.geometry.excitations[e].clone();
+        ex.id = format!("E{b}");
+        excitations.push(ex);
+    }
+    geometry.excitations = excitations;
+    let frf = FrfSet {
+        quantity: base.frf.quantity,
+        frequency_hz: base.frf.frequency_hz.clone(),
+        n_excitations: batch,
+        n_channels: base.frf.n_channels,
+        values,
+    };
+    let opts = FitOptions::default();
+    let t = Instant::now();
+    let out = fit_campaign(&geometry, &frf, &opts).unwrap();
+    let dt = t.elapsed().as_secs_f64();
+    let modes = out.record.modes.len();
+    if std::env::var_os("TIMING_VERBOSE").is_some() {
+        for w in &out.record.excitations[0].warnings {
+            println!("{w}");
+        }
+    }
+    println!(
+        "{batch} excitations, {} threads: {:.2} ms per excitation ({modes} modes)",
+        rayon::current_num_threads(),
+        1e3 * dt / batch as f64
+    );
+}
