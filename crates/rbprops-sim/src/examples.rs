@@ -112,6 +112,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "suspension_coupling",
         include_str!("../../../fixtures/specs/effects/suspension_coupling.toml"),
     ),
+    (
+        "cord_mass",
+        include_str!("../../../fixtures/specs/effects/cord_mass.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

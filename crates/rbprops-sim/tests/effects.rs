@@ -380,6 +380,10 @@ fn effects_rebuild_from_their_parameter_vectors() {
         ("id = \"transducer_highpass\"\ntime_constant_s = 1.0\ntime_constants_s = { \"2x\" = 3.0 }", 2),
         ("id = \"sensor_tilt_gravity\"", 1),
         ("id = \"suspension_coupling\"\nrotational_n_m_per_rad = [0.1, 0.2, 0.3]", 4),
+        (
+            "id = \"cord_mass\"\nmass_per_length_kg_per_m = [0.05, 0.06, 0.07, 0.08]\ncord_length_m = [1.0]",
+            4,
+        ),
     ] {
         let spec: EffectSpec = toml::from_str(table).unwrap();
         let e = parse_effect(&spec).unwrap();

@@ -7,9 +7,11 @@
 //! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
 //! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
-//! `sensor_tilt_gravity` ([`sensors`]); `suspension_coupling` ([`mounts`]). Each effect is a plain struct deserialised from
+//! `sensor_tilt_gravity` ([`sensors`]); `suspension_coupling` ([`mounts`]); `cord_mass`
+//! ([`cords`]). Each effect is a plain struct deserialised from
 //! its spec table (unknown parameters are refused) that implements [`Effect`].
 
+pub mod cords;
 pub mod damping;
 pub mod elastic;
 pub mod gains;
@@ -80,7 +82,8 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// Effects apply in ascending order (stable in spec order): masses (0) before
     /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
-    /// equation (2) last, so that it sees the final output rows.
+    /// equation (2) last, so that it sees the final output rows; `cord_mass` (2) reduces
+    /// the final M and K and reads the final rows and columns.
     fn order(&self) -> u8 {
         1
     }
@@ -122,6 +125,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "transducer_highpass",
     "sensor_tilt_gravity",
     "suspension_coupling",
+    "cord_mass",
 ];
 
 /// Checks that an optional set-up id names a set-up of the spec.
@@ -164,6 +168,12 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "transducer_highpass" => Box::new(params::<sensors::TransducerHighpass>(spec)?),
         "sensor_tilt_gravity" => Box::new(params::<sensors::SensorTiltGravity>(spec)?),
         "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
+        "cord_mass" => {
+            let c: cords::CordMass = params(spec)?;
+            c.check_self()
+                .map_err(|e| format!("effect 'cord_mass': {e}"))?;
+            Box::new(c)
+        }
         other => {
             return Err(format!(
                 "unknown effect id '{other}' (known: {})",

@@ -1,0 +1,524 @@
+//! `cord_mass`: the inertia and the internal resonances of the suspension cords
+//! (research note E3).
+//!
+//! Each spring of the set-up is read as a vertical cord, as in
+//! [`gravity_stiffness`](super::gravity): lower end at the attachment point `a_i`, upper
+//! end pinned at a fixed anchor `a_i + ℓ_i ẑ`, axial stiffness `k_i = ẑᵀ k ẑ`, tension
+//! `T_i` from the static equilibrium of the loaded body ([`cord_tensions`], the very
+//! computation `gravity_stiffness` uses). The tension is a fact of the hanging body, so
+//! it is computed whether or not `gravity_stiffness` is switched on; the cord's weight
+//! is neglected (uniform tension, `μ ℓ g ≪ T`).
+//!
+//! **Cord model (assumed modes, Craig–Bampton form).** Along the cord (s = 0 at the
+//! anchor, s = ℓ at the body) the motion in each of the three directions `e_d` (two
+//! horizontal, one axial) is
+//!
+//! `w_d(s, t) = (s/ℓ) e_dᵀ T(a) q(t) + Σ_{n=1..N} sin(nπs/ℓ) a_{d,n}(t)`,
+//!
+//! the static shape driven by the body plus the cord's own pinned–pinned modes. With
+//! the mass per length μ, the kinetic energy `½ μ ∫ |ẇ|² ds` gives, per cord,
+//!
+//! - added body mass `ΔM = (μℓ/3) T(a)ᵀ T(a)` (`∫ (s/ℓ)² ds = ℓ/3`: a third of the
+//!   cord's mass at its attachment, in every direction),
+//! - modal mass `μℓ/2` per coordinate, and the body coupling
+//!   `μ ∫ (s/ℓ) sin(nπs/ℓ) ds = μℓ (−1)^{n+1}/(nπ)` along `T(a)ᵀ e_d`;
+//!
+//! the strain energy has no body–mode coupling (`∫ (1/ℓ) cos(nπs/ℓ) ds = 0`): the static
+//! shape's stiffness (`T/ℓ` laterally, `k` axially) is already in the model (pendulum
+//! stiffness from `gravity_stiffness`, or the spring), and the modes have
+//!
+//! - transverse (string): `ω_n = (nπ/ℓ) √(T/μ)`, i.e. `f_n = (n/2ℓ) √(T/μ)`;
+//! - axial (surge): `ω_n = nπ √(k/(μℓ))`, i.e. `f_n = (n/2) √(k/m_cord)`.
+//!
+//! Eliminating the modal coordinates of one string gives the end stiffness
+//! `(T/ℓ)[1 − β²/3 − 2β⁴ Σ_{n≤N} 1/(n²π²(n²π² − β²))]`, `β = ωℓ√(μ/T)`: the partial sum
+//! of the Mittag-Leffler series of the exact taut-string end stiffness `(T/ℓ) β cot β`
+//! (tail below `(T/ℓ) 2β⁴/(3π⁴N³)` well under the N-th mode). Both are checked in the tests.
+//!
+//! **Into the 6×6 model.** The augmented model (6 body coordinates plus the mass-
+//! normalised cord coordinates) is solved for its real modes. All observations act on
+//! the body, so the receptance is exactly the modal sum of the body parts `ψ_r` of all
+//! augmented modes. The six modes with the largest body kinetic energy `ψ_rᵀ M ψ_r`
+//! become the model's mass and stiffness, `M' = Ψ⁻ᵀΨ⁻¹`, `K' = Ψ⁻ᵀ Ω² Ψ⁻¹` (whose modes
+//! are exactly those six), and the others become extra modes with shapes `S ψ_r` and
+//! `f_eᵀ ψ_r`: rigid-shaped modes beyond six, as the note predicts. This is exact for
+//! the modal damping of the spec on the six and `damping_ratio` on the cord modes.
+//! The effect therefore runs after every other structure effect ([`Effect::order`] 2),
+//! and a mass attached during one excitation only (`force_gauge_mass`) is added to `M'`
+//! (first order in that mass). With all μ = 0 the model is left untouched (the
+//! effect's neutral value).
+
+use super::gravity::{cord_tensions, Cord, STANDARD_GRAVITY};
+use super::{BuildContext, Effect, ParamInfo};
+use crate::model::{DynamicModel, ExtraMode};
+use crate::spec::CampaignSpec;
+use nalgebra::{DMatrix, SymmetricEigen};
+use rbprops_core::{rigid_transform, MassMatrix6, Mat6, Vec3, Vec6};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+fn default_g() -> f64 {
+    STANDARD_GRAVITY
+}
+fn default_up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+fn default_modes() -> usize {
+    8
+}
+fn default_damping() -> f64 {
+    0.01
+}
+
+/// Body kinetic energy `ψᵀMψ` (of a mode with unit total modal mass) below which a
+/// cord mode is taken as body-free and left out (its FRF terms are below 1e-24/m).
+pub const BODY_FREE_ENERGY: f64 = 1e-24;
+
+/// Largest number of assumed modes per cord and direction.
+pub const MAX_MODES_PER_DIRECTION: usize = 64;
+
+/// Spec parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CordMass {
+    /// Set-up whose springs are cords; all set-ups when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
+    /// Mass per unit length μ (kg/m) per spring, or one value for all. 0: no effect.
+    pub mass_per_length_kg_per_m: Vec<f64>,
+    /// Cord length ℓ (m) per spring, or one value for all.
+    pub cord_length_m: Vec<f64>,
+    /// Assumed modes N per cord and direction (two transverse, one axial).
+    #[serde(default = "default_modes")]
+    pub modes_per_direction: usize,
+    /// Damping ratio of the cord modes.
+    #[serde(default = "default_damping")]
+    pub damping_ratio: f64,
+    #[serde(default = "default_g")]
+    pub g_m_per_s2: f64,
+    /// Upward unit vector in the geometry frame.
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+}
+
+/// One cord of the assumed-modes model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MassiveCord {
+    /// Attachment point on the body (m).
+    pub at: Vec3,
+    /// Length ℓ (m).
+    pub length: f64,
+    /// Mass per length μ (kg/m).
+    pub mass_per_length: f64,
+    /// Static tension T (N).
+    pub tension: f64,
+    /// Axial stiffness k (N/m).
+    pub axial_stiffness: f64,
+}
+
+impl MassiveCord {
+    /// Transverse (string) mode `f_n = (n/2ℓ) √(T/μ)` of the cord pinned at both ends (Hz).
+    pub fn string_frequency_hz(&self, n: usize) -> f64 {
+        n as f64 / (2.0 * self.length) * (self.tension / self.mass_per_length).sqrt()
+    }
+    /// Axial (surge) mode `f_n = (n/2) √(k/(μℓ))` of the cord fixed at both ends (Hz).
+    pub fn surge_frequency_hz(&self, n: usize) -> f64 {
+        n as f64 / 2.0 * (self.axial_stiffness / (self.mass_per_length * self.length)).sqrt()
+    }
+    /// The cord's mass `μℓ` (kg).
+    pub fn mass(&self) -> f64 {
+        self.mass_per_length * self.length
+    }
+}
+
+/// The body coordinates plus the mass-normalised cord coordinates: `mass` and
+/// `stiffness` of size `6 + 3 N n_cords`, body first (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AugmentedModel {
+    pub mass: DMatrix<f64>,
+    pub stiffness: DMatrix<f64>,
+}
+
+/// Horizontal basis ⟂ `up` and `up` itself: the directions of a cord's motion.
+fn cord_directions(up: &Vec3) -> [Vec3; 3] {
+    let h1 = if up.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let h1 = (h1 - h1.dot(up) * up).normalize();
+    [h1, up.cross(&h1), *up]
+}
+
+/// Assembles the augmented model of a body (`mass`, `stiffness` about O) on `cords`
+/// with `n_modes` assumed modes per cord and direction. Coordinates of cord i, direction
+/// d (two horizontal, then `up`), mode n sit at `6 + (3 i + d) N + n − 1`.
+pub fn augmented_model(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    cords: &[MassiveCord],
+    up: &Vec3,
+    n_modes: usize,
+) -> AugmentedModel {
+    let n = 6 + 3 * n_modes * cords.len();
+    let mut m = DMatrix::<f64>::zeros(n, n);
+    let mut k = DMatrix::<f64>::zeros(n, n);
+    m.view_mut((0, 0), (6, 6)).copy_from(mass);
+    k.view_mut((0, 0), (6, 6)).copy_from(stiffness);
+    let dirs = cord_directions(up);
+    for (i, cd) in cords.iter().enumerate() {
+        let (mu, l) = (cd.mass_per_length, cd.length);
+        let tr = rigid_transform(&cd.at);
+        let added = (mu * l / 3.0) * tr.transpose() * tr;
+        let mut body = m.view_mut((0, 0), (6, 6));
+        body += added;
+        for (d, e) in dirs.iter().enumerate() {
+            let col: Vec6 = tr.transpose() * e;
+            for j in 1..=n_modes {
+                let idx = 6 + (3 * i + d) * n_modes + j - 1;
+                let nj = j as f64 * PI;
+                let sign = if j % 2 == 1 { 1.0 } else { -1.0 };
+                // μ∫(s/ℓ) sin(nπs/ℓ) ds over the modal mass' square root √(μℓ/2).
+                let b = sign * (2.0 * mu * l).sqrt() / nj;
+                for r in 0..6 {
+                    m[(r, idx)] = b * col[r];
+                    m[(idx, r)] = b * col[r];
+                }
+                m[(idx, idx)] = 1.0;
+                k[(idx, idx)] = if d < 2 {
+                    nj * nj * cd.tension / (mu * l * l)
+                } else {
+                    nj * nj * cd.axial_stiffness / (mu * l)
+                };
+            }
+        }
+    }
+    AugmentedModel {
+        mass: m,
+        stiffness: k,
+    }
+}
+
+/// The augmented model as a 6×6 model plus extra modes (see the module docs); cord
+/// modes with body energy below [`BODY_FREE_ENERGY`] are left out.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReducedModel {
+    /// `M' = Ψ⁻ᵀΨ⁻¹` of the six body-dominated modes.
+    pub mass: Mat6,
+    /// `K' = Ψ⁻ᵀΩ²Ψ⁻¹`.
+    pub stiffness: Mat6,
+    /// The other modes: circular frequency (rad/s) and body part `ψ` (mass-normalised
+    /// over the augmented model).
+    pub extra: Vec<(f64, Vec6)>,
+}
+
+/// Solves the augmented model's real modes and reduces it; `body_mass` (the body
+/// without cords) measures each mode's body kinetic energy.
+pub fn reduce(aug: &AugmentedModel, body_mass: &Mat6) -> Result<ReducedModel, String> {
+    let n = aug.mass.nrows();
+    let chol = aug
+        .mass
+        .clone()
+        .cholesky()
+        .ok_or("the mass matrix with the cords is not positive definite")?;
+    let l = chol.l();
+    let ks = (&aug.stiffness + aug.stiffness.transpose()) / 2.0;
+    let a = l
+        .solve_lower_triangular(&ks)
+        .ok_or("singular Cholesky factor")?;
+    let a = l
+        .solve_lower_triangular(&a.transpose())
+        .ok_or("singular Cholesky factor")?;
+    let a = (&a + a.transpose()) / 2.0;
+    let eig = SymmetricEigen::new(a);
+    let phi = l
+        .transpose()
+        .solve_upper_triangular(&eig.eigenvectors)
+        .ok_or("singular Cholesky factor")?;
+    if !phi.iter().all(|x| x.is_finite()) || !eig.eigenvalues.iter().all(|x| x.is_finite()) {
+        return Err("the modes of the body on massive cords are not finite".into());
+    }
+    let body = |r: usize| -> Vec6 { Vec6::from_fn(|i, _| phi[(i, r)]) };
+    let energy: Vec<f64> = (0..n)
+        .map(|r| {
+            let p = body(r);
+            (p.transpose() * body_mass * p)[0]
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..n).collect();
+    order.sort_by(|&i, &j| energy[j].total_cmp(&energy[i]).then(i.cmp(&j)));
+    let mut six: Vec<usize> = order[..6].to_vec();
+    six.sort_by(|&i, &j| {
+        eig.eigenvalues[i]
+            .total_cmp(&eig.eigenvalues[j])
+            .then(i.cmp(&j))
+    });
+    let psi = Mat6::from_columns(&six.iter().map(|&r| body(r)).collect::<Vec<_>>());
+    let sv = psi.singular_values();
+    let cond = sv.max() / sv.min();
+    if !(cond < 1e10) {
+        return Err(format!(
+            "the six body-dominated modes do not span the rigid-body motions (condition {cond:.2e})"
+        ));
+    }
+    let pinv = psi
+        .try_inverse()
+        .ok_or("the six body-dominated modes are singular")?;
+    let omega2 = Mat6::from_diagonal(&Vec6::from_fn(|i, _| eig.eigenvalues[six[i]]));
+    let mass = pinv.transpose() * pinv;
+    let stiffness = pinv.transpose() * omega2 * pinv;
+    let mut extra = Vec::with_capacity(n - 6);
+    let mut rest: Vec<usize> = order[6..].to_vec();
+    rest.sort_by(|&i, &j| {
+        eig.eigenvalues[i]
+            .total_cmp(&eig.eigenvalues[j])
+            .then(i.cmp(&j))
+    });
+    for r in rest {
+        let w2 = eig.eigenvalues[r];
+        if !(w2 > 0.0) {
+            return Err(format!(
+                "a cord mode has a non-positive eigenvalue ω² = {w2:.3e}"
+            ));
+        }
+        // Modes in which the body does not move (cords swinging against each other in
+        // a symmetric suspension) are invisible in every FRF: drop them rather than
+        // divide roundoff by zero at their frequency.
+        if energy[r] > BODY_FREE_ENERGY {
+            extra.push((w2.sqrt(), body(r)));
+        }
+    }
+    Ok(ReducedModel {
+        mass: (mass + mass.transpose()) / 2.0,
+        stiffness: (stiffness + stiffness.transpose()) / 2.0,
+        extra,
+    })
+}
+
+impl CordMass {
+    fn up(&self) -> Vec3 {
+        Vec3::from(self.up)
+    }
+    fn per_spring(v: &[f64], n: usize) -> Vec<f64> {
+        if v.len() == 1 {
+            vec![v[0]; n]
+        } else {
+            v.to_vec()
+        }
+    }
+    /// Checks the parameters on their own (signs, finiteness, counts given).
+    pub fn check_self(&self) -> Result<(), String> {
+        if self.mass_per_length_kg_per_m.is_empty() {
+            return Err(
+                "mass_per_length_kg_per_m: give one value per spring or one for all".into(),
+            );
+        }
+        if self.cord_length_m.is_empty() {
+            return Err("cord_length_m: give one length per spring or one for all".into());
+        }
+        if let Some((i, mu)) = self
+            .mass_per_length_kg_per_m
+            .iter()
+            .enumerate()
+            .find(|(_, m)| !(m.is_finite() && **m >= 0.0))
+        {
+            return Err(format!(
+                "mass_per_length_kg_per_m[{i}]: must be finite and ≥ 0, got {mu}"
+            ));
+        }
+        if let Some((i, l)) = self
+            .cord_length_m
+            .iter()
+            .enumerate()
+            .find(|(_, l)| !(l.is_finite() && **l > 0.0))
+        {
+            return Err(format!(
+                "cord_length_m[{i}]: must be positive and finite, got {l}"
+            ));
+        }
+        if !(1..=MAX_MODES_PER_DIRECTION).contains(&self.modes_per_direction) {
+            return Err(format!(
+                "modes_per_direction must be in 1..={MAX_MODES_PER_DIRECTION}, got {}",
+                self.modes_per_direction
+            ));
+        }
+        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
+            return Err(format!(
+                "damping_ratio must be in [0, 1), got {}",
+                self.damping_ratio
+            ));
+        }
+        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 > 0.0) {
+            return Err(format!(
+                "g_m_per_s2 must be positive (the cords' tension comes from the weight), got {}",
+                self.g_m_per_s2
+            ));
+        }
+        let n = self.up().norm();
+        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
+        }
+        Ok(())
+    }
+
+    fn applies_to(&self, setup: &str) -> bool {
+        self.setup.as_ref().is_none_or(|id| id == setup)
+    }
+
+    /// The cords of set-up `setup_index` for a body of mass `m` with CoM `c` (tensions
+    /// from the static equilibrium), cords with μ = 0 included.
+    pub fn cords(
+        &self,
+        spec: &CampaignSpec,
+        setup_index: usize,
+        m: f64,
+        c: &Vec3,
+    ) -> Result<Vec<MassiveCord>, String> {
+        let springs = spec.springs(setup_index);
+        let n = springs.len();
+        let up = self.up();
+        let mus = Self::per_spring(&self.mass_per_length_kg_per_m, n);
+        let lengths = Self::per_spring(&self.cord_length_m, n);
+        let id = &spec.setups[setup_index].id;
+        for (what, v) in [
+            ("mass_per_length_kg_per_m", &mus),
+            ("cord_length_m", &lengths),
+        ] {
+            if v.len() != n {
+                return Err(format!(
+                    "{what} has {} values but set-up '{id}' (setup[{setup_index}]) has {n} springs",
+                    v.len()
+                ));
+            }
+        }
+        let geo: Vec<Cord> = springs
+            .iter()
+            .zip(&lengths)
+            .map(|(s, &l)| Cord {
+                at: s.at,
+                length: l,
+                axial_stiffness: (up.transpose() * s.stiffness * up)[0],
+            })
+            .collect();
+        if let Some(i) = geo.iter().position(|c| !(c.axial_stiffness > 0.0)) {
+            return Err(format!(
+                "set-up '{id}': spring {i} has no stiffness along `up`, so it cannot be a cord"
+            ));
+        }
+        let t = cord_tensions(&geo, m, c, self.g_m_per_s2, &up)
+            .map_err(|e| format!("set-up '{id}': {e}"))?;
+        Ok(geo
+            .iter()
+            .zip(&t)
+            .zip(&mus)
+            .map(|((g, &tension), &mu)| MassiveCord {
+                at: g.at,
+                length: g.length,
+                mass_per_length: mu,
+                tension,
+                axial_stiffness: g.axial_stiffness,
+            })
+            .collect())
+    }
+}
+
+impl Effect for CordMass {
+    fn id(&self) -> &'static str {
+        "cord_mass"
+    }
+    /// After every other structure effect: the reduction must see the final M and K.
+    fn order(&self) -> u8 {
+        2
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        (0..self.mass_per_length_kg_per_m.len())
+            .map(|i| ParamInfo {
+                name: format!("mass_per_length_kg_per_m[{i}]"),
+                unit: "kg/m",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.01, 0.15),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.mass_per_length_kg_per_m.clone()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != self.mass_per_length_kg_per_m.len() {
+            return Err(format!(
+                "expected {} values, got {}",
+                self.mass_per_length_kg_per_m.len(),
+                values.len()
+            ));
+        }
+        let e = CordMass {
+            mass_per_length_kg_per_m: values.to_vec(),
+            ..self.clone()
+        };
+        e.check_self()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_self()?;
+        super::check_setup(spec, self.setup.as_deref())?;
+        let props = spec.properties();
+        for (i, s) in spec.setups.iter().enumerate() {
+            if self.applies_to(&s.id) {
+                self.cords(spec, i, props.mass, &props.com)?;
+            }
+        }
+        Ok(())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        if !self.applies_to(&model.setup) || self.mass_per_length_kg_per_m.iter().all(|&m| m == 0.0)
+        {
+            return Ok(());
+        }
+        let mm = MassMatrix6(model.mass);
+        let cords: Vec<MassiveCord> = self
+            .cords(ctx.spec, ctx.setup_index, mm.mass(), &mm.com())?
+            .into_iter()
+            .filter(|c| c.mass_per_length > 0.0)
+            .collect();
+        if cords.is_empty() {
+            return Ok(());
+        }
+        let ks = model.stiffness;
+        let asym = (ks - ks.transpose()).norm();
+        if asym > 1e-9 * ks.norm().max(f64::MIN_POSITIVE) {
+            return Err(format!(
+                "set-up '{}': the stiffness is not symmetric (asymmetry {asym:.3e}), so it has no real modes to couple the cords to",
+                model.setup
+            ));
+        }
+        let aug = augmented_model(
+            &model.mass,
+            &ks,
+            &cords,
+            &self.up(),
+            self.modes_per_direction,
+        );
+        let red =
+            reduce(&aug, &model.mass).map_err(|e| format!("set-up '{}': {e}", model.setup))?;
+        model.mass = red.mass;
+        model.stiffness = red.stiffness;
+        let n_ex = ctx.geometry.excitations.len();
+        for (w, psi) in red.extra {
+            let mut at_excitations = vec![0.0; n_ex];
+            for inp in &model.inputs {
+                at_excitations[inp.excitation] = inp.column.dot(&psi);
+            }
+            model.extra_modes.push(ExtraMode {
+                frequency_hz: w / std::f64::consts::TAU,
+                damping_ratio: self.damping_ratio,
+                at_channels: model.outputs.iter().map(|r| (r * psi)[0]).collect(),
+                at_excitations,
+            });
+        }
+        Ok(())
+    }
+}
