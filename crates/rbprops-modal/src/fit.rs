@@ -193,8 +193,7 @@ fn estimate_poles_from(
         Some(f) => band.up_to(f),
         None => band.clone(),
     };
-    let mut sel;
-    loop {
+    let sweep = |sub: &BandData| -> Result<stabilisation::Selection, ModalError> {
         let nm = opts.max_order.min(sub.n_lines().saturating_sub(2));
         let orders = match opts.method {
             Method::Lscf | Method::Circle => {
@@ -208,7 +207,7 @@ fn estimate_poles_from(
             Method::Lsce => {
                 let sub_chans: Vec<Vec<c64>> =
                     chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
-                lsce::sweep(&sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
+                lsce::sweep(sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
                     excitation: name.into(),
                     method: "LSCE",
                     reason,
@@ -216,7 +215,17 @@ fn estimate_poles_from(
             }
         };
         let band_w = (sub.omega[0], *sub.omega.last().unwrap());
-        sel = stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes);
+        Ok(stabilisation::select(
+            &orders,
+            band_w,
+            &opts.tolerances,
+            opts.n_modes,
+        ))
+    };
+    let min_sweep_lines = 4 * opts.max_order.max(8);
+    let mut sel;
+    loop {
+        sel = sweep(&sub)?;
         let top = *sub.frequency_hz.last().unwrap();
         let target = match sel
             .modes
@@ -228,7 +237,7 @@ fn estimate_poles_from(
             None => 0.5 * top,
         };
         let lines = sub.frequency_hz.partition_point(|&f| f <= target);
-        if target < 0.6 * top && lines >= 4 * opts.max_order.max(8) {
+        if target < 0.6 * top && lines >= min_sweep_lines {
             warnings.push(format!(
                 "excitation '{name}': poles estimated on {:.4}–{target:.4} Hz, where the modes are (residues on the whole band)",
                 sub.frequency_hz[0]
@@ -237,6 +246,32 @@ fn estimate_poles_from(
             continue;
         }
         break;
+    }
+    // Wide bands: modes far below the band's top crowd near z = 1 and need far higher
+    // orders than the sweep allows (and decimation may under-sample them). Sweep the
+    // lower quarter again, and again, and add the modes each finds in the lower 60 % of
+    // its sub-band that the wider sweeps did not.
+    if opts.n_modes.is_none() {
+        let mut low = 0.25 * *sub.frequency_hz.last().unwrap();
+        loop {
+            let lower = sub.up_to(low);
+            if lower.n_lines() < min_sweep_lines {
+                break;
+            }
+            let s_low = sweep(&lower)?;
+            for m in s_low.modes {
+                let known = sel
+                    .modes
+                    .iter()
+                    .any(|k| k.pole.distance_in_bandwidths(&m.pole) < 3.0);
+                if m.pole.frequency_hz() < 0.6 * low && !known {
+                    sel.modes.push(m);
+                }
+            }
+            low *= 0.25;
+        }
+        sel.modes
+            .sort_by(|a, b| a.pole.omega_n().total_cmp(&b.pole.omega_n()));
     }
     warnings.extend(
         sel.warnings
@@ -260,7 +295,14 @@ fn estimate_poles_from(
     let res = Residuals::for_band(opts.residual_terms, band);
     // Refinement and model-order test on decimated lines (same first and last line, so
     // the same residual terms and band limits); the final refinement uses every line.
-    let keep = BandData::decimation_indices(n, REFINE_LINES);
+    // Keep at least two lines per half-power half-bandwidth of the narrowest pole.
+    let spacing = (band.omega[n - 1] - band.omega[0]) / (n - 1).max(1) as f64;
+    let narrowest = poles
+        .iter()
+        .map(|p| p.half_bandwidth())
+        .fold(f64::INFINITY, f64::min);
+    let max_stride = ((0.5 * narrowest / spacing).floor() as usize).max(1);
+    let keep = BandData::decimation_indices(n, REFINE_LINES.max(n.div_ceil(max_stride)));
     let decimated = keep.len() < n;
     let rband = band.lines(&keep);
     let rchans = select_lines(chans, &keep);
