@@ -48,7 +48,7 @@
 //! (first order in that mass). With all μ = 0 the model is left untouched (the
 //! effect's neutral value).
 
-use super::gravity::{cord_tensions, Cord, STANDARD_GRAVITY};
+use super::gravity::{cord_tensions, Cord};
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::{DynamicModel, ExtraMode};
 use crate::spec::CampaignSpec;
@@ -57,12 +57,6 @@ use rbprops_core::{rigid_transform, MassMatrix6, Mat6, Vec3, Vec6};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
-fn default_g() -> f64 {
-    STANDARD_GRAVITY
-}
-fn default_up() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
 fn default_modes() -> usize {
     8
 }
@@ -94,10 +88,10 @@ pub struct CordMass {
     /// Damping ratio of the cord modes.
     #[serde(default = "default_damping")]
     pub damping_ratio: f64,
-    #[serde(default = "default_g")]
+    #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
-    #[serde(default = "default_up")]
+    #[serde(default = "super::default_up")]
     pub up: [f64; 3],
 }
 
@@ -431,29 +425,22 @@ impl Effect for CordMass {
         2
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        (0..self.mass_per_length_kg_per_m.len())
-            .map(|i| ParamInfo {
-                name: format!("mass_per_length_kg_per_m[{i}]"),
-                unit: "kg/m",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.01, 0.15),
-            })
-            .collect()
+        super::list_info(
+            "mass_per_length_kg_per_m",
+            "kg/m",
+            self.mass_per_length_kg_per_m.len(),
+            (0.01, 0.15),
+        )
     }
     fn values(&self) -> Vec<f64> {
         self.mass_per_length_kg_per_m.clone()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        if values.len() != self.mass_per_length_kg_per_m.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                self.mass_per_length_kg_per_m.len(),
-                values.len()
-            ));
-        }
         let e = CordMass {
-            mass_per_length_kg_per_m: values.to_vec(),
+            mass_per_length_kg_per_m: super::replace_list(
+                self.mass_per_length_kg_per_m.len(),
+                values,
+            )?,
             ..self.clone()
         };
         e.check_self()?;

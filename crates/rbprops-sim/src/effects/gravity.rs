@@ -27,13 +27,6 @@ use serde::{Deserialize, Serialize};
 /// Standard gravity (m/s²).
 pub const STANDARD_GRAVITY: f64 = 9.80665;
 
-fn default_g() -> f64 {
-    STANDARD_GRAVITY
-}
-fn default_up() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
-
 /// Spec parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -43,10 +36,10 @@ pub struct GravityStiffness {
     pub setup: Option<String>,
     /// Cord length per spring (m), or one value for all.
     pub cord_length_m: Vec<f64>,
-    #[serde(default = "default_g")]
+    #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
-    #[serde(default = "default_up")]
+    #[serde(default = "super::default_up")]
     pub up: [f64; 3],
 }
 
@@ -184,29 +177,14 @@ impl Effect for GravityStiffness {
         "gravity_stiffness"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        (0..self.cord_length_m.len())
-            .map(|i| ParamInfo {
-                name: format!("cord_length_m[{i}]"),
-                unit: "m",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.2, 3.0),
-            })
-            .collect()
+        super::list_info("cord_length_m", "m", self.cord_length_m.len(), (0.2, 3.0))
     }
     fn values(&self) -> Vec<f64> {
         self.cord_length_m.clone()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        if values.len() != self.cord_length_m.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                self.cord_length_m.len(),
-                values.len()
-            ));
-        }
         let e = GravityStiffness {
-            cord_length_m: values.to_vec(),
+            cord_length_m: super::replace_list(self.cord_length_m.len(), values)?,
             ..self.clone()
         };
         e.check_self()?;

@@ -128,6 +128,42 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "cord_mass",
 ];
 
+/// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
+pub(crate) fn default_g() -> f64 {
+    gravity::STANDARD_GRAVITY
+}
+
+/// Serde default of `up`: the geometry's +z axis points up.
+pub(crate) fn default_up() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// Parameter descriptions of a per-spring (or per-cord) list `name[i]`.
+pub(crate) fn list_info(
+    name: &str,
+    unit: &'static str,
+    n: usize,
+    plausible: (f64, f64),
+) -> Vec<ParamInfo> {
+    (0..n)
+        .map(|i| ParamInfo {
+            name: format!("{name}[{i}]"),
+            unit,
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible,
+        })
+        .collect()
+}
+
+/// `values` as a replacement of a list parameter of length `n` (a fitter's new values).
+pub(crate) fn replace_list(n: usize, values: &[f64]) -> Result<Vec<f64>, String> {
+    if values.len() != n {
+        return Err(format!("expected {n} values, got {}", values.len()));
+    }
+    Ok(values.to_vec())
+}
+
 /// Checks that an optional set-up id names a set-up of the spec.
 pub(crate) fn check_setup(spec: &CampaignSpec, setup: Option<&str>) -> Result<(), String> {
     match setup {

@@ -16,7 +16,6 @@
 //!   after the other output effects.
 
 use super::{BuildContext, Effect, ParamInfo};
-use crate::effects::gravity::STANDARD_GRAVITY;
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use nalgebra::RowVector6;
@@ -130,20 +129,13 @@ impl Effect for TransducerHighpass {
     }
 }
 
-fn default_up() -> [f64; 3] {
-    [0.0, 0.0, 1.0]
-}
-fn default_g() -> f64 {
-    STANDARD_GRAVITY
-}
-
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorTiltGravity {
-    #[serde(default = "default_g")]
+    #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
-    #[serde(default = "default_up")]
+    #[serde(default = "super::default_up")]
     pub up: [f64; 3],
 }
 
