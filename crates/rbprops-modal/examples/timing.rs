@@ -1,6 +1,7 @@
 //! Per-excitation cost of the default fit on 9 channels × 4,096 lines (the issue's
 //! workload shape). Usage: `RAYON_NUM_THREADS=1 cargo run --release -p rbprops-modal
-//! --example timing -- [excitations]`; prints ms per excitation.
+//! --example timing [--features phase-timing] -- [excitations]`; prints ms per
+//! excitation (and per phase with the feature).
 
 use rbprops_core::{FrfSet, Quantity};
 use rbprops_modal::{fit_campaign, testdata, FitOptions};
@@ -47,4 +48,12 @@ fn main() {
         rayon::current_num_threads(),
         1e3 * dt / batch as f64
     );
+    if let Some(totals) = rbprops_modal::prof::totals() {
+        for (name, (calls, secs)) in rbprops_modal::prof::PHASES.iter().zip(totals) {
+            println!(
+                "  {name:<26} {:>8.2} ms per excitation ({calls} calls)",
+                1e3 * secs / batch as f64
+            );
+        }
+    }
 }

@@ -134,9 +134,11 @@ fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
 
 /// Lines of the LSCF stabilisation sweep (decimated to about this many).
 const SWEEP_LINES: usize = 1024;
-/// Lines of the refinement and the residual model-order test; the final refinement
-/// (poles and their covariance) runs on every line, starting from their result.
-const REFINE_LINES: usize = 1024;
+/// Refinement lines: every line within this many half-power half-bandwidths of a pole
+/// (≈ 97 % of the pole information, see `BandData::focus_indices`) …
+const FOCUS_HALF_WIDTHS: f64 = 20.0;
+/// … plus this many evenly spaced lines over the band.
+const SKELETON_LINES: usize = 256;
 
 /// The lines `keep` of every channel.
 fn select_lines(chans: &[Vec<c64>], keep: &[usize]) -> Vec<Vec<c64>> {
@@ -202,7 +204,7 @@ fn estimate_poles_from(
                 let dec = sub.lines(&keep);
                 let dec_chans = select_lines(chans, &keep);
                 let nm = nm.min(dec.n_lines().saturating_sub(2));
-                lscf::sweep_orders(&dec, &dec_chans, nm, 2)
+                crate::prof::time(0, || lscf::sweep_orders(&dec, &dec_chans, nm, 2))
             }
             Method::Lsce => {
                 let sub_chans: Vec<Vec<c64>> =
@@ -215,12 +217,9 @@ fn estimate_poles_from(
             }
         };
         let band_w = (sub.omega[0], *sub.omega.last().unwrap());
-        Ok(stabilisation::select(
-            &orders,
-            band_w,
-            &opts.tolerances,
-            opts.n_modes,
-        ))
+        Ok(crate::prof::time(1, || {
+            stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes)
+        }))
     };
     let min_sweep_lines = 4 * opts.max_order.max(8);
     let mut sel;
@@ -293,17 +292,16 @@ fn estimate_poles_from(
     let mut confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
     let mut mode_warnings = vec![Vec::new(); poles.len()];
     let res = Residuals::for_band(opts.residual_terms, band);
-    // Refinement and model-order test on decimated lines (same first and last line, so
-    // the same residual terms and band limits); the final refinement uses every line.
-    // Keep at least two lines per half-power half-bandwidth of the narrowest pole.
-    let spacing = (band.omega[n - 1] - band.omega[0]) / (n - 1).max(1) as f64;
-    let narrowest = poles
+    // Refinement and model-order test on the lines that carry the pole information:
+    // those near the selected poles and the candidates the residual test may add, plus
+    // an even skeleton for the residual terms (see `BandData::focus_indices`). The
+    // residues are then fitted on every line.
+    let focus: Vec<Pole> = poles
         .iter()
-        .map(|p| p.half_bandwidth())
-        .fold(f64::INFINITY, f64::min);
-    let max_stride = ((0.5 * narrowest / spacing).floor() as usize).max(1);
-    let keep = BandData::decimation_indices(n, REFINE_LINES.max(n.div_ceil(max_stride)));
-    let decimated = keep.len() < n;
+        .copied()
+        .chain(sel.candidates.iter().map(|c| c.pole))
+        .collect();
+    let keep = band.focus_indices(&focus, FOCUS_HALF_WIDTHS, 4.0, SKELETON_LINES);
     let rband = band.lines(&keep);
     let rchans = select_lines(chans, &keep);
     let rn = rband.n_lines();
@@ -319,7 +317,7 @@ fn estimate_poles_from(
             // Refinement is local. A pole it pushes more than ten half-bandwidths away,
             // out of the band or past the damping limit is not supported by the data
             // (a computational pole that looked stable): drop it and refine again.
-            let mut r = lsfd::refine(&poles, &rband, &rchans, res);
+            let mut r = crate::prof::time(2, || lsfd::refine(&poles, &rband, &rchans, res));
             let band_w = (band.omega[0], *band.omega.last().unwrap());
             loop {
                 let bad = poles
@@ -370,7 +368,7 @@ fn estimate_poles_from(
                 if poles.is_empty() {
                     break;
                 }
-                r = lsfd::refine(&poles, &rband, &rchans, res);
+                r = crate::prof::time(2, || lsfd::refine(&poles, &rband, &rchans, res));
             }
             if poles.is_empty() {
                 return Err(ModalError::NoModes {
@@ -388,7 +386,12 @@ fn estimate_poles_from(
                     let no = chans.len();
                     let dof_added = 2 + 2 * no;
                     let threshold = chi2_threshold(dof_added);
-                    for cand in &sel.candidates {
+                    // Cheap screen: the cost drop with each candidate as it is, all
+                    // from one QR (recomputed only after a candidate is accepted); only
+                    // promising candidates get the full refinement.
+                    let cand_poles: Vec<Pole> = sel.candidates.iter().map(|c| c.pole).collect();
+                    let mut screen: Option<(f64, Vec<f64>)> = None;
+                    for (ci, cand) in sel.candidates.iter().enumerate() {
                         let mut trial_poles = r.poles.clone();
                         if trial_poles
                             .iter()
@@ -400,18 +403,29 @@ fn estimate_poles_from(
                         if 2 * rn <= 2 * (2 * trial_poles.len() + 2) {
                             break;
                         }
-                        // Cheap screen: the drop with the candidate as it is (one QR);
-                        // only promising candidates get the full refinement.
                         let dof0 = (2 * rn * no)
                             .saturating_sub(
                                 no * (2 * trial_poles.len() + 2) + 2 * trial_poles.len(),
                             )
                             .max(1) as f64;
-                        let c_screen = lsfd::weighted_cost(&trial_poles, &rband, &rchans, res);
-                        if (r.cost.1 - c_screen) / (c_screen / dof0) < threshold {
+                        let (c_now, c_with) = screen.get_or_insert_with(|| {
+                            crate::prof::time(3, || {
+                                lsfd::screen_extra_poles(
+                                    &r.poles,
+                                    &cand_poles,
+                                    &rband,
+                                    &rchans,
+                                    res,
+                                )
+                            })
+                        });
+                        let c_screen = c_with[ci];
+                        if (*c_now - c_screen) / (c_screen / dof0) < threshold {
                             continue;
                         }
-                        let r2 = lsfd::refine(&trial_poles, &rband, &rchans, res);
+                        let r2 = crate::prof::time(2, || {
+                            lsfd::refine(&trial_poles, &rband, &rchans, res)
+                        });
                         let added = *r2.poles.last().unwrap();
                         let dof = (2 * rn * no)
                             .saturating_sub(no * (2 * r2.poles.len() + 2) + 2 * r2.poles.len())
@@ -441,11 +455,9 @@ fn estimate_poles_from(
                                 "found by the residual model-order test, not stable throughout the diagram".into(),
                             ]);
                             r = r2;
+                            screen = None;
                         }
                     }
-                }
-                if decimated {
-                    r = lsfd::refine(&r.poles, band, chans, res);
                 }
                 if r.singular {
                     warnings.push(format!(
@@ -632,7 +644,9 @@ fn fit_one(
         }
         Method::Lscf | Method::Lsce => {
             let res = Residuals::for_band(opts.residual_terms, &band);
-            let rf = lsfd::fit_residues(&ps.poles, &band, &band.channels, res);
+            let rf = crate::prof::time(6, || {
+                lsfd::fit_residues(&ps.poles, &band, &band.channels, res)
+            });
             if rf.basis_conditioning < 1e-8 {
                 warnings.push(format!(
                     "excitation '{name}': the residue basis is nearly singular (conditioning {:.1e}); two poles are not separable with these data",
@@ -646,7 +660,7 @@ fn fit_one(
                     a_std[m][o] = 2.0 * p.omega_d() * rf.residue_std[m][o];
                 }
             }
-            synth = lsfd::synthesise(&ps.poles, &rf, &band);
+            synth = crate::prof::time(7, || lsfd::synthesise(&ps.poles, &rf, &band));
         }
     }
 

@@ -27,6 +27,7 @@ pub mod lscf;
 pub mod lsfd;
 pub mod options;
 pub mod pole;
+pub mod prof;
 pub mod stabilisation;
 pub mod testdata;
 

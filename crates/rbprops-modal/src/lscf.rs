@@ -119,7 +119,7 @@ pub fn sweep_orders(
                 .collect()
         })
         .collect();
-    let s = sums(&theta, chans, &weights, n_max);
+    let s = crate::prof::time(4, || sums(&theta, chans, &weights, n_max));
     let no = chans.len();
     // All normal matrices are nested in the order (leading blocks), so the reduction
     // is updated one basis function at a time: per channel the Cholesky factor L of
@@ -215,7 +215,7 @@ pub fn sweep_orders(
                 0.0
             }
         });
-        let Some(roots) = linalg::eigenvalues(&companion) else {
+        let Some(roots) = crate::prof::time(5, || linalg::eigenvalues(&companion)) else {
             continue;
         };
         // Numerators β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α), for the shape vectors.

@@ -36,6 +36,11 @@ impl Residuals {
             lower: enabled && band.omega[0] > 0.0,
         }
     }
+    /// No residual terms (the poles' own columns only).
+    pub const NONE: Self = Self {
+        upper: false,
+        lower: false,
+    };
     fn count(self) -> usize {
         self.upper as usize + self.lower as usize
     }
@@ -124,10 +129,15 @@ fn stack(cols: &[Vec<c64>]) -> (Mat<f64>, Vec<f64>) {
             }
         })
         .collect();
-    let a = Mat::from_fn(2 * n, cols.len(), |i, j| {
-        let z = cols[j][i % n];
-        (if i < n { z.re } else { z.im }) / scale[j]
-    });
+    let mut a = Mat::<f64>::zeros(2 * n, cols.len());
+    for (j, (c, s)) in cols.iter().zip(&scale).enumerate() {
+        let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
+        let (re, im) = col.split_at_mut(n);
+        for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(c) {
+            *r = z.re / s;
+            *i = z.im / s;
+        }
+    }
     (a, scale)
 }
 
@@ -217,26 +227,32 @@ pub fn fit_residues(
 pub fn synthesise(poles: &[Pole], fit: &ResidueFit, band: &BandData) -> Vec<Vec<c64>> {
     let q = band.quantity_factor();
     let no = fit.upper.len();
-    (0..no)
-        .map(|o| {
-            band.omega
-                .iter()
-                .enumerate()
-                .map(|(k, &w)| {
-                    let mut h: c64 = poles
-                        .iter()
-                        .zip(&fit.residues)
-                        .map(|(p, r)| p.receptance(r[o], w))
-                        .sum();
-                    h += fit.upper[o];
-                    if fit.lower[o] != 0.0 {
-                        h += -fit.lower[o] / (w * w);
-                    }
-                    h * q[k]
-                })
-                .collect()
-        })
-        .collect()
+    let mut out = vec![Vec::with_capacity(band.n_lines()); no];
+    let mut h = vec![c64::new(0.0, 0.0); no];
+    for (k, &w) in band.omega.iter().enumerate() {
+        // The pole terms are shared by every channel: two divisions per pole and line.
+        for (o, hk) in h.iter_mut().enumerate() {
+            // The lower residual is zero when the band starts at 0 Hz (no 0/0 there).
+            let lower = if fit.lower[o] != 0.0 {
+                fit.lower[o] / (w * w)
+            } else {
+                0.0
+            };
+            *hk = c64::new(fit.upper[o] - lower, 0.0);
+        }
+        let s = c64::new(0.0, w);
+        for (p, r) in poles.iter().zip(&fit.residues) {
+            let u = 1.0 / (s - p.0);
+            let v = 1.0 / (s - p.0.conj());
+            for (hk, ro) in h.iter_mut().zip(r) {
+                *hk += ro * u + ro.conj() * v;
+            }
+        }
+        for (col, hk) in out.iter_mut().zip(&h) {
+            col.push(hk * q[k]);
+        }
+    }
+    out
 }
 
 /// Result of the pole refinement.
@@ -320,19 +336,72 @@ fn dot(a: &[c64], b: &[c64]) -> f64 {
         .sum()
 }
 
-/// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimises, for fixed
-/// poles (one QR): used to screen candidate poles cheaply.
-pub fn weighted_cost(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> f64 {
-    let n = band.n_lines();
-    let data: Vec<Vec<c64>> = chans
+/// Channels scaled to unit RMS: the data [`refine`] and [`screen_extra_poles`] fit.
+fn unit_rms(chans: &[Vec<c64>]) -> Vec<Vec<c64>> {
+    chans
         .iter()
         .map(|h| {
-            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt();
+            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt();
             h.iter().map(|z| z / rms).collect()
         })
-        .collect();
+        .collect()
+}
+
+/// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimises at the
+/// fixed `poles`, and the same cost with each candidate pole added in turn (residues
+/// re-fitted, poles fixed): used to screen candidates for the model-order test.
+///
+/// One QR serves every candidate. The candidate's two basis columns `N` are projected
+/// off the current basis (`Ñ = P⊥N`, `ÑᵀÑ = NᵀN − (QᵀN)ᵀQᵀN`, `QᵀN = R⁻ᵀΦᵀN`); as the
+/// residuals `r_o` are already orthogonal to the basis, the cost drops by
+/// `Σ_o (Nᵀr_o)ᵀ(ÑᵀÑ)⁻¹(Nᵀr_o)` — O(N·(p + channels)) per candidate instead of a QR.
+pub fn screen_extra_poles(
+    poles: &[Pole],
+    candidates: &[Pole],
+    band: &BandData,
+    chans: &[Vec<c64>],
+    res: Residuals,
+) -> (f64, Vec<f64>) {
+    let data = unit_rms(chans);
     let lw = line_weights(&data);
-    trial(poles, band, &data, &lw, res).cost
+    let t = trial(poles, band, &data, &lw, res);
+    let pc = t.n_cols;
+    let with = candidates
+        .iter()
+        .map(|c| {
+            let n = basis_columns(std::slice::from_ref(c), band, Residuals::NONE, &lw);
+            // y = QᵀN by forward substitution on Rᵀ.
+            let mut y = [vec![0.0; pc], vec![0.0; pc]];
+            for (j, yj) in y.iter_mut().enumerate() {
+                for i in 0..pc {
+                    let mut v = dot(&t.cols[i], &n[j]);
+                    for l in 0..i {
+                        v -= t.qr.r(l, i) * yj[l];
+                    }
+                    yj[i] = v / t.qr.r(i, i);
+                }
+            }
+            let g = |a: usize, b: usize| {
+                dot(&n[a], &n[b]) - (0..pc).map(|l| y[a][l] * y[b][l]).sum::<f64>()
+            };
+            let (g00, g01, g11) = (g(0, 0), g(0, 1), g(1, 1));
+            let det = g00 * g11 - g01 * g01;
+            // A candidate in the span of the basis (det ≈ 0) explains nothing new.
+            if !(det > 1e-12 * g00.max(g11).powi(2)) {
+                return t.cost;
+            }
+            let drop: f64 = t
+                .resid
+                .iter()
+                .map(|r| {
+                    let (b0, b1) = (dot(&n[0], r), dot(&n[1], r));
+                    (g11 * b0 * b0 - 2.0 * g01 * b0 * b1 + g00 * b1 * b1) / det
+                })
+                .sum();
+            (t.cost - drop).max(0.0)
+        })
+        .collect();
+    (t.cost, with)
 }
 
 /// Levenberg–Marquardt on the variable-projection functional (Golub & Pereyra; Kaufman's
@@ -349,13 +418,7 @@ pub fn weighted_cost(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: R
 pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> Refined {
     let n = band.n_lines();
     let no = chans.len();
-    let data: Vec<Vec<c64>> = chans
-        .iter()
-        .map(|h| {
-            let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt();
-            h.iter().map(|z| z / rms).collect()
-        })
-        .collect();
+    let data = unit_rms(chans);
     let lw = line_weights(&data);
     let q: Vec<c64> = band
         .quantity_factor()

@@ -1,0 +1,64 @@
+//! Per-phase wall-clock accounting of the fit, for the `timing` example. Compiled to
+//! no-ops unless the `phase-timing` feature is on, so the library pays nothing for it.
+//!
+//! Phases: 0 LSCF sweep, 1 stabilisation selection, 2 pole refinement, 3 candidate
+//! screening, 4 LSCF normal-equation sums, 5 companion eigenvalues, 6 LSFD residues,
+//! 7 synthesis.
+
+/// Names of the phases, by index.
+pub const PHASES: [&str; 8] = [
+    "LSCF sweep (total)",
+    "stabilisation selection",
+    "pole refinement",
+    "candidate screening",
+    "  LSCF sums",
+    "  companion eigenvalues",
+    "LSFD residues",
+    "synthesis",
+];
+
+#[cfg(feature = "phase-timing")]
+mod imp {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static NANOS: [AtomicU64; 8] = [const { AtomicU64::new(0) }; 8];
+    static CALLS: [AtomicU64; 8] = [const { AtomicU64::new(0) }; 8];
+
+    #[inline]
+    pub fn time<R>(phase: usize, f: impl FnOnce() -> R) -> R {
+        let t = std::time::Instant::now();
+        let r = f();
+        NANOS[phase].fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        CALLS[phase].fetch_add(1, Ordering::Relaxed);
+        r
+    }
+
+    pub fn totals() -> Option<Vec<(u64, f64)>> {
+        Some(
+            (0..8)
+                .map(|i| {
+                    (
+                        CALLS[i].load(Ordering::Relaxed),
+                        NANOS[i].load(Ordering::Relaxed) as f64 * 1e-9,
+                    )
+                })
+                .collect(),
+        )
+    }
+}
+
+#[cfg(not(feature = "phase-timing"))]
+mod imp {
+    #[inline(always)]
+    pub fn time<R>(_phase: usize, f: impl FnOnce() -> R) -> R {
+        f()
+    }
+
+    pub fn totals() -> Option<Vec<(u64, f64)>> {
+        None
+    }
+}
+
+/// Runs `f`, charging its wall time to `phase` (a no-op without `phase-timing`).
+pub use imp::time;
+/// `(calls, seconds)` per phase since the start, or `None` without `phase-timing`.
+pub use imp::totals;
