@@ -116,16 +116,8 @@ pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Result<Vec<Or
         let Some(coef) = linalg::solve_square(&lhs, &rhs) else {
             continue;
         };
-        let companion = Mat::from_fn(order, order, |i, j| {
-            if i == 0 {
-                -coef[(order - 1 - j, 0)]
-            } else if j + 1 == i {
-                1.0
-            } else {
-                0.0
-            }
-        });
-        let Some(roots) = linalg::eigenvalues(&companion) else {
+        let c: Vec<f64> = (0..order).map(|j| coef[(j, 0)]).collect();
+        let Some(roots) = linalg::polynomial_roots(&c) else {
             continue;
         };
         let poles: Vec<Pole> = roots

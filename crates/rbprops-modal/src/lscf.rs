@@ -50,34 +50,43 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         g_neg: vec![vec![0.0; n_max + 1]; no],
         t: vec![vec![0.0; n_max + 1]; no],
     };
-    let mut zp = vec![c64::new(0.0, 0.0); n_max + 1];
+    let mut zre = vec![0.0; n_max + 1];
+    let mut zim = vec![0.0; n_max + 1];
     for (k, &th) in theta.iter().enumerate() {
         // Powers z^m by recurrence, re-anchored every 16 steps to bound rounding drift.
         let z = c64::new(th.cos(), th.sin());
-        zp[0] = c64::new(1.0, 0.0);
-        for m in 1..=n_max {
-            zp[m] = if m % 16 == 0 {
-                let a = th * m as f64;
-                c64::new(a.cos(), a.sin())
-            } else {
-                zp[m - 1] * z
-            };
+        let mut zm = c64::new(1.0, 0.0);
+        for m in 0..=n_max {
+            if m > 0 {
+                zm = if m % 16 == 0 {
+                    let a = th * m as f64;
+                    c64::new(a.cos(), a.sin())
+                } else {
+                    zm * z
+                };
+            }
+            zre[m] = zm.re;
+            zim[m] = zm.im;
         }
         for o in 0..no {
             let w2 = weights[o][k];
             let h = chans[o][k] * w2;
             let h2 = chans[o][k].norm_sqr() * w2;
-            let (r, gp, gn, t) = (&mut s.r[o], &mut s.g_pos[o], &mut s.g_neg[o], &mut s.t[o]);
             // Only real parts enter the normal matrices: Re(h z^m) = a − b and
             // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
-            for m in 0..=n_max {
-                let p = zp[m];
-                let a = h.re * p.re;
-                let b = h.im * p.im;
-                r[m] += w2 * p.re;
-                gp[m] += a - b;
-                gn[m] += a + b;
-                t[m] += h2 * p.re;
+            let sums = s.r[o]
+                .iter_mut()
+                .zip(s.g_pos[o].iter_mut())
+                .zip(s.g_neg[o].iter_mut())
+                .zip(s.t[o].iter_mut())
+                .zip(zre.iter().zip(&zim));
+            for ((((r, gp), gn), t), (pr, pi)) in sums {
+                let a = h.re * pr;
+                let b = h.im * pi;
+                *r += w2 * pr;
+                *gp += a - b;
+                *gn += a + b;
+                *t += h2 * pr;
             }
         }
     }
@@ -127,7 +136,9 @@ pub fn sweep_orders(
     // column per order — O(n²) per order instead of O(n³).
     let pm = n_max + 1;
     let mut l = vec![vec![0.0f64; pm * pm]; no];
-    let mut y = vec![vec![0.0f64; pm * pm]; no];
+    // Y is stored transposed (row c of `yt` is column c of Y) so that every inner
+    // product below runs over contiguous memory.
+    let mut yt = vec![vec![0.0f64; pm * pm]; no];
     let mut g = vec![vec![0.0f64; pm * pm]; no];
     let s_at = |o: usize, j: usize, k: usize| -> f64 {
         // S_o[j,k] = −Re Σ w² h z^{k−j}
@@ -137,53 +148,59 @@ pub fn sweep_orders(
             -s.g_neg[o][j - k]
         }
     };
+    // `v − Σ_m a_m b_m`, summed in index order.
+    let sub_dot = |v: f64, a: &[f64], b: &[f64]| a.iter().zip(b).fold(v, |v, (x, y)| v - x * y);
     let mut out = Vec::new();
+    let mut yq = vec![0.0; pm];
     for q in 0..pm {
         // Extend every channel's factors with basis function q.
         for o in 0..no {
-            let (lo, yo, go) = (&mut l[o], &mut y[o], &mut g[o]);
+            let (lo, yo, go) = (&mut l[o], &mut yt[o], &mut g[o]);
             let r = &s.r[o];
             for k in 0..q {
-                let mut v = r[q - k];
-                for m in 0..k {
-                    v -= lo[q * pm + m] * lo[k * pm + m];
-                }
+                let v = sub_dot(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
                 lo[q * pm + k] = v / lo[k * pm + k];
             }
-            let mut d = r[0];
-            for m in 0..q {
-                d -= lo[q * pm + m] * lo[q * pm + m];
-            }
+            let lq = &lo[q * pm..q * pm + q];
+            let d = sub_dot(r[0], lq, lq);
             if !(d > 0.0) {
                 return out;
             }
             lo[q * pm + q] = d.sqrt();
             // New column q of Y (rows < q), then new row q (columns ≤ q).
             for i in 0..q {
-                let mut v = s_at(o, i, q);
-                for m in 0..i {
-                    v -= lo[i * pm + m] * yo[m * pm + q];
-                }
-                yo[i * pm + q] = v / lo[i * pm + i];
+                let v = sub_dot(
+                    s_at(o, i, q),
+                    &lo[i * pm..i * pm + i],
+                    &yo[q * pm..q * pm + i],
+                );
+                yo[q * pm + i] = v / lo[i * pm + i];
             }
+            let lqq = lo[q * pm + q];
             for j in 0..=q {
-                let mut v = s_at(o, q, j);
-                for m in 0..q {
-                    v -= lo[q * pm + m] * yo[m * pm + j];
-                }
-                yo[q * pm + j] = v / lo[q * pm + q];
+                let v = sub_dot(
+                    s_at(o, q, j),
+                    &lo[q * pm..q * pm + q],
+                    &yo[j * pm..j * pm + q],
+                );
+                yo[j * pm + q] = v / lqq;
             }
             // G = YᵀY: the new row adds to the old block; the new column is computed.
+            for (j, y) in yq.iter_mut().enumerate().take(q + 1) {
+                *y = yo[j * pm + q];
+            }
             for j in 0..q {
-                for k in 0..q {
-                    go[j * pm + k] += yo[q * pm + j] * yo[q * pm + k];
+                let yj = yq[j];
+                for (gk, yk) in go[j * pm..j * pm + q].iter_mut().zip(&yq[..q]) {
+                    *gk += yj * yk;
                 }
             }
             for j in 0..=q {
-                let mut v = 0.0;
-                for i in 0..=q {
-                    v += yo[i * pm + j] * yo[i * pm + q];
-                }
+                let v = -sub_dot(
+                    0.0,
+                    &yo[j * pm..j * pm + q + 1],
+                    &yo[q * pm..q * pm + q + 1],
+                );
                 go[j * pm + q] = v;
                 go[q * pm + j] = v;
             }
@@ -206,24 +223,15 @@ pub fn sweep_orders(
         };
         let mut coef: Vec<f64> = (0..n).map(|i| alpha[(i, 0)]).collect();
         coef.push(1.0);
-        let companion = Mat::from_fn(n, n, |i, j| {
-            if i == 0 {
-                -coef[n - 1 - j]
-            } else if j + 1 == i {
-                1.0
-            } else {
-                0.0
-            }
-        });
-        let Some(roots) = crate::prof::time(5, || linalg::eigenvalues(&companion)) else {
+        let Some(roots) = crate::prof::time(5, || linalg::polynomial_roots(&coef[..n])) else {
             continue;
         };
         // Numerators β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α), for the shape vectors.
         let betas: Vec<Vec<f64>> = (0..no)
             .map(|o| {
-                let (lo, yo) = (&l[o], &y[o]);
+                let (lo, yo) = (&l[o], &yt[o]);
                 let ya: Vec<f64> = (0..p)
-                    .map(|i| (0..p).map(|j| yo[i * pm + j] * coef[j]).sum())
+                    .map(|i| (0..p).map(|j| yo[j * pm + i] * coef[j]).sum())
                     .collect();
                 let mut beta = vec![0.0; p];
                 for i in (0..p).rev() {
