@@ -539,7 +539,10 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                             / cur[m].half_bandwidth().max(1e-300)
                     })
                     .fold(0.0, f64::max);
-                let small = rel_step < 1e-9 || (t.cost - t2.cost) <= 1e-12 * t.cost;
+                // Converged when the step is negligible or the cost stalls: a relative
+                // drop of 1e-10 of a cost ≈ ν·s² means the remaining step is about
+                // √(1e-10·ν) ≈ 1e-3 of a standard error for ν ~ 10⁴ residuals.
+                let small = rel_step < 1e-9 || (t.cost - t2.cost) <= 1e-10 * t.cost;
                 cur = cand;
                 t = t2;
                 mu = (mu / 10.0).max(1e-12);
