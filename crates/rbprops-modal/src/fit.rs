@@ -463,26 +463,27 @@ fn estimate_poles_from(
                             .saturating_sub(no * (2 * np + 2) + 2 * np)
                             .max(1) as f64
                     };
-                    prune_close_poles(
-                        &mut r,
-                        &mut confidence,
-                        &mut mode_warnings,
-                        &mut warnings,
-                        (&rband, &rchans, res),
+                    let test = OrderTest {
+                        band: &rband,
+                        chans: &rchans,
+                        res,
                         threshold,
-                        &dof_of,
+                        max_damping: opts.tolerances.max_damping,
+                        dof_of: &dof_of,
                         name,
-                    );
-                    split_merged_poles(
-                        &mut r,
-                        &mut confidence,
-                        &mut mode_warnings,
-                        &mut warnings,
-                        (&rband, &rchans, res),
-                        (threshold, opts.tolerances.max_damping),
-                        &dof_of,
-                        name,
-                    );
+                    };
+                    test.prune_close_poles(TrackedPoles {
+                        r: &mut r,
+                        confidence: &mut confidence,
+                        mode_warnings: &mut mode_warnings,
+                        warnings: &mut warnings,
+                    });
+                    test.split_merged_poles(TrackedPoles {
+                        r: &mut r,
+                        confidence: &mut confidence,
+                        mode_warnings: &mut mode_warnings,
+                        warnings: &mut warnings,
+                    });
                 }
                 if r.singular {
                     warnings.push(format!(
@@ -554,129 +555,148 @@ fn estimate_poles_from(
     })
 }
 
-/// The data a refinement runs on: lines, channels, residual terms.
-type RefineData<'a> = (&'a BandData, &'a [Vec<c64>], Residuals);
-
-/// Backward model-order step: a pole within two half-bandwidths of another, or with
-/// low diagram confidence, is dropped when the refit without it costs less than the
-/// χ² threshold (in units of the residual variance). Over-split close pairs (three
-/// poles for two modes) and weak computational poles go this way.
-#[allow(clippy::too_many_arguments)]
-fn prune_close_poles(
-    r: &mut lsfd::Refined,
-    confidence: &mut Vec<f64>,
-    mode_warnings: &mut Vec<Vec<String>>,
-    warnings: &mut Vec<String>,
-    (band, chans, res): RefineData,
+/// The model-order tests after the refinement: the data a refinement runs on, the χ²
+/// threshold for one pole's 2 + 2·channels parameters, and the residual degrees of
+/// freedom for a given number of poles.
+struct OrderTest<'a> {
+    band: &'a BandData,
+    chans: &'a [Vec<c64>],
+    res: Residuals,
     threshold: f64,
-    dof_of: &dyn Fn(usize) -> f64,
-    name: &str,
-) {
-    loop {
-        let n = r.poles.len();
-        if n < 2 {
-            return;
-        }
-        let suspect = |i: usize| {
-            confidence[i] < 0.5
-                || (0..n).any(|j| j != i && r.poles[i].distance_in_bandwidths(&r.poles[j]) < 2.0)
-        };
-        let s2 = r.cost.1 / dof_of(n);
-        // The least significant suspect pole, if any is insignificant.
-        let weakest = (0..n)
-            .filter(|&i| suspect(i))
-            .map(|i| {
-                let rest: Vec<Pole> = (0..n).filter(|&j| j != i).map(|j| r.poles[j]).collect();
-                let ri = crate::prof::time(2, || lsfd::refine(&rest, band, chans, res));
-                (i, (ri.cost.1 - r.cost.1) / s2, ri)
-            })
-            .filter(|(_, gain, ri)| *gain < threshold && !ri.singular)
-            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-        let Some((i, gain, ri)) = weakest else { return };
-        warnings.push(format!(
+    max_damping: f64,
+    dof_of: &'a dyn Fn(usize) -> f64,
+    name: &'a str,
+}
+
+/// The refined poles and what is kept per pole, as the model-order tests change them.
+struct TrackedPoles<'a> {
+    r: &'a mut lsfd::Refined,
+    confidence: &'a mut Vec<f64>,
+    mode_warnings: &'a mut Vec<Vec<String>>,
+    warnings: &'a mut Vec<String>,
+}
+
+impl OrderTest<'_> {
+    /// Backward model-order step: a pole within two half-bandwidths of another, or with
+    /// low diagram confidence, is dropped when the refit without it costs less than the
+    /// χ² threshold (in units of the residual variance). Over-split close pairs (three
+    /// poles for two modes) and weak computational poles go this way.
+    fn prune_close_poles(&self, t: TrackedPoles) {
+        let TrackedPoles {
+            r,
+            confidence,
+            mode_warnings,
+            warnings,
+        } = t;
+        let (band, chans, res, threshold, name) =
+            (self.band, self.chans, self.res, self.threshold, self.name);
+        let dof_of = self.dof_of;
+        loop {
+            let n = r.poles.len();
+            if n < 2 {
+                return;
+            }
+            let suspect = |i: usize| {
+                confidence[i] < 0.5
+                    || (0..n)
+                        .any(|j| j != i && r.poles[i].distance_in_bandwidths(&r.poles[j]) < 2.0)
+            };
+            let s2 = r.cost.1 / dof_of(n);
+            // The least significant suspect pole, if any is insignificant.
+            let weakest = (0..n)
+                .filter(|&i| suspect(i))
+                .map(|i| {
+                    let rest: Vec<Pole> = (0..n).filter(|&j| j != i).map(|j| r.poles[j]).collect();
+                    let ri = crate::prof::time(2, || lsfd::refine(&rest, band, chans, res));
+                    (i, (ri.cost.1 - r.cost.1) / s2, ri)
+                })
+                .filter(|(_, gain, ri)| *gain < threshold && !ri.singular)
+                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            let Some((i, gain, ri)) = weakest else { return };
+            warnings.push(format!(
             "excitation '{name}': pole at {:.4} Hz dropped by the backward model-order test (it lowers the cost by only {gain:.1}σ², below the χ² threshold {threshold:.1})",
             r.poles[i].frequency_hz()
         ));
-        confidence.remove(i);
-        mode_warnings.remove(i);
-        *r = ri;
+            confidence.remove(i);
+            mode_warnings.remove(i);
+            *r = ri;
+        }
     }
-}
 
-/// Forward model-order step for merged pairs: a pair closer than its half-power
-/// bandwidth can come out of the diagram as one pole. Each pole gets a partner a
-/// little below and above it (screened from one QR); the best significant one is
-/// refined jointly and kept when the χ² drop is significant and the pair stays
-/// separate, physical and identifiable.
-#[allow(clippy::too_many_arguments)]
-fn split_merged_poles(
-    r: &mut lsfd::Refined,
-    confidence: &mut Vec<f64>,
-    mode_warnings: &mut Vec<Vec<String>>,
-    warnings: &mut Vec<String>,
-    (band, chans, res): RefineData,
-    (threshold, max_damping): (f64, f64),
-    dof_of: &dyn Fn(usize) -> f64,
-    name: &str,
-) {
-    let band_w = (band.omega[0], *band.omega.last().unwrap());
-    let mut tried = 0;
-    while tried < r.poles.len() {
-        let n = r.poles.len();
-        if 2 * band.n_lines() <= 2 * (2 * (n + 1) + 2) {
-            return;
-        }
-        let partners: Vec<(usize, Pole)> = r
-            .poles
-            .iter()
-            .enumerate()
-            .flat_map(|(i, p)| {
-                let d = 0.6 * p.half_bandwidth();
-                [-d, d].map(|x| (i, Pole(p.0 + c64::new(0.0, x))))
-            })
-            .filter(|(_, p)| p.0.im > band_w.0 && p.0.im < band_w.1)
-            .collect();
-        let cands: Vec<Pole> = partners.iter().map(|(_, p)| *p).collect();
-        let (c_now, c_with) = crate::prof::time(3, || {
-            lsfd::screen_extra_poles(&r.poles, &cands, band, chans, res)
-        });
-        let dof = dof_of(n + 1);
-        let best = c_with
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (k, (c_now - c) / (c / dof)))
-            .filter(|(_, g)| *g > threshold)
-            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
-        let Some((k, _)) = best else { return };
-        let (i, partner) = partners[k];
-        let mut trial = r.poles.clone();
-        trial.push(partner);
-        let r2 = crate::prof::time(2, || lsfd::refine(&trial, band, chans, res));
-        let added = *r2.poles.last().unwrap();
-        let gain = (r.cost.1 - r2.cost.1) / (r2.cost.1 / dof);
-        let separate = r2.poles[..n]
-            .iter()
-            .all(|p| p.distance_in_bandwidths(&added) > 0.25);
-        let physical = added.damping() > 0.0
-            && added.damping() < max_damping
-            && added.omega_n() >= band_w.0
-            && added.omega_n() <= band_w.1;
-        if !(physical && separate && !r2.singular && gain > threshold) {
-            return;
-        }
-        warnings.push(format!(
+    /// Forward model-order step for merged pairs: a pair closer than its half-power
+    /// bandwidth can come out of the diagram as one pole. Each pole gets a partner a
+    /// little below and above it (screened from one QR); the best significant one is
+    /// refined jointly and kept when the χ² drop is significant and the pair stays
+    /// separate, physical and identifiable.
+    fn split_merged_poles(&self, t: TrackedPoles) {
+        let TrackedPoles {
+            r,
+            confidence,
+            mode_warnings,
+            warnings,
+        } = t;
+        let (band, chans, res, threshold, name) =
+            (self.band, self.chans, self.res, self.threshold, self.name);
+        let (dof_of, max_damping) = (self.dof_of, self.max_damping);
+        let band_w = (band.omega[0], *band.omega.last().unwrap());
+        let mut tried = 0;
+        while tried < r.poles.len() {
+            let n = r.poles.len();
+            if 2 * band.n_lines() <= 2 * (2 * (n + 1) + 2) {
+                return;
+            }
+            let partners: Vec<(usize, Pole)> = r
+                .poles
+                .iter()
+                .enumerate()
+                .flat_map(|(i, p)| {
+                    let d = 0.6 * p.half_bandwidth();
+                    [-d, d].map(|x| (i, Pole(p.0 + c64::new(0.0, x))))
+                })
+                .filter(|(_, p)| p.0.im > band_w.0 && p.0.im < band_w.1)
+                .collect();
+            let cands: Vec<Pole> = partners.iter().map(|(_, p)| *p).collect();
+            let (c_now, c_with) = crate::prof::time(3, || {
+                lsfd::screen_extra_poles(&r.poles, &cands, band, chans, res)
+            });
+            let dof = dof_of(n + 1);
+            let best = c_with
+                .iter()
+                .enumerate()
+                .map(|(k, c)| (k, (c_now - c) / (c / dof)))
+                .filter(|(_, g)| *g > threshold)
+                .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+            let Some((k, _)) = best else { return };
+            let (i, partner) = partners[k];
+            let mut trial = r.poles.clone();
+            trial.push(partner);
+            let r2 = crate::prof::time(2, || lsfd::refine(&trial, band, chans, res));
+            let added = *r2.poles.last().unwrap();
+            let gain = (r.cost.1 - r2.cost.1) / (r2.cost.1 / dof);
+            let separate = r2.poles[..n]
+                .iter()
+                .all(|p| p.distance_in_bandwidths(&added) > 0.25);
+            let physical = added.damping() > 0.0
+                && added.damping() < max_damping
+                && added.omega_n() >= band_w.0
+                && added.omega_n() <= band_w.1;
+            if !(physical && separate && !r2.singular && gain > threshold) {
+                return;
+            }
+            warnings.push(format!(
             "excitation '{name}': pole at {:.4} Hz split into {:.4} and {:.4} Hz by the forward model-order test (cost −{gain:.1}σ²): a close pair",
             r.poles[i].frequency_hz(),
             r2.poles[i].frequency_hz(),
             added.frequency_hz()
         ));
-        confidence.push(confidence[i]);
-        mode_warnings.push(vec![format!(
-            "split from the pole at {:.4} Hz by the forward model-order test (close pair)",
-            r.poles[i].frequency_hz()
-        )]);
-        *r = r2;
-        tried += 1;
+            confidence.push(confidence[i]);
+            mode_warnings.push(vec![format!(
+                "split from the pole at {:.4} Hz by the forward model-order test (close pair)",
+                r.poles[i].frequency_hz()
+            )]);
+            *r = r2;
+            tried += 1;
+        }
     }
 }
 

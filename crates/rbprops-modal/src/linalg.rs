@@ -172,19 +172,23 @@ pub fn polynomial_roots(coef: &[f64]) -> Option<Vec<c64>> {
     balance(&mut a, n);
     match hessenberg_qr(&mut a, n) {
         Some(r) => Some(r),
-        None => {
-            let m = Mat::from_fn(n, n, |i, j| {
-                if i == 0 {
-                    -coef[n - 1 - j]
-                } else if j + 1 == i {
-                    1.0
-                } else {
-                    0.0
-                }
-            });
-            eigenvalues(&m)
-        }
+        None => eigenvalues(&companion(coef)),
     }
+}
+
+/// The Frobenius companion matrix of the monic polynomial with coefficients `coef`
+/// (`c_0..c_{n−1}`): first row `−c_{n−1} … −c_0`, ones on the subdiagonal.
+pub fn companion(coef: &[f64]) -> Mat<f64> {
+    let n = coef.len();
+    Mat::from_fn(n, n, |i, j| {
+        if i == 0 {
+            -coef[n - 1 - j]
+        } else if j + 1 == i {
+            1.0
+        } else {
+            0.0
+        }
+    })
 }
 
 /// Parlett–Reinsch balancing `A ← D⁻¹AD` with `D` a diagonal of powers of 2, until
@@ -469,16 +473,7 @@ mod tests {
     #[test]
     fn companion_eigenvalues_are_polynomial_roots() {
         // (z - 2)(z^2 + 1) = z^3 - 2 z^2 + z - 2
-        let c = [-2.0, 1.0, -2.0];
-        let a = Mat::from_fn(3, 3, |i, j| {
-            if i == 0 {
-                -c[2 - j]
-            } else if j + 1 == i {
-                1.0
-            } else {
-                0.0
-            }
-        });
+        let a = companion(&[-2.0, 1.0, -2.0]);
         let mut ev = eigenvalues(&a).unwrap();
         ev.sort_by(|a, b| a.re.total_cmp(&b.re).then(a.im.total_cmp(&b.im)));
         assert!((ev[0] - c64::new(0.0, -1.0)).norm() < 1e-12);
@@ -535,15 +530,7 @@ mod tests {
         };
         for n in 2..=40 {
             let c: Vec<f64> = (0..n).map(|_| rnd()).collect();
-            let m = Mat::from_fn(n, n, |i, j| {
-                if i == 0 {
-                    -c[n - 1 - j]
-                } else if j + 1 == i {
-                    1.0
-                } else {
-                    0.0
-                }
-            });
+            let m = companion(&c);
             let a = sorted(polynomial_roots(&c).unwrap());
             let b = sorted(eigenvalues(&m).unwrap());
             assert_eq!(a.len(), n);
