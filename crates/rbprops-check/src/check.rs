@@ -259,6 +259,100 @@ struct Score {
     gauge: Vec<Vec<f64>>,
     /// Fraction of the candidate's signature each parameter group explains alone.
     absorbed_by: Vec<(String, f64)>,
+    /// Number of parameter points the statistic is the best of (1 for the score test;
+    /// the profile's size for grid-screened candidates): the threshold is Bonferroni
+    /// corrected for it.
+    n_tests: usize,
+    /// Start of the current model's parameters for the refit (re-adjusted to the
+    /// profile's best point), when not the current fit's.
+    theta_start: Option<Vec<f64>>,
+}
+
+/// Profile screening of a candidate whose signature vanishes to every order at its
+/// neutral point (see `Candidate::grid`): at each grid point φ_g the residual r_g of the
+/// current model plus the effect at φ_g, with the current parameters re-adjusted
+/// linearly (their Jacobian's span projected out), gives the approximate likelihood
+/// ratio `‖P⊥ r‖² − ‖P⊥ r_g‖²`. The best point starts the refit; the statistic is the
+/// best of `G` tests, so its threshold is Bonferroni corrected over the grid.
+fn grid_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+) -> Result<Score, CheckError> {
+    let cand = &p.cands[c];
+    let np = cand.neutral.len();
+    let mut act = active.to_vec();
+    act.push(Act::full(c, np));
+    let r0 = nalgebra::DVector::from_column_slice(&cur.residual);
+    let perp = |r: &nalgebra::DVector<f64>| {
+        if q0.ncols() == 0 {
+            r.clone()
+        } else {
+            r - q0 * q0.tr_mul(r)
+        }
+    };
+    let base = perp(&r0).norm_squared();
+    // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
+    // each grid point: a few model evaluations, enough when the effect moves them far.
+    let svd = cur.jacobian.clone().svd(true, true);
+    let nb = cur.theta.len();
+    let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
+        p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
+    };
+    let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
+    for (g, phi) in cand.grid.iter().enumerate() {
+        let mut t = cur.theta.clone();
+        t.extend_from_slice(phi);
+        let Some(mut rg) = eval(&t) else { continue };
+        // Linearised gain at the current parameters (the score-like statistic).
+        let lin = base - perp(&rg).norm_squared();
+        let mut chi = rg.norm_squared();
+        for _ in 0..4 {
+            let Ok(d) = svd.solve(&(-&rg), 1e-10) else { break };
+            let mut t1 = t.clone();
+            t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
+            match eval(&t1) {
+                Some(r1) if r1.norm_squared() < chi => {
+                    chi = r1.norm_squared();
+                    rg = r1;
+                    t = t1;
+                }
+                _ => break,
+            }
+        }
+        let gain = lin.max(r0.norm_squared() - chi);
+        if best.as_ref().is_none_or(|b| gain > b.0) {
+            best = Some((gain, g, t[..nb].to_vec(), rg));
+        }
+    }
+    let Some((gain, g, theta_best, rg)) = best else {
+        return Err(CheckError::Model(format!(
+            "'{}': no point of its screening profile could be evaluated",
+            cand.id
+        )));
+    };
+    // Signature direction at the best point (for the distinctness check).
+    let sig = perp(&(&r0 - &rg));
+    let n = sig.norm();
+    let basis = if n > 0.0 {
+        DMatrix::from_column_slice(sig.len(), 1, (sig / n).as_slice())
+    } else {
+        DMatrix::zeros(r0.len(), 0)
+    };
+    let theta_start = Some(theta_best);
+    Ok(Score {
+        rank: if n > 0.0 { np } else { 0 },
+        score: gain.max(0.0),
+        basis,
+        kept: (0..np).collect(),
+        start: cand.grid[g].clone(),
+        gauge: Vec::new(),
+        absorbed_by: Vec::new(),
+        n_tests: cand.grid.len(),
+        theta_start,
+    })
 }
 
 /// Relative singular value below which a candidate direction counts as absorbed (no
@@ -462,6 +556,8 @@ fn score_candidate(
         start,
         gauge,
         absorbed_by,
+        n_tests: 1,
+        theta_start: None,
     })
 }
 
@@ -685,7 +781,14 @@ pub fn check(
             .collect();
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
             .par_iter()
-            .map(|&c| (c, score_candidate(&p, &cur, &active, c, &q0)))
+            .map(|&c| {
+                let s = if p.cands[c].grid.is_empty() {
+                    score_candidate(&p, &cur, &active, c, &q0)
+                } else {
+                    grid_candidate(&p, &cur, &active, c, &q0)
+                };
+                (c, s)
+            })
             .collect();
         let mut significant: Vec<(usize, Score, f64)> = Vec::new();
         for (c, s) in scores {
@@ -735,7 +838,10 @@ pub fn check(
                     excluded.push(c);
                 }
                 Ok(s) => {
-                    let thr = chi2_isf(options.alpha / n_cand, s.rank as f64);
+                    let thr = chi2_isf(
+                        options.alpha / (n_cand * s.n_tests as f64),
+                        s.rank as f64,
+                    );
                     screening.push(ScreenEntry {
                         step,
                         id: cand.id.clone(),
@@ -766,7 +872,15 @@ pub fn check(
         let refit: Vec<&(usize, Score, f64)> = significant
             .iter()
             .enumerate()
-            .filter(|(i, s)| *i < options.refit_top || s.2 >= 0.5 * gmax)
+            // Profile-screened candidates are refitted from a tenth of the best gain:
+            // their statistic (chord-refined at a coarse grid point) is a lower bound
+            // when the effect is far from its neutral point, not quite comparable
+            // with local scores.
+            .filter(|(i, s)| {
+                *i < options.refit_top
+                    || s.2 >= 0.5 * gmax
+                    || (s.1.n_tests > 1 && s.2 >= 0.1 * gmax)
+            })
             .map(|(_, s)| s)
             .collect();
         let fits: Vec<(usize, Result<Fit, CheckError>)> = refit
@@ -785,7 +899,21 @@ pub fn check(
                 let mut alpha = s.start.clone();
                 let mut t0 = cur.theta.clone();
                 t0.extend_from_slice(&alpha);
-                for _ in 0..40 {
+                if let Some(ts) = &s.theta_start {
+                    // Profile start: the current parameters re-adjusted at the best
+                    // grid point, if that is better than leaving them.
+                    let mut t1 = ts.clone();
+                    t1.extend_from_slice(&alpha);
+                    let c0 = p.residual(&t0, &act).map(|r| lm::chi2(&r));
+                    let c1 = p.residual(&t1, &act).map(|r| lm::chi2(&r));
+                    if let (Ok(c0), Ok(c1)) = (c0, c1) {
+                        if c1 < c0 {
+                            t0 = t1;
+                        }
+                    }
+                }
+                let halvings = if s.theta_start.is_some() { 0 } else { 40 };
+                for _ in 0..halvings {
                     match p.residual(&t0, &act) {
                         Ok(r) if lm::chi2(&r) <= cur.chi2 => break,
                         _ => {
@@ -804,7 +932,13 @@ pub fn check(
                         &format!("refit {}", p.cands[*c].id),
                         &t0,
                         &act,
-                        options.max_iterations,
+                        // A profile start is far from the neutral point and often
+                        // from the optimum too: allow more iterations.
+                        if s.n_tests > 1 {
+                            4 * options.max_iterations
+                        } else {
+                            options.max_iterations
+                        },
                     ),
                 )
             })
@@ -833,7 +967,7 @@ pub fn check(
             let dchi2 = cur.chi2 - f.chi2;
             let d = s.kept.len();
             let dbic = dchi2 - d as f64 * ln_n;
-            let thr = chi2_isf(options.alpha / n_cand, d as f64);
+            let thr = chi2_isf(options.alpha / (n_cand * s.n_tests as f64), d as f64);
             let k0 = f.theta.len() - d;
             let alpha = &f.theta[k0..];
             let phi = &Act {
@@ -972,11 +1106,20 @@ pub fn check(
             });
             excluded.extend(family.iter().filter(|&&c| c != best.c));
         }
+        let best_tests = refit
+            .iter()
+            .find(|x| x.0 == best.c)
+            .expect("refitted")
+            .1
+            .n_tests;
         accepted_stats.push((
             best.c,
             best.dchi2,
             best.rank,
-            chi2_isf(options.alpha / n_cand, best.rank as f64),
+            chi2_isf(
+                options.alpha / (n_cand * best_tests as f64),
+                best.rank as f64,
+            ),
             best.dbic,
             change,
         ));

@@ -169,6 +169,7 @@ fn explore_spec() {
             source: "given".into(),
             variance_scale_se: 0.0,
         }),
+        max_iterations: std::env::var("MAXIT").ok().and_then(|s| s.parse().ok()).unwrap_or(60),
         ..Default::default()
     };
     let t = std::time::Instant::now();

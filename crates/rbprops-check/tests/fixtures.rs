@@ -677,3 +677,24 @@ fn suspension_coupling_is_found() {
         a.gauge_directions
     );
 }
+
+/// Massive cords (E3): 80 g/m, 1 m, so the first string modes (≈ 11 Hz) fall in the
+/// band. At first order in μ a cord is only a point mass μℓ/3 at its attachment (which
+/// the free inertia absorbs); the string modes are found by the candidate's profile
+/// screening over (μ, ℓ), and both parameters are recovered.
+#[test]
+fn cord_mass_is_found() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"cord_mass\"\nmass_per_length_kg_per_m = [0.08]\ncord_length_m = [1.0]"],
+        REL,
+        56,
+    );
+    let r = run(&nom, &g, &frf, &given(9, REL));
+    summary("cord_mass", &r, &truth.properties());
+    assert_found(&r, &["cord_mass"], &truth.properties());
+    within(param(&r, "cord_mass", "mass_per_length_kg_per_m"), 0.08, 4.0);
+    within(param(&r, "cord_mass", "cord_length_m"), 1.0, 4.0);
+}
