@@ -43,6 +43,7 @@
 
 pub mod candidates;
 pub mod check;
+pub mod cv;
 pub mod error;
 pub mod lm;
 pub mod locate;

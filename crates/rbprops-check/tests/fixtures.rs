@@ -698,3 +698,59 @@ fn cord_mass_is_found() {
     within(param(&r, "cord_mass", "mass_per_length_kg_per_m"), 0.08, 4.0);
     within(param(&r, "cord_mass", "cord_length_m"), 1.0, 4.0);
 }
+
+/// The held-out check (A2) rejects an over-fitting candidate: on a null recording, with
+/// the other evidence switched off (α = 0.99 for one candidate, no ΔBIC or Wald margin),
+/// the 27-parameter residual flexibility fits noise and would be accepted; its held-out
+/// χ² does not improve, so with the check on it is rejected, and says why.
+#[test]
+fn held_out_check_rejects_an_over_fitting_candidate() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(&truth, &[], REL, 61);
+    let mut opts = given(9, REL);
+    opts.only = Some(vec!["residual_flexibility".into()]);
+    opts.alpha = 0.99;
+    opts.min_delta_bic = f64::NEG_INFINITY;
+    opts.wald_level = 0.0;
+    opts.cross_validation = false;
+    let loose = run(&nom, &g, &frf, &opts);
+    assert!(
+        accepted_ids(&loose).contains(&"residual_flexibility".to_string()),
+        "the loose rule should over-fit here: {}",
+        loose.verdict
+    );
+    opts.cross_validation = true;
+    let r = run(&nom, &g, &frf, &opts);
+    assert!(r.accepted.is_empty() && r.ambiguous.is_empty(), "{}", r.verdict);
+    let e = r
+        .screening
+        .iter()
+        .find(|e| e.id == "residual_flexibility" && e.refit_delta_chi2.is_some())
+        .expect("refitted");
+    assert!(e.decision.contains("held-out"), "{}", e.decision);
+    eprintln!("over-fitting candidate: {}", e.decision);
+}
+
+/// Every accepted effect carries its held-out evidence in the report.
+#[test]
+fn accepted_effects_report_their_held_out_check() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"gravity_stiffness\"\ncord_length_m = [0.8]"],
+        REL,
+        11,
+    );
+    let r = run(&nom, &g, &frf, &given_noise(9));
+    let a = r.accepted.iter().find(|a| a.id == "gravity_stiffness").unwrap();
+    let h = a.held_out.as_ref().expect("held-out check reported");
+    assert!(h.passed && h.folds == 10 && h.folds_improved >= 8, "{h:?}");
+    assert!(h.delta_chi2 > 2.0 * h.standard_error);
+    let json = serde_json::to_value(&r).unwrap();
+    let k = &json["accepted"][0]["held_out"];
+    for key in ["scheme", "folds", "delta_chi2", "standard_error", "folds_improved", "passed"] {
+        assert!(k.get(key).is_some(), "no {key} in {k}");
+    }
+}
