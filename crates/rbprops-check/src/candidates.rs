@@ -23,6 +23,17 @@
 //!   catalogue's `elastic_mode` is bilinear in its shapes, with no usable neutral point.)
 //! - `force_direction` (E12): excitation e pushes along normalise(d + β₁u₁ + β₂u₂),
 //!   u₁, u₂ ⟂ d.
+//!
+//! Catalogue effects through another parametrisation ([`Reciprocal`]):
+//! - `transducer_highpass` through 1/τ (one τ for all channels).
+//! - `record_truncation` through 1/T. Its signature (residues scaled by 1 − e^{λT},
+//!   leakage ripple) vanishes faster than any power of 1/T at 1/T = 0, so no score test
+//!   can see it: it is screened by a profile over T = 1/(kΔf), k = 1..8 (the DFT
+//!   record of the recording's line spacing Δf, zero-padded k times).
+//! - `cord_mass` with one mass per length μ and one length ℓ for all cords. At first
+//!   order in μ a massive cord is a point mass μℓ/3 at its attachment (absorbed by the
+//!   free inertia); its visible part, the string modes `f_n = (n/2ℓ)√(T/μ)`, is
+//!   non-analytic at μ = 0, so it too is screened by a profile over (μ, ℓ).
 
 use rbprops_core::geometry::cross_matrix;
 use rbprops_core::{rigid_transform, Geometry, Mat3, Mat6, Vec3};
@@ -45,6 +56,11 @@ pub struct Candidate {
     /// What measurement or side information would reveal it when the free parameters
     /// absorb it.
     pub reveal: &'static str,
+    /// Non-empty for effects whose signature vanishes to every order at the neutral
+    /// point (a record length → ∞, a cord mass → 0 whose modes leave the band): they are
+    /// screened by a profile over these parameter points (linearised likelihood ratio
+    /// with the current model's parameters re-adjusted) instead of a score test.
+    pub grid: Vec<Vec<f64>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -483,6 +499,10 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "suspension rotational / lateral coupling stiffness",
             "a second suspension length, or the mount's measured stiffness",
         ),
+        "cord_mass" => (
+            "mass and string / surge modes of the suspension cords",
+            "the cords' mass and length, or a suspension with lighter or shorter cords",
+        ),
         "elastic_mode" => (
             "elastic mode above the band (residual flexibility)",
             "data closer to the first elastic mode",
@@ -563,8 +583,9 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
             t.insert("g_m_per_s2".into(), 0.0.into());
         }
         // Neutral only at infinity (1/T, 1/τ, or a mode shape product that is bilinear
-        // at zero): not screened until a reparametrised local form exists.
-        "record_truncation" | "elastic_mode" => return None,
+        // at zero): screened through the local forms below, or (elastic_mode) as
+        // residual flexibility.
+        "record_truncation" | "elastic_mode" | "cord_mass" => return None,
         _ => return None,
     }
     Some(t)
@@ -572,7 +593,12 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
 
 /// Ids for which a local form is used even though the catalogue has the effect,
 /// because the catalogue's parametrisation has no neutral point (see module docs).
-const REPARAMETRISED: &[&str] = &["gravity_stiffness", "transducer_highpass"];
+const REPARAMETRISED: &[&str] = &[
+    "gravity_stiffness",
+    "transducer_highpass",
+    "record_truncation",
+    "cord_mass",
+];
 
 /// A catalogue effect whose parameters (a time constant, a length) are neutral only at
 /// infinity, fitted through their reciprocals: φ = 1/τ, with φ = 0 meaning "absent" (no
@@ -580,8 +606,7 @@ const REPARAMETRISED: &[&str] = &["gravity_stiffness", "transducer_highpass"];
 #[derive(Debug)]
 pub struct Reciprocal {
     id: &'static str,
-    names: Vec<String>,
-    unit: &'static str,
+    infos: Vec<ParamInfo>,
     values: Vec<f64>,
     inner: Option<Box<dyn Effect>>,
     build: fn(&[f64]) -> Result<Option<Box<dyn Effect>>, String>,
@@ -604,21 +629,52 @@ fn highpass_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     .map(Some)
 }
 
+/// `record_truncation` through φ = 1/T (record length T).
+fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
+    if v[0] < 0.0 || !v[0].is_finite() {
+        return Err(format!("1/T must be finite and ≥ 0, got {}", v[0]));
+    }
+    if v[0] == 0.0 {
+        return Ok(None);
+    }
+    let mut t = toml::Table::new();
+    t.insert("record_length_s".into(), (1.0 / v[0]).into());
+    rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
+        id: "record_truncation".into(),
+        parameters: t,
+    })
+    .map(Some)
+}
+
+/// `cord_mass` with one mass per length μ and one length ℓ for every cord (the
+/// catalogue's defaults for the cord modes: 8 per direction, 1 % damping); μ = 0 is
+/// "absent" whatever ℓ.
+fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
+    if !(v[0] >= 0.0 && v[0].is_finite() && v[1] > 0.0 && v[1].is_finite()) {
+        return Err(format!("cord μ = {} kg/m, ℓ = {} m: need μ ≥ 0, ℓ > 0", v[0], v[1]));
+    }
+    if v[0] == 0.0 {
+        return Ok(None);
+    }
+    let mut t = toml::Table::new();
+    t.insert(
+        "mass_per_length_kg_per_m".into(),
+        toml::Value::Array(vec![v[0].into()]),
+    );
+    t.insert("cord_length_m".into(), toml::Value::Array(vec![v[1].into()]));
+    rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
+        id: "cord_mass".into(),
+        parameters: t,
+    })
+    .map(Some)
+}
+
 impl Effect for Reciprocal {
     fn id(&self) -> &'static str {
         self.id
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.names
-            .iter()
-            .map(|n| ParamInfo {
-                name: n.clone(),
-                unit: self.unit,
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 2.0),
-            })
-            .collect()
+        self.infos.clone()
     }
     fn values(&self) -> Vec<f64> {
         self.values.clone()
@@ -632,10 +688,19 @@ impl Effect for Reciprocal {
                 values.len()
             ));
         }
+        if let Some((v, pi)) = values
+            .iter()
+            .zip(&self.infos)
+            .find(|(v, pi)| !(v.is_finite() && **v >= pi.lower && **v <= pi.upper))
+        {
+            return Err(format!(
+                "{}: {} = {v} outside [{}, {}]",
+                self.id, pi.name, pi.lower, pi.upper
+            ));
+        }
         Ok(Box::new(Reciprocal {
             id: self.id,
-            names: self.names.clone(),
-            unit: self.unit,
+            infos: self.infos.clone(),
             values: values.to_vec(),
             inner: (self.build)(values)?,
             build: self.build,
@@ -709,6 +774,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                     scales,
                     source: "rbprops-sim",
                     reveal,
+                    grid: Vec::new(),
                 });
             }
             Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),
@@ -734,6 +800,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 "rbprops-check (local)"
             },
             reveal: k.reveal(),
+            grid: Vec::new(),
         });
     }
     if rbprops_sim::effects::KNOWN_EFFECTS.contains(&"transducer_highpass")
@@ -745,8 +812,13 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             title: title.into(),
             effect: Box::new(Reciprocal {
                 id: "transducer_highpass",
-                names: vec!["inverse_time_constant_per_s".into()],
-                unit: "1/s",
+                infos: vec![ParamInfo {
+                    name: "inverse_time_constant_per_s".into(),
+                    unit: "1/s",
+                    lower: 0.0,
+                    upper: f64::INFINITY,
+                    plausible: (0.0, 2.0),
+                }],
                 values: vec![0.0],
                 inner: None,
                 build: highpass_build,
@@ -755,6 +827,86 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             scales: vec![0.05],
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
+            grid: Vec::new(),
+        });
+    }
+    if !in_spec.contains(&"record_truncation") {
+        let (title, reveal) = describe("record_truncation");
+        // The record length is 1/Δf of the recording's lines, or a fraction of it
+        // when the records were zero-padded: T = 1/(kΔf), k = 1..8. (The leakage
+        // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so only
+        // these structural values can be found from a profile; others need side
+        // information.)
+        let fr = &spec.frequency;
+        let df = if fr.lines > 1 && fr.stop_hz > fr.start_hz {
+            (fr.stop_hz - fr.start_hz) / (fr.lines - 1) as f64
+        } else {
+            1.0 / 16.0
+        };
+        let grid: Vec<Vec<f64>> = (1..=8).map(|k| vec![k as f64 * df]).collect();
+        out.push(Candidate {
+            id: "record_truncation".into(),
+            title: title.into(),
+            effect: Box::new(Reciprocal {
+                id: "record_truncation",
+                infos: vec![ParamInfo {
+                    name: "inverse_record_length_per_s".into(),
+                    unit: "1/s",
+                    lower: 0.0,
+                    upper: 10.0,
+                    plausible: (1.0 / 64.0, 0.25),
+                }],
+                values: vec![0.0],
+                inner: None,
+                build: truncation_build,
+            }),
+            neutral: vec![0.0],
+            scales: vec![0.005],
+            source: "rbprops-sim (reparametrised for screening)",
+            reveal,
+            grid,
+        });
+    }
+    if !in_spec.contains(&"cord_mass") && spec.setups.iter().any(|s| !s.springs.is_empty()) {
+        let (title, reveal) = describe("cord_mass");
+        // Cord mass per length 10–160 g/m × cord length 0.3–3 m: string modes from
+        // about 1 Hz to far above any rigid-body band.
+        let mut grid = Vec::new();
+        for mu in [0.01, 0.02, 0.04, 0.08, 0.16] {
+            for l in [0.3, 0.5, 0.8, 1.2, 2.0, 3.0] {
+                grid.push(vec![mu, l]);
+            }
+        }
+        out.push(Candidate {
+            id: "cord_mass".into(),
+            title: title.into(),
+            effect: Box::new(Reciprocal {
+                id: "cord_mass",
+                infos: vec![
+                    ParamInfo {
+                        name: "mass_per_length_kg_per_m".into(),
+                        unit: "kg/m",
+                        lower: 0.0,
+                        upper: 10.0,
+                        plausible: (0.01, 0.15),
+                    },
+                    ParamInfo {
+                        name: "cord_length_m".into(),
+                        unit: "m",
+                        lower: 0.05,
+                        upper: 50.0,
+                        plausible: (0.2, 5.0),
+                    },
+                ],
+                values: vec![0.0, 1.0],
+                inner: None,
+                build: cord_build,
+            }),
+            neutral: vec![0.0, 1.0],
+            scales: vec![0.005, 0.05],
+            source: "rbprops-sim (screened by a parameter profile)",
+            reveal,
+            grid,
         });
     }
     (out, notes)
@@ -780,6 +932,22 @@ pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, 
         }
         let mut t = toml::Table::new();
         t.insert("time_constant_s".into(), (1.0 / v[0]).into());
+        return Ok(rbprops_sim::spec::EffectSpec {
+            id: e.id().to_string(),
+            parameters: t,
+        });
+    }
+    if e.id() == "record_truncation"
+        && e.parameters()
+            .first()
+            .is_some_and(|p| p.name == "inverse_record_length_per_s")
+    {
+        let v = e.values();
+        if !(v[0] > 0.0) {
+            return Err("record_truncation: fitted 1/T is not positive".into());
+        }
+        let mut t = toml::Table::new();
+        t.insert("record_length_s".into(), (1.0 / v[0]).into());
         return Ok(rbprops_sim::spec::EffectSpec {
             id: e.id().to_string(),
             parameters: t,

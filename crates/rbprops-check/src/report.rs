@@ -36,6 +36,24 @@ pub struct AcceptedEffect {
     /// multiple of these, and the values reported have no component along them
     /// relative to the neutral values (exact gauges) or an arbitrary one (first-order).
     pub gauge_directions: Vec<Vec<f64>>,
+    /// Held-out check (cross-validation) of the effect when it was accepted; `None`
+    /// when the check was switched off.
+    pub held_out: Option<HeldOutCheck>,
+}
+
+/// Held-out (cross-validation) evidence for an effect (research note §6, A2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct HeldOutCheck {
+    pub scheme: String,
+    pub folds: usize,
+    /// Decrease of the held-out χ² summed over folds (model without − with the effect).
+    pub delta_chi2: f64,
+    /// Its standard error from the spread over folds.
+    pub standard_error: f64,
+    /// Folds in which the held-out χ² decreased.
+    pub folds_improved: usize,
+    /// Decrease > 2 standard errors and in ≥ 80 % of the folds.
+    pub passed: bool,
 }
 
 /// Effects that fit about equally well and could not be separated on these data.

@@ -139,3 +139,61 @@ fn explore_predict_cost() {
     }
     println!("build_models: {:?} per call", t.elapsed() / 100);
 }
+
+/// `EFFSPEC='id = "..."\n...' cargo test --test explore explore_spec -- --ignored --nocapture`:
+/// a concealed rbprops-sim effect at 400 lines, 1 % given noise, truth = nominal with
+/// mass +2 % and vertical springs +8 %.
+#[test]
+#[ignore]
+fn explore_spec() {
+    use rbprops_check::NoiseModel;
+    let spec = std::env::var("EFFSPEC").unwrap_or_default().replace("\\n", "\n");
+    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(7);
+    let nom = nominal(400);
+    let mut truth = nom.clone();
+    truth.body.mass_kg *= 1.02;
+    for s in &mut truth.setups {
+        for sp in &mut s.springs {
+            if let Some(k) = &mut sp.stiffness_n_per_m {
+                k[2] *= 1.08;
+            }
+        }
+    }
+    let effs: Vec<&str> = spec.split("@@").filter(|s| !s.is_empty()).collect();
+    let rel: f64 = std::env::var("REL").ok().and_then(|s| s.parse().ok()).unwrap_or(0.01);
+    let (g, frf) = record_sim(&truth, &effs, rel, seed);
+    let opts = CheckOptions {
+        noise: Some(NoiseModel {
+            relative: vec![rel; 9],
+            floor: vec![0.0; 9],
+            source: "given".into(),
+            variance_scale_se: 0.0,
+        }),
+        max_iterations: std::env::var("MAXIT").ok().and_then(|s| s.parse().ok()).unwrap_or(60),
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let out = check(&nom, &g, &frf, &opts).unwrap();
+    let r = &out.report;
+    println!("time {:?}", t.elapsed());
+    println!("{}", r.verdict);
+    for s in &r.screening {
+        println!(
+            "  step {} {:28} rank {:2} score {:10.1} thr {:6.1} refit {:?} bic {:?}: {}",
+            s.step, s.id, s.rank, s.score, s.threshold, s.refit_delta_chi2.map(|x| x.round()), s.refit_delta_bic.map(|x| x.round()), s.decision
+        );
+    }
+    for a in &r.accepted {
+        for p in &a.parameters {
+            println!("  {} {} = {} ± {}", a.id, p.name, p.value, p.standard_error);
+        }
+    }
+    for n in &r.not_observable {
+        println!("  not observable {}: {}", n.id, n.reason);
+    }
+    let tp = truth.properties();
+    println!("truth mass {} com {:?}", tp.mass, tp.com);
+    println!("before {:?} {:?} {:?}", r.inertia_before.mass_kg, r.inertia_before.com_m, r.inertia_before.moments_kg_m2);
+    println!("after  {:?} {:?} {:?}", r.inertia_after.mass_kg, r.inertia_after.com_m, r.inertia_after.moments_kg_m2);
+    println!("chi2 {} -> {} band {:?}", r.chi2_nu_before, r.chi2_nu_after, r.noise_band);
+}
