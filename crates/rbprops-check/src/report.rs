@@ -48,7 +48,8 @@ pub struct HeldOutCheck {
     pub folds: usize,
     /// Decrease of the held-out χ² summed over folds (model without − with the effect).
     pub delta_chi2: f64,
-    /// Its standard error from the spread over folds.
+    /// Its standard error under the noise model, `√(4 Σ (e − f)²)` over the held-out
+    /// residuals without (`e`) and with (`f`) the effect (see `cv`).
     pub standard_error: f64,
     /// Folds in which the held-out χ² decreased.
     pub folds_improved: usize,
