@@ -651,7 +651,10 @@ fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
 /// "absent" whatever ℓ.
 fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     if !(v[0] >= 0.0 && v[0].is_finite() && v[1] > 0.0 && v[1].is_finite()) {
-        return Err(format!("cord μ = {} kg/m, ℓ = {} m: need μ ≥ 0, ℓ > 0", v[0], v[1]));
+        return Err(format!(
+            "cord μ = {} kg/m, ℓ = {} m: need μ ≥ 0, ℓ > 0",
+            v[0], v[1]
+        ));
     }
     if v[0] == 0.0 {
         return Ok(None);
@@ -661,7 +664,10 @@ fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
         "mass_per_length_kg_per_m".into(),
         toml::Value::Array(vec![v[0].into()]),
     );
-    t.insert("cord_length_m".into(), toml::Value::Array(vec![v[1].into()]));
+    t.insert(
+        "cord_length_m".into(),
+        toml::Value::Array(vec![v[1].into()]),
+    );
     rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
         id: "cord_mass".into(),
         parameters: t,

@@ -316,7 +316,9 @@ fn grid_candidate(
         let lin = base - perp(&rg).norm_squared();
         let mut chi = rg.norm_squared();
         for _ in 0..4 {
-            let Ok(d) = svd.solve(&(-&rg), 1e-10) else { break };
+            let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
+                break;
+            };
             let mut t1 = t.clone();
             t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
             match eval(&t1) {
@@ -846,10 +848,7 @@ pub fn check(
                     excluded.push(c);
                 }
                 Ok(s) => {
-                    let thr = chi2_isf(
-                        options.alpha / (n_cand * s.n_tests as f64),
-                        s.rank as f64,
-                    );
+                    let thr = chi2_isf(options.alpha / (n_cand * s.n_tests as f64), s.rank as f64);
                     screening.push(ScreenEntry {
                         step,
                         id: cand.id.clone(),

@@ -103,7 +103,9 @@ mod tests {
         let n = 2000;
         let mut s = 12345u64;
         let mut rnd = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         };
         let x: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
@@ -124,8 +126,18 @@ mod tests {
         let (r1, j1) = fit(&[&one, &z]);
         let (r2, j2) = fit(&[&one, &x]);
         let h0 = held_out_residuals(&r0, &j0, &fold, FOLDS);
-        let noise = compare(&h0, &held_out_residuals(&r1, &j1, &fold, FOLDS), &fold, FOLDS);
-        let real = compare(&h0, &held_out_residuals(&r2, &j2, &fold, FOLDS), &fold, FOLDS);
+        let noise = compare(
+            &h0,
+            &held_out_residuals(&r1, &j1, &fold, FOLDS),
+            &fold,
+            FOLDS,
+        );
+        let real = compare(
+            &h0,
+            &held_out_residuals(&r2, &j2, &fold, FOLDS),
+            &fold,
+            FOLDS,
+        );
         assert!(!noise.passed, "{noise:?}");
         assert!(real.passed, "{real:?}");
     }

@@ -147,8 +147,13 @@ fn explore_predict_cost() {
 #[ignore]
 fn explore_spec() {
     use rbprops_check::NoiseModel;
-    let spec = std::env::var("EFFSPEC").unwrap_or_default().replace("\\n", "\n");
-    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(7);
+    let spec = std::env::var("EFFSPEC")
+        .unwrap_or_default()
+        .replace("\\n", "\n");
+    let seed: u64 = std::env::var("SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(7);
     let nom = nominal(400);
     let mut truth = nom.clone();
     truth.body.mass_kg *= 1.02;
@@ -160,7 +165,10 @@ fn explore_spec() {
         }
     }
     let effs: Vec<&str> = spec.split("@@").filter(|s| !s.is_empty()).collect();
-    let rel: f64 = std::env::var("REL").ok().and_then(|s| s.parse().ok()).unwrap_or(0.01);
+    let rel: f64 = std::env::var("REL")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.01);
     let (g, frf) = record_sim(&truth, &effs, rel, seed);
     let opts = CheckOptions {
         noise: Some(NoiseModel {
@@ -169,7 +177,10 @@ fn explore_spec() {
             source: "given".into(),
             variance_scale_se: 0.0,
         }),
-        max_iterations: std::env::var("MAXIT").ok().and_then(|s| s.parse().ok()).unwrap_or(60),
+        max_iterations: std::env::var("MAXIT")
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .unwrap_or(60),
         ..Default::default()
     };
     let t = std::time::Instant::now();
@@ -180,7 +191,14 @@ fn explore_spec() {
     for s in &r.screening {
         println!(
             "  step {} {:28} rank {:2} score {:10.1} thr {:6.1} refit {:?} bic {:?}: {}",
-            s.step, s.id, s.rank, s.score, s.threshold, s.refit_delta_chi2.map(|x| x.round()), s.refit_delta_bic.map(|x| x.round()), s.decision
+            s.step,
+            s.id,
+            s.rank,
+            s.score,
+            s.threshold,
+            s.refit_delta_chi2.map(|x| x.round()),
+            s.refit_delta_bic.map(|x| x.round()),
+            s.decision
         );
     }
     for a in &r.accepted {
@@ -193,7 +211,16 @@ fn explore_spec() {
     }
     let tp = truth.properties();
     println!("truth mass {} com {:?}", tp.mass, tp.com);
-    println!("before {:?} {:?} {:?}", r.inertia_before.mass_kg, r.inertia_before.com_m, r.inertia_before.moments_kg_m2);
-    println!("after  {:?} {:?} {:?}", r.inertia_after.mass_kg, r.inertia_after.com_m, r.inertia_after.moments_kg_m2);
-    println!("chi2 {} -> {} band {:?}", r.chi2_nu_before, r.chi2_nu_after, r.noise_band);
+    println!(
+        "before {:?} {:?} {:?}",
+        r.inertia_before.mass_kg, r.inertia_before.com_m, r.inertia_before.moments_kg_m2
+    );
+    println!(
+        "after  {:?} {:?} {:?}",
+        r.inertia_after.mass_kg, r.inertia_after.com_m, r.inertia_after.moments_kg_m2
+    );
+    println!(
+        "chi2 {} -> {} band {:?}",
+        r.chi2_nu_before, r.chi2_nu_after, r.noise_band
+    );
 }

@@ -573,7 +573,10 @@ fn summary(label: &str, r: &ModelCheckReport, truth: &RigidBodyProperties) {
     );
     for a in &r.accepted {
         for p in &a.parameters {
-            eprintln!("    {}.{} = {} ± {}", a.id, p.name, p.value, p.standard_error);
+            eprintln!(
+                "    {}.{} = {} ± {}",
+                a.id, p.name, p.value, p.standard_error
+            );
         }
     }
 }
@@ -631,7 +634,11 @@ fn force_gauge_mass_is_found() {
     let r = run(&nom, &g, &frf, &given(9, 0.005));
     summary("force_gauge_mass", &r, &truth.properties());
     assert_found(&r, &["force_gauge_mass"], &truth.properties());
-    within(param(&r, "force_gauge_mass", "masses_kg.force2"), 0.015, 4.0);
+    within(
+        param(&r, "force_gauge_mass", "masses_kg.force2"),
+        0.015,
+        4.0,
+    );
     within(param(&r, "force_gauge_mass", "masses_kg.force1"), 0.0, 4.0);
     within(param(&r, "force_gauge_mass", "masses_kg.force3"), 0.0, 4.0);
 }
@@ -670,7 +677,11 @@ fn suspension_coupling_is_found() {
     summary("suspension_coupling", &r, &truth.properties());
     assert_found(&r, &["suspension_coupling"], &truth.properties());
     within_mod_gauge(&r, "suspension_coupling", &[0.5, 0.5, 0.2, 20.0], 4.0);
-    let a = r.accepted.iter().find(|a| a.id == "suspension_coupling").unwrap();
+    let a = r
+        .accepted
+        .iter()
+        .find(|a| a.id == "suspension_coupling")
+        .unwrap();
     assert!(
         a.gauge_directions.iter().any(|g| g[3].abs() > 0.99),
         "lateral stiffness should be reported as a gauge: {:?}",
@@ -695,7 +706,11 @@ fn cord_mass_is_found() {
     let r = run(&nom, &g, &frf, &given(9, REL));
     summary("cord_mass", &r, &truth.properties());
     assert_found(&r, &["cord_mass"], &truth.properties());
-    within(param(&r, "cord_mass", "mass_per_length_kg_per_m"), 0.08, 4.0);
+    within(
+        param(&r, "cord_mass", "mass_per_length_kg_per_m"),
+        0.08,
+        4.0,
+    );
     within(param(&r, "cord_mass", "cord_length_m"), 1.0, 4.0);
 }
 
@@ -722,7 +737,11 @@ fn held_out_check_rejects_an_over_fitting_candidate() {
     );
     opts.cross_validation = true;
     let r = run(&nom, &g, &frf, &opts);
-    assert!(r.accepted.is_empty() && r.ambiguous.is_empty(), "{}", r.verdict);
+    assert!(
+        r.accepted.is_empty() && r.ambiguous.is_empty(),
+        "{}",
+        r.verdict
+    );
     let e = r
         .screening
         .iter()
@@ -744,13 +763,24 @@ fn accepted_effects_report_their_held_out_check() {
         11,
     );
     let r = run(&nom, &g, &frf, &given_noise(9));
-    let a = r.accepted.iter().find(|a| a.id == "gravity_stiffness").unwrap();
+    let a = r
+        .accepted
+        .iter()
+        .find(|a| a.id == "gravity_stiffness")
+        .unwrap();
     let h = a.held_out.as_ref().expect("held-out check reported");
     assert!(h.passed && h.folds == 10 && h.folds_improved >= 8, "{h:?}");
     assert!(h.delta_chi2 > 2.0 * h.standard_error);
     let json = serde_json::to_value(&r).unwrap();
     let k = &json["accepted"][0]["held_out"];
-    for key in ["scheme", "folds", "delta_chi2", "standard_error", "folds_improved", "passed"] {
+    for key in [
+        "scheme",
+        "folds",
+        "delta_chi2",
+        "standard_error",
+        "folds_improved",
+        "passed",
+    ] {
         assert!(k.get(key).is_some(), "no {key} in {k}");
     }
 }
