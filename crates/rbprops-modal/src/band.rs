@@ -91,9 +91,10 @@ impl BandData {
     /// Indices of every `stride`-th line of `n` (always keeping the first and the
     /// last), so that at most about `max_lines` remain; all lines when `n <= max_lines`.
     ///
-    /// Why: the pole estimators and the refinement's first iterations need a few lines
-    /// per half-power bandwidth, not every line of a 4,096-line spectrum, and their cost
-    /// is linear in the number of lines.
+    /// Why: the LSCF stabilisation sweep needs a few lines per half-power bandwidth, not
+    /// every line of a 4,096-line spectrum, and its sums cost linear in the lines. (The
+    /// refinement uses [`Self::focus_indices`] instead, which keeps every line near a
+    /// pole; this is its even skeleton.)
     pub fn decimation_indices(n: usize, max_lines: usize) -> Vec<usize> {
         let stride = n.div_ceil(max_lines.max(2)).max(1);
         let mut keep: Vec<usize> = (0..n).step_by(stride).collect();

@@ -196,6 +196,8 @@ pub fn sweep_orders(
                 }
             }
             for j in 0..=q {
+                // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as
+                // a plain sum, so the factors stay bitwise as before.
                 let v = -sub_dot(
                     0.0,
                     &yo[j * pm..j * pm + q + 1],
