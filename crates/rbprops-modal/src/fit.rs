@@ -140,6 +140,31 @@ const FOCUS_HALF_WIDTHS: f64 = 20.0;
 /// … plus this many evenly spaced lines over the band.
 const SKELETON_LINES: usize = 256;
 
+/// How hard a stabilisation sweep works.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SweepDepth {
+    /// The full diagram: orders up to `max_order` on [`SWEEP_LINES`] lines.
+    Full,
+    /// Where are the modes? Only the highest stable mode matters (it sets the
+    /// pole-estimation sub-band, with a factor-2 margin), so a lower order on fewer
+    /// lines does: the strong modes stabilise early, and the companion eigenvalue
+    /// problems, the dominant cost, grow as the fourth power of the top order.
+    Locate,
+    /// The lower-quarter safety sweeps, which only add modes low in a sub-band that
+    /// the full sweep above it has already covered; few modes can live there.
+    Safety,
+}
+
+impl SweepDepth {
+    /// (highest order, decimated line count) for a diagram whose full depth is `max_order`.
+    fn limits(self, max_order: usize) -> (usize, usize) {
+        match self {
+            SweepDepth::Full => (max_order, SWEEP_LINES),
+            SweepDepth::Locate | SweepDepth::Safety => (max_order.min(24), SWEEP_LINES / 2),
+        }
+    }
+}
+
 /// The lines `keep` of every channel.
 fn select_lines(chans: &[Vec<c64>], keep: &[usize]) -> Vec<Vec<c64>> {
     chans
@@ -195,36 +220,45 @@ fn estimate_poles_from(
         Some(f) => band.up_to(f),
         None => band.clone(),
     };
-    let sweep = |sub: &BandData| -> Result<stabilisation::Selection, ModalError> {
-        let nm = opts.max_order.min(sub.n_lines().saturating_sub(2));
-        let orders = match opts.method {
-            Method::Lscf | Method::Circle => {
-                // LSCF works on any axis: decimate the lines and solve even orders only.
-                let keep = BandData::decimation_indices(sub.n_lines(), SWEEP_LINES);
-                let dec = sub.lines(&keep);
-                let dec_chans = select_lines(chans, &keep);
-                let nm = nm.min(dec.n_lines().saturating_sub(2));
-                crate::prof::time(0, || lscf::sweep_orders(&dec, &dec_chans, nm, 2))
-            }
-            Method::Lsce => {
-                let sub_chans: Vec<Vec<c64>> =
-                    chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
-                lsce::sweep(sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
-                    excitation: name.into(),
-                    method: "LSCE",
-                    reason,
-                })?
-            }
+    let sweep_at =
+        |sub: &BandData, depth: SweepDepth| -> Result<stabilisation::Selection, ModalError> {
+            let (max_order, max_lines) = depth.limits(opts.max_order);
+            let nm = max_order.min(sub.n_lines().saturating_sub(2));
+            let orders = match opts.method {
+                Method::Lscf | Method::Circle => {
+                    // LSCF works on any axis: decimate the lines and solve even orders only.
+                    let keep = BandData::decimation_indices(sub.n_lines(), max_lines);
+                    let dec = sub.lines(&keep);
+                    let dec_chans = select_lines(chans, &keep);
+                    let nm = nm.min(dec.n_lines().saturating_sub(2));
+                    crate::prof::time(0, || lscf::sweep_orders(&dec, &dec_chans, nm, 2))
+                }
+                Method::Lsce => {
+                    let sub_chans: Vec<Vec<c64>> =
+                        chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
+                    lsce::sweep(sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
+                        excitation: name.into(),
+                        method: "LSCE",
+                        reason,
+                    })?
+                }
+            };
+            let band_w = (sub.omega[0], *sub.omega.last().unwrap());
+            Ok(crate::prof::time(1, || {
+                stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes)
+            }))
         };
-        let band_w = (sub.omega[0], *sub.omega.last().unwrap());
-        Ok(crate::prof::time(1, || {
-            stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes)
-        }))
-    };
     let min_sweep_lines = 4 * opts.max_order.max(8);
     let mut sel;
+    // The first pass over the whole band only has to say where the modes are, so it
+    // runs at locator depth; a full sweep follows on whatever band that leaves.
+    let mut depth = if opts.method == Method::Lsce || opts.n_modes.is_some() {
+        SweepDepth::Full
+    } else {
+        SweepDepth::Locate
+    };
     loop {
-        sel = sweep(&sub)?;
+        sel = sweep_at(&sub, depth)?;
         let top = *sub.frequency_hz.last().unwrap();
         let target = match sel
             .modes
@@ -242,6 +276,11 @@ fn estimate_poles_from(
                 sub.frequency_hz[0]
             ));
             sub = sub.up_to(target);
+            depth = SweepDepth::Full;
+            continue;
+        }
+        if depth != SweepDepth::Full {
+            depth = SweepDepth::Full;
             continue;
         }
         break;
@@ -257,7 +296,7 @@ fn estimate_poles_from(
             if lower.n_lines() < min_sweep_lines {
                 break;
             }
-            let s_low = sweep(&lower)?;
+            let s_low = sweep_at(&lower, SweepDepth::Safety)?;
             for m in s_low.modes {
                 let known = sel
                     .modes
