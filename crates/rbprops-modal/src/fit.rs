@@ -449,13 +449,7 @@ fn estimate_poles_from(
                             .max(1) as f64;
                         let (c_now, c_with) = screen.get_or_insert_with(|| {
                             crate::prof::time(3, || {
-                                lsfd::screen_extra_poles(
-                                    &r.poles,
-                                    &cand_poles,
-                                    &rband,
-                                    &rchans,
-                                    res,
-                                )
+                                lsfd::screen_extra_poles(&r, &cand_poles, &rband, &rchans)
                             })
                         });
                         let c_screen = c_with[ci];
@@ -695,9 +689,8 @@ impl OrderTest<'_> {
                 .filter(|(_, p)| p.0.im > band_w.0 && p.0.im < band_w.1)
                 .collect();
             let cands: Vec<Pole> = partners.iter().map(|(_, p)| *p).collect();
-            let (c_now, c_with) = crate::prof::time(3, || {
-                lsfd::screen_extra_poles(&r.poles, &cands, band, chans, res)
-            });
+            let (c_now, c_with) =
+                crate::prof::time(3, || lsfd::screen_extra_poles(r, &cands, band, chans));
             let dof = dof_of(n + 1);
             let best = c_with
                 .iter()

@@ -12,6 +12,7 @@ use faer::{Conj, Par};
 use rbprops_core::c64;
 
 /// A thin QR factorisation `A = Q R` of a tall real matrix (Householder, faer).
+#[derive(Debug)]
 pub struct TallQr {
     qr: Mat<f64>,
     q_coeff: Mat<f64>,

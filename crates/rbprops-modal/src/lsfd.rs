@@ -267,9 +267,12 @@ pub struct Refined {
     pub converged: bool,
     /// Weighted cost before and after.
     pub cost: (f64, f64),
+    /// The LSFD solution at the final poles, kept for [`screen_extra_poles`].
+    fit: std::sync::Arc<Trial>,
 }
 
 /// The LSFD solution for one trial pole set (weighted data).
+#[derive(Debug)]
 struct Trial {
     cost: f64,
     /// Normalised basis columns (complex, before stacking) and their scales.
@@ -347,24 +350,24 @@ fn unit_rms(chans: &[Vec<c64>]) -> Vec<Vec<c64>> {
         .collect()
 }
 
-/// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimises at the
-/// fixed `poles`, and the same cost with each candidate pole added in turn (residues
-/// re-fitted, poles fixed): used to screen candidates for the model-order test.
+/// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimised (at the
+/// refined poles of `fit`, on the same `band` and `chans`), and the same cost with each
+/// candidate pole added in turn (residues re-fitted, poles fixed): used to screen
+/// candidates for the model-order test.
 ///
 /// One QR serves every candidate. The candidate's two basis columns `N` are projected
 /// off the current basis (`Ñ = P⊥N`, `ÑᵀÑ = NᵀN − (QᵀN)ᵀQᵀN`, `QᵀN = R⁻ᵀΦᵀN`); as the
 /// residuals `r_o` are already orthogonal to the basis, the cost drops by
 /// `Σ_o (Nᵀr_o)ᵀ(ÑᵀÑ)⁻¹(Nᵀr_o)` — O(N·(p + channels)) per candidate instead of a QR.
+/// The refinement's own factorisation is reused (it is the basis at `fit.poles`).
 pub fn screen_extra_poles(
-    poles: &[Pole],
+    fit: &Refined,
     candidates: &[Pole],
     band: &BandData,
     chans: &[Vec<c64>],
-    res: Residuals,
 ) -> (f64, Vec<f64>) {
-    let data = unit_rms(chans);
-    let lw = line_weights(&data);
-    let t = trial(poles, band, &data, &lw, res);
+    let lw = line_weights(&unit_rms(chans));
+    let t = &*fit.fit;
     let pc = t.n_cols;
     let with = candidates
         .iter()
@@ -580,5 +583,6 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         iterations,
         converged,
         cost: (cost0, t.cost),
+        fit: std::sync::Arc::new(t),
     }
 }
