@@ -504,8 +504,8 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "the cords' mass and length, or a suspension with lighter or shorter cords",
         ),
         "elastic_mode" => (
-            "elastic mode above the band (residual flexibility)",
-            "data closer to the first elastic mode",
+            "elastic mode in the band (a resonance the rigid-body model lacks)",
+            "more sensors or a roving hammer to map its shape, or a band that stops below it",
         ),
         _ => ("catalogue effect", "side information on this effect"),
     }
@@ -598,6 +598,7 @@ const REPARAMETRISED: &[&str] = &[
     "transducer_highpass",
     "record_truncation",
     "cord_mass",
+    "elastic_mode",
 ];
 
 /// A catalogue effect whose parameters (a time constant, a length) are neutral only at
@@ -913,6 +914,20 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             source: "rbprops-sim (screened by a parameter profile)",
             reveal,
             grid,
+        });
+    }
+    if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
+        let (title, reveal) = describe("elastic_mode");
+        let e = crate::resonance::InBandResonance::neutral(spec);
+        out.push(Candidate {
+            id: "elastic_mode".into(),
+            title: title.into(),
+            neutral: e.values(),
+            scales: e.scales(),
+            effect: Box::new(e),
+            source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
+            reveal,
+            grid: Vec::new(),
         });
     }
     (out, notes)

@@ -287,6 +287,41 @@ fn grid_candidate(
     c: usize,
     q0: &DMatrix<f64>,
 ) -> Result<Score, CheckError> {
+    let grid = &p.cands[c].grid;
+    profile_candidate(p, cur, active, c, q0, grid, grid.len())
+}
+
+/// An in-band resonance ([`crate::resonance`]): the profile over (ω_m, ζ_m) of the
+/// linear residue fit to the current residual proposes the starting points, which are
+/// then evaluated as a grid; Bonferroni over every profile point searched.
+fn resonance_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+) -> Result<Score, CheckError> {
+    let (starts, n_tests) =
+        crate::resonance::profile_starts(p.layout, &p.used, p.sigma, &cur.residual);
+    if starts.first().is_some_and(|s| s.len() != p.cands[c].neutral.len()) {
+        return Err(CheckError::Model(
+            "elastic_mode: the spec's channels and excitations do not match the recording's layout".into(),
+        ));
+    }
+    profile_candidate(p, cur, active, c, q0, &starts, n_tests)
+}
+
+/// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
+/// statistic the best of `n_tests` tests.
+fn profile_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+    grid: &[Vec<f64>],
+    n_tests: usize,
+) -> Result<Score, CheckError> {
     let cand = &p.cands[c];
     let np = cand.neutral.len();
     let mut act = active.to_vec();
@@ -308,7 +343,7 @@ fn grid_candidate(
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
     };
     let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
-    for (g, phi) in cand.grid.iter().enumerate() {
+    for (g, phi) in grid.iter().enumerate() {
         let mut t = cur.theta.clone();
         t.extend_from_slice(phi);
         let Some(mut rg) = eval(&t) else { continue };
@@ -355,10 +390,10 @@ fn grid_candidate(
         score: gain.max(0.0),
         basis,
         kept: (0..np).collect(),
-        start: cand.grid[g].clone(),
+        start: grid[g].clone(),
         gauge: Vec::new(),
         absorbed_by: Vec::new(),
-        n_tests: cand.grid.len(),
+        n_tests,
         theta_start,
     })
 }
@@ -792,7 +827,9 @@ pub fn check(
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
             .par_iter()
             .map(|&c| {
-                let s = if p.cands[c].grid.is_empty() {
+                let s = if p.cands[c].id == "elastic_mode" {
+                    resonance_candidate(&p, &cur, &active, c, &q0)
+                } else if p.cands[c].grid.is_empty() {
                     score_candidate(&p, &cur, &active, c, &q0)
                 } else {
                     grid_candidate(&p, &cur, &active, c, &q0)
@@ -1209,12 +1246,14 @@ pub fn check(
         &cov_final,
     );
     let change = inertia_change(&inertia_before, &inertia_after);
-    // Corrected parameters of the nominal model.
+    // Corrected parameters of the nominal model: from the final fit, where the accepted
+    // effects no longer bias them (without accepted effects it is the baseline fit).
+    let (th, cov) = (&cur.theta, &cov_final);
     let mut corrected = Vec::new();
     let qn = quantities(&inertia_nominal);
-    let qb = quantities(&inertia_before);
+    let qb = quantities(&inertia_after);
     for i in 0..10 {
-        let se = inertia_before.standard_errors[i];
+        let se = inertia_after.standard_errors[i];
         let z = if se > 0.0 { (qb[i] - qn[i]) / se } else { 0.0 };
         corrected.push(CorrectedParameter {
             name: INERTIA_NAMES[i].to_string(),
@@ -1231,20 +1270,20 @@ pub fn check(
             ParamKind::StiffnessScale { .. } => (
                 p.baseline.names[k].replace("ln_stiffness_scale", "stiffness_factor"),
                 1.0,
-                base.theta[k].exp(),
-                base.theta[k].exp() * cov_base[(k, k)].max(0.0).sqrt(),
+                th[k].exp(),
+                th[k].exp() * cov[(k, k)].max(0.0).sqrt(),
             ),
             ParamKind::ModalDampingLog(_) => (
                 p.baseline.names[k].replace("ln_ratio", "ratio"),
                 theta_nom[k].exp(),
-                base.theta[k].exp(),
-                base.theta[k].exp() * cov_base[(k, k)].max(0.0).sqrt(),
+                th[k].exp(),
+                th[k].exp() * cov[(k, k)].max(0.0).sqrt(),
             ),
             _ => (
                 p.baseline.names[k].clone(),
                 theta_nom[k],
-                base.theta[k],
-                cov_base[(k, k)].max(0.0).sqrt(),
+                th[k],
+                cov[(k, k)].max(0.0).sqrt(),
             ),
         };
         let z = if se > 0.0 { (fit - nom) / se } else { 0.0 };

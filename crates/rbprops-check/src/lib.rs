@@ -58,6 +58,7 @@ pub mod noise;
 pub mod params;
 pub mod predict;
 pub mod report;
+pub mod resonance;
 pub mod stats;
 
 pub use check::{check, CheckOptions, CheckOutcome};
