@@ -97,7 +97,7 @@ pub struct ScreenEntry {
     pub decision: String,
 }
 
-/// A nominal-model parameter the baseline fit corrected.
+/// A nominal-model parameter as the final fit (with the accepted effects) corrects it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct CorrectedParameter {
     pub name: String,
