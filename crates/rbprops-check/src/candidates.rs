@@ -504,7 +504,7 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "the cords' mass and length, or a suspension with lighter or shorter cords",
         ),
         "elastic_mode" => (
-            "elastic mode in the band (a resonance the rigid-body model lacks)",
+            "elastic mode (a resonance the rigid-body model lacks, in or above the band)",
             "more sensors or a roving hammer to map its shape, or a band that stops below it",
         ),
         _ => ("catalogue effect", "side information on this effect"),

@@ -303,9 +303,13 @@ fn resonance_candidate(
 ) -> Result<Score, CheckError> {
     let (starts, n_tests) =
         crate::resonance::profile_starts(p.layout, &p.used, p.sigma, &cur.residual);
-    if starts.first().is_some_and(|s| s.len() != p.cands[c].neutral.len()) {
+    if starts
+        .first()
+        .is_some_and(|s| s.len() != p.cands[c].neutral.len())
+    {
         return Err(CheckError::Model(
-            "elastic_mode: the spec's channels and excitations do not match the recording's layout".into(),
+            "elastic_mode: the spec's channels and excitations do not match the recording's layout"
+                .into(),
         ));
     }
     profile_candidate(p, cur, active, c, q0, &starts, n_tests)

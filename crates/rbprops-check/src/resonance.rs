@@ -149,7 +149,10 @@ impl Effect for InBandResonance {
     fn parameters_json(&self) -> serde_json::Value {
         let (psi_c, psi_e, _) = self.rank_one();
         let map = |ids: &[String], v: &[f64]| -> serde_json::Map<String, serde_json::Value> {
-            ids.iter().zip(v).map(|(k, x)| (k.clone(), (*x).into())).collect()
+            ids.iter()
+                .zip(v)
+                .map(|(k, x)| (k.clone(), (*x).into()))
+                .collect()
         };
         serde_json::json!({
             "frequency_hz": self.values[0],
@@ -221,7 +224,11 @@ pub fn profile_starts(
         .iter()
         .map(|&i| {
             let line = i % nl;
-            (q[line] * (std::f64::consts::SQRT_2 / sigma[i]), i / nl, line)
+            (
+                q[line] * (std::f64::consts::SQRT_2 / sigma[i]),
+                i / nl,
+                line,
+            )
         })
         .collect();
     let mut points: Vec<(f64, f64, f64, Vec<f64>)> = f_grid
@@ -263,7 +270,10 @@ pub fn profile_starts(
         if starts.len() == STARTS {
             break;
         }
-        if taken.iter().any(|(f, zt)| (fm - f).abs() < 2.0 * zt.max(z) * f) {
+        if taken
+            .iter()
+            .any(|(f, zt)| (fm - f).abs() < 2.0 * zt.max(z) * f)
+        {
             continue;
         }
         taken.push((fm, z));
