@@ -307,8 +307,9 @@ fn grid_candidate(
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
     };
+    let (grid, n_tests) = profile_points(p, cand, &cur.residual);
     let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
-    for (g, phi) in cand.grid.iter().enumerate() {
+    for (g, phi) in grid.iter().enumerate() {
         let mut t = cur.theta.clone();
         t.extend_from_slice(phi);
         let Some(mut rg) = eval(&t) else { continue };
@@ -355,12 +356,41 @@ fn grid_candidate(
         score: gain.max(0.0),
         basis,
         kept: (0..np).collect(),
-        start: cand.grid[g].clone(),
+        start: grid[g].clone(),
         gauge: Vec::new(),
         absorbed_by: Vec::new(),
-        n_tests: cand.grid.len(),
+        n_tests,
         theta_start,
     })
+}
+
+/// The profile points of a grid-screened candidate and the number of tests its best
+/// point is selected from: the grid, plus for a record length (`delay_scan`) the lags
+/// of the current residual's lag scan ([`crate::candidates::delay_peaks`]) over
+/// 1/(8Δf)·0.9 < T < 0.95/Δf, counted as the number of independent lags scanned.
+fn profile_points(p: &Problem, cand: &Candidate, residual: &[f64]) -> (Vec<Vec<f64>>, usize) {
+    let mut grid = cand.grid.clone();
+    let f = &p.layout.frequency_hz;
+    let nl = f.len();
+    if !cand.delay_scan || nl < 2 {
+        return (grid.clone(), grid.len());
+    }
+    let df = (f[nl - 1] - f[0]) / (nl - 1) as f64;
+    let rows: Vec<(usize, usize, c64)> = p
+        .used
+        .iter()
+        .enumerate()
+        .map(|(j, &i)| {
+            (
+                i / nl,
+                i % nl,
+                c64::new(residual[2 * j], residual[2 * j + 1]),
+            )
+        })
+        .collect();
+    let (taus, m) = crate::candidates::delay_peaks(&rows, f, 0.9 / (8.0 * df), 0.95 / df, 4);
+    grid.extend(taus.iter().map(|t| vec![1.0 / t]));
+    (grid, cand.grid.len() + m)
 }
 
 /// Relative singular value below which a candidate direction counts as absorbed (no
@@ -672,9 +702,9 @@ fn model_modes_band(
 
 /// Runs the model check of a recording (`geometry`, `frf`) against a nominal spec.
 /// With the noise estimated from the data and an effect accepted, the noise is
-/// re-estimated from the final model's residual and, if that changes the final χ² by
-/// more than 2 standard errors of the variance scales, the check is run once more
-/// with it (see [`noise::estimate_from_residual`]).
+/// re-estimated from the final model's residual and, if that moves the final χ²/ν by
+/// more than the half-width of its noise band, the check is run once more with it
+/// (see [`noise::estimate_from_residual`]).
 pub fn check(
     spec: &CampaignSpec,
     geometry: &Geometry,
@@ -692,22 +722,26 @@ pub fn check(
     // accepted effects explain (a leakage ripple) as noise.
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
+    // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
+    // (χ²/ν · ρ), moves by more than the half-width 3s of that noise's band,
+    // s² = 2/ν + se² (see `noise_band`): only then can it change the verdict.
     let rho = chi2_ratio(&first, &nf.sigma);
-    let se =
-        (first.report.noise.variance_scale_se.powi(2) + nf.model.variance_scale_se.powi(2)).sqrt();
+    let s = (2.0 / first.report.nu_after + nf.model.variance_scale_se.powi(2)).sqrt();
     let note = format!(
-        "noise re-estimated from the residual of the final model: χ² of that model changes by the factor ρ = {rho:.3} (relative SE of the two variance scales {se:.3})"
+        "noise re-estimated from the residual of the final model: its χ² changes by the factor ρ = {rho:.3} (band half-width 3s = {:.3})",
+        3.0 * s
     );
-    if (rho - 1.0).abs() <= 2.0 * se {
+    if (rho - 1.0).abs() <= 3.0 * s {
         let mut first = first;
-        first.report.method.push(format!(
-            "{note}: within 2 SE, the data-only estimate is kept"
-        ));
+        first
+            .report
+            .method
+            .push(format!("{note}: within it, the data-only estimate is kept"));
         return Ok(first);
     }
     let mut second = check_with(spec, geometry, frf, options, Some((nf.model, nf.sigma)))?;
     second.report.method.push(format!(
-        "{note}: beyond 2 SE, so the check was rerun with it (first pass: {})",
+        "{note}: beyond it, so the check was rerun with it (first pass: {})",
         first.report.verdict
     ));
     Ok(second)
@@ -744,7 +778,7 @@ fn check_with(
     let y = &frf.values;
     let mut warnings = Vec::new();
     let mut method = vec![
-        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if χ² changes by more than 2 SE); line-to-line correlation κ = 1 assumed".to_string(),
+        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
         "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
         "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
         "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10); backward elimination after each acceptance".to_string(),
