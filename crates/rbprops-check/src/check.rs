@@ -781,8 +781,8 @@ fn check_with(
         "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
         "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
         "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
-        "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10); backward elimination after each acceptance".to_string(),
-        "not implemented: leave-one-excitation-out folds, bootstrap calibration of the screening threshold".to_string(),
+        "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10); backward elimination after each acceptance".to_string(),
+        "not implemented: bootstrap calibration of the screening threshold".to_string(),
     ];
     // Stage 0: noise floor.
     let (noise_model, sigma) = match (noise_override, &options.noise) {
@@ -878,7 +878,10 @@ fn check_with(
     let ln_n = n_real.ln();
     let mut excluded: Vec<usize> = Vec::new();
     let folds = crate::cv::folds_of(&p.used, nl, crate::cv::FOLDS);
+    let exc_folds = crate::cv::excitation_folds_of(&p.used, nch * nl);
+    let loeo = options.cross_validation && nex >= 3;
     let mut accepted_cv: Vec<Option<HeldOutCheck>> = Vec::new();
+    let mut accepted_loeo: Vec<Option<HeldOutCheck>> = Vec::new();
     for step in 1..=options.max_effects {
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
         let todo: Vec<usize> = (0..p.cands.len())
@@ -1055,9 +1058,15 @@ fn check_with(
             ok: bool,
             why: String,
             held_out: Option<HeldOutCheck>,
+            held_out_exc: Option<HeldOutCheck>,
         }
         let cv_without = if options.cross_validation {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, &folds, crate::cv::FOLDS)
+        } else {
+            Vec::new()
+        };
+        let loeo_without = if loeo {
+            crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, &exc_folds, nex)
         } else {
             Vec::new()
         };
@@ -1143,6 +1152,23 @@ fn check_with(
             } else {
                 None
             };
+            let held_out_exc = if loeo && why.is_empty() {
+                let with = crate::cv::held_out_residuals(&f.residual, &f.jacobian, &exc_folds, nex);
+                let h = crate::cv::compare_excitations(&loeo_without, &with, &exc_folds, nex);
+                if !h.passed {
+                    why.push(format!(
+                        "a held-out excitation gets worse (held-out χ² change / SE per excitation: {})",
+                        h.fold_z
+                            .iter()
+                            .map(|z| format!("{z:.1}"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ));
+                }
+                Some(h)
+            } else {
+                None
+            };
             for e in screening.iter_mut().rev() {
                 if e.step == step && e.id == cand.id {
                     e.refit_delta_chi2 = Some(dchi2);
@@ -1159,6 +1185,7 @@ fn check_with(
                 ok: why.is_empty(),
                 why: why.join("; "),
                 held_out,
+                held_out_exc,
             });
         }
         evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic).then(a.c.cmp(&b.c)));
@@ -1242,6 +1269,7 @@ fn check_with(
             .1
             .n_tests;
         accepted_cv.push(best.held_out.clone());
+        accepted_loeo.push(best.held_out_exc.clone());
         accepted_stats.push((
             best.c,
             best.dchi2,
@@ -1282,6 +1310,7 @@ fn check_with(
                     );
                     accepted_stats.remove(k);
                     accepted_cv.remove(k);
+                    accepted_loeo.remove(k);
                     active = without;
                     cur = f_wo;
                 } else {
@@ -1402,6 +1431,7 @@ fn check_with(
             inertia_change: ch,
             gauge_directions: a.gauge.clone(),
             held_out: accepted_cv[k].clone(),
+            held_out_excitations: accepted_loeo[k].clone(),
         });
     }
     let (mut improved_spec, fx) = p.build(&cur.theta, &[])?;

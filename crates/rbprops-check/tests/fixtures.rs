@@ -783,6 +783,18 @@ fn accepted_effects_report_their_held_out_check() {
     ] {
         assert!(k.get(key).is_some(), "no {key} in {k}");
     }
+    // Three excitations: the leave-one-excitation-out check is run and passes for a
+    // true effect whose parameters all excitations share.
+    let x = a
+        .held_out_excitations
+        .as_ref()
+        .expect("leave-one-excitation-out check reported");
+    assert!(x.passed && x.folds == 3 && x.fold_z.len() == 3, "{x:?}");
+    let k = &json["accepted"][0]["held_out_excitations"];
+    assert!(
+        k.get("fold_z").is_some() && k.get("passed").is_some(),
+        "{k}"
+    );
 }
 
 /// Leakage of unwindowed records (E6, `record_truncation`), with the noise estimated
