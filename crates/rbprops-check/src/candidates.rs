@@ -29,7 +29,9 @@
 //! - `record_truncation` through 1/T. Its signature (residues scaled by 1 − e^{λT},
 //!   leakage ripple) vanishes faster than any power of 1/T at 1/T = 0, so no score test
 //!   can see it: it is screened by a profile over T = 1/(kΔf), k = 1..8 (the DFT
-//!   record of the recording's line spacing Δf, zero-padded k times).
+//!   record of the recording's line spacing Δf, zero-padded k times), completed by the
+//!   lags where the residual's lag transform rises or peaks ([`delay_peaks`]): any
+//!   1/(8Δf) < T < 1/Δf, the refit then optimises 1/T continuously.
 //! - `cord_mass` with one mass per length μ and one length ℓ for all cords. At first
 //!   order in μ a massive cord is a point mass μℓ/3 at its attachment (absorbed by the
 //!   free inertia); its visible part, the string modes `f_n = (n/2ℓ)√(T/μ)`, is
@@ -61,6 +63,9 @@ pub struct Candidate {
     /// screened by a profile over these parameter points (linearised likelihood ratio
     /// with the current model's parameters re-adjusted) instead of a score test.
     pub grid: Vec<Vec<f64>>,
+    /// The candidate is a record length T seen through φ = 1/T: besides its grid, its
+    /// profile also tries the lags [`delay_peaks`] finds in the current residual.
+    pub delay_scan: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -782,6 +787,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                     source: "rbprops-sim",
                     reveal,
                     grid: Vec::new(),
+                    delay_scan: false,
                 });
             }
             Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),
@@ -808,6 +814,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             },
             reveal: k.reveal(),
             grid: Vec::new(),
+            delay_scan: false,
         });
     }
     if rbprops_sim::effects::KNOWN_EFFECTS.contains(&"transducer_highpass")
@@ -835,15 +842,17 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
             grid: Vec::new(),
+            delay_scan: false,
         });
     }
     if !in_spec.contains(&"record_truncation") {
         let (title, reveal) = describe("record_truncation");
         // The record length is 1/Δf of the recording's lines, or a fraction of it
-        // when the records were zero-padded: T = 1/(kΔf), k = 1..8. (The leakage
-        // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so only
-        // these structural values can be found from a profile; others need side
-        // information.)
+        // when the records were zero-padded: T = 1/(kΔf), k = 1..8. The leakage
+        // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so a
+        // record padded by a non-integer factor (to a power of two) is off this grid
+        // and outside the refit's reach from it: such a T is located by the lag scan
+        // of the residual (`delay_scan`, [`delay_peaks`]) and added to the profile.
         let fr = &spec.frequency;
         let df = if fr.lines > 1 && fr.stop_hz > fr.start_hz {
             (fr.stop_hz - fr.start_hz) / (fr.lines - 1) as f64
@@ -872,6 +881,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
             grid,
+            delay_scan: true,
         });
     }
     if !in_spec.contains(&"cord_mass") && spec.setups.iter().any(|s| !s.springs.is_empty()) {
@@ -914,6 +924,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             source: "rbprops-sim (screened by a parameter profile)",
             reveal,
             grid,
+            delay_scan: false,
         });
     }
     if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
@@ -1011,4 +1022,86 @@ pub fn local_effect(
         .find(|k| k.id() == id)
         .ok_or_else(|| format!("no local effect '{id}'"))?;
     LocalEffect::neutral(*k, spec, &g).with_values(values)
+}
+
+/// Lag scan of a residual for a truncated record (`record_truncation`). The leakage of a
+/// record of length T is the impulse response's tail cut off at T, which at the lines
+/// f_k reads `D(f_k) = −Σ_r R_r e^{λ_r T} e^{−i2πf_kT}/(i2πf_k − λ_r) + c.c.`: a smooth
+/// envelope times e^{−i2πf_kT}. The tapered lag transform of the residual of FRF b,
+/// `S_b(τ) = Σ_k w_k r_{b,k} e^{+i2πf_kτ}` (Hann taper w over the lines, so a step in
+/// lag is smoothed monotonically), summed as `P(τ) = Σ_b |S_b(τ)|²`, therefore steps up
+/// at τ = T and decays after it. The lags of the largest local maxima of dP/dτ and of P
+/// in `[tau_lo, tau_hi]` (parabolic refinement, at most `n`, at least a resolution cell
+/// 1/B apart; B the bandwidth) are returned with M = ⌈(tau_hi − tau_lo) B⌉, the number
+/// of independent lags scanned (the profile is Bonferroni corrected for them).
+/// `rows`: (FRF index, line index, normalised residual).
+pub fn delay_peaks(
+    rows: &[(usize, usize, rbprops_core::c64)],
+    freqs: &[f64],
+    tau_lo: f64,
+    tau_hi: f64,
+    n: usize,
+) -> (Vec<f64>, usize) {
+    use rayon::prelude::*;
+    use rbprops_core::c64;
+    let nl = freqs.len();
+    if nl < 2 || !(tau_hi > tau_lo) {
+        return (Vec::new(), 0);
+    }
+    let band = freqs[nl - 1] - freqs[0];
+    let n_frf = rows.iter().map(|r| r.0 + 1).max().unwrap_or(0);
+    let mut dense = vec![c64::new(0.0, 0.0); n_frf * nl];
+    for &(b, k, v) in rows {
+        let w = 0.5 - 0.5 * (std::f64::consts::TAU * k as f64 / (nl - 1) as f64).cos();
+        dense[b * nl + k] = v * w;
+    }
+    let step = 1.0 / (4.0 * band);
+    let m = ((tau_hi - tau_lo) / step).ceil() as usize + 1;
+    let p: Vec<f64> = (0..m)
+        .into_par_iter()
+        .map(|j| {
+            let tau = tau_lo + j as f64 * step;
+            let ph: Vec<c64> = freqs
+                .iter()
+                .map(|f| c64::from_polar(1.0, std::f64::consts::TAU * f * tau))
+                .collect();
+            (0..n_frf)
+                .map(|b| {
+                    dense[b * nl..(b + 1) * nl]
+                        .iter()
+                        .zip(&ph)
+                        .map(|(x, e)| x * e)
+                        .sum::<c64>()
+                        .norm_sqr()
+                })
+                .sum()
+        })
+        .collect();
+    let dp: Vec<f64> = (0..m)
+        .map(|j| p[(j + 1).min(m - 1)] - p[j.saturating_sub(1)])
+        .collect();
+    let mut picks: Vec<(f64, f64)> = Vec::new();
+    for series in [&dp, &p] {
+        let mut maxima: Vec<(f64, f64)> = (1..m.saturating_sub(1))
+            .filter(|&j| series[j] > series[j - 1] && series[j] >= series[j + 1])
+            .map(|j| {
+                // Parabola through the three samples around the maximum.
+                let (a, b, c) = (series[j - 1], series[j], series[j + 1]);
+                let den = a - 2.0 * b + c;
+                let off = if den < 0.0 { 0.5 * (a - c) / den } else { 0.0 };
+                (b, tau_lo + (j as f64 + off) * step)
+            })
+            .collect();
+        maxima.sort_by(|x, y| y.0.total_cmp(&x.0));
+        for (_, tau) in maxima.into_iter().take(n.div_ceil(2)) {
+            if picks.iter().all(|q| (q.1 - tau).abs() > 1.0 / band) {
+                picks.push((0.0, tau));
+            }
+        }
+    }
+    let independent = ((tau_hi - tau_lo) * band).ceil() as usize;
+    (
+        picks.into_iter().map(|q| q.1).take(n).collect(),
+        independent,
+    )
 }

@@ -23,7 +23,9 @@
 //! accepted only if Δχ² > χ²_{d,1−α/N_cand}, ΔBIC = Δχ² − d ln(2N) > 10, its Wald
 //! statistic exceeds χ²_{d,0.999}, no parameter is pinned at a bound and its held-out
 //! χ² ([`cv`]: 10 interleaved frequency-block folds, one-step refit without each fold)
-//! drops by > 2 SE and in ≥ 80 % of the folds; a rival within
+//! drops by > 2 SE and in ≥ 80 % of the folds, and, with ≥ 3 excitations, no held-out
+//! excitation (leave-one-excitation-out folds, `held_out_excitations` in the report) is
+//! worse by more than 2 of its standard errors; a rival within
 //! ΔBIC 10 whose signature has canonical correlation > 0.9 makes an ambiguous family.
 //! After each acceptance a backward check drops earlier effects that no longer pass.
 //! Effects with rank 0 (absorbed by the free parameters) are reported not observable,
@@ -37,9 +39,13 @@
 //! they are screened by a profile over a parameter grid (chord-refined re-adjustment of
 //! the current parameters, Bonferroni over the grid), see [`candidates`].
 //!
-//! Not implemented (see the report's `method` field): leave-one-excitation-out folds,
-//! bootstrap calibration of the screening threshold, line-to-line noise correlation
-//! (κ = 1 assumed).
+//! The data-only noise estimate reads deterministic structure the local polynomial
+//! cannot follow (a leakage ripple) as noise; when effects are accepted the noise is
+//! re-estimated from the final model's residual and the check rerun with it if that
+//! moves χ²/ν by more than its band's half-width ([`noise::estimate_from_residual`]).
+//!
+//! Not implemented (see the report's `method` field): bootstrap calibration of the
+//! screening threshold, line-to-line noise correlation (κ = 1 assumed).
 //!
 //! ```no_run
 //! # fn demo(spec: &rbprops_sim::CampaignSpec, g: &rbprops_core::Geometry, frf: &rbprops_core::FrfSet) {

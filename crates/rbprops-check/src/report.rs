@@ -39,6 +39,9 @@ pub struct AcceptedEffect {
     /// Held-out check (cross-validation) of the effect when it was accepted; `None`
     /// when the check was switched off.
     pub held_out: Option<HeldOutCheck>,
+    /// Leave-one-excitation-out check (recordings with ≥ 3 excitations; `None`
+    /// otherwise or when the check was switched off).
+    pub held_out_excitations: Option<HeldOutCheck>,
 }
 
 /// Held-out (cross-validation) evidence for an effect (research note §6, A2).
@@ -53,8 +56,13 @@ pub struct HeldOutCheck {
     pub standard_error: f64,
     /// Folds in which the held-out χ² decreased.
     pub folds_improved: usize,
-    /// Decrease > 2 standard errors and in ≥ 80 % of the folds.
+    /// Frequency folds: decrease > 2 standard errors and in ≥ 80 % of the folds.
+    /// Excitation folds: no held-out excitation worse by > 2 of its standard errors.
     pub passed: bool,
+    /// Per fold, the held-out χ² decrease over its own standard error (excitation
+    /// folds only; empty for frequency folds).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fold_z: Vec<f64>,
 }
 
 /// Effects that fit about equally well and could not be separated on these data.
