@@ -939,6 +939,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
             reveal,
             grid: Vec::new(),
+            delay_scan: false,
         });
     }
     (out, notes)

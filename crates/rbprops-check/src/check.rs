@@ -287,8 +287,8 @@ fn grid_candidate(
     c: usize,
     q0: &DMatrix<f64>,
 ) -> Result<Score, CheckError> {
-    let grid = &p.cands[c].grid;
-    profile_candidate(p, cur, active, c, q0, grid, grid.len())
+    let (grid, n_tests) = profile_points(p, &p.cands[c], &cur.residual);
+    profile_candidate(p, cur, active, c, q0, &grid, n_tests)
 }
 
 /// An in-band resonance ([`crate::resonance`]): the profile over (ω_m, ζ_m) of the
@@ -346,7 +346,6 @@ fn profile_candidate(
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
     };
-    let (grid, n_tests) = profile_points(p, cand, &cur.residual);
     let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
     for (g, phi) in grid.iter().enumerate() {
         let mut t = cur.theta.clone();

@@ -1,10 +1,11 @@
 //! Per-excitation cost of the default fit on 9 channels × 4,096 lines (the issue's
 //! workload shape). Usage: `RAYON_NUM_THREADS=1 cargo run --release -p rbprops-modal
-//! --example timing [--features phase-timing] -- [excitations]`; prints ms per
-//! excitation (and per phase with the feature).
+//! --example timing [--features phase-timing] -- [excitations] [setup]`; prints ms per
+//! excitation (and per phase with the feature). With `setup`, one pole set per
+//! suspension set-up (`--poles setup`) instead of per excitation.
 
 use rbprops_core::{FrfSet, Quantity};
-use rbprops_modal::{fit_campaign, testdata, FitOptions};
+use rbprops_modal::{fit_campaign, testdata, FitOptions, PoleMode};
 use std::time::Instant;
 
 fn main() {
@@ -33,7 +34,10 @@ fn main() {
         n_channels: base.frf.n_channels,
         values,
     };
-    let opts = FitOptions::default();
+    let mut opts = FitOptions::default();
+    if std::env::args().nth(2).as_deref() == Some("setup") {
+        opts.poles = PoleMode::PerSetup;
+    }
     let t = Instant::now();
     let out = fit_campaign(&geometry, &frf, &opts).unwrap();
     let dt = t.elapsed().as_secs_f64();
@@ -44,8 +48,9 @@ fn main() {
         }
     }
     println!(
-        "{batch} excitations, {} threads: {:.2} ms per excitation ({modes} modes)",
+        "{batch} excitations, {} threads, poles {:?}: {:.2} ms per excitation ({modes} modes)",
         rayon::current_num_threads(),
+        opts.poles,
         1e3 * dt / batch as f64
     );
     if let Some(totals) = rbprops_modal::prof::totals() {
