@@ -37,7 +37,10 @@
 //! Effects whose signature vanishes to every order at their neutral point
 //! (`record_truncation` as T → ∞, `cord_mass` as μ → 0) cannot be seen by a score test;
 //! they are screened by a profile over a parameter grid (chord-refined re-adjustment of
-//! the current parameters, Bonferroni over the grid), see [`candidates`].
+//! the current parameters, Bonferroni over the grid), see [`candidates`]. An elastic
+//! mode (in the band or above it) is bilinear in its shapes, so the same holds; it is
+//! fitted as one pole with a residue per channel and excitation, started from a profile
+//! over (f, ζ) of the linear residue fit to the current residual ([`resonance`]).
 //!
 //! The data-only noise estimate reads deterministic structure the local polynomial
 //! cannot follow (a leakage ripple) as noise; when effects are accepted the noise is
