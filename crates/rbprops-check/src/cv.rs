@@ -147,18 +147,23 @@ pub fn compare_excitations(
 mod tests {
     use super::*;
 
+    /// Uniform draws on [−½, ½) from a 64-bit LCG (reproducible, no dependency).
+    fn uniform(seed: u64) -> impl FnMut() -> f64 {
+        let mut s = seed;
+        move || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        }
+    }
+
     /// Linear model y = a + noise; adding a useless regressor (noise-fitting) does not
     /// pass, adding the true slope does.
     #[test]
     fn held_out_rejects_a_noise_regressor_and_keeps_a_real_one() {
         let n = 2000;
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
+        let mut rnd = uniform(12345);
         let x: Vec<f64> = (0..n).map(|i| i as f64 / n as f64).collect();
         let e: Vec<f64> = (0..n).map(|_| rnd() * 3.4641).collect();
         let z: Vec<f64> = (0..n).map(|_| rnd()).collect();
@@ -202,13 +207,7 @@ mod tests {
     fn leave_one_excitation_out_rejects_a_parameter_one_excitation_contradicts() {
         let (nl, nex) = (400, 3);
         let n = nl * nex;
-        let mut st = 777u64;
-        let mut rnd = || {
-            st = st
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((st >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        };
+        let mut rnd = uniform(777);
         // One real value per "used value" (the imaginary row is zero noise-free data).
         let x: Vec<f64> = (0..n).map(|i| (i % nl) as f64 / nl as f64).collect();
         let eps: Vec<f64> = (0..2 * n).map(|_| rnd() * 3.4641).collect();

@@ -103,8 +103,10 @@ impl Effect for InBandResonance {
             ParamInfo {
                 name: "damping_ratio".into(),
                 unit: "1",
+                // A resonance, not a broadband correction: beyond ζ = 0.25 the pole
+                // would only soak up misfit of other origin (pinned there = rejected).
                 lower: 1e-5,
-                upper: 0.5,
+                upper: 0.25,
                 plausible: (0.001, 0.1),
             },
         ];

@@ -514,6 +514,16 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 }
             }
         }
+        // Converged when even the undamped Gauss–Newton step predicts a cost drop below
+        // the stall tolerance (see below): saves evaluating a step that cannot matter.
+        let gn_rhs = Mat::from_fn(np, 1, |i, _| g[i]);
+        if let Some(gn) = linalg::solve_square(&jtj, &gn_rhs) {
+            let predicted: f64 = (0..np).map(|i| gn[(i, 0)] * g[i]).sum();
+            if predicted.is_finite() && predicted >= 0.0 && predicted <= 1e-10 * t.cost {
+                converged = true;
+                break;
+            }
+        }
         // LM step with Marquardt scaling; more damping until the cost drops.
         let mut accepted = false;
         for _ in 0..12 {

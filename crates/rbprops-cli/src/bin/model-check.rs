@@ -27,7 +27,8 @@ enum OutFormat {
 struct Args {
     /// The nominal campaign spec (TOML, as frf-sim reads it). Omit with --example.
     spec: Option<PathBuf>,
-    /// The recording: MCAP file, CSV directory, or `-`/absent for MCAP on stdin.
+    /// The recording: MCAP file, CSV directory, UFF file (.uff/.unv/.58b), or `-`/absent
+    /// for MCAP on stdin.
     #[arg(short, long)]
     input: Option<PathBuf>,
     /// Use a built-in campaign as the nominal spec.
