@@ -1,12 +1,16 @@
 #!/usr/bin/env python3
-"""Generality probe for `model-check`: a test article unlike the fixtures' Test Case II.
+"""Generality probe for `model-check`: test articles unlike the fixtures' Test Case II.
 
-An 85 kg body standing on four air springs (not hanging), four triaxial accelerometers,
-four hammer hits (one oblique), mobility FRFs on a 0.5-15 Hz zoom band with 1,400 lines,
-2 % modal damping, 0.5 % noise. Each case hides one or two effects from the nominal
-spec; the script simulates the recordings with frf-sim, runs model-check on each and
-prints what it named, chi2/nu before -> after against the noise band, the mass it ends
-with and the run time.
+- `standing`: an 85 kg body on four air springs (not hanging), four triaxial
+  accelerometers, four hammer hits (one oblique), mobility FRFs on a 0.5-15 Hz zoom
+  band with 1,400 lines, 2 % modal damping, 0.5 % noise.
+- `hanging`: a 40 kg body hung from three cords, three triaxial and three oblique uniaxial
+  accelerometers, three hits, receptance FRFs on a 0-20 Hz baseband with 1,200 lines,
+  1 % modal damping, 1 % noise.
+
+Each case hides one or two effects from the nominal spec; the script simulates the
+recordings with frf-sim, runs model-check on each and prints what it named, chi2/nu
+before -> after against the noise band, the mass it ends with and the run time.
 
 usage: scripts/model_check_probe.py [--bin target/release] [--dir DIR] [case ...]
 """
@@ -23,7 +27,7 @@ SENSORS = [(0.05, -0.35, 0.5), (0.85, -0.35, 0.05), (0.85, 0.25, 0.5), (0.05, 0.
 HITS = [((0.9, 0.0, 0.4), (-1, 0, 0)), ((0.5, -0.4, 0.3), (0, 1, 0)),
         ((0.1, 0.2, 0.55), (0, 0, -1)), ((0.7, 0.3, 0.2), (0.6, -0.8, 0.0))]
 
-# name -> (truth mass, [effect entries], what should be named)
+# name -> (truth mass, [effect entries], what should be named); `standing` article.
 CASES = {
     "null": (87.0, [], []),
     "gain": (85.0, ['id = "channel_gain"\ngains = { A2y = 1.04, A4z = 0.96 }'], ["channel_gain"]),
@@ -37,6 +41,58 @@ CASES = {
                            'id = "channel_gain"\ngains = { A2y = 1.04, A4z = 0.96 }'],
                     ["exponential_window", "channel_gain"]),
 }
+
+
+# The `hanging` article's cases (names prefixed `hanging-`).
+HANGING = {
+    "hanging-null": (40.8, [], []),
+    "hanging-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"]),
+    "hanging-gravity+misorientation": (
+        40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]',
+               'id = "sensor_misorientation"\nrotations_rad = { T2 = [0.0, 0.03, -0.03] }'],
+        ["gravity_stiffness", "sensor_misorientation"]),
+    "hanging-force-location": (
+        40.0, ['id = "force_location"\noffsets_m = { h2 = [0.006, 0.0, -0.005] }'], ["force_location"]),
+}
+
+
+def spec_hanging(name: str, mass: float, effects: list, noise: float) -> str:
+    s = f'''name = "{name}"
+description = "model-check probe: {name}"
+seed = 11
+quantity = "receptance"
+
+[frequency]
+start_hz = 0.0
+stop_hz = 20.0
+lines = 1200
+
+[body]
+mass_kg = {mass}
+com_m = [0.0, 0.05, -0.1]
+moments_kg_m2 = [1.9, 1.4, 2.6]
+products_kg_m2 = {{ xy = -0.1, xz = 0.05, yz = 0.12 }}
+
+[[setup]]
+id = "H"
+description = "three cords"
+'''
+    for x, y in [(-0.3, -0.2), (0.3, -0.2), (0.0, 0.35)]:
+        s += f"[[setup.spring]]\nat_m = [{x}, {y}, 0.2]\nstiffness_n_per_m = [300.0, 300.0, 9000.0]\n"
+    for i, p in enumerate([(-0.25, -0.15, 0.18), (0.25, 0.3, -0.35), (0.1, -0.3, -0.25)]):
+        s += f'\n[[sensor]]\nid = "T{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\nkind = "triaxial"\n'
+    for i, (p, d) in enumerate([((0.3, -0.2, -0.3), (0.6, 0.0, 0.8)), ((-0.3, 0.3, 0.0), (0.0, 0.8, -0.6)),
+                                ((0.28, 0.1, 0.15), (0.0, 0.0, 1.0))]):
+        s += (f'\n[[sensor]]\nid = "U{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\nkind = "uniaxial"\n'
+              f'direction = [{d[0]}, {d[1]}, {d[2]}]\n')
+    for i, (p, d) in enumerate([((0.32, 0.0, -0.1), (-1, 0, 0)), ((0.0, -0.3, -0.2), (0, 1, 0)),
+                                ((-0.2, 0.2, 0.2), (0, 0, -1))]):
+        s += (f'\n[[excitation]]\nid = "h{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\n'
+              f'direction = [{d[0]}, {d[1]}, {d[2]}]\nsetup = "H"\n')
+    s += f'\n[damping]\nmodel = "modal"\nratio = 0.01\n\n[noise]\nrelative = {noise}\nfloor = 0.0\n'
+    for e in effects:
+        s += f"\n[[effect]]\n{e}\n"
+    return s
 
 
 def spec(name: str, mass: float, effects: list, noise: float) -> str:
@@ -77,17 +133,20 @@ def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", default="target/release")
     ap.add_argument("--dir", type=Path)
-    ap.add_argument("cases", nargs="*", default=list(CASES))
+    ap.add_argument("cases", nargs="*", default=list(CASES) + list(HANGING))
     a = ap.parse_args()
     out = a.dir or Path(tempfile.mkdtemp(prefix="model-check-probe-"))
     out.mkdir(parents=True, exist_ok=True)
-    nominal = out / "nominal.toml"
-    nominal.write_text(spec("nominal", 85.0, [], 0.0))
+    (out / "nominal.toml").write_text(spec("nominal", 85.0, [], 0.0))
+    (out / "nominal-hanging.toml").write_text(spec_hanging("nominal", 40.0, [], 0.0))
     wrong = 0
     for name in a.cases:
-        mass, effects, expect = CASES[name]
+        hanging = name in HANGING
+        mass, effects, expect = (HANGING if hanging else CASES)[name]
+        nominal = out / ("nominal-hanging.toml" if hanging else "nominal.toml")
         toml = out / f"{name}.toml"
-        toml.write_text(spec(name, mass, effects, 0.005))
+        toml.write_text(spec_hanging(name, mass, effects, 0.01) if hanging
+                        else spec(name, mass, effects, 0.005))
         rec = out / f"{name}.mcap"
         subprocess.run([f"{a.bin}/frf-sim", str(toml), "-o", str(rec)], check=True)
         t0 = time.time()
