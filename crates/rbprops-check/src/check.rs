@@ -1099,21 +1099,30 @@ fn check_with(
                         }
                     }
                 }
-                (
-                    *c,
-                    p.fit(
-                        &format!("refit {}", p.cands[*c].id),
-                        &t0,
-                        &act,
-                        // A profile start is far from the neutral point and often
-                        // from the optimum too: allow more iterations.
-                        if s.n_tests > 1 {
-                            4 * options.max_iterations
-                        } else {
-                            options.max_iterations
-                        },
-                    ),
-                )
+                // A profile start is far from the neutral point and often from the
+                // optimum too: allow more iterations.
+                let iterations = if s.n_tests > 1 {
+                    4 * options.max_iterations
+                } else {
+                    options.max_iterations
+                };
+                let stage = format!("refit {}", p.cands[*c].id);
+                let mut fit = p.fit(&stage, &t0, &act, iterations);
+                // With nothing accepted yet, the baseline may have drifted far to stand in
+                // for the missing physics (a hanging body's mass doubled without its
+                // pendulum stiffness), into a basin the true effect cannot leave. The
+                // nominal parameters are the user's prior: refit from them too, keep the
+                // better.
+                if active.is_empty() {
+                    let mut tn = theta_nom.clone();
+                    tn.extend_from_slice(&s.start);
+                    if let Ok(f_nom) = p.fit(&stage, &tn, &act, iterations) {
+                        if fit.as_ref().map_or(true, |f| f_nom.chi2 < f.chi2) {
+                            fit = Ok(f_nom);
+                        }
+                    }
+                }
+                (*c, fit)
             })
             .collect();
         // Evaluate each refit.
