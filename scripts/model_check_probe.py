@@ -56,18 +56,21 @@ HANGING = {
 }
 
 
+def header(name: str, seed: int, quantity: str, band: tuple) -> str:
+    """The spec's name, seed, quantity and frequency axis (start, stop, lines)."""
+    return (f'name = "{name}"\ndescription = "model-check probe: {name}"\nseed = {seed}\n'
+            f'quantity = "{quantity}"\n\n[frequency]\nstart_hz = {band[0]}\nstop_hz = {band[1]}\n'
+            f'lines = {band[2]}\n\n')
+
+
+def footer(ratio: float, noise: float, effects: list) -> str:
+    """Modal damping, relative noise and the hidden effects."""
+    s = f'\n[damping]\nmodel = "modal"\nratio = {ratio}\n\n[noise]\nrelative = {noise}\nfloor = 0.0\n'
+    return s + "".join(f"\n[[effect]]\n{e}\n" for e in effects)
+
+
 def spec_hanging(name: str, mass: float, effects: list, noise: float) -> str:
-    s = f'''name = "{name}"
-description = "model-check probe: {name}"
-seed = 11
-quantity = "receptance"
-
-[frequency]
-start_hz = 0.0
-stop_hz = 20.0
-lines = 1200
-
-[body]
+    s = header(name, 11, "receptance", (0.0, 20.0, 1200)) + f'''[body]
 mass_kg = {mass}
 com_m = [0.0, 0.05, -0.1]
 moments_kg_m2 = [1.9, 1.4, 2.6]
@@ -89,24 +92,11 @@ description = "three cords"
                                 ((-0.2, 0.2, 0.2), (0, 0, -1))]):
         s += (f'\n[[excitation]]\nid = "h{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\n'
               f'direction = [{d[0]}, {d[1]}, {d[2]}]\nsetup = "H"\n')
-    s += f'\n[damping]\nmodel = "modal"\nratio = 0.01\n\n[noise]\nrelative = {noise}\nfloor = 0.0\n'
-    for e in effects:
-        s += f"\n[[effect]]\n{e}\n"
-    return s
+    return s + footer(0.01, noise, effects)
 
 
 def spec(name: str, mass: float, effects: list, noise: float) -> str:
-    s = f'''name = "{name}"
-description = "model-check probe: {name}"
-seed = 7
-quantity = "mobility"
-
-[frequency]
-start_hz = 0.5
-stop_hz = 15.0
-lines = 1400
-
-[body]
+    s = header(name, 7, "mobility", (0.5, 15.0, 1400)) + f'''[body]
 mass_kg = {mass}
 com_m = [0.42, -0.08, 0.26]
 moments_kg_m2 = [6.2, 9.1, 11.5]
@@ -123,10 +113,7 @@ description = "air springs under the corners"
     for i, (p, d) in enumerate(HITS):
         s += (f'\n[[excitation]]\nid = "hit{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\n'
               f'direction = [{d[0]}, {d[1]}, {d[2]}]\nsetup = "S"\n')
-    s += f'\n[damping]\nmodel = "modal"\nratio = 0.02\n\n[noise]\nrelative = {noise}\nfloor = 0.0\n'
-    for e in effects:
-        s += f"\n[[effect]]\n{e}\n"
-    return s
+    return s + footer(0.02, noise, effects)
 
 
 def main() -> int:
