@@ -567,6 +567,23 @@ fn given(n_ch: usize, rel: f64) -> CheckOptions {
     o
 }
 
+/// One concealed-effect fixture: the recording simulated from the nominal spec with
+/// `effects` on (relative noise `rel`, `seed`), checked against the nominal spec with that
+/// noise given; prints its summary line. Returns the report and the truth spec.
+fn concealed(
+    label: &str,
+    effects: &[&str],
+    rel: f64,
+    seed: u64,
+) -> (ModelCheckReport, CampaignSpec) {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(&truth, effects, rel, seed);
+    let r = run(&nom, &g, &frf, &given(9, rel));
+    summary(label, &r, &truth.properties());
+    (r, truth)
+}
+
 /// One line per fixture for the closing notes (`--nocapture`).
 fn summary(label: &str, r: &ModelCheckReport, truth: &RigidBodyProperties) {
     eprintln!(
@@ -593,16 +610,12 @@ fn summary(label: &str, r: &ModelCheckReport, truth: &RigidBodyProperties) {
 /// pole with a residue per channel and excitation; the truth residues are ψ_c ψ_e.
 #[test]
 fn elastic_mode_in_the_band_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "elastic_mode (in band)",
         &["id = \"elastic_mode\"\nfrequency_hz = 10.5\ndamping_ratio = 0.02\nchannels = { 1x = 0.12, 2z = -0.15, 3y = 0.1 }\nexcitations = { force1 = 0.15, force3 = -0.1 }"],
         REL,
         58,
     );
-    let r = run(&nom, &g, &frf, &given(9, REL));
-    summary("elastic_mode (in band)", &r, &truth.properties());
     assert_found(&r, &["elastic_mode"], &truth.properties());
     let psi = |id: &str| match id {
         "1x" => 0.12,
@@ -633,32 +646,24 @@ fn elastic_mode_in_the_band_is_found() {
 /// (iω + σ)² factor and the common shift of every pole's decay rate.
 #[test]
 fn exponential_window_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "exponential_window",
         &["id = \"exponential_window\"\ndecay_per_s = 0.25"],
         0.02,
         51,
     );
-    let r = run(&nom, &g, &frf, &given(9, 0.02));
-    summary("exponential_window", &r, &truth.properties());
     assert_found(&r, &["exponential_window"], &truth.properties());
     within(param(&r, "exponential_window", "decay_per_s"), 0.25, 4.0);
 }
 
 #[test]
 fn force_location_error_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "force_location",
         &["id = \"force_location\"\noffsets_m = { force1 = [0.0, 0.004, -0.003] }"],
         REL,
         52,
     );
-    let r = run(&nom, &g, &frf, &given(9, REL));
-    summary("force_location", &r, &truth.properties());
     assert_found(&r, &["force_location"], &truth.properties());
     // Offsets of force1, force2, force3 (x, y, z each); a shift along a force's own
     // line of action changes nothing (gauge).
@@ -670,17 +675,13 @@ fn force_location_error_is_found() {
 
 #[test]
 fn force_gauge_mass_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "force_gauge_mass",
         &["id = \"force_gauge_mass\"\nmasses_kg = { force2 = 0.015 }"],
         0.005,
         // Not 53: that seed's noise draw alone gives χ²/ν 0.968 (−3.3σ) with no effect.
         57,
     );
-    let r = run(&nom, &g, &frf, &given(9, 0.005));
-    summary("force_gauge_mass", &r, &truth.properties());
     assert_found(&r, &["force_gauge_mass"], &truth.properties());
     within(
         param(&r, "force_gauge_mass", "masses_kg.force2"),
@@ -695,11 +696,12 @@ fn force_gauge_mass_is_found() {
 /// the free inertia is badly biased (the baseline mass is off by tens of percent).
 #[test]
 fn sensor_tilt_gravity_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(&truth, &["id = \"sensor_tilt_gravity\""], REL, 54);
-    let r = run(&nom, &g, &frf, &given(9, REL));
-    summary("sensor_tilt_gravity", &r, &truth.properties());
+    let (r, truth) = concealed(
+        "sensor_tilt_gravity",
+        &["id = \"sensor_tilt_gravity\""],
+        REL,
+        54,
+    );
     assert_found(&r, &["sensor_tilt_gravity"], &truth.properties());
     within(
         param(&r, "sensor_tilt_gravity", "g_m_per_s2"),
@@ -713,16 +715,12 @@ fn sensor_tilt_gravity_is_found() {
 /// fits (a gauge of the effect): only the rotational part is new physics.
 #[test]
 fn suspension_coupling_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "suspension_coupling",
         &["id = \"suspension_coupling\"\nrotational_n_m_per_rad = [0.5, 0.5, 0.2]\nlateral_n_per_m = 20.0"],
         REL,
         55,
     );
-    let r = run(&nom, &g, &frf, &given(9, REL));
-    summary("suspension_coupling", &r, &truth.properties());
     assert_found(&r, &["suspension_coupling"], &truth.properties());
     within_mod_gauge(&r, "suspension_coupling", &[0.5, 0.5, 0.2, 20.0], 4.0);
     let a = r
@@ -743,16 +741,12 @@ fn suspension_coupling_is_found() {
 /// screening over (μ, ℓ), and both parameters are recovered.
 #[test]
 fn cord_mass_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
+    let (r, truth) = concealed(
+        "cord_mass",
         &["id = \"cord_mass\"\nmass_per_length_kg_per_m = [0.08]\ncord_length_m = [1.0]"],
         REL,
         56,
     );
-    let r = run(&nom, &g, &frf, &given(9, REL));
-    summary("cord_mass", &r, &truth.properties());
     assert_found(&r, &["cord_mass"], &truth.properties());
     within(
         param(&r, "cord_mass", "mass_per_length_kg_per_m"),
