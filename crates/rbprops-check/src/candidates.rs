@@ -58,14 +58,27 @@ pub struct Candidate {
     /// What measurement or side information would reveal it when the free parameters
     /// absorb it.
     pub reveal: &'static str,
-    /// Non-empty for effects whose signature vanishes to every order at the neutral
-    /// point (a record length → ∞, a cord mass → 0 whose modes leave the band): they are
-    /// screened by a profile over these parameter points (linearised likelihood ratio
-    /// with the current model's parameters re-adjusted) instead of a score test.
-    pub grid: Vec<Vec<f64>>,
-    /// The candidate is a record length T seen through φ = 1/T: besides its grid, its
-    /// profile also tries the lags [`delay_peaks`] finds in the current residual.
-    pub delay_scan: bool,
+    /// How it is screened at the current model.
+    pub screening: Screening,
+}
+
+/// How a candidate is screened: its first-order evidence at the current model.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Screening {
+    /// Score (Lagrange-multiplier) test at the neutral point.
+    Score,
+    /// The signature vanishes to every order at the neutral point (a record length →
+    /// ∞, a cord mass → 0 whose modes leave the band), so no score exists: a profile
+    /// over these parameter points (linearised likelihood ratio with the current
+    /// model's parameters re-adjusted). With `delay_scan`, a record length seen through
+    /// φ = 1/T: the profile also tries the lags [`delay_peaks`] finds in the residual.
+    Profile { grid: Vec<Vec<f64>>, delay_scan: bool },
+    /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile
+    /// over (ω, ζ) of the linear residue fit to the residual proposes its points.
+    Resonance,
+    /// Point masses rigidly attached to the body: an exact gauge of the free inertia
+    /// unless the total mass is pinned by a weighed mass, then a score test.
+    RigidMassGauge,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -786,8 +799,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                     scales,
                     source: "rbprops-sim",
                     reveal,
-                    grid: Vec::new(),
-                    delay_scan: false,
+                    screening: Screening::Score,
                 });
             }
             Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),
@@ -813,8 +825,11 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 "rbprops-check (local)"
             },
             reveal: k.reveal(),
-            grid: Vec::new(),
-            delay_scan: false,
+            screening: if k == Kind::SensorMass {
+                Screening::RigidMassGauge
+            } else {
+                Screening::Score
+            },
         });
     }
     if rbprops_sim::effects::KNOWN_EFFECTS.contains(&"transducer_highpass")
@@ -841,8 +856,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             scales: vec![0.05],
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
-            grid: Vec::new(),
-            delay_scan: false,
+            screening: Screening::Score,
         });
     }
     if !in_spec.contains(&"record_truncation") {
@@ -880,8 +894,10 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             scales: vec![0.005],
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
-            grid,
-            delay_scan: true,
+            screening: Screening::Profile {
+                grid,
+                delay_scan: true,
+            },
         });
     }
     if !in_spec.contains(&"cord_mass") && spec.setups.iter().any(|s| !s.springs.is_empty()) {
@@ -923,8 +939,10 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             scales: vec![0.005, 0.05],
             source: "rbprops-sim (screened by a parameter profile)",
             reveal,
-            grid,
-            delay_scan: false,
+            screening: Screening::Profile {
+                grid,
+                delay_scan: false,
+            },
         });
     }
     if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
@@ -938,8 +956,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             effect: Box::new(e),
             source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
             reveal,
-            grid: Vec::new(),
-            delay_scan: false,
+            screening: Screening::Resonance,
         });
     }
     (out, notes)

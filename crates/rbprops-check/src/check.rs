@@ -4,7 +4,7 @@
 //! Follows the research note's §6 (missing-physics.md), with the deviations listed in
 //! the report's `method` field.
 
-use crate::candidates::{candidates, local_effect, Candidate};
+use crate::candidates::{candidates, local_effect, Candidate, Screening};
 use crate::error::CheckError;
 use crate::lm::{self, Bounds, Fit};
 use crate::locate::{bands, residual_map};
@@ -286,8 +286,10 @@ fn grid_candidate(
     active: &[Act],
     c: usize,
     q0: &DMatrix<f64>,
+    grid: &[Vec<f64>],
+    delay_scan: bool,
 ) -> Result<Score, CheckError> {
-    let (grid, n_tests) = profile_points(p, &p.cands[c], &cur.residual);
+    let (grid, n_tests) = profile_points(p, grid, delay_scan, &cur.residual);
     profile_candidate(p, cur, active, c, q0, &grid, n_tests)
 }
 
@@ -406,12 +408,18 @@ fn profile_candidate(
 /// point is selected from: the grid, plus for a record length (`delay_scan`) the lags
 /// of the current residual's lag scan ([`crate::candidates::delay_peaks`]) over
 /// 1/(8Δf)·0.9 < T < 0.95/Δf, counted as the number of independent lags scanned.
-fn profile_points(p: &Problem, cand: &Candidate, residual: &[f64]) -> (Vec<Vec<f64>>, usize) {
-    let mut grid = cand.grid.clone();
+fn profile_points(
+    p: &Problem,
+    grid: &[Vec<f64>],
+    delay_scan: bool,
+    residual: &[f64],
+) -> (Vec<Vec<f64>>, usize) {
+    let n_grid = grid.len();
+    let mut grid = grid.to_vec();
     let f = &p.layout.frequency_hz;
     let nl = f.len();
-    if !cand.delay_scan || nl < 2 {
-        return (grid.clone(), grid.len());
+    if !delay_scan || nl < 2 {
+        return (grid, n_grid);
     }
     let df = (f[nl - 1] - f[0]) / (nl - 1) as f64;
     let rows: Vec<(usize, usize, c64)> = p
@@ -428,7 +436,7 @@ fn profile_points(p: &Problem, cand: &Candidate, residual: &[f64]) -> (Vec<Vec<f
         .collect();
     let (taus, m) = crate::candidates::delay_peaks(&rows, f, 0.9 / (8.0 * df), 0.95 / df, 4);
     grid.extend(taus.iter().map(|t| vec![1.0 / t]));
-    (grid, cand.grid.len() + m)
+    (grid, n_grid + m)
 }
 
 /// The leave-one-excitation-out check vetoes only candidates whose fit reaches
@@ -954,14 +962,17 @@ fn check_with(
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
             .par_iter()
             .map(|&c| {
-                let s = if p.cands[c].id == "sensor_mass" && p.fixed_mass.is_none() {
-                    Ok(rigid_mass_gauge(r0_len))
-                } else if p.cands[c].id == "elastic_mode" {
-                    resonance_candidate(&p, &cur, &active, c, &q0)
-                } else if p.cands[c].grid.is_empty() {
-                    score_candidate(&p, &cur, &active, c, &q0)
-                } else {
-                    grid_candidate(&p, &cur, &active, c, &q0)
+                let s = match &p.cands[c].screening {
+                    Screening::RigidMassGauge if p.fixed_mass.is_none() => {
+                        Ok(rigid_mass_gauge(r0_len))
+                    }
+                    Screening::Score | Screening::RigidMassGauge => {
+                        score_candidate(&p, &cur, &active, c, &q0)
+                    }
+                    Screening::Profile { grid, delay_scan } => {
+                        grid_candidate(&p, &cur, &active, c, &q0, grid, *delay_scan)
+                    }
+                    Screening::Resonance => resonance_candidate(&p, &cur, &active, c, &q0),
                 };
                 (c, s)
             })
