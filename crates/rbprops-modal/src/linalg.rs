@@ -609,23 +609,41 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
                 let (hx, hy, hz) = (p / s, q / s, r / s);
                 let (q2, r2) = (q / p, r / p);
                 let three = k + 1 != h;
-                for j in k..=h {
-                    let mut t = a[at(k, j)] + q2 * a[at(k + 1, j)];
-                    if three {
-                        t += r2 * a[at(k + 2, j)];
-                        a[at(k + 2, j)] -= t * hz;
+                // Rows k, k+1 (and k+2), columns k..=h: contiguous slices, so the
+                // update runs without index checks (same operations, same order).
+                let (row0, rest) = a[k * n..].split_at_mut(n);
+                let (row1, rest) = rest.split_at_mut(n);
+                let (x0, x1) = (&mut row0[k..=h], &mut row1[k..=h]);
+                if three {
+                    let x2 = &mut rest[k..=h];
+                    for ((a0, a1), a2) in x0.iter_mut().zip(x1.iter_mut()).zip(x2.iter_mut()) {
+                        let t = *a0 + q2 * *a1 + r2 * *a2;
+                        *a2 -= t * hz;
+                        *a1 -= t * hy;
+                        *a0 -= t * hx;
                     }
-                    a[at(k + 1, j)] -= t * hy;
-                    a[at(k, j)] -= t * hx;
+                } else {
+                    for (a0, a1) in x0.iter_mut().zip(x1.iter_mut()) {
+                        let t = *a0 + q2 * *a1;
+                        *a1 -= t * hy;
+                        *a0 -= t * hx;
+                    }
                 }
                 for i in l..=h.min(k + 3) {
-                    let mut t = hx * a[at(i, k)] + hy * a[at(i, k + 1)];
                     if three {
-                        t += hz * a[at(i, k + 2)];
-                        a[at(i, k + 2)] -= t * r2;
+                        let c: &mut [f64; 3] =
+                            (&mut a[i * n + k..i * n + k + 3]).try_into().unwrap();
+                        let t = hx * c[0] + hy * c[1] + hz * c[2];
+                        c[2] -= t * r2;
+                        c[1] -= t * q2;
+                        c[0] -= t;
+                    } else {
+                        let c: &mut [f64; 2] =
+                            (&mut a[i * n + k..i * n + k + 2]).try_into().unwrap();
+                        let t = hx * c[0] + hy * c[1];
+                        c[1] -= t * q2;
+                        c[0] -= t;
                     }
-                    a[at(i, k + 1)] -= t * q2;
-                    a[at(i, k)] -= t;
                 }
             }
         }
