@@ -321,10 +321,15 @@ impl TallLs {
     /// Least-squares solution for every column of `b`: `(x, residuals b − Ax, residual
     /// sum of squares per column)`.
     pub fn solve(&self, b: &Mat<f64>) -> (Mat<f64>, Mat<f64>, Vec<f64>) {
-        let mut resid = b.clone();
+        self.solve_into(b.clone())
+    }
+
+    /// As [`TallLs::solve`], the residuals overwriting `b` (no copy of the data).
+    pub fn solve_into(&self, b: Mat<f64>) -> (Mat<f64>, Mat<f64>, Vec<f64>) {
+        let mut resid = b;
         let x = match &self.kind {
             LsKind::Gram(_, refine) => {
-                let mut x = t_mul(&self.a, b);
+                let mut x = t_mul(&self.a, &resid);
                 self.gram_solve(&mut x);
                 mul_add(&mut resid, &self.a, &x, -1.0);
                 if *refine {
@@ -338,7 +343,7 @@ impl TallLs {
                 }
             }
             LsKind::Qr(qr) => {
-                let (x, _) = qr.solve(b);
+                let (x, _) = qr.solve(&resid);
                 mul_add(&mut resid, &self.a, &x, -1.0);
                 x
             }

@@ -116,6 +116,9 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
             *i = z.im;
         }
     };
+    // The pole columns in plain real arithmetic over line arrays (the operations of
+    // `pair_basis` and the complex product by q, written out so that they vectorise).
+    let (qre, qim): (Vec<f64>, Vec<f64>) = q.iter().map(|z| (z.re, z.im)).unzip();
     for (m, p) in poles.iter().enumerate() {
         let (c1, c2) = a.two_cols_mut(2 * m, 2 * m + 1);
         let (c1, c2) = (
@@ -124,13 +127,20 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
         );
         let (r1, i1) = c1.split_at_mut(n);
         let (r2, i2) = c2.split_at_mut(n);
-        for k in 0..n {
-            let (b1, b2) = pair_basis(p.0, band.omega[k]);
-            let (z1, z2) = (q[k] * b1, q[k] * b2);
-            r1[k] = z1.re;
-            i1[k] = z1.im;
-            r2[k] = z2.re;
-            i2[k] = z2.im;
+        let (x, pim) = (-p.0.re, p.0.im);
+        let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+        let line = band.omega.iter().zip(qre.iter().zip(&qim));
+        for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+            let (y1, y2) = (w - pim, w + pim);
+            let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+            // u = 1/(iω − λ), v = 1/(iω − λ*); b1 = u + v, b2 = i(u − v).
+            let (ur, ui, vr, vi) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+            let (b1r, b1i) = (ur + vr, ui + vi);
+            let (b2r, b2i) = (-(ui - vi), ur - vr);
+            *r1 = qr * b1r - qi * b1i;
+            *i1 = qr * b1i + qi * b1r;
+            *r2 = qr * b2r - qi * b2i;
+            *i2 = qr * b2i + qi * b2r;
         }
     }
     let mut j = 2 * poles.len();
@@ -206,7 +216,7 @@ pub fn fit_residues(
     let rows = a.nrows();
     let p = a.ncols();
     let qr = TallLs::new(a);
-    let (x, _, rss) = qr.solve(&stack_data(chans, &w));
+    let (x, _, rss) = qr.solve_into(stack_data(chans, &w));
     let ginv = qr.inverse_gram();
     let rd = qr.r_diag();
     let basis_conditioning =
