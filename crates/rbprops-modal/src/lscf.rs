@@ -168,6 +168,21 @@ pub fn sweep_orders(
     };
     // `v − Σ_m a_m b_m`, summed in index order.
     let sub_dot = |v: f64, a: &[f64], b: &[f64]| a.iter().zip(b).fold(v, |v, (x, y)| v - x * y);
+    // Four independent `sub_dot`s sharing `a`, interleaved: each is still summed in index
+    // order (bitwise the same), but four chains of dependent additions run side by side.
+    let sub_dot4 = |v: [f64; 4], a: &[f64], b: [&[f64]; 4]| -> [f64; 4] {
+        let n = a.len();
+        let (b0, b1, b2, b3) = (&b[0][..n], &b[1][..n], &b[2][..n], &b[3][..n]);
+        let mut v = v;
+        for i in 0..n {
+            let x = a[i];
+            v[0] -= x * b0[i];
+            v[1] -= x * b1[i];
+            v[2] -= x * b2[i];
+            v[3] -= x * b3[i];
+        }
+        v
+    };
     let mut out = Vec::new();
     let mut yq = vec![0.0; pm];
     for q in 0..pm {
@@ -195,7 +210,20 @@ pub fn sweep_orders(
                 yo[q * pm + i] = v / lo[i * pm + i];
             }
             let lqq = lo[q * pm + q];
-            for j in 0..=q {
+            let mut j0 = 0;
+            while j0 + 4 <= q + 1 {
+                let row = |j: usize| &yo[j * pm..j * pm + q];
+                let v = sub_dot4(
+                    [0, 1, 2, 3].map(|t| s_at(o, q, j0 + t)),
+                    &lo[q * pm..q * pm + q],
+                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
+                );
+                for (t, vt) in v.into_iter().enumerate() {
+                    yo[(j0 + t) * pm + q] = vt / lqq;
+                }
+                j0 += 4;
+            }
+            for j in j0..=q {
                 let v = sub_dot(
                     s_at(o, q, j),
                     &lo[q * pm..q * pm + q],
@@ -213,7 +241,21 @@ pub fn sweep_orders(
                     *gk += yj * yk;
                 }
             }
-            for j in 0..=q {
+            let mut j0 = 0;
+            while j0 + 4 <= q + 1 {
+                let row = |j: usize| &yo[j * pm..j * pm + q + 1];
+                let v = sub_dot4(
+                    [0.0; 4],
+                    row(q),
+                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
+                );
+                for (t, vt) in v.into_iter().enumerate() {
+                    go[(j0 + t) * pm + q] = -vt;
+                    go[q * pm + j0 + t] = -vt;
+                }
+                j0 += 4;
+            }
+            for j in j0..=q {
                 // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as
                 // a plain sum, so the factors stay bitwise as before.
                 let v = -sub_dot(
