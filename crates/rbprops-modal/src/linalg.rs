@@ -634,17 +634,19 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
                         *a0 -= t * hx;
                     }
                 }
-                for i in l..=h.min(k + 3) {
-                    if three {
-                        let c: &mut [f64; 3] =
-                            (&mut a[i * n + k..i * n + k + 3]).try_into().unwrap();
+                // Rows l..=min(h, k+3), columns k, k+1 (and k+2).
+                let rows = a[l * n..(h.min(k + 3) + 1) * n].chunks_exact_mut(n);
+                if three {
+                    for row in rows {
+                        let c = &mut row[k..k + 3];
                         let t = hx * c[0] + hy * c[1] + hz * c[2];
                         c[2] -= t * r2;
                         c[1] -= t * q2;
                         c[0] -= t;
-                    } else {
-                        let c: &mut [f64; 2] =
-                            (&mut a[i * n + k..i * n + k + 2]).try_into().unwrap();
+                    }
+                } else {
+                    for row in rows {
+                        let c = &mut row[k..k + 2];
                         let t = hx * c[0] + hy * c[1];
                         c[1] -= t * q2;
                         c[0] -= t;
