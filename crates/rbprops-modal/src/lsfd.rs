@@ -468,12 +468,15 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let data = unit_rms(chans);
     let lw = std::sync::Arc::new(line_weights(&data));
     let bw = stack_data(&data, &lw);
-    let q: Vec<c64> = band
+    let (qre, qim): (Vec<f64>, Vec<f64>) = band
         .quantity_factor()
         .iter()
         .zip(lw.iter())
-        .map(|(q, w)| q * *w)
-        .collect();
+        .map(|(q, w)| {
+            let z = q * *w;
+            (z.re, z.im)
+        })
+        .unzip();
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
@@ -486,24 +489,35 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     for it in 0..40 {
         iterations = it + 1;
         // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M).
+        // In plain real arithmetic over line arrays (the operations of `recips`, the
+        // complex squares and the products by q, written out so that they vectorise).
         let mut d = Mat::<f64>::zeros(2 * n, np);
         for (m, p) in cur.iter().enumerate() {
-            let mut d1 = Vec::with_capacity(n);
-            let mut d2 = Vec::with_capacity(n);
-            for (qk, &w) in q.iter().zip(&band.omega) {
-                let (a1, a2) = recips(p.0, w);
-                let (u, u2) = (a1 * a1, a2 * a2);
-                let e = u - u2;
-                d1.push(qk * (u + u2));
-                d2.push(qk * c64::new(-e.im, e.re));
-            }
-            for (j, dj) in [(2 * m, d1), (2 * m + 1, d2)] {
-                let col = d.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
-                let (re, im) = col.split_at_mut(n);
-                for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(&dj) {
-                    *r = z.re;
-                    *i = z.im;
-                }
+            let (c1, c2) = d.two_cols_mut(2 * m, 2 * m + 1);
+            let (c1, c2) = (
+                c1.try_as_col_major_mut().unwrap().as_slice_mut(),
+                c2.try_as_col_major_mut().unwrap().as_slice_mut(),
+            );
+            let (r1, i1) = c1.split_at_mut(n);
+            let (r2, i2) = c2.split_at_mut(n);
+            let (x, pim) = (-p.0.re, p.0.im);
+            let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+            let line = band.omega.iter().zip(qre.iter().zip(&qim));
+            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+                let (y1, y2) = (w - pim, w + pim);
+                let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
+                let (a1r, a1i, a2r, a2i) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
+                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
+                // d1 = q(u + u2), d2 = q·i(u − u2).
+                let (sr, si) = (ur + u2r, ui + u2i);
+                let (er, ei) = (ur - u2r, ui - u2i);
+                let (tr, ti) = (-ei, er);
+                *r1 = qr * sr - qi * si;
+                *i1 = qr * si + qi * sr;
+                *r2 = qr * tr - qi * ti;
+                *i2 = qr * ti + qi * tr;
             }
         }
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
