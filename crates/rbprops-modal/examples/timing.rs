@@ -34,6 +34,11 @@ fn main() {
         n_channels: base.frf.n_channels,
         values,
     };
+    // The data generation alone (to subtract from instruction counts of whole runs).
+    if std::env::var_os("TIMING_GEN_ONLY").is_some() {
+        println!("{} values generated", frf.values.len());
+        return;
+    }
     let mut opts = FitOptions::default();
     if std::env::args().nth(2).as_deref() == Some("setup") {
         opts.poles = PoleMode::PerSetup;
@@ -42,6 +47,27 @@ fn main() {
     let out = fit_campaign(&geometry, &frf, &opts).unwrap();
     let dt = t.elapsed().as_secs_f64();
     let modes = out.record.modes.len();
+    // A digest of every estimate's bits, to check that a change is bit-identical.
+    if std::env::var_os("TIMING_DIGEST").is_some() {
+        let mut h: u64 = 0xcbf29ce484222325;
+        let mut eat = |x: f64| {
+            for b in x.to_bits().to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x100000001b3);
+            }
+        };
+        for m in &out.record.modes {
+            eat(m.frequency_hz);
+            eat(m.damping_ratio);
+            eat(m.frequency_std_hz);
+            eat(m.damping_std);
+            for (a, s) in m.residues.iter().zip(&m.residue_std) {
+                eat(a.re);
+                eat(a.im);
+                eat(*s);
+            }
+        }
+        println!("digest {h:016x}");
+    }
     if std::env::var_os("TIMING_VERBOSE").is_some() {
         for w in &out.record.excitations[0].warnings {
             println!("{w}");

@@ -807,7 +807,12 @@ fn fit_one(
             reason: "every channel is identically zero in the band".into(),
         });
     }
-    let live_data: Vec<Vec<c64>> = live.iter().map(|&c| band.channels[c].clone()).collect();
+    // The live channels (borrowed when every channel is live, the usual case).
+    let live_data: std::borrow::Cow<[Vec<c64>]> = if live.len() == band.channels.len() {
+        std::borrow::Cow::Borrowed(&band.channels)
+    } else {
+        std::borrow::Cow::Owned(live.iter().map(|&c| band.channels[c].clone()).collect())
+    };
     let own;
     let ps = match shared {
         Some(p) => p,

@@ -44,19 +44,20 @@ struct Sums {
 
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
-    let mut s = Sums {
-        r: vec![vec![0.0; n_max + 1]; no],
-        g_pos: vec![vec![0.0; n_max + 1]; no],
-        g_neg: vec![vec![0.0; n_max + 1]; no],
-        t: vec![vec![0.0; n_max + 1]; no],
-    };
-    let mut zre = vec![0.0; n_max + 1];
-    let mut zim = vec![0.0; n_max + 1];
+    let nl = theta.len();
+    let pm = n_max + 1;
+    // Per channel and block of `B` powers, the four sums run over the lines in
+    // registers (the same additions in the same order as line by line).
+    const B: usize = 4;
+    let pb = pm.div_ceil(B) * B;
+    // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
+    // one table `[line][m]` (padded with zeros to whole blocks) shared by every channel.
+    let mut zre = vec![0.0; nl * pb];
+    let mut zim = vec![0.0; nl * pb];
     for (k, &th) in theta.iter().enumerate() {
-        // Powers z^m by recurrence, re-anchored every 16 steps to bound rounding drift.
         let z = c64::new(th.cos(), th.sin());
         let mut zm = c64::new(1.0, 0.0);
-        for m in 0..=n_max {
+        for m in 0..pm {
             if m > 0 {
                 zm = if m % 16 == 0 {
                     let a = th * m as f64;
@@ -65,29 +66,46 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
                     zm * z
                 };
             }
-            zre[m] = zm.re;
-            zim[m] = zm.im;
+            zre[k * pb + m] = zm.re;
+            zim[k * pb + m] = zm.im;
         }
-        for o in 0..no {
-            let w2 = weights[o][k];
-            let h = chans[o][k] * w2;
-            let h2 = chans[o][k].norm_sqr() * w2;
-            // Only real parts enter the normal matrices: Re(h z^m) = a − b and
-            // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
-            let sums = s.r[o]
-                .iter_mut()
-                .zip(s.g_pos[o].iter_mut())
-                .zip(s.g_neg[o].iter_mut())
-                .zip(s.t[o].iter_mut())
-                .zip(zre.iter().zip(&zim));
-            for ((((r, gp), gn), t), (pr, pi)) in sums {
-                let a = h.re * pr;
-                let b = h.im * pi;
-                *r += w2 * pr;
-                *gp += a - b;
-                *gn += a + b;
-                *t += h2 * pr;
+    }
+    let mut s = Sums {
+        r: vec![vec![0.0; pm]; no],
+        g_pos: vec![vec![0.0; pm]; no],
+        g_neg: vec![vec![0.0; pm]; no],
+        t: vec![vec![0.0; pm]; no],
+    };
+    for o in 0..no {
+        let w = &weights[o];
+        let hw: Vec<c64> = chans[o].iter().zip(w).map(|(h, w2)| h * *w2).collect();
+        let h2: Vec<f64> = chans[o]
+            .iter()
+            .zip(w)
+            .map(|(h, w2)| h.norm_sqr() * w2)
+            .collect();
+        for m0 in (0..pm).step_by(B) {
+            let nb = B.min(pm - m0);
+            let (mut r, mut gp, mut gn, mut t) = ([0.0; B], [0.0; B], [0.0; B], [0.0; B]);
+            for k in 0..nl {
+                let (w2, hk, h2) = (w[k], hw[k], h2[k]);
+                let pr: &[f64; B] = zre[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
+                let pi: &[f64; B] = zim[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
+                // Only real parts enter the normal matrices: Re(h z^m) = a − b and
+                // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
+                for i in 0..B {
+                    let a = hk.re * pr[i];
+                    let b = hk.im * pi[i];
+                    r[i] += w2 * pr[i];
+                    gp[i] += a - b;
+                    gn[i] += a + b;
+                    t[i] += h2 * pr[i];
+                }
             }
+            s.r[o][m0..m0 + nb].copy_from_slice(&r[..nb]);
+            s.g_pos[o][m0..m0 + nb].copy_from_slice(&gp[..nb]);
+            s.g_neg[o][m0..m0 + nb].copy_from_slice(&gn[..nb]);
+            s.t[o][m0..m0 + nb].copy_from_slice(&t[..nb]);
         }
     }
     s
@@ -150,6 +168,21 @@ pub fn sweep_orders(
     };
     // `v − Σ_m a_m b_m`, summed in index order.
     let sub_dot = |v: f64, a: &[f64], b: &[f64]| a.iter().zip(b).fold(v, |v, (x, y)| v - x * y);
+    // Four independent `sub_dot`s sharing `a`, interleaved: each is still summed in index
+    // order (bitwise the same), but four chains of dependent additions run side by side.
+    let sub_dot4 = |v: [f64; 4], a: &[f64], b: [&[f64]; 4]| -> [f64; 4] {
+        let n = a.len();
+        let (b0, b1, b2, b3) = (&b[0][..n], &b[1][..n], &b[2][..n], &b[3][..n]);
+        let mut v = v;
+        for i in 0..n {
+            let x = a[i];
+            v[0] -= x * b0[i];
+            v[1] -= x * b1[i];
+            v[2] -= x * b2[i];
+            v[3] -= x * b3[i];
+        }
+        v
+    };
     let mut out = Vec::new();
     let mut yq = vec![0.0; pm];
     for q in 0..pm {
@@ -177,7 +210,20 @@ pub fn sweep_orders(
                 yo[q * pm + i] = v / lo[i * pm + i];
             }
             let lqq = lo[q * pm + q];
-            for j in 0..=q {
+            let mut j0 = 0;
+            while j0 + 4 <= q + 1 {
+                let row = |j: usize| &yo[j * pm..j * pm + q];
+                let v = sub_dot4(
+                    [0, 1, 2, 3].map(|t| s_at(o, q, j0 + t)),
+                    &lo[q * pm..q * pm + q],
+                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
+                );
+                for (t, vt) in v.into_iter().enumerate() {
+                    yo[(j0 + t) * pm + q] = vt / lqq;
+                }
+                j0 += 4;
+            }
+            for j in j0..=q {
                 let v = sub_dot(
                     s_at(o, q, j),
                     &lo[q * pm..q * pm + q],
@@ -195,7 +241,21 @@ pub fn sweep_orders(
                     *gk += yj * yk;
                 }
             }
-            for j in 0..=q {
+            let mut j0 = 0;
+            while j0 + 4 <= q + 1 {
+                let row = |j: usize| &yo[j * pm..j * pm + q + 1];
+                let v = sub_dot4(
+                    [0.0; 4],
+                    row(q),
+                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
+                );
+                for (t, vt) in v.into_iter().enumerate() {
+                    go[(j0 + t) * pm + q] = -vt;
+                    go[q * pm + j0 + t] = -vt;
+                }
+                j0 += 4;
+            }
+            for j in j0..=q {
                 // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as
                 // a plain sum, so the factors stay bitwise as before.
                 let v = -sub_dot(

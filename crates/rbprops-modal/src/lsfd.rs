@@ -15,7 +15,7 @@
 //! factorisation serves them all.
 
 use crate::band::BandData;
-use crate::linalg::{self, TallQr};
+use crate::linalg::{self, TallLs};
 use crate::pole::Pole;
 use faer::Mat;
 use rbprops_core::c64;
@@ -77,80 +77,114 @@ pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Complex basis columns (before real stacking), each multiplied by `q(ω)` and the line
-/// weight.
-fn basis_columns(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Vec<Vec<c64>> {
+/// `(1/(iω − λ), 1/(iω − λ*))` in real arithmetic (one real division per term).
+#[inline]
+fn recips(p: c64, w: f64) -> (c64, c64) {
+    let x = -p.re;
+    let (y1, y2) = (w - p.im, w + p.im);
+    let (i1, i2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+    (c64::new(x * i1, -y1 * i1), c64::new(x * i2, -y2 * i2))
+}
+
+/// The pole pair's two real-coefficient basis functions at `ω`: `u + v` and `i(u − v)`
+/// with `u = 1/(iω − λ)`, `v = 1/(iω − λ*)`, so that `R u + R* v = a(u + v) + b·i(u − v)`
+/// for `R = a + ib`.
+#[inline]
+fn pair_basis(p: c64, w: f64) -> (c64, c64) {
+    let (u, v) = recips(p, w);
+    let d = u - v;
+    (u + v, c64::new(-d.im, d.re))
+}
+
+/// Real-stacked (`[Re; Im]`) basis columns `2N × (2·poles + residual terms)`, each
+/// multiplied by `q(ω)` and the line weight.
+fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Mat<f64> {
+    let n = band.n_lines();
     let q: Vec<c64> = band
         .quantity_factor()
         .iter()
         .zip(w)
         .map(|(q, w)| q * *w)
         .collect();
-    let mut cols = Vec::with_capacity(2 * poles.len() + res.count());
-    for p in poles {
-        let mut c1 = Vec::with_capacity(band.n_lines());
-        let mut c2 = Vec::with_capacity(band.n_lines());
-        for (k, &w) in band.omega.iter().enumerate() {
-            let s = c64::new(0.0, w);
-            let u = 1.0 / (s - p.0);
-            let v = 1.0 / (s - p.0.conj());
-            c1.push(q[k] * (u + v));
-            c2.push(q[k] * c64::new(0.0, 1.0) * (u - v));
-        }
-        cols.push(c1);
-        cols.push(c2);
-    }
-    if res.upper {
-        cols.push(q.clone());
-    }
-    if res.lower {
-        cols.push(
-            band.omega
-                .iter()
-                .zip(&q)
-                .map(|(w, qk)| qk * (-1.0 / (w * w)))
-                .collect(),
-        );
-    }
-    cols
-}
-
-/// Real-stacked, column-normalised design matrix; returns it with the column scales.
-fn stack(cols: &[Vec<c64>]) -> (Mat<f64>, Vec<f64>) {
-    let n = cols[0].len();
-    let scale: Vec<f64> = cols
-        .iter()
-        .map(|c| {
-            let s = c.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
-            if s > 0.0 {
-                s
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let mut a = Mat::<f64>::zeros(2 * n, cols.len());
-    for (j, (c, s)) in cols.iter().zip(&scale).enumerate() {
+    let mut a = Mat::<f64>::zeros(2 * n, 2 * poles.len() + res.count());
+    let put = |a: &mut Mat<f64>, j: usize, f: &mut dyn FnMut(usize) -> c64| {
         let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
-        for ((r, i), z) in re.iter_mut().zip(im.iter_mut()).zip(c) {
-            *r = z.re / s;
-            *i = z.im / s;
+        for (k, (r, i)) in re.iter_mut().zip(im.iter_mut()).enumerate() {
+            let z = f(k);
+            *r = z.re;
+            *i = z.im;
+        }
+    };
+    // The pole columns in plain real arithmetic over line arrays (the operations of
+    // `pair_basis` and the complex product by q, written out so that they vectorise).
+    let (qre, qim): (Vec<f64>, Vec<f64>) = q.iter().map(|z| (z.re, z.im)).unzip();
+    for (m, p) in poles.iter().enumerate() {
+        let (c1, c2) = a.two_cols_mut(2 * m, 2 * m + 1);
+        let (c1, c2) = (
+            c1.try_as_col_major_mut().unwrap().as_slice_mut(),
+            c2.try_as_col_major_mut().unwrap().as_slice_mut(),
+        );
+        let (r1, i1) = c1.split_at_mut(n);
+        let (r2, i2) = c2.split_at_mut(n);
+        let (x, pim) = (-p.0.re, p.0.im);
+        let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+        let line = band.omega.iter().zip(qre.iter().zip(&qim));
+        for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+            let (y1, y2) = (w - pim, w + pim);
+            let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+            // u = 1/(iω − λ), v = 1/(iω − λ*); b1 = u + v, b2 = i(u − v).
+            let (ur, ui, vr, vi) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+            let (b1r, b1i) = (ur + vr, ui + vi);
+            let (b2r, b2i) = (-(ui - vi), ur - vr);
+            *r1 = qr * b1r - qi * b1i;
+            *i1 = qr * b1i + qi * b1r;
+            *r2 = qr * b2r - qi * b2i;
+            *i2 = qr * b2i + qi * b2r;
         }
     }
-    (a, scale)
+    let mut j = 2 * poles.len();
+    if res.upper {
+        put(&mut a, j, &mut |k| q[k]);
+        j += 1;
+    }
+    if res.lower {
+        put(&mut a, j, &mut |k| {
+            let w = band.omega[k];
+            q[k] * (-1.0 / (w * w))
+        });
+    }
+    a
+}
+
+/// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
+fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
+    (0..a.ncols())
+        .map(|j| {
+            let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
+            let s = linalg::dot(col, col).sqrt();
+            let s = if s > 0.0 { s } else { 1.0 };
+            for x in col.iter_mut() {
+                *x /= s;
+            }
+            s
+        })
+        .collect()
 }
 
 fn stack_data(chans: &[Vec<c64>], w: &[f64]) -> Mat<f64> {
     let n = chans[0].len();
-    Mat::from_fn(2 * n, chans.len(), |i, j| {
-        let z = chans[j][i % n] * w[i % n];
-        if i < n {
-            z.re
-        } else {
-            z.im
+    let mut b = Mat::<f64>::zeros(2 * n, chans.len());
+    for (j, h) in chans.iter().enumerate() {
+        let col = b.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
+        let (re, im) = col.split_at_mut(n);
+        for (((r, i), z), wk) in re.iter_mut().zip(im.iter_mut()).zip(h).zip(w) {
+            let z = z * *wk;
+            *r = z.re;
+            *i = z.im;
         }
-    })
+    }
+    b
 }
 
 /// Residues of one set of channels for fixed poles.
@@ -177,12 +211,12 @@ pub fn fit_residues(
     res: Residuals,
 ) -> ResidueFit {
     let w = line_weights(chans);
-    let cols = basis_columns(poles, band, res, &w);
-    let (a, scale) = stack(&cols);
+    let mut a = basis_stacked(poles, band, res, &w);
+    let scale = normalise(&mut a);
     let rows = a.nrows();
     let p = a.ncols();
-    let qr = TallQr::new(a);
-    let (x, rss) = qr.solve(&stack_data(chans, &w));
+    let qr = TallLs::new(a);
+    let (x, _, rss) = qr.solve_into(stack_data(chans, &w));
     let ginv = qr.inverse_gram();
     let rd = qr.r_diag();
     let basis_conditioning =
@@ -227,29 +261,41 @@ pub fn fit_residues(
 pub fn synthesise(poles: &[Pole], fit: &ResidueFit, band: &BandData) -> Vec<Vec<c64>> {
     let q = band.quantity_factor();
     let no = fit.upper.len();
-    let mut out = vec![Vec::with_capacity(band.n_lines()); no];
-    let mut h = vec![c64::new(0.0, 0.0); no];
-    for (k, &w) in band.omega.iter().enumerate() {
-        // The pole terms are shared by every channel: two divisions per pole and line.
-        for (o, hk) in h.iter_mut().enumerate() {
-            // The lower residual is zero when the band starts at 0 Hz (no 0/0 there).
-            let lower = if fit.lower[o] != 0.0 {
-                fit.lower[o] / (w * w)
-            } else {
-                0.0
-            };
-            *hk = c64::new(fit.upper[o] - lower, 0.0);
+    let n = band.n_lines();
+    // Residual terms first (the lower one is zero when the band starts at 0 Hz: no 0/0).
+    let mut out: Vec<Vec<c64>> = (0..no)
+        .map(|o| {
+            band.omega
+                .iter()
+                .map(|&w| {
+                    let lower = if fit.lower[o] != 0.0 {
+                        fit.lower[o] / (w * w)
+                    } else {
+                        0.0
+                    };
+                    c64::new(fit.upper[o] - lower, 0.0)
+                })
+                .collect()
+        })
+        .collect();
+    // The pole terms are shared by every channel: the pair's two basis functions once
+    // per pole and line, then `a·(u + v) + b·i(u − v)` per channel.
+    let mut b1 = vec![c64::new(0.0, 0.0); n];
+    let mut b2 = vec![c64::new(0.0, 0.0); n];
+    for (p, r) in poles.iter().zip(&fit.residues) {
+        for ((x1, x2), &w) in b1.iter_mut().zip(b2.iter_mut()).zip(&band.omega) {
+            (*x1, *x2) = pair_basis(p.0, w);
         }
-        let s = c64::new(0.0, w);
-        for (p, r) in poles.iter().zip(&fit.residues) {
-            let u = 1.0 / (s - p.0);
-            let v = 1.0 / (s - p.0.conj());
-            for (hk, ro) in h.iter_mut().zip(r) {
-                *hk += ro * u + ro.conj() * v;
+        for (col, ro) in out.iter_mut().zip(r) {
+            let (a, b) = (ro.re, ro.im);
+            for ((hk, x1), x2) in col.iter_mut().zip(&b1).zip(&b2) {
+                *hk += x1 * a + x2 * b;
             }
         }
-        for (col, hk) in out.iter_mut().zip(&h) {
-            col.push(hk * q[k]);
+    }
+    for col in out.iter_mut() {
+        for (hk, qk) in col.iter_mut().zip(&q) {
+            *hk *= qk;
         }
     }
     out
@@ -275,40 +321,52 @@ pub struct Refined {
 #[derive(Debug)]
 struct Trial {
     cost: f64,
-    /// Normalised basis columns (complex, before stacking) and their scales.
-    cols: Vec<Vec<c64>>,
-    qr: TallQr,
+    /// The least-squares factorisation of the real-stacked (`[Re; Im]`),
+    /// column-normalised basis `Φ̃` (`2N × p`).
+    qr: TallLs,
     /// Residues `R = a + ib` per mode and channel.
     residues: Vec<Vec<c64>>,
-    /// Residual vectors per channel (complex).
-    resid: Vec<Vec<c64>>,
+    /// Real-stacked residual vectors, one column per channel (`2N × channels`).
+    resid: Mat<f64>,
     n_cols: usize,
+    /// The line weights the basis and data carry.
+    lw: std::sync::Arc<Vec<f64>>,
 }
 
-fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], w: &[f64], res: Residuals) -> Trial {
-    let raw = basis_columns(poles, band, res, w);
-    let (a, scale) = stack(&raw);
-    let cols: Vec<Vec<c64>> = raw
-        .iter()
-        .zip(&scale)
-        .map(|(c, s)| c.iter().map(|z| z / *s).collect())
-        .collect();
-    let qr = TallQr::new(a);
-    let (x, rss) = qr.solve(&stack_data(data, w));
-    let no = data.len();
-    let p = cols.len();
-    let resid: Vec<Vec<c64>> = (0..no)
-        .map(|o| {
-            let mut r: Vec<c64> = data[o].iter().zip(w).map(|(z, wk)| z * *wk).collect();
-            for j in 0..p {
-                let c = x[(j, o)];
-                for (rk, bk) in r.iter_mut().zip(&cols[j]) {
-                    *rk -= bk * c;
-                }
+fn tmul(lhs: &Mat<f64>, rhs: &Mat<f64>) -> Mat<f64> {
+    linalg::t_mul(lhs, rhs)
+}
+
+/// `R⁻ᵀ m` (forward substitution on the transposed triangular factor), i.e. `Qᵀ·X` from
+/// `m = ΦᵀX`.
+fn r_inv_t(qr: &TallLs, m: &Mat<f64>) -> Mat<f64> {
+    let pc = qr.ncols();
+    let mut y = Mat::<f64>::zeros(pc, m.ncols());
+    for j in 0..m.ncols() {
+        for i in 0..pc {
+            let mut v = m[(i, j)];
+            for l in 0..i {
+                v -= qr.r(l, i) * y[(l, j)];
             }
-            r
-        })
-        .collect();
+            y[(i, j)] = v / qr.r(i, i);
+        }
+    }
+    y
+}
+
+fn trial(
+    poles: &[Pole],
+    band: &BandData,
+    bw: &Mat<f64>,
+    lw: &std::sync::Arc<Vec<f64>>,
+    res: Residuals,
+) -> Trial {
+    let mut phi = basis_stacked(poles, band, res, lw);
+    let scale = normalise(&mut phi);
+    let p = phi.ncols();
+    let qr = TallLs::new(phi);
+    let (x, resid, rss) = qr.solve(bw);
+    let no = bw.ncols();
     let residues = (0..poles.len())
         .map(|m| {
             (0..no)
@@ -323,20 +381,12 @@ fn trial(poles: &[Pole], band: &BandData, data: &[Vec<c64>], w: &[f64], res: Res
         .collect();
     Trial {
         cost: rss.iter().sum(),
-        cols,
         qr,
         residues,
         resid,
         n_cols: p,
+        lw: lw.clone(),
     }
-}
-
-/// Real inner product of real-stacked complex vectors: `Re Σ conj(a) b`.
-fn dot(a: &[c64], b: &[c64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| x.re * y.re + x.im * y.im)
-        .sum()
 }
 
 /// Channels scaled to unit RMS: the data [`refine`] and [`screen_extra_poles`] fit.
@@ -364,40 +414,34 @@ pub fn screen_extra_poles(
     fit: &Refined,
     candidates: &[Pole],
     band: &BandData,
-    chans: &[Vec<c64>],
+    _chans: &[Vec<c64>],
 ) -> (f64, Vec<f64>) {
-    let lw = line_weights(&unit_rms(chans));
     let t = &*fit.fit;
+    if candidates.is_empty() {
+        return (t.cost, Vec::new());
+    }
+    // Every candidate's two columns side by side, unnormalised: N (2N × 2K).
+    let nm = basis_stacked(candidates, band, Residuals::NONE, &t.lw);
+    // y = QᵀN by forward substitution on Rᵀ; Nᵀr per channel.
+    let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &nm));
+    let nr = tmul(&nm, &t.resid);
     let pc = t.n_cols;
-    let with = candidates
-        .iter()
+    let with = (0..candidates.len())
         .map(|c| {
-            let n = basis_columns(std::slice::from_ref(c), band, Residuals::NONE, &lw);
-            // y = QᵀN by forward substitution on Rᵀ.
-            let mut y = [vec![0.0; pc], vec![0.0; pc]];
-            for (j, yj) in y.iter_mut().enumerate() {
-                for i in 0..pc {
-                    let mut v = dot(&t.cols[i], &n[j]);
-                    for l in 0..i {
-                        v -= t.qr.r(l, i) * yj[l];
-                    }
-                    yj[i] = v / t.qr.r(i, i);
-                }
-            }
+            let (j0, j1) = (2 * c, 2 * c + 1);
+            let col = |j: usize| nm.col(j).try_as_col_major().unwrap().as_slice();
             let g = |a: usize, b: usize| {
-                dot(&n[a], &n[b]) - (0..pc).map(|l| y[a][l] * y[b][l]).sum::<f64>()
+                linalg::dot(col(a), col(b)) - (0..pc).map(|l| y[(l, a)] * y[(l, b)]).sum::<f64>()
             };
-            let (g00, g01, g11) = (g(0, 0), g(0, 1), g(1, 1));
+            let (g00, g01, g11) = (g(j0, j0), g(j0, j1), g(j1, j1));
             let det = g00 * g11 - g01 * g01;
             // A candidate in the span of the basis (det ≈ 0) explains nothing new.
             if !(det > 1e-12 * g00.max(g11).powi(2)) {
                 return t.cost;
             }
-            let drop: f64 = t
-                .resid
-                .iter()
-                .map(|r| {
-                    let (b0, b1) = (dot(&n[0], r), dot(&n[1], r));
+            let drop: f64 = (0..nr.ncols())
+                .map(|o| {
+                    let (b0, b1) = (nr[(j0, o)], nr[(j1, o)]);
                     (g11 * b0 * b0 - 2.0 * g01 * b0 * b1 + g00 * b1 * b1) / det
                 })
                 .sum();
@@ -422,17 +466,21 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let n = band.n_lines();
     let no = chans.len();
     let data = unit_rms(chans);
-    let lw = line_weights(&data);
-    let q: Vec<c64> = band
+    let lw = std::sync::Arc::new(line_weights(&data));
+    let bw = stack_data(&data, &lw);
+    let (qre, qim): (Vec<f64>, Vec<f64>) = band
         .quantity_factor()
         .iter()
-        .zip(&lw)
-        .map(|(q, w)| q * *w)
-        .collect();
+        .zip(lw.iter())
+        .map(|(q, w)| {
+            let z = q * *w;
+            (z.re, z.im)
+        })
+        .unzip();
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
-    let mut t = trial(&cur, band, &data, &lw, res);
+    let mut t = trial(&cur, band, &bw, &lw, res);
     let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
@@ -440,38 +488,46 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let mut jtj = Mat::<f64>::zeros(np, np);
     for it in 0..40 {
         iterations = it + 1;
-        // Derivative vectors d1_m, d2_m.
-        let mut d: Vec<Vec<c64>> = Vec::with_capacity(np);
-        for p in &cur {
-            let mut d1 = Vec::with_capacity(n);
-            let mut d2 = Vec::with_capacity(n);
-            for (k, &w) in band.omega.iter().enumerate() {
-                let s = c64::new(0.0, w);
-                let a1 = 1.0 / (s - p.0);
-                let a2 = 1.0 / (s - p.0.conj());
-                let (u, u2) = (a1 * a1, a2 * a2);
-                d1.push(q[k] * (u + u2));
-                d2.push(q[k] * c64::new(0.0, 1.0) * (u - u2));
+        // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M).
+        // In plain real arithmetic over line arrays (the operations of `recips`, the
+        // complex squares and the products by q, written out so that they vectorise).
+        let mut d = Mat::<f64>::zeros(2 * n, np);
+        for (m, p) in cur.iter().enumerate() {
+            let (c1, c2) = d.two_cols_mut(2 * m, 2 * m + 1);
+            let (c1, c2) = (
+                c1.try_as_col_major_mut().unwrap().as_slice_mut(),
+                c2.try_as_col_major_mut().unwrap().as_slice_mut(),
+            );
+            let (r1, i1) = c1.split_at_mut(n);
+            let (r2, i2) = c2.split_at_mut(n);
+            let (x, pim) = (-p.0.re, p.0.im);
+            let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+            let line = band.omega.iter().zip(qre.iter().zip(&qim));
+            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+                let (y1, y2) = (w - pim, w + pim);
+                let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
+                let (a1r, a1i, a2r, a2i) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
+                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
+                // d1 = q(u + u2), d2 = q·i(u − u2).
+                let (sr, si) = (ur + u2r, ui + u2i);
+                let (er, ei) = (ur - u2r, ui - u2i);
+                let (tr, ti) = (-ei, er);
+                *r1 = qr * sr - qi * si;
+                *i1 = qr * si + qi * sr;
+                *r2 = qr * tr - qi * ti;
+                *i2 = qr * ti + qi * tr;
             }
-            d.push(d1);
-            d.push(d2);
         }
-        // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD.
+        // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
-        let mut y = Mat::<f64>::zeros(pc, np);
-        for j in 0..np {
-            for i in 0..pc {
-                let mut v = dot(&t.cols[i], &d[j]);
-                for l in 0..i {
-                    v -= t.qr.r(l, i) * y[(l, j)];
-                }
-                y[(i, j)] = v / t.qr.r(i, i);
-            }
-        }
+        let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
+        let dd = tmul(&d, &d);
         let mut gd = Mat::<f64>::zeros(np, np);
         for i in 0..np {
             for j in 0..=i {
-                let mut v = dot(&d[i], &d[j]);
+                let mut v = dd[(i, j)];
                 for l in 0..pc {
                     v -= y[(l, i)] * y[(l, j)];
                 }
@@ -487,8 +543,9 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 *x = 0.0;
             }
         }
+        let drm = tmul(&d, &t.resid);
         let dr: Vec<Vec<f64>> = (0..np)
-            .map(|j| (0..no).map(|o| dot(&d[j], &t.resid[o])).collect())
+            .map(|j| (0..no).map(|o| drm[(j, o)]).collect())
             .collect();
         for o in 0..no {
             let e = |j: usize| -> (usize, f64, f64) {
@@ -544,7 +601,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 mu *= 10.0;
                 continue;
             }
-            let t2 = trial(&cand, band, &data, &lw, res);
+            let t2 = trial(&cand, band, &bw, &lw, res);
             if t2.cost <= t.cost {
                 let rel_step = (0..nm)
                     .map(|m| {
