@@ -46,6 +46,30 @@ pub struct CheckOptions {
     pub wald_level: f64,
     /// Require the held-out check (cross-validation, [`crate::cv`]) for acceptance.
     pub cross_validation: bool,
+    /// Receives one line per stage (noise, baseline, each selection step): a check
+    /// takes seconds to minutes, and a person at a terminal wants to see it move.
+    pub progress: Progress,
+}
+
+/// A sink for progress lines ([`CheckOptions::progress`]); silent by default.
+#[derive(Clone, Default)]
+pub struct Progress(Option<std::sync::Arc<dyn Fn(&str) + Send + Sync>>);
+
+impl Progress {
+    pub fn new(f: impl Fn(&str) + Send + Sync + 'static) -> Self {
+        Progress(Some(std::sync::Arc::new(f)))
+    }
+    fn say(&self, line: impl FnOnce() -> String) {
+        if let Some(f) = &self.0 {
+            f(&line());
+        }
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() { "Progress(on)" } else { "Progress(off)" })
+    }
 }
 
 impl Default for CheckOptions {
@@ -63,6 +87,7 @@ impl Default for CheckOptions {
             only: None,
             wald_level: 0.999,
             cross_validation: true,
+            progress: Progress::default(),
         }
     }
 }
@@ -800,6 +825,7 @@ pub fn check(
     frf: &FrfSet,
     options: &CheckOptions,
 ) -> Result<CheckOutcome, CheckError> {
+    options.progress.say(|| "estimating the noise floor".into());
     let first = check_with(spec, geometry, frf, options, None)?;
     if options.noise.is_some()
         || (first.report.accepted.is_empty() && first.report.ambiguous.is_empty())
@@ -828,6 +854,9 @@ pub fn check(
             .push(format!("{note}: within it, the data-only estimate is kept"));
         return Ok(first);
     }
+    options
+        .progress
+        .say(|| format!("noise re-estimated from the final residual (χ² factor {rho:.3}): rerunning"));
     let mut second = check_with(spec, geometry, frf, options, Some((nf.model, nf.sigma)))?;
     second.report.method.push(format!(
         "{note}: beyond it, so the check was rerun with it (first pass: {})",
@@ -945,6 +974,13 @@ fn check_with(
     if let Some(m) = options.weighed_mass_kg {
         theta0[0] = m.ln();
     }
+    options.progress.say(|| {
+        format!(
+            "{} candidates; χ²/ν of the nominal model {:.3}; fitting its parameters",
+            p.cands.len(),
+            chi2_nominal / n_real
+        )
+    });
     let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
     if !base.converged {
         warnings.push(format!(
@@ -1066,6 +1102,14 @@ fn check_with(
                 }
             }
         }
+        options.progress.say(|| {
+            format!(
+                "step {step}: χ²/ν {:.3}; {} candidates screened, {} significant",
+                cur.chi2 / (n_real - (free_base + active_dims(&active)) as f64),
+                todo.len(),
+                significant.len()
+            )
+        });
         if significant.is_empty() {
             break;
         }
@@ -1315,6 +1359,12 @@ fn check_with(
             break;
         };
         let best = &evals[best_i];
+        options.progress.say(|| {
+            format!(
+                "step {step}: accepted {} (Δχ² {:.1})",
+                p.cands[best.c].id, best.dchi2
+            )
+        });
         let best_basis = &refit
             .iter()
             .find(|x| x.0 == best.c)

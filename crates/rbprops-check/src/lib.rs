@@ -70,7 +70,7 @@ pub mod report;
 pub mod resonance;
 pub mod stats;
 
-pub use check::{check, CheckOptions, CheckOutcome};
+pub use check::{check, CheckOptions, CheckOutcome, Progress};
 pub use error::CheckError;
 pub use noise::NoiseModel;
 pub use report::ModelCheckReport;

@@ -4,10 +4,11 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, ValueEnum};
-use rbprops_check::{CheckOptions, CheckOutcome, NoiseModel};
+use rbprops_check::{CheckOptions, CheckOutcome, NoiseModel, Progress};
 use rbprops_formats::topics;
 use rbprops_plot::{heat_map, line_plot, HeatMap, LinePlot, LineStyle, Scale, Series};
 use rbprops_sim::CampaignSpec;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -67,6 +68,9 @@ struct Args {
     /// Screen only these effect ids (comma-separated).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// Progress lines on stderr (default: only when stderr is a terminal).
+    #[arg(short, long)]
+    verbose: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -102,6 +106,12 @@ fn main() -> std::process::ExitCode {
             only: (!args.only.is_empty()).then(|| args.only.clone()),
             ..Default::default()
         };
+        if args.verbose || std::io::stderr().is_terminal() {
+            let t0 = std::time::Instant::now();
+            opts.progress = Progress::new(move |line| {
+                eprintln!("model-check [{:6.1} s] {line}", t0.elapsed().as_secs_f64())
+            });
+        }
         if let Some(a) = args.noise_relative {
             let n = frf.n_channels;
             opts.noise = Some(NoiseModel {
