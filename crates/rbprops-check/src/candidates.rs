@@ -72,7 +72,10 @@ pub enum Screening {
     /// over these parameter points (linearised likelihood ratio with the current
     /// model's parameters re-adjusted). With `delay_scan`, a record length seen through
     /// φ = 1/T: the profile also tries the lags [`delay_peaks`] finds in the residual.
-    Profile { grid: Vec<Vec<f64>>, delay_scan: bool },
+    Profile {
+        grid: Vec<Vec<f64>>,
+        delay_scan: bool,
+    },
     /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile
     /// over (ω, ζ) of the linear residue fit to the residual proposes its points.
     Resonance,
@@ -584,14 +587,18 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
             t.insert("decay_per_s".into(), 0.0.into());
         }
         "nonproportional_damping" => {
-            t.insert(
-                "axial_n_s_per_m".into(),
-                toml::Value::Array(vec![0.0.into()]),
-            );
-            t.insert(
-                "lateral_n_s_per_m".into(),
-                toml::Value::Array(vec![0.0.into()]),
-            );
+            // One dashpot per spring: damping that differs between mounts is what makes
+            // it non-proportional (equal dashpots at every mount are nearly proportional
+            // and the fitted modal damping ratios absorb them). Set-ups with different
+            // spring counts share one coefficient per direction.
+            let counts: Vec<usize> = spec.setups.iter().map(|s| s.springs.len()).collect();
+            let n = match counts.first() {
+                Some(&n) if n > 0 && counts.iter().all(|&c| c == n) => n,
+                _ => 1,
+            };
+            let zeros = || toml::Value::Array(vec![0.0.into(); n]);
+            t.insert("axial_n_s_per_m".into(), zeros());
+            t.insert("lateral_n_s_per_m".into(), zeros());
         }
         "suspension_coupling" => {
             t.insert("rotational_n_m_per_rad".into(), zero3());

@@ -68,7 +68,11 @@ impl Progress {
 
 impl std::fmt::Debug for Progress {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(if self.0.is_some() { "Progress(on)" } else { "Progress(off)" })
+        f.write_str(if self.0.is_some() {
+            "Progress(on)"
+        } else {
+            "Progress(off)"
+        })
     }
 }
 
@@ -854,9 +858,9 @@ pub fn check(
             .push(format!("{note}: within it, the data-only estimate is kept"));
         return Ok(first);
     }
-    options
-        .progress
-        .say(|| format!("noise re-estimated from the final residual (χ² factor {rho:.3}): rerunning"));
+    options.progress.say(|| {
+        format!("noise re-estimated from the final residual (χ² factor {rho:.3}): rerunning")
+    });
     let mut second = check_with(spec, geometry, frf, options, Some((nf.model, nf.sigma)))?;
     second.report.method.push(format!(
         "{note}: beyond it, so the check was rerun with it (first pass: {})",
@@ -1731,7 +1735,13 @@ fn centre_gauges(p: &Problem, cur: Fit, active: &mut [Act], max_iter: usize) -> 
 /// The parameters moved along the gauge `g` of the active effect `a` (its kept
 /// coordinates start at `offset` in θ) to where the median coordinate is neutral, with
 /// that coordinate removed, and its φ index; `None` when g is no gauge at this fit.
-fn gauge_move(p: &Problem, cur: &Fit, a: &Act, offset: usize, g: &[f64]) -> Option<(Vec<f64>, usize)> {
+fn gauge_move(
+    p: &Problem,
+    cur: &Fit,
+    a: &Act,
+    offset: usize,
+    g: &[f64],
+) -> Option<(Vec<f64>, usize)> {
     let cand = &p.cands[a.c];
     let d = a.dim();
     let gk: Vec<f64> = a.kept.iter().map(|&j| g[j]).collect();
@@ -1765,7 +1775,12 @@ fn gauge_move(p: &Problem, cur: &Fit, a: &Act, offset: usize, g: &[f64]) -> Opti
     // that carry the gauge.
     let mut shifts: Vec<(f64, usize)> = (0..d)
         .filter(|&k| gk[k].abs() >= 0.5 * gmax)
-        .map(|k| (-(cur.theta[offset + k] - cand.neutral[a.kept[k]]) / gk[k], k))
+        .map(|k| {
+            (
+                -(cur.theta[offset + k] - cand.neutral[a.kept[k]]) / gk[k],
+                k,
+            )
+        })
         .collect();
     shifts.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
     let (beta, k_fixed) = shifts[(shifts.len() - 1) / 2];
