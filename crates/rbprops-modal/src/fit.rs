@@ -165,6 +165,30 @@ impl SweepDepth {
     }
 }
 
+/// Whether a safety sweep could only repeat what `sel` already shows below `f_hz`: the
+/// wider sweep resolved a stable mode there (its order reached that deep in its band),
+/// and neither a candidate cluster nor a physical pole of its highest order lies there
+/// away from the selected modes (a safety sweep adds only poles at least 3
+/// half-bandwidths from every known mode).
+fn safety_covered(sel: &stabilisation::Selection, f_hz: f64) -> bool {
+    let below = |p: &Pole| p.frequency_hz() < f_hz;
+    let unexplained = |p: &Pole| {
+        below(p)
+            && sel
+                .modes
+                .iter()
+                .all(|m| m.pole.distance_in_bandwidths(p) >= 3.0)
+    };
+    let top = sel.diagram.max_order;
+    sel.modes.iter().any(|m| below(&m.pole))
+        && !sel.candidates.iter().any(|c| unexplained(&c.pole))
+        && !sel.diagram.poles.iter().any(|d| {
+            d.order == top
+                && d.class != stabilisation::StabilityClass::Computational
+                && unexplained(&Pole::from_modal(d.frequency_hz, d.damping_ratio))
+        })
+}
+
 /// The lines `keep` of every channel.
 fn select_lines(chans: &[Vec<c64>], keep: &[usize]) -> Vec<Vec<c64>> {
     chans
@@ -295,6 +319,10 @@ fn estimate_poles_from(
             let lower = sub.up_to(low);
             if lower.n_lines() < min_sweep_lines {
                 break;
+            }
+            if safety_covered(&sel, 0.6 * low) {
+                low *= 0.25;
+                continue;
             }
             let s_low = sweep_at(&lower, SweepDepth::Safety)?;
             for m in s_low.modes {
