@@ -120,13 +120,7 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     // `pair_basis` and the complex product by q, written out so that they vectorise).
     let (qre, qim): (Vec<f64>, Vec<f64>) = q.iter().map(|z| (z.re, z.im)).unzip();
     for (m, p) in poles.iter().enumerate() {
-        let (c1, c2) = a.two_cols_mut(2 * m, 2 * m + 1);
-        let (c1, c2) = (
-            c1.try_as_col_major_mut().unwrap().as_slice_mut(),
-            c2.try_as_col_major_mut().unwrap().as_slice_mut(),
-        );
-        let (r1, i1) = c1.split_at_mut(n);
-        let (r2, i2) = c2.split_at_mut(n);
+        let (r1, i1, r2, i2) = pair_halves(&mut a, m, n);
         let (x, pim) = (-p.0.re, p.0.im);
         let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
         let line = band.omega.iter().zip(qre.iter().zip(&qim));
@@ -493,13 +487,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // complex squares and the products by q, written out so that they vectorise).
         let mut d = Mat::<f64>::zeros(2 * n, np);
         for (m, p) in cur.iter().enumerate() {
-            let (c1, c2) = d.two_cols_mut(2 * m, 2 * m + 1);
-            let (c1, c2) = (
-                c1.try_as_col_major_mut().unwrap().as_slice_mut(),
-                c2.try_as_col_major_mut().unwrap().as_slice_mut(),
-            );
-            let (r1, i1) = c1.split_at_mut(n);
-            let (r2, i2) = c2.split_at_mut(n);
+            let (r1, i1, r2, i2) = pair_halves(&mut d, m, n);
             let (x, pim) = (-p.0.re, p.0.im);
             let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
             let line = band.omega.iter().zip(qre.iter().zip(&qim));
@@ -652,4 +640,19 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         cost: (cost0, t.cost),
         fit: std::sync::Arc::new(t),
     }
+}
+
+/// Columns 2m and 2m + 1 of a real-stacked matrix (rows 0..n the real parts, n..2n the
+/// imaginary parts) as the slices (re₁, im₁, re₂, im₂), for loops that vectorise.
+fn pair_halves(
+    a: &mut Mat<f64>,
+    m: usize,
+    n: usize,
+) -> (&mut [f64], &mut [f64], &mut [f64], &mut [f64]) {
+    let (c1, c2) = a.as_mut().two_cols_mut(2 * m, 2 * m + 1);
+    let c1 = c1.try_as_col_major_mut().expect("column-major").as_slice_mut();
+    let c2 = c2.try_as_col_major_mut().expect("column-major").as_slice_mut();
+    let (r1, i1) = c1.split_at_mut(n);
+    let (r2, i2) = c2.split_at_mut(n);
+    (r1, i1, r2, i2)
 }
