@@ -48,6 +48,7 @@ CASES = {
     "excitation-gain": (85.0, ['id = "excitation_gain"\ngains = { hit3 = 1.05 }'], ["excitation_gain"]),
     "dashpots": (85.0, ['id = "nonproportional_damping"\naxial_n_s_per_m = [400.0, 0.0, 0.0, 400.0]\n'
                         'lateral_n_s_per_m = [0.0]'], ["nonproportional_damping"]),
+    "tilt": (85.0, ['id = "sensor_tilt_gravity"'], ["sensor_tilt_gravity"]),
     "gauge-mass": (85.0, ['id = "force_gauge_mass"\nmasses_kg = { hit1 = 0.05 }'], ["force_gauge_mass"]),
 }
 
@@ -74,7 +75,6 @@ HANGING = {
         40.0, ['id = "force_location"\noffsets_m = { h2 = [0.006, 0.0, -0.005] }'], ["force_location"]),
     "hanging-cord-mass": (40.0, ['id = "cord_mass"\nmass_per_length_kg_per_m = [0.1]\ncord_length_m = [1.2]'],
                           ["cord_mass"]),
-    "hanging-tilt": (40.0, ['id = "sensor_tilt_gravity"'], ["sensor_tilt_gravity"]),
     "hanging-truncation": (40.0, ['id = "record_truncation"\nrecord_length_s = 10.0'], ["record_truncation"]),
     "hanging-highpass": (40.0, ['id = "transducer_highpass"\ntime_constant_s = 3.0'], ["transducer_highpass"]),
     "hanging-cad-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"],
