@@ -497,19 +497,9 @@ fn gauge_pivots(null: &[usize], vt: &DMatrix<f64>, delta: &[f64]) -> Vec<usize> 
     let mut dropped: Vec<usize> = Vec::new();
     for i in 0..vecs.len() {
         let v = vecs[i].clone();
-        let vmax = (0..np)
-            .filter(|j| !dropped.contains(j))
-            .map(|j| v[j].abs())
-            .fold(0.0, f64::max);
-        if vmax < 1e-12 {
+        let Some((_, j)) = median_pivot(&v, delta, |j| !dropped.contains(&j)) else {
             continue;
-        }
-        let mut shifts: Vec<(f64, usize)> = (0..np)
-            .filter(|j| !dropped.contains(j) && v[*j].abs() >= 0.5 * vmax)
-            .map(|j| (-delta[j] / v[j], j))
-            .collect();
-        shifts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        let j = shifts[(shifts.len() - 1) / 2].1;
+        };
         dropped.push(j);
         for w in vecs.iter_mut().skip(i + 1) {
             let f = w[j] / v[j];
@@ -517,6 +507,26 @@ fn gauge_pivots(null: &[usize], vt: &DMatrix<f64>, delta: &[f64]) -> Vec<usize> 
         }
     }
     dropped
+}
+
+/// The median rule of a gauge `v` at the offsets from neutral `x`: among the eligible
+/// coordinates that carry the gauge (|v_j| ≥ ½ of the largest), the shift along v
+/// that brings coordinate j to neutral is −x_j/v_j; returns the median shift and its
+/// coordinate (`None` when no eligible coordinate carries v).
+fn median_pivot(v: &[f64], x: &[f64], eligible: impl Fn(usize) -> bool) -> Option<(f64, usize)> {
+    let vmax = (0..v.len())
+        .filter(|&j| eligible(j))
+        .map(|j| v[j].abs())
+        .fold(0.0, f64::max);
+    if vmax < 1e-12 {
+        return None;
+    }
+    let mut shifts: Vec<(f64, usize)> = (0..v.len())
+        .filter(|&j| eligible(j) && v[j].abs() >= 0.5 * vmax)
+        .map(|j| (-x[j] / v[j], j))
+        .collect();
+    shifts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    Some(shifts[(shifts.len() - 1) / 2])
 }
 
 fn score_candidate(
@@ -1771,19 +1781,10 @@ fn gauge_move(
     for (x, n) in dt.iter_mut().zip(&norms) {
         *x = if *n > 0.0 { *x / n } else { 0.0 };
     }
-    // The shift that brings coordinate k to neutral; the median over the coordinates
-    // that carry the gauge.
-    let mut shifts: Vec<(f64, usize)> = (0..d)
-        .filter(|&k| gk[k].abs() >= 0.5 * gmax)
-        .map(|k| {
-            (
-                -(cur.theta[offset + k] - cand.neutral[a.kept[k]]) / gk[k],
-                k,
-            )
-        })
+    let x: Vec<f64> = (0..d)
+        .map(|k| cur.theta[offset + k] - cand.neutral[a.kept[k]])
         .collect();
-    shifts.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
-    let (beta, k_fixed) = shifts[(shifts.len() - 1) / 2];
+    let (beta, k_fixed) = median_pivot(&gk, &x, |_| true)?;
     let mut theta = cur.theta.clone();
     for k in 0..d {
         theta[offset + k] += beta * gk[k];

@@ -122,7 +122,10 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     for (m, p) in poles.iter().enumerate() {
         let (r1, i1, r2, i2) = pair_halves(&mut a, m, n);
         let (x, pim) = (-p.0.re, p.0.im);
-        let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+        let cols = r1
+            .iter_mut()
+            .zip(i1.iter_mut())
+            .zip(r2.iter_mut().zip(i2.iter_mut()));
         let line = band.omega.iter().zip(qre.iter().zip(&qim));
         for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
             let (y1, y2) = (w - pim, w + pim);
@@ -489,7 +492,10 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         for (m, p) in cur.iter().enumerate() {
             let (r1, i1, r2, i2) = pair_halves(&mut d, m, n);
             let (x, pim) = (-p.0.re, p.0.im);
-            let cols = r1.iter_mut().zip(i1.iter_mut()).zip(r2.iter_mut().zip(i2.iter_mut()));
+            let cols = r1
+                .iter_mut()
+                .zip(i1.iter_mut())
+                .zip(r2.iter_mut().zip(i2.iter_mut()));
             let line = band.omega.iter().zip(qre.iter().zip(&qim));
             for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
                 let (y1, y2) = (w - pim, w + pim);
@@ -650,8 +656,14 @@ fn pair_halves(
     n: usize,
 ) -> (&mut [f64], &mut [f64], &mut [f64], &mut [f64]) {
     let (c1, c2) = a.as_mut().two_cols_mut(2 * m, 2 * m + 1);
-    let c1 = c1.try_as_col_major_mut().expect("column-major").as_slice_mut();
-    let c2 = c2.try_as_col_major_mut().expect("column-major").as_slice_mut();
+    let c1 = c1
+        .try_as_col_major_mut()
+        .expect("column-major")
+        .as_slice_mut();
+    let c2 = c2
+        .try_as_col_major_mut()
+        .expect("column-major")
+        .as_slice_mut();
     let (r1, i1) = c1.split_at_mut(n);
     let (r2, i2) = c2.split_at_mut(n);
     (r1, i1, r2, i2)
