@@ -128,10 +128,8 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
             .zip(r2.iter_mut().zip(i2.iter_mut()));
         let line = band.omega.iter().zip(qre.iter().zip(&qim));
         for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-            let (y1, y2) = (w - pim, w + pim);
-            let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
             // u = 1/(iω − λ), v = 1/(iω − λ*); b1 = u + v, b2 = i(u − v).
-            let (ur, ui, vr, vi) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+            let (ur, ui, vr, vi) = pole_reciprocals(x, pim, w);
             let (b1r, b1i) = (ur + vr, ui + vi);
             let (b2r, b2i) = (-(ui - vi), ur - vr);
             *r1 = qr * b1r - qi * b1i;
@@ -498,10 +496,8 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 .zip(r2.iter_mut().zip(i2.iter_mut()));
             let line = band.omega.iter().zip(qre.iter().zip(&qim));
             for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-                let (y1, y2) = (w - pim, w + pim);
-                let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
                 // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
-                let (a1r, a1i, a2r, a2i) = (x * v1, -y1 * v1, x * v2, -y2 * v2);
+                let (a1r, a1i, a2r, a2i) = pole_reciprocals(x, pim, w);
                 let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
                 let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
                 // d1 = q(u + u2), d2 = q·i(u − u2).
@@ -667,4 +663,13 @@ fn pair_halves(
     let (r1, i1) = c1.split_at_mut(n);
     let (r2, i2) = c2.split_at_mut(n);
     (r1, i1, r2, i2)
+}
+
+/// 1/(iω − λ) and 1/(iω − λ*) as (re, im, re, im) for the pole λ = −x + i·pim, in
+/// plain real arithmetic so that the loops over lines calling it vectorise.
+#[inline(always)]
+fn pole_reciprocals(x: f64, pim: f64, w: f64) -> (f64, f64, f64, f64) {
+    let (y1, y2) = (w - pim, w + pim);
+    let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
+    (x * v1, -y1 * v1, x * v2, -y2 * v2)
 }
