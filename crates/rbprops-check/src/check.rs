@@ -110,6 +110,51 @@ pub struct CheckOutcome {
     pub improved: Vec<c64>,
     /// σ per value (0: excluded).
     pub sigma: Vec<f64>,
+    /// The final model's parameters, a start for the noise rerun of [`check`].
+    prior: Prior,
+}
+
+/// A pass's final model: the nominal model's parameters θ and each accepted effect's φ.
+/// The noise rerun of [`check`] refits every effect the first pass accepted from here
+/// as well: under the re-estimated noise the baseline may drift to stand in for the
+/// effect (a hanging body's mass ×4.5 for a record truncation), and from that basin the
+/// effect's screening statistic and its refit from the current model see nothing.
+#[derive(Debug, Clone, Default)]
+struct Prior {
+    base: Vec<f64>,
+    effects: Vec<(String, Vec<f64>)>,
+}
+
+impl Prior {
+    fn phi(&self, id: &str) -> Option<&[f64]> {
+        self.effects
+            .iter()
+            .find(|(e, _)| e == id)
+            .map(|(_, phi)| phi.as_slice())
+    }
+
+    /// θ for `active` (the last entry the effect being refitted, with its start `alpha`
+    /// unless the prior has it) from the prior's θ and φ where it has them and from
+    /// `current` (the current fit's θ for `active` minus its last entry) elsewhere.
+    fn start(&self, p: &Problem, active: &[Act], current: &[f64], alpha: &[f64]) -> Vec<f64> {
+        let nb = p.n_base();
+        let mut t = self.base.clone();
+        let mut k = nb;
+        for (i, a) in active.iter().enumerate() {
+            let d = a.dim();
+            let fallback = if i + 1 == active.len() {
+                alpha
+            } else {
+                &current[k..k + d]
+            };
+            match self.phi(&p.cands[a.c].id) {
+                Some(phi) => t.extend(a.kept.iter().map(|&j| phi[j])),
+                None => t.extend_from_slice(fallback),
+            }
+            k += d;
+        }
+        t
+    }
 }
 
 /// An effect in the model. Its free parameters are the `kept` coordinates of φ; the
@@ -840,7 +885,7 @@ pub fn check(
     options: &CheckOptions,
 ) -> Result<CheckOutcome, CheckError> {
     options.progress.say(|| "estimating the noise floor".into());
-    let first = check_with(spec, geometry, frf, options, None)?;
+    let first = check_with(spec, geometry, frf, options, None, None)?;
     if options.noise.is_some()
         || (first.report.accepted.is_empty() && first.report.ambiguous.is_empty())
     {
@@ -871,7 +916,14 @@ pub fn check(
     options.progress.say(|| {
         format!("noise re-estimated from the final residual (χ² factor {rho:.3}): rerunning")
     });
-    let mut second = check_with(spec, geometry, frf, options, Some((nf.model, nf.sigma)))?;
+    let mut second = check_with(
+        spec,
+        geometry,
+        frf,
+        options,
+        Some((nf.model, nf.sigma)),
+        Some(&first.prior),
+    )?;
     second.report.method.push(format!(
         "{note}: beyond it, so the check was rerun with it (first pass: {})",
         first.report.verdict
@@ -895,13 +947,15 @@ fn chi2_ratio(o: &CheckOutcome, sigma2: &[f64]) -> f64 {
 }
 
 /// One pass of the check; `noise` overrides `options.noise` with a noise model and its
-/// σ per value (the second pass of [`check`]).
+/// σ per value, and `prior` is the first pass's final model (the second pass of
+/// [`check`]): the effects it accepted are refitted from it, whatever their screening.
 fn check_with(
     spec: &CampaignSpec,
     geometry: &Geometry,
     frf: &FrfSet,
     options: &CheckOptions,
     noise_override: Option<(NoiseModel, Vec<f64>)>,
+    prior: Option<&Prior>,
 ) -> Result<CheckOutcome, CheckError> {
     frf.validate()
         .map_err(|e| CheckError::Data(e.to_string()))?;
@@ -1021,6 +1075,7 @@ fn check_with(
     let loeo = options.cross_validation && nex >= 3;
     let mut accepted_cv: Vec<Option<HeldOutCheck>> = Vec::new();
     let mut accepted_loeo: Vec<Option<HeldOutCheck>> = Vec::new();
+    let in_prior = |c: usize| prior.is_some_and(|pr| pr.phi(&p.cands[c].id).is_some());
     for step in 1..=options.max_effects {
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
         let todo: Vec<usize> = (0..p.cands.len())
@@ -1105,11 +1160,13 @@ fn check_with(
                         refit_delta_bic: None,
                         decision: if s.score > thr {
                             "significant score".into()
+                        } else if in_prior(c) {
+                            "not significant; refitted as accepted in the first pass".into()
                         } else {
                             "not significant".into()
                         },
                     });
-                    if s.score > thr {
+                    if s.score > thr || in_prior(c) {
                         let gain = s.score - s.rank as f64 * ln_n;
                         significant.push((c, s, gain));
                     }
@@ -1140,6 +1197,7 @@ fn check_with(
                 *i < options.refit_top
                     || s.2 >= 0.5 * gmax
                     || (s.1.n_tests > 1 && s.2 >= 0.1 * gmax)
+                    || in_prior(s.0)
             })
             .map(|(_, s)| s)
             .collect();
@@ -1200,12 +1258,19 @@ fn check_with(
                 // pendulum stiffness), into a basin the true effect cannot leave. The
                 // nominal parameters are the user's prior: refit from them too, keep the
                 // better.
+                let mut restarts = Vec::new();
                 if active.is_empty() {
                     let mut tn = theta_nom.clone();
                     tn.extend_from_slice(&s.start);
-                    if let Ok(f_nom) = p.fit(&stage, &tn, &act, iterations) {
-                        if fit.as_ref().map_or(true, |f| f_nom.chi2 < f.chi2) {
-                            fit = Ok(f_nom);
+                    restarts.push(tn);
+                }
+                if let Some(pr) = prior.filter(|_| in_prior(*c)) {
+                    restarts.push(pr.start(&p, &act, &cur.theta, &s.start));
+                }
+                for t in restarts {
+                    if let Ok(f_r) = p.fit(&stage, &t, &act, iterations) {
+                        if fit.as_ref().map_or(true, |f| f_r.chi2 < f.chi2) {
+                            fit = Ok(f_r);
                         }
                     }
                 }
@@ -1566,12 +1631,14 @@ fn check_with(
     let mut accepted = Vec::new();
     let mut offset = nb;
     let mut improved_effects = Vec::new();
+    let mut final_effects = Vec::new();
     for (k, a) in active.iter().enumerate() {
         let cand = &p.cands[a.c];
         let d = a.dim();
         let infos = cand.effect.parameters();
         // φ = neutral + B α, Cov φ = B Cov α Bᵀ.
         let phi = a.phi(&cand.neutral, &cur.theta[offset..offset + d]);
+        final_effects.push((cand.id.clone(), phi.clone()));
         let ca = cov_final.view((offset, offset), (d, d)).into_owned();
         let mut cphi = DMatrix::zeros(phi.len(), phi.len());
         for (r, &i) in a.kept.iter().enumerate() {
@@ -1674,7 +1741,12 @@ fn check_with(
         warnings,
     };
     report.verdict = verdict(&report);
+    let prior = Prior {
+        base: cur.theta[..nb].to_vec(),
+        effects: final_effects,
+    };
     Ok(CheckOutcome {
+        prior,
         report,
         improved_spec,
         measured: y.clone(),
