@@ -524,6 +524,10 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "mass and string / surge modes of the suspension cords",
             "the cords' mass and length, or a suspension with lighter or shorter cords",
         ),
+        "channel_delay" => (
+            "acquisition delay per channel (ADC skew, filter group delay)",
+            "a loop-back calibration of each channel's delay against the force channel",
+        ),
         "elastic_mode" => (
             "elastic mode (a resonance the rigid-body model lacks, in or above the band)",
             "more sensors or a roving hammer to map its shape, or a band that stops below it",
@@ -606,6 +610,18 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         }
         "sensor_tilt_gravity" => {
             t.insert("g_m_per_s2".into(), 0.0.into());
+        }
+        "channel_delay" => {
+            // A delay per channel and per force: only differences are seen, so the
+            // common delay is a gauge the score test finds and the fit holds.
+            t.insert(
+                "channels_s".into(),
+                ones(
+                    g.channels.iter().map(|c| c.id.clone()).collect(),
+                    0.0.into(),
+                ),
+            );
+            t.insert("excitations_s".into(), ones(excitations, 0.0.into()));
         }
         // Neutral only at infinity (1/T, 1/τ, or a mode shape product that is bilinear
         // at zero): screened through the local forms below, or (elastic_mode) as

@@ -574,6 +574,31 @@ fn transducer_highpass_is_found() {
     );
 }
 
+/// Acquisition delays (E11: ADC skew, filter group delay): two channels and one force
+/// late. Only differences are seen; the common delay is the effect's gauge, held where
+/// most signals are on time (as here), so the delays compare directly.
+#[test]
+fn channel_delay_is_found() {
+    let nom = nominal(LINES);
+    let truth = truth_of(&nom);
+    let (g, frf) = record_sim(
+        &truth,
+        &["id = \"channel_delay\"\nchannels_s = { \"2x\" = 0.0005, \"3z\" = 0.0008 }\nexcitations_s = { force2 = 0.0003 }"],
+        REL,
+        27,
+    );
+    let r = run(&nom, &g, &frf, &given_noise(9));
+    summary("channel_delay", &r, &truth.properties());
+    assert_found(&r, &["channel_delay"], &truth.properties());
+    // Parameters: channels 1x..3z (sorted ids), then force1..force3.
+    let mut t = vec![0.0; 12];
+    t[3] = 0.0005;
+    t[8] = 0.0008;
+    t[10] = 0.0003;
+    within_mod_gauge(&r, "channel_delay", &t, 4.0);
+    mass_within(&r, truth.properties().mass, 4.0);
+}
+
 #[test]
 fn sensor_position_error_is_found() {
     let nom = nominal(LINES);

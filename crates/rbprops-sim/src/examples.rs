@@ -116,6 +116,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "cord_mass",
         include_str!("../../../fixtures/specs/effects/cord_mass.toml"),
     ),
+    (
+        "channel_delay",
+        include_str!("../../../fixtures/specs/effects/channel_delay.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

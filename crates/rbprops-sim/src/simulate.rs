@@ -271,6 +271,7 @@ pub fn predict(
                 let sm = &models[si];
                 let input = &sm.model.inputs[ii];
                 let mut ob = OutputBlock {
+                    geometry,
                     excitation: e,
                     frequency_hz: &freq,
                     n_channels: n_ch,

@@ -524,6 +524,39 @@ fn transducer_highpass_is_the_first_order_factor() {
     }
 }
 
+/// Delay: channel c of excitation e × e^{−iω(τ_c − τ_e)}, the others untouched.
+#[test]
+fn channel_delay_is_a_pure_phase_lag_of_the_difference() {
+    let nominal = sim(&tc2());
+    let out = sim(&with_effect(
+        tc2(),
+        "id = \"channel_delay\"\nchannels_s = { \"2y\" = 0.002, \"1x\" = -0.001 }\nexcitations_s = { force3 = 0.0005 }",
+    ));
+    let g = &out.geometry;
+    for e in 0..3 {
+        for ch in 0..9 {
+            let tau_c = match g.channels[ch].id.as_str() {
+                "2y" => 0.002,
+                "1x" => -0.001,
+                _ => 0.0,
+            };
+            let tau_e = if g.excitations[e].id == "force3" {
+                0.0005
+            } else {
+                0.0
+            };
+            let expect: Vec<c64> = nominal
+                .frf
+                .frf(e, ch)
+                .iter()
+                .zip(&out.frf.frequency_hz)
+                .map(|(h, hz)| h * c64::from_polar(1.0, -TAU * hz * (tau_c - tau_e)))
+                .collect();
+            assert!(max_dev(out.frf.frf(e, ch), &expect) < 1e-13, "e{e} c{ch}");
+        }
+    }
+}
+
 /// Specific force: channel c reads `s_cᵀ(a + g ẑ×θ)`; θ recovered from the nominal
 /// receptances of the three triaxes by least squares (exact for a rigid body).
 #[test]
@@ -627,6 +660,9 @@ fn bad_effect_parameters_name_the_effect_and_parameter() {
         ("id = \"force_gauge_mass\"\nmasses_kg = { force1 = -0.01 }", vec!["masses_kg.force1"]),
         ("id = \"transducer_highpass\"\ntime_constant_s = 0.0", vec!["positive"]),
         ("id = \"transducer_highpass\"\ntime_constants_s = { \"1q\" = 1.0 }", vec!["channel '1q'"]),
+        ("id = \"channel_delay\"\nchannels_s = { \"1q\" = 0.001 }", vec!["channel '1q'"]),
+        ("id = \"channel_delay\"\nexcitations_s = { force7 = 0.001 }", vec!["excitation 'force7'"]),
+        ("id = \"channel_delay\"\nchannels_s = { \"1x\" = 2.0 }", vec!["delay of '1x'", "±1 s"]),
         ("id = \"sensor_tilt_gravity\"\nup = [0.0, 1.0, 1.0]", vec!["up"]),
         ("id = \"suspension_coupling\"\nrotational_n_m_per_rad = [0.0, -1.0, 0.0]", vec!["stiffness"]),
         ("id = \"record_truncation\"\nrecord_length_s = 4.0\nwindow = 1", vec!["unknown field", "window"]),

@@ -7,7 +7,7 @@
 //! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
 //! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
-//! `sensor_tilt_gravity` ([`sensors`]); `suspension_coupling` ([`mounts`]); `cord_mass`
+//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling` ([`mounts`]); `cord_mass`
 //! ([`cords`]). Each effect is a plain struct deserialised from
 //! its spec table (unknown parameters are refused) that implements [`Effect`].
 
@@ -52,6 +52,8 @@ pub struct BuildContext<'a> {
 /// One block of FRFs (all channels of one excitation, `[channel][line]`, receptance)
 /// handed to [`Effect::transform_output`].
 pub struct OutputBlock<'a> {
+    /// The campaign's geometry (channel and excitation ids, in the block's order).
+    pub geometry: &'a Geometry,
     pub excitation: usize,
     pub frequency_hz: &'a [f64],
     pub n_channels: usize,
@@ -126,6 +128,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "sensor_tilt_gravity",
     "suspension_coupling",
     "cord_mass",
+    "channel_delay",
 ];
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
@@ -204,6 +207,7 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "transducer_highpass" => Box::new(params::<sensors::TransducerHighpass>(spec)?),
         "sensor_tilt_gravity" => Box::new(params::<sensors::SensorTiltGravity>(spec)?),
         "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
+        "channel_delay" => Box::new(params::<sensors::ChannelDelay>(spec)?),
         "cord_mass" => {
             let c: cords::CordMass = params(spec)?;
             c.check_self()

@@ -14,11 +14,20 @@
 //!   rotation about horizontal axes; poles do not move. `s_c` is the row's current
 //!   translational part (gains and misorientation compose), so this effect applies
 //!   after the other output effects.
+//! - `channel_delay`: the acquisition chain delays channel c's signal by τ_c
+//!   (multiplexed-ADC skew, mismatched anti-alias filter group delays, a digital
+//!   sensor's latency) and excitation e's force by τ_e, so the measured FRF is
+//!   `H_ce(ω) e^{−iω(τ_c − τ_e)}`. Only the differences τ_c − τ_e are seen: a common
+//!   delay of every signal cancels. Under an exponential window (applied to the delayed
+//!   records) the exact factor is `e^{−(iω+σ)(τ_c − τ_e)}`; its extra real part
+//!   `e^{−σ(τ_c − τ_e)}` is a channel gain within σ|τ_c − τ_e| (3·10⁻⁴ for σ = 0.3/s,
+//!   1 ms) of 1, and is left out.
 
-use super::{BuildContext, Effect, ParamInfo};
+use super::{BuildContext, Effect, OutputBlock, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use nalgebra::RowVector6;
+use rbprops_core::c64;
 use rbprops_core::{cross_matrix, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -207,5 +216,126 @@ impl Effect for SensorTiltGravity {
             }
         }
         Ok(())
+    }
+}
+
+/// `channel_delay` (see the module docs): H_ce(ω) × e^{−iω(τ_c − τ_e)}.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChannelDelay {
+    /// Delay τ_c (s) per response channel id; channels not listed are not delayed.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub channels_s: BTreeMap<String, f64>,
+    /// Delay τ_e (s) of the force per excitation id.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub excitations_s: BTreeMap<String, f64>,
+}
+
+/// Delays beyond a second are not an acquisition chain's (and alias the phase on any
+/// line spacing a rigid-body test uses).
+const MAX_DELAY_S: f64 = 1.0;
+
+impl ChannelDelay {
+    fn check_values(&self) -> Result<(), String> {
+        for (k, t) in self.channels_s.iter().chain(&self.excitations_s) {
+            if !(t.is_finite() && t.abs() <= MAX_DELAY_S) {
+                return Err(format!(
+                    "delay of '{k}' must be finite and within ±{MAX_DELAY_S} s, got {t}"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Effect for ChannelDelay {
+    fn id(&self) -> &'static str {
+        "channel_delay"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let info = |name: String| ParamInfo {
+            name,
+            unit: "s",
+            lower: -MAX_DELAY_S,
+            upper: MAX_DELAY_S,
+            plausible: (-1e-3, 1e-3),
+        };
+        self.channels_s
+            .keys()
+            .map(|k| info(format!("channels_s.{k}")))
+            .chain(
+                self.excitations_s
+                    .keys()
+                    .map(|k| info(format!("excitations_s.{k}"))),
+            )
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.channels_s
+            .values()
+            .chain(self.excitations_s.values())
+            .copied()
+            .collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let n = self.channels_s.len() + self.excitations_s.len();
+        if values.len() != n {
+            return Err(format!("expected {n} values, got {}", values.len()));
+        }
+        let mut e = self.clone();
+        for (v, x) in e
+            .channels_s
+            .values_mut()
+            .chain(e.excitations_s.values_mut())
+            .zip(values)
+        {
+            *v = *x;
+        }
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        let channels = spec.channels();
+        if let Some(k) = self
+            .channels_s
+            .keys()
+            .find(|k| !channels.iter().any(|c| &c.id == *k))
+        {
+            return Err(format!("channels_s: channel '{k}' is not defined"));
+        }
+        if let Some(k) = self
+            .excitations_s
+            .keys()
+            .find(|k| !spec.excitations.iter().any(|e| &e.id == *k))
+        {
+            return Err(format!("excitations_s: excitation '{k}' is not defined"));
+        }
+        Ok(())
+    }
+    fn transform_output(&self, block: &mut OutputBlock) {
+        let g = block.geometry;
+        let tau_e = self
+            .excitations_s
+            .get(&g.excitations[block.excitation].id)
+            .copied()
+            .unwrap_or(0.0);
+        let nl = block.frequency_hz.len();
+        for (c, row) in block.values.chunks_exact_mut(nl).enumerate() {
+            let tau = self
+                .channels_s
+                .get(&g.channels[c].id)
+                .copied()
+                .unwrap_or(0.0)
+                - tau_e;
+            if tau != 0.0 {
+                for (h, f) in row.iter_mut().zip(block.frequency_hz) {
+                    *h *= c64::from_polar(1.0, -std::f64::consts::TAU * f * tau);
+                }
+            }
+        }
     }
 }
