@@ -524,6 +524,10 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "mass and string / surge modes of the suspension cords",
             "the cords' mass and length, or a suspension with lighter or shorter cords",
         ),
+        "suspension_drift" => (
+            "suspension drift between runs (creep, temperature)",
+            "repeated runs of one excitation, or the suspension modes measured before and after each run",
+        ),
         "channel_delay" => (
             "acquisition delay per channel (ADC skew, filter group delay)",
             "a loop-back calibration of each channel's delay against the force channel",
@@ -610,6 +614,9 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         }
         "sensor_tilt_gravity" => {
             t.insert("g_m_per_s2".into(), 0.0.into());
+        }
+        "suspension_drift" => {
+            t.insert("stiffness_factors".into(), ones(excitations, 1.0.into()));
         }
         "channel_delay" => {
             // A delay per channel and per force: only differences are seen, so the

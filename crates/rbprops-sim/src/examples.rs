@@ -120,6 +120,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "channel_delay",
         include_str!("../../../fixtures/specs/effects/channel_delay.toml"),
     ),
+    (
+        "suspension_drift",
+        include_str!("../../../fixtures/specs/effects/suspension_drift.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

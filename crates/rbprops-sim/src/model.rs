@@ -17,6 +17,17 @@ pub struct ModelInput {
     /// Mass attached to the body only while this excitation is measured (e.g. the mass
     /// below a force gauge), about O: the model for this input is `Z(s) + s² M_a`.
     pub attached_mass: Mat6,
+    /// Stiffness added only while this excitation is measured (a stinger to a grounded
+    /// shaker, the suspension drifting between runs), about O: the model for this
+    /// input is `Z(s) + K_a`.
+    pub attached_stiffness: Mat6,
+}
+
+impl ModelInput {
+    /// Whether this input sees the set-up's model unchanged.
+    pub fn is_plain(&self) -> bool {
+        self.attached_mass == Mat6::zeros() && self.attached_stiffness == Mat6::zeros()
+    }
 }
 
 /// How the records are observed: signal processing and the sensor equation. The

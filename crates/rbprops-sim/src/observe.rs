@@ -1,8 +1,9 @@
 //! The general observation of a model's FRFs: exponential window, finite record,
 //! gravity in the sensor equation, transducer high-pass and masses attached during one
-//! excitation ([`crate::model::Observation`], [`crate::model::ModelInput::attached_mass`]).
+//! excitation ([`crate::model::Observation`], [`crate::model::ModelInput::attached_mass`],
+//! [`crate::model::ModelInput::attached_stiffness`]).
 //!
-//! With `s = iω + σ` (σ the window decay, 0 without window), `Z(s) = K + sC + s²(M + M_a)`
+//! With `s = iω + σ` (σ the window decay, 0 without window), `Z(s) = K + K_a + sC + s²(M + M_a)`
 //! and `x(s) = Z(s)⁻¹ f`, channel c of quantity order k (0 receptance, 1 mobility,
 //! 2 accelerance) reads
 //!
@@ -31,6 +32,7 @@ fn cplx6(v: &Vec6) -> Vec6c {
 /// State `(q, v)` at time T after a unit impulse through `f` (rigid part).
 fn rigid_state_at(
     mass: &Mat6,
+    stiffness: &Mat6,
     model: &DynamicModel,
     f: &Vec6,
     t: f64,
@@ -41,7 +43,7 @@ fn rigid_state_at(
     let mut a = SMatrix::<f64, 12, 12>::zeros();
     a.fixed_view_mut::<6, 6>(0, 6).copy_from(&Mat6::identity());
     a.fixed_view_mut::<6, 6>(6, 0)
-        .copy_from(&(-minv * model.stiffness));
+        .copy_from(&(-minv * stiffness));
     a.fixed_view_mut::<6, 6>(6, 6)
         .copy_from(&(-minv * model.damping));
     let mut x0 = SVector::<f64, 12>::zeros();
@@ -99,11 +101,12 @@ pub fn observed_block(
     let n_ch = model.outputs.len();
     let k = quantity.order();
     let mass = model.mass + input.attached_mass;
+    let stiffness = model.stiffness + input.attached_stiffness;
     let f = input.column;
     let e = input.excitation;
     let sigma = obs.window_decay_per_s;
     let rigid_tail = match obs.record_length_s {
-        Some(t) => Some((t, rigid_state_at(&mass, model, &f, t)?)),
+        Some(t) => Some((t, rigid_state_at(&mass, &stiffness, model, &f, t)?)),
         None => None,
     };
     let mode_tails: Vec<Option<Vector2<f64>>> = model
@@ -128,9 +131,7 @@ pub fn observed_block(
     for (l, &w) in omegas.iter().enumerate() {
         let s = c64::new(sigma, w);
         let z = Mat6c::from_fn(|i, j| {
-            c64::new(model.stiffness[(i, j)], 0.0)
-                + s * model.damping[(i, j)]
-                + s * s * mass[(i, j)]
+            c64::new(stiffness[(i, j)], 0.0) + s * model.damping[(i, j)] + s * s * mass[(i, j)]
         });
         let lu = z.lu();
         let x = lu.solve(&fc).ok_or_else(|| {

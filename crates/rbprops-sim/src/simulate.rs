@@ -86,6 +86,7 @@ pub fn build_models(
                     excitation: k,
                     column: e.column(),
                     attached_mass: Mat6::zeros(),
+                    attached_stiffness: Mat6::zeros(),
                 })
                 .collect(),
             extra_modes: Vec::new(),
@@ -278,7 +279,7 @@ pub fn predict(
                     values,
                 };
                 match &tables[si] {
-                    Some(table) if input.attached_mass == Mat6::zeros() => {
+                    Some(table) if input.is_plain() => {
                         table.apply(&input.column, ob.values);
                         for x in &sm.model.extra_modes {
                             for (c, dst) in ob.values.chunks_exact_mut(nl).enumerate() {

@@ -524,6 +524,45 @@ fn transducer_highpass_is_the_first_order_factor() {
     }
 }
 
+/// Drift: excitation force2's run sees `S (f K + iωC − ω²M)⁻¹ F` with the nominal
+/// set-up's S, K, C, M and F (damping not rebuilt), the other runs the nominal model.
+#[test]
+fn suspension_drift_scales_the_stiffness_of_one_run_only() {
+    let f = 1.03;
+    let s = receptance(tc2());
+    let g = s.geometry().unwrap();
+    let nominal = sim(&s);
+    let out = sim(&with_effect(
+        s.clone(),
+        &format!("id = \"suspension_drift\"\nstiffness_factors = {{ force2 = {f} }}"),
+    ));
+    let m = build_models(&s, &g, &[]).unwrap().remove(0).model;
+    let fc = g.excitations[1].column();
+    let freq = s.frequency_axis();
+    let mut worst = 0.0f64;
+    for ch in 0..9 {
+        let row = g.channels[ch].row();
+        let expect: Vec<c64> = freq
+            .iter()
+            .map(|hz| {
+                let w = TAU * hz;
+                let z = nalgebra::Matrix6::<c64>::from_fn(|i, j| {
+                    c64::new(
+                        f * m.stiffness[(i, j)] - w * w * m.mass[(i, j)],
+                        w * m.damping[(i, j)],
+                    )
+                });
+                let x = z.lu().solve(&fc.map(c)).unwrap();
+                (0..6).map(|k| x[k] * row[k]).sum()
+            })
+            .collect();
+        worst = worst.max(max_dev(out.frf.frf(1, ch), &expect));
+        assert_eq!(out.frf.frf(0, ch), nominal.frf.frf(0, ch));
+        assert_eq!(out.frf.frf(2, ch), nominal.frf.frf(2, ch));
+    }
+    assert!(worst < 1e-9, "drifted run vs direct solve: {worst:e}");
+}
+
 /// Delay: channel c of excitation e × e^{−iω(τ_c − τ_e)}, the others untouched.
 #[test]
 fn channel_delay_is_a_pure_phase_lag_of_the_difference() {
@@ -661,6 +700,8 @@ fn bad_effect_parameters_name_the_effect_and_parameter() {
         ("id = \"transducer_highpass\"\ntime_constant_s = 0.0", vec!["positive"]),
         ("id = \"transducer_highpass\"\ntime_constants_s = { \"1q\" = 1.0 }", vec!["channel '1q'"]),
         ("id = \"channel_delay\"\nchannels_s = { \"1q\" = 0.001 }", vec!["channel '1q'"]),
+        ("id = \"suspension_drift\"\nstiffness_factors = { force1 = -1.0 }", vec!["stiffness_factors.force1", "positive"]),
+        ("id = \"suspension_drift\"\nstiffness_factors = { force8 = 1.01 }", vec!["excitation 'force8'"]),
         ("id = \"channel_delay\"\nexcitations_s = { force7 = 0.001 }", vec!["excitation 'force7'"]),
         ("id = \"channel_delay\"\nchannels_s = { \"1x\" = 2.0 }", vec!["delay of '1x'", "±1 s"]),
         ("id = \"sensor_tilt_gravity\"\nup = [0.0, 1.0, 1.0]", vec!["up"]),

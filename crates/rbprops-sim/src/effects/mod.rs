@@ -7,7 +7,7 @@
 //! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
 //! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
-//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling` ([`mounts`]); `cord_mass`
+//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling`, `suspension_drift` ([`mounts`]); `cord_mass`
 //! ([`cords`]). Each effect is a plain struct deserialised from
 //! its spec table (unknown parameters are refused) that implements [`Effect`].
 
@@ -85,7 +85,8 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Effects apply in ascending order (stable in spec order): masses (0) before
     /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
     /// equation (2) last, so that it sees the final output rows; `cord_mass` (2) reduces
-    /// the final M and K and reads the final rows and columns.
+    /// the final M and K and reads the final rows and columns; `suspension_drift` (2)
+    /// scales the stiffness built before it.
     fn order(&self) -> u8 {
         1
     }
@@ -129,6 +130,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "suspension_coupling",
     "cord_mass",
     "channel_delay",
+    "suspension_drift",
 ];
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
@@ -208,6 +210,7 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "sensor_tilt_gravity" => Box::new(params::<sensors::SensorTiltGravity>(spec)?),
         "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
         "channel_delay" => Box::new(params::<sensors::ChannelDelay>(spec)?),
+        "suspension_drift" => Box::new(params::<mounts::SuspensionDrift>(spec)?),
         "cord_mass" => {
             let c: cords::CordMass = params(spec)?;
             c.check_self()

@@ -7,12 +7,21 @@
 //!
 //! and with `lateral_n_per_m` an extra isotropic lateral (⟂ `axis`) stiffness at each
 //! attachment point a_i, `ΔK += Σ_i T(a_i)ᵀ k_l,i (I − e eᵀ) T(a_i)` (mount shear).
+//!
+//! `suspension_drift` (research note E15, non-stationarity between runs): rubber creep
+//! or temperature changes the suspension between the excitations' runs. During the run
+//! of excitation e the stiffness is `f_e K` (K the set-up's stiffness as built by the
+//! effects before it: springs, and the gravity stiffness when listed first), while the
+//! damping matrix stays the set-up's: every pole of that run moves by about
+//! `Δω_r/ω_r = (f_e − 1)/2`, the residues hardly. A set-up measured in one run cannot
+//! show it (its stiffness is what was measured).
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use rbprops_core::{rigid_transform, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 fn default_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
@@ -115,6 +124,90 @@ impl Effect for SuspensionCoupling {
             model.stiffness += t.transpose() * lateral * t;
             let mut b = model.stiffness.fixed_view_mut::<3, 3>(3, 3);
             b += krot;
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuspensionDrift {
+    /// Factor f_e on the set-up's stiffness during excitation e's run; excitations not
+    /// listed see the set-up's stiffness.
+    pub stiffness_factors: BTreeMap<String, f64>,
+}
+
+impl SuspensionDrift {
+    fn check_values(&self) -> Result<(), String> {
+        match self
+            .stiffness_factors
+            .iter()
+            .find(|(_, f)| !(f.is_finite() && **f > 0.0))
+        {
+            Some((k, f)) => Err(format!(
+                "stiffness_factors.{k}: must be positive and finite, got {f}"
+            )),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Effect for SuspensionDrift {
+    fn id(&self) -> &'static str {
+        "suspension_drift"
+    }
+    /// After the effects that build the stiffness it scales.
+    fn order(&self) -> u8 {
+        2
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        self.stiffness_factors
+            .keys()
+            .map(|k| ParamInfo {
+                name: format!("stiffness_factors.{k}"),
+                unit: "1",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.95, 1.05),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.stiffness_factors.values().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let n = self.stiffness_factors.len();
+        if values.len() != n {
+            return Err(format!("expected {n} values, got {}", values.len()));
+        }
+        let e = SuspensionDrift {
+            stiffness_factors: self
+                .stiffness_factors
+                .keys()
+                .cloned()
+                .zip(values.iter().copied())
+                .collect(),
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::placement::excitations_exist(
+            spec,
+            "stiffness_factors",
+            self.stiffness_factors.keys().cloned(),
+        )
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            let id = &ctx.geometry.excitations[input.excitation].id;
+            if let Some(f) = self.stiffness_factors.get(id) {
+                input.attached_stiffness += (f - 1.0) * model.stiffness;
+            }
         }
         Ok(())
     }

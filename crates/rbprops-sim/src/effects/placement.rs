@@ -93,7 +93,7 @@ fn sensors_exist(
     Ok(())
 }
 
-fn excitations_exist(
+pub(super) fn excitations_exist(
     spec: &CampaignSpec,
     field: &str,
     ids: impl Iterator<Item = String>,
