@@ -52,6 +52,7 @@ CASES = {
     "gauge-mass": (85.0, ['id = "force_gauge_mass"\nmasses_kg = { hit1 = 0.05 }'], ["force_gauge_mass"]),
     "delay": (85.0, ['id = "channel_delay"\nchannels_s = { A2y = 0.0006, A3x = -0.0004 }\n'
                      'excitations_s = { hit4 = 0.0005 }'], ["channel_delay"]),
+    "drift": (85.0, ['id = "suspension_drift"\nstiffness_factors = { hit3 = 0.985 }'], ["suspension_drift"]),
 }
 
 # Cases whose truth body and springs also differ from the nominal (CAD) values: the
@@ -80,6 +81,7 @@ HANGING = {
     "hanging-truncation": (40.0, ['id = "record_truncation"\nrecord_length_s = 10.0'], ["record_truncation"]),
     "hanging-highpass": (40.0, ['id = "transducer_highpass"\ntime_constant_s = 3.0'], ["transducer_highpass"]),
     "hanging-delay": (40.0, ['id = "channel_delay"\nexcitations_s = { h2 = 0.001 }'], ["channel_delay"]),
+    "hanging-drift": (40.0, ['id = "suspension_drift"\nstiffness_factors = { h1 = 1.03 }'], ["suspension_drift"]),
     "hanging-cad-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"],
                             CAD_OFF),
 }
