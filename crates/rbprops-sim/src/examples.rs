@@ -124,6 +124,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "suspension_drift",
         include_str!("../../../fixtures/specs/effects/suspension_drift.toml"),
     ),
+    (
+        "added_mass",
+        include_str!("../../../fixtures/specs/effects/added_mass.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

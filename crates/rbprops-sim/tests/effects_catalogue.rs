@@ -524,6 +524,36 @@ fn transducer_highpass_is_the_first_order_factor() {
     }
 }
 
+/// Added mass: the model's mass matrix is the nominal one plus `[[A, B], [Bᵀ, C]]`
+/// entry by entry (B unsymmetric, so a transposed block would show), stiffness and
+/// inputs unchanged, and the FRFs move.
+#[test]
+fn added_mass_adds_its_blocks_to_the_mass_matrix() {
+    let s = tc2();
+    let g = s.geometry().unwrap();
+    let text = "id = \"added_mass\"\ntranslational_kg = [[0.1, 0.02, 0.0], [0.02, 0.2, 0.0], [0.0, 0.0, 0.5]]\n\
+                coupling_kg_m = [[0.0, 0.01, -0.03], [0.02, 0.0, 0.0], [0.0, 0.04, 0.0]]\n\
+                rotational_kg_m2 = [[0.01, 0.0, 0.002], [0.0, 0.02, 0.0], [0.002, 0.0, 0.005]]";
+    let with = with_effect(s.clone(), text);
+    let effects = parse_effects(&with).unwrap();
+    let m1 = build_models(&with, &g, &effects).unwrap().remove(0).model;
+    let m0 = build_models(&s, &g, &[]).unwrap().remove(0).model;
+    let a = Mat6::from_row_slice(&[
+        0.1, 0.02, 0.0, 0.0, 0.01, -0.03, //
+        0.02, 0.2, 0.0, 0.02, 0.0, 0.0, //
+        0.0, 0.0, 0.5, 0.0, 0.04, 0.0, //
+        0.0, 0.02, 0.0, 0.01, 0.0, 0.002, //
+        0.01, 0.0, 0.04, 0.0, 0.02, 0.0, //
+        -0.03, 0.0, 0.0, 0.002, 0.0, 0.005,
+    ]);
+    // Round-off of adding to entries of order |M₀|.
+    assert!((m1.mass - m0.mass - a).abs().max() < 4.0 * f64::EPSILON * m0.mass.abs().max());
+    assert_eq!(m1.stiffness, m0.stiffness);
+    assert_eq!(m1.inputs, m0.inputs);
+    let (f0, f1) = (sim(&s), sim(&with));
+    assert!(max_dev(f1.frf.frf(2, 5), f0.frf.frf(2, 5)) > 1e-2);
+}
+
 /// Drift: excitation force2's run sees `S (f K + iωC − ω²M)⁻¹ F` with the nominal
 /// set-up's S, K, C, M and F (damping not rebuilt), the other runs the nominal model.
 #[test]
@@ -701,6 +731,8 @@ fn bad_effect_parameters_name_the_effect_and_parameter() {
         ("id = \"transducer_highpass\"\ntime_constants_s = { \"1q\" = 1.0 }", vec!["channel '1q'"]),
         ("id = \"channel_delay\"\nchannels_s = { \"1q\" = 0.001 }", vec!["channel '1q'"]),
         ("id = \"suspension_drift\"\nstiffness_factors = { force1 = -1.0 }", vec!["stiffness_factors.force1", "positive"]),
+        ("id = \"added_mass\"\ntranslational_kg = [[0.1, 0.2, 0.0], [0.0, 0.1, 0.0], [0.0, 0.0, 0.1]]", vec!["translational_kg", "symmetric"]),
+        ("id = \"added_mass\"\nrotational_kg_m2 = [[0.1, 0.0], [0.0, 0.1]]", vec!["rotational_kg_m2"]),
         ("id = \"suspension_drift\"\nstiffness_factors = { force8 = 1.01 }", vec!["excitation 'force8'"]),
         ("id = \"channel_delay\"\nexcitations_s = { force7 = 0.001 }", vec!["excitation 'force7'"]),
         ("id = \"channel_delay\"\nchannels_s = { \"1x\" = 2.0 }", vec!["delay of '1x'", "±1 s"]),

@@ -2,11 +2,19 @@
 //!
 //! `ΔM = Σ_j m_j T(p_j)ᵀ T(p_j)` (research note E7): a point mass at `p_j` adds kinetic
 //! energy `½ m_j |T(p_j) q̇|²`. The truth properties stay those of the bare body.
+//!
+//! `added_mass` (research note E15: air added mass of large light panels, fluid
+//! sloshing at low frequency): a symmetric 6×6 mass about O, `M += M_a` with
+//! `M_a = [[A, B], [Bᵀ, C]]`, A and C symmetric. Unlike a rigid body's (or a point
+//! mass's) it need not have the rigid structure `A = m I`, `B = −m[c]×`: potential
+//! flow adds mass only normal to a large face, about `(8/3)ρR³` for a disc of radius
+//! R. Its rigid-structured part is what a free inertia absorbs; the rest (11 of its 21
+//! entries) is what a 21-parameter mass sees beyond a 10-parameter rigid one.
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
-use rbprops_core::{rigid_transform, Vec3};
+use rbprops_core::{rigid_transform, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -113,6 +121,141 @@ impl SensorMass {
         if let Some(m) = self.all().iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
             return Err(format!("sensor masses must be finite and ≥ 0, got {m}"));
         }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AddedMass {
+    /// A (kg), symmetric: translational block about O.
+    #[serde(default)]
+    pub translational_kg: [[f64; 3]; 3],
+    /// B (kg m): coupling of translation and rotation.
+    #[serde(default)]
+    pub coupling_kg_m: [[f64; 3]; 3],
+    /// C (kg m²), symmetric: rotational block about O.
+    #[serde(default)]
+    pub rotational_kg_m2: [[f64; 3]; 3],
+}
+
+/// Upper-triangle index pairs of a symmetric 3×3 block, in parameter order.
+const UPPER: [(usize, usize); 6] = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+const AXES: [char; 3] = ['x', 'y', 'z'];
+
+impl AddedMass {
+    /// `M_a` about O.
+    pub fn matrix(&self) -> rbprops_core::Mat6 {
+        let (a, b, c) = (
+            Mat3::from_fn(|i, j| self.translational_kg[i][j]),
+            Mat3::from_fn(|i, j| self.coupling_kg_m[i][j]),
+            Mat3::from_fn(|i, j| self.rotational_kg_m2[i][j]),
+        );
+        let mut m = rbprops_core::Mat6::zeros();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&a);
+        m.fixed_view_mut::<3, 3>(0, 3).copy_from(&b);
+        m.fixed_view_mut::<3, 3>(3, 0).copy_from(&b.transpose());
+        m.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
+        m
+    }
+    fn check_values(&self) -> Result<(), String> {
+        for (name, blk, sym) in [
+            ("translational_kg", &self.translational_kg, true),
+            ("coupling_kg_m", &self.coupling_kg_m, false),
+            ("rotational_kg_m2", &self.rotational_kg_m2, true),
+        ] {
+            if blk.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(format!("{name}: entries must be finite"));
+            }
+            let scale = blk.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
+            if sym
+                && UPPER
+                    .iter()
+                    .any(|&(i, j)| (blk[i][j] - blk[j][i]).abs() > 1e-12 * scale)
+            {
+                return Err(format!("{name}: the block must be symmetric"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Effect for AddedMass {
+    fn id(&self) -> &'static str {
+        "added_mass"
+    }
+    fn order(&self) -> u8 {
+        0
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let info = |name: String, unit: &'static str| ParamInfo {
+            name,
+            unit,
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            plausible: (-1.0, 1.0),
+        };
+        let sym = |block: &str, unit| {
+            UPPER.map(|(i, j)| info(format!("{block}.{}{}", AXES[i], AXES[j]), unit))
+        };
+        let mut v: Vec<ParamInfo> = sym("translational_kg", "kg").into();
+        for i in 0..3 {
+            for j in 0..3 {
+                v.push(info(
+                    format!("coupling_kg_m.{}{}", AXES[i], AXES[j]),
+                    "kg m",
+                ));
+            }
+        }
+        v.extend(sym("rotational_kg_m2", "kg m2"));
+        v
+    }
+    fn values(&self) -> Vec<f64> {
+        let mut v: Vec<f64> = UPPER
+            .iter()
+            .map(|&(i, j)| self.translational_kg[i][j])
+            .collect();
+        v.extend(self.coupling_kg_m.iter().flatten());
+        v.extend(UPPER.iter().map(|&(i, j)| self.rotational_kg_m2[i][j]));
+        v
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        if values.len() != 21 {
+            return Err(format!("expected 21 values, got {}", values.len()));
+        }
+        let sym = |v: &[f64]| {
+            let mut b = [[0.0; 3]; 3];
+            for (&(i, j), x) in UPPER.iter().zip(v) {
+                b[i][j] = *x;
+                b[j][i] = *x;
+            }
+            b
+        };
+        let mut coupling = [[0.0; 3]; 3];
+        for (k, x) in values[6..15].iter().enumerate() {
+            coupling[k / 3][k % 3] = *x;
+        }
+        let e = AddedMass {
+            translational_kg: sym(&values[..6]),
+            coupling_kg_m: coupling,
+            rotational_kg_m2: sym(&values[15..]),
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
+    }
+    /// The total mass matrix must stay positive definite; the model build says so if not.
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        model.mass += self.matrix();
         Ok(())
     }
 }

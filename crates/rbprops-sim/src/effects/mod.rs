@@ -2,7 +2,7 @@
 //! `/work/shared/research/missing-physics.md`). Each effect is switched on in the spec as
 //! `[[effect]] id = "..."` with its parameters.
 //!
-//! Implemented: `gravity_stiffness`, `sensor_mass`, `channel_gain`, `excitation_gain`,
+//! Implemented: `gravity_stiffness`, `sensor_mass`, `added_mass` ([`mass`]), `channel_gain`, `excitation_gain`,
 //! `global_gain`, `sensor_misorientation` (structure and rows); `elastic_mode`
 //! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
@@ -131,6 +131,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "cord_mass",
     "channel_delay",
     "suspension_drift",
+    "added_mass",
 ];
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
@@ -211,6 +212,7 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
         "channel_delay" => Box::new(params::<sensors::ChannelDelay>(spec)?),
         "suspension_drift" => Box::new(params::<mounts::SuspensionDrift>(spec)?),
+        "added_mass" => Box::new(params::<mass::AddedMass>(spec)?),
         "cord_mass" => {
             let c: cords::CordMass = params(spec)?;
             c.check_self()
