@@ -55,6 +55,19 @@ CASES = {
     "drift": (85.0, ['id = "suspension_drift"\nstiffness_factors = { hit3 = 0.985 }'], ["suspension_drift"]),
 }
 
+def air_mass(m: float, p: tuple, n: tuple) -> str:
+    """`added_mass` entry of air moving with a face: m T(p)^T n n^T T(p), T(p) = [I, -[p]x]."""
+    px = [[0.0, -p[2], p[1]], [p[2], 0.0, -p[0]], [-p[1], p[0], 0.0]]
+    t = [n[0], n[1], n[2]] + [-sum(n[i] * px[i][j] for i in range(3)) for j in range(3)]
+    num = lambda x: repr(round(x, 12) + 0.0)
+    blk = lambda r, c: "[" + ", ".join("[" + ", ".join(num(m * t[i] * t[j]) for j in c) + "]" for i in r) + "]"
+    a, b = range(3), range(3, 6)
+    return (f'id = "added_mass"\ntranslational_kg = {blk(a, a)}\ncoupling_kg_m = {blk(a, b)}\n'
+            f'rotational_kg_m2 = {blk(b, b)}')
+
+
+CASES["air-mass"] = (85.0, [air_mass(0.8, (0.45, -0.05, 0.55), (0.0, 0.0, 1.0))], ["added_mass"])
+
 # Cases whose truth body and springs also differ from the nominal (CAD) values: the
 # baseline fit must absorb them as corrected parameters, not as missing physics.
 # name -> overrides of the truth spec: inertia scale, CoM shift, spring stiffness scale.
@@ -81,6 +94,7 @@ HANGING = {
     "hanging-truncation": (40.0, ['id = "record_truncation"\nrecord_length_s = 10.0'], ["record_truncation"]),
     "hanging-highpass": (40.0, ['id = "transducer_highpass"\ntime_constant_s = 3.0'], ["transducer_highpass"]),
     "hanging-delay": (40.0, ['id = "channel_delay"\nexcitations_s = { h2 = 0.001 }'], ["channel_delay"]),
+    "hanging-air-mass": (40.0, [air_mass(0.4, (0.3, 0.1, -0.05), (1.0, 0.0, 0.0))], ["added_mass"]),
     "hanging-drift": (40.0, ['id = "suspension_drift"\nstiffness_factors = { h1 = 1.03 }'], ["suspension_drift"]),
     "hanging-cad-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"],
                             CAD_OFF),
