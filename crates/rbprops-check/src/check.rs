@@ -1292,12 +1292,12 @@ fn check_with(
         let cv_without = if options.cross_validation {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, &folds, crate::cv::FOLDS)
         } else {
-            Vec::new()
+            Default::default()
         };
         let loeo_without = if loeo {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, &exc_folds, nex)
         } else {
-            Vec::new()
+            Default::default()
         };
         let mut evals: Vec<Eval> = Vec::new();
         for (c, f) in fits {
