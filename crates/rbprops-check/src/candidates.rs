@@ -1000,7 +1000,11 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 build: cord_build,
             }),
             neutral: vec![0.0, 1.0],
-            scales: vec![0.005, 0.05],
+            // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
+            // μ and ℓ: the string modes make some FRF values (antiresonances, cross
+            // terms near 0 Hz) 1e-9 of the largest, where the model's roundoff is ~1e-7
+            // of the value, and a smaller step turns that into Jacobian noise.
+            scales: vec![0.1, 1.0],
             source: "rbprops-sim (screened by a parameter profile)",
             reveal,
             screening: Screening::Profile {
