@@ -705,9 +705,22 @@ fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     .map(Some)
 }
 
-/// `cord_mass` with one mass per length μ and one length ℓ for every cord (the
-/// catalogue's defaults for the cord modes: 8 per direction, 1 % damping); μ = 0 is
-/// "absent" whatever ℓ.
+/// The `cord_mass` entry with one mass per length μ (kg/m) and one length ℓ (m) for
+/// every cord (the catalogue's defaults for the cord modes: 8 per direction, 1 % damping).
+fn cord_entry(mu: f64, l: f64) -> rbprops_sim::spec::EffectSpec {
+    let mut t = toml::Table::new();
+    t.insert(
+        "mass_per_length_kg_per_m".into(),
+        toml::Value::Array(vec![mu.into()]),
+    );
+    t.insert("cord_length_m".into(), toml::Value::Array(vec![l.into()]));
+    rbprops_sim::spec::EffectSpec {
+        id: "cord_mass".into(),
+        parameters: t,
+    }
+}
+
+/// `cord_mass` through [`cord_entry`]; μ = 0 is "absent" whatever ℓ.
 fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     if !(v[0] >= 0.0 && v[0].is_finite() && v[1] > 0.0 && v[1].is_finite()) {
         return Err(format!(
@@ -718,20 +731,60 @@ fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     if v[0] == 0.0 {
         return Ok(None);
     }
-    let mut t = toml::Table::new();
-    t.insert(
-        "mass_per_length_kg_per_m".into(),
-        toml::Value::Array(vec![v[0].into()]),
-    );
-    t.insert(
-        "cord_length_m".into(),
-        toml::Value::Array(vec![v[1].into()]),
-    );
-    rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
-        id: "cord_mass".into(),
-        parameters: t,
-    })
-    .map(Some)
+    rbprops_sim::effects::parse_effect(&cord_entry(v[0], v[1])).map(Some)
+}
+
+/// Cord masses `m = μℓ` (kg) of the `cord_mass` profile, a factor 2.5 apart.
+const CORD_MASSES_KG: [f64; 4] = [0.015, 0.04, 0.1, 0.25];
+/// Ratio of neighbouring first string frequencies on the `cord_mass` profile: the
+/// half-power width `2ζ` of a cord mode at the catalogue's ζ = 1 %, so that any string
+/// mode is within half a width of a profile frequency.
+const CORD_FREQUENCY_RATIO: f64 = 1.02;
+/// Cord lengths ℓ (m) and masses per length μ (kg/m) the profile spans.
+const CORD_LENGTHS_M: (f64, f64) = (0.2, 5.0);
+const CORD_MASSES_PER_LENGTH: (f64, f64) = (0.005, 0.3);
+
+/// Mean static tension T̄ (N) of the cords of every set-up with springs, for the spec's
+/// body (the statics of rbprops-sim's `cord_mass`); `None` when it has no positive one.
+fn mean_cord_tension(spec: &CampaignSpec) -> Option<f64> {
+    let cm: rbprops_sim::effects::cords::CordMass =
+        toml::Value::Table(cord_entry(1.0, 1.0).parameters)
+            .try_into()
+            .ok()?;
+    let props = spec.properties();
+    let mut tensions = Vec::new();
+    for (si, s) in spec.setups.iter().enumerate() {
+        if !s.springs.is_empty() {
+            let cords = cm.cords(spec, si, props.mass, &props.com).ok()?;
+            tensions.extend(cords.iter().map(|c| c.tension));
+        }
+    }
+    let t = tensions.iter().sum::<f64>() / tensions.len() as f64;
+    (t > 0.0 && t.is_finite()).then_some(t)
+}
+
+/// The `cord_mass` profile over (μ, ℓ), laid out as cord mass `m = μℓ` × first string
+/// frequency `f = (1/2ℓ)√(T̄/μ) = ½√(T̄/(mℓ))` at the mean tension T̄, i.e.
+/// `ℓ = T̄/(4f²m)`, `μ = m/ℓ`: the string modes are narrow peaks, so the frequencies step
+/// by [`CORD_FREQUENCY_RATIO`] from the band's start (or the longest cord) to 1.2× its
+/// stop, while the cord mass, which only scales them, steps coarsely. Points outside
+/// [`CORD_LENGTHS_M`] × [`CORD_MASSES_PER_LENGTH`] are left out.
+fn cord_grid(tension: f64, start_hz: f64, stop_hz: f64) -> Vec<Vec<f64>> {
+    let mut grid = Vec::new();
+    for m in CORD_MASSES_KG {
+        let length = |f: f64| tension / (4.0 * f * f * m);
+        let f0 = start_hz.max(0.5 * (tension / (m * CORD_LENGTHS_M.1)).sqrt());
+        let points = (0..)
+            .map(|k| f0 * CORD_FREQUENCY_RATIO.powi(k))
+            .take_while(|&f| f <= 1.2 * stop_hz && length(f) >= CORD_LENGTHS_M.0);
+        for f in points {
+            let (mu, l) = (m / length(f), length(f));
+            if (CORD_MASSES_PER_LENGTH.0..=CORD_MASSES_PER_LENGTH.1).contains(&mu) {
+                grid.push(vec![mu, l]);
+            }
+        }
+    }
+    grid
 }
 
 impl Effect for Reciprocal {
@@ -940,16 +993,20 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             },
         });
     }
-    if !in_spec.contains(&"cord_mass") && spec.setups.iter().any(|s| !s.springs.is_empty()) {
+    let has_springs = spec.setups.iter().any(|s| !s.springs.is_empty());
+    let cord_profile = if in_spec.contains(&"cord_mass") || !has_springs {
+        Vec::new()
+    } else {
+        mean_cord_tension(spec)
+            .map(|t| cord_grid(t, spec.frequency.start_hz, spec.frequency.stop_hz))
+            .unwrap_or_default()
+    };
+    if !in_spec.contains(&"cord_mass") && has_springs && cord_profile.is_empty() {
+        notes.push("cord_mass is not screened: the springs hold no cord tension, or no cord of plausible length and mass has a string mode below 1.2× the band's top".into());
+    }
+    if !cord_profile.is_empty() {
         let (title, reveal) = describe("cord_mass");
-        // Cord mass per length 10–160 g/m × cord length 0.3–3 m: string modes from
-        // about 1 Hz to far above any rigid-body band.
-        let mut grid = Vec::new();
-        for mu in [0.01, 0.02, 0.04, 0.08, 0.16] {
-            for l in [0.3, 0.5, 0.8, 1.2, 2.0, 3.0] {
-                grid.push(vec![mu, l]);
-            }
-        }
+        let grid = cord_profile;
         out.push(Candidate {
             id: "cord_mass".into(),
             title: title.into(),
@@ -976,7 +1033,11 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 build: cord_build,
             }),
             neutral: vec![0.0, 1.0],
-            scales: vec![0.005, 0.05],
+            // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
+            // μ and ℓ: the string modes make some FRF values (antiresonances, cross
+            // terms near 0 Hz) 1e-9 of the largest, where the model's roundoff is ~1e-7
+            // of the value, and a smaller step turns that into Jacobian noise.
+            scales: vec![0.1, 1.0],
             source: "rbprops-sim (screened by a parameter profile)",
             reveal,
             screening: Screening::Profile {

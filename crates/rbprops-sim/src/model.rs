@@ -83,6 +83,31 @@ impl ExtraMode {
     }
 }
 
+/// Adds the receptance terms of `modes` for excitation `e` to `values`
+/// (`[channel][line]` on the axis `omegas`): `H_ce += Σ_m ψ_c ψ_e h_m(ω)` with the line
+/// factor `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` computed once per mode and line, not
+/// once per channel (it is [`ExtraMode::receptance`] summed, to rounding).
+pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], values: &mut [c64]) {
+    let nl = omegas.len();
+    let mut h = vec![c64::new(0.0, 0.0); nl];
+    for m in modes {
+        let pe = m.at_excitations[e];
+        if pe == 0.0 {
+            continue;
+        }
+        let wm = std::f64::consts::TAU * m.frequency_hz;
+        for (h, &w) in h.iter_mut().zip(omegas) {
+            *h = c64::new(wm * wm - w * w, 2.0 * m.damping_ratio * wm * w).inv();
+        }
+        for (dst, &pc) in values.chunks_exact_mut(nl).zip(&m.at_channels) {
+            let a = pc * pe;
+            if a != 0.0 {
+                dst.iter_mut().zip(&h).for_each(|(d, h)| *d += h * a);
+            }
+        }
+    }
+}
+
 impl ExtraMode {
     /// The mode's receptance term at a complex Laplace variable `s`:
     /// `ψ_c ψ_e / (ω_m² + 2ζ_m ω_m s + s²)` (equals [`Self::receptance`] at `s = iω`).
@@ -195,4 +220,37 @@ pub fn modal_damping_matrix(mass: &Mat6, modes: &[(f64, Vec6)], ratios: &[f64]) 
         c += 2.0 * z * w * mphi * mphi.transpose();
     }
     (c + c.transpose()) / 2.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The per-line factor form equals the per-term sum of [`ExtraMode::receptance`] to
+    /// rounding, including a mode the excitation does not drive.
+    #[test]
+    fn extra_receptances_are_the_sum_of_the_terms() {
+        let modes = [
+            (3.0, 0.01, [0.2, -0.5], [0.7, 0.0]),
+            (11.0, 0.03, [1.5, 0.1], [-0.3, 0.4]),
+        ]
+        .map(|(f, z, c, e)| ExtraMode {
+            frequency_hz: f,
+            damping_ratio: z,
+            at_channels: c.to_vec(),
+            at_excitations: e.to_vec(),
+        });
+        let omegas: Vec<f64> = (0..50).map(|l| 0.4 * l as f64).collect();
+        for e in 0..2 {
+            let mut got = vec![c64::new(1.0, -2.0); 2 * omegas.len()];
+            add_extra_receptances(&modes, e, &omegas, &mut got);
+            for (c, row) in got.chunks_exact(omegas.len()).enumerate() {
+                for (g, &w) in row.iter().zip(&omegas) {
+                    let want: c64 = c64::new(1.0, -2.0)
+                        + modes.iter().map(|m| m.receptance(c, e, w)).sum::<c64>();
+                    assert!((g - want).norm() <= 1e-14 * want.norm(), "{g} vs {want}");
+                }
+            }
+        }
+    }
 }

@@ -2,7 +2,9 @@
 
 use crate::effects::{parse_effects, BuildContext, Effect, OutputBlock};
 use crate::error::SimError;
-use crate::model::{modal_compliance, modal_damping_matrix, DynamicModel, ModelInput};
+use crate::model::{
+    add_extra_receptances, modal_compliance, modal_damping_matrix, DynamicModel, ModelInput,
+};
 use crate::noise::{add_noise, excitation_rng};
 use crate::spec::{CampaignSpec, DampingModel};
 use rayon::prelude::*;
@@ -281,13 +283,7 @@ pub fn predict(
                 match &tables[si] {
                     Some(table) if input.is_plain() => {
                         table.apply(&input.column, ob.values);
-                        for x in &sm.model.extra_modes {
-                            for (c, dst) in ob.values.chunks_exact_mut(nl).enumerate() {
-                                for (d, &w) in dst.iter_mut().zip(&omegas) {
-                                    *d += x.receptance(c, e, w);
-                                }
-                            }
-                        }
+                        add_extra_receptances(&sm.model.extra_modes, e, &omegas, ob.values);
                         for eff in effects {
                             eff.transform_output(&mut ob);
                         }
