@@ -32,14 +32,7 @@ fn replace_values(
     map: &BTreeMap<String, f64>,
     values: &[f64],
 ) -> Result<BTreeMap<String, f64>, String> {
-    if values.len() != map.len() {
-        return Err(format!(
-            "expected {} values, got {}",
-            map.len(),
-            values.len()
-        ));
-    }
-    let out: BTreeMap<String, f64> = map.keys().cloned().zip(values.iter().copied()).collect();
+    let out = super::replace_map(map, values)?;
     for (k, g) in &out {
         check_gain(k, *g)?;
     }

@@ -162,6 +162,39 @@ pub(crate) fn list_info(
         .collect()
 }
 
+/// Parameter descriptions of a per-id map parameter, `name.{id}` in key order.
+pub(crate) fn map_info(
+    name: &str,
+    map: &std::collections::BTreeMap<String, f64>,
+    unit: &'static str,
+    plausible: (f64, f64),
+) -> Vec<ParamInfo> {
+    map.keys()
+        .map(|k| ParamInfo {
+            name: format!("{name}.{k}"),
+            unit,
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible,
+        })
+        .collect()
+}
+
+/// `values` (a fitter's new values, in key order) as a replacement of a per-id map.
+pub(crate) fn replace_map(
+    map: &std::collections::BTreeMap<String, f64>,
+    values: &[f64],
+) -> Result<std::collections::BTreeMap<String, f64>, String> {
+    if values.len() != map.len() {
+        return Err(format!(
+            "expected {} values, got {}",
+            map.len(),
+            values.len()
+        ));
+    }
+    Ok(map.keys().cloned().zip(values.iter().copied()).collect())
+}
+
 /// `values` as a replacement of a list parameter of length `n` (a fitter's new values).
 pub(crate) fn replace_list(n: usize, values: &[f64]) -> Result<Vec<f64>, String> {
     if values.len() != n {

@@ -161,32 +161,19 @@ impl Effect for SuspensionDrift {
         2
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.stiffness_factors
-            .keys()
-            .map(|k| ParamInfo {
-                name: format!("stiffness_factors.{k}"),
-                unit: "1",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.95, 1.05),
-            })
-            .collect()
+        super::map_info(
+            "stiffness_factors",
+            &self.stiffness_factors,
+            "1",
+            (0.95, 1.05),
+        )
     }
     fn values(&self) -> Vec<f64> {
         self.stiffness_factors.values().copied().collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let n = self.stiffness_factors.len();
-        if values.len() != n {
-            return Err(format!("expected {n} values, got {}", values.len()));
-        }
         let e = SuspensionDrift {
-            stiffness_factors: self
-                .stiffness_factors
-                .keys()
-                .cloned()
-                .zip(values.iter().copied())
-                .collect(),
+            stiffness_factors: super::replace_map(&self.stiffness_factors, values)?,
         };
         e.check_values()?;
         Ok(Box::new(e))

@@ -275,35 +275,14 @@ impl Effect for ForceGaugeMass {
         "force_gauge_mass"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.masses_kg
-            .keys()
-            .map(|k| ParamInfo {
-                name: format!("masses_kg.{k}"),
-                unit: "kg",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 0.02),
-            })
-            .collect()
+        super::map_info("masses_kg", &self.masses_kg, "kg", (0.0, 0.02))
     }
     fn values(&self) -> Vec<f64> {
         self.masses_kg.values().copied().collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        if values.len() != self.masses_kg.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                self.masses_kg.len(),
-                values.len()
-            ));
-        }
         let e = ForceGaugeMass {
-            masses_kg: self
-                .masses_kg
-                .keys()
-                .cloned()
-                .zip(values.iter().copied())
-                .collect(),
+            masses_kg: super::replace_map(&self.masses_kg, values)?,
         };
         e.check_values()?;
         Ok(Box::new(e))
