@@ -17,7 +17,6 @@
 use crate::band::BandData;
 use crate::linalg;
 use crate::pole::Pole;
-use faer::Mat;
 use rbprops_core::c64;
 
 /// Poles of one model order with a shape (relative residue per channel) for each.
@@ -272,18 +271,18 @@ pub fn sweep_orders(
             continue;
         }
         let p = n + 1;
-        // M = Σ_o (T_o − G_o), leading p×p block; α_n = 1.
-        let m = Mat::from_fn(p, p, |j, k| {
+        // M = Σ_o (T_o − G_o), leading p×p block; α_n = 1, so the leading n×n block
+        // times α_{0..n} equals minus the first n entries of column n.
+        let m = |j: usize, k: usize| {
             (0..no)
                 .map(|o| s.t[o][j.abs_diff(k)] - g[o][j * pm + k])
                 .sum::<f64>()
-        });
-        let a = Mat::from_fn(n, n, |i, j| m[(i, j)]);
-        let b = Mat::from_fn(n, 1, |i, _| -m[(i, n)]);
-        let Some(alpha) = linalg::solve_square(&a, &b) else {
+        };
+        let a: Vec<f64> = (0..n * n).map(|i| m(i / n, i % n)).collect();
+        let b: Vec<f64> = (0..n).map(|i| -m(i, n)).collect();
+        let Some(mut coef) = linalg::solve_rows(a, b, n, 1) else {
             continue;
         };
-        let mut coef: Vec<f64> = (0..n).map(|i| alpha[(i, 0)]).collect();
         coef.push(1.0);
         let Some(roots) = crate::prof::time(5, || linalg::polynomial_roots(&coef[..n])) else {
             continue;
