@@ -111,6 +111,29 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     s
 }
 
+/// The reduced equations of order `n`: `M = T − Σ_o G_o` (`T` Toeplitz with first
+/// column `t_sum`, `G_o` the `pm`-strided row-major per-channel blocks), leading
+/// `(n+1)×(n+1)` block; with `α_n = 1`, `A α_{0..n} = b` for `A` the leading `n×n`
+/// block and `b` minus the first `n` entries of column `n`. Returned row-major.
+fn reduced_system(t_sum: &[f64], g: &[Vec<f64>], pm: usize, n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut a = vec![0.0; n * n];
+    let mut b = vec![0.0; n];
+    let mut g_row = vec![0.0; n + 1];
+    for j in 0..n {
+        g_row.fill(0.0);
+        for go in g {
+            for (s, v) in g_row.iter_mut().zip(&go[j * pm..j * pm + n + 1]) {
+                *s += v;
+            }
+        }
+        for (k, (aj, gk)) in a[j * n..(j + 1) * n].iter_mut().zip(&g_row).enumerate() {
+            *aj = t_sum[j.abs_diff(k)] - gk;
+        }
+        b[j] = g_row[n] - t_sum[n - j];
+    }
+    (a, b)
+}
+
 /// The LSCF stabilisation sweep: poles for every order `2..=n_max`.
 ///
 /// `chans` are the channels to use (already restricted to non-zero ones); each is
@@ -196,6 +219,8 @@ fn sweep_with_roots(
         }
         v
     };
+    // Σ_o t_o(m): T = Σ_o T_o is Toeplitz too.
+    let t_sum: Vec<f64> = (0..pm).map(|m| s.t.iter().map(|t| t[m]).sum()).collect();
     let mut out = Vec::new();
     let mut previous: Option<Vec<c64>> = None;
     let mut yq = vec![0.0; pm];
@@ -286,15 +311,7 @@ fn sweep_with_roots(
             continue;
         }
         let p = n + 1;
-        // M = Σ_o (T_o − G_o), leading p×p block; α_n = 1, so the leading n×n block
-        // times α_{0..n} equals minus the first n entries of column n.
-        let m = |j: usize, k: usize| {
-            (0..no)
-                .map(|o| s.t[o][j.abs_diff(k)] - g[o][j * pm + k])
-                .sum::<f64>()
-        };
-        let a: Vec<f64> = (0..n * n).map(|i| m(i / n, i % n)).collect();
-        let b: Vec<f64> = (0..n).map(|i| -m(i, n)).collect();
+        let (a, b) = reduced_system(&t_sum, &g, pm, n);
         let Some(mut coef) = linalg::solve_rows(a, b, n, 1) else {
             continue;
         };

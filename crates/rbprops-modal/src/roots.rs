@@ -41,12 +41,9 @@ pub fn roots_and_sweeps(coef: &[f64], near: Option<&[c64]>) -> Option<(Vec<c64>,
             z.im = 0.0;
         }
     }
-    roots.sort_by(|a, b| {
-        a.arg()
-            .total_cmp(&b.arg())
-            .then(a.norm().total_cmp(&b.norm()))
-    });
-    Some((roots, sweeps))
+    let mut keyed: Vec<(f64, f64, c64)> = roots.iter().map(|z| (z.arg(), z.norm(), *z)).collect();
+    keyed.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    Some((keyed.into_iter().map(|k| k.2).collect(), sweeps))
 }
 
 /// `n` starting points: the roots `prev` of the lower-degree fit, plus new points for
@@ -104,7 +101,7 @@ fn widest_gap_middle(roots: &[c64]) -> f64 {
 /// rule, where `b(z) = Σ_j |c_j| |z|^j` (with
 /// `c_n = 1`) bounds the rounding error of the evaluation: `|fl(p(z)) − p(z)| ≲ 2nε·b`.
 pub fn horner(coef: &[f64], z: c64) -> (c64, c64, f64) {
-    let r = z.norm();
+    let r = z.norm_sqr().sqrt();
     let (mut p, mut dp, mut b) = (c64::new(1.0, 0.0), c64::new(0.0, 0.0), 1.0);
     for &c in coef.iter().rev() {
         dp = dp * z + p;
@@ -112,6 +109,15 @@ pub fn horner(coef: &[f64], z: c64) -> (c64, c64, f64) {
         b = b * r + c.abs();
     }
     (p, dp, b)
+}
+
+/// `Σ_j 1/(z − z_j)`, each term as `conj(d)/|d|²` (one division).
+fn sum_reciprocals(z: c64, others: &[c64]) -> c64 {
+    others.iter().fold(c64::new(0.0, 0.0), |s, zj| {
+        let d = z - zj;
+        let inv = 1.0 / d.norm_sqr();
+        c64::new(s.re + d.re * inv, s.im - d.im * inv)
+    })
 }
 
 /// The Aberth–Ehrlich iteration on all roots from `z` (Gauss–Seidel order: each
@@ -136,16 +142,13 @@ fn aberth(coef: &[f64], mut z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
             }
             let (p, dp, b) = horner(coef, z[i]);
             let newton = p / dp;
-            let s: c64 = (0..n)
-                .filter(|&j| j != i)
-                .map(|j| (z[i] - z[j]).inv())
-                .sum();
+            let s = sum_reciprocals(z[i], &z[..i]) + sum_reciprocals(z[i], &z[i + 1..]);
             let w = newton / (1.0 - newton * s);
             if !(w.re.is_finite() && w.im.is_finite()) {
                 return None;
             }
             z[i] -= w;
-            if p.norm() <= tol * b {
+            if p.norm_sqr() <= (tol * b).powi(2) {
                 done[i] = true;
             } else {
                 all = false;
