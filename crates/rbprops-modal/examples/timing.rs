@@ -2,7 +2,9 @@
 //! workload shape). Usage: `RAYON_NUM_THREADS=1 cargo run --release -p rbprops-modal
 //! --example timing [--features phase-timing] -- [excitations] [setup]`; prints ms per
 //! excitation (and per phase with the feature). With `setup`, one pole set per
-//! suspension set-up (`--poles setup`) instead of per excitation.
+//! suspension set-up (`--poles setup`) instead of per excitation. Environment:
+//! `TIMING_DIGEST` prints a hash of every estimate's bits, `TIMING_DUMP=file` writes
+//! every estimate (one mode a line), `TIMING_GEN_ONLY` stops after the data generation.
 
 use rbprops_core::{FrfSet, Quantity};
 use rbprops_modal::{fit_campaign, testdata, FitOptions, PoleMode};
@@ -67,6 +69,22 @@ fn main() {
             }
         }
         println!("digest {h:016x}");
+    }
+    // Every estimate in full precision, one mode a line, to compare two builds.
+    if let Some(path) = std::env::var_os("TIMING_DUMP") {
+        let mut text = String::new();
+        for m in &out.record.modes {
+            let mut line = format!(
+                "{:e} {:e} {:e} {:e}",
+                m.frequency_hz, m.damping_ratio, m.frequency_std_hz, m.damping_std
+            );
+            for (a, s) in m.residues.iter().zip(&m.residue_std) {
+                line += &format!(" {:e} {:e} {:e}", a.re, a.im, s);
+            }
+            text += &line;
+            text.push('\n');
+        }
+        std::fs::write(path, text).expect("TIMING_DUMP file");
     }
     if std::env::var_os("TIMING_VERBOSE").is_some() {
         for w in &out.record.excitations[0].warnings {

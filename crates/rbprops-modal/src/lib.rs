@@ -33,6 +33,7 @@ pub mod lsfd;
 pub mod options;
 pub mod pole;
 pub mod prof;
+pub mod roots;
 pub mod stabilisation;
 pub mod testdata;
 

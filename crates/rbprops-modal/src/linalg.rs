@@ -661,61 +661,67 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
 /// Solves the small symmetric system `A x = b` (LU with partial pivoting, sequential).
 /// Returns `None` when `A` is numerically singular.
 pub fn solve_square(a: &Mat<f64>, b: &Mat<f64>) -> Option<Mat<f64>> {
-    let n = a.nrows();
-    // Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
-    // and a hand-written kernel keeps the operation order fixed.
-    let k = b.ncols();
-    let mut m = a.clone();
-    let mut x = b.clone();
-    let scale = (0..n)
-        .flat_map(|i| (0..n).map(move |j| (i, j)))
-        .map(|(i, j)| m[(i, j)].abs())
-        .fold(0.0f64, f64::max);
+    let (n, k) = (a.nrows(), b.ncols());
+    let m: Vec<f64> = (0..n * n).map(|i| a[(i / n, i % n)]).collect();
+    let x: Vec<f64> = (0..n * k).map(|i| b[(i / k, i % k)]).collect();
+    let x = solve_rows(m, x, n, k)?;
+    Some(Mat::from_fn(n, k, |i, j| x[i * k + j]))
+}
+
+/// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
+/// both consumed; returns `X = A⁻¹B` row-major.
+///
+/// Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
+/// and a hand-written kernel over plain slices keeps the operation order fixed.
+pub fn solve_rows(mut m: Vec<f64>, mut x: Vec<f64>, n: usize, k: usize) -> Option<Vec<f64>> {
+    let scale = m.iter().map(|v| v.abs()).fold(0.0f64, f64::max);
     if !(scale > 0.0) || !scale.is_finite() {
         return None;
     }
     for c in 0..n {
         let p = (c..n)
-            .max_by(|&i, &j| m[(i, c)].abs().total_cmp(&m[(j, c)].abs()))
+            .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
             .unwrap();
-        if m[(p, c)].abs() <= 1e-14 * scale {
+        if m[p * n + c].abs() <= 1e-14 * scale {
             return None;
         }
         if p != c {
-            for j in 0..n {
-                let t = m[(c, j)];
-                m[(c, j)] = m[(p, j)];
-                m[(p, j)] = t;
-            }
-            for j in 0..k {
-                let t = x[(c, j)];
-                x[(c, j)] = x[(p, j)];
-                x[(p, j)] = t;
-            }
+            swap_rows(&mut m, n, c, p);
+            swap_rows(&mut x, k, c, p);
         }
-        let d = m[(c, c)];
-        for i in c + 1..n {
-            let f = m[(i, c)] / d;
+        let (top, below) = m.split_at_mut((c + 1) * n);
+        let (xtop, xbelow) = x.split_at_mut((c + 1) * k);
+        let (pivot_row, xpivot) = (&top[c * n..], &xtop[c * k..]);
+        let d = pivot_row[c];
+        for (row, xrow) in below.chunks_exact_mut(n).zip(xbelow.chunks_exact_mut(k)) {
+            let f = row[c] / d;
             if f != 0.0 {
-                for j in c..n {
-                    m[(i, j)] -= f * m[(c, j)];
+                for (v, u) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                    *v -= f * u;
                 }
-                for j in 0..k {
-                    x[(i, j)] -= f * x[(c, j)];
+                for (v, u) in xrow.iter_mut().zip(xpivot) {
+                    *v -= f * u;
                 }
             }
         }
     }
     for j in 0..k {
         for i in (0..n).rev() {
-            let mut s = x[(i, j)];
+            let mut s = x[i * k + j];
             for l in i + 1..n {
-                s -= m[(i, l)] * x[(l, j)];
+                s -= m[i * n + l] * x[l * k + j];
             }
-            x[(i, j)] = s / m[(i, i)];
+            x[i * k + j] = s / m[i * n + i];
         }
     }
     Some(x)
+}
+
+/// Swaps rows `a` and `b` of the row-major matrix `m` with `w` columns.
+fn swap_rows(m: &mut [f64], w: usize, a: usize, b: usize) {
+    let (lo, hi) = (a.min(b), a.max(b));
+    let (head, tail) = m.split_at_mut(hi * w);
+    head[lo * w..(lo + 1) * w].swap_with_slice(&mut tail[..w]);
 }
 
 #[cfg(test)]
