@@ -727,6 +727,7 @@ fn swap_rows(m: &mut [f64], w: usize, a: usize, b: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testdata::poly_from_roots;
 
     #[test]
     fn lstsq_recovers_exact_coefficients_and_rss() {
@@ -763,20 +764,6 @@ mod tests {
     fn sorted(mut v: Vec<c64>) -> Vec<c64> {
         v.sort_by(|a, b| a.re.total_cmp(&b.re).then(a.im.total_cmp(&b.im)));
         v
-    }
-
-    /// Monic coefficients `c_0..c_{n−1}` of `Π (z − r)`.
-    fn poly_from_roots(roots: &[c64]) -> Vec<f64> {
-        let mut p = vec![c64::new(1.0, 0.0)];
-        for r in roots {
-            let mut q = vec![c64::new(0.0, 0.0); p.len() + 1];
-            for (j, c) in p.iter().enumerate() {
-                q[j + 1] += c;
-                q[j] -= c * r;
-            }
-            p = q;
-        }
-        p[..p.len() - 1].iter().map(|c| c.re).collect()
     }
 
     #[test]

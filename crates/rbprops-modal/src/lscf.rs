@@ -373,19 +373,8 @@ fn sweep_with_roots(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testdata;
+    use crate::testdata::{self, max_nearest};
     use rbprops_core::Quantity;
-
-    /// The largest distance from a root in `a` to its nearest root in `b`.
-    fn max_nearest(a: &[c64], b: &[c64]) -> f64 {
-        a.iter()
-            .map(|x| {
-                b.iter()
-                    .map(|y| (x - y).norm())
-                    .fold(f64::INFINITY, f64::min)
-            })
-            .fold(0.0, f64::max)
-    }
 
     /// Every order's warm-started Aberth roots are the companion eigenvalues to the
     /// rounding level, on sweeps like those of the fit (noisy and close-mode data,

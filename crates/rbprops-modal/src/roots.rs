@@ -164,6 +164,7 @@ fn aberth(coef: &[f64], mut z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testdata::{max_nearest, poly_from_roots};
 
     fn sorted(mut v: Vec<c64>) -> Vec<c64> {
         v.sort_by(|a, b| {
@@ -180,31 +181,6 @@ mod tests {
         let a = roots_near(&c, None).unwrap();
         let b = sorted(linalg::polynomial_roots(&c).unwrap());
         assert_eq!(a, b);
-    }
-
-    /// Monic coefficients `c_0..c_{n−1}` of `Π (z − r)`.
-    fn poly_from_roots(roots: &[c64]) -> Vec<f64> {
-        let mut p = vec![c64::new(1.0, 0.0)];
-        for r in roots {
-            let mut q = vec![c64::new(0.0, 0.0); p.len() + 1];
-            for (j, c) in p.iter().enumerate() {
-                q[j + 1] += c;
-                q[j] -= c * r;
-            }
-            p = q;
-        }
-        p[..p.len() - 1].iter().map(|c| c.re).collect()
-    }
-
-    /// The largest distance from a root in `a` to its nearest root in `b`.
-    fn max_nearest(a: &[c64], b: &[c64]) -> f64 {
-        a.iter()
-            .map(|x| {
-                b.iter()
-                    .map(|y| (x - y).norm())
-                    .fold(f64::INFINITY, f64::min)
-            })
-            .fold(0.0, f64::max)
     }
 
     /// Pseudo-random pole-like sets (conjugate pairs near the unit circle, as LSCF

@@ -273,3 +273,29 @@ pub fn close_modes(f_max: f64, n_lines: usize) -> Synthetic {
         n_lines,
     )
 }
+
+/// Monic coefficients `c_0..c_{n−1}` of `Π (z − r)` (roots in conjugate pairs or real,
+/// so the coefficients are real).
+pub fn poly_from_roots(roots: &[c64]) -> Vec<f64> {
+    let mut p = vec![c64::new(1.0, 0.0)];
+    for r in roots {
+        let mut q = vec![c64::new(0.0, 0.0); p.len() + 1];
+        for (j, c) in p.iter().enumerate() {
+            q[j + 1] += c;
+            q[j] -= c * r;
+        }
+        p = q;
+    }
+    p[..p.len() - 1].iter().map(|c| c.re).collect()
+}
+
+/// The largest distance from a root in `a` to its nearest root in `b`.
+pub fn max_nearest(a: &[c64], b: &[c64]) -> f64 {
+    a.iter()
+        .map(|x| {
+            b.iter()
+                .map(|y| (x - y).norm())
+                .fold(f64::INFINITY, f64::min)
+        })
+        .fold(0.0, f64::max)
+}
