@@ -191,6 +191,25 @@ mod tests {
         }
     }
 
+    /// Least-squares fit of 2n rows (real, imaginary per value) with data `row(r)`;
+    /// the columns act on the real rows only. Returns the residual and the Jacobian.
+    fn fit_real_rows(
+        n: usize,
+        row: &dyn Fn(usize) -> f64,
+        cols: &[&dyn Fn(usize) -> f64],
+    ) -> (Vec<f64>, DMatrix<f64>) {
+        let j = DMatrix::from_fn(2 * n, cols.len(), |r, c| {
+            if r % 2 == 0 {
+                -cols[c](r / 2)
+            } else {
+                0.0
+            }
+        });
+        let yv = DVector::from_iterator(2 * n, (0..2 * n).map(row));
+        let th = j.clone().svd(true, true).solve(&(-&yv), 1e-12).unwrap();
+        ((&yv + &j * th).iter().copied().collect(), j)
+    }
+
     /// Linear model y = a + noise; adding a useless regressor (noise-fitting) does not
     /// pass, adding the true slope does.
     #[test]
@@ -247,22 +266,9 @@ mod tests {
         let used: Vec<usize> = (0..n).collect();
         let exc = excitation_folds_of(&used, nl);
         let freq = folds_of(&used, nl, FOLDS);
-        // Rows: 2 per value (re, im); columns act on the real rows only.
         let fit = |y: &dyn Fn(usize) -> f64, cols: &[&dyn Fn(usize) -> f64]| {
-            let j = DMatrix::from_fn(2 * n, cols.len(), |r, c| {
-                if r % 2 == 0 {
-                    -cols[c](r / 2)
-                } else {
-                    0.0
-                }
-            });
-            let yv = DVector::from_iterator(
-                2 * n,
-                (0..2 * n).map(|r| if r % 2 == 0 { y(r / 2) } else { 0.0 } + eps[r]),
-            );
-            let th = j.clone().svd(true, true).solve(&(-&yv), 1e-12).unwrap();
-            let r = &yv + &j * th;
-            (r.iter().copied().collect::<Vec<f64>>(), j)
+            let row = |r: usize| if r % 2 == 0 { y(r / 2) } else { 0.0 } + eps[r];
+            fit_real_rows(n, &row, cols)
         };
         let one = |_: usize| 1.0;
         let slope = |i: usize| x[i];
@@ -298,28 +304,15 @@ mod tests {
         let used: Vec<usize> = (0..n).collect();
         let exc = excitation_folds_of(&used, nl);
         let s = 3.0;
-        let fit = |cols: &[&dyn Fn(usize) -> f64]| {
-            // Real rows carry the data, imaginary rows zero-noise zeros.
-            let j = DMatrix::from_fn(2 * n, cols.len(), |r, c| {
-                if r % 2 == 0 {
-                    -cols[c](r / 2)
-                } else {
-                    0.0
-                }
-            });
-            let yv = DVector::from_iterator(
-                2 * n,
-                (0..2 * n).map(|r| {
-                    if r % 2 == 0 {
-                        1.0 + s * w(r / 2) * x[r / 2] + eps[r / 2]
-                    } else {
-                        0.0
-                    }
-                }),
-            );
-            let th = j.clone().svd(true, true).solve(&(-&yv), 1e-12).unwrap();
-            ((&yv + &j * th).iter().copied().collect::<Vec<f64>>(), j)
+        // Real rows carry the data, imaginary rows zero-noise zeros.
+        let row = |r: usize| {
+            if r % 2 == 0 {
+                1.0 + s * w(r / 2) * x[r / 2] + eps[r / 2]
+            } else {
+                0.0
+            }
         };
+        let fit = |cols: &[&dyn Fn(usize) -> f64]| fit_real_rows(n, &row, cols);
         let one = |_: usize| 1.0;
         let slope = |i: usize| w(i) * x[i];
         let (r0, j0) = fit(&[&one]);
