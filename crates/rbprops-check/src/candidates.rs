@@ -537,6 +537,10 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "suspension drift between runs (creep, temperature)",
             "repeated runs of one excitation, or the suspension modes measured before and after each run",
         ),
+        "stinger_stiffness" => (
+            "lateral stiffness of a shaker stinger (present only while that shaker drives)",
+            "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
+        ),
         "channel_delay" => (
             "acquisition delay per channel (ADC skew, filter group delay)",
             "a loop-back calibration of each channel's delay against the force channel",
@@ -626,6 +630,11 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         }
         "suspension_drift" => {
             t.insert("stiffness_factors".into(), ones(excitations, 1.0.into()));
+        }
+        "stinger_stiffness" => {
+            // The lateral spring per excitation; a stinger's bending stiffness (4EI/L)
+            // is small beside the suspension's rotational stiffness and is not screened.
+            t.insert("lateral_n_per_m".into(), ones(excitations, 0.0.into()));
         }
         "channel_delay" => {
             // A delay per channel and per force: only differences are seen, so the

@@ -836,6 +836,36 @@ fn force_gauge_mass_is_found() {
     within(param(&r, "force_gauge_mass", "masses_kg.force3"), 0.0, 4.0);
 }
 
+/// A shaker stinger (E12) drives force 2 and resists 60 N/m across its axis during that
+/// run only (the suspension's lateral springs are 150–220 N/m): the run's lateral poles
+/// move while the other two runs see the nominal suspension.
+#[test]
+fn stinger_lateral_stiffness_is_found() {
+    let (r, truth) = concealed(
+        "stinger_stiffness",
+        &["id = \"stinger_stiffness\"\nlateral_n_per_m = { force2 = 60.0 }"],
+        0.01,
+        61,
+    );
+    assert_found(&r, &["stinger_stiffness"], &truth.properties());
+    within(
+        param(&r, "stinger_stiffness", "lateral_n_per_m.force2"),
+        60.0,
+        4.0,
+    );
+    within(
+        param(&r, "stinger_stiffness", "lateral_n_per_m.force1"),
+        0.0,
+        4.0,
+    );
+    within(
+        param(&r, "stinger_stiffness", "lateral_n_per_m.force3"),
+        0.0,
+        4.0,
+    );
+    mass_within(&r, truth.properties().mass, 4.0);
+}
+
 /// Gravity in the sensor equation (E2): horizontal accelerometers read g·θ; without it
 /// the free inertia is badly biased (the baseline mass is off by tens of percent).
 #[test]

@@ -128,6 +128,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "added_mass",
         include_str!("../../../fixtures/specs/effects/added_mass.toml"),
     ),
+    (
+        "stinger_stiffness",
+        include_str!("../../../fixtures/specs/effects/stinger_stiffness.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

@@ -593,6 +593,66 @@ fn suspension_drift_scales_the_stiffness_of_one_run_only() {
     assert!(worst < 1e-9, "drifted run vs direct solve: {worst:e}");
 }
 
+/// Stinger: excitation force2's run sees `(K + K_a + iωC − ω²M)⁻¹` with `K_a` derived
+/// here from the springs' energy, `½ k_l |P u(r)|² + ½ k_r |P θ|²` with `u(r) = x + θ × r`
+/// and `P = I − n nᵀ` (probed column by column, without `rigid_transform`); the other runs
+/// are the nominal model's, bit for bit.
+#[test]
+fn stinger_stiffness_acts_across_the_axis_during_its_run_only() {
+    let (kl, kr) = (100.0, 2.0);
+    let s = receptance(tc2());
+    let g = s.geometry().unwrap();
+    let nominal = sim(&s);
+    let out = sim(&with_effect(
+        s.clone(),
+        &format!(
+            "id = \"stinger_stiffness\"\nlateral_n_per_m = {{ force2 = {kl} }}\nrotational_n_m_per_rad = {{ force2 = {kr} }}"
+        ),
+    ));
+    let m = build_models(&s, &g, &[]).unwrap().remove(0).model;
+    let (r, n) = (
+        g.excitations[1].position,
+        g.excitations[1].direction.normalize(),
+    );
+    let across = |v: Vec3| v - n * n.dot(&v);
+    // The generalised spring forces of unit coordinate q_j, projected on q_i.
+    let strain = |q: &Vec6| -> (Vec3, Vec3) {
+        let (x, th) = (Vec3::new(q[0], q[1], q[2]), Vec3::new(q[3], q[4], q[5]));
+        (across(x + th.cross(&r)), across(th))
+    };
+    let ka = Mat6::from_fn(|i, j| {
+        let (ui, ti) = strain(&Vec6::from_fn(|k, _| (k == i) as u8 as f64));
+        let (uj, tj) = strain(&Vec6::from_fn(|k, _| (k == j) as u8 as f64));
+        kl * ui.dot(&uj) + kr * ti.dot(&tj)
+    });
+    let fc = g.excitations[1].column();
+    let freq = s.frequency_axis();
+    let mut worst = 0.0f64;
+    for ch in 0..9 {
+        let row = g.channels[ch].row();
+        let expect: Vec<c64> = freq
+            .iter()
+            .map(|hz| {
+                let w = TAU * hz;
+                let z = nalgebra::Matrix6::<c64>::from_fn(|i, j| {
+                    c64::new(
+                        m.stiffness[(i, j)] + ka[(i, j)] - w * w * m.mass[(i, j)],
+                        w * m.damping[(i, j)],
+                    )
+                });
+                let x = z.lu().solve(&fc.map(c)).unwrap();
+                (0..6).map(|k| x[k] * row[k]).sum()
+            })
+            .collect();
+        worst = worst.max(max_dev(out.frf.frf(1, ch), &expect));
+        assert_eq!(out.frf.frf(0, ch), nominal.frf.frf(0, ch));
+        assert_eq!(out.frf.frf(2, ch), nominal.frf.frf(2, ch));
+    }
+    assert!(worst < 1e-9, "stinger run vs direct solve: {worst:e}");
+    // And it matters: the lateral spring is 2/3 of one suspension spring's (150 N/m).
+    assert!(max_dev(out.frf.frf(1, 4), nominal.frf.frf(1, 4)) > 1e-2);
+}
+
 /// Delay: channel c of excitation e × e^{−iω(τ_c − τ_e)}, the others untouched.
 #[test]
 fn channel_delay_is_a_pure_phase_lag_of_the_difference() {
@@ -735,6 +795,9 @@ fn bad_effect_parameters_name_the_effect_and_parameter() {
         ("id = \"added_mass\"\nrotational_kg_m2 = [[0.1, 0.0], [0.0, 0.1]]", vec!["rotational_kg_m2"]),
         ("id = \"suspension_drift\"\nstiffness_factors = { force8 = 1.01 }", vec!["excitation 'force8'"]),
         ("id = \"channel_delay\"\nexcitations_s = { force7 = 0.001 }", vec!["excitation 'force7'"]),
+        ("id = \"stinger_stiffness\"\nlateral_n_per_m = { force7 = 100.0 }", vec!["stinger_stiffness", "excitation 'force7'"]),
+        ("id = \"stinger_stiffness\"\nlateral_n_per_m = { force1 = -100.0 }", vec!["lateral_n_per_m.force1", "≥ 0"]),
+        ("id = \"stinger_stiffness\"", vec!["lateral_n_per_m and/or rotational_n_m_per_rad"]),
         ("id = \"channel_delay\"\nchannels_s = { \"1x\" = 2.0 }", vec!["delay of '1x'", "±1 s"]),
         ("id = \"sensor_tilt_gravity\"\nup = [0.0, 1.0, 1.0]", vec!["up"]),
         ("id = \"suspension_coupling\"\nrotational_n_m_per_rad = [0.0, -1.0, 0.0]", vec!["stiffness"]),

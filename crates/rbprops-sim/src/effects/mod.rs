@@ -7,7 +7,7 @@
 //! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
 //! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
-//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling`, `suspension_drift` ([`mounts`]); `cord_mass`
+//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling`, `suspension_drift`, `stinger_stiffness` ([`mounts`]); `cord_mass`
 //! ([`cords`]). Each effect is a plain struct deserialised from
 //! its spec table (unknown parameters are refused) that implements [`Effect`].
 
@@ -132,6 +132,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "channel_delay",
     "suspension_drift",
     "added_mass",
+    "stinger_stiffness",
 ];
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
@@ -246,6 +247,7 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "channel_delay" => Box::new(params::<sensors::ChannelDelay>(spec)?),
         "suspension_drift" => Box::new(params::<mounts::SuspensionDrift>(spec)?),
         "added_mass" => Box::new(params::<mass::AddedMass>(spec)?),
+        "stinger_stiffness" => Box::new(params::<mounts::StingerStiffness>(spec)?),
         "cord_mass" => {
             let c: cords::CordMass = params(spec)?;
             c.check_self()
