@@ -53,6 +53,9 @@ CASES = {
     "delay": (85.0, ['id = "channel_delay"\nchannels_s = { A2y = 0.0006, A3x = -0.0004 }\n'
                      'excitations_s = { hit4 = 0.0005 }'], ["channel_delay"]),
     "drift": (85.0, ['id = "suspension_drift"\nstiffness_factors = { hit3 = 0.985 }'], ["suspension_drift"]),
+    "highpass-mixed": (85.0, ['id = "transducer_highpass"\ntime_constants_s = { A1x = 1.5, A1y = 1.5, A1z = 1.5 }'],
+                       ["transducer_highpass"]),
+    "stinger": (85.0, ['id = "stinger_stiffness"\nlateral_n_per_m = { hit2 = 1500.0 }'], ["stinger_stiffness"]),
 }
 
 def air_mass(m: float, p: tuple, n: tuple) -> str:
@@ -96,6 +99,9 @@ HANGING = {
     "hanging-delay": (40.0, ['id = "channel_delay"\nexcitations_s = { h2 = 0.001 }'], ["channel_delay"]),
     "hanging-air-mass": (40.0, [air_mass(0.4, (0.3, 0.1, -0.05), (1.0, 0.0, 0.0))], ["added_mass"]),
     "hanging-drift": (40.0, ['id = "suspension_drift"\nstiffness_factors = { h1 = 1.03 }'], ["suspension_drift"]),
+    "hanging-highpass-mixed": (40.0, ['id = "transducer_highpass"\ntime_constants_s = { U1 = 2.0, U2 = 2.0, U3 = 2.0 }'],
+                               ["transducer_highpass"]),
+    "hanging-stinger": (40.0, ['id = "stinger_stiffness"\nlateral_n_per_m = { h1 = 100.0 }'], ["stinger_stiffness"]),
     "hanging-cad-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"],
                             CAD_OFF),
 }

@@ -671,30 +671,68 @@ const REPARAMETRISED: &[&str] = &[
 /// A catalogue effect whose parameters (a time constant, a length) are neutral only at
 /// infinity, fitted through their reciprocals: φ = 1/τ, with φ = 0 meaning "absent" (no
 /// effect at all) and φ > 0 building the catalogue effect with τ = 1/φ.
-#[derive(Debug)]
 pub struct Reciprocal {
     id: &'static str,
     infos: Vec<ParamInfo>,
     values: Vec<f64>,
     inner: Option<Box<dyn Effect>>,
-    build: fn(&[f64]) -> Result<Option<Box<dyn Effect>>, String>,
+    build: Build,
 }
 
-/// `transducer_highpass` with one time constant τ for every channel, through 1/τ.
-fn highpass_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
-    if v[0] < 0.0 || !v[0].is_finite() {
-        return Err(format!("1/τ must be finite and ≥ 0, got {}", v[0]));
+/// Builds the catalogue effect from the reciprocal parameters (`None`: absent).
+type Build =
+    std::sync::Arc<dyn Fn(&[f64]) -> Result<Option<Box<dyn Effect>>, String> + Send + Sync>;
+
+impl std::fmt::Debug for Reciprocal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Reciprocal")
+            .field("id", &self.id)
+            .field("values", &self.values)
+            .field("inner", &self.inner)
+            .finish()
     }
-    if v[0] == 0.0 {
-        return Ok(None);
+}
+
+/// The sensors of a geometry: the channels at each point, in first-channel order. The
+/// channels of one sensor share its conditioner, so they share a high-pass.
+fn sensors(g: &Geometry) -> Vec<(String, Vec<String>)> {
+    let mut out: Vec<(String, Vec<String>)> = Vec::new();
+    for c in &g.channels {
+        match out.iter_mut().find(|(p, _)| *p == c.point) {
+            Some((_, ids)) => ids.push(c.id.clone()),
+            None => out.push((c.point.clone(), vec![c.id.clone()])),
+        }
     }
-    let mut t = toml::Table::new();
-    t.insert("time_constant_s".into(), (1.0 / v[0]).into());
-    rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
-        id: "transducer_highpass".into(),
-        parameters: t,
+    out
+}
+
+/// `transducer_highpass` with one time constant τ_j per sensor (the channels at one
+/// point), through φ_j = 1/τ_j: mixed sensor types (an IEPE triaxial with τ = 1 s among
+/// DC-coupled ones) are as common as one τ for all, which is the case φ_j all equal.
+fn highpass_build(sensors: Vec<(String, Vec<String>)>) -> Build {
+    std::sync::Arc::new(move |v: &[f64]| {
+        if let Some(x) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return Err(format!("1/τ must be finite and ≥ 0, got {x}"));
+        }
+        let mut per_channel = toml::Table::new();
+        for ((_, channels), &phi) in sensors.iter().zip(v) {
+            if phi > 0.0 {
+                for c in channels {
+                    per_channel.insert(c.clone(), (1.0 / phi).into());
+                }
+            }
+        }
+        if per_channel.is_empty() {
+            return Ok(None);
+        }
+        let mut t = toml::Table::new();
+        t.insert("time_constants_s".into(), per_channel.into());
+        rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
+            id: "transducer_highpass".into(),
+            parameters: t,
+        })
+        .map(Some)
     })
-    .map(Some)
 }
 
 /// `record_truncation` through φ = 1/T (record length T).
@@ -830,7 +868,7 @@ impl Effect for Reciprocal {
             infos: self.infos.clone(),
             values: values.to_vec(),
             inner: (self.build)(values)?,
-            build: self.build,
+            build: self.build.clone(),
         }))
     }
     fn parameters_json(&self) -> serde_json::Value {
@@ -938,24 +976,30 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
         && !in_spec.contains(&"transducer_highpass")
     {
         let (title, reveal) = describe("transducer_highpass");
+        let groups = sensors(geometry);
+        let infos: Vec<ParamInfo> = groups
+            .iter()
+            .map(|(sensor, _)| ParamInfo {
+                name: format!("inverse_time_constant_per_s.{sensor}"),
+                unit: "1/s",
+                lower: 0.0,
+                upper: f64::INFINITY,
+                plausible: (0.0, 2.0),
+            })
+            .collect();
+        let n = infos.len();
         out.push(Candidate {
             id: "transducer_highpass".into(),
             title: title.into(),
             effect: Box::new(Reciprocal {
                 id: "transducer_highpass",
-                infos: vec![ParamInfo {
-                    name: "inverse_time_constant_per_s".into(),
-                    unit: "1/s",
-                    lower: 0.0,
-                    upper: f64::INFINITY,
-                    plausible: (0.0, 2.0),
-                }],
-                values: vec![0.0],
+                infos,
+                values: vec![0.0; n],
                 inner: None,
-                build: highpass_build,
+                build: highpass_build(groups),
             }),
-            neutral: vec![0.0],
-            scales: vec![0.05],
+            neutral: vec![0.0; n],
+            scales: vec![0.05; n],
             source: "rbprops-sim (reparametrised for screening)",
             reveal,
             screening: Screening::Score,
@@ -990,7 +1034,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 }],
                 values: vec![0.0],
                 inner: None,
-                build: truncation_build,
+                build: std::sync::Arc::new(truncation_build),
             }),
             neutral: vec![0.0],
             scales: vec![0.005],
@@ -1039,7 +1083,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 ],
                 values: vec![0.0, 1.0],
                 inner: None,
-                build: cord_build,
+                build: std::sync::Arc::new(cord_build),
             }),
             neutral: vec![0.0, 1.0],
             // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
@@ -1087,29 +1131,14 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 }
 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists
-/// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters.
+/// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters (the
+/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel).
 pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, String> {
     if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
         return Err(format!(
             "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
             e.id()
         ));
-    }
-    if e.id() == "transducer_highpass"
-        && e.parameters()
-            .first()
-            .is_some_and(|p| p.name == "inverse_time_constant_per_s")
-    {
-        let v = e.values();
-        if !(v[0] > 0.0) {
-            return Err("transducer_highpass: fitted 1/τ is not positive".into());
-        }
-        let mut t = toml::Table::new();
-        t.insert("time_constant_s".into(), (1.0 / v[0]).into());
-        return Ok(rbprops_sim::spec::EffectSpec {
-            id: e.id().to_string(),
-            parameters: t,
-        });
     }
     if e.id() == "record_truncation"
         && e.parameters()

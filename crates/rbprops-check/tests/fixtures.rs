@@ -567,11 +567,36 @@ fn transducer_highpass_is_found() {
     );
     let r = run(&nom, &g, &frf, &given_noise(9));
     assert_found(&r, &["transducer_highpass"], &truth.properties());
-    within(
-        param(&r, "transducer_highpass", "inverse_time_constant_per_s"),
-        0.5,
-        4.0,
+    // One τ per sensor (the channels at a point); all three share τ = 2 s here.
+    for sensor in ["1", "2", "3"] {
+        within(
+            param(
+                &r,
+                "transducer_highpass",
+                &format!("inverse_time_constant_per_s.{sensor}"),
+            ),
+            0.5,
+            4.0,
+        );
+    }
+}
+
+/// Mixed sensor types (E11): only triaxial 2 is AC-coupled (τ = 1.5 s), the others are
+/// DC-coupled; one τ for all channels cannot fit it (it used to be mistaken for channel
+/// delays, a window and force directions, short of the noise floor).
+#[test]
+fn a_highpass_on_one_sensor_is_found() {
+    let (r, truth) = concealed(
+        "transducer_highpass (one sensor)",
+        &["id = \"transducer_highpass\"\ntime_constants_s = { \"2x\" = 1.5, \"2y\" = 1.5, \"2z\" = 1.5 }"],
+        0.01,
+        67,
     );
+    assert_found(&r, &["transducer_highpass"], &truth.properties());
+    let name = |s: &str| format!("inverse_time_constant_per_s.{s}");
+    within(param(&r, "transducer_highpass", &name("2")), 1.0 / 1.5, 4.0);
+    within(param(&r, "transducer_highpass", &name("1")), 0.0, 4.0);
+    within(param(&r, "transducer_highpass", &name("3")), 0.0, 4.0);
 }
 
 /// Acquisition delays (E11: ADC skew, filter group delay): two channels and one force
