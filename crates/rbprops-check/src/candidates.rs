@@ -537,6 +537,10 @@ pub fn describe(id: &str) -> (&'static str, &'static str) {
             "suspension drift between runs (creep, temperature)",
             "repeated runs of one excitation, or the suspension modes measured before and after each run",
         ),
+        "hysteretic_damping" => (
+            "hysteretic (loss-factor) damping of the mounts (rubber, bungee)",
+            "data well below the suspension modes (a loss constant in frequency, where a dashpot's vanishes), or the mounts' measured loss factors",
+        ),
         "stinger_stiffness" => (
             "lateral stiffness of a shaker stinger (present only while that shaker drives)",
             "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
@@ -610,16 +614,12 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         "nonproportional_damping" => {
             // One dashpot per spring: damping that differs between mounts is what makes
             // it non-proportional (equal dashpots at every mount are nearly proportional
-            // and the fitted modal damping ratios absorb them). Set-ups with different
-            // spring counts share one coefficient per direction.
-            let counts: Vec<usize> = spec.setups.iter().map(|s| s.springs.len()).collect();
-            let n = match counts.first() {
-                Some(&n) if n > 0 && counts.iter().all(|&c| c == n) => n,
-                _ => 1,
-            };
-            let zeros = || toml::Value::Array(vec![0.0.into(); n]);
-            t.insert("axial_n_s_per_m".into(), zeros());
-            t.insert("lateral_n_s_per_m".into(), zeros());
+            // and the fitted modal damping ratios absorb them).
+            t.insert("axial_n_s_per_m".into(), per_spring_zeros(spec));
+            t.insert("lateral_n_s_per_m".into(), per_spring_zeros(spec));
+        }
+        "hysteretic_damping" => {
+            t.insert("loss_factors".into(), per_spring_zeros(spec));
         }
         "suspension_coupling" => {
             t.insert("rotational_n_m_per_rad".into(), zero3());
@@ -655,6 +655,17 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         _ => return None,
     }
     Some(t)
+}
+
+/// One zero per spring of the set-ups (one in all when set-ups differ in spring count:
+/// a coefficient per spring is then not one list for every set-up).
+fn per_spring_zeros(spec: &CampaignSpec) -> toml::Value {
+    let counts: Vec<usize> = spec.setups.iter().map(|s| s.springs.len()).collect();
+    let n = match counts.first() {
+        Some(&n) if n > 0 && counts.iter().all(|&c| c == n) => n,
+        _ => 1,
+    };
+    toml::Value::Array(vec![0.0.into(); n])
 }
 
 /// Ids for which a local form is used even though the catalogue has the effect,

@@ -891,6 +891,28 @@ fn stinger_lateral_stiffness_is_found() {
     mass_within(&r, truth.properties().mass, 4.0);
 }
 
+/// Rubber mounts (E5): a loss factor per spring, one mount lossier than the others. The
+/// loss is constant in frequency, so the modal damping ratios cannot absorb it, and
+/// dashpots (whose loss grows as ω) fit it only near the resonances.
+#[test]
+fn hysteretic_mount_damping_is_found() {
+    let eta = [0.08, 0.08, 0.15, 0.04];
+    let (r, truth) = concealed(
+        "hysteretic_damping",
+        &["id = \"hysteretic_damping\"\nloss_factors = [0.08, 0.08, 0.15, 0.04]"],
+        0.01,
+        71,
+    );
+    assert_found(&r, &["hysteretic_damping"], &truth.properties());
+    for (i, e) in eta.iter().enumerate() {
+        within(
+            param(&r, "hysteretic_damping", &format!("loss_factors[{i}]")),
+            *e,
+            4.0,
+        );
+    }
+}
+
 /// Gravity in the sensor equation (E2): horizontal accelerometers read g·θ; without it
 /// the free inertia is badly biased (the baseline mass is off by tens of percent).
 #[test]

@@ -132,6 +132,10 @@ const EFFECT_EXAMPLES: &[(&str, &str)] = &[
         "stinger_stiffness",
         include_str!("../../../fixtures/specs/effects/stinger_stiffness.toml"),
     ),
+    (
+        "hysteretic_damping",
+        include_str!("../../../fixtures/specs/effects/hysteretic_damping.toml"),
+    ),
 ];
 
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect

@@ -128,6 +128,10 @@ pub struct DynamicModel {
     pub stiffness: Mat6,
     /// 6×6 viscous damping about O.
     pub damping: Mat6,
+    /// 6×6 hysteretic (structural) damping D about O: a loss `iD` in the dynamic
+    /// stiffness at every frequency, `Z = K + iD + iωC − ω²M` (rubber mounts' loss
+    /// factors). It has no time-domain model.
+    pub structural_damping: Mat6,
     /// Output rows, one per channel (campaign order): `sᵀT(p)` nominally.
     pub outputs: Vec<RowVector6<f64>>,
     /// Inputs of this set-up's excitations.
@@ -156,12 +160,14 @@ pub fn modal_compliance(modes: &[RigidMode], omega: f64) -> Matrix6<c64> {
 }
 
 impl DynamicModel {
-    /// Dynamic stiffness `Z(ω) = K + iωC − ω²M`.
+    /// Dynamic stiffness `Z(ω) = K + i sgn(ω) D + iωC − ω²M` (D: hysteretic damping,
+    /// odd in ω so that the impulse response stays real).
     pub fn dynamic_stiffness(&self, omega: f64) -> Matrix6<c64> {
+        let sgn = if omega < 0.0 { -1.0 } else { 1.0 };
         Matrix6::from_fn(|i, j| {
             c64::new(
                 self.stiffness[(i, j)] - omega * omega * self.mass[(i, j)],
-                omega * self.damping[(i, j)],
+                omega * self.damping[(i, j)] + sgn * self.structural_damping[(i, j)],
             )
         })
     }
@@ -177,7 +183,8 @@ impl DynamicModel {
     }
 
     /// Real undamped modes of `(K, M)`, mass-normalised and ascending, each with the
-    /// damping ratio `ζ_r = φ_rᵀ C φ_r / (2ω_r)` (exact for classical damping).
+    /// damping ratio `ζ_r = φ_rᵀ C φ_r / (2ω_r) + φ_rᵀ D φ_r / (2ω_r²)` (exact for
+    /// classical viscous damping; the hysteretic part is its equivalent at resonance).
     pub fn modes(&self) -> Result<Vec<RigidMode>, String> {
         let modes = rigid_body_modes(&self.mass, &self.stiffness).map_err(|e| e.to_string())?;
         Ok(modes
@@ -186,6 +193,7 @@ impl DynamicModel {
                 frequency_hz: w / std::f64::consts::TAU,
                 damping_ratio: if w > 0.0 {
                     (phi.transpose() * self.damping * phi)[0] / (2.0 * w)
+                        + (phi.transpose() * self.structural_damping * phi)[0] / (2.0 * w * w)
                 } else {
                     0.0
                 },
@@ -194,9 +202,13 @@ impl DynamicModel {
             .collect())
     }
 
-    /// Largest off-diagonal of `ΦᵀCΦ` relative to its diagonal: 0 for classical damping.
+    /// Largest off-diagonal of `ΦᵀCΦ` relative to its diagonal: 0 for classical damping;
+    /// infinite with hysteretic damping, which the modal sum does not represent.
     pub fn damping_coupling(&self, modes: &[RigidMode]) -> f64 {
         let phi = Mat6::from_columns(&modes.iter().map(|m| m.shape).collect::<Vec<Vector6<f64>>>());
+        if self.structural_damping != Mat6::zeros() {
+            return f64::INFINITY;
+        }
         let cm = phi.transpose() * self.damping * phi;
         let diag = cm.diagonal().abs().max().max(f64::MIN_POSITIVE);
         let mut off = 0.0f64;

@@ -3,7 +3,9 @@
 //! excitation ([`crate::model::Observation`], [`crate::model::ModelInput::attached_mass`],
 //! [`crate::model::ModelInput::attached_stiffness`]).
 //!
-//! With `s = iω + σ` (σ the window decay, 0 without window), `Z(s) = K + K_a + sC + s²(M + M_a)`
+//! With `s = iω + σ` (σ the window decay, 0 without window), `Z(s) = K + K_a + iD + sC + s²(M + M_a)`
+//! (D hysteretic damping, frequency-independent; under a window it is kept as `iD`, the
+//! loss a rubber mount shows at the line's frequency)
 //! and `x(s) = Z(s)⁻¹ f`, channel c of quantity order k (0 receptance, 1 mobility,
 //! 2 accelerance) reads
 //!
@@ -105,6 +107,13 @@ pub fn observed_block(
     let f = input.column;
     let e = input.excitation;
     let sigma = obs.window_decay_per_s;
+    if obs.record_length_s.is_some() && model.structural_damping != Mat6::zeros() {
+        return Err(
+            "a finite record needs the impulse response, and hysteretic damping has none: \
+             record_truncation cannot be combined with hysteretic_damping"
+                .into(),
+        );
+    }
     let rigid_tail = match obs.record_length_s {
         Some(t) => Some((t, rigid_state_at(&mass, &stiffness, model, &f, t)?)),
         None => None,
@@ -131,7 +140,9 @@ pub fn observed_block(
     for (l, &w) in omegas.iter().enumerate() {
         let s = c64::new(sigma, w);
         let z = Mat6c::from_fn(|i, j| {
-            c64::new(stiffness[(i, j)], 0.0) + s * model.damping[(i, j)] + s * s * mass[(i, j)]
+            c64::new(stiffness[(i, j)], model.structural_damping[(i, j)])
+                + s * model.damping[(i, j)]
+                + s * s * mass[(i, j)]
         });
         let lu = z.lu();
         let x = lu.solve(&fc).ok_or_else(|| {

@@ -78,6 +78,7 @@ pub fn build_models(
             mass: m0,
             stiffness: spec.setup_stiffness(si),
             damping: Mat6::zeros(),
+            structural_damping: Mat6::zeros(),
             outputs: outputs.clone(),
             inputs: geometry
                 .excitations

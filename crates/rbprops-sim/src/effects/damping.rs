@@ -9,10 +9,21 @@
 //! the modes become complex (checked against a state-space eigen-solution in the tests),
 //! and the simulator's modal solve refuses the model; the truth record's damping ratios
 //! are then the diagonal approximation `φ_rᵀCφ_r/(2ω_r)`.
+//!
+//! `hysteretic_damping`: the loss of rubber mounts and bungee cords (research note E5),
+//! a loss factor η_i per spring, frequency-independent:
+//!
+//! `D = Σ_i η_i T(a_i)ᵀ k_i T(a_i)`, in `Z(ω) = K + iD + iωC − ω²M`,
+//!
+//! so spring i's stiffness is `k_i(1 + iη_i)`. A suspension mode r gets the equivalent
+//! ratio `ζ_r ≈ φ_rᵀDφ_r/(2ω_r²)` at resonance; off resonance the loss is constant in
+//! frequency where a dashpot's grows as ω, and loss factors that differ between
+//! mounts make the modes complex. Rubber: η 0.05–0.2.
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
+use crate::suspension::spring_stiffness;
 use rbprops_core::{rigid_transform, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -151,6 +162,90 @@ impl Effect for NonproportionalDamping {
         for ((s, a), l) in springs.iter().zip(ca).zip(cl) {
             let t = rigid_transform(&s.at);
             model.damping += t.transpose() * (a * axial + l * lateral) * t;
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HystereticDamping {
+    /// Set-up with the lossy mounts; all set-ups when absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
+    /// Loss factor η per spring, or one value for all.
+    pub loss_factors: Vec<f64>,
+}
+
+impl HystereticDamping {
+    fn check_values(&self) -> Result<(), String> {
+        if self.loss_factors.is_empty() {
+            return Err("loss_factors: give one loss factor per spring or one for all".into());
+        }
+        match self
+            .loss_factors
+            .iter()
+            .enumerate()
+            .find(|(_, e)| !(e.is_finite() && (0.0..=2.0).contains(*e)))
+        {
+            Some((i, e)) => Err(format!("loss_factors[{i}]: must be in [0, 2], got {e}")),
+            None => Ok(()),
+        }
+    }
+}
+
+impl Effect for HystereticDamping {
+    fn id(&self) -> &'static str {
+        "hysteretic_damping"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        (0..self.loss_factors.len())
+            .map(|i| ParamInfo {
+                name: format!("loss_factors[{i}]"),
+                unit: "1",
+                lower: 0.0,
+                upper: 2.0,
+                plausible: (0.0, 0.2),
+            })
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.loss_factors.clone()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let e = HystereticDamping {
+            loss_factors: super::replace_list(self.loss_factors.len(), values)?,
+            ..self.clone()
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::check_setup(spec, self.setup.as_deref())?;
+        for (i, s) in spec.setups.iter().enumerate() {
+            let n = self.loss_factors.len();
+            if self.setup.as_ref().is_none_or(|id| id == &s.id) && n > 1 && n != s.springs.len() {
+                return Err(format!(
+                    "loss_factors has {n} values but set-up '{}' (setup[{i}]) has {} springs",
+                    s.id,
+                    s.springs.len()
+                ));
+            }
+        }
+        Ok(())
+    }
+    fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+            return Ok(());
+        }
+        let springs = ctx.spec.springs(ctx.setup_index);
+        let eta = per_spring(&self.loss_factors, springs.len());
+        for (s, e) in springs.iter().zip(eta) {
+            model.structural_damping += e * spring_stiffness(s);
         }
         Ok(())
     }

@@ -4,7 +4,7 @@
 //!
 //! Implemented: `gravity_stiffness`, `sensor_mass`, `added_mass` ([`mass`]), `channel_gain`, `excitation_gain`,
 //! `global_gain`, `sensor_misorientation` (structure and rows); `elastic_mode`
-//! ([`elastic`]); `nonproportional_damping` ([`damping`]); `exponential_window`,
+//! ([`elastic`]); `nonproportional_damping`, `hysteretic_damping` ([`damping`]); `exponential_window`,
 //! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
 //! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
 //! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling`, `suspension_drift`, `stinger_stiffness` ([`mounts`]); `cord_mass`
@@ -133,6 +133,7 @@ pub const KNOWN_EFFECTS: &[&str] = &[
     "suspension_drift",
     "added_mass",
     "stinger_stiffness",
+    "hysteretic_damping",
 ];
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
@@ -248,6 +249,7 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
         "suspension_drift" => Box::new(params::<mounts::SuspensionDrift>(spec)?),
         "added_mass" => Box::new(params::<mass::AddedMass>(spec)?),
         "stinger_stiffness" => Box::new(params::<mounts::StingerStiffness>(spec)?),
+        "hysteretic_damping" => Box::new(params::<damping::HystereticDamping>(spec)?),
         "cord_mass" => {
             let c: cords::CordMass = params(spec)?;
             c.check_self()
