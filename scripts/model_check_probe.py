@@ -55,6 +55,7 @@ CASES = {
     "drift": (85.0, ['id = "suspension_drift"\nstiffness_factors = { hit3 = 0.985 }'], ["suspension_drift"]),
     "highpass-mixed": (85.0, ['id = "transducer_highpass"\ntime_constants_s = { A1x = 1.5, A1y = 1.5, A1z = 1.5 }'],
                        ["transducer_highpass"]),
+    "hysteretic": (85.0, ['id = "hysteretic_damping"\nloss_factors = [0.1]'], ["hysteretic_damping"]),
     "stinger": (85.0, ['id = "stinger_stiffness"\nlateral_n_per_m = { hit2 = 1500.0 }'], ["stinger_stiffness"]),
 }
 
@@ -101,6 +102,8 @@ HANGING = {
     "hanging-drift": (40.0, ['id = "suspension_drift"\nstiffness_factors = { h1 = 1.03 }'], ["suspension_drift"]),
     "hanging-highpass-mixed": (40.0, ['id = "transducer_highpass"\ntime_constants_s = { U1 = 2.0, U2 = 2.0, U3 = 2.0 }'],
                                ["transducer_highpass"]),
+    "hanging-hysteretic": (40.0, ['id = "hysteretic_damping"\nloss_factors = [0.05, 0.12, 0.05]'],
+                           ["hysteretic_damping"]),
     "hanging-stinger": (40.0, ['id = "stinger_stiffness"\nlateral_n_per_m = { h1 = 100.0 }'], ["stinger_stiffness"]),
     "hanging-cad-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"],
                             CAD_OFF),
