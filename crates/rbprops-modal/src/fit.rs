@@ -896,7 +896,7 @@ fn fit_one(
                     a_std[m][o] = 2.0 * p.omega_d() * rf.residue_std[m][o];
                 }
             }
-            synth = crate::prof::time(7, || lsfd::synthesise(&ps.poles, &rf, &band));
+            synth = rf.synthesised;
         }
     }
 

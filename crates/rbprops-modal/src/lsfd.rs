@@ -62,14 +62,18 @@ pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
     if live.is_empty() {
         return vec![1.0; n];
     }
-    let level: Vec<f64> = (0..n)
-        .map(|k| {
-            live.iter()
-                .map(|&o| chans[o][k].norm_sqr() / (rms[o] * rms[o]))
-                .sum::<f64>()
-                / live.len() as f64
-        })
-        .collect();
+    // Channel by channel over contiguous lines (each line's sum in channel order, as
+    // `Iterator::sum` would add them: bitwise the same, and the loops vectorise).
+    let mut level = vec![std::iter::empty::<f64>().sum::<f64>(); n];
+    for &o in &live {
+        let r2 = rms[o] * rms[o];
+        for (l, z) in level.iter_mut().zip(&chans[o]) {
+            *l += z.norm_sqr() / r2;
+        }
+    }
+    for l in level.iter_mut() {
+        *l /= live.len() as f64;
+    }
     let mean = level.iter().sum::<f64>() / n as f64;
     level
         .iter()
@@ -196,6 +200,8 @@ pub struct ResidueFit {
     /// Ratio of the smallest to the largest diagonal entry of R (QR) of the normalised
     /// basis: near 0 means two poles' columns are nearly collinear (inseparable modes).
     pub basis_conditioning: f64,
+    /// The fitted FRFs `[channel][line]` in the measured quantity (as [`synthesise`]).
+    pub synthesised: Vec<Vec<c64>>,
 }
 
 /// LSFD: residues (and residual terms) for every channel given the poles.
@@ -211,7 +217,7 @@ pub fn fit_residues(
     let rows = a.nrows();
     let p = a.ncols();
     let qr = TallLs::new(a);
-    let (x, _, rss) = qr.solve_into(stack_data(chans, &w));
+    let (x, resid, rss) = qr.solve_into(stack_data(chans, &w));
     let ginv = qr.inverse_gram();
     let rd = qr.r_diag();
     let basis_conditioning =
@@ -249,7 +255,27 @@ pub fn fit_residues(
         lower,
         rss,
         basis_conditioning,
+        synthesised: unweighted_fit(chans, &resid, &w),
     }
+}
+
+/// The fitted FRFs `h − r/w` per channel from the weighted real-stacked residuals `r`
+/// (`2N × channels`) of the data `h` with line weights `w`: the synthesis of
+/// [`synthesise`] without evaluating the basis again (equal to rounding).
+fn unweighted_fit(chans: &[Vec<c64>], resid: &Mat<f64>, w: &[f64]) -> Vec<Vec<c64>> {
+    chans
+        .iter()
+        .enumerate()
+        .map(|(o, h)| {
+            let col = resid.col(o).try_as_col_major().unwrap().as_slice();
+            let (re, im) = col.split_at(h.len());
+            h.iter()
+                .zip(re.iter().zip(im))
+                .zip(w)
+                .map(|((z, (r, i)), wk)| c64::new(z.re - r / wk, z.im - i / wk))
+                .collect()
+        })
+        .collect()
 }
 
 /// Synthesised FRFs `[channel][line]` in the measured quantity.
