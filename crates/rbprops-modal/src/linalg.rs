@@ -11,6 +11,7 @@ use faer::prelude::*;
 use faer::{Conj, Par};
 use rbprops_core::c64;
 
+crate::simd::avx_fn! {
 /// `Σ a_i b_i` over the common length, with eight independent partial sums combined in a
 /// fixed tree at the end.
 ///
@@ -35,6 +36,7 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+}
 }
 
 /// `Re Σ conj(a_i) b_i`: the real inner product of real-stacked complex vectors, with the

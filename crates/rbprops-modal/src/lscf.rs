@@ -42,6 +42,7 @@ struct Sums {
     t: Vec<Vec<f64>>,
 }
 
+crate::simd::avx_fn! {
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
     let nl = theta.len();
@@ -109,6 +110,7 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         }
     }
     s
+}
 }
 
 /// Channels per SIMD group of the factor recursion (see [`Factors`]).
@@ -192,9 +194,10 @@ impl Factors {
     /// Extends every channel's factors with basis function `q`; `false` when some R_o
     /// is not positive definite.
     fn extend(&mut self, q: usize) -> bool {
-        (0..self.l.len()).all(|c| self.extend_group(c, q))
+        extend_factors(self, q)
     }
 
+    #[inline(always)]
     fn extend_group(&mut self, c: usize, q: usize) -> bool {
         let pm = self.pm;
         let (r, gp, gn) = (&self.r[c], &self.g_pos[c], &self.g_neg[c]);
@@ -281,11 +284,31 @@ impl Factors {
     /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
     /// denominator `coef` (`p` coefficients).
     fn numerators(&self, coef: &[f64]) -> Vec<Vec<f64>> {
-        let (p, pm) = (coef.len(), self.pm);
+        factor_numerators(self, coef)
+    }
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::extend`] (channel groups in turn).
+    fn extend_factors(f: &mut Factors, q: usize) -> bool {
+        // A plain loop: iterator adaptors' closures need not be inlined into the AVX copy.
+        for c in 0..f.l.len() {
+            if !f.extend_group(c, q) {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::numerators`].
+    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<f64>> {
+        let (p, pm) = (coef.len(), f.pm);
         // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
         let zero: f64 = std::iter::empty::<f64>().sum();
-        let mut out = Vec::with_capacity(self.no);
-        for (c, (lc, yc)) in self.l.iter().zip(&self.yt).enumerate() {
+        let mut out = Vec::with_capacity(f.no);
+        for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
             let ya: Vec<Lanes> = (0..p)
                 .map(|i| {
                     (0..p).fold([zero; LANES], |mut s, j| {
@@ -306,7 +329,7 @@ impl Factors {
                 }
                 beta[i] = std::array::from_fn(|t| v[t] / lc[i * pm + i][t]);
             }
-            out.extend((0..self.lanes_in(c)).map(|t| beta.iter().map(|b| -b[t]).collect()));
+            out.extend((0..f.lanes_in(c)).map(|t| beta.iter().map(|b| -b[t]).collect()));
         }
         out
     }

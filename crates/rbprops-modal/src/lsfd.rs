@@ -46,6 +46,7 @@ impl Residuals {
     }
 }
 
+crate::simd::avx_fn! {
 /// Per-line weights shared by all channels: `w_k = 1/√(mean_o |h_ok/rms_o|²)`.
 ///
 /// Noise in measured FRFs is roughly proportional to |H| (1 % per line in the tests), so
@@ -80,6 +81,7 @@ pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
         .map(|l| 1.0 / l.max(1e-12 * mean).sqrt())
         .collect()
 }
+}
 
 /// `(1/(iω − λ), 1/(iω − λ*))` in real arithmetic (one real division per term).
 #[inline]
@@ -100,6 +102,7 @@ fn pair_basis(p: c64, w: f64) -> (c64, c64) {
     (u + v, c64::new(-d.im, d.re))
 }
 
+crate::simd::avx_fn! {
 /// Real-stacked (`[Re; Im]`) basis columns `2N × (2·poles + residual terms)`, each
 /// multiplied by `q(ω)` and the line weight.
 fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Mat<f64> {
@@ -155,7 +158,9 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     }
     a
 }
+}
 
+crate::simd::avx_fn! {
 /// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
 fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
     (0..a.ncols())
@@ -169,6 +174,7 @@ fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
             s
         })
         .collect()
+}
 }
 
 fn stack_data(chans: &[Vec<c64>], w: &[f64]) -> Mat<f64> {
@@ -513,29 +519,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // In plain real arithmetic over line arrays (the operations of `recips`, the
         // complex squares and the products by q, written out so that they vectorise).
         let mut d = Mat::<f64>::zeros(2 * n, np);
-        for (m, p) in cur.iter().enumerate() {
-            let (r1, i1, r2, i2) = pair_halves(&mut d, m, n);
-            let (x, pim) = (-p.0.re, p.0.im);
-            let cols = r1
-                .iter_mut()
-                .zip(i1.iter_mut())
-                .zip(r2.iter_mut().zip(i2.iter_mut()));
-            let line = band.omega.iter().zip(qre.iter().zip(&qim));
-            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
-                let (a1r, a1i, a2r, a2i) = pole_reciprocals(x, pim, w);
-                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
-                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
-                // d1 = q(u + u2), d2 = q·i(u − u2).
-                let (sr, si) = (ur + u2r, ui + u2i);
-                let (er, ei) = (ur - u2r, ui - u2i);
-                let (tr, ti) = (-ei, er);
-                *r1 = qr * sr - qi * si;
-                *i1 = qr * si + qi * sr;
-                *r2 = qr * tr - qi * ti;
-                *i2 = qr * ti + qi * tr;
-            }
-        }
+        derivative_columns(&mut d, &cur, &band.omega, &qre, &qim);
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
         let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
@@ -698,4 +682,35 @@ fn pole_reciprocals(x: f64, pim: f64, w: f64) -> (f64, f64, f64, f64) {
     let (y1, y2) = (w - pim, w + pim);
     let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
     (x * v1, -y1 * v1, x * v2, -y2 * v2)
+}
+
+crate::simd::avx_fn! {
+    /// [`refine`]'s derivative vectors `d1_m, d2_m` for the poles `cur`, real-stacked
+    /// into `d` (2N × 2M), with `(qre, qim)` the weighted quantity factors.
+    fn derivative_columns(d: &mut Mat<f64>, cur: &[Pole], omega: &[f64], qre: &[f64], qim: &[f64]) -> () {
+        let n = omega.len();
+        for (m, p) in cur.iter().enumerate() {
+            let (r1, i1, r2, i2) = pair_halves(d, m, n);
+            let (x, pim) = (-p.0.re, p.0.im);
+            let cols = r1
+                .iter_mut()
+                .zip(i1.iter_mut())
+                .zip(r2.iter_mut().zip(i2.iter_mut()));
+            let line = omega.iter().zip(qre.iter().zip(qim));
+            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
+                let (a1r, a1i, a2r, a2i) = pole_reciprocals(x, pim, w);
+                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
+                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
+                // d1 = q(u + u2), d2 = q·i(u − u2).
+                let (sr, si) = (ur + u2r, ui + u2i);
+                let (er, ei) = (ur - u2r, ui - u2i);
+                let (tr, ti) = (-ei, er);
+                *r1 = qr * sr - qi * si;
+                *i1 = qr * si + qi * sr;
+                *r2 = qr * tr - qi * ti;
+                *i2 = qr * ti + qi * tr;
+            }
+        }
+    }
 }
