@@ -150,6 +150,19 @@ impl TallQr {
     }
 }
 
+/// An `m×n` matrix whose every entry the caller writes before reading any: allocated
+/// without a fill.
+///
+/// Why: `Mat::zeros` fills element by element through a scalar loop, which for the
+/// tall LSFD bases and derivative matrices cost as much as computing them.
+pub fn mat_for_overwrite(m: usize, n: usize) -> Mat<f64> {
+    let mut a = Mat::<f64>::with_capacity(m, n);
+    // SAFETY: the capacity holds `m×n` entries; `f64` has no invalid bit patterns and
+    // no destructor, and the callers write every entry before reading it.
+    unsafe { a.set_dims(m, n) };
+    a
+}
+
 /// `aᵀ · b` by faer's sequential matrix product (independent of the thread count).
 pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(a.ncols(), b.ncols());

@@ -113,7 +113,8 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
         .zip(w)
         .map(|(q, w)| q * *w)
         .collect();
-    let mut a = Mat::<f64>::zeros(2 * n, 2 * poles.len() + res.count());
+    // Every entry is written below (pole pairs, then the residual columns).
+    let mut a = linalg::mat_for_overwrite(2 * n, 2 * poles.len() + res.count());
     let put = |a: &mut Mat<f64>, j: usize, f: &mut dyn FnMut(usize) -> c64| {
         let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
@@ -179,7 +180,7 @@ fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
 
 fn stack_data(chans: &[Vec<c64>], w: &[f64]) -> Mat<f64> {
     let n = chans[0].len();
-    let mut b = Mat::<f64>::zeros(2 * n, chans.len());
+    let mut b = linalg::mat_for_overwrite(2 * n, chans.len());
     for (j, h) in chans.iter().enumerate() {
         let col = b.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
@@ -518,7 +519,8 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M).
         // In plain real arithmetic over line arrays (the operations of `recips`, the
         // complex squares and the products by q, written out so that they vectorise).
-        let mut d = Mat::<f64>::zeros(2 * n, np);
+        // Every entry is written by `derivative_columns`.
+        let mut d = linalg::mat_for_overwrite(2 * n, np);
         derivative_columns(&mut d, &cur, &band.omega, &qre, &qim);
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
