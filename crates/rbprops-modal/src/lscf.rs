@@ -47,14 +47,16 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     let no = chans.len();
     let nl = theta.len();
     let pm = n_max + 1;
-    // Per channel and block of `B` powers, the four sums run over the lines in
+    // Per block of `B` powers and channel, the four sums run over the lines in
     // registers (the same additions in the same order as line by line).
     const B: usize = 4;
-    let pb = pm.div_ceil(B) * B;
+    let blocks = pm.div_ceil(B);
     // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
-    // one table `[line][m]` (padded with zeros to whole blocks) shared by every channel.
-    let mut zre = vec![0.0; nl * pb];
-    let mut zim = vec![0.0; nl * pb];
+    // one table per block of powers, `[line]` of `B` powers (zero-padded), shared by
+    // every channel. Blocks outermost: each block's table (32 bytes a line) stays in
+    // cache while every channel runs over it, where the whole table would not.
+    let mut zre = vec![[0.0; B]; blocks * nl];
+    let mut zim = vec![[0.0; B]; blocks * nl];
     for (k, &th) in theta.iter().enumerate() {
         let z = c64::new(th.cos(), th.sin());
         let mut zm = c64::new(1.0, 0.0);
@@ -67,8 +69,8 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
                     zm * z
                 };
             }
-            zre[k * pb + m] = zm.re;
-            zim[k * pb + m] = zm.im;
+            zre[(m / B) * nl + k][m % B] = zm.re;
+            zim[(m / B) * nl + k][m % B] = zm.im;
         }
     }
     let mut s = Sums {
@@ -77,21 +79,28 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         g_neg: vec![vec![0.0; pm]; no],
         t: vec![vec![0.0; pm]; no],
     };
-    for o in 0..no {
-        let w = &weights[o];
-        let hw: Vec<c64> = chans[o].iter().zip(w).map(|(h, w2)| h * *w2).collect();
-        let h2: Vec<f64> = chans[o]
-            .iter()
-            .zip(w)
-            .map(|(h, w2)| h.norm_sqr() * w2)
-            .collect();
-        for m0 in (0..pm).step_by(B) {
-            let nb = B.min(pm - m0);
+    let hw: Vec<Vec<c64>> = (0..no)
+        .map(|o| chans[o].iter().zip(&weights[o]).map(|(h, w2)| h * *w2).collect())
+        .collect();
+    let h2: Vec<Vec<f64>> = (0..no)
+        .map(|o| {
+            chans[o]
+                .iter()
+                .zip(&weights[o])
+                .map(|(h, w2)| h.norm_sqr() * w2)
+                .collect()
+        })
+        .collect();
+    for blk in 0..blocks {
+        let m0 = blk * B;
+        let nb = B.min(pm - m0);
+        let (zr, zi) = (&zre[blk * nl..(blk + 1) * nl], &zim[blk * nl..(blk + 1) * nl]);
+        for o in 0..no {
+            let (w, hw, h2) = (&weights[o][..nl], &hw[o][..nl], &h2[o][..nl]);
             let (mut r, mut gp, mut gn, mut t) = ([0.0; B], [0.0; B], [0.0; B], [0.0; B]);
             for k in 0..nl {
                 let (w2, hk, h2) = (w[k], hw[k], h2[k]);
-                let pr: &[f64; B] = zre[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
-                let pi: &[f64; B] = zim[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
+                let (pr, pi) = (&zr[k], &zi[k]);
                 // Only real parts enter the normal matrices: Re(h z^m) = a − b and
                 // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
                 for i in 0..B {
