@@ -190,7 +190,7 @@ fn mul_add(dst: &mut Mat<f64>, a: &Mat<f64>, b: &Mat<f64>, alpha: f64) {
 }
 
 /// `(RᵀR)⁻¹ = R⁻¹R⁻ᵀ` for the upper-triangular `n×n` factor with entries `r(i, j)`.
-fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
+pub fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
     // Invert the upper-triangular R by back substitution, column by column.
     let mut rinv = Mat::<f64>::zeros(n, n);
     for j in 0..n {
@@ -206,6 +206,62 @@ fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
     Mat::from_fn(n, n, |i, j| {
         (i.max(j)..n).map(|l| rinv[(i, l)] * rinv[(j, l)]).sum()
     })
+}
+
+/// Upper-triangular Cholesky factor `R` (`RᵀR = G`) of the symmetric matrix `g`, or
+/// `None` when `g` is not positive definite to working precision.
+pub fn cholesky_upper(g: &Mat<f64>) -> Option<Mat<f64>> {
+    let n = g.nrows();
+    let mut r = Mat::<f64>::zeros(n, n);
+    for j in 0..n {
+        for i in 0..j {
+            let mut v = g[(i, j)];
+            for l in 0..i {
+                v -= r[(l, i)] * r[(l, j)];
+            }
+            r[(i, j)] = v / r[(i, i)];
+        }
+        let mut d = g[(j, j)];
+        for l in 0..j {
+            d -= r[(l, j)] * r[(l, j)];
+        }
+        if !d.is_finite() || d <= 0.0 {
+            return None;
+        }
+        r[(j, j)] = d.sqrt();
+    }
+    Some(r)
+}
+
+/// Whether the Cholesky factor `r` of the Gram matrix of a normalised basis serves for
+/// least squares (see [`TallLs`]): `None` below [`TallLs::GRAM_LIMIT`], else whether a
+/// refinement step is needed (below [`TallLs::REFINE_BELOW`]).
+pub fn gram_usable(r: &Mat<f64>) -> Option<bool> {
+    let rd: Vec<f64> = (0..r.nrows()).map(|i| r[(i, i)]).collect();
+    let lo = rd.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = rd.iter().cloned().fold(0.0, f64::max);
+    (lo > TallLs::GRAM_LIMIT * hi).then_some(lo < TallLs::REFINE_BELOW * hi)
+}
+
+/// `(RᵀR)⁻¹ c` for every column of `c`, `R` upper triangular.
+pub fn cholesky_solve(r: &Mat<f64>, c: &mut Mat<f64>) {
+    let n = r.nrows();
+    for j in 0..c.ncols() {
+        for i in 0..n {
+            let mut v = c[(i, j)];
+            for l in 0..i {
+                v -= r[(l, i)] * c[(l, j)];
+            }
+            c[(i, j)] = v / r[(i, i)];
+        }
+        for i in (0..n).rev() {
+            let mut v = c[(i, j)];
+            for l in i + 1..n {
+                v -= r[(i, l)] * c[(l, j)];
+            }
+            c[(i, j)] = v / r[(i, i)];
+        }
+    }
 }
 
 /// Least squares `min ‖A x − b‖` on a tall matrix with normalised columns, for many
@@ -244,32 +300,8 @@ impl TallLs {
         let (m, n) = a.shape();
         assert!(m >= n && n > 0, "TallLs needs a tall matrix, got {m}×{n}");
         let g = t_mul(&a, &a);
-        let mut r = Mat::<f64>::zeros(n, n);
-        let mut ok = true;
-        'chol: for j in 0..n {
-            for i in 0..j {
-                let mut v = g[(i, j)];
-                for l in 0..i {
-                    v -= r[(l, i)] * r[(l, j)];
-                }
-                r[(i, j)] = v / r[(i, i)];
-            }
-            let mut d = g[(j, j)];
-            for l in 0..j {
-                d -= r[(l, j)] * r[(l, j)];
-            }
-            if !d.is_finite() || d <= 0.0 {
-                ok = false;
-                break 'chol;
-            }
-            r[(j, j)] = d.sqrt();
-        }
-        if ok {
-            let rd: Vec<f64> = (0..n).map(|i| r[(i, i)]).collect();
-            let lo = rd.iter().cloned().fold(f64::INFINITY, f64::min);
-            let hi = rd.iter().cloned().fold(0.0, f64::max);
-            if lo > Self::GRAM_LIMIT * hi {
-                let refine = lo < Self::REFINE_BELOW * hi;
+        if let Some(r) = cholesky_upper(&g) {
+            if let Some(refine) = gram_usable(&r) {
                 return Self {
                     a,
                     kind: LsKind::Gram(r, refine),
@@ -312,24 +344,10 @@ impl TallLs {
         (0..self.ncols()).map(|i| self.r(i, i).abs()).collect()
     }
 
-    /// `(RᵀR)⁻¹ c` for every column of `c`.
+    /// `(RᵀR)⁻¹ c` for every column of `c` (the Gram kind only).
     fn gram_solve(&self, c: &mut Mat<f64>) {
-        let n = self.ncols();
-        for j in 0..c.ncols() {
-            for i in 0..n {
-                let mut v = c[(i, j)];
-                for l in 0..i {
-                    v -= self.r(l, i) * c[(l, j)];
-                }
-                c[(i, j)] = v / self.r(i, i);
-            }
-            for i in (0..n).rev() {
-                let mut v = c[(i, j)];
-                for l in i + 1..n {
-                    v -= self.r(i, l) * c[(l, j)];
-                }
-                c[(i, j)] = v / self.r(i, i);
-            }
+        if let LsKind::Gram(r, _) = &self.kind {
+            cholesky_solve(r, c);
         }
     }
 

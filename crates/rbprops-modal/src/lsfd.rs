@@ -18,6 +18,8 @@ use crate::band::BandData;
 use crate::linalg::{self, TallLs};
 use crate::pole::Pole;
 use faer::Mat;
+
+mod blocked;
 use rbprops_core::c64;
 
 /// Which residual terms the model carries.
@@ -102,6 +104,23 @@ fn pair_basis(p: c64, w: f64) -> (c64, c64) {
     (u + v, c64::new(-d.im, d.re))
 }
 
+/// One line of a pole pair's two real-stacked basis columns, `q·(u + v)` and
+/// `q·i(u − v)` as (re₁, im₁, re₂, im₂), for `u = 1/(iω − λ)`, `v = 1/(iω − λ*)`,
+/// `λ = −x + i·pim`, `q = qr + i·qi` (the operations of `pair_basis` and the complex
+/// product by q, written out so that the loops calling it vectorise).
+#[inline(always)]
+fn pair_columns(x: f64, pim: f64, w: f64, qr: f64, qi: f64) -> (f64, f64, f64, f64) {
+    let (ur, ui, vr, vi) = pole_reciprocals(x, pim, w);
+    let (b1r, b1i) = (ur + vr, ui + vi);
+    let (b2r, b2i) = (-(ui - vi), ur - vr);
+    (
+        qr * b1r - qi * b1i,
+        qr * b1i + qi * b1r,
+        qr * b2r - qi * b2i,
+        qr * b2i + qi * b2r,
+    )
+}
+
 crate::simd::avx_fn! {
 /// Real-stacked (`[Re; Im]`) basis columns `2N × (2·poles + residual terms)`, each
 /// multiplied by `q(ω)` and the line weight.
@@ -136,14 +155,7 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
             .zip(r2.iter_mut().zip(i2.iter_mut()));
         let line = band.omega.iter().zip(qre.iter().zip(&qim));
         for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-            // u = 1/(iω − λ), v = 1/(iω − λ*); b1 = u + v, b2 = i(u − v).
-            let (ur, ui, vr, vi) = pole_reciprocals(x, pim, w);
-            let (b1r, b1i) = (ur + vr, ui + vi);
-            let (b2r, b2i) = (-(ui - vi), ur - vr);
-            *r1 = qr * b1r - qi * b1i;
-            *i1 = qr * b1i + qi * b1r;
-            *r2 = qr * b2r - qi * b2i;
-            *i2 = qr * b2i + qi * b2r;
+            (*r1, *i1, *r2, *i2) = pair_columns(x, pim, w, qr, qi);
         }
     }
     let mut j = 2 * poles.len();
@@ -212,6 +224,10 @@ pub struct ResidueFit {
 }
 
 /// LSFD: residues (and residual terms) for every channel given the poles.
+///
+/// The basis is shared by every channel: its normal equations are formed once, by
+/// blocks of lines ([`blocked`]), and solved by the Cholesky factor of its Gram matrix
+/// as in [`TallLs`]; by Householder QR of the whole basis when that is ill-conditioned.
 pub fn fit_residues(
     poles: &[Pole],
     band: &BandData,
@@ -219,19 +235,71 @@ pub fn fit_residues(
     res: Residuals,
 ) -> ResidueFit {
     let w = line_weights(chans);
-    let mut a = basis_stacked(poles, band, res, &w);
+    let (ls, synthesised) = match blocked::solve(poles, band, chans, res, &w) {
+        Some(s) => s,
+        None => solve_tall(poles, band, chans, res, &w),
+    };
+    residue_fit(poles.len(), res, ls, synthesised)
+}
+
+/// A least-squares solution on the normalised basis (columns of unit norm).
+struct LsSolution {
+    /// Coefficients of the normalised basis, `p × channels`.
+    x: Mat<f64>,
+    /// The column norms of the basis.
+    scale: Vec<f64>,
+    rss: Vec<f64>,
+    /// `(ÃᵀÃ)⁻¹` of the normalised basis `Ã`.
+    ginv: Mat<f64>,
+    /// |diagonal of R| of the normalised basis.
+    r_diag: Vec<f64>,
+    rows: usize,
+}
+
+/// [`fit_residues`] on the whole basis ([`TallLs`]), and the fitted FRFs.
+fn solve_tall(
+    poles: &[Pole],
+    band: &BandData,
+    chans: &[Vec<c64>],
+    res: Residuals,
+    w: &[f64],
+) -> (LsSolution, Vec<Vec<c64>>) {
+    let mut a = basis_stacked(poles, band, res, w);
     let scale = normalise(&mut a);
     let rows = a.nrows();
-    let p = a.ncols();
     let qr = TallLs::new(a);
-    let (x, resid, rss) = qr.solve_into(stack_data(chans, &w));
-    let ginv = qr.inverse_gram();
-    let rd = qr.r_diag();
+    let (x, resid, rss) = qr.solve_into(stack_data(chans, w));
+    let ls = LsSolution {
+        x,
+        scale,
+        rss,
+        ginv: qr.inverse_gram(),
+        r_diag: qr.r_diag(),
+        rows,
+    };
+    (ls, unweighted_fit(chans, &resid, w))
+}
+
+/// Residues, their standard errors and the residual terms of `nm` poles from `ls`.
+fn residue_fit(
+    nm: usize,
+    res: Residuals,
+    ls: LsSolution,
+    synthesised: Vec<Vec<c64>>,
+) -> ResidueFit {
+    let LsSolution {
+        x,
+        scale,
+        rss,
+        ginv,
+        r_diag: rd,
+        rows,
+    } = ls;
+    let p = x.nrows();
     let basis_conditioning =
         rd.iter().cloned().fold(f64::INFINITY, f64::min) / rd.iter().cloned().fold(0.0, f64::max);
     let dof = (rows.saturating_sub(p)).max(1) as f64;
-    let nm = poles.len();
-    let no = chans.len();
+    let no = x.ncols();
     let mut residues = vec![vec![c64::new(0.0, 0.0); no]; nm];
     let mut residue_std = vec![vec![0.0; no]; nm];
     for o in 0..no {
@@ -262,7 +330,7 @@ pub fn fit_residues(
         lower,
         rss,
         basis_conditioning,
-        synthesised: unweighted_fit(chans, &resid, &w),
+        synthesised,
     }
 }
 
