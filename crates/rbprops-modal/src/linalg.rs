@@ -701,53 +701,56 @@ pub fn solve_square(a: &Mat<f64>, b: &Mat<f64>) -> Option<Mat<f64>> {
     Some(Mat::from_fn(n, k, |i, j| x[i * k + j]))
 }
 
-/// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
-/// both consumed; returns `X = A⁻¹B` row-major.
-///
-/// Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
-/// and a hand-written kernel over plain slices keeps the operation order fixed.
-pub fn solve_rows(mut m: Vec<f64>, mut x: Vec<f64>, n: usize, k: usize) -> Option<Vec<f64>> {
-    let scale = m.iter().map(|v| v.abs()).fold(0.0f64, f64::max);
-    if !(scale > 0.0) || !scale.is_finite() {
-        return None;
-    }
-    for c in 0..n {
-        let p = (c..n)
-            .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
-            .unwrap();
-        if m[p * n + c].abs() <= 1e-14 * scale {
+crate::simd::avx_fn! {
+    /// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
+    /// both consumed; returns `X = A⁻¹B` row-major.
+    ///
+    /// Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
+    /// and a hand-written kernel over plain slices keeps the operation order fixed.
+    pub fn solve_rows(m: Vec<f64>, x: Vec<f64>, n: usize, k: usize) -> Option<Vec<f64>> {
+        let (mut m, mut x) = (m, x);
+        let scale = m.iter().map(|v| v.abs()).fold(0.0f64, f64::max);
+        if !(scale > 0.0) || !scale.is_finite() {
             return None;
         }
-        if p != c {
-            swap_rows(&mut m, n, c, p);
-            swap_rows(&mut x, k, c, p);
-        }
-        let (top, below) = m.split_at_mut((c + 1) * n);
-        let (xtop, xbelow) = x.split_at_mut((c + 1) * k);
-        let (pivot_row, xpivot) = (&top[c * n..], &xtop[c * k..]);
-        let d = pivot_row[c];
-        for (row, xrow) in below.chunks_exact_mut(n).zip(xbelow.chunks_exact_mut(k)) {
-            let f = row[c] / d;
-            if f != 0.0 {
-                for (v, u) in row[c..].iter_mut().zip(&pivot_row[c..]) {
-                    *v -= f * u;
-                }
-                for (v, u) in xrow.iter_mut().zip(xpivot) {
-                    *v -= f * u;
+        for c in 0..n {
+            let p = (c..n)
+                .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
+                .unwrap();
+            if m[p * n + c].abs() <= 1e-14 * scale {
+                return None;
+            }
+            if p != c {
+                swap_rows(&mut m, n, c, p);
+                swap_rows(&mut x, k, c, p);
+            }
+            let (top, below) = m.split_at_mut((c + 1) * n);
+            let (xtop, xbelow) = x.split_at_mut((c + 1) * k);
+            let (pivot_row, xpivot) = (&top[c * n..], &xtop[c * k..]);
+            let d = pivot_row[c];
+            for (row, xrow) in below.chunks_exact_mut(n).zip(xbelow.chunks_exact_mut(k)) {
+                let f = row[c] / d;
+                if f != 0.0 {
+                    for (v, u) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                        *v -= f * u;
+                    }
+                    for (v, u) in xrow.iter_mut().zip(xpivot) {
+                        *v -= f * u;
+                    }
                 }
             }
         }
-    }
-    for j in 0..k {
-        for i in (0..n).rev() {
-            let mut s = x[i * k + j];
-            for l in i + 1..n {
-                s -= m[i * n + l] * x[l * k + j];
+        for j in 0..k {
+            for i in (0..n).rev() {
+                let mut s = x[i * k + j];
+                for l in i + 1..n {
+                    s -= m[i * n + l] * x[l * k + j];
+                }
+                x[i * k + j] = s / m[i * n + i];
             }
-            x[i * k + j] = s / m[i * n + i];
         }
+        Some(x)
     }
-    Some(x)
 }
 
 /// Swaps rows `a` and `b` of the row-major matrix `m` with `w` columns.
