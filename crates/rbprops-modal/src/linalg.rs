@@ -177,6 +177,23 @@ pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     out
 }
 
+/// `dst += alpha · aᵀ · b` (sequential).
+pub fn t_mul_add(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
+    faer::linalg::matmul::matmul(
+        dst.as_mut(),
+        faer::Accum::Add,
+        a.transpose(),
+        b,
+        alpha,
+        Par::Seq,
+    );
+}
+
+/// `dst += alpha · a · b` into a view (sequential).
+pub fn mul_add_into(dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
+    faer::linalg::matmul::matmul(dst, faer::Accum::Add, a, b, alpha, Par::Seq);
+}
+
 /// `dst += alpha · a · b` (sequential).
 fn mul_add(dst: &mut Mat<f64>, a: &Mat<f64>, b: &Mat<f64>, alpha: f64) {
     faer::linalg::matmul::matmul(

@@ -12,7 +12,7 @@ use super::{pair_columns, LsSolution, Residuals};
 use crate::band::BandData;
 use crate::linalg;
 use crate::pole::Pole;
-use faer::Mat;
+use faer::{Mat, MatMut, MatRef};
 use rbprops_core::c64;
 
 /// Lines per block: the block's basis, data and residuals (2·256 rows × (p + 2·channels)
@@ -140,30 +140,28 @@ impl<'a> Blocks<'a> {
         block_data(self.chans, &self.w[span], k0, dat);
     }
 
-    /// `(AᵀA, Aᵀb)` of the unnormalised basis.
+    /// `(AᵀA, Aᵀb)` of the unnormalised basis (block products by faer's sequential
+    /// matrix multiplication, see [`linalg::t_mul_add`]).
     fn normal_equations(&self) -> (Mat<f64>, Mat<f64>) {
         let (p, no) = (self.p, self.chans.len());
-        let (mut g, mut c) = (vec![0.0; p * p], vec![0.0; p * no]);
+        let (mut g, mut c) = (Mat::<f64>::zeros(p, p), Mat::<f64>::zeros(p, no));
         let (mut phi, mut dat) = (Vec::new(), Vec::new());
         for (k0, b) in self.spans() {
             self.load(k0, b, &mut phi, &mut dat);
-            gram_update(&phi, &dat, 2 * b, &mut g, &mut c);
+            let phi = MatRef::from_column_major_slice(&phi, 2 * b, p);
+            let dat = MatRef::from_column_major_slice(&dat, 2 * b, no);
+            linalg::t_mul_add(&mut g, phi, phi, 1.0);
+            linalg::t_mul_add(&mut c, phi, dat, 1.0);
         }
-        (
-            Mat::from_fn(p, p, |i, j| g[i.max(j) * p + i.min(j)]),
-            Mat::from_fn(p, no, |i, o| c[i * no + o]),
-        )
+        (g, c)
     }
 
     /// Residuals `b − A x` (`x` for the unnormalised basis): their sum of squares per
     /// channel, and `Aᵀr` when `atr`, else the fitted FRFs.
     fn residuals(&self, x: &Mat<f64>, atr: bool) -> Pass {
         let (p, no, n) = (self.p, self.chans.len(), self.omega.len());
-        let xc: Vec<f64> = (0..no)
-            .flat_map(|o| (0..p).map(move |j| x[(j, o)]))
-            .collect();
         let mut rss = vec![0.0; no];
-        let mut g = vec![0.0; if atr { p * no } else { 0 }];
+        let mut g = Mat::<f64>::zeros(if atr { p } else { 0 }, no);
         let mut fitted = if atr {
             Vec::new()
         } else {
@@ -172,7 +170,18 @@ impl<'a> Blocks<'a> {
         let (mut phi, mut dat) = (Vec::new(), Vec::new());
         for (k0, b) in self.spans() {
             self.load(k0, b, &mut phi, &mut dat);
-            residual_block(&phi, &mut dat, 2 * b, &xc, &mut rss, &mut g);
+            let r = 2 * b;
+            {
+                let phi = MatRef::from_column_major_slice(&phi, r, p);
+                let mut resid = MatMut::from_column_major_slice_mut(&mut dat, r, no);
+                linalg::mul_add_into(resid.as_mut(), phi, x.as_ref(), -1.0);
+                if atr {
+                    linalg::t_mul_add(&mut g, phi, resid.as_ref(), 1.0);
+                }
+            }
+            for (s, ro) in rss.iter_mut().zip(dat.chunks_exact(r)) {
+                *s += linalg::dot(ro, ro);
+            }
             for (o, f) in fitted.iter_mut().enumerate() {
                 let (re, im) = dat[o * 2 * b..(o + 1) * 2 * b].split_at(b);
                 let h = &self.chans[o][k0..k0 + b];
@@ -182,7 +191,7 @@ impl<'a> Blocks<'a> {
         }
         Pass {
             rss,
-            atr: Mat::from_fn(if atr { p } else { 0 }, no, |i, o| g[i * no + o]),
+            atr: g,
             fitted,
         }
     }
@@ -235,56 +244,6 @@ crate::simd::avx_fn! {
             for (k, z) in h[k0..k0 + b].iter().enumerate() {
                 re[k] = z.re * w[k];
                 im[k] = z.im * w[k];
-            }
-        }
-    }
-}
-
-crate::simd::avx_fn! {
-    /// `G += ΦᵀΦ` (lower triangle, row-major `p×p`) and `C += ΦᵀD` (row-major
-    /// `p × channels`) for one block of `r` rows.
-    fn gram_update(phi: &[f64], dat: &[f64], r: usize, g: &mut [f64], c: &mut [f64]) -> () {
-        let p = phi.len() / r;
-        let no = dat.len() / r;
-        for i in 0..p {
-            let ci = &phi[i * r..(i + 1) * r];
-            for j in 0..=i {
-                g[i * p + j] += linalg::dot(ci, &phi[j * r..(j + 1) * r]);
-            }
-            for o in 0..no {
-                c[i * no + o] += linalg::dot(ci, &dat[o * r..(o + 1) * r]);
-            }
-        }
-    }
-}
-
-crate::simd::avx_fn! {
-    /// Overwrites the block's data `dat` with the residuals `d − Φx` (`x` per channel,
-    /// `p` coefficients each), adds their squares to `rss` and, when `atr` is not empty,
-    /// `Φᵀr` to it (row-major `p × channels`).
-    fn residual_block(
-        phi: &[f64],
-        dat: &mut [f64],
-        r: usize,
-        x: &[f64],
-        rss: &mut [f64],
-        atr: &mut [f64],
-    ) -> () {
-        let p = phi.len() / r;
-        let no = rss.len();
-        for o in 0..no {
-            let ro = &mut dat[o * r..(o + 1) * r];
-            for j in 0..p {
-                let xj = x[o * p + j];
-                for (v, a) in ro.iter_mut().zip(&phi[j * r..(j + 1) * r]) {
-                    *v -= a * xj;
-                }
-            }
-            rss[o] += linalg::dot(ro, ro);
-            if !atr.is_empty() {
-                for j in 0..p {
-                    atr[j * no + o] += linalg::dot(&phi[j * r..(j + 1) * r], ro);
-                }
             }
         }
     }
