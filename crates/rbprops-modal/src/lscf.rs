@@ -428,14 +428,21 @@ fn sweep_with_roots(
             }
             let lam = zr.ln() / dt;
             let (_, dprime, _) = roots::horner(&coef[..n], zr);
+            // The powers zr^j once for every channel (the same products as per channel).
+            let mut zj = c64::new(1.0, 0.0);
+            let powers: Vec<c64> = (0..coef.len())
+                .map(|_| {
+                    let z = zj;
+                    zj *= zr;
+                    z
+                })
+                .collect();
             let shape: Vec<c64> = betas
                 .iter()
                 .map(|beta| {
                     let mut num = c64::new(0.0, 0.0);
-                    let mut zj = c64::new(1.0, 0.0);
-                    for bj in beta {
-                        num += zj * *bj;
-                        zj *= zr;
+                    for (bj, z) in beta.iter().zip(&powers) {
+                        num += z * *bj;
                     }
                     num / dprime
                 })
