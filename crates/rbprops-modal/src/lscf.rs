@@ -60,17 +60,21 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     for (k, &th) in theta.iter().enumerate() {
         let z = c64::new(th.cos(), th.sin());
         let mut zm = c64::new(1.0, 0.0);
-        for m in 0..pm {
-            if m > 0 {
-                zm = if m % 16 == 0 {
-                    let a = th * m as f64;
-                    c64::new(a.cos(), a.sin())
-                } else {
-                    zm * z
-                };
+        for blk in 0..blocks {
+            let (re, im) = (&mut zre[blk * nl + k], &mut zim[blk * nl + k]);
+            for i in 0..B.min(pm - blk * B) {
+                let m = blk * B + i;
+                if m > 0 {
+                    zm = if m % 16 == 0 {
+                        let a = th * m as f64;
+                        c64::new(a.cos(), a.sin())
+                    } else {
+                        zm * z
+                    };
+                }
+                re[i] = zm.re;
+                im[i] = zm.im;
             }
-            zre[(m / B) * nl + k][m % B] = zm.re;
-            zim[(m / B) * nl + k][m % B] = zm.im;
         }
     }
     let mut s = Sums {
