@@ -46,8 +46,10 @@ fn main() {
         opts.poles = PoleMode::PerSetup;
     }
     let t = Instant::now();
+    let cpu0 = cpu_seconds();
     let out = fit_campaign(&geometry, &frf, &opts).unwrap();
     let dt = t.elapsed().as_secs_f64();
+    let cpu = cpu_seconds().zip(cpu0).map(|(a, b)| a - b);
     let modes = out.record.modes.len();
     // A digest of every estimate's bits, to check that a change is bit-identical.
     if std::env::var_os("TIMING_DIGEST").is_some() {
@@ -97,6 +99,13 @@ fn main() {
         opts.poles,
         1e3 * dt / batch as f64
     );
+    // On-CPU time of all threads (excludes time waiting for a core on a busy machine).
+    if let Some(cpu) = cpu {
+        println!(
+            "  cpu time (all threads)   {:>8.2} ms per excitation",
+            1e3 * cpu / batch as f64
+        );
+    }
     if let Some(totals) = rbprops_modal::prof::totals() {
         for (name, (calls, secs)) in rbprops_modal::prof::PHASES.iter().zip(totals) {
             println!(
@@ -105,4 +114,15 @@ fn main() {
             );
         }
     }
+}
+
+/// Seconds on a CPU of every thread of this process so far (Linux
+/// `/proc/self/task/*/schedstat`, nanosecond resolution), or `None` elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let mut ns = 0u64;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let stat = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        ns += stat.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(ns as f64 * 1e-9)
 }

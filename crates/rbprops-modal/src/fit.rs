@@ -240,9 +240,10 @@ fn estimate_poles_from(
     // band. So when the stable modes all sit low, the sweep is repeated on the lines up
     // to twice the highest stable mode (or half the band when none is stable). The
     // refinement and the residues still use the whole band.
+    // Borrowed while it is the whole band (no copy of every channel).
     let mut sub = match cap_hz {
-        Some(f) => band.up_to(f),
-        None => band.clone(),
+        Some(f) => std::borrow::Cow::Owned(band.up_to(f)),
+        None => std::borrow::Cow::Borrowed(band),
     };
     let sweep_at =
         |sub: &BandData, depth: SweepDepth| -> Result<stabilisation::Selection, ModalError> {
@@ -299,7 +300,7 @@ fn estimate_poles_from(
                 "excitation '{name}': poles estimated on {:.4}–{target:.4} Hz, where the modes are (residues on the whole band)",
                 sub.frequency_hz[0]
             ));
-            sub = sub.up_to(target);
+            sub = std::borrow::Cow::Owned(sub.up_to(target));
             depth = SweepDepth::Full;
             continue;
         }
@@ -896,7 +897,7 @@ fn fit_one(
                     a_std[m][o] = 2.0 * p.omega_d() * rf.residue_std[m][o];
                 }
             }
-            synth = crate::prof::time(7, || lsfd::synthesise(&ps.poles, &rf, &band));
+            synth = rf.synthesised;
         }
     }
 

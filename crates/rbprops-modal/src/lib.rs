@@ -34,6 +34,8 @@ pub mod options;
 pub mod pole;
 pub mod prof;
 pub mod roots;
+#[macro_use]
+mod simd;
 pub mod stabilisation;
 pub mod testdata;
 

@@ -11,6 +11,7 @@ use faer::prelude::*;
 use faer::{Conj, Par};
 use rbprops_core::c64;
 
+crate::simd::avx_fn! {
 /// `Σ a_i b_i` over the common length, with eight independent partial sums combined in a
 /// fixed tree at the end.
 ///
@@ -35,6 +36,7 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
         }
     }
     ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+}
 }
 
 /// `Re Σ conj(a_i) b_i`: the real inner product of real-stacked complex vectors, with the
@@ -148,6 +150,19 @@ impl TallQr {
     }
 }
 
+/// An `m×n` matrix whose every entry the caller writes before reading any: allocated
+/// without a fill.
+///
+/// Why: `Mat::zeros` fills element by element through a scalar loop, which for the
+/// tall LSFD bases and derivative matrices cost as much as computing them.
+pub fn mat_for_overwrite(m: usize, n: usize) -> Mat<f64> {
+    let mut a = Mat::<f64>::with_capacity(m, n);
+    // SAFETY: the capacity holds `m×n` entries; `f64` has no invalid bit patterns and
+    // no destructor, and the callers write every entry before reading it.
+    unsafe { a.set_dims(m, n) };
+    a
+}
+
 /// `aᵀ · b` by faer's sequential matrix product (independent of the thread count).
 pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(a.ncols(), b.ncols());
@@ -160,6 +175,23 @@ pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
         Par::Seq,
     );
     out
+}
+
+/// `dst += alpha · aᵀ · b` (sequential).
+pub fn t_mul_add(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
+    faer::linalg::matmul::matmul(
+        dst.as_mut(),
+        faer::Accum::Add,
+        a.transpose(),
+        b,
+        alpha,
+        Par::Seq,
+    );
+}
+
+/// `dst += alpha · a · b` into a view (sequential).
+pub fn mul_add_into(dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
+    faer::linalg::matmul::matmul(dst, faer::Accum::Add, a, b, alpha, Par::Seq);
 }
 
 /// `dst += alpha · a · b` (sequential).
@@ -175,7 +207,7 @@ fn mul_add(dst: &mut Mat<f64>, a: &Mat<f64>, b: &Mat<f64>, alpha: f64) {
 }
 
 /// `(RᵀR)⁻¹ = R⁻¹R⁻ᵀ` for the upper-triangular `n×n` factor with entries `r(i, j)`.
-fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
+pub fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
     // Invert the upper-triangular R by back substitution, column by column.
     let mut rinv = Mat::<f64>::zeros(n, n);
     for j in 0..n {
@@ -191,6 +223,62 @@ fn inverse_gram_of(n: usize, r: impl Fn(usize, usize) -> f64) -> Mat<f64> {
     Mat::from_fn(n, n, |i, j| {
         (i.max(j)..n).map(|l| rinv[(i, l)] * rinv[(j, l)]).sum()
     })
+}
+
+/// Upper-triangular Cholesky factor `R` (`RᵀR = G`) of the symmetric matrix `g`, or
+/// `None` when `g` is not positive definite to working precision.
+pub fn cholesky_upper(g: &Mat<f64>) -> Option<Mat<f64>> {
+    let n = g.nrows();
+    let mut r = Mat::<f64>::zeros(n, n);
+    for j in 0..n {
+        for i in 0..j {
+            let mut v = g[(i, j)];
+            for l in 0..i {
+                v -= r[(l, i)] * r[(l, j)];
+            }
+            r[(i, j)] = v / r[(i, i)];
+        }
+        let mut d = g[(j, j)];
+        for l in 0..j {
+            d -= r[(l, j)] * r[(l, j)];
+        }
+        if !d.is_finite() || d <= 0.0 {
+            return None;
+        }
+        r[(j, j)] = d.sqrt();
+    }
+    Some(r)
+}
+
+/// Whether the Cholesky factor `r` of the Gram matrix of a normalised basis serves for
+/// least squares (see [`TallLs`]): `None` below [`TallLs::GRAM_LIMIT`], else whether a
+/// refinement step is needed (below [`TallLs::REFINE_BELOW`]).
+pub fn gram_usable(r: &Mat<f64>) -> Option<bool> {
+    let rd: Vec<f64> = (0..r.nrows()).map(|i| r[(i, i)]).collect();
+    let lo = rd.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = rd.iter().cloned().fold(0.0, f64::max);
+    (lo > TallLs::GRAM_LIMIT * hi).then_some(lo < TallLs::REFINE_BELOW * hi)
+}
+
+/// `(RᵀR)⁻¹ c` for every column of `c`, `R` upper triangular.
+pub fn cholesky_solve(r: &Mat<f64>, c: &mut Mat<f64>) {
+    let n = r.nrows();
+    for j in 0..c.ncols() {
+        for i in 0..n {
+            let mut v = c[(i, j)];
+            for l in 0..i {
+                v -= r[(l, i)] * c[(l, j)];
+            }
+            c[(i, j)] = v / r[(i, i)];
+        }
+        for i in (0..n).rev() {
+            let mut v = c[(i, j)];
+            for l in i + 1..n {
+                v -= r[(i, l)] * c[(l, j)];
+            }
+            c[(i, j)] = v / r[(i, i)];
+        }
+    }
 }
 
 /// Least squares `min ‖A x − b‖` on a tall matrix with normalised columns, for many
@@ -229,32 +317,8 @@ impl TallLs {
         let (m, n) = a.shape();
         assert!(m >= n && n > 0, "TallLs needs a tall matrix, got {m}×{n}");
         let g = t_mul(&a, &a);
-        let mut r = Mat::<f64>::zeros(n, n);
-        let mut ok = true;
-        'chol: for j in 0..n {
-            for i in 0..j {
-                let mut v = g[(i, j)];
-                for l in 0..i {
-                    v -= r[(l, i)] * r[(l, j)];
-                }
-                r[(i, j)] = v / r[(i, i)];
-            }
-            let mut d = g[(j, j)];
-            for l in 0..j {
-                d -= r[(l, j)] * r[(l, j)];
-            }
-            if !d.is_finite() || d <= 0.0 {
-                ok = false;
-                break 'chol;
-            }
-            r[(j, j)] = d.sqrt();
-        }
-        if ok {
-            let rd: Vec<f64> = (0..n).map(|i| r[(i, i)]).collect();
-            let lo = rd.iter().cloned().fold(f64::INFINITY, f64::min);
-            let hi = rd.iter().cloned().fold(0.0, f64::max);
-            if lo > Self::GRAM_LIMIT * hi {
-                let refine = lo < Self::REFINE_BELOW * hi;
+        if let Some(r) = cholesky_upper(&g) {
+            if let Some(refine) = gram_usable(&r) {
                 return Self {
                     a,
                     kind: LsKind::Gram(r, refine),
@@ -297,24 +361,10 @@ impl TallLs {
         (0..self.ncols()).map(|i| self.r(i, i).abs()).collect()
     }
 
-    /// `(RᵀR)⁻¹ c` for every column of `c`.
+    /// `(RᵀR)⁻¹ c` for every column of `c` (the Gram kind only).
     fn gram_solve(&self, c: &mut Mat<f64>) {
-        let n = self.ncols();
-        for j in 0..c.ncols() {
-            for i in 0..n {
-                let mut v = c[(i, j)];
-                for l in 0..i {
-                    v -= self.r(l, i) * c[(l, j)];
-                }
-                c[(i, j)] = v / self.r(i, i);
-            }
-            for i in (0..n).rev() {
-                let mut v = c[(i, j)];
-                for l in i + 1..n {
-                    v -= self.r(i, l) * c[(l, j)];
-                }
-                c[(i, j)] = v / self.r(i, i);
-            }
+        if let LsKind::Gram(r, _) = &self.kind {
+            cholesky_solve(r, c);
         }
     }
 
@@ -668,53 +718,56 @@ pub fn solve_square(a: &Mat<f64>, b: &Mat<f64>) -> Option<Mat<f64>> {
     Some(Mat::from_fn(n, k, |i, j| x[i * k + j]))
 }
 
-/// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
-/// both consumed; returns `X = A⁻¹B` row-major.
-///
-/// Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
-/// and a hand-written kernel over plain slices keeps the operation order fixed.
-pub fn solve_rows(mut m: Vec<f64>, mut x: Vec<f64>, n: usize, k: usize) -> Option<Vec<f64>> {
-    let scale = m.iter().map(|v| v.abs()).fold(0.0f64, f64::max);
-    if !(scale > 0.0) || !scale.is_finite() {
-        return None;
-    }
-    for c in 0..n {
-        let p = (c..n)
-            .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
-            .unwrap();
-        if m[p * n + c].abs() <= 1e-14 * scale {
+crate::simd::avx_fn! {
+    /// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
+    /// both consumed; returns `X = A⁻¹B` row-major.
+    ///
+    /// Gaussian elimination with partial pivoting: the systems here are ≤ ~60 unknowns,
+    /// and a hand-written kernel over plain slices keeps the operation order fixed.
+    pub fn solve_rows(m: Vec<f64>, x: Vec<f64>, n: usize, k: usize) -> Option<Vec<f64>> {
+        let (mut m, mut x) = (m, x);
+        let scale = m.iter().map(|v| v.abs()).fold(0.0f64, f64::max);
+        if !(scale > 0.0) || !scale.is_finite() {
             return None;
         }
-        if p != c {
-            swap_rows(&mut m, n, c, p);
-            swap_rows(&mut x, k, c, p);
-        }
-        let (top, below) = m.split_at_mut((c + 1) * n);
-        let (xtop, xbelow) = x.split_at_mut((c + 1) * k);
-        let (pivot_row, xpivot) = (&top[c * n..], &xtop[c * k..]);
-        let d = pivot_row[c];
-        for (row, xrow) in below.chunks_exact_mut(n).zip(xbelow.chunks_exact_mut(k)) {
-            let f = row[c] / d;
-            if f != 0.0 {
-                for (v, u) in row[c..].iter_mut().zip(&pivot_row[c..]) {
-                    *v -= f * u;
-                }
-                for (v, u) in xrow.iter_mut().zip(xpivot) {
-                    *v -= f * u;
+        for c in 0..n {
+            let p = (c..n)
+                .max_by(|&i, &j| m[i * n + c].abs().total_cmp(&m[j * n + c].abs()))
+                .unwrap();
+            if m[p * n + c].abs() <= 1e-14 * scale {
+                return None;
+            }
+            if p != c {
+                swap_rows(&mut m, n, c, p);
+                swap_rows(&mut x, k, c, p);
+            }
+            let (top, below) = m.split_at_mut((c + 1) * n);
+            let (xtop, xbelow) = x.split_at_mut((c + 1) * k);
+            let (pivot_row, xpivot) = (&top[c * n..], &xtop[c * k..]);
+            let d = pivot_row[c];
+            for (row, xrow) in below.chunks_exact_mut(n).zip(xbelow.chunks_exact_mut(k)) {
+                let f = row[c] / d;
+                if f != 0.0 {
+                    for (v, u) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                        *v -= f * u;
+                    }
+                    for (v, u) in xrow.iter_mut().zip(xpivot) {
+                        *v -= f * u;
+                    }
                 }
             }
         }
-    }
-    for j in 0..k {
-        for i in (0..n).rev() {
-            let mut s = x[i * k + j];
-            for l in i + 1..n {
-                s -= m[i * n + l] * x[l * k + j];
+        for j in 0..k {
+            for i in (0..n).rev() {
+                let mut s = x[i * k + j];
+                for l in i + 1..n {
+                    s -= m[i * n + l] * x[l * k + j];
+                }
+                x[i * k + j] = s / m[i * n + i];
             }
-            x[i * k + j] = s / m[i * n + i];
         }
+        Some(x)
     }
-    Some(x)
 }
 
 /// Swaps rows `a` and `b` of the row-major matrix `m` with `w` columns.

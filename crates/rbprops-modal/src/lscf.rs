@@ -42,32 +42,39 @@ struct Sums {
     t: Vec<Vec<f64>>,
 }
 
+crate::simd::avx_fn! {
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
     let nl = theta.len();
     let pm = n_max + 1;
-    // Per channel and block of `B` powers, the four sums run over the lines in
+    // Per block of `B` powers and channel, the four sums run over the lines in
     // registers (the same additions in the same order as line by line).
     const B: usize = 4;
-    let pb = pm.div_ceil(B) * B;
+    let blocks = pm.div_ceil(B);
     // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
-    // one table `[line][m]` (padded with zeros to whole blocks) shared by every channel.
-    let mut zre = vec![0.0; nl * pb];
-    let mut zim = vec![0.0; nl * pb];
+    // one table per block of powers, `[line]` of `B` powers (zero-padded), shared by
+    // every channel. Blocks outermost: each block's table (32 bytes a line) stays in
+    // cache while every channel runs over it, where the whole table would not.
+    let mut zre = vec![[0.0; B]; blocks * nl];
+    let mut zim = vec![[0.0; B]; blocks * nl];
     for (k, &th) in theta.iter().enumerate() {
         let z = c64::new(th.cos(), th.sin());
         let mut zm = c64::new(1.0, 0.0);
-        for m in 0..pm {
-            if m > 0 {
-                zm = if m % 16 == 0 {
-                    let a = th * m as f64;
-                    c64::new(a.cos(), a.sin())
-                } else {
-                    zm * z
-                };
+        for blk in 0..blocks {
+            let (re, im) = (&mut zre[blk * nl + k], &mut zim[blk * nl + k]);
+            for i in 0..B.min(pm - blk * B) {
+                let m = blk * B + i;
+                if m > 0 {
+                    zm = if m % 16 == 0 {
+                        let a = th * m as f64;
+                        c64::new(a.cos(), a.sin())
+                    } else {
+                        zm * z
+                    };
+                }
+                re[i] = zm.re;
+                im[i] = zm.im;
             }
-            zre[k * pb + m] = zm.re;
-            zim[k * pb + m] = zm.im;
         }
     }
     let mut s = Sums {
@@ -76,21 +83,28 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         g_neg: vec![vec![0.0; pm]; no],
         t: vec![vec![0.0; pm]; no],
     };
-    for o in 0..no {
-        let w = &weights[o];
-        let hw: Vec<c64> = chans[o].iter().zip(w).map(|(h, w2)| h * *w2).collect();
-        let h2: Vec<f64> = chans[o]
-            .iter()
-            .zip(w)
-            .map(|(h, w2)| h.norm_sqr() * w2)
-            .collect();
-        for m0 in (0..pm).step_by(B) {
-            let nb = B.min(pm - m0);
+    let hw: Vec<Vec<c64>> = (0..no)
+        .map(|o| chans[o].iter().zip(&weights[o]).map(|(h, w2)| h * *w2).collect())
+        .collect();
+    let h2: Vec<Vec<f64>> = (0..no)
+        .map(|o| {
+            chans[o]
+                .iter()
+                .zip(&weights[o])
+                .map(|(h, w2)| h.norm_sqr() * w2)
+                .collect()
+        })
+        .collect();
+    for blk in 0..blocks {
+        let m0 = blk * B;
+        let nb = B.min(pm - m0);
+        let (zr, zi) = (&zre[blk * nl..(blk + 1) * nl], &zim[blk * nl..(blk + 1) * nl]);
+        for o in 0..no {
+            let (w, hw, h2) = (&weights[o][..nl], &hw[o][..nl], &h2[o][..nl]);
             let (mut r, mut gp, mut gn, mut t) = ([0.0; B], [0.0; B], [0.0; B], [0.0; B]);
             for k in 0..nl {
                 let (w2, hk, h2) = (w[k], hw[k], h2[k]);
-                let pr: &[f64; B] = zre[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
-                let pi: &[f64; B] = zim[k * pb + m0..k * pb + m0 + B].try_into().unwrap();
+                let (pr, pi) = (&zr[k], &zi[k]);
                 // Only real parts enter the normal matrices: Re(h z^m) = a − b and
                 // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
                 for i in 0..B {
@@ -110,28 +124,228 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     }
     s
 }
+}
 
-/// The reduced equations of order `n`: `M = T − Σ_o G_o` (`T` Toeplitz with first
-/// column `t_sum`, `G_o` the `pm`-strided row-major per-channel blocks), leading
-/// `(n+1)×(n+1)` block; with `α_n = 1`, `A α_{0..n} = b` for `A` the leading `n×n`
-/// block and `b` minus the first `n` entries of column `n`. Returned row-major.
-fn reduced_system(t_sum: &[f64], g: &[Vec<f64>], pm: usize, n: usize) -> (Vec<f64>, Vec<f64>) {
-    let mut a = vec![0.0; n * n];
-    let mut b = vec![0.0; n];
-    let mut g_row = vec![0.0; n + 1];
-    for j in 0..n {
-        g_row.fill(0.0);
-        for go in g {
-            for (s, v) in g_row.iter_mut().zip(&go[j * pm..j * pm + n + 1]) {
-                *s += v;
+/// Channels per SIMD group of the factor recursion (see [`Factors`]).
+const LANES: usize = 4;
+/// One value per channel of a group.
+type Lanes = [f64; LANES];
+
+/// `v − Σ_m a_m b_m` in every lane, summed in index order (each lane bitwise the plain
+/// scalar sum).
+#[inline(always)]
+fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
+    for (x, y) in a.iter().zip(b) {
+        for t in 0..LANES {
+            v[t] -= x[t] * y[t];
+        }
+    }
+    v
+}
+
+/// The per-channel factors of the reduced normal equations, grown one basis function
+/// at a time: the Cholesky factor L_o of R_o, Y_o = L_o⁻¹S_o (stored transposed: row c
+/// of `yt` is column c of Y_o, so that every inner product runs over contiguous memory)
+/// and G_o = Y_oᵀY_o, so that S_oᵀR_o⁻¹S_o = G_o — O(n²) per order instead of O(n³).
+///
+/// Why channel groups: the recursion is the same sequence of operations for every
+/// channel, and its sums are long chains of dependent additions. Stored as
+/// [`LANES`]-channel vectors (entry (i, j) of group c at `c[i·pm + j]`), each operation
+/// runs on a whole group at once, while every channel's sums keep their index order
+/// (bitwise the per-channel recursion). Lanes beyond the last channel carry R = I and
+/// S = 0 (factors I, 0, 0) and are never read out.
+struct Factors {
+    no: usize,
+    pm: usize,
+    /// Per group and lag m: (r(m), Re g(m), Re g(−m)) of its channels (see [`Sums`]).
+    r: Vec<Vec<Lanes>>,
+    g_pos: Vec<Vec<Lanes>>,
+    g_neg: Vec<Vec<Lanes>>,
+    l: Vec<Vec<Lanes>>,
+    yt: Vec<Vec<Lanes>>,
+    g: Vec<Vec<Lanes>>,
+}
+
+impl Factors {
+    fn new(s: &Sums, pm: usize) -> Self {
+        let no = s.r.len();
+        let groups = no.div_ceil(LANES);
+        // Lag m of every channel of group c (`pad` in the unused lanes).
+        let gather = |x: &[Vec<f64>], pad: &dyn Fn(usize) -> f64| -> Vec<Vec<Lanes>> {
+            (0..groups)
+                .map(|c| {
+                    (0..pm)
+                        .map(|m| {
+                            std::array::from_fn(|t| match x.get(c * LANES + t) {
+                                Some(xo) => xo[m],
+                                None => pad(m),
+                            })
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let zero = |_: usize| 0.0;
+        let zeros = vec![vec![[0.0; LANES]; pm * pm]; groups];
+        Self {
+            no,
+            pm,
+            r: gather(&s.r, &|m| if m == 0 { 1.0 } else { 0.0 }),
+            g_pos: gather(&s.g_pos, &zero),
+            g_neg: gather(&s.g_neg, &zero),
+            l: zeros.clone(),
+            yt: zeros.clone(),
+            g: zeros,
+        }
+    }
+
+    /// The channels of group `c` (the lanes in use).
+    fn lanes_in(&self, c: usize) -> usize {
+        LANES.min(self.no - c * LANES)
+    }
+
+    /// Extends every channel's factors with basis function `q`; `false` when some R_o
+    /// is not positive definite.
+    fn extend(&mut self, q: usize) -> bool {
+        extend_factors(self, q)
+    }
+
+    #[inline(always)]
+    fn extend_group(&mut self, c: usize, q: usize) -> bool {
+        let pm = self.pm;
+        let (r, gp, gn) = (&self.r[c], &self.g_pos[c], &self.g_neg[c]);
+        let (lo, yo, go) = (&mut self.l[c], &mut self.yt[c], &mut self.g[c]);
+        // S_o[j,k] = −Re Σ w² h z^{k−j}
+        let s_at = |j: usize, k: usize| -> Lanes {
+            if k >= j {
+                gp[k - j].map(|x| -x)
+            } else {
+                gn[j - k].map(|x| -x)
+            }
+        };
+        let div = |v: Lanes, d: Lanes| -> Lanes { std::array::from_fn(|t| v[t] / d[t]) };
+        // Row q of L.
+        for k in 0..q {
+            let v = sub_lanes(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
+            lo[q * pm + k] = div(v, lo[k * pm + k]);
+        }
+        let lq = &lo[q * pm..q * pm + q];
+        let d = sub_lanes(r[0], lq, lq);
+        if !d.iter().all(|&x| x > 0.0) {
+            return false;
+        }
+        let lqq = d.map(f64::sqrt);
+        lo[q * pm + q] = lqq;
+        // New column q of Y (rows < q), then new row q (columns ≤ q).
+        for i in 0..q {
+            let v = sub_lanes(s_at(i, q), &lo[i * pm..i * pm + i], &yo[q * pm..q * pm + i]);
+            yo[q * pm + i] = div(v, lo[i * pm + i]);
+        }
+        for j in 0..=q {
+            let v = sub_lanes(s_at(q, j), &lo[q * pm..q * pm + q], &yo[j * pm..j * pm + q]);
+            yo[j * pm + q] = div(v, lqq);
+        }
+        // G = YᵀY: the new row adds to the old block; the new column is computed.
+        for j in 0..q {
+            let yj = yo[j * pm + q];
+            for k in 0..q {
+                let yk = yo[k * pm + q];
+                let gk = &mut go[j * pm + k];
+                for t in 0..LANES {
+                    gk[t] += yj[t] * yk[t];
+                }
             }
         }
-        for (k, (aj, gk)) in a[j * n..(j + 1) * n].iter_mut().zip(&g_row).enumerate() {
-            *aj = t_sum[j.abs_diff(k)] - gk;
+        for j in 0..=q {
+            // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a
+            // plain sum.
+            let rq = &yo[q * pm..q * pm + q + 1];
+            let v = sub_lanes([0.0; LANES], &yo[j * pm..j * pm + q + 1], rq).map(|x| -x);
+            go[j * pm + q] = v;
+            go[q * pm + j] = v;
         }
-        b[j] = g_row[n] - t_sum[n - j];
+        true
     }
-    (a, b)
+
+    /// The reduced equations of order `n`: `M = T − Σ_o G_o` (`T` Toeplitz with first
+    /// column `t_sum`), leading `(n+1)×(n+1)` block; with `α_n = 1`, `A α_{0..n} = b`
+    /// for `A` the leading `n×n` block and `b` minus the first `n` entries of column
+    /// `n`. Returned row-major.
+    fn reduced_system(&self, t_sum: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
+        let pm = self.pm;
+        let mut a = vec![0.0; n * n];
+        let mut b = vec![0.0; n];
+        let mut g_row = vec![0.0; n + 1];
+        for j in 0..n {
+            // Σ_o G_o[j, ·], channel by channel in channel order.
+            g_row.fill(0.0);
+            for (c, gc) in self.g.iter().enumerate() {
+                for t in 0..self.lanes_in(c) {
+                    for (s, v) in g_row.iter_mut().zip(&gc[j * pm..j * pm + n + 1]) {
+                        *s += v[t];
+                    }
+                }
+            }
+            for (k, (aj, gk)) in a[j * n..(j + 1) * n].iter_mut().zip(&g_row).enumerate() {
+                *aj = t_sum[j.abs_diff(k)] - gk;
+            }
+            b[j] = g_row[n] - t_sum[n - j];
+        }
+        (a, b)
+    }
+
+    /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
+    /// denominator `coef` (`p` coefficients).
+    fn numerators(&self, coef: &[f64]) -> Vec<Vec<f64>> {
+        factor_numerators(self, coef)
+    }
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::extend`] (channel groups in turn).
+    fn extend_factors(f: &mut Factors, q: usize) -> bool {
+        // A plain loop: iterator adaptors' closures need not be inlined into the AVX copy.
+        for c in 0..f.l.len() {
+            if !f.extend_group(c, q) {
+                return false;
+            }
+        }
+        true
+    }
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::numerators`].
+    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<f64>> {
+        let (p, pm) = (coef.len(), f.pm);
+        // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
+        let zero: f64 = std::iter::empty::<f64>().sum();
+        let mut out = Vec::with_capacity(f.no);
+        for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
+            let ya: Vec<Lanes> = (0..p)
+                .map(|i| {
+                    (0..p).fold([zero; LANES], |mut s, j| {
+                        for t in 0..LANES {
+                            s[t] += yc[j * pm + i][t] * coef[j];
+                        }
+                        s
+                    })
+                })
+                .collect();
+            let mut beta = vec![[0.0; LANES]; p];
+            for i in (0..p).rev() {
+                let mut v = ya[i];
+                for k in i + 1..p {
+                    for t in 0..LANES {
+                        v[t] -= lc[k * pm + i][t] * beta[k][t];
+                    }
+                }
+                beta[i] = std::array::from_fn(|t| v[t] / lc[i * pm + i][t]);
+            }
+            out.extend((0..f.lanes_in(c)).map(|t| beta.iter().map(|b| -b[t]).collect()));
+        }
+        out
+    }
 }
 
 /// The LSCF stabilisation sweep: poles for every order `2..=n_max`.
@@ -183,135 +397,23 @@ fn sweep_with_roots(
         })
         .collect();
     let s = crate::prof::time(4, || sums(&theta, chans, &weights, n_max));
-    let no = chans.len();
     // All normal matrices are nested in the order (leading blocks), so the reduction
-    // is updated one basis function at a time: per channel the Cholesky factor L of
-    // R_o, Y_o = L⁻¹S_o and G_o = Y_oᵀY_o (so S_oᵀR_o⁻¹S_o = G_o) grow by one row and
-    // column per order — O(n²) per order instead of O(n³).
+    // is updated one basis function at a time (see `Factors`).
     let pm = n_max + 1;
-    let mut l = vec![vec![0.0f64; pm * pm]; no];
-    // Y is stored transposed (row c of `yt` is column c of Y) so that every inner
-    // product below runs over contiguous memory.
-    let mut yt = vec![vec![0.0f64; pm * pm]; no];
-    let mut g = vec![vec![0.0f64; pm * pm]; no];
-    let s_at = |o: usize, j: usize, k: usize| -> f64 {
-        // S_o[j,k] = −Re Σ w² h z^{k−j}
-        if k >= j {
-            -s.g_pos[o][k - j]
-        } else {
-            -s.g_neg[o][j - k]
-        }
-    };
-    // `v − Σ_m a_m b_m`, summed in index order.
-    let sub_dot = |v: f64, a: &[f64], b: &[f64]| a.iter().zip(b).fold(v, |v, (x, y)| v - x * y);
-    // Four independent `sub_dot`s sharing `a`, interleaved: each is still summed in index
-    // order (bitwise the same), but four chains of dependent additions run side by side.
-    let sub_dot4 = |v: [f64; 4], a: &[f64], b: [&[f64]; 4]| -> [f64; 4] {
-        let n = a.len();
-        let (b0, b1, b2, b3) = (&b[0][..n], &b[1][..n], &b[2][..n], &b[3][..n]);
-        let mut v = v;
-        for i in 0..n {
-            let x = a[i];
-            v[0] -= x * b0[i];
-            v[1] -= x * b1[i];
-            v[2] -= x * b2[i];
-            v[3] -= x * b3[i];
-        }
-        v
-    };
+    let mut f = Factors::new(&s, pm);
     // Σ_o t_o(m): T = Σ_o T_o is Toeplitz too.
     let t_sum: Vec<f64> = (0..pm).map(|m| s.t.iter().map(|t| t[m]).sum()).collect();
     let mut out = Vec::new();
     let mut previous: Option<Vec<c64>> = None;
-    let mut yq = vec![0.0; pm];
     for q in 0..pm {
-        // Extend every channel's factors with basis function q.
-        for o in 0..no {
-            let (lo, yo, go) = (&mut l[o], &mut yt[o], &mut g[o]);
-            let r = &s.r[o];
-            for k in 0..q {
-                let v = sub_dot(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
-                lo[q * pm + k] = v / lo[k * pm + k];
-            }
-            let lq = &lo[q * pm..q * pm + q];
-            let d = sub_dot(r[0], lq, lq);
-            if !(d > 0.0) {
-                return out;
-            }
-            lo[q * pm + q] = d.sqrt();
-            // New column q of Y (rows < q), then new row q (columns ≤ q).
-            for i in 0..q {
-                let v = sub_dot(
-                    s_at(o, i, q),
-                    &lo[i * pm..i * pm + i],
-                    &yo[q * pm..q * pm + i],
-                );
-                yo[q * pm + i] = v / lo[i * pm + i];
-            }
-            let lqq = lo[q * pm + q];
-            let mut j0 = 0;
-            while j0 + 4 <= q + 1 {
-                let row = |j: usize| &yo[j * pm..j * pm + q];
-                let v = sub_dot4(
-                    [0, 1, 2, 3].map(|t| s_at(o, q, j0 + t)),
-                    &lo[q * pm..q * pm + q],
-                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
-                );
-                for (t, vt) in v.into_iter().enumerate() {
-                    yo[(j0 + t) * pm + q] = vt / lqq;
-                }
-                j0 += 4;
-            }
-            for j in j0..=q {
-                let v = sub_dot(
-                    s_at(o, q, j),
-                    &lo[q * pm..q * pm + q],
-                    &yo[j * pm..j * pm + q],
-                );
-                yo[j * pm + q] = v / lqq;
-            }
-            // G = YᵀY: the new row adds to the old block; the new column is computed.
-            for (j, y) in yq.iter_mut().enumerate().take(q + 1) {
-                *y = yo[j * pm + q];
-            }
-            for j in 0..q {
-                let yj = yq[j];
-                for (gk, yk) in go[j * pm..j * pm + q].iter_mut().zip(&yq[..q]) {
-                    *gk += yj * yk;
-                }
-            }
-            let mut j0 = 0;
-            while j0 + 4 <= q + 1 {
-                let row = |j: usize| &yo[j * pm..j * pm + q + 1];
-                let v = sub_dot4(
-                    [0.0; 4],
-                    row(q),
-                    [row(j0), row(j0 + 1), row(j0 + 2), row(j0 + 3)],
-                );
-                for (t, vt) in v.into_iter().enumerate() {
-                    go[(j0 + t) * pm + q] = -vt;
-                    go[q * pm + j0 + t] = -vt;
-                }
-                j0 += 4;
-            }
-            for j in j0..=q {
-                // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as
-                // a plain sum, so the factors stay bitwise as before.
-                let v = -sub_dot(
-                    0.0,
-                    &yo[j * pm..j * pm + q + 1],
-                    &yo[q * pm..q * pm + q + 1],
-                );
-                go[j * pm + q] = v;
-                go[q * pm + j] = v;
-            }
+        if !f.extend(q) {
+            return out;
         }
         let n = q;
         if n < 2 || n % step != 0 {
             continue;
         }
-        let p = n + 1;
-        let (a, b) = reduced_system(&t_sum, &g, pm, n);
+        let (a, b) = f.reduced_system(&t_sum, n);
         let Some(mut coef) = linalg::solve_rows(a, b, n, 1) else {
             continue;
         };
@@ -320,24 +422,8 @@ fn sweep_with_roots(
             continue;
         };
         previous = Some(z_roots.clone());
-        // Numerators β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α), for the shape vectors.
-        let betas: Vec<Vec<f64>> = (0..no)
-            .map(|o| {
-                let (lo, yo) = (&l[o], &yt[o]);
-                let ya: Vec<f64> = (0..p)
-                    .map(|i| (0..p).map(|j| yo[j * pm + i] * coef[j]).sum())
-                    .collect();
-                let mut beta = vec![0.0; p];
-                for i in (0..p).rev() {
-                    let mut v = ya[i];
-                    for k in i + 1..p {
-                        v -= lo[k * pm + i] * beta[k];
-                    }
-                    beta[i] = v / lo[i * pm + i];
-                }
-                beta.iter().map(|b| -b).collect()
-            })
-            .collect();
+        // Numerators, for the shape vectors.
+        let betas = f.numerators(&coef);
         let mut poles = Vec::new();
         let mut shapes = Vec::new();
         for zr in z_roots {
@@ -346,14 +432,21 @@ fn sweep_with_roots(
             }
             let lam = zr.ln() / dt;
             let (_, dprime, _) = roots::horner(&coef[..n], zr);
+            // The powers zr^j once for every channel (the same products as per channel).
+            let mut zj = c64::new(1.0, 0.0);
+            let powers: Vec<c64> = (0..coef.len())
+                .map(|_| {
+                    let z = zj;
+                    zj *= zr;
+                    z
+                })
+                .collect();
             let shape: Vec<c64> = betas
                 .iter()
                 .map(|beta| {
                     let mut num = c64::new(0.0, 0.0);
-                    let mut zj = c64::new(1.0, 0.0);
-                    for bj in beta {
-                        num += zj * *bj;
-                        zj *= zr;
+                    for (bj, z) in beta.iter().zip(&powers) {
+                        num += z * *bj;
                     }
                     num / dprime
                 })

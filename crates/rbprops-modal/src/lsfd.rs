@@ -18,6 +18,8 @@ use crate::band::BandData;
 use crate::linalg::{self, TallLs};
 use crate::pole::Pole;
 use faer::Mat;
+
+mod blocked;
 use rbprops_core::c64;
 
 /// Which residual terms the model carries.
@@ -46,6 +48,7 @@ impl Residuals {
     }
 }
 
+crate::simd::avx_fn! {
 /// Per-line weights shared by all channels: `w_k = 1/√(mean_o |h_ok/rms_o|²)`.
 ///
 /// Noise in measured FRFs is roughly proportional to |H| (1 % per line in the tests), so
@@ -62,19 +65,24 @@ pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
     if live.is_empty() {
         return vec![1.0; n];
     }
-    let level: Vec<f64> = (0..n)
-        .map(|k| {
-            live.iter()
-                .map(|&o| chans[o][k].norm_sqr() / (rms[o] * rms[o]))
-                .sum::<f64>()
-                / live.len() as f64
-        })
-        .collect();
+    // Channel by channel over contiguous lines (each line's sum in channel order, as
+    // `Iterator::sum` would add them: bitwise the same, and the loops vectorise).
+    let mut level = vec![std::iter::empty::<f64>().sum::<f64>(); n];
+    for &o in &live {
+        let r2 = rms[o] * rms[o];
+        for (l, z) in level.iter_mut().zip(&chans[o]) {
+            *l += z.norm_sqr() / r2;
+        }
+    }
+    for l in level.iter_mut() {
+        *l /= live.len() as f64;
+    }
     let mean = level.iter().sum::<f64>() / n as f64;
     level
         .iter()
         .map(|l| 1.0 / l.max(1e-12 * mean).sqrt())
         .collect()
+}
 }
 
 /// `(1/(iω − λ), 1/(iω − λ*))` in real arithmetic (one real division per term).
@@ -96,6 +104,24 @@ fn pair_basis(p: c64, w: f64) -> (c64, c64) {
     (u + v, c64::new(-d.im, d.re))
 }
 
+/// One line of a pole pair's two real-stacked basis columns, `q·(u + v)` and
+/// `q·i(u − v)` as (re₁, im₁, re₂, im₂), for `u = 1/(iω − λ)`, `v = 1/(iω − λ*)`,
+/// `λ = −x + i·pim`, `q = qr + i·qi` (the operations of `pair_basis` and the complex
+/// product by q, written out so that the loops calling it vectorise).
+#[inline(always)]
+fn pair_columns(x: f64, pim: f64, w: f64, qr: f64, qi: f64) -> (f64, f64, f64, f64) {
+    let (ur, ui, vr, vi) = pole_reciprocals(x, pim, w);
+    let (b1r, b1i) = (ur + vr, ui + vi);
+    let (b2r, b2i) = (-(ui - vi), ur - vr);
+    (
+        qr * b1r - qi * b1i,
+        qr * b1i + qi * b1r,
+        qr * b2r - qi * b2i,
+        qr * b2i + qi * b2r,
+    )
+}
+
+crate::simd::avx_fn! {
 /// Real-stacked (`[Re; Im]`) basis columns `2N × (2·poles + residual terms)`, each
 /// multiplied by `q(ω)` and the line weight.
 fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Mat<f64> {
@@ -106,7 +132,8 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
         .zip(w)
         .map(|(q, w)| q * *w)
         .collect();
-    let mut a = Mat::<f64>::zeros(2 * n, 2 * poles.len() + res.count());
+    // Every entry is written below (pole pairs, then the residual columns).
+    let mut a = linalg::mat_for_overwrite(2 * n, 2 * poles.len() + res.count());
     let put = |a: &mut Mat<f64>, j: usize, f: &mut dyn FnMut(usize) -> c64| {
         let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
@@ -128,14 +155,7 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
             .zip(r2.iter_mut().zip(i2.iter_mut()));
         let line = band.omega.iter().zip(qre.iter().zip(&qim));
         for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-            // u = 1/(iω − λ), v = 1/(iω − λ*); b1 = u + v, b2 = i(u − v).
-            let (ur, ui, vr, vi) = pole_reciprocals(x, pim, w);
-            let (b1r, b1i) = (ur + vr, ui + vi);
-            let (b2r, b2i) = (-(ui - vi), ur - vr);
-            *r1 = qr * b1r - qi * b1i;
-            *i1 = qr * b1i + qi * b1r;
-            *r2 = qr * b2r - qi * b2i;
-            *i2 = qr * b2i + qi * b2r;
+            (*r1, *i1, *r2, *i2) = pair_columns(x, pim, w, qr, qi);
         }
     }
     let mut j = 2 * poles.len();
@@ -151,7 +171,9 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     }
     a
 }
+}
 
+crate::simd::avx_fn! {
 /// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
 fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
     (0..a.ncols())
@@ -166,10 +188,11 @@ fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
         })
         .collect()
 }
+}
 
 fn stack_data(chans: &[Vec<c64>], w: &[f64]) -> Mat<f64> {
     let n = chans[0].len();
-    let mut b = Mat::<f64>::zeros(2 * n, chans.len());
+    let mut b = linalg::mat_for_overwrite(2 * n, chans.len());
     for (j, h) in chans.iter().enumerate() {
         let col = b.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
@@ -196,9 +219,15 @@ pub struct ResidueFit {
     /// Ratio of the smallest to the largest diagonal entry of R (QR) of the normalised
     /// basis: near 0 means two poles' columns are nearly collinear (inseparable modes).
     pub basis_conditioning: f64,
+    /// The fitted FRFs `[channel][line]` in the measured quantity (as [`synthesise`]).
+    pub synthesised: Vec<Vec<c64>>,
 }
 
 /// LSFD: residues (and residual terms) for every channel given the poles.
+///
+/// The basis is shared by every channel: its normal equations are formed once, by
+/// blocks of lines ([`blocked`]), and solved by the Cholesky factor of its Gram matrix
+/// as in [`TallLs`]; by Householder QR of the whole basis when that is ill-conditioned.
 pub fn fit_residues(
     poles: &[Pole],
     band: &BandData,
@@ -206,19 +235,71 @@ pub fn fit_residues(
     res: Residuals,
 ) -> ResidueFit {
     let w = line_weights(chans);
-    let mut a = basis_stacked(poles, band, res, &w);
+    let (ls, synthesised) = match blocked::solve(poles, band, chans, res, &w) {
+        Some(s) => s,
+        None => solve_tall(poles, band, chans, res, &w),
+    };
+    residue_fit(poles.len(), res, ls, synthesised)
+}
+
+/// A least-squares solution on the normalised basis (columns of unit norm).
+struct LsSolution {
+    /// Coefficients of the normalised basis, `p × channels`.
+    x: Mat<f64>,
+    /// The column norms of the basis.
+    scale: Vec<f64>,
+    rss: Vec<f64>,
+    /// `(ÃᵀÃ)⁻¹` of the normalised basis `Ã`.
+    ginv: Mat<f64>,
+    /// |diagonal of R| of the normalised basis.
+    r_diag: Vec<f64>,
+    rows: usize,
+}
+
+/// [`fit_residues`] on the whole basis ([`TallLs`]), and the fitted FRFs.
+fn solve_tall(
+    poles: &[Pole],
+    band: &BandData,
+    chans: &[Vec<c64>],
+    res: Residuals,
+    w: &[f64],
+) -> (LsSolution, Vec<Vec<c64>>) {
+    let mut a = basis_stacked(poles, band, res, w);
     let scale = normalise(&mut a);
     let rows = a.nrows();
-    let p = a.ncols();
     let qr = TallLs::new(a);
-    let (x, _, rss) = qr.solve_into(stack_data(chans, &w));
-    let ginv = qr.inverse_gram();
-    let rd = qr.r_diag();
+    let (x, resid, rss) = qr.solve_into(stack_data(chans, w));
+    let ls = LsSolution {
+        x,
+        scale,
+        rss,
+        ginv: qr.inverse_gram(),
+        r_diag: qr.r_diag(),
+        rows,
+    };
+    (ls, unweighted_fit(chans, &resid, w))
+}
+
+/// Residues, their standard errors and the residual terms of `nm` poles from `ls`.
+fn residue_fit(
+    nm: usize,
+    res: Residuals,
+    ls: LsSolution,
+    synthesised: Vec<Vec<c64>>,
+) -> ResidueFit {
+    let LsSolution {
+        x,
+        scale,
+        rss,
+        ginv,
+        r_diag: rd,
+        rows,
+    } = ls;
+    let p = x.nrows();
     let basis_conditioning =
         rd.iter().cloned().fold(f64::INFINITY, f64::min) / rd.iter().cloned().fold(0.0, f64::max);
     let dof = (rows.saturating_sub(p)).max(1) as f64;
-    let nm = poles.len();
-    let no = chans.len();
+    let no = x.ncols();
     let mut residues = vec![vec![c64::new(0.0, 0.0); no]; nm];
     let mut residue_std = vec![vec![0.0; no]; nm];
     for o in 0..no {
@@ -249,7 +330,27 @@ pub fn fit_residues(
         lower,
         rss,
         basis_conditioning,
+        synthesised,
     }
+}
+
+/// The fitted FRFs `h − r/w` per channel from the weighted real-stacked residuals `r`
+/// (`2N × channels`) of the data `h` with line weights `w`: the synthesis of
+/// [`synthesise`] without evaluating the basis again (equal to rounding).
+fn unweighted_fit(chans: &[Vec<c64>], resid: &Mat<f64>, w: &[f64]) -> Vec<Vec<c64>> {
+    chans
+        .iter()
+        .enumerate()
+        .map(|(o, h)| {
+            let col = resid.col(o).try_as_col_major().unwrap().as_slice();
+            let (re, im) = col.split_at(h.len());
+            h.iter()
+                .zip(re.iter().zip(im))
+                .zip(w)
+                .map(|((z, (r, i)), wk)| c64::new(z.re - r / wk, z.im - i / wk))
+                .collect()
+        })
+        .collect()
 }
 
 /// Synthesised FRFs `[channel][line]` in the measured quantity.
@@ -486,30 +587,9 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M).
         // In plain real arithmetic over line arrays (the operations of `recips`, the
         // complex squares and the products by q, written out so that they vectorise).
-        let mut d = Mat::<f64>::zeros(2 * n, np);
-        for (m, p) in cur.iter().enumerate() {
-            let (r1, i1, r2, i2) = pair_halves(&mut d, m, n);
-            let (x, pim) = (-p.0.re, p.0.im);
-            let cols = r1
-                .iter_mut()
-                .zip(i1.iter_mut())
-                .zip(r2.iter_mut().zip(i2.iter_mut()));
-            let line = band.omega.iter().zip(qre.iter().zip(&qim));
-            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
-                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
-                let (a1r, a1i, a2r, a2i) = pole_reciprocals(x, pim, w);
-                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
-                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
-                // d1 = q(u + u2), d2 = q·i(u − u2).
-                let (sr, si) = (ur + u2r, ui + u2i);
-                let (er, ei) = (ur - u2r, ui - u2i);
-                let (tr, ti) = (-ei, er);
-                *r1 = qr * sr - qi * si;
-                *i1 = qr * si + qi * sr;
-                *r2 = qr * tr - qi * ti;
-                *i2 = qr * ti + qi * tr;
-            }
-        }
+        // Every entry is written by `derivative_columns`.
+        let mut d = linalg::mat_for_overwrite(2 * n, np);
+        derivative_columns(&mut d, &cur, &band.omega, &qre, &qim);
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
         let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
@@ -672,4 +752,35 @@ fn pole_reciprocals(x: f64, pim: f64, w: f64) -> (f64, f64, f64, f64) {
     let (y1, y2) = (w - pim, w + pim);
     let (v1, v2) = (1.0 / (x * x + y1 * y1), 1.0 / (x * x + y2 * y2));
     (x * v1, -y1 * v1, x * v2, -y2 * v2)
+}
+
+crate::simd::avx_fn! {
+    /// [`refine`]'s derivative vectors `d1_m, d2_m` for the poles `cur`, real-stacked
+    /// into `d` (2N × 2M), with `(qre, qim)` the weighted quantity factors.
+    fn derivative_columns(d: &mut Mat<f64>, cur: &[Pole], omega: &[f64], qre: &[f64], qim: &[f64]) -> () {
+        let n = omega.len();
+        for (m, p) in cur.iter().enumerate() {
+            let (r1, i1, r2, i2) = pair_halves(d, m, n);
+            let (x, pim) = (-p.0.re, p.0.im);
+            let cols = r1
+                .iter_mut()
+                .zip(i1.iter_mut())
+                .zip(r2.iter_mut().zip(i2.iter_mut()));
+            let line = omega.iter().zip(qre.iter().zip(qim));
+            for (((r1, i1), (r2, i2)), (&w, (&qr, &qi))) in cols.zip(line) {
+                // a1 = 1/(iω − λ), a2 = 1/(iω − λ*); u = a1², u2 = a2².
+                let (a1r, a1i, a2r, a2i) = pole_reciprocals(x, pim, w);
+                let (ur, ui) = (a1r * a1r - a1i * a1i, a1r * a1i + a1i * a1r);
+                let (u2r, u2i) = (a2r * a2r - a2i * a2i, a2r * a2i + a2i * a2r);
+                // d1 = q(u + u2), d2 = q·i(u − u2).
+                let (sr, si) = (ur + u2r, ui + u2i);
+                let (er, ei) = (ur - u2r, ui - u2i);
+                let (tr, ti) = (-ei, er);
+                *r1 = qr * sr - qi * si;
+                *i1 = qr * si + qi * sr;
+                *r2 = qr * tr - qi * ti;
+                *i2 = qr * ti + qi * tr;
+            }
+        }
+    }
 }

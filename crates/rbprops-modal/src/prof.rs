@@ -3,7 +3,8 @@
 //!
 //! Phases: 0 LSCF sweep, 1 stabilisation selection, 2 pole refinement, 3 candidate
 //! screening, 4 LSCF normal-equation sums, 5 companion eigenvalues, 6 LSFD residues,
-//! 7 synthesis.
+//! 7 synthesis (unused since the LSFD residues return the fitted FRFs: their cost is
+//! in phase 6; kept so that the phase indices stay stable).
 
 /// Names of the phases, by index.
 pub const PHASES: [&str; 8] = [

@@ -112,20 +112,33 @@ pub fn select(
     };
     // (diagram index, order index, pole index) of the stable poles.
     let mut stable: Vec<(usize, usize, usize)> = Vec::new();
+    // Per order, each pole's natural frequency and whether it is physical, computed once
+    // (the comparisons below would otherwise recompute them for every pair of poles).
+    let props: Vec<Vec<(f64, bool)>> = orders
+        .iter()
+        .map(|op| {
+            op.poles
+                .iter()
+                .map(|p| (p.omega_n(), physical(p, band_w, tol)))
+                .collect()
+        })
+        .collect();
     for (oi, op) in orders.iter().enumerate() {
         let prev = if oi > 0 { Some(&orders[oi - 1]) } else { None };
         for (pi, p) in op.poles.iter().enumerate() {
-            let class = if !physical(p, band_w, tol) {
+            let (wp, phys) = props[oi][pi];
+            let class = if !phys {
                 StabilityClass::Computational
             } else if let Some(prev) = prev {
+                let pp = &props[oi - 1];
                 let best = prev
                     .poles
                     .iter()
                     .enumerate()
-                    .filter(|(_, q)| physical(q, band_w, tol))
+                    .filter(|(qi, _)| pp[*qi].1)
                     .min_by(|a, b| {
-                        let da = (a.1.omega_n() - p.omega_n()).abs();
-                        let db = (b.1.omega_n() - p.omega_n()).abs();
+                        let da = (pp[a.0].0 - wp).abs();
+                        let db = (pp[b.0].0 - wp).abs();
                         da.total_cmp(&db)
                     });
                 match best {
