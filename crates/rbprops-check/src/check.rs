@@ -988,8 +988,28 @@ fn check_with(
             (nf.model, nf.sigma)
         }
     };
+    // The 0 Hz line is left out: an AC-coupled channel reads 0 there whatever its time
+    // constant and a DC-coupled one its static value, so a high-pass candidate's model
+    // jumps at 1/τ = 0 on that line (no derivative, no path for the fit) while the line
+    // next to it carries the same static information.
+    let mut sigma = sigma;
+    let dc: Vec<usize> = (0..nl).filter(|&l| frf.frequency_hz[l] == 0.0).collect();
+    let mut n_dc = 0;
+    for &l in &dc {
+        for fi in 0..nex * nch {
+            if sigma[fi * nl + l] > 0.0 {
+                sigma[fi * nl + l] = 0.0;
+                n_dc += 1;
+            }
+        }
+    }
+    if n_dc > 0 {
+        warnings.push(format!(
+            "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
+        ));
+    }
     let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
-    let n_excluded = y.len() - used.len();
+    let n_excluded = y.len() - used.len() - n_dc;
     if n_excluded > 0 {
         warnings.push(format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out"));
     }

@@ -394,8 +394,19 @@ fn model_of(
     Ok(model)
 }
 
+/// Fraction of the local median magnitude below which a reference magnitude is not
+/// trusted for the relative noise term (see [`sigma_of`]).
+const NOTCH_FLOOR: f64 = 0.5;
+
 /// σ per value from a noise model and reference magnitudes `[exc][ch][line]`;
 /// values with σ below 1e-9 of the median σ get 0 (excluded).
+///
+/// The relative term uses `max(|H_k|, ½ median |H| over lines k−5..k+5)`: at a zero of
+/// the FRF (0 Hz of an AC-coupled channel or of an accelerance, a sharp anti-resonance)
+/// `a|H_k|` → 0 would give a line the weight of all the others together, and a model
+/// that misses the zero by a hair would be judged by that line alone. Synthetic
+/// records whose noise is relative to the true FRF are exact there; real ones are not.
+/// Along a smooth FRF |H_k| is its own local median and nothing changes.
 pub fn sigma_of(
     model: &NoiseModel,
     reference: &[c64],
@@ -404,12 +415,22 @@ pub fn sigma_of(
     n_lines: usize,
 ) -> Vec<f64> {
     let mut s = vec![0.0; n_exc * n_ch * n_lines];
+    let mut window = Vec::with_capacity(2 * HALF_WIDTH + 1);
     for e in 0..n_exc {
         for c in 0..n_ch {
             let (a, b) = (model.relative[c], model.floor[c]);
+            let start = (e * n_ch + c) * n_lines;
+            let mag: Vec<f64> = reference[start..start + n_lines]
+                .iter()
+                .map(|x| x.norm())
+                .collect();
             for l in 0..n_lines {
-                let i = (e * n_ch + c) * n_lines + l;
-                s[i] = (a * a * reference[i].norm_sqr() + b * b).sqrt();
+                window.clear();
+                window.extend_from_slice(
+                    &mag[l.saturating_sub(HALF_WIDTH)..(l + HALF_WIDTH + 1).min(n_lines)],
+                );
+                let h = mag[l].max(NOTCH_FLOOR * median(&mut window));
+                s[start + l] = (a * a * h * h + b * b).sqrt();
             }
         }
     }
