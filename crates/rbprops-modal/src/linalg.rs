@@ -150,17 +150,15 @@ impl TallQr {
     }
 }
 
-/// An `m×n` matrix whose every entry the caller writes before reading any: allocated
-/// without a fill.
+/// An `m×n` matrix whose every entry the caller writes before reading any.
 ///
-/// Why: `Mat::zeros` fills element by element through a scalar loop, which for the
-/// tall LSFD bases and derivative matrices cost as much as computing them.
+/// Why not `Mat::zeros`: it fills element by element through a scalar loop, which for
+/// the tall LSFD bases and derivative matrices cost as much as computing them. Here the
+/// zeros come from one `calloc`-backed vector and are copied in column by column
+/// (`memcpy`), with no `unsafe`.
 pub fn mat_for_overwrite(m: usize, n: usize) -> Mat<f64> {
-    let mut a = Mat::<f64>::with_capacity(m, n);
-    // SAFETY: the capacity holds `m×n` entries; `f64` has no invalid bit patterns and
-    // no destructor, and the callers write every entry before reading it.
-    unsafe { a.set_dims(m, n) };
-    a
+    let zeros = vec![0.0f64; m * n];
+    faer::MatRef::from_column_major_slice(&zeros, m, n).to_owned()
 }
 
 /// `aᵀ · b` by faer's sequential matrix product (independent of the thread count).
