@@ -55,6 +55,31 @@ fn per_spring(v: &[f64], n: usize) -> Vec<f64> {
     }
 }
 
+/// Checks that the set-up exists and that each per-spring list (name, length) has one
+/// value for all springs or one per spring of every set-up it applies to.
+fn per_spring_lists_fit(
+    spec: &CampaignSpec,
+    setup: Option<&str>,
+    lists: &[(&str, usize)],
+) -> Result<(), String> {
+    super::check_setup(spec, setup)?;
+    for (i, s) in spec.setups.iter().enumerate() {
+        if setup.is_some_and(|id| id != s.id) {
+            continue;
+        }
+        for &(what, n) in lists {
+            if n > 1 && n != s.springs.len() {
+                return Err(format!(
+                    "{what} has {n} values but set-up '{}' (setup[{i}]) has {} springs",
+                    s.id,
+                    s.springs.len()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 impl NonproportionalDamping {
     fn check_values(&self) -> Result<(), String> {
         if self.axial_n_s_per_m.is_empty() {
@@ -128,26 +153,14 @@ impl Effect for NonproportionalDamping {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::check_setup(spec, self.setup.as_deref())?;
-        for (i, s) in spec.setups.iter().enumerate() {
-            if self.setup.as_ref().is_some_and(|id| id != &s.id) {
-                continue;
-            }
-            for (what, v) in [
-                ("axial_n_s_per_m", &self.axial_n_s_per_m),
-                ("lateral_n_s_per_m", &self.lateral_n_s_per_m),
-            ] {
-                if v.len() > 1 && v.len() != s.springs.len() {
-                    return Err(format!(
-                        "{what} has {} values but set-up '{}' (setup[{i}]) has {} springs",
-                        v.len(),
-                        s.id,
-                        s.springs.len()
-                    ));
-                }
-            }
-        }
-        Ok(())
+        per_spring_lists_fit(
+            spec,
+            self.setup.as_deref(),
+            &[
+                ("axial_n_s_per_m", self.axial_n_s_per_m.len()),
+                ("lateral_n_s_per_m", self.lateral_n_s_per_m.len()),
+            ],
+        )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
@@ -225,18 +238,11 @@ impl Effect for HystereticDamping {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::check_setup(spec, self.setup.as_deref())?;
-        for (i, s) in spec.setups.iter().enumerate() {
-            let n = self.loss_factors.len();
-            if self.setup.as_ref().is_none_or(|id| id == &s.id) && n > 1 && n != s.springs.len() {
-                return Err(format!(
-                    "loss_factors has {n} values but set-up '{}' (setup[{i}]) has {} springs",
-                    s.id,
-                    s.springs.len()
-                ));
-            }
-        }
-        Ok(())
+        per_spring_lists_fit(
+            spec,
+            self.setup.as_deref(),
+            &[("loss_factors", self.loss_factors.len())],
+        )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
