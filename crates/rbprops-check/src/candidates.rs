@@ -25,7 +25,7 @@
 //!   u₁, u₂ ⟂ d.
 //!
 //! Catalogue effects through another parametrisation ([`Reciprocal`]):
-//! - `transducer_highpass` through 1/τ (one τ for all channels).
+//! - `transducer_highpass` through 1/τ_j, one τ per sensor (the channels at a point).
 //! - `record_truncation` through 1/T. Its signature (residues scaled by 1 − e^{λT},
 //!   leakage ripple) vanishes faster than any power of 1/T at 1/T = 0, so no score test
 //!   can see it: it is screened by a profile over T = 1/(kΔf), k = 1..8 (the DFT

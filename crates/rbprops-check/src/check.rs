@@ -964,7 +964,7 @@ fn check_with(
     let y = &frf.values;
     let mut warnings = Vec::new();
     let mut method = vec![
-        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
+        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
         "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
         "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
         "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10); backward elimination after each acceptance".to_string(),
