@@ -7,6 +7,9 @@
 - `hanging`: a 40 kg body hung from three cords, three triaxial and three oblique uniaxial
   accelerometers, three hits, receptance FRFs on a 0-20 Hz baseband with 1,200 lines,
   1 % modal damping, 1 % noise.
+- `light`: a 2.4 kg bracket hung from four bungees (rigid modes 0.5-4 Hz), three triaxial
+  accelerometers only (minimal redundancy), four shaker inputs (one oblique), accelerance
+  FRFs on a 0.1-12 Hz zoom band with 1,190 lines, 3 % modal damping, 2 % noise.
 
 Each case hides one or two effects from the nominal spec; the script simulates the
 recordings with frf-sim, runs model-check on each and prints what it named, chi2/nu
@@ -110,6 +113,31 @@ HANGING = {
 }
 
 
+# The `light` article's cases (names prefixed `light-`): small inertia (0.01-0.03 kg m2),
+# soft bungees, a bare minimum of sensors; the effects are sized as on a small article.
+LIGHT = {
+    "light-null": (2.45, [], []),
+    "light-gravity": (2.4, ['id = "gravity_stiffness"\ncord_length_m = [0.6]'], ["gravity_stiffness"]),
+    "light-hysteretic": (2.4, ['id = "hysteretic_damping"\nloss_factors = [0.2]'], ["hysteretic_damping"]),
+    "light-gauge-mass": (2.4, ['id = "force_gauge_mass"\nmasses_kg = { s1 = 0.02, s3 = 0.02 }'],
+                         ["force_gauge_mass"]),
+    "light-stinger": (2.4, ['id = "stinger_stiffness"\nlateral_n_per_m = { s2 = 8.0 }'], ["stinger_stiffness"]),
+    "light-highpass": (2.4, ['id = "transducer_highpass"\ntime_constant_s = 1.0'], ["transducer_highpass"]),
+    "light-sensor-mass": (2.4, ['id = "sensor_mass"\nmass_kg = 0.01'], []),
+    "light-misorientation": (2.4, ['id = "sensor_misorientation"\nrotations_rad = { B2 = [0.04, 0.0, -0.03] }'],
+                             ["sensor_misorientation"]),
+    "light-elastic": (2.4, ['id = "elastic_mode"\nfrequency_hz = 30.0\ndamping_ratio = 0.01\n'
+                            'channels = { B1x = 0.4, B2z = -0.5, B3y = 0.3, B3z = 0.45 }\n'
+                            'excitations = { s1 = 0.35, s3 = -0.4 }'], ["elastic_mode"]),
+    "light-gravity+gain": (2.4, ['id = "gravity_stiffness"\ncord_length_m = [0.6]',
+                                 'id = "channel_gain"\ngains = { B3x = 1.05 }'],
+                           ["gravity_stiffness", "channel_gain"]),
+    "light-cad-gravity": (2.4, ['id = "gravity_stiffness"\ncord_length_m = [0.6]'], ["gravity_stiffness"],
+                          {"com_shift_m": (0.004, -0.003, 0.002), "moment_scale": (1.08, 0.94, 1.05),
+                           "stiffness_scale": 0.8}),
+}
+
+
 def header(name: str, seed: int, quantity: str, band: tuple) -> str:
     """The spec's name, seed, quantity and frequency axis (start, stop, lines)."""
     return (f'name = "{name}"\ndescription = "model-check probe: {name}"\nseed = {seed}\n'
@@ -172,25 +200,46 @@ description = "air springs under the corners"
     return s + footer(0.02, noise, effects)
 
 
+def spec_light(name: str, mass: float, effects: list, noise: float, off: dict = {}) -> str:
+    k = off.get("stiffness_scale", 1.0)
+    s = header(name, 5, "accelerance", (0.1, 12.0, 1190)) + body(mass, (0.12, 0.08, 0.04), (0.0105, 0.021, 0.027), off) + f'''products_kg_m2 = {{ xy = 0.0012, xz = -0.0008, yz = 0.0005 }}
+
+[[setup]]
+id = "B"
+description = "four bungees from the top corners"
+'''
+    for x, y in [(0.0, 0.0), (0.24, 0.0), (0.0, 0.16), (0.24, 0.16)]:
+        s += f"[[setup.spring]]\nat_m = [{x}, {y}, 0.09]\nstiffness_n_per_m = [{6.0 * k}, {6.0 * k}, {180.0 * k}]\n"
+    for i, p in enumerate([(0.02, 0.02, 0.08), (0.22, 0.03, 0.0), (0.1, 0.15, 0.08)]):
+        s += f'\n[[sensor]]\nid = "B{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\nkind = "triaxial"\n'
+    for i, (p, d) in enumerate([((0.24, 0.05, 0.03), (-1, 0, 0)), ((0.05, 0.0, 0.06), (0, 1, 0)),
+                                ((0.18, 0.12, 0.0), (0, 0, 1)), ((0.0, 0.12, 0.02), (0.6, 0.0, 0.8))]):
+        s += (f'\n[[excitation]]\nid = "s{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\n'
+              f'direction = [{d[0]}, {d[1]}, {d[2]}]\nsetup = "B"\n')
+    return s + footer(0.03, noise, effects)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", default="target/release")
     ap.add_argument("--dir", type=Path)
-    ap.add_argument("cases", nargs="*", default=list(CASES) + list(HANGING))
+    ap.add_argument("cases", nargs="*", default=list(CASES) + list(HANGING) + list(LIGHT))
     a = ap.parse_args()
     out = a.dir or Path(tempfile.mkdtemp(prefix="model-check-probe-"))
     out.mkdir(parents=True, exist_ok=True)
     (out / "nominal.toml").write_text(spec("nominal", 85.0, [], 0.0))
     (out / "nominal-hanging.toml").write_text(spec_hanging("nominal", 40.0, [], 0.0))
+    (out / "nominal-light.toml").write_text(spec_light("nominal", 2.4, [], 0.0))
     wrong = 0
     for name in a.cases:
-        hanging = name in HANGING
-        mass, effects, expect, *rest = (HANGING if hanging else CASES)[name]
+        article = "hanging" if name in HANGING else "light" if name in LIGHT else "standing"
+        cases, make, noise = {"hanging": (HANGING, spec_hanging, 0.01), "light": (LIGHT, spec_light, 0.02),
+                              "standing": (CASES, spec, 0.005)}[article]
+        mass, effects, expect, *rest = cases[name]
         off = rest[0] if rest else {}
-        nominal = out / ("nominal-hanging.toml" if hanging else "nominal.toml")
+        nominal = out / ("nominal.toml" if article == "standing" else f"nominal-{article}.toml")
         toml = out / f"{name}.toml"
-        toml.write_text(spec_hanging(name, mass, effects, 0.01, off) if hanging
-                        else spec(name, mass, effects, 0.005, off))
+        toml.write_text(make(name, mass, effects, noise, off))
         rec = out / f"{name}.mcap"
         subprocess.run([f"{a.bin}/frf-sim", str(toml), "-o", str(rec)], check=True)
         t0 = time.time()

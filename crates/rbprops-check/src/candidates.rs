@@ -317,7 +317,7 @@ fn rodrigues(psi: &Vec3) -> Mat3 {
     Mat3::identity() + k * (t.sin() / t) + k * k * ((1.0 - t.cos()) / (t * t))
 }
 
-/// Geometric stiffness of cords along ẑ through rbprops-sim's own
+/// Geometric stiffness of cords along the spec's `up` through rbprops-sim's own
 /// [`rbprops_sim::effects::gravity::geometric_stiffness`], split into its two parts:
 /// `K(φ) = φ₁ [K_geo(ℓ = 1) − K_geo(ℓ → ∞)] + φ₂ K_geo(ℓ → ∞)`, exact for
 /// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1) reproduces the catalogue effect.
@@ -327,7 +327,7 @@ fn gravity_stiffness(
     phi: &[f64],
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
-    let z = Vec3::new(0.0, 0.0, 1.0);
+    let z = ctx.spec.up_vector();
     let cords = |len: f64| -> Vec<Cord> {
         ctx.spec
             .springs(ctx.setup_index)
@@ -627,6 +627,9 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
         }
         "sensor_tilt_gravity" => {
             t.insert("g_m_per_s2".into(), 0.0.into());
+            if let Some(up) = spec.up {
+                t.insert("up".into(), rbprops_sim::spec::up_value(up));
+            }
         }
         "suspension_drift" => {
             t.insert("stiffness_factors".into(), ones(excitations, 1.0.into()));
@@ -764,9 +767,13 @@ fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
 }
 
 /// The `cord_mass` entry with one mass per length μ (kg/m) and one length ℓ (m) for
-/// every cord (the catalogue's defaults for the cord modes: 8 per direction, 1 % damping).
-fn cord_entry(mu: f64, l: f64) -> rbprops_sim::spec::EffectSpec {
+/// every cord hanging along `up` (the spec's; the catalogue's defaults for the cord
+/// modes: 8 per direction, 1 % damping).
+fn cord_entry(mu: f64, l: f64, up: Option<[f64; 3]>) -> rbprops_sim::spec::EffectSpec {
     let mut t = toml::Table::new();
+    if let Some(up) = up {
+        t.insert("up".into(), rbprops_sim::spec::up_value(up));
+    }
     t.insert(
         "mass_per_length_kg_per_m".into(),
         toml::Value::Array(vec![mu.into()]),
@@ -779,7 +786,7 @@ fn cord_entry(mu: f64, l: f64) -> rbprops_sim::spec::EffectSpec {
 }
 
 /// `cord_mass` through [`cord_entry`]; μ = 0 is "absent" whatever ℓ.
-fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
+fn cord_build(v: &[f64], up: Option<[f64; 3]>) -> Result<Option<Box<dyn Effect>>, String> {
     if !(v[0] >= 0.0 && v[0].is_finite() && v[1] > 0.0 && v[1].is_finite()) {
         return Err(format!(
             "cord μ = {} kg/m, ℓ = {} m: need μ ≥ 0, ℓ > 0",
@@ -789,7 +796,7 @@ fn cord_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     if v[0] == 0.0 {
         return Ok(None);
     }
-    rbprops_sim::effects::parse_effect(&cord_entry(v[0], v[1])).map(Some)
+    rbprops_sim::effects::parse_effect(&cord_entry(v[0], v[1], up)).map(Some)
 }
 
 /// Cord masses `m = μℓ` (kg) of the `cord_mass` profile, a factor 2.5 apart.
@@ -806,7 +813,7 @@ const CORD_MASSES_PER_LENGTH: (f64, f64) = (0.005, 0.3);
 /// body (the statics of rbprops-sim's `cord_mass`); `None` when it has no positive one.
 fn mean_cord_tension(spec: &CampaignSpec) -> Option<f64> {
     let cm: rbprops_sim::effects::cords::CordMass =
-        toml::Value::Table(cord_entry(1.0, 1.0).parameters)
+        toml::Value::Table(cord_entry(1.0, 1.0, spec.up).parameters)
             .try_into()
             .ok()?;
     let props = spec.properties();
@@ -1094,7 +1101,10 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
                 ],
                 values: vec![0.0, 1.0],
                 inner: None,
-                build: std::sync::Arc::new(cord_build),
+                build: {
+                    let up = spec.up;
+                    std::sync::Arc::new(move |v: &[f64]| cord_build(v, up))
+                },
             }),
             neutral: vec![0.0, 1.0],
             // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
@@ -1143,8 +1153,12 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists
 /// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters (the
-/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel).
-pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, String> {
+/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel). `up`
+/// is the spec's, written into the gravity entry when the spec gives one.
+pub fn catalogue_entry(
+    e: &dyn Effect,
+    up: Option<[f64; 3]>,
+) -> Result<rbprops_sim::spec::EffectSpec, String> {
     if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
         return Err(format!(
             "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
@@ -1181,6 +1195,9 @@ pub fn catalogue_entry(e: &dyn Effect) -> Result<rbprops_sim::spec::EffectSpec, 
             "cord_length_m".into(),
             toml::Value::Array(vec![(1.0 / v[0]).into()]),
         );
+        if let Some(up) = up {
+            t.insert("up".into(), rbprops_sim::spec::up_value(up));
+        }
         t
     } else {
         toml::Table::try_from(e.parameters_json())

@@ -41,6 +41,10 @@ pub struct CampaignSpec {
     pub damping: DampingSpec,
     #[serde(default)]
     pub noise: NoiseSpec,
+    /// Upward unit vector of the geometry frame (gravity acts along −`up`); +z when
+    /// absent. It is the default `up` of the gravity effects ([`crate::effects::GRAVITY_EFFECTS`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub up: Option<[f64; 3]>,
     #[serde(rename = "effect", default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<EffectSpec>,
 }
@@ -182,6 +186,11 @@ pub struct EffectSpec {
     pub parameters: toml::Table,
 }
 
+/// `up` as a TOML array, for an effect entry.
+pub fn up_value(up: [f64; 3]) -> toml::Value {
+    toml::Value::Array(up.iter().map(|&x| x.into()).collect())
+}
+
 fn v3(a: &[f64; 3]) -> Vec3 {
     Vec3::new(a[0], a[1], a[2])
 }
@@ -242,6 +251,11 @@ impl CampaignSpec {
         Ok(spec)
     }
 
+    /// The upward unit vector of the geometry frame (+z unless the spec says otherwise).
+    pub fn up_vector(&self) -> Vec3 {
+        v3(&self.up.unwrap_or([0.0, 0.0, 1.0]))
+    }
+
     /// Same as [`Self::from_toml_str`] for raw bytes (which must be UTF-8).
     pub fn from_toml_bytes(bytes: &[u8]) -> Result<CampaignSpec, SpecError> {
         let text = std::str::from_utf8(bytes).map_err(|e| {
@@ -279,6 +293,12 @@ impl CampaignSpec {
                 format!("must be finite and ≥ 0, got {}", self.noise.relative),
             );
         }
+        if let Some(up) = self.up {
+            let n = v3(&up).norm();
+            if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+                is.push("up", format!("not a unit vector (|up| = {n:.6})"));
+            }
+        }
         if !(self.noise.floor.is_finite() && self.noise.floor >= 0.0) {
             is.push(
                 "noise.floor",
@@ -286,7 +306,7 @@ impl CampaignSpec {
             );
         }
         for (i, e) in self.effects.iter().enumerate() {
-            match crate::effects::parse_effect(e) {
+            match crate::effects::parse_effect_in(e, self) {
                 Err(problem) => is.push(format!("effect[{i}]"), problem),
                 Ok(eff) => {
                     if let Err(problem) = eff.check(self) {

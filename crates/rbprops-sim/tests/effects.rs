@@ -431,3 +431,39 @@ fn effect_fixtures_are_test_case_2_plus_one_effect() {
         assert_eq!(s, base, "{id}");
     }
 }
+
+/// The spec's `up` is the default of every gravity effect's own `up`: a spec saying
+/// `up = −z` (a frame with z down) with entries that give none simulates exactly as
+/// entries that say `up = −z`, and differently from +z. A spec `up` that is not a unit vector is a validation error.
+#[test]
+fn the_spec_up_is_the_default_of_the_gravity_effects() {
+    let mut base = tc2();
+    base.frequency.lines = 200;
+    // Off 0 Hz, where the tilt term of an accelerance is infinite.
+    base.frequency.start_hz = 0.5;
+    let entries = [
+        "id = \"gravity_stiffness\"\ncord_length_m = [0.8]",
+        "id = \"sensor_tilt_gravity\"",
+    ];
+    let build = |up: Option<[f64; 3]>, own: &str| {
+        let mut s = base.clone();
+        s.up = up;
+        for e in entries {
+            s = with_effect(s, &format!("{e}{own}"));
+        }
+        simulate(&s).unwrap().frf.values
+    };
+    let spec_up = build(Some([0.0, 0.0, -1.0]), "");
+    let own_up = build(None, "\nup = [0.0, 0.0, -1.0]");
+    let z_up = build(None, "");
+    assert_eq!(spec_up, own_up);
+    // The tilt term g[up]× is odd in `up` (the cords' stiffness is even in it).
+    assert!(max_dev(&spec_up, &z_up) > 1e-3, "{}", max_dev(&spec_up, &z_up));
+    // An entry's own `up` wins over the spec's.
+    let mixed = build(Some([0.0, 1.0, 0.0]), "\nup = [0.0, 0.0, -1.0]");
+    assert_eq!(mixed, own_up);
+    let mut bad = base.clone();
+    bad.up = Some([0.0, 0.0, 2.0]);
+    let err = bad.validate().unwrap_err().to_string();
+    assert!(err.contains("up") && err.contains("unit"), "{err}");
+}

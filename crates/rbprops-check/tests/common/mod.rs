@@ -76,3 +76,47 @@ pub fn record_sim(
     let sim = rbprops_sim::simulate(&s).unwrap();
     (sim.geometry, sim.frf)
 }
+
+/// The same test in a geometry frame with y up: every point, direction, the inertia and
+/// the springs turned by R: (x, y, z) → (x, z, −y), and the spec's `up` = +y.
+pub fn y_up(spec: &CampaignSpec) -> CampaignSpec {
+    use rbprops_core::Mat3;
+    let r = Mat3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
+    let turn = |a: [f64; 3]| -> [f64; 3] {
+        let v = r * rbprops_core::Vec3::from(a);
+        [v.x, v.y, v.z]
+    };
+    let turn_m = |m: Mat3| -> [[f64; 3]; 3] {
+        let t = r * m * r.transpose();
+        std::array::from_fn(|i| std::array::from_fn(|j| t[(i, j)]))
+    };
+    let mut s = spec.clone();
+    let j = spec.properties().inertia_cm;
+    s.body.com_m = turn(spec.body.com_m);
+    s.body.inertia_cm_kg_m2 = Some(turn_m(j));
+    s.body.moments_kg_m2 = None;
+    s.body.products_kg_m2 = None;
+    for set in &mut s.setups {
+        for sp in &mut set.springs {
+            sp.at_m = turn(sp.at_m);
+            let k = match (sp.stiffness_n_per_m, sp.stiffness_matrix_n_per_m) {
+                (Some(d), _) => Mat3::from_diagonal(&rbprops_core::Vec3::from(d)),
+                (None, Some(m)) => Mat3::from_fn(|i, j| m[i][j]),
+                (None, None) => Mat3::zeros(),
+            };
+            sp.stiffness_n_per_m = None;
+            sp.stiffness_matrix_n_per_m = Some(turn_m(k));
+        }
+    }
+    for sen in &mut s.sensors {
+        sen.at_m = turn(sen.at_m);
+        sen.direction = sen.direction.map(turn);
+        sen.axes = sen.axes.map(|a| a.map(turn));
+    }
+    for e in &mut s.excitations {
+        e.at_m = turn(e.at_m);
+        e.direction = turn(e.direction);
+    }
+    s.up = Some([0.0, 1.0, 0.0]);
+    s
+}

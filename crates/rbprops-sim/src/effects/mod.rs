@@ -266,11 +266,32 @@ pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
     Ok(e)
 }
 
+/// The effects whose physics depends on the direction of gravity: an entry without its
+/// own `up` takes the spec's ([`CampaignSpec::up`]).
+pub const GRAVITY_EFFECTS: [&str; 3] = ["gravity_stiffness", "cord_mass", "sensor_tilt_gravity"];
+
+/// Builds an effect from its entry in `spec`: [`parse_effect`], with the spec's `up` as
+/// the default `up` of a gravity effect.
+pub fn parse_effect_in(entry: &EffectSpec, spec: &CampaignSpec) -> Result<Box<dyn Effect>, String> {
+    match spec.up {
+        Some(up)
+            if GRAVITY_EFFECTS.contains(&entry.id.as_str())
+                && !entry.parameters.contains_key("up") =>
+        {
+            let mut e = entry.clone();
+            e.parameters
+                .insert("up".into(), crate::spec::up_value(up));
+            parse_effect(&e)
+        }
+        _ => parse_effect(entry),
+    }
+}
+
 /// Parses and orders a spec's effects ([`Effect::order`], then spec order).
 pub fn parse_effects(spec: &CampaignSpec) -> Result<Vec<Box<dyn Effect>>, (usize, String)> {
     let mut v = Vec::with_capacity(spec.effects.len());
     for (i, e) in spec.effects.iter().enumerate() {
-        let eff = parse_effect(e).map_err(|p| (i, p))?;
+        let eff = parse_effect_in(e, spec).map_err(|p| (i, p))?;
         eff.check(spec).map_err(|p| (i, p))?;
         v.push(eff);
     }
