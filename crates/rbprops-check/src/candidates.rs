@@ -766,6 +766,33 @@ fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     .map(Some)
 }
 
+/// A warning when the spec gives no `up` but its springs say the vertical is another
+/// axis: cords and air springs are far stiffer along the vertical than across it, so a
+/// summed spring stiffness whose stiffest principal axis is ≥ 3× the others and more than
+/// 30° from z suggests a frame with another axis up (the gravity candidates would then
+/// hang their cords across the real vertical).
+pub fn vertical_axis_doubt(spec: &CampaignSpec) -> Option<String> {
+    if spec.up.is_some() {
+        return None;
+    }
+    let k: Mat3 = (0..spec.setups.len())
+        .flat_map(|i| spec.springs(i))
+        .map(|s| s.stiffness)
+        .sum();
+    let eig = k.symmetric_eigen();
+    let mut order: Vec<usize> = (0..3).collect();
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    let (top, next) = (eig.eigenvalues[order[0]], eig.eigenvalues[order[1]]);
+    let axis = eig.eigenvectors.column(order[0]).into_owned();
+    let dominant = top > 0.0 && top >= 3.0 * next.max(0.0);
+    (dominant && axis.z.abs() < 30f64.to_radians().cos()).then(|| {
+        format!(
+            "the spec gives no `up`, so gravity is taken along −z; but its springs are stiffest along ({:.2}, {:.2}, {:.2}): if that is the vertical, set `up` in the spec (gravity_stiffness, cord_mass and sensor_tilt_gravity depend on it)",
+            axis.x, axis.y, axis.z
+        )
+    })
+}
+
 /// The `cord_mass` entry with one mass per length μ (kg/m) and one length ℓ (m) for
 /// every cord hanging along `up` (the spec's; the catalogue's defaults for the cord
 /// modes: 8 per direction, 1 % damping).

@@ -1035,6 +1035,7 @@ fn check_with(
     }
     let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
     method.extend(notes);
+    warnings.extend(crate::candidates::vertical_axis_doubt(spec));
     if let Some(only) = &options.only {
         cands.retain(|c| only.contains(&c.id));
     }

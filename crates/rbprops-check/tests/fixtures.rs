@@ -247,6 +247,20 @@ fn gravity_stiffness_is_found_when_y_is_up() {
     within(param(&r, "gravity_stiffness", "load_term_factor"), 1.0, 4.0);
 }
 
+/// A spec without `up` whose springs are stiffest along y gets a warning naming that
+/// axis; with `up` given, or with the springs stiffest along z, none.
+#[test]
+fn a_vertical_axis_other_than_z_is_pointed_out() {
+    use rbprops_check::candidates::vertical_axis_doubt;
+    let nom = nominal(LINES);
+    assert_eq!(vertical_axis_doubt(&nom), None);
+    let mut turned = y_up(&nom);
+    assert_eq!(vertical_axis_doubt(&turned), None);
+    turned.up = None;
+    let w = vertical_axis_doubt(&turned).expect("a warning");
+    assert!(w.contains("1.00, 0.00)") && w.contains("set `up`"), "{w}");
+}
+
 #[test]
 fn channel_gain_is_found() {
     let nom = nominal(LINES);

@@ -458,7 +458,11 @@ fn the_spec_up_is_the_default_of_the_gravity_effects() {
     let z_up = build(None, "");
     assert_eq!(spec_up, own_up);
     // The tilt term g[up]× is odd in `up` (the cords' stiffness is even in it).
-    assert!(max_dev(&spec_up, &z_up) > 1e-3, "{}", max_dev(&spec_up, &z_up));
+    assert!(
+        max_dev(&spec_up, &z_up) > 1e-3,
+        "{}",
+        max_dev(&spec_up, &z_up)
+    );
     // An entry's own `up` wins over the spec's.
     let mixed = build(Some([0.0, 1.0, 0.0]), "\nup = [0.0, 0.0, -1.0]");
     assert_eq!(mixed, own_up);

@@ -279,8 +279,7 @@ pub fn parse_effect_in(entry: &EffectSpec, spec: &CampaignSpec) -> Result<Box<dy
                 && !entry.parameters.contains_key("up") =>
         {
             let mut e = entry.clone();
-            e.parameters
-                .insert("up".into(), crate::spec::up_value(up));
+            e.parameters.insert("up".into(), crate::spec::up_value(up));
             parse_effect(&e)
         }
         _ => parse_effect(entry),
