@@ -10,6 +10,9 @@
 - `light`: a 2.4 kg bracket hung from four bungees (rigid modes 0.5-4 Hz), three triaxial
   accelerometers only (minimal redundancy), four shaker inputs (one oblique), accelerance
   FRFs on a 0.1-12 Hz zoom band with 1,190 lines, 3 % modal damping, 2 % noise.
+- `heavy`: a 1,200 kg vehicle-like body standing on four air springs (rigid modes
+  0.8-2.5 Hz), five triaxial accelerometers, four shaker inputs (one oblique),
+  receptance FRFs on a 0.2-8 Hz zoom band with 1,000 lines, 4 % modal damping, 1 % noise.
 
 Each case hides one or two effects from the nominal spec; the script simulates the
 recordings with frf-sim, runs model-check on each and prints what it named, chi2/nu
@@ -90,6 +93,9 @@ CASES.update({
 HANGING = {
     "hanging-null": (40.8, [], []),
     "hanging-gravity": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]'], ["gravity_stiffness"]),
+    # The article hangs 5 degrees off the frame's z (E15.4); the check assumes z.
+    "hanging-gravity-tilted": (40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]\n'
+                                      'up = [0.0871557427, 0.0, 0.9961946981]'], ["gravity_stiffness"]),
     "hanging-gravity+misorientation": (
         40.0, ['id = "gravity_stiffness"\ncord_length_m = [1.2]',
                'id = "sensor_misorientation"\nrotations_rad = { T2 = [0.0, 0.03, -0.03] }'],
@@ -135,6 +141,21 @@ LIGHT = {
     "light-cad-gravity": (2.4, ['id = "gravity_stiffness"\ncord_length_m = [0.6]'], ["gravity_stiffness"],
                           {"com_shift_m": (0.004, -0.003, 0.002), "moment_scale": (1.08, 0.94, 1.05),
                            "stiffness_scale": 0.8}),
+}
+
+
+# The `heavy` article's cases (names prefixed `heavy-`): inertia of 450-1,700 kg m2.
+HEAVY = {
+    "heavy-null": (1230.0, [], []),
+    "heavy-dashpots": (1200.0, ['id = "nonproportional_damping"\naxial_n_s_per_m = [3000.0, 3000.0, 0.0, 0.0]\n'
+                                'lateral_n_s_per_m = [0.0]'], ["nonproportional_damping"]),
+    "heavy-gain": (1200.0, ['id = "channel_gain"\ngains = { V2y = 1.04, V5z = 0.97 }'], ["channel_gain"]),
+    "heavy-force-direction": (1200.0, ['id = "force_direction"\nrotations_rad = { v3 = [0.06, 0.0, 0.0] }'],
+                              ["force_direction"]),
+    "heavy-tilt": (1200.0, ['id = "sensor_tilt_gravity"'], ["sensor_tilt_gravity"]),
+    "heavy-elastic": (1200.0, ['id = "elastic_mode"\nfrequency_hz = 14.0\ndamping_ratio = 0.02\n'
+                               'channels = { V1z = 0.03, V2z = -0.03, V3z = 0.03, V4z = -0.03, V5x = 0.01 }\n'
+                               'excitations = { v3 = 0.025, v4 = -0.02 }'], ["elastic_mode"]),
 }
 
 
@@ -219,22 +240,42 @@ description = "four bungees from the top corners"
     return s + footer(0.03, noise, effects)
 
 
+def spec_heavy(name: str, mass: float, effects: list, noise: float, off: dict = {}) -> str:
+    s = header(name, 9, "receptance", (0.2, 8.0, 1000)) + body(mass, (1.6, 0.0, 0.6), (450.0, 1500.0, 1700.0), off) + f'''products_kg_m2 = {{ xy = 5.0, xz = -60.0, yz = 3.0 }}
+
+[[setup]]
+id = "V"
+description = "four air springs"
+'''
+    for x, y in [(0.3, 0.75), (0.3, -0.75), (3.3, 0.75), (3.3, -0.75)]:
+        s += f"[[setup.spring]]\nat_m = [{x}, {y}, 0.2]\nstiffness_n_per_m = [15000.0, 15000.0, 60000.0]\n"
+    for i, p in enumerate([(0.1, 0.8, 1.2), (3.9, 0.8, 1.2), (3.9, -0.8, 0.3), (0.1, -0.8, 0.3), (2.0, 0.0, 1.4)]):
+        s += f'\n[[sensor]]\nid = "V{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\nkind = "triaxial"\n'
+    for i, (p, d) in enumerate([((4.0, 0.3, 0.5), (-1, 0, 0)), ((1.2, -0.9, 0.8), (0, 1, 0)),
+                                ((3.0, 0.5, 1.4), (0, 0, -1)), ((0.0, -0.4, 0.9), (0.6, 0.0, 0.8))]):
+        s += (f'\n[[excitation]]\nid = "v{i + 1}"\nat_m = [{p[0]}, {p[1]}, {p[2]}]\n'
+              f'direction = [{d[0]}, {d[1]}, {d[2]}]\nsetup = "V"\n')
+    return s + footer(0.04, noise, effects)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--bin", default="target/release")
     ap.add_argument("--dir", type=Path)
-    ap.add_argument("cases", nargs="*", default=list(CASES) + list(HANGING) + list(LIGHT))
+    ap.add_argument("cases", nargs="*", default=list(CASES) + list(HANGING) + list(LIGHT) + list(HEAVY))
     a = ap.parse_args()
     out = a.dir or Path(tempfile.mkdtemp(prefix="model-check-probe-"))
     out.mkdir(parents=True, exist_ok=True)
     (out / "nominal.toml").write_text(spec("nominal", 85.0, [], 0.0))
     (out / "nominal-hanging.toml").write_text(spec_hanging("nominal", 40.0, [], 0.0))
     (out / "nominal-light.toml").write_text(spec_light("nominal", 2.4, [], 0.0))
+    (out / "nominal-heavy.toml").write_text(spec_heavy("nominal", 1200.0, [], 0.0))
     wrong = 0
     for name in a.cases:
-        article = "hanging" if name in HANGING else "light" if name in LIGHT else "standing"
+        article = next((a for a, c in [("hanging", HANGING), ("light", LIGHT), ("heavy", HEAVY)] if name in c),
+                       "standing")
         cases, make, noise = {"hanging": (HANGING, spec_hanging, 0.01), "light": (LIGHT, spec_light, 0.02),
-                              "standing": (CASES, spec, 0.005)}[article]
+                              "heavy": (HEAVY, spec_heavy, 0.01), "standing": (CASES, spec, 0.005)}[article]
         mass, effects, expect, *rest = cases[name]
         off = rest[0] if rest else {}
         nominal = out / ("nominal.toml" if article == "standing" else f"nominal-{article}.toml")
