@@ -339,6 +339,11 @@ impl TallLs {
         &self.a
     }
 
+    /// The matrix A back, for reuse as the storage of another matrix of its shape.
+    pub fn into_matrix(self) -> Mat<f64> {
+        self.a
+    }
+
     /// Entry `(i, j)` of the triangular factor R (`i ≤ j`; up to the signs of its rows,
     /// the same R for both methods).
     pub fn r(&self, i: usize, j: usize) -> f64 {
