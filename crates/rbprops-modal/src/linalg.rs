@@ -175,6 +175,36 @@ pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     out
 }
 
+/// The Gram matrix `aᵀ · a`: its lower triangle by faer's sequential product into a
+/// lower-triangular destination (the kernel skips the tiles above the diagonal), mirrored
+/// into the upper one.
+///
+/// Why: a Gram matrix is symmetric, so the full product computes nearly half of it
+/// twice; the triangular product runs the same kernel over each tile it keeps, so every
+/// entry comes out as the full product would give it.
+pub fn gram(a: &Mat<f64>) -> Mat<f64> {
+    use faer::linalg::matmul::triangular::{self, BlockStructure};
+    let n = a.ncols();
+    let mut g = Mat::<f64>::zeros(n, n);
+    triangular::matmul(
+        g.as_mut(),
+        BlockStructure::TriangularLower,
+        faer::Accum::Replace,
+        a.transpose(),
+        BlockStructure::Rectangular,
+        a.as_ref(),
+        BlockStructure::Rectangular,
+        1.0,
+        Par::Seq,
+    );
+    for j in 0..n {
+        for i in 0..j {
+            g[(i, j)] = g[(j, i)];
+        }
+    }
+    g
+}
+
 /// `dst += alpha · aᵀ · b` (sequential).
 pub fn t_mul_add(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
     faer::linalg::matmul::matmul(
@@ -314,7 +344,7 @@ impl TallLs {
     pub fn new(a: Mat<f64>) -> Self {
         let (m, n) = a.shape();
         assert!(m >= n && n > 0, "TallLs needs a tall matrix, got {m}×{n}");
-        let g = t_mul(&a, &a);
+        let g = gram(&a);
         if let Some(r) = cholesky_upper(&g) {
             if let Some(refine) = gram_usable(&r) {
                 return Self {

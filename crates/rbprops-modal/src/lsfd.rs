@@ -635,7 +635,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
         let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
-        let dd = tmul(&d, &d);
+        let dd = linalg::gram(&d);
         let mut gd = Mat::<f64>::zeros(np, np);
         for i in 0..np {
             for j in 0..=i {
