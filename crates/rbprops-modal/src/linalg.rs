@@ -183,26 +183,36 @@ pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
 /// twice; the triangular product runs the same kernel over each tile it keeps, so every
 /// entry comes out as the full product would give it.
 pub fn gram(a: &Mat<f64>) -> Mat<f64> {
-    use faer::linalg::matmul::triangular::{self, BlockStructure};
     let n = a.ncols();
     let mut g = Mat::<f64>::zeros(n, n);
+    gram_lower_add(&mut g, a.as_ref());
+    mirror_lower(&mut g);
+    g
+}
+
+/// `g += aᵀ · a` on the lower triangle of `g` only (diagonal included; sequential).
+pub fn gram_lower_add(g: &mut Mat<f64>, a: MatRef<'_, f64>) {
+    use faer::linalg::matmul::triangular::{self, BlockStructure};
     triangular::matmul(
         g.as_mut(),
         BlockStructure::TriangularLower,
-        faer::Accum::Replace,
+        faer::Accum::Add,
         a.transpose(),
         BlockStructure::Rectangular,
-        a.as_ref(),
+        a,
         BlockStructure::Rectangular,
         1.0,
         Par::Seq,
     );
-    for j in 0..n {
+}
+
+/// Copies the lower triangle of the square `g` onto its upper one (symmetric `g`).
+pub fn mirror_lower(g: &mut Mat<f64>) {
+    for j in 0..g.ncols() {
         for i in 0..j {
             g[(i, j)] = g[(j, i)];
         }
     }
-    g
 }
 
 /// `dst += alpha · aᵀ · b` (sequential).
