@@ -83,18 +83,19 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         g_neg: vec![vec![0.0; pm]; no],
         t: vec![vec![0.0; pm]; no],
     };
-    let hw: Vec<Vec<c64>> = (0..no)
-        .map(|o| chans[o].iter().zip(&weights[o]).map(|(h, w2)| h * *w2).collect())
-        .collect();
-    let h2: Vec<Vec<f64>> = (0..no)
-        .map(|o| {
-            chans[o]
-                .iter()
-                .zip(&weights[o])
-                .map(|(h, w2)| h.norm_sqr() * w2)
-                .collect()
-        })
-        .collect();
+    // `w² h` and `w² |h|²` per channel and line, in plain loops (an iterator adaptor's
+    // closure need not be inlined into the AVX copy).
+    let mut hw: Vec<Vec<c64>> = Vec::with_capacity(no);
+    let mut h2: Vec<Vec<f64>> = Vec::with_capacity(no);
+    for (h, w) in chans.iter().zip(weights) {
+        let (mut a, mut b) = (Vec::with_capacity(h.len()), Vec::with_capacity(h.len()));
+        for (z, w2) in h.iter().zip(w) {
+            a.push(z * *w2);
+            b.push(z.norm_sqr() * w2);
+        }
+        hw.push(a);
+        h2.push(b);
+    }
     for blk in 0..blocks {
         let m0 = blk * B;
         let nb = B.min(pm - m0);
@@ -321,17 +322,20 @@ crate::simd::avx_fn! {
         // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
         let zero: f64 = std::iter::empty::<f64>().sum();
         let mut out = Vec::with_capacity(f.no);
+        let mut ya: Vec<Lanes> = Vec::with_capacity(p);
         for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
-            let ya: Vec<Lanes> = (0..p)
-                .map(|i| {
-                    (0..p).fold([zero; LANES], |mut s, j| {
-                        for t in 0..LANES {
-                            s[t] += yc[j * pm + i][t] * coef[j];
-                        }
-                        s
-                    })
-                })
-                .collect();
+            // Y α in plain loops (an iterator adaptor's closure need not be inlined
+            // into the AVX copy); each lane sums over j in order.
+            ya.clear();
+            for i in 0..p {
+                let mut s = [zero; LANES];
+                for j in 0..p {
+                    for t in 0..LANES {
+                        s[t] += yc[j * pm + i][t] * coef[j];
+                    }
+                }
+                ya.push(s);
+            }
             let mut beta = vec![[0.0; LANES]; p];
             for i in (0..p).rev() {
                 let mut v = ya[i];

@@ -183,17 +183,19 @@ fn basis_stacked_into(a: &mut Mat<f64>, poles: &[Pole], band: &BandData, res: Re
 crate::simd::avx_fn! {
 /// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
 fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
-    (0..a.ncols())
-        .map(|j| {
-            let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
-            let s = linalg::dot(col, col).sqrt();
-            let s = if s > 0.0 { s } else { 1.0 };
-            for x in col.iter_mut() {
-                *x /= s;
-            }
-            s
-        })
-        .collect()
+    // A plain loop, not `map(..).collect()`: the closure of an iterator adaptor need not
+    // be inlined into the AVX copy, and the divisions would then run two to a vector.
+    let mut scales = Vec::with_capacity(a.ncols());
+    for j in 0..a.ncols() {
+        let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
+        let s = linalg::dot(col, col).sqrt();
+        let s = if s > 0.0 { s } else { 1.0 };
+        for x in col.iter_mut() {
+            *x /= s;
+        }
+        scales.push(s);
+    }
+    scales
 }
 }
 
