@@ -55,30 +55,26 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     // one table per block of powers, `[line]` of `B` powers (zero-padded), shared by
     // every channel. Blocks outermost: each block's table (32 bytes a line) stays in
     // cache while every channel runs over it, where the whole table would not.
-    // Written in storage order (block by block, each line's power carried over in `zm`
-    // from one block to the next): the tables are pushed rather than zero-filled first.
-    let z: Vec<c64> = theta.iter().map(|th| c64::new(th.cos(), th.sin())).collect();
-    let mut zm = vec![c64::new(1.0, 0.0); nl];
-    let mut zre = Vec::with_capacity(blocks * nl);
-    let mut zim = Vec::with_capacity(blocks * nl);
-    for blk in 0..blocks {
-        for k in 0..nl {
-            let (mut re, mut im) = ([0.0; B], [0.0; B]);
+    let mut zre = vec![[0.0; B]; blocks * nl];
+    let mut zim = vec![[0.0; B]; blocks * nl];
+    for (k, &th) in theta.iter().enumerate() {
+        let z = c64::new(th.cos(), th.sin());
+        let mut zm = c64::new(1.0, 0.0);
+        for blk in 0..blocks {
+            let (re, im) = (&mut zre[blk * nl + k], &mut zim[blk * nl + k]);
             for i in 0..B.min(pm - blk * B) {
                 let m = blk * B + i;
                 if m > 0 {
-                    zm[k] = if m % 16 == 0 {
-                        let a = theta[k] * m as f64;
+                    zm = if m % 16 == 0 {
+                        let a = th * m as f64;
                         c64::new(a.cos(), a.sin())
                     } else {
-                        zm[k] * z[k]
+                        zm * z
                     };
                 }
-                re[i] = zm[k].re;
-                im[i] = zm[k].im;
+                re[i] = zm.re;
+                im[i] = zm.im;
             }
-            zre.push(re);
-            zim.push(im);
         }
     }
     let mut s = Sums {
