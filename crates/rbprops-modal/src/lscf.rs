@@ -83,19 +83,18 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
         g_neg: vec![vec![0.0; pm]; no],
         t: vec![vec![0.0; pm]; no],
     };
-    // `w² h` and `w² |h|²` per channel and line, in plain loops (an iterator adaptor's
-    // closure need not be inlined into the AVX copy).
-    let mut hw: Vec<Vec<c64>> = Vec::with_capacity(no);
-    let mut h2: Vec<Vec<f64>> = Vec::with_capacity(no);
-    for (h, w) in chans.iter().zip(weights) {
-        let (mut a, mut b) = (Vec::with_capacity(h.len()), Vec::with_capacity(h.len()));
-        for (z, w2) in h.iter().zip(w) {
-            a.push(z * *w2);
-            b.push(z.norm_sqr() * w2);
-        }
-        hw.push(a);
-        h2.push(b);
-    }
+    let hw: Vec<Vec<c64>> = (0..no)
+        .map(|o| chans[o].iter().zip(&weights[o]).map(|(h, w2)| h * *w2).collect())
+        .collect();
+    let h2: Vec<Vec<f64>> = (0..no)
+        .map(|o| {
+            chans[o]
+                .iter()
+                .zip(&weights[o])
+                .map(|(h, w2)| h.norm_sqr() * w2)
+                .collect()
+        })
+        .collect();
     for blk in 0..blocks {
         let m0 = blk * B;
         let nb = B.min(pm - m0);
