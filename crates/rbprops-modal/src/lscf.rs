@@ -321,17 +321,20 @@ crate::simd::avx_fn! {
         // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
         let zero: f64 = std::iter::empty::<f64>().sum();
         let mut out = Vec::with_capacity(f.no);
+        let mut ya: Vec<Lanes> = Vec::with_capacity(p);
         for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
-            let ya: Vec<Lanes> = (0..p)
-                .map(|i| {
-                    (0..p).fold([zero; LANES], |mut s, j| {
-                        for t in 0..LANES {
-                            s[t] += yc[j * pm + i][t] * coef[j];
-                        }
-                        s
-                    })
-                })
-                .collect();
+            // Y α in plain loops (an iterator adaptor's closure need not be inlined
+            // into the AVX copy); each lane sums over j in order.
+            ya.clear();
+            for i in 0..p {
+                let mut s = [zero; LANES];
+                for j in 0..p {
+                    for t in 0..LANES {
+                        s[t] += yc[j * pm + i][t] * coef[j];
+                    }
+                }
+                ya.push(s);
+            }
             let mut beta = vec![[0.0; LANES]; p];
             for i in (0..p).rev() {
                 let mut v = ya[i];

@@ -121,19 +121,27 @@ fn pair_columns(x: f64, pim: f64, w: f64, qr: f64, qi: f64) -> (f64, f64, f64, f
     )
 }
 
-crate::simd::avx_fn! {
 /// Real-stacked (`[Re; Im]`) basis columns `2N × (2·poles + residual terms)`, each
 /// multiplied by `q(ω)` and the line weight.
 fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> Mat<f64> {
+    // Every entry is written by `basis_stacked_into` (pole pairs, then residual columns).
+    let mut a = linalg::mat_for_overwrite(2 * band.n_lines(), 2 * poles.len() + res.count());
+    basis_stacked_into(&mut a, poles, band, res, w);
+    a
+}
+
+crate::simd::avx_fn! {
+/// [`basis_stacked`] written over every entry of `a` (already of its shape): the
+/// refinement's trials reuse one matrix instead of allocating (and zeroing) each basis.
+fn basis_stacked_into(a: &mut Mat<f64>, poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> () {
     let n = band.n_lines();
+    debug_assert_eq!(a.shape(), (2 * n, 2 * poles.len() + res.count()));
     let q: Vec<c64> = band
         .quantity_factor()
         .iter()
         .zip(w)
         .map(|(q, w)| q * *w)
         .collect();
-    // Every entry is written below (pole pairs, then the residual columns).
-    let mut a = linalg::mat_for_overwrite(2 * n, 2 * poles.len() + res.count());
     let put = |a: &mut Mat<f64>, j: usize, f: &mut dyn FnMut(usize) -> c64| {
         let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
         let (re, im) = col.split_at_mut(n);
@@ -147,7 +155,7 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     // `pair_basis` and the complex product by q, written out so that they vectorise).
     let (qre, qim): (Vec<f64>, Vec<f64>) = q.iter().map(|z| (z.re, z.im)).unzip();
     for (m, p) in poles.iter().enumerate() {
-        let (r1, i1, r2, i2) = pair_halves(&mut a, m, n);
+        let (r1, i1, r2, i2) = pair_halves(a, m, n);
         let (x, pim) = (-p.0.re, p.0.im);
         let cols = r1
             .iter_mut()
@@ -160,33 +168,34 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     }
     let mut j = 2 * poles.len();
     if res.upper {
-        put(&mut a, j, &mut |k| q[k]);
+        put(a, j, &mut |k| q[k]);
         j += 1;
     }
     if res.lower {
-        put(&mut a, j, &mut |k| {
+        put(a, j, &mut |k| {
             let w = band.omega[k];
             q[k] * (-1.0 / (w * w))
         });
     }
-    a
 }
 }
 
 crate::simd::avx_fn! {
 /// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
 fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
-    (0..a.ncols())
-        .map(|j| {
-            let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
-            let s = linalg::dot(col, col).sqrt();
-            let s = if s > 0.0 { s } else { 1.0 };
-            for x in col.iter_mut() {
-                *x /= s;
-            }
-            s
-        })
-        .collect()
+    // A plain loop, not `map(..).collect()`: the closure of an iterator adaptor need not
+    // be inlined into the AVX copy, and the divisions would then run two to a vector.
+    let mut scales = Vec::with_capacity(a.ncols());
+    for j in 0..a.ncols() {
+        let col = a.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
+        let s = linalg::dot(col, col).sqrt();
+        let s = if s > 0.0 { s } else { 1.0 };
+        for x in col.iter_mut() {
+            *x /= s;
+        }
+        scales.push(s);
+    }
+    scales
 }
 }
 
@@ -450,18 +459,52 @@ fn r_inv_t(qr: &TallLs, m: &Mat<f64>) -> Mat<f64> {
     y
 }
 
+/// The tall matrices of trials that are done with (rejected, or superseded by a better
+/// one), reused by the next trial of the same refinement: its basis (`2N × p`) and its
+/// residuals (`2N × channels`). Why: allocating a fresh, zeroed tall matrix per trial
+/// cost about a fifth of the trial itself; every entry is overwritten anyway.
+#[derive(Default)]
+struct Spares {
+    basis: Option<Mat<f64>>,
+    resid: Option<Mat<f64>>,
+}
+
+impl Spares {
+    /// Keeps the storage of `t` for the next trial.
+    fn recycle(&mut self, t: Trial) {
+        self.basis = Some(t.qr.into_matrix());
+        self.resid = Some(t.resid);
+    }
+}
+
+/// The LSFD solution at `poles` of the weighted data `bw` (line weights `lw`), in the
+/// storage of `spares` when it holds some.
 fn trial(
     poles: &[Pole],
     band: &BandData,
     bw: &Mat<f64>,
     lw: &std::sync::Arc<Vec<f64>>,
     res: Residuals,
+    spares: &mut Spares,
 ) -> Trial {
-    let mut phi = basis_stacked(poles, band, res, lw);
+    let mut phi = match spares.basis.take() {
+        Some(m) => m,
+        // Every entry is written by `basis_stacked_into`.
+        None => linalg::mat_for_overwrite(2 * band.n_lines(), 2 * poles.len() + res.count()),
+    };
+    basis_stacked_into(&mut phi, poles, band, res, lw);
     let scale = normalise(&mut phi);
     let p = phi.ncols();
     let qr = TallLs::new(phi);
-    let (x, resid, rss) = qr.solve(bw);
+    // The data, to be overwritten by the residuals.
+    let b = match spares.resid.take() {
+        Some(mut r) => {
+            r.copy_from(bw);
+            r
+        }
+        None => bw.clone(),
+    };
+    let (x, resid, rss) = qr.solve_into(b);
     let no = bw.ncols();
     let residues = (0..poles.len())
         .map(|m| {
@@ -576,24 +619,25 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
-    let mut t = trial(&cur, band, &bw, &lw, res);
+    let mut spares = Spares::default();
+    let mut t = trial(&cur, band, &bw, &lw, res, &mut spares);
     let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
     let mut jtj = Mat::<f64>::zeros(np, np);
+    // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M), one matrix for every
+    // iteration (each overwrites every entry, see `derivative_columns`).
+    let mut d = linalg::mat_for_overwrite(2 * n, np);
     for it in 0..40 {
         iterations = it + 1;
-        // Derivative vectors d1_m, d2_m, real-stacked: D (2N × 2M).
         // In plain real arithmetic over line arrays (the operations of `recips`, the
         // complex squares and the products by q, written out so that they vectorise).
-        // Every entry is written by `derivative_columns`.
-        let mut d = linalg::mat_for_overwrite(2 * n, np);
         derivative_columns(&mut d, &cur, &band.omega, &qre, &qim);
         // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
         let pc = t.n_cols;
         let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
-        let dd = tmul(&d, &d);
+        let dd = linalg::gram(&d);
         let mut gd = Mat::<f64>::zeros(np, np);
         for i in 0..np {
             for j in 0..=i {
@@ -671,7 +715,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 mu *= 10.0;
                 continue;
             }
-            let t2 = trial(&cand, band, &bw, &lw, res);
+            let t2 = trial(&cand, band, &bw, &lw, res, &mut spares);
             if t2.cost <= t.cost {
                 let rel_step = (0..nm)
                     .map(|m| {
@@ -684,12 +728,13 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
                 // √(1e-10·ν) ≈ 1e-3 of a standard error for ν ~ 10⁴ residuals.
                 let small = rel_step < 1e-9 || (t.cost - t2.cost) <= 1e-10 * t.cost;
                 cur = cand;
-                t = t2;
+                spares.recycle(std::mem::replace(&mut t, t2));
                 mu = (mu / 10.0).max(1e-12);
                 accepted = true;
                 converged = small;
                 break;
             }
+            spares.recycle(t2);
             mu *= 10.0;
         }
         if !accepted {

@@ -111,13 +111,22 @@ pub fn horner(coef: &[f64], z: c64) -> (c64, c64, f64) {
     (p, dp, b)
 }
 
-/// `Σ_j 1/(z − z_j)`, each term as `conj(d)/|d|²` (one division).
-fn sum_reciprocals(z: c64, others: &[c64]) -> c64 {
-    others.iter().fold(c64::new(0.0, 0.0), |s, zj| {
-        let d = z - zj;
-        let inv = 1.0 / d.norm_sqr();
-        c64::new(s.re + d.re * inv, s.im - d.im * inv)
-    })
+/// `Σ_j 1/(z − z_j)`, each term as `conj(d)/|d|²` (one division), summed in index order.
+///
+/// Why two passes: the divisions `1/|d_j|²` are independent of each other, so in a loop
+/// of their own they run several to a vector instruction (`inv` is scratch space),
+/// while the sum, a chain of dependent additions, keeps its order (bitwise the one-pass
+/// fold).
+fn sum_reciprocals(z: c64, others: &[c64], inv: &mut Vec<f64>) -> c64 {
+    inv.clear();
+    inv.extend(others.iter().map(|zj| 1.0 / (z - zj).norm_sqr()));
+    others
+        .iter()
+        .zip(inv.iter())
+        .fold(c64::new(0.0, 0.0), |s, (zj, &inv)| {
+            let d = z - zj;
+            c64::new(s.re + d.re * inv, s.im - d.im * inv)
+        })
 }
 
 /// The Aberth–Ehrlich iteration on all roots from `z` (Gauss–Seidel order: each
@@ -130,10 +139,18 @@ fn sum_reciprocals(z: c64, others: &[c64]) -> c64 {
 /// coefficients differ from `c` by a few ulps), after that last correction. `None`
 /// when some root has not converged after [`MAX_SWEEPS`] sweeps or a value is not
 /// finite; else the roots and the number of sweeps.
-fn aberth(coef: &[f64], mut z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
+fn aberth(coef: &[f64], z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
+    aberth_sweeps(coef, z)
+}
+
+crate::simd::avx_fn! {
+/// [`aberth`] (compiled with AVX where the CPU has it: four divisions a vector).
+fn aberth_sweeps(coef: &[f64], z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
+    let mut z = z;
     let n = coef.len();
     let tol = 4.0 * n as f64 * f64::EPSILON;
     let mut done = vec![false; n];
+    let mut inv = Vec::with_capacity(n);
     for sweep in 1..=MAX_SWEEPS {
         let mut all = true;
         for i in 0..n {
@@ -142,7 +159,8 @@ fn aberth(coef: &[f64], mut z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
             }
             let (p, dp, b) = horner(coef, z[i]);
             let newton = p / dp;
-            let s = sum_reciprocals(z[i], &z[..i]) + sum_reciprocals(z[i], &z[i + 1..]);
+            let s = sum_reciprocals(z[i], &z[..i], &mut inv)
+                + sum_reciprocals(z[i], &z[i + 1..], &mut inv);
             let w = newton / (1.0 - newton * s);
             if !(w.re.is_finite() && w.im.is_finite()) {
                 return None;
@@ -159,6 +177,7 @@ fn aberth(coef: &[f64], mut z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
         }
     }
     None
+}
 }
 
 #[cfg(test)]

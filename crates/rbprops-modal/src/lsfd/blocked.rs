@@ -141,7 +141,8 @@ impl<'a> Blocks<'a> {
     }
 
     /// `(AᵀA, Aᵀb)` of the unnormalised basis (block products by faer's sequential
-    /// matrix multiplication, see [`linalg::t_mul_add`]).
+    /// matrix multiplication, see [`linalg::t_mul_add`]; the symmetric `AᵀA` on its lower
+    /// triangle, see [`linalg::gram`]).
     fn normal_equations(&self) -> (Mat<f64>, Mat<f64>) {
         let (p, no) = (self.p, self.chans.len());
         let (mut g, mut c) = (Mat::<f64>::zeros(p, p), Mat::<f64>::zeros(p, no));
@@ -150,9 +151,10 @@ impl<'a> Blocks<'a> {
             self.load(k0, b, &mut phi, &mut dat);
             let phi = MatRef::from_column_major_slice(&phi, 2 * b, p);
             let dat = MatRef::from_column_major_slice(&dat, 2 * b, no);
-            linalg::t_mul_add(&mut g, phi, phi, 1.0);
+            linalg::gram_lower_add(&mut g, phi);
             linalg::t_mul_add(&mut c, phi, dat, 1.0);
         }
+        linalg::mirror_lower(&mut g);
         (g, c)
     }
 
