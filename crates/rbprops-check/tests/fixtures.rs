@@ -206,38 +206,28 @@ fn within(v: (f64, f64), truth: f64, k: f64) {
 
 #[test]
 fn gravity_stiffness_of_cords_is_found() {
-    let nom = nominal(LINES);
-    let truth = truth_of(&nom);
-    let (g, frf) = record_sim(
-        &truth,
-        &["id = \"gravity_stiffness\"\ncord_length_m = [0.8]"],
-        REL,
-        11,
-    );
-    let r = run(&nom, &g, &frf, &given_noise(9));
-    assert_found(&r, &["gravity_stiffness"], &truth.properties());
-    within(
-        param(&r, "gravity_stiffness", "inverse_cord_length_per_m"),
-        1.0 / 0.8,
-        4.0,
-    );
-    within(param(&r, "gravity_stiffness", "load_term_factor"), 1.0, 4.0);
+    cords_of_0_8_m_are_found("gravity_stiffness", &nominal(LINES));
 }
 
 /// The same cords in a frame with y up (the spec says `up = [0, 1, 0]`): the gravity
 /// candidate hangs its cords along the spec's `up`, not along z.
 #[test]
 fn gravity_stiffness_is_found_when_y_is_up() {
-    let nom = y_up(&nominal(LINES));
-    let truth = truth_of(&nom);
+    cords_of_0_8_m_are_found("gravity_stiffness, y up", &y_up(&nominal(LINES)));
+}
+
+/// `nom` recorded hanging from 0.8 m cords: the gravity stiffness is named and both its
+/// parameters (1/ℓ and the load term's factor 1) are recovered within 4 SE.
+fn cords_of_0_8_m_are_found(label: &str, nom: &CampaignSpec) {
+    let truth = truth_of(nom);
     let (g, frf) = record_sim(
         &truth,
         &["id = \"gravity_stiffness\"\ncord_length_m = [0.8]"],
         REL,
         11,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
-    summary("gravity_stiffness, y up", &r, &truth.properties());
+    let r = run(nom, &g, &frf, &given_noise(9));
+    summary(label, &r, &truth.properties());
     assert_found(&r, &["gravity_stiffness"], &truth.properties());
     within(
         param(&r, "gravity_stiffness", "inverse_cord_length_per_m"),
