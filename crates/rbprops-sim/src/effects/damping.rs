@@ -132,17 +132,14 @@ impl Effect for NonproportionalDamping {
             .collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let na = self.axial_n_s_per_m.len();
-        if values.len() != na + self.lateral_n_s_per_m.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                na + self.lateral_n_s_per_m.len(),
-                values.len()
-            ));
-        }
+        let (axial, lateral) = super::split_values(
+            values,
+            self.axial_n_s_per_m.len(),
+            self.lateral_n_s_per_m.len(),
+        )?;
         let e = NonproportionalDamping {
-            axial_n_s_per_m: values[..na].to_vec(),
-            lateral_n_s_per_m: values[na..].to_vec(),
+            axial_n_s_per_m: axial.to_vec(),
+            lateral_n_s_per_m: lateral.to_vec(),
             ..self.clone()
         };
         e.check_values()?;

@@ -197,6 +197,38 @@ pub(crate) fn replace_map(
     Ok(map.keys().cloned().zip(values.iter().copied()).collect())
 }
 
+/// `values` (three per id, in key order) as a replacement of a per-id map of 3-vectors.
+pub(crate) fn replace_vec3_map(
+    map: &std::collections::BTreeMap<String, [f64; 3]>,
+    values: &[f64],
+) -> Result<std::collections::BTreeMap<String, [f64; 3]>, String> {
+    if values.len() != 3 * map.len() {
+        return Err(format!(
+            "expected {} values, got {}",
+            3 * map.len(),
+            values.len()
+        ));
+    }
+    Ok(map
+        .keys()
+        .zip(values.chunks_exact(3))
+        .map(|(k, v)| (k.clone(), [v[0], v[1], v[2]]))
+        .collect())
+}
+
+/// `values` split into two concatenated lists of lengths `na` and `nb` (a fitter's new
+/// values for an effect with two parameter lists).
+pub(crate) fn split_values(
+    values: &[f64],
+    na: usize,
+    nb: usize,
+) -> Result<(&[f64], &[f64]), String> {
+    if values.len() != na + nb {
+        return Err(format!("expected {} values, got {}", na + nb, values.len()));
+    }
+    Ok(values.split_at(na))
+}
+
 /// `values` as a replacement of a list parameter of length `n` (a fitter's new values).
 pub(crate) fn replace_list(n: usize, values: &[f64]) -> Result<Vec<f64>, String> {
     if values.len() != n {

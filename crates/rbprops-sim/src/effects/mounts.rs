@@ -279,20 +279,14 @@ impl Effect for StingerStiffness {
             .collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let nl = self.lateral_n_per_m.len();
-        if values.len() != nl + self.rotational_n_m_per_rad.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                nl + self.rotational_n_m_per_rad.len(),
-                values.len()
-            ));
-        }
+        let (lateral, rotational) = super::split_values(
+            values,
+            self.lateral_n_per_m.len(),
+            self.rotational_n_m_per_rad.len(),
+        )?;
         let e = StingerStiffness {
-            lateral_n_per_m: super::replace_map(&self.lateral_n_per_m, &values[..nl])?,
-            rotational_n_m_per_rad: super::replace_map(
-                &self.rotational_n_m_per_rad,
-                &values[nl..],
-            )?,
+            lateral_n_per_m: super::replace_map(&self.lateral_n_per_m, lateral)?,
+            rotational_n_m_per_rad: super::replace_map(&self.rotational_n_m_per_rad, rotational)?,
         };
         e.check_values()?;
         Ok(Box::new(e))

@@ -45,19 +45,7 @@ impl Effect for SensorMisorientation {
         self.rotations_rad.values().flatten().copied().collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        if values.len() != 3 * self.rotations_rad.len() {
-            return Err(format!(
-                "expected {} values, got {}",
-                3 * self.rotations_rad.len(),
-                values.len()
-            ));
-        }
-        let rotations_rad = self
-            .rotations_rad
-            .keys()
-            .zip(values.chunks_exact(3))
-            .map(|(k, v)| (k.clone(), [v[0], v[1], v[2]]))
-            .collect();
+        let rotations_rad = super::replace_vec3_map(&self.rotations_rad, values)?;
         let e = SensorMisorientation { rotations_rad };
         e.check_values()?;
         Ok(Box::new(e))

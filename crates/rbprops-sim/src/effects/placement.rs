@@ -48,24 +48,6 @@ fn vec3_values(map: &BTreeMap<String, [f64; 3]>) -> Vec<f64> {
     map.values().flatten().copied().collect()
 }
 
-fn vec3_replace(
-    map: &BTreeMap<String, [f64; 3]>,
-    values: &[f64],
-) -> Result<BTreeMap<String, [f64; 3]>, String> {
-    if values.len() != 3 * map.len() {
-        return Err(format!(
-            "expected {} values, got {}",
-            3 * map.len(),
-            values.len()
-        ));
-    }
-    Ok(map
-        .keys()
-        .zip(values.chunks_exact(3))
-        .map(|(k, v)| (k.clone(), [v[0], v[1], v[2]]))
-        .collect())
-}
-
 fn vec3_check(map: &BTreeMap<String, [f64; 3]>, field: &str, bound: f64) -> Result<(), String> {
     if map.is_empty() {
         return Err(format!("{field}: list at least one entry"));
@@ -127,7 +109,7 @@ impl Effect for SensorPosition {
         vec3_values(&self.offsets_m)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let offsets_m = vec3_replace(&self.offsets_m, values)?;
+        let offsets_m = super::replace_vec3_map(&self.offsets_m, values)?;
         vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
         Ok(Box::new(SensorPosition { offsets_m }))
     }
@@ -177,7 +159,7 @@ impl Effect for ForceDirection {
         vec3_values(&self.rotations_rad)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let rotations_rad = vec3_replace(&self.rotations_rad, values)?;
+        let rotations_rad = super::replace_vec3_map(&self.rotations_rad, values)?;
         vec3_check(&rotations_rad, "rotations_rad", std::f64::consts::PI)?;
         Ok(Box::new(ForceDirection { rotations_rad }))
     }
@@ -223,7 +205,7 @@ impl Effect for ForceLocation {
         vec3_values(&self.offsets_m)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let offsets_m = vec3_replace(&self.offsets_m, values)?;
+        let offsets_m = super::replace_vec3_map(&self.offsets_m, values)?;
         vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
         Ok(Box::new(ForceLocation { offsets_m }))
     }
