@@ -19,8 +19,13 @@
 //!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one undamped mode at
-//!   4× the top of the band per excitation, `H += R_ce ω_e²/(ω_e² − ω²)`. (The
-//!   catalogue's `elastic_mode` is bilinear in its shapes, with no usable neutral point.)
+//!   f_e per excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
+//!   (f_top/f_e)² and ζ_e the last two parameters (neutral 1/16 and 0: an undamped mode
+//!   at 4× the top of the band). Both are bilinear with R (no signature while R = 0),
+//!   so the model check frees them after a refit has moved R; they then reach a mode
+//!   just above the band, whose damping shows where the rigid part of an FRF nearly
+//!   cancels and the mode's tail dominates. (The catalogue's `elastic_mode` is bilinear
+//!   in its shapes, with no usable neutral point.)
 //! - `force_direction` (E12): excitation e pushes along normalise(d + β₁u₁ + β₂u₂),
 //!   u₁, u₂ ⟂ d.
 //!
@@ -174,10 +179,17 @@ pub struct LocalEffect {
     groups: Vec<Vec<usize>>,
     /// Point positions (sensor points), for sensor_mass.
     points: Vec<Vec3>,
-    /// Frequency (Hz) of the modes that carry the residual flexibility: 4× the top of
-    /// the band, so their ω² growth is what an elastic mode above the band shows.
-    extra_hz: f64,
+    /// Top of the band (Hz): the residual flexibility's modes sit at f_top/√q.
+    band_top_hz: f64,
 }
+
+/// Name of the residual flexibility's frequency parameter q = (f_top/f_e)².
+const RESIDUAL_MODE_Q: &str = "band_top_over_mode_frequency_squared";
+/// Its neutral value: the modes at 4× the top of the band, where their ω² growth is
+/// what an elastic mode above the band shows.
+const RESIDUAL_MODE_Q_NEUTRAL: f64 = 1.0 / 16.0;
+/// Name of the residual flexibility's modal damping ratio (neutral 0).
+const RESIDUAL_MODE_DAMPING: &str = "mode_damping_ratio";
 
 fn sensor_groups(g: &Geometry) -> (Vec<String>, Vec<Vec<usize>>, Vec<Vec3>) {
     let mut ids: Vec<String> = Vec::new();
@@ -219,6 +231,8 @@ impl LocalEffect {
             Kind::GravityStiffness => vec![
                 "inverse_cord_length_per_m".into(),
                 "load_term_factor".into(),
+                "up_tilt1_rad".into(),
+                "up_tilt2_rad".into(),
             ],
             Kind::MountDashpots => spec
                 .setups
@@ -233,6 +247,7 @@ impl LocalEffect {
                         .iter()
                         .map(move |c| format!("{}.{}.receptance_m_per_n", c.id, e.id))
                 })
+                .chain([RESIDUAL_MODE_Q, RESIDUAL_MODE_DAMPING].map(String::from))
                 .collect(),
             Kind::ForceDirection => g
                 .excitations
@@ -240,13 +255,17 @@ impl LocalEffect {
                 .flat_map(|e| ["tilt1", "tilt2"].map(|a| format!("{}.{a}_rad", e.id)))
                 .collect(),
         };
+        let mut values = vec![0.0; names.len()];
+        if kind == Kind::ResidualFlexibility {
+            values[names.len() - 2] = RESIDUAL_MODE_Q_NEUTRAL;
+        }
         LocalEffect {
             kind,
-            values: vec![0.0; names.len()],
+            values,
             names,
             groups,
             points,
-            extra_hz: 4.0 * spec.frequency.stop_hz,
+            band_top_hz: spec.frequency.stop_hz,
         }
     }
 
@@ -256,10 +275,15 @@ impl LocalEffect {
                 ("1", -0.5, 0.5, (-0.05, 0.05))
             }
             Kind::SensorMisorientation | Kind::ForceDirection => ("rad", -0.5, 0.5, (-0.1, 0.1)),
+            Kind::ResidualFlexibility if i + 1 == self.values.len() => ("1", 0.0, 0.5, (0.0, 0.05)),
+            Kind::ResidualFlexibility if i + 2 == self.values.len() => {
+                ("1", 1e-4, 0.95, (0.0, 0.5))
+            }
             Kind::ResidualFlexibility => ("m/N", f64::NEG_INFINITY, f64::INFINITY, (-1e-4, 1e-4)),
             Kind::SensorMass => ("kg", 0.0, f64::INFINITY, (0.0, 0.5)),
             Kind::GravityStiffness if i == 0 => ("1/m", 0.0, 100.0, (0.2, 10.0)),
-            Kind::GravityStiffness => ("1", 0.0, 3.0, (0.5, 1.5)),
+            Kind::GravityStiffness if i == 1 => ("1", 0.0, 3.0, (0.5, 1.5)),
+            Kind::GravityStiffness => ("rad", -0.5, 0.5, (-0.1, 0.1)),
             Kind::MountDashpots => ("N s/m", 0.0, f64::INFINITY, (0.0, 100.0)),
         };
         ParamInfo {
@@ -277,16 +301,18 @@ impl LocalEffect {
             .map(|i| match self.kind {
                 Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => 0.01,
                 Kind::SensorMisorientation | Kind::ForceDirection => 0.01,
+                Kind::ResidualFlexibility if i + 1 == self.values.len() => 0.001,
+                Kind::ResidualFlexibility if i + 2 == self.values.len() => 0.01,
                 Kind::ResidualFlexibility => {
                     let w = std::f64::consts::TAU * spec.frequency.stop_hz.max(1e-3);
                     1e-3 / (m * w * w)
                 }
                 Kind::SensorMass => 0.01 * m,
                 Kind::GravityStiffness => {
-                    if i == 0 {
+                    if i < 2 {
                         1.0
                     } else {
-                        1.0
+                        0.01
                     }
                 }
                 Kind::MountDashpots => {
@@ -317,17 +343,35 @@ fn rodrigues(psi: &Vec3) -> Mat3 {
     Mat3::identity() + k * (t.sin() / t) + k * k * ((1.0 - t.cos()) / (t * t))
 }
 
-/// Geometric stiffness of cords along the spec's `up` through rbprops-sim's own
+/// The vertical `up` tilted by the angles (a, b) about two axes perpendicular to it:
+/// `normalize(up + a e₁ + b e₂)`, with e₁ ⟂ up fixed by the axis of `up` least aligned
+/// with it and e₂ = up × e₁ (so a frame that is off by a few degrees, E15.4, is one
+/// small (a, b)).
+pub fn tilted_up(up: &Vec3, a: f64, b: f64) -> Vec3 {
+    let helper = if up.x.abs() < 0.9 {
+        Vec3::x()
+    } else {
+        Vec3::y()
+    };
+    let e1 = up.cross(&helper).normalize();
+    let e2 = up.cross(&e1);
+    (up + e1 * a + e2 * b).normalize()
+}
+
+/// Geometric stiffness of cords along the spec's `up`, tilted by (φ₃, φ₄)
+/// ([`tilted_up`]), through rbprops-sim's own
 /// [`rbprops_sim::effects::gravity::geometric_stiffness`], split into its two parts:
 /// `K(φ) = φ₁ [K_geo(ℓ = 1) − K_geo(ℓ → ∞)] + φ₂ K_geo(ℓ → ∞)`, exact for
-/// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1) reproduces the catalogue effect.
+/// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1, 0, 0) reproduces the catalogue
+/// effect. The tilt is bilinear with φ₁, φ₂: no signature at neutral, so the model
+/// check frees it only after a refit has moved them.
 fn gravity_stiffness(
     ctx: &BuildContext,
     model: &DynamicModel,
     phi: &[f64],
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
-    let z = ctx.spec.up_vector();
+    let z = tilted_up(&ctx.spec.up_vector(), phi[2], phi[3]);
     let cords = |len: f64| -> Vec<Cord> {
         ctx.spec
             .springs(ctx.setup_index)
@@ -412,7 +456,9 @@ impl Effect for LocalEffect {
                 // a general (any rank) residual flexibility matrix R.
                 let n_ch = ctx.geometry.channels.len();
                 let n_ex = ctx.geometry.excitations.len();
-                let we = std::f64::consts::TAU * self.extra_hz;
+                let (q, zeta) = (self.values[n_ex * n_ch], self.values[n_ex * n_ch + 1]);
+                let extra_hz = self.band_top_hz / q.sqrt();
+                let we = std::f64::consts::TAU * extra_hz;
                 for e in 0..n_ex {
                     let col = &self.values[e * n_ch..(e + 1) * n_ch];
                     if col.iter().all(|v| *v == 0.0) {
@@ -421,8 +467,8 @@ impl Effect for LocalEffect {
                     let mut at_ex = vec![0.0; n_ex];
                     at_ex[e] = 1.0;
                     model.extra_modes.push(rbprops_sim::model::ExtraMode {
-                        frequency_hz: self.extra_hz,
-                        damping_ratio: 0.0,
+                        frequency_hz: extra_hz,
+                        damping_ratio: zeta,
                         at_channels: col.iter().map(|r| r * we * we).collect(),
                         at_excitations: at_ex,
                     });
@@ -1184,8 +1230,9 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 /// is the spec's, written into the gravity entry when the spec gives one.
 pub fn catalogue_entry(
     e: &dyn Effect,
-    up: Option<[f64; 3]>,
+    spec: &CampaignSpec,
 ) -> Result<rbprops_sim::spec::EffectSpec, String> {
+    let up = spec.up;
     if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
         return Err(format!(
             "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
@@ -1222,7 +1269,14 @@ pub fn catalogue_entry(
             "cord_length_m".into(),
             toml::Value::Array(vec![(1.0 / v[0]).into()]),
         );
-        if let Some(up) = up {
+        let (a, b) = (
+            v.get(2).copied().unwrap_or(0.0),
+            v.get(3).copied().unwrap_or(0.0),
+        );
+        if a != 0.0 || b != 0.0 {
+            let u = tilted_up(&spec.up_vector(), a, b);
+            t.insert("up".into(), rbprops_sim::spec::up_value([u.x, u.y, u.z]));
+        } else if let Some(up) = up {
             t.insert("up".into(), rbprops_sim::spec::up_value(up));
         }
         t

@@ -751,6 +751,116 @@ fn score_candidate(
     })
 }
 
+/// Smallest residual signature, in noise units, of a dropped coordinate moved over
+/// half its plausible range once the fitted parameters compensate, for
+/// [`reopen_dropped`] to free it: a move that changes χ² by less than 9 cannot be
+/// told from noise.
+const REOPEN_SIGNATURE: f64 = 3.0;
+
+/// The refit of candidate `c` with the coordinates [`score_candidate`] dropped as
+/// exact gauges at the neutral point freed where they have become identifiable at the
+/// fitted point. A coordinate bilinear with a kept one has no signature at neutral and
+/// one once its partner moves: the tilt of the cords has none without their gravity
+/// stiffness, the frequency of a residual mode none without its residues. Such a
+/// coordinate is freed and the refit repeated from the fitted point (kept if better);
+/// the exact gauges (a common gain the mass absorbs) stay dropped.
+fn reopen_dropped(
+    p: &Problem,
+    fit: Fit,
+    active: &[Act],
+    c: usize,
+    kept: &[usize],
+    stage: &str,
+    max_iter: usize,
+) -> (Fit, Vec<usize>) {
+    let cand = &p.cands[c];
+    let free = identifiable_at(p, &fit, active, c, kept);
+    if free.is_empty() {
+        return (fit, kept.to_vec());
+    }
+    let mut kept2: Vec<usize> = kept.iter().chain(&free).copied().collect();
+    kept2.sort_unstable();
+    let k0 = fit.theta.len() - kept.len();
+    let phi = Act {
+        c,
+        kept: kept.to_vec(),
+        gauge: Vec::new(),
+    }
+    .phi(&cand.neutral, &fit.theta[k0..]);
+    let mut theta = fit.theta[..k0].to_vec();
+    theta.extend(kept2.iter().map(|&j| phi[j]));
+    let mut act = active.to_vec();
+    act.push(Act {
+        c,
+        kept: kept2.clone(),
+        gauge: Vec::new(),
+    });
+    match p.fit(stage, &theta, &act, max_iter) {
+        Ok(f2) if f2.chi2 < fit.chi2 => (f2, kept2),
+        _ => (fit, kept.to_vec()),
+    }
+}
+
+/// The coordinates of candidate `c` outside `kept` whose signature at the fit `fit`
+/// (its last parameters are `c`'s kept ones), with the fitted parameters compensating,
+/// reaches [`REOPEN_SIGNATURE`] over half their plausible range and is not a
+/// combination of the fitted parameters' (relative size above [`ABSORBED`]). Taken
+/// greedily, strongest first, each against the ones already taken.
+fn identifiable_at(p: &Problem, fit: &Fit, active: &[Act], c: usize, kept: &[usize]) -> Vec<usize> {
+    let cand = &p.cands[c];
+    let np = cand.neutral.len();
+    let dropped: Vec<usize> = (0..np).filter(|j| !kept.contains(j)).collect();
+    if dropped.is_empty() {
+        return Vec::new();
+    }
+    let k0 = fit.theta.len() - kept.len();
+    let phi = Act {
+        c,
+        kept: kept.to_vec(),
+        gauge: Vec::new(),
+    }
+    .phi(&cand.neutral, &fit.theta[k0..]);
+    let mut act = active.to_vec();
+    act.push(Act::full(c, np));
+    let g = |x: &[f64]| {
+        let mut ph = phi.clone();
+        dropped.iter().zip(x).for_each(|(&j, v)| ph[j] = *v);
+        let mut t = fit.theta[..k0].to_vec();
+        t.extend_from_slice(&ph);
+        p.residual(&t, &act)
+    };
+    let x0: Vec<f64> = dropped.iter().map(|&j| phi[j]).collect();
+    let steps: Vec<f64> = dropped.iter().map(|&j| cand.scales[j]).collect();
+    let Ok(jd) = lm::jacobian(&g, &x0, &steps, &fit.residual) else {
+        return Vec::new();
+    };
+    let infos = cand.effect.parameters();
+    let half_range: Vec<f64> = dropped
+        .iter()
+        .map(|&j| 0.5 * (infos[j].plausible.1 - infos[j].plausible.0).abs())
+        .collect();
+    let (q, _) = span_basis(&fit.jacobian, 1e-10);
+    let jp = project_out(&jd, &q);
+    let strength = |k: usize| jp.column(k).norm() * half_range[k];
+    let mut order: Vec<usize> = (0..dropped.len()).collect();
+    order.sort_by(|a, b| strength(*b).total_cmp(&strength(*a)).then(a.cmp(b)));
+    let mut basis: Vec<DVector<f64>> = Vec::new();
+    let mut out = Vec::new();
+    for k in order {
+        let mut v = jp.column(k).into_owned();
+        for b in &basis {
+            let d = b.dot(&v);
+            v -= b * d;
+        }
+        let n = v.norm();
+        if n * half_range[k] >= REOPEN_SIGNATURE && n > ABSORBED * jd.column(k).norm() {
+            out.push(dropped[k]);
+            basis.push(v / n);
+        }
+    }
+    out
+}
+
 /// Point masses rigidly attached to the body (`sensor_mass`) change only its mass, centre
 /// of mass and inertia tensor, so with those free they are an exact gauge: not
 /// observable, whatever the numerical rank at the current point says. (That rank can be
@@ -1224,7 +1334,7 @@ fn check_with(
             })
             .map(|(_, s)| s)
             .collect();
-        let fits: Vec<(usize, Result<Fit, CheckError>)> = refit
+        let fits: Vec<(usize, Result<Fit, CheckError>, Vec<usize>)> = refit
             .par_iter()
             .map(|(c, s, _)| {
                 let mut act = active.clone();
@@ -1297,7 +1407,14 @@ fn check_with(
                         }
                     }
                 }
-                (*c, fit)
+                match fit {
+                    Ok(f) => {
+                        let (f, kept) =
+                            reopen_dropped(&p, f, &active, *c, &s.kept, &stage, iterations);
+                        (*c, Ok(f), kept)
+                    }
+                    Err(e) => (*c, Err(e), s.kept.clone()),
+                }
             })
             .collect();
         // Evaluate each refit.
@@ -1323,7 +1440,8 @@ fn check_with(
             Default::default()
         };
         let mut evals: Vec<Eval> = Vec::new();
-        for (c, f) in fits {
+        let mut refit_kept: Vec<(usize, Vec<usize>)> = Vec::new();
+        for (c, f, kept) in fits {
             let s = &refit.iter().find(|x| x.0 == c).expect("refitted").1;
             let cand = &p.cands[c];
             let f = match f {
@@ -1334,14 +1452,14 @@ fn check_with(
                 }
             };
             let dchi2 = cur.chi2 - f.chi2;
-            let d = s.kept.len();
+            let d = kept.len();
             let dbic = dchi2 - d as f64 * ln_n;
             let thr = chi2_isf(options.alpha / (n_cand * s.n_tests as f64), d as f64);
             let k0 = f.theta.len() - d;
             let alpha = &f.theta[k0..];
             let phi = &Act {
                 c,
-                kept: s.kept.clone(),
+                kept: kept.clone(),
                 gauge: Vec::new(),
             }
             .phi(&cand.neutral, alpha);
@@ -1369,7 +1487,7 @@ fn check_with(
             let cphi = cov.view((k0, k0), (np, np)).into_owned();
             let dphi = nalgebra::DVector::from_iterator(
                 np,
-                alpha.iter().zip(&s.kept).map(|(a, &j)| a - cand.neutral[j]),
+                alpha.iter().zip(&kept).map(|(a, &j)| a - cand.neutral[j]),
             );
             let eig = cphi.symmetric_eigen();
             let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
@@ -1436,6 +1554,7 @@ fn check_with(
                     break;
                 }
             }
+            refit_kept.push((c, kept));
             evals.push(Eval {
                 c,
                 fit: f,
@@ -1548,10 +1667,26 @@ fn check_with(
             change,
         ));
         let best_score = &refit.iter().find(|x| x.0 == best.c).expect("refitted").1;
+        let kept = refit_kept
+            .iter()
+            .find(|x| x.0 == best.c)
+            .map_or_else(|| best_score.kept.clone(), |x| x.1.clone());
+        // Gauges of the neutral point that the refit found identifiable are gauges no more.
+        let reopened: Vec<usize> = kept
+            .iter()
+            .copied()
+            .filter(|j| !best_score.kept.contains(j))
+            .collect();
+        let gauge = best_score
+            .gauge
+            .iter()
+            .filter(|g| reopened.iter().map(|&j| g[j] * g[j]).sum::<f64>() < 0.5)
+            .cloned()
+            .collect();
         active.push(Act {
             c: best.c,
-            kept: best_score.kept.clone(),
-            gauge: best_score.gauge.clone(),
+            kept,
+            gauge,
         });
         cur = best.fit.clone();
         // Backward check: drop an earlier effect whose removal no longer costs significance.
@@ -1939,7 +2074,7 @@ fn effect_spec(
     e: &dyn Effect,
     spec: &CampaignSpec,
 ) -> Result<rbprops_sim::spec::EffectSpec, CheckError> {
-    crate::candidates::catalogue_entry(e, spec.up).map_err(CheckError::Model)
+    crate::candidates::catalogue_entry(e, spec).map_err(CheckError::Model)
 }
 
 /// `x` with `n` significant digits.
