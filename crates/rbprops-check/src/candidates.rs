@@ -681,9 +681,15 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
             t.insert("stiffness_factors".into(), ones(excitations, 1.0.into()));
         }
         "stinger_stiffness" => {
-            // The lateral spring per excitation; a stinger's bending stiffness (4EI/L)
-            // is small beside the suspension's rotational stiffness and is not screened.
-            t.insert("lateral_n_per_m".into(), ones(excitations, 0.0.into()));
+            // The lateral spring and the bending stiffness per excitation: a steel
+            // stinger of 3 mm × 200 mm has 4EI/L ≈ 17 N m/rad, a tenth of a soft
+            // suspension's rotational stiffness, and the lateral spring alone cannot
+            // stand in for it (scripts/model_check_probe.py, case stinger-bending).
+            t.insert(
+                "lateral_n_per_m".into(),
+                ones(excitations.clone(), 0.0.into()),
+            );
+            t.insert("rotational_n_m_per_rad".into(), ones(excitations, 0.0.into()));
         }
         "channel_delay" => {
             // A delay per channel and per force: only differences are seen, so the
