@@ -295,8 +295,9 @@ impl Factors {
     }
 
     /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
-    /// denominator `coef` (`p` coefficients).
-    fn numerators(&self, coef: &[f64]) -> Vec<Vec<f64>> {
+    /// denominator `coef` (`p` coefficients), per channel group: `[group][j]` holds
+    /// `β_j` of the group's channels (unused lanes 0).
+    fn numerators(&self, coef: &[f64]) -> Vec<Vec<Lanes>> {
         factor_numerators(self, coef)
     }
 }
@@ -316,13 +317,13 @@ crate::simd::avx_fn! {
 
 crate::simd::avx_fn! {
     /// [`Factors::numerators`].
-    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<f64>> {
+    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<Lanes>> {
         let (p, pm) = (coef.len(), f.pm);
         // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
         let zero: f64 = std::iter::empty::<f64>().sum();
-        let mut out = Vec::with_capacity(f.no);
+        let mut out = Vec::with_capacity(f.l.len());
         let mut ya: Vec<Lanes> = Vec::with_capacity(p);
-        for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
+        for (lc, yc) in f.l.iter().zip(&f.yt) {
             // Y α in plain loops (an iterator adaptor's closure need not be inlined
             // into the AVX copy); each lane sums over j in order.
             ya.clear();
@@ -345,9 +346,35 @@ crate::simd::avx_fn! {
                 }
                 beta[i] = std::array::from_fn(|t| v[t] / lc[i * pm + i][t]);
             }
-            out.extend((0..f.lanes_in(c)).map(|t| beta.iter().map(|b| -b[t]).collect()));
+            for b in beta.iter_mut() {
+                *b = b.map(|x| -x);
+            }
+            out.push(beta);
         }
         out
+    }
+}
+
+crate::simd::avx_fn! {
+    /// The shape of the pole with powers `z^j` (`powers`) and `p'(z)` = `dprime`: per
+    /// channel `Σ_j β_j z^j / p'(z)`, the sums over j in order for a group of channels
+    /// at once (`betas` as [`Factors::numerators`] gives them; bitwise the sum channel
+    /// by channel).
+    fn pole_shape(betas: &[Vec<Lanes>], no: usize, powers: &[c64], dprime: c64) -> Vec<c64> {
+        let mut shape = Vec::with_capacity(no);
+        for (c, beta) in betas.iter().enumerate() {
+            let (mut re, mut im) = ([0.0; LANES], [0.0; LANES]);
+            for (b, z) in beta.iter().zip(powers) {
+                for t in 0..LANES {
+                    re[t] += z.re * b[t];
+                    im[t] += z.im * b[t];
+                }
+            }
+            for t in 0..LANES.min(no - c * LANES) {
+                shape.push(c64::new(re[t], im[t]) / dprime);
+            }
+        }
+        shape
     }
 }
 
@@ -425,16 +452,17 @@ fn sweep_with_roots(
             continue;
         };
         previous = Some(z_roots.clone());
-        // Numerators, for the shape vectors.
+        // Numerators, for the shape vectors (−β per channel group, see `numerators`).
         let betas = f.numerators(&coef);
+        let kept: Vec<c64> = z_roots
+            .into_iter()
+            .filter(|zr| zr.norm() != 0.0 && zr.im > 0.0)
+            .collect();
+        let at = roots::horner_all(&coef[..n], &kept);
         let mut poles = Vec::new();
         let mut shapes = Vec::new();
-        for zr in z_roots {
-            if zr.norm() == 0.0 || zr.im <= 0.0 {
-                continue;
-            }
+        for (&zr, &(_, dprime, _)) in kept.iter().zip(&at) {
             let lam = zr.ln() / dt;
-            let (_, dprime, _) = roots::horner(&coef[..n], zr);
             // The powers zr^j once for every channel (the same products as per channel).
             let mut zj = c64::new(1.0, 0.0);
             let powers: Vec<c64> = (0..coef.len())
@@ -444,16 +472,7 @@ fn sweep_with_roots(
                     z
                 })
                 .collect();
-            let shape: Vec<c64> = betas
-                .iter()
-                .map(|beta| {
-                    let mut num = c64::new(0.0, 0.0);
-                    for (bj, z) in beta.iter().zip(&powers) {
-                        num += z * *bj;
-                    }
-                    num / dprime
-                })
-                .collect();
+            let shape = pole_shape(&betas, f.no, &powers, dprime);
             poles.push(Pole(lam));
             shapes.push(shape);
         }

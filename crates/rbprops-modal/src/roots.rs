@@ -144,6 +144,15 @@ fn horner4(coef: &[f64], z: [c64; HL]) -> [[f64; HL]; 5] {
     [lane(&|v| v.0.re), lane(&|v| v.0.im), lane(&|v| v.1.re), lane(&|v| v.1.im), lane(&|v| v.2)]
 }
 
+/// [`horner`] at every point of `z` (bitwise; [`HL`] points at a time, see
+/// [`horner_lanes`]).
+pub fn horner_all(coef: &[f64], z: &[c64]) -> Vec<(c64, c64, f64)> {
+    let mut out = vec![(c64::new(0.0, 0.0), c64::new(0.0, 0.0), 0.0); z.len()];
+    let idx: Vec<usize> = (0..z.len()).collect();
+    horner_lanes(coef, z, &idx, &mut out);
+    out
+}
+
 /// [`horner4`] in AVX registers: the operations of `horner` (those of `c64`
 /// arithmetic, in its order, no FMA), each on four lanes at once. Written with
 /// intrinsics because the compiler does not vectorise the lanes of this loop-carried
