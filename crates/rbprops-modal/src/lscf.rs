@@ -163,6 +163,7 @@ struct Factors {
     g_neg: Vec<Vec<Lanes>>,
     l: Vec<Vec<Lanes>>,
     yt: Vec<Vec<Lanes>>,
+    /// G_o, lower triangle only (the entries above the diagonal are stale).
     g: Vec<Vec<Lanes>>,
 }
 
@@ -245,10 +246,13 @@ impl Factors {
             let v = sub_lanes(s_at(q, j), &lo[q * pm..q * pm + q], &yo[j * pm..j * pm + q]);
             yo[j * pm + q] = div(v, lqq);
         }
-        // G = YᵀY: the new row adds to the old block; the new column is computed.
+        // G = YᵀY: the new row adds to the old block; the new column is computed. G is
+        // symmetric, and its entries (j, k) and (k, j) would be the same products added
+        // in the same order, so only the lower triangle (k ≤ j) is kept (half the
+        // updates; `reduced_system` reads it so).
         for j in 0..q {
             let yj = yo[j * pm + q];
-            for k in 0..q {
+            for k in 0..=j {
                 let yk = yo[k * pm + q];
                 let gk = &mut go[j * pm + k];
                 for t in 0..LANES {
@@ -261,7 +265,6 @@ impl Factors {
             // plain sum.
             let rq = &yo[q * pm..q * pm + q + 1];
             let v = sub_lanes([0.0; LANES], &yo[j * pm..j * pm + q + 1], rq).map(|x| -x);
-            go[j * pm + q] = v;
             go[q * pm + j] = v;
         }
         true
@@ -273,23 +276,29 @@ impl Factors {
     /// `n`. Returned row-major.
     fn reduced_system(&self, t_sum: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
         let pm = self.pm;
-        let mut a = vec![0.0; n * n];
-        let mut b = vec![0.0; n];
-        let mut g_row = vec![0.0; n + 1];
-        for j in 0..n {
-            // Σ_o G_o[j, ·], channel by channel in channel order.
-            g_row.fill(0.0);
+        // Σ_o G_o on its lower triangle, rows 0..=n packed (row j: columns 0..=j),
+        // channel by channel in channel order; G is symmetric, so (j, k) above the
+        // diagonal is the same sum as (k, j) (and only the lower triangle is kept).
+        let at = |j: usize| j * (j + 1) / 2;
+        let mut low = vec![0.0; at(n + 1)];
+        for j in 0..=n {
+            let row = &mut low[at(j)..at(j) + j + 1];
             for (c, gc) in self.g.iter().enumerate() {
                 for t in 0..self.lanes_in(c) {
-                    for (s, v) in g_row.iter_mut().zip(&gc[j * pm..j * pm + n + 1]) {
+                    for (s, v) in row.iter_mut().zip(&gc[j * pm..j * pm + j + 1]) {
                         *s += v[t];
                     }
                 }
             }
-            for (k, (aj, gk)) in a[j * n..(j + 1) * n].iter_mut().zip(&g_row).enumerate() {
-                *aj = t_sum[j.abs_diff(k)] - gk;
+        }
+        let g = |j: usize, k: usize| low[at(j.max(k)) + j.min(k)];
+        let mut a = vec![0.0; n * n];
+        let mut b = vec![0.0; n];
+        for j in 0..n {
+            for (k, aj) in a[j * n..(j + 1) * n].iter_mut().enumerate() {
+                *aj = t_sum[j.abs_diff(k)] - g(j, k);
             }
-            b[j] = g_row[n] - t_sum[n - j];
+            b[j] = g(j, n) - t_sum[n - j];
         }
         (a, b)
     }
