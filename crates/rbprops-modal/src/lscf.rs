@@ -133,9 +133,24 @@ type Lanes = [f64; LANES];
 
 /// `v − Σ_m a_m b_m` in every lane, summed in index order (each lane bitwise the plain
 /// scalar sum).
+///
+/// Four terms per loop step, still subtracted one after the other: the sums here are
+/// short (up to the model order), and the loop's own counting and bounds checks cost
+/// as much as the one vector multiply-subtract of each term.
 #[inline(always)]
 fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
-    for (x, y) in a.iter().zip(b) {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            for t in 0..LANES {
+                v[t] -= x[i][t] * y[i][t];
+            }
+        }
+    }
+    for (x, y) in ra.iter().zip(rb) {
         for t in 0..LANES {
             v[t] -= x[t] * y[t];
         }
