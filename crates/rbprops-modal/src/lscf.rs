@@ -349,9 +349,24 @@ crate::simd::avx_fn! {
         let mut ya: Vec<Lanes> = Vec::with_capacity(p);
         for (lc, yc) in f.l.iter().zip(&f.yt) {
             // Y α in plain loops (an iterator adaptor's closure need not be inlined
-            // into the AVX copy); each lane sums over j in order.
+            // into the AVX copy); each lane sums over j in order. Four entries at a
+            // time: four independent chains of additions instead of one, and
+            // contiguous reads of each column of Y (`yc` row j) instead of a stride.
             ya.clear();
-            for i in 0..p {
+            let full = p / 4 * 4;
+            for i0 in (0..full).step_by(4) {
+                let mut s = [[zero; LANES]; 4];
+                for j in 0..p {
+                    let y: &[Lanes; 4] = yc[j * pm + i0..j * pm + i0 + 4].try_into().unwrap();
+                    for k in 0..4 {
+                        for t in 0..LANES {
+                            s[k][t] += y[k][t] * coef[j];
+                        }
+                    }
+                }
+                ya.extend_from_slice(&s);
+            }
+            for i in full..p {
                 let mut s = [zero; LANES];
                 for j in 0..p {
                     for t in 0..LANES {
