@@ -48,12 +48,15 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     let nl = theta.len();
     let pm = n_max + 1;
     // Per block of `B` powers and channel, the four sums run over the lines in
-    // registers (the same additions in the same order as line by line).
-    const B: usize = 4;
+    // registers (the same additions in the same order as line by line). Eight powers
+    // (two AVX vectors per sum, eight accumulators): each line's weight and data are
+    // loaded once for twice the powers of a block of four, which more than pays for
+    // the wider zero padding of the last block (−0.4M instructions per excitation).
+    const B: usize = 8;
     let blocks = pm.div_ceil(B);
     // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
     // one table per block of powers, `[line]` of `B` powers (zero-padded), shared by
-    // every channel. Blocks outermost: each block's table (32 bytes a line) stays in
+    // every channel. Blocks outermost: each block's table (64 bytes a line) stays in
     // cache while every channel runs over it, where the whole table would not.
     let mut zre = vec![[0.0; B]; blocks * nl];
     let mut zim = vec![[0.0; B]; blocks * nl];
@@ -133,9 +136,24 @@ type Lanes = [f64; LANES];
 
 /// `v − Σ_m a_m b_m` in every lane, summed in index order (each lane bitwise the plain
 /// scalar sum).
+///
+/// Four terms per loop step, still subtracted one after the other: the sums here are
+/// short (up to the model order), and the loop's own counting and bounds checks cost
+/// as much as the one vector multiply-subtract of each term.
 #[inline(always)]
 fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
-    for (x, y) in a.iter().zip(b) {
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for i in 0..4 {
+            for t in 0..LANES {
+                v[t] -= x[i][t] * y[i][t];
+            }
+        }
+    }
+    for (x, y) in ra.iter().zip(rb) {
         for t in 0..LANES {
             v[t] -= x[t] * y[t];
         }
@@ -163,6 +181,7 @@ struct Factors {
     g_neg: Vec<Vec<Lanes>>,
     l: Vec<Vec<Lanes>>,
     yt: Vec<Vec<Lanes>>,
+    /// G_o, lower triangle only (the entries above the diagonal are stale).
     g: Vec<Vec<Lanes>>,
 }
 
@@ -245,10 +264,13 @@ impl Factors {
             let v = sub_lanes(s_at(q, j), &lo[q * pm..q * pm + q], &yo[j * pm..j * pm + q]);
             yo[j * pm + q] = div(v, lqq);
         }
-        // G = YᵀY: the new row adds to the old block; the new column is computed.
+        // G = YᵀY: the new row adds to the old block; the new column is computed. G is
+        // symmetric, and its entries (j, k) and (k, j) would be the same products added
+        // in the same order, so only the lower triangle (k ≤ j) is kept (half the
+        // updates; `reduced_system` reads it so).
         for j in 0..q {
             let yj = yo[j * pm + q];
-            for k in 0..q {
+            for k in 0..=j {
                 let yk = yo[k * pm + q];
                 let gk = &mut go[j * pm + k];
                 for t in 0..LANES {
@@ -261,7 +283,6 @@ impl Factors {
             // plain sum.
             let rq = &yo[q * pm..q * pm + q + 1];
             let v = sub_lanes([0.0; LANES], &yo[j * pm..j * pm + q + 1], rq).map(|x| -x);
-            go[j * pm + q] = v;
             go[q * pm + j] = v;
         }
         true
@@ -273,30 +294,37 @@ impl Factors {
     /// `n`. Returned row-major.
     fn reduced_system(&self, t_sum: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
         let pm = self.pm;
-        let mut a = vec![0.0; n * n];
-        let mut b = vec![0.0; n];
-        let mut g_row = vec![0.0; n + 1];
-        for j in 0..n {
-            // Σ_o G_o[j, ·], channel by channel in channel order.
-            g_row.fill(0.0);
+        // Σ_o G_o on its lower triangle, rows 0..=n packed (row j: columns 0..=j),
+        // channel by channel in channel order; G is symmetric, so (j, k) above the
+        // diagonal is the same sum as (k, j) (and only the lower triangle is kept).
+        let at = |j: usize| j * (j + 1) / 2;
+        let mut low = vec![0.0; at(n + 1)];
+        for j in 0..=n {
+            let row = &mut low[at(j)..at(j) + j + 1];
             for (c, gc) in self.g.iter().enumerate() {
                 for t in 0..self.lanes_in(c) {
-                    for (s, v) in g_row.iter_mut().zip(&gc[j * pm..j * pm + n + 1]) {
+                    for (s, v) in row.iter_mut().zip(&gc[j * pm..j * pm + j + 1]) {
                         *s += v[t];
                     }
                 }
             }
-            for (k, (aj, gk)) in a[j * n..(j + 1) * n].iter_mut().zip(&g_row).enumerate() {
-                *aj = t_sum[j.abs_diff(k)] - gk;
+        }
+        let g = |j: usize, k: usize| low[at(j.max(k)) + j.min(k)];
+        let mut a = vec![0.0; n * n];
+        let mut b = vec![0.0; n];
+        for j in 0..n {
+            for (k, aj) in a[j * n..(j + 1) * n].iter_mut().enumerate() {
+                *aj = t_sum[j.abs_diff(k)] - g(j, k);
             }
-            b[j] = g_row[n] - t_sum[n - j];
+            b[j] = g(j, n) - t_sum[n - j];
         }
         (a, b)
     }
 
     /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
-    /// denominator `coef` (`p` coefficients).
-    fn numerators(&self, coef: &[f64]) -> Vec<Vec<f64>> {
+    /// denominator `coef` (`p` coefficients), per channel group: `[group][j]` holds
+    /// `β_j` of the group's channels (unused lanes 0).
+    fn numerators(&self, coef: &[f64]) -> Vec<Vec<Lanes>> {
         factor_numerators(self, coef)
     }
 }
@@ -316,17 +344,32 @@ crate::simd::avx_fn! {
 
 crate::simd::avx_fn! {
     /// [`Factors::numerators`].
-    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<f64>> {
+    fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<Lanes>> {
         let (p, pm) = (coef.len(), f.pm);
         // The starting value of `Iterator::sum` (each lane is bitwise a plain `sum`).
         let zero: f64 = std::iter::empty::<f64>().sum();
-        let mut out = Vec::with_capacity(f.no);
+        let mut out = Vec::with_capacity(f.l.len());
         let mut ya: Vec<Lanes> = Vec::with_capacity(p);
-        for (c, (lc, yc)) in f.l.iter().zip(&f.yt).enumerate() {
+        for (lc, yc) in f.l.iter().zip(&f.yt) {
             // Y α in plain loops (an iterator adaptor's closure need not be inlined
-            // into the AVX copy); each lane sums over j in order.
+            // into the AVX copy); each lane sums over j in order. Four entries at a
+            // time: four independent chains of additions instead of one, and
+            // contiguous reads of each column of Y (`yc` row j) instead of a stride.
             ya.clear();
-            for i in 0..p {
+            let full = p / 4 * 4;
+            for i0 in (0..full).step_by(4) {
+                let mut s = [[zero; LANES]; 4];
+                for j in 0..p {
+                    let y: &[Lanes; 4] = yc[j * pm + i0..j * pm + i0 + 4].try_into().unwrap();
+                    for k in 0..4 {
+                        for t in 0..LANES {
+                            s[k][t] += y[k][t] * coef[j];
+                        }
+                    }
+                }
+                ya.extend_from_slice(&s);
+            }
+            for i in full..p {
                 let mut s = [zero; LANES];
                 for j in 0..p {
                     for t in 0..LANES {
@@ -345,9 +388,35 @@ crate::simd::avx_fn! {
                 }
                 beta[i] = std::array::from_fn(|t| v[t] / lc[i * pm + i][t]);
             }
-            out.extend((0..f.lanes_in(c)).map(|t| beta.iter().map(|b| -b[t]).collect()));
+            for b in beta.iter_mut() {
+                *b = b.map(|x| -x);
+            }
+            out.push(beta);
         }
         out
+    }
+}
+
+crate::simd::avx_fn! {
+    /// The shape of the pole with powers `z^j` (`powers`) and `p'(z)` = `dprime`: per
+    /// channel `Σ_j β_j z^j / p'(z)`, the sums over j in order for a group of channels
+    /// at once (`betas` as [`Factors::numerators`] gives them; bitwise the sum channel
+    /// by channel).
+    fn pole_shape(betas: &[Vec<Lanes>], no: usize, powers: &[c64], dprime: c64) -> Vec<c64> {
+        let mut shape = Vec::with_capacity(no);
+        for (c, beta) in betas.iter().enumerate() {
+            let (mut re, mut im) = ([0.0; LANES], [0.0; LANES]);
+            for (b, z) in beta.iter().zip(powers) {
+                for t in 0..LANES {
+                    re[t] += z.re * b[t];
+                    im[t] += z.im * b[t];
+                }
+            }
+            for t in 0..LANES.min(no - c * LANES) {
+                shape.push(c64::new(re[t], im[t]) / dprime);
+            }
+        }
+        shape
     }
 }
 
@@ -425,16 +494,17 @@ fn sweep_with_roots(
             continue;
         };
         previous = Some(z_roots.clone());
-        // Numerators, for the shape vectors.
+        // Numerators, for the shape vectors (−β per channel group, see `numerators`).
         let betas = f.numerators(&coef);
+        let kept: Vec<c64> = z_roots
+            .into_iter()
+            .filter(|zr| zr.norm() != 0.0 && zr.im > 0.0)
+            .collect();
+        let at = roots::horner_all(&coef[..n], &kept);
         let mut poles = Vec::new();
         let mut shapes = Vec::new();
-        for zr in z_roots {
-            if zr.norm() == 0.0 || zr.im <= 0.0 {
-                continue;
-            }
+        for (&zr, &(_, dprime, _)) in kept.iter().zip(&at) {
             let lam = zr.ln() / dt;
-            let (_, dprime, _) = roots::horner(&coef[..n], zr);
             // The powers zr^j once for every channel (the same products as per channel).
             let mut zj = c64::new(1.0, 0.0);
             let powers: Vec<c64> = (0..coef.len())
@@ -444,16 +514,7 @@ fn sweep_with_roots(
                     z
                 })
                 .collect();
-            let shape: Vec<c64> = betas
-                .iter()
-                .map(|beta| {
-                    let mut num = c64::new(0.0, 0.0);
-                    for (bj, z) in beta.iter().zip(&powers) {
-                        num += z * *bj;
-                    }
-                    num / dprime
-                })
-                .collect();
+            let shape = pole_shape(&betas, f.no, &powers, dprime);
             poles.push(Pole(lam));
             shapes.push(shape);
         }
