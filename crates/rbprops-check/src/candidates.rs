@@ -689,7 +689,10 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
                 "lateral_n_per_m".into(),
                 ones(excitations.clone(), 0.0.into()),
             );
-            t.insert("rotational_n_m_per_rad".into(), ones(excitations, 0.0.into()));
+            t.insert(
+                "rotational_n_m_per_rad".into(),
+                ones(excitations, 0.0.into()),
+            );
         }
         "channel_delay" => {
             // A delay per channel and per force: only differences are seen, so the

@@ -141,7 +141,13 @@ fn horner4(coef: &[f64], z: [c64; HL]) -> [[f64; HL]; 5] {
     }
     let v = z.map(|z| horner(coef, z));
     let lane = |f: &dyn Fn(&(c64, c64, f64)) -> f64| std::array::from_fn(|t| f(&v[t]));
-    [lane(&|v| v.0.re), lane(&|v| v.0.im), lane(&|v| v.1.re), lane(&|v| v.1.im), lane(&|v| v.2)]
+    [
+        lane(&|v| v.0.re),
+        lane(&|v| v.0.im),
+        lane(&|v| v.1.re),
+        lane(&|v| v.1.im),
+        lane(&|v| v.2),
+    ]
 }
 
 /// [`horner`] at every point of `z` (bitwise; [`HL`] points at a time, see
@@ -169,8 +175,14 @@ fn horner4_avx(coef: &[f64], z: [c64; HL]) -> [[f64; HL]; 5] {
     let mut b = _mm256_set1_pd(1.0);
     for &c in coef.iter().rev() {
         // dp = dp·z + p
-        let d_re = _mm256_add_pd(_mm256_sub_pd(_mm256_mul_pd(dr, zr), _mm256_mul_pd(di, zi)), pr);
-        let d_im = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(dr, zi), _mm256_mul_pd(di, zr)), pi);
+        let d_re = _mm256_add_pd(
+            _mm256_sub_pd(_mm256_mul_pd(dr, zr), _mm256_mul_pd(di, zi)),
+            pr,
+        );
+        let d_im = _mm256_add_pd(
+            _mm256_add_pd(_mm256_mul_pd(dr, zi), _mm256_mul_pd(di, zr)),
+            pi,
+        );
         // p = p·z + c
         let p_re = _mm256_add_pd(
             _mm256_sub_pd(_mm256_mul_pd(pr, zr), _mm256_mul_pd(pi, zi)),
@@ -292,7 +304,10 @@ mod tests {
             for &i in &idx {
                 let (p, dp, b) = horner(&coef, z[i]);
                 let (q, dq, c) = out[i];
-                assert_eq!([p.re, p.im, dp.re, dp.im, b].map(f64::to_bits), [q.re, q.im, dq.re, dq.im, c].map(f64::to_bits));
+                assert_eq!(
+                    [p.re, p.im, dp.re, dp.im, b].map(f64::to_bits),
+                    [q.re, q.im, dq.re, dq.im, c].map(f64::to_bits)
+                );
             }
         }
     }
