@@ -42,6 +42,16 @@ struct Sums {
     t: Vec<Vec<f64>>,
 }
 
+/// Per-line powers of a block for [`sums`], `[re, im]` of `SUM_BLOCK` powers.
+type BlockPowers = [[f64; SUM_BLOCK]; 2];
+/// Powers per block of [`sums`].
+const SUM_BLOCK: usize = 8;
+
+thread_local! {
+    /// The table of powers of the last [`sums`] on this thread, for the next one.
+    static SPARE_POWERS: std::cell::RefCell<Vec<BlockPowers>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 crate::simd::avx_fn! {
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
@@ -52,40 +62,44 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     // (two AVX vectors per sum, eight accumulators): each line's weight and data are
     // loaded once for twice the powers of a block of four, which more than pays for
     // the wider zero padding of the last block (−0.4M instructions per excitation).
-    const B: usize = 8;
+    const B: usize = SUM_BLOCK;
     let blocks = pm.div_ceil(B);
     // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
     // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
     // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
     // stays in cache while every channel runs over it, where the whole table would not.
-    // Filled block by block in storage order (extended, not zero-filled first: the
-    // table is most of the sweep's memory); `zm[k]` carries line k's running power from
-    // one block to the next (the same products in the same order).
-    let z: Vec<c64> = theta.iter().map(|th| c64::new(th.cos(), th.sin())).collect();
-    let mut zm = vec![c64::new(1.0, 0.0); nl];
-    let mut table: Vec<[[f64; B]; 2]> = Vec::with_capacity(blocks * nl);
-    for blk in 0..blocks {
-        let nb = B.min(pm - blk * B);
-        let lines = zm.iter_mut().zip(&z).zip(theta);
-        table.extend(lines.map(|((zmk, &zk), &th)| {
-            let mut p = [[0.0; B]; 2];
-            let mut v = *zmk;
+    // The table's storage is reused from the last sweep on this thread (taken out
+    // here, put back at the end) and every entry is written, padding included: not
+    // allocated and zero-filled every sweep (it is most of the sweep's memory).
+    // Its length is the largest yet (grown without copying the stale contents).
+    let mut spare = SPARE_POWERS.with(|t| t.take());
+    if spare.len() < blocks * nl {
+        spare.clear();
+        spare.resize(blocks * nl, [[0.0; B]; 2]);
+    }
+    let table = &mut spare[..blocks * nl];
+    for (k, &th) in theta.iter().enumerate() {
+        let z = c64::new(th.cos(), th.sin());
+        let mut zm = c64::new(1.0, 0.0);
+        for blk in 0..blocks {
+            let [re, im] = &mut table[blk * nl + k];
+            let nb = B.min(pm - blk * B);
             for i in 0..nb {
                 let m = blk * B + i;
                 if m > 0 {
-                    v = if m % 16 == 0 {
+                    zm = if m % 16 == 0 {
                         let a = th * m as f64;
                         c64::new(a.cos(), a.sin())
                     } else {
-                        v * zk
+                        zm * z
                     };
                 }
-                p[0][i] = v.re;
-                p[1][i] = v.im;
+                re[i] = zm.re;
+                im[i] = zm.im;
             }
-            *zmk = v;
-            p
-        }));
+            re[nb..].fill(0.0);
+            im[nb..].fill(0.0);
+        }
     }
     let mut s = Sums {
         r: vec![vec![0.0; pm]; no],
@@ -128,6 +142,7 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
             s.t[o][m0..m0 + nb].copy_from_slice(&t[..nb]);
         }
     }
+    SPARE_POWERS.with(|t| t.replace(spare));
     s
 }
 }
@@ -192,6 +207,32 @@ fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
     v
 }
 
+/// `g_k += s y_k` in every lane.
+///
+/// Four entries per loop step, unrolled: as a plain loop the compiler vectorised it
+/// across entries (two at a time, with lane shuffles, 15 instructions per entry)
+/// instead of one vector operation per entry. `x + s·z` lane by lane, as before.
+#[inline(always)]
+fn add_lanes(g: &mut [Lanes], s: Lanes, y: &[Lanes]) {
+    let n = g.len().min(y.len());
+    let (g, y) = (&mut g[..n], &y[..n]);
+    let mut cg = g.chunks_exact_mut(4);
+    let cy = y.chunks_exact(4);
+    let ry = cy.remainder();
+    // Each entry read whole before it is written (written lane by lane in place,
+    // the compiler kept every lane a scalar operation).
+    let step = |x: Lanes, z: Lanes| -> Lanes { std::array::from_fn(|t| x[t] + s[t] * z[t]) };
+    for (x, z) in (&mut cg).zip(cy) {
+        let v: [Lanes; 4] = [x[0], x[1], x[2], x[3]];
+        for i in 0..4 {
+            x[i] = step(v[i], z[i]);
+        }
+    }
+    for (x, z) in cg.into_remainder().iter_mut().zip(ry) {
+        *x = step(*x, *z);
+    }
+}
+
 /// The per-channel factors of the reduced normal equations, grown one basis function
 /// at a time: the Cholesky factor L_o of R_o, Y_o = L_o⁻¹S_o (stored transposed: row c
 /// of `yt` is column c of Y_o, so that every inner product runs over contiguous memory)
@@ -214,6 +255,8 @@ struct Factors {
     yt: Vec<Vec<Lanes>>,
     /// G_o, lower triangle only (the entries above the diagonal are stale).
     g: Vec<Vec<Lanes>>,
+    /// Scratch: the new row of Y of a group's step.
+    row: Vec<Lanes>,
 }
 
 thread_local! {
@@ -274,6 +317,7 @@ impl Factors {
             l: storage(),
             yt: storage(),
             g: storage(),
+            row: vec![[0.0; LANES]; pm],
         }
     }
 
@@ -327,15 +371,15 @@ impl Factors {
         // symmetric, and its entries (j, k) and (k, j) would be the same products added
         // in the same order, so only the lower triangle (k ≤ j) is kept (half the
         // updates; `reduced_system` reads it so).
-        for j in 0..q {
-            let yj = yo[j * pm + q];
-            for k in 0..=j {
-                let yk = yo[k * pm + q];
-                let gk = &mut go[j * pm + k];
-                for t in 0..LANES {
-                    gk[t] += yj[t] * yk[t];
-                }
-            }
+        // Row q of Y is copied out contiguous first: indexed in the strided table, the
+        // update (the recursion's most frequent step) re-read the tables' addresses
+        // and checked bounds every time (21 instructions per update).
+        let row: &mut [Lanes] = &mut self.row[..q];
+        for (k, y) in row.iter_mut().enumerate() {
+            *y = yo[k * pm + q];
+        }
+        for (j, &yj) in row.iter().enumerate() {
+            add_lanes(&mut go[j * pm..j * pm + j + 1], yj, &row[..=j]);
         }
         for j in 0..=q {
             // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a
