@@ -411,21 +411,36 @@ impl Factors {
         for j in 0..=n {
             let row = &mut low[at(j)..at(j) + j + 1];
             for (c, gc) in self.g.iter().enumerate() {
-                for t in 0..self.lanes_in(c) {
-                    for (s, v) in row.iter_mut().zip(&gc[j * pm..j * pm + j + 1]) {
-                        *s += v[t];
+                let src = &gc[j * pm..j * pm + j + 1];
+                if self.lanes_in(c) == LANES {
+                    // A full group in one pass over the row (the same additions, lane
+                    // after lane, entry by entry; one pass per lane loaded and stored
+                    // each running sum four times).
+                    for (s, v) in row.iter_mut().zip(src) {
+                        *s = v.iter().fold(*s, |acc, x| acc + x);
+                    }
+                } else {
+                    for t in 0..self.lanes_in(c) {
+                        for (s, v) in row.iter_mut().zip(src) {
+                            *s += v[t];
+                        }
                     }
                 }
             }
         }
-        let g = |j: usize, k: usize| low[at(j.max(k)) + j.min(k)];
+        // A is symmetric: each entry of the packed lower triangle is computed once and
+        // written to (j, k) and (k, j) (the same difference; entry by entry through an
+        // index closure it cost 26 instructions).
         let mut a = vec![0.0; n * n];
         let mut b = vec![0.0; n];
         for j in 0..n {
-            for (k, aj) in a[j * n..(j + 1) * n].iter_mut().enumerate() {
-                *aj = t_sum[j.abs_diff(k)] - g(j, k);
+            let row = &low[at(j)..at(j) + j + 1];
+            for (k, (g, t)) in row.iter().zip(t_sum[..=j].iter().rev()).enumerate() {
+                let v = t - g;
+                a[j * n + k] = v;
+                a[k * n + j] = v;
             }
-            b[j] = g(j, n) - t_sum[n - j];
+            b[j] = low[at(n) + j] - t_sum[n - j];
         }
         (a, b)
     }
