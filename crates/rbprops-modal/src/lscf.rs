@@ -42,6 +42,16 @@ struct Sums {
     t: Vec<Vec<f64>>,
 }
 
+/// Per-line powers of a block for [`sums`], `[re, im]` of `SUM_BLOCK` powers.
+type BlockPowers = [[f64; SUM_BLOCK]; 2];
+/// Powers per block of [`sums`].
+const SUM_BLOCK: usize = 8;
+
+thread_local! {
+    /// The table of powers of the last [`sums`] on this thread, for the next one.
+    static SPARE_POWERS: std::cell::RefCell<Vec<BlockPowers>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 crate::simd::avx_fn! {
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
@@ -52,20 +62,29 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     // (two AVX vectors per sum, eight accumulators): each line's weight and data are
     // loaded once for twice the powers of a block of four, which more than pays for
     // the wider zero padding of the last block (−0.4M instructions per excitation).
-    const B: usize = 8;
+    const B: usize = SUM_BLOCK;
     let blocks = pm.div_ceil(B);
     // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
-    // one table per block of powers, `[line]` of `B` powers (zero-padded), shared by
-    // every channel. Blocks outermost: each block's table (64 bytes a line) stays in
-    // cache while every channel runs over it, where the whole table would not.
-    let mut zre = vec![[0.0; B]; blocks * nl];
-    let mut zim = vec![[0.0; B]; blocks * nl];
+    // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
+    // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
+    // stays in cache while every channel runs over it, where the whole table would not.
+    // The table's storage is reused from the last sweep on this thread (taken out
+    // here, put back at the end) and every entry is written, padding included: not
+    // allocated and zero-filled every sweep (it is most of the sweep's memory).
+    // Its length is the largest yet (grown without copying the stale contents).
+    let mut spare = SPARE_POWERS.with(|t| t.take());
+    if spare.len() < blocks * nl {
+        spare.clear();
+        spare.resize(blocks * nl, [[0.0; B]; 2]);
+    }
+    let table = &mut spare[..blocks * nl];
     for (k, &th) in theta.iter().enumerate() {
         let z = c64::new(th.cos(), th.sin());
         let mut zm = c64::new(1.0, 0.0);
         for blk in 0..blocks {
-            let (re, im) = (&mut zre[blk * nl + k], &mut zim[blk * nl + k]);
-            for i in 0..B.min(pm - blk * B) {
+            let [re, im] = &mut table[blk * nl + k];
+            let nb = B.min(pm - blk * B);
+            for i in 0..nb {
                 let m = blk * B + i;
                 if m > 0 {
                     zm = if m % 16 == 0 {
@@ -78,6 +97,8 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
                 re[i] = zm.re;
                 im[i] = zm.im;
             }
+            re[nb..].fill(0.0);
+            im[nb..].fill(0.0);
         }
     }
     let mut s = Sums {
@@ -101,32 +122,57 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     for blk in 0..blocks {
         let m0 = blk * B;
         let nb = B.min(pm - m0);
-        let (zr, zi) = (&zre[blk * nl..(blk + 1) * nl], &zim[blk * nl..(blk + 1) * nl]);
+        let zt = &table[blk * nl..(blk + 1) * nl];
         for o in 0..no {
             let (w, hw, h2) = (&weights[o][..nl], &hw[o][..nl], &h2[o][..nl]);
-            let (mut r, mut gp, mut gn, mut t) = ([0.0; B], [0.0; B], [0.0; B], [0.0; B]);
-            for k in 0..nl {
-                let (w2, hk, h2) = (w[k], hw[k], h2[k]);
-                let (pr, pi) = (&zr[k], &zi[k]);
-                // Only real parts enter the normal matrices: Re(h z^m) = a − b and
-                // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
-                for i in 0..B {
-                    let a = hk.re * pr[i];
-                    let b = hk.im * pi[i];
-                    r[i] += w2 * pr[i];
-                    gp[i] += a - b;
-                    gn[i] += a + b;
-                    t[i] += h2 * pr[i];
-                }
-            }
+            // The last block is often a single power (orders 24 and 40: 25 and 41
+            // powers); four lanes do it at about half the cost of eight.
+            let [r, gp, gn, t] = if nb <= 4 {
+                block_sums::<4, B>(zt, w, hw, h2).map(|x| {
+                    let mut y = [0.0; B];
+                    y[..4].copy_from_slice(&x);
+                    y
+                })
+            } else {
+                block_sums::<B, B>(zt, w, hw, h2)
+            };
             s.r[o][m0..m0 + nb].copy_from_slice(&r[..nb]);
             s.g_pos[o][m0..m0 + nb].copy_from_slice(&gp[..nb]);
             s.g_neg[o][m0..m0 + nb].copy_from_slice(&gn[..nb]);
             s.t[o][m0..m0 + nb].copy_from_slice(&t[..nb]);
         }
     }
+    SPARE_POWERS.with(|t| t.replace(spare));
     s
 }
+}
+
+/// One channel's `[r, Re g(m), Re g(−m), t]` over the lines for the first `W` powers
+/// of a block's table (`zt`: per line, re and im of the block's powers), each power's
+/// sum over the lines in order, in registers.
+#[inline(always)]
+fn block_sums<const W: usize, const B: usize>(
+    zt: &[[[f64; B]; 2]],
+    w: &[f64],
+    hw: &[c64],
+    h2: &[f64],
+) -> [[f64; W]; 4] {
+    let (mut r, mut gp, mut gn, mut t) = ([0.0; W], [0.0; W], [0.0; W], [0.0; W]);
+    for k in 0..w.len() {
+        let (w2, hk, h2) = (w[k], hw[k], h2[k]);
+        let [pr, pi] = &zt[k];
+        // Only real parts enter the normal matrices: Re(h z^m) = a − b and
+        // Re(h z^−m) = a + b with a = Re h Re z^m, b = Im h Im z^m.
+        for i in 0..W {
+            let a = hk.re * pr[i];
+            let b = hk.im * pi[i];
+            r[i] += w2 * pr[i];
+            gp[i] += a - b;
+            gn[i] += a + b;
+            t[i] += h2 * pr[i];
+        }
+    }
+    [r, gp, gn, t]
 }
 
 /// Channels per SIMD group of the factor recursion (see [`Factors`]).
@@ -161,6 +207,32 @@ fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
     v
 }
 
+/// `g_k += s y_k` in every lane.
+///
+/// Four entries per loop step, unrolled: as a plain loop the compiler vectorised it
+/// across entries (two at a time, with lane shuffles, 15 instructions per entry)
+/// instead of one vector operation per entry. `x + s·z` lane by lane, as before.
+#[inline(always)]
+fn add_lanes(g: &mut [Lanes], s: Lanes, y: &[Lanes]) {
+    let n = g.len().min(y.len());
+    let (g, y) = (&mut g[..n], &y[..n]);
+    let mut cg = g.chunks_exact_mut(4);
+    let cy = y.chunks_exact(4);
+    let ry = cy.remainder();
+    // Each entry read whole before it is written (written lane by lane in place,
+    // the compiler kept every lane a scalar operation).
+    let step = |x: Lanes, z: Lanes| -> Lanes { std::array::from_fn(|t| x[t] + s[t] * z[t]) };
+    for (x, z) in (&mut cg).zip(cy) {
+        let v: [Lanes; 4] = [x[0], x[1], x[2], x[3]];
+        for i in 0..4 {
+            x[i] = step(v[i], z[i]);
+        }
+    }
+    for (x, z) in cg.into_remainder().iter_mut().zip(ry) {
+        *x = step(*x, *z);
+    }
+}
+
 /// The per-channel factors of the reduced normal equations, grown one basis function
 /// at a time: the Cholesky factor L_o of R_o, Y_o = L_o⁻¹S_o (stored transposed: row c
 /// of `yt` is column c of Y_o, so that every inner product runs over contiguous memory)
@@ -180,9 +252,42 @@ struct Factors {
     g_pos: Vec<Vec<Lanes>>,
     g_neg: Vec<Vec<Lanes>>,
     l: Vec<Vec<Lanes>>,
+    /// Lᵀ above the diagonal (the back substitution of `numerators` runs over columns
+    /// of L; strided, it cost 16 instructions a term).
+    lt: Vec<Vec<Lanes>>,
     yt: Vec<Vec<Lanes>>,
     /// G_o, lower triangle only (the entries above the diagonal are stale).
     g: Vec<Vec<Lanes>>,
+    /// Scratch: the new row of Y of a group's step.
+    row: Vec<Lanes>,
+}
+
+thread_local! {
+    /// Storage of finished sweeps' factors, for the next sweep on this thread.
+    static SPARE: std::cell::RefCell<Vec<Vec<Lanes>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// `len` entries of factor storage, reused from an earlier sweep when there is one.
+/// Not cleared: the recursion writes every entry before it reads it (the rows and
+/// columns of step q are computed from those of steps < q), so stale values are never
+/// used; clearing (and allocating) the three `pm²` tables of every group cost more
+/// than the whole table of powers. Unit tests fill it with NaN instead, which any read
+/// before a write would carry into the results.
+fn spare_storage(len: usize) -> Vec<Lanes> {
+    let mut v = SPARE.with(|s| s.borrow_mut().pop()).unwrap_or_default();
+    v.truncate(len);
+    v.resize(len, [0.0; LANES]);
+    if cfg!(test) {
+        v.fill([f64::NAN; LANES]);
+    }
+    v
+}
+
+impl Drop for Factors {
+    fn drop(&mut self) {
+        let done = [&mut self.l, &mut self.lt, &mut self.yt, &mut self.g].map(std::mem::take);
+        SPARE.with(|s| s.borrow_mut().extend(done.into_iter().flatten()));
+    }
 }
 
 impl Factors {
@@ -205,16 +310,18 @@ impl Factors {
                 .collect()
         };
         let zero = |_: usize| 0.0;
-        let zeros = vec![vec![[0.0; LANES]; pm * pm]; groups];
+        let storage = || (0..groups).map(|_| spare_storage(pm * pm)).collect();
         Self {
             no,
             pm,
             r: gather(&s.r, &|m| if m == 0 { 1.0 } else { 0.0 }),
             g_pos: gather(&s.g_pos, &zero),
             g_neg: gather(&s.g_neg, &zero),
-            l: zeros.clone(),
-            yt: zeros.clone(),
-            g: zeros,
+            l: storage(),
+            lt: storage(),
+            yt: storage(),
+            g: storage(),
+            row: vec![[0.0; LANES]; pm],
         }
     }
 
@@ -234,6 +341,7 @@ impl Factors {
         let pm = self.pm;
         let (r, gp, gn) = (&self.r[c], &self.g_pos[c], &self.g_neg[c]);
         let (lo, yo, go) = (&mut self.l[c], &mut self.yt[c], &mut self.g[c]);
+        let lto = &mut self.lt[c];
         // S_o[j,k] = −Re Σ w² h z^{k−j}
         let s_at = |j: usize, k: usize| -> Lanes {
             if k >= j {
@@ -247,6 +355,7 @@ impl Factors {
         for k in 0..q {
             let v = sub_lanes(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
             lo[q * pm + k] = div(v, lo[k * pm + k]);
+            lto[k * pm + q] = lo[q * pm + k];
         }
         let lq = &lo[q * pm..q * pm + q];
         let d = sub_lanes(r[0], lq, lq);
@@ -268,15 +377,15 @@ impl Factors {
         // symmetric, and its entries (j, k) and (k, j) would be the same products added
         // in the same order, so only the lower triangle (k ≤ j) is kept (half the
         // updates; `reduced_system` reads it so).
-        for j in 0..q {
-            let yj = yo[j * pm + q];
-            for k in 0..=j {
-                let yk = yo[k * pm + q];
-                let gk = &mut go[j * pm + k];
-                for t in 0..LANES {
-                    gk[t] += yj[t] * yk[t];
-                }
-            }
+        // Row q of Y is copied out contiguous first: indexed in the strided table, the
+        // update (the recursion's most frequent step) re-read the tables' addresses
+        // and checked bounds every time (21 instructions per update).
+        let row: &mut [Lanes] = &mut self.row[..q];
+        for (k, y) in row.iter_mut().enumerate() {
+            *y = yo[k * pm + q];
+        }
+        for (j, &yj) in row.iter().enumerate() {
+            add_lanes(&mut go[j * pm..j * pm + j + 1], yj, &row[..=j]);
         }
         for j in 0..=q {
             // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a
@@ -302,21 +411,36 @@ impl Factors {
         for j in 0..=n {
             let row = &mut low[at(j)..at(j) + j + 1];
             for (c, gc) in self.g.iter().enumerate() {
-                for t in 0..self.lanes_in(c) {
-                    for (s, v) in row.iter_mut().zip(&gc[j * pm..j * pm + j + 1]) {
-                        *s += v[t];
+                let src = &gc[j * pm..j * pm + j + 1];
+                if self.lanes_in(c) == LANES {
+                    // A full group in one pass over the row (the same additions, lane
+                    // after lane, entry by entry; one pass per lane loaded and stored
+                    // each running sum four times).
+                    for (s, v) in row.iter_mut().zip(src) {
+                        *s = v.iter().fold(*s, |acc, x| acc + x);
+                    }
+                } else {
+                    for t in 0..self.lanes_in(c) {
+                        for (s, v) in row.iter_mut().zip(src) {
+                            *s += v[t];
+                        }
                     }
                 }
             }
         }
-        let g = |j: usize, k: usize| low[at(j.max(k)) + j.min(k)];
+        // A is symmetric: each entry of the packed lower triangle is computed once and
+        // written to (j, k) and (k, j) (the same difference; entry by entry through an
+        // index closure it cost 26 instructions).
         let mut a = vec![0.0; n * n];
         let mut b = vec![0.0; n];
         for j in 0..n {
-            for (k, aj) in a[j * n..(j + 1) * n].iter_mut().enumerate() {
-                *aj = t_sum[j.abs_diff(k)] - g(j, k);
+            let row = &low[at(j)..at(j) + j + 1];
+            for (k, (g, t)) in row.iter().zip(t_sum[..=j].iter().rev()).enumerate() {
+                let v = t - g;
+                a[j * n + k] = v;
+                a[k * n + j] = v;
             }
-            b[j] = g(j, n) - t_sum[n - j];
+            b[j] = low[at(n) + j] - t_sum[n - j];
         }
         (a, b)
     }
@@ -350,7 +474,7 @@ crate::simd::avx_fn! {
         let zero: f64 = std::iter::empty::<f64>().sum();
         let mut out = Vec::with_capacity(f.l.len());
         let mut ya: Vec<Lanes> = Vec::with_capacity(p);
-        for (lc, yc) in f.l.iter().zip(&f.yt) {
+        for ((lc, ltc), yc) in f.l.iter().zip(&f.lt).zip(&f.yt) {
             // Y α in plain loops (an iterator adaptor's closure need not be inlined
             // into the AVX copy); each lane sums over j in order. Four entries at a
             // time: four independent chains of additions instead of one, and
@@ -380,12 +504,9 @@ crate::simd::avx_fn! {
             }
             let mut beta = vec![[0.0; LANES]; p];
             for i in (0..p).rev() {
-                let mut v = ya[i];
-                for k in i + 1..p {
-                    for t in 0..LANES {
-                        v[t] -= lc[k * pm + i][t] * beta[k][t];
-                    }
-                }
+                // Column i of L below the diagonal is row i of Lᵀ (contiguous).
+                let below = &ltc[i * pm + i + 1..i * pm + p];
+                let v = sub_lanes(ya[i], below, &beta[i + 1..p]);
                 beta[i] = std::array::from_fn(|t| v[t] / lc[i * pm + i][t]);
             }
             for b in beta.iter_mut() {
