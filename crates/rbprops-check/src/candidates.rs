@@ -343,23 +343,23 @@ fn rodrigues(psi: &Vec3) -> Mat3 {
     Mat3::identity() + k * (t.sin() / t) + k * k * ((1.0 - t.cos()) / (t * t))
 }
 
-/// The vertical `up` tilted by the angles (a, b) about two axes perpendicular to it:
-/// `normalize(up + a e₁ + b e₂)`, with e₁ ⟂ up fixed by the axis of `up` least aligned
-/// with it and e₂ = up × e₁ (so a frame that is off by a few degrees, E15.4, is one
-/// small (a, b)).
-pub fn tilted_up(up: &Vec3, a: f64, b: f64) -> Vec3 {
-    let helper = if up.x.abs() < 0.9 {
+/// The unit direction `d` tilted by the angles (a, b) about two axes perpendicular to
+/// it: `normalize(d + a e₁ + b e₂)`, with e₁ = normalize(d × h), h the axis x unless d
+/// is nearly along it (then y), and e₂ = d × e₁. The vertical of the gravity candidate
+/// (a frame off by a few degrees, E15.4) and a force's direction (E12) are tilted so.
+pub fn tilted_direction(d: &Vec3, a: f64, b: f64) -> Vec3 {
+    let helper = if d.x.abs() < 0.9 {
         Vec3::x()
     } else {
         Vec3::y()
     };
-    let e1 = up.cross(&helper).normalize();
-    let e2 = up.cross(&e1);
-    (up + e1 * a + e2 * b).normalize()
+    let e1 = d.cross(&helper).normalize();
+    let e2 = d.cross(&e1);
+    (d + e1 * a + e2 * b).normalize()
 }
 
 /// Geometric stiffness of cords along the spec's `up`, tilted by (φ₃, φ₄)
-/// ([`tilted_up`]), through rbprops-sim's own
+/// ([`tilted_direction`]), through rbprops-sim's own
 /// [`rbprops_sim::effects::gravity::geometric_stiffness`], split into its two parts:
 /// `K(φ) = φ₁ [K_geo(ℓ = 1) − K_geo(ℓ → ∞)] + φ₂ K_geo(ℓ → ∞)`, exact for
 /// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1, 0, 0) reproduces the catalogue
@@ -371,7 +371,7 @@ fn gravity_stiffness(
     phi: &[f64],
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
-    let z = tilted_up(&ctx.spec.up_vector(), phi[2], phi[3]);
+    let z = tilted_direction(&ctx.spec.up_vector(), phi[2], phi[3]);
     let cords = |len: f64| -> Vec<Cord> {
         ctx.spec
             .springs(ctx.setup_index)
@@ -477,19 +477,11 @@ impl Effect for LocalEffect {
             Kind::ForceDirection => {
                 for inp in &mut model.inputs {
                     let e = &ctx.geometry.excitations[inp.excitation];
-                    let d = e.direction;
-                    let helper = if d.x.abs() < 0.9 {
-                        Vec3::x()
-                    } else {
-                        Vec3::y()
-                    };
-                    let u1 = d.cross(&helper).normalize();
-                    let u2 = d.cross(&u1);
-                    let (b1, b2) = (
+                    let d2 = tilted_direction(
+                        &e.direction,
                         self.values[2 * inp.excitation],
                         self.values[2 * inp.excitation + 1],
                     );
-                    let d2 = (d + u1 * b1 + u2 * b2).normalize();
                     inp.column = rigid_transform(&e.position).transpose() * d2;
                 }
             }
@@ -1283,7 +1275,7 @@ pub fn catalogue_entry(
             v.get(3).copied().unwrap_or(0.0),
         );
         if a != 0.0 || b != 0.0 {
-            let u = tilted_up(&spec.up_vector(), a, b);
+            let u = tilted_direction(&spec.up_vector(), a, b);
             t.insert("up".into(), rbprops_sim::spec::up_value([u.x, u.y, u.z]));
         } else if let Some(up) = up {
             t.insert("up".into(), rbprops_sim::spec::up_value(up));
