@@ -803,20 +803,13 @@ fn reopen_dropped(
     stage: &str,
     max_iter: usize,
 ) -> (Fit, Vec<usize>) {
-    let cand = &p.cands[c];
     let free = identifiable_at(p, &fit, active, c, kept);
     if free.is_empty() {
         return (fit, kept.to_vec());
     }
     let mut kept2: Vec<usize> = kept.iter().chain(&free).copied().collect();
     kept2.sort_unstable();
-    let k0 = fit.theta.len() - kept.len();
-    let phi = Act {
-        c,
-        kept: kept.to_vec(),
-        gauge: Vec::new(),
-    }
-    .phi(&cand.neutral, &fit.theta[k0..]);
+    let (k0, phi) = last_effect_phi(p, &fit.theta, c, kept);
     let mut theta = fit.theta[..k0].to_vec();
     theta.extend(kept2.iter().map(|&j| phi[j]));
     let mut act = active.to_vec();
@@ -831,6 +824,18 @@ fn reopen_dropped(
     }
 }
 
+/// Candidate `c`'s full φ from θ whose last entries are its `kept` coordinates (the
+/// others at neutral), and the index in θ where those entries start.
+fn last_effect_phi(p: &Problem, theta: &[f64], c: usize, kept: &[usize]) -> (usize, Vec<f64>) {
+    let k0 = theta.len() - kept.len();
+    let act = Act {
+        c,
+        kept: kept.to_vec(),
+        gauge: Vec::new(),
+    };
+    (k0, act.phi(&p.cands[c].neutral, &theta[k0..]))
+}
+
 /// The coordinates of candidate `c` outside `kept` whose signature at the fit `fit`
 /// (its last parameters are `c`'s kept ones), with the fitted parameters compensating,
 /// reaches [`REOPEN_SIGNATURE`] over half their plausible range and is not a
@@ -843,13 +848,7 @@ fn identifiable_at(p: &Problem, fit: &Fit, active: &[Act], c: usize, kept: &[usi
     if dropped.is_empty() {
         return Vec::new();
     }
-    let k0 = fit.theta.len() - kept.len();
-    let phi = Act {
-        c,
-        kept: kept.to_vec(),
-        gauge: Vec::new(),
-    }
-    .phi(&cand.neutral, &fit.theta[k0..]);
+    let (k0, phi) = last_effect_phi(p, &fit.theta, c, kept);
     let mut act = active.to_vec();
     act.push(Act::full(c, np));
     let g = |x: &[f64]| {
@@ -1485,14 +1484,8 @@ fn check_with(
             let d = kept.len();
             let dbic = dchi2 - d as f64 * ln_n;
             let thr = chi2_isf(options.alpha / (n_cand * s.n_tests as f64), d as f64);
-            let k0 = f.theta.len() - d;
+            let (k0, phi) = last_effect_phi(&p, &f.theta, c, &kept);
             let alpha = &f.theta[k0..];
-            let phi = &Act {
-                c,
-                kept: kept.clone(),
-                gauge: Vec::new(),
-            }
-            .phi(&cand.neutral, alpha);
             let infos = cand.effect.parameters();
             let mut why = Vec::new();
             if !(dchi2 > thr) {
