@@ -18,8 +18,8 @@
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
 //!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
-//!   residual flexibility matrix R (channels × excitations, m/N): one undamped mode at
-//!   f_e per excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
+//!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
+//!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
 //!   (f_top/f_e)² and ζ_e the last two parameters (neutral 1/16 and 0: an undamped mode
 //!   at 4× the top of the band). Both are bilinear with R (no signature while R = 0),
 //!   so the model check frees them after a refit has moved R; they then reach a mode
@@ -1227,13 +1227,13 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists
 /// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters (the
-/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel). `up`
-/// is the spec's, written into the gravity entry when the spec gives one.
+/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel). The
+/// gravity entry gets `up`: the spec's vertical tilted by the fitted (φ₃, φ₄)
+/// ([`tilted_direction`]) when they are not zero, else the spec's `up` if it gives one.
 pub fn catalogue_entry(
     e: &dyn Effect,
     spec: &CampaignSpec,
 ) -> Result<rbprops_sim::spec::EffectSpec, String> {
-    let up = spec.up;
     if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
         return Err(format!(
             "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
@@ -1277,7 +1277,7 @@ pub fn catalogue_entry(
         if a != 0.0 || b != 0.0 {
             let u = tilted_direction(&spec.up_vector(), a, b);
             t.insert("up".into(), rbprops_sim::spec::up_value([u.x, u.y, u.z]));
-        } else if let Some(up) = up {
+        } else if let Some(up) = spec.up {
             t.insert("up".into(), rbprops_sim::spec::up_value(up));
         }
         t
