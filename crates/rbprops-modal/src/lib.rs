@@ -37,6 +37,7 @@ pub mod roots;
 #[macro_use]
 mod simd;
 pub mod stabilisation;
+mod tallmul;
 pub mod testdata;
 
 pub use error::ModalError;

@@ -160,27 +160,19 @@ pub fn mat_for_overwrite(m: usize, n: usize) -> Mat<f64> {
     Mat::zeros(m, n)
 }
 
-/// `aᵀ · b` by faer's sequential matrix product (independent of the thread count).
+/// `aᵀ · b` (see [`crate::tallmul`]: inner products of columns in a fixed order,
+/// independent of the thread count).
 pub fn t_mul(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(a.ncols(), b.ncols());
-    faer::linalg::matmul::matmul(
-        out.as_mut(),
-        faer::Accum::Replace,
-        a.transpose(),
-        b.as_ref(),
-        1.0,
-        Par::Seq,
-    );
+    crate::tallmul::at_b(a.as_ref(), b.as_ref(), out.as_mut(), 1.0, false);
     out
 }
 
-/// The Gram matrix `aᵀ · a`: its lower triangle by faer's sequential product into a
-/// lower-triangular destination (the kernel skips the tiles above the diagonal), mirrored
-/// into the upper one.
+/// The Gram matrix `aᵀ · a`: its lower triangle (see [`gram_lower_add`]), mirrored into
+/// the upper one.
 ///
 /// Why: a Gram matrix is symmetric, so the full product computes nearly half of it
-/// twice; the triangular product runs the same kernel over each tile it keeps, so every
-/// entry comes out as the full product would give it.
+/// twice.
 pub fn gram(a: &Mat<f64>) -> Mat<f64> {
     let n = a.ncols();
     let mut g = Mat::<f64>::zeros(n, n);
@@ -191,18 +183,7 @@ pub fn gram(a: &Mat<f64>) -> Mat<f64> {
 
 /// `g += aᵀ · a` on the lower triangle of `g` only (diagonal included; sequential).
 pub fn gram_lower_add(g: &mut Mat<f64>, a: MatRef<'_, f64>) {
-    use faer::linalg::matmul::triangular::{self, BlockStructure};
-    triangular::matmul(
-        g.as_mut(),
-        BlockStructure::TriangularLower,
-        faer::Accum::Add,
-        a.transpose(),
-        BlockStructure::Rectangular,
-        a,
-        BlockStructure::Rectangular,
-        1.0,
-        Par::Seq,
-    );
+    crate::tallmul::gram_lower_add(a, g.as_mut());
 }
 
 /// Copies the lower triangle of the square `g` onto its upper one (symmetric `g`).
@@ -216,31 +197,17 @@ pub fn mirror_lower(g: &mut Mat<f64>) {
 
 /// `dst += alpha · aᵀ · b` (sequential).
 pub fn t_mul_add(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
-    faer::linalg::matmul::matmul(
-        dst.as_mut(),
-        faer::Accum::Add,
-        a.transpose(),
-        b,
-        alpha,
-        Par::Seq,
-    );
+    crate::tallmul::at_b(a, b, dst.as_mut(), alpha, true);
 }
 
-/// `dst += alpha · a · b` into a view (sequential).
+/// `dst += alpha · a · b` into a view, `a` tall (sequential).
 pub fn mul_add_into(dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
-    faer::linalg::matmul::matmul(dst, faer::Accum::Add, a, b, alpha, Par::Seq);
+    crate::tallmul::add_a_x(dst, a, b, alpha);
 }
 
-/// `dst += alpha · a · b` (sequential).
+/// `dst += alpha · a · b`, `a` tall (sequential).
 fn mul_add(dst: &mut Mat<f64>, a: &Mat<f64>, b: &Mat<f64>, alpha: f64) {
-    faer::linalg::matmul::matmul(
-        dst.as_mut(),
-        faer::Accum::Add,
-        a.as_ref(),
-        b.as_ref(),
-        alpha,
-        Par::Seq,
-    );
+    crate::tallmul::add_a_x(dst.as_mut(), a.as_ref(), b.as_ref(), alpha);
 }
 
 /// `(RᵀR)⁻¹ = R⁻¹R⁻ᵀ` for the upper-triangular `n×n` factor with entries `r(i, j)`.

@@ -193,7 +193,15 @@ fn per_setup_poles_are_shared_and_exact() {
 #[test]
 fn standard_errors_and_records_are_finite_and_consistent() {
     let s = testdata::test_case(12.5, 1024, Quantity::Mobility).with_noise(0.01, 3);
-    let out = fit_campaign(&s.geometry, &s.frf, &FitOptions::default()).unwrap();
+    let keep = FitOptions {
+        keep_synthesised: true,
+        ..Default::default()
+    };
+    let out = fit_campaign(&s.geometry, &s.frf, &keep).unwrap();
+    // Without `keep_synthesised` the same record, and no curves.
+    let lean = fit_campaign(&s.geometry, &s.frf, &FitOptions::default()).unwrap();
+    assert_eq!(lean.record, out.record);
+    assert!(lean.diagnostics.iter().all(|d| d.synthesised.is_empty()));
     for m in &out.record.modes {
         assert!(m.frequency_std_hz.is_finite() && m.frequency_std_hz > 0.0);
         assert!(m.damping_std.is_finite() && m.damping_std > 0.0);

@@ -70,6 +70,7 @@ fn main() -> std::process::ExitCode {
             },
             n_modes: args.modes,
             residual_terms: !args.no_residuals,
+            keep_synthesised: args.plot.is_some(),
             ..Default::default()
         };
         if let Some(b) = &args.band {
