@@ -6,7 +6,6 @@
 //! `TIMING_DIGEST` prints a hash of every estimate's bits, `TIMING_DUMP=file` writes
 //! every estimate (one mode a line), `TIMING_GEN_ONLY` stops after the data generation.
 
-use rbprops_core::{FrfSet, Quantity};
 use rbprops_modal::{fit_campaign, testdata, FitOptions, PoleMode};
 use std::time::Instant;
 
@@ -15,27 +14,7 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(24);
-    let base = testdata::test_case(12.5, 4096, Quantity::Accelerance);
-    let mut geometry = base.geometry.clone();
-    let per = base.frf.n_channels * base.frf.n_lines();
-    let mut values = Vec::with_capacity(batch * per);
-    let mut excitations = Vec::new();
-    for b in 0..batch {
-        let noisy = base.with_noise(0.01, 1000 + b as u64);
-        let e = b % base.frf.n_excitations;
-        values.extend_from_slice(noisy.frf.excitation_block(e));
-        let mut ex = base.geometry.excitations[e].clone();
-        ex.id = format!("E{b}");
-        excitations.push(ex);
-    }
-    geometry.excitations = excitations;
-    let frf = FrfSet {
-        quantity: base.frf.quantity,
-        frequency_hz: base.frf.frequency_hz.clone(),
-        n_excitations: batch,
-        n_channels: base.frf.n_channels,
-        values,
-    };
+    let (geometry, frf) = testdata::bench_campaign(batch);
     // The data generation alone (to subtract from instruction counts of whole runs).
     if std::env::var_os("TIMING_GEN_ONLY").is_some() {
         println!("{} values generated", frf.values.len());

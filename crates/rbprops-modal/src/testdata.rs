@@ -229,6 +229,35 @@ pub fn test_case(f_max: f64, n_lines: usize, quantity: Quantity) -> Synthetic {
     }
 }
 
+/// The bench workload: `batch` excitations, 9 channels × 4,096 lines of
+/// accelerance on 0–12.5 Hz, each a copy of one of [`test_case`]'s three excitations
+/// (in turn) with its own 1 % complex noise (seed `1000 + index`). Shared by the
+/// `timing` example and the criterion bench so that both measure the same data.
+pub fn bench_campaign(batch: usize) -> (Geometry, FrfSet) {
+    let base = test_case(12.5, 4096, Quantity::Accelerance);
+    let mut geometry = base.geometry.clone();
+    let per = base.frf.n_channels * base.frf.n_lines();
+    let mut values = Vec::with_capacity(batch * per);
+    let mut excitations = Vec::with_capacity(batch);
+    for b in 0..batch {
+        let noisy = base.with_noise(0.01, 1000 + b as u64);
+        let e = b % base.frf.n_excitations;
+        values.extend_from_slice(noisy.frf.excitation_block(e));
+        let mut ex = base.geometry.excitations[e].clone();
+        ex.id = format!("E{b}");
+        excitations.push(ex);
+    }
+    geometry.excitations = excitations;
+    let frf = FrfSet {
+        quantity: base.frf.quantity,
+        frequency_hz: base.frf.frequency_hz.clone(),
+        n_excitations: batch,
+        n_channels: base.frf.n_channels,
+        values,
+    };
+    (geometry, frf)
+}
+
 /// The Test Case II body on springs with its mode shapes kept but natural frequencies
 /// and damping ratios replaced (mass-normalised shapes stay valid), excited by the
 /// first `n_excitations` of five oblique forces; accelerance on `0..=f_max`.
