@@ -207,6 +207,73 @@ fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
     v
 }
 
+/// [`sub_lanes`] of [`ROWS`] rows `b[j]` against one vector `a` (every `b[j]` at least
+/// as long as `a`): `v[j] − Σ_m a_m b[j]_m`, each sum in index order (bitwise
+/// `sub_lanes` row by row).
+///
+/// Why: the recursion's row-by-row inner products are short (up to the model order), so
+/// a call per row paid its setup, remainder and bounds checks for a handful of terms;
+/// several rows at once share those and each load of `a`, and run independent chains.
+#[inline(always)]
+fn sub_lanes_rows(mut v: [Lanes; ROWS], a: &[Lanes], b: [&[Lanes]; ROWS]) -> [Lanes; ROWS] {
+    let n = a.len();
+    let b = rows4(|j| &b[j][..n]);
+    for i in 0..n {
+        let x = a[i];
+        for j in 0..ROWS {
+            let y = b[j][i];
+            for t in 0..LANES {
+                v[j][t] -= x[t] * y[t];
+            }
+        }
+    }
+    v
+}
+
+/// Rows per block of [`forward_rows`] and [`Factors::extend_group`]'s row sums.
+const ROWS: usize = 4;
+
+/// `[f(0), f(1), f(2), f(3)]`: written out, as `std::array::from_fn` was left a call
+/// (not inlined into the AVX copy).
+#[inline(always)]
+fn rows4<T>(f: impl Fn(usize) -> T) -> [T; ROWS] {
+    [f(0), f(1), f(2), f(3)]
+}
+
+/// Forward substitution against the rows of the lower-triangular `m` (row `k` at
+/// `m[k·pm..]`): `x_k = (rhs(k) − Σ_{i<k} x_i m_{k,i}) / m_{k,k}` for every `k` of `x`,
+/// each sum in index order (bitwise `sub_lanes(rhs(k), &x[..k], &m[k·pm..k·pm + k])`
+/// one `k` after the other). Blocks of [`ROWS`] outputs: the terms `i` before the block
+/// by [`sub_lanes_rows`], then the block's own triangle.
+#[inline(always)]
+fn forward_rows(x: &mut [Lanes], m: &[Lanes], pm: usize, rhs: impl Fn(usize) -> Lanes) {
+    let q = x.len();
+    let mut k0 = 0;
+    while k0 + ROWS <= q {
+        // Row k0 + j up to the block's last column.
+        let rows = rows4(|j| &m[(k0 + j) * pm..(k0 + j) * pm + k0 + ROWS]);
+        let (head, rest) = x.split_at_mut(k0);
+        let block: &mut [Lanes; ROWS] = (&mut rest[..ROWS]).try_into().unwrap();
+        let v = sub_lanes_rows(rows4(|j| rhs(k0 + j)), head, rows);
+        for j in 0..ROWS {
+            let tri: &[Lanes; ROWS] = rows[j][k0..].try_into().unwrap();
+            let mut v = v[j];
+            for i in 0..j {
+                for t in 0..LANES {
+                    v[t] -= block[i][t] * tri[i][t];
+                }
+            }
+            block[j] = std::array::from_fn(|t| v[t] / tri[j][t]);
+        }
+        k0 += ROWS;
+    }
+    for k in k0..q {
+        let v = sub_lanes(rhs(k), &x[..k], &m[k * pm..k * pm + k]);
+        let d = m[k * pm + k];
+        x[k] = std::array::from_fn(|t| v[t] / d[t]);
+    }
+}
+
 /// `g_k += s y_k` in every lane.
 ///
 /// Four entries per loop step, unrolled: as a plain loop the compiler vectorised it
@@ -351,11 +418,13 @@ impl Factors {
             }
         };
         let div = |v: Lanes, d: Lanes| -> Lanes { std::array::from_fn(|t| v[t] / d[t]) };
-        // Row q of L.
-        for k in 0..q {
-            let v = sub_lanes(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
-            lo[q * pm + k] = div(v, lo[k * pm + k]);
-            lto[k * pm + q] = lo[q * pm + k];
+        // Row q of L (a forward substitution against the rows k < q), and Lᵀ.
+        {
+            let (done, row_q) = lo.split_at_mut(q * pm);
+            forward_rows(&mut row_q[..q], done, pm, |k| r[q - k]);
+            for k in 0..q {
+                lto[k * pm + q] = row_q[k];
+            }
         }
         let lq = &lo[q * pm..q * pm + q];
         let d = sub_lanes(r[0], lq, lq);
@@ -364,13 +433,21 @@ impl Factors {
         }
         let lqq = d.map(f64::sqrt);
         lo[q * pm + q] = lqq;
-        // New column q of Y (rows < q), then new row q (columns ≤ q).
-        for i in 0..q {
-            let v = sub_lanes(s_at(i, q), &lo[i * pm..i * pm + i], &yo[q * pm..q * pm + i]);
-            yo[q * pm + i] = div(v, lo[i * pm + i]);
+        // New column q of Y (rows < q; stored as row q of `yt`), then new row q
+        // (columns ≤ q), the latter [`ROWS`] at a time.
+        forward_rows(&mut yo[q * pm..q * pm + q], lo, pm, |i| s_at(i, q));
+        let lq = &lo[q * pm..q * pm + q];
+        let mut j0 = 0;
+        while j0 + ROWS <= q + 1 {
+            let rows = rows4(|j| &yo[(j0 + j) * pm..(j0 + j) * pm + q]);
+            let v = sub_lanes_rows(rows4(|j| s_at(q, j0 + j)), lq, rows);
+            for (j, v) in v.into_iter().enumerate() {
+                yo[(j0 + j) * pm + q] = div(v, lqq);
+            }
+            j0 += ROWS;
         }
-        for j in 0..=q {
-            let v = sub_lanes(s_at(q, j), &lo[q * pm..q * pm + q], &yo[j * pm..j * pm + q]);
+        for j in j0..=q {
+            let v = sub_lanes(s_at(q, j), lq, &yo[j * pm..j * pm + q]);
             yo[j * pm + q] = div(v, lqq);
         }
         // G = YᵀY: the new row adds to the old block; the new column is computed. G is
@@ -387,10 +464,19 @@ impl Factors {
         for (j, &yj) in row.iter().enumerate() {
             add_lanes(&mut go[j * pm..j * pm + j + 1], yj, &row[..=j]);
         }
-        for j in 0..=q {
-            // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a
-            // plain sum.
-            let rq = &yo[q * pm..q * pm + q + 1];
+        // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a plain
+        // sum; [`ROWS`] columns j at a time.
+        let rq = &yo[q * pm..q * pm + q + 1];
+        let mut j0 = 0;
+        while j0 + ROWS <= q + 1 {
+            let rows = rows4(|j| &yo[(j0 + j) * pm..(j0 + j) * pm + q + 1]);
+            let v = sub_lanes_rows([[0.0; LANES]; ROWS], rq, rows);
+            for (j, v) in v.into_iter().enumerate() {
+                go[q * pm + j0 + j] = v.map(|x| -x);
+            }
+            j0 += ROWS;
+        }
+        for j in j0..=q {
             let v = sub_lanes([0.0; LANES], &yo[j * pm..j * pm + q + 1], rq).map(|x| -x);
             go[q * pm + j] = v;
         }
