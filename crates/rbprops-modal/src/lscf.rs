@@ -47,9 +47,28 @@ type BlockPowers = [[f64; SUM_BLOCK]; 2];
 /// Powers per block of [`sums`].
 const SUM_BLOCK: usize = 8;
 
+/// A table of powers of [`sums`] and the axis it was built for.
+struct PowerTable {
+    /// The angles `θ_k`.
+    theta: Vec<f64>,
+    /// Powers `0..pm`.
+    pm: usize,
+    /// `[block][line]` (see [`sums`]).
+    table: Vec<BlockPowers>,
+}
+
+/// Tables of powers kept per thread (the most recently used last).
+const KEPT_POWER_TABLES: usize = 6;
+
 thread_local! {
-    /// The table of powers of the last [`sums`] on this thread, for the next one.
-    static SPARE_POWERS: std::cell::RefCell<Vec<BlockPowers>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The tables of powers of the last [`sums`] on this thread, for the next ones.
+    ///
+    /// Why more than storage: every excitation of a campaign shares the frequency axis,
+    /// so the whole-band locator sweeps of all of them run on the same decimated lines,
+    /// and the sub-bands of the full and safety sweeps often coincide too (they follow
+    /// the modes). A table built for exactly these angles (bitwise) and powers is the
+    /// same table again, and its sines and cosines are most of its cost.
+    static POWER_TABLES: std::cell::RefCell<Vec<PowerTable>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 crate::simd::avx_fn! {
@@ -64,43 +83,34 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     // the wider zero padding of the last block (−0.4M instructions per excitation).
     const B: usize = SUM_BLOCK;
     let blocks = pm.div_ceil(B);
-    // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
-    // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
-    // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
-    // stays in cache while every channel runs over it, where the whole table would not.
-    // The table's storage is reused from the last sweep on this thread (taken out
-    // here, put back at the end) and every entry is written, padding included: not
-    // allocated and zero-filled every sweep (it is most of the sweep's memory).
-    // Its length is the largest yet (grown without copying the stale contents).
-    let mut spare = SPARE_POWERS.with(|t| t.take());
-    if spare.len() < blocks * nl {
-        spare.clear();
-        spare.resize(blocks * nl, [[0.0; B]; 2]);
-    }
-    let table = &mut spare[..blocks * nl];
-    for (k, &th) in theta.iter().enumerate() {
-        let z = c64::new(th.cos(), th.sin());
-        let mut zm = c64::new(1.0, 0.0);
-        for blk in 0..blocks {
-            let [re, im] = &mut table[blk * nl + k];
-            let nb = B.min(pm - blk * B);
-            for i in 0..nb {
-                let m = blk * B + i;
-                if m > 0 {
-                    zm = if m % 16 == 0 {
-                        let a = th * m as f64;
-                        c64::new(a.cos(), a.sin())
-                    } else {
-                        zm * z
-                    };
-                }
-                re[i] = zm.re;
-                im[i] = zm.im;
+    // The powers z_k^m, per block of powers and line (see `build_powers`), shared by
+    // every channel. The table is kept for the next sweeps on this thread (see `POWER_TABLES`): taken
+    // out here when one was built for these angles and powers, else built in the
+    // storage of the least recently used one (every entry is written, padding
+    // included: not allocated and zero-filled every sweep; it is most of the sweep's
+    // memory), and put back at the end.
+    let same = |p: &PowerTable| {
+        p.pm == pm
+            && p.theta.len() == nl
+            && p.theta.iter().zip(theta).all(|(a, b)| a.to_bits() == b.to_bits())
+    };
+    let mut kept = POWER_TABLES.with(|t| {
+        let mut t = t.borrow_mut();
+        match t.iter().position(same) {
+            Some(i) => Some(t.remove(i)),
+            None if t.len() >= KEPT_POWER_TABLES => {
+                let mut p = t.remove(0);
+                p.pm = usize::MAX;
+                Some(p)
             }
-            re[nb..].fill(0.0);
-            im[nb..].fill(0.0);
+            None => None,
         }
+    })
+    .unwrap_or(PowerTable { theta: Vec::new(), pm: usize::MAX, table: Vec::new() });
+    if kept.pm != pm {
+        build_powers(&mut kept, theta, pm);
     }
+    let table = &kept.table[..blocks * nl];
     let mut s = Sums {
         r: vec![vec![0.0; pm]; no],
         g_pos: vec![vec![0.0; pm]; no],
@@ -142,9 +152,52 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
             s.t[o][m0..m0 + nb].copy_from_slice(&t[..nb]);
         }
     }
-    SPARE_POWERS.with(|t| t.replace(spare));
+    POWER_TABLES.with(|t| t.borrow_mut().push(kept));
     s
 }
+}
+
+/// Builds `p`'s table of powers `0..pm` at the angles `theta` (see [`sums`]).
+fn build_powers(p: &mut PowerTable, theta: &[f64], pm: usize) {
+    const B: usize = SUM_BLOCK;
+    let nl = theta.len();
+    let blocks = pm.div_ceil(B);
+    // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
+    // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
+    // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
+    // stays in cache while every channel runs over it, where the whole table would not.
+    // Its length is the largest yet (grown without copying the stale contents).
+    if p.table.len() < blocks * nl {
+        p.table.clear();
+        p.table.resize(blocks * nl, [[0.0; B]; 2]);
+    }
+    let table = &mut p.table[..blocks * nl];
+    for (k, &th) in theta.iter().enumerate() {
+        let z = c64::new(th.cos(), th.sin());
+        let mut zm = c64::new(1.0, 0.0);
+        for blk in 0..blocks {
+            let [re, im] = &mut table[blk * nl + k];
+            let nb = B.min(pm - blk * B);
+            for i in 0..nb {
+                let m = blk * B + i;
+                if m > 0 {
+                    zm = if m % 16 == 0 {
+                        let a = th * m as f64;
+                        c64::new(a.cos(), a.sin())
+                    } else {
+                        zm * z
+                    };
+                }
+                re[i] = zm.re;
+                im[i] = zm.im;
+            }
+            re[nb..].fill(0.0);
+            im[nb..].fill(0.0);
+        }
+    }
+    p.theta.clear();
+    p.theta.extend_from_slice(theta);
+    p.pm = pm;
 }
 
 /// One channel's `[r, Re g(m), Re g(−m), t]` over the lines for the first `W` powers
