@@ -15,7 +15,6 @@
 //! than `O(N·n²)` products; any (non-uniform) axis works.
 
 use crate::band::BandData;
-use crate::linalg;
 use crate::pole::Pole;
 use crate::roots;
 use rbprops_core::c64;
@@ -445,11 +444,6 @@ impl Factors {
         }
     }
 
-    /// The channels of group `c` (the lanes in use).
-    fn lanes_in(&self, c: usize) -> usize {
-        LANES.min(self.no - c * LANES)
-    }
-
     /// Extends every channel's factors with basis function `q`; `false` when some R_o
     /// is not positive definite.
     fn extend(&mut self, q: usize) -> bool {
@@ -539,56 +533,173 @@ impl Factors {
     /// The reduced equations of order `n`: `M = T − Σ_o G_o` (`T` Toeplitz with first
     /// column `t_sum`), leading `(n+1)×(n+1)` block; with `α_n = 1`, `A α_{0..n} = b`
     /// for `A` the leading `n×n` block and `b` minus the first `n` entries of column
-    /// `n`. Returned row-major.
-    fn reduced_system(&self, t_sum: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
-        let pm = self.pm;
-        // Σ_o G_o on its lower triangle, rows 0..=n packed (row j: columns 0..=j),
-        // channel by channel in channel order; G is symmetric, so (j, k) above the
-        // diagonal is the same sum as (k, j) (and only the lower triangle is kept).
-        let at = |j: usize| j * (j + 1) / 2;
-        let mut low = vec![0.0; at(n + 1)];
-        for j in 0..=n {
-            let row = &mut low[at(j)..at(j) + j + 1];
-            for (c, gc) in self.g.iter().enumerate() {
-                let src = &gc[j * pm..j * pm + j + 1];
-                if self.lanes_in(c) == LANES {
-                    // A full group in one pass over the row (the same additions, lane
-                    // after lane, entry by entry; one pass per lane loaded and stored
-                    // each running sum four times).
-                    for (s, v) in row.iter_mut().zip(src) {
-                        *s = v.iter().fold(*s, |acc, x| acc + x);
-                    }
-                } else {
-                    for t in 0..self.lanes_in(c) {
-                        for (s, v) in row.iter_mut().zip(src) {
-                            *s += v[t];
-                        }
-                    }
-                }
-            }
-        }
-        // A is symmetric: each entry of the packed lower triangle is computed once and
-        // written to (j, k) and (k, j) (the same difference; entry by entry through an
-        // index closure it cost 26 instructions).
-        let mut a = vec![0.0; n * n];
-        let mut b = vec![0.0; n];
-        for j in 0..n {
-            let row = &low[at(j)..at(j) + j + 1];
-            for (k, (g, t)) in row.iter().zip(t_sum[..=j].iter().rev()).enumerate() {
-                let v = t - g;
-                a[j * n + k] = v;
-                a[k * n + j] = v;
-            }
-            b[j] = low[at(n) + j] - t_sum[n - j];
-        }
-        (a, b)
+    /// `n`. Written to `a` row-major with rows [`padded_width`]`(n)` long (the padding
+    /// columns are left as they are) and to `b`.
+    fn reduced_system(&self, t_sum: &[f64], n: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        reduced_system_into(self, t_sum, n, a, b)
     }
-
     /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
     /// denominator `coef` (`p` coefficients), per channel group: `[group][j]` holds
     /// `β_j` of the group's channels (unused lanes 0).
     fn numerators(&self, coef: &[f64]) -> Vec<Vec<Lanes>> {
         factor_numerators(self, coef)
+    }
+}
+
+/// Row length of the reduced system of order `n` in [`Factors::reduced_system`] and
+/// [`solve_reduced`]: `n` rounded up to whole AVX vectors.
+fn padded_width(n: usize) -> usize {
+    n.next_multiple_of(4)
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::reduced_system`].
+    fn reduced_system_into(f: &Factors, t_sum: &[f64], n: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) -> () {
+        let (pm, w) = (f.pm, padded_width(n));
+        if a.len() < n * w {
+            a.resize(n * w, 0.0);
+        }
+        if cfg!(test) {
+            // Stale entries (the padding is never written) must not reach the results.
+            a.fill(f64::NAN);
+        }
+        b.clear();
+        b.resize(n, 0.0);
+        // Entry (j, k ≤ j) of Σ_o G_o: the lanes of every group in channel order, each
+        // added to a running sum that starts at 0 (the additions, in the order, of the
+        // sum over the packed lower triangle it replaces; G is symmetric and only its
+        // lower triangle is kept). Four entries of a row at a time, their sums in
+        // registers. A is symmetric: each entry is computed once and written to (j, k)
+        // and (k, j).
+        let full = f.no / LANES;
+        let last = f.no - full * LANES;
+        let (g_full, g_last) = f.g.split_at(full);
+        let mut put = |j: usize, k: usize, s: f64| {
+            if j < n {
+                let v = t_sum[j - k] - s;
+                a[j * w + k] = v;
+                a[k * w + j] = v;
+            } else {
+                b[k] = s - t_sum[n - k];
+            }
+        };
+        for j in 0..=n {
+            // Row n: the first n entries only (b).
+            let kn = if j < n { j + 1 } else { n };
+            let row = j * pm;
+            let mut k0 = 0;
+            while k0 + 4 <= kn {
+                let mut s = [0.0f64; 4];
+                for gc in g_full {
+                    let v: &[Lanes; 4] = gc[row + k0..row + k0 + 4].try_into().unwrap();
+                    for e in 0..4 {
+                        s[e] = s[e] + v[e][0] + v[e][1] + v[e][2] + v[e][3];
+                    }
+                }
+                if let Some(gc) = g_last.first() {
+                    let v: &[Lanes; 4] = gc[row + k0..row + k0 + 4].try_into().unwrap();
+                    for t in 0..last {
+                        for e in 0..4 {
+                            s[e] += v[e][t];
+                        }
+                    }
+                }
+                for (e, &s) in s.iter().enumerate() {
+                    put(j, k0 + e, s);
+                }
+                k0 += 4;
+            }
+            for k in k0..kn {
+                let mut s = 0.0;
+                for gc in g_full {
+                    let v = gc[row + k];
+                    s = s + v[0] + v[1] + v[2] + v[3];
+                }
+                if let Some(gc) = g_last.first() {
+                    for &x in &gc[row + k][..last] {
+                        s += x;
+                    }
+                }
+                put(j, k, s);
+            }
+        }
+    }
+}
+
+crate::simd::avx_fn! {
+    /// Solves `A x = b` for the reduced system of order `n` as [`Factors::reduced_system`]
+    /// writes it (rows `padded_width(n)` long), overwriting both; `false` when `A` is
+    /// (numerically) singular.
+    ///
+    /// The operations of `linalg::solve_rows` for one right-hand side, in its order:
+    /// Gaussian elimination with partial pivoting (the largest magnitude, the last of
+    /// equals), then back substitution; bitwise its solution. Cheaper: each row update
+    /// runs over whole vectors, from the one holding the pivot's next column to the
+    /// padded end of the row. The entries it also rewrites (the row's columns up to
+    /// the pivot column and the padding) are never read again (the pivot searches read
+    /// later columns, the back substitution the columns right of the diagonal), so the
+    /// vectors need no partial first and last steps.
+    fn solve_reduced(a: &mut [f64], x: &mut [f64], n: usize) -> bool {
+        let w = padded_width(n);
+        let a = &mut a[..n * w];
+        let x = &mut x[..n];
+        // The largest magnitude (NaN ignored, as by `f64::max`; the maximum of
+        // non-negative numbers in any order).
+        let mut scale = 0.0f64;
+        for row in a.chunks_exact(w) {
+            for v in &row[..n] {
+                let v = v.abs();
+                if v > scale {
+                    scale = v;
+                }
+            }
+        }
+        if !(scale > 0.0) || !scale.is_finite() {
+            return false;
+        }
+        for c in 0..n {
+            let (mut p, mut best) = (c, a[c * w + c].abs());
+            for i in c + 1..n {
+                let v = a[i * w + c].abs();
+                if best.total_cmp(&v) != std::cmp::Ordering::Greater {
+                    (p, best) = (i, v);
+                }
+            }
+            if best <= 1e-14 * scale {
+                return false;
+            }
+            if p != c {
+                let (head, tail) = a.split_at_mut(p * w);
+                head[c * w..(c + 1) * w].swap_with_slice(&mut tail[..w]);
+                x.swap(c, p);
+            }
+            let (top, below) = a.split_at_mut((c + 1) * w);
+            let pivot = &top[c * w..];
+            let d = pivot[c];
+            let xc = x[c];
+            let c4 = (c + 1) / 4 * 4;
+            let pv = &pivot[c4..];
+            for (row, xr) in below.chunks_exact_mut(w).zip(&mut x[c + 1..]) {
+                let f = row[c] / d;
+                if f != 0.0 {
+                    for (v, u) in row[c4..].chunks_exact_mut(4).zip(pv.chunks_exact(4)) {
+                        // Read whole, then written (in place lane by lane it stayed scalar).
+                        let v: &mut [f64; 4] = v.try_into().unwrap();
+                        *v = [v[0] - f * u[0], v[1] - f * u[1], v[2] - f * u[2], v[3] - f * u[3]];
+                    }
+                    *xr -= f * xc;
+                }
+            }
+        }
+        for i in (0..n).rev() {
+            let mut s = x[i];
+            let row = &a[i * w..i * w + n];
+            for l in i + 1..n {
+                s -= row[l] * x[l];
+            }
+            x[i] = s / row[i];
+        }
+        true
     }
 }
 
@@ -737,6 +848,8 @@ fn sweep_with_roots(
     let t_sum: Vec<f64> = (0..pm).map(|m| s.t.iter().map(|t| t[m]).sum()).collect();
     let mut out = Vec::new();
     let mut previous: Option<Vec<c64>> = None;
+    // The reduced system of each order (see `Factors::reduced_system`), storage reused.
+    let (mut a, mut b) = (Vec::new(), Vec::new());
     for q in 0..pm {
         if !f.extend(q) {
             return out;
@@ -745,10 +858,11 @@ fn sweep_with_roots(
         if n < 2 || n % step != 0 {
             continue;
         }
-        let (a, b) = f.reduced_system(&t_sum, n);
-        let Some(mut coef) = linalg::solve_rows(a, b, n, 1) else {
+        f.reduced_system(&t_sum, n, &mut a, &mut b);
+        if !solve_reduced(&mut a, &mut b, n) {
             continue;
-        };
+        }
+        let mut coef = b.clone();
         coef.push(1.0);
         let Some(z_roots) = crate::prof::time(5, || roots(&coef[..n], previous.as_deref())) else {
             continue;
@@ -790,6 +904,7 @@ fn sweep_with_roots(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::linalg;
     use crate::testdata::{self, max_nearest};
     use rbprops_core::Quantity;
 
