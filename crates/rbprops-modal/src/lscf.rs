@@ -15,7 +15,6 @@
 //! than `O(N·n²)` products; any (non-uniform) axis works.
 
 use crate::band::BandData;
-use crate::linalg;
 use crate::pole::Pole;
 use crate::roots;
 use rbprops_core::c64;
@@ -47,9 +46,28 @@ type BlockPowers = [[f64; SUM_BLOCK]; 2];
 /// Powers per block of [`sums`].
 const SUM_BLOCK: usize = 8;
 
+/// A table of powers of [`sums`] and the axis it was built for.
+struct PowerTable {
+    /// The angles `θ_k`.
+    theta: Vec<f64>,
+    /// Powers `0..pm`.
+    pm: usize,
+    /// `[block][line]` (see [`sums`]).
+    table: Vec<BlockPowers>,
+}
+
+/// Tables of powers kept per thread (the most recently used last).
+const KEPT_POWER_TABLES: usize = 6;
+
 thread_local! {
-    /// The table of powers of the last [`sums`] on this thread, for the next one.
-    static SPARE_POWERS: std::cell::RefCell<Vec<BlockPowers>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The tables of powers of the last [`sums`] on this thread, for the next ones.
+    ///
+    /// Why more than storage: every excitation of a campaign shares the frequency axis,
+    /// so the whole-band locator sweeps of all of them run on the same decimated lines,
+    /// and the sub-bands of the full and safety sweeps often coincide too (they follow
+    /// the modes). A table built for exactly these angles (bitwise) and powers is the
+    /// same table again, and its sines and cosines are most of its cost.
+    static POWER_TABLES: std::cell::RefCell<Vec<PowerTable>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 crate::simd::avx_fn! {
@@ -64,43 +82,34 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
     // the wider zero padding of the last block (−0.4M instructions per excitation).
     const B: usize = SUM_BLOCK;
     let blocks = pm.div_ceil(B);
-    // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
-    // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
-    // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
-    // stays in cache while every channel runs over it, where the whole table would not.
-    // The table's storage is reused from the last sweep on this thread (taken out
-    // here, put back at the end) and every entry is written, padding included: not
-    // allocated and zero-filled every sweep (it is most of the sweep's memory).
-    // Its length is the largest yet (grown without copying the stale contents).
-    let mut spare = SPARE_POWERS.with(|t| t.take());
-    if spare.len() < blocks * nl {
-        spare.clear();
-        spare.resize(blocks * nl, [[0.0; B]; 2]);
-    }
-    let table = &mut spare[..blocks * nl];
-    for (k, &th) in theta.iter().enumerate() {
-        let z = c64::new(th.cos(), th.sin());
-        let mut zm = c64::new(1.0, 0.0);
-        for blk in 0..blocks {
-            let [re, im] = &mut table[blk * nl + k];
-            let nb = B.min(pm - blk * B);
-            for i in 0..nb {
-                let m = blk * B + i;
-                if m > 0 {
-                    zm = if m % 16 == 0 {
-                        let a = th * m as f64;
-                        c64::new(a.cos(), a.sin())
-                    } else {
-                        zm * z
-                    };
-                }
-                re[i] = zm.re;
-                im[i] = zm.im;
+    // The powers z_k^m, per block of powers and line (see `build_powers`), shared by
+    // every channel. The table is kept for the next sweeps on this thread (see `POWER_TABLES`): taken
+    // out here when one was built for these angles and powers, else built in the
+    // storage of the least recently used one (every entry is written, padding
+    // included: not allocated and zero-filled every sweep; it is most of the sweep's
+    // memory), and put back at the end.
+    let same = |p: &PowerTable| {
+        p.pm == pm
+            && p.theta.len() == nl
+            && p.theta.iter().zip(theta).all(|(a, b)| a.to_bits() == b.to_bits())
+    };
+    let mut kept = POWER_TABLES.with(|t| {
+        let mut t = t.borrow_mut();
+        match t.iter().position(same) {
+            Some(i) => Some(t.remove(i)),
+            None if t.len() >= KEPT_POWER_TABLES => {
+                let mut p = t.remove(0);
+                p.pm = usize::MAX;
+                Some(p)
             }
-            re[nb..].fill(0.0);
-            im[nb..].fill(0.0);
+            None => None,
         }
+    })
+    .unwrap_or(PowerTable { theta: Vec::new(), pm: usize::MAX, table: Vec::new() });
+    if kept.pm != pm {
+        build_powers(&mut kept, theta, pm);
     }
+    let table = &kept.table[..blocks * nl];
     let mut s = Sums {
         r: vec![vec![0.0; pm]; no],
         g_pos: vec![vec![0.0; pm]; no],
@@ -142,9 +151,52 @@ fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -
             s.t[o][m0..m0 + nb].copy_from_slice(&t[..nb]);
         }
     }
-    SPARE_POWERS.with(|t| t.replace(spare));
+    POWER_TABLES.with(|t| t.borrow_mut().push(kept));
     s
 }
+}
+
+/// Builds `p`'s table of powers `0..pm` at the angles `theta` (see [`sums`]).
+fn build_powers(p: &mut PowerTable, theta: &[f64], pm: usize) {
+    const B: usize = SUM_BLOCK;
+    let nl = theta.len();
+    let blocks = pm.div_ceil(B);
+    // Powers z_k^m by recurrence, re-anchored every 16 steps to bound rounding drift;
+    // one table per block of powers, `[line]` of `[re, im]` of `B` powers (zero-padded),
+    // shared by every channel. Blocks outermost: each block's table (128 bytes a line)
+    // stays in cache while every channel runs over it, where the whole table would not.
+    // Its length is the largest yet (grown without copying the stale contents).
+    if p.table.len() < blocks * nl {
+        p.table.clear();
+        p.table.resize(blocks * nl, [[0.0; B]; 2]);
+    }
+    let table = &mut p.table[..blocks * nl];
+    for (k, &th) in theta.iter().enumerate() {
+        let z = c64::new(th.cos(), th.sin());
+        let mut zm = c64::new(1.0, 0.0);
+        for blk in 0..blocks {
+            let [re, im] = &mut table[blk * nl + k];
+            let nb = B.min(pm - blk * B);
+            for i in 0..nb {
+                let m = blk * B + i;
+                if m > 0 {
+                    zm = if m % 16 == 0 {
+                        let a = th * m as f64;
+                        c64::new(a.cos(), a.sin())
+                    } else {
+                        zm * z
+                    };
+                }
+                re[i] = zm.re;
+                im[i] = zm.im;
+            }
+            re[nb..].fill(0.0);
+            im[nb..].fill(0.0);
+        }
+    }
+    p.theta.clear();
+    p.theta.extend_from_slice(theta);
+    p.pm = pm;
 }
 
 /// One channel's `[r, Re g(m), Re g(−m), t]` over the lines for the first `W` powers
@@ -205,6 +257,73 @@ fn sub_lanes(mut v: Lanes, a: &[Lanes], b: &[Lanes]) -> Lanes {
         }
     }
     v
+}
+
+/// [`sub_lanes`] of [`ROWS`] rows `b[j]` against one vector `a` (every `b[j]` at least
+/// as long as `a`): `v[j] − Σ_m a_m b[j]_m`, each sum in index order (bitwise
+/// `sub_lanes` row by row).
+///
+/// Why: the recursion's row-by-row inner products are short (up to the model order), so
+/// a call per row paid its setup, remainder and bounds checks for a handful of terms;
+/// several rows at once share those and each load of `a`, and run independent chains.
+#[inline(always)]
+fn sub_lanes_rows(mut v: [Lanes; ROWS], a: &[Lanes], b: [&[Lanes]; ROWS]) -> [Lanes; ROWS] {
+    let n = a.len();
+    let b = rows4(|j| &b[j][..n]);
+    for i in 0..n {
+        let x = a[i];
+        for j in 0..ROWS {
+            let y = b[j][i];
+            for t in 0..LANES {
+                v[j][t] -= x[t] * y[t];
+            }
+        }
+    }
+    v
+}
+
+/// Rows per block of [`forward_rows`] and [`Factors::extend_group`]'s row sums.
+const ROWS: usize = 4;
+
+/// `[f(0), f(1), f(2), f(3)]`: written out, as `std::array::from_fn` was left a call
+/// (not inlined into the AVX copy).
+#[inline(always)]
+fn rows4<T>(f: impl Fn(usize) -> T) -> [T; ROWS] {
+    [f(0), f(1), f(2), f(3)]
+}
+
+/// Forward substitution against the rows of the lower-triangular `m` (row `k` at
+/// `m[k·pm..]`): `x_k = (rhs(k) − Σ_{i<k} x_i m_{k,i}) / m_{k,k}` for every `k` of `x`,
+/// each sum in index order (bitwise `sub_lanes(rhs(k), &x[..k], &m[k·pm..k·pm + k])`
+/// one `k` after the other). Blocks of [`ROWS`] outputs: the terms `i` before the block
+/// by [`sub_lanes_rows`], then the block's own triangle.
+#[inline(always)]
+fn forward_rows(x: &mut [Lanes], m: &[Lanes], pm: usize, rhs: impl Fn(usize) -> Lanes) {
+    let q = x.len();
+    let mut k0 = 0;
+    while k0 + ROWS <= q {
+        // Row k0 + j up to the block's last column.
+        let rows = rows4(|j| &m[(k0 + j) * pm..(k0 + j) * pm + k0 + ROWS]);
+        let (head, rest) = x.split_at_mut(k0);
+        let block: &mut [Lanes; ROWS] = (&mut rest[..ROWS]).try_into().unwrap();
+        let v = sub_lanes_rows(rows4(|j| rhs(k0 + j)), head, rows);
+        for j in 0..ROWS {
+            let tri: &[Lanes; ROWS] = rows[j][k0..].try_into().unwrap();
+            let mut v = v[j];
+            for i in 0..j {
+                for t in 0..LANES {
+                    v[t] -= block[i][t] * tri[i][t];
+                }
+            }
+            block[j] = std::array::from_fn(|t| v[t] / tri[j][t]);
+        }
+        k0 += ROWS;
+    }
+    for k in k0..q {
+        let v = sub_lanes(rhs(k), &x[..k], &m[k * pm..k * pm + k]);
+        let d = m[k * pm + k];
+        x[k] = std::array::from_fn(|t| v[t] / d[t]);
+    }
 }
 
 /// `g_k += s y_k` in every lane.
@@ -325,11 +444,6 @@ impl Factors {
         }
     }
 
-    /// The channels of group `c` (the lanes in use).
-    fn lanes_in(&self, c: usize) -> usize {
-        LANES.min(self.no - c * LANES)
-    }
-
     /// Extends every channel's factors with basis function `q`; `false` when some R_o
     /// is not positive definite.
     fn extend(&mut self, q: usize) -> bool {
@@ -351,11 +465,13 @@ impl Factors {
             }
         };
         let div = |v: Lanes, d: Lanes| -> Lanes { std::array::from_fn(|t| v[t] / d[t]) };
-        // Row q of L.
-        for k in 0..q {
-            let v = sub_lanes(r[q - k], &lo[q * pm..q * pm + k], &lo[k * pm..k * pm + k]);
-            lo[q * pm + k] = div(v, lo[k * pm + k]);
-            lto[k * pm + q] = lo[q * pm + k];
+        // Row q of L (a forward substitution against the rows k < q), and Lᵀ.
+        {
+            let (done, row_q) = lo.split_at_mut(q * pm);
+            forward_rows(&mut row_q[..q], done, pm, |k| r[q - k]);
+            for k in 0..q {
+                lto[k * pm + q] = row_q[k];
+            }
         }
         let lq = &lo[q * pm..q * pm + q];
         let d = sub_lanes(r[0], lq, lq);
@@ -364,13 +480,21 @@ impl Factors {
         }
         let lqq = d.map(f64::sqrt);
         lo[q * pm + q] = lqq;
-        // New column q of Y (rows < q), then new row q (columns ≤ q).
-        for i in 0..q {
-            let v = sub_lanes(s_at(i, q), &lo[i * pm..i * pm + i], &yo[q * pm..q * pm + i]);
-            yo[q * pm + i] = div(v, lo[i * pm + i]);
+        // New column q of Y (rows < q; stored as row q of `yt`), then new row q
+        // (columns ≤ q), the latter [`ROWS`] at a time.
+        forward_rows(&mut yo[q * pm..q * pm + q], lo, pm, |i| s_at(i, q));
+        let lq = &lo[q * pm..q * pm + q];
+        let mut j0 = 0;
+        while j0 + ROWS <= q + 1 {
+            let rows = rows4(|j| &yo[(j0 + j) * pm..(j0 + j) * pm + q]);
+            let v = sub_lanes_rows(rows4(|j| s_at(q, j0 + j)), lq, rows);
+            for (j, v) in v.into_iter().enumerate() {
+                yo[(j0 + j) * pm + q] = div(v, lqq);
+            }
+            j0 += ROWS;
         }
-        for j in 0..=q {
-            let v = sub_lanes(s_at(q, j), &lo[q * pm..q * pm + q], &yo[j * pm..j * pm + q]);
+        for j in j0..=q {
+            let v = sub_lanes(s_at(q, j), lq, &yo[j * pm..j * pm + q]);
             yo[j * pm + q] = div(v, lqq);
         }
         // G = YᵀY: the new row adds to the old block; the new column is computed. G is
@@ -387,10 +511,19 @@ impl Factors {
         for (j, &yj) in row.iter().enumerate() {
             add_lanes(&mut go[j * pm..j * pm + j + 1], yj, &row[..=j]);
         }
-        for j in 0..=q {
-            // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a
-            // plain sum.
-            let rq = &yo[q * pm..q * pm + q + 1];
+        // Σ_i y_ij y_iq as −(0 − Σ …): the same additions in the same order as a plain
+        // sum; [`ROWS`] columns j at a time.
+        let rq = &yo[q * pm..q * pm + q + 1];
+        let mut j0 = 0;
+        while j0 + ROWS <= q + 1 {
+            let rows = rows4(|j| &yo[(j0 + j) * pm..(j0 + j) * pm + q + 1]);
+            let v = sub_lanes_rows([[0.0; LANES]; ROWS], rq, rows);
+            for (j, v) in v.into_iter().enumerate() {
+                go[q * pm + j0 + j] = v.map(|x| -x);
+            }
+            j0 += ROWS;
+        }
+        for j in j0..=q {
             let v = sub_lanes([0.0; LANES], &yo[j * pm..j * pm + q + 1], rq).map(|x| -x);
             go[q * pm + j] = v;
         }
@@ -400,56 +533,173 @@ impl Factors {
     /// The reduced equations of order `n`: `M = T − Σ_o G_o` (`T` Toeplitz with first
     /// column `t_sum`), leading `(n+1)×(n+1)` block; with `α_n = 1`, `A α_{0..n} = b`
     /// for `A` the leading `n×n` block and `b` minus the first `n` entries of column
-    /// `n`. Returned row-major.
-    fn reduced_system(&self, t_sum: &[f64], n: usize) -> (Vec<f64>, Vec<f64>) {
-        let pm = self.pm;
-        // Σ_o G_o on its lower triangle, rows 0..=n packed (row j: columns 0..=j),
-        // channel by channel in channel order; G is symmetric, so (j, k) above the
-        // diagonal is the same sum as (k, j) (and only the lower triangle is kept).
-        let at = |j: usize| j * (j + 1) / 2;
-        let mut low = vec![0.0; at(n + 1)];
-        for j in 0..=n {
-            let row = &mut low[at(j)..at(j) + j + 1];
-            for (c, gc) in self.g.iter().enumerate() {
-                let src = &gc[j * pm..j * pm + j + 1];
-                if self.lanes_in(c) == LANES {
-                    // A full group in one pass over the row (the same additions, lane
-                    // after lane, entry by entry; one pass per lane loaded and stored
-                    // each running sum four times).
-                    for (s, v) in row.iter_mut().zip(src) {
-                        *s = v.iter().fold(*s, |acc, x| acc + x);
-                    }
-                } else {
-                    for t in 0..self.lanes_in(c) {
-                        for (s, v) in row.iter_mut().zip(src) {
-                            *s += v[t];
-                        }
-                    }
-                }
-            }
-        }
-        // A is symmetric: each entry of the packed lower triangle is computed once and
-        // written to (j, k) and (k, j) (the same difference; entry by entry through an
-        // index closure it cost 26 instructions).
-        let mut a = vec![0.0; n * n];
-        let mut b = vec![0.0; n];
-        for j in 0..n {
-            let row = &low[at(j)..at(j) + j + 1];
-            for (k, (g, t)) in row.iter().zip(t_sum[..=j].iter().rev()).enumerate() {
-                let v = t - g;
-                a[j * n + k] = v;
-                a[k * n + j] = v;
-            }
-            b[j] = low[at(n) + j] - t_sum[n - j];
-        }
-        (a, b)
+    /// `n`. Written to `a` row-major with rows [`padded_width`]`(n)` long (the padding
+    /// columns are left as they are) and to `b`.
+    fn reduced_system(&self, t_sum: &[f64], n: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) {
+        reduced_system_into(self, t_sum, n, a, b)
     }
-
     /// Numerator coefficients `β_o = −R_o⁻¹S_o α = −L⁻ᵀ(Y α)` of every channel for the
     /// denominator `coef` (`p` coefficients), per channel group: `[group][j]` holds
     /// `β_j` of the group's channels (unused lanes 0).
     fn numerators(&self, coef: &[f64]) -> Vec<Vec<Lanes>> {
         factor_numerators(self, coef)
+    }
+}
+
+/// Row length of the reduced system of order `n` in [`Factors::reduced_system`] and
+/// [`solve_reduced`]: `n` rounded up to whole AVX vectors.
+fn padded_width(n: usize) -> usize {
+    n.next_multiple_of(4)
+}
+
+crate::simd::avx_fn! {
+    /// [`Factors::reduced_system`].
+    fn reduced_system_into(f: &Factors, t_sum: &[f64], n: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) -> () {
+        let (pm, w) = (f.pm, padded_width(n));
+        if a.len() < n * w {
+            a.resize(n * w, 0.0);
+        }
+        if cfg!(test) {
+            // Stale entries (the padding is never written) must not reach the results.
+            a.fill(f64::NAN);
+        }
+        b.clear();
+        b.resize(n, 0.0);
+        // Entry (j, k ≤ j) of Σ_o G_o: the lanes of every group in channel order, each
+        // added to a running sum that starts at 0 (the additions, in the order, of the
+        // sum over the packed lower triangle it replaces; G is symmetric and only its
+        // lower triangle is kept). Four entries of a row at a time, their sums in
+        // registers. A is symmetric: each entry is computed once and written to (j, k)
+        // and (k, j).
+        let full = f.no / LANES;
+        let last = f.no - full * LANES;
+        let (g_full, g_last) = f.g.split_at(full);
+        let mut put = |j: usize, k: usize, s: f64| {
+            if j < n {
+                let v = t_sum[j - k] - s;
+                a[j * w + k] = v;
+                a[k * w + j] = v;
+            } else {
+                b[k] = s - t_sum[n - k];
+            }
+        };
+        for j in 0..=n {
+            // Row n: the first n entries only (b).
+            let kn = if j < n { j + 1 } else { n };
+            let row = j * pm;
+            let mut k0 = 0;
+            while k0 + 4 <= kn {
+                let mut s = [0.0f64; 4];
+                for gc in g_full {
+                    let v: &[Lanes; 4] = gc[row + k0..row + k0 + 4].try_into().unwrap();
+                    for e in 0..4 {
+                        s[e] = s[e] + v[e][0] + v[e][1] + v[e][2] + v[e][3];
+                    }
+                }
+                if let Some(gc) = g_last.first() {
+                    let v: &[Lanes; 4] = gc[row + k0..row + k0 + 4].try_into().unwrap();
+                    for t in 0..last {
+                        for e in 0..4 {
+                            s[e] += v[e][t];
+                        }
+                    }
+                }
+                for (e, &s) in s.iter().enumerate() {
+                    put(j, k0 + e, s);
+                }
+                k0 += 4;
+            }
+            for k in k0..kn {
+                let mut s = 0.0;
+                for gc in g_full {
+                    let v = gc[row + k];
+                    s = s + v[0] + v[1] + v[2] + v[3];
+                }
+                if let Some(gc) = g_last.first() {
+                    for &x in &gc[row + k][..last] {
+                        s += x;
+                    }
+                }
+                put(j, k, s);
+            }
+        }
+    }
+}
+
+crate::simd::avx_fn! {
+    /// Solves `A x = b` for the reduced system of order `n` as [`Factors::reduced_system`]
+    /// writes it (rows `padded_width(n)` long), overwriting both; `false` when `A` is
+    /// (numerically) singular.
+    ///
+    /// The operations of `linalg::solve_rows` for one right-hand side, in its order:
+    /// Gaussian elimination with partial pivoting (the largest magnitude, the last of
+    /// equals), then back substitution; bitwise its solution. Cheaper: each row update
+    /// runs over whole vectors, from the one holding the pivot's next column to the
+    /// padded end of the row. The entries it also rewrites (the row's columns up to
+    /// the pivot column and the padding) are never read again (the pivot searches read
+    /// later columns, the back substitution the columns right of the diagonal), so the
+    /// vectors need no partial first and last steps.
+    fn solve_reduced(a: &mut [f64], x: &mut [f64], n: usize) -> bool {
+        let w = padded_width(n);
+        let a = &mut a[..n * w];
+        let x = &mut x[..n];
+        // The largest magnitude (NaN ignored, as by `f64::max`; the maximum of
+        // non-negative numbers in any order).
+        let mut scale = 0.0f64;
+        for row in a.chunks_exact(w) {
+            for v in &row[..n] {
+                let v = v.abs();
+                if v > scale {
+                    scale = v;
+                }
+            }
+        }
+        if !(scale > 0.0) || !scale.is_finite() {
+            return false;
+        }
+        for c in 0..n {
+            let (mut p, mut best) = (c, a[c * w + c].abs());
+            for i in c + 1..n {
+                let v = a[i * w + c].abs();
+                if best.total_cmp(&v) != std::cmp::Ordering::Greater {
+                    (p, best) = (i, v);
+                }
+            }
+            if best <= 1e-14 * scale {
+                return false;
+            }
+            if p != c {
+                let (head, tail) = a.split_at_mut(p * w);
+                head[c * w..(c + 1) * w].swap_with_slice(&mut tail[..w]);
+                x.swap(c, p);
+            }
+            let (top, below) = a.split_at_mut((c + 1) * w);
+            let pivot = &top[c * w..];
+            let d = pivot[c];
+            let xc = x[c];
+            let c4 = (c + 1) / 4 * 4;
+            let pv = &pivot[c4..];
+            for (row, xr) in below.chunks_exact_mut(w).zip(&mut x[c + 1..]) {
+                let f = row[c] / d;
+                if f != 0.0 {
+                    for (v, u) in row[c4..].chunks_exact_mut(4).zip(pv.chunks_exact(4)) {
+                        // Read whole, then written (in place lane by lane it stayed scalar).
+                        let v: &mut [f64; 4] = v.try_into().unwrap();
+                        *v = [v[0] - f * u[0], v[1] - f * u[1], v[2] - f * u[2], v[3] - f * u[3]];
+                    }
+                    *xr -= f * xc;
+                }
+            }
+        }
+        for i in (0..n).rev() {
+            let mut s = x[i];
+            let row = &a[i * w..i * w + n];
+            for l in i + 1..n {
+                s -= row[l] * x[l];
+            }
+            x[i] = s / row[i];
+        }
+        true
     }
 }
 
@@ -598,6 +848,8 @@ fn sweep_with_roots(
     let t_sum: Vec<f64> = (0..pm).map(|m| s.t.iter().map(|t| t[m]).sum()).collect();
     let mut out = Vec::new();
     let mut previous: Option<Vec<c64>> = None;
+    // The reduced system of each order (see `Factors::reduced_system`), storage reused.
+    let (mut a, mut b) = (Vec::new(), Vec::new());
     for q in 0..pm {
         if !f.extend(q) {
             return out;
@@ -606,10 +858,11 @@ fn sweep_with_roots(
         if n < 2 || n % step != 0 {
             continue;
         }
-        let (a, b) = f.reduced_system(&t_sum, n);
-        let Some(mut coef) = linalg::solve_rows(a, b, n, 1) else {
+        f.reduced_system(&t_sum, n, &mut a, &mut b);
+        if !solve_reduced(&mut a, &mut b, n) {
             continue;
-        };
+        }
+        let mut coef = b.clone();
         coef.push(1.0);
         let Some(z_roots) = crate::prof::time(5, || roots(&coef[..n], previous.as_deref())) else {
             continue;
@@ -651,6 +904,7 @@ fn sweep_with_roots(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::linalg;
     use crate::testdata::{self, max_nearest};
     use rbprops_core::Quantity;
 
