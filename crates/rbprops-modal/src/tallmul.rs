@@ -7,8 +7,10 @@
 //! packing `aᵀ` into panels (its kernel wants the long dimension inside), and a call
 //! costs setup that a 14 × 12 result does not amortise. Inner products of columns need
 //! no packing: a tile of 3 columns of `a` against 3 of `b` keeps 9 four-lane partial
-//! sums in registers and reads each row of the 6 columns once. Measured on the timing
-//! example (9 channels × 4,096 lines): see the commit that introduced this module.
+//! sums in registers and reads each row of the 6 columns once. On the `timing` example
+//! (9 channels × 4,096 lines) this module, with two smaller changes made alongside it,
+//! cut the wall time per excitation by 15–20 %, although it runs slightly more
+//! instructions than faer's FMA kernels (mul and add issue in parallel on this CPU).
 //!
 //! Every sum is taken in an order fixed by the shapes alone (four-lane partial sums over
 //! the rows, combined as `(s₀ + s₂) + (s₁ + s₃)`, then the leftover rows in order), so
@@ -176,7 +178,7 @@ crate::simd::avx_fn! {
     }
 }
 
-/// `out = aᵀb` (`accumulate` false) or `out += α·aᵀb` (true; `α = 1` with false).
+/// `out = α·aᵀb` (`accumulate` false) or `out += α·aᵀb` (true).
 /// `a` and `b` have the same number of rows; `out` is `a.ncols() × b.ncols()`.
 pub fn at_b(
     a: MatRef<'_, f64>,
@@ -188,7 +190,7 @@ pub fn at_b(
     assert_eq!(a.nrows(), b.nrows(), "aᵀb needs rows in common");
     assert_eq!((out.nrows(), out.ncols()), (a.ncols(), b.ncols()));
     let st = Store {
-        alpha: if accumulate { alpha } else { 1.0 },
+        alpha,
         accumulate,
         lower_only: false,
     };
@@ -308,13 +310,23 @@ mod tests {
         })
     }
 
-    /// Every tile shape and leftover row count against the plain triple loop.
+    /// Every tile shape, leftover row count and row-block boundary against the plain
+    /// triple loop.
     #[test]
     fn products_match_the_definition() {
-        for &(m, p, q) in &[(1, 1, 1), (7, 5, 4), (33, 14, 12), (64, 9, 7), (101, 3, 10)] {
+        let shapes = [
+            (1, 1, 1),
+            (7, 5, 4),
+            (33, 14, 12),
+            (64, 9, 7),
+            (101, 3, 10),
+            (128, 4, 4),
+            (515, 14, 9),
+        ];
+        for &(m, p, q) in &shapes {
             let (a, b) = (sample(m, p, 1), sample(m, q, 2));
-            let mut out = Mat::<f64>::zeros(p, q);
-            at_b(a.as_ref(), b.as_ref(), out.as_mut(), 1.0, false);
+            let mut out = sample(p, q, 7);
+            at_b(a.as_ref(), b.as_ref(), out.as_mut(), 3.0, false);
             let mut acc = sample(p, q, 3);
             let acc0 = acc.clone();
             at_b(a.as_ref(), b.as_ref(), acc.as_mut(), -2.0, true);
@@ -325,7 +337,7 @@ mod tests {
                 for j in 0..q {
                     let v: f64 = (0..m).map(|r| a[(r, i)] * b[(r, j)]).sum();
                     assert!(
-                        (out[(i, j)] - v).abs() <= 1e-14 * m as f64,
+                        (out[(i, j)] - 3.0 * v).abs() <= 1e-14 * m as f64,
                         "{m}×{p}×{q} ({i},{j})"
                     );
                     assert!((acc[(i, j)] - (acc0[(i, j)] - 2.0 * v)).abs() <= 1e-13 * m as f64);
