@@ -32,35 +32,38 @@ impl BandData {
         };
         let axis = &frf.frequency_hz;
         let (lo, hi) = band.unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-        let keep: Vec<usize> = (0..axis.len())
-            .filter(|&l| axis[l] >= lo && axis[l] <= hi)
-            .collect();
-        if keep.is_empty() {
+        let inside = |l: usize| axis[l] >= lo && axis[l] <= hi;
+        let Some(first) = (0..axis.len()).find(|&l| inside(l)) else {
             return Err(bad(format!(
                 "band [{lo}, {hi}] Hz holds no spectral line (axis {} to {} Hz)",
                 axis.first().copied().unwrap_or(f64::NAN),
                 axis.last().copied().unwrap_or(f64::NAN)
             )));
-        }
-        if keep.windows(2).any(|w| w[1] != w[0] + 1) {
+        };
+        // The lines inside must be one run (a sorted axis); then each channel is a slice.
+        let end = (first..axis.len())
+            .find(|&l| !inside(l))
+            .unwrap_or(axis.len());
+        if (end..axis.len()).any(inside) {
             return Err(bad("frequency axis is not sorted".into()));
         }
         let mut channels = Vec::with_capacity(frf.n_channels);
         for c in 0..frf.n_channels {
-            let h = frf.frf(e, c);
-            let v: Vec<c64> = keep.iter().map(|&l| h[l]).collect();
+            let v = frf.frf(e, c)[first..end].to_vec();
             if let Some(k) = v
                 .iter()
                 .position(|z| !(z.re.is_finite() && z.im.is_finite()))
             {
                 return Err(bad(format!(
                     "channel {c}, line {} ({} Hz): value {} is not finite",
-                    keep[k], axis[keep[k]], v[k]
+                    first + k,
+                    axis[first + k],
+                    v[k]
                 )));
             }
             channels.push(v);
         }
-        let frequency_hz: Vec<f64> = keep.iter().map(|&l| axis[l]).collect();
+        let frequency_hz = axis[first..end].to_vec();
         if let Some(w) = frequency_hz.windows(2).find(|w| !(w[1] > w[0])) {
             return Err(bad(format!(
                 "frequency axis does not increase ({} then {} Hz)",
@@ -72,7 +75,7 @@ impl BandData {
             omega: frequency_hz.iter().map(|f| 2.0 * PI * f).collect(),
             frequency_hz,
             channels,
-            first_line: keep[0],
+            first_line: first,
         })
     }
 
@@ -169,15 +172,63 @@ impl BandData {
             .collect()
     }
 
-    /// Root-mean-square magnitude of each channel (0 for an all-zero channel).
-    pub fn channel_rms(&self) -> Vec<f64> {
-        self.channels
-            .iter()
-            .map(|h| (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt())
-            .collect()
-    }
-
     pub fn band_hz(&self) -> [f64; 2] {
         [self.frequency_hz[0], *self.frequency_hz.last().unwrap()]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rbprops_core::Quantity;
+
+    /// Two excitations × two channels, value `100·e + 10·c + line` at each line.
+    fn set(axis: Vec<f64>) -> FrfSet {
+        let n = axis.len();
+        let values = (0..2)
+            .flat_map(|e| (0..2).flat_map(move |c| (0..n).map(move |l| (e, c, l))))
+            .map(|(e, c, l)| c64::new((100 * e + 10 * c + l) as f64, 0.5))
+            .collect();
+        FrfSet {
+            quantity: Quantity::Receptance,
+            frequency_hz: axis,
+            n_excitations: 2,
+            n_channels: 2,
+            values,
+        }
+    }
+
+    #[test]
+    fn extract_takes_the_lines_inside_the_band_and_refuses_the_rest() {
+        let frf = set((0..10).map(|l| l as f64).collect());
+        let b = BandData::extract(&frf, 1, Some((2.5, 6.0)), "E").unwrap();
+        assert_eq!(
+            (b.first_line, b.frequency_hz.clone()),
+            (3, vec![3.0, 4.0, 5.0, 6.0])
+        );
+        assert_eq!(
+            b.channels[1],
+            (3..7)
+                .map(|l| c64::new((110 + l) as f64, 0.5))
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(b.omega[0], 2.0 * PI * 3.0);
+        let whole = BandData::extract(&frf, 0, None, "E").unwrap();
+        assert_eq!((whole.first_line, whole.n_lines()), (0, 10));
+        let empty = BandData::extract(&frf, 0, Some((20.0, 30.0)), "E").unwrap_err();
+        assert!(
+            empty.to_string().contains("holds no spectral line"),
+            "{empty}"
+        );
+        let unsorted = set(vec![0.0, 1.0, 5.0, 2.0, 3.0]);
+        let err = BandData::extract(&unsorted, 0, Some((0.5, 3.5)), "E").unwrap_err();
+        assert!(err.to_string().contains("not sorted"), "{err}");
+        let mut nan = set((0..5).map(|l| l as f64).collect());
+        nan.frf_mut(1, 0)[3] = c64::new(f64::NAN, 0.0);
+        let err = BandData::extract(&nan, 1, Some((1.0, 4.0)), "E").unwrap_err();
+        assert!(
+            err.to_string().contains("channel 0, line 3 (3 Hz)"),
+            "{err}"
+        );
     }
 }

@@ -3,6 +3,7 @@
 
 use crate::band::BandData;
 use crate::circle;
+use crate::linalg;
 use crate::lsce;
 use crate::lscf;
 use crate::lsfd::{self, Residuals};
@@ -95,11 +96,12 @@ fn check_shapes(geometry: &Geometry, frf: &FrfSet) -> Result<(), ModalError> {
 
 /// Channels with signal, and warnings for the others.
 fn live_channels(band: &BandData, geometry: &Geometry, name: &str) -> (Vec<usize>, Vec<String>) {
-    let rms = band.channel_rms();
     let mut live = Vec::new();
     let mut warnings = Vec::new();
-    for (c, r) in rms.iter().enumerate() {
-        if *r > 0.0 {
+    for (c, h) in band.channels.iter().enumerate() {
+        // A channel has signal when its RMS is positive, i.e. when any |h|² is (stops at
+        // the first such line instead of summing the whole channel).
+        if h.iter().any(|z| z.norm_sqr() > 0.0) {
             live.push(c);
         } else {
             warnings.push(format!(
@@ -904,12 +906,8 @@ fn fit_one(
 
     let fit_error: Vec<f64> = (0..no)
         .map(|o| {
-            let meas: f64 = band.channels[o].iter().map(|z| z.norm_sqr()).sum();
-            let err: f64 = band.channels[o]
-                .iter()
-                .zip(&synth[o])
-                .map(|(a, b)| (a - b).norm_sqr())
-                .sum();
+            let h = &band.channels[o];
+            let (meas, err) = (linalg::cdot(h, h), linalg::cdist_sqr(h, &synth[o]));
             if meas > 0.0 {
                 err / meas
             } else {
