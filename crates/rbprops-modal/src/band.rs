@@ -164,6 +164,14 @@ impl BandData {
         self.omega.len()
     }
 
+    /// Root-mean-square magnitude of each channel (0 for an all-zero channel).
+    pub fn channel_rms(&self) -> Vec<f64> {
+        self.channels
+            .iter()
+            .map(|h| (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt())
+            .collect()
+    }
+
     /// `(iω)^k` of the measured quantity relative to receptance, per line.
     pub fn quantity_factor(&self) -> Vec<c64> {
         self.omega
