@@ -39,11 +39,10 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 }
 
-/// `Re Σ conj(a_i) b_i`: the real inner product of real-stacked complex vectors, with the
-/// same eight-way partial sums as [`dot`] (four complex lanes, real and imaginary parts
-/// apart).
-#[inline]
-pub fn cdot(a: &[c64], b: &[c64]) -> f64 {
+/// `Σ_i (t_i.0 + t_i.1)` with `t_i = term(a_i, b_i)`, in the eight-way partial sums of
+/// [`dot`] (four complex lanes, the two parts apart), combined in the same fixed tree.
+#[inline(always)]
+fn complex_sum8(a: &[c64], b: &[c64], term: impl Fn(c64, c64) -> (f64, f64)) -> f64 {
     let n = a.len().min(b.len());
     let (a, b) = (&a[..n], &b[..n]);
     let mut acc = [0.0f64; 8];
@@ -52,36 +51,34 @@ pub fn cdot(a: &[c64], b: &[c64]) -> f64 {
         .remainder()
         .iter()
         .zip(cb.remainder())
-        .fold(0.0, |s, (x, y)| s + (x.re * y.re + x.im * y.im));
+        .fold(0.0, |s, (x, y)| {
+            let (p, q) = term(*x, *y);
+            s + (p + q)
+        });
     for (x, y) in ca.zip(cb) {
         for i in 0..4 {
-            acc[2 * i] += x[i].re * y[i].re;
-            acc[2 * i + 1] += x[i].im * y[i].im;
+            let (p, q) = term(x[i], y[i]);
+            acc[2 * i] += p;
+            acc[2 * i + 1] += q;
         }
     }
     ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
 }
 
+/// `Re Σ conj(a_i) b_i`: the real inner product of real-stacked complex vectors, with the
+/// same eight-way partial sums as [`dot`].
+#[inline]
+pub fn cdot(a: &[c64], b: &[c64]) -> f64 {
+    complex_sum8(a, b, |x, y| (x.re * y.re, x.im * y.im))
+}
+
 /// `Σ |a_i − b_i|²` with the eight-way partial sums of [`cdot`].
 #[inline]
 pub fn cdist_sqr(a: &[c64], b: &[c64]) -> f64 {
-    let n = a.len().min(b.len());
-    let (a, b) = (&a[..n], &b[..n]);
-    let mut acc = [0.0f64; 8];
-    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
-    let tail = ca
-        .remainder()
-        .iter()
-        .zip(cb.remainder())
-        .fold(0.0, |s, (x, y)| s + (x - y).norm_sqr());
-    for (x, y) in ca.zip(cb) {
-        for i in 0..4 {
-            let (dr, di) = (x[i].re - y[i].re, x[i].im - y[i].im);
-            acc[2 * i] += dr * dr;
-            acc[2 * i + 1] += di * di;
-        }
-    }
-    ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7])) + tail
+    complex_sum8(a, b, |x, y| {
+        let (dr, di) = (x.re - y.re, x.im - y.im);
+        (dr * dr, di * di)
+    })
 }
 
 /// A thin QR factorisation `A = Q R` of a tall real matrix (Householder, faer).
@@ -812,6 +809,26 @@ fn swap_rows(m: &mut [f64], w: usize, a: usize, b: usize) {
 mod tests {
     use super::*;
     use crate::testdata::poly_from_roots;
+
+    /// The complex sums against their definitions, for every leftover length.
+    #[test]
+    fn complex_sums_match_their_definitions() {
+        for n in 0..12 {
+            let a: Vec<c64> = (0..n)
+                .map(|i| c64::new(0.3 * i as f64 - 1.0, 0.7 - 0.1 * i as f64))
+                .collect();
+            let b: Vec<c64> = (0..n)
+                .map(|i| c64::new(1.0 / (i + 1) as f64, 0.2 * i as f64))
+                .collect();
+            let dot_def: f64 = a.iter().zip(&b).map(|(x, y)| (x.conj() * y).re).sum();
+            let dist_def: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_sqr()).sum();
+            assert!((cdot(&a, &b) - dot_def).abs() <= 1e-13, "cdot, n = {n}");
+            assert!(
+                (cdist_sqr(&a, &b) - dist_def).abs() <= 1e-13,
+                "cdist_sqr, n = {n}"
+            );
+        }
+    }
 
     #[test]
     fn lstsq_recovers_exact_coefficients_and_rss() {
