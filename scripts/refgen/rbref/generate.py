@@ -1,0 +1,224 @@
+"""From a Case to FRFs and the truth.
+
+Per set-up: the mass model (body plus sensor masses, each a point mass at its true
+position), the static equilibrium of the potential energy, the tangent stiffness (Hessian),
+the damping, then one pole–residue model per distinct force-gauge mass (a gauge mass m_g at
+the excitation point is attached to the body only while that excitation is measured:
+M + m_g T(p)ᵀT(p)). Channels see their true position and direction, times their gain;
+forces act at their true point along their true direction (body-fixed: a hammer strikes a
+face, so its direction turns with the body).
+"""
+import numpy as np
+
+from .case import QUANTITY_ORDER
+from .dynamics import PoleResidueModel, dashpot_damping, evaluate, modal_damping, modal_terms_for, undamped_modes
+from .rigid import combine, mass_matrix, point_map, rotation_vector
+from .suspension import Suspension
+
+
+class SetupModel:
+    pass
+
+
+def build_setup(case, s):
+    """Mass, equilibrium, stiffness and damping of set-up `s` (a dict of the Case)."""
+    o = case.origin
+    parts = [(case.mass, case.com, case.inertia)] + [(m, p, np.zeros((3, 3))) for p, m in case.sensor_masses]
+    m_tot, c_tot, j_tot = combine(parts)
+    sus = Suspension(s["springs"], s["cords"], m_tot, c_tot, case.gravity, case.up, o)
+    if not s["springs"] and not s["cords"]:
+        if case.gravity != 0.0:
+            raise ValueError(f"set-up '{s['id']}': no spring or cord: a free-free body needs gravity_m_s2 = 0")
+    pose, iters = sus.equilibrium()
+    k, asym = sus.stiffness(pose)
+    mm = mass_matrix(m_tot, c_tot, j_tot, o)
+    w2, phi = undamped_modes(k, mm)
+    if case.damping_model == "modal":
+        c = modal_damping(mm, w2, phi, case.modal_ratios)
+    elif case.damping_model == "proportional":
+        c = case.alpha * mm + case.beta * k
+    else:
+        c = np.zeros((6, 6))
+    c = c + dashpot_damping(s["dashpots"], pose[1], o)
+    d = np.zeros((6, 6))
+    if s["loss_factor"] > 0:
+        elastic = Suspension(s["springs"], s["cords"], m_tot, c_tot, 0.0, case.up, o)
+        d = s["loss_factor"] * elastic.stiffness(pose)[0]
+    sm = SetupModel()
+    sm.id = s["id"]
+    sm.pose, sm.iterations, sm.hessian_asymmetry = pose, iters, asym
+    sm.mass_properties = (m_tot, c_tot, j_tot)
+    sm.m, sm.k, sm.c, sm.d = mm, k, c, d
+    sm.cord_tensions = sus.cord_tensions(pose)
+    sm.nominal = PoleResidueModel.build(mm, c, k, d)
+    return sm
+
+
+def channel_rows(case):
+    """Rows g·s_trueᵀ T(p_true − O) (n_ch × 6)."""
+    return np.array([c["gain"] * c["true_direction"] @ point_map(c["true_position"] - case.origin)
+                     for c in case.channels])
+
+
+def force_column(case, e):
+    return point_map(e["true_position"] - case.origin).T @ e["true_direction"]
+
+
+def s_axis(case, freq):
+    """Laplace variable of each line: s = iω, or iω + 1/τ with the exponential window."""
+    s = 2j * np.pi * np.asarray(freq, float)
+    if case.window_tau > 0:
+        s = s + 1.0 / case.window_tau
+    return s
+
+
+class Terms:
+    """All pole–residue terms of the campaign, per excitation:
+    H_e,c(s) = s^k [Σ_r a[c,r] b[r]/(s − λ_r) + p[c]/s² + Σ_m ρ_m[c]/(s − μ_m)]."""
+
+    def __init__(self, case):
+        self.case = case
+        self.setups = [build_setup(case, s) for s in case.setups]
+        rows = channel_rows(case)
+        self.per_exc = []
+        for ei, e in enumerate(case.excitations):
+            sm = next(x for x in self.setups if x.id == e["setup"])
+            col = force_column(case, e)[:, None]
+            model = sm.nominal
+            if e["gauge_mass"] > 0:
+                tp = point_map(e["true_position"] - case.origin)
+                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c, sm.k, sm.d)
+            a, b, p = modal_terms_for(model, rows, col)
+            extra = []
+            gains = np.array([c["gain"] for c in case.channels])
+            for m in case.elastic_modes:
+                if e["setup"] not in m["setups"]:
+                    continue
+                wm, z = 2 * np.pi * m["frequency_hz"], m["damping_ratio"]
+                # 1/(s² + 2ζω_m s + ω_m²) = [1/(s − μ₊) − 1/(s − μ₋)]/(μ₊ − μ₋)
+                root = np.sqrt(complex(z * z - 1.0))
+                mu_p, mu_m = -z * wm + wm * root, -z * wm - wm * root
+                res = gains * m["at_channels"] * m["at_excitations"][ei]
+                extra.append((mu_p, (res / (mu_p - mu_m))[:, None]))
+                extra.append((mu_m, (-res / (mu_p - mu_m))[:, None]))
+            self.per_exc.append((model.poles, a, b, p, extra))
+
+    def frf(self, freq):
+        """H[e, c, l] in the case's quantity on the axis `freq` (Hz)."""
+        s = s_axis(self.case, freq)
+        k = QUANTITY_ORDER[self.case.quantity]
+        out = np.empty((len(self.per_exc), len(self.case.channels), len(s)), complex)
+        for ei, (lam, a, b, p, extra) in enumerate(self.per_exc):
+            out[ei] = evaluate(lam, a, b, p, extra, s)[0] * s ** k
+        return out
+
+
+def add_noise(h, relative, floor, seed):
+    """H + ε, ε = σ (n₁ + i n₂)/√2 with σ² = a²|H|² + b² (a = relative, b = floor) and
+    n₁, n₂ standard normals from numpy.random.default_rng(seed), drawn as one array of
+    shape (excitation, channel, line, 2) in C order. E|ε|² = σ²."""
+    if relative == 0 and floor == 0:
+        return h
+    rng = np.random.default_rng(seed)
+    n = rng.standard_normal(h.shape + (2,))
+    sigma = np.sqrt(relative ** 2 * np.abs(h) ** 2 + floor ** 2)
+    return h + sigma * (n[..., 0] + 1j * n[..., 1]) / np.sqrt(2.0)
+
+
+def quantise(h, precision):
+    """float32: real and imaginary parts rounded to the nearest float32 (complex64)."""
+    if precision == "float32":
+        return h.astype(np.complex64)
+    return h
+
+
+def properties_record(m, c, j):
+    return {
+        "mass_kg": float(m),
+        "com_m": [float(x) for x in c],
+        "inertia_cm_kg_m2": np.asarray(j).tolist(),
+        "moments_kg_m2": [float(j[0, 0]), float(j[1, 1]), float(j[2, 2])],
+        "products_of_inertia_kg_m2": {"xy": float(-j[0, 1]), "xz": float(-j[0, 2]), "yz": float(-j[1, 2])},
+    }
+
+
+def truth(case, terms):
+    out = {
+        "generator": "rbref",
+        "case": case.name,
+        "seed": case.seed,
+        "quantity": case.quantity,
+        "reference_point_m": case.origin.tolist(),
+        "gravity_m_s2": case.gravity,
+        "up": case.up.tolist(),
+        "properties": properties_record(case.mass, case.com, case.inertia),
+        "window_tau_s": case.window_tau or None,
+        "noise": {"relative": case.noise_relative, "floor": case.noise_floor,
+                  "model": "sigma^2 = relative^2 |H|^2 + floor^2, circular complex normal"},
+        "precision": case.precision,
+        "channels": [{"id": c["id"], "point": c["point"], "position_m": c["position"].tolist(),
+                      "direction": c["direction"].tolist(), "true_position_m": c["true_position"].tolist(),
+                      "true_direction": c["true_direction"].tolist(), "gain": c["gain"]} for c in case.channels],
+        "excitations": [{"id": e["id"], "point": e["point"], "setup": e["setup"],
+                         "position_m": e["position"].tolist(), "direction": e["direction"].tolist(),
+                         "true_position_m": e["true_position"].tolist(),
+                         "true_direction": e["true_direction"].tolist(),
+                         "gauge_mass_kg": e["gauge_mass"]} for e in case.excitations],
+        "elastic_modes": [{"frequency_hz": m["frequency_hz"], "damping_ratio": m["damping_ratio"],
+                           "at_channels": m["at_channels"].tolist(),
+                           "at_excitations": m["at_excitations"].tolist(), "setups": m["setups"]}
+                          for m in case.elastic_modes],
+        "setups": [],
+    }
+    if case.sensor_masses:
+        out["properties_with_sensor_masses"] = properties_record(*terms.setups[0].mass_properties)
+    for sm in terms.setups:
+        x, r = sm.pose
+        m_tot, c_tot, _ = sm.mass_properties
+        modes = []
+        for f, z, lam in sm.nominal.rigid_poles():
+            modes.append({"frequency_hz": f, "damping_ratio": z, "pole_re": lam.real, "pole_im": lam.imag})
+        w2 = sm.nominal.undamped_w2
+        out["setups"].append({
+            "setup": sm.id,
+            "equilibrium": {
+                "reference_point_displacement_m": (x - case.origin).tolist(),
+                "com_position_m": (x + r @ (c_tot - case.origin)).tolist(),
+                "rotation_vector_rad": rotation_vector(r).tolist(),
+                "rotation_matrix": r.tolist(),
+                "newton_iterations": sm.iterations,
+            },
+            "cord_tensions_n": sm.cord_tensions,
+            "hessian_asymmetry": sm.hessian_asymmetry,
+            "free_directions": sm.nominal.n_free,
+            "undamped_frequencies_hz": [float(np.sqrt(max(x, 0.0)) / (2 * np.pi)) for x in w2],
+            "modes": modes,
+            "mass_6x6": sm.m.tolist(),
+            "stiffness_6x6": sm.k.tolist(),
+            "damping_6x6": sm.c.tolist(),
+            "hysteretic_6x6": sm.d.tolist(),
+        })
+    return out
+
+
+class Result:
+    """frequency_hz (L,), frf[e, c, l] (complex128, or complex64 when float32), truth dict."""
+
+    def __init__(self, case, freq, frf, truth, coherence=None):
+        self.case, self.frequency_hz, self.frf, self.truth = case, freq, frf, truth
+        self.coherence = coherence
+
+
+def generate(case, freq=None):
+    """The case's FRFs (frequency route) with noise and precision applied, and the truth."""
+    terms = Terms(case)
+    if case.time is not None:
+        from .timedomain import measure
+        freq, h, coh = measure(case, terms)
+    else:
+        freq = case.frequency_axis() if freq is None else np.asarray(freq, float)
+        h = terms.frf(freq)
+        coh = None
+        h = add_noise(h, case.noise_relative, case.noise_floor, case.seed)
+    h = quantise(h, case.precision)
+    return Result(case, freq, h, truth(case, terms), coh)
