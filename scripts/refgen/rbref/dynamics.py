@@ -25,7 +25,6 @@ Route (independent of a direct solve of (K + iωC − ω²M)⁻¹):
     the symmetric normalisation ψᵀ[[C, M], [M, 0]]ψ = 1 needs an extra orthogonalisation).
 """
 import numpy as np
-import scipy.linalg
 
 from .rigid import point_map
 
@@ -37,8 +36,12 @@ in frequency would be misread as free (none of the cases of interest comes close
 
 
 def undamped_modes(k, m):
-    """ω² (ascending) and M-orthonormal shapes of (K, M); raises on a negative stiffness."""
-    w2, phi = scipy.linalg.eigh(k, m)
+    """ω² (ascending) and M-orthonormal shapes of (K, M) (Cholesky M = L Lᵀ, symmetric
+    eigenproblem of L⁻¹ K L⁻ᵀ); raises on a negative stiffness."""
+    ell = np.linalg.cholesky(m)
+    a = np.linalg.solve(ell, np.linalg.solve(ell, k).T)
+    w2, y = np.linalg.eigh(0.5 * (a + a.T))
+    phi = np.linalg.solve(ell.T, y)
     top = max(np.abs(w2).max(), 0.0)
     if top > 0 and w2[0] < -FREE_TOLERANCE * top:
         raise ValueError(f"unstable equilibrium: negative stiffness (ω² = {w2[0]:.4e} rad²/s²)")
@@ -97,7 +100,7 @@ class PoleResidueModel:
             a[:n, n:] = np.eye(n)
             a[n:, :n] = -kb
             a[n:, n:] = -cb
-            lam, v = scipy.linalg.eig(a)
+            lam, v = np.linalg.eig(a)
             cond = np.linalg.cond(v)
             if not np.isfinite(cond) or cond > 1e10:
                 raise ValueError(
