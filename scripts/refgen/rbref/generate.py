@@ -106,6 +106,9 @@ class Terms:
     def frf(self, freq):
         """H[e, c, l] in the case's quantity on the axis `freq` (Hz)."""
         s = s_axis(self.case, freq)
+        if np.any(s == 0) and any(np.any(p != 0) or np.any(lam == 0) for lam, _, _, p, _ in self.per_exc):
+            raise ValueError("frequency: a line at 0 Hz with free rigid directions (their FRF is "
+                             "infinite there): start above 0 Hz, or use a window")
         k = QUANTITY_ORDER[self.case.quantity]
         out = np.empty((len(self.per_exc), len(self.case.channels), len(s)), complex)
         for ei, (lam, a, b, p, extra) in enumerate(self.per_exc):
