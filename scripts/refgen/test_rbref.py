@@ -498,8 +498,8 @@ def test_uff_layout_oblique_frames_and_float32():
     """Rotated triaxial axes, an oblique uniaxial sensor, a force at a sensor point along
     −(its axis 1) and an oblique force; float32. Read back with pyuff: each FRF's node and
     direction code resolve (through datasets 2420 and 2411) to the nominal position and
-    direction; binary 58b values are bit-exact float32, ASCII within the 6 digits of E13.5
-    (relative 5e-6 per component, i.e. ≤ 5e-6·√2·|H| per value)."""
+    direction; binary 58b values are bit-exact float32, ASCII within the 6 significant
+    digits of E13.5 (half a unit of the 6th digit: ≤ 5e-6 of each component)."""
     import pyuff
     case = rbref.load(os.path.join(HERE, "examples", "oblique-sensors.toml"))
     r = rbref.generate(case)
@@ -539,6 +539,75 @@ def test_uff_layout_oblique_frames_and_float32():
                     else:
                         for part in (np.real, np.imag):
                             assert np.all(np.abs(part(s["data"]) - part(want)) <= 5.000001e-6 * np.abs(part(want)))
+
+
+def test_sensor_gravity_row_from_finite_rotation():
+    """Accelerometers sensing the specific force on a tilted equilibrium: the extra term
+    equals g·∂/∂θ[(R_eq exp([θ]×) s)·up] G F (the derivative by central differences of the
+    finite-rotation reading, h = 1e-6: error ~1e-12), added to −ω² S G F (direct solve)."""
+    d = splayed_case().data
+    d["quantity"] = "accelerance"
+    d["sensor_gravity"] = True
+    case = Case(d, "<t>")
+    terms = Terms(case)
+    sm = terms.setups[0]
+    f = np.linspace(0.2, 8.0, 60)
+    got = terms.frf(f)
+    r_eq = sm.pose[1]
+    rows = channel_rows(case)
+    h = 1e-6
+    rows_g = np.zeros_like(rows)
+    for ci, c in enumerate(case.channels):
+        for j in range(3):
+            dth = np.zeros(3)
+            dth[j] = h
+            read = [9.81 * (r_eq @ rotation(sg * dth) @ c["true_direction"]) @ case.up for sg in (1, -1)]
+            rows_g[ci, 3 + j] = (read[0] - read[1]) / (2 * h)
+    for ei, e in enumerate(case.excitations):
+        col = force_column(case, e)
+        for l, fl in enumerate(f):
+            w = 2 * np.pi * fl
+            q = np.linalg.solve(sm.k + 1j * w * sm.c - w * w * sm.m, col)
+            want = -w * w * rows @ q + rows_g @ q
+            assert rel(got[ei, :, l], want) < 1e-8, rel(got[ei, :, l], want)
+
+
+def test_reference_point_does_not_change_the_frfs():
+    """The 6×6 matrices are about reference_point_m; the FRFs must not depend on it."""
+    d = splayed_case().data
+    d["setup"][0]["dashpot"] = [{"at_m": [0.1, 0.1, 0.0], "damping_n_s_per_m": [1.0, 2.0, 3.0]}]
+    f = np.linspace(0.2, 8.0, 50)
+    h0 = Terms(Case(d, "<t>")).frf(f)
+    d["reference_point_m"] = [0.3, -0.2, 0.5]
+    case = Case(d, "<t>")
+    t1 = Terms(case)
+    assert rel(t1.frf(f), h0) < 1e-10
+    m_o = mass_matrix(case.mass, case.com, case.inertia, case.origin)
+    assert rel(t1.setups[0].m, m_o) < 1e-15
+
+
+def test_cli_seeds_settings_and_errors():
+    """--seeds writes one file set per seed, each seed's noise different and reproducible;
+    --set reaches a sensor by id; a bad setting exits 1 with the path named and writes
+    nothing."""
+    cli = [sys.executable, os.path.join(HERE, "rbref.py")]
+    case = os.path.join(HERE, "examples", "near-repeated-cords.toml")
+    with tempfile.TemporaryDirectory() as t:
+        out = os.path.join(t, "r{seed}.npz")
+        r = subprocess.run(cli + [case, "--seeds", "3:5", "-o", out, "--truth", os.path.join(t, "t{seed}.json"),
+                                  "--set", "sensor.2.gain=1.1", "--quiet"], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        h = [np.load(os.path.join(t, f"r{k}.npz"))["frf"] for k in (3, 4, 5)]
+        assert not np.array_equal(h[0], h[1]) and not np.array_equal(h[1], h[2])
+        one = rbref.generate(rbref.load(case, settings=[("sensor.2.gain", 1.1)]), seed=4).frf
+        assert np.array_equal(one, h[1])
+        assert json.load(open(os.path.join(t, "t4.json")))["channels"][3]["gain"] == 1.1
+        bad = os.path.join(t, "bad.uff")
+        r = subprocess.run(cli + [case, "-o", bad, "--set", "sensor.2.direction=[1,1,0]", "--quiet"],
+                           capture_output=True, text=True)
+        assert r.returncode == 1 and "error:" in r.stderr and "sensor[1]" in r.stderr, r.stderr
+        assert not os.path.exists(bad) and \
+            not any(n.startswith(".rbref-") for n in os.listdir(t))
 
 
 def test_bad_input_is_named():

@@ -16,7 +16,8 @@ from .rigid import cloud_properties, rotation, tensor_from_moments
 
 QUANTITY_ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 STANDARD_GRAVITY = 9.80665
-CASE_ONLY = ("spec", "gravity_m_s2", "reference_point_m", "elastic_mode", "window", "output", "time")
+CASE_ONLY = ("spec", "gravity_m_s2", "reference_point_m", "elastic_mode", "window", "output", "time",
+             "sensor_gravity")
 
 
 class CaseError(ValueError):
@@ -56,8 +57,36 @@ def _merge_by_id(base, over, path, src):
     return out
 
 
-def load(path, overrides=None):
-    """Reads a case (TOML/JSON) or a bare rbprops campaign spec; returns a Case."""
+def apply_setting(data, path, value, src="--set"):
+    """Sets `value` at a dotted `path` of the case data, e.g. `noise.relative`,
+    `sensor.2.misorientation_rad` (lists of tables — sensor, excitation, setup — are
+    addressed by id, other lists by 0-based index). Missing tables are created."""
+    keys = path.split(".")
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, list):
+            hit = [x for x in node if isinstance(x, dict) and str(x.get("id")) == k]
+            if hit:
+                node = hit[0]
+                continue
+            if k.isdigit() and int(k) < len(node):
+                node = node[int(k)]
+                continue
+            raise CaseError(f"{src}: {path}: no entry with id or index {k!r} in {'.'.join(keys[:i])}")
+        if nxt is None:
+            node[k] = {}
+            nxt = node[k]
+        node = nxt
+    if isinstance(node, list):
+        raise CaseError(f"{src}: {path}: name an entry of the list {keys[-2]!r} by id first")
+    node[keys[-1]] = value
+
+
+def load(path, overrides=None, settings=()):
+    """Reads a case (TOML/JSON) or a bare rbprops campaign spec; returns a Case.
+    `overrides`: top-level keys replaced; `settings`: (dotted path, value) pairs applied
+    after the merge with the spec (see `apply_setting`)."""
     raw = _load_file(path)
     if not isinstance(raw, dict):
         raise CaseError(f"{path}: the top level must be a table")
@@ -95,6 +124,8 @@ def load(path, overrides=None):
         data["gravity_m_s2"] = 0.0
     for key, val in (overrides or {}).items():
         data[key] = val
+    for key, val in settings:
+        apply_setting(data, key, val)
     return Case(data, path)
 
 
@@ -167,7 +198,7 @@ class Case:
         self.data = data
         known = {"name", "description", "seed", "quantity", "frequency", "body", "setup", "sensor",
                  "excitation", "damping", "noise", "up", "gravity_m_s2", "reference_point_m",
-                 "elastic_mode", "window", "output", "time"}
+                 "elastic_mode", "window", "output", "time", "sensor_gravity"}
         for k in data:
             if k not in known:
                 ck.fail(k, f"unknown field (known: {', '.join(sorted(known))})")
@@ -179,6 +210,9 @@ class Case:
         self.up = ck.unit(data, "up", "") if "up" in data else np.array([0.0, 0.0, 1.0])
         self.gravity = ck.num(data, "gravity_m_s2", "", STANDARD_GRAVITY, lo=0.0)
         self.origin = ck.arr(data, "reference_point_m", "", (3,), [0.0, 0.0, 0.0])
+        self.sensor_gravity = data.get("sensor_gravity", False)
+        if not isinstance(self.sensor_gravity, bool):
+            ck.fail("sensor_gravity", f"must be true or false, got {self.sensor_gravity!r}")
         fr = data.get("frequency")
         if not isinstance(fr, dict):
             ck.fail("frequency", "missing table [frequency] with start_hz, stop_hz, lines")

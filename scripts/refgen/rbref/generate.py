@@ -12,7 +12,7 @@ import numpy as np
 
 from .case import QUANTITY_ORDER
 from .dynamics import PoleResidueModel, dashpot_damping, evaluate, modal_damping, modal_terms_for, undamped_modes
-from .rigid import combine, mass_matrix, point_map, rotation_vector
+from .rigid import combine, mass_matrix, point_map, rotation_vector, skew
 from .suspension import Suspension
 
 
@@ -81,6 +81,7 @@ class Terms:
         self.setups = [build_setup(case, s) for s in case.setups]
         rows = channel_rows(case)
         self.per_exc = []
+        self.gravity_exc = []
         for ei, e in enumerate(case.excitations):
             sm = next(x for x in self.setups if x.id == e["setup"])
             col = force_column(case, e)[:, None]
@@ -102,6 +103,15 @@ class Terms:
                 extra.append((mu_p, (res / (mu_p - mu_m))[:, None]))
                 extra.append((mu_m, (-res / (mu_p - mu_m))[:, None]))
             self.per_exc.append((model.poles, a, b, p, extra))
+            if case.sensor_gravity:
+                # Accelerometers sense the specific force: channel c reads g sᵀ Rᵀ up, and
+                # with R = R_eq exp([θ]×), Rᵀ up ≈ up_b + up_b × θ (up_b = R_eqᵀ up), so the
+                # dynamic part is g sᵀ [up_b]× θ: a row [0 | g sᵀ[up_b]×] seen as s^(k−2).
+                up_b = sm.pose[1].T @ case.up
+                rows_g = np.array([c["gain"] * case.gravity * np.concatenate([np.zeros(3), c["true_direction"] @ skew(up_b)])
+                                   for c in case.channels])
+                ag, _, pg = modal_terms_for(model, rows_g, col)
+                self.gravity_exc.append((ag, pg))
 
     def frf(self, freq):
         """H[e, c, l] in the case's quantity on the axis `freq` (Hz)."""
@@ -110,9 +120,14 @@ class Terms:
             raise ValueError("frequency: a line at 0 Hz with free rigid directions (their FRF is "
                              "infinite there): start above 0 Hz, or use a window")
         k = QUANTITY_ORDER[self.case.quantity]
+        if self.gravity_exc and k < 2 and np.any(s == 0):
+            raise ValueError("frequency: sensor_gravity with a line at 0 Hz needs accelerance")
         out = np.empty((len(self.per_exc), len(self.case.channels), len(s)), complex)
         for ei, (lam, a, b, p, extra) in enumerate(self.per_exc):
             out[ei] = evaluate(lam, a, b, p, extra, s)[0] * s ** k
+            if self.gravity_exc:
+                ag, pg = self.gravity_exc[ei]
+                out[ei] += evaluate(lam, ag, b, pg, [], s)[0] * s ** (k - 2)
         return out
 
 
@@ -153,6 +168,7 @@ def truth(case, terms):
         "quantity": case.quantity,
         "reference_point_m": case.origin.tolist(),
         "gravity_m_s2": case.gravity,
+        "sensor_gravity": case.sensor_gravity,
         "up": case.up.tolist(),
         "properties": properties_record(case.mass, case.com, case.inertia),
         "window_tau_s": case.window_tau or None,
@@ -212,9 +228,13 @@ class Result:
         self.coherence = coherence
 
 
-def generate(case, freq=None):
-    """The case's FRFs (frequency route) with noise and precision applied, and the truth."""
-    terms = Terms(case)
+def generate(case, freq=None, terms=None, seed=None):
+    """The case's FRFs (frequency or time route) with noise and precision applied, and the
+    truth. `terms` (from an earlier call's `Terms(case)`) skips rebuilding the physics;
+    `seed` replaces the case's seed for the noise."""
+    if seed is not None:
+        case.seed = int(seed)
+    terms = Terms(case) if terms is None else terms
     if case.time is not None:
         from .timedomain import measure
         freq, h, coh = measure(case, terms)

@@ -91,8 +91,13 @@ def measure(case, terms):
     h1 = np.empty((len(case.excitations), n_ch, keep.sum()), complex)
     coh = np.empty(h1.shape)
     force_unit = _pulse(t, tp)
+    if terms.gravity_exc and k != 2:
+        raise ValueError("time: sensor_gravity is modelled for accelerance only in the time route")
     for ei, (poles, a, b, p, extra) in enumerate(terms.per_exc):
         y_unit = responses(poles, a, b, p, extra, k, t, tp)
+        if terms.gravity_exc:
+            ag, pg = terms.gravity_exc[ei]
+            y_unit = y_unit + responses(poles, ag, b, pg, [], 0, t, tp)
         sff = np.zeros(keep.sum())
         syy = np.zeros((n_ch, keep.sum()))
         sfy = np.zeros((n_ch, keep.sum()), complex)
