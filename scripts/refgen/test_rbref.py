@@ -455,28 +455,68 @@ def test_repeated_roots():
         assert rel(terms.frf(f), direct(case, terms, f)) < 1e-10
 
 
+def frf_sim_frfs(exe, args, case, r):
+    """frf-sim's FRFs (CSV output) arranged like ours, [e, c, l]."""
+    import csv
+    with tempfile.TemporaryDirectory() as t:
+        subprocess.run([exe] + args + ["-o", os.path.join(t, "fs/")], check=True, capture_output=True)
+        rows = list(csv.DictReader(open(os.path.join(t, "fs", "frf.csv"))))
+    ch = {c["id"]: i for i, c in enumerate(case.channels)}
+    ex = {e["id"]: i for i, e in enumerate(case.excitations)}
+    lines = {float(f): i for i, f in enumerate(r.frequency_hz)}
+    h = np.full_like(r.frf, np.nan)
+    for row in rows:
+        h[ex[row["excitation"]], ch[row["channel"]], lines[float(row["frequency_hz"])]] = \
+            float(row["re"]) + 1j * float(row["im"])
+    assert not np.isnan(h).any()
+    return h
+
+
 def test_agrees_with_frf_sim_when_available():
     """With RBPROPS_FRF_SIM naming a frf-sim binary: Test Case II through both simulators
-    (different formulations) agrees to 1e-10 of the largest value (skipped otherwise)."""
+    (different formulations) agrees to 1e-10 of the largest value (measured 6e-12)
+    (skipped otherwise)."""
     exe = os.environ.get("RBPROPS_FRF_SIM")
     if not exe:
         print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
         return
-    import csv
-    with tempfile.TemporaryDirectory() as t:
-        subprocess.run([exe, "--example", "test-case-2", "-o", os.path.join(t, "fs/")], check=True,
-                       capture_output=True)
-        rows = list(csv.DictReader(open(os.path.join(t, "fs", "frf.csv"))))
     case = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml"))
     r = rbref.generate(case)
-    ch = {c["id"]: i for i, c in enumerate(case.channels)}
-    ex = {e["id"]: i for i, e in enumerate(case.excitations)}
-    h = np.zeros_like(r.frf)
-    lines = {float(f): i for i, f in enumerate(r.frequency_hz)}
-    for row in rows:
-        h[ex[row["excitation"]], ch[row["channel"]], lines[float(row["frequency_hz"])]] = \
-            float(row["re"]) + 1j * float(row["im"])
-    assert rel(r.frf, h) < 1e-10, rel(r.frf, h)  # measured 6e-12
+    h = frf_sim_frfs(exe, ["--example", "test-case-2"], case, r)
+    assert rel(r.frf, h) < 1e-10, rel(r.frf, h)
+
+
+def test_gravity_stiffness_agrees_with_frf_sim_when_available():
+    """frf-sim's gravity_stiffness effect (axial springs read as vertical cords of length
+    ℓ, linearised at the reference geometry) against our cords under gravity: with each
+    cord's unstretched length ℓ − T_i/k (T_i the effect's elastic load share) the
+    equilibrium is the reference pose and both linearise the same potential; they agree to
+    1e-9 of the largest value (measured 1e-10). Skipped without RBPROPS_FRF_SIM."""
+    exe = os.environ.get("RBPROPS_FRF_SIM")
+    if not exe:
+        print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
+        return
+    spec = open(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).read()
+    spec = spec.replace("stiffness_n_per_m = [150.0, 220.0, 2500.0]", "stiffness_n_per_m = [0.0, 0.0, 1400.0]")
+    spec += '\n[[effect]]\nid = "gravity_stiffness"\ncord_length_m = [1.0]\n'
+    at = np.array([[0.02, -0.13, 0.17], [0.34, -0.13, 0.17], [0.02, 0.20, 0.17], [0.34, 0.20, 0.17]])
+    k, g = 1400.0, 9.80665
+    with tempfile.TemporaryDirectory() as t:
+        path = os.path.join(t, "gs.toml")
+        open(path, "w").write(spec)
+        base = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml"))
+        co = np.c_[np.ones(4), at[:, :2]]
+        w = np.linalg.solve(k * co.T @ co, base.mass * g * np.array([1.0, base.com[0], base.com[1]]))
+        tension = k * co @ w
+        d = dict(base.data, gravity_m_s2=g)
+        d["setup"] = [{"id": "A", "cord": [{"at_m": list(a), "anchor_m": list(a + [0, 0, 1.0]),
+                                            "length_m": 1.0 - ti / k, "stiffness_n_per_m": k}
+                                           for a, ti in zip(at, tension)]}]
+        case = Case(d, "<t>")
+        r = rbref.generate(case)
+        assert np.abs(r.truth["setups"][0]["equilibrium"]["rotation_vector_rad"]).max() < 1e-12
+        h = frf_sim_frfs(exe, [path], case, r)
+    assert rel(r.frf, h) < 1e-9, rel(r.frf, h)
 
 
 def test_examples_generate():
