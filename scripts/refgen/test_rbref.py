@@ -660,6 +660,14 @@ def test_bad_input_is_named():
         assert "case.toml: sensor[1].direction: not a unit vector" in str(e), e
     else:
         raise AssertionError("accepted a bad direction")
+    d = base_case().data
+    d["sensor"][2]["misorientation"] = [0.01, 0.0, 0.0]
+    try:
+        Case(d, "case.toml")
+    except rbref.CaseError as e:
+        assert "case.toml: sensor[2].misorientation: unknown field" in str(e), e
+    else:
+        raise AssertionError("accepted a misspelt field")
 
 
 def main():

@@ -129,9 +129,51 @@ def load(path, overrides=None, settings=()):
     return Case(data, path)
 
 
-def _vec(x, n=3):
-    a = np.asarray(x, float)
-    return a
+FIELDS = {
+    "frequency": {"start_hz", "stop_hz", "lines"},
+    "body": {"mass_kg", "com_m", "inertia_cm_kg_m2", "moments_kg_m2", "products_kg_m2", "points_m",
+             "point_masses_kg"},
+    "setup": {"id", "description", "spring", "cord", "dashpot", "loss_factor"},
+    "spring": {"at_m", "anchor_m", "stiffness_n_per_m", "stiffness_matrix_n_per_m"},
+    "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m"},
+    "dashpot": {"at_m", "damping_n_s_per_m", "damping_matrix_n_s_per_m"},
+    "sensor": {"id", "at_m", "kind", "axes", "direction", "position_error_m", "misorientation_rad",
+               "gain", "gains", "mass_kg"},
+    "excitation": {"id", "at_m", "direction", "setup", "point", "position_error_m",
+                   "direction_error_rad", "gauge_mass_kg"},
+    "damping": {"model", "ratio", "ratios", "alpha", "beta"},
+    "noise": {"relative", "floor"},
+    "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
+    "window": {"tau_s"},
+    "output": {"precision"},
+    "time": {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise", "response_noise",
+             "clip_response", "amplitude_n", "amplitude_jitter"},
+}
+"""Known fields of each table: anything else is an error (a misspelt effect parameter
+would otherwise silently vanish from the physics)."""
+
+
+def _check_fields(ck, data):
+    def one(tab, kind, path):
+        if not isinstance(tab, dict):
+            ck.fail(path, "must be a table")
+        for k in tab:
+            if k not in FIELDS[kind]:
+                ck.fail(f"{path}.{k}", f"unknown field (known: {', '.join(sorted(FIELDS[kind]))})")
+
+    for kind in ("frequency", "body", "damping", "noise", "window", "output", "time"):
+        if kind in data:
+            one(data[kind], kind, kind)
+    for kind in ("setup", "sensor", "excitation", "elastic_mode"):
+        items = data.get(kind, [])
+        if not isinstance(items, list):
+            ck.fail(kind, "must be a list of tables ([[...]])")
+        for i, item in enumerate(items):
+            one(item, kind, f"{kind}[{i}]")
+            if kind == "setup":
+                for sub in ("spring", "cord", "dashpot"):
+                    for j, x in enumerate(item.get(sub, [])):
+                        one(x, sub, f"{kind}[{i}].{sub}[{j}]")
 
 
 class _Checker:
@@ -202,6 +244,7 @@ class Case:
         for k in data:
             if k not in known:
                 ck.fail(k, f"unknown field (known: {', '.join(sorted(known))})")
+        _check_fields(ck, data)
         self.name = str(data.get("name", os.path.splitext(os.path.basename(src))[0]))
         self.seed = int(data.get("seed", 0))
         self.quantity = data.get("quantity", "receptance")
