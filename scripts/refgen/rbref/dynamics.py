@@ -85,13 +85,19 @@ class PoleResidueModel:
         w2, phi = undamped_modes(k, m)
         top = np.abs(w2).max()
         free = w2 <= FREE_TOLERANCE * top if top > 0 else np.ones(len(w2), bool)
-        phi0 = phi[:, free]
-        split = free.any() and np.abs(c @ phi0).max(initial=0) <= 1e-12 * max(np.abs(c).max(), 1e-300) \
-            and np.abs(d @ phi0).max(initial=0) <= 1e-12 * max(np.abs(d).max(), 1e-300)
-        if not split:
+        phi0, phi1 = phi[:, free], phi[:, ~free]
+        if free.any():
+            # Within the free subspace, the combinations that C and D do not touch
+            # (C, D PSD: φᵀ(C + D)φ = 0 ⇒ Cφ = Dφ = 0) are split off exactly; free but
+            # damped combinations (a dashpot to ground) stay in the state space.
+            cd = phi0.T @ (c + d) @ phi0
+            ev, u = np.linalg.eigh(0.5 * (cd + cd.T))
+            scale = max(np.abs(phi.T @ (c + d) @ phi).max(), 1e-300)
+            undamped = ev <= 1e-12 * scale
+            phi1 = np.hstack([phi1, phi0 @ u[:, ~undamped]])
+            phi0 = phi0 @ u[:, undamped]
             free = np.zeros(len(w2), bool)
-            phi0 = phi[:, free]
-        phi1 = phi[:, ~free]
+            free[:phi0.shape[1]] = True
         n = phi1.shape[1]
         if n:
             kb = phi1.T @ (k + 1j * d) @ phi1
