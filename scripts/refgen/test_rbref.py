@@ -196,26 +196,27 @@ def direct(case, terms, f):
     out = np.empty((len(case.excitations), len(case.channels), len(f)), complex)
     for ei, e in enumerate(case.excitations):
         sm = next(x for x in terms.setups if x.id == e["setup"])
-        mm = sm.m.copy()
-        if e["gauge_mass"] > 0:
-            tp = point_map(e["true_position"])
-            mm = mm + e["gauge_mass"] * tp.T @ tp
+        mm, kk = sm.m.copy(), sm.k.copy()
+        tp = point_map(e["true_position"] - case.origin)
+        mm = mm + e["gauge_mass"] * tp.T @ tp
+        kk = kk + e["stinger_stiffness"] * np.outer(tp.T @ e["true_direction"], tp.T @ e["true_direction"])
         col = force_column(case, e)
         for l, fl in enumerate(f):
             w = 2 * np.pi * fl
-            z = sm.k + 1j * sm.d + 1j * w * sm.c - w * w * mm
+            z = kk + 1j * sm.d + 1j * w * sm.c - w * w * mm
             out[ei, :, l] = s_rows @ np.linalg.solve(z, col)
     return out
 
 
 def test_state_space_equals_direct_solve():
-    """General damping (modal + anisotropic dashpots + hysteretic), a gauge mass and
-    sensor errors: the pole–residue FRF equals the direct solve to 1e-10 relative."""
+    """General damping (modal + anisotropic dashpots + hysteretic), a gauge mass, a stinger
+    and sensor errors: the pole–residue FRF equals the direct solve to 1e-10 relative."""
     d = base_case().data
     d["setup"][0]["dashpot"] = [{"at_m": [0.2, 0.15, 0.1], "damping_matrix_n_s_per_m": [[3.0, 1.0, 0.0], [1.0, 2.0, 0.5], [0.0, 0.5, 4.0]]},
                                 {"at_m": [-0.2, -0.15, 0.1], "damping_n_s_per_m": [1.0, 5.0, 2.0]}]
     d["setup"][0]["loss_factor"] = 0.03
     d["excitation"][1]["gauge_mass_kg"] = 0.05
+    d["excitation"][2]["stinger_stiffness_n_per_m"] = 80.0
     d["sensor"][1].update(misorientation_rad=[0.03, -0.02, 0.05], position_error_m=[0.004, -0.003, 0.002], gain=1.05, mass_kg=0.03)
     case = Case(d, "<t>")
     terms = Terms(case)
@@ -456,6 +457,19 @@ def test_elastic_mode_and_sensor_errors_are_exact():
     mix = np.einsum("ji,ejl->eil", rotation(rot), h0[:, 3:6])  # channel k along R e_k
     assert rel(h2[:, 3:6], mix) < 1e-12
     assert np.array_equal(h2[:, :3], h0[:, :3])
+
+
+def test_channel_filters_are_exact():
+    """A high-pass pair (τ = 2 s, 0.5 s) and a 1 ms delay on sensor 3 multiply its
+    channels by Π iωτ/(1 + iωτ)·e^{−iωδ}; other channels are untouched."""
+    d = base_case().data
+    f = np.linspace(0.5, 20, 40)
+    h0 = Terms(Case(d, "<t>")).frf(f)
+    d["sensor"][2].update(highpass_s=[2.0, 0.5], delay_s=1e-3)
+    h = Terms(Case(d, "<t>")).frf(f)
+    s = 2j * np.pi * f
+    fac = s * 2 / (1 + s * 2) * s * 0.5 / (1 + s * 0.5) * np.exp(-s * 1e-3)
+    assert rel(h[:, 6:], h0[:, 6:] * fac) < 1e-14 and np.array_equal(h[:, :6], h0[:, :6])
 
 
 def test_repeated_roots():

@@ -138,9 +138,9 @@ FIELDS = {
     "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m"},
     "dashpot": {"at_m", "damping_n_s_per_m", "damping_matrix_n_s_per_m"},
     "sensor": {"id", "at_m", "kind", "axes", "direction", "position_error_m", "misorientation_rad",
-               "gain", "gains", "mass_kg"},
+               "gain", "gains", "mass_kg", "highpass_s", "delay_s"},
     "excitation": {"id", "at_m", "direction", "setup", "point", "position_error_m",
-                   "direction_error_rad", "gauge_mass_kg"},
+                   "direction_error_rad", "gauge_mass_kg", "stinger_stiffness_n_per_m"},
     "damping": {"model", "ratio", "ratios", "alpha", "beta"},
     "noise": {"relative", "floor"},
     "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
@@ -342,6 +342,11 @@ class Case:
             mis = rotation(ck.arr(s, "misorientation_rad", path, (3,), [0, 0, 0]))
             gain = ck.num(s, "gain", path, 1.0)
             mass = ck.num(s, "mass_kg", path, 0.0, lo=0.0)
+            hp = s.get("highpass_s", [])
+            hp = [hp] if isinstance(hp, (int, float)) and not isinstance(hp, bool) else hp
+            if not isinstance(hp, list) or not all(isinstance(x, (int, float)) and x > 0 for x in hp):
+                ck.fail(f"{path}.highpass_s", "must be a positive time constant or a list of them (s)")
+            filt = dict(highpass_s=[float(x) for x in hp], delay_s=ck.num(s, "delay_s", path, 0.0, lo=0.0))
             if mass > 0:
                 self.sensor_masses.append((at + dp, mass))
             if kind == "triaxial":
@@ -365,13 +370,13 @@ class Case:
                 for k in range(3):
                     self.channels.append(dict(id=names[k], point=sid, position=at, direction=ax[k],
                                               true_position=at + dp, true_direction=mis @ ax[k],
-                                              gain=float(gains[k])))
+                                              gain=float(gains[k]), **filt))
             elif kind == "uniaxial":
                 if "axes" in s:
                     ck.fail(f"{path}.axes", "a uniaxial sensor takes `direction`, not `axes`")
                 d = ck.unit(s, "direction", path)
                 self.channels.append(dict(id=sid, point=sid, position=at, direction=d,
-                                          true_position=at + dp, true_direction=mis @ d, gain=gain))
+                                          true_position=at + dp, true_direction=mis @ d, gain=gain, **filt))
             else:
                 ck.fail(f"{path}.kind", f"must be 'triaxial' or 'uniaxial', got {kind!r}")
         self.sensor_points = {str(s["id"]): np.asarray(s["at_m"], float) for s in sensors}
@@ -452,7 +457,8 @@ class Case:
                 ck.fail(f"{path}.point", f"names sensor point {point!r} but at_m differs from the sensor's")
             self.excitations.append(dict(
                 id=eid, point=point, position=at, direction=d, setup=setup, true_position=at + dp,
-                true_direction=rot @ d, gauge_mass=ck.num(e, "gauge_mass_kg", path, 0.0, lo=0.0)))
+                true_direction=rot @ d, gauge_mass=ck.num(e, "gauge_mass_kg", path, 0.0, lo=0.0),
+                stinger_stiffness=ck.num(e, "stinger_stiffness_n_per_m", path, 0.0, lo=0.0)))
 
     # --- damping -------------------------------------------------------------------------
     def _damping(self, ck, d):

@@ -72,6 +72,19 @@ def s_axis(case, freq):
     return s
 
 
+def channel_filters(case, s):
+    """Per channel (n_ch, L): Π_i sτ_i/(1 + sτ_i) (first-order high-pass, AC coupling of
+    the transducer or the conditioner) times e^{−sδ} (a sampling delay δ). Evaluated at
+    the same s as the FRF, since the window multiplies the filtered, delayed signal."""
+    out = np.ones((len(case.channels), len(s)), complex)
+    for ci, c in enumerate(case.channels):
+        for tau in c["highpass_s"]:
+            out[ci] *= s * tau / (1.0 + s * tau)
+        if c["delay_s"]:
+            out[ci] *= np.exp(-s * c["delay_s"])
+    return out
+
+
 class Terms:
     """All pole–residue terms of the campaign, per excitation:
     H_e,c(s) = s^k [Σ_r a[c,r] b[r]/(s − λ_r) + p[c]/s² + Σ_m ρ_m[c]/(s − μ_m)]."""
@@ -86,9 +99,13 @@ class Terms:
             sm = next(x for x in self.setups if x.id == e["setup"])
             col = force_column(case, e)[:, None]
             model = sm.nominal
-            if e["gauge_mass"] > 0:
+            if e["gauge_mass"] > 0 or e["stinger_stiffness"] > 0:
+                # Attached while this excitation is measured: the gauge's structure-side
+                # mass (a point mass) and a stinger's axial stiffness k_s along the force.
                 tp = point_map(e["true_position"] - case.origin)
-                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c, sm.k, sm.d)
+                dd = e["true_direction"]
+                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c,
+                                               sm.k + e["stinger_stiffness"] * tp.T @ np.outer(dd, dd) @ tp, sm.d)
             a, b, p = modal_terms_for(model, rows, col)
             extra = []
             gains = np.array([c["gain"] for c in case.channels])
@@ -128,7 +145,7 @@ class Terms:
             if self.gravity_exc:
                 ag, pg = self.gravity_exc[ei]
                 out[ei] += evaluate(lam, ag, b, pg, [], s)[0] * s ** (k - 2)
-        return out
+        return out * channel_filters(self.case, s)[None, :, :]
 
 
 def add_noise(h, relative, floor, seed):
@@ -177,12 +194,14 @@ def truth(case, terms):
         "precision": case.precision,
         "channels": [{"id": c["id"], "point": c["point"], "position_m": c["position"].tolist(),
                       "direction": c["direction"].tolist(), "true_position_m": c["true_position"].tolist(),
-                      "true_direction": c["true_direction"].tolist(), "gain": c["gain"]} for c in case.channels],
+                      "true_direction": c["true_direction"].tolist(), "gain": c["gain"],
+                      "highpass_s": c["highpass_s"], "delay_s": c["delay_s"]} for c in case.channels],
         "excitations": [{"id": e["id"], "point": e["point"], "setup": e["setup"],
                          "position_m": e["position"].tolist(), "direction": e["direction"].tolist(),
                          "true_position_m": e["true_position"].tolist(),
                          "true_direction": e["true_direction"].tolist(),
-                         "gauge_mass_kg": e["gauge_mass"]} for e in case.excitations],
+                         "gauge_mass_kg": e["gauge_mass"],
+                         "stinger_stiffness_n_per_m": e["stinger_stiffness"]} for e in case.excitations],
         "elastic_modes": [{"frequency_hz": m["frequency_hz"], "damping_ratio": m["damping_ratio"],
                            "at_channels": m["at_channels"].tolist(),
                            "at_excitations": m["at_excitations"].tolist(), "setups": m["setups"]}

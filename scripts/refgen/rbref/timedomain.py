@@ -91,6 +91,8 @@ def measure(case, terms):
     h1 = np.empty((len(case.excitations), n_ch, keep.sum()), complex)
     coh = np.empty(h1.shape)
     force_unit = _pulse(t, tp)
+    if any(c["highpass_s"] or c["delay_s"] for c in case.channels):
+        raise ValueError("time: sensor highpass_s and delay_s are modelled in the frequency route only")
     if terms.gravity_exc and k != 2:
         raise ValueError("time: sensor_gravity is modelled for accelerance only in the time route")
     for ei, (poles, a, b, p, extra) in enumerate(terms.per_exc):
