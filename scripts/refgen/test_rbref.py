@@ -686,6 +686,20 @@ def test_cli_seeds_settings_and_errors():
             not any(n.startswith(".rbref-") for n in os.listdir(t))
 
 
+def test_same_output_whatever_the_blas_threads():
+    """Byte-identical files with 1 and 4 BLAS threads (for one numpy build)."""
+    case = os.path.join(HERE, "examples", "realistic-combination.toml")
+    with tempfile.TemporaryDirectory() as t:
+        digests = []
+        for n in ("1", "4"):
+            env = dict(os.environ, OPENBLAS_NUM_THREADS=n, OMP_NUM_THREADS=n, MKL_NUM_THREADS=n)
+            out = os.path.join(t, f"r{n}.uff")
+            subprocess.run([sys.executable, os.path.join(HERE, "rbref.py"), case, "-o", out, "--binary",
+                            "--quiet"], check=True, env=env)
+            digests.append(open(out, "rb").read())
+        assert digests[0] == digests[1]
+
+
 def test_bad_input_is_named():
     d = base_case().data
     d["sensor"][1]["direction"] = [1, 1, 0]
@@ -704,6 +718,18 @@ def test_bad_input_is_named():
         assert "case.toml: sensor[2].misorientation: unknown field" in str(e), e
     else:
         raise AssertionError("accepted a misspelt field")
+    # A cord exactly at its unstretched length at the equilibrium (springs hold the body
+    # at the reference pose, no gravity): the stiffness is undefined there, refuse.
+    d = base_case().data
+    d["setup"][0]["cord"] = [{"at_m": [0.0, 0.0, 0.0], "anchor_m": [0.0, 0.0, -0.5],
+                              "length_m": 0.5, "stiffness_n_per_m": 100.0}]
+    case = Case(d, "case.toml")
+    try:
+        build_setup(case, case.setups[0])
+    except ValueError as e:
+        assert "cord(s) [0]" in str(e) and "slack" in str(e), e
+    else:
+        raise AssertionError("accepted a cord at the point of going slack")
 
 
 def main():

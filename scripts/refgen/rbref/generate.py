@@ -30,6 +30,10 @@ def build_setup(case, s):
         if case.gravity != 0.0:
             raise ValueError(f"set-up '{s['id']}': no spring or cord: a free-free body needs gravity_m_s2 = 0")
     pose, iters = sus.equilibrium()
+    slack = sus.near_slack(pose)
+    if slack:
+        raise ValueError(f"set-up '{s['id']}': cord(s) {slack} (0-based) are just at the point of going "
+                         "slack at equilibrium: the stiffness is not defined there")
     k, asym = sus.stiffness(pose)
     mm = mass_matrix(m_tot, c_tot, j_tot, o)
     w2, phi = undamped_modes(k, mm)

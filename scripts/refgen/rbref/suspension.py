@@ -128,6 +128,18 @@ class Suspension:
         asym = np.abs(h - h.T).max() / norm if norm > 0 else 0.0
         return 0.5 * (h + h.T), asym
 
+    def near_slack(self, pose, step=FD_STEP):
+        """Indices of cords whose stretch |ℓ − L0| at the pose is within 10 finite-difference
+        displacements (10·step·L): the potential is not smooth there, so neither the
+        Hessian nor a linear model is meaningful."""
+        x0, r0 = pose
+        out = []
+        for i, (p, a, l0, k) in enumerate(self.cords):
+            ell = np.linalg.norm(a - (x0 + r0 @ (p - self.origin)))
+            if abs(ell - l0) < 10 * step * self.length_scale:
+                out.append(i)
+        return out
+
     def cord_tensions(self, pose):
         """Tension k(|a − x| − L0)⁺ of each cord at the pose (N)."""
         x0, r0 = pose
