@@ -199,12 +199,14 @@ def direct(case, terms, f):
         mm, kk = sm.m.copy(), sm.k.copy()
         tp = point_map(e["true_position"] - case.origin)
         mm = mm + e["gauge_mass"] * tp.T @ tp
-        kk = kk + e["stinger_stiffness"] * np.outer(tp.T @ e["true_direction"], tp.T @ e["true_direction"])
+        pp = np.eye(3) - np.outer(e["true_direction"], e["true_direction"])
+        kk = kk + e["stinger_lateral"] * tp.T @ pp @ tp
+        kk[3:, 3:] += e["stinger_bending"] * pp
         col = force_column(case, e)
         for l, fl in enumerate(f):
             w = 2 * np.pi * fl
             z = kk + 1j * sm.d + 1j * w * sm.c - w * w * mm
-            out[ei, :, l] = s_rows @ np.linalg.solve(z, col)
+            out[ei, :, l] = s_rows @ np.linalg.solve(z, col) / e["force_gauge_gain"]
     return out
 
 
@@ -216,7 +218,7 @@ def test_state_space_equals_direct_solve():
                                 {"at_m": [-0.2, -0.15, 0.1], "damping_n_s_per_m": [1.0, 5.0, 2.0]}]
     d["setup"][0]["loss_factor"] = 0.03
     d["excitation"][1]["gauge_mass_kg"] = 0.05
-    d["excitation"][2]["stinger_stiffness_n_per_m"] = 80.0
+    d["excitation"][2].update(stinger_lateral_n_per_m=80.0, stinger_bending_n_m_per_rad=3.0, force_gauge_gain=0.97)
     d["sensor"][1].update(misorientation_rad=[0.03, -0.02, 0.05], position_error_m=[0.004, -0.003, 0.002], gain=1.05, mass_kg=0.03)
     case = Case(d, "<t>")
     terms = Terms(case)
@@ -553,6 +555,74 @@ def test_gravity_stiffness_agrees_with_frf_sim_when_available():
         assert np.abs(r.truth["setups"][0]["equilibrium"]["rotation_vector_rad"]).max() < 1e-12
         h = frf_sim_frfs(exe, [path], case, r)
     assert rel(r.frf, h) < 1e-9, rel(r.frf, h)
+
+
+def _effect_cases():
+    """Effect fixtures of the other simulator (Test Case II plus one effect) and the same
+    physics described in our case fields, as edits of Test Case II's case data."""
+    def sensor(d, sid, **kw):
+        next(x for x in d["sensor"] if x["id"] == sid).update(kw)
+
+    def excitation(d, eid, **kw):
+        next(x for x in d["excitation"] if x["id"] == eid).update(kw)
+
+    def springs(d, key, values):
+        for sp, v in zip(d["setup"][0]["spring"], values):
+            sp[key] = v
+
+    return {
+        "channel_gain": lambda d: (sensor(d, "2", gains=[1.0, 1.04, 1.0]), sensor(d, "3", gains=[1.0, 1.0, 0.97])),
+        "global_gain": lambda d: [sensor(d, k, gain=1.03) for k in ("1", "2", "3")],
+        "excitation_gain": lambda d: excitation(d, "force2", force_gauge_gain=1 / 0.95),
+        "elastic_mode": lambda d: d.update(elastic_mode=[{
+            "frequency_hz": 45.0, "damping_ratio": 0.01,
+            "at_channels": {"1x": 0.3, "1z": -0.2, "2y": 0.25, "2z": 0.4, "3x": -0.35, "3z": -0.3},
+            "at_excitations": {"force1": -0.3, "force2": 0.2, "force3": 0.45}}]),
+        "exponential_window": lambda d: d.update(window={"tau_s": 4.0}),
+        "force_direction": lambda d: excitation(d, "force3", direction_error_rad=[0.0873, 0.0, 0.0]),
+        "force_gauge_mass": lambda d: excitation(d, "force2", gauge_mass_kg=0.015),
+        "force_location": lambda d: excitation(d, "force1", position_error_m=[0.0, 0.004, -0.003]),
+        "sensor_mass": lambda d: (sensor(d, "1", mass_kg=0.025), sensor(d, "2", mass_kg=0.025),
+                                  sensor(d, "3", mass_kg=0.04)),
+        "sensor_misorientation": lambda d: sensor(d, "2", misorientation_rad=[0.0349, 0.0, -0.0349]),
+        "sensor_position": lambda d: sensor(d, "2", position_error_m=[0.003, -0.002, 0.004]),
+        "stinger_stiffness": lambda d: excitation(d, "force2", stinger_lateral_n_per_m=60.0),
+        "nonproportional_damping": lambda d: d["setup"][0].update(dashpot=[
+            {"at_m": sp["at_m"], "damping_n_s_per_m": [0.0, 0.0, 8.0]} for sp in d["setup"][0]["spring"]]),
+        "hysteretic_damping": lambda d: springs(d, "loss_factor", [0.08, 0.08, 0.15, 0.04]),
+        "transducer_highpass": lambda d: [sensor(d, k, highpass_s=2.0) for k in ("1", "2", "3")],
+        "channel_delay": lambda d: (sensor(d, "2", delays_s=[0.0005, 0.0, 0.0]),
+                                    sensor(d, "3", delays_s=[0.0, 0.0, 0.0008]),
+                                    excitation(d, "force2", delay_s=0.0003)),
+    }
+
+
+def test_effects_agree_with_frf_sim_when_available():
+    """Each effect of the other simulator that we model independently (gains, elastic
+    mode, window, force direction/location, gauge mass, sensor mass/orientation/position,
+    stinger, dashpots, hysteretic loss, high-pass, delays), on Test Case II without noise:
+    the two simulators agree to 1e-9 of the largest value. Skipped without RBPROPS_FRF_SIM."""
+    import copy
+    exe = os.environ.get("RBPROPS_FRF_SIM")
+    if not exe:
+        print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
+        return
+    base = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).data
+    worst = {}
+    with tempfile.TemporaryDirectory() as t:
+        for name, edit in _effect_cases().items():
+            text = open(os.path.join(REPO, "fixtures", "specs", "effects", name + ".toml")).read()
+            text = text.replace("[noise]\nrelative = 0.01", "[noise]\nrelative = 0.0")
+            path = os.path.join(t, name + ".toml")
+            open(path, "w").write(text)
+            d = copy.deepcopy(base)
+            edit(d)
+            case = Case(d, name)
+            r = rbref.generate(case)
+            h = frf_sim_frfs(exe, [path], case, r)
+            worst[name] = rel(r.frf, h)
+    bad = {k: v for k, v in worst.items() if not v < 1e-9}
+    assert not bad, bad
 
 
 def test_examples_generate():

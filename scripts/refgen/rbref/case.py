@@ -134,13 +134,14 @@ FIELDS = {
     "body": {"mass_kg", "com_m", "inertia_cm_kg_m2", "moments_kg_m2", "products_kg_m2", "points_m",
              "point_masses_kg"},
     "setup": {"id", "description", "spring", "cord", "dashpot", "loss_factor"},
-    "spring": {"at_m", "anchor_m", "stiffness_n_per_m", "stiffness_matrix_n_per_m"},
-    "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m"},
+    "spring": {"at_m", "anchor_m", "stiffness_n_per_m", "stiffness_matrix_n_per_m", "loss_factor"},
+    "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m", "loss_factor"},
     "dashpot": {"at_m", "damping_n_s_per_m", "damping_matrix_n_s_per_m"},
     "sensor": {"id", "at_m", "kind", "axes", "direction", "position_error_m", "misorientation_rad",
-               "gain", "gains", "mass_kg", "highpass_s", "delay_s"},
+               "gain", "gains", "mass_kg", "highpass_s", "delay_s", "delays_s"},
     "excitation": {"id", "at_m", "direction", "setup", "point", "position_error_m",
-                   "direction_error_rad", "gauge_mass_kg", "stinger_stiffness_n_per_m"},
+                   "direction_error_rad", "gauge_mass_kg", "stinger_lateral_n_per_m",
+                   "stinger_bending_n_m_per_rad", "force_gauge_gain", "delay_s"},
     "damping": {"model", "ratio", "ratios", "alpha", "beta"},
     "noise": {"relative", "floor"},
     "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
@@ -346,7 +347,13 @@ class Case:
             hp = [hp] if isinstance(hp, (int, float)) and not isinstance(hp, bool) else hp
             if not isinstance(hp, list) or not all(isinstance(x, (int, float)) and x > 0 for x in hp):
                 ck.fail(f"{path}.highpass_s", "must be a positive time constant or a list of them (s)")
-            filt = dict(highpass_s=[float(x) for x in hp], delay_s=ck.num(s, "delay_s", path, 0.0, lo=0.0))
+            if "delay_s" in s and "delays_s" in s:
+                ck.fail(path, "give delay_s (all channels) or delays_s (per axis), not both")
+            delay = ck.num(s, "delay_s", path, 0.0, lo=0.0)
+            delays = ck.arr(s, "delays_s", path, (3,)) if "delays_s" in s else None
+            if kind != "triaxial" and delays is not None:
+                ck.fail(f"{path}.delays_s", "per-axis delays are for triaxial sensors (use delay_s)")
+            filt = dict(highpass_s=[float(x) for x in hp], delay_s=delay)
             if mass > 0:
                 self.sensor_masses.append((at + dp, mass))
             if kind == "triaxial":
@@ -368,6 +375,8 @@ class Case:
                 else:
                     gains = [gain] * 3
                 for k in range(3):
+                    if delays is not None:
+                        filt = dict(filt, delay_s=float(delays[k]))
                     self.channels.append(dict(id=names[k], point=sid, position=at, direction=ax[k],
                                               true_position=at + dp, true_direction=mis @ ax[k],
                                               gain=float(gains[k]), **filt))
@@ -393,7 +402,7 @@ class Case:
             if not sid.strip() or sid in seen:
                 ck.fail(f"{path}.id", f"empty or repeated id {sid!r}")
             seen.add(sid)
-            springs, cords, dashpots = [], [], []
+            springs, cords, dashpots, spring_eta, cord_eta = [], [], [], [], []
             for j, sp in enumerate(s.get("spring", [])):
                 p = f"{path}.spring[{j}]"
                 at = ck.arr(sp, "at_m", p, (3,))
@@ -408,6 +417,7 @@ class Case:
                     k = ck.sym_psd(ck.arr(sp, "stiffness_matrix_n_per_m", p, (3, 3)), f"{p}.stiffness_matrix_n_per_m")
                 anchor = ck.arr(sp, "anchor_m", p, (3,), at)
                 springs.append((at, anchor, k))
+                spring_eta.append(ck.num(sp, "loss_factor", p, -1.0) if "loss_factor" in sp else None)
             for j, c in enumerate(s.get("cord", [])):
                 p = f"{path}.cord[{j}]"
                 at = ck.arr(c, "at_m", p, (3,))
@@ -415,6 +425,7 @@ class Case:
                 l0 = ck.num(c, "length_m", p, lo=0.0, strict_lo=True)
                 k = ck.num(c, "stiffness_n_per_m", p, lo=0.0, strict_lo=True)
                 cords.append((at, anchor, l0, k))
+                cord_eta.append(ck.num(c, "loss_factor", p, lo=0.0) if "loss_factor" in c else None)
             for j, d in enumerate(s.get("dashpot", [])):
                 p = f"{path}.dashpot[{j}]"
                 at = ck.arr(d, "at_m", p, (3,))
@@ -429,8 +440,13 @@ class Case:
                     c = ck.sym_psd(ck.arr(d, "damping_matrix_n_s_per_m", p, (3, 3)), f"{p}.damping_matrix_n_s_per_m")
                 dashpots.append((at, c))
             eta = ck.num(s, "loss_factor", path, 0.0, lo=0.0)
+            for j, e in enumerate(spring_eta):
+                if e is not None and e < 0:
+                    ck.fail(f"{path}.spring[{j}].loss_factor", f"must be ≥ 0, got {e}")
+            # Element loss factors default to the set-up's.
+            losses = [eta if e is None else e for e in spring_eta] + [eta if e is None else e for e in cord_eta]
             self.setups.append(dict(id=sid, description=str(s.get("description", "")), springs=springs,
-                                    cords=cords, dashpots=dashpots, loss_factor=eta))
+                                    cords=cords, dashpots=dashpots, loss_factor=eta, element_losses=losses))
 
     # --- excitations ---------------------------------------------------------------------
     def _excitations(self, ck, exc):
@@ -458,7 +474,10 @@ class Case:
             self.excitations.append(dict(
                 id=eid, point=point, position=at, direction=d, setup=setup, true_position=at + dp,
                 true_direction=rot @ d, gauge_mass=ck.num(e, "gauge_mass_kg", path, 0.0, lo=0.0),
-                stinger_stiffness=ck.num(e, "stinger_stiffness_n_per_m", path, 0.0, lo=0.0)))
+                stinger_lateral=ck.num(e, "stinger_lateral_n_per_m", path, 0.0, lo=0.0),
+                stinger_bending=ck.num(e, "stinger_bending_n_m_per_rad", path, 0.0, lo=0.0),
+                force_gauge_gain=ck.num(e, "force_gauge_gain", path, 1.0, lo=0.0, strict_lo=True),
+                delay_s=ck.num(e, "delay_s", path, 0.0, lo=0.0)))
 
     # --- damping -------------------------------------------------------------------------
     def _damping(self, ck, d):

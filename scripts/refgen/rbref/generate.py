@@ -44,10 +44,14 @@ def build_setup(case, s):
     else:
         c = np.zeros((6, 6))
     c = c + dashpot_damping(s["dashpots"], pose[1], o)
+    # Hysteretic loss: D = Σ_i η_i × (Hessian of element i alone at the equilibrium), so
+    # element i's stiffness is k_i (1 + iη_i); gravity's geometric stiffness is lossless.
     d = np.zeros((6, 6))
-    if s["loss_factor"] > 0:
-        elastic = Suspension(s["springs"], s["cords"], m_tot, c_tot, 0.0, case.up, o)
-        d = s["loss_factor"] * elastic.stiffness(pose)[0]
+    elements = [("s", x) for x in s["springs"]] + [("c", x) for x in s["cords"]]
+    for (kind, el), eta in zip(elements, s["element_losses"]):
+        if eta > 0:
+            one = Suspension([el] if kind == "s" else [], [el] if kind == "c" else [], m_tot, c_tot, 0.0, case.up, o)
+            d += eta * one.stiffness(pose)[0]
     sm = SetupModel()
     sm.id = s["id"]
     sm.pose, sm.iterations, sm.hessian_asymmetry = pose, iters, asym
@@ -103,13 +107,19 @@ class Terms:
             sm = next(x for x in self.setups if x.id == e["setup"])
             col = force_column(case, e)[:, None]
             model = sm.nominal
-            if e["gauge_mass"] > 0 or e["stinger_stiffness"] > 0:
+            if e["gauge_mass"] > 0 or e["stinger_lateral"] > 0 or e["stinger_bending"] > 0:
                 # Attached while this excitation is measured: the gauge's structure-side
-                # mass (a point mass) and a stinger's axial stiffness k_s along the force.
+                # mass (a point mass), and a stinger's stiffness ACROSS the force direction n
+                # (lateral k_l at the point, bending k_r about the axes ⟂ n; P = I − n nᵀ):
+                # K_a = k_l T(p)ᵀ P T(p) + blockdiag(0, k_r P). The stinger's axial path is
+                # the gauge's and is measured, so it adds nothing.
                 tp = point_map(e["true_position"] - case.origin)
-                dd = e["true_direction"]
-                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c,
-                                               sm.k + e["stinger_stiffness"] * tp.T @ np.outer(dd, dd) @ tp, sm.d)
+                pp = np.eye(3) - np.outer(e["true_direction"], e["true_direction"])
+                ka = e["stinger_lateral"] * tp.T @ pp @ tp
+                ka[3:, 3:] += e["stinger_bending"] * pp
+                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c, sm.k + ka, sm.d)
+            # The gauge reads force_gauge_gain × the true force: H_measured = H / gain.
+            col = col / e["force_gauge_gain"]
             a, b, p = modal_terms_for(model, rows, col)
             extra = []
             gains = np.array([c["gain"] for c in case.channels])
@@ -120,7 +130,7 @@ class Terms:
                 # 1/(s² + 2ζω_m s + ω_m²) = [1/(s − μ₊) − 1/(s − μ₋)]/(μ₊ − μ₋)
                 root = np.sqrt(complex(z * z - 1.0))
                 mu_p, mu_m = -z * wm + wm * root, -z * wm - wm * root
-                res = gains * m["at_channels"] * m["at_excitations"][ei]
+                res = gains * m["at_channels"] * m["at_excitations"][ei] / e["force_gauge_gain"]
                 extra.append((mu_p, (res / (mu_p - mu_m))[:, None]))
                 extra.append((mu_m, (-res / (mu_p - mu_m))[:, None]))
             self.per_exc.append((model.poles, a, b, p, extra))
@@ -149,7 +159,11 @@ class Terms:
             if self.gravity_exc:
                 ag, pg = self.gravity_exc[ei]
                 out[ei] += evaluate(lam, ag, b, pg, [], s)[0] * s ** (k - 2)
-        return out * channel_filters(self.case, s)[None, :, :]
+        out *= channel_filters(self.case, s)[None, :, :]
+        for ei, e in enumerate(self.case.excitations):
+            if e["delay_s"]:
+                out[ei] *= np.exp(s * e["delay_s"])  # the force record is late: H × e^{+sδ_f}
+        return out
 
 
 def add_noise(h, relative, floor, seed):
@@ -205,7 +219,10 @@ def truth(case, terms):
                          "true_position_m": e["true_position"].tolist(),
                          "true_direction": e["true_direction"].tolist(),
                          "gauge_mass_kg": e["gauge_mass"],
-                         "stinger_stiffness_n_per_m": e["stinger_stiffness"]} for e in case.excitations],
+                         "stinger_lateral_n_per_m": e["stinger_lateral"],
+                         "stinger_bending_n_m_per_rad": e["stinger_bending"],
+                         "force_gauge_gain": e["force_gauge_gain"], "delay_s": e["delay_s"]}
+                        for e in case.excitations],
         "elastic_modes": [{"frequency_hz": m["frequency_hz"], "damping_ratio": m["damping_ratio"],
                            "at_channels": m["at_channels"].tolist(),
                            "at_excitations": m["at_excitations"].tolist(), "setups": m["setups"]}

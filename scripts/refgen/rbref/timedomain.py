@@ -73,7 +73,7 @@ def responses(poles, lres, rres, free, extra, k, t, tp):
 def measure(case, terms):
     """(frequency_hz, H1[e, c, l], coherence[e, c, l]) by the time-history route."""
     tm = case.time
-    if any(s["loss_factor"] > 0 for s in case.setups):
+    if any(max(s["element_losses"], default=0) > 0 for s in case.setups):
         raise ValueError("time: hysteretic damping (loss_factor) has no time-domain model")
     fs, tp = tm["sample_rate_hz"], tm["pulse_s"]
     n = int(round(tm["record_s"] * fs))
@@ -91,8 +91,8 @@ def measure(case, terms):
     h1 = np.empty((len(case.excitations), n_ch, keep.sum()), complex)
     coh = np.empty(h1.shape)
     force_unit = _pulse(t, tp)
-    if any(c["highpass_s"] or c["delay_s"] for c in case.channels):
-        raise ValueError("time: sensor highpass_s and delay_s are modelled in the frequency route only")
+    if any(c["highpass_s"] or c["delay_s"] for c in case.channels) or any(e["delay_s"] for e in case.excitations):
+        raise ValueError("time: highpass_s and delays are modelled in the frequency route only")
     if terms.gravity_exc and k != 2:
         raise ValueError("time: sensor_gravity is modelled for accelerance only in the time route")
     for ei, (poles, a, b, p, extra) in enumerate(terms.per_exc):
