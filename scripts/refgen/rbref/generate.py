@@ -2,11 +2,11 @@
 
 Per set-up: the mass model (body plus sensor masses, each a point mass at its true
 position), the static equilibrium of the potential energy, the tangent stiffness (Hessian),
-the damping, then one pole–residue model per distinct force-gauge mass (a gauge mass m_g at
-the excitation point is attached to the body only while that excitation is measured:
-M + m_g T(p)ᵀT(p)). Channels see their true position and direction, times their gain;
-forces act at their true point along their true direction (body-fixed: a hammer strikes a
-face, so its direction turns with the body).
+the damping, then the pole–residue model of the set-up, and one more for each excitation
+that attaches something while it is measured (a force-gauge mass, a stinger). Channels see
+their true position and direction, times their gain, through their filters; forces act at
+their true point along their true direction (body-fixed: a hammer strikes a face, so its
+direction turns with the body), divided by the force gauge's gain.
 """
 import numpy as np
 
@@ -17,7 +17,8 @@ from .suspension import Suspension
 
 
 class SetupModel:
-    pass
+    """One set-up's equilibrium (pose, Newton iterations, Hessian asymmetry), mass model,
+    6×6 M, K, C, D about O in body axes, cord tensions and its pole–residue model."""
 
 
 def build_setup(case, s):
@@ -103,6 +104,7 @@ class Terms:
         rows = channel_rows(case)
         self.per_exc = []
         self.gravity_exc = []
+        self.models = []
         for ei, e in enumerate(case.excitations):
             sm = next(x for x in self.setups if x.id == e["setup"])
             col = force_column(case, e)[:, None]
@@ -118,6 +120,7 @@ class Terms:
                 ka = e["stinger_lateral"] * tp.T @ pp @ tp
                 ka[3:, 3:] += e["stinger_bending"] * pp
                 model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c, sm.k + ka, sm.d)
+            self.models.append(model)
             # The gauge reads force_gauge_gain × the true force: H_measured = H / gain.
             col = col / e["force_gauge_gain"]
             a, b, p = modal_terms_for(model, rows, col)
@@ -228,6 +231,11 @@ def truth(case, terms):
                            "at_excitations": m["at_excitations"].tolist(), "setups": m["setups"]}
                           for m in case.elastic_modes],
         "setups": [],
+        "modes_during_excitation": {
+            e["id"]: [{"frequency_hz": f, "damping_ratio": z, "pole_re": lam.real, "pole_im": lam.imag}
+                      for f, z, lam in model.rigid_poles()]
+            for e, model in zip(case.excitations, terms.models)
+            if model is not next(x for x in terms.setups if x.id == e["setup"]).nominal},
     }
     if case.sensor_masses:
         out["properties_with_sensor_masses"] = properties_record(*terms.setups[0].mass_properties)
