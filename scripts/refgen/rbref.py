@@ -45,6 +45,10 @@ def main(argv=None):
     for o in a.output:
         if os.path.splitext(o)[1].lower() not in (".uff", ".unv", ".json", ".npz"):
             ap.error(f"{o}: unknown output extension (use .uff, .unv, .json or .npz)")
+    for o in a.output + ([a.truth] if a.truth else []):
+        d = os.path.dirname(os.path.abspath(o))
+        if not os.path.isdir(d):
+            ap.error(f"{o}: directory {d} does not exist")
     seeds = None
     if a.seeds:
         try:
@@ -90,6 +94,9 @@ def main(argv=None):
                 rbref.write_truth(result, name(a.truth))
     except (rbref.CaseError, ValueError) as e:
         print(f"error: {a.case}: {e}" if not str(e).startswith(a.case) else f"error: {e}", file=sys.stderr)
+        return 1
+    except OSError as e:
+        print(f"error: {e.filename or ''}: {e.strerror}", file=sys.stderr)
         return 1
     if not a.quiet:
         for s in result.truth["setups"]:
