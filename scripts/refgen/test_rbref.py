@@ -435,6 +435,29 @@ def test_time_route_noise_and_coherence():
     assert np.max(z) < 5 and 0.75 < np.mean(z ** 2) < 1.25, (np.max(z), np.mean(z ** 2), z.size)
 
 
+def test_time_route_linearity_and_clipping():
+    """Impacts of different amplitudes (jitter 20 %) give the same H1 and unit coherence
+    (the model is linear); clipping the response at half its peak makes it nonlinear:
+    the coherence drops and H1 changes; a clip level above the peak changes nothing."""
+    d = base_case().data
+    d["frequency"] = {"start_hz": 0.5, "stop_hz": 20.0, "lines": 10}
+    d["window"] = {"tau_s": 2.0}
+    d["time"] = {"sample_rate_hz": 256.0, "record_s": 16.0, "pulse_s": 0.02, "impacts": 1}
+    one = rbref.generate(Case(d, "<t>"))
+    d["time"] = dict(d["time"], impacts=4, amplitude_jitter=0.2)
+    jit = rbref.generate(Case(d, "<t>"))
+    assert rel(jit.frf, one.frf) < 1e-12 and np.abs(jit.coherence - 1).max() < 1e-12
+    from rbref.timedomain import responses
+    terms = Terms(Case(d, "<t>"))
+    t = np.arange(4096) / 256.0
+    peak = max(np.abs(responses(*pe[:5], 0, t, 0.02)).max() for pe in terms.per_exc) * 100.0 * 1.7
+    d["time"] = dict(d["time"], clip_response=peak)
+    assert np.array_equal(rbref.generate(Case(d, "<t>")).frf, jit.frf)
+    d["time"] = dict(d["time"], clip_response=peak / 1.7 / 2)
+    clipped = rbref.generate(Case(d, "<t>"))
+    assert clipped.coherence.min() < 0.999 and rel(clipped.frf, one.frf) > 1e-3
+
+
 def test_elastic_mode_and_sensor_errors_are_exact():
     """An elastic mode adds exactly ψ_c ψ_e/(ω_m² − ω² + 2iζω_mω); a misoriented triaxial
     sensor reads the rotated combination of the nominal axes (linearity)."""
