@@ -12,7 +12,7 @@ import numpy as np
 
 from .case import QUANTITY_ORDER
 from .dynamics import PoleResidueModel, dashpot_damping, evaluate, modal_damping, modal_terms_for, undamped_modes
-from .rigid import combine, mass_matrix, point_map, rotation_vector, skew
+from .rigid import cloud_mass_matrix, combine, mass_matrix, point_map, rotation_vector, skew
 from .suspension import Suspension
 
 
@@ -36,7 +36,14 @@ def build_setup(case, s):
         raise ValueError(f"set-up '{s['id']}': cord(s) {slack} (0-based) are just at the point of going "
                          "slack at equilibrium: the stiffness is not defined there")
     k, asym = sus.stiffness(pose)
-    mm = mass_matrix(m_tot, c_tot, j_tot, o)
+    if case.body_points is not None:
+        # A point-cloud body: M straight from the kinetic energy ½ Σ m_i |ẋ_i|² of its
+        # points and the sensor masses (equal to M0 of their m, c, J: tested).
+        pts = np.vstack([case.body_points[0]] + [p[None, :] for p, _ in case.sensor_masses])
+        ws = np.concatenate([case.body_points[1], [m for _, m in case.sensor_masses]])
+        mm = cloud_mass_matrix(pts, ws, o)
+    else:
+        mm = mass_matrix(m_tot, c_tot, j_tot, o)
     w2, phi = undamped_modes(k, mm)
     if case.damping_model == "modal":
         c = modal_damping(mm, w2, phi, case.modal_ratios)
