@@ -809,6 +809,21 @@ def test_same_output_whatever_the_blas_threads():
         assert digests[0] == digests[1]
 
 
+def test_json_case_equals_dict_case():
+    d = base_case().data
+    with tempfile.TemporaryDirectory() as t:
+        path = os.path.join(t, "c.json")
+        json.dump(d, open(path, "w"))
+        assert np.array_equal(rbref.generate(rbref.load(path)).frf, rbref.generate(Case(d, "<t>")).frf)
+        open(path, "w").write("{not json")
+        try:
+            rbref.load(path)
+        except rbref.CaseError as e:
+            assert str(e).startswith(path + ":"), e
+        else:
+            raise AssertionError("accepted bad JSON")
+
+
 def test_bad_input_is_named():
     d = base_case().data
     d["sensor"][1]["direction"] = [1, 1, 0]

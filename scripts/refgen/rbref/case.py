@@ -8,7 +8,14 @@ path of the offending field (0-based list indices), e.g.
 import copy
 import json
 import os
-import tomllib
+
+try:
+    import tomllib  # Python ≥ 3.11
+except ModuleNotFoundError:  # pragma: no cover - older Pythons with the backport
+    try:
+        import tomli as tomllib
+    except ModuleNotFoundError:
+        tomllib = None
 
 import numpy as np
 
@@ -37,8 +44,15 @@ def _load_file(path):
     try:
         if path.endswith(".json"):
             return json.loads(text)
+        if tomllib is None:
+            raise CaseError(f"{path}: reading TOML needs Python ≥ 3.11 (tomllib) or tomli; use JSON")
         return tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
+    except json.JSONDecodeError as e:
+        raise CaseError(f"{path}: {e}") from None
+    except Exception as e:  # tomllib.TOMLDecodeError
+        if isinstance(e, CaseError):
+            raise
+        raise CaseError(f"{path}: {e}") from None
         raise CaseError(f"{path}: {e}") from None
 
 
