@@ -159,7 +159,7 @@ FIELDS = {
     "damping": {"model", "ratio", "ratios", "alpha", "beta"},
     "noise": {"relative", "floor"},
     "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
-    "window": {"tau_s"},
+    "window": {"tau_s", "record_s"},
     "output": {"precision"},
     "time": {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise", "response_noise",
              "clip_response", "amplitude_n", "amplitude_jitter"},
@@ -286,9 +286,8 @@ class Case:
         self._damping(ck, data.get("damping", {"model": "none"}))
         self._elastic(ck, data.get("elastic_mode", []))
         win = data.get("window", {})
-        self.window_tau = ck.num(win, "tau_s", "window", 0.0, lo=0.0) if win else 0.0
-        if win and self.window_tau <= 0:
-            ck.fail("window.tau_s", "must be > 0")
+        self.window_tau = ck.num(win, "tau_s", "window", 0.0, lo=0.0, strict_lo=True) if "tau_s" in win else 0.0
+        self.record_s = ck.num(win, "record_s", "window", 0.0, lo=0.0, strict_lo=True) if "record_s" in win else 0.0
         noise = data.get("noise", {})
         self.noise_relative = ck.num(noise, "relative", "noise", 0.0, lo=0.0)
         self.noise_floor = ck.num(noise, "floor", "noise", 0.0, lo=0.0)

@@ -160,3 +160,20 @@ def evaluate(poles, lres, rres, free, extra, s):
     for lam, res in extra:
         h += res.T[:, :, None] / (s - lam)[None, None, :]
     return h
+
+
+def truncation_correction(poles, lres, rres, free, extra, s, k, record):
+    """What a finite record [0, T] removes from s^k H(s): the transform of the tail t > T,
+    for the impulse response of Σ ρ_r/(s − λ_r) + P/s² observed as its k-th derivative:
+    Σ_r ρ_r λ_r^k e^{(λ_r − s)T}/(s − λ_r) + P·{e^{−sT}(1 + sT)/s², e^{−sT}/s, 0} for
+    k = 0, 1, 2 (the polynomial part of s^k/(s − λ) is an impulse at t = 0, inside the
+    record). Returns [e, c, l]."""
+    lam = np.concatenate([poles, np.array([m for m, _ in extra], complex)])
+    e = np.exp((lam[:, None] - s[None, :]) * record) * lam[:, None] ** k / (s[None, :] - lam[:, None])
+    h = np.einsum("cr,re,rl->ecl", lres, rres, e[:len(poles)], optimize=True)
+    for j, (_, res) in enumerate(extra):
+        h += res.T[:, :, None] * e[len(poles) + j][None, None, :]
+    if np.any(free != 0) and k < 2:
+        tail = np.exp(-s * record) * ((1 + s * record) / s ** 2 if k == 0 else 1 / s)
+        h += free.T[:, :, None] * tail[None, None, :]
+    return h

@@ -11,7 +11,8 @@ direction turns with the body), divided by the force gauge's gain.
 import numpy as np
 
 from .case import QUANTITY_ORDER
-from .dynamics import PoleResidueModel, dashpot_damping, evaluate, modal_damping, modal_terms_for, undamped_modes
+from .dynamics import (PoleResidueModel, dashpot_damping, evaluate, modal_damping, modal_terms_for,
+                       truncation_correction, undamped_modes)
 from .rigid import cloud_mass_matrix, combine, mass_matrix, point_map, rotation_vector, skew
 from .suspension import Suspension
 
@@ -164,11 +165,22 @@ class Terms:
         if self.gravity_exc and k < 2 and np.any(s == 0):
             raise ValueError("frequency: sensor_gravity with a line at 0 Hz needs accelerance")
         out = np.empty((len(self.per_exc), len(self.case.channels), len(s)), complex)
+        rec = self.case.record_s
+        if rec and (any(c["highpass_s"] or c["delay_s"] for c in self.case.channels)
+                    or any(e["delay_s"] for e in self.case.excitations)):
+            raise ValueError("window.record_s with channel filters or delays is not modelled "
+                             "(the filter acts before the truncation)")
+        if rec and self.gravity_exc and k != 2:
+            raise ValueError("window.record_s with sensor_gravity needs accelerance")
         for ei, (lam, a, b, p, extra) in enumerate(self.per_exc):
             out[ei] = evaluate(lam, a, b, p, extra, s)[0] * s ** k
+            if rec:
+                out[ei] -= truncation_correction(lam, a, b, p, extra, s, k, rec)[0]
             if self.gravity_exc:
                 ag, pg = self.gravity_exc[ei]
                 out[ei] += evaluate(lam, ag, b, pg, [], s)[0] * s ** (k - 2)
+                if rec:
+                    out[ei] -= truncation_correction(lam, ag, b, pg, [], s, k - 2, rec)[0]
         out *= channel_filters(self.case, s)[None, :, :]
         for ei, e in enumerate(self.case.excitations):
             if e["delay_s"]:
@@ -217,6 +229,7 @@ def truth(case, terms):
         "up": case.up.tolist(),
         "properties": properties_record(case.mass, case.com, case.inertia),
         "window_tau_s": case.window_tau or None,
+        "record_s": case.record_s or None,
         "noise": {"relative": case.noise_relative, "floor": case.noise_floor,
                   "model": "sigma^2 = relative^2 |H|^2 + floor^2, circular complex normal"},
         "precision": case.precision,

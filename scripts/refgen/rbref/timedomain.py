@@ -73,6 +73,8 @@ def responses(poles, lres, rres, free, extra, k, t, tp):
 def measure(case, terms):
     """(frequency_hz, H1[e, c, l], coherence[e, c, l]) by the time-history route."""
     tm = case.time
+    if case.record_s:
+        raise ValueError("window.record_s: the time route's record is time.record_s")
     if any(max(s["element_losses"], default=0) > 0 for s in case.setups):
         raise ValueError("time: hysteretic damping (loss_factor) has no time-domain model")
     fs, tp = tm["sample_rate_hz"], tm["pulse_s"]
