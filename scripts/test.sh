@@ -13,7 +13,7 @@ fi
 PY="${RBPROPS_PYTHON:-python3}"
 if "$PY" -c "import numpy, pyuff" 2>/dev/null; then
   # With the frf-sim just built, they also compare the two simulators (Test Case II,
-  # gravity stiffness and 17 effect fixtures).
+  # gravity stiffness and 19 effect fixtures).
   FRF_SIM="${CARGO_TARGET_DIR:-target}/debug/frf-sim"
   if [ -x "$FRF_SIM" ]; then export RBPROPS_FRF_SIM="$FRF_SIM"; fi
   "$PY" scripts/refgen/test_rbref.py

@@ -98,7 +98,8 @@ def test_rotation_and_gradient():
         series = series + term
     assert rel(r, series) < 1e-14
     sus = Suspension([([0.2, 0.1, 0.1], [0.21, 0.1, 0.12], np.diag([100, 200, 300.0]))],
-                     [([0.0, 0.1, 0.2], [0.05, 0.15, 0.9], 0.5, 400.0)], 3.0, [0, 0, 0.05], 9.81, [0, 0, 1])
+                     [([0.0, 0.1, 0.2], [0.05, 0.15, 0.9], 0.5, 400.0)], 3.0, [0, 0, 0.05], 9.81, [0, 0, 1],
+                     rotational=[np.array([[2.0, 0.3, 0.0], [0.3, 1.0, 0.1], [0.0, 0.1, 0.5]])])
     pose = (np.array([0.01, -0.02, 0.03]), rotation([0.1, 0.2, -0.1]))
     q = np.array([0.001, 0.002, -0.001, 0.05, -0.03, 0.02])
     g = sus.gradient(pose, q)
@@ -108,12 +109,16 @@ def test_rotation_and_gradient():
 
 
 def test_springs_hessian_is_assembled_stiffness():
-    """Springs unloaded at the reference pose, no gravity: equilibrium is the reference
-    pose and the Hessian is Σ T(p)ᵀ K T(p), to the finite-difference accuracy (≈1e-12)."""
-    case = base_case()
+    """Springs and a rotational mount unloaded at the reference pose, no gravity:
+    equilibrium is the reference pose and the Hessian is Σ T(p)ᵀ K T(p) + blockdiag(0, K_r),
+    to the finite-difference accuracy (≈1e-12)."""
+    d = base_case().data
+    d["setup"][0]["rotational_spring"] = [{"stiffness_n_m_per_rad": [3.0, 2.0, 1.0]}]
+    case = Case(d, "<t>")
     s = case.setups[0]
     sm = build_setup(case, s)
     k_exact = sum(point_map(p).T @ k @ point_map(p) for p, _, k in s["springs"])
+    k_exact[3:, 3:] += np.diag([3.0, 2.0, 1.0])
     assert rel(sm.k, k_exact) < 1e-11, rel(sm.k, k_exact)
     assert np.abs(sm.pose[0]).max() == 0 and np.abs(sm.pose[1] - np.eye(3)).max() == 0
 
@@ -216,7 +221,7 @@ def direct(case, terms, f):
         tp = point_map(e["true_position"] - case.origin)
         mm = mm + e["gauge_mass"] * tp.T @ tp
         pp = np.eye(3) - np.outer(e["true_direction"], e["true_direction"])
-        kk = kk + e["stinger_lateral"] * tp.T @ pp @ tp
+        kk = e["stiffness_factor"] * kk + e["stinger_lateral"] * tp.T @ pp @ tp
         kk[3:, 3:] += e["stinger_bending"] * pp
         col = force_column(case, e)
         for l, fl in enumerate(f):
@@ -235,6 +240,7 @@ def test_state_space_equals_direct_solve():
     d["setup"][0]["loss_factor"] = 0.03
     d["excitation"][1]["gauge_mass_kg"] = 0.05
     d["excitation"][2].update(stinger_lateral_n_per_m=80.0, stinger_bending_n_m_per_rad=3.0, force_gauge_gain=0.97)
+    d["excitation"][0]["suspension_stiffness_factor"] = 1.03
     d["sensor"][1].update(misorientation_rad=[0.03, -0.02, 0.05], position_error_m=[0.004, -0.003, 0.002], gain=1.05, mass_kg=0.03)
     case = Case(d, "<t>")
     terms = Terms(case)
@@ -654,6 +660,11 @@ def _effect_cases():
         "hysteretic_damping": lambda d: springs(d, "loss_factor", [0.08, 0.08, 0.15, 0.04]),
         "transducer_highpass": lambda d: [sensor(d, k, highpass_s=2.0) for k in ("1", "2", "3")],
         "record_truncation": lambda d: d.update(window={"record_s": 16.0}),
+        "suspension_drift": lambda d: excitation(d, "force3", suspension_stiffness_factor=1.02),
+        "suspension_coupling": lambda d: d["setup"][0].update(
+            rotational_spring=[{"stiffness_n_m_per_rad": [0.5, 0.5, 0.2]}] * 4,
+            spring=d["setup"][0]["spring"] + [{"at_m": sp["at_m"], "stiffness_n_per_m": [20.0, 20.0, 0.0]}
+                                              for sp in d["setup"][0]["spring"]]),
         "channel_delay": lambda d: (sensor(d, "2", delays_s=[0.0005, 0.0, 0.0]),
                                     sensor(d, "3", delays_s=[0.0, 0.0, 0.0008]),
                                     excitation(d, "force2", delay_s=0.0003)),
@@ -663,8 +674,8 @@ def _effect_cases():
 def test_effects_agree_with_frf_sim_when_available():
     """Each effect of the other simulator that we model independently (gains, elastic
     mode, window, force direction/location, gauge mass, sensor mass/orientation/position,
-    stinger, dashpots, hysteretic loss, high-pass, delays, record truncation), on Test Case II
-    without noise:
+    stinger, dashpots, hysteretic loss, high-pass, delays, record truncation, suspension drift
+    and mount coupling), on Test Case II without noise:
     the two simulators agree to 1e-9 of the largest value. Skipped without RBPROPS_FRF_SIM."""
     import copy
     exe = os.environ.get("RBPROPS_FRF_SIM")

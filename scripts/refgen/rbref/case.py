@@ -147,7 +147,8 @@ FIELDS = {
     "frequency": {"start_hz", "stop_hz", "lines"},
     "body": {"mass_kg", "com_m", "inertia_cm_kg_m2", "moments_kg_m2", "products_kg_m2", "points_m",
              "point_masses_kg"},
-    "setup": {"id", "description", "spring", "cord", "dashpot", "loss_factor"},
+    "setup": {"id", "description", "spring", "cord", "dashpot", "rotational_spring", "loss_factor"},
+    "rotational_spring": {"stiffness_n_m_per_rad", "stiffness_matrix_n_m_per_rad"},
     "spring": {"at_m", "anchor_m", "stiffness_n_per_m", "stiffness_matrix_n_per_m", "loss_factor"},
     "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m", "loss_factor"},
     "dashpot": {"at_m", "damping_n_s_per_m", "damping_matrix_n_s_per_m"},
@@ -155,7 +156,8 @@ FIELDS = {
                "gain", "gains", "mass_kg", "highpass_s", "delay_s", "delays_s"},
     "excitation": {"id", "at_m", "direction", "setup", "point", "position_error_m",
                    "direction_error_rad", "gauge_mass_kg", "stinger_lateral_n_per_m",
-                   "stinger_bending_n_m_per_rad", "force_gauge_gain", "delay_s"},
+                   "stinger_bending_n_m_per_rad", "force_gauge_gain", "delay_s",
+                   "suspension_stiffness_factor"},
     "damping": {"model", "ratio", "ratios", "alpha", "beta"},
     "noise": {"relative", "floor"},
     "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
@@ -186,7 +188,7 @@ def _check_fields(ck, data):
         for i, item in enumerate(items):
             one(item, kind, f"{kind}[{i}]")
             if kind == "setup":
-                for sub in ("spring", "cord", "dashpot"):
+                for sub in ("spring", "cord", "dashpot", "rotational_spring"):
                     for j, x in enumerate(item.get(sub, [])):
                         one(x, sub, f"{kind}[{i}].{sub}[{j}]")
 
@@ -452,6 +454,19 @@ class Case:
                 else:
                     c = ck.sym_psd(ck.arr(d, "damping_matrix_n_s_per_m", p, (3, 3)), f"{p}.damping_matrix_n_s_per_m")
                 dashpots.append((at, c))
+            rotational = []
+            for j, r in enumerate(s.get("rotational_spring", [])):
+                p = f"{path}.rotational_spring[{j}]"
+                if ("stiffness_n_m_per_rad" in r) == ("stiffness_matrix_n_m_per_rad" in r):
+                    ck.fail(p, "give exactly one of stiffness_n_m_per_rad and stiffness_matrix_n_m_per_rad")
+                if "stiffness_n_m_per_rad" in r:
+                    kr = ck.arr(r, "stiffness_n_m_per_rad", p, (3,))
+                    if np.any(kr < 0):
+                        ck.fail(f"{p}.stiffness_n_m_per_rad", "negative stiffness")
+                    rotational.append(np.diag(kr))
+                else:
+                    rotational.append(ck.sym_psd(ck.arr(r, "stiffness_matrix_n_m_per_rad", p, (3, 3)),
+                                                 f"{p}.stiffness_matrix_n_m_per_rad"))
             eta = ck.num(s, "loss_factor", path, 0.0, lo=0.0)
             for j, e in enumerate(spring_eta):
                 if e is not None and e < 0:
@@ -459,7 +474,8 @@ class Case:
             # Element loss factors default to the set-up's.
             losses = [eta if e is None else e for e in spring_eta] + [eta if e is None else e for e in cord_eta]
             self.setups.append(dict(id=sid, description=str(s.get("description", "")), springs=springs,
-                                    cords=cords, dashpots=dashpots, loss_factor=eta, element_losses=losses))
+                                    cords=cords, dashpots=dashpots, rotational=rotational, loss_factor=eta,
+                                    element_losses=losses))
 
     # --- excitations ---------------------------------------------------------------------
     def _excitations(self, ck, exc):
@@ -490,7 +506,8 @@ class Case:
                 stinger_lateral=ck.num(e, "stinger_lateral_n_per_m", path, 0.0, lo=0.0),
                 stinger_bending=ck.num(e, "stinger_bending_n_m_per_rad", path, 0.0, lo=0.0),
                 force_gauge_gain=ck.num(e, "force_gauge_gain", path, 1.0, lo=0.0, strict_lo=True),
-                delay_s=ck.num(e, "delay_s", path, 0.0, lo=0.0)))
+                delay_s=ck.num(e, "delay_s", path, 0.0, lo=0.0),
+                stiffness_factor=ck.num(e, "suspension_stiffness_factor", path, 1.0, lo=0.0, strict_lo=True)))
 
     # --- damping -------------------------------------------------------------------------
     def _damping(self, ck, d):

@@ -3,7 +3,8 @@
 Per set-up: the mass model (body plus sensor masses, each a point mass at its true
 position), the static equilibrium of the potential energy, the tangent stiffness (Hessian),
 the damping, then the pole–residue model of the set-up, and one more for each excitation
-that attaches something while it is measured (a force-gauge mass, a stinger). Channels see
+that changes the structure while it is measured (a force-gauge mass, a stinger, a drifted
+suspension). Channels see
 their true position and direction, times their gain, through their filters; forces act at
 their true point along their true direction (body-fixed: a hammer strikes a face, so its
 direction turns with the body), divided by the force gauge's gain.
@@ -27,7 +28,7 @@ def build_setup(case, s):
     o = case.origin
     parts = [(case.mass, case.com, case.inertia)] + [(m, p, np.zeros((3, 3))) for p, m in case.sensor_masses]
     m_tot, c_tot, j_tot = combine(parts)
-    sus = Suspension(s["springs"], s["cords"], m_tot, c_tot, case.gravity, case.up, o)
+    sus = Suspension(s["springs"], s["cords"], m_tot, c_tot, case.gravity, case.up, o, s["rotational"])
     if not s["springs"] and not s["cords"]:
         if case.gravity != 0.0:
             raise ValueError(f"set-up '{s['id']}': no spring or cord: a free-free body needs gravity_m_s2 = 0")
@@ -117,7 +118,8 @@ class Terms:
             sm = next(x for x in self.setups if x.id == e["setup"])
             col = force_column(case, e)[:, None]
             model = sm.nominal
-            if e["gauge_mass"] > 0 or e["stinger_lateral"] > 0 or e["stinger_bending"] > 0:
+            if e["gauge_mass"] > 0 or e["stinger_lateral"] > 0 or e["stinger_bending"] > 0 \
+                    or e["stiffness_factor"] != 1.0:
                 # Attached while this excitation is measured: the gauge's structure-side
                 # mass (a point mass), and a stinger's stiffness ACROSS the force direction n
                 # (lateral k_l at the point, bending k_r about the axes ⟂ n; P = I − n nᵀ):
@@ -127,7 +129,10 @@ class Terms:
                 pp = np.eye(3) - np.outer(e["true_direction"], e["true_direction"])
                 ka = e["stinger_lateral"] * tp.T @ pp @ tp
                 ka[3:, 3:] += e["stinger_bending"] * pp
-                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c, sm.k + ka, sm.d)
+                # The suspension drifting between runs: its stiffness × f during this one
+                # (damping and loss unchanged).
+                model = PoleResidueModel.build(sm.m + e["gauge_mass"] * tp.T @ tp, sm.c,
+                                               e["stiffness_factor"] * sm.k + ka, sm.d)
             self.models.append(model)
             # The gauge reads force_gauge_gain × the true force: H_measured = H / gain.
             col = col / e["force_gauge_gain"]
@@ -244,7 +249,8 @@ def truth(case, terms):
                          "gauge_mass_kg": e["gauge_mass"],
                          "stinger_lateral_n_per_m": e["stinger_lateral"],
                          "stinger_bending_n_m_per_rad": e["stinger_bending"],
-                         "force_gauge_gain": e["force_gauge_gain"], "delay_s": e["delay_s"]}
+                         "force_gauge_gain": e["force_gauge_gain"], "delay_s": e["delay_s"],
+                         "suspension_stiffness_factor": e["stiffness_factor"]}
                         for e in case.excitations],
         "elastic_modes": [{"frequency_hz": m["frequency_hz"], "damping_ratio": m["damping_ratio"],
                            "at_channels": m["at_channels"].tolist(),
