@@ -18,7 +18,6 @@ sys.path.insert(0, HERE)
 
 import rbref  # noqa: E402
 from rbref.case import Case  # noqa: E402
-from rbref.dynamics import PoleResidueModel  # noqa: E402
 from rbref.generate import Terms, build_setup, channel_rows, force_column  # noqa: E402
 from rbref.rigid import cloud_mass_matrix, cloud_properties, mass_matrix, point_map, rotation, rotation_vector, skew  # noqa: E402
 from rbref.suspension import Suspension  # noqa: E402

@@ -546,7 +546,8 @@ class Case:
                     ck.fail(f"{path}.{key}", "must be a table {id = value} (mass-normalised, 1/√kg)")
                 for k in v:
                     if k not in names:
-                        ck.fail(f"{path}.{key}.{k}", f"no such {'channel' if key == 'at_channels' else 'excitation'} (known: {', '.join(names)})")
+                        what = "channel" if key == "at_channels" else "excitation"
+                        ck.fail(f"{path}.{key}.{k}", f"no such {what} (known: {', '.join(names)})")
                 shapes.append(np.array([float(v.get(n, 0.0)) for n in names]))
             setups = m.get("setups", [s["id"] for s in self.setups])
             self.elastic_modes.append(dict(frequency_hz=f, damping_ratio=z, at_channels=shapes[0],

@@ -155,7 +155,8 @@ class Terms:
                 # with R = R_eq exp([θ]×), Rᵀ up ≈ up_b + up_b × θ (up_b = R_eqᵀ up), so the
                 # dynamic part is g sᵀ [up_b]× θ: a row [0 | g sᵀ[up_b]×] seen as s^(k−2).
                 up_b = sm.pose[1].T @ case.up
-                rows_g = np.array([c["gain"] * case.gravity * np.concatenate([np.zeros(3), c["true_direction"] @ skew(up_b)])
+                rows_g = np.array([c["gain"] * case.gravity
+                                   * np.concatenate([np.zeros(3), c["true_direction"] @ skew(up_b)])
                                    for c in case.channels])
                 ag, _, pg = modal_terms_for(model, rows_g, col)
                 self.gravity_exc.append((ag, pg))

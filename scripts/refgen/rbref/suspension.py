@@ -27,7 +27,7 @@ differences of it with Richardson extrapolation (see `stiffness`).
 """
 import numpy as np
 
-from .rigid import right_jacobian, rotation, rotation_vector, skew
+from .rigid import right_jacobian, rotation, rotation_vector
 
 FD_STEP = 1e-4
 """Relative step of the finite-difference Hessian: h_θ = FD_STEP rad, h_u = FD_STEP·L with

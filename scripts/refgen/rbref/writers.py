@@ -185,7 +185,8 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
     lay = UffLayout(case)
     freq = np.asarray(result.frequency_hz, float)
     start, step = freq[0], (freq[1] - freq[0]) if len(freq) > 1 else 1.0
-    even = _fits_e13(start) and np.allclose(start + step * np.arange(len(freq)), freq, rtol=0, atol=1e-12 * max(1.0, abs(freq[-1])))
+    even = _fits_e13(start) and np.allclose(start + step * np.arange(len(freq)), freq, rtol=0,
+                                            atol=1e-12 * max(1.0, abs(freq[-1])))
     if even:
         step = float("%13.5e" % step)
     sets = [pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=2,
