@@ -189,6 +189,12 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
                                             atol=1e-12 * max(1.0, abs(freq[-1])))
     if even:
         step = float("%13.5e" % step)
+    else:
+        import sys
+        print(f"warning: {path}: the frequency axis is not an even axis with start and step of 6 "
+              "significant digits: written as uneven abscissae, "
+              + ("in the ordinates' precision" if binary else "each with 6 significant digits (E13.5)"),
+              file=sys.stderr)
     sets = [pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=2,
                               length=1.0, force=1.0, temp=1.0, temp_offset=273.15)]
     if lay.systems:
