@@ -123,10 +123,10 @@ def test_springs_hessian_is_assembled_stiffness():
 
 
 def test_full_stiffness_matrices_and_preload():
-    """Anchors displaced (preloaded springs) and full 3×3 stiffnesses: at the equilibrium
-    the Hessian equals the exact second derivative, assembled here independently:
-    K = Σ Bᵀ K_i B + geometric term Σ [r]×ᵀ... checked instead through the force balance
-    and by the energy's own second differences (≈1e-6, h² truncation)."""
+    """Random anchors (preloaded springs), full 3×3 stiffnesses and gravity: Newton reaches
+    a zero gradient (1e-12 of the forces), and the Hessian matches second differences of
+    the energy itself (h = 1e-4: h² truncation and rounding allow ≈1e-6). The analytic
+    tangent stiffness is checked to 1e-10 in test_hessian_equals_analytic_tangent_stiffness."""
     rng = np.random.default_rng(3)
     springs = []
     for _ in range(4):
