@@ -38,6 +38,29 @@ pub fn frf_magnitudes(geometry: &Geometry, frf: &FrfSet) -> Result<Vec<(String, 
     Ok(out)
 }
 
+/// Dynamic range shown on a dB axis below its highest value: a zero line far below the
+/// curves (−300 dB and less) would otherwise flatten them into the top of the figure.
+pub const NI_SPAN_DB: f64 = 80.0;
+
+/// Lines strictly above 0 Hz (with a finite frequency).
+pub fn lines_above_dc(frequency_hz: &[f64]) -> Vec<usize> {
+    (0..frequency_hz.len())
+        .filter(|&l| frequency_hz[l].is_finite() && frequency_hz[l] > 0.0)
+        .collect()
+}
+
+/// A fixed dB range `[max − span, max]` (padded by 3 dB) when the finite values reach
+/// further down than `span` below their maximum; `None` (the data extent) otherwise.
+pub fn decibel_window(values: impl IntoIterator<Item = f64>, span: f64) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .into_iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    (hi.is_finite() && hi - lo > span).then(|| (hi - span, hi + 3.0))
+}
+
 /// A file-name-safe version of an id.
 pub fn sanitize(id: &str) -> String {
     id.chars()
@@ -124,8 +147,18 @@ pub fn indicators(out: &rbprops_ni::SelectionOutput) -> Result<Vec<(String, Stri
             )
         })
         .collect();
+    // The 0 Hz line (NI of a receptance or accelerance is 0 or ∞ there) would stretch the
+    // axis over hundreds of dB: the curves are drawn on the lines above 0 Hz only.
+    let lines = lines_above_dc(f);
+    let dc_note = if lines.len() < f.len() {
+        "; 0 Hz line not shown"
+    } else {
+        ""
+    };
+    let pick = |v: &[f64]| lines.iter().map(|&l| v[l]).collect::<Vec<f64>>();
+    let fp = pick(f);
     let ni = LinePlot {
-        title: "Norm Indicator (Eq. 12)".into(),
+        title: format!("Norm Indicator (Eq. 12){dc_note}"),
         x_label: "Frequency [Hz]".into(),
         y_label: format!("NI [dB re 1 {}]", c.quantity.unit()),
         series: c
@@ -134,36 +167,37 @@ pub fn indicators(out: &rbprops_ni::SelectionOutput) -> Result<Vec<(String, Stri
             .map(|e| {
                 Series::new(
                     format!("{} ({})", e.excitation, e.setup),
-                    f.clone(),
-                    e.ni_db.clone(),
+                    fp.clone(),
+                    pick(&e.ni_db),
                 )
             })
             .collect(),
         markers: markers.clone(),
+        y_range: decibel_window(
+            c.excitations.iter().flat_map(|e| pick(&e.ni_db)),
+            NI_SPAN_DB,
+        ),
         ..Default::default()
     };
     plots.push(("ni.svg".to_string(), line_plot(&ni)?));
-    for (name, title, pick) in [
+    for (name, title, which) in [
         ("hybrid_mif", "Hybrid MIF (Rades 1994)", 0usize),
         ("prf_mif", "PRF MIF (Rades & Ewins 2000)", 1usize),
     ] {
         let p = LinePlot {
-            title: title.into(),
+            title: format!("{title}{dc_note}"),
             x_label: "Frequency [Hz]".into(),
             y_label: "MIF [-]".into(),
             series: c
                 .excitations
                 .iter()
                 .map(|e| {
-                    Series::new(
-                        e.excitation.clone(),
-                        f.clone(),
-                        if pick == 0 {
-                            e.hybrid_mif.clone()
-                        } else {
-                            e.prf_mif.clone()
-                        },
-                    )
+                    let curve = if which == 0 {
+                        &e.hybrid_mif
+                    } else {
+                        &e.prf_mif
+                    };
+                    Series::new(e.excitation.clone(), fp.clone(), pick(curve))
                 })
                 .collect(),
             markers: markers.clone(),
@@ -263,50 +297,94 @@ pub fn modal_fit(
             format!("stabilisation_{name}.svg"),
             stabilisation_diagram(&diagram)?,
         ));
-        let band_lines: Vec<usize> = (0..frf.n_lines())
-            .filter(|&l| {
-                frf.frequency_hz[l] >= d.frequency_hz[0]
-                    && frf.frequency_hz[l] <= *d.frequency_hz.last().unwrap()
-            })
-            .collect();
-        let mut series = Vec::new();
-        for (c, ch) in geometry.channels.iter().enumerate() {
-            let color = rbprops_plot::Rgb::palette(c);
-            series.push(
-                Series::new(
-                    ch.id.clone(),
-                    band_lines.iter().map(|&l| frf.frequency_hz[l]).collect(),
-                    band_lines
-                        .iter()
-                        .map(|&l| frf.frf(e, c)[l].norm())
-                        .collect(),
-                )
-                .with_color(color),
-            );
-            if let Some(s) = d.synthesised.get(c) {
-                series.push(
-                    Series::new(
-                        format!("{} fit", ch.id),
-                        d.frequency_hz.clone(),
-                        s.iter().map(|v| v.norm()).collect(),
-                    )
-                    .with_style(rbprops_plot::LineStyle::Dashed)
-                    .with_color(color),
-                );
-            }
-        }
-        let overlay = LinePlot {
-            title: format!(
-                "Measured (solid) vs synthesised (dashed), excitation {}",
-                d.excitation
-            ),
-            x_label: "Frequency [Hz]".into(),
-            y_label: format!("|H| [{}]", frf.quantity.unit()),
-            y_scale: Scale::Log10,
-            series,
+        let band = (d.frequency_hz[0], *d.frequency_hz.last().unwrap());
+        let panels = fit_panels(geometry, frf, e, band, &d.frequency_hz, &d.synthesised);
+        let overlay = rbprops_plot::FrfPanels {
+            title: format!("Measured vs synthesised FRFs, excitation {}", d.excitation),
+            magnitude_label: format!("|H| [{}]", frf.quantity.unit()),
+            panels,
             ..Default::default()
         };
-        plots.push((format!("fit_{name}.svg"), line_plot(&overlay)?));
+        plots.push((
+            format!("fit_{name}.svg"),
+            rbprops_plot::frf_panels(&overlay)?,
+        ));
     }
     Ok(plots)
+}
+
+/// One panel per channel of excitation `e`: the measured FRF in `band` (solid) and the
+/// synthesised one on `fit_hz` (dashed), as magnitude and phase.
+fn fit_panels(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    e: usize,
+    band: (f64, f64),
+    fit_hz: &[f64],
+    synthesised: &[Vec<rbprops_core::c64>],
+) -> Vec<rbprops_plot::FrfPanel> {
+    use rbprops_plot::{FrfPanel, FrfTrace, LineStyle, Rgb};
+    let lines: Vec<usize> = (0..frf.n_lines())
+        .filter(|&l| frf.frequency_hz[l] >= band.0 && frf.frequency_hz[l] <= band.1)
+        .collect();
+    let trace = |name: &str, hz: Vec<f64>, h: Vec<rbprops_core::c64>, style, color| FrfTrace {
+        name: name.to_string(),
+        frequency_hz: hz,
+        magnitude: h.iter().map(|v| v.norm()).collect(),
+        phase_deg: h.iter().map(|v| v.arg().to_degrees()).collect(),
+        style,
+        color: Some(color),
+    };
+    geometry
+        .channels
+        .iter()
+        .enumerate()
+        .map(|(c, ch)| {
+            let measured = trace(
+                "measured",
+                lines.iter().map(|&l| frf.frequency_hz[l]).collect(),
+                lines.iter().map(|&l| frf.frf(e, c)[l]).collect(),
+                LineStyle::Solid,
+                Rgb(40, 40, 40),
+            );
+            let mut traces = vec![measured];
+            if let Some(s) = synthesised.get(c) {
+                traces.push(trace(
+                    "synthesised",
+                    fit_hz.to_vec(),
+                    s.clone(),
+                    LineStyle::Dashed,
+                    Rgb(214, 39, 40),
+                ));
+            }
+            FrfPanel {
+                title: format!("channel {}", ch.id),
+                traces,
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dc_line_is_left_out_of_indicator_curves() {
+        assert_eq!(lines_above_dc(&[0.0, 0.5, 1.0]), vec![1, 2]);
+        assert_eq!(lines_above_dc(&[0.25, 0.5]), vec![0, 1]);
+        assert_eq!(lines_above_dc(&[f64::NAN, 0.0, 2.0]), vec![2]);
+    }
+
+    #[test]
+    fn decibel_axis_keeps_the_curves_not_the_zero_lines() {
+        // A −400 dB zero line next to curves spanning 30 dB: the axis shows 80 dB.
+        assert_eq!(
+            decibel_window([-400.0, -20.0, 10.0, f64::NEG_INFINITY], 80.0),
+            Some((-70.0, 13.0))
+        );
+        // Curves within the span keep the data extent.
+        assert_eq!(decibel_window([-20.0, 10.0], 80.0), None);
+        assert_eq!(decibel_window([f64::NAN], 80.0), None);
+    }
 }

@@ -6,8 +6,8 @@ use plotters::style::ShapeStyle;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, draw_legend, draw_mesh, fill, footnote, plot_name, render_err, render_svg, skipped_note,
-    Margins,
+    chart, draw_legend, draw_mesh, fill, footnote, legend_width, plot_name, render_err, render_svg,
+    skipped_note, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
 use crate::style::{stroke, LegendPosition, LineStyle, PlotSize, Rgb};
@@ -154,10 +154,18 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
     };
 
     render_svg(&plot, b.size, |root| {
-        let mut ch = chart(&plot, root, &b.title, &x, &y, Margins::default())?;
+        let names = b.series.iter().map(|s| s.name.as_str());
+        let names = names.chain(refs.iter().map(|r| r.label.as_str()));
+        let margins = Margins {
+            legend: legend_width(root, names, b.legend),
+            ..Margins::default()
+        };
+        let mut ch = chart(&plot, root, &b.title, &x, &y, margins)?;
         draw_mesh(&plot, &mut ch, &x, &y, &b.x_label, &b.y_label, false)?;
+        let mut legend = Legend::default();
         for (i, s) in b.series.iter().enumerate() {
             let colour = s.color.unwrap_or_else(|| Rgb::palette(i)).rgba(1.0);
+            legend.push(s.name.clone(), Glyph::Block(colour));
             ch.draw_series(
                 s.values
                     .iter()
@@ -209,6 +217,7 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
                 continue;
             }
             let style = stroke(reference_colour(k), LineStyle::Dashed, 2);
+            legend.push(r.label.clone(), Glyph::Line(style));
             ch.draw_series(std::iter::once(PathElement::new(
                 vec![(x.lo, r.y), (x.hi, r.y)],
                 style,
@@ -217,7 +226,7 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
             .label(r.label.clone())
             .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
         }
-        draw_legend(&plot, &mut ch, b.legend)?;
+        draw_legend(&plot, root, &mut ch, b.legend, &legend)?;
         if let Some(note) = skipped_note(skipped, "non-finite values") {
             footnote(&plot, root, &note)?;
         }

@@ -69,6 +69,8 @@ pub(crate) struct Margins {
     pub right: u32,
     /// Extra space above the plotting area (to align with a titled neighbour).
     pub top: u32,
+    /// Space right of everything for an outside legend ([`legend_width`]).
+    pub legend: u32,
 }
 
 impl Default for Margins {
@@ -78,6 +80,7 @@ impl Default for Margins {
             bottom: 55,
             right: 0,
             top: 0,
+            legend: 0,
         }
     }
 }
@@ -98,7 +101,7 @@ pub(crate) fn chart<'a, 'b>(
     builder
         .margin(12)
         .margin_top(12 + margins.top)
-        .margin_right(20)
+        .margin_right(20 + margins.legend)
         .x_label_area_size(margins.bottom)
         .y_label_area_size(margins.left);
     if margins.right > 0 {
@@ -150,24 +153,130 @@ pub(crate) fn title_height(root: &Root<'_>, title: &str) -> u32 {
     h + 2 * (h / 2).min(5)
 }
 
-/// Draw the legend collected from `.label()` calls, if requested.
+/// Plotters' legend layout: the sample's width and the box's inner margin.
+const LEGEND_SAMPLE: u32 = 30;
+const LEGEND_MARGIN: u32 = 10;
+
+/// Width to reserve right of the chart for an outside legend listing `names` (0 for any
+/// other position, or when there is nothing to list).
+pub(crate) fn legend_width<'n>(
+    root: &Root<'_>,
+    names: impl IntoIterator<Item = &'n str>,
+    position: LegendPosition,
+) -> u32 {
+    if position != LegendPosition::Outside {
+        return 0;
+    }
+    let style = TextStyle::from((FONT, LABEL_SIZE).into_font());
+    let widest = names
+        .into_iter()
+        .filter(|n| !n.is_empty())
+        .map(|n| {
+            root.estimate_text_size(n, &style)
+                .map(|(w, _)| w)
+                .unwrap_or(0)
+        })
+        .max();
+    match widest {
+        Some(w) => w + LEGEND_SAMPLE + LEGEND_MARGIN + crate::style::OUTSIDE_GAP,
+        None => 0,
+    }
+}
+
+/// The sample drawn before a legend entry's text.
+#[derive(Debug, Clone)]
+pub(crate) enum Glyph {
+    /// A short stroke (curves, reference lines).
+    Line(ShapeStyle),
+    /// A filled square (bars).
+    Block(RGBAColor),
+    /// A filled dot (scatter points).
+    Dot(RGBAColor),
+    /// A coloured letter (stabilisation classes).
+    Letter(&'static str, RGBAColor),
+}
+
+/// Legend entries of one figure, in drawing order.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Legend(pub Vec<(String, Glyph)>);
+
+impl Legend {
+    pub fn push(&mut self, name: impl Into<String>, glyph: Glyph) {
+        let name = name.into();
+        if !name.is_empty() {
+            self.0.push((name, glyph));
+        }
+    }
+}
+
+/// Draw the legend collected from `.label()` calls inside the plotting area, or, for
+/// [`LegendPosition::Outside`], `outside` in the space reserved right of the chart
+/// (plotters clamps elements to the plotting area, so that one is drawn on the canvas).
 pub(crate) fn draw_legend<'a, 'b: 'a>(
     plot: &str,
+    root: &Root<'_>,
     chart: &mut Chart<'a, 'b>,
     position: LegendPosition,
+    outside: &Legend,
 ) -> Result<(), PlotError> {
+    if position == LegendPosition::Outside {
+        let (_, top) = chart.plotting_area().get_base_pixel();
+        let (root_w, _) = root.dim_in_pixel();
+        let width = legend_width(root, outside.0.iter().map(|e| e.0.as_str()), position);
+        let left = root_w as i32 - width as i32 + crate::style::OUTSIDE_GAP as i32;
+        return draw_entries(plot, root, outside, (left, top));
+    }
     let Some(pos) = position.to_plotters() else {
         return Ok(());
     };
     chart
         .configure_series_labels()
         .position(pos)
-        .margin(10)
+        .margin(LEGEND_MARGIN)
         .label_font((FONT, LABEL_SIZE))
         .background_style(RGBAColor(255, 255, 255, 0.85))
         .border_style(RGBAColor(0, 0, 0, 0.5))
         .draw()
         .map_err(render_err(plot))
+}
+
+/// One row per entry from `top_left` down: glyph, then the name.
+fn draw_entries(
+    plot: &str,
+    root: &Root<'_>,
+    legend: &Legend,
+    top_left: (i32, i32),
+) -> Result<(), PlotError> {
+    use plotters::element::{Circle, PathElement, Rectangle};
+    let text = text_style(
+        LABEL_SIZE,
+        RGBAColor(0, 0, 0, 1.0),
+        Pos::new(HPos::Left, VPos::Center),
+    );
+    let row = 22;
+    for (k, (name, glyph)) in legend.0.iter().enumerate() {
+        let (x, y) = (top_left.0, top_left.1 + 12 + k as i32 * row);
+        let drawn = match glyph {
+            Glyph::Line(style) => root.draw(&PathElement::new(vec![(x, y), (x + 24, y)], *style)),
+            Glyph::Block(c) => {
+                root.draw(&Rectangle::new([(x + 5, y - 6), (x + 19, y + 6)], fill(*c)))
+            }
+            Glyph::Dot(c) => root.draw(&Circle::new((x + 12, y), 4, fill(*c))),
+            Glyph::Letter(l, c) => root.draw(&Text::new(
+                l.to_string(),
+                (x + 12, y),
+                text_style(13, *c, Pos::new(HPos::Center, VPos::Center)),
+            )),
+        };
+        drawn.map_err(render_err(plot))?;
+        root.draw(&Text::new(
+            name.clone(),
+            (x + LEGEND_SAMPLE as i32, y),
+            text.clone(),
+        ))
+        .map_err(render_err(plot))?;
+    }
+    Ok(())
 }
 
 /// Small grey note at the bottom-left corner of the canvas, e.g. telling the

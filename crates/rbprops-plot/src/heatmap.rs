@@ -214,6 +214,7 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
             bottom: margins.bottom,
             right: 90,
             top: title_height(root, &h.title),
+            legend: 0,
         };
         let mut cb = chart(&plot, &bar, "", &unit, &bar_axis, bar_margins)?;
         draw_mesh(&plot, &mut cb, &unit, &bar_axis, "", &h.value_label, false)?;

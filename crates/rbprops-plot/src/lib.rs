@@ -8,6 +8,7 @@
 //! | function | input | typical use |
 //! |---|---|---|
 //! | [`line_plot`] | [`LinePlot`] | FRF magnitude overlays (measured solid, synthesised dashed), NI curves, hybrid/PRF MIF, measured vs nominal vs improved |
+//! | [`frf_panels`] | [`FrfPanels`] | small multiples: one panel per channel, magnitude over phase, measured vs fitted |
 //! | [`stabilisation_diagram`] | [`StabilisationDiagram`] | pole stability letters s/d/f/o per model order over the Σ-FRF or NI curve |
 //! | [`heat_map`] | [`HeatMap`] | mode × excitation strength [dB], any labelled table |
 //! | [`bar_chart`] | [`BarChart`] | property value / relative error per data set and origin or method, ±1.96σ, true value |
@@ -47,6 +48,7 @@ mod canvas;
 mod error;
 mod heatmap;
 mod line;
+mod panels;
 mod scatter;
 mod stabilisation;
 mod style;
@@ -56,6 +58,7 @@ pub use bar::{bar_chart, BarChart, BarSeries, ReferenceLine};
 pub use error::PlotError;
 pub use heatmap::{heat_map, viridis, HeatMap};
 pub use line::{line_plot, LinePlot, Series, VerticalMarker};
+pub use panels::{frf_panels, FrfPanel, FrfPanels, FrfTrace};
 pub use scatter::{scatter_plot, ScatterPlot, ScatterSeries};
 pub use stabilisation::{
     stabilisation_diagram, BackgroundCurve, PoleClass, StabilisationDiagram, StabilisationPole,

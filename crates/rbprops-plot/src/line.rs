@@ -6,8 +6,8 @@ use plotters::style::{FontTransform, RGBAColor};
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_legend, draw_mesh, footnote, plot_name, render_err, render_svg,
-    skipped_note, text_style, Chart, Margins,
+    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, plot_name, render_err,
+    render_svg, skipped_note, text_style, Chart, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
 use crate::style::{marker_stroke, stroke, LegendPosition, LineStyle, PlotSize, Rgb};
@@ -125,12 +125,18 @@ pub fn line_plot(p: &LinePlot) -> Result<String, PlotError> {
     let y = AxisSpec::resolve(&plot, "y", p.y_scale, Some(ye), p.y_range, Fit::Nice)?;
 
     render_svg(&plot, p.size, |root| {
-        let mut ch = chart(&plot, root, &p.title, &x, &y, Margins::default())?;
+        let margins = Margins {
+            legend: legend_width(root, p.series.iter().map(|s| s.name.as_str()), p.legend),
+            ..Margins::default()
+        };
+        let mut ch = chart(&plot, root, &p.title, &x, &y, margins)?;
         draw_mesh(&plot, &mut ch, &x, &y, &p.x_label, &p.y_label, true)?;
         draw_vertical_markers(&plot, &mut ch, &p.markers, &x, &y)?;
+        let mut legend = Legend::default();
         for (i, (s, pts)) in p.series.iter().zip(&transformed).enumerate() {
             let colour = s.color.unwrap_or_else(|| Rgb::palette(i));
             let style = stroke(colour, s.style, 2);
+            legend.push(s.name.clone(), Glyph::Line(style));
             let pieces = clip_polyline(pts, &x, &y);
             ch.draw_series(
                 pieces
@@ -141,7 +147,7 @@ pub fn line_plot(p: &LinePlot) -> Result<String, PlotError> {
             .label(s.name.clone())
             .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
         }
-        draw_legend(&plot, &mut ch, p.legend)?;
+        draw_legend(&plot, root, &mut ch, p.legend, &legend)?;
         if let Some(note) = skipped_note(skipped, "non-finite, or ≤ 0 on a log/dB axis") {
             footnote(&plot, root, &note)?;
         }

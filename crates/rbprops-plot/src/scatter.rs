@@ -6,8 +6,8 @@ use plotters::style::ShapeStyle;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, draw_legend, draw_mesh, fill, footnote, plot_name, render_err, render_svg, skipped_note,
-    Margins,
+    chart, draw_legend, draw_mesh, fill, footnote, legend_width, plot_name, render_err, render_svg,
+    skipped_note, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
 use crate::line::check_series;
@@ -138,13 +138,21 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
     let y = AxisSpec::resolve(&plot, "y", p.y_scale, Some(ye), p.y_range, Fit::Nice)?;
 
     render_svg(&plot, p.size, |root| {
-        let mut ch = chart(&plot, root, &p.title, &x, &y, Margins::default())?;
+        let names = p.series.iter().map(|s| s.name.as_str());
+        let names = names.chain(p.identity_line.then_some("y = x"));
+        let margins = Margins {
+            legend: legend_width(root, names, p.legend),
+            ..Margins::default()
+        };
+        let mut ch = chart(&plot, root, &p.title, &x, &y, margins)?;
         draw_mesh(&plot, &mut ch, &x, &y, &p.x_label, &p.y_label, true)?;
+        let mut legend = Legend::default();
         if p.identity_line {
             let lo = x.lo.max(y.lo);
             let hi = x.hi.min(y.hi);
             if hi > lo {
                 let style = stroke(Rgb::GREY, LineStyle::Dashed, 1);
+                legend.push("y = x", Glyph::Line(style));
                 ch.draw_series(std::iter::once(PathElement::new(
                     vec![(lo, lo), (hi, hi)],
                     style,
@@ -180,6 +188,7 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
         }
         for (i, (s, v)) in p.series.iter().zip(&pts).enumerate() {
             let colour = s.color.unwrap_or_else(|| Rgb::palette(i)).rgba(1.0);
+            legend.push(s.name.clone(), Glyph::Dot(colour));
             ch.draw_series(
                 v.iter()
                     .filter(|q| x.contains(q.0 .0) && y.contains(q.0 .1))
@@ -189,7 +198,7 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
             .label(s.name.clone())
             .legend(move |(px, py)| Circle::new((px + 8, py), 4, fill(colour)));
         }
-        draw_legend(&plot, &mut ch, p.legend)?;
+        draw_legend(&plot, root, &mut ch, p.legend, &legend)?;
         if let Some(note) = skipped_note(skipped, "non-finite, or ≤ 0 on a log/dB axis") {
             footnote(&plot, root, &note)?;
         }

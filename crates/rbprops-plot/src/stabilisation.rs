@@ -6,8 +6,8 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_legend, draw_mesh, footnote, plot_name, render_err, render_svg,
-    skipped_note, text_style, Margins, DESC_SIZE, FONT, LABEL_SIZE,
+    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, plot_name, render_err,
+    render_svg, skipped_note, text_style, Glyph, Legend, Margins, DESC_SIZE, FONT, LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::line::{check_series, draw_vertical_markers, VerticalMarker};
@@ -162,8 +162,11 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
     )?;
 
     render_svg(&plot, d.size, |root| {
+        let names = PoleClass::ALL.iter().map(|c| c.description());
+        let names = names.chain(d.background.iter().map(|b| b.name.as_str()));
         let margins = Margins {
             right: if d.background.is_some() { 80 } else { 0 },
+            legend: legend_width(root, names, d.legend),
             ..Margins::default()
         };
         let ch = chart(&plot, root, &d.title, &x, &y, margins)?;
@@ -177,6 +180,7 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             "Model order",
             true,
         )?;
+        let mut legend = Legend::default();
         if let Some(bg) = &d.background {
             let y2f = |v: &f64| y2.label(*v);
             ch.configure_secondary_axes()
@@ -187,6 +191,7 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
                 .draw()
                 .map_err(render_err(&plot))?;
             let style = stroke(Rgb(150, 150, 150), LineStyle::Solid, 1);
+            legend.push(bg.name.clone(), Glyph::Line(style));
             let pieces = clip_polyline(&curve_pts, &x, &y2);
             ch.draw_secondary_series(pieces.into_iter().map(|p| PathElement::new(p, style)))
                 .map_err(render_err(&plot))?
@@ -199,6 +204,10 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             let c = class.color();
             let style = text_style(13, c.rgba(1.0), centred);
             let legend_style = style.clone();
+            legend.push(
+                class.description(),
+                Glyph::Letter(class.symbol(), c.rgba(1.0)),
+            );
             ch.draw_series(
                 d.poles
                     .iter()
@@ -215,7 +224,7 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             .label(class.description())
             .legend(move |(px, py)| Text::new(class.symbol(), (px + 12, py), legend_style.clone()));
         }
-        draw_legend(&plot, &mut ch, d.legend)?;
+        draw_legend(&plot, root, &mut ch, d.legend, &legend)?;
         if let Some(note) = skipped_note(
             skipped,
             "non-finite, outside the band, or ≤ 0 on the log axis",

@@ -63,10 +63,14 @@ pub enum LineStyle {
     Dotted,
 }
 
-/// Where the legend box sits inside the plotting area.
+/// Where the legend box sits: right of the plotting area (the default, so it never
+/// hides data), or in a corner inside it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum LegendPosition {
+    /// Right of the plotting area (and of a secondary axis), top-aligned; the chart is
+    /// narrowed to make room.
     #[default]
+    Outside,
     UpperRight,
     UpperLeft,
     LowerLeft,
@@ -76,9 +80,12 @@ pub enum LegendPosition {
 }
 
 impl LegendPosition {
+    /// Plotters' position inside the plotting area (`None`: hidden, or drawn outside
+    /// by this crate).
     pub(crate) fn to_plotters(self) -> Option<plotters::chart::SeriesLabelPosition> {
         use plotters::chart::SeriesLabelPosition as P;
         match self {
+            LegendPosition::Outside => None,
             LegendPosition::UpperRight => Some(P::UpperRight),
             LegendPosition::UpperLeft => Some(P::UpperLeft),
             LegendPosition::LowerLeft => Some(P::LowerLeft),
@@ -87,6 +94,9 @@ impl LegendPosition {
         }
     }
 }
+
+/// Pixels between the plotting area (or its right axis) and an outside legend.
+pub(crate) const OUTSIDE_GAP: u32 = 12;
 
 /// Canvas size in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
