@@ -88,15 +88,22 @@
 //! fixtures/uff/written/rbprops_ascii.json` (exit status 1 on any mismatch).
 
 pub mod campaign;
+pub mod dof;
 pub mod error;
 pub mod fortran;
+pub mod inventory;
 pub mod model;
 pub mod read;
 pub mod units;
 pub mod write;
 
-pub use campaign::{dof_name, to_campaign, DEFAULT_SETUP};
+pub use campaign::{
+    dof_name, read_campaign, read_with_geometry, to_campaign, CoherenceSet, GeometrySource,
+    ReadOptions, UffCampaign, DEFAULT_SETUP,
+};
+pub use dof::{channel_map_template, ChannelMap};
 pub use error::{DatasetLocation, UffError};
+pub use inventory::inventory;
 pub use model::*;
 pub use read::parse;
 pub use write::{from_campaign, WriteOptions};
