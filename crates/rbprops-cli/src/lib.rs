@@ -8,6 +8,7 @@ use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
 pub mod campaign;
+pub mod coherence;
 pub mod plots;
 pub mod report;
 pub mod stages;
@@ -24,19 +25,62 @@ pub struct Input {
     pub name: String,
 }
 
+/// How a UFF input is read: a separate geometry file (`--geometry`: UFF with datasets
+/// 15/18/164/2411/2420, or a campaign spec whose point ids are the node numbers) and a
+/// channel map (`--channels`) for datasets whose record 6 gives node 0.
+#[derive(Debug, Clone, Default)]
+pub struct UffInputOptions {
+    pub geometry: Option<PathBuf>,
+    pub channels: Option<PathBuf>,
+}
+
+/// The `--geometry`/`--channels` options of the stages that read UFF inputs.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct UffArgs {
+    /// UFF input: the geometry in a separate file (UFF with datasets 15/18/164/2411/2420,
+    /// or a campaign spec whose point ids are the node numbers).
+    #[arg(long)]
+    pub geometry: Option<PathBuf>,
+    /// UFF input: channel map (CSV) for datasets whose record 6 has node 0 or direction 0
+    /// (`rbprops convert FILE --channel-template map.csv` writes one to fill in).
+    #[arg(long)]
+    pub channels: Option<PathBuf>,
+}
+
+impl UffArgs {
+    pub fn options(&self) -> UffInputOptions {
+        UffInputOptions {
+            geometry: self.geometry.clone(),
+            channels: self.channels.clone(),
+        }
+    }
+}
+
 /// Reads a run from a path, or MCAP from stdin when the path is absent or `-`.
 pub fn read_input(path: Option<&Path>) -> Result<Input> {
-    match path {
+    read_input_with(path, &UffInputOptions::default())
+}
+
+fn is_uff(p: &Path) -> bool {
+    let ext = p
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58b"))
+}
+
+/// [`read_input`] with the options of a UFF input (an error for other inputs).
+pub fn read_input_with(path: Option<&Path>, uff: &UffInputOptions) -> Result<Input> {
+    let plain = path.filter(|p| p.as_os_str() != "-");
+    if let Some(p) = plain.filter(|p| is_uff(p)) {
+        return uff_input(p, uff);
+    }
+    if uff.geometry.is_some() || uff.channels.is_some() {
+        bail!("--geometry and --channels apply to UFF inputs (.uff/.unv/.58b) only");
+    }
+    match plain {
         None => read_stdin(),
-        Some(p) if p.as_os_str() == "-" => read_stdin(),
         Some(p) => {
             let name = p.display().to_string();
-            let ext = p
-                .extension()
-                .map(|e| e.to_string_lossy().to_ascii_lowercase());
-            if matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58b")) {
-                return uff_input(p);
-            }
             let record = rbprops_formats::read_path(p)?;
             let sha256 = if p.is_dir() {
                 digest_dir(p)?
@@ -52,19 +96,87 @@ pub fn read_input(path: Option<&Path>) -> Result<Input> {
     }
 }
 
-/// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry and FRFs.
-fn uff_input(p: &Path) -> Result<Input> {
+/// Reads and parses a universal file.
+pub fn parse_uff(p: &Path) -> Result<rbprops_uff::UffFile> {
     let name = p.display().to_string();
     let bytes = std::fs::read(p).with_context(|| name.clone())?;
-    let uff = rbprops_uff::parse(&bytes, &name)?;
-    let (geometry, frf) = rbprops_uff::to_campaign(&uff)?;
+    Ok(rbprops_uff::parse(&bytes, &name)?)
+}
+
+/// A UFF data file read into a campaign, with the geometry file and channel map of
+/// `opts`: the call behind `--geometry`/`--channels` (and a campaign file's `geometry`).
+/// Returns the campaign and the digest of all the bytes read.
+pub fn read_uff_campaign(
+    p: &Path,
+    opts: &UffInputOptions,
+) -> Result<(rbprops_uff::UffCampaign, String)> {
+    let name = p.display().to_string();
+    let bytes = std::fs::read(p).with_context(|| name.clone())?;
+    let data = rbprops_uff::parse(&bytes, &name)?;
+    let mut digest_input = bytes.clone();
+    let map = match &opts.channels {
+        Some(m) => {
+            let text = std::fs::read_to_string(m).with_context(|| m.display().to_string())?;
+            digest_input.extend_from_slice(text.as_bytes());
+            Some(
+                rbprops_uff::ChannelMap::parse(&text, &m.display().to_string())
+                    .map_err(anyhow::Error::msg)?,
+            )
+        }
+        None => None,
+    };
+    let campaign = match &opts.geometry {
+        None => rbprops_uff::read_campaign(
+            &data,
+            &rbprops_uff::ReadOptions {
+                geometry: rbprops_uff::GeometrySource::InFile,
+                channels: map.as_ref(),
+            },
+        )?,
+        Some(g) if is_uff(g) => {
+            let gbytes = std::fs::read(g).with_context(|| g.display().to_string())?;
+            digest_input.extend_from_slice(&gbytes);
+            let geo = rbprops_uff::parse(&gbytes, &g.display().to_string())?;
+            rbprops_uff::read_with_geometry(&data, &geo, map.as_ref())?
+        }
+        Some(g) => {
+            // A campaign spec: its points (ids = node numbers) in SI, global axes.
+            let text = std::fs::read_to_string(g).with_context(|| g.display().to_string())?;
+            digest_input.extend_from_slice(text.as_bytes());
+            let spec = rbprops_sim::CampaignSpec::from_toml_str(&text)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", g.display()))?;
+            let geometry = spec
+                .geometry()
+                .map_err(|e| anyhow::anyhow!("{}: {e}", g.display()))?;
+            rbprops_uff::read_campaign(
+                &data,
+                &rbprops_uff::ReadOptions {
+                    geometry: rbprops_uff::GeometrySource::Points(&geometry.points),
+                    channels: map.as_ref(),
+                },
+            )?
+        }
+    };
+    Ok((campaign, rbprops_formats::sha256_hex(&digest_input)))
+}
+
+/// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry, FRFs and,
+/// when the file has them, the coherence topic. Warnings go to stderr.
+fn uff_input(p: &Path, opts: &UffInputOptions) -> Result<Input> {
+    let (c, sha256) = read_uff_campaign(p, opts)?;
+    for w in &c.warnings {
+        eprintln!("warning: {w}");
+    }
     let mut record = RunRecord::default();
-    record.set_geometry(&geometry);
-    record.frf = Some(frf);
+    record.set_geometry(&c.geometry);
+    if let Some(coh) = &c.coherence {
+        coherence::set(&mut record, &c.geometry, coh);
+    }
+    record.frf = Some(c.frf);
     Ok(Input {
         record,
-        sha256: rbprops_formats::sha256_hex(&bytes),
-        name,
+        sha256,
+        name: p.display().to_string(),
     })
 }
 

@@ -33,6 +33,8 @@ pub mod topics {
     pub const SELECTION: &str = "/rbprops/selection";
     pub const ESTIMATES: &str = "/rbprops/estimates";
     pub const MODEL_CHECK: &str = "/rbprops/model_check";
+    /// Ordinary coherence γ² per FRF line, from the measurement (UFF import).
+    pub const COHERENCE: &str = "/rbprops/coherence";
 }
 
 /// Errors of the format layer. Each names the file and, where known, the record.

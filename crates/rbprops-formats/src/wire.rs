@@ -163,6 +163,19 @@ pub struct FrfMsg {
     pub values_f64le: String,
 }
 
+/// Measured ordinary coherence γ² of one excitation's FRFs (topic `/rbprops/coherence`,
+/// one message per excitation that has any): the tester's quality measure per line.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct CoherenceMsg {
+    pub excitation: String,
+    /// Channels with a coherence, in the FRF set's channel order.
+    pub channels: Vec<String>,
+    /// Base64 of little-endian IEEE-754 f64, laid out `[channel][line][γ², 0]` on the
+    /// FRF set's frequency axis (the FRF layout, imaginary parts zero).
+    #[schemars(extend("contentEncoding" = "base64"))]
+    pub values_f64le: String,
+}
+
 pub fn encode_values(values: &[c64]) -> String {
     let mut bytes = Vec::with_capacity(values.len() * 16);
     for v in values {

@@ -1,6 +1,7 @@
 //! From parsed datasets to an rbprops campaign: SI geometry and one FRF set.
 //! The mapping rules are documented at the crate root.
 
+use crate::dof::{dofs_from_names, ChannelMap, DofSource, NodeDof};
 use crate::error::{DatasetLocation, UffError};
 use crate::model::*;
 use crate::units::{is_unset, parse_label, system_units, Unit};
@@ -176,12 +177,6 @@ impl<'a> Frames<'a> {
     }
 }
 
-struct NodeInfo<'a> {
-    position: Vec3,
-    displacement_cs: i64,
-    at: &'a DatasetLocation,
-}
-
 /// Tags our writer puts in the ID lines (see the crate docs).
 #[derive(Default)]
 struct Tags {
@@ -230,12 +225,41 @@ struct Scaling {
     abscissa: f64,
 }
 
+fn data_type_name(t: i64) -> &'static str {
+    match t {
+        0 => "unknown",
+        1 => "general",
+        8 => "displacement",
+        9 => "reaction force",
+        11 => "velocity",
+        12 => "acceleration",
+        13 => "excitation force",
+        17 => "time",
+        18 => "frequency",
+        _ => "other",
+    }
+}
+
+/// What a units label says, or why it says nothing usable.
+fn read_label(axis: &AxisInfo) -> Option<Result<Unit, String>> {
+    if is_unset(&axis.units_label) {
+        return None;
+    }
+    Some(parse_label(&axis.units_label).map_err(|e| e.0))
+}
+
+/// Scale factors of one dataset 58 to SI, by the precedence documented in
+/// `docs/formats.md`: the units label of an axis when it parses and agrees in dimension
+/// with the specific data type of records 8–10; otherwise the data type with the file's
+/// dataset 164 units (a label that cannot be read, or that contradicts the data type, is a
+/// warning naming both); an error only when neither determines the unit.
 fn scaling(
     file: &str,
     at: &DatasetLocation,
     f: &Function,
     length_si: f64,
     force_si: f64,
+    warn: &mut Vec<String>,
 ) -> Result<Scaling, UffError> {
     let err = |field: &str, problem: String| UffError::Field {
         file: file.to_string(),
@@ -243,140 +267,146 @@ fn scaling(
         field: field.to_string(),
         problem,
     };
-    let label_unit = |axis: &AxisInfo, field: &str| -> Result<Option<Unit>, UffError> {
-        if is_unset(&axis.units_label) {
-            return Ok(None);
-        }
-        parse_label(&axis.units_label).map(Some).ok_or_else(|| {
-            err(
-                field,
-                format!(
-                    "units label '{}' is not understood (known: m mm cm um in ft, N mN kN lbf kgf, s ms Hz rad, g; combined with / * ^)",
-                    axis.units_label
-                ),
-            )
-        })
-    };
-    let force = Unit {
-        factor: 1.0,
-        length: 0,
-        force: 1,
-        time: 0,
-    };
-    let motion = |order: i32| Unit {
-        factor: 1.0,
-        length: 1,
-        force: 0,
-        time: -order,
-    };
-    // Numerator: quantity from the specific data type, else from the label's dimension.
-    let num_field = "record 9 (ordinate numerator)";
-    let num_label = label_unit(&f.numerator, &format!("{num_field} field 6 (units label)"))?;
-    let by_type = match f.numerator.data_type {
-        8 => Some(Quantity::Receptance),
-        11 => Some(Quantity::Mobility),
-        12 => Some(Quantity::Accelerance),
-        0 | 1 => None,
-        t => {
-            return Err(err(
-                &format!("{num_field} field 1 (specific data type)"),
-                format!(
-                    "data type {t} is not displacement (8), velocity (11) or acceleration (12)"
-                ),
-            ))
-        }
-    };
+    let force = Unit::base(1.0, 0, 1, 0);
+    let motion = |q: Quantity| Unit::base(1.0, 1, 0, -q.order());
     let quantities = [
         Quantity::Receptance,
         Quantity::Mobility,
         Quantity::Accelerance,
     ];
-    let (quantity, num_factor, whole) = match (by_type, num_label) {
+    // Numerator (record 9).
+    let num_field = "record 9 (ordinate numerator)";
+    let t = f.numerator.data_type;
+    let by_type = match t {
+        8 => Some(Quantity::Receptance),
+        11 => Some(Quantity::Mobility),
+        12 => Some(Quantity::Accelerance),
+        _ => None,
+    };
+    // The label's reading: (quantity, factor, label is the whole FRF).
+    let by_label = read_label(&f.numerator).map(|r| {
+        r.and_then(|u| {
+            quantities
+                .iter()
+                .find_map(|&q| {
+                    if u.same_dimension(&motion(q)) {
+                        Some((q, u.factor, false))
+                    } else if u.same_dimension(&motion(q).times(force.powi(-1))) {
+                        Some((q, u.factor, true))
+                    } else {
+                        None
+                    }
+                })
+                .ok_or_else(|| {
+                    format!(
+                        "{} is not a displacement, velocity or acceleration, nor one per force",
+                        u.dimension()
+                    )
+                })
+        })
+    });
+    let label = &f.numerator.units_label;
+    let (quantity, num_factor, whole) = match (by_type, by_label) {
         (Some(q), None) => (q, length_si, false),
-        (q, Some(u)) => {
-            let hit = quantities.iter().find_map(|&cand| {
-                let m = motion(cand.order());
-                let full = m.times(force.powi(-1));
-                if u.same_dimension(&m) {
-                    Some((cand, false))
-                } else if u.same_dimension(&full) {
-                    Some((cand, true))
-                } else {
-                    None
-                }
-            });
-            match hit {
-                Some((cand, whole)) if q.is_none_or(|q| q == cand) => (cand, u.factor, whole),
-                _ => {
-                    return Err(err(
-                        &format!("{num_field} field 6 (units label)"),
-                        format!(
-                            "units label '{}' ({}) does not fit data type {}",
-                            f.numerator.units_label,
-                            u.dimension(),
-                            f.numerator.data_type
-                        ),
-                    ))
-                }
-            }
+        (Some(q), Some(Ok((lq, factor, whole)))) if lq == q => (q, factor, whole),
+        (Some(q), Some(Ok((lq, _, _)))) => {
+            warn.push(format!(
+                "{num_field}: units label '{label}' ({}) contradicts data type {t} ({}): the data type is used, with the file's units",
+                lq.name(),
+                data_type_name(t)
+            ));
+            (q, length_si, false)
+        }
+        (Some(q), Some(Err(why))) => {
+            warn.push(format!(
+                "{num_field}: units label '{label}' is not used ({why}): data type {t} ({}) with the file's units instead",
+                data_type_name(t)
+            ));
+            (q, length_si, false)
+        }
+        (None, Some(Ok((lq, factor, whole)))) if matches!(t, 0 | 1) => (lq, factor, whole),
+        (None, Some(Ok((lq, _, _)))) => {
+            return Err(err(
+                &format!("{num_field} field 1 (specific data type)"),
+                format!(
+                    "data type {t} ({}) is not displacement (8), velocity (11) or acceleration (12), though the units label '{label}' reads as {}",
+                    data_type_name(t),
+                    lq.name()
+                ),
+            ))
+        }
+        (None, Some(Err(why))) => {
+            return Err(err(
+                &format!("{num_field} field 6 (units label)"),
+                format!(
+                    "units label '{label}' is not understood ({why}) and data type {t} ({}) does not say displacement (8), velocity (11) or acceleration (12): nothing determines the unit",
+                    data_type_name(t)
+                ),
+            ))
         }
         (None, None) => {
             return Err(err(
                 &format!("{num_field} field 1 (specific data type)"),
                 format!(
-                    "data type {} (unknown/general) without a units label: cannot tell displacement, velocity or acceleration",
-                    f.numerator.data_type
+                    "data type {t} ({}) without a units label: nothing says displacement, velocity or acceleration",
+                    data_type_name(t)
                 ),
             ))
         }
     };
+    // Denominator (record 10), unless the numerator label already holds the whole FRF.
     let den_factor = if whole {
         1.0
     } else {
         let den_field = "record 10 (ordinate denominator)";
-        let label = label_unit(
-            &f.denominator,
-            &format!("{den_field} field 6 (units label)"),
-        )?;
-        match (f.denominator.data_type, label) {
-            (9 | 13 | 0 | 1, Some(u)) if u.same_dimension(&force) => u.factor,
-            (9 | 13, None) => force_si,
-            (t, Some(u)) => {
-                return Err(err(
-                    &format!("{den_field} field 6 (units label)"),
-                    format!(
-                        "units label '{}' ({}) is not a force (data type {t})",
-                        f.denominator.units_label,
-                        u.dimension()
-                    ),
-                ))
+        let t = f.denominator.data_type;
+        let label = &f.denominator.units_label;
+        let typed_force = matches!(t, 9 | 13);
+        match read_label(&f.denominator) {
+            Some(Ok(u)) if u.same_dimension(&force) && (typed_force || matches!(t, 0 | 1)) => {
+                u.factor
             }
-            (t, None) => {
+            Some(Ok(u)) if typed_force => {
+                warn.push(format!(
+                    "{den_field}: units label '{label}' ({}) contradicts data type {t} ({}): the data type is used, with the file's units",
+                    u.dimension(),
+                    data_type_name(t)
+                ));
+                force_si
+            }
+            Some(Err(why)) if typed_force => {
+                warn.push(format!(
+                    "{den_field}: units label '{label}' is not used ({why}): data type {t} ({}) with the file's units instead",
+                    data_type_name(t)
+                ));
+                force_si
+            }
+            None if typed_force => force_si,
+            // Type 0/1 and no usable label: the function type (4, FRF) says force.
+            None if matches!(t, 0 | 1) => {
+                warn.push(format!(
+                    "{den_field}: data type {t} ({}) without a units label: taken as a force in the file's units (function type 4 is an FRF)",
+                    data_type_name(t)
+                ));
+                force_si
+            }
+            other => {
+                let why = match other {
+                    Some(Ok(u)) => format!("units label '{label}' is {}", u.dimension()),
+                    Some(Err(why)) => format!("units label '{label}' is not understood ({why})"),
+                    None => "no units label".to_string(),
+                };
                 return Err(err(
                     &format!("{den_field} field 1 (specific data type)"),
-                    format!("data type {t} is not an excitation force (13) or reaction force (9)"),
-                ))
+                    format!(
+                        "data type {t} ({}) is not an excitation force (13) or reaction force (9), and {why}",
+                        data_type_name(t)
+                    ),
+                ));
             }
         }
     };
-    let ab_field = "record 8 (abscissa)";
-    let ab_label = label_unit(
-        &f.abscissa_axis,
-        &format!("{ab_field} field 6 (units label)"),
-    )?;
-    let abscissa = match (f.abscissa_axis.data_type, ab_label) {
-        (18 | 0, None) => 1.0,
-        (18 | 0 | 1, Some(u)) if u.length == 0 && u.force == 0 && u.time == -1 => u.factor,
-        (t, _) => {
-            return Err(err(
-                &format!("{ab_field} field 1 (specific data type)"),
-                format!(
-                    "abscissa data type {t} (with units '{}') is not a frequency (18) in Hz",
-                    f.abscissa_axis.units_label
-                ),
-            ))
-        }
-    };
+    let abscissa = abscissa_factor(file, at, f, warn)?;
     Ok(Scaling {
         quantity,
         value: num_factor / den_factor,
@@ -384,21 +414,177 @@ fn scaling(
     })
 }
 
+/// Hz per abscissa unit of a dataset 58 (record 8), by the same precedence.
+fn abscissa_factor(
+    file: &str,
+    at: &DatasetLocation,
+    f: &Function,
+    warn: &mut Vec<String>,
+) -> Result<f64, UffError> {
+    let ab_field = "record 8 (abscissa)";
+    let t = f.abscissa_axis.data_type;
+    let label = &f.abscissa_axis.units_label;
+    let is_frequency = |u: &Unit| u.length == 0 && u.force == 0 && u.time == -1;
+    match (t, read_label(&f.abscissa_axis)) {
+        (18 | 0 | 1, Some(Ok(u))) if is_frequency(&u) => Ok(u.factor),
+        (18 | 0, None) => Ok(1.0),
+        (18 | 0, Some(Ok(u))) => {
+            warn.push(format!(
+                "{ab_field}: units label '{label}' ({}) contradicts data type {t} ({}): taken in Hz",
+                u.dimension(),
+                data_type_name(t)
+            ));
+            Ok(1.0)
+        }
+        (18 | 0, Some(Err(why))) => {
+            warn.push(format!(
+                "{ab_field}: units label '{label}' is not used ({why}): taken in Hz"
+            ));
+            Ok(1.0)
+        }
+        (t, _) => Err(UffError::Field {
+            file: file.to_string(),
+            at: at.clone(),
+            field: format!("{ab_field} field 1 (specific data type)"),
+            problem: format!(
+                "abscissa data type {t} ({}, units label '{label}') is not a frequency (18) in Hz",
+                data_type_name(t)
+            ),
+        }),
+    }
+}
+
+/// Where the node coordinates and coordinate systems come from.
+#[derive(Debug, Clone, Copy, Default)]
+pub enum GeometrySource<'a> {
+    /// The data file's own datasets 15/2411/18/2420 (and its 164).
+    #[default]
+    InFile,
+    /// A separate universal file (datasets 15, 18, 164, 2411, 2420; its other datasets
+    /// are ignored), in addition to any nodes of the data file. Each file's coordinate
+    /// systems and units apply to its own nodes.
+    Uff(&'a UffFile),
+    /// Points given by a campaign spec: point id = node label (ids that are not integers
+    /// cannot be named by a dataset 58), SI positions, global axes.
+    Points(&'a [Point]),
+}
+
+/// Options of [`read_campaign`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ReadOptions<'a> {
+    pub geometry: GeometrySource<'a>,
+    /// DOFs of datasets whose record 6 leaves them out (node 0 or direction 0).
+    pub channels: Option<&'a ChannelMap>,
+}
+
+/// Coherence (function type 6) matched to the FRFs: `values[e][c]` is the ordinary
+/// coherence γ² on the FRF set's frequency axis for excitation `e` and channel `c`, or
+/// `None` when the file holds none for that pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoherenceSet {
+    pub values: Vec<Vec<Option<Vec<f64>>>>,
+}
+
+impl CoherenceSet {
+    /// Number of (excitation, channel) pairs with a coherence.
+    pub fn count(&self) -> usize {
+        self.values.iter().flatten().filter(|v| v.is_some()).count()
+    }
+}
+
+/// A campaign read from a universal file.
+#[derive(Debug, Clone)]
+pub struct UffCampaign {
+    pub geometry: Geometry,
+    pub frf: FrfSet,
+    /// `None` when the file holds no coherence that matches an FRF.
+    pub coherence: Option<CoherenceSet>,
+    /// What was read differently from what the file says, or skipped (one line each;
+    /// the same message for several datasets is given once with a count).
+    pub warnings: Vec<String>,
+}
+
 /// Builds the campaign (geometry in SI and one FRF set) from the datasets of a file.
 /// See the crate documentation for the mapping rules.
 pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
+    read_campaign(uff, &ReadOptions::default()).map(|c| (c.geometry, c.frf))
+}
+
+/// The data file `data` read with its geometry in the separate universal file
+/// `geometry` (datasets 15/18/164/2411/2420): the call `--geometry FILE` makes.
+pub fn read_with_geometry(
+    data: &UffFile,
+    geometry: &UffFile,
+    channels: Option<&ChannelMap>,
+) -> Result<UffCampaign, UffError> {
+    read_campaign(
+        data,
+        &ReadOptions {
+            geometry: GeometrySource::Uff(geometry),
+            channels,
+        },
+    )
+}
+
+/// A node in global SI coordinates with the axes its direction codes refer to.
+struct NodeEntry {
+    position: Vec3,
+    /// Axes of the node's displacement system (an error only matters when a DOF uses it).
+    axes: Result<[Vec3; 3], UffError>,
+    file: String,
+}
+
+#[derive(Default)]
+struct NodeTable {
+    order: Vec<i64>,
+    nodes: HashMap<i64, NodeEntry>,
+}
+
+impl NodeTable {
+    fn insert(&mut self, label: i64, e: NodeEntry, at: &DatasetLocation) -> Result<(), UffError> {
+        if let Some(prev) = self.nodes.get(&label) {
+            let scale = prev.position.norm().max(e.position.norm()).max(1e-3);
+            // Same file: must be identical; another file: equal to single-precision print.
+            let tol = if prev.file == e.file {
+                0.0
+            } else {
+                1e-5 * scale
+            };
+            if (prev.position - e.position).norm() > tol {
+                return Err(UffError::Field {
+                    file: e.file.clone(),
+                    at: at.clone(),
+                    field: format!("node {label}"),
+                    problem: format!(
+                        "node {label} is at ({:.6}, {:.6}, {:.6}) m here but ({:.6}, {:.6}, {:.6}) m in {}",
+                        e.position.x,
+                        e.position.y,
+                        e.position.z,
+                        prev.position.x,
+                        prev.position.y,
+                        prev.position.z,
+                        prev.file
+                    ),
+                });
+            }
+            return Ok(());
+        }
+        self.order.push(label);
+        self.nodes.insert(label, e);
+        Ok(())
+    }
+}
+
+/// Units in force at each dataset of `uff` (SI per file unit of length and force), and
+/// its nodes added to `table`.
+fn add_file_nodes(uff: &UffFile, table: &mut NodeTable) -> Result<Vec<(f64, f64)>, UffError> {
     let file = uff.file_name.as_str();
-    let campaign = |problem: String| UffError::Campaign {
-        file: file.to_string(),
-        problem,
-    };
     let field_err = |at: &DatasetLocation, field: &str, problem: String| UffError::Field {
         file: file.to_string(),
         at: at.clone(),
         field: field.to_string(),
         problem,
     };
-    // Pass 1: units in force at each dataset, coordinate systems.
     let mut units = (1.0, 1.0);
     let mut units_at: Vec<(f64, f64)> = Vec::with_capacity(uff.datasets.len());
     let mut frames = Frames {
@@ -448,9 +634,6 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         }
         units_at.push(units);
     }
-    // Pass 2: nodes in global SI coordinates.
-    let mut nodes: HashMap<i64, NodeInfo> = HashMap::new();
-    let mut node_order: Vec<i64> = Vec::new();
     for (d, &(length_si, _)) in uff.datasets.iter().zip(&units_at) {
         let Record::Nodes(set) = &d.record else {
             continue;
@@ -468,31 +651,224 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
                     .to_global(local),
                 NodeFormat::D2411 => local,
             };
-            if let Some(prev) = nodes.get(&n.label) {
-                if prev.position != position || prev.displacement_cs != n.displacement_cs {
-                    return Err(field_err(
-                        &d.location,
-                        &format!("node {}", n.label),
-                        format!(
-                            "node {} is also defined, differently, in {}",
-                            n.label, prev.at
-                        ),
-                    ));
-                }
-                continue;
-            }
-            node_order.push(n.label);
-            nodes.insert(
+            let field = format!("node {} field 3 (displacement coordinate system)", n.label);
+            let axes = frames
+                .frame(n.displacement_cs, &d.location, &field, 0)
+                .map(|f| f.rows);
+            table.insert(
                 n.label,
-                NodeInfo {
+                NodeEntry {
                     position,
-                    displacement_cs: n.displacement_cs,
-                    at: &d.location,
+                    axes,
+                    file: file.to_string(),
                 },
-            );
+                &d.location,
+            )?;
         }
     }
-    // Pass 3: FRFs.
+    Ok(units_at)
+}
+
+/// Warnings gathered while reading, each message once with the datasets it concerns.
+#[derive(Default)]
+struct Warnings {
+    list: Vec<(String, DatasetLocation, usize)>,
+}
+
+impl Warnings {
+    fn add(&mut self, at: &DatasetLocation, msgs: Vec<String>) {
+        for m in msgs {
+            match self.list.iter_mut().find(|(x, _, _)| *x == m) {
+                Some(e) => e.2 += 1,
+                None => self.list.push((m, at.clone(), 1)),
+            }
+        }
+    }
+    fn finish(self, file: &str) -> Vec<String> {
+        self.list
+            .into_iter()
+            .map(|(m, at, n)| {
+                if n > 1 {
+                    format!("{file}: {at} and {} more: {m}", n - 1)
+                } else {
+                    format!("{file}: {at}: {m}")
+                }
+            })
+            .collect()
+    }
+}
+
+fn direction_text(d: i64) -> String {
+    format!("{}{}", if d < 0 { "-" } else { "+" }, {
+        let k = (d.unsigned_abs() as usize).clamp(1, 3) - 1;
+        axis_letter(k)
+    })
+}
+
+/// The response and reference DOFs of a dataset 58: a channel map row when one matches
+/// (the user's word wins), else record 6, else a naming pattern (see [`crate::dof`]).
+fn resolve_dofs(
+    index: usize,
+    f: &Function,
+    map: Option<&ChannelMap>,
+) -> [Result<(NodeDof, DofSource), String>; 2] {
+    let row = map.and_then(|m| m.row_for(index, &f.id_lines[0]));
+    let named = dofs_from_names(f);
+    let side = |k: usize| -> Result<(NodeDof, DofSource), String> {
+        let (node, direction, role) = if k == 0 {
+            (f.response_node, f.response_direction, "response")
+        } else {
+            (f.reference_node, f.reference_direction, "reference")
+        };
+        if let Some(d) = row.and_then(|r| if k == 0 { r.response } else { r.reference }) {
+            return Ok((d, DofSource::ChannelMap));
+        }
+        if node != 0 && direction != 0 {
+            return Ok((NodeDof { node, direction }, DofSource::Record6));
+        }
+        if let Some((d, src)) = &named[k] {
+            return Ok((*d, src.clone()));
+        }
+        Err(format!(
+            "{role} node {node} direction {direction}, and neither the entity name '{}' nor the ID lines (line 1: '{}') name the DOF in a known pattern (e.g. 'Point3:+Z'): give it in a channel map (--channels; `rbprops convert --channel-template` writes one)",
+            if k == 0 { &f.response_entity } else { &f.reference_entity },
+            f.id_lines[0]
+        ))
+    };
+    [side(0), side(1)]
+}
+
+/// Builds the campaign from `data` with the geometry and channel map of `opts`.
+pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, UffError> {
+    let file = data.file_name.as_str();
+    let campaign = |problem: String| UffError::Campaign {
+        file: file.to_string(),
+        problem,
+    };
+    let field_err = |at: &DatasetLocation, field: &str, problem: String| UffError::Field {
+        file: file.to_string(),
+        at: at.clone(),
+        field: field.to_string(),
+        problem,
+    };
+    let mut warnings = Warnings::default();
+    let mut table = NodeTable::default();
+    let geometry_name = match opts.geometry {
+        GeometrySource::InFile => None,
+        GeometrySource::Uff(g) => {
+            add_file_nodes(g, &mut table)?;
+            Some(g.file_name.clone())
+        }
+        GeometrySource::Points(points) => {
+            let origin = DatasetLocation {
+                index: 0,
+                number: 0,
+                line: 0,
+            };
+            for p in points {
+                let Ok(label) = p.id.trim().parse::<i64>() else {
+                    continue;
+                };
+                table.insert(
+                    label,
+                    NodeEntry {
+                        position: p.position,
+                        axes: Ok([Vec3::x(), Vec3::y(), Vec3::z()]),
+                        file: "the spec".into(),
+                    },
+                    &origin,
+                )?;
+            }
+            Some("the spec's points".to_string())
+        }
+    };
+    let units_at = add_file_nodes(data, &mut table)?;
+
+    // Pass 1: the DOFs of every FRF and coherence; every node they name must exist.
+    let mut dofs: HashMap<usize, [(NodeDof, DofSource); 2]> = HashMap::new();
+    let mut missing: Vec<(i64, DatasetLocation)> = Vec::new();
+    let mut skipped: std::collections::BTreeMap<i64, usize> = Default::default();
+    for (di, d) in data.datasets.iter().enumerate() {
+        let Record::Function(f) = &d.record else {
+            continue;
+        };
+        if f.function_type != 4 && f.function_type != 6 {
+            *skipped.entry(f.function_type).or_default() += 1;
+            continue;
+        }
+        let [r, e] = resolve_dofs(d.location.index, f, opts.channels);
+        let (r, e) = match (r, e) {
+            (Ok(r), Ok(e)) => (r, e),
+            (Err(why), _) | (_, Err(why)) => {
+                if f.function_type == 6 {
+                    warnings.add(&d.location, vec![format!("coherence skipped: {why}")]);
+                    continue;
+                }
+                let field = if why.starts_with("response") {
+                    "record 6 field 6-7 (response node, direction)"
+                } else {
+                    "record 6 field 9-10 (reference node, direction)"
+                };
+                return Err(field_err(&d.location, field, why));
+            }
+        };
+        for (dof, role) in [(&r.0, "response"), (&e.0, "reference")] {
+            if dof.direction.abs() > 3 || dof.direction == 0 {
+                return Err(field_err(
+                    &d.location,
+                    &format!("record 6 ({role} direction)"),
+                    format!("{role} direction {} is not a translation (±1, ±2, ±3); scalar and rotational DOFs are not supported", dof.direction),
+                ));
+            }
+            if !table.nodes.contains_key(&dof.node) {
+                missing.push((dof.node, d.location.clone()));
+            }
+        }
+        dofs.insert(di, [r, e]);
+    }
+    if !missing.is_empty() {
+        let mut labels: Vec<i64> = missing.iter().map(|m| m.0).collect();
+        labels.sort_unstable();
+        labels.dedup();
+        let mut defined: Vec<i64> = table.order.clone();
+        defined.sort_unstable();
+        let shown: Vec<String> = labels.iter().take(20).map(|l| l.to_string()).collect();
+        let more = if labels.len() > 20 {
+            format!(" and {} more", labels.len() - 20)
+        } else {
+            String::new()
+        };
+        return Err(field_err(
+            &missing[0].1,
+            "record 6 (response/reference node)",
+            format!(
+                "{} node(s) named by the functions have no coordinates: {}{more}; {} defines {} node(s){}",
+                labels.len(),
+                shown.join(", "),
+                geometry_name
+                    .clone()
+                    .map_or("the file (datasets 15/2411)".to_string(), |g| format!(
+                        "{g} with the file"
+                    )),
+                defined.len(),
+                if defined.is_empty() {
+                    " (give the geometry with --geometry FILE)".to_string()
+                } else {
+                    format!(
+                        ": {}",
+                        defined
+                            .iter()
+                            .take(20)
+                            .map(|l| l.to_string())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                }
+            ),
+        ));
+    }
+
+    // Pass 2: FRFs.
     struct Dof {
         id: String,
         node: i64,
@@ -508,17 +884,42 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
     let mut cells: HashMap<(usize, usize), (usize, Vec<c64>, DatasetLocation)> = HashMap::new();
     let mut axis: Option<(Vec<f64>, DatasetLocation)> = None;
     let mut quantity: Option<(Quantity, DatasetLocation)> = None;
-    let mut n_frf = 0usize;
-    for (di, (d, &(length_si, force_si))) in uff.datasets.iter().zip(&units_at).enumerate() {
+    for (di, (d, &(length_si, force_si))) in data.datasets.iter().zip(&units_at).enumerate() {
         let Record::Function(f) = &d.record else {
             continue;
         };
         if f.function_type != 4 {
-            continue; // coherence, auto spectra, … travel alongside FRFs; they are not FRFs.
+            continue; // coherence is matched below; other functions are listed, not read.
         }
-        n_frf += 1;
         let at = &d.location;
-        let s = scaling(file, at, f, length_si, force_si)?;
+        let [(resp, resp_src), (refr, ref_src)] = dofs[&di].clone();
+        let mut w = Vec::new();
+        let s = scaling(file, at, f, length_si, force_si, &mut w)?;
+        for (dof, src, role) in [(resp, &resp_src, "response"), (refr, &ref_src, "reference")] {
+            match src {
+                DofSource::Record6 => {}
+                DofSource::EntityName => w.push(format!(
+                    "{role} DOF taken from the entity name (node {} {})",
+                    dof.node,
+                    direction_text(dof.direction)
+                )),
+                DofSource::IdLine(k) => w.push(format!(
+                    "{role} DOF taken from ID line {k} (node {} {})",
+                    dof.node,
+                    direction_text(dof.direction)
+                )),
+                DofSource::ChannelMap => {}
+            }
+        }
+        // One message per distinct DOF would flood: keep the rule, not the values.
+        let w = w
+            .into_iter()
+            .map(|m| match m.find(" (node ") {
+                Some(k) if m.contains("DOF taken from") => m[..k].to_string(),
+                _ => m,
+            })
+            .collect();
+        warnings.add(at, w);
         match &quantity {
             None => quantity = Some((s.quantity, at.clone())),
             Some((q, first)) if *q != s.quantity => {
@@ -534,16 +935,7 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         match &axis {
             None => axis = Some((hz, at.clone())),
             Some((first, first_at)) => {
-                let scale = first
-                    .iter()
-                    .fold(0.0f64, |m, x| m.max(x.abs()))
-                    .max(f64::MIN_POSITIVE);
-                let same = first.len() == hz.len()
-                    && first
-                        .iter()
-                        .zip(&hz)
-                        .all(|(a, b)| (a - b).abs() <= ABSCISSA_TOLERANCE * scale);
-                if !same {
+                if !same_axis(first, &hz) {
                     return Err(campaign(format!(
                         "{first_at} and {at} have different abscissae ({} lines from {} to {} Hz vs {} lines from {} to {} Hz): all FRFs must share one frequency axis",
                         first.len(), first[0], first[first.len() - 1], hz.len(), hz[0], hz[hz.len() - 1]
@@ -563,30 +955,13 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
             });
         }
         let mut locate = |role: &str,
-                          node: i64,
-                          direction: i64,
-                          field: &str,
+                          dof: NodeDof,
                           id: Option<String>,
                           point: Option<String>,
                           list: &mut Vec<Dof>,
                           setup: &str|
          -> Result<usize, UffError> {
-            if !nodes.contains_key(&node) {
-                return Err(field_err(
-                    at,
-                    &format!("record 6 {field}"),
-                    format!(
-                        "{role} node {node} has no coordinates (no dataset 15 or 2411 defines it)"
-                    ),
-                ));
-            }
-            if direction == 0 || direction.abs() > 3 {
-                return Err(field_err(
-                    at,
-                    &format!("record 6 {field}"),
-                    format!("{role} direction {direction} is not a translation (±1, ±2, ±3); scalar and rotational DOFs are not supported"),
-                ));
-            }
+            let (node, direction) = (dof.node, dof.direction);
             let default_id = if role == "reference" && setup != DEFAULT_SETUP {
                 format!("{}@{setup}", dof_name(node, direction))
             } else {
@@ -628,9 +1003,7 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         };
         let ci = locate(
             "response",
-            f.response_node,
-            f.response_direction,
-            "field 6-7 (response node, direction)",
+            resp,
             tags.channel,
             tags.channel_point,
             &mut channels,
@@ -638,9 +1011,7 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         )?;
         let ei = locate(
             "reference",
-            f.reference_node,
-            f.reference_direction,
-            "field 9-10 (reference node, direction)",
+            refr,
             tags.excitation,
             tags.excitation_point,
             &mut excitations,
@@ -656,14 +1027,112 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         cells.insert((ei, ci), (di, values, at.clone()));
     }
     let (Some((frequency_hz, _)), Some((quantity, _))) = (axis, quantity) else {
-        return Err(campaign(
-            "no FRF datasets (dataset 58 with function type 4) in the file".into(),
-        ));
+        return Err(campaign(format!(
+            "no FRF datasets (dataset 58 with function type 4) in the file. It holds:\n{}",
+            crate::inventory::inventory(data)
+        )));
     };
-    let _ = n_frf;
+    if !skipped.is_empty() {
+        let list: Vec<String> = skipped
+            .iter()
+            .map(|(t, n)| {
+                format!(
+                    "{n} {} (type {t})",
+                    crate::inventory::function_type_name(*t)
+                )
+            })
+            .collect();
+        warnings.list.push((
+            format!(
+                "datasets 58 that are neither FRFs nor coherence are not read: {}",
+                list.join(", ")
+            ),
+            DatasetLocation {
+                index: 0,
+                number: 58,
+                line: 0,
+            },
+            1,
+        ));
+    }
+
+    // Pass 3: coherence matched to the FRF of the same response and reference DOF.
+    let mut coherence: Vec<Vec<Option<Vec<f64>>>> =
+        vec![vec![None; channels.len()]; excitations.len()];
+    let mut n_coherence = 0usize;
+    for (di, d) in data.datasets.iter().enumerate() {
+        let Record::Function(f) = &d.record else {
+            continue;
+        };
+        if f.function_type != 6 {
+            continue;
+        }
+        let Some([(resp, _), (refr, _)]) = dofs.get(&di).cloned() else {
+            continue;
+        };
+        let at = &d.location;
+        let setup = read_tags(f)
+            .setup
+            .unwrap_or_else(|| DEFAULT_SETUP.to_string());
+        let ci = channels
+            .iter()
+            .position(|c| c.node == resp.node && c.direction == resp.direction);
+        let ei = excitations
+            .iter()
+            .position(|e| e.node == refr.node && e.direction == refr.direction && e.setup == setup);
+        let (Some(ci), Some(ei)) = (ci, ei) else {
+            warnings.add(
+                at,
+                vec![format!(
+                    "coherence of response node {} {} / reference node {} {} has no FRF to go with: skipped",
+                    resp.node,
+                    direction_text(resp.direction),
+                    refr.node,
+                    direction_text(refr.direction)
+                )],
+            );
+            continue;
+        };
+        let mut w = Vec::new();
+        let hz_factor = abscissa_factor(file, at, f, &mut w).unwrap_or(1.0);
+        warnings.add(at, w);
+        let hz: Vec<f64> = f.abscissa.iter().map(|x| x * hz_factor).collect();
+        if !same_axis(&frequency_hz, &hz) {
+            warnings.add(
+                at,
+                vec!["coherence on another frequency axis than the FRFs: skipped".into()],
+            );
+            continue;
+        }
+        // γ² lies in [0, 1]; values just outside by rounding of the export are clamped,
+        // values clearly outside mean the dataset is not an ordinary coherence.
+        const SLACK: f64 = 1e-6;
+        let gamma2: Vec<f64> = f.ordinate.iter().map(|v| v.re).collect();
+        if gamma2.iter().any(|g| !(-SLACK..=1.0 + SLACK).contains(g)) {
+            warnings.add(at, vec!["coherence values outside [0, 1]: skipped".into()]);
+            continue;
+        }
+        if coherence[ei][ci].is_some() {
+            warnings.add(
+                at,
+                vec![format!(
+                    "a second coherence for channel '{}' and excitation '{}': skipped",
+                    channels[ci].id, excitations[ei].id
+                )],
+            );
+            continue;
+        }
+        coherence[ei][ci] = Some(gamma2.iter().map(|g| g.clamp(0.0, 1.0)).collect());
+        n_coherence += 1;
+    }
+
     // Geometry.
     let mut points: Vec<Point> = Vec::new();
-    for label in &node_order {
+    let mut used: std::collections::HashSet<i64> = Default::default();
+    for c in channels.iter().chain(&excitations) {
+        used.insert(c.node);
+    }
+    for label in &table.order {
         let id = point_of_node
             .get(label)
             .cloned()
@@ -671,16 +1140,43 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         if !points.iter().any(|p| p.id == id) {
             points.push(Point {
                 id,
-                position: nodes[label].position,
+                position: table.nodes[label].position,
             });
         }
     }
-    let mut direction_of = |dof: &Dof| -> Result<Vec3, UffError> {
-        let node = &nodes[&dof.node];
-        let field = format!("node {} field 3 (displacement coordinate system)", dof.node);
-        let frame = frames.frame(node.displacement_cs, node.at, &field, 0)?;
+    if geometry_name.is_some() {
+        let mut unused: Vec<i64> = table
+            .order
+            .iter()
+            .copied()
+            .filter(|l| !used.contains(l))
+            .collect();
+        unused.sort_unstable();
+        if !unused.is_empty() {
+            warnings.list.push((
+                format!(
+                    "{} geometry node(s) carry no FRF channel or excitation (kept as points): {}",
+                    unused.len(),
+                    unused
+                        .iter()
+                        .take(20)
+                        .map(|l| l.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                DatasetLocation {
+                    index: 0,
+                    number: 0,
+                    line: 0,
+                },
+                1,
+            ));
+        }
+    }
+    let direction_of = |dof: &Dof| -> Result<Vec3, UffError> {
+        let axes = table.nodes[&dof.node].axes.clone()?;
         let k = dof.direction.unsigned_abs() as usize - 1;
-        Ok(frame.rows[k] * dof.direction.signum() as f64)
+        Ok(axes[k] * dof.direction.signum() as f64)
     };
     let mut geometry = Geometry {
         points,
@@ -691,7 +1187,7 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         geometry.channels.push(Channel {
             id: c.id.clone(),
             point: c.point.clone(),
-            position: nodes[&c.node].position,
+            position: table.nodes[&c.node].position,
             direction: direction_of(c)?,
         });
     }
@@ -699,7 +1195,7 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         geometry.excitations.push(Excitation {
             id: e.id.clone(),
             point: e.point.clone(),
-            position: nodes[&e.node].position,
+            position: table.nodes[&e.node].position,
             direction: direction_of(e)?,
             setup: e.setup.clone(),
         });
@@ -720,5 +1216,29 @@ pub fn to_campaign(uff: &UffFile) -> Result<(Geometry, FrfSet), UffError> {
         .validate()
         .map_err(|e| campaign(format!("geometry: {e}")))?;
     frf.validate().map_err(|e| campaign(e.to_string()))?;
-    Ok((geometry, frf))
+    let mut warnings = warnings.finish(file);
+    for w in &mut warnings {
+        // Summary warnings carry no dataset: drop the placeholder location.
+        *w = w.replace(" dataset #0 (type 58, starting at line 0):", "");
+        *w = w.replace(" dataset #0 (type 0, starting at line 0):", "");
+    }
+    Ok(UffCampaign {
+        geometry,
+        frf,
+        coherence: (n_coherence > 0).then_some(CoherenceSet { values: coherence }),
+        warnings,
+    })
+}
+
+/// Whether two frequency axes are the same to [`ABSCISSA_TOLERANCE`] of their largest value.
+fn same_axis(first: &[f64], other: &[f64]) -> bool {
+    let scale = first
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+        .max(f64::MIN_POSITIVE);
+    first.len() == other.len()
+        && first
+            .iter()
+            .zip(other)
+            .all(|(a, b)| (a - b).abs() <= ABSCISSA_TOLERANCE * scale)
 }

@@ -21,8 +21,10 @@
 //! - **164** units. Any other dataset is kept as text ([`Record::Unknown`]).
 //!
 //! # Mapping to a campaign ([`to_campaign`])
-//! - Only datasets 58 with function type 4 (FRF) count; other functions (coherence, …)
-//!   are skipped. There must be at least one.
+//! - Datasets 58 with function type 4 (FRF) make the FRF set; there must be at least
+//!   one (else the error lists what the file holds, [`inventory`]). Coherence (type 6)
+//!   is matched to the FRF of the same DOFs ([`CoherenceSet`]); other functions are
+//!   listed in a warning.
 //! - **Quantity** from record 9 (numerator) data type: 8 displacement → receptance,
 //!   11 velocity → mobility, 12 acceleration → accelerance; the denominator (record 10)
 //!   must be a force (13 excitation or 9 reaction). Type 0/1 (unknown/general) is
@@ -30,12 +32,15 @@
 //! - **Units** are converted to SI. Dataset 164 sets the file's length and force units
 //!   for the datasets after it (codes 1 SI, 2 BG, 3 MG, 4 BA, 5 MM, 6 CM, 7 IN, 8 GM: their
 //!   factors must match the code's table within 1e-4; 9 user-defined: the factors are
-//!   used as given). Without a 164 the file is taken as SI. Per the dataset 58 notes, an
-//!   axis units label (records 8–10 field 6) takes precedence when set: labels are parsed
-//!   (`m mm cm um in ft`, `N mN kN lbf kgf`, `s ms Hz rad`, `g` = 9.80665 m/s², combined
-//!   with `/`, `*`, `^`, e.g. `m/s^2`, `g`, `mm/s`, `(m/s^2)/N`) and must have the
-//!   dimension of the data type; a numerator label with the dimension of the whole FRF
-//!   (`g/N`) converts the FRF alone. An unknown label is an error. Temperature is ignored.
+//!   used as given). Without a 164 the file is taken as SI. An axis units label
+//!   ([`units::parse_label`]) is used when it agrees in dimension with the data type;
+//!   otherwise the data type with the 164 units, with a warning naming both; an error
+//!   only when nothing determines the unit (precedence and grammar: `docs/formats.md`).
+//!   A numerator label with the dimension of the whole FRF (`g/N`) converts the FRF alone.
+//! - **DOFs** from record 6, or for node 0 / direction 0 from a channel map or the
+//!   naming patterns of [`dof`] (`Point3:+Z`, …).
+//! - **Geometry** from the file, or a separate file or point list ([`GeometrySource`],
+//!   [`read_with_geometry`]); missing nodes are listed in the error.
 //! - **Frequency axis**: abscissa type 18 (or 0) in Hz, or per its units label (`rad/s`).
 //!   All FRFs must share one abscissa (within 1e-9 of its largest value); otherwise the
 //!   error names both datasets.
@@ -82,21 +87,32 @@
 //! # Independent checks (pyuff)
 //! `scripts/make_uff_fixtures.py` writes `fixtures/uff/*.uff` with pyuff and JSON sidecars
 //! of the exact values; `tests/pyuff_fixtures.rs` reads them to the printed precision.
+//! `scripts/make_uff_exports.py` writes `fixtures/uff/exports/`: pyuff files edited the
+//! way analysers write them (labels, CRLF, node 0, split geometry, coherence, no FRF);
+//! `tests/exports.rs` reads each to the SI values the script computed by hand, or checks
+//! the error.
 //! The test `tests/written_for_pyuff.rs` writes `fixtures/uff/written/rbprops_{ascii,binary}
 //! .{uff,json}`; CI then runs, for both,
 //! `python3 scripts/check_uff_with_pyuff.py fixtures/uff/written/rbprops_ascii.uff
 //! fixtures/uff/written/rbprops_ascii.json` (exit status 1 on any mismatch).
 
 pub mod campaign;
+pub mod dof;
 pub mod error;
 pub mod fortran;
+pub mod inventory;
 pub mod model;
 pub mod read;
 pub mod units;
 pub mod write;
 
-pub use campaign::{dof_name, to_campaign, DEFAULT_SETUP};
+pub use campaign::{
+    dof_name, read_campaign, read_with_geometry, to_campaign, CoherenceSet, GeometrySource,
+    ReadOptions, UffCampaign, DEFAULT_SETUP,
+};
+pub use dof::{channel_map_template, ChannelMap};
 pub use error::{DatasetLocation, UffError};
+pub use inventory::inventory;
 pub use model::*;
 pub use read::parse;
 pub use write::{from_campaign, WriteOptions};

@@ -84,9 +84,19 @@ fn ascii_text(b: &[u8]) -> String {
         .collect()
 }
 
-/// Free text (ID lines, names): lossy UTF-8, trailing blanks removed.
+/// Decodes free text leniently: UTF-8 when the bytes are valid UTF-8, else Latin-1
+/// (every byte is a character), so `²` written as the single Latin-1 byte 0xB2 reads as
+/// `²`. Never fails.
+pub fn decode_text(b: &[u8]) -> String {
+    match std::str::from_utf8(b) {
+        Ok(s) => s.to_string(),
+        Err(_) => b.iter().map(|&c| c as char).collect(),
+    }
+}
+
+/// Free text (ID lines, names): decoded leniently, trailing blanks removed.
 fn free_text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).trim_end().to_string()
+    decode_text(b).trim_end().to_string()
 }
 
 /// Context for errors inside one dataset.
@@ -234,9 +244,14 @@ pub fn parse(bytes: &[u8], file_name: &str) -> Result<UffFile, UffError> {
                 let Some(data) = probe.take(len) else {
                     continue;
                 };
+                // The line end after the data, and a stray extra line end some writers
+                // add, may come before the closing delimiter (at most two blank lines:
+                // anything else means the byte count is wrong).
                 let mut close = probe.next();
-                if matches!(close, Some(l) if l.bytes.is_empty()) {
-                    close = probe.next();
+                for _ in 0..2 {
+                    if matches!(close, Some(l) if trim_ascii(l.bytes).is_empty()) {
+                        close = probe.next();
+                    }
                 }
                 if matches!(close, Some(l) if is_delimiter(l.bytes)) {
                     found = Some((data, probe));
@@ -310,10 +325,13 @@ fn expected_58b_bytes(lines: &[Line]) -> Option<usize> {
     n.checked_mul(per_point)?.checked_mul(size)
 }
 
-/// Reads one fixed-width record: `(start, width, name)` triples.
+/// Reads one fixed-width record. Columns count characters of the leniently decoded
+/// line (a UTF-8 `²` is one column, as the writer meant it); numeric fields are cut from
+/// an ASCII view of those characters, text fields from the characters themselves.
 struct Rec<'c, 'f> {
     ctx: &'c Ctx<'f>,
     text: String,
+    chars: Vec<char>,
     label: String,
 }
 
@@ -325,9 +343,14 @@ impl<'c, 'f> Rec<'c, 'f> {
     ) -> Result<Self, UffError> {
         let label = label.into();
         let line = line.ok_or_else(|| ctx.err(&label, "missing (dataset truncated)"))?;
+        let chars: Vec<char> = decode_text(line.bytes).chars().collect();
         Ok(Self {
             ctx,
-            text: ascii_text(line.bytes),
+            text: chars
+                .iter()
+                .map(|&c| if c.is_ascii() { c } else { '?' })
+                .collect(),
+            chars,
             label: format!("{label} (line {})", line.number),
         })
     }
@@ -346,8 +369,15 @@ impl<'c, 'f> Rec<'c, 'f> {
         parse_real(column(&self.text, start, width))
             .map_err(|e| self.ctx.err(format!("{} {name}", self.label), e))
     }
+    /// A text field (characters `[start, start + width)`), trimmed; never an error.
     fn text(&self, start: usize, width: usize) -> String {
-        column(&self.text, start, width).trim().to_string()
+        let s = start.min(self.chars.len());
+        let e = start.saturating_add(width).min(self.chars.len());
+        self.chars[s..e]
+            .iter()
+            .collect::<String>()
+            .trim()
+            .to_string()
     }
     fn end(&self, end: usize) -> Result<(), UffError> {
         check_tail(&self.text, end).map_err(|e| self.ctx.err(self.label.clone(), e))
@@ -399,6 +429,51 @@ fn read_reals(
         li += 1;
     }
     Ok((out, li))
+}
+
+/// Record 12 of an ASCII dataset 58 read in its fixed columns; exactly `n_numbers`
+/// values and nothing after them.
+fn read_fixed_values(
+    ctx: &Ctx,
+    lines: &[Line],
+    widths: &[usize],
+    n: usize,
+    n_numbers: usize,
+) -> Result<Vec<f64>, UffError> {
+    // Cheap guard against absurd counts before reading line by line.
+    let lines_needed = n_numbers.div_ceil(widths.len());
+    if lines_needed > lines.len().saturating_sub(11) {
+        return Err(ctx.err(
+            "record 12 (data values)",
+            format!(
+                "{n} values need {lines_needed} data lines, the dataset has {} (truncated?)",
+                lines.len().saturating_sub(11)
+            ),
+        ));
+    }
+    let (v, next) = read_reals(ctx, lines, 11, widths, n_numbers, "record 12 (data values)")?;
+    if let Some(extra) = lines[next..]
+        .iter()
+        .find(|l| !trim_ascii(l.bytes).is_empty())
+    {
+        return Err(ctx.err(
+            format!("record 12 (data values), line {}", extra.number),
+            format!("more data than the {n} values record 7 announces"),
+        ));
+    }
+    Ok(v)
+}
+
+/// Every blank-separated number of the data lines, or None when some token is not a
+/// number.
+fn blank_separated_values(lines: &[Line]) -> Option<Vec<f64>> {
+    let mut out = Vec::new();
+    for l in lines {
+        for tok in ascii_text(l.bytes).split_ascii_whitespace() {
+            out.push(parse_real(tok).ok()?);
+        }
+    }
+    Some(out)
 }
 
 fn parse_164(ctx: &Ctx, lines: &[Line]) -> Result<Units, UffError> {
@@ -602,15 +677,16 @@ fn parse_18(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> 
 
 fn parse_axis(ctx: &Ctx, line: Option<&Line>, which: &str) -> Result<AxisInfo, UffError> {
     let r = Rec::new(ctx, line, which)?;
+    // The two labels are free text: a units label longer than its 20 columns is kept
+    // whole (text fields never stop a read).
     let info = AxisInfo {
         data_type: r.int(0, 10, "field 1 (specific data type)")?,
         length_exp: r.int_or_zero(10, 5, "field 2 (length units exponent)")?,
         force_exp: r.int_or_zero(15, 5, "field 3 (force units exponent)")?,
         temperature_exp: r.int_or_zero(20, 5, "field 4 (temperature units exponent)")?,
         label: r.text(26, 20),
-        units_label: r.text(47, 20),
+        units_label: r.text(47, usize::MAX / 2),
     };
-    r.end(67)?;
     Ok(info)
 }
 
@@ -755,27 +831,30 @@ fn parse_58(
             (true, false, false) => &[13, 20, 13, 20],
             (true, true, false) => &[13, 20, 20],
         };
-        // Cheap guard against absurd counts before reading line by line.
-        let lines_needed = n_numbers.div_ceil(widths.len());
-        if lines_needed > lines.len().saturating_sub(11) {
-            return Err(ctx.err(
-                "record 12 (data values)",
-                format!(
-                    "{n} values need {lines_needed} data lines, the dataset has {} (truncated?)",
-                    lines.len().saturating_sub(11)
-                ),
-            ));
-        }
-        let (v, next) = read_reals(ctx, lines, 11, widths, n_numbers, "record 12 (data values)")?;
-        if let Some(extra) = lines[next..]
-            .iter()
-            .find(|l| !trim_ascii(l.bytes).is_empty())
-        {
-            return Err(ctx.err(
-                format!("record 12 (data values), line {}", extra.number),
-                format!("more data than the {n} values record 7 announces"),
-            ));
-        }
+        // Fixed columns first; when they do not read, values separated by blanks are
+        // accepted if (and only if) their count matches record 7 exactly.
+        let data = &lines[11.min(lines.len())..];
+        let fixed = read_fixed_values(ctx, lines, widths, n, n_numbers);
+        let v = match fixed {
+            Ok(v) => v,
+            Err(fixed_err) => match blank_separated_values(data) {
+                Some(v) if v.len() == n_numbers => v,
+                Some(v) => {
+                    let extra = format!(
+                        "read as blank-separated values instead there are {} numbers, but record 7 ({n} values, ordinate type {code}, {}) needs {n_numbers}: not guessing",
+                        v.len(),
+                        if even { "even spacing" } else { "uneven spacing" }
+                    );
+                    return Err(match fixed_err {
+                        UffError::Field { field, problem, .. } => {
+                            ctx.err(field, format!("{problem}; {extra}"))
+                        }
+                        other => other,
+                    });
+                }
+                None => return Err(fixed_err),
+            },
+        };
         (v, None)
     };
     let mut abscissa = Vec::with_capacity(n);

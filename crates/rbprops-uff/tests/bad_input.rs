@@ -109,10 +109,12 @@ fn truncated_binary_names_the_byte_count() {
 fn wrong_field_widths_are_named() {
     let s = text(false);
     let lines: Vec<&str> = s.lines().collect();
-    // The first data line of the first dataset 58: shift its fields by one column.
+    // The first data line of the first dataset 58: shift its fields by one column and
+    // drop its last value. (A shift alone reads, as blank-separated values whose count
+    // matches record 7; with a value missing the counts disagree and nothing is guessed.)
     let r7 = nth_line_index(&lines, "         6         6         1", 0);
     let data = r7 + 5;
-    let shifted = format!(" {}", lines[data]);
+    let shifted = format!(" {}", &lines[data][..60]);
     let e = err(&replace_line(&s, data, &shifted));
     assert!(e.contains("record 12"), "{e}");
     assert!(e.contains(&format!("line {}", data + 1)), "{e}");
@@ -167,13 +169,27 @@ fn unknown_type_codes_are_named() {
         &format!("        12{}", &lines[u][10..]),
     ));
     assert!(e.contains("units code 12") && e.contains("type 164"), "{e}");
-    // An unknown units label.
+    // An unknown units label on a typed axis is a warning (record 9 decides); on an
+    // untyped axis (data type 0) nothing determines the unit: an error.
+    let furlong = lines[r9].replace("m/s^2 ", "furlong");
+    let uff = parse(replace_line(&s, r9, &furlong).as_bytes(), NAME).unwrap();
+    let read = rbprops_uff::read_campaign(&uff, &Default::default()).unwrap();
+    assert!(
+        read.warnings
+            .iter()
+            .any(|w| w.contains("'furlong' is not used (unknown unit 'furlong')")),
+        "{:?}",
+        read.warnings
+    );
     let e = err(&replace_line(
         &s,
         r9,
-        &lines[r9].replace("m/s^2 ", "furlong"),
+        &format!("         0{}", &furlong[10..]),
     ));
-    assert!(e.contains("furlong") && e.contains("units label"), "{e}");
+    assert!(
+        e.contains("furlong") && e.contains("nothing determines the unit"),
+        "{e}"
+    );
 }
 
 #[test]

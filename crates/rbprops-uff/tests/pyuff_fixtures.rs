@@ -181,6 +181,6 @@ fn missing_node_coordinates_is_an_error_naming_file_dataset_and_field() {
     assert!(matches!(e, UffError::Field { .. }), "{msg}");
     assert!(msg.contains("error_missing_node.uff"), "{msg}");
     assert!(msg.contains("dataset #2 (type 58"), "{msg}");
-    assert!(msg.contains("response node"), "{msg}");
-    assert!(msg.contains("node 9 has no coordinates"), "{msg}");
+    assert!(msg.contains("record 6 (response/reference node)"), "{msg}");
+    assert!(msg.contains("have no coordinates: 9;"), "{msg}");
 }

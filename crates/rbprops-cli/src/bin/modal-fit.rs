@@ -32,6 +32,8 @@ struct Args {
     /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    #[command(flatten)]
+    uff: rbprops_cli::UffArgs,
     #[arg(long, value_enum, default_value = "lscf")]
     method: MethodArg,
     /// Band FMIN:FMAX in Hz (default: the whole axis).
@@ -56,7 +58,7 @@ struct Args {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let input = rbprops_cli::read_input_with(args.input.as_deref(), &args.uff.options())?;
         let mut rec = input.record;
         let mut opts = FitOptions {
             method: match args.method {

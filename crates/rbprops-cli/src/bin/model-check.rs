@@ -41,6 +41,8 @@ struct Args {
     /// Write the run with the report topic: FILE.mcap, or a directory for CSV.
     #[arg(short, long)]
     output: Option<PathBuf>,
+    #[command(flatten)]
+    uff: rbprops_cli::UffArgs,
     /// Write the improved campaign spec (fitted parameters, accepted effects) here.
     #[arg(long)]
     improved_spec: Option<PathBuf>,
@@ -92,7 +94,7 @@ fn main() -> std::process::ExitCode {
         };
         let spec =
             CampaignSpec::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let input = rbprops_cli::read_input_with(args.input.as_deref(), &args.uff.options())?;
         let mut rec = input.record;
         let (geometry, frf) = rec
             .require_geometry_and_frf()

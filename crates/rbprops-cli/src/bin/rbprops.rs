@@ -20,6 +20,16 @@ enum Command {
         input: Option<PathBuf>,
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// UFF input: list what the file holds (datasets, function types, nodes, units,
+        /// frequency axes) instead of converting it.
+        #[arg(long, requires = "input")]
+        list: bool,
+        #[command(flatten)]
+        uff: rbprops_cli::UffArgs,
+        /// UFF input: write a channel map template (one row per dataset 58, known DOFs
+        /// filled in) to this file instead of converting.
+        #[arg(long, requires = "input")]
+        channel_template: Option<PathBuf>,
     },
     /// Run every campaign spec (*.toml) or recording (*.mcap, CSV run directory) under DIR
     /// through modal-fit | ni-select | rb-solve with default options, in parallel, and write
@@ -65,8 +75,25 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rbprops", || match Args::parse().command {
-        Command::Convert { input, output } => {
-            let inp = rbprops_cli::read_input(input.as_deref())?;
+        Command::Convert {
+            input,
+            output,
+            list,
+            uff,
+            channel_template,
+        } => {
+            if list || channel_template.is_some() {
+                let path = input.as_deref().expect("clap requires the input");
+                let uff = rbprops_cli::parse_uff(path)?;
+                if let Some(t) = &channel_template {
+                    rbprops_cli::write_text(t, &rbprops_uff::channel_map_template(&uff))?;
+                }
+                if list {
+                    println!("{}", rbprops_uff::inventory(&uff));
+                }
+                return Ok(());
+            }
+            let inp = rbprops_cli::read_input_with(input.as_deref(), &uff.options())?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {
