@@ -7,7 +7,7 @@
 //! The same body with and without the window must give the same properties: exactly
 //! (to the fit's precision) without noise, and within the combined noise standard errors
 //! with 1 % noise. Without the correction the windowed data give the known bias (the
-//! mass several % low), so the test can fail.
+//! mass 0.2 % low here), so the test can fail.
 
 use rbprops_cli::stages;
 use rbprops_core::inertia::ProductsOfInertia;
