@@ -787,7 +787,59 @@ fn mass_line_estimate(
         )?;
         Ok(property_vector(&properties_about(&s.mass_matrix, &origin)))
     };
-    let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    let (mut std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    // Truncation bias of the rigid-body tail: the rigid modes' 1/ω^{2k} terms beyond the
+    // fitted ones (and the stiffness they stand for) bias `a0` most at the band's low end,
+    // where the band starts only `rigid_factor` × above the highest rigid mode. The same
+    // fit on the band starting 1.5× higher (or at the band's geometric middle when the band
+    // is shorter) has a smaller such bias (the tail falls as
+    // (f_r/f)^{2(R+1)}); the difference estimates it and joins the standard errors.
+    if band.automatic {
+        let hi_band = MassLineBand {
+            lo_hz: (band.lo_hz * 1.5).min((band.lo_hz * band.hi_hz).sqrt()),
+            ..band.clone()
+        };
+        let shifted = mass_line_values(
+            frf,
+            &hi_band,
+            opts.mass_line.rigid_terms,
+            opts.mass_line.flex_terms,
+        )
+        .ok()
+        .and_then(|v| {
+            mass_line(
+                frame,
+                &excitations,
+                &v.values,
+                &side.constraints,
+                side.nominal.as_ref(),
+            )
+            .ok()
+        });
+        if shifted.is_none() {
+            warnings.push(format!(
+                "mass-line truncation bias not estimated (no usable band from {:.4} Hz); the standard errors are noise only",
+                hi_band.lo_hz
+            ));
+        }
+        if let (Some(s2), Some(sd)) = (shifted, std.as_mut()) {
+            let a = property_vector(&properties_about(&sol.mass_matrix, &frame.origin));
+            let b = property_vector(&properties_about(&s2.mass_matrix, &frame.origin));
+            // Richardson: a bias ∝ f_lo^{−2(R+1)} (the first unfitted tail term) changes by
+            // the fraction 1 − (f_lo/f_lo')^{2(R+1)} between the two bands.
+            let p = 2.0 * (opts.mass_line.rigid_terms as f64 + 1.0);
+            let frac = 1.0 - (band.lo_hz / hi_band.lo_hz).powf(p);
+            for k in 0..N_PROPS {
+                sd[k] = sd[k].hypot((a[k] - b[k]) / frac);
+            }
+            warnings.push(format!(
+                "mass-line truncation bias estimated from a band starting at {:.4} Hz instead: m changes by {:.3e} kg, i.e. a bias of about {:.3e} kg at this band; added to the standard errors",
+                hi_band.lo_hz,
+                b[0] - a[0],
+                (a[0] - b[0]) / frac
+            ));
+        }
+    }
     // A mass line fitted on a band too short or too noisy gives numbers that look like an
     // estimate (even a negative mass); refuse them instead of reporting them.
     let m = sol.mass_matrix.mass();
