@@ -28,14 +28,48 @@ pub fn simulate(
     Ok((rec, sim))
 }
 
-/// `modal-fit` on a record: adds the `modal_fit` topic.
+/// `modal-fit` on a record: adds the `modal_fit` topic. When the recording's processing
+/// topic names an exponential window, the fit sees the prefiltered FRFs and its poles are
+/// corrected for the window (`rbprops_core::ExponentialWindow`; the record says so).
 pub fn modal_fit(
     rec: &mut RunRecord,
     opts: &rbprops_modal::FitOptions,
     input_sha256: &str,
 ) -> Result<rbprops_modal::ModalFitOutput> {
+    modal_fit_windowed(rec, opts, None, input_sha256)
+}
+
+/// [`modal_fit`] with an exponential window τ (s) that overrides the recording's; it is
+/// written into the record's processing topic, so later stages see the same window.
+pub fn modal_fit_windowed(
+    rec: &mut RunRecord,
+    opts: &rbprops_modal::FitOptions,
+    exp_window_s: Option<f64>,
+    input_sha256: &str,
+) -> Result<rbprops_modal::ModalFitOutput> {
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    let source = if exp_window_s.is_some() {
+        processing.exponential_window_s = exp_window_s;
+        rec.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
+        "--exp-window"
+    } else {
+        "recording"
+    };
+    let window = processing
+        .exponential_window_s
+        .map(rbprops_core::ExponentialWindow::new)
+        .transpose()
+        .context("exponential window")?;
     let (geometry, frf) = rec.require_geometry_and_frf()?;
-    let out = rbprops_modal::fit_campaign(&geometry, frf, opts)?;
+    let out = match window {
+        None => rbprops_modal::fit_campaign(&geometry, frf, opts)?,
+        Some(w) => {
+            let mut out = rbprops_modal::fit_campaign(&geometry, &w.prefilter(frf), opts)?;
+            w.correct_modal_fit(&mut out.record, source)?;
+            out
+        }
+    };
     rec.push_provenance(crate::provenance("modal-fit", input_sha256))?;
     rec.set(topics::MODAL_FIT, std::slice::from_ref(&out.record));
     Ok(out)

@@ -74,6 +74,34 @@ pub fn estimates(list: &[InertiaEstimate]) -> String {
             "  modes {:?} from {:?}; residual {:.3e}; physically consistent: {}",
             e.modes_used, e.excitations_used, e.residual, e.physically_consistent
         );
+        if let Some(c) = &e.rigid_body_check {
+            let _ = writeln!(
+                s,
+                "  rigid-body consistent: {} (χ²/dof {:.3e}, threshold {:.3} for noise alone, {} dof)",
+                c.rigid_body_consistent, c.statistic, c.threshold, c.dof
+            );
+        }
+        if let Some(y) = &e.systematic {
+            let iv = |v: [f64; 2], scale: f64, prec: usize| {
+                format!("[{:.*}, {:.*}]", prec, v[0] * scale, prec, v[1] * scale)
+            };
+            let _ = writeln!(s, "  95 % with systematic ({}):", y.method);
+            let _ = writeln!(
+                s,
+                "    mass {} kg   CoM [mm] x {} y {} z {}",
+                iv(y.mass_95_kg, 1.0, 5),
+                iv(y.com_95_m[0], 1e3, 3),
+                iv(y.com_95_m[1], 1e3, 3),
+                iv(y.com_95_m[2], 1e3, 3)
+            );
+            let _ = writeln!(
+                s,
+                "    Jxx {}  Jyy {}  Jzz {} kg m²",
+                iv(y.inertia_cm_95_kg_m2[0][0], 1.0, 6),
+                iv(y.inertia_cm_95_kg_m2[1][1], 1.0, 6),
+                iv(y.inertia_cm_95_kg_m2[2][2], 1.0, 6)
+            );
+        }
         for w in &e.warnings {
             let _ = writeln!(s, "  warning: {w}");
         }

@@ -19,6 +19,8 @@ pub enum CoreError {
     FrfShape(String),
     #[error("inertia: {0}")]
     Inertia(String),
+    #[error("processing: {0}")]
+    Processing(String),
     #[error("unknown {kind} '{value}' (expected one of: {expected})")]
     Unknown {
         kind: &'static str,

@@ -25,7 +25,7 @@ pub use geometry::{
     cross_matrix, rigid_transform, Channel, Excitation, Geometry, Point, SuspensionSetup,
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
-pub use modal::{rigid_body_modes, RigidMode};
+pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.

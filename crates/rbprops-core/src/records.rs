@@ -156,7 +156,36 @@ pub struct ModalFitRecord {
     pub residue_convention: String,
     pub excitations: Vec<ExcitationFitRecord>,
     pub modes: Vec<ModeEstimate>,
+    /// Present when the poles were corrected for an exponential window on the responses:
+    /// the frequencies and damping ratios are the physical ones, the window's damping
+    /// removed. Later stages must not correct again (and a resampling of the measured
+    /// FRFs must put the window back).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_correction: Option<WindowCorrectionRecord>,
 }
+
+/// The exponential-window correction `modal-fit` applied (see
+/// [`crate::modal::ExponentialWindow`]): every pole moved from `λ − 1/τ` back to `λ`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct WindowCorrectionRecord {
+    /// τ of `w(t) = e^{−t/τ}` (s).
+    pub time_constant_s: f64,
+    /// Where τ came from: `recording` (the processing topic) or `command line`.
+    pub source: String,
+}
+
+/// How the FRFs of a recording were processed (topic `/rbprops/processing`, one message).
+/// Stages read it; a command-line option may override it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+pub struct ProcessingRecord {
+    /// Time constant τ (s) of an exponential window `e^{−t/τ}` applied to the response
+    /// records (force window, if any, short against τ). Absent: no window.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exponential_window_s: Option<f64>,
+}
+
+/// Topic name of [`ProcessingRecord`].
+pub const PROCESSING_TOPIC: &str = "/rbprops/processing";
 
 /// A mode chosen for the inertia estimate: which excitation's shape is used.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -228,6 +257,89 @@ pub struct InertiaEstimate {
     pub errors: Option<ErrorsRecord>,
     pub physically_consistent: bool,
     pub warnings: Vec<String>,
+    /// Whether the modes the estimate used are rigid-body consistent with the geometry
+    /// (sensor rows and force columns) within their noise; see `rigid_body_check`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rigid_body_consistent: Option<bool>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rigid_body_check: Option<RigidBodyCheckRecord>,
+    /// Systematic-error interval: leave-one-sensor-out and leave-one-excitation-out
+    /// jackknife, combined with the noise standard errors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub systematic: Option<SystematicIntervalRecord>,
+}
+
+/// One channel, sensor or excitation of the rigid-body consistency check.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ConsistencyItemRecord {
+    pub id: String,
+    /// Drop of the noise-weighted residual χ² when this item is left out.
+    pub chi2_drop: f64,
+    /// Degrees of freedom of that drop.
+    pub dof: usize,
+    /// Leaving it out makes the rest consistent (it explains the inconsistency).
+    pub suspect: bool,
+}
+
+/// The rigid-body consistency of the identified modes with the geometry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct RigidBodyCheckRecord {
+    pub rigid_body_consistent: bool,
+    /// What `statistic` is.
+    pub statistic_definition: String,
+    /// Residual χ² per degree of freedom, shapes and participations together.
+    pub statistic: f64,
+    /// The statistic's upper limit for noise alone.
+    pub threshold: f64,
+    pub dof: usize,
+    /// χ²/dof of the rigid-body transform residuals (paper Eq. 5), per channel noise.
+    pub shape_statistic: f64,
+    pub shape_dof: usize,
+    /// χ²/dof of the modal participations across excitations (force geometry).
+    pub participation_statistic: f64,
+    pub participation_dof: usize,
+    pub channels: Vec<ConsistencyItemRecord>,
+    pub sensors: Vec<ConsistencyItemRecord>,
+    pub excitations: Vec<ConsistencyItemRecord>,
+}
+
+/// Systematic-error standard errors (jackknife) and the 95 % interval that combines them
+/// with the noise standard errors: `estimate ± 1.96 √(σ²_noise + σ²_systematic)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct SystematicIntervalRecord {
+    /// How the units were left out (`sensor`, `channel`, `excitation` counts).
+    pub method: String,
+    pub mass_std_kg: f64,
+    pub com_std_m: [f64; 3],
+    pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
+    pub mass_95_kg: [f64; 2],
+    pub com_95_m: [[f64; 2]; 3],
+    pub inertia_cm_95_kg_m2: [[[f64; 2]; 3]; 3],
+}
+
+impl InertiaEstimate {
+    /// Recomputes the systematic 95 % interval from the current noise standard errors
+    /// (after a bootstrap replaced them).
+    pub fn update_systematic_interval(&mut self) {
+        let Some(s) = self.systematic.as_mut() else {
+            return;
+        };
+        let iv = |v: f64, a: f64, b: f64| {
+            let h = 1.96 * (a * a + b * b).sqrt();
+            [v - h, v + h]
+        };
+        s.mass_95_kg = iv(self.mass_kg, self.mass_std_kg, s.mass_std_kg);
+        s.com_95_m = std::array::from_fn(|i| iv(self.com_m[i], self.com_std_m[i], s.com_std_m[i]));
+        s.inertia_cm_95_kg_m2 = std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                iv(
+                    self.inertia_cm_kg_m2[r][c],
+                    self.inertia_cm_std_kg_m2[r][c],
+                    s.inertia_cm_std_kg_m2[r][c],
+                )
+            })
+        });
+    }
 }
 
 /// The paper's relative error measures.

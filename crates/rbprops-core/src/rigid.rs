@@ -48,6 +48,11 @@ impl RigidBasis {
         self.rows.len()
     }
 
+    /// The channel rows `sᵢᵀT(pᵢ)`.
+    pub fn rows(&self) -> &[RowVector6<f64>] {
+        &self.rows
+    }
+
     /// `q = (SᵀS)⁻¹ Sᵀ a` (paper Eq. 5) and the per-channel residual `a − S q`.
     pub fn fit(&self, a: &[f64]) -> Result<RigidFit, CoreError> {
         if a.len() != self.rows.len() {

@@ -124,6 +124,7 @@ fn record() -> RunRecord {
                     ..mode
                 },
             ],
+            window_correction: None,
         }],
     );
     rec

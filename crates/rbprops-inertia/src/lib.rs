@@ -23,6 +23,7 @@ pub mod lsq;
 pub mod mass_line;
 pub mod modal_estimators;
 pub mod params;
+pub mod rigid_check;
 pub mod shapes;
 pub mod solve;
 pub mod uncertainty;

@@ -6,12 +6,14 @@ use crate::lsq::LinearConstraint;
 use crate::mass_line::{choose_band, mass_line, mass_line_values, MassLineBand, MassLineOptions};
 use crate::modal_estimators::{bretl_conti, describe_null_space, mount_stiffness, toivola_nuutila};
 use crate::params::{params_of, N_PARAMS};
+use crate::rigid_check::{self, matched_observations, rigid_body_check, Observation};
 use crate::shapes::{
     resolve_origin, rigid_shapes, OriginChoice, RigidFrame, RigidShape, ShapeDiagnostics,
 };
 use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
 use rbprops_core::records::{
-    ErrorsRecord, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord, SelectionRecord,
+    ErrorsRecord, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord,
+    RigidBodyCheckRecord, SelectedMode, SelectionRecord, SystematicIntervalRecord,
 };
 use rbprops_core::{c64, FrfSet, Geometry, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6};
 use serde::{Deserialize, Serialize};
@@ -72,6 +74,14 @@ pub struct SolveOptions {
     pub monte_carlo_samples: usize,
     /// Seed of the Monte Carlo draws (default 0).
     pub seed: u64,
+    /// Rigid-body consistency check and systematic (jackknife) interval of the modal
+    /// estimates (default true; resampling replicates switch it off).
+    #[serde(default = "yes")]
+    pub rigid_body_check: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 impl Default for SolveOptions {
@@ -88,6 +98,7 @@ impl Default for SolveOptions {
             side_information: SideInformation::default(),
             monte_carlo_samples: 0,
             seed: 0,
+            rigid_body_check: true,
         }
     }
 }
@@ -171,12 +182,37 @@ pub fn solve(
         }
         shape_warnings(&shapes, &mut warnings);
         all_shapes.extend(shapes.iter().map(|s| s.diagnostics(&frame)));
+        let used: Vec<SelectedMode> = shapes.iter().map(|s| s.selected.clone()).collect();
+        let (observations, check) = if opts.rigid_body_check {
+            let obs = matched_observations(&frame, modal, &used);
+            let check = rigid_body_check(&frame, geometry, &obs);
+            if let Some(w) = check.as_ref().and_then(|c| rigid_check::warning(setup, c)) {
+                warnings.push(w);
+            }
+            (obs, check)
+        } else {
+            (Vec::new(), None)
+        };
         for est in [Estimator::BretlConti, Estimator::ToivolaNuutila] {
             if !opts.estimators.contains(&est) {
                 continue;
             }
             match modal_estimate(est, &frame, setup, &shapes, &side, propagation) {
-                Ok(parts) => estimates.extend(parts.finish(&origin, opts.reference.as_ref())?),
+                Ok(mut parts) => {
+                    if opts.rigid_body_check {
+                        parts.check = check.clone();
+                        parts.systematic = systematic_std(
+                            est,
+                            geometry,
+                            &frame,
+                            modal,
+                            &used,
+                            &observations,
+                            &side,
+                        );
+                    }
+                    estimates.extend(parts.finish(&origin, opts.reference.as_ref())?)
+                }
                 Err(e) => failures.push(format!("set-up '{setup}': {e}")),
             }
         }
@@ -335,6 +371,9 @@ struct EstimateParts {
     modes_used: Vec<usize>,
     excitations_used: Vec<String>,
     warnings: Vec<String>,
+    check: Option<RigidBodyCheckRecord>,
+    /// Jackknife systematic standard errors and how they were obtained.
+    systematic: Option<([f64; N_PROPS], String)>,
 }
 
 /// Properties in the geometry frame from a mass matrix about `origin`.
@@ -412,7 +451,7 @@ impl EstimateParts {
                 sum: e.sum,
             }
         });
-        InertiaEstimate {
+        let mut est = InertiaEstimate {
             method: self.method.to_string(),
             setup: self.setup.clone(),
             origin_m: (*origin).into(),
@@ -444,7 +483,27 @@ impl EstimateParts {
             errors,
             physically_consistent: true,
             warnings,
-        }
+            rigid_body_consistent: self.check.as_ref().map(|c| c.rigid_body_consistent),
+            rigid_body_check: self.check.clone(),
+            systematic: self
+                .systematic
+                .as_ref()
+                .map(|(s, how)| SystematicIntervalRecord {
+                    method: how.clone(),
+                    mass_std_kg: s[0],
+                    com_std_m: [s[1], s[2], s[3]],
+                    inertia_cm_std_kg_m2: [
+                        [s[4], s[7], s[8]],
+                        [s[7], s[5], s[9]],
+                        [s[8], s[9], s[6]],
+                    ],
+                    mass_95_kg: [0.0; 2],
+                    com_95_m: [[0.0; 2]; 3],
+                    inertia_cm_95_kg_m2: [[[0.0; 2]; 3]; 3],
+                }),
+        };
+        est.update_systematic_interval();
+        est
     }
 }
 
@@ -620,6 +679,8 @@ fn modal_estimate(
         modes_used: shapes.iter().map(|s| s.selected.mode).collect(),
         excitations_used: distinct(shapes.iter().map(|s| s.selected.excitation.clone())),
         warnings,
+        check: None,
+        systematic: None,
     })
 }
 
@@ -726,7 +787,59 @@ fn mass_line_estimate(
         )?;
         Ok(property_vector(&properties_about(&s.mass_matrix, &origin)))
     };
-    let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    let (mut std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
+    // Truncation bias of the rigid-body tail: the rigid modes' 1/ω^{2k} terms beyond the
+    // fitted ones (and the stiffness they stand for) bias `a0` most at the band's low end,
+    // where the band starts only `rigid_factor` × above the highest rigid mode. The same
+    // fit on the band starting 1.5× higher (or at the band's geometric middle when the band
+    // is shorter) has a smaller such bias (the tail falls as
+    // (f_r/f)^{2(R+1)}); the difference estimates it and joins the standard errors.
+    if band.automatic {
+        let hi_band = MassLineBand {
+            lo_hz: (band.lo_hz * 1.5).min((band.lo_hz * band.hi_hz).sqrt()),
+            ..band.clone()
+        };
+        let shifted = mass_line_values(
+            frf,
+            &hi_band,
+            opts.mass_line.rigid_terms,
+            opts.mass_line.flex_terms,
+        )
+        .ok()
+        .and_then(|v| {
+            mass_line(
+                frame,
+                &excitations,
+                &v.values,
+                &side.constraints,
+                side.nominal.as_ref(),
+            )
+            .ok()
+        });
+        if shifted.is_none() {
+            warnings.push(format!(
+                "mass-line truncation bias not estimated (no usable band from {:.4} Hz); the standard errors are noise only",
+                hi_band.lo_hz
+            ));
+        }
+        if let (Some(s2), Some(sd)) = (shifted, std.as_mut()) {
+            let a = property_vector(&properties_about(&sol.mass_matrix, &frame.origin));
+            let b = property_vector(&properties_about(&s2.mass_matrix, &frame.origin));
+            // Richardson: a bias ∝ f_lo^{−2(R+1)} (the first unfitted tail term) changes by
+            // the fraction 1 − (f_lo/f_lo')^{2(R+1)} between the two bands.
+            let p = 2.0 * (opts.mass_line.rigid_terms as f64 + 1.0);
+            let frac = 1.0 - (band.lo_hz / hi_band.lo_hz).powf(p);
+            for k in 0..N_PROPS {
+                sd[k] = sd[k].hypot((a[k] - b[k]) / frac);
+            }
+            warnings.push(format!(
+                "mass-line truncation bias estimated from a band starting at {:.4} Hz instead: m changes by {:.3e} kg, i.e. a bias of about {:.3e} kg at this band; added to the standard errors",
+                hi_band.lo_hz,
+                b[0] - a[0],
+                (a[0] - b[0]) / frac
+            ));
+        }
+    }
     // A mass line fitted on a band too short or too noisy gives numbers that look like an
     // estimate (even a negative mass); refuse them instead of reporting them.
     let m = sol.mass_matrix.mass();
@@ -754,7 +867,174 @@ fn mass_line_estimate(
             modes_used: Vec::new(),
             excitations_used: frame.excitation_ids.clone(),
             warnings,
+            check: None,
+            systematic: None,
         },
         band,
     ))
+}
+
+/// Property vector of one modal estimator on a set of shapes, no uncertainty.
+fn point_estimate(
+    est: Estimator,
+    origin: &Vec3,
+    shapes: &[RigidShape],
+    side: &SideConstraints,
+) -> Result<[f64; N_PROPS], InertiaError> {
+    let phi0: Vec<Vec6> = shapes.iter().map(|s| s.core.phi0).collect();
+    let m0 = match est {
+        Estimator::BretlConti => bretl_conti(&phi0)?.mass_matrix,
+        _ => toivola_nuutila(&phi0, &side.constraints, side.nominal.as_ref())?.mass_matrix,
+    };
+    let v = property_vector(&properties_about(&m0, origin));
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(InertiaError::NonFinite {
+            what: "jackknife estimate".into(),
+        })
+    }
+}
+
+/// Delete-one jackknife variance `(n−1)/n Σ(θ_(i) − θ̄)²` of each property.
+fn jackknife_variance(reps: &[[f64; N_PROPS]]) -> [f64; N_PROPS] {
+    let n = reps.len() as f64;
+    std::array::from_fn(|k| {
+        if reps.len() < 2 {
+            return 0.0;
+        }
+        let mean = reps.iter().map(|r| r[k]).sum::<f64>() / n;
+        (n - 1.0) / n * reps.iter().map(|r| (r[k] - mean).powi(2)).sum::<f64>()
+    })
+}
+
+/// The systematic standard errors of one modal estimator (see [`crate::rigid_check`]):
+/// leave-one-sensor-out (leave-one-channel-out when the other sensors cannot see all six
+/// rigid motions) plus leave-one-excitation-out jackknife variances. `None` when no unit
+/// could be left out.
+#[allow(clippy::too_many_arguments)]
+fn systematic_std(
+    est: Estimator,
+    geometry: &Geometry,
+    frame: &RigidFrame,
+    modal: &ModalFitRecord,
+    used: &[SelectedMode],
+    observations: &[Vec<Observation>],
+    side: &SideConstraints,
+) -> Option<([f64; N_PROPS], String)> {
+    let origin = frame.origin;
+    // The selected estimates only, so that leaving channels out copies little.
+    let picked = ModalFitRecord {
+        modes: used
+            .iter()
+            .filter_map(|s| {
+                modal
+                    .modes
+                    .iter()
+                    .find(|m| m.excitation == s.excitation && m.mode == s.excitation_mode)
+                    .cloned()
+            })
+            .collect(),
+        ..Default::default()
+    };
+    let without_channels = |drop: &[usize]| -> Option<[f64; N_PROPS]> {
+        let mut g = geometry.clone();
+        g.channels = g
+            .channels
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !drop.contains(i))
+            .map(|(_, c)| c.clone())
+            .collect();
+        let f = RigidFrame::new(&g, origin).ok()?;
+        let mut m = picked.clone();
+        for e in &mut m.modes {
+            e.residues = keep_entries(&e.residues, drop);
+            e.residue_std = keep_entries(&e.residue_std, drop);
+        }
+        let (shapes, errors) = rigid_shapes(&f, &m, used);
+        if !errors.is_empty() {
+            return None;
+        }
+        point_estimate(est, &origin, &shapes, side).ok()
+    };
+    let sensors = rigid_check::sensor_groups(geometry);
+    let mut unit_reps: Vec<[f64; N_PROPS]> = sensors
+        .iter()
+        .filter_map(|(_, g)| without_channels(g))
+        .collect();
+    let mut how = format!(
+        "jackknife: {} of {} sensors left out",
+        unit_reps.len(),
+        sensors.len()
+    );
+    if unit_reps.len() < sensors.len() {
+        let n = geometry.channels.len();
+        unit_reps = (0..n).filter_map(|i| without_channels(&[i])).collect();
+        how = format!(
+            "jackknife: {} of {n} channels left out (without a whole sensor the others cannot see all six rigid motions)",
+            unit_reps.len()
+        );
+    }
+    // Leave one excitation out: each of its modes re-normalised by the other excitation
+    // that sees it most strongly, or dropped when none does.
+    let mut exc_used: Vec<usize> = Vec::new();
+    for s in used {
+        if let Some(k) = frame.excitation_index(&s.excitation) {
+            if !exc_used.contains(&k) {
+                exc_used.push(k);
+            }
+        }
+    }
+    let mut exc_reps = Vec::new();
+    for &k in &exc_used {
+        let mut sel = Vec::new();
+        for (s, obs) in used.iter().zip(observations) {
+            if frame.excitation_index(&s.excitation) != Some(k) {
+                sel.push(s.clone());
+                continue;
+            }
+            let alt = obs
+                .iter()
+                .filter(|o| o.excitation != k)
+                .filter_map(|o| {
+                    frame
+                        .shape(o.excitation, &o.estimate.residues)
+                        .ok()
+                        .map(|c| (o, c.force_projection))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((o, _)) = alt {
+                sel.push(SelectedMode {
+                    excitation: o.estimate.excitation.clone(),
+                    excitation_mode: o.estimate.mode,
+                    ..s.clone()
+                });
+            }
+        }
+        let (shapes, _) = rigid_shapes(frame, modal, &sel);
+        if let Ok(v) = point_estimate(est, &origin, &shapes, side) {
+            exc_reps.push(v);
+        }
+    }
+    if unit_reps.len() < 2 && exc_reps.len() < 2 {
+        return None;
+    }
+    how.push_str(&format!(
+        "; {} of {} excitations left out",
+        exc_reps.len(),
+        exc_used.len()
+    ));
+    let a = jackknife_variance(&unit_reps);
+    let b = jackknife_variance(&exc_reps);
+    Some((std::array::from_fn(|k| (a[k] + b[k]).sqrt()), how))
+}
+
+/// The entries of `v` whose index is not in `drop`.
+fn keep_entries<T: Copy>(v: &[T], drop: &[usize]) -> Vec<T> {
+    v.iter()
+        .enumerate()
+        .filter(|(i, _)| !drop.contains(i))
+        .map(|(_, x)| *x)
+        .collect()
 }

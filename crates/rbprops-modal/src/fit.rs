@@ -1036,6 +1036,7 @@ pub fn fit_campaign(
         residue_convention: RESIDUE_CONVENTION.into(),
         excitations: Vec::new(),
         modes: Vec::new(),
+        window_correction: None,
     };
     let mut diagnostics = Vec::new();
     for (e, r) in results.into_iter().enumerate() {

@@ -167,6 +167,19 @@ pub fn bootstrap(
             "no Bretl–Conti or Toivola–Nuutila estimate to bootstrap".into(),
         ]));
     }
+    // A record whose poles were corrected for an exponential window describes the physical
+    // modes, not the measured (windowed) FRFs: resample the prefiltered windowed data with
+    // the windowed poles, and correct each replicate's poles as modal-fit did.
+    let windowed = rbprops_core::ExponentialWindow::windowed_modal_fit(modal);
+    let prefiltered;
+    let (frf, modal) = match &windowed {
+        None => (frf, modal),
+        Some((w, m)) => {
+            prefiltered = w.prefilter(frf);
+            (&prefiltered, m)
+        }
+    };
+    let window_source = modal_source(&windowed);
     let model = FittedModel::new(
         geometry,
         frf,
@@ -179,6 +192,7 @@ pub fn bootstrap(
     ropts.estimators.retain(|e| *e != Estimator::MassLine);
     ropts.reference = None;
     ropts.monte_carlo_samples = 0;
+    ropts.rigid_body_check = false;
     let required: Vec<(String, usize)> = selection
         .selected
         .iter()
@@ -233,6 +247,10 @@ pub fn bootstrap(
                     s.frequency_hz = m.frequency_hz;
                 }
             }
+        }
+        if let Some((w, _)) = &windowed {
+            w.correct_modal_fit(&mut modal_b, &window_source)
+                .map_err(|e| e.to_string())?;
         }
         let out =
             solve(geometry, &modal_b, &selection_b, None, &ropts).map_err(|e| e.to_string())?;
@@ -344,6 +362,14 @@ pub fn bootstrap(
     })
 }
 
+/// The source named in a replicate's window correction (the original record's).
+fn modal_source(w: &Option<(rbprops_core::ExponentialWindow, ModalFitRecord)>) -> String {
+    match w {
+        Some(_) => "bootstrap replicate".into(),
+        None => String::new(),
+    }
+}
+
 /// Linear-interpolation quantile (type 7) of sorted values.
 fn quantile(sorted: &[f64], p: f64) -> f64 {
     let h = (sorted.len() - 1) as f64 * p;
@@ -409,6 +435,7 @@ pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize
         e.products_of_inertia_std_kg_m2.xz = s[8];
         e.products_of_inertia_std_kg_m2.yz = s[9];
         e.uncertainty_method = "bootstrap".into();
+        e.update_systematic_interval();
         if b.failed > 0 {
             e.warnings.push(format!(
                 "bootstrap: {} of {} replicates failed; standard errors from the other {}",

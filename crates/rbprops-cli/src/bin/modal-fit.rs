@@ -50,6 +50,10 @@ struct Args {
     /// Leave out the lower/upper residual terms of the residue fit.
     #[arg(long)]
     no_residuals: bool,
+    /// Time constant τ (s) of an exponential window e^{−t/τ} on the responses: the poles are
+    /// corrected for its damping (overrides the recording's processing topic).
+    #[arg(long, value_name = "TAU")]
+    exp_window: Option<f64>,
     /// Write stabilisation diagrams and measured-vs-synthesised FRF overlays here.
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -81,7 +85,12 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }
-        let out = rbprops_cli::stages::modal_fit(&mut rec, &opts, &input.sha256)?;
+        let out = rbprops_cli::stages::modal_fit_windowed(
+            &mut rec,
+            &opts,
+            args.exp_window,
+            &input.sha256,
+        )?;
         for e in &out.record.excitations {
             for w in &e.warnings {
                 eprintln!("modal-fit: warning: excitation {}: {w}", e.excitation);
