@@ -29,6 +29,8 @@ enum PolesArg {
 struct Args {
     /// Input run (MCAP, CSV directory); default MCAP on stdin.
     input: Option<PathBuf>,
+    #[command(flatten)]
+    checks: rbprops_cli::InputChecks,
     /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -56,7 +58,8 @@ struct Args {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let input =
+            rbprops_cli::read_input_checked("modal-fit", args.input.as_deref(), &args.checks)?;
         let mut rec = input.record;
         let mut opts = FitOptions {
             method: match args.method {

@@ -20,6 +20,8 @@ enum Command {
         input: Option<PathBuf>,
         #[arg(short, long)]
         output: Option<PathBuf>,
+        #[command(flatten)]
+        checks: rbprops_cli::InputChecks,
     },
     /// Run every campaign spec (*.toml) or recording (*.mcap, CSV run directory) under DIR
     /// through modal-fit | ni-select | rb-solve with default options, in parallel, and write
@@ -65,8 +67,13 @@ enum Command {
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rbprops", || match Args::parse().command {
-        Command::Convert { input, output } => {
-            let inp = rbprops_cli::read_input(input.as_deref())?;
+        Command::Convert {
+            input,
+            output,
+            checks,
+        } => {
+            let inp =
+                rbprops_cli::read_input_checked("rbprops convert", input.as_deref(), &checks)?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {
