@@ -691,3 +691,45 @@ fn acceptance_one_bit_flips_through_the_pipeline() {
     );
     assert!(bad.is_empty(), "{}", bad.join("\n"));
 }
+
+/// On noise-free data modal-fit prints no absurd statistic: the model-order tests' χ²
+/// multiples are finite and plausible, and a rounding-level residual is said to be one.
+/// (The 300-line noise-free Test Case II used to print `cost −1.8e28σ²`.)
+#[test]
+fn exact_data_prints_no_absurd_statistic() {
+    let dir = tempfile::tempdir().unwrap();
+    let spec = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/specs/test-case-2.toml"),
+    )
+    .unwrap();
+    assert!(spec.contains("no noise") && spec.contains("lines = 1601"));
+    std::fs::write(
+        dir.path().join("exact.toml"),
+        spec.replace("lines = 1601", "lines = 300"),
+    )
+    .unwrap();
+    ok(Command::new(env!("CARGO_BIN_EXE_frf-sim"))
+        .current_dir(dir.path())
+        .args(["exact.toml", "-o", "exact.mcap"]));
+    let out = Command::new(env!("CARGO_BIN_EXE_modal-fit"))
+        .current_dir(dir.path())
+        .args(["exact.mcap", "-o", "fit.mcap"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    for bad in ["NaN", "inf"] {
+        assert!(!stderr.contains(bad), "{stderr}");
+    }
+    for (i, _) in stderr.match_indices("σ²") {
+        let before = &stderr[..i];
+        let start = before
+            .rfind(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .map_or(0, |k| k + 1);
+        if let Ok(v) = before[start..].parse::<f64>() {
+            // A χ² of a few parameters beyond 1e9 is rounding divided by rounding.
+            assert!(v.is_finite() && v < 1e9, "absurd statistic {v}: {stderr}");
+        }
+    }
+    assert!(stderr.contains("rounding level"), "{stderr}");
+}
