@@ -105,30 +105,65 @@ enum Feed {
 struct Stage {
     label: &'static str,
     exe: &'static str,
-    args: Vec<&'static str>,
+    args: Vec<String>,
+    /// The option naming the input (`None`: the first positional argument).
+    input_flag: Option<&'static str>,
+    /// Feeds and formats it is tried with, and cases per pairing.
+    pairings: &'static [(&'static str, Feed)],
+    cases: usize,
 }
 
-fn stages() -> Vec<Stage> {
+const ALL_PAIRINGS: &[(&str, Feed)] = &[
+    ("mcap", Feed::File),
+    ("mcap", Feed::Stdin),
+    ("csv", Feed::File),
+    ("uff", Feed::File),
+];
+
+/// The stages that read a run. `spec` is the campaign spec model-check compares with.
+fn stages(spec: &Path) -> Vec<Stage> {
+    let s = |v: &[&str]| v.iter().map(|a| a.to_string()).collect::<Vec<_>>();
     vec![
         Stage {
             label: "modal-fit",
             exe: env!("CARGO_BIN_EXE_modal-fit"),
             args: vec![],
+            input_flag: None,
+            pairings: ALL_PAIRINGS,
+            cases: 40,
         },
         Stage {
             label: "ni-select",
             exe: env!("CARGO_BIN_EXE_ni-select"),
             args: vec![],
+            input_flag: None,
+            pairings: ALL_PAIRINGS,
+            cases: 40,
         },
         Stage {
             label: "rb-solve",
             exe: env!("CARGO_BIN_EXE_rb-solve"),
-            args: vec!["--uncertainty", "linearised", "--format", "json"],
+            args: s(&["--uncertainty", "linearised", "--format", "json"]),
+            input_flag: None,
+            pairings: ALL_PAIRINGS,
+            cases: 40,
         },
         Stage {
             label: "rbprops convert",
             exe: env!("CARGO_BIN_EXE_rbprops"),
-            args: vec!["convert"],
+            args: s(&["convert"]),
+            input_flag: None,
+            pairings: ALL_PAIRINGS,
+            cases: 40,
+        },
+        // model-check takes seconds per clean run: fewer cases, from files only.
+        Stage {
+            label: "model-check",
+            exe: env!("CARGO_BIN_EXE_model-check"),
+            args: vec![spec.display().to_string()],
+            input_flag: Some("-i"),
+            pairings: &[("mcap", Feed::File), ("csv", Feed::File)],
+            cases: 8,
         },
     ]
 }
@@ -156,7 +191,9 @@ fn run(stage: &Stage, case_dir: &Path, input: &str, feed: Feed, extra: &[&str]) 
     let stderr_path = case_dir.join("stderr");
     match feed {
         Feed::File => {
-            cmd.args([input, "-o", "out/out.mcap"]).stdin(Stdio::null());
+            cmd.args(stage.input_flag)
+                .args([input, "-o", "out/out.mcap"])
+                .stdin(Stdio::null());
         }
         Feed::Stdin => {
             cmd.stdin(std::fs::File::open(case_dir.join(input)).unwrap());
@@ -351,7 +388,7 @@ impl Inputs {
     /// The input of `stage` in `format` (`mcap`, `csv`, `uff`), if that pairing exists.
     fn input(&self, stage: &str, format: &str) -> Option<PathBuf> {
         let run = match stage {
-            "modal-fit" | "rbprops convert" => "sim",
+            "modal-fit" | "rbprops convert" | "model-check" => "sim",
             "ni-select" => "fit",
             _ => "sel",
         };
@@ -402,17 +439,12 @@ fn target_len(input: &Path, pick: usize) -> usize {
 
 /// Runs `n` seeded mutations of every (stage, format, feed) pairing, on two threads.
 /// Returns (cases, caught, unchanged); panics listing every failure.
-fn corpus(inputs: &Inputs, n_per_pairing: usize, seed: u64) -> (usize, usize, usize) {
+fn corpus(inputs: &Inputs, seed: u64) -> (usize, usize, usize) {
     let root = tempfile::tempdir().unwrap();
     let mut jobs = Vec::new();
     let mut rng = Rng(seed);
-    for stage in stages() {
-        for (format, feed) in [
-            ("mcap", Feed::File),
-            ("mcap", Feed::Stdin),
-            ("csv", Feed::File),
-            ("uff", Feed::File),
-        ] {
+    for stage in stages(&inputs.dir.path().join("spec.toml")) {
+        for &(format, feed) in stage.pairings {
             let Some(input) = inputs.input(stage.label, format) else {
                 continue;
             };
@@ -431,7 +463,7 @@ fn corpus(inputs: &Inputs, n_per_pairing: usize, seed: u64) -> (usize, usize, us
                 clean.stderr
             );
             let clean = std::sync::Arc::new(clean);
-            for k in 0..n_per_pairing {
+            for k in 0..stage.cases {
                 let pick = rng.below(1 << 20);
                 let len = target_len(&input, pick);
                 let m = Mutation::draw(k, len, &mut rng);
@@ -490,7 +522,7 @@ fn corpus(inputs: &Inputs, n_per_pairing: usize, seed: u64) -> (usize, usize, us
 #[test]
 fn every_corrupted_input_is_caught_or_changes_nothing() {
     let inputs = Inputs::make(100);
-    let (n, caught, unchanged) = corpus(&inputs, 40, 0x5EED_2024);
+    let (n, caught, unchanged) = corpus(&inputs, 0x5EED_2024);
     eprintln!("mutation corpus: {n} cases, {caught} caught, {unchanged} accepted unchanged");
     assert!(n >= 500, "corpus too small: {n}");
     // The corpus must exercise both outcomes, or it tests less than it claims.
@@ -514,7 +546,7 @@ fn edited_csv_is_refused_unless_ignore_digest() {
     let mut edited = line.clone();
     edited.replace_range(pos..pos + 1, "0");
     std::fs::write(&frf, text.replacen(&line, &edited, 1)).unwrap();
-    let stage = &stages()[2];
+    let stage = &stages(Path::new("unused"))[2];
     let o = run(stage, case.path(), "sel", Feed::File, &[]);
     assert_eq!(o.code, Some(1), "{}", o.stderr);
     assert!(
@@ -541,7 +573,7 @@ fn mcap_without_crcs_is_accepted_with_a_note() {
     let bytes = write_without_crcs(&rec);
     let case = tempfile::tempdir().unwrap();
     std::fs::write(case.path().join("nocrc.mcap"), &bytes).unwrap();
-    let stage = &stages()[2];
+    let stage = &stages(Path::new("unused"))[2];
     let o = run(stage, case.path(), "nocrc.mcap", Feed::File, &["-v"]);
     assert_eq!(o.code, Some(0), "{}", o.stderr);
     assert!(
@@ -581,15 +613,17 @@ fn write_without_crcs(rec: &RunRecord) -> Vec<u8> {
 fn crc_errors_name_file_offset_and_topic() {
     let inputs = Inputs::make(100);
     let sel = std::fs::read(inputs.input("rb-solve", "mcap").unwrap()).unwrap();
-    // The first chunk record (opcode 0x06) after the magic and header.
+    // The largest chunk record (opcode 0x06): the FRFs (a chunk holds one topic).
     let mut pos = 8;
-    let chunk = loop {
+    let mut chunk = (0, 0);
+    while sel[pos] != 0x02 {
         let len = u64::from_le_bytes(sel[pos + 1..pos + 9].try_into().unwrap()) as usize;
-        if sel[pos] == 0x06 {
-            break pos;
+        if sel[pos] == 0x06 && len > chunk.1 {
+            chunk = (pos, len);
         }
         pos += 9 + len;
-    };
+    }
+    let chunk = chunk.0;
     // A bit in the chunk's compressed records (past its 9-byte record header and the
     // 40-byte chunk header with the 4-byte "zstd" name) corrupts the records;
     let mut bad = sel.clone();
@@ -598,7 +632,7 @@ fn crc_errors_name_file_offset_and_topic() {
     let err = mcap_file::read(&bad, "sel.mcap").unwrap_err().to_string();
     assert!(err.starts_with("sel.mcap: "), "{err}");
     assert!(err.contains(&format!("chunk at byte {chunk}")), "{err}");
-    assert!(err.contains("topic /rbprops/"), "{err}");
+    assert!(err.contains("(topic /rbprops/frf)"), "{err}");
     // a bit in the chunk's start time (a header field outside the chunk CRC) is caught by
     // the data-section CRC.
     let mut bad = sel.clone();

@@ -57,7 +57,12 @@ impl Out {
         for m in &t.messages {
             self.message(id, &serde_json::to_vec(m).expect("json serialises"))?;
         }
-        Ok(())
+        self.end_topic()
+    }
+    /// Closes the chunk after each topic, so that a chunk holds one topic and a chunk's
+    /// CRC error names the topic that was corrupted.
+    fn end_topic(&mut self) -> Result<(), FormatError> {
+        self.w.flush().map_err(mcap_err)
     }
     fn typed<T: serde::Serialize + schemars::JsonSchema>(
         &mut self,
@@ -70,7 +75,8 @@ impl Out {
     }
 }
 
-/// Serialises a run to MCAP bytes (zstd chunks, single-threaded so output is reproducible).
+/// Serialises a run to MCAP bytes (zstd chunks, one or more per topic, compressed
+/// single-threaded so output is reproducible).
 ///
 /// Every chunk carries the CRC-32 of its uncompressed records, the `DataEnd` record the
 /// CRC-32 of the whole data section (record headers, chunk headers and message indexes
@@ -130,6 +136,7 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
         for m in &r.messages {
             out.message(id, m)?;
         }
+        out.end_topic()?;
     }
     out.w.finish().map_err(mcap_err)?;
     Ok(out.w.into_inner().into_inner())
@@ -377,7 +384,12 @@ impl Layout {
                         r.offset
                     )
                 } else {
-                    format!("chunk at byte {} (topic {})", r.offset, topics.join(", "))
+                    let s = if topics.len() == 1 { "" } else { "s" };
+                    format!(
+                        "chunk at byte {} (topic{s} {})",
+                        r.offset,
+                        topics.join(", ")
+                    )
                 }
             }
             op::DATA_END => format!(

@@ -134,15 +134,14 @@ fn test_variance(cost: f64, dof: f64) -> (f64, bool) {
     }
 }
 
-/// A cost change in the units of the model-order test, for warnings: `cost lowered by
-/// 12.3σ²`; when the residual is at the rounding level, that statement instead of a σ²
-/// multiple (which would be a ratio of rounding errors). `change` is the change in words
-/// (`cost lowered`), `by` what precedes the multiple (`by`, `by only`).
-fn in_sigma2(change: &str, by: &str, gain: f64, exact: bool) -> String {
+/// A cost change in the units of the model-order test, for warnings: `noisy` (a σ²
+/// multiple), or, when the residual is at the rounding level, `exact`, a statement of that
+/// instead of a σ² multiple (which would be a ratio of rounding errors).
+fn in_sigma2(noisy: impl FnOnce() -> String, exact_text: &str, exact: bool) -> String {
     if exact {
-        format!("{change}; the residual is at the rounding level (noise-free data), so there is no noise σ² to measure it in")
+        format!("{exact_text} (the residual is at the rounding level: noise-free data, no noise σ² to measure it in)")
     } else {
-        format!("{change} {by} {gain:.1}σ²")
+        noisy()
     }
 }
 
@@ -545,7 +544,11 @@ fn estimate_poles_from(
                             warnings.push(format!(
                                 "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, {})",
                                 added.frequency_hz(),
-                                in_sigma2("cost lowered", "by", (r.cost.1 - r2.cost.1) / s2, exact)
+                                in_sigma2(
+                                    || format!("cost −{:.1}σ²", (r.cost.1 - r2.cost.1) / s2),
+                                    "cost lowered",
+                                    exact
+                                )
                             ));
                             std.push(cand.spread);
                             confidence.push(0.5 * cand.presence);
@@ -714,7 +717,11 @@ impl OrderTest<'_> {
             warnings.push(format!(
             "excitation '{name}': pole at {:.4} Hz dropped by the backward model-order test (it {}, below the χ² threshold {threshold:.1})",
             r.poles[i].frequency_hz(),
-            in_sigma2("lowers the cost", "by only", gain, exact)
+            in_sigma2(
+                || format!("lowers the cost by only {gain:.1}σ²"),
+                "lowers the cost",
+                exact
+            )
         ));
             confidence.remove(i);
             mode_warnings.remove(i);
@@ -787,7 +794,7 @@ impl OrderTest<'_> {
             r.poles[i].frequency_hz(),
             r2.poles[i].frequency_hz(),
             added.frequency_hz(),
-            in_sigma2("cost lowered", "by", gain, exact)
+            in_sigma2(|| format!("cost −{gain:.1}σ²"), "cost lowered", exact)
         ));
             confidence.push(confidence[i]);
             mode_warnings.push(vec![format!(
@@ -1121,16 +1128,15 @@ mod statistic_tests {
     fn rounding_level_residual_is_floored_and_said_so() {
         // Noisy data: σ̂² = cost/dof exactly, printed as a multiple.
         assert_eq!(test_variance(2e-6, 100.0), (2e-8, false));
-        assert_eq!(
-            in_sigma2("cost lowered", "by", 416.25, false),
-            "cost lowered by 416.2σ²"
-        );
+        let noisy = || format!("cost −{:.1}σ²", 416.25);
+        assert_eq!(in_sigma2(noisy, "cost lowered", false), "cost −416.2σ²");
         // Exact data (zero, rounding-level, or a non-finite cost): floored and flagged.
         for cost in [0.0, 1e-28, f64::NAN] {
             assert_eq!(test_variance(cost, 100.0), (ROUNDING_VARIANCE, true));
         }
-        let s = in_sigma2("cost lowered", "by", 1.8e28, true);
-        assert!(s.contains("rounding level") && !s.contains("e28") && !s.contains("by"));
+        let s = in_sigma2(|| format!("cost −{:.1}σ²", 1.8e28), "cost lowered", true);
+        assert!(s.starts_with("cost lowered (") && s.contains("rounding level"));
+        assert!(!s.contains("18000"), "{s}");
         // Float32-quantised data (relative residual ~6e-8) stay far above the floor.
         assert!(!test_variance((6e-8f64).powi(2) * 100.0, 100.0).1);
     }
