@@ -767,3 +767,64 @@ fn exact_data_prints_no_absurd_statistic() {
     }
     assert!(stderr.contains("rounding level"), "{stderr}");
 }
+
+/// `stage | head -c 100`: every stage that writes MCAP on stdout ends quietly when the
+/// reader goes away (nothing on stderr, status 0 or 141 = killed by SIGPIPE), as Unix
+/// tools do. The outputs are far larger than a pipe buffer, so the pipe does break.
+#[test]
+fn broken_pipe_ends_quietly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bin = |n: &str| match n {
+        "frf-sim" => env!("CARGO_BIN_EXE_frf-sim"),
+        "modal-fit" => env!("CARGO_BIN_EXE_modal-fit"),
+        "ni-select" => env!("CARGO_BIN_EXE_ni-select"),
+        "rb-solve" => env!("CARGO_BIN_EXE_rb-solve"),
+        _ => env!("CARGO_BIN_EXE_rbprops"),
+    };
+    ok(Command::new(bin("frf-sim"))
+        .current_dir(d)
+        .args(["--example", "demo", "-o", "sim.mcap"]));
+    ok(Command::new(bin("modal-fit"))
+        .current_dir(d)
+        .args(["sim.mcap", "-o", "fit.mcap"]));
+    ok(Command::new(bin("ni-select"))
+        .current_dir(d)
+        .args(["fit.mcap", "-o", "sel.mcap"]));
+    assert!(std::fs::metadata(d.join("sim.mcap")).unwrap().len() > 1 << 18);
+    for (stage, args) in [
+        ("frf-sim", "--example demo"),
+        ("modal-fit", "sim.mcap"),
+        ("ni-select", "fit.mcap"),
+        (
+            "rb-solve",
+            "sel.mcap --uncertainty linearised --format mcap",
+        ),
+        ("rbprops", "convert sim.mcap"),
+    ] {
+        let script = format!(
+            "'{}' {args} 2>stderr | head -c 100 >/dev/null; echo ${{PIPESTATUS[0]}}",
+            bin(stage)
+        );
+        let out = Command::new("bash")
+            .args(["-c", &script])
+            .current_dir(d)
+            .output()
+            .unwrap();
+        let status = String::from_utf8_lossy(&out.stdout).trim().to_string();
+        let stderr = std::fs::read_to_string(d.join("stderr")).unwrap();
+        assert!(
+            status == "0" || status == "141",
+            "{stage}: status {status}, stderr {stderr}"
+        );
+        // The fitting stages' own warnings on this data may appear; no error line and
+        // nothing about the pipe. frf-sim and convert have nothing else to say.
+        assert!(
+            !stderr.contains("error:") && !stderr.contains("pipe") && !stderr.contains("panicked"),
+            "{stage}: {stderr}"
+        );
+        if matches!(stage, "frf-sim" | "rbprops") {
+            assert!(stderr.is_empty(), "{stage}: {stderr}");
+        }
+    }
+}
