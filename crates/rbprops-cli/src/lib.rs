@@ -3,6 +3,7 @@
 
 use anyhow::{bail, Context, Result};
 use rbprops_core::records::StageProvenance;
+use rbprops_formats::digest::DigestCheck;
 use rbprops_formats::{mcap_file, RunRecord};
 use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
@@ -23,6 +24,8 @@ pub struct Input {
     pub record: RunRecord,
     pub sha256: String,
     pub name: String,
+    /// What the integrity check could not verify (printed under `-v`).
+    pub notes: Vec<String>,
 }
 
 /// How a UFF input is read: a separate geometry file (`--geometry`: UFF with datasets
@@ -56,42 +59,118 @@ impl UffArgs {
     }
 }
 
-/// Reads a run from a path, or MCAP from stdin when the path is absent or `-`.
-pub fn read_input(path: Option<&Path>) -> Result<Input> {
-    read_input_with(path, &UffInputOptions::default())
-}
-
 fn is_uff(p: &Path) -> bool {
     let ext = p
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58b"))
+    matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58") | Some("58b"))
 }
 
-/// [`read_input`] with the options of a UFF input (an error for other inputs).
-pub fn read_input_with(path: Option<&Path>, uff: &UffInputOptions) -> Result<Input> {
+/// The integrity options of every stage that reads a run (flattened into its arguments).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct InputChecks {
+    /// Read a CSV directory or UFF file whose content no longer matches the digest recorded
+    /// when it was written (after editing it by hand, knowingly). MCAP CRCs are always checked.
+    #[arg(long)]
+    pub ignore_digest: bool,
+    /// Notes on stderr: what the input's integrity check could not verify (another
+    /// writer's MCAP without CRCs, a CSV directory or UFF file without a digest).
+    #[arg(short, long)]
+    pub verbose: bool,
+}
+
+/// Reads a run from a path, or MCAP from stdin when the path is absent or `-`, with every
+/// integrity check and no notes printed (the campaign and summary tools).
+pub fn read_input(path: Option<&Path>) -> Result<Input> {
+    read_input_checked("rbprops", path, &InputChecks::default())
+}
+
+/// [`read_input`] for the stage `tool` with its [`InputChecks`]: every MCAP CRC is
+/// verified; a CSV directory's or UFF file's content digest is verified unless
+/// `--ignore-digest` (then a mismatch is a warning); `-v` prints what could not be verified.
+pub fn read_input_checked(tool: &str, path: Option<&Path>, checks: &InputChecks) -> Result<Input> {
+    read_stage_input(tool, path, checks, &UffInputOptions::default())
+}
+
+/// [`read_input_checked`] with the options of a UFF input (`--geometry`, `--channels`; an
+/// error for other inputs).
+pub fn read_stage_input(
+    tool: &str,
+    path: Option<&Path>,
+    checks: &InputChecks,
+    uff: &UffInputOptions,
+) -> Result<Input> {
     let plain = path.filter(|p| p.as_os_str() != "-");
-    if let Some(p) = plain.filter(|p| is_uff(p)) {
-        return uff_input(p, uff);
+    if (uff.geometry.is_some() || uff.channels.is_some()) && !plain.is_some_and(is_uff) {
+        bail!("--geometry and --channels apply to UFF inputs (.uff/.unv/.58/.58b) only");
     }
-    if uff.geometry.is_some() || uff.channels.is_some() {
-        bail!("--geometry and --channels apply to UFF inputs (.uff/.unv/.58b) only");
-    }
-    match plain {
-        None => read_stdin(),
+    let input = match plain {
+        None => read_stdin()?,
         Some(p) => {
             let name = p.display().to_string();
-            let record = rbprops_formats::read_path(p)?;
-            let sha256 = if p.is_dir() {
-                digest_dir(p)?
+            if is_uff(p) {
+                uff_input(tool, p, checks, uff)?
+            } else if p.is_dir() {
+                let check = rbprops_formats::digest::check_csv(p)?;
+                let notes = digest_verdict(tool, &name, check, checks)?;
+                Input {
+                    record: rbprops_formats::read_path(p)?,
+                    sha256: digest_dir(p)?,
+                    name,
+                    notes,
+                }
             } else {
-                rbprops_formats::sha256_hex(&std::fs::read(p).with_context(|| name.clone())?)
-            };
-            Ok(Input {
-                record,
-                sha256,
-                name,
-            })
+                let bytes = std::fs::read(p).with_context(|| name.clone())?;
+                let (record, notes) = match rbprops_formats::Format::from_path(p)? {
+                    rbprops_formats::Format::Mcap => mcap_file::read_checked(&bytes, &name)?,
+                    rbprops_formats::Format::CsvDir => (rbprops_formats::read_path(p)?, Vec::new()),
+                };
+                Input {
+                    record,
+                    sha256: rbprops_formats::sha256_hex(&bytes),
+                    name,
+                    notes,
+                }
+            }
+        }
+    };
+    if checks.verbose {
+        for n in &input.notes {
+            eprintln!("{tool}: note: {}: {n}", input.name);
+        }
+    }
+    Ok(input)
+}
+
+/// What a content-digest check means for the run: an error on a mismatch (a warning with
+/// `--ignore-digest`), a note when there is no digest to check.
+fn digest_verdict(
+    tool: &str,
+    name: &str,
+    check: DigestCheck,
+    checks: &InputChecks,
+) -> Result<Vec<String>> {
+    match check {
+        DigestCheck::Matches { .. } => Ok(Vec::new()),
+        DigestCheck::Unclaimed => Ok(vec![
+            "no content digest recorded (not written by rbprops): contents not verified".into(),
+        ]),
+        DigestCheck::Mismatch {
+            tool: writer,
+            recorded,
+            found,
+        } => {
+            let what = format!(
+                "{name}: content does not match the digest {writer} recorded when writing it (sha256 {}…, now {}…): it was changed after writing",
+                &recorded[..recorded.len().min(12)],
+                &found[..found.len().min(12)]
+            );
+            if checks.ignore_digest {
+                eprintln!("{tool}: warning: {what}; proceeding (--ignore-digest)");
+                Ok(Vec::new())
+            } else {
+                bail!("{what} (if you edited it on purpose, rerun with --ignore-digest)")
+            }
         }
     }
 }
@@ -162,7 +241,16 @@ pub fn read_uff_campaign(
 
 /// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry, FRFs and,
 /// when the file has them, the coherence topic. Warnings go to stderr.
-fn uff_input(p: &Path, opts: &UffInputOptions) -> Result<Input> {
+/// A digest written into the file by rbprops is checked first.
+fn uff_input(tool: &str, p: &Path, checks: &InputChecks, opts: &UffInputOptions) -> Result<Input> {
+    let name = p.display().to_string();
+    let bytes = std::fs::read(p).with_context(|| name.clone())?;
+    let notes = digest_verdict(
+        tool,
+        &name,
+        rbprops_formats::digest::check_uff(&bytes),
+        checks,
+    )?;
     let (c, sha256) = read_uff_campaign(p, opts)?;
     for w in &c.warnings {
         eprintln!("warning: {w}");
@@ -176,7 +264,8 @@ fn uff_input(p: &Path, opts: &UffInputOptions) -> Result<Input> {
     Ok(Input {
         record,
         sha256,
-        name: p.display().to_string(),
+        name,
+        notes,
     })
 }
 
@@ -189,6 +278,7 @@ fn uff_output(rec: &RunRecord, p: &Path, binary: bool) -> Result<()> {
         ..Default::default()
     };
     let bytes = rbprops_uff::from_campaign(&geometry, frf, &opts)?;
+    let bytes = rbprops_formats::digest::uff_stamp(&bytes);
     Ok(rbprops_formats::atomic::write_file(p, &bytes)?)
 }
 
@@ -222,11 +312,12 @@ fn read_stdin() -> Result<Input> {
     if !bytes.starts_with(MCAP_MAGIC) {
         bail!("<stdin>: not an MCAP stream (stdin carries MCAP; name CSV directories or UFF files as paths)");
     }
-    let record = mcap_file::read(&bytes, "<stdin>")?;
+    let (record, notes) = mcap_file::read_checked(&bytes, "<stdin>")?;
     Ok(Input {
         record,
         sha256: rbprops_formats::sha256_hex(&bytes),
         name: "<stdin>".into(),
+        notes,
     })
 }
 
@@ -288,14 +379,33 @@ pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
 }
 
 /// Runs a stage's main body, printing `error: …` with its causes and exiting 1 on error.
+///
+/// A closed stdout (`stage | head -c 100`) ends the stage quietly, as Unix tools do: the
+/// default SIGPIPE action is restored, so the write that meets the closed pipe ends the
+/// process (status 141 from the shell) with nothing on stderr; elsewhere a broken-pipe
+/// error ends it with status 0.
 pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitCode {
+    #[cfg(unix)]
+    // SAFETY: setting a signal disposition to SIG_DFL before any thread starts; Rust's
+    // runtime sets SIGPIPE to ignore at start-up, which turns it into EPIPE errors.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     match body() {
         Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("{tool}: error: {e:#}");
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
 }
 
 /// True when stdout is a terminal (print tables, not data).

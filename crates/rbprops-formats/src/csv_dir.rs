@@ -5,13 +5,15 @@
 //!   (long format, rows grouped by excitation then channel, lines ascending).
 //!
 //! Floats are written in shortest round-trip form, so MCAP ↔ CSV is bit-exact.
+//!
+//! The last provenance row records the directory's content digest (see [`crate::digest`]).
 
 use crate::flatten::{self, Table};
 use crate::{atomic, FormatError, JsonTopic, RunRecord};
 use rbprops_core::{c64, FrfSet, Quantity};
 use std::path::Path;
 
-const MANIFEST: &str = "manifest.csv";
+pub(crate) const MANIFEST: &str = "manifest.csv";
 
 /// Table name of a topic: the topic without its `/rbprops/` prefix, `/` → `_`.
 pub fn table_name(topic: &str) -> String {
@@ -103,14 +105,82 @@ pub fn write(rec: &RunRecord, path: &Path) -> Result<(), FormatError> {
             }
         }
         manifest.flush().map_err(|e| io(dir, e))?;
+        drop(manifest);
         if let Some(frf) = &rec.frf {
             let g = geometry.as_ref().ok_or_else(|| {
                 FormatError::other(&dir.display().to_string(), "an FRF set needs a geometry")
             })?;
             write_frf(dir, frf, g)?;
         }
-        Ok(())
+        stamp_digest(rec, dir)
     })
+}
+
+/// Records the directory's content digest in the last provenance row (rewriting only the
+/// provenance tables, which the digest leaves out). A run without provenance gets none.
+fn stamp_digest(rec: &RunRecord, dir: &Path) -> Result<(), FormatError> {
+    let Some(prov) = rec.topic(crate::topics::PROVENANCE) else {
+        return Ok(());
+    };
+    let mut messages = prov.messages.clone();
+    let Some(serde_json::Value::Object(last)) = messages.last_mut() else {
+        return Ok(());
+    };
+    let digest = crate::digest::csv_content_sha256(dir)?;
+    last.insert(
+        crate::digest::CONTENT_FIELD.into(),
+        serde_json::Value::String(digest),
+    );
+    let mut tables = Vec::new();
+    flatten::to_tables(&table_name(&prov.name), &messages, &mut tables);
+    for tb in &tables {
+        write_table(dir, tb)?;
+    }
+    Ok(())
+}
+
+/// The manifest's rows: `[table, topic, parent, field, schema]`.
+pub(crate) fn read_manifest(path: &Path) -> Result<Vec<[String; 5]>, FormatError> {
+    let mpath = path.join(MANIFEST);
+    let mut m = csv::Reader::from_path(&mpath).map_err(|e| io(&mpath, e))?;
+    let mut entries: Vec<[String; 5]> = Vec::new();
+    for (i, r) in m.records().enumerate() {
+        let r = r.map_err(|e| io(&mpath, e))?;
+        if r.len() != 5 {
+            return Err(FormatError::record(
+                &mpath.display().to_string(),
+                format!("line {}", i + 2),
+                "expected 5 columns: table,topic,parent,field,schema",
+            ));
+        }
+        entries.push(std::array::from_fn(|k| r[k].to_string()));
+    }
+    Ok(entries)
+}
+
+/// The messages of one topic of a CSV directory (empty when the topic is absent).
+pub(crate) fn read_topic_messages(
+    path: &Path,
+    topic: &str,
+) -> Result<Vec<serde_json::Value>, FormatError> {
+    let entries = read_manifest(path)?;
+    let mut tables = Vec::new();
+    let mut top = None;
+    for [table, t, parent, field, _] in &entries {
+        if t != topic {
+            continue;
+        }
+        let p = (!parent.is_empty()).then(|| (parent.clone(), field.clone()));
+        if p.is_none() {
+            top = Some(table.clone());
+        }
+        tables.push(read_table(path, table, p)?);
+    }
+    let Some(table) = top else {
+        return Ok(Vec::new());
+    };
+    flatten::from_tables(&table, &tables)
+        .map_err(|e| FormatError::record(&path.display().to_string(), format!("{table}.csv"), e))
 }
 
 fn write_frf(dir: &Path, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(), FormatError> {
@@ -149,20 +219,7 @@ fn write_frf(dir: &Path, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(),
 
 /// Reads a CSV directory written by [`write`] (or by another program following it).
 pub fn read(path: &Path) -> Result<RunRecord, FormatError> {
-    let mpath = path.join(MANIFEST);
-    let mut m = csv::Reader::from_path(&mpath).map_err(|e| io(&mpath, e))?;
-    let mut entries: Vec<[String; 5]> = Vec::new();
-    for (i, r) in m.records().enumerate() {
-        let r = r.map_err(|e| io(&mpath, e))?;
-        if r.len() != 5 {
-            return Err(FormatError::record(
-                &mpath.display().to_string(),
-                format!("line {}", i + 2),
-                "expected 5 columns: table,topic,parent,field,schema",
-            ));
-        }
-        entries.push(std::array::from_fn(|k| r[k].to_string()));
-    }
+    let entries = read_manifest(path)?;
     let mut rec = RunRecord::default();
     let mut tables = Vec::new();
     for [table, _, parent, field, _] in &entries {
@@ -173,9 +230,18 @@ pub fn read(path: &Path) -> Result<RunRecord, FormatError> {
         if !parent.is_empty() {
             continue;
         }
-        let messages = flatten::from_tables(table, &tables).map_err(|e| {
+        let mut messages = flatten::from_tables(table, &tables).map_err(|e| {
             FormatError::record(&path.display().to_string(), format!("{table}.csv"), e)
         })?;
+        if topic == crate::topics::PROVENANCE {
+            // The content digest belongs to the directory, not to the run (like an MCAP
+            // CRC): it is checked by `digest::check_csv` and not carried on.
+            for m in &mut messages {
+                if let Some(o) = m.as_object_mut() {
+                    o.remove(crate::digest::CONTENT_FIELD);
+                }
+            }
+        }
         let sfile = path.join("schemas").join(format!("{table}.json"));
         let schema = match std::fs::read(&sfile) {
             Ok(b) => serde_json::from_slice(&b).map_err(|e| io(&sfile, e))?,

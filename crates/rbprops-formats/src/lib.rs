@@ -12,6 +12,7 @@
 
 pub mod atomic;
 pub mod csv_dir;
+pub mod digest;
 pub mod flatten;
 pub mod mcap_file;
 pub mod wire;

@@ -57,7 +57,12 @@ impl Out {
         for m in &t.messages {
             self.message(id, &serde_json::to_vec(m).expect("json serialises"))?;
         }
-        Ok(())
+        self.end_topic()
+    }
+    /// Closes the chunk after each topic, so that a chunk holds one topic and a chunk's
+    /// CRC error names the topic that was corrupted.
+    fn end_topic(&mut self) -> Result<(), FormatError> {
+        self.w.flush().map_err(mcap_err)
     }
     fn typed<T: serde::Serialize + schemars::JsonSchema>(
         &mut self,
@@ -70,13 +75,23 @@ impl Out {
     }
 }
 
-/// Serialises a run to MCAP bytes (zstd chunks, single-threaded so output is reproducible).
+/// Serialises a run to MCAP bytes (zstd chunks, one or more per topic, compressed
+/// single-threaded so output is reproducible).
+///
+/// Every chunk carries the CRC-32 of its uncompressed records, the `DataEnd` record the
+/// CRC-32 of the whole data section (record headers, chunk headers and message indexes
+/// included) and the footer that of the summary section; [`read`] verifies all three.
+/// (These are the `mcap` crate's defaults, stated here so that they cannot silently go.)
 pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
     let opts = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("rbprops {}", env!("CARGO_PKG_VERSION")))
         .compression(Some(mcap::Compression::Zstd))
-        .compression_threads(0);
+        .compression_threads(0)
+        .use_chunks(true)
+        .calculate_chunk_crcs(true)
+        .calculate_data_section_crc(true)
+        .calculate_summary_section_crc(true);
     let w = opts.create(Cursor::new(Vec::new())).map_err(mcap_err)?;
     let mut out = Out { w, seq: 0 };
     let geometry = if rec.frf.is_some() {
@@ -121,28 +136,28 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
         for m in &r.messages {
             out.message(id, m)?;
         }
+        out.end_topic()?;
     }
     out.w.finish().map_err(mcap_err)?;
     Ok(out.w.into_inner().into_inner())
 }
 
-/// Parses MCAP bytes. `file` names the source in errors.
+/// Parses MCAP bytes, verifying every CRC they carry. `file` names the source in errors.
 pub fn read(bytes: &[u8], file: &str) -> Result<RunRecord, FormatError> {
-    precheck(bytes).map_err(|detail| FormatError::Mcap {
+    read_checked(bytes, file).map(|(rec, _)| rec)
+}
+
+/// [`read`], also returning the notes of the integrity check: which parts of the file
+/// carry no CRC (another writer's file with CRC fields 0) and so could not be verified.
+pub fn read_checked(bytes: &[u8], file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
+    let (msgs, notes) = messages(bytes).map_err(|detail| FormatError::Mcap {
         file: file.into(),
         detail,
     })?;
     let mut rec = RunRecord::default();
     let mut axis: Option<FrfAxisMsg> = None;
     let mut frf_msgs: Vec<FrfMsg> = Vec::new();
-    for (i, m) in messages(bytes)
-        .map_err(|detail| FormatError::Mcap {
-            file: file.into(),
-            detail,
-        })?
-        .into_iter()
-        .enumerate()
-    {
+    for (i, m) in msgs.into_iter().enumerate() {
         let topic = m.topic.clone();
         let schema = m.schema.clone();
         let is_json = m.encoding == "json";
@@ -228,7 +243,7 @@ pub fn read(bytes: &[u8], file: &str) -> Result<RunRecord, FormatError> {
             "FRF messages without an FRF axis message",
         ));
     }
-    Ok(rec)
+    Ok((rec, notes))
 }
 
 fn assemble_frf(
@@ -288,11 +303,144 @@ fn assemble_frf(
 /// Largest decompressed chunk accepted (a corrupt size field must not exhaust memory).
 const MAX_CHUNK_BYTES: u64 = 1 << 32;
 
+const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// Opcodes of the MCAP records the integrity check looks at.
+mod op {
+    pub const FOOTER: u8 = 0x02;
+    pub const CHANNEL: u8 = 0x04;
+    pub const CHUNK: u8 = 0x06;
+    pub const MESSAGE_INDEX: u8 = 0x07;
+    pub const DATA_END: u8 = 0x0F;
+}
+
+/// One top-level record: where it starts, its opcode and the length of its body.
+#[derive(Clone, Copy)]
+struct TopRecord {
+    offset: usize,
+    opcode: u8,
+    len: usize,
+}
+
+/// The top-level records of a file, walked before the mcap crate reads it.
+struct Layout {
+    records: Vec<TopRecord>,
+}
+
+impl Layout {
+    /// The record holding byte `pos` (the last record when `pos` is past them all).
+    fn at(&self, pos: usize) -> Option<TopRecord> {
+        let i = self.records.partition_point(|r| r.offset <= pos);
+        self.records.get(i.checked_sub(1)?).copied()
+    }
+
+    fn body<'a>(&self, bytes: &'a [u8], r: TopRecord) -> &'a [u8] {
+        &bytes[r.offset + 9..r.offset + 9 + r.len]
+    }
+
+    /// Topics of the messages in the chunk `chunk`, from the message index records that
+    /// follow it and the channel records (the summary repeats them; a chunk's own channel
+    /// records are inside it and so not trusted here). Empty when the file has no index.
+    fn chunk_topics(&self, bytes: &[u8], chunk: TopRecord) -> Vec<String> {
+        let mut channels = BTreeMap::new();
+        for r in self.records.iter().filter(|r| r.opcode == op::CHANNEL) {
+            if let Ok(mcap::records::Record::Channel(c)) =
+                mcap::parse_record(op::CHANNEL, self.body(bytes, *r))
+            {
+                channels.insert(c.id, c.topic);
+            }
+        }
+        let i = self.records.partition_point(|r| r.offset <= chunk.offset);
+        let mut topics: Vec<String> = self.records[i..]
+            .iter()
+            .take_while(|r| r.opcode == op::MESSAGE_INDEX)
+            .filter_map(|r| {
+                let b = self.body(bytes, *r);
+                let id = u16::from_le_bytes(b.get(..2)?.try_into().ok()?);
+                Some(
+                    channels
+                        .get(&id)
+                        .cloned()
+                        .unwrap_or_else(|| format!("channel {id}")),
+                )
+            })
+            .collect();
+        topics.dedup();
+        topics
+    }
+
+    /// Where an error met after reading up to byte `pos` lies: the record, its kind and,
+    /// for a chunk, the topics it holds.
+    fn describe(&self, bytes: &[u8], pos: usize) -> String {
+        let Some(r) = self.at(pos.saturating_sub(1)) else {
+            return format!("byte {pos}");
+        };
+        match r.opcode {
+            op::CHUNK => {
+                let topics = self.chunk_topics(bytes, r);
+                if topics.is_empty() {
+                    format!(
+                        "chunk at byte {} (topics unknown: no message index)",
+                        r.offset
+                    )
+                } else {
+                    let s = if topics.len() == 1 { "" } else { "s" };
+                    format!(
+                        "chunk at byte {} (topic{s} {})",
+                        r.offset,
+                        topics.join(", ")
+                    )
+                }
+            }
+            op::DATA_END => format!(
+                "data section (bytes {}..{}, closed by the DataEnd record at byte {})",
+                MAGIC.len(),
+                r.offset,
+                r.offset
+            ),
+            op::FOOTER => format!(
+                "summary section (checked by the footer at byte {})",
+                r.offset
+            ),
+            o => format!("record at byte {} (opcode 0x{o:02x})", r.offset),
+        }
+    }
+
+    /// What the file leaves unverified: chunks and sections whose CRC field is 0 (the MCAP
+    /// convention for "not computed", used by some writers).
+    fn unverified(&self, bytes: &[u8]) -> Vec<String> {
+        let mut notes = Vec::new();
+        let chunks: Vec<_> = self
+            .records
+            .iter()
+            .filter(|r| r.opcode == op::CHUNK)
+            .collect();
+        let no_crc = chunks
+            .iter()
+            .filter(|r| self.body(bytes, ***r).get(24..28) == Some(&[0u8; 4][..]))
+            .count();
+        if no_crc > 0 {
+            notes.push(format!(
+                "{no_crc} of {} chunks carry no CRC (0): their records are not verified",
+                chunks.len()
+            ));
+        }
+        match self.records.iter().find(|r| r.opcode == op::DATA_END) {
+            None => notes.push("no DataEnd record: the data section is not verified".into()),
+            Some(r) if self.body(bytes, *r).get(..4) == Some(&[0u8; 4][..]) => notes.push(
+                "data-section CRC is 0 (not computed): record headers and indexes are not verified"
+                    .into(),
+            ),
+            Some(_) => {}
+        }
+        notes
+    }
+}
+
 /// Walks the top-level records before the mcap crate does: every length must lie inside
 /// the file and chunk sizes must be sane, because a corrupt length field would otherwise
 /// make the reader try to allocate exabytes and abort the process.
-fn precheck(bytes: &[u8]) -> Result<(), String> {
-    const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+fn layout(bytes: &[u8]) -> Result<Layout, String> {
     if bytes.len() < 2 * MAGIC.len() || !bytes.starts_with(MAGIC) {
         return Err("missing MCAP magic bytes".into());
     }
@@ -301,6 +449,7 @@ fn precheck(bytes: &[u8]) -> Result<(), String> {
             .get(p..p + 8)
             .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
     };
+    let mut records = Vec::new();
     let mut pos = MAGIC.len();
     let end = bytes.len() - MAGIC.len();
     while pos < end {
@@ -308,10 +457,10 @@ fn precheck(bytes: &[u8]) -> Result<(), String> {
         let len =
             u64_at(pos + 1).ok_or_else(|| format!("record at byte {pos}: truncated header"))?;
         let body = pos + 9;
-        if len > (end - body.min(end)) as u64 {
+        if body > end || len > (end - body) as u64 {
             return Err(format!("record at byte {pos} (opcode 0x{op:02x}): length {len} runs past the end of the file"));
         }
-        if op == 0x06 {
+        if op == op::CHUNK {
             let unc = u64_at(body + 16).ok_or_else(|| format!("chunk at byte {pos}: truncated"))?;
             if unc > MAX_CHUNK_BYTES {
                 return Err(format!(
@@ -319,13 +468,18 @@ fn precheck(bytes: &[u8]) -> Result<(), String> {
                 ));
             }
         }
-        if op == 0x02 {
+        records.push(TopRecord {
+            offset: pos,
+            opcode: op,
+            len: len as usize,
+        });
+        if op == op::FOOTER {
             // Footer: the rest is the closing magic.
             break;
         }
         pos = body + len as usize;
     }
-    Ok(())
+    Ok(Layout { records })
 }
 
 #[derive(Clone)]
@@ -342,22 +496,34 @@ struct RawMsg {
     data: Vec<u8>,
 }
 
-/// All messages in file order, read with the sans-I/O reader and a record-length limit so
-/// corrupt length fields give an error rather than a huge allocation.
-fn messages(bytes: &[u8]) -> Result<Vec<RawMsg>, String> {
+/// All messages in file order, with the notes of the integrity check.
+///
+/// Read with the sans-I/O reader, which computes the CRCs as the bytes go in: each chunk's
+/// CRC is checked before any of its records is used, the data-section CRC at the
+/// `DataEnd` record and the summary CRC at the footer. A mismatch is an error naming the
+/// record's byte offset and, for a chunk, its topics. A record-length limit keeps corrupt
+/// length fields from causing huge allocations.
+fn messages(bytes: &[u8]) -> Result<(Vec<RawMsg>, Vec<String>), String> {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    precheck(bytes)?;
+    let layout = layout(bytes)?;
     let limit = (256usize << 20).saturating_add(bytes.len().saturating_mul(16));
     let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default().with_record_length_limit(limit),
+        LinearReaderOptions::default()
+            .with_record_length_limit(limit)
+            .with_prevalidate_chunk_crcs(true)
+            .with_validate_data_section_crc(true)
+            .with_validate_summary_section_crc(true)
+            .with_check_finishes_after_end_magic(true),
     );
     let mut pos = 0usize;
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, u16)> = BTreeMap::new();
     let mut out = Vec::new();
+    let at =
+        |pos: usize, e: &dyn std::fmt::Display| format!("{}: {e}", layout.describe(bytes, pos));
     while let Some(event) = reader.next_event() {
-        match event.map_err(|e| e.to_string())? {
+        match event.map_err(|e| at(pos, &crc_detail(e)))? {
             LinearReadEvent::ReadRequest(need) => {
                 let n = need.min(bytes.len() - pos);
                 reader.insert(n).copy_from_slice(&bytes[pos..pos + n]);
@@ -365,7 +531,7 @@ fn messages(bytes: &[u8]) -> Result<Vec<RawMsg>, String> {
                 pos += n;
             }
             LinearReadEvent::Record { opcode, data } => {
-                match mcap::parse_record(opcode, data).map_err(|e| e.to_string())? {
+                match mcap::parse_record(opcode, data).map_err(|e| at(pos, &e))? {
                     Record::Schema { header, data } => {
                         schemas.insert(
                             header.id,
@@ -407,5 +573,22 @@ fn messages(bytes: &[u8]) -> Result<Vec<RawMsg>, String> {
             }
         }
     }
-    Ok(out)
+    Ok((out, layout.unverified(bytes)))
+}
+
+/// The mcap crate's CRC errors in words (the others as they are).
+fn crc_detail(e: mcap::McapError) -> String {
+    use mcap::McapError::*;
+    match e {
+        BadChunkCrc { saved, calculated } => format!(
+            "CRC mismatch: the chunk's records changed after writing (stored CRC {saved:#010x}, computed {calculated:#010x})"
+        ),
+        BadDataCrc { saved, calculated } => format!(
+            "CRC mismatch: a record of the data section changed after writing (stored CRC {saved:#010x}, computed {calculated:#010x})"
+        ),
+        BadSummaryCrc { saved, calculated } => format!(
+            "CRC mismatch: the summary section changed after writing (stored CRC {saved:#010x}, computed {calculated:#010x})"
+        ),
+        e => e.to_string(),
+    }
 }

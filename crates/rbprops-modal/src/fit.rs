@@ -113,6 +113,38 @@ fn live_channels(band: &BandData, geometry: &Geometry, name: &str) -> (Vec<usize
     (live, warnings)
 }
 
+/// Residual variance below which a residual is rounding, not noise. The model-order
+/// tests divide cost drops by the residual variance `σ̂² = cost/dof` of the weighted data,
+/// which has unit mean square per complex line (`lsfd::line_weights`), so σ̂² is relative
+/// to the data. Noise-free float64 data fit to 1e-15–1e-12 relative (σ̂² ~ 1e-30–1e-24,
+/// the latter for ill-conditioned fits); float32-quantised data to ~6e-8 (σ̂² ~ 1e-15).
+/// A floor of (1e-10)² lies well clear of both: it never touches measured or quantised
+/// data, and on exact data it keeps rounding-level cost changes from reading as χ² values
+/// of 1e28 (seen on the 300-line noise-free Test Case II before this floor).
+const ROUNDING_VARIANCE: f64 = 1e-20;
+
+/// The residual variance a χ² model-order test divides by, `cost/dof` floored at
+/// [`ROUNDING_VARIANCE`]; `true` when floored (noise-free data: there is no σ² to speak of).
+fn test_variance(cost: f64, dof: f64) -> (f64, bool) {
+    let s2 = cost / dof;
+    if s2.is_finite() && s2 > ROUNDING_VARIANCE {
+        (s2, false)
+    } else {
+        (ROUNDING_VARIANCE, true)
+    }
+}
+
+/// A cost change in the units of the model-order test, for warnings: `noisy` (a σ²
+/// multiple), or, when the residual is at the rounding level, `exact`, a statement of that
+/// instead of a σ² multiple (which would be a ratio of rounding errors).
+fn in_sigma2(noisy: impl FnOnce() -> String, exact_text: &str, exact: bool) -> String {
+    if exact {
+        format!("{exact_text} (the residual is at the rounding level: noise-free data, no noise σ² to measure it in)")
+    } else {
+        noisy()
+    }
+}
+
 /// Upper 1e-4 quantile of χ² with `k` degrees of freedom (Wilson–Hilferty).
 fn chi2_threshold(k: usize) -> f64 {
     let k = k as f64;
@@ -485,7 +517,7 @@ fn estimate_poles_from(
                             })
                         });
                         let c_screen = c_with[ci];
-                        if (*c_now - c_screen) / (c_screen / dof0) < threshold {
+                        if (*c_now - c_screen) / test_variance(c_screen, dof0).0 < threshold {
                             continue;
                         }
                         let r2 = crate::prof::time(2, || {
@@ -495,7 +527,7 @@ fn estimate_poles_from(
                         let dof = (2 * rn * no)
                             .saturating_sub(no * (2 * r2.poles.len() + 2) + 2 * r2.poles.len())
                             .max(1) as f64;
-                        let s2 = r2.cost.1 / dof;
+                        let (s2, exact) = test_variance(r2.cost.1, dof);
                         let separate = r2.poles[..r2.poles.len() - 1]
                             .iter()
                             .all(|p| p.distance_in_bandwidths(&added) > 0.25);
@@ -510,9 +542,13 @@ fn estimate_poles_from(
                             && (r.cost.1 - r2.cost.1) / s2 > threshold
                         {
                             warnings.push(format!(
-                                "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, cost −{:.1}σ²)",
+                                "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, {})",
                                 added.frequency_hz(),
-                                (r.cost.1 - r2.cost.1) / s2
+                                in_sigma2(
+                                    || format!("cost −{:.1}σ²", (r.cost.1 - r2.cost.1) / s2),
+                                    "cost lowered",
+                                    exact
+                                )
                             ));
                             std.push(cand.spread);
                             confidence.push(0.5 * cand.presence);
@@ -666,7 +702,7 @@ impl OrderTest<'_> {
                     || (0..n)
                         .any(|j| j != i && r.poles[i].distance_in_bandwidths(&r.poles[j]) < 2.0)
             };
-            let s2 = r.cost.1 / dof_of(n);
+            let (s2, exact) = test_variance(r.cost.1, dof_of(n));
             // The least significant suspect pole, if any is insignificant.
             let weakest = (0..n)
                 .filter(|&i| suspect(i))
@@ -679,8 +715,13 @@ impl OrderTest<'_> {
                 .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             let Some((i, gain, ri)) = weakest else { return };
             warnings.push(format!(
-            "excitation '{name}': pole at {:.4} Hz dropped by the backward model-order test (it lowers the cost by only {gain:.1}σ², below the χ² threshold {threshold:.1})",
-            r.poles[i].frequency_hz()
+            "excitation '{name}': pole at {:.4} Hz dropped by the backward model-order test (it {}, below the χ² threshold {threshold:.1})",
+            r.poles[i].frequency_hz(),
+            in_sigma2(
+                || format!("lowers the cost by only {gain:.1}σ²"),
+                "lowers the cost",
+                exact
+            )
         ));
             confidence.remove(i);
             mode_warnings.remove(i);
@@ -727,7 +768,7 @@ impl OrderTest<'_> {
             let best = c_with
                 .iter()
                 .enumerate()
-                .map(|(k, c)| (k, (c_now - c) / (c / dof)))
+                .map(|(k, c)| (k, (c_now - c) / test_variance(*c, dof).0))
                 .filter(|(_, g)| *g > threshold)
                 .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
             let Some((k, _)) = best else { return };
@@ -736,7 +777,8 @@ impl OrderTest<'_> {
             trial.push(partner);
             let r2 = crate::prof::time(2, || lsfd::refine(&trial, band, chans, res));
             let added = *r2.poles.last().unwrap();
-            let gain = (r.cost.1 - r2.cost.1) / (r2.cost.1 / dof);
+            let (s2, exact) = test_variance(r2.cost.1, dof);
+            let gain = (r.cost.1 - r2.cost.1) / s2;
             let separate = r2.poles[..n]
                 .iter()
                 .all(|p| p.distance_in_bandwidths(&added) > 0.25);
@@ -748,10 +790,11 @@ impl OrderTest<'_> {
                 return;
             }
             warnings.push(format!(
-            "excitation '{name}': pole at {:.4} Hz split into {:.4} and {:.4} Hz by the forward model-order test (cost −{gain:.1}σ²): a close pair",
+            "excitation '{name}': pole at {:.4} Hz split into {:.4} and {:.4} Hz by the forward model-order test ({}): a close pair",
             r.poles[i].frequency_hz(),
             r2.poles[i].frequency_hz(),
-            added.frequency_hz()
+            added.frequency_hz(),
+            in_sigma2(|| format!("cost −{gain:.1}σ²"), "cost lowered", exact)
         ));
             confidence.push(confidence[i]);
             mode_warnings.push(vec![format!(
@@ -1076,4 +1119,26 @@ pub fn fit_campaign(
         record,
         diagnostics,
     })
+}
+
+#[cfg(test)]
+mod statistic_tests {
+    use super::*;
+
+    #[test]
+    fn rounding_level_residual_is_floored_and_said_so() {
+        // Noisy data: σ̂² = cost/dof exactly, printed as a multiple.
+        assert_eq!(test_variance(2e-6, 100.0), (2e-8, false));
+        let noisy = || format!("cost −{:.1}σ²", 416.25);
+        assert_eq!(in_sigma2(noisy, "cost lowered", false), "cost −416.2σ²");
+        // Exact data (zero, rounding-level, or a non-finite cost): floored and flagged.
+        for cost in [0.0, 1e-28, f64::NAN] {
+            assert_eq!(test_variance(cost, 100.0), (ROUNDING_VARIANCE, true));
+        }
+        let s = in_sigma2(|| format!("cost −{:.1}σ²", 1.8e28), "cost lowered", true);
+        assert!(s.starts_with("cost lowered (") && s.contains("rounding level"));
+        assert!(!s.contains("18000"), "{s}");
+        // Float32-quantised data (relative residual ~6e-8) stay far above the floor.
+        assert!(!test_variance((6e-8f64).powi(2) * 100.0, 100.0).1);
+    }
 }

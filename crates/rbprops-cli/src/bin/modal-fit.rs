@@ -29,6 +29,8 @@ enum PolesArg {
 struct Args {
     /// Input run (MCAP, CSV directory); default MCAP on stdin.
     input: Option<PathBuf>,
+    #[command(flatten)]
+    checks: rbprops_cli::InputChecks,
     /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -62,7 +64,12 @@ struct Args {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_input_with(args.input.as_deref(), &args.uff.options())?;
+        let input = rbprops_cli::read_stage_input(
+            "modal-fit",
+            args.input.as_deref(),
+            &args.checks,
+            &args.uff.options(),
+        )?;
         let mut rec = input.record;
         let mut opts = FitOptions {
             method: match args.method {

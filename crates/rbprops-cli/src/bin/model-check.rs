@@ -32,6 +32,8 @@ struct Args {
     /// for MCAP on stdin.
     #[arg(short, long)]
     input: Option<PathBuf>,
+    #[command(flatten)]
+    checks: rbprops_cli::InputChecks,
     /// Use a built-in campaign as the nominal spec.
     #[arg(long, conflicts_with = "spec")]
     example: Option<String>,
@@ -70,9 +72,6 @@ struct Args {
     /// Screen only these effect ids (comma-separated).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
-    /// Progress lines on stderr (default: only when stderr is a terminal).
-    #[arg(short, long)]
-    verbose: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -94,7 +93,12 @@ fn main() -> std::process::ExitCode {
         };
         let spec =
             CampaignSpec::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
-        let input = rbprops_cli::read_input_with(args.input.as_deref(), &args.uff.options())?;
+        let input = rbprops_cli::read_stage_input(
+            "model-check",
+            args.input.as_deref(),
+            &args.checks,
+            &args.uff.options(),
+        )?;
         let mut rec = input.record;
         let (geometry, frf) = rec
             .require_geometry_and_frf()
@@ -108,7 +112,7 @@ fn main() -> std::process::ExitCode {
             only: (!args.only.is_empty()).then(|| args.only.clone()),
             ..Default::default()
         };
-        if args.verbose || std::io::stderr().is_terminal() {
+        if args.checks.verbose || std::io::stderr().is_terminal() {
             let t0 = std::time::Instant::now();
             opts.progress = Progress::new(move |line| {
                 eprintln!("model-check [{:6.1} s] {line}", t0.elapsed().as_secs_f64())

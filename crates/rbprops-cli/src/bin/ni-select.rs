@@ -20,6 +20,8 @@ enum Crit {
 struct Args {
     /// Input run (MCAP, CSV directory); default MCAP on stdin.
     input: Option<PathBuf>,
+    #[command(flatten)]
+    checks: rbprops_cli::InputChecks,
     /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -62,7 +64,8 @@ fn manual(s: &str) -> Result<ManualSet> {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("ni-select", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let input =
+            rbprops_cli::read_input_checked("ni-select", args.input.as_deref(), &args.checks)?;
         let mut rec = input.record;
         let mut opts = SelectOptions {
             criterion: match args.criterion {

@@ -38,6 +38,8 @@ enum Method {
 struct Args {
     /// Input run (MCAP, CSV directory); default MCAP on stdin.
     input: Option<PathBuf>,
+    #[command(flatten)]
+    checks: rbprops_cli::InputChecks,
     /// Write the run record (with the estimates topic) here: FILE.mcap or a CSV directory.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -110,7 +112,8 @@ fn origin(s: &str) -> OriginChoice {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rb-solve", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_input(args.input.as_deref())?;
+        let input =
+            rbprops_cli::read_input_checked("rb-solve", args.input.as_deref(), &args.checks)?;
         let mut rec = input.record;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {

@@ -30,6 +30,8 @@ enum Command {
         /// filled in) to this file instead of converting.
         #[arg(long, requires = "input")]
         channel_template: Option<PathBuf>,
+        #[command(flatten)]
+        checks: rbprops_cli::InputChecks,
     },
     /// Run every campaign spec (*.toml) or recording (*.mcap, CSV run directory) under DIR
     /// through modal-fit | ni-select | rb-solve with default options, in parallel, and write
@@ -81,6 +83,7 @@ fn main() -> std::process::ExitCode {
             list,
             uff,
             channel_template,
+            checks,
         } => {
             if list || channel_template.is_some() {
                 let path = input.as_deref().expect("clap requires the input");
@@ -93,7 +96,12 @@ fn main() -> std::process::ExitCode {
                 }
                 return Ok(());
             }
-            let inp = rbprops_cli::read_input_with(input.as_deref(), &uff.options())?;
+            let inp = rbprops_cli::read_stage_input(
+                "rbprops convert",
+                input.as_deref(),
+                &checks,
+                &uff.options(),
+            )?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {
