@@ -41,6 +41,30 @@ pub fn modal_fit(
     Ok(out)
 }
 
+/// [`modal_fit`] of FRFs processed with an exponential window of decay `sigma` (1/s):
+/// the record's FRFs lose the window's part of the quantity factor and the fitted poles
+/// are moved back by σ ([`rbprops_modal::window`]), so the modes are the unwindowed ones
+/// and every later stage (selection, mass line, bootstrap) sees consistent data.
+pub fn modal_fit_windowed(
+    rec: &mut RunRecord,
+    opts: &rbprops_modal::FitOptions,
+    sigma: Option<f64>,
+    input_sha256: &str,
+) -> Result<rbprops_modal::ModalFitOutput> {
+    let Some(sigma) = sigma else {
+        return modal_fit(rec, opts, input_sha256);
+    };
+    let frf = rec
+        .frf
+        .as_mut()
+        .context("no FRFs in the input (frf_axis/frf topics)")?;
+    rbprops_modal::window::remove_quantity_window(frf, sigma);
+    let mut out = modal_fit(rec, opts, input_sha256)?;
+    rbprops_modal::window::restore_poles(&mut out.record.modes, sigma);
+    rec.set(topics::MODAL_FIT, std::slice::from_ref(&out.record));
+    Ok(out)
+}
+
 /// `ni-select` on a record: adds the `selection` topic.
 pub fn ni_select(
     rec: &mut RunRecord,

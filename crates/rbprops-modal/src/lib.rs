@@ -39,6 +39,7 @@ mod simd;
 pub mod stabilisation;
 mod tallmul;
 pub mod testdata;
+pub mod window;
 
 pub use error::ModalError;
 pub use fit::{

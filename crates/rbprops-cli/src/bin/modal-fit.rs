@@ -48,6 +48,10 @@ struct Args {
     /// Leave out the lower/upper residual terms of the residue fit.
     #[arg(long)]
     no_residuals: bool,
+    /// The FRFs were processed with an exponential window e^(−t/τ) of this time constant
+    /// (s): the fit removes it, so damping and modal constants are the structure's.
+    #[arg(long)]
+    window_tau: Option<f64>,
     /// Write stabilisation diagrams and measured-vs-synthesised FRF overlays here.
     #[arg(long)]
     plot: Option<PathBuf>,
@@ -79,7 +83,12 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }
-        let out = rbprops_cli::stages::modal_fit(&mut rec, &opts, &input.sha256)?;
+        let sigma = match args.window_tau {
+            Some(t) if t.is_finite() && t > 0.0 => Some(1.0 / t),
+            Some(t) => anyhow::bail!("--window-tau {t}: must be positive and finite (s)"),
+            None => None,
+        };
+        let out = rbprops_cli::stages::modal_fit_windowed(&mut rec, &opts, sigma, &input.sha256)?;
         for e in &out.record.excitations {
             for w in &e.warnings {
                 eprintln!("modal-fit: warning: excitation {}: {w}", e.excitation);
