@@ -30,12 +30,17 @@ fn windowed(s: &testdata::Synthetic, sigma: f64) -> rbprops_core::FrfSet {
     frf
 }
 
+/// Largest relative error in frequency, damping or amplitude, or 1 − MAC, over the
+/// excited modes.
 fn worst_error(s: &testdata::Synthetic, modes: &[rbprops_core::records::ModeEstimate]) -> f64 {
     let mut worst: f64 = 0.0;
     for (e, ex) in s.geometry.excitations.iter().enumerate() {
         for er in compare(s, e, &modes_of(modes, &ex.id), &s.excited_modes(e, 20.0)) {
-            assert!(er.mac > 0.99999, "{er:?}");
-            worst = worst.max(er.freq_rel).max(er.damp_rel).max(er.amp_rel);
+            worst = worst
+                .max(er.freq_rel)
+                .max(er.damp_rel)
+                .max(er.amp_rel)
+                .max(1.0 - er.mac);
         }
     }
     worst
@@ -64,8 +69,9 @@ fn windowed_accelerance_and_mobility_give_back_the_unwindowed_modes() {
 
 #[test]
 fn without_the_correction_the_window_biases_damping_and_phase() {
-    // The null: the same data fitted as they are. Damping is off by σ/ω_r (tens of
-    // per cent here), so the correction above is doing the work.
+    // The null: the same data fitted as they are. Damping is off by σ/ω_r (several
+    // times ζ here: measured 7.2 relative for the first mode), so the correction above is
+    // doing the work.
     let sigma = 0.25;
     let s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
     let frf = windowed(&s, sigma);
