@@ -41,27 +41,80 @@ impl Layout {
                 frf.n_excitations
             )));
         }
-        let channel_map = recording
+        // Every id that does not match, channels and excitations alike, in one message:
+        // a spec written by hand usually misnames a whole family (`1:1` for `101x`).
+        let unmatched = |kind: &str, missing: Vec<&str>, known: Vec<&str>| {
+            const SHOWN: usize = 20;
+            let list = |v: &[&str]| {
+                let mut s = v
+                    .iter()
+                    .take(SHOWN)
+                    .map(|x| format!("'{x}'"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                if v.len() > SHOWN {
+                    s += &format!(" and {} more", v.len() - SHOWN);
+                }
+                s
+            };
+            format!(
+                "recorded {kind} not in the spec: {} (the spec has {})",
+                list(&missing),
+                list(&known)
+            )
+        };
+        let channel_map: Vec<Option<usize>> = recording
             .channels
             .iter()
-            .map(|c| {
-                spec_geometry.channel_index(&c.id).ok_or_else(|| {
-                    CheckError::Mismatch(format!("recorded channel '{}' is not in the spec", c.id))
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let excitation_map = recording
+            .map(|c| spec_geometry.channel_index(&c.id))
+            .collect();
+        let excitation_map: Vec<Option<usize>> = recording
             .excitations
             .iter()
-            .map(|e| {
-                spec_geometry.excitation_index(&e.id).ok_or_else(|| {
-                    CheckError::Mismatch(format!(
-                        "recorded excitation '{}' is not in the spec",
-                        e.id
-                    ))
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|e| spec_geometry.excitation_index(&e.id))
+            .collect();
+        let mut problems = Vec::new();
+        let missing_ch: Vec<&str> = recording
+            .channels
+            .iter()
+            .zip(&channel_map)
+            .filter(|(_, m)| m.is_none())
+            .map(|(c, _)| c.id.as_str())
+            .collect();
+        if !missing_ch.is_empty() {
+            problems.push(unmatched(
+                "channels",
+                missing_ch,
+                spec_geometry
+                    .channels
+                    .iter()
+                    .map(|c| c.id.as_str())
+                    .collect(),
+            ));
+        }
+        let missing_ex: Vec<&str> = recording
+            .excitations
+            .iter()
+            .zip(&excitation_map)
+            .filter(|(_, m)| m.is_none())
+            .map(|(e, _)| e.id.as_str())
+            .collect();
+        if !missing_ex.is_empty() {
+            problems.push(unmatched(
+                "excitations",
+                missing_ex,
+                spec_geometry
+                    .excitations
+                    .iter()
+                    .map(|e| e.id.as_str())
+                    .collect(),
+            ));
+        }
+        if !problems.is_empty() {
+            return Err(CheckError::Mismatch(problems.join("; ")));
+        }
+        let channel_map: Vec<usize> = channel_map.into_iter().flatten().collect();
+        let excitation_map: Vec<usize> = excitation_map.into_iter().flatten().collect();
         Ok(Layout {
             spec_geometry,
             channel_map,

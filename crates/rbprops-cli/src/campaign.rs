@@ -1,18 +1,39 @@
 //! Batch runs: every campaign spec or recording under a directory, in parallel, one
-//! summary table. Each item goes through the same stage functions as the executables
-//! with their default options, so a row equals the single run's row exactly.
+//! summary table. Each item goes through the same stage functions as the executables,
+//! so a row equals the single run's row exactly.
+//!
+//! A campaign file (`campaign.toml` beside the data, or `--config FILE`) sets the options
+//! of every item: the modal-fit band and method, the uncertainty method, the exponential
+//! window the recordings were processed with, a nominal spec per recording for a model
+//! check, and a separate geometry file for UFF exports. See [`CampaignConfig`].
 
 use crate::summary::{self, SummaryRow};
-use anyhow::{Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use rayon::prelude::*;
+use rbprops_sim::CampaignSpec;
+use serde::Deserialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+
+/// File name of the campaign file looked for in the campaign directory.
+pub const CONFIG_FILE: &str = "campaign.toml";
+
+/// File extensions (lower case) of UFF exports read as recordings.
+pub const UFF_EXTENSIONS: [&str; 4] = ["uff", "unv", "58", "58b"];
+
+/// True when `p` names a UFF file by its extension.
+pub fn is_uff(p: &Path) -> bool {
+    p.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .is_some_and(|e| UFF_EXTENSIONS.contains(&e.as_str()))
+}
 
 /// Something the campaign runner can process.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Item {
     /// A campaign spec (TOML): simulated first.
     Spec(PathBuf),
-    /// A recording (MCAP file or CSV directory) holding geometry and FRFs.
+    /// A recording (MCAP file, CSV directory or UFF file) holding geometry and FRFs.
     Recording(PathBuf),
 }
 
@@ -24,24 +45,267 @@ impl Item {
     }
 }
 
-/// Finds specs (`*.toml`) and recordings (`*.mcap`, CSV run directories) under `dir`,
-/// sorted by path so the summary order does not depend on the file system.
-pub fn discover(dir: &Path) -> Result<Vec<Item>> {
+/// The campaign file as written (TOML). Every key is optional; paths are relative to the
+/// file's directory.
+///
+/// ```toml
+/// band_hz = [0.5, 10.0]          # modal-fit band (default: the whole axis)
+/// method = "lscf"                # modal-fit method: lscf, lsce or circle
+/// modes = 6                      # modes in the band (default: from the stabilisation diagram)
+/// uncertainty = "linearised"     # rb-solve standard errors: bootstrap (default) or linearised
+/// window_time_constant_s = 4.0   # the recordings were processed with e^(−t/τ)
+/// nominal = "nominal.toml"       # model check of every recording against this spec
+/// check_only = ["channel_gain"]  # screen only these effects (default: the whole catalogue)
+/// # or one spec per recording, by glob on the path relative to the campaign directory
+/// # (exactly one pattern must match each recording):
+/// # [nominal]
+/// # "rig-a/*.uff" = "rig-a.toml"
+/// # "rig-b/*.uff" = "rig-b.toml"
+/// geometry = "geometry.unv"      # node coordinates in a separate UFF file
+/// ```
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CampaignConfig {
+    pub band_hz: Option<[f64; 2]>,
+    pub method: Option<String>,
+    pub modes: Option<usize>,
+    pub uncertainty: Option<String>,
+    /// Time constant τ (s) of the exponential window `w(t) = e^{−t/τ}` applied to force and
+    /// response records before the FRFs were estimated.
+    pub window_time_constant_s: Option<f64>,
+    pub nominal: Option<NominalConfig>,
+    /// Effect ids the model check screens (`model-check --only`); default: all.
+    pub check_only: Option<Vec<String>>,
+    /// A UFF file with the nodes (15/2411) and coordinate systems (2420/18) of recordings
+    /// that carry only datasets 58.
+    pub geometry: Option<PathBuf>,
+}
+
+/// `nominal = "spec.toml"` or a table `glob = "spec.toml"`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum NominalConfig {
+    One(PathBuf),
+    ByGlob(BTreeMap<String, PathBuf>),
+}
+
+/// A nominal spec, loaded and validated once.
+#[derive(Debug, Clone)]
+pub struct Nominal {
+    pub path: PathBuf,
+    pub spec: CampaignSpec,
+}
+
+/// The options of one campaign run, resolved (files read, values checked).
+#[derive(Debug, Clone, Default)]
+pub struct CampaignOptions {
+    pub fit: rbprops_modal::FitOptions,
+    pub uncertainty: crate::stages::Uncertainty,
+    /// Time constant τ (s) of the exponential window, when one was used.
+    pub window_time_constant_s: Option<f64>,
+    /// (glob, spec) in the file's order; a single spec has the glob `**`.
+    pub nominal: Vec<(String, Nominal)>,
+    /// The model check's options (screened effects).
+    pub check: rbprops_check::CheckOptions,
+    pub geometry: Option<PathBuf>,
+    /// Files the options name (excluded from the items).
+    pub named_files: Vec<PathBuf>,
+}
+
+/// Parses an uncertainty method name.
+pub fn parse_uncertainty(s: &str) -> Result<crate::stages::Uncertainty> {
+    match s {
+        "bootstrap" => Ok(crate::stages::Uncertainty::Bootstrap(Default::default())),
+        "linearised" | "linearized" => Ok(crate::stages::Uncertainty::Linearised),
+        other => bail!("uncertainty '{other}': expected bootstrap or linearised"),
+    }
+}
+
+impl CampaignConfig {
+    /// Reads a campaign file.
+    pub fn read(path: &Path) -> Result<CampaignConfig> {
+        let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+        toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
+    }
+
+    /// Checks the values and reads the files the options name (relative to `base`).
+    /// `uncertainty` (the command line's) takes precedence over the file's.
+    pub fn resolve(
+        &self,
+        base: &Path,
+        source: &str,
+        uncertainty: Option<&str>,
+    ) -> Result<CampaignOptions> {
+        let mut o = CampaignOptions {
+            uncertainty: parse_uncertainty(
+                uncertainty
+                    .or(self.uncertainty.as_deref())
+                    .unwrap_or("bootstrap"),
+            )
+            .with_context(|| source.to_string())?,
+            ..Default::default()
+        };
+        if let Some([a, b]) = self.band_hz {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                bail!("{source}: band_hz = [{a}, {b}]: need 0 ≤ FMIN < FMAX");
+            }
+            o.fit.band_hz = Some((a, b));
+        }
+        if let Some(m) = &self.method {
+            o.fit.method = m.parse().map_err(|e| anyhow!("{source}: method: {e}"))?;
+        }
+        if let Some(n) = self.modes {
+            if n == 0 {
+                bail!("{source}: modes = 0: need at least one mode");
+            }
+            o.fit.n_modes = Some(n);
+        }
+        o.fit
+            .validate()
+            .map_err(|e| anyhow!("{source}: fit options: {e}"))?;
+        if let Some(tau) = self.window_time_constant_s {
+            if !(tau.is_finite() && tau > 0.0) {
+                bail!("{source}: window_time_constant_s = {tau}: must be positive and finite");
+            }
+            o.window_time_constant_s = Some(tau);
+        }
+        let load = |p: &Path| -> Result<Nominal> {
+            let path = base.join(p);
+            let text =
+                std::fs::read_to_string(&path).with_context(|| path.display().to_string())?;
+            let spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
+                anyhow!(
+                    "{}: nominal spec: {e}{}",
+                    path.display(),
+                    crate::init_spec::placeholder_hint(&text)
+                )
+            })?;
+            Ok(Nominal { path, spec })
+        };
+        match &self.nominal {
+            None => {}
+            Some(NominalConfig::One(p)) => o.nominal.push(("**".into(), load(p)?)),
+            Some(NominalConfig::ByGlob(map)) => {
+                if map.is_empty() {
+                    bail!("{source}: [nominal] is empty: give `glob = \"spec.toml\"` entries");
+                }
+                for (g, p) in map {
+                    o.nominal.push((g.clone(), load(p)?));
+                }
+            }
+        }
+        o.named_files
+            .extend(o.nominal.iter().map(|(_, n)| n.path.clone()));
+        if let Some(only) = &self.check_only {
+            if o.nominal.is_empty() {
+                bail!("{source}: check_only needs a nominal spec (`nominal = \"spec.toml\"`)");
+            }
+            if only.is_empty() {
+                bail!("{source}: check_only is empty: name effect ids, or leave it out to screen them all");
+            }
+            o.check.only = Some(only.clone());
+        }
+        if let Some(g) = &self.geometry {
+            let g = base.join(g);
+            if !g.is_file() {
+                bail!("{source}: geometry = {}: no such file", g.display());
+            }
+            o.named_files.push(g.clone());
+            o.geometry = Some(g);
+        }
+        Ok(o)
+    }
+}
+
+impl CampaignOptions {
+    /// The nominal spec of a recording at `rel` (path relative to the campaign
+    /// directory): `None` without model check; an error when no glob or several match.
+    pub fn nominal_for(&self, rel: &str) -> Result<Option<&Nominal>> {
+        if self.nominal.is_empty() {
+            return Ok(None);
+        }
+        let hits: Vec<&(String, Nominal)> = self
+            .nominal
+            .iter()
+            .filter(|(g, _)| glob_match(g, rel))
+            .collect();
+        match hits.as_slice() {
+            [(_, n)] => Ok(Some(n)),
+            [] => bail!(
+                "no [nominal] pattern matches '{rel}' (patterns: {})",
+                self.nominal
+                    .iter()
+                    .map(|(g, _)| g.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            many => bail!(
+                "several [nominal] patterns match '{rel}': {} (make them exclusive)",
+                many.iter()
+                    .map(|(g, _)| g.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    }
+}
+
+/// Glob match on a relative path with `/` separators: `*` any characters but `/`, `**`
+/// any characters, `?` one character but `/`.
+pub fn glob_match(pattern: &str, path: &str) -> bool {
+    fn go(p: &[char], s: &[char]) -> bool {
+        if p.starts_with(&['*', '*']) {
+            let rest = &p[2..];
+            // `**/` also matches nothing, its slash included (`**/*.uff` matches `a.uff`).
+            if rest.first() == Some(&'/') && go(&rest[1..], s) {
+                return true;
+            }
+            return (0..=s.len()).any(|k| go(rest, &s[k..]));
+        }
+        match p.split_first() {
+            None => s.is_empty(),
+            Some(('*', rest)) => (0..=s.len())
+                .take_while(|&k| k == 0 || s[k - 1] != '/')
+                .any(|k| go(rest, &s[k..])),
+            Some(('?', rest)) => s.first().is_some_and(|&c| c != '/') && go(rest, &s[1..]),
+            Some((c, rest)) => s.first() == Some(c) && go(rest, &s[1..]),
+        }
+    }
+    let p: Vec<char> = pattern.chars().collect();
+    let s: Vec<char> = path.chars().collect();
+    go(&p, &s)
+}
+
+/// Finds specs (`*.toml`) and recordings (`*.mcap`, CSV run directories, UFF files) under
+/// `dir`, sorted by path so the summary order does not depend on the file system. The
+/// campaign file and the files it names (nominal specs, geometry) are not items.
+pub fn discover(dir: &Path, exclude: &[PathBuf]) -> Result<Vec<Item>> {
+    let exclude: Vec<PathBuf> = exclude
+        .iter()
+        .filter_map(|p| std::fs::canonicalize(p).ok())
+        .collect();
     let mut out = Vec::new();
-    walk(dir, &mut out).with_context(|| dir.display().to_string())?;
+    walk(dir, &exclude, &mut out).with_context(|| dir.display().to_string())?;
     out.sort();
     Ok(out)
 }
 
-fn walk(dir: &Path, out: &mut Vec<Item>) -> std::io::Result<()> {
+fn walk(dir: &Path, exclude: &[PathBuf], out: &mut Vec<Item>) -> std::io::Result<()> {
     for e in std::fs::read_dir(dir)? {
         let p = e?.path();
+        if std::fs::canonicalize(&p).is_ok_and(|c| exclude.contains(&c)) {
+            continue;
+        }
         if p.is_dir() {
             if p.join("manifest.csv").exists() {
                 out.push(Item::Recording(p));
             } else {
-                walk(&p, out)?;
+                walk(&p, exclude, out)?;
             }
+        } else if p.file_name().is_some_and(|n| n == CONFIG_FILE) {
+            continue;
+        } else if is_uff(&p) {
+            out.push(Item::Recording(p));
         } else {
             match p.extension().and_then(|e| e.to_str()) {
                 Some("toml") => out.push(Item::Spec(p)),
@@ -53,13 +317,58 @@ fn walk(dir: &Path, out: &mut Vec<Item>) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Runs one item through the pipeline with default options (and the given uncertainty
-/// method, the executables' default being the bootstrap with 100 replicates, seed 0).
-pub fn run_item(
-    item: &Item,
-    campaign: &str,
-    uncertainty: &crate::stages::Uncertainty,
-) -> Result<Vec<SummaryRow>> {
+/// The model check's verdict columns of a summary row.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckColumns {
+    /// Accepted effect ids, then ambiguous families as `a/b`, space separated.
+    pub effects: String,
+    pub chi2_nu_nominal: f64,
+    pub chi2_nu_before: f64,
+    pub chi2_nu_after: f64,
+    pub noise_floor_reached: bool,
+    pub verdict: String,
+}
+
+/// The model check of a recording against its nominal spec (with the campaign's known
+/// exponential window added as a known effect, unless the spec has one).
+pub fn model_check(
+    recording: &str,
+    geometry: &rbprops_core::Geometry,
+    frf: &rbprops_core::FrfSet,
+    nominal: &Nominal,
+    window_time_constant_s: Option<f64>,
+    options: &rbprops_check::CheckOptions,
+) -> Result<CheckColumns> {
+    let mut spec = nominal.spec.clone();
+    if let Some(sigma) = window_time_constant_s.map(|tau| 1.0 / tau) {
+        if !spec.effects.iter().any(|e| e.id == "exponential_window") {
+            let mut parameters = toml::Table::new();
+            parameters.insert("decay_per_s".into(), sigma.into());
+            spec.effects.push(rbprops_sim::spec::EffectSpec {
+                id: "exponential_window".into(),
+                parameters,
+            });
+        }
+    }
+    let out = rbprops_check::check(&spec, geometry, frf, options)
+        .map_err(|e| crate::init_spec::mismatch_hint(e, recording))
+        .with_context(|| format!("model check against {}", nominal.path.display()))?;
+    let r = &out.report;
+    let mut effects: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
+    effects.extend(r.ambiguous.iter().map(|f| f.ids.join("/")));
+    Ok(CheckColumns {
+        effects: effects.join(" "),
+        chi2_nu_nominal: r.chi2_nu_nominal,
+        chi2_nu_before: r.chi2_nu_before,
+        chi2_nu_after: r.chi2_nu_after,
+        noise_floor_reached: r.noise_floor_reached,
+        verdict: r.verdict.clone(),
+    })
+}
+
+/// Runs one item through the pipeline with the campaign's options. `rel` is the item's
+/// path relative to the campaign directory (its label and the key of the nominal globs).
+pub fn run_item(item: &Item, rel: &str, opts: &CampaignOptions) -> Result<Vec<SummaryRow>> {
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
             let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
@@ -68,38 +377,77 @@ pub fn run_item(
             (rec, sha)
         }
         Item::Recording(p) => {
-            let inp = crate::read_input(Some(p))?;
+            // The campaign's geometry file applies to its UFF exports only.
+            let uff = crate::UffInputOptions {
+                geometry: opts.geometry.clone().filter(|_| is_uff(p)),
+                channels: None,
+            };
+            let checks = crate::InputChecks::default();
+            let inp = crate::read_stage_input("rbprops campaign", Some(p), &checks, &uff)?;
             (inp.record, inp.sha256)
         }
     };
     let name = item.path().display().to_string();
-    crate::stages::modal_fit(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
-    crate::stages::ni_select(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
-    crate::stages::rb_solve_with(&mut rec, &Default::default(), uncertainty, true, &sha)
+    let nominal = opts.nominal_for(rel).with_context(|| name.clone())?;
+    let recorded = match nominal {
+        Some(_) => Some(
+            rec.require_geometry_and_frf()
+                .with_context(|| name.clone())?,
+        ),
+        None => None,
+    }
+    .map(|(g, f)| (g, f.clone()));
+    crate::stages::modal_fit_windowed(&mut rec, &opts.fit, opts.window_time_constant_s, &sha)
         .with_context(|| name.clone())?;
-    summary::rows(&rec, campaign, "ni", "geometry")
+    crate::stages::ni_select(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
+    crate::stages::rb_solve_with(&mut rec, &Default::default(), &opts.uncertainty, true, &sha)
+        .with_context(|| name.clone())?;
+    let mut rows = summary::rows(&rec, rel, "ni", "geometry")?;
+    if let (Some(n), Some((g, f))) = (nominal, recorded) {
+        let c = match model_check(&name, &g, &f, n, opts.window_time_constant_s, &opts.check) {
+            Ok(c) => c,
+            Err(e) => CheckColumns {
+                verdict: format!("error: {e:#}"),
+                ..Default::default()
+            },
+        };
+        for r in &mut rows {
+            r.set_check(&c);
+        }
+    }
+    Ok(rows)
+}
+
+/// The outcome of a campaign: rows in item order and the failures counted.
+pub struct CampaignResult {
+    pub rows: Vec<SummaryRow>,
+    /// Items whose pipeline failed (one row with method `error`).
+    pub failed: usize,
+    /// Items whose model check failed (their verdict starts with `error:`).
+    pub checks_failed: usize,
 }
 
 /// Runs every item in parallel. Failed items become one row with method `error` and the
-/// message in `warnings`, so the table still accounts for every input.
+/// message in `warnings`, so the table still accounts for every input. Rows come out in
+/// item order whatever the thread count.
 pub fn run_all(
     items: &[Item],
     root: &Path,
-    uncertainty: &crate::stages::Uncertainty,
+    opts: &CampaignOptions,
     progress: &indicatif::ProgressBar,
-) -> (Vec<SummaryRow>, usize) {
+) -> CampaignResult {
     let results: Vec<Vec<SummaryRow>> = items
         .par_iter()
         .map(|item| {
-            let campaign = item
+            let rel = item
                 .path()
                 .strip_prefix(root)
                 .unwrap_or(item.path())
-                .display()
-                .to_string();
-            let rows = run_item(item, &campaign, uncertainty).unwrap_or_else(|e| {
+                .to_string_lossy()
+                .replace(std::path::MAIN_SEPARATOR, "/");
+            let rows = run_item(item, &rel, opts).unwrap_or_else(|e| {
                 vec![SummaryRow {
-                    campaign: campaign.clone(),
+                    campaign: rel.clone(),
                     set: "ni".into(),
                     origin: "geometry".into(),
                     method: "error".into(),
@@ -115,5 +463,36 @@ pub fn run_all(
         .iter()
         .filter(|r| r.len() == 1 && r[0].method == "error")
         .count();
-    (results.into_iter().flatten().collect(), failed)
+    let checks_failed = results
+        .iter()
+        .filter(|r| {
+            r.first()
+                .is_some_and(|r| r.check_verdict.starts_with("error:"))
+        })
+        .count();
+    CampaignResult {
+        rows: results.into_iter().flatten().collect(),
+        failed,
+        checks_failed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::glob_match;
+
+    #[test]
+    fn globs() {
+        assert!(glob_match("*.uff", "a.uff"));
+        assert!(!glob_match("*.uff", "sub/a.uff"));
+        assert!(glob_match("**", "sub/a.uff"));
+        assert!(glob_match("**/*.uff", "sub/deep/a.uff"));
+        assert!(glob_match("**/*.uff", "a.uff"));
+        assert!(glob_match("sub/*.uff", "sub/a.uff"));
+        assert!(glob_match("run-??.58", "run-07.58"));
+        assert!(!glob_match("run-??.58", "run-7.58"));
+        assert!(!glob_match("a.uff", "b.uff"));
+        assert!(glob_match("rig-a/**", "rig-a/x/y.uff"));
+        assert!(!glob_match("rig-a/**", "rig-b/x.uff"));
+    }
 }

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 pub mod campaign;
 pub mod coherence;
+pub mod init_spec;
 pub mod plots;
 pub mod report;
 pub mod stages;
@@ -59,12 +60,6 @@ impl UffArgs {
     }
 }
 
-fn is_uff(p: &Path) -> bool {
-    let ext = p
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    matches!(ext.as_deref(), Some("uff") | Some("unv") | Some("58") | Some("58b"))
-}
 
 /// The integrity options of every stage that reads a run (flattened into its arguments).
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -101,14 +96,14 @@ pub fn read_stage_input(
     uff: &UffInputOptions,
 ) -> Result<Input> {
     let plain = path.filter(|p| p.as_os_str() != "-");
-    if (uff.geometry.is_some() || uff.channels.is_some()) && !plain.is_some_and(is_uff) {
+    if (uff.geometry.is_some() || uff.channels.is_some()) && !plain.is_some_and(campaign::is_uff) {
         bail!("--geometry and --channels apply to UFF inputs (.uff/.unv/.58/.58b) only");
     }
     let input = match plain {
         None => read_stdin()?,
         Some(p) => {
             let name = p.display().to_string();
-            if is_uff(p) {
+            if campaign::is_uff(p) {
                 uff_input(tool, p, checks, uff)?
             } else if p.is_dir() {
                 let check = rbprops_formats::digest::check_csv(p)?;
@@ -212,7 +207,7 @@ pub fn read_uff_campaign(
                 channels: map.as_ref(),
             },
         )?,
-        Some(g) if is_uff(g) => {
+        Some(g) if campaign::is_uff(g) => {
             let gbytes = std::fs::read(g).with_context(|| g.display().to_string())?;
             digest_input.extend_from_slice(&gbytes);
             let geo = rbprops_uff::parse(&gbytes, &g.display().to_string())?;

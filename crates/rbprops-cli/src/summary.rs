@@ -34,6 +34,25 @@ pub struct SummaryRow {
     pub err_sum: Option<f64>,
     pub modes: String,
     pub warnings: String,
+    /// Model check against the nominal spec (campaigns with `nominal`; empty otherwise):
+    /// the effects it names (accepted ids, ambiguous families as `a/b`).
+    #[serde(default)]
+    pub check_effects: String,
+    /// χ²/ν of the nominal spec as given.
+    #[serde(default)]
+    pub check_chi2_nu_nominal: Option<f64>,
+    /// χ²/ν of the baseline fit (nominal physics, fitted parameters) and of the final
+    /// model; ≈ 1 means the residual is noise.
+    #[serde(default)]
+    pub check_chi2_nu_before: Option<f64>,
+    #[serde(default)]
+    pub check_chi2_nu_after: Option<f64>,
+    /// The final model's residual is consistent with the noise.
+    #[serde(default)]
+    pub check_noise_floor_reached: Option<bool>,
+    /// The model check's one-line verdict (or `error: …`).
+    #[serde(default)]
+    pub check_verdict: String,
 }
 
 impl SummaryRow {
@@ -70,7 +89,19 @@ impl SummaryRow {
                 .collect::<Vec<_>>()
                 .join(" "),
             warnings: e.warnings.join(" | "),
+            ..Default::default()
         }
+    }
+
+    /// Fills the model check's columns.
+    pub fn set_check(&mut self, c: &crate::campaign::CheckColumns) {
+        self.check_effects = c.effects.clone();
+        let failed = c.verdict.starts_with("error:");
+        self.check_chi2_nu_nominal = (!failed).then_some(c.chi2_nu_nominal);
+        self.check_chi2_nu_before = (!failed).then_some(c.chi2_nu_before);
+        self.check_chi2_nu_after = (!failed).then_some(c.chi2_nu_after);
+        self.check_noise_floor_reached = (!failed).then_some(c.noise_floor_reached);
+        self.check_verdict = c.verdict.clone();
     }
 
     /// The numeric columns with their names (for tolerance checks).

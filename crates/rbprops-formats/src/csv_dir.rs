@@ -1,5 +1,8 @@
-//! The CSV directory format: one table per topic (see [`crate::flatten`]), plus
-//! - `manifest.csv`: `table,topic,parent,field,schema` — every table, in topic order;
+//! The CSV directory format: one table per topic and one per list inside it (see
+//! [`crate::flatten`]), plus
+//! - `manifest.csv`: `table,topic,parent,field,parent_key,key,schema` — every table, in
+//!   topic order, parents first; `parent_key` names the columns holding the parent
+//!   row's key, `key` the table's own key columns (space separated);
 //! - `schemas/<table>.json`: the JSON schema of each topic's messages;
 //! - `frf_info.csv`: `quantity,unit` and `frf.csv`: `excitation,channel,frequency_hz,re,im`
 //!   (long format, rows grouped by excitation then channel, lines ascending).
@@ -14,6 +17,15 @@ use rbprops_core::{c64, FrfSet, Quantity};
 use std::path::Path;
 
 pub(crate) const MANIFEST: &str = "manifest.csv";
+const MANIFEST_HEADER: [&str; 7] = [
+    "table",
+    "topic",
+    "parent",
+    "field",
+    "parent_key",
+    "key",
+    "schema",
+];
 
 /// Table name of a topic: the topic without its `/rbprops/` prefix, `/` → `_`.
 pub fn table_name(topic: &str) -> String {
@@ -41,6 +53,7 @@ fn read_table(
     dir: &Path,
     name: &str,
     parent: Option<(String, String)>,
+    (parent_key, key): (&str, &str),
 ) -> Result<Table, FormatError> {
     let path = dir.join(format!("{name}.csv"));
     let mut r = csv::ReaderBuilder::new()
@@ -58,9 +71,15 @@ fn read_table(
         let rec = rec.map_err(|e| io(&path, e))?;
         rows.push(rec.iter().map(String::from).collect());
     }
+    let inherited: Vec<String> = parent_key.split_whitespace().map(String::from).collect();
+    let n_in = inherited.len();
+    let mut key_cols = inherited;
+    key_cols.extend(key.split_whitespace().map(String::from));
     Ok(Table {
         name: name.into(),
         parent,
+        key: key_cols,
+        inherited: n_in,
         header,
         rows,
     })
@@ -86,11 +105,11 @@ pub fn write(rec: &RunRecord, path: &Path) -> Result<(), FormatError> {
         std::fs::create_dir_all(dir.join("schemas")).map_err(|e| io(dir, e))?;
         let mut manifest = csv::Writer::from_path(dir.join(MANIFEST)).map_err(|e| io(dir, e))?;
         manifest
-            .write_record(["table", "topic", "parent", "field", "schema"])
+            .write_record(MANIFEST_HEADER)
             .map_err(|e| io(dir, e))?;
         for t in &rec.topics {
             let mut tables = Vec::new();
-            flatten::to_tables(&table_name(&t.name), &t.messages, &mut tables);
+            flatten::to_tables(&table_name(&t.name), &t.messages, &t.schema, &mut tables);
             let schema_file = dir
                 .join("schemas")
                 .join(format!("{}.json", table_name(&t.name)));
@@ -98,8 +117,18 @@ pub fn write(rec: &RunRecord, path: &Path) -> Result<(), FormatError> {
                 .map_err(|e| io(&schema_file, e))?;
             for tb in &tables {
                 let (p, f) = tb.parent.clone().unwrap_or_default();
+                let parent_key = tb.key[..tb.inherited].join(" ");
+                let key = tb.key[tb.inherited..].join(" ");
                 manifest
-                    .write_record([tb.name.as_str(), t.name.as_str(), &p, &f, &t.schema_name])
+                    .write_record([
+                        tb.name.as_str(),
+                        t.name.as_str(),
+                        &p,
+                        &f,
+                        &parent_key,
+                        &key,
+                        &t.schema_name,
+                    ])
                     .map_err(|e| io(dir, e))?;
                 write_table(dir, tb)?;
             }
@@ -132,25 +161,29 @@ fn stamp_digest(rec: &RunRecord, dir: &Path) -> Result<(), FormatError> {
         serde_json::Value::String(digest),
     );
     let mut tables = Vec::new();
-    flatten::to_tables(&table_name(&prov.name), &messages, &mut tables);
+    flatten::to_tables(&table_name(&prov.name), &messages, &prov.schema, &mut tables);
     for tb in &tables {
         write_table(dir, tb)?;
     }
     Ok(())
 }
 
-/// The manifest's rows: `[table, topic, parent, field, schema]`.
-pub(crate) fn read_manifest(path: &Path) -> Result<Vec<[String; 5]>, FormatError> {
+/// The manifest's rows: `[table, topic, parent, field, parent_key, key, schema]`.
+pub(crate) fn read_manifest(path: &Path) -> Result<Vec<[String; 7]>, FormatError> {
     let mpath = path.join(MANIFEST);
     let mut m = csv::Reader::from_path(&mpath).map_err(|e| io(&mpath, e))?;
-    let mut entries: Vec<[String; 5]> = Vec::new();
+    let mut entries: Vec<[String; 7]> = Vec::new();
     for (i, r) in m.records().enumerate() {
         let r = r.map_err(|e| io(&mpath, e))?;
-        if r.len() != 5 {
+        if r.len() != MANIFEST_HEADER.len() {
             return Err(FormatError::record(
                 &mpath.display().to_string(),
                 format!("line {}", i + 2),
-                "expected 5 columns: table,topic,parent,field,schema",
+                format!(
+                    "expected {} columns: {}",
+                    MANIFEST_HEADER.len(),
+                    MANIFEST_HEADER.join(",")
+                ),
             ));
         }
         entries.push(std::array::from_fn(|k| r[k].to_string()));
@@ -166,7 +199,7 @@ pub(crate) fn read_topic_messages(
     let entries = read_manifest(path)?;
     let mut tables = Vec::new();
     let mut top = None;
-    for [table, t, parent, field, _] in &entries {
+    for [table, t, parent, field, parent_key, key, _] in &entries {
         if t != topic {
             continue;
         }
@@ -174,12 +207,17 @@ pub(crate) fn read_topic_messages(
         if p.is_none() {
             top = Some(table.clone());
         }
-        tables.push(read_table(path, table, p)?);
+        tables.push(read_table(path, table, p, (parent_key, key))?);
     }
     let Some(table) = top else {
         return Ok(Vec::new());
     };
-    flatten::from_tables(&table, &tables)
+    let sfile = path.join("schemas").join(format!("{table}.json"));
+    let schema = match std::fs::read(&sfile) {
+        Ok(b) => serde_json::from_slice(&b).map_err(|e| io(&sfile, e))?,
+        Err(_) => serde_json::Value::Bool(true),
+    };
+    flatten::from_tables(&table, &tables, &schema)
         .map_err(|e| FormatError::record(&path.display().to_string(), format!("{table}.csv"), e))
 }
 
@@ -222,15 +260,20 @@ pub fn read(path: &Path) -> Result<RunRecord, FormatError> {
     let entries = read_manifest(path)?;
     let mut rec = RunRecord::default();
     let mut tables = Vec::new();
-    for [table, _, parent, field, _] in &entries {
+    for [table, _, parent, field, parent_key, key, _] in &entries {
         let p = (!parent.is_empty()).then(|| (parent.clone(), field.clone()));
-        tables.push(read_table(path, table, p)?);
+        tables.push(read_table(path, table, p, (parent_key, key))?);
     }
-    for [table, topic, parent, _, schema_name] in &entries {
+    for [table, topic, parent, _, _, _, schema_name] in &entries {
         if !parent.is_empty() {
             continue;
         }
-        let mut messages = flatten::from_tables(table, &tables).map_err(|e| {
+        let sfile = path.join("schemas").join(format!("{table}.json"));
+        let schema = match std::fs::read(&sfile) {
+            Ok(b) => serde_json::from_slice(&b).map_err(|e| io(&sfile, e))?,
+            Err(_) => serde_json::Value::Bool(true),
+        };
+        let mut messages = flatten::from_tables(table, &tables, &schema).map_err(|e| {
             FormatError::record(&path.display().to_string(), format!("{table}.csv"), e)
         })?;
         if topic == crate::topics::PROVENANCE {
@@ -242,11 +285,6 @@ pub fn read(path: &Path) -> Result<RunRecord, FormatError> {
                 }
             }
         }
-        let sfile = path.join("schemas").join(format!("{table}.json"));
-        let schema = match std::fs::read(&sfile) {
-            Ok(b) => serde_json::from_slice(&b).map_err(|e| io(&sfile, e))?,
-            Err(_) => serde_json::Value::Bool(true),
-        };
         rec.topics.push(JsonTopic {
             name: topic.clone(),
             schema_name: schema_name.clone(),

@@ -44,7 +44,7 @@ fn hex(d: &[u8]) -> String {
 pub fn csv_content_sha256(dir: &Path) -> Result<String, FormatError> {
     let entries = csv_dir::read_manifest(dir)?;
     let mut files = vec![csv_dir::MANIFEST.to_string()];
-    for [table, topic, parent, _, _] in &entries {
+    for [table, topic, parent, _, _, _, _] in &entries {
         if topic == topics::PROVENANCE {
             continue;
         }

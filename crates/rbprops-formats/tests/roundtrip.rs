@@ -299,3 +299,66 @@ fn python_mcap_reads_our_file() {
         "{stdout}"
     );
 }
+
+#[test]
+fn pandas_reads_every_csv_table_without_custom_parsing() {
+    // A person's tool: every table must load with plain `pd.read_csv`, ids must be the
+    // ids (no JSON quoting), and each child table must hold exactly the rows its parent
+    // rows count. CI installs pandas.
+    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let probe = std::process::Command::new(&py)
+        .args(["-c", "import pandas"])
+        .status();
+    if !matches!(probe, Ok(s) if s.success()) {
+        if std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some() {
+            panic!("python `pandas` not importable with {py}");
+        }
+        eprintln!(
+            "skipping: pandas not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)"
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run");
+    csv_dir::write(&record(), &path).unwrap();
+    let script = r#"
+import sys, os
+import pandas as pd
+d = sys.argv[1]
+m = pd.read_csv(os.path.join(d, "manifest.csv"), keep_default_na=False)
+tables = {t: pd.read_csv(os.path.join(d, t + ".csv"), dtype=str, keep_default_na=False) for t in m["table"]}
+for t, df in tables.items():
+    assert "_parent" not in df.columns, t
+    for c in df.columns:
+        # No JSON quoting; the one exception is the empty string itself, written `""`
+        # (an empty cell is an absent value).
+        assert not any(str(v).startswith('"') and v != '""' for v in df[c]), (t, c)
+for _, r in m.iterrows():
+    if r["parent"]:
+        p = tables[r["parent"]]
+        n = pd.to_numeric(p[r["field"] + "_count"].replace("", "0")).sum()
+        assert n == len(tables[r["table"]]), (r["table"], n, len(tables[r["table"]]))
+pts = pd.read_csv(os.path.join(d, "geometry_points.csv"))
+assert [str(x) for x in pts["id"]] == ["1", "2", "3"], list(pts["id"])
+exc = pd.read_csv(os.path.join(d, "geometry_excitations.csv"))
+assert [str(x) for x in exc["id"]] == ["F1", "42"], list(exc["id"])
+assert list(exc["position_m.x"]) == [0.1, -0.05]
+res = pd.read_csv(os.path.join(d, "modal_fit_modes_residues.csv"))
+assert list(res.columns) == ["excitation", "setup", "mode", "index", "re", "im"], list(res.columns)
+assert len(res) == 18 and res["re"].iloc[3] == 3 / 7
+frf = pd.read_csv(os.path.join(d, "frf.csv"))
+assert len(frf) == 2 * 9 * 50
+print("ok", len(tables), "tables")
+"#;
+    let out = std::process::Command::new(&py)
+        .args(["-c", script])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -113,7 +113,8 @@ pub enum SensorKind {
 
 /// A sensor. Triaxial: channels `<id>x`, `<id>y`, `<id>z` along the frame axes, or
 /// `<id>:1`, `<id>:2`, `<id>:3` along the rows of `axes` when given. Uniaxial: one
-/// channel `<id>` along `direction`.
+/// channel `<id>` along `direction`. `channels` names them explicitly instead, one id per
+/// axis in the same order (e.g. `["101x", "101y", "101z"]` as a UFF export names them).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorSpec {
@@ -124,6 +125,9 @@ pub struct SensorSpec {
     pub axes: Option<[[f64; 3]; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direction: Option<[f64; 3]>,
+    /// Explicit channel ids, one per axis (3 for a triaxial sensor, 1 for a uniaxial).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub channels: Option<Vec<String>>,
 }
 
 /// A unit force along `direction` at `at_m`, applied with the body in set-up `setup`.
@@ -524,6 +528,27 @@ impl CampaignSpec {
                 }
             }
         }
+        for (i, s) in self.sensors.iter().enumerate() {
+            let want = match s.kind {
+                SensorKind::Triaxial => 3,
+                SensorKind::Uniaxial => 1,
+            };
+            if let Some(ids) = &s.channels {
+                if ids.len() != want {
+                    is.push(
+                        format!("sensor[{i}].channels"),
+                        format!(
+                            "a {} sensor has {want} channel id(s), got {}",
+                            if want == 3 { "triaxial" } else { "uniaxial" },
+                            ids.len()
+                        ),
+                    );
+                }
+                if ids.iter().any(|c| c.trim().is_empty()) {
+                    is.push(format!("sensor[{i}].channels"), "empty channel id");
+                }
+            }
+        }
         let mut ch = std::collections::BTreeSet::new();
         for c in self.channels() {
             if !ch.insert(c.id.clone()) {
@@ -710,13 +735,16 @@ impl CampaignSpec {
             let position = v3(&s.at_m);
             match s.kind {
                 SensorKind::Triaxial => {
-                    let (axes, names): ([[f64; 3]; 3], [String; 3]) = match &s.axes {
+                    let (axes, mut names): ([[f64; 3]; 3], [String; 3]) = match &s.axes {
                         Some(a) => (*a, ["1", "2", "3"].map(|k| format!("{}:{k}", s.id))),
                         None => (
                             [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
                             ["x", "y", "z"].map(|k| format!("{}{k}", s.id)),
                         ),
                     };
+                    if let Some(ids) = s.channels.as_ref().filter(|c| c.len() == 3) {
+                        names = std::array::from_fn(|k| ids[k].clone());
+                    }
                     for (a, id) in axes.iter().zip(names) {
                         out.push(Channel {
                             id,
@@ -727,7 +755,10 @@ impl CampaignSpec {
                     }
                 }
                 SensorKind::Uniaxial => out.push(Channel {
-                    id: s.id.clone(),
+                    id: match s.channels.as_deref() {
+                        Some([id]) => id.clone(),
+                        _ => s.id.clone(),
+                    },
                     point: s.id.clone(),
                     position,
                     direction: v3(&s.direction.unwrap_or([f64::NAN; 3])),

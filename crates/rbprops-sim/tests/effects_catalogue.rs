@@ -450,6 +450,7 @@ fn force_gauge_mass_matches_the_woodbury_form() {
         kind: rbprops_sim::spec::SensorKind::Triaxial,
         axes: None,
         direction: None,
+        channels: None,
     });
     for (k, d) in [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
         .iter()

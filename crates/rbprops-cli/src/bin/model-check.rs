@@ -91,8 +91,12 @@ fn main() -> std::process::ExitCode {
             },
             (None, None) => bail!("give the nominal campaign spec (TOML) or --example NAME"),
         };
-        let spec =
-            CampaignSpec::from_toml_str(&text).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+        let spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
+            anyhow::anyhow!(
+                "{source}: {e}{}",
+                rbprops_cli::init_spec::placeholder_hint(&text)
+            )
+        })?;
         let input = rbprops_cli::read_stage_input(
             "model-check",
             args.input.as_deref(),
@@ -128,6 +132,7 @@ fn main() -> std::process::ExitCode {
             });
         }
         let out = rbprops_check::check(&spec, &geometry, &frf, &opts)
+            .map_err(|e| rbprops_cli::init_spec::mismatch_hint(e, &input.name))
             .with_context(|| format!("{} against {source}", input.name))?;
         rbprops_cli::warn_all("model-check", &out.report.warnings);
         if let Some(p) = &args.improved_spec {

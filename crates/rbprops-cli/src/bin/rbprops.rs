@@ -33,17 +33,33 @@ enum Command {
         #[command(flatten)]
         checks: rbprops_cli::InputChecks,
     },
-    /// Run every campaign spec (*.toml) or recording (*.mcap, CSV run directory) under DIR
-    /// through modal-fit | ni-select | rb-solve with default options, in parallel, and write
-    /// one summary table (CSV; stdout unless -o).
+    /// Run every campaign spec (*.toml), recording (*.mcap, CSV run directory) and UFF export
+    /// (*.uff, *.unv, *.58, *.58b) under DIR through modal-fit | ni-select | rb-solve (and a
+    /// model check when the campaign file names a nominal spec), in parallel, and write one
+    /// summary table (CSV; stdout unless -o). Options come from DIR/campaign.toml or
+    /// --config FILE (band_hz, method, modes, uncertainty, window_time_constant_s, nominal,
+    /// geometry).
     Campaign {
         dir: PathBuf,
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// Standard errors as rb-solve computes them: `bootstrap` (default, 100 replicates,
-        /// seed 0, as rb-solve) or `linearised` (faster).
-        #[arg(long, default_value = "bootstrap")]
-        uncertainty: String,
+        /// Campaign file (TOML; default DIR/campaign.toml when it exists).
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Standard errors as rb-solve computes them: `bootstrap` (100 replicates, seed 0,
+        /// as rb-solve) or `linearised` (faster). Default: the campaign file's, else bootstrap.
+        #[arg(long)]
+        uncertainty: Option<String>,
+    },
+    /// Write a campaign spec (the TOML frf-sim and model-check read) from a recording:
+    /// sensors, channels, excitations and set-ups with the recording's ids; body, suspension
+    /// and damping as placeholders marked `FILL IN`.
+    InitSpec {
+        /// The recording: MCAP file, CSV directory or UFF file.
+        recording: PathBuf,
+        /// Output file (default: stdout).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
     },
     /// Summary rows (the campaign table's columns) of finished runs.
     Summary {
@@ -107,40 +123,77 @@ fn main() -> std::process::ExitCode {
         Command::Campaign {
             dir,
             output,
+            config,
             uncertainty,
         } => {
-            let uncertainty = match uncertainty.as_str() {
-                "bootstrap" => rbprops_cli::stages::Uncertainty::Bootstrap(Default::default()),
-                "linearised" => rbprops_cli::stages::Uncertainty::Linearised,
-                other => bail!("--uncertainty {other}: expected bootstrap or linearised"),
+            let config = config.or_else(|| {
+                let p = dir.join(rbprops_cli::campaign::CONFIG_FILE);
+                p.exists().then_some(p)
+            });
+            let (cfg, base, source) = match &config {
+                Some(p) => (
+                    rbprops_cli::campaign::CampaignConfig::read(p)?,
+                    p.parent().map(PathBuf::from).unwrap_or_default(),
+                    p.display().to_string(),
+                ),
+                None => (Default::default(), dir.clone(), "defaults".to_string()),
             };
-            let items = rbprops_cli::campaign::discover(&dir)?;
+            let mut opts = cfg.resolve(&base, &source, uncertainty.as_deref())?;
+            opts.named_files.extend(config.clone());
+            let items = rbprops_cli::campaign::discover(&dir, &opts.named_files)?;
             if items.is_empty() {
                 bail!(
-                    "{}: no campaign specs (*.toml) or recordings (*.mcap, CSV runs) found",
+                    "{}: no campaign specs (*.toml), recordings (*.mcap, CSV runs) or UFF exports (*.uff, *.unv, *.58, *.58b) found",
                     dir.display()
                 );
             }
             let pb = rbprops_cli::progress(items.len() as u64, "campaign");
-            let (rows, failed) = rbprops_cli::campaign::run_all(&items, &dir, &uncertainty, &pb);
+            let res = rbprops_cli::campaign::run_all(&items, &dir, &opts, &pb);
             pb.finish_and_clear();
-            let csv = rbprops_cli::summary::to_csv(&rows)?;
+            let csv = rbprops_cli::summary::to_csv(&res.rows)?;
             match &output {
                 Some(p) => rbprops_cli::write_text(p, &csv)?,
                 None => print!("{csv}"),
             }
             eprintln!(
-                "rbprops: campaign: {} items, {} rows, {failed} failed",
+                "rbprops: campaign: {} items, {} rows, {} failed{}",
                 items.len(),
-                rows.len()
+                res.rows.len(),
+                res.failed,
+                if opts.nominal.is_empty() {
+                    String::new()
+                } else {
+                    format!(", {} model checks failed", res.checks_failed)
+                }
             );
-            if failed > 0 {
+            if res.failed > 0 || res.checks_failed > 0 {
                 bail!(
-                    "{failed} of {} items failed (rows with method 'error' say why)",
-                    items.len()
+                    "{} of {} items failed, {} model checks failed (rows with method 'error' or a check_verdict 'error: …' say why)",
+                    res.failed,
+                    items.len(),
+                    res.checks_failed
                 );
             }
             Ok(())
+        }
+        Command::InitSpec { recording, output } => {
+            let inp = rbprops_cli::read_input(Some(&recording))?;
+            let (geometry, frf) = inp
+                .record
+                .require_geometry_and_frf()
+                .with_context(|| inp.name.clone())?;
+            let name = recording
+                .file_stem()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "recording".into());
+            let text = rbprops_cli::init_spec::spec_text(&geometry, frf, &inp.name, &name)?;
+            match &output {
+                Some(p) => rbprops_cli::write_text(p, &text),
+                None => {
+                    print!("{text}");
+                    Ok(())
+                }
+            }
         }
         Command::Summary {
             runs,
