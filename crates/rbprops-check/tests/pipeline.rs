@@ -121,12 +121,10 @@ fn improved_spec_reproduces_the_recording() {
         3,
     );
     let opts = CheckOptions {
-        noise: Some(rbprops_check::NoiseModel {
-            relative: vec![0.01; 9],
-            floor: vec![0.0; 9],
-            source: "given".into(),
-            variance_scale_se: 0.0,
-        }),
+        noise: Some(rbprops_check::RecordingNoise::given(
+            vec![0.01; 9],
+            vec![0.0; 9],
+        )),
         ..Default::default()
     };
     let out = check(&nom, &g, &frf, &opts).unwrap();
