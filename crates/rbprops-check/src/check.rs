@@ -324,16 +324,17 @@ impl<'a> Problem<'a> {
 
 /// How far above the precision floor an effect's fitted change to the FRFs must be, as
 /// the RMS over all values of |ΔŶ|/σ_p (σ_p: the quantisation of the stored values and
-/// the model's rounding, [`noise::precision_sigma`]).
+/// the computation floor of double precision, [`noise::precision_sigma`]).
 ///
 /// Why: the statistical tests treat every residual as noise, which rounding is not. Two
-/// correct double-precision evaluations of the same physics differ by their rounding,
-/// a deterministic pattern that some effect's signature always matches in part, and on
-/// exact data (σ near the floor) that part is "significant". A least-squares fit cannot
-/// change the prediction by more than the residual it explains, so an effect fitted to
-/// rounding changes the FRFs by at most about 1 σ_p (RMS); one that changes them by ten
-/// times that is not rounding. On any recording with measurement noise the test is void
-/// (an effect seen through 1 % noise changes the FRFs by 10⁹ σ_p or more).
+/// correct double-precision computations of the same physics differ by their rounding
+/// and linearisation errors, a deterministic pattern that some effect's signature always
+/// matches in part, and on exact data (σ near the floor) that part is "significant". A
+/// least-squares fit cannot change the prediction by more than the residual it
+/// explains, so an effect fitted to what lies within the floor changes the FRFs by at
+/// most about 1 σ_p (RMS); one that changes them by ten times that is not rounding. On
+/// any recording with measurement noise the test is void (an effect seen through 1 %
+/// noise changes the FRFs by 10⁵ σ_p or more).
 pub const PRACTICAL_MARGIN: f64 = 10.0;
 
 /// Orthonormal basis of the column span of `j` (columns normalised first; directions
@@ -1044,10 +1045,9 @@ fn model_modes_band(
 }
 
 /// Runs the model check of a recording (`geometry`, `frf`) against a nominal spec.
-/// With the noise estimated from the data and an effect accepted, the noise is
-/// re-estimated from the final model's residual and, if that moves the final χ²/ν by
-/// more than the half-width of its noise band, the check is run once more with it
-/// (see [`noise::estimate_from_residual`]).
+/// With the noise estimated from the data, the noise is re-estimated from the final
+/// model's residual and, if that moves the final χ²/ν out of its noise band, the check
+/// is run once more with it (see [`noise::estimate_from_residual`]).
 pub fn check(
     spec: &CampaignSpec,
     geometry: &Geometry,
@@ -1056,14 +1056,14 @@ pub fn check(
 ) -> Result<CheckOutcome, CheckError> {
     options.progress.say(|| "estimating the noise floor".into());
     let first = check_with(spec, geometry, frf, options, None, None)?;
-    if options.noise.is_some()
-        || (first.report.accepted.is_empty() && first.report.ambiguous.is_empty())
-    {
+    if options.noise.is_some() {
         return Ok(first);
     }
     // Second pass: the noise re-estimated from the residual of the first pass's final
     // model ([`noise::estimate_from_residual`]), which no longer reads the structure the
-    // accepted effects explain (a leakage ripple) as noise.
+    // accepted effects explain (a leakage ripple) as noise, nor, with nothing accepted,
+    // the curvature the local polynomial cannot follow on data without noise (a
+    // recording in single precision is then weighed by its quantisation alone).
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
     // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
@@ -1139,7 +1139,7 @@ fn check_with(
     let y = &frf.values;
     let mut warnings = Vec::new();
     let mut method = vec![
-        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
+        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν out of the noise band); line-to-line correlation κ = 1 assumed".to_string(),
         "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
         "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
         "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10), and practically significant: its fitted change to the FRFs at least 10 times the precision floor (RMS over the values); backward elimination after each acceptance".to_string(),
@@ -1167,9 +1167,9 @@ fn check_with(
         }
     };
     method.push(format!(
-        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the model's rounding ({:.1e}·|H|)²",
+        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the computation floor of double precision ({:.0e}·|H|)²; an exact recording (no fitted noise) whose χ²/ν is below the band is within that floor, and counts as at the floor",
         noise_model.precision.describe(),
-        noise::MODEL_ROUNDING
+        noise::COMPUTATION_FLOOR
     ));
     // The yardstick of practical significance: σ with no noise but the precision floor.
     let sigma_precision = noise::precision_sigma(&noise_model.precision, y, y, nl);
@@ -1962,8 +1962,17 @@ fn check_with(
     let residuals_after = residual_map(&layout, y, &final_pred, &sigma, bnds);
     let band = noise_band(nu_after, noise_model.variance_scale_se);
     let chi2_nu_after = cur.chi2 / nu_after;
-    let noise_floor_reached =
-        chi2_nu_after >= band[0] && chi2_nu_after <= band[1] && residuals_after.flagged.is_empty();
+    // With no fitted noise (a = b = 0 on every channel) σ is the precision floor alone,
+    // and its computation-floor part is a bound on the agreement of two exact
+    // computations, not a variance: a χ²/ν below the band means agreement within it.
+    let precision_only = noise_model
+        .relative
+        .iter()
+        .chain(&noise_model.floor)
+        .all(|x| *x == 0.0);
+    let noise_floor_reached = (chi2_nu_after >= band[0] || precision_only)
+        && chi2_nu_after <= band[1]
+        && residuals_after.flagged.is_empty();
     let mut report = ModelCheckReport {
         campaign: spec.name.clone(),
         verdict: String::new(),

@@ -45,8 +45,9 @@
 //! values (single precision when every value is exactly a single-precision number,
 //! d ≤ 15 significant decimal digits when every value's shortest exact decimal has at
 //! most d, double precision otherwise; `rbprops_core::precision`), and the model's own
-//! rounding (2.2e-13·|H|, [`noise::MODEL_ROUNDING`]). A recording without added noise is
-//! thus weighed by its rounding, and its χ²/ν can reach the band.
+//! the precision to which two double-precision computations of an FRF agree (1e-10·|H|,
+//! [`noise::COMPUTATION_FLOOR`]). A recording without added noise is thus weighed by its
+//! quantisation, and its χ²/ν can reach the band.
 //!
 //! Effects whose signature vanishes to every order at their neutral point
 //! (`record_truncation` as T → ∞, `cord_mass` as μ → 0) cannot be seen by a score test;
@@ -57,9 +58,9 @@
 //! over (f, ζ) of the linear residue fit to the current residual ([`resonance`]).
 //!
 //! The data-only noise estimate reads deterministic structure the local polynomial
-//! cannot follow (a leakage ripple) as noise; when effects are accepted the noise is
-//! re-estimated from the final model's residual and the check rerun with it if that
-//! moves χ²/ν by more than its band's half-width ([`noise::estimate_from_residual`]).
+//! cannot follow (a leakage ripple, or on data without noise the curvature of the FRF)
+//! as noise; the noise is re-estimated from the final model's residual and the check
+//! rerun with it if that moves χ²/ν out of its band ([`noise::estimate_from_residual`]).
 //!
 //! Not implemented (see the report's `method` field): bootstrap calibration of the
 //! screening threshold, line-to-line noise correlation (κ = 1 assumed).

@@ -43,7 +43,7 @@ pub struct AcceptedEffect {
     /// otherwise or when the check was switched off).
     pub held_out_excitations: Option<HeldOutCheck>,
     /// Practical significance: RMS over the values of the effect's fitted change to the
-    /// FRFs divided by the precision floor (storage quantisation and model rounding);
+    /// FRFs divided by the precision floor (storage quantisation and computation floor);
     /// an effect is claimed only above `check::PRACTICAL_MARGIN`.
     #[serde(default)]
     pub change_over_precision_floor: f64,
@@ -166,7 +166,8 @@ pub struct ModelCheckReport {
     /// F(ν, 2/se²) (χ²_ν/ν when the noise is given, se = 0), se the relative standard
     /// error of the noise variance; the upper end at least 1.05 (`check::noise_band`).
     pub noise_band: [f64; 2],
-    /// χ²/ν_after inside the noise band and no residual cell with z > 5.
+    /// χ²/ν_after inside the noise band (or below it when no noise was fitted and σ is
+    /// the precision floor alone) and no residual cell with z > 5.
     pub noise_floor_reached: bool,
     pub noise: RecordingNoise,
     /// Values used (complex FRF values with noise information).

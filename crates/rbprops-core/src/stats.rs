@@ -210,7 +210,9 @@ pub const BAND_TAIL: f64 = 0.001_349_898_031_630_093_3;
 /// (χ²_ν/ν)/(σ̂²/σ²) follows the F(ν, m) distribution; se = 0 gives m = ∞ and the
 /// χ²_ν/ν quantiles. Both ends are positive, and the band is asymmetric as χ² is.
 pub fn chi2_nu_band(nu: f64, se: f64, tail: f64) -> [f64; 2] {
-    if !(se > 0.0) {
+    // With m ≥ 10⁴ν the F band's width √(2/ν + 2/m) is the χ² band's to 5e-5, and for
+    // m beyond ~1e8 the incomplete beta function loses accuracy: use the limit.
+    if !(se > 0.0) || 2.0 / (se * se) > (1e4 * nu).min(1e8) {
         return [chi2_quantile(tail, nu) / nu, chi2_isf(tail, nu) / nu];
     }
     let m = 2.0 / (se * se);
@@ -270,6 +272,21 @@ mod tests {
         let c = chi2_nu_band(400.0, 0.0, BAND_TAIL);
         let f = chi2_nu_band(400.0, 1e-4, BAND_TAIL);
         assert!((c[0] / f[0] - 1.0).abs() < 1e-4 && (c[1] / f[1] - 1.0).abs() < 1e-4);
+        // A vanishing se (1e-11: m = 2e22) is the known-variance band, not a breakdown.
+        let k = chi2_nu_band(10_781.0, 0.0, BAND_TAIL);
+        assert_eq!(chi2_nu_band(10_781.0, 2e-11, BAND_TAIL), k);
+        assert!(
+            k[0] > 0.95 && k[0] < 0.97 && k[1] > 1.03 && k[1] < 1.05,
+            "{k:?}"
+        );
+        // Between the regimes the band is continuous: at m = 10⁴ν just below and above.
+        let nu: f64 = 1000.0;
+        let se_edge = (2.0 / (1e4 * nu)).sqrt();
+        let (a, b) = (
+            chi2_nu_band(nu, se_edge * 1.001, BAND_TAIL),
+            chi2_nu_band(nu, se_edge * 0.999, BAND_TAIL),
+        );
+        assert!((a[0] / b[0] - 1.0).abs() < 1e-4 && (a[1] / b[1] - 1.0).abs() < 1e-4);
         // Large ν: close to the normal approximation 1 ± 3√(2/ν).
         let nu = 1e6;
         let b = chi2_nu_band(nu, 0.0, BAND_TAIL);
