@@ -235,6 +235,36 @@ fn float32_nulls_are_silent_and_at_the_floor() {
     }
 }
 
+/// An ASCII recording with six significant digits (UFF's E13.5 single-precision
+/// format), emulated by writing and reading the generator's double-precision values with
+/// six digits: the format is detected (`decimal_digits = 6`), nothing is claimed, and
+/// χ²/ν is in the band — the 6-digit quantisation (relative 1e-6 … 1e-5) is the noise.
+#[test]
+fn six_digit_ascii_null_is_silent_and_at_the_floor() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let nom = nominal_spec();
+    let truth = null_truth(&nom, 3);
+    let (g, mut frf) = generate(&py, dir.path(), &nom, &truth, "float64", "");
+    let ascii = |x: f64| format!("{x:.5e}").parse::<f64>().unwrap();
+    for v in &mut frf.values {
+        *v = rbprops_core::c64::new(ascii(v.re), ascii(v.im));
+    }
+    let r = check(&nom, &g, &frf, &CheckOptions::default())
+        .unwrap()
+        .report;
+    eprintln!("{}", summary(3, "6 digits", &r));
+    assert_eq!(r.noise.precision.decimal_digits, Some(6));
+    assert!(claimed(&r).is_empty(), "{}", r.verdict);
+    assert!(
+        r.noise_band[0] > 0.0 && r.noise_floor_reached,
+        "χ²/ν {} not in {:?}: {}",
+        r.chi2_nu_after,
+        r.noise_band,
+        r.verdict
+    );
+}
+
 /// A single-precision recording with one concealed effect (sensor 2 turned by 20 mrad
 /// about z) and no added noise: the effect is named, nothing else is claimed, and after
 /// the refit χ²/ν reaches the (non-negative) noise band.
