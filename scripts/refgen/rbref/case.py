@@ -8,7 +8,14 @@ path of the offending field (0-based list indices), e.g.
 import copy
 import json
 import os
-import tomllib
+
+try:
+    import tomllib  # Python ≥ 3.11
+except ModuleNotFoundError:  # pragma: no cover - older Pythons with the backport
+    try:
+        import tomli as tomllib
+    except ModuleNotFoundError:
+        tomllib = None
 
 import numpy as np
 
@@ -16,7 +23,8 @@ from .rigid import cloud_properties, rotation, tensor_from_moments
 
 QUANTITY_ORDER = {"receptance": 0, "mobility": 1, "accelerance": 2}
 STANDARD_GRAVITY = 9.80665
-CASE_ONLY = ("spec", "gravity_m_s2", "reference_point_m", "elastic_mode", "window", "output", "time")
+CASE_ONLY = ("spec", "gravity_m_s2", "reference_point_m", "elastic_mode", "window", "output", "time",
+             "sensor_gravity")
 
 
 class CaseError(ValueError):
@@ -36,8 +44,15 @@ def _load_file(path):
     try:
         if path.endswith(".json"):
             return json.loads(text)
+        if tomllib is None:
+            raise CaseError(f"{path}: reading TOML needs Python ≥ 3.11 (tomllib) or tomli; use JSON")
         return tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as e:
+    except json.JSONDecodeError as e:
+        raise CaseError(f"{path}: {e}") from None
+    except Exception as e:  # tomllib.TOMLDecodeError
+        if isinstance(e, CaseError):
+            raise
+        raise CaseError(f"{path}: {e}") from None
         raise CaseError(f"{path}: {e}") from None
 
 
@@ -56,8 +71,36 @@ def _merge_by_id(base, over, path, src):
     return out
 
 
-def load(path, overrides=None):
-    """Reads a case (TOML/JSON) or a bare rbprops campaign spec; returns a Case."""
+def apply_setting(data, path, value, src="--set"):
+    """Sets `value` at a dotted `path` of the case data, e.g. `noise.relative`,
+    `sensor.2.misorientation_rad` (lists of tables — sensor, excitation, setup — are
+    addressed by id, other lists by 0-based index). Missing tables are created."""
+    keys = path.split(".")
+    node = data
+    for i, k in enumerate(keys[:-1]):
+        nxt = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, list):
+            hit = [x for x in node if isinstance(x, dict) and str(x.get("id")) == k]
+            if hit:
+                node = hit[0]
+                continue
+            if k.isdigit() and int(k) < len(node):
+                node = node[int(k)]
+                continue
+            raise CaseError(f"{src}: {path}: no entry with id or index {k!r} in {'.'.join(keys[:i])}")
+        if nxt is None:
+            node[k] = {}
+            nxt = node[k]
+        node = nxt
+    if isinstance(node, list):
+        raise CaseError(f"{src}: {path}: name an entry of the list {keys[-2]!r} by id first")
+    node[keys[-1]] = value
+
+
+def load(path, overrides=None, settings=()):
+    """Reads a case (TOML/JSON) or a bare rbprops campaign spec; returns a Case.
+    `overrides`: top-level keys replaced; `settings`: (dotted path, value) pairs applied
+    after the merge with the spec (see `apply_setting`)."""
     raw = _load_file(path)
     if not isinstance(raw, dict):
         raise CaseError(f"{path}: the top level must be a table")
@@ -95,12 +138,59 @@ def load(path, overrides=None):
         data["gravity_m_s2"] = 0.0
     for key, val in (overrides or {}).items():
         data[key] = val
+    for key, val in settings:
+        apply_setting(data, key, val)
     return Case(data, path)
 
 
-def _vec(x, n=3):
-    a = np.asarray(x, float)
-    return a
+FIELDS = {
+    "frequency": {"start_hz", "stop_hz", "lines"},
+    "body": {"mass_kg", "com_m", "inertia_cm_kg_m2", "moments_kg_m2", "products_kg_m2", "points_m",
+             "point_masses_kg"},
+    "setup": {"id", "description", "spring", "cord", "dashpot", "rotational_spring", "loss_factor"},
+    "rotational_spring": {"stiffness_n_m_per_rad", "stiffness_matrix_n_m_per_rad"},
+    "spring": {"at_m", "anchor_m", "stiffness_n_per_m", "stiffness_matrix_n_per_m", "loss_factor"},
+    "cord": {"at_m", "anchor_m", "length_m", "stiffness_n_per_m", "loss_factor"},
+    "dashpot": {"at_m", "damping_n_s_per_m", "damping_matrix_n_s_per_m"},
+    "sensor": {"id", "at_m", "kind", "axes", "direction", "position_error_m", "misorientation_rad",
+               "gain", "gains", "mass_kg", "highpass_s", "delay_s", "delays_s"},
+    "excitation": {"id", "at_m", "direction", "setup", "point", "position_error_m",
+                   "direction_error_rad", "gauge_mass_kg", "stinger_lateral_n_per_m",
+                   "stinger_bending_n_m_per_rad", "force_gauge_gain", "delay_s",
+                   "suspension_stiffness_factor"},
+    "damping": {"model", "ratio", "ratios", "alpha", "beta"},
+    "noise": {"relative", "floor"},
+    "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
+    "window": {"tau_s", "record_s"},
+    "output": {"precision"},
+    "time": {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise", "response_noise",
+             "clip_response", "amplitude_n", "amplitude_jitter"},
+}
+"""Known fields of each table: anything else is an error (a misspelt effect parameter
+would otherwise silently vanish from the physics)."""
+
+
+def _check_fields(ck, data):
+    def one(tab, kind, path):
+        if not isinstance(tab, dict):
+            ck.fail(path, "must be a table")
+        for k in tab:
+            if k not in FIELDS[kind]:
+                ck.fail(f"{path}.{k}", f"unknown field (known: {', '.join(sorted(FIELDS[kind]))})")
+
+    for kind in ("frequency", "body", "damping", "noise", "window", "output", "time"):
+        if kind in data:
+            one(data[kind], kind, kind)
+    for kind in ("setup", "sensor", "excitation", "elastic_mode"):
+        items = data.get(kind, [])
+        if not isinstance(items, list):
+            ck.fail(kind, "must be a list of tables ([[...]])")
+        for i, item in enumerate(items):
+            one(item, kind, f"{kind}[{i}]")
+            if kind == "setup":
+                for sub in ("spring", "cord", "dashpot", "rotational_spring"):
+                    for j, x in enumerate(item.get(sub, [])):
+                        one(x, sub, f"{kind}[{i}].{sub}[{j}]")
 
 
 class _Checker:
@@ -167,10 +257,11 @@ class Case:
         self.data = data
         known = {"name", "description", "seed", "quantity", "frequency", "body", "setup", "sensor",
                  "excitation", "damping", "noise", "up", "gravity_m_s2", "reference_point_m",
-                 "elastic_mode", "window", "output", "time"}
+                 "elastic_mode", "window", "output", "time", "sensor_gravity"}
         for k in data:
             if k not in known:
                 ck.fail(k, f"unknown field (known: {', '.join(sorted(known))})")
+        _check_fields(ck, data)
         self.name = str(data.get("name", os.path.splitext(os.path.basename(src))[0]))
         self.seed = int(data.get("seed", 0))
         self.quantity = data.get("quantity", "receptance")
@@ -179,6 +270,9 @@ class Case:
         self.up = ck.unit(data, "up", "") if "up" in data else np.array([0.0, 0.0, 1.0])
         self.gravity = ck.num(data, "gravity_m_s2", "", STANDARD_GRAVITY, lo=0.0)
         self.origin = ck.arr(data, "reference_point_m", "", (3,), [0.0, 0.0, 0.0])
+        self.sensor_gravity = data.get("sensor_gravity", False)
+        if not isinstance(self.sensor_gravity, bool):
+            ck.fail("sensor_gravity", f"must be true or false, got {self.sensor_gravity!r}")
         fr = data.get("frequency")
         if not isinstance(fr, dict):
             ck.fail("frequency", "missing table [frequency] with start_hz, stop_hz, lines")
@@ -194,9 +288,8 @@ class Case:
         self._damping(ck, data.get("damping", {"model": "none"}))
         self._elastic(ck, data.get("elastic_mode", []))
         win = data.get("window", {})
-        self.window_tau = ck.num(win, "tau_s", "window", 0.0, lo=0.0) if win else 0.0
-        if win and self.window_tau <= 0:
-            ck.fail("window.tau_s", "must be > 0")
+        self.window_tau = ck.num(win, "tau_s", "window", 0.0, lo=0.0, strict_lo=True) if "tau_s" in win else 0.0
+        self.record_s = ck.num(win, "record_s", "window", 0.0, lo=0.0, strict_lo=True) if "record_s" in win else 0.0
         noise = data.get("noise", {})
         self.noise_relative = ck.num(noise, "relative", "noise", 0.0, lo=0.0)
         self.noise_floor = ck.num(noise, "floor", "noise", 0.0, lo=0.0)
@@ -265,6 +358,17 @@ class Case:
             mis = rotation(ck.arr(s, "misorientation_rad", path, (3,), [0, 0, 0]))
             gain = ck.num(s, "gain", path, 1.0)
             mass = ck.num(s, "mass_kg", path, 0.0, lo=0.0)
+            hp = s.get("highpass_s", [])
+            hp = [hp] if isinstance(hp, (int, float)) and not isinstance(hp, bool) else hp
+            if not isinstance(hp, list) or not all(isinstance(x, (int, float)) and x > 0 for x in hp):
+                ck.fail(f"{path}.highpass_s", "must be a positive time constant or a list of them (s)")
+            if "delay_s" in s and "delays_s" in s:
+                ck.fail(path, "give delay_s (all channels) or delays_s (per axis), not both")
+            delay = ck.num(s, "delay_s", path, 0.0, lo=0.0)
+            delays = ck.arr(s, "delays_s", path, (3,)) if "delays_s" in s else None
+            if kind != "triaxial" and delays is not None:
+                ck.fail(f"{path}.delays_s", "per-axis delays are for triaxial sensors (use delay_s)")
+            filt = dict(highpass_s=[float(x) for x in hp], delay_s=delay)
             if mass > 0:
                 self.sensor_masses.append((at + dp, mass))
             if kind == "triaxial":
@@ -286,15 +390,17 @@ class Case:
                 else:
                     gains = [gain] * 3
                 for k in range(3):
+                    if delays is not None:
+                        filt = dict(filt, delay_s=float(delays[k]))
                     self.channels.append(dict(id=names[k], point=sid, position=at, direction=ax[k],
                                               true_position=at + dp, true_direction=mis @ ax[k],
-                                              gain=float(gains[k])))
+                                              gain=float(gains[k]), **filt))
             elif kind == "uniaxial":
                 if "axes" in s:
                     ck.fail(f"{path}.axes", "a uniaxial sensor takes `direction`, not `axes`")
                 d = ck.unit(s, "direction", path)
                 self.channels.append(dict(id=sid, point=sid, position=at, direction=d,
-                                          true_position=at + dp, true_direction=mis @ d, gain=gain))
+                                          true_position=at + dp, true_direction=mis @ d, gain=gain, **filt))
             else:
                 ck.fail(f"{path}.kind", f"must be 'triaxial' or 'uniaxial', got {kind!r}")
         self.sensor_points = {str(s["id"]): np.asarray(s["at_m"], float) for s in sensors}
@@ -311,7 +417,7 @@ class Case:
             if not sid.strip() or sid in seen:
                 ck.fail(f"{path}.id", f"empty or repeated id {sid!r}")
             seen.add(sid)
-            springs, cords, dashpots = [], [], []
+            springs, cords, dashpots, spring_eta, cord_eta = [], [], [], [], []
             for j, sp in enumerate(s.get("spring", [])):
                 p = f"{path}.spring[{j}]"
                 at = ck.arr(sp, "at_m", p, (3,))
@@ -326,6 +432,7 @@ class Case:
                     k = ck.sym_psd(ck.arr(sp, "stiffness_matrix_n_per_m", p, (3, 3)), f"{p}.stiffness_matrix_n_per_m")
                 anchor = ck.arr(sp, "anchor_m", p, (3,), at)
                 springs.append((at, anchor, k))
+                spring_eta.append(ck.num(sp, "loss_factor", p, -1.0) if "loss_factor" in sp else None)
             for j, c in enumerate(s.get("cord", [])):
                 p = f"{path}.cord[{j}]"
                 at = ck.arr(c, "at_m", p, (3,))
@@ -333,6 +440,7 @@ class Case:
                 l0 = ck.num(c, "length_m", p, lo=0.0, strict_lo=True)
                 k = ck.num(c, "stiffness_n_per_m", p, lo=0.0, strict_lo=True)
                 cords.append((at, anchor, l0, k))
+                cord_eta.append(ck.num(c, "loss_factor", p, lo=0.0) if "loss_factor" in c else None)
             for j, d in enumerate(s.get("dashpot", [])):
                 p = f"{path}.dashpot[{j}]"
                 at = ck.arr(d, "at_m", p, (3,))
@@ -346,9 +454,28 @@ class Case:
                 else:
                     c = ck.sym_psd(ck.arr(d, "damping_matrix_n_s_per_m", p, (3, 3)), f"{p}.damping_matrix_n_s_per_m")
                 dashpots.append((at, c))
+            rotational = []
+            for j, r in enumerate(s.get("rotational_spring", [])):
+                p = f"{path}.rotational_spring[{j}]"
+                if ("stiffness_n_m_per_rad" in r) == ("stiffness_matrix_n_m_per_rad" in r):
+                    ck.fail(p, "give exactly one of stiffness_n_m_per_rad and stiffness_matrix_n_m_per_rad")
+                if "stiffness_n_m_per_rad" in r:
+                    kr = ck.arr(r, "stiffness_n_m_per_rad", p, (3,))
+                    if np.any(kr < 0):
+                        ck.fail(f"{p}.stiffness_n_m_per_rad", "negative stiffness")
+                    rotational.append(np.diag(kr))
+                else:
+                    rotational.append(ck.sym_psd(ck.arr(r, "stiffness_matrix_n_m_per_rad", p, (3, 3)),
+                                                 f"{p}.stiffness_matrix_n_m_per_rad"))
             eta = ck.num(s, "loss_factor", path, 0.0, lo=0.0)
+            for j, e in enumerate(spring_eta):
+                if e is not None and e < 0:
+                    ck.fail(f"{path}.spring[{j}].loss_factor", f"must be ≥ 0, got {e}")
+            # Element loss factors default to the set-up's.
+            losses = [eta if e is None else e for e in spring_eta] + [eta if e is None else e for e in cord_eta]
             self.setups.append(dict(id=sid, description=str(s.get("description", "")), springs=springs,
-                                    cords=cords, dashpots=dashpots, loss_factor=eta))
+                                    cords=cords, dashpots=dashpots, rotational=rotational, loss_factor=eta,
+                                    element_losses=losses))
 
     # --- excitations ---------------------------------------------------------------------
     def _excitations(self, ck, exc):
@@ -375,7 +502,12 @@ class Case:
                 ck.fail(f"{path}.point", f"names sensor point {point!r} but at_m differs from the sensor's")
             self.excitations.append(dict(
                 id=eid, point=point, position=at, direction=d, setup=setup, true_position=at + dp,
-                true_direction=rot @ d, gauge_mass=ck.num(e, "gauge_mass_kg", path, 0.0, lo=0.0)))
+                true_direction=rot @ d, gauge_mass=ck.num(e, "gauge_mass_kg", path, 0.0, lo=0.0),
+                stinger_lateral=ck.num(e, "stinger_lateral_n_per_m", path, 0.0, lo=0.0),
+                stinger_bending=ck.num(e, "stinger_bending_n_m_per_rad", path, 0.0, lo=0.0),
+                force_gauge_gain=ck.num(e, "force_gauge_gain", path, 1.0, lo=0.0, strict_lo=True),
+                delay_s=ck.num(e, "delay_s", path, 0.0, lo=0.0),
+                stiffness_factor=ck.num(e, "suspension_stiffness_factor", path, 1.0, lo=0.0, strict_lo=True)))
 
     # --- damping -------------------------------------------------------------------------
     def _damping(self, ck, d):
@@ -414,7 +546,8 @@ class Case:
                     ck.fail(f"{path}.{key}", "must be a table {id = value} (mass-normalised, 1/√kg)")
                 for k in v:
                     if k not in names:
-                        ck.fail(f"{path}.{key}.{k}", f"no such {'channel' if key == 'at_channels' else 'excitation'} (known: {', '.join(names)})")
+                        what = "channel" if key == "at_channels" else "excitation"
+                        ck.fail(f"{path}.{key}.{k}", f"no such {what} (known: {', '.join(names)})")
                 shapes.append(np.array([float(v.get(n, 0.0)) for n in names]))
             setups = m.get("setups", [s["id"] for s in self.setups])
             self.elastic_modes.append(dict(frequency_hz=f, damping_ratio=z, at_channels=shapes[0],

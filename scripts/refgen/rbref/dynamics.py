@@ -25,7 +25,6 @@ Route (independent of a direct solve of (K + iωC − ω²M)⁻¹):
     the symmetric normalisation ψᵀ[[C, M], [M, 0]]ψ = 1 needs an extra orthogonalisation).
 """
 import numpy as np
-import scipy.linalg
 
 from .rigid import point_map
 
@@ -37,8 +36,12 @@ in frequency would be misread as free (none of the cases of interest comes close
 
 
 def undamped_modes(k, m):
-    """ω² (ascending) and M-orthonormal shapes of (K, M); raises on a negative stiffness."""
-    w2, phi = scipy.linalg.eigh(k, m)
+    """ω² (ascending) and M-orthonormal shapes of (K, M) (Cholesky M = L Lᵀ, symmetric
+    eigenproblem of L⁻¹ K L⁻ᵀ); raises on a negative stiffness."""
+    ell = np.linalg.cholesky(m)
+    a = np.linalg.solve(ell, np.linalg.solve(ell, k).T)
+    w2, y = np.linalg.eigh(0.5 * (a + a.T))
+    phi = np.linalg.solve(ell.T, y)
     top = max(np.abs(w2).max(), 0.0)
     if top > 0 and w2[0] < -FREE_TOLERANCE * top:
         raise ValueError(f"unstable equilibrium: negative stiffness (ω² = {w2[0]:.4e} rad²/s²)")
@@ -82,13 +85,19 @@ class PoleResidueModel:
         w2, phi = undamped_modes(k, m)
         top = np.abs(w2).max()
         free = w2 <= FREE_TOLERANCE * top if top > 0 else np.ones(len(w2), bool)
-        phi0 = phi[:, free]
-        split = free.any() and np.abs(c @ phi0).max(initial=0) <= 1e-12 * max(np.abs(c).max(), 1e-300) \
-            and np.abs(d @ phi0).max(initial=0) <= 1e-12 * max(np.abs(d).max(), 1e-300)
-        if not split:
+        phi0, phi1 = phi[:, free], phi[:, ~free]
+        if free.any():
+            # Within the free subspace, the combinations that C and D do not touch
+            # (C, D PSD: φᵀ(C + D)φ = 0 ⇒ Cφ = Dφ = 0) are split off exactly; free but
+            # damped combinations (a dashpot to ground) stay in the state space.
+            cd = phi0.T @ (c + d) @ phi0
+            ev, u = np.linalg.eigh(0.5 * (cd + cd.T))
+            scale = max(np.abs(phi.T @ (c + d) @ phi).max(), 1e-300)
+            undamped = ev <= 1e-12 * scale
+            phi1 = np.hstack([phi1, phi0 @ u[:, ~undamped]])
+            phi0 = phi0 @ u[:, undamped]
             free = np.zeros(len(w2), bool)
-            phi0 = phi[:, free]
-        phi1 = phi[:, ~free]
+            free[:phi0.shape[1]] = True
         n = phi1.shape[1]
         if n:
             kb = phi1.T @ (k + 1j * d) @ phi1
@@ -97,7 +106,7 @@ class PoleResidueModel:
             a[:n, n:] = np.eye(n)
             a[n:, :n] = -kb
             a[n:, n:] = -cb
-            lam, v = scipy.linalg.eig(a)
+            lam, v = np.linalg.eig(a)
             cond = np.linalg.cond(v)
             if not np.isfinite(cond) or cond > 1e10:
                 raise ValueError(
@@ -150,4 +159,21 @@ def evaluate(poles, lres, rres, free, extra, s):
         h += free.T[:, :, None] / (s ** 2)[None, None, :]
     for lam, res in extra:
         h += res.T[:, :, None] / (s - lam)[None, None, :]
+    return h
+
+
+def truncation_correction(poles, lres, rres, free, extra, s, k, record):
+    """What a finite record [0, T] removes from s^k H(s): the transform of the tail t > T,
+    for the impulse response of Σ ρ_r/(s − λ_r) + P/s² observed as its k-th derivative:
+    Σ_r ρ_r λ_r^k e^{(λ_r − s)T}/(s − λ_r) + P·{e^{−sT}(1 + sT)/s², e^{−sT}/s, 0} for
+    k = 0, 1, 2 (the polynomial part of s^k/(s − λ) is an impulse at t = 0, inside the
+    record). Returns [e, c, l]."""
+    lam = np.concatenate([poles, np.array([m for m, _ in extra], complex)])
+    e = np.exp((lam[:, None] - s[None, :]) * record) * lam[:, None] ** k / (s[None, :] - lam[:, None])
+    h = np.einsum("cr,re,rl->ecl", lres, rres, e[:len(poles)], optimize=True)
+    for j, (_, res) in enumerate(extra):
+        h += res.T[:, :, None] * e[len(poles) + j][None, None, :]
+    if np.any(free != 0) and k < 2:
+        tail = np.exp(-s * record) * ((1 + s * record) / s ** 2 if k == 0 else 1 / s)
+        h += free.T[:, :, None] * tail[None, None, :]
     return h

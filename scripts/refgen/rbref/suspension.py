@@ -8,6 +8,8 @@ Potential energy V(pose):
   - point springs:  ½ (x(p) − a)ᵀ K (x(p) − a), anchor a fixed in space, 3×3 K in space axes
     (a defaults to the attachment's reference position, so the spring is unloaded there);
   - elastic cords:  ½ k (|a − x(p)| − L0)² when taut (|a − x(p)| > L0), 0 when slack;
+  - rotational mounts: ½ ψᵀ K_r ψ, ψ the rotation vector of R (the body's rotation from the
+    reference pose, space axes): bending/torsion of a clamped cord end or a rubber mount;
   - gravity:        m g up·x(c), c the CoM of the mass model (body plus attached sensors).
 
 Perturbations about a pose P0 = (X0, R0) use the chart
@@ -25,7 +27,7 @@ differences of it with Richardson extrapolation (see `stiffness`).
 """
 import numpy as np
 
-from .rigid import right_jacobian, rotation, skew
+from .rigid import right_jacobian, rotation, rotation_vector
 
 FD_STEP = 1e-4
 """Relative step of the finite-difference Hessian: h_θ = FD_STEP rad, h_u = FD_STEP·L with
@@ -39,7 +41,7 @@ about 1e-12 relative to the stiffness. Measured against exact Hessians in test_r
 class Suspension:
     """The potential energy of one set-up and the body's mass model for gravity."""
 
-    def __init__(self, springs, cords, mass, com, gravity, up, origin=(0.0, 0.0, 0.0)):
+    def __init__(self, springs, cords, mass, com, gravity, up, origin=(0.0, 0.0, 0.0), rotational=()):
         # springs: list of (at, anchor, K); cords: list of (at, anchor, L0, k)
         self.springs = [(np.asarray(p, float), np.asarray(a, float), np.asarray(k, float))
                         for p, a, k in springs]
@@ -50,6 +52,7 @@ class Suspension:
         self.g = float(gravity)
         self.up = np.asarray(up, float) / np.linalg.norm(up)
         self.origin = np.asarray(origin, float)
+        self.rotational = sum((np.asarray(k, float) for k in rotational), np.zeros((3, 3)))
         pts = [s[0] for s in self.springs] + [c[0] for c in self.cords] + [self.com]
         self.length_scale = max(0.01, max(np.linalg.norm(p - self.origin) for p in pts))
 
@@ -79,7 +82,11 @@ class Suspension:
         x0, r0 = pose
         e = rotation(q[3:])
         t = x0 + r0 @ q[:3]
-        return self._terms(lambda p: t + r0 @ (e @ (p - self.origin)))[0]
+        v = self._terms(lambda p: t + r0 @ (e @ (p - self.origin)))[0]
+        if self.rotational.any():
+            psi = rotation_vector(r0 @ e)
+            v += 0.5 * psi @ self.rotational @ psi
+        return v
 
     def gradient(self, pose, q=np.zeros(6)):
         """∂V/∂q in the chart about `pose`: g_u = R0ᵀ Σ ∇V, g_θ = J_rᵀ Σ (r × Eᵀ R0ᵀ ∇V)."""
@@ -93,13 +100,20 @@ class Suspension:
             fb = r0.T @ f
             gu += fb
             gt += np.cross(p - self.origin, e.T @ fb)
-        return np.concatenate([gu, right_jacobian(q[3:]).T @ gt])
+        g_theta = right_jacobian(q[3:]).T @ gt
+        if self.rotational.any():
+            # ψ = log(R0 exp([θ]×)): J_r(ψ) dψ = J_r(θ) dθ, so ∂ψ/∂θ = J_r(ψ)⁻¹ J_r(θ).
+            psi = rotation_vector(r0 @ e)
+            dpsi = np.linalg.solve(right_jacobian(psi), right_jacobian(q[3:]))
+            g_theta = g_theta + dpsi.T @ (self.rotational @ psi)
+        return np.concatenate([gu, g_theta])
 
     def force_scale(self, pose):
         """Largest force magnitude in the energy terms at the pose (for tolerances)."""
         x0, r0 = pose
         _, grads = self._terms(lambda p: x0 + r0 @ (p - self.origin))
-        return max([np.linalg.norm(f) for _, f in grads] + [1e-300])
+        torque = np.linalg.norm(self.rotational @ rotation_vector(r0)) / self.length_scale
+        return max([np.linalg.norm(f) for _, f in grads] + [torque, 1e-300])
 
     @staticmethod
     def moved(pose, q):
@@ -128,6 +142,18 @@ class Suspension:
         asym = np.abs(h - h.T).max() / norm if norm > 0 else 0.0
         return 0.5 * (h + h.T), asym
 
+    def near_slack(self, pose, step=FD_STEP):
+        """Indices of cords whose stretch |ℓ − L0| at the pose is within 10 finite-difference
+        displacements (10·step·L): the potential is not smooth there, so neither the
+        Hessian nor a linear model is meaningful."""
+        x0, r0 = pose
+        out = []
+        for i, (p, a, l0, k) in enumerate(self.cords):
+            ell = np.linalg.norm(a - (x0 + r0 @ (p - self.origin)))
+            if abs(ell - l0) < 10 * step * self.length_scale:
+                out.append(i)
+        return out
+
     def cord_tensions(self, pose):
         """Tension k(|a − x| − L0)⁺ of each cord at the pose (N)."""
         x0, r0 = pose
@@ -145,7 +171,7 @@ class Suspension:
         no stable equilibrium."""
         pose = (self.origin.copy(), np.eye(3))
         if self.g == 0.0 and not self.springs and not self.cords:
-            return pose, 0
+            return pose, 0  # only rotational mounts (or nothing), unloaded at the reference
         scale_l = self.length_scale
         wts = np.array([1.0] * 3 + [1.0 / scale_l] * 3)  # torque → force units
         for it in range(1, max_iter + 1):

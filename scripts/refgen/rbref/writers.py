@@ -185,9 +185,16 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
     lay = UffLayout(case)
     freq = np.asarray(result.frequency_hz, float)
     start, step = freq[0], (freq[1] - freq[0]) if len(freq) > 1 else 1.0
-    even = _fits_e13(start) and np.allclose(start + step * np.arange(len(freq)), freq, rtol=0, atol=1e-12 * max(1.0, abs(freq[-1])))
+    even = _fits_e13(start) and np.allclose(start + step * np.arange(len(freq)), freq, rtol=0,
+                                            atol=1e-12 * max(1.0, abs(freq[-1])))
     if even:
         step = float("%13.5e" % step)
+    else:
+        import sys
+        print(f"warning: {path}: the frequency axis is not an even axis with start and step of 6 "
+              "significant digits: written as uneven abscissae, "
+              + ("in the ordinates' precision" if binary else "each with 6 significant digits (E13.5)"),
+              file=sys.stderr)
     sets = [pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=2,
                               length=1.0, force=1.0, temp=1.0, temp_offset=273.15)]
     if lay.systems:
@@ -210,21 +217,24 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
     single = case.precision == "float32"
     ord_type = 5 if single else 6
     setup_desc = {s["id"]: s["description"] for s in case.setups}
-    n = 0
+    records = []
     for ei, e in enumerate(case.excitations):
         rn, rd = lay.dof[("ex", e["id"])]
         for ci, c in enumerate(case.channels):
             sn, sd = lay.dof[("ch", c["id"])]
-            n += 1
             tags = f"rbprops ch={c['id']} cp={c['point']} ex={e['id']} ep={e['point']}"
             if len(tags) > 80 or any(" " in x or "=" in x for x in (c["id"], c["point"], e["id"], e["point"])):
                 tags = "NONE"
             id4 = f"setup={e['setup']} {setup_desc[e['setup']]}".strip()[:80]
-            data = result.frf[ei, ci]
+            records.append(dict(
+                id1=f"rbref {case.name} {c['id']}/{e['id']}"[:80], id4=id4, id5=tags,
+                rsp=(sn, sd), ref=(rn, rd), data=np.asarray(result.frf[ei, ci], complex)))
+    if not binary:
+        for r in records:
             sets.append(pyuff.prepare_58(
-                binary=int(binary), func_type=4, ver_num=0, load_case_id=0,
-                rsp_ent_name="NONE", rsp_node=sn, rsp_dir=sd, ref_ent_name="NONE",
-                ref_node=rn, ref_dir=rd, ord_data_type=ord_type, num_pts=len(freq),
+                binary=0, func_type=4, ver_num=0, load_case_id=0,
+                rsp_ent_name="NONE", rsp_node=r["rsp"][0], rsp_dir=r["rsp"][1], ref_ent_name="NONE",
+                ref_node=r["ref"][0], ref_dir=r["ref"][1], ord_data_type=ord_type, num_pts=len(freq),
                 abscissa_spacing=1 if even else 0, abscissa_min=float(start),
                 abscissa_inc=float(step) if even else 0.0, z_axis_value=0.0,
                 abscissa_spec_data_type=18, abscissa_len_unit_exp=0, abscissa_force_unit_exp=0,
@@ -236,11 +246,40 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
                 orddenom_temp_unit_exp=0, orddenom_axis_units_lab="N",
                 z_axis_spec_data_type=0, z_axis_len_unit_exp=0, z_axis_force_unit_exp=0,
                 z_axis_temp_unit_exp=0, z_axis_axis_units_lab="NONE",
-                data=np.asarray(data, np.complex64 if single else complex), x=freq,
-                id1=f"rbref {case.name} {c['id']}/{e['id']}"[:80], id2="NONE", id3="NONE",
-                id4=id4, id5=tags))
+                # pyuff takes complex128; with force_double=False it writes type 5 as E13.5
+                data=r["data"], x=freq, id2="NONE", id3="NONE", id1=r["id1"], id4=r["id4"], id5=r["id5"]))
 
     def w(tmp):
         os.remove(tmp)  # pyuff appends to an existing file
         pyuff.UFF(tmp).write_sets(sets, mode="add", force_double=not single)
+        if binary:
+            with open(tmp, "ab") as fh:
+                for r in records:
+                    fh.write(_dataset_58b(r, case.quantity, single, even, start, step, freq))
     _atomic(path, w)
+
+
+def _dataset_58b(r, quantity, single, even, start, step, freq):
+    """One binary dataset 58b, written here because pyuff 2.5 writes doubles whatever the
+    announced type and announces half the byte count of complex data. Little-endian IEEE:
+    float32 pairs for type 5, float64 pairs for type 6; an uneven axis interleaves the
+    abscissa (in the ordinate's precision). Records as in the ASCII form."""
+    n = len(r["data"])
+    dt = np.dtype("<f4" if single else "<f8")
+    if even:
+        vals = np.empty(2 * n)
+        vals[0::2], vals[1::2] = r["data"].real, r["data"].imag
+    else:
+        vals = np.empty(3 * n)
+        vals[0::3], vals[1::3], vals[2::3] = freq, r["data"].real, r["data"].imag
+    payload = vals.astype(dt).tobytes()
+    lab = lambda spec, le, fe, lab: "%10i%5i%5i%5i %-20s %-20s\n" % (spec, le, fe, 0, "NONE", lab)
+    text = ("%6i\n%6ib%6i%6i%12i%12i%6i%6i%12i%12i\n" % (-1, 58, 1, 2, 11, len(payload), 0, 0, 0, 0)
+            + "".join("%-80s\n" % x for x in (r["id1"], "NONE", "NONE", r["id4"], r["id5"]))
+            + "%5i%10i%5i%10i %10s%10i%4i %10s%10i%4i\n" % (4, 1, 0, 0, "NONE", r["rsp"][0], r["rsp"][1],
+                                                             "NONE", r["ref"][0], r["ref"][1])
+            + "%10i%10i%10i%13.5e%13.5e%13.5e\n" % (5 if single else 6, n, int(even),
+                                                   start if even else 0.0, step if even else 0.0, 0.0)
+            + lab(18, 0, 0, "Hz") + lab(UFF_DATA_TYPE[quantity], 1, 0, MOTION_LABEL[quantity])
+            + lab(13, 0, 1, "N") + lab(0, 0, 0, "NONE"))
+    return text.encode("ascii") + payload + b"%6i\n" % -1
