@@ -8,14 +8,14 @@ use crate::candidates::{candidates, local_effect, Candidate, Screening};
 use crate::error::CheckError;
 use crate::lm::{self, Bounds, Fit};
 use crate::locate::{bands, residual_map};
-use crate::noise::{self, NoiseModel};
+use crate::noise::{self, RecordingNoise};
 use crate::params::{inertia_quantities, theta_to_inertia, Baseline, ParamKind, INERTIA_NAMES};
 use crate::predict::{predict, Layout};
 use crate::report::*;
-use crate::stats::chi2_isf;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
-use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_core::stats::chi2_isf;
+use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
 use rbprops_sim::effects::Effect;
 use rbprops_sim::CampaignSpec;
 
@@ -23,7 +23,7 @@ use rbprops_sim::CampaignSpec;
 #[derive(Debug, Clone)]
 pub struct CheckOptions {
     /// Noise model from side information (repeats, coherence); `None`: from the data.
-    pub noise: Option<NoiseModel>,
+    pub noise: Option<RecordingNoise>,
     /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
     pub alpha: f64,
     /// At most this many effects are accepted.
@@ -303,7 +303,39 @@ impl<'a> Problem<'a> {
     fn n_real(&self) -> f64 {
         2.0 * self.used.len() as f64
     }
+
+    /// RMS over the values used of |Ŷ₁ − Ŷ₀|/σ_p: the change between two predictions in
+    /// units of the precision floor `sigma_precision` (values with σ_p = 0, exact zeros
+    /// of a model with no rounding to speak of, are left out).
+    fn change_over_floor(&self, m1: &[c64], m0: &[c64], sigma_precision: &[f64]) -> f64 {
+        let (mut s, mut n) = (0.0, 0usize);
+        for &i in &self.used {
+            if sigma_precision[i] > 0.0 {
+                s += ((m1[i] - m0[i]).norm() / sigma_precision[i]).powi(2);
+                n += 1;
+            }
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        (s / n as f64).sqrt()
+    }
 }
+
+/// How far above the precision floor an effect's fitted change to the FRFs must be, as
+/// the RMS over all values of |ΔŶ|/σ_p (σ_p: the quantisation of the stored values and
+/// the computation floor of double precision, [`noise::precision_sigma`]).
+///
+/// Why: the statistical tests treat every residual as noise, which rounding is not. Two
+/// correct double-precision computations of the same physics differ by their rounding
+/// and linearisation errors, a deterministic pattern that some effect's signature always
+/// matches in part, and on exact data (σ near the floor) that part is "significant". A
+/// least-squares fit cannot change the prediction by more than the residual it
+/// explains, so an effect fitted to what lies within the floor changes the FRFs by at
+/// most about 1 σ_p (RMS); one that changes them by ten times that is not rounding. On
+/// any recording with measurement noise the test is void (an effect seen through 1 %
+/// noise changes the FRFs by 10⁵ σ_p or more).
+pub const PRACTICAL_MARGIN: f64 = 10.0;
 
 /// Orthonormal basis of the column span of `j` (columns normalised first; directions
 /// with relative singular value below `tol` dropped).
@@ -1013,10 +1045,9 @@ fn model_modes_band(
 }
 
 /// Runs the model check of a recording (`geometry`, `frf`) against a nominal spec.
-/// With the noise estimated from the data and an effect accepted, the noise is
-/// re-estimated from the final model's residual and, if that moves the final χ²/ν by
-/// more than the half-width of its noise band, the check is run once more with it
-/// (see [`noise::estimate_from_residual`]).
+/// With the noise estimated from the data, the noise is re-estimated from the final
+/// model's residual and, if that moves the final χ²/ν out of its noise band, the check
+/// is run once more with it (see [`noise::estimate_from_residual`]).
 pub fn check(
     spec: &CampaignSpec,
     geometry: &Geometry,
@@ -1025,26 +1056,31 @@ pub fn check(
 ) -> Result<CheckOutcome, CheckError> {
     options.progress.say(|| "estimating the noise floor".into());
     let first = check_with(spec, geometry, frf, options, None, None)?;
-    if options.noise.is_some()
-        || (first.report.accepted.is_empty() && first.report.ambiguous.is_empty())
-    {
+    if options.noise.is_some() {
         return Ok(first);
     }
     // Second pass: the noise re-estimated from the residual of the first pass's final
     // model ([`noise::estimate_from_residual`]), which no longer reads the structure the
-    // accepted effects explain (a leakage ripple) as noise.
+    // accepted effects explain (a leakage ripple) as noise, nor, with nothing accepted,
+    // the curvature the local polynomial cannot follow on data without noise (a
+    // recording in single precision is then weighed by its quantisation alone).
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
     // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
-    // (χ²/ν · ρ), moves by more than the half-width 3s of that noise's band,
-    // s² = 2/ν + se² (see `noise_band`): only then can it change the verdict.
+    // (χ²/ν · ρ), moves by more than the half-width of that noise's band on its side
+    // (see `noise_band`): only then can it change the verdict.
     let rho = chi2_ratio(&first, &nf.sigma);
-    let s = (2.0 / first.report.nu_after + nf.model.variance_scale_se.powi(2)).sqrt();
-    let note = format!(
-        "noise re-estimated from the residual of the final model: its χ² changes by the factor ρ = {rho:.3} (band half-width 3s = {:.3})",
-        3.0 * s
+    let [lo, hi] = rbprops_core::stats::chi2_nu_band(
+        first.report.nu_after,
+        nf.model.variance_scale_se,
+        rbprops_core::stats::BAND_TAIL,
     );
-    if (rho - 1.0).abs() <= 3.0 * s {
+    let note = format!(
+        "noise re-estimated from the residual of the final model: its χ² changes by the factor ρ = {rho:.3} (band half-widths −{:.3}/+{:.3})",
+        1.0 - lo,
+        hi - 1.0
+    );
+    if rho >= lo && rho <= hi {
         let mut first = first;
         first
             .report
@@ -1093,7 +1129,7 @@ fn check_with(
     geometry: &Geometry,
     frf: &FrfSet,
     options: &CheckOptions,
-    noise_override: Option<(NoiseModel, Vec<f64>)>,
+    noise_override: Option<(RecordingNoise, Vec<f64>)>,
     prior: Option<&Prior>,
 ) -> Result<CheckOutcome, CheckError> {
     frf.validate()
@@ -1103,13 +1139,13 @@ fn check_with(
     let y = &frf.values;
     let mut warnings = Vec::new();
     let mut method = vec![
-        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; when effects are accepted, re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν by more than the noise band's half-width); line-to-line correlation κ = 1 assumed".to_string(),
+        "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν out of the noise band); line-to-line correlation κ = 1 assumed".to_string(),
         "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
         "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
-        "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10); backward elimination after each acceptance".to_string(),
+        "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10), and practically significant: its fitted change to the FRFs at least 10 times the precision floor (RMS over the values); backward elimination after each acceptance".to_string(),
         "not implemented: bootstrap calibration of the screening threshold".to_string(),
     ];
-    // Stage 0: noise floor.
+    // Stage 0: noise floor, with the precision floor of the data's storage format.
     let (noise_model, sigma) = match (noise_override, &options.noise) {
         (Some(given), _) => given,
         (None, Some(m)) => {
@@ -1120,13 +1156,23 @@ fn check_with(
                     m.floor.len()
                 )));
             }
-            (m.clone(), noise::sigma_of(m, y, nex, nch, nl))
+            let mut m = m.clone();
+            m.precision = DataPrecision::detect(y);
+            let s = noise::sigma_of(&m, y, y, nex, nch, nl);
+            (m, s)
         }
         (None, None) => {
             let nf = noise::estimate(y, nex, nch, nl)?;
             (nf.model, nf.sigma)
         }
     };
+    method.push(format!(
+        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the computation floor of double precision ({:.0e}·|H|)²; an exact recording (no fitted noise) whose χ²/ν is below the band is within that floor, and counts as at the floor",
+        noise_model.precision.describe(),
+        noise::COMPUTATION_FLOOR
+    ));
+    // The yardstick of practical significance: σ with no noise but the precision floor.
+    let sigma_precision = noise::precision_sigma(&noise_model.precision, y, y, nl);
     // The 0 Hz line is left out: an AC-coupled channel reads 0 there whatever its time
     // constant and a DC-coupled one its static value, so a high-pass candidate's model
     // jumps at 1/τ = 0 on that line (no derivative, no path for the fit) while the line
@@ -1234,6 +1280,7 @@ fn check_with(
     let exc_folds = crate::cv::excitation_folds_of(&p.used, nch * nl);
     let loeo = options.cross_validation && nex >= 3;
     let mut accepted_cv: Vec<Option<HeldOutCheck>> = Vec::new();
+    let mut accepted_practical: Vec<f64> = Vec::new();
     let mut accepted_loeo: Vec<Option<HeldOutCheck>> = Vec::new();
     let in_prior = |c: usize| prior.is_some_and(|pr| pr.phi(&p.cands[c].id).is_some());
     for step in 1..=options.max_effects {
@@ -1457,7 +1504,9 @@ fn check_with(
             why: String,
             held_out: Option<HeldOutCheck>,
             held_out_exc: Option<HeldOutCheck>,
+            practical: f64,
         }
+        let cur_pred = p.model(&cur.theta, &active)?;
         let cv_without = if options.cross_validation {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, &folds, crate::cv::FOLDS)
         } else {
@@ -1521,9 +1570,25 @@ fn check_with(
                     wald += v * v / eig.eigenvalues[k];
                 }
             }
-            let wthr = crate::stats::chi2_quantile(options.wald_level, d.max(1) as f64);
+            let wthr = rbprops_core::stats::chi2_quantile(options.wald_level, d.max(1) as f64);
             if !(wald > wthr) {
                 why.push(format!("Wald {wald:.1} ≤ {wthr:.1}"));
+            }
+            // Practical significance: the fitted change to the FRFs against the
+            // precision floor (see `PRACTICAL_MARGIN`).
+            let mut act = active.clone();
+            act.push(Act {
+                c,
+                kept: kept.clone(),
+                gauge: Vec::new(),
+            });
+            let practical = p.model(&f.theta, &act).map_or(0.0, |m| {
+                p.change_over_floor(&m, &cur_pred, &sigma_precision)
+            });
+            if !(practical >= PRACTICAL_MARGIN) {
+                why.push(format!(
+                    "fitted FRF change {practical:.2} × the precision floor (RMS), needs ≥ {PRACTICAL_MARGIN}"
+                ));
             }
             // Held-out check (A2), only where the other evidence holds (it is cheap,
             // but its verdict matters only then).
@@ -1588,6 +1653,7 @@ fn check_with(
                 why: why.join("; "),
                 held_out,
                 held_out_exc,
+                practical,
             });
         }
         evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic).then(a.c.cmp(&b.c)));
@@ -1677,6 +1743,7 @@ fn check_with(
             .1
             .n_tests;
         accepted_cv.push(best.held_out.clone());
+        accepted_practical.push(best.practical);
         accepted_loeo.push(best.held_out_exc.clone());
         accepted_stats.push((
             best.c,
@@ -1734,6 +1801,7 @@ fn check_with(
                     );
                     accepted_stats.remove(k);
                     accepted_cv.remove(k);
+                    accepted_practical.remove(k);
                     accepted_loeo.remove(k);
                     active = without;
                     cur = f_wo;
@@ -1861,6 +1929,7 @@ fn check_with(
             gauge_directions: a.gauge.clone(),
             held_out: accepted_cv[k].clone(),
             held_out_excitations: accepted_loeo[k].clone(),
+            change_over_precision_floor: accepted_practical[k],
         });
     }
     let (mut improved_spec, fx) = p.build(&cur.theta, &[])?;
@@ -1893,8 +1962,17 @@ fn check_with(
     let residuals_after = residual_map(&layout, y, &final_pred, &sigma, bnds);
     let band = noise_band(nu_after, noise_model.variance_scale_se);
     let chi2_nu_after = cur.chi2 / nu_after;
-    let noise_floor_reached =
-        chi2_nu_after >= band[0] && chi2_nu_after <= band[1] && residuals_after.flagged.is_empty();
+    // With no fitted noise (a = b = 0 on every channel) σ is the precision floor alone,
+    // and its computation-floor part is a bound on the agreement of two exact
+    // computations, not a variance: a χ²/ν below the band means agreement within it.
+    let precision_only = noise_model
+        .relative
+        .iter()
+        .chain(&noise_model.floor)
+        .all(|x| *x == 0.0);
+    let noise_floor_reached = (chi2_nu_after >= band[0] || precision_only)
+        && chi2_nu_after <= band[1]
+        && residuals_after.flagged.is_empty();
     let mut report = ModelCheckReport {
         campaign: spec.name.clone(),
         verdict: String::new(),
@@ -1939,11 +2017,19 @@ fn check_with(
     })
 }
 
-/// [1 − 3s, 1 + max(3s, 0.05)] with s² = 2/ν + se² (research note §6.7, widened by the
-/// relative standard error `se` of the estimated noise variance, which χ²/ν inherits).
+/// Smallest upper end of the noise band: χ²/ν within 5 % of 1 counts as the floor even
+/// where ν is so large that the statistical band is narrower, since a noise model given
+/// as side information (repeats, a data sheet) is not known better than that.
+pub const MIN_BAND_UPPER: f64 = 1.05;
+
+/// The band of χ²/ν consistent with noise: the central 99.73 % interval (the ±3 sd of a
+/// normal) of χ²/ν with ν degrees of freedom when the noise variance is estimated with
+/// relative standard error `se`, i.e. of F(ν, 2/se²) ([`rbprops_core::stats::chi2_nu_band`];
+/// χ²_ν/ν when se = 0), with its upper end at least [`MIN_BAND_UPPER`]. Both ends are
+/// positive.
 pub fn noise_band(nu: f64, se: f64) -> [f64; 2] {
-    let w = 3.0 * (2.0 / nu + se * se).sqrt();
-    [1.0 - w, 1.0 + w.max(0.05)]
+    let [lo, hi] = rbprops_core::stats::chi2_nu_band(nu, se, rbprops_core::stats::BAND_TAIL);
+    [lo, hi.max(MIN_BAND_UPPER)]
 }
 
 fn set_decision(screening: &mut [ScreenEntry], step: usize, id: &str, d: String) {

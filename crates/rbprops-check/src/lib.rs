@@ -31,8 +31,23 @@
 //! Effects with rank 0 (absorbed by the free parameters) are reported not observable,
 //! with what would reveal them; exact gauges (a common gain, a common sensor shift) are
 //! removed from the refit by holding one coordinate per gauge at its neutral value.
-//! The noise floor is reached when χ²/ν_after ∈ [1 − 3s, 1 + max(3s, 0.05)],
-//! s² = 2/ν + (relative SE of the noise variance)², and no residual cell has z > 5.
+//! An effect is also claimed only when it is practically significant: its fitted change
+//! to the FRFs is at least [`check::PRACTICAL_MARGIN`] = 10 times the precision floor
+//! (RMS over the values), so rounding is never claimed as physics.
+//! The noise floor is reached when χ²/ν_after lies in the central 99.73 % interval of
+//! its distribution under the noise model — χ²_ν/ν with given noise, F(ν, 2/se²) with
+//! the noise variance estimated to a relative standard error se — its upper end at
+//! least 1.05 ([`check::noise_band`]), and no residual cell has z > 5.
+//!
+//! Noise and precision ([`noise`]): σ² = a²|H|² + b² per channel (the workspace's one
+//! noise model, `rbprops_core::noise`) plus a precision floor: the quantisation
+//! variance step²/12 of each stored part, with the storage format detected from the
+//! values (single precision when every value is exactly a single-precision number,
+//! d ≤ 15 significant decimal digits when every value's shortest exact decimal has at
+//! most d, double precision otherwise; `rbprops_core::precision`), and the model's own
+//! the precision to which two double-precision computations of an FRF agree (1e-10·|H|,
+//! [`noise::COMPUTATION_FLOOR`]). A recording without added noise is thus weighed by its
+//! quantisation, and its χ²/ν can reach the band.
 //!
 //! Effects whose signature vanishes to every order at their neutral point
 //! (`record_truncation` as T → ∞, `cord_mass` as μ → 0) cannot be seen by a score test;
@@ -43,9 +58,9 @@
 //! over (f, ζ) of the linear residue fit to the current residual ([`resonance`]).
 //!
 //! The data-only noise estimate reads deterministic structure the local polynomial
-//! cannot follow (a leakage ripple) as noise; when effects are accepted the noise is
-//! re-estimated from the final model's residual and the check rerun with it if that
-//! moves χ²/ν by more than its band's half-width ([`noise::estimate_from_residual`]).
+//! cannot follow (a leakage ripple, or on data without noise the curvature of the FRF)
+//! as noise; the noise is re-estimated from the final model's residual and the check
+//! rerun with it if that moves χ²/ν out of its band ([`noise::estimate_from_residual`]).
 //!
 //! Not implemented (see the report's `method` field): bootstrap calibration of the
 //! screening threshold, line-to-line noise correlation (κ = 1 assumed).
@@ -68,9 +83,8 @@ pub mod params;
 pub mod predict;
 pub mod report;
 pub mod resonance;
-pub mod stats;
 
 pub use check::{check, CheckOptions, CheckOutcome, Progress};
 pub use error::CheckError;
-pub use noise::NoiseModel;
+pub use noise::RecordingNoise;
 pub use report::ModelCheckReport;

@@ -1,20 +1,59 @@
 //! The noise floor, estimated from the data alone before any model is fitted.
 //!
-//! Local polynomial method (Pintelon & Schoukens 2012, §7; research note §6.2): around
-//! each line k a complex polynomial of degree 4 is fitted by least squares to the
-//! 2R+1 = 11 lines k−R..k+R of the same FRF. With circular complex noise of variance
-//! σ² = E|ε|², the residual sum of squares obeys SSR/σ² ~ χ²₁₂/2 (11 − 5 = 6 complex
-//! degrees of freedom), so σ̂²_k = SSR/6 has σ̂²/σ² ~ χ²₁₂/12.
+//! The noise is the workspace's one noise model ([`rbprops_core::noise`]): circular
+//! complex, `σ² = E|ε|² = a²|H|² + b²` per channel, plus the floor that the data's own
+//! precision and the model's evaluation set ([`precision_variance`]):
+//!
+//! ```text
+//!   σ²_i = a²_c h_i² + b²_c + q(Y_i) + (ρ_c h_i)²
+//! ```
+//!
+//! with `q(Y)` the quantisation variance of the stored value ([`DataPrecision`]: single
+//! precision, decimal digits or double precision, detected from the values) and `ρ_c`
+//! ([`COMPUTATION_FLOOR`]) the relative precision to which two double-precision
+//! computations of the same FRF agree. So a single-precision recording with no added
+//! noise has `a = b = 0` and is weighed by its quantisation, and an exact
+//! double-precision recording by the computation floor.
+//!
+//! Local polynomial method (Pintelon & Schoukens 2012, §7): around each line k a complex
+//! polynomial of degree 4 is fitted by least squares to the 2R+1 = 11 lines k−R..k+R of
+//! the same FRF. With circular complex noise of variance σ² = E|ε|², the residual sum of
+//! squares obeys SSR/σ² ~ χ²₁₂/2 (11 − 5 = 6 complex degrees of freedom), so
+//! σ̂²_k = SSR/6 has σ̂²/σ² ~ χ²₁₂/12.
 //!
 //! Where the polynomial cannot follow the FRF (near lightly damped peaks, coarse line
 //! spacing) σ̂² is inflated, never deflated. So per channel the variance model
-//! σ² = a²|H|² + b² is fitted to (|Ĥ_k|², σ̂²_k) by quantile regression in log space at
-//! the lower quantile p = 0.15 (pinball loss), matched to the p-quantile of χ²₁₂/12: the
-//! inflated lines sit above that quantile and barely move it.
+//! σ² = a²|H|² + b² + q̄ (q̄ the window's known quantisation variance) is fitted to
+//! (|Ĥ_k|², σ̂²_k) by quantile regression in log space at the lower quantile p = 0.15
+//! (pinball loss), matched to the p-quantile of χ²₁₂/12: the inflated lines sit above
+//! that quantile and barely move it.
 
 use crate::error::CheckError;
-use rbprops_core::c64;
+use rbprops_core::noise::NoiseModel;
+use rbprops_core::{c64, DataPrecision};
 use serde::{Deserialize, Serialize};
+
+/// Relative precision `ρ_c` to which two double-precision computations of the same FRF
+/// agree — ours and the one that made an exact recording: 1e-10 of |H|.
+///
+/// Our prediction goes through an eigenproblem or a solve of the suspension's 6×6
+/// matrices, whose condition (10²–10³ for soft suspensions) multiplies the 2.2e-16 of
+/// each operation: ~1e-13. A recording made by another formulation typically linearises
+/// a potential energy by finite differences, whose truncation and rounding (ε/h with
+/// h ≈ 1e-4–1e-5: 1e-12–1e-11 of the stiffness) a resonance amplifies by its quality
+/// factor 1/(2ζ) ≈ 10–50: 1e-11–1e-10 near the peaks. Measured: the reference
+/// generator's exact Test Case II recordings differ from rbprops-sim's model by 2e-12
+/// (RMS over the values, the inertia refitted). Below 1e-10 no tester can act on a
+/// difference between FRFs (the best calibrations are good to 1e-4), so nothing is lost
+/// by weighing exact data at this floor, and rounding is not read as physics.
+pub const COMPUTATION_FLOOR: f64 = 1e-10;
+
+/// The precision floor of value `y` whose reference magnitude is `h`: its quantisation
+/// variance plus the computation floor, `q(y) + (ρ_c h)²` (module docs).
+pub fn precision_variance(precision: &DataPrecision, y: c64, h: f64) -> f64 {
+    let r = COMPUTATION_FLOOR * h;
+    precision.variance(y) + r * r
+}
 
 const HALF_WIDTH: usize = 5;
 const DEGREE: usize = 4;
@@ -24,7 +63,7 @@ const LEVEL: f64 = 0.15;
 /// The LEVEL-quantile of χ²_{2(w−d−1)}/(2(w−d−1)), the distribution of σ̂²/σ².
 fn reference_quantile() -> f64 {
     let k = 2.0 * (2 * HALF_WIDTH + 1 - (DEGREE + 1)) as f64;
-    crate::stats::chi2_quantile(LEVEL, k) / k
+    rbprops_core::stats::chi2_quantile(LEVEL, k) / k
 }
 
 fn pinball(u: f64) -> f64 {
@@ -42,9 +81,10 @@ fn quantile(v: &mut [f64]) -> f64 {
     v[i]
 }
 
-/// Noise standard deviation model per channel: σ² = (a|H|)² + b², σ² = E|ε|².
+/// The noise of a recording: one [`NoiseModel`] per channel, σ² = a²|H|² + b² with
+/// σ² = E|ε|², and the precision the values were stored with (module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-pub struct NoiseModel {
+pub struct RecordingNoise {
     /// Relative part a per recorded channel.
     pub relative: Vec<f64>,
     /// Absolute part b per recorded channel (FRF units).
@@ -54,26 +94,66 @@ pub struct NoiseModel {
     /// Relative standard error of the σ² scale (0 when given): the spread of the scale
     /// estimated FRF by FRF, divided by √(number of FRFs). χ²/ν inherits it 1:1.
     pub variance_scale_se: f64,
+    /// The storage precision detected from the recorded values; its quantisation
+    /// variance is added to every σ² (set by the check, whatever the noise's source).
+    #[serde(default = "double_precision")]
+    pub precision: DataPrecision,
+}
+
+fn double_precision() -> DataPrecision {
+    DataPrecision::DOUBLE
+}
+
+impl RecordingNoise {
+    /// A noise model given as side information (e.g. from repeated measurements):
+    /// `relative` and `floor` per channel.
+    pub fn given(relative: Vec<f64>, floor: Vec<f64>) -> Self {
+        RecordingNoise {
+            relative,
+            floor,
+            source: "given".into(),
+            variance_scale_se: 0.0,
+            precision: DataPrecision::DOUBLE,
+        }
+    }
+
+    /// The noise model of channel `c`.
+    pub fn channel(&self, c: usize) -> NoiseModel {
+        NoiseModel::new(self.relative[c], self.floor[c])
+    }
 }
 
 /// Result of the estimate: the model and the per-value σ (layout `[exc][ch][line]`).
 #[derive(Debug, Clone)]
 pub struct NoiseFloor {
-    pub model: NoiseModel,
+    pub model: RecordingNoise,
     /// σ per value; 0 marks a value without information (excluded from fits).
     pub sigma: Vec<f64>,
 }
 
-/// Local polynomial fit at each line of `res`: (smoothed value, σ̂², h̄) where
-/// h̄ = Σ_j (1 − P_jj)|Y_j|² / (w − d − 1), Y = `refr`, is the magnitude the window's
-/// residual variance refers to: E[SSR] = Σ_j (1 − P_jj) σ_j² for a hat matrix P, so with
-/// σ_j² = a²|H_j|² + b², E[σ̂²] = a² h̄ + b² even where |H| changes across the window.
-/// For the data-only estimate `res` and `refr` are both the recording; for the
-/// re-estimate they are the residual of a fitted model and its prediction.
-fn local_fits(res: &[c64], refr: &[c64]) -> Vec<(c64, f64, f64)> {
+/// The local polynomial fit at one line.
+#[derive(Debug, Clone, Copy)]
+struct LineFit {
+    /// The polynomial's value at the line.
+    smooth: c64,
+    /// σ̂² = SSR/(w − d − 1).
+    s: f64,
+    /// h̄ = Σ_j (1 − P_jj)|Y_j|² / (w − d − 1), Y = the reference.
+    hbar: f64,
+    /// q̄ = Σ_j (1 − P_jj) q_j / (w − d − 1): the window's known precision variance.
+    qbar: f64,
+}
+
+/// Local polynomial fit at each line of `res`. h̄ is the magnitude the window's residual
+/// variance refers to: E[SSR] = Σ_j (1 − P_jj) σ_j² for a hat matrix P, so with
+/// σ_j² = a²|H_j|² + b² + q_j, E[σ̂²] = a² h̄ + b² + q̄ even where |H| changes across the
+/// window. For the data-only estimate `res` and `refr` are both the recording; for the
+/// re-estimate they are the residual of a fitted model and its prediction. `q` is the
+/// known precision variance per line.
+fn local_fits(res: &[c64], refr: &[c64], q: &[f64]) -> Vec<LineFit> {
     let n = res.len();
     let w = 2 * HALF_WIDTH + 1;
-    // Projection onto quadratics on abscissae −R..R (uniform lines), as the hat matrix.
+    // Projection onto quartics on abscissae −R..R (uniform lines), as the hat matrix.
     let xs: Vec<f64> = (0..w).map(|i| i as f64 - HALF_WIDTH as f64).collect();
     let v = nalgebra::DMatrix::from_fn(w, DEGREE + 1, |i, j| {
         (xs[i] / HALF_WIDTH as f64).powi(j as i32)
@@ -81,8 +161,9 @@ fn local_fits(res: &[c64], refr: &[c64]) -> Vec<(c64, f64, f64)> {
     let hat = &v
         * (v.transpose() * &v)
             .try_inverse()
-            .expect("Vandermonde of 7 distinct points")
+            .expect("Vandermonde of 11 distinct points")
         * v.transpose();
+    let dof = (w - DEGREE - 1) as f64;
     let mut out = Vec::with_capacity(n);
     for k in 0..n {
         let start = k.saturating_sub(HALF_WIDTH).min(n - w);
@@ -100,12 +181,17 @@ fn local_fits(res: &[c64], refr: &[c64]) -> Vec<(c64, f64, f64)> {
             }
             ssr += (seg[i] - fit).norm_sqr();
         }
-        let dof = (w - DEGREE - 1) as f64;
-        let hbar = (0..w)
-            .map(|i| (1.0 - hat[(i, i)]) * refr[start + i].norm_sqr())
-            .sum::<f64>()
-            / dof;
-        out.push((fitted_centre, ssr / dof, hbar));
+        let (mut hbar, mut qbar) = (0.0, 0.0);
+        for i in 0..w {
+            hbar += (1.0 - hat[(i, i)]) * refr[start + i].norm_sqr();
+            qbar += (1.0 - hat[(i, i)]) * q[start + i];
+        }
+        out.push(LineFit {
+            smooth: fitted_centre,
+            s: ssr / dof,
+            hbar: hbar / dof,
+            qbar: qbar / dof,
+        });
     }
     out
 }
@@ -123,13 +209,15 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Quantile regression of ln s against ln(a²h + b²) over a log grid, refined twice.
-fn fit_variance_model(h: &[f64], s: &[f64]) -> (f64, f64) {
-    let q = reference_quantile();
+/// Quantile regression of ln s against ln(a²h + b² + q) over a log grid, refined twice
+/// (`q` the known precision variance of each line, not fitted).
+fn fit_variance_model(h: &[f64], s: &[f64], q: &[f64]) -> (f64, f64) {
+    let qr = reference_quantile();
     let cost = |a2: f64, b2: f64| -> f64 {
         h.iter()
             .zip(s)
-            .map(|(&h, &s)| pinball((s / q).ln() - (a2 * h + b2).ln()))
+            .zip(q)
+            .map(|((&h, &s), &q)| pinball((s / qr).ln() - (a2 * h + b2 + q).ln()))
             .sum()
     };
     let hmax = h.iter().cloned().fold(0.0, f64::max);
@@ -197,6 +285,16 @@ fn fit_variance_model(h: &[f64], s: &[f64]) -> (f64, f64) {
     (best.1, best.2)
 }
 
+/// The precision variance `q(Y_i) + (ρ_c |R_i|)²` of every value (`reference` R gives the
+/// magnitude the computation floor refers to).
+fn precision_of(precision: &DataPrecision, recorded: &[c64], reference: &[c64]) -> Vec<f64> {
+    recorded
+        .iter()
+        .zip(reference)
+        .map(|(y, r)| precision_variance(precision, *y, r.norm()))
+        .collect()
+}
+
 /// Estimates the noise from the recorded FRFs alone (values `[exc][ch][line]`).
 pub fn estimate(
     values: &[c64],
@@ -204,16 +302,22 @@ pub fn estimate(
     n_ch: usize,
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
-    let fits = fits_of(values, values, n_exc * n_ch, n_lines)?;
+    let precision = DataPrecision::detect(values);
+    let q = precision_of(&precision, values, values);
+    let fits = fits_of(values, values, &q, n_exc * n_ch, n_lines)?;
     let model = model_of(
         &fits,
         n_exc,
         n_ch,
         format!("data (local quartic over 11 lines, {LEVEL}-quantile fit)"),
+        precision,
     )?;
-    let smooth: Vec<c64> = fits.iter().flat_map(|f| f.iter().map(|x| x.0)).collect();
+    let smooth: Vec<c64> = fits
+        .iter()
+        .flat_map(|f| f.iter().map(|x| x.smooth))
+        .collect();
     Ok(NoiseFloor {
-        sigma: sigma_of(&model, &smooth, n_exc, n_ch, n_lines),
+        sigma: sigma_of(&model, &smooth, values, n_exc, n_ch, n_lines),
         model,
     })
 }
@@ -238,17 +342,22 @@ pub fn estimate_from_residual(
     n_ch: usize,
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
+    let precision = DataPrecision::detect(values);
+    let q = precision_of(&precision, values, prediction);
     let residual: Vec<c64> = values.iter().zip(prediction).map(|(y, m)| y - m).collect();
-    let fits = fits_of(&residual, prediction, n_exc * n_ch, n_lines)?;
+    let fits = fits_of(&residual, prediction, &q, n_exc * n_ch, n_lines)?;
     let mut model = model_of(
         &fits,
         n_exc,
         n_ch,
         format!("residual of the fitted model (local quartic over 11 lines, {LEVEL}-quantile fit)"),
+        precision,
     )?;
-    rescale_homoscedastic(&mut model, &residual, prediction, n_exc, n_ch, n_lines)?;
+    rescale_homoscedastic(
+        &mut model, values, &residual, prediction, n_exc, n_ch, n_lines,
+    )?;
     Ok(NoiseFloor {
-        sigma: sigma_of(&model, prediction, n_exc, n_ch, n_lines),
+        sigma: sigma_of(&model, prediction, values, n_exc, n_ch, n_lines),
         model,
     })
 }
@@ -260,37 +369,49 @@ pub fn estimate_from_residual(
 /// 400 lines on Test Case II). The residual normalised by the first estimate,
 /// u_j = e_j/σ̂_j, is homoscedastic under the model (E|u_j|² = c), its local-polynomial
 /// σ̂²_k/c ~ χ²₁₂/12 exactly, and the LEVEL-quantile of σ̂²_k over a channel divided by
-/// that of χ²₁₂/12 estimates the channel's factor c, which scales a² and b².
+/// that of χ²₁₂/12 estimates the channel's factor c, which scales a² and b² (the
+/// precision floor is known and stays; where it dominates, c is left at 1).
 fn rescale_homoscedastic(
-    model: &mut NoiseModel,
+    model: &mut RecordingNoise,
+    values: &[c64],
     residual: &[c64],
     prediction: &[c64],
     n_exc: usize,
     n_ch: usize,
     n_lines: usize,
 ) -> Result<(), CheckError> {
-    let s = sigma_of(model, prediction, n_exc, n_ch, n_lines);
+    let s = sigma_of(model, prediction, values, n_exc, n_ch, n_lines);
     let u: Vec<c64> = residual
         .iter()
         .zip(&s)
         .map(|(e, s)| if *s > 0.0 { e / s } else { c64::new(0.0, 0.0) })
         .collect();
     let ones = vec![c64::new(1.0, 0.0); u.len()];
-    let fits = fits_of(&u, &ones, n_exc * n_ch, n_lines)?;
+    let zeros = vec![0.0; u.len()];
+    let fits = fits_of(&u, &ones, &zeros, n_exc * n_ch, n_lines)?;
     let w = 2 * HALF_WIDTH + 1;
     for c in 0..n_ch {
         let mut v = Vec::new();
+        // Share of the fitted noise (a, b) in σ² over the channel's values: the factor
+        // applies to that share only.
+        let (mut fitted, mut total) = (0.0, 0.0);
+        let nm = model.channel(c);
         for e in 0..n_exc {
             let b = e * n_ch + c;
             for (k, f) in fits[b].iter().enumerate() {
                 // Only windows without excluded values (σ = 0, e.g. accelerance at 0 Hz).
                 let start = k.saturating_sub(HALF_WIDTH).min(n_lines - w);
                 if (start..start + w).all(|j| s[b * n_lines + j] > 0.0) {
-                    v.push(f.1);
+                    v.push(f.s);
+                }
+                let i = b * n_lines + k;
+                if s[i] > 0.0 {
+                    fitted += nm.variance(prediction[i]) / (s[i] * s[i]);
+                    total += 1.0;
                 }
             }
         }
-        if v.len() < 20 {
+        if v.len() < 20 || !(fitted > 0.5 * total) {
             continue;
         }
         let f = quantile(&mut v) / reference_quantile();
@@ -300,14 +421,13 @@ fn rescale_homoscedastic(
     Ok(())
 }
 
-type LineFit = Vec<(c64, f64, f64)>;
-
 fn fits_of(
     res: &[c64],
     refr: &[c64],
+    q: &[f64],
     n_frf: usize,
     n_lines: usize,
-) -> Result<Vec<LineFit>, CheckError> {
+) -> Result<Vec<Vec<LineFit>>, CheckError> {
     if n_lines < 2 * HALF_WIDTH + 1 {
         return Err(CheckError::Noise(format!(
             "{n_lines} lines: at least {} are needed for the local polynomial estimate",
@@ -317,59 +437,92 @@ fn fits_of(
     Ok((0..n_frf)
         .map(|b| {
             let r = b * n_lines..(b + 1) * n_lines;
-            local_fits(&res[r.clone()], &refr[r])
+            local_fits(&res[r.clone()], &refr[r.clone()], &q[r])
         })
         .collect())
 }
 
-/// The per-channel variance model σ² = a²h + b² from the line fits, with the relative
-/// standard error of its scale.
+/// The scale c ≥ 0 of the fitted part at which the LEVEL-quantile of
+/// σ̂²/(c·(a²h̄ + b²) + q̄) is that of χ²₁₂/12 (bisection; the quantile falls as c grows).
+/// 0 when the precision floor alone already explains the lower quantile.
+fn scale_of(fits: &[&LineFit], a2: f64, b2: f64) -> f64 {
+    let target = reference_quantile();
+    let q_at = |c: f64| -> f64 {
+        let mut u: Vec<f64> = fits
+            .iter()
+            .map(|f| f.s / (c * (a2 * f.hbar + b2) + f.qbar))
+            .filter(|x| x.is_finite())
+            .collect();
+        if u.is_empty() {
+            return 0.0;
+        }
+        quantile(&mut u)
+    };
+    if fits.iter().all(|f| f.qbar == 0.0) {
+        // No precision floor: the quantile is exactly proportional to 1/c.
+        return q_at(1.0) / target;
+    }
+    if q_at(0.0) <= target {
+        return 0.0;
+    }
+    let mut hi = 1.0;
+    while q_at(hi) > target && hi < 1e300 {
+        hi *= 4.0;
+    }
+    let mut lo = 0.0;
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if q_at(mid) > target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo < 1e-10 * hi {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The per-channel variance model σ² = a²h + b² (+ the known precision floor) from the
+/// line fits, with the relative standard error of its scale.
 fn model_of(
-    fits: &[LineFit],
+    fits: &[Vec<LineFit>],
     n_exc: usize,
     n_ch: usize,
     source: String,
-) -> Result<NoiseModel, CheckError> {
+    precision: DataPrecision,
+) -> Result<RecordingNoise, CheckError> {
     let mut relative = Vec::with_capacity(n_ch);
     let mut floor = Vec::with_capacity(n_ch);
     let mut frf_scales = Vec::new();
     for c in 0..n_ch {
-        let mut hs = Vec::new();
-        let mut ss = Vec::new();
-        for e in 0..n_exc {
-            for &(_, s, hbar) in &fits[e * n_ch + c] {
-                if s > 0.0 && s.is_finite() {
-                    hs.push(hbar);
-                    ss.push(s);
-                }
-            }
-        }
-        if ss.len() < 10 {
+        let lines: Vec<&LineFit> = (0..n_exc)
+            .flat_map(|e| fits[e * n_ch + c].iter())
+            .filter(|f| f.s > 0.0 && f.s.is_finite())
+            .collect();
+        if lines.len() < 10 {
             return Err(CheckError::Noise(format!(
                 "channel {c}: only {} lines carry information (constant or noise-free data?)",
-                ss.len()
+                lines.len()
             )));
         }
         // Subsample evenly to bound the cost of the grid search.
-        let step = (ss.len() / 3000).max(1);
-        let hsub: Vec<f64> = hs.iter().step_by(step).cloned().collect();
-        let ssub: Vec<f64> = ss.iter().step_by(step).cloned().collect();
-        let (a2, b2) = fit_variance_model(&hsub, &ssub);
+        let step = (lines.len() / 3000).max(1);
+        let sub: Vec<&LineFit> = lines.iter().step_by(step).copied().collect();
+        let hsub: Vec<f64> = sub.iter().map(|f| f.hbar).collect();
+        let ssub: Vec<f64> = sub.iter().map(|f| f.s).collect();
+        let qsub: Vec<f64> = sub.iter().map(|f| f.qbar).collect();
+        let (a2, b2) = fit_variance_model(&hsub, &ssub, &qsub);
         // Final scale on all lines: the p-quantile of σ̂²/model must be that of χ²/k.
-        let mut u: Vec<f64> = hs
-            .iter()
-            .zip(&ss)
-            .map(|(h, s)| s / (a2 * h + b2))
-            .filter(|x| x.is_finite())
-            .collect();
-        let scale = quantile(&mut u) / reference_quantile();
+        let scale = scale_of(&lines, a2, b2);
         relative.push((a2 * scale).sqrt());
         floor.push((b2 * scale).sqrt());
         for e in 0..n_exc {
             let mut u: Vec<f64> = fits[e * n_ch + c]
                 .iter()
-                .filter(|f| f.1 > 0.0 && f.1.is_finite())
-                .map(|f| f.1 / ((a2 * f.2 + b2) * scale))
+                .filter(|f| f.s > 0.0 && f.s.is_finite())
+                .map(|f| f.s / ((a2 * f.hbar + b2) * scale + f.qbar))
                 .filter(|x| x.is_finite())
                 .collect();
             if u.len() >= 20 {
@@ -385,55 +538,65 @@ fn model_of(
     } else {
         0.0
     };
-    let model = NoiseModel {
+    Ok(RecordingNoise {
         relative,
         floor,
         source,
         variance_scale_se,
-    };
-    Ok(model)
+        precision,
+    })
 }
 
 /// Fraction of the local median magnitude below which a reference magnitude is not
 /// trusted for the relative noise term (see [`sigma_of`]).
 const NOTCH_FLOOR: f64 = 0.5;
 
-/// σ per value from a noise model and reference magnitudes `[exc][ch][line]`;
-/// values with σ below 1e-9 of the median σ get 0 (excluded).
+/// The magnitude each value's noise refers to, `h_k = max(|R_k|, ½ median |R| over lines
+/// k−5..k+5)` of the reference R (`[frf][line]`, `n_lines` per FRF).
 ///
-/// The relative term uses `max(|H_k|, ½ median |H| over lines k−5..k+5)`: at a zero of
-/// the FRF (0 Hz of an AC-coupled channel or of an accelerance, a sharp anti-resonance)
-/// `a|H_k|` → 0 would give a line the weight of all the others together, and a model
-/// that misses the zero by a hair would be judged by that line alone. Synthetic
-/// records whose noise is relative to the true FRF are exact there; real ones are not.
-/// Along a smooth FRF |H_k| is its own local median and nothing changes.
+/// At a zero of the FRF (0 Hz of an AC-coupled channel or of an accelerance, a sharp
+/// anti-resonance) `a|H_k|` → 0 would give a line the weight of all the others
+/// together, and a model that misses the zero by a hair would be judged by that line
+/// alone. Synthetic records whose noise is relative to the true FRF are exact there;
+/// real ones are not. Along a smooth FRF |H_k| is its own local median and nothing
+/// changes.
+fn noise_magnitudes(reference: &[c64], n_lines: usize) -> Vec<f64> {
+    let mut h = Vec::with_capacity(reference.len());
+    let mut window = Vec::with_capacity(2 * HALF_WIDTH + 1);
+    for frf in reference.chunks(n_lines) {
+        let mag: Vec<f64> = frf.iter().map(|x| x.norm()).collect();
+        for l in 0..mag.len() {
+            window.clear();
+            window.extend_from_slice(
+                &mag[l.saturating_sub(HALF_WIDTH)..(l + HALF_WIDTH + 1).min(mag.len())],
+            );
+            h.push(mag[l].max(NOTCH_FLOOR * median(&mut window)));
+        }
+    }
+    h
+}
+
+/// σ per value from a noise model, reference magnitudes and the recorded values (all
+/// `[exc][ch][line]`): σ²_i = a²h_i² + b² + q(Y_i) + (ρ_c h_i)² (module docs, h_i from
+/// [`noise_magnitudes`]); values with σ below 1e-9 of the median σ get 0 (excluded).
 pub fn sigma_of(
-    model: &NoiseModel,
+    model: &RecordingNoise,
     reference: &[c64],
+    recorded: &[c64],
     n_exc: usize,
     n_ch: usize,
     n_lines: usize,
 ) -> Vec<f64> {
-    let mut s = vec![0.0; n_exc * n_ch * n_lines];
-    let mut window = Vec::with_capacity(2 * HALF_WIDTH + 1);
-    for e in 0..n_exc {
-        for c in 0..n_ch {
-            let (a, b) = (model.relative[c], model.floor[c]);
-            let start = (e * n_ch + c) * n_lines;
-            let mag: Vec<f64> = reference[start..start + n_lines]
-                .iter()
-                .map(|x| x.norm())
-                .collect();
-            for l in 0..n_lines {
-                window.clear();
-                window.extend_from_slice(
-                    &mag[l.saturating_sub(HALF_WIDTH)..(l + HALF_WIDTH + 1).min(n_lines)],
-                );
-                let h = mag[l].max(NOTCH_FLOOR * median(&mut window));
-                s[start + l] = (a * a * h * h + b * b).sqrt();
-            }
-        }
-    }
+    let h = noise_magnitudes(&reference[..n_exc * n_ch * n_lines], n_lines);
+    let mut s: Vec<f64> = h
+        .iter()
+        .zip(recorded)
+        .enumerate()
+        .map(|(i, (&h, y))| {
+            let fitted = model.channel((i / n_lines) % n_ch).std_dev(h);
+            (fitted * fitted + precision_variance(&model.precision, *y, h)).sqrt()
+        })
+        .collect();
     let mut pos: Vec<f64> = s.iter().cloned().filter(|x| *x > 0.0).collect();
     let med = median(&mut pos);
     for x in &mut s {
@@ -442,4 +605,21 @@ pub fn sigma_of(
         }
     }
     s
+}
+
+/// The precision floor per value alone, `√(q(Y_i) + (ρ_c h_i)²)` (h_i as in
+/// [`sigma_of`]): what σ would be if the recording carried no noise but its storage
+/// rounding and the computation its floor — the yardstick of practical
+/// significance in the acceptance step.
+pub fn precision_sigma(
+    precision: &DataPrecision,
+    reference: &[c64],
+    recorded: &[c64],
+    n_lines: usize,
+) -> Vec<f64> {
+    noise_magnitudes(reference, n_lines)
+        .iter()
+        .zip(recorded)
+        .map(|(&h, y)| precision_variance(precision, *y, h).sqrt())
+        .collect()
 }

@@ -2,7 +2,7 @@
 //! `/rbprops/model_check`) and its one-paragraph human verdict.
 
 use crate::locate::ResidualMap;
-use crate::noise::NoiseModel;
+use crate::noise::RecordingNoise;
 use serde::{Deserialize, Serialize};
 
 /// A fitted parameter with its standard error.
@@ -42,6 +42,11 @@ pub struct AcceptedEffect {
     /// Leave-one-excitation-out check (recordings with ≥ 3 excitations; `None`
     /// otherwise or when the check was switched off).
     pub held_out_excitations: Option<HeldOutCheck>,
+    /// Practical significance: RMS over the values of the effect's fitted change to the
+    /// FRFs divided by the precision floor (storage quantisation and computation floor);
+    /// an effect is claimed only above `check::PRACTICAL_MARGIN`.
+    #[serde(default)]
+    pub change_over_precision_floor: f64,
 }
 
 /// Held-out (cross-validation) evidence for an effect (research note §6, A2).
@@ -157,11 +162,14 @@ pub struct ModelCheckReport {
     pub chi2_nu_after: f64,
     pub nu_before: f64,
     pub nu_after: f64,
-    /// Band [1 − 3√(2/ν), 1 + max(3√(2/ν), 0.05)] in which χ²/ν is consistent with noise.
+    /// Band in which χ²/ν is consistent with noise: the central 99.73 % interval of
+    /// F(ν, 2/se²) (χ²_ν/ν when the noise is given, se = 0), se the relative standard
+    /// error of the noise variance; the upper end at least 1.05 (`check::noise_band`).
     pub noise_band: [f64; 2],
-    /// χ²/ν_after inside the noise band and no residual cell with z > 5.
+    /// χ²/ν_after inside the noise band (or below it when no noise was fitted and σ is
+    /// the precision floor alone) and no residual cell with z > 5.
     pub noise_floor_reached: bool,
-    pub noise: NoiseModel,
+    pub noise: RecordingNoise,
     /// Values used (complex FRF values with noise information).
     pub n_values: usize,
     pub corrected_parameters: Vec<CorrectedParameter>,

@@ -146,7 +146,7 @@ fn explore_predict_cost() {
 #[test]
 #[ignore]
 fn explore_spec() {
-    use rbprops_check::NoiseModel;
+    use rbprops_check::RecordingNoise;
     let spec = std::env::var("EFFSPEC")
         .unwrap_or_default()
         .replace("\\n", "\n");
@@ -171,12 +171,7 @@ fn explore_spec() {
         .unwrap_or(0.01);
     let (g, frf) = record_sim(&truth, &effs, rel, seed);
     let opts = CheckOptions {
-        noise: Some(NoiseModel {
-            relative: vec![rel; 9],
-            floor: vec![0.0; 9],
-            source: "given".into(),
-            variance_scale_se: 0.0,
-        }),
+        noise: Some(RecordingNoise::given(vec![rel; 9], vec![0.0; 9])),
         max_iterations: std::env::var("MAXIT")
             .ok()
             .and_then(|s| s.parse().ok())

@@ -7,7 +7,7 @@
 mod common;
 use common::*;
 use rbprops_check::report::{InertiaEstimateReport, ModelCheckReport};
-use rbprops_check::{check, CheckOptions, NoiseModel};
+use rbprops_check::{check, CheckOptions, RecordingNoise};
 use rbprops_core::{FrfSet, Geometry, RigidBodyProperties};
 use rbprops_sim::CampaignSpec;
 
@@ -16,12 +16,7 @@ const REL: f64 = 0.01;
 
 fn given_noise(n_ch: usize) -> CheckOptions {
     CheckOptions {
-        noise: Some(NoiseModel {
-            relative: vec![REL; n_ch],
-            floor: vec![0.0; n_ch],
-            source: "given".into(),
-            variance_scale_se: 0.0,
-        }),
+        noise: Some(RecordingNoise::given(vec![REL; n_ch], vec![0.0; n_ch])),
         ..Default::default()
     }
 }

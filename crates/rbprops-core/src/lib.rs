@@ -8,6 +8,10 @@
 //! - Inertia tensor about the CoM with the paper's Eq. (6) sign: products of inertia are
 //!   `J_xy = ∫ x y dm`, and the tensor's off-diagonal entries are their negatives.
 //!
+//! Shared numerics: the FRF noise model `E|ε|² = a²|H|² + b²` and the seeded normal
+//! stream ([`noise`]), the quantisation floor of the storage precision ([`precision`]),
+//! and the χ² / F distributions with the noise band of χ²/ν ([`stats`]).
+//!
 //! This crate does no I/O. Types that cross stage boundaries ([`records`]) derive
 //! `serde` and `schemars` so the formats crate can write them with a JSON schema.
 
@@ -16,8 +20,11 @@ pub mod frf;
 pub mod geometry;
 pub mod inertia;
 pub mod modal;
+pub mod noise;
+pub mod precision;
 pub mod records;
 pub mod rigid;
+pub mod stats;
 
 pub use error::CoreError;
 pub use frf::{FrfSet, Quantity};
@@ -26,6 +33,8 @@ pub use geometry::{
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
+pub use noise::{NoiseModel, NormalStream};
+pub use precision::DataPrecision;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.

@@ -172,7 +172,8 @@ pub struct DampingSpec {
     pub beta: Option<f64>,
 }
 
-/// Additive complex noise, per value: `(relative·|H| + floor)·(n₁ + i n₂)/√2`.
+/// Additive circular complex noise per value, `E|ε|² = relative²·|H|² + floor²` (see
+/// [`rbprops_core::noise`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseSpec {

@@ -3,11 +3,11 @@
 
 use crate::error::UqError;
 use crate::model::FittedModel;
-use crate::noise::ChannelNoise;
 use crate::reidentify::{full_refit, refine_group, MatchTolerances, Reidentify, ReplicateModes};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use rbprops_core::noise::NoiseModel;
 use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
 use rbprops_core::{FrfSet, Geometry};
 use rbprops_inertia::{solve, Estimator, SolveOptions, SolveOutput};
@@ -88,7 +88,7 @@ impl BootstrapEstimate {
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExcitationNoise {
     pub excitation: String,
-    pub channels: Vec<ChannelNoise>,
+    pub channels: Vec<NoiseModel>,
 }
 
 /// Everything [`bootstrap`] found.

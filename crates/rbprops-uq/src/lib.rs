@@ -83,5 +83,6 @@ pub use bootstrap::{
 };
 pub use error::UqError;
 pub use model::{ExcitationModel, FittedModel};
-pub use noise::{fit_channel, fit_channel_noise, ChannelFit, ChannelNoise};
+pub use noise::{fit_channel, fit_channel_noise, ChannelFit};
+pub use rbprops_core::noise::NoiseModel;
 pub use reidentify::{MatchTolerances, Reidentify, ReplicateModes};

@@ -2,9 +2,9 @@
 //! residues of the modal fit re-synthesised on the fit's band, and the noise model.
 
 use crate::error::UqError;
-use crate::noise::{fit_channel, ChannelNoise};
-use rand::RngExt;
+use crate::noise::fit_channel;
 use rand_chacha::ChaCha8Rng;
+use rbprops_core::noise::{standard_normal_pair, NoiseModel};
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_modal::band::BandData;
@@ -31,7 +31,7 @@ pub struct ExcitationModel {
     /// The bootstrap's centre: the synthesis, except on lines of structured misfit where
     /// it is the measured value (so every replicate carries the misfit the data carry).
     pub centre: Vec<Vec<c64>>,
-    pub noise: Vec<ChannelNoise>,
+    pub noise: Vec<NoiseModel>,
     /// Per channel, the number of misfit lines.
     pub misfit_lines: Vec<usize>,
 }
@@ -54,15 +54,6 @@ impl ExcitationModel {
             })
             .collect()
     }
-}
-
-/// Two independent standard normals (Box–Muller).
-pub fn standard_normal_pair(rng: &mut ChaCha8Rng) -> (f64, f64) {
-    let u1 = 1.0 - rng.random::<f64>();
-    let u2 = rng.random::<f64>();
-    let r = (-2.0 * u1.ln()).sqrt();
-    let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
-    (r * c, r * s)
 }
 
 /// The models of the excitations a bootstrap has to refit, grouped by shared poles.

@@ -17,22 +17,7 @@
 //! on `N` complex lines (the residual is shorter than the noise by those dimensions).
 
 use rbprops_core::c64;
-
-/// Noise level of one channel of one excitation: `σ²(S) = a²|S|² + b²`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ChannelNoise {
-    /// Relative level `a` (fraction of |S|).
-    pub relative: f64,
-    /// Absolute floor `b` (FRF units).
-    pub floor: f64,
-}
-
-impl ChannelNoise {
-    /// `E|ε|²` at a line whose synthesised value is `s`.
-    pub fn variance(&self, s: c64) -> f64 {
-        self.relative * self.relative * s.norm_sqr() + self.floor * self.floor
-    }
-}
+use rbprops_core::noise::NoiseModel;
 
 /// Half-width (lines) of the window over which residual power is averaged to find
 /// structured misfit.
@@ -52,7 +37,7 @@ pub const MISFIT_PRECISION_FLOOR: f64 = 1e-5;
 /// The noise of one channel and the lines where the modal model misses structure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChannelFit {
-    pub noise: ChannelNoise,
+    pub noise: NoiseModel,
     /// Per line: the residual there is structured (a mode the fit missed, …), not noise.
     pub misfit: Vec<bool>,
 }
@@ -121,7 +106,7 @@ pub fn fit_channel_noise(
     measured: &[c64],
     synthesised: &[c64],
     parameters_per_channel: f64,
-) -> ChannelNoise {
+) -> NoiseModel {
     assert_eq!(measured.len(), synthesised.len());
     let lines: Vec<(f64, f64)> = measured
         .iter()
@@ -131,7 +116,7 @@ pub fn fit_channel_noise(
         .collect();
     let n = lines.len() as f64;
     if lines.is_empty() {
-        return ChannelNoise {
+        return NoiseModel {
             relative: 0.0,
             floor: 0.0,
         };
@@ -139,7 +124,7 @@ pub fn fit_channel_noise(
     let kappa = (1.0 - parameters_per_channel / (2.0 * n)).clamp(0.5, 1.0);
     let mean_r2 = lines.iter().map(|l| l.1).sum::<f64>() / n;
     if !(mean_r2 > 0.0) {
-        return ChannelNoise {
+        return NoiseModel {
             relative: 0.0,
             floor: 0.0,
         };
@@ -162,7 +147,7 @@ pub fn fit_channel_noise(
             break;
         }
     }
-    ChannelNoise {
+    NoiseModel {
         relative: (theta[0] / kappa).max(0.0).sqrt(),
         floor: (theta[1] / kappa).max(0.0).sqrt(),
     }
@@ -217,14 +202,9 @@ fn scoring_step(lines: &[(f64, f64)], theta: [f64; 2], tiny: f64) -> [f64; 2] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
-
-    fn normal(rng: &mut ChaCha8Rng) -> f64 {
-        let u1 = 1.0 - rng.random::<f64>();
-        let u2 = rng.random::<f64>();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
+    use rbprops_core::noise::standard_normal as normal;
 
     /// A resonance-like magnitude profile over `n` lines with known noise added.
     fn channel(n: usize, a: f64, b: f64, seed: u64) -> (Vec<c64>, Vec<c64>) {

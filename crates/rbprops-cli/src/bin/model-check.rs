@@ -4,7 +4,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, ValueEnum};
-use rbprops_check::{CheckOptions, CheckOutcome, NoiseModel, Progress};
+use rbprops_check::{CheckOptions, CheckOutcome, Progress, RecordingNoise};
 use rbprops_formats::topics;
 use rbprops_plot::{heat_map, line_plot, HeatMap, LinePlot, LineStyle, Scale, Series};
 use rbprops_sim::CampaignSpec;
@@ -124,12 +124,10 @@ fn main() -> std::process::ExitCode {
         }
         if let Some(a) = args.noise_relative {
             let n = frf.n_channels;
-            opts.noise = Some(NoiseModel {
-                relative: vec![a; n],
-                floor: vec![args.noise_floor.unwrap_or(0.0); n],
-                source: "given (--noise-relative/--noise-floor)".into(),
-                variance_scale_se: 0.0,
-            });
+            let mut given =
+                RecordingNoise::given(vec![a; n], vec![args.noise_floor.unwrap_or(0.0); n]);
+            given.source = "given (--noise-relative/--noise-floor)".into();
+            opts.noise = Some(given);
         }
         let out = rbprops_check::check(&spec, &geometry, &frf, &opts)
             .map_err(|e| rbprops_cli::init_spec::mismatch_hint(e, &input.name))
