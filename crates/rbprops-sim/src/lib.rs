@@ -23,6 +23,7 @@ pub use error::{SimError, SpecError, SpecIssue};
 pub use examples::{effect_examples, example, example_names};
 pub use model::DynamicModel;
 pub use simulate::{
-    build_models, predict, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,
+    build_models, free_directions, predict, simulate, simulate_with, SetupModel, SimOptions,
+    Simulation, SolveMethod,
 };
 pub use spec::CampaignSpec;
