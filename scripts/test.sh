@@ -9,3 +9,17 @@ if cargo nextest --version >/dev/null 2>&1; then
 else
   cargo test --workspace --no-fail-fast "$@"
 fi
+# The reference generator's own exact tests (Python with numpy and pyuff; 4–10 s).
+PY="${RBPROPS_PYTHON:-python3}"
+if "$PY" -c "import numpy, pyuff" 2>/dev/null; then
+  # With the frf-sim just built, they also compare the two simulators (Test Case II,
+  # gravity stiffness and 19 effect fixtures).
+  FRF_SIM="${CARGO_TARGET_DIR:-target}/debug/frf-sim"
+  if [ -x "$FRF_SIM" ]; then export RBPROPS_FRF_SIM="$FRF_SIM"; fi
+  "$PY" scripts/refgen/test_rbref.py
+elif [ -n "${RBPROPS_REQUIRE_PYTHON:-}" ]; then
+  echo "error: $PY lacks numpy/pyuff, needed by scripts/refgen/test_rbref.py" >&2
+  exit 1
+else
+  echo "skipping scripts/refgen/test_rbref.py: $PY lacks numpy/pyuff (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)" >&2
+fi
