@@ -182,7 +182,8 @@ pub struct DampingSpec {
     /// `modal`: one ratio for every mode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ratio: Option<f64>,
-    /// `modal`: six ratios, by ascending mode frequency.
+    /// `modal`: six ratios, by ascending mode frequency (a free direction, at 0 Hz, takes
+    /// none: `2ζω = 0`; its ratio counts again once gravity gives it a frequency).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ratios: Option<Vec<f64>>,
     /// `proportional`: mass coefficient α (1/s).
