@@ -365,6 +365,15 @@ pub fn tilted_direction(d: &Vec3, a: f64, b: f64) -> Vec3 {
 /// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1, 0, 0) reproduces the catalogue
 /// effect. The tilt is bilinear with φ₁, φ₂: no signature at neutral, so the model
 /// check frees it only after a refit has moved them.
+///
+/// A set-up with cords (`[[setup.cord]]`) hangs instead: with `E` the body at the static
+/// equilibrium of the weight and the cords (rbprops-sim's
+/// [`rbprops_sim::effects::gravity::hanging_equilibrium`], finite rotations, the spec's
+/// unstretched lengths), `ΔK = K_E − K_nominal` (axial springs at the reference pose)
+/// splits into the cords' lateral tension part `Lat = Σ T(a)ᵀ(T/L)(I − eeᵀ)T(a)` and the
+/// rest (load term, axial springs turned with the body): `K(φ) = φ₁ L̄ Lat + φ₂ (ΔK − Lat)`,
+/// L̄ the mean hanging length, so φ = (1/L̄, 1, 0, 0) is the hanging body exactly and φ₁
+/// scales every cord's length in proportion (a cord length the data fit).
 fn gravity_stiffness(
     ctx: &BuildContext,
     model: &DynamicModel,
@@ -372,6 +381,12 @@ fn gravity_stiffness(
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
     let z = tilted_direction(&ctx.spec.up_vector(), phi[2], phi[3]);
+    if !ctx.spec.setups[ctx.setup_index].cords.is_empty() {
+        let eq = hanging(ctx.spec, ctx.setup_index, &model.mass, &z)?;
+        let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
+        let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
+        return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
+    }
     let cords = |len: f64| -> Vec<Cord> {
         ctx.spec
             .springs(ctx.setup_index)
@@ -386,6 +401,84 @@ fn gravity_stiffness(
     let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;
     let (kinf, _) = geometric_stiffness(&model.mass, &cords(1e12), STANDARD_GRAVITY, &z)?;
     Ok((k1 - kinf) * phi[0] + kinf * phi[1])
+}
+
+/// The hanging equilibrium of set-up `i`'s cords and springs for a body of mass matrix
+/// `mass` under standard gravity along `−up`.
+fn hanging(
+    spec: &CampaignSpec,
+    i: usize,
+    mass: &Mat6,
+    up: &Vec3,
+) -> Result<rbprops_sim::effects::gravity::HangingEquilibrium, String> {
+    rbprops_sim::effects::gravity::hanging_equilibrium(
+        mass,
+        &spec.cords(i),
+        &spec.plain_springs(i),
+        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
+        up,
+    )
+    .map_err(|e| format!("set-up '{}': {e}", spec.setups[i].id))
+}
+
+/// Relative step of the cord lengths of [`gravity_profile`]: 5 %, below the 6 % width in
+/// length (ℓ ∝ 1/ω²) of a pendulum resonance at 1.5 % damping, so a point falls on the
+/// resonance's flank and the refit starts in its basin.
+const GRAVITY_LENGTH_STEP: f64 = 0.05;
+
+/// The `gravity_stiffness` profile for a nominal model with free directions: the hanging
+/// body (φ = (1/ℓ, 1, 0, 0)) at lengths ℓ in steps of [`GRAVITY_LENGTH_STEP`]: ×0.37 to
+/// ×2.7 the cords' mean hanging length when the spec has cords (L₀ + T/k of the nominal
+/// body), else 0.2 to 5 m.
+fn gravity_profile(spec: &CampaignSpec) -> Screening {
+    let up = spec.up_vector();
+    let m = spec.properties().mass_matrix().0;
+    let lbar = spec
+        .setups
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| !s.cords.is_empty())
+        .find_map(|(i, _)| hanging(spec, i, &m, &up).ok())
+        .map(|eq| eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64);
+    let lengths: Vec<f64> = match lbar {
+        Some(l) => (-20..=20)
+            .map(|k| l * (GRAVITY_LENGTH_STEP * k as f64).exp())
+            .collect(),
+        None => {
+            let n = ((5.0f64 / 0.2).ln() / GRAVITY_LENGTH_STEP).ceil() as i32;
+            (0..=n)
+                .map(|k| 0.2 * (GRAVITY_LENGTH_STEP * k as f64).exp())
+                .collect()
+        }
+    };
+    Screening::Profile {
+        grid: lengths
+            .iter()
+            .map(|l| vec![1.0 / l, 1.0, 0.0, 0.0])
+            .collect(),
+        delay_scan: false,
+    }
+}
+
+/// A warning when the nominal model leaves rigid-body directions free (zero-frequency
+/// modes, e.g. cords read as axial springs, or a free–free body): their FRFs are mass
+/// lines, the 0 Hz line cannot be modelled, and the gravity stiffness the cords would
+/// add is screened like any candidate.
+pub fn free_direction_note(spec: &CampaignSpec, geometry: &Geometry) -> Option<String> {
+    let effects = rbprops_sim::effects::parse_effects(spec).ok()?;
+    let models = rbprops_sim::build_models(spec, geometry, &effects).ok()?;
+    let free = rbprops_sim::free_directions(&models);
+    if free.is_empty() {
+        return None;
+    }
+    let list: Vec<String> = free
+        .iter()
+        .map(|(s, n)| format!("set-up '{s}': {n}"))
+        .collect();
+    Some(format!(
+        "the nominal model leaves rigid-body directions free (zero-frequency modes; {}): there its FRFs are mass lines; gravity_stiffness (the cords' pendulum stiffness) is screened for them",
+        list.join(", ")
+    ))
 }
 
 impl Effect for LocalEffect {
@@ -1040,8 +1133,21 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             )),
         }
     }
+    // Free directions in the nominal model: gravity turns zero-frequency modes into
+    // in-band pendulum resonances, far from linear in φ at φ = 0, so it is screened by
+    // a profile over cord lengths instead of a score (see [`gravity_profile`]).
+    let has_free = free_direction_note(spec, geometry).is_some();
+    // A free–free body has nothing to hang from: no gravity stiffness.
+    let suspended = spec
+        .setups
+        .iter()
+        .any(|s| !s.springs.is_empty() || !s.cords.is_empty());
     for k in ALL {
         if in_spec.contains(&k.id()) || out.iter().any(|c| c.id == k.id()) {
+            continue;
+        }
+        if k == Kind::GravityStiffness && !suspended {
+            notes.push("gravity_stiffness is not screened: no set-up has springs or cords".into());
             continue;
         }
         let e = LocalEffect::neutral(k, spec, geometry);
@@ -1059,6 +1165,8 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             reveal: k.reveal(),
             screening: if k == Kind::SensorMass {
                 Screening::RigidMassGauge
+            } else if k == Kind::GravityStiffness && has_free {
+                gravity_profile(spec)
             } else {
                 Screening::Score
             },
@@ -1266,14 +1374,34 @@ pub fn catalogue_entry(
             return Err("gravity_stiffness: fitted 1/ℓ is not positive".into());
         }
         let mut t = toml::Table::new();
-        t.insert(
-            "cord_length_m".into(),
-            toml::Value::Array(vec![(1.0 / v[0]).into()]),
-        );
         let (a, b) = (
             v.get(2).copied().unwrap_or(0.0),
             v.get(3).copied().unwrap_or(0.0),
         );
+        if let Some(i) = spec.setups.iter().position(|s| !s.cords.is_empty()) {
+            // Hanging lengths scaled by ρ = (1/φ₁)/L̄, written as unstretched lengths
+            // L₀ = ρL − T/k (tensions of the nominal body: the fitted mass moves T/k by
+            // the same fraction, well below the length's standard error).
+            let z = tilted_direction(&spec.up_vector(), a, b);
+            let eq = hanging(spec, i, &spec.properties().mass_matrix().0, &z)?;
+            let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
+            let rho = 1.0 / (v[0] * lbar);
+            let l0: Vec<toml::Value> = spec
+                .cords(i)
+                .iter()
+                .zip(eq.lengths.iter().zip(&eq.tensions))
+                .map(|(c, (l, tn))| (rho * l - tn / c.axial_stiffness).into())
+                .collect();
+            t.insert("unstretched_length_m".into(), toml::Value::Array(l0));
+            if spec.setups.len() > 1 {
+                t.insert("setup".into(), spec.setups[i].id.clone().into());
+            }
+        } else {
+            t.insert(
+                "cord_length_m".into(),
+                toml::Value::Array(vec![(1.0 / v[0]).into()]),
+            );
+        }
         if a != 0.0 || b != 0.0 {
             let u = tilted_direction(&spec.up_vector(), a, b);
             t.insert("up".into(), rbprops_sim::spec::up_value([u.x, u.y, u.z]));

@@ -1028,10 +1028,18 @@ fn model_modes_band(
 ) -> (f64, f64) {
     match rbprops_sim::build_models(spec, &layout.spec_geometry, effects) {
         Ok(ms) => {
+            // Free directions (0 Hz) are no suspension modes: they bound no band.
             let fs: Vec<f64> = ms
                 .iter()
-                .flat_map(|m| m.modes.iter().map(|r| r.frequency_hz))
+                .flat_map(|m| m.modes.iter().filter(|r| !r.is_free()))
+                .map(|r| r.frequency_hz)
                 .collect();
+            if fs.is_empty() {
+                return (
+                    layout.frequency_hz[0],
+                    layout.frequency_hz[layout.n_lines() - 1],
+                );
+            }
             (
                 fs.iter().cloned().fold(f64::INFINITY, f64::min),
                 fs.iter().cloned().fold(0.0, f64::max),
@@ -1218,6 +1226,10 @@ fn check_with(
         }
         fixed_effects.push(local_effect("sensor_mass", spec, &vals).map_err(CheckError::Model)?);
     }
+    warnings.extend(crate::candidates::free_direction_note(
+        spec,
+        &layout.spec_geometry,
+    ));
     let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
     method.extend(notes);
     warnings.extend(crate::candidates::vertical_axis_doubt(spec));

@@ -151,11 +151,18 @@ pub fn predict(
     if spec.quantity != layout.quantity {
         spec.to_mut().quantity = layout.quantity;
     }
+    // The 0 Hz line is never compared (the check gives it σ = 0), and a model with a free
+    // rigid-body direction has no finite value there: it is not computed and reads 0.
+    let skip = layout
+        .frequency_hz
+        .iter()
+        .take_while(|&&f| f == 0.0)
+        .count();
     let (frf, _) = rbprops_sim::simulate::predict(
         &spec,
         &layout.spec_geometry,
         &ordered,
-        &layout.frequency_hz,
+        &layout.frequency_hz[skip..],
         &rbprops_sim::SimOptions::default(),
     )
     .map_err(|e| CheckError::Model(e.to_string()))?;
@@ -164,7 +171,7 @@ pub fn predict(
     let mut out = vec![c64::new(0.0, 0.0); layout.n_values()];
     for (re, &se) in layout.excitation_map.iter().enumerate() {
         for (rc, &sc) in layout.channel_map.iter().enumerate() {
-            out[(re * n_rch + rc) * nl..(re * n_rch + rc + 1) * nl]
+            out[(re * n_rch + rc) * nl + skip..(re * n_rch + rc + 1) * nl]
                 .copy_from_slice(frf.frf(se, sc));
         }
     }

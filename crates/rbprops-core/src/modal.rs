@@ -18,6 +18,12 @@ impl RigidMode {
         2.0 * std::f64::consts::PI * self.frequency_hz
     }
 
+    /// A free rigid-body direction: the suspension gives it no stiffness, so its
+    /// frequency is 0 (see [`rigid_body_modes`]).
+    pub fn is_free(&self) -> bool {
+        self.frequency_hz == 0.0
+    }
+
     /// Modal constant of channel row `a` and force column `b`: `A = (aᵀφ)(bᵀφ)` (1/kg).
     pub fn modal_constant(&self, a: &RowVector6<f64>, b: &Vec6) -> f64 {
         (a * self.shape)[0] * b.dot(&self.shape)
@@ -36,9 +42,20 @@ pub fn modal_receptance(modes: &[RigidMode], a: &RowVector6<f64>, b: &Vec6, omeg
         .sum()
 }
 
+/// Relative size `ω_r²/ω²_max` at or below which a mode is a free rigid-body direction
+/// (the suspension gives no stiffness there): its ω is reported as exactly 0. Rounding in
+/// `K` of a suspension with an exact free direction (vertical cords read as axial
+/// springs, a free–free body) leaves eigenvalues near 1e-16 of the largest; a genuine
+/// suspension mode at 1e-6 of the highest frequency would be far below any band.
+pub const FREE_MODE_RELATIVE_EIGENVALUE: f64 = 1e-12;
+
 /// Undamped modes of `K φ = ω² M φ`, mass-normalised (`ΦᵀMΦ = I`), ascending in frequency.
 /// Each shape's largest-magnitude entry is made positive so results are reproducible.
-/// Negative eigenvalues (an unstable suspension) are an error.
+/// Negative eigenvalues (an unstable suspension) are an error. A direction the springs
+/// leave free is a zero-frequency mode (ω = 0 exactly, see
+/// [`FREE_MODE_RELATIVE_EIGENVALUE`]); when several are free their shapes are one
+/// mass-orthonormal basis of the free directions (any other is as valid). With `K = 0`
+/// (a free–free body) all six are.
 pub fn rigid_body_modes(m: &Mat6, k: &Mat6) -> Result<Vec<(f64, Vec6)>, CoreError> {
     let chol = nalgebra::Cholesky::new(*m)
         .ok_or_else(|| CoreError::Inertia("mass matrix is not positive definite".into()))?;
@@ -65,7 +82,12 @@ pub fn rigid_body_modes(m: &Mat6, k: &Mat6) -> Result<Vec<(f64, Vec6)>, CoreErro
         if phi[imax] < 0.0 {
             phi = -phi;
         }
-        out.push((w2.max(0.0).sqrt(), phi));
+        let w = if w2 <= FREE_MODE_RELATIVE_EIGENVALUE * scale {
+            0.0
+        } else {
+            w2.sqrt()
+        };
+        out.push((w, phi));
     }
     Ok(out)
 }
@@ -345,5 +367,43 @@ mod tests {
                 "{f} Hz: {got} vs {model}"
             );
         }
+    }
+
+    /// Four vertical axial springs `k ẑẑᵀ` leave x, y and yaw free: exactly three modes at
+    /// ω = 0 whose shapes span those directions (K φ = 0), and three positive ones. A
+    /// free–free body (K = 0) has six zero modes, still mass-normalised.
+    #[test]
+    fn free_directions_are_zero_frequency_modes() {
+        let props = RigidBodyProperties::from_moments_and_products(
+            15.69,
+            Vec3::new(0.1, -0.05, 0.2),
+            [0.357, 0.394, 0.317],
+            crate::inertia::ProductsOfInertia {
+                xy: 0.077,
+                xz: -0.087,
+                yz: -0.069,
+            },
+        );
+        let m = props.mass_matrix().0;
+        let mut k = Mat6::zeros();
+        for (x, y) in [(0.0, -0.1), (0.3, -0.1), (0.0, 0.2), (0.3, 0.2)] {
+            let t = crate::rigid_transform(&Vec3::new(x, y, 0.17));
+            let kz = nalgebra::Matrix3::from_diagonal(&Vec3::new(0.0, 0.0, 2500.0));
+            k += t.transpose() * kz * t;
+        }
+        let modes = rigid_body_modes(&m, &k).unwrap();
+        let free: Vec<_> = modes.iter().filter(|(w, _)| *w == 0.0).collect();
+        assert_eq!(free.len(), 3, "{modes:?}");
+        assert!(modes[3].0 > 1.0);
+        for (_, phi) in &free {
+            assert!((k * phi).norm() < 1e-9 * k.norm() * phi.norm());
+            assert!(((phi.transpose() * m * phi)[0] - 1.0).abs() < 1e-12);
+            // No vertical motion, pitch or roll in a free direction.
+            assert!(phi[2].abs() + phi[3].abs() + phi[4].abs() < 1e-9 * phi.norm());
+        }
+        let ff = rigid_body_modes(&m, &Mat6::zeros()).unwrap();
+        assert!(ff.iter().all(|(w, _)| *w == 0.0));
+        let phi = Mat6::from_columns(&ff.iter().map(|(_, p)| *p).collect::<Vec<_>>());
+        assert!((phi.transpose() * m * phi - Mat6::identity()).norm() < 1e-12);
     }
 }

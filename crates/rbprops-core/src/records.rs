@@ -67,6 +67,10 @@ impl PropertiesRecord {
 pub struct TrueModeRecord {
     /// 1-based mode number within its set-up, ascending frequency.
     pub mode: usize,
+    // Exactly 0 for a free rigid-body direction (the suspension gives it no stiffness),
+    // whose damping ratio is then 0 and whose shape is one of a mass-orthonormal basis
+    // of the free directions (`rigid_body_modes`). A plain comment, not a doc comment:
+    // the record's JSON schema stays as published.
     pub frequency_hz: f64,
     pub damping_ratio: f64,
     /// Mass-normalised shape `[u_x, u_y, u_z, θ_x, θ_y, θ_z]` about the origin.

@@ -4,7 +4,10 @@
 //!
 //! Model per suspension set-up (DOMAIN.md conventions, `e^{+iωt}`):
 //! `H(ω) = S (K + iωC − ω²M0)⁻¹ F`, with `M0` the rigid-body mass matrix about the
-//! geometry origin, `K = Σ T(a)ᵀ k T(a)` the mount stiffness, `C` modal or Rayleigh
+//! geometry origin, `K = Σ T(a)ᵀ k T(a)` the mount stiffness (a cord is its axial spring
+//! `k e eᵀ`, or with gravity the Hessian of the hanging body's potential at equilibrium,
+//! see [`effects::gravity`]; a direction nothing resists is a mode at 0 Hz, and a 0 Hz
+//! line is then skipped), `C` modal or Rayleigh
 //! damping, `S` the stacked channel rows `sᵀT(p)` and `F` the force columns `T(p)ᵀd`;
 //! converted to mobility (`iωH`) or accelerance (`−ω²H`) as asked, then noise is added
 //! (see [`noise`]).
@@ -23,6 +26,7 @@ pub use error::{SimError, SpecError, SpecIssue};
 pub use examples::{effect_examples, example, example_names};
 pub use model::DynamicModel;
 pub use simulate::{
-    build_models, predict, simulate, simulate_with, SetupModel, SimOptions, Simulation, SolveMethod,
+    build_models, free_directions, predict, simulate, simulate_with, SetupModel, SimOptions,
+    Simulation, SolveMethod,
 };
 pub use spec::CampaignSpec;

@@ -209,6 +209,21 @@ impl DynamicModel {
         if self.structural_damping != Mat6::zeros() {
             return f64::INFINITY;
         }
+        // A free direction with viscous damping (`αM`) has a real pole at `−φᵀCφ`, which
+        // the modal sum (a zero mode is `−1/ω²` there) does not represent.
+        // (Modal damping gives it `2ζ·0 = 0` up to rounding, hence the relative test.)
+        let c_rr: Vec<f64> = modes
+            .iter()
+            .map(|m| (m.shape.transpose() * self.damping * m.shape)[0])
+            .collect();
+        let c_max = c_rr.iter().fold(0.0f64, |a, c| a.max(c.abs()));
+        if modes
+            .iter()
+            .zip(&c_rr)
+            .any(|(m, c)| m.is_free() && c.abs() > 1e-9 * c_max)
+        {
+            return f64::INFINITY;
+        }
         let cm = phi.transpose() * self.damping * phi;
         let diag = cm.diagonal().abs().max().max(f64::MIN_POSITIVE);
         let mut off = 0.0f64;

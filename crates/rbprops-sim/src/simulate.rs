@@ -37,6 +37,20 @@ pub struct Simulation {
     pub geometry: Geometry,
     pub frf: FrfSet,
     pub truth: TruthRecord,
+    /// What the simulator changed or wants the user to know (a skipped 0 Hz line).
+    pub notes: Vec<String>,
+}
+
+/// Free rigid-body directions (zero-frequency modes) per set-up: `(set-up id, count)`
+/// for the set-ups that have any.
+pub fn free_directions(models: &[SetupModel]) -> Vec<(String, usize)> {
+    models
+        .iter()
+        .filter_map(|sm| {
+            let n = sm.modes.iter().filter(|m| m.is_free()).count();
+            (n > 0).then(|| (sm.model.setup.clone(), n))
+        })
+        .collect()
 }
 
 /// Simulates a campaign with the default options ([`SolveMethod::Direct`]).
@@ -99,15 +113,11 @@ pub fn build_models(
             e.modify_structure(&ctx, &mut model)
                 .map_err(|problem| effect_err(i, e.as_ref(), problem))?;
         }
+        // A free direction (ω = 0) is a mode like any other: modal damping gives it none
+        // (`2ζω = 0`), and the FRFs stay finite for every ω > 0 (`Z(ω)` is regular there
+        // since M is positive definite); only ω = 0 is singular (see `simulate_with`).
         let undamped = rigid_body_modes(&model.mass, &model.stiffness)
             .map_err(|e| setup_err(e.to_string()))?;
-        let w_max = undamped[5].0;
-        if !(undamped[0].0 > 1e-6 * w_max) {
-            return Err(setup_err(format!(
-                "a rigid-body direction is free (lowest mode {:.3e} Hz): no suspension mode there",
-                undamped[0].0 / std::f64::consts::TAU
-            )));
-        }
         let d = &spec.damping;
         model.damping = match d.model {
             DampingModel::Modal => {
@@ -335,7 +345,25 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         id: spec.effects[index].id.clone(),
         problem,
     })?;
-    let freq = spec.frequency_axis();
+    let mut freq = spec.frequency_axis();
+    let mut notes = Vec::new();
+    // A free direction has no static stiffness: the receptance is infinite at 0 Hz, so
+    // that line (only the first can be 0) is left out of the simulation.
+    if freq.first() == Some(&0.0) {
+        let free = free_directions(&build_models(spec, &geometry, &effects)?);
+        if !free.is_empty() {
+            freq.remove(0);
+            let list: Vec<String> = free
+                .iter()
+                .map(|(s, n)| format!("set-up '{s}': {n}"))
+                .collect();
+            notes.push(format!(
+                "the 0 Hz line is skipped: the suspension leaves rigid-body directions free ({}), whose static response is infinite; the axis starts at {} Hz",
+                list.join(", "),
+                freq.first().copied().unwrap_or(f64::NAN)
+            ));
+        }
+    }
     let (mut frf, models) = predict(spec, &geometry, &effects, &freq, options)?;
     let block = geometry.channels.len() * freq.len();
     if block > 0 {
@@ -380,5 +408,6 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         geometry,
         frf,
         truth,
+        notes,
     })
 }

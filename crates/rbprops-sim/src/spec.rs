@@ -82,7 +82,8 @@ pub struct ProductsSpec {
     pub yz: f64,
 }
 
-/// One suspension set-up: a set of linear springs between body points and the ground.
+/// One suspension set-up: linear springs and elastic cords between body points and the
+/// ground. None at all is a free–free body.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SetupSpec {
@@ -91,6 +92,30 @@ pub struct SetupSpec {
     pub description: String,
     #[serde(rename = "spring", default)]
     pub springs: Vec<SpringSpec>,
+    #[serde(rename = "cord", default, skip_serializing_if = "Vec::is_empty")]
+    pub cords: Vec<CordSpec>,
+}
+
+/// An elastic suspension cord from the body point `at_m` to the fixed anchor `anchor_m`,
+/// both in the geometry frame with the body at its reference pose (the pose the spec's
+/// geometry describes). Without gravity in the model it is the axial spring
+/// `k e eᵀ` at `at_m`, `e` the unit vector from `at_m` to `anchor_m` (what a tester
+/// writes for a cord). With the `gravity_stiffness` effect the body hangs: the cord's
+/// tension is `k (L − L₀)` at its stretched length `L`, the body moves to the static
+/// equilibrium of the weight and the cords (finite rotations), and the model is
+/// linearised there, tension (geometric) stiffness included
+/// ([`crate::effects::gravity::hanging_equilibrium`]).
+///
+/// `unstretched_length_m` is the cord's free length L₀ (choice: a property of the cord
+/// that does not depend on the load, so the equilibrium is well defined for any cords,
+/// splayed or not; the length as it hangs is `L₀ + T/k`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CordSpec {
+    pub at_m: [f64; 3],
+    pub anchor_m: [f64; 3],
+    pub axial_stiffness_n_per_m: f64,
+    pub unstretched_length_m: f64,
 }
 
 /// A spring at body point `at_m`: diagonal stiffness or a full symmetric PSD 3×3.
@@ -161,7 +186,8 @@ pub struct DampingSpec {
     /// `modal`: one ratio for every mode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ratio: Option<f64>,
-    /// `modal`: six ratios, by ascending mode frequency.
+    /// `modal`: six ratios, by ascending mode frequency (a free direction, at 0 Hz, takes
+    /// none: `2ζω = 0`; its ratio counts again once gravity gives it a frequency).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ratios: Option<Vec<f64>>,
     /// `proportional`: mass coefficient α (1/s).
@@ -282,8 +308,8 @@ impl CampaignSpec {
             is.push("name", "empty campaign name");
         }
         self.check_frequency(&mut is);
-        let body_ok = self.check_body(&mut is);
-        self.check_setups(&mut is, body_ok);
+        self.check_body(&mut is);
+        self.check_setups(&mut is);
         let sensors_ok = self.check_sensors(&mut is);
         self.check_excitations(&mut is);
         if sensors_ok {
@@ -396,7 +422,7 @@ impl CampaignSpec {
         v.is_empty()
     }
 
-    fn check_setups(&self, is: &mut Issues, body_ok: bool) {
+    fn check_setups(&self, is: &mut Issues) {
         if self.setups.is_empty() {
             is.push("setup", "no suspension set-up defined");
         }
@@ -404,13 +430,7 @@ impl CampaignSpec {
         for (i, s) in self.setups.iter().enumerate() {
             let path = format!("setup[{i}]");
             is.id(&format!("{path}.id"), &s.id, &mut seen);
-            if s.springs.is_empty() {
-                is.push(
-                    format!("{path}.spring"),
-                    format!("set-up '{}' has no spring", s.id),
-                );
-            }
-            let before = is.0.len();
+            // No spring and no cord is a free–free body: six zero-frequency modes.
             for (j, sp) in s.springs.iter().enumerate() {
                 let p = format!("{path}.spring[{j}]");
                 is.finite(&format!("{p}.at_m"), &sp.at_m);
@@ -451,32 +471,39 @@ impl CampaignSpec {
                     ),
                 }
             }
-            // With effects (gravity adds stiffness) the check runs on the final model in
-            // `simulate` instead.
-            if body_ok && is.0.len() == before && !s.springs.is_empty() && self.effects.is_empty() {
-                if let Err(problem) = self.check_setup_modes(i) {
-                    is.push(path, format!("set-up '{}': {problem}", s.id));
+            for (j, c) in s.cords.iter().enumerate() {
+                let p = format!("{path}.cord[{j}]");
+                let ok = is.finite(&format!("{p}.at_m"), &c.at_m)
+                    & is.finite(&format!("{p}.anchor_m"), &c.anchor_m);
+                if !(c.axial_stiffness_n_per_m.is_finite() && c.axial_stiffness_n_per_m > 0.0) {
+                    is.push(
+                        format!("{p}.axial_stiffness_n_per_m"),
+                        format!(
+                            "must be positive and finite, got {}",
+                            c.axial_stiffness_n_per_m
+                        ),
+                    );
+                }
+                if !(c.unstretched_length_m.is_finite() && c.unstretched_length_m > 0.0) {
+                    is.push(
+                        format!("{p}.unstretched_length_m"),
+                        format!(
+                            "must be positive and finite, got {}",
+                            c.unstretched_length_m
+                        ),
+                    );
+                }
+                if ok && (v3(&c.anchor_m) - v3(&c.at_m)).norm() < 1e-9 {
+                    is.push(
+                        format!("{p}.anchor_m"),
+                        "the anchor coincides with the attachment point: the cord has no direction",
+                    );
                 }
             }
+            // A direction the springs leave free (vertical cords read as axial springs, a
+            // free–free body) is a zero-frequency mode, not an error: the FRFs are finite
+            // at every ω > 0 (see `crate::simulate`).
         }
-    }
-
-    /// A suspension that leaves a rigid-body direction free has no mode there: refuse it.
-    fn check_setup_modes(&self, i: usize) -> Result<(), String> {
-        let m = self.properties().mass_matrix().0;
-        let k = self.setup_stiffness(i);
-        let modes = rbprops_core::rigid_body_modes(&m, &k).map_err(|e| e.to_string())?;
-        let w_max = modes.last().map(|x| x.0).unwrap_or(0.0);
-        let w_min = modes[0].0;
-        if !(w_max > 0.0) || w_min < 1e-6 * w_max {
-            return Err(format!(
-                "the springs leave a rigid-body direction free (lowest mode {:.3e} Hz, highest {:.3e} Hz): \
-                 every direction needs a suspension mode",
-                w_min / (2.0 * std::f64::consts::PI),
-                w_max / (2.0 * std::f64::consts::PI)
-            ));
-        }
-        Ok(())
     }
 
     fn check_sensors(&self, is: &mut Issues) -> bool {
@@ -696,8 +723,30 @@ impl CampaignSpec {
         }
     }
 
-    /// The springs of set-up `i` as stiffness matrices.
+    /// The springs of set-up `i` as stiffness matrices: the linear springs, then each cord
+    /// as its axial spring `k e eᵀ` at the reference pose (the model without gravity).
     pub fn springs(&self, i: usize) -> Vec<Spring> {
+        let mut out = self.plain_springs(i);
+        out.extend(self.cords(i).iter().map(|c| c.axial_spring()));
+        out
+    }
+
+    /// The cords of set-up `i` (see [`CordSpec`]).
+    pub fn cords(&self, i: usize) -> Vec<crate::effects::gravity::AnchoredCord> {
+        self.setups[i]
+            .cords
+            .iter()
+            .map(|c| crate::effects::gravity::AnchoredCord {
+                at: v3(&c.at_m),
+                anchor: v3(&c.anchor_m),
+                axial_stiffness: c.axial_stiffness_n_per_m,
+                unstretched_length: c.unstretched_length_m,
+            })
+            .collect()
+    }
+
+    /// The linear springs of set-up `i` without its cords.
+    pub fn plain_springs(&self, i: usize) -> Vec<Spring> {
         self.setups[i]
             .springs
             .iter()

@@ -196,13 +196,13 @@ fn bad_mass_and_inertia() {
 
 #[test]
 fn bad_suspensions() {
-    // Only vertical springs: x, y and yaw are free.
+    // Only vertical springs: x, y and yaw are free, which is a valid suspension (three
+    // zero-frequency modes, see tests/cords.rs).
     let b = base().replace(
         "stiffness_n_per_m = [150.0, 220.0, 2500.0]",
         "stiffness_n_per_m = [0.0, 0.0, 2500.0]",
     );
-    let e = CampaignSpec::from_toml_str(&b).unwrap_err().to_string();
-    assert_has(&e, &["setup[0]", "set-up 'A'", "free"]);
+    CampaignSpec::from_toml_str(&b).unwrap();
     assert_has(
         &err_after(
             "stiffness_n_per_m = [150.0, 220.0, 2500.0]",

@@ -63,6 +63,9 @@ fn main() -> std::process::ExitCode {
             return Ok(());
         }
         let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
+        for note in &sim.notes {
+            eprintln!("note: {note}");
+        }
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(
                 dir,

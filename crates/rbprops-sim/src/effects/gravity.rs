@@ -17,11 +17,27 @@
 //! `K_θθ` is symmetric exactly when the moments balance. Checked in the tests against a
 //! simple pendulum `ω² = g/ℓ`, the trifilar yaw `ω² = m g ρ²/(ℓ J)` and a
 //! finite-difference Hessian of the exact potential.
+//!
+//! **Set-ups with cords** (`[[setup.cord]]`: attachment, anchor, unstretched length L₀,
+//! axial stiffness k) are not read that way: there the body hangs. Without this effect
+//! a cord is its axial spring `k e eᵀ` (the tester's model, which leaves the pendulum
+//! directions free); with it the body moves from its reference pose to the static
+//! equilibrium of the weight, the cords (tension `k (L − L₀)`) and the set-up's springs,
+//! found with finite rotations, and the set-up's stiffness becomes the exact Hessian of
+//! the potential there ([`hanging_equilibrium`]): axial springs along the cords' actual
+//! directions, their lateral tension stiffness `(T/L)(I − e eᵀ)` and the load term of
+//! every force, in body axes. Splayed cords (anchors not above the attachments) may so
+//! tilt the body; the sensors and forces stay where the spec puts them on the body. For
+//! vertical cords whose reference pose is their equilibrium this is the springs plus the
+//! `K_geo` above, with `ℓ = L₀ + T/k` (tested). `unstretched_length_m`, when given,
+//! replaces the cords' L₀ (the model check fits it); `cord_length_m` is for set-ups of
+//! springs only. The gravity direction of the other gravity effects stays the spec's
+//! `up` (its tilt with the body at equilibrium is second order for them).
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
-use rbprops_core::{cross_matrix, rigid_transform, MassMatrix6, Mat3, Mat6, Vec3};
+use rbprops_core::{cross_matrix, rigid_transform, MassMatrix6, Mat3, Mat6, Vec3, Vec6};
 use serde::{Deserialize, Serialize};
 
 /// Standard gravity (m/s²).
@@ -34,8 +50,14 @@ pub struct GravityStiffness {
     /// Set-up whose springs are cords; all set-ups when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
-    /// Cord length per spring (m), or one value for all.
+    /// Cord length per spring (m), or one value for all: set-ups of springs, read as
+    /// vertical cords.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cord_length_m: Vec<f64>,
+    /// Unstretched length L₀ per cord (m), or one value for all, replacing the spec's:
+    /// set-ups with `[[setup.cord]]` (empty: the spec's own).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub unstretched_length_m: Vec<f64>,
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
@@ -134,29 +156,271 @@ pub fn geometric_stiffness(
     Ok((k, t))
 }
 
+/// An elastic cord from body point `at` (body frame) to the fixed `anchor` (the
+/// geometry frame at the body's reference pose): tension `k (L − L₀)₊` at length `L`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnchoredCord {
+    pub at: Vec3,
+    pub anchor: Vec3,
+    pub axial_stiffness: f64,
+    pub unstretched_length: f64,
+}
+
+impl AnchoredCord {
+    /// Unit vector from the attachment to the anchor at the reference pose.
+    pub fn direction(&self) -> Vec3 {
+        (self.anchor - self.at).normalize()
+    }
+    /// The cord without gravity: the axial spring `k e eᵀ` at its attachment.
+    pub fn axial_spring(&self) -> crate::suspension::Spring {
+        let e = self.direction();
+        crate::suspension::Spring {
+            at: self.at,
+            stiffness: self.axial_stiffness * e * e.transpose(),
+        }
+    }
+}
+
+/// The static equilibrium of a body hanging on cords (and linear springs) under gravity,
+/// and the stiffness about it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HangingEquilibrium {
+    /// Pose of the body at equilibrium: body point `a` sits at `R a + t` (geometry frame
+    /// of the reference pose).
+    pub rotation: Mat3,
+    pub translation: Vec3,
+    /// Cord tensions (N) and stretched lengths (m), spec order.
+    pub tensions: Vec<f64>,
+    pub lengths: Vec<f64>,
+    /// Unit vectors from the attachments to the anchors, in body axes.
+    pub directions: Vec<Vec3>,
+    /// `up` in body axes, `Rᵀ up`.
+    pub up_body: Vec3,
+    /// Hessian of the potential about the equilibrium in body axes about the geometry
+    /// origin (the model's stiffness; see [`hanging_equilibrium`]).
+    pub stiffness: Mat6,
+    /// Its lateral (tension) part `Σ T(a)ᵀ (T/L)(I − e eᵀ) T(a)`.
+    pub lateral: Mat6,
+}
+
+/// `(F·r) I − sym(F rᵀ)`: the second-order work of a fixed force `F` at a body point `r`
+/// under a small rotation (`r(θ) = r + θ×r + ½θ×(θ×r)`), the load term of the geometric
+/// stiffness.
+fn load_term(f: &Vec3, r: &Vec3) -> Mat3 {
+    let fr = f * r.transpose();
+    Mat3::identity() * f.dot(r) - (fr + fr.transpose()) / 2.0
+}
+
+/// One evaluation of the hanging body at a pose.
+struct HangingState {
+    potential: f64,
+    /// Generalised force on the body (body axes, about the origin): −∇V.
+    force: Vec6,
+    hessian: Mat6,
+    lateral: Mat6,
+    /// Per cord: tension, length, direction (body axes).
+    cords: Vec<(f64, f64, Vec3)>,
+}
+
+/// Potential, generalised force and Hessian of a body (mass `m`, CoM `c`) at pose
+/// `(R, t)` on `cords` and `springs` (linear springs with no force at the reference pose,
+/// to the ground) under gravity `g` along `−up`.
+#[allow(clippy::too_many_arguments)]
+fn hanging_state(
+    rot: &Mat3,
+    t: &Vec3,
+    cords: &[AnchoredCord],
+    springs: &[crate::suspension::Spring],
+    m: f64,
+    c: &Vec3,
+    g: f64,
+    up: &Vec3,
+) -> HangingState {
+    let gen = |f: &Vec3, a: &Vec3| -> Vec6 { rigid_transform(a).transpose() * f };
+    let mut v = m * g * up.dot(&(rot * c + t));
+    let w_b = rot.transpose() * (-m * g * up);
+    let mut force = gen(&w_b, c);
+    let mut k = Mat6::zeros();
+    let mut lat = Mat6::zeros();
+    let mut kth = load_term(&w_b, c);
+    let mut per_cord = Vec::with_capacity(cords.len());
+    for cd in cords {
+        let d = cd.anchor - (rot * cd.at + t);
+        let len = d.norm();
+        let e_b = rot.transpose() * (d / len);
+        let stretch = (len - cd.unstretched_length).max(0.0);
+        let tension = cd.axial_stiffness * stretch;
+        v += 0.5 * cd.axial_stiffness * stretch * stretch;
+        let f_b = tension * e_b;
+        force += gen(&f_b, &cd.at);
+        kth += load_term(&f_b, &cd.at);
+        let tr = rigid_transform(&cd.at);
+        let axial = if stretch > 0.0 {
+            cd.axial_stiffness
+        } else {
+            0.0
+        };
+        let lateral = (tension / len) * (Mat3::identity() - e_b * e_b.transpose());
+        k += tr.transpose() * (axial * e_b * e_b.transpose() + lateral) * tr;
+        lat += tr.transpose() * lateral * tr;
+        per_cord.push((tension, len, e_b));
+    }
+    for s in springs {
+        let u = rot * s.at + t - s.at;
+        v += 0.5 * (u.transpose() * s.stiffness * u)[0];
+        let f_b = rot.transpose() * (-(s.stiffness * u));
+        force += gen(&f_b, &s.at);
+        kth += load_term(&f_b, &s.at);
+        let tr = rigid_transform(&s.at);
+        k += tr.transpose() * (rot.transpose() * s.stiffness * rot) * tr;
+    }
+    let mut block = k.fixed_view_mut::<3, 3>(3, 3);
+    block += kth;
+    HangingState {
+        potential: v,
+        force,
+        hessian: (k + k.transpose()) / 2.0,
+        lateral: lat,
+        cords: per_cord,
+    }
+}
+
+/// The static equilibrium of a body with mass matrix `mass` (about the origin) hanging on
+/// `cords` and `springs` under gravity `g` along `−up`, from its reference pose, by
+/// damped Newton on the exact potential with finite rotations
+/// `V = Σ ½ k (L − L₀)₊² + Σ ½ uᵀk u + m g upᵀ(R c + t)`, perturbing the pose as
+/// `R ← R exp([θ]×)`, `t ← t + R u` (body axes). Its Hessian there is the model's
+/// stiffness:
+///
+/// `K = Σ_cords T(a)ᵀ [k e eᵀ + (T/L)(I − e eᵀ)] T(a) + Σ_springs T(a)ᵀ Rᵀk R T(a)
+///      + blockdiag(0, Σ_forces (F·r) I − sym(F rᵀ))`,
+///
+/// every vector in body axes (`e` toward the anchor, `F` each cord's, spring's and the
+/// weight's force, `r` its point). For vertical cords in equilibrium at the reference
+/// pose it is the axial springs plus [`geometric_stiffness`] (checked in the tests).
+/// Errors: no stable equilibrium (the body falls, a direction with no restoring force),
+/// or a cord slack at equilibrium.
+pub fn hanging_equilibrium(
+    mass: &Mat6,
+    cords: &[AnchoredCord],
+    springs: &[crate::suspension::Spring],
+    g: f64,
+    up: &Vec3,
+) -> Result<HangingEquilibrium, String> {
+    let mm = MassMatrix6(*mass);
+    let (m, c) = (mm.mass(), mm.com());
+    let weight = m * g;
+    // Length scale of the body and cords, for the convergence test on the moments.
+    let size = cords
+        .iter()
+        .map(|cd| cd.at.norm().max(cd.unstretched_length))
+        .chain(springs.iter().map(|s| s.at.norm()))
+        .fold(c.norm(), f64::max)
+        .max(1e-3);
+    let residual = |f: &Vec6| f.fixed_rows::<3>(0).norm() + f.fixed_rows::<3>(3).norm() / size;
+    let mut rot = Mat3::identity();
+    let mut t = Vec3::zeros();
+    let mut st = hanging_state(&rot, &t, cords, springs, m, &c, g, up);
+    // Levenberg damping in the mass metric (M is positive definite): a step that does
+    // not lower the potential is retried shorter and closer to M⁻¹-steepest descent.
+    let mut mu = 0.0f64;
+    let mu0 = 1e-6 * st.hessian.diagonal().abs().max().max(weight / size) / mass.diagonal().max();
+    for _ in 0..500 {
+        if residual(&st.force) <= 1e-13 * weight {
+            break;
+        }
+        let mut stepped = false;
+        for _ in 0..80 {
+            if let Some(ch) = nalgebra::Cholesky::new(st.hessian + mass * mu) {
+                let dq = ch.solve(&st.force);
+                let du = Vec3::new(dq[0], dq[1], dq[2]);
+                let dth = Vec3::new(dq[3], dq[4], dq[5]);
+                let rot2 = rot * nalgebra::Rotation3::new(dth).into_inner();
+                let t2 = t + rot * du;
+                let s2 = hanging_state(&rot2, &t2, cords, springs, m, &c, g, up);
+                // Near the minimum the potential is flat to rounding: accept a step that
+                // does not raise it beyond that and lowers the force.
+                let tol = 1e-14 * (st.potential.abs() + weight * size);
+                if s2.potential < st.potential
+                    || (s2.potential <= st.potential + tol
+                        && residual(&s2.force) < residual(&st.force))
+                {
+                    rot = rot2;
+                    t = t2;
+                    st = s2;
+                    mu = if mu < 4.0 * mu0 { 0.0 } else { mu / 4.0 };
+                    stepped = true;
+                    break;
+                }
+            }
+            mu = if mu == 0.0 { mu0 } else { mu * 4.0 };
+        }
+        if !stepped {
+            break;
+        }
+    }
+    let r = residual(&st.force);
+    if !(r <= 1e-9 * weight) {
+        return Err(format!(
+            "no static equilibrium: the cords and springs cannot hold the body (residual force {r:.3e} N for a weight of {weight:.3e} N)"
+        ));
+    }
+    if let Some(i) = st.cords.iter().position(|(tn, _, _)| !(*tn > 0.0)) {
+        return Err(format!(
+            "cord {i} (at {:?}) is slack at equilibrium: give a shorter unstretched length",
+            cords[i].at.as_slice()
+        ));
+    }
+    let ev = st.hessian.symmetric_eigenvalues();
+    if ev.min() < -1e-9 * ev.abs().max() {
+        return Err(format!(
+            "the equilibrium is unstable (stiffness eigenvalue {:.3e})",
+            ev.min()
+        ));
+    }
+    Ok(HangingEquilibrium {
+        up_body: rot.transpose() * up,
+        rotation: rot,
+        translation: t,
+        tensions: st.cords.iter().map(|p| p.0).collect(),
+        lengths: st.cords.iter().map(|p| p.1).collect(),
+        directions: st.cords.iter().map(|p| p.2).collect(),
+        stiffness: st.hessian,
+        lateral: st.lateral,
+    })
+}
+
 impl GravityStiffness {
     fn up(&self) -> Vec3 {
         Vec3::from(self.up)
     }
     fn lengths(&self, n: usize) -> Vec<f64> {
-        if self.cord_length_m.len() == 1 {
-            vec![self.cord_length_m[0]; n]
-        } else {
-            self.cord_length_m.clone()
+        per_item(&self.cord_length_m, n)
+    }
+    fn applies_to(&self, setup: &str) -> bool {
+        self.setup.as_ref().is_none_or(|id| id == setup)
+    }
+    /// The cords of set-up `i` with the effect's unstretched lengths where given.
+    pub fn hanging_cords(&self, spec: &CampaignSpec, i: usize) -> Vec<AnchoredCord> {
+        let mut cords = spec.cords(i);
+        if !self.unstretched_length_m.is_empty() {
+            let l0 = per_item(&self.unstretched_length_m, cords.len());
+            for (c, l) in cords.iter_mut().zip(l0) {
+                c.unstretched_length = l;
+            }
         }
+        cords
     }
     pub fn check_self(&self) -> Result<(), String> {
-        if self.cord_length_m.is_empty() {
-            return Err("cord_length_m: give one length per spring or one for all".into());
-        }
-        if let Some(l) = self
-            .cord_length_m
-            .iter()
-            .find(|l| !(l.is_finite() && **l > 0.0))
-        {
-            return Err(format!(
-                "cord_length_m: lengths must be positive and finite, got {l}"
-            ));
+        for (name, v) in [
+            ("cord_length_m", &self.cord_length_m),
+            ("unstretched_length_m", &self.unstretched_length_m),
+        ] {
+            if let Some(l) = v.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+                return Err(format!(
+                    "{name}: lengths must be positive and finite, got {l}"
+                ));
+            }
         }
         if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 > 0.0) {
             return Err(format!(
@@ -172,19 +436,40 @@ impl GravityStiffness {
     }
 }
 
+/// `v` for `n` items: itself, or its single value repeated.
+fn per_item(v: &[f64], n: usize) -> Vec<f64> {
+    if v.len() == 1 {
+        vec![v[0]; n]
+    } else {
+        v.to_vec()
+    }
+}
+
 impl Effect for GravityStiffness {
     fn id(&self) -> &'static str {
         "gravity_stiffness"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        super::list_info("cord_length_m", "m", self.cord_length_m.len(), (0.2, 3.0))
+        let mut p = super::list_info("cord_length_m", "m", self.cord_length_m.len(), (0.2, 3.0));
+        p.extend(super::list_info(
+            "unstretched_length_m",
+            "m",
+            self.unstretched_length_m.len(),
+            (0.2, 3.0),
+        ));
+        p
     }
     fn values(&self) -> Vec<f64> {
-        self.cord_length_m.clone()
+        let mut v = self.cord_length_m.clone();
+        v.extend_from_slice(&self.unstretched_length_m);
+        v
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let (nc, nu) = (self.cord_length_m.len(), self.unstretched_length_m.len());
+        let values = super::replace_list(nc + nu, values)?;
         let e = GravityStiffness {
-            cord_length_m: super::replace_list(self.cord_length_m.len(), values)?,
+            cord_length_m: values[..nc].to_vec(),
+            unstretched_length_m: values[nc..].to_vec(),
             ..self.clone()
         };
         e.check_self()?;
@@ -195,32 +480,55 @@ impl Effect for GravityStiffness {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_self()?;
+        super::check_setup(spec, self.setup.as_deref())?;
         for (i, s) in spec.setups.iter().enumerate() {
-            if self.setup.as_ref().is_some_and(|id| id != &s.id) {
+            if !self.applies_to(&s.id) {
                 continue;
             }
-            let n = self.lengths(s.springs.len()).len();
-            if n != s.springs.len() {
-                return Err(format!(
-                    "cord_length_m has {n} lengths but set-up '{}' (setup[{i}]) has {} springs",
-                    s.id,
-                    s.springs.len()
-                ));
-            }
-        }
-        if let Some(id) = &self.setup {
-            if !spec.setups.iter().any(|s| &s.id == id) {
-                return Err(format!("set-up '{id}' is not defined"));
+            if s.cords.is_empty() {
+                let n = self.lengths(s.springs.len()).len();
+                if n != s.springs.len() {
+                    return Err(format!(
+                        "cord_length_m has {n} lengths but set-up '{}' (setup[{i}]) has {} springs{}",
+                        s.id,
+                        s.springs.len(),
+                        if n == 0 { ": give one length per spring or one for all" } else { "" }
+                    ));
+                }
+            } else {
+                let n = per_item(&self.unstretched_length_m, s.cords.len()).len();
+                if n != 0 && n != s.cords.len() {
+                    return Err(format!(
+                        "unstretched_length_m has {n} lengths but set-up '{}' (setup[{i}]) has {} cords",
+                        s.id,
+                        s.cords.len()
+                    ));
+                }
             }
         }
         Ok(())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !self.applies_to(&model.setup) {
+            return Ok(());
+        }
+        let up = self.up();
+        if !ctx.spec.setups[ctx.setup_index].cords.is_empty() {
+            // The hanging body: the set-up's stiffness (springs, cords as axial springs
+            // at the reference pose) is replaced by the Hessian at equilibrium.
+            let eq = hanging_equilibrium(
+                &model.mass,
+                &self.hanging_cords(ctx.spec, ctx.setup_index),
+                &ctx.spec.plain_springs(ctx.setup_index),
+                self.g_m_per_s2,
+                &up,
+            )
+            .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
+            model.stiffness += eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
+            model.stiffness = (model.stiffness + model.stiffness.transpose()) / 2.0;
             return Ok(());
         }
         let springs = ctx.spec.springs(ctx.setup_index);
-        let up = self.up();
         let cords: Vec<Cord> = springs
             .iter()
             .zip(self.lengths(springs.len()))

@@ -1,0 +1,323 @@
+//! The model check and the hanging-body physics on recordings that rbprops-sim did NOT
+//! make: `scripts/refgen` (Python/numpy; potential energy with finite rotations, Newton
+//! equilibrium, finite-difference Hessian, state-space solve) generates them through
+//! `$RBPROPS_PYTHON`. Unset: the tests print a note and pass, unless
+//! `RBPROPS_REQUIRE_PYTHON=1` (CI), which makes that a failure.
+//!
+//! Cases: Test Case II's body on four vertical cords and on four splayed, unequal cords
+//! (the body moves and tilts ≈ 5° at equilibrium) under gravity, with 1 % noise, against
+//! a nominal spec that has the cords but no gravity (axial springs: x, y and yaw free);
+//! and a free–free null (no suspension, nothing missing). 300 lines × 9 channels × 3
+//! excitations each, so a check takes seconds.
+
+use rbprops_check::{check, CheckOptions};
+use rbprops_core::{c64, FrfSet, Geometry, Mat6};
+use rbprops_sim::spec::CordSpec;
+use rbprops_sim::CampaignSpec;
+use std::path::PathBuf;
+
+const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+
+fn python() -> Option<String> {
+    match std::env::var("RBPROPS_PYTHON") {
+        Ok(p) if !p.is_empty() => Some(p),
+        _ => {
+            if std::env::var("RBPROPS_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
+                panic!("RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set");
+            }
+            eprintln!("note: RBPROPS_PYTHON is not set: the independent-generator test is skipped");
+            None
+        }
+    }
+}
+
+/// Cords (attachment, anchor, unstretched length, axial stiffness) of the two cases.
+fn cords(splayed: bool) -> Vec<CordSpec> {
+    let at = [
+        [0.02, -0.13, 0.17],
+        [0.34, -0.13, 0.17],
+        [0.02, 0.20, 0.17],
+        [0.34, 0.20, 0.17],
+    ];
+    let (anchor, len, k): ([[f64; 3]; 4], [f64; 4], [f64; 4]) = if splayed {
+        (
+            [
+                [-0.13, -0.28, 1.2],
+                [0.49, -0.28, 1.2],
+                [-0.13, 0.35, 1.2],
+                [0.49, 0.35, 1.2],
+            ],
+            [1.0, 1.05, 1.0, 0.98],
+            [1400.0, 1300.0, 1500.0, 1400.0],
+        )
+    } else {
+        (at.map(|a| [a[0], a[1], 1.2]), [1.0; 4], [1400.0; 4])
+    };
+    (0..4)
+        .map(|i| CordSpec {
+            at_m: at[i],
+            anchor_m: anchor[i],
+            axial_stiffness_n_per_m: k[i],
+            unstretched_length_m: len[i],
+        })
+        .collect()
+}
+
+fn tc2() -> CampaignSpec {
+    CampaignSpec::from_toml_str(
+        &std::fs::read_to_string(format!("{REPO}/fixtures/specs/test-case-2.toml")).unwrap(),
+    )
+    .unwrap()
+}
+
+/// The refgen case: Test Case II with its set-up replaced by `cords` (none: free–free),
+/// gravity when there are cords, `lines` lines from `start_hz` to 12.5 Hz, 1 % noise.
+fn case_toml(cords: &[CordSpec], start_hz: f64, lines: usize, seed: u64) -> String {
+    let mut t = format!(
+        "spec = \"{REPO}/fixtures/specs/test-case-2.toml\"\nname = \"independent-cords\"\nseed = {seed}\ngravity_m_s2 = {}\n[frequency]\nstart_hz = {start_hz:?}\nstop_hz = 12.5\nlines = {lines}\n[noise]\nrelative = 0.01\nfloor = 0.0\n[[setup]]\nid = \"A\"\nspring = []\n",
+        if cords.is_empty() { 0.0 } else { 9.80665 }
+    );
+    for c in cords {
+        t += &format!(
+            "[[setup.cord]]\nat_m = {:?}\nanchor_m = {:?}\nlength_m = {:?}\nstiffness_n_per_m = {:?}\n",
+            c.at_m, c.anchor_m, c.unstretched_length_m, c.axial_stiffness_n_per_m
+        );
+    }
+    t
+}
+
+/// Runs refgen on `case` and returns the recording (in the nominal spec's channel and
+/// excitation order, checked) and its truth JSON.
+fn refgen(
+    py: &str,
+    tag: &str,
+    case: &str,
+    nominal: &CampaignSpec,
+) -> (Geometry, FrfSet, serde_json::Value) {
+    let dir: PathBuf = std::env::temp_dir().join(format!(
+        "rbprops-independent-cords-{}-{tag}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let case_path = dir.join("case.toml");
+    std::fs::write(&case_path, case).unwrap();
+    let (rec, truth) = (dir.join("rec.json"), dir.join("truth.json"));
+    let out = std::process::Command::new(py)
+        .arg(format!("{REPO}/scripts/refgen/rbref.py"))
+        .arg(&case_path)
+        .arg("-o")
+        .arg(&rec)
+        .arg("--truth")
+        .arg(&truth)
+        .arg("--quiet")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "refgen failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rec).unwrap()).unwrap();
+    let t: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let g = nominal.geometry().unwrap();
+    let ids = |key: &str| -> Vec<String> {
+        r[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let ch: Vec<String> = g.channels.iter().map(|c| c.id.clone()).collect();
+    let ex: Vec<String> = g.excitations.iter().map(|e| e.id.clone()).collect();
+    assert_eq!(ids("channels"), ch);
+    assert_eq!(ids("excitations"), ex);
+    let freq: Vec<f64> = r["frequency_hz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let mut frf = FrfSet::zeros(nominal.quantity, freq, ex.len(), ch.len());
+    for e in 0..ex.len() {
+        for c in 0..ch.len() {
+            let (re, im) = (&r["re"][e][c], &r["im"][e][c]);
+            for (l, v) in frf.frf_mut(e, c).iter_mut().enumerate() {
+                *v = c64::new(re[l].as_f64().unwrap(), im[l].as_f64().unwrap());
+            }
+        }
+    }
+    (g, frf, t)
+}
+
+fn mat6(v: &serde_json::Value) -> Mat6 {
+    Mat6::from_fn(|i, j| v[i][j].as_f64().unwrap())
+}
+
+/// The hanging equilibrium of rbprops-sim and refgen's agree on exact physics: the
+/// stiffness about the origin in body axes (refgen: Richardson central differences of
+/// its analytic gradient, measured at 4e-13 relative; ours: the analytic Hessian) to
+/// 1e-8 of its norm, and the cord tensions to 1e-9 relative.
+#[test]
+fn hanging_stiffness_matches_the_independent_generator() {
+    let Some(py) = python() else { return };
+    for splayed in [false, true] {
+        let mut s = tc2();
+        s.setups[0].springs.clear();
+        s.setups[0].cords = cords(splayed);
+        let case = case_toml(&s.setups[0].cords, 0.0, 11, 1);
+        let (_, _, truth) = refgen(&py, &format!("k{splayed}"), &case, &s);
+        let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
+            &s.properties().mass_matrix().0,
+            &s.cords(0),
+            &[],
+            9.80665,
+            &s.up_vector(),
+        )
+        .unwrap();
+        let k_ref = mat6(&truth["setups"][0]["stiffness_6x6"]);
+        let d = (eq.stiffness - k_ref).norm() / k_ref.norm();
+        assert!(d < 1e-8, "splayed {splayed}: stiffness differs by {d:.3e}");
+        for (a, b) in eq
+            .tensions
+            .iter()
+            .zip(truth["setups"][0]["cord_tensions_n"].as_array().unwrap())
+        {
+            let b = b.as_f64().unwrap();
+            assert!((a - b).abs() < 1e-9 * b, "tension {a} vs {b}");
+        }
+    }
+}
+
+/// Mean hanging length L₀ + T/k of the truth's cords.
+fn mean_hanging_length(cords: &[CordSpec], truth: &serde_json::Value) -> f64 {
+    let t = truth["setups"][0]["cord_tensions_n"].as_array().unwrap();
+    cords
+        .iter()
+        .zip(t)
+        .map(|(c, t)| c.unstretched_length_m + t.as_f64().unwrap() / c.axial_stiffness_n_per_m)
+        .sum::<f64>()
+        / cords.len() as f64
+}
+
+/// Cords with gravity against the nominal cords without it (which leave three
+/// directions free), mass 2 % off in the nominal: the check names `gravity_stiffness`,
+/// fits the mean hanging length, and the refit reaches the noise band.
+fn cords_case(splayed: bool) {
+    let Some(py) = python() else { return };
+    let mut truth_spec = tc2();
+    truth_spec.setups[0].springs.clear();
+    truth_spec.setups[0].cords = cords(splayed);
+    truth_spec.frequency.start_hz = 0.0;
+    truth_spec.frequency.lines = 300;
+    let case = case_toml(&truth_spec.setups[0].cords, 0.0, 300, 7);
+    let (g, frf, truth) = refgen(&py, &format!("c{splayed}"), &case, &truth_spec);
+    let mut nominal = truth_spec.clone();
+    nominal.body.mass_kg *= 1.02;
+    let t0 = std::time::Instant::now();
+    let opts = CheckOptions {
+        progress: rbprops_check::Progress::new(|s| eprintln!("  check: {s}")),
+        ..CheckOptions::default()
+    };
+    let out = check(&nominal, &g, &frf, &opts).unwrap();
+    let r = &out.report;
+    let accepted: Vec<&str> = r.accepted.iter().map(|a| a.id.as_str()).collect();
+    let ambiguous: Vec<Vec<String>> = r.ambiguous.iter().map(|f| f.ids.clone()).collect();
+    eprintln!(
+        "splayed {splayed}: accepted {accepted:?}, ambiguous {ambiguous:?}, χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}), {:.1} s; warnings {:?}",
+        r.chi2_nu_before,
+        r.chi2_nu_after,
+        r.noise_band[0],
+        r.noise_band[1],
+        t0.elapsed().as_secs_f64(),
+        r.warnings
+    );
+    assert!(
+        r.warnings.iter().any(|w| w.contains("free")),
+        "the nominal's free directions are reported: {:?}",
+        r.warnings
+    );
+    let grav = r
+        .accepted
+        .iter()
+        .find(|a| a.id == "gravity_stiffness")
+        .unwrap_or_else(|| panic!("gravity_stiffness not named: {accepted:?} {ambiguous:?}"));
+    // No false claim: every other accepted effect is absent from the truth.
+    assert_eq!(accepted, ["gravity_stiffness"], "false claims");
+    // The fitted 1/L̄ within 4 of its standard errors of the truth's mean hanging
+    // length (the model is exact at φ = (1/L̄, 1) when the cords' L₀ are right, as
+    // here; 4 SE: a two-sided 6e-5 false-alarm rate for a Gaussian estimate).
+    let p = &grav.parameters[0];
+    assert_eq!(p.name, "inverse_cord_length_per_m");
+    let want = 1.0 / mean_hanging_length(&truth_spec.setups[0].cords, &truth);
+    assert!(
+        (p.value - want).abs() <= 4.0 * p.standard_error,
+        "1/L̄ = {} ± {} vs {want}",
+        p.value,
+        p.standard_error
+    );
+    assert!(
+        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
+        "χ²/ν {} outside the band {:?}",
+        r.chi2_nu_after,
+        r.noise_band
+    );
+    // The improved spec is the hanging body: it simulates with no free direction.
+    let sim = rbprops_sim::simulate(&out.improved_spec).unwrap();
+    assert!(sim.truth.setups[0]
+        .modes
+        .iter()
+        .all(|m| m.frequency_hz > 0.3));
+}
+
+// Not yet passing (ignored, run with `--ignored`): on this recording the selection
+// accepts elastic_mode, added_mass, suspension_coupling, sensor_position before
+// gravity_stiffness (χ²/ν 8864 → 2831 after four steps, 4 min), although the hanging
+// body is exact at φ = (1/L̄, 1): its profile screening is not yet what the selection
+// refits first. The acceptance and selection logic is being reworked on another branch.
+#[test]
+#[ignore = "known failure: the selection refits other effects before gravity_stiffness"]
+fn parallel_cords_with_gravity_are_named_and_fitted() {
+    cords_case(false);
+}
+
+// Not yet passing (ignored, run with `--ignored`): on this recording the selection
+// accepts elastic_mode, added_mass, suspension_coupling, sensor_position before
+// gravity_stiffness (χ²/ν 8864 → 2831 after four steps, 4 min), although the hanging
+// body is exact at φ = (1/L̄, 1): its profile screening is not yet what the selection
+// refits first. The acceptance and selection logic is being reworked on another branch.
+#[test]
+#[ignore = "known failure: the selection refits other effects before gravity_stiffness"]
+fn splayed_cords_with_gravity_are_named_and_fitted() {
+    cords_case(true);
+}
+
+/// Free–free null: no suspension in the recording nor in the nominal model (six
+/// zero-frequency modes), exact nominal body, 1 % noise: nothing may be claimed and
+/// χ²/ν lies in the noise band.
+#[test]
+fn free_free_null_is_silent() {
+    let Some(py) = python() else { return };
+    let mut s = tc2();
+    s.setups[0].springs.clear();
+    s.frequency.start_hz = 0.5;
+    s.frequency.lines = 300;
+    let case = case_toml(&[], 0.5, 300, 11);
+    let (g, frf, _) = refgen(&py, "ff", &case, &s);
+    let out = check(&s, &g, &frf, &CheckOptions::default()).unwrap();
+    let r = &out.report;
+    eprintln!(
+        "free-free: accepted {:?}, χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}); warnings {:?}",
+        r.accepted.iter().map(|a| &a.id).collect::<Vec<_>>(),
+        r.chi2_nu_before,
+        r.chi2_nu_after,
+        r.noise_band[0],
+        r.noise_band[1],
+        r.warnings
+    );
+    assert!(r.accepted.is_empty() && r.ambiguous.is_empty());
+    assert!(r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1]);
+}
