@@ -650,11 +650,19 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
             t.insert("decay_per_s".into(), 0.0.into());
         }
         "nonproportional_damping" => {
-            // One dashpot per spring: damping that differs between mounts is what makes
-            // it non-proportional (equal dashpots at every mount are nearly proportional
-            // and the fitted modal damping ratios absorb them).
-            t.insert("axial_n_s_per_m".into(), per_spring_zeros(spec));
-            t.insert("lateral_n_s_per_m".into(), per_spring_zeros(spec));
+            // General viscous damping: the nominal damping's modal diagonal (the six
+            // ratios the baseline fits) coupled by a correlation matrix R(N), 15 values
+            // (rbprops_sim::effects::damping::coupled_damping). With the ratios it spans
+            // every positive definite 6×6 C, identifiably, and is positive semi-definite
+            // by construction; dashpots at the mounts (3×3 each, 24 numbers for four
+            // mounts onto at most 21) are one such C but not identifiable.
+            t.insert(
+                "modal_coupling".into(),
+                toml::Value::Array(vec![
+                    0.0.into();
+                    rbprops_sim::effects::damping::MODAL_COUPLINGS
+                ]),
+            );
         }
         "hysteretic_damping" => {
             t.insert("loss_factors".into(), per_spring_zeros(spec));
