@@ -16,7 +16,9 @@
 //!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
-//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
+//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up. Only a recording-side
+//!   helper ([`local_effect`]): the candidate screened is the catalogue's general
+//!   viscous damping (`modal_coupling`, see [`neutral_entry`] and docs/physics.md, E5).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =

@@ -161,10 +161,24 @@ fn assert_explained(
     expected: &[&str],
     allowed: &[&str],
 ) -> ModelCheckReport {
+    assert_explained_with(label, nom, g, frf, expected, allowed, REL)
+}
+
+fn assert_explained_with(
+    label: &str,
+    nom: &CampaignSpec,
+    g: &Geometry,
+    frf: &FrfSet,
+    expected: &[&str],
+    allowed: &[&str],
+    rel: f64,
+) -> ModelCheckReport {
     let t0 = std::time::Instant::now();
-    let r = check(nom, g, frf, &given_noise(g.channels.len()))
-        .unwrap()
-        .report;
+    let mut opts = given_noise(g.channels.len());
+    if let Some(n) = &mut opts.noise {
+        n.relative = vec![rel; g.channels.len()];
+    }
+    let r = check(nom, g, frf, &opts).unwrap().report;
     summary(label, &r, t0.elapsed());
     let ids = named(&r);
     for e in expected {
@@ -269,5 +283,25 @@ fn two_elastic_modes_above_the_band_are_explained() {
         &frf,
         &["residual_flexibility"],
         &["elastic_mode"],
+    );
+}
+
+/// The same two modes at 0.1 % noise, where χ²/ν of the baseline is 2250: one
+/// out-of-band term with its general residue matrix still reaches the band (1.02), so a
+/// second term is not needed at this noise (a longer study: 42 s, ignored in CI).
+#[test]
+#[ignore = "study (42 s): two out-of-band modes at 0.1 % noise"]
+fn two_elastic_modes_above_the_band_at_low_noise() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(&py, "tc2-elastic-above", &["noise.relative=0.001"], 6, &nom);
+    assert_explained_with(
+        "two elastic modes, 0.1 % noise",
+        &nom,
+        &g,
+        &frf,
+        &["residual_flexibility"],
+        &["elastic_mode"],
+        0.001,
     );
 }
