@@ -16,7 +16,9 @@
 //!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
-//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up.
+//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up. Only a recording-side
+//!   helper ([`local_effect`]): the candidate screened is the catalogue's general
+//!   viscous damping (`modal_coupling`, see [`neutral_entry`] and docs/physics.md, E5).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
@@ -743,11 +745,19 @@ fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Ta
             t.insert("decay_per_s".into(), 0.0.into());
         }
         "nonproportional_damping" => {
-            // One dashpot per spring: damping that differs between mounts is what makes
-            // it non-proportional (equal dashpots at every mount are nearly proportional
-            // and the fitted modal damping ratios absorb them).
-            t.insert("axial_n_s_per_m".into(), per_spring_zeros(spec));
-            t.insert("lateral_n_s_per_m".into(), per_spring_zeros(spec));
+            // General viscous damping: the nominal damping's modal diagonal (the six
+            // ratios the baseline fits) coupled by a correlation matrix R(N), 15 values
+            // (rbprops_sim::effects::damping::coupled_damping). With the ratios it spans
+            // every positive definite 6×6 C, identifiably, and is positive semi-definite
+            // by construction; dashpots at the mounts (3×3 each, 24 numbers for four
+            // mounts onto at most 21) are one such C but not identifiable.
+            t.insert(
+                "modal_coupling".into(),
+                toml::Value::Array(vec![
+                    0.0.into();
+                    rbprops_sim::effects::damping::MODAL_COUPLINGS
+                ]),
+            );
         }
         "hysteretic_damping" => {
             t.insert("loss_factors".into(), per_spring_zeros(spec));

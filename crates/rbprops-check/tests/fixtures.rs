@@ -379,7 +379,11 @@ fn nonproportional_damping_at_the_mounts_is_found() {
         16,
     );
     assert_found(&r, &["nonproportional_damping"], &truth.properties());
-    within_mod_gauge(&r, "nonproportional_damping", &dashpots(&r, &[6.0]), 4.0);
+    let truth_n = dashpots(
+        &truth,
+        "id = \"nonproportional_damping\"\naxial_n_s_per_m = [6.0]\nlateral_n_s_per_m = [0.0]",
+    );
+    within_mod_gauge(&r, "nonproportional_damping", &truth_n, 4.0);
 }
 
 /// Heavy dashpots on one mount only (damping that differs between mounts is what
@@ -394,34 +398,29 @@ fn a_dashpot_on_one_mount_is_found() {
         61,
     );
     assert_found(&r, &["nonproportional_damping"], &truth.properties());
-    within_mod_gauge(
-        &r,
-        "nonproportional_damping",
-        &dashpots(&r, &[25.0, 0.0, 0.0, 0.0]),
-        4.0,
+    let truth_n = dashpots(
+        &truth,
+        "id = \"nonproportional_damping\"\naxial_n_s_per_m = [25.0, 0.0, 0.0, 0.0]",
     );
+    within_mod_gauge(&r, "nonproportional_damping", &truth_n, 4.0);
 }
 
-/// The truth vector of an accepted `nonproportional_damping`: the axial coefficients
-/// per spring (`axial`, one value for all when of length 1), lateral ones zero.
-fn dashpots(r: &ModelCheckReport, axial: &[f64]) -> Vec<f64> {
-    let a = r
-        .accepted
-        .iter()
-        .find(|a| a.id == "nonproportional_damping")
-        .unwrap_or_else(|| panic!("nonproportional_damping not accepted: {}", r.verdict));
-    let mut i = 0;
-    a.parameters
-        .iter()
-        .map(|p| {
-            if p.name.starts_with("axial") {
-                i += 1;
-                axial[(i - 1).min(axial.len() - 1)]
-            } else {
-                0.0
-            }
-        })
-        .collect()
+/// The truth vector of an accepted `nonproportional_damping` (the general viscous
+/// damping's 15 modal couplings): those of the truth's damping, the nominal modal
+/// damping plus the dashpots of the `[[effect]]` entry `effect`, read in the truth's
+/// undamped modes by rbprops-sim's `modal_coupling_of`.
+fn dashpots(truth: &CampaignSpec, effect: &str) -> Vec<f64> {
+    let mut s = truth.clone();
+    #[derive(serde::Deserialize)]
+    struct W {
+        effect: Vec<rbprops_sim::spec::EffectSpec>,
+    }
+    let w: W = toml::from_str(&format!("[[effect]]\n{effect}\n")).unwrap();
+    s.effects.extend(w.effect);
+    let effects = rbprops_sim::effects::parse_effects(&s).unwrap();
+    let models = rbprops_sim::simulate::build_models(&s, &s.geometry().unwrap(), &effects).unwrap();
+    let m = &models[0].model;
+    rbprops_sim::effects::damping::modal_coupling_of(&m.mass, &m.stiffness, &m.damping).unwrap()
 }
 
 #[test]

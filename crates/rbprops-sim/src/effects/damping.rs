@@ -10,6 +10,26 @@
 //! and the simulator's modal solve refuses the model; the truth record's damping ratios
 //! are then the diagonal approximation `φ_rᵀCφ_r/(2ω_r)`.
 //!
+//! General viscous damping (`modal_coupling`, 15 values): the damping C of the model so
+//! far (the nominal modal or proportional damping plus the dashpots above) is read in
+//! the mass-normalised undamped modes Φ of (M, K) (ΦᵀMΦ = I, so C = MΦ C_m ΦᵀM), its
+//! modal diagonal `d_r = φ_rᵀCφ_r = 2ζ_rω_r` kept, and the modes coupled:
+//!
+//! `C' = C + MΦ D^{1/2} (R(N) − I) D^{1/2} ΦᵀM`, `R(N) = ℓℓᵀ`, `ℓ_i = L_i/|L_i|`,
+//! `L = I + N` (N strictly lower triangular, the 15 values row by row).
+//!
+//! R(N) is a correlation matrix (unit diagonal, positive semi-definite: a Gram matrix of
+//! unit vectors), so for classical C the result `MΦ D^{1/2} R D^{1/2} ΦᵀM` is positive
+//! semi-definite by construction, and every positive definite 6×6 C is reached (R's
+//! Cholesky factor L_R has rows of unit norm; `N = diag(L_R)⁻¹ L_R − I`,
+//! [`modal_coupling_of`]). With the six modal ratios ζ_r this is the general viscous
+//! damping a rigid body shows: 6 + 15 = 21 numbers, the symmetric 6×6 C. Point dashpots
+//! with full 3×3 matrices at the mounts, `C = Σ_i T(a_i)ᵀ C_i T(a_i)`, are one such C,
+//! but not an identifiable parametrisation of it (6 numbers per mount, 24 or more for
+//! four mounts, onto at most 21). At N = 0 the change is `D^{1/2}(N + Nᵀ)D^{1/2}` to
+//! first order: a score test sees it. The modes' sign convention (largest component
+//! positive) makes R continuous in (M, K) except where modes cross.
+//!
 //! `hysteretic_damping`: the loss of rubber mounts and bungee cords (research note E5),
 //! a loss factor η_i per spring, frequency-independent:
 //!
@@ -24,7 +44,7 @@ use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use crate::suspension::spring_stiffness;
-use rbprops_core::{rigid_transform, Mat3, Vec3};
+use rbprops_core::{rigid_body_modes, rigid_transform, Mat3, Mat6, Vec3};
 use serde::{Deserialize, Serialize};
 
 fn default_axis() -> [f64; 3] {
@@ -38,6 +58,7 @@ pub struct NonproportionalDamping {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
     /// Axial coefficient (N s/m) per spring, or one value for all.
+    #[serde(default)]
     pub axial_n_s_per_m: Vec<f64>,
     /// Lateral coefficient (N s/m) per spring, or one value for all (default 0).
     #[serde(default)]
@@ -45,6 +66,97 @@ pub struct NonproportionalDamping {
     /// Cord axis (unit vector, geometry frame).
     #[serde(default = "default_axis")]
     pub axis: [f64; 3],
+    /// Coupling of the undamped modes by the damping: the 15 values of the strictly lower
+    /// triangle of N, row by row ((1,0), (2,0), (2,1), (3,0), …), see the module docs;
+    /// empty: none.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub modal_coupling: Vec<f64>,
+}
+
+/// Number of modal coupling values (the strict lower triangle of a 6×6 matrix).
+pub const MODAL_COUPLINGS: usize = 15;
+
+/// The correlation matrix `R(N) = ℓℓᵀ`, `ℓ_i = L_i/|L_i|`, `L = I + N` (module docs).
+pub fn coupling_correlation(lower: &[f64]) -> Result<Mat6, String> {
+    if lower.len() != MODAL_COUPLINGS {
+        return Err(format!(
+            "modal_coupling: expected {MODAL_COUPLINGS} values, got {}",
+            lower.len()
+        ));
+    }
+    let mut l = Mat6::identity();
+    let mut k = 0;
+    for i in 1..6 {
+        for j in 0..i {
+            l[(i, j)] = lower[k];
+            k += 1;
+        }
+    }
+    for i in 0..6 {
+        let n = l.row(i).norm();
+        l.row_mut(i).unscale_mut(n);
+    }
+    Ok(l * l.transpose())
+}
+
+/// General viscous damping: `C' = C + MΦ D^{1/2}(R(N) − I)D^{1/2} ΦᵀM` with Φ the
+/// mass-normalised undamped modes of (M, K) and `D = diag(φ_rᵀCφ_r)` (module docs).
+pub fn coupled_damping(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    damping: &Mat6,
+    lower: &[f64],
+) -> Result<Mat6, String> {
+    let r = coupling_correlation(lower)?;
+    let modes = rigid_body_modes(mass, stiffness).map_err(|e| e.to_string())?;
+    let phi = Mat6::from_columns(&modes.iter().map(|m| m.1).collect::<Vec<_>>());
+    let d = (phi.transpose() * damping * phi).diagonal();
+    if let Some(x) = d.iter().find(|x| !(**x >= 0.0)) {
+        return Err(format!(
+            "modal_coupling: a mode has negative damping φᵀCφ = {x:e}"
+        ));
+    }
+    let sd = d.map(f64::sqrt);
+    let mut cm = r - Mat6::identity();
+    for i in 0..6 {
+        for j in 0..6 {
+            cm[(i, j)] *= sd[i] * sd[j];
+        }
+    }
+    let mp = mass * phi;
+    let out = damping + mp * cm * mp.transpose();
+    Ok((out + out.transpose()) * 0.5)
+}
+
+/// The inverse of [`coupled_damping`] for a positive definite C: the modal couplings N
+/// whose correlation matrix is `R = D^{-1/2} ΦᵀCΦ D^{-1/2}` (Cholesky `R = L_R L_Rᵀ`,
+/// `N = diag(L_R)⁻¹ L_R − I`). For tests and for reading a fitted C back.
+pub fn modal_coupling_of(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    damping: &Mat6,
+) -> Result<Vec<f64>, String> {
+    let modes = rigid_body_modes(mass, stiffness).map_err(|e| e.to_string())?;
+    let phi = Mat6::from_columns(&modes.iter().map(|m| m.1).collect::<Vec<_>>());
+    let cm = phi.transpose() * damping * phi;
+    let sd = cm.diagonal().map(|x| x.max(0.0).sqrt());
+    let mut r = cm;
+    for i in 0..6 {
+        for j in 0..6 {
+            r[(i, j)] /= sd[i] * sd[j];
+        }
+    }
+    let l = r
+        .cholesky()
+        .ok_or("the damping is not positive definite in the modes")?
+        .l();
+    let mut out = Vec::with_capacity(MODAL_COUPLINGS);
+    for i in 1..6 {
+        for j in 0..i {
+            out.push(l[(i, j)] / l[(i, i)]);
+        }
+    }
+    Ok(out)
 }
 
 fn per_spring(v: &[f64], n: usize) -> Vec<f64> {
@@ -82,8 +194,25 @@ fn per_spring_lists_fit(
 
 impl NonproportionalDamping {
     fn check_values(&self) -> Result<(), String> {
-        if self.axial_n_s_per_m.is_empty() {
-            return Err("axial_n_s_per_m: give one coefficient per spring or one for all".into());
+        if self.axial_n_s_per_m.is_empty() && self.modal_coupling.is_empty() {
+            return Err(
+                "axial_n_s_per_m: give one coefficient per spring or one for all (or modal_coupling)"
+                    .into(),
+            );
+        }
+        if !self.modal_coupling.is_empty() && self.modal_coupling.len() != MODAL_COUPLINGS {
+            return Err(format!(
+                "modal_coupling: give {MODAL_COUPLINGS} values (the strict lower triangle, row by row), got {}",
+                self.modal_coupling.len()
+            ));
+        }
+        if let Some((i, c)) = self
+            .modal_coupling
+            .iter()
+            .enumerate()
+            .find(|(_, c)| !c.is_finite())
+        {
+            return Err(format!("modal_coupling[{i}]: must be finite, got {c}"));
         }
         for (what, v) in [
             ("axial_n_s_per_m", &self.axial_n_s_per_m),
@@ -122,24 +251,37 @@ impl Effect for NonproportionalDamping {
             .chain(
                 (0..self.lateral_n_s_per_m.len()).map(|i| info(format!("lateral_n_s_per_m[{i}]"))),
             )
+            .chain(
+                modal_coupling_names(self.modal_coupling.len()).map(|name| ParamInfo {
+                    name,
+                    unit: "1",
+                    lower: f64::NEG_INFINITY,
+                    upper: f64::INFINITY,
+                    plausible: (-1.0, 1.0),
+                }),
+            )
             .collect()
     }
     fn values(&self) -> Vec<f64> {
         self.axial_n_s_per_m
             .iter()
             .chain(&self.lateral_n_s_per_m)
+            .chain(&self.modal_coupling)
             .copied()
             .collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let (axial, lateral) = super::split_values(
+        let na = self.axial_n_s_per_m.len();
+        let (dashpots, coupling) = super::split_values(
             values,
-            self.axial_n_s_per_m.len(),
-            self.lateral_n_s_per_m.len(),
+            na + self.lateral_n_s_per_m.len(),
+            self.modal_coupling.len(),
         )?;
+        let (axial, lateral) = dashpots.split_at(na);
         let e = NonproportionalDamping {
             axial_n_s_per_m: axial.to_vec(),
             lateral_n_s_per_m: lateral.to_vec(),
+            modal_coupling: coupling.to_vec(),
             ..self.clone()
         };
         e.check_values()?;
@@ -173,8 +315,23 @@ impl Effect for NonproportionalDamping {
             let t = rigid_transform(&s.at);
             model.damping += t.transpose() * (a * axial + l * lateral) * t;
         }
+        if !self.modal_coupling.is_empty() {
+            model.damping = coupled_damping(
+                &model.mass,
+                &model.stiffness,
+                &model.damping,
+                &self.modal_coupling,
+            )?;
+        }
         Ok(())
     }
+}
+
+/// Names of the modal coupling values: `modal_coupling[i,j]`, modes i > j (ascending).
+fn modal_coupling_names(n: usize) -> impl Iterator<Item = String> {
+    (1..6)
+        .flat_map(|i| (0..i).map(move |j| format!("modal_coupling[{i},{j}]")))
+        .take(n)
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -251,5 +408,126 @@ impl Effect for HystereticDamping {
             model.structural_damping += e * spring_stiffness(s);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rbprops_core::{RigidBodyProperties, Vec6};
+
+    /// Test Case II's body on four anisotropic springs, and point dashpots with full
+    /// 3×3 matrices at the mounts (an independent way to write a general PSD C).
+    fn body() -> (Mat6, Mat6, Mat6) {
+        let p = RigidBodyProperties::from_moments_and_products(
+            15.69,
+            Vec3::new(0.17725, 0.0304, -0.00535),
+            [0.35733194, 0.39469014, 0.31706832],
+            rbprops_core::inertia::ProductsOfInertia {
+                xy: 0.07722671,
+                xz: -0.08736156,
+                yz: -0.06919817,
+            },
+        );
+        let m = p.mass_matrix().0;
+        let at = [
+            Vec3::new(0.02, -0.13, 0.17),
+            Vec3::new(0.34, -0.13, 0.17),
+            Vec3::new(0.02, 0.20, 0.17),
+            Vec3::new(0.34, 0.20, 0.17),
+        ];
+        let k3 = Mat3::from_diagonal(&Vec3::new(150.0, 220.0, 2500.0));
+        let c3 = [
+            Mat3::new(2.0, 0.8, 0.0, 0.8, 1.5, 0.3, 0.0, 0.3, 9.0),
+            Mat3::new(1.0, 0.0, 0.4, 0.0, 3.0, 0.0, 0.4, 0.0, 4.0),
+            Mat3::from_diagonal(&Vec3::new(3.0, 1.0, 12.0)),
+            Mat3::new(1.5, -0.5, 0.0, -0.5, 2.5, 0.6, 0.0, 0.6, 6.0),
+        ];
+        let (mut k, mut c) = (Mat6::zeros(), Mat6::zeros());
+        for (a, ci) in at.iter().zip(&c3) {
+            let t = rigid_transform(a);
+            k += t.transpose() * k3 * t;
+            c += t.transpose() * ci * t;
+        }
+        (m, k, c)
+    }
+
+    fn modal_classical(m: &Mat6, k: &Mat6, c: &Mat6) -> Mat6 {
+        // The classical part of C: its modal diagonal only.
+        let modes = rigid_body_modes(m, k).unwrap();
+        let phi = Mat6::from_columns(&modes.iter().map(|x| x.1).collect::<Vec<Vec6>>());
+        let d = Mat6::from_diagonal(&(phi.transpose() * c * phi).diagonal());
+        m * phi * d * phi.transpose() * m
+    }
+
+    /// Any positive definite C (here from point dashpots) is its classical part coupled
+    /// by the N that `modal_coupling_of` reads from it: the round trip is exact to
+    /// rounding (1e-12 of |C|).
+    #[test]
+    fn point_dashpots_are_a_classical_damping_coupled_by_n() {
+        let (m, k, c) = body();
+        let n = modal_coupling_of(&m, &k, &c).unwrap();
+        let back = coupled_damping(&m, &k, &modal_classical(&m, &k, &c), &n).unwrap();
+        let err = (back - c).abs().max() / c.abs().max();
+        assert!(err < 1e-12, "relative error {err:e}");
+        // N = 0 changes nothing; the correlation has a unit diagonal and is PSD.
+        let c0 = modal_classical(&m, &k, &c);
+        let same = coupled_damping(&m, &k, &c0, &[0.0; 15]).unwrap();
+        assert!((same - c0).abs().max() <= 1e-14 * c0.abs().max());
+    }
+
+    /// PSD by construction: for large arbitrary N, every eigenvalue of C' is ≥ −1e-12 of
+    /// the largest, and the modal diagonal (the damping ratios) is unchanged.
+    #[test]
+    fn coupled_damping_is_positive_semidefinite_and_keeps_the_ratios() {
+        let (m, k, c) = body();
+        let c0 = modal_classical(&m, &k, &c);
+        let n: Vec<f64> = (0..15).map(|i| 3.0 * ((i as f64) * 1.7).sin()).collect();
+        let c1 = coupled_damping(&m, &k, &c0, &n).unwrap();
+        let ev = c1.symmetric_eigen().eigenvalues;
+        assert!(ev.min() >= -1e-12 * ev.max(), "eigenvalues {ev}");
+        let r = coupling_correlation(&n).unwrap();
+        for i in 0..6 {
+            assert!((r[(i, i)] - 1.0).abs() < 1e-15);
+        }
+        let modes = rigid_body_modes(&m, &k).unwrap();
+        for (_, phi) in &modes {
+            let (a, b) = (
+                (phi.transpose() * c0 * phi)[0],
+                (phi.transpose() * c1 * phi)[0],
+            );
+            assert!((a - b).abs() < 1e-12 * a, "{a} vs {b}");
+        }
+    }
+
+    /// First order at N = 0: ∂C'/∂N_ij = MΦ √(d_i d_j)(E_ij + E_ji) ΦᵀM, so a score test
+    /// sees each coupling (central difference, h = 1e-6: error O(h²) relative).
+    #[test]
+    fn coupling_has_a_first_order_signature_at_zero() {
+        let (m, k, c) = body();
+        let c0 = modal_classical(&m, &k, &c);
+        let modes = rigid_body_modes(&m, &k).unwrap();
+        let phi = Mat6::from_columns(&modes.iter().map(|x| x.1).collect::<Vec<Vec6>>());
+        let d = (phi.transpose() * c0 * phi).diagonal();
+        let h = 1e-6;
+        let mut idx = 0;
+        for i in 1..6 {
+            for j in 0..i {
+                let mut np = [0.0; 15];
+                np[idx] = h;
+                let mut nm = [0.0; 15];
+                nm[idx] = -h;
+                let dc = (coupled_damping(&m, &k, &c0, &np).unwrap()
+                    - coupled_damping(&m, &k, &c0, &nm).unwrap())
+                    / (2.0 * h);
+                let mut e = Mat6::zeros();
+                e[(i, j)] = (d[i] * d[j]).sqrt();
+                e[(j, i)] = e[(i, j)];
+                let want = m * phi * e * phi.transpose() * m;
+                let err = (dc - want).abs().max() / want.abs().max();
+                assert!(err < 1e-8, "({i},{j}): {err:e}");
+                idx += 1;
+            }
+        }
     }
 }

@@ -1,0 +1,307 @@
+//! The model check on recordings made by the independent reference generator
+//! (`scripts/refgen`, Python/numpy, its own formulation from the potential energy and a
+//! state-space eigen-solution), not by rbprops-sim: general viscous damping (full 3×3
+//! dashpots at the mounts), two elastic modes above the band, and dashpots among other
+//! effects. Python is found through `RBPROPS_PYTHON`; without numpy the tests are skipped
+//! with a note, unless `RBPROPS_REQUIRE_PYTHON` is set (as CI does).
+//!
+//! Recordings are small (400 lines × 9 channels × 3 excitations) to keep CI cheap.
+//! The noise is the generator's, 1 % relative, and is given to the check (σ known), so
+//! χ²/ν after the refit must fall inside the check's own noise band: with ν ≈ 2·10⁴
+//! degrees of freedom its half-width 3√(2/ν) ≈ 0.03 is the 3σ spread of χ²/ν for a
+//! correct model.
+
+use rbprops_check::{check, CheckOptions, ModelCheckReport, NoiseModel};
+use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_sim::CampaignSpec;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+const REL: f64 = 0.01;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// Python with numpy, or `None` (skip) when absent and not required.
+fn python() -> Option<String> {
+    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
+    let ok = Command::new(&py)
+        .args(["-c", "import numpy"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if ok {
+        return Some(py);
+    }
+    assert!(
+        std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
+        "python with numpy not available as {py}"
+    );
+    eprintln!("skipping: python with numpy not found (set RBPROPS_PYTHON; RBPROPS_REQUIRE_PYTHON=1 makes this fatal)");
+    None
+}
+
+/// The nominal model: Test Case II as written (modal damping 1.5 %), `lines` lines.
+fn nominal(lines: usize) -> CampaignSpec {
+    let mut s = CampaignSpec::from_toml_str(rbprops_sim::example("test-case-2").unwrap()).unwrap();
+    s.frequency.lines = lines;
+    s
+}
+
+/// A recording of `case` (a refgen example) with `--set` changes, as the nominal
+/// spec's geometry and an FRF set in its channel/excitation order.
+fn refgen(
+    py: &str,
+    case: &str,
+    sets: &[&str],
+    seed: u64,
+    nominal: &CampaignSpec,
+) -> (Geometry, FrfSet) {
+    let dir = std::env::temp_dir().join(format!(
+        "rbprops-indep-{}-{case}-{seed}",
+        std::process::id()
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("rec.json");
+    let mut cmd = Command::new(py);
+    cmd.current_dir(root())
+        .arg("scripts/refgen/rbref.py")
+        .arg(format!("scripts/refgen/examples/{case}.toml"))
+        .args(["--seed", &seed.to_string(), "--quiet", "-o"])
+        .arg(&out)
+        .args([
+            "--set",
+            &format!("frequency.lines={}", nominal.frequency.lines),
+        ]);
+    for s in sets {
+        cmd.args(["--set", s]);
+    }
+    let st = cmd.output().unwrap();
+    assert!(
+        st.status.success(),
+        "refgen failed: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+    let g = nominal.geometry().unwrap();
+    let f: Vec<f64> = serde_json::from_value(j["frequency_hz"].clone()).unwrap();
+    let ids = |key: &str| -> Vec<String> {
+        j[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["id"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let (chs, exs) = (ids("channels"), ids("excitations"));
+    let mut frf = FrfSet::zeros(
+        nominal.quantity,
+        f.clone(),
+        g.excitations.len(),
+        g.channels.len(),
+    );
+    let nl = f.len();
+    for (e, ex) in g.excitations.iter().enumerate() {
+        let je = exs.iter().position(|x| *x == ex.id).unwrap();
+        for (c, ch) in g.channels.iter().enumerate() {
+            let jc = chs.iter().position(|x| *x == ch.id).unwrap();
+            for l in 0..nl {
+                frf.values[(e * g.channels.len() + c) * nl + l] = c64::new(
+                    j["re"][je][jc][l].as_f64().unwrap(),
+                    j["im"][je][jc][l].as_f64().unwrap(),
+                );
+            }
+        }
+    }
+    (g, frf)
+}
+
+fn given_noise(n_ch: usize) -> CheckOptions {
+    CheckOptions {
+        noise: Some(NoiseModel {
+            relative: vec![REL; n_ch],
+            floor: vec![0.0; n_ch],
+            source: "given".into(),
+            variance_scale_se: 0.0,
+        }),
+        ..Default::default()
+    }
+}
+
+fn named(r: &ModelCheckReport) -> Vec<String> {
+    let mut v: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
+    for f in &r.ambiguous {
+        v.extend(f.ids.iter().cloned());
+    }
+    v
+}
+
+fn summary(label: &str, r: &ModelCheckReport, t: std::time::Duration) {
+    eprintln!(
+        "{label}: named {:?}; χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}); {:.1} s",
+        named(r),
+        r.chi2_nu_before,
+        r.chi2_nu_after,
+        r.noise_band[0],
+        r.noise_band[1],
+        t.as_secs_f64()
+    );
+}
+
+/// Runs the check and asserts: exactly the expected ids named (each may appear inside an
+/// ambiguity family, `allowed` lists the family members that are acceptable), nothing
+/// else, and χ²/ν after the refit inside the noise band.
+fn assert_explained(
+    label: &str,
+    nom: &CampaignSpec,
+    g: &Geometry,
+    frf: &FrfSet,
+    expected: &[&str],
+    allowed: &[&str],
+) -> ModelCheckReport {
+    assert_explained_with(label, nom, g, frf, expected, allowed, REL)
+}
+
+fn assert_explained_with(
+    label: &str,
+    nom: &CampaignSpec,
+    g: &Geometry,
+    frf: &FrfSet,
+    expected: &[&str],
+    allowed: &[&str],
+    rel: f64,
+) -> ModelCheckReport {
+    let t0 = std::time::Instant::now();
+    let mut opts = given_noise(g.channels.len());
+    if let Some(n) = &mut opts.noise {
+        n.relative = vec![rel; g.channels.len()];
+    }
+    let r = check(nom, g, frf, &opts).unwrap().report;
+    summary(label, &r, t0.elapsed());
+    let ids = named(&r);
+    for e in expected {
+        assert!(
+            ids.iter().any(|i| i == e),
+            "{label}: {e} not named: {}",
+            r.verdict
+        );
+    }
+    let stray: Vec<&String> = ids
+        .iter()
+        .filter(|i| !expected.contains(&i.as_str()) && !allowed.contains(&i.as_str()))
+        .collect();
+    assert!(
+        stray.is_empty(),
+        "{label}: false claims {stray:?}: {}",
+        r.verdict
+    );
+    assert!(
+        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
+        "{label}: χ²/ν {:.4} outside the band {:?}: {}",
+        r.chi2_nu_after,
+        r.noise_band,
+        r.verdict
+    );
+    r
+}
+
+/// Anisotropic dashpots (full symmetric 3×3 at each mount, no modal damping): complex
+/// modes, pole damping 3–7 %. The general viscous damping explains them to the noise.
+#[test]
+fn general_dashpots_are_named_and_fitted_to_the_noise() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(
+        &py,
+        "tc2-dashpots",
+        &[&format!("noise.relative={REL}")],
+        4,
+        &nom,
+    );
+    assert_explained(
+        "dashpots",
+        &nom,
+        &g,
+        &frf,
+        &["nonproportional_damping"],
+        &[],
+    );
+}
+
+/// Three effects at once: the anisotropic dashpots, sensor 2 misoriented by 0.03 rad
+/// about x, and force 2's gauge reading 4 % high. Each named, nothing else (a hysteretic
+/// loss was once claimed next to the viscous model), χ²/ν inside the band.
+#[test]
+fn dashpots_among_other_effects_are_separated() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(
+        &py,
+        "tc2-dashpots",
+        &[
+            &format!("noise.relative={REL}"),
+            "sensor.2.misorientation_rad=[0.03,0.0,0.0]",
+            "excitation.force2.force_gauge_gain=1.04",
+        ],
+        5,
+        &nom,
+    );
+    assert_explained(
+        "dashpots + misorientation + gauge gain",
+        &nom,
+        &g,
+        &frf,
+        &[
+            "nonproportional_damping",
+            "sensor_misorientation",
+            "excitation_gain",
+        ],
+        &[],
+    );
+}
+
+/// Two elastic modes above the band (37.5 and 50 Hz, 3× and 4× its top) with different
+/// shapes, at 1 % noise: named as residual flexibility (or the elastic mode of its
+/// family), nothing else, χ²/ν inside the band.
+#[test]
+fn two_elastic_modes_above_the_band_are_explained() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(
+        &py,
+        "tc2-elastic-above",
+        &[&format!("noise.relative={REL}")],
+        6,
+        &nom,
+    );
+    assert_explained(
+        "two elastic modes above the band",
+        &nom,
+        &g,
+        &frf,
+        &["residual_flexibility"],
+        &["elastic_mode"],
+    );
+}
+
+/// The same two modes at 0.1 % noise, where χ²/ν of the baseline is 2250: one
+/// out-of-band term with its general residue matrix still reaches the band (1.02), so a
+/// second term is not needed at this noise (a longer study: 42 s, ignored in CI).
+#[test]
+#[ignore = "study (42 s): two out-of-band modes at 0.1 % noise"]
+fn two_elastic_modes_above_the_band_at_low_noise() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(&py, "tc2-elastic-above", &["noise.relative=0.001"], 6, &nom);
+    assert_explained_with(
+        "two elastic modes, 0.1 % noise",
+        &nom,
+        &g,
+        &frf,
+        &["residual_flexibility"],
+        &["elastic_mode"],
+        0.001,
+    );
+}
