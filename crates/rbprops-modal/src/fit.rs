@@ -285,7 +285,7 @@ fn estimate_poles_from(
             let (max_order, max_lines) = depth.limits(opts.max_order);
             let nm = max_order.min(sub.n_lines().saturating_sub(2));
             let orders = match opts.method {
-                Method::Lscf | Method::Circle => {
+                Method::Lscf | Method::Circle | Method::Plscf => {
                     // LSCF works on any axis: decimate the lines and solve even orders only.
                     let keep = BandData::decimation_indices(sub.n_lines(), max_lines);
                     let dec = sub.lines(&keep);
@@ -823,6 +823,14 @@ pub fn fit_excitation(
             n: frf.n_excitations,
         });
     }
+    if opts.method == Method::Plscf {
+        let setup = &geometry.excitations[excitation].setup;
+        let members: Vec<usize> = (0..geometry.excitations.len())
+            .filter(|&e| &geometry.excitations[e].setup == setup)
+            .collect();
+        let at = members.iter().position(|&e| e == excitation).unwrap();
+        return Ok(crate::poly::fit_setup(geometry, frf, &members, opts)?.swap_remove(at));
+    }
     let shared = match opts.poles {
         PoleMode::PerExcitation => None,
         PoleMode::PerSetup => {
@@ -899,7 +907,6 @@ fn fit_one(
     warnings.extend(ps.warnings.iter().cloned());
     let no = band.channels.len();
     let nm = ps.poles.len();
-    let k = band.quantity.order();
 
     // Modal constants, their std, per-mode extra info.
     let mut a_all: Vec<Vec<c64>> = vec![vec![c64::new(0.0, 0.0); no]; nm];
@@ -925,7 +932,7 @@ fn fit_one(
             );
             synth = cf.synthesised;
         }
-        Method::Lscf | Method::Lsce => {
+        Method::Lscf | Method::Lsce | Method::Plscf => {
             let res = Residuals::for_band(opts.residual_terms, &band);
             let rf = crate::prof::time(6, || {
                 lsfd::fit_residues(&ps.poles, &band, &band.channels, res)
@@ -947,6 +954,61 @@ fn fit_one(
         }
     }
 
+    let parts = ModeParts {
+        poles,
+        std: fstd,
+        confidence: ps.confidence.clone(),
+        mode_warnings: mode_warn,
+        modal_constants: a_all,
+        modal_constant_std: a_std,
+        synthesised: synth,
+        warnings,
+        diagram: ps.diagram.clone(),
+    };
+    Ok(assemble(ex, &band, parts, opts, opts.method.name()))
+}
+
+/// What one excitation's records are made of, whichever estimator produced them.
+pub(crate) struct ModeParts {
+    /// Poles, ascending frequency.
+    pub poles: Vec<Pole>,
+    /// Standard deviations of (f Hz, ζ) per pole.
+    pub std: Vec<(f64, f64)>,
+    pub confidence: Vec<f64>,
+    pub mode_warnings: Vec<Vec<String>>,
+    /// Modal constants `A` (1/kg) per mode and channel, and their standard errors.
+    pub modal_constants: Vec<Vec<c64>>,
+    pub modal_constant_std: Vec<Vec<f64>>,
+    /// Fitted FRFs `[channel][line]` in the measured quantity.
+    pub synthesised: Vec<Vec<c64>>,
+    pub warnings: Vec<String>,
+    pub diagram: StabilisationDiagram,
+}
+
+/// The records of one excitation: fit error per channel, each mode's peak Norm
+/// Indicator relative to the strongest (weak flags), and the plot data.
+pub(crate) fn assemble(
+    ex: &rbprops_core::Excitation,
+    band: &BandData,
+    parts: ModeParts,
+    opts: &FitOptions,
+    method: &str,
+) -> ExcitationFit {
+    let ModeParts {
+        poles,
+        std: fstd,
+        confidence,
+        mode_warnings: mode_warn,
+        modal_constants: a_all,
+        modal_constant_std: a_std,
+        synthesised: synth,
+        warnings,
+        diagram,
+    } = parts;
+    let name = ex.id.as_str();
+    let no = band.channels.len();
+    let nm = poles.len();
+    let k = band.quantity.order();
     let fit_error: Vec<f64> = (0..no)
         .map(|o| {
             let h = &band.channels[o];
@@ -1001,7 +1063,7 @@ fn fit_one(
             damping_std: fstd[m].1,
             residues: a_all[m].clone(),
             residue_std: a_std[m].clone(),
-            confidence: ps.confidence[m].clamp(0.0, 1.0),
+            confidence: confidence[m].clamp(0.0, 1.0),
             mpc: mpc(&a_all[m]),
             weak,
             warnings: mw,
@@ -1010,19 +1072,19 @@ fn fit_one(
     let record = ExcitationFitRecord {
         excitation: name.into(),
         setup: ex.setup.clone(),
-        method: opts.method.name().into(),
+        method: method.into(),
         model_order: nm,
         band_hz: band.band_hz(),
         n_lines: band.n_lines(),
         fit_error,
         warnings,
     };
-    Ok(ExcitationFit {
+    ExcitationFit {
         record,
         modes,
         diagnostics: ExcitationDiagnostics {
             excitation: name.into(),
-            stabilisation: ps.diagram.clone(),
+            stabilisation: diagram,
             quantity: band.quantity,
             frequency_hz: band.frequency_hz.clone(),
             // Dropped here unless asked for: freed now, its pages serve the next
@@ -1034,7 +1096,158 @@ fn fit_one(
             },
             poles_rad_s: poles.iter().map(|p| p.0).collect(),
         },
-    })
+    }
+}
+
+/// Every excitation fitted with its own (or its set-up's shared) poles, in parallel.
+fn single_reference_fits(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    opts: &FitOptions,
+    shared: &[(String, Result<PoleSet, ModalError>)],
+) -> Vec<Result<ExcitationFit, ModalError>> {
+    (0..frf.n_excitations)
+        .into_par_iter()
+        .map(|e| {
+            let setup = &geometry.excitations[e].setup;
+            match shared.iter().find(|(s, _)| s == setup) {
+                None => fit_one(geometry, frf, e, opts, None),
+                Some((_, Ok(ps))) => fit_one(geometry, frf, e, opts, Some(ps)),
+                Some((_, Err(err))) => Err(err.clone()),
+            }
+        })
+        .collect()
+}
+
+/// Why the single-reference fits of a set-up (`fits`) call for a poly-reference fit, if
+/// they do: they disagree on the number of modes, or a pole shows multiplicity (a pair
+/// that could not be separated, was split by the model-order test, or made the residue
+/// basis singular).
+fn poly_reference_reason(fits: &[&ExcitationFit]) -> Option<String> {
+    let counts: Vec<usize> = fits.iter().map(|f| f.modes.len()).collect();
+    let (lo, hi) = (
+        counts.iter().copied().min().unwrap_or(0),
+        counts.iter().copied().max().unwrap_or(0),
+    );
+    if lo != hi {
+        return Some(format!(
+            "the per-excitation fits disagree on the number of modes ({lo} to {hi})"
+        ));
+    }
+    let multiple = |w: &String| {
+        w.contains("treat them as one repeated root")
+            || w.contains("by the forward model-order test")
+            || w.contains("residue basis is nearly singular")
+            || w.contains("not all identifiable")
+    };
+    fits.iter()
+        .find_map(|f| f.record.warnings.iter().find(|w| multiple(w)))
+        .map(|w| format!("a pole shows multiplicity ({w})"))
+}
+
+/// The automatic switch of [`FitOptions::auto_poly_reference`]: every set-up of two or
+/// more excitations whose single-reference fits disagree (see [`poly_reference_reason`])
+/// is refitted with [`Method::Plscf`]; its records replace the single-reference ones
+/// and carry the reason. When the poly-reference fit fails, the single-reference
+/// records stay, with a warning.
+fn switch_to_poly_reference(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    setups: &[String],
+    opts: &FitOptions,
+    results: &mut [Result<ExcitationFit, ModalError>],
+) {
+    let todo: Vec<(Vec<usize>, String)> = setups
+        .iter()
+        .filter_map(|s| {
+            let members: Vec<usize> = (0..geometry.excitations.len())
+                .filter(|&e| &geometry.excitations[e].setup == s)
+                .collect();
+            if members.len() < 2 {
+                return None;
+            }
+            let fits: Vec<&ExcitationFit> = members
+                .iter()
+                .filter_map(|&e| results[e].as_ref().ok())
+                .collect();
+            poly_reference_reason(&fits).map(|why| (members, why))
+        })
+        .collect();
+    if todo.is_empty() {
+        return;
+    }
+    let popts = FitOptions {
+        method: Method::Plscf,
+        ..opts.clone()
+    };
+    let refits: Vec<Result<Vec<ExcitationFit>, ModalError>> = todo
+        .par_iter()
+        .map(|(m, _)| crate::poly::fit_setup(geometry, frf, m, &popts))
+        .collect();
+    for ((members, why), refit) in todo.into_iter().zip(refits) {
+        let setup = &geometry.excitations[members[0]].setup;
+        match refit {
+            Ok(fits) => {
+                for (&e, mut fit) in members.iter().zip(fits) {
+                    fit.record.warnings.insert(
+                        0,
+                        format!("set-up {setup}: poly-reference fit (plscf) used instead of the {} fits: {why}", opts.method.name()),
+                    );
+                    results[e] = Ok(fit);
+                }
+            }
+            Err(err) => {
+                for &e in &members {
+                    if let Ok(fit) = &mut results[e] {
+                        fit.record.warnings.push(format!(
+                            "set-up {setup}: {why}, but the poly-reference fit failed ({err}); the single-reference fits are kept"
+                        ));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Every set-up fitted by the poly-reference method (set-ups in parallel); the results
+/// in excitation order.
+fn poly_reference_fits(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    setups: &[String],
+    opts: &FitOptions,
+) -> Vec<Result<ExcitationFit, ModalError>> {
+    let members: Vec<Vec<usize>> = setups
+        .iter()
+        .map(|s| {
+            (0..geometry.excitations.len())
+                .filter(|&e| &geometry.excitations[e].setup == s)
+                .collect()
+        })
+        .collect();
+    let fits: Vec<Result<Vec<ExcitationFit>, ModalError>> = members
+        .par_iter()
+        .map(|m| crate::poly::fit_setup(geometry, frf, m, opts))
+        .collect();
+    let mut out: Vec<Option<Result<ExcitationFit, ModalError>>> =
+        (0..frf.n_excitations).map(|_| None).collect();
+    for (m, f) in members.iter().zip(fits) {
+        match f {
+            Ok(v) => {
+                for (&e, fit) in m.iter().zip(v) {
+                    out[e] = Some(Ok(fit));
+                }
+            }
+            Err(err) => {
+                for &e in m {
+                    out[e] = Some(Err(err.clone()));
+                }
+            }
+        }
+    }
+    out.into_iter()
+        .map(|r| r.expect("every excitation belongs to one set-up"))
+        .collect()
 }
 
 /// Fits every excitation in parallel (rayon). A failing excitation becomes a record
@@ -1058,23 +1271,25 @@ pub fn fit_campaign(
         s
     };
     let shared: Vec<(String, Result<PoleSet, ModalError>)> = match opts.poles {
+        _ if opts.method == Method::Plscf => Vec::new(),
         PoleMode::PerExcitation => Vec::new(),
         PoleMode::PerSetup => setups
             .par_iter()
             .map(|s| (s.clone(), setup_poles(geometry, frf, s, opts)))
             .collect(),
     };
-    let results: Vec<Result<ExcitationFit, ModalError>> = (0..frf.n_excitations)
-        .into_par_iter()
-        .map(|e| {
-            let setup = &geometry.excitations[e].setup;
-            match shared.iter().find(|(s, _)| s == setup) {
-                None => fit_one(geometry, frf, e, opts, None),
-                Some((_, Ok(ps))) => fit_one(geometry, frf, e, opts, Some(ps)),
-                Some((_, Err(err))) => Err(err.clone()),
-            }
-        })
-        .collect();
+    let results: Vec<Result<ExcitationFit, ModalError>> = if opts.method == Method::Plscf {
+        poly_reference_fits(geometry, frf, &setups, opts)
+    } else {
+        let mut r = single_reference_fits(geometry, frf, opts, &shared);
+        if opts.auto_poly_reference
+            && opts.poles == PoleMode::PerExcitation
+            && matches!(opts.method, Method::Lscf | Method::Lsce)
+        {
+            switch_to_poly_reference(geometry, frf, &setups, opts, &mut r);
+        }
+        r
+    };
     let mut record = ModalFitRecord {
         residue_convention: RESIDUE_CONVENTION.into(),
         excitations: Vec::new(),

@@ -31,8 +31,12 @@ pub mod lsce;
 pub mod lscf;
 pub mod lsfd;
 pub mod options;
+pub mod plscf;
+pub mod plsfd;
 pub mod pole;
+mod poly;
 pub mod prof;
+pub mod reciprocity;
 pub mod roots;
 #[macro_use]
 mod simd;

@@ -6,8 +6,12 @@ use std::path::PathBuf;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum MethodArg {
-    /// Least-squares complex frequency domain (pLSCF) poles + LSFD residues (default).
+    /// Least-squares complex frequency domain poles + LSFD residues, per excitation (default).
     Lscf,
+    /// Poly-reference LSCF (PolyMAX): one fit over every excitation of a set-up, with
+    /// participation factors; separates repeated and nearly repeated roots.
+    #[value(alias = "polymax")]
+    Plscf,
     /// Least-squares complex exponential (time domain; needs a uniform baseband axis).
     Lsce,
     /// Kennedy–Pancu circle fit per mode and channel (well-separated modes only).
@@ -74,6 +78,7 @@ fn main() -> std::process::ExitCode {
         let mut opts = FitOptions {
             method: match args.method {
                 MethodArg::Lscf => Method::Lscf,
+                MethodArg::Plscf => Method::Plscf,
                 MethodArg::Lsce => Method::Lsce,
                 MethodArg::Circle => Method::Circle,
             },

@@ -1,0 +1,535 @@
+//! Poly-reference least-squares complex frequency-domain estimator (pLSCF, "PolyMAX";
+//! Peeters, Van der Auweraer, Guillaume & Leuridan, Shock Vib. 11, 2004): one common
+//! matrix denominator for every excitation (reference) of a set-up.
+//!
+//! Right matrix-fraction model of the `No × Ni` FRF matrix, one row per output `o`:
+//!
+//! ```text
+//!     H_o(ω) = B_o(z) A(z)⁻¹,   B_o(z) = Σ_{j=0..n} z^j β_{oj} (1×Ni),
+//!     A(z) = Σ_{j=0..n} z^j α_j (Ni×Ni),   z = e^{iωΔt}, Δt = π/ω_max,
+//! ```
+//!
+//! all coefficients real (conjugate pole pairs). The linearised equation error
+//! `E_o = w_o (B_o − H_o A)` is minimised in least squares. With `X_o = [w z^j]` and
+//! `Y_o = [−w z^j H_oe]` (columns `(j, e)`), the normal matrices `R_o = Re X_oᴴX_o`,
+//! `S_o = Re X_oᴴY_o`, `T_o = Re Y_oᴴY_o` give, after eliminating the numerators, the
+//! reduced normal equations `M α = 0`, `M = Σ_o (T_o − S_oᵀ R_o⁻¹ S_o)`, solved with
+//! `α_n = I` (PolyMAX's constraint). Like the single-reference LSCF ([`crate::lscf`]),
+//! every matrix is Toeplitz in the basis index on the unit circle, so it is built from
+//! sums of `cos(mθ)`, `H z^m` and `H̄ H z^m`.
+//!
+//! Poles and participation factors: `A(z)` is singular at a pole `z_r`; its left null
+//! vector `l_r` (`A(z_r)ᵀ l_r = 0`) is the modal participation vector, since near `z_r`
+//! `A⁻¹ ≈ v_r l_rᵀ / (l_rᵀA'(z_r)v_r (z − z_r))` and so the residue of `H` is
+//! `ψ_r l_rᵀ`. Both come from the eigen-decomposition of the block companion matrix of
+//! `A(z)ᵀ`: eigenvalues `z_r`, eigenvectors `[l; z l; …; z^{n−1} l]`. The poles are
+//! `λ_r = ln(z_r)/Δt`. A repeated root shows as two eigenvalues with independent `l`.
+//!
+//! The crate's Cholesky recursion makes the whole sweep `O(n_max)` factorisations: the
+//! normal matrices of order `n` are the leading blocks of those of `n_max`, so
+//! `R_o⁻¹`-reduction of order `n` is the leading block of `Y_o = L_o⁻¹ S_o`.
+
+use crate::linalg;
+use crate::lscf::OrderPoles;
+use crate::pole::Pole;
+use faer::{Mat, Par};
+use rbprops_core::c64;
+
+/// FRFs of one set-up on one band: `h[o][e][k]`, output `o`, reference `e`, line `k`.
+#[derive(Debug, Clone)]
+pub struct PolyData<'a> {
+    pub omega: &'a [f64],
+    pub h: Vec<Vec<&'a [c64]>>,
+}
+
+impl PolyData<'_> {
+    pub fn n_outputs(&self) -> usize {
+        self.h.len()
+    }
+    pub fn n_references(&self) -> usize {
+        self.h.first().map_or(0, |r| r.len())
+    }
+}
+
+/// Per-output, per-line weights `w²_ok = 1/mean_e |H_oe(ω_k)|²` (floored at 1e-12 of
+/// the output's mean square): relative equation errors, as in the single-reference
+/// LSCF, with one weight per output row (the row's equations share it, so the
+/// numerator elimination stays one Toeplitz system per output).
+fn weights(data: &PolyData) -> Vec<Vec<f64>> {
+    let nl = data.omega.len();
+    let ni = data.n_references() as f64;
+    data.h
+        .iter()
+        .map(|row| {
+            let level: Vec<f64> = (0..nl)
+                .map(|k| row.iter().map(|h| h[k].norm_sqr()).sum::<f64>() / ni)
+                .collect();
+            let ms = level.iter().sum::<f64>() / nl as f64;
+            level
+                .iter()
+                .map(|l| {
+                    if ms > 0.0 {
+                        1.0 / l.max(1e-12 * ms)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The reduced normal matrices of every order `1..=n_max`, from one set of sums.
+struct Reduced {
+    ni: usize,
+    pm: usize,
+    /// `T = Σ_o T_o` for order `n_max`, `(pm·Ni)²`, row-major, index `(j, e) = j·Ni + e`.
+    t: Vec<f64>,
+    /// Per output, `Y_o = L_o⁻¹ S_o` (`pm × pm·Ni`, row-major).
+    y: Vec<Vec<f64>>,
+}
+
+impl Reduced {
+    fn new(data: &PolyData, dt: f64, n_max: usize) -> Option<Self> {
+        let (no, ni, nl) = (data.n_outputs(), data.n_references(), data.omega.len());
+        let pm = n_max + 1;
+        let w2 = weights(data);
+        // z_k^m, m = 0..pm, by direct cos/sin (few lines, exact to rounding).
+        let zp: Vec<Vec<c64>> = data
+            .omega
+            .iter()
+            .map(|&w| {
+                let th = w * dt;
+                (0..pm)
+                    .map(|m| {
+                        let a = th * m as f64;
+                        c64::new(a.cos(), a.sin())
+                    })
+                    .collect()
+            })
+            .collect();
+        let nc = pm * ni;
+        // T: t_ef(m) = Σ_o Σ_k w² conj(h_oe) h_of z^m for m ≥ 0; T[(i,e),(j,f)] =
+        // Re t_ef(j − i), with t_ef(−m) = conj(t_fe(m)).
+        let mut tef = vec![c64::new(0.0, 0.0); ni * ni * pm];
+        let mut y = Vec::with_capacity(no);
+        for o in 0..no {
+            let row = &data.h[o];
+            let w = &w2[o];
+            if w.iter().all(|&x| x == 0.0) {
+                continue;
+            }
+            // r(m) = Σ w² cos(mθ); g_e(m) = Σ w² h_e z^m for m in −n..n.
+            let mut r = vec![0.0; pm];
+            let mut gp = vec![c64::new(0.0, 0.0); ni * pm];
+            let mut gn = vec![c64::new(0.0, 0.0); ni * pm];
+            for k in 0..nl {
+                let wk = w[k];
+                if wk == 0.0 {
+                    continue;
+                }
+                let z = &zp[k];
+                for m in 0..pm {
+                    r[m] += wk * z[m].re;
+                }
+                for e in 0..ni {
+                    let hw = row[e][k] * wk;
+                    for m in 0..pm {
+                        gp[e * pm + m] += hw * z[m];
+                        gn[e * pm + m] += hw * z[m].conj();
+                    }
+                    for f in 0..ni {
+                        let c = row[e][k].conj() * row[f][k] * wk;
+                        for m in 0..pm {
+                            tef[(e * ni + f) * pm + m] += c * z[m];
+                        }
+                    }
+                }
+            }
+            // Cholesky of the Toeplitz R_o (pm × pm), row-major lower factor.
+            let mut l = vec![0.0; pm * pm];
+            for i in 0..pm {
+                for j in 0..=i {
+                    let mut s = r[i - j];
+                    for k in 0..j {
+                        s -= l[i * pm + k] * l[j * pm + k];
+                    }
+                    if i == j {
+                        if !(s > 0.0) {
+                            return None;
+                        }
+                        l[i * pm + i] = s.sqrt();
+                    } else {
+                        l[i * pm + j] = s / l[j * pm + j];
+                    }
+                }
+            }
+            // S_o[i, (j,e)] = Re Σ w² conj(z^i)(−z^j h_e) = −Re g_e(j − i).
+            let s_at = |i: usize, j: usize, e: usize| -> f64 {
+                if j >= i {
+                    -gp[e * pm + (j - i)].re
+                } else {
+                    -gn[e * pm + (i - j)].re
+                }
+            };
+            // Y = L⁻¹ S by forward substitution, column by column.
+            let mut yo = vec![0.0; pm * nc];
+            for c in 0..nc {
+                let (j, e) = (c / ni, c % ni);
+                for i in 0..pm {
+                    let mut s = s_at(i, j, e);
+                    for k in 0..i {
+                        s -= l[i * pm + k] * yo[k * nc + c];
+                    }
+                    yo[i * nc + c] = s / l[i * pm + i];
+                }
+            }
+            y.push(yo);
+        }
+        if y.is_empty() {
+            return None;
+        }
+        let mut t = vec![0.0; nc * nc];
+        for a in 0..nc {
+            let (i, e) = (a / ni, a % ni);
+            for b in 0..nc {
+                let (j, f) = (b / ni, b % ni);
+                t[a * nc + b] = if j >= i {
+                    tef[(e * ni + f) * pm + (j - i)].re
+                } else {
+                    tef[(f * ni + e) * pm + (i - j)].re
+                };
+            }
+        }
+        Some(Self { ni, pm, t, y })
+    }
+
+    /// The reduced matrix `M` of order `n` (`(n+1)·Ni` square, row-major).
+    fn matrix(&self, n: usize) -> Vec<f64> {
+        let (ni, nc_max) = (self.ni, self.pm * self.ni);
+        let p = n + 1;
+        let nc = p * ni;
+        let mut m = vec![0.0; nc * nc];
+        for a in 0..nc {
+            for b in a..nc {
+                let mut s = 0.0;
+                for yo in &self.y {
+                    for k in 0..p {
+                        s += yo[k * nc_max + a] * yo[k * nc_max + b];
+                    }
+                }
+                let v = self.t[a * nc_max + b] - s;
+                m[a * nc + b] = v;
+                m[b * nc + a] = v;
+            }
+        }
+        m
+    }
+}
+
+/// Poles and participation vectors of the matrix polynomial with monic leading
+/// coefficient and lower coefficients `alpha` (`n·Ni × Ni`, row-major, block `j` rows
+/// `j·Ni..`), from the block companion matrix of `A(z)ᵀ`. Only roots with `Im z > 0`
+/// (poles of the upper half plane) are returned, each with its unit participation
+/// vector (phase: largest entry real positive).
+fn companion_poles(
+    alpha: &[f64],
+    n: usize,
+    ni: usize,
+    dt: f64,
+) -> Option<(Vec<Pole>, Vec<Vec<c64>>)> {
+    let d = n * ni;
+    let mut c = Mat::<f64>::zeros(d, d);
+    for b in 0..n.saturating_sub(1) {
+        for e in 0..ni {
+            c[(b * ni + e, (b + 1) * ni + e)] = 1.0;
+        }
+    }
+    // Last block row: z^n l = −Σ_j α_jᵀ z^j l.
+    for j in 0..n {
+        for e in 0..ni {
+            for f in 0..ni {
+                c[((n - 1) * ni + e, j * ni + f)] = -alpha[(j * ni + f) * ni + e];
+            }
+        }
+    }
+    if (0..d).any(|i| (0..d).any(|j| !c[(i, j)].is_finite())) {
+        return None;
+    }
+    let mut re = faer::diag::Diag::<f64>::zeros(d);
+    let mut im = faer::diag::Diag::<f64>::zeros(d);
+    let mut u = Mat::<f64>::zeros(d, d);
+    let mut buf = faer::dyn_stack::MemBuffer::new(faer::linalg::evd::evd_scratch::<f64>(
+        d,
+        faer::linalg::evd::ComputeEigenvectors::No,
+        faer::linalg::evd::ComputeEigenvectors::Yes,
+        Par::Seq,
+        Default::default(),
+    ));
+    faer::linalg::evd::evd_real(
+        c.as_ref(),
+        re.as_mut(),
+        im.as_mut(),
+        None,
+        Some(u.as_mut()),
+        Par::Seq,
+        faer::dyn_stack::MemStack::new(&mut buf),
+        Default::default(),
+    )
+    .ok()?;
+    let mut poles = Vec::new();
+    let mut parts = Vec::new();
+    let mut j = 0;
+    while j < d {
+        if im[j] == 0.0 {
+            j += 1;
+            continue;
+        }
+        // A conjugate pair in columns j (re), j+1 (im) of u; eigenvalue re + i·im.
+        let (zr, zi) = (re[j], im[j]);
+        let (z, sign) = if zi > 0.0 {
+            (c64::new(zr, zi), 1.0)
+        } else {
+            (c64::new(zr, -zi), -1.0)
+        };
+        if z.norm() > 0.0 && z.re.is_finite() && z.im.is_finite() {
+            // The first block of the eigenvector of z (conjugated when the stored
+            // eigenvalue was the lower one).
+            let mut l: Vec<c64> = (0..ni)
+                .map(|e| c64::new(u[(e, j)], sign * u[(e, j + 1)]))
+                .collect();
+            normalise_phase(&mut l);
+            poles.push(Pole(z.ln() / dt));
+            parts.push(l);
+        }
+        j += 2;
+    }
+    Some((poles, parts))
+}
+
+/// Scales `v` to unit norm with its largest entry real positive (the first of equals).
+pub(crate) fn normalise_phase(v: &mut [c64]) {
+    let n = v.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+    if !(n > 0.0) {
+        return;
+    }
+    let mut big = 0;
+    for (i, z) in v.iter().enumerate() {
+        if z.norm() > v[big].norm() {
+            big = i;
+        }
+    }
+    let ph = v[big].conj() / v[big].norm();
+    for z in v.iter_mut() {
+        *z = *z * ph / n;
+    }
+}
+
+/// Poles of one order closer than this many half-power half-bandwidths share their
+/// stabilisation shape (see [`stabilisation_shapes`]).
+pub const SHARED_SHAPE_BANDWIDTHS: f64 = 0.25;
+
+/// The orders of a sweep with the shapes the stabilisation diagram compares: a pole's
+/// own participation vector, except in a group of poles of one order closer than
+/// [`SHARED_SHAPE_BANDWIDTHS`]. There the eigen-solver's split of the group's
+/// participation space is arbitrary (exactly so for a repeated root), so each member
+/// gets the group's subspace, represented by the largest column of its orthogonal
+/// projector (deterministic, and stable across orders when the subspace is).
+pub fn stabilisation_shapes(orders: &[OrderPoles]) -> Vec<OrderPoles> {
+    orders
+        .iter()
+        .map(|op| {
+            let n = op.poles.len();
+            let mut shapes = op.shapes.clone();
+            let mut done = vec![false; n];
+            for i in 0..n {
+                if done[i] {
+                    continue;
+                }
+                let mut group = vec![i];
+                let mut g = 0;
+                while g < group.len() {
+                    let a = group[g];
+                    for j in 0..n {
+                        if !group.contains(&j)
+                            && op.poles[a].distance_in_bandwidths(&op.poles[j])
+                                < SHARED_SHAPE_BANDWIDTHS
+                        {
+                            group.push(j);
+                        }
+                    }
+                    g += 1;
+                }
+                group.sort_unstable();
+                for &j in &group {
+                    done[j] = true;
+                }
+                if group.len() < 2 {
+                    continue;
+                }
+                let ni = op.shapes[i].len();
+                let v = faer::Mat::<c64>::from_fn(ni, group.len(), |e, k| op.shapes[group[k]][e]);
+                // Orthonormal basis Q of the span (modified Gram–Schmidt), P = Q Qᴴ.
+                let mut q: Vec<Vec<c64>> = Vec::new();
+                for k in 0..group.len() {
+                    let mut x: Vec<c64> = (0..ni).map(|e| v[(e, k)]).collect();
+                    for b in &q {
+                        let c: c64 = b.iter().zip(&x).map(|(u, y)| u.conj() * y).sum();
+                        for (y, u) in x.iter_mut().zip(b) {
+                            *y -= c * u;
+                        }
+                    }
+                    let nx = x.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+                    if nx > 1e-8 {
+                        x.iter_mut().for_each(|z| *z /= nx);
+                        q.push(x);
+                    }
+                }
+                let col = |j: usize| -> Vec<c64> {
+                    (0..ni)
+                        .map(|e| q.iter().map(|b| b[e] * b[j].conj()).sum())
+                        .collect()
+                };
+                let mut best = (0, -1.0);
+                for j in 0..ni {
+                    let c = col(j);
+                    let nc = c.iter().map(|z| z.norm_sqr()).sum::<f64>();
+                    if nc > best.1 {
+                        best = (j, nc);
+                    }
+                }
+                let mut c = col(best.0);
+                normalise_phase(&mut c);
+                for &j in &group {
+                    shapes[j] = c.clone();
+                }
+            }
+            OrderPoles {
+                order: op.order,
+                poles: op.poles.clone(),
+                shapes,
+            }
+        })
+        .collect()
+}
+
+/// The pLSCF stabilisation sweep: poles and participation vectors (as
+/// [`OrderPoles::shapes`]) for every matrix order `1..=n_max` (`n·Ni` poles each).
+/// `omega` is the band (rad/s, ascending, positive top); `Δt = π/ω_max`.
+pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
+    let ni = data.n_references();
+    let Some(&w_max) = data.omega.last() else {
+        return Vec::new();
+    };
+    if ni == 0 || n_max == 0 || !(w_max > 0.0) {
+        return Vec::new();
+    }
+    let dt = std::f64::consts::PI / w_max;
+    let Some(red) = Reduced::new(data, dt, n_max) else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for n in 1..=n_max {
+        let m = red.matrix(n);
+        let nc = (n + 1) * ni;
+        let d = n * ni;
+        // M11 α = −M12 with α_n = I.
+        let m11: Vec<f64> = (0..d * d).map(|i| m[(i / d) * nc + i % d]).collect();
+        let rhs: Vec<f64> = (0..d * ni)
+            .map(|i| -m[(i / ni) * nc + d + i % ni])
+            .collect();
+        let Some(alpha) = linalg::solve_rows(m11, rhs, d, ni) else {
+            continue;
+        };
+        let Some((poles, shapes)) = companion_poles(&alpha, n, ni, dt) else {
+            continue;
+        };
+        out.push(OrderPoles {
+            order: n,
+            poles,
+            shapes,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Noise-free pole–residue data with residues `ψ lᵀ`: the sweep converges with the
+    /// order to the poles and the participation vectors.
+    #[test]
+    fn sweep_converges_to_poles_and_participation() {
+        let poles = [Pole::from_modal(1.0, 0.02), Pole::from_modal(1.7, 0.01)];
+        let psi = [
+            [c64::new(1.0, 0.0), c64::new(0.5, 0.1), c64::new(-0.3, 0.0)],
+            [
+                c64::new(0.2, 0.0),
+                c64::new(-1.0, 0.0),
+                c64::new(0.7, -0.05),
+            ],
+        ];
+        let l = [
+            [c64::new(1.0, 0.0), c64::new(0.3, 0.0)],
+            [c64::new(-0.4, 0.0), c64::new(1.0, 0.0)],
+        ];
+        let omega: Vec<f64> = (1..=400)
+            .map(|k| 2.0 * std::f64::consts::PI * k as f64 * 0.01)
+            .collect();
+        let h: Vec<Vec<Vec<c64>>> = (0..3)
+            .map(|o| {
+                (0..2)
+                    .map(|e| {
+                        omega
+                            .iter()
+                            .map(|&w| {
+                                (0..2)
+                                    .map(|r| poles[r].receptance(psi[r][o] * l[r][e], w))
+                                    .sum()
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect();
+        let data = PolyData {
+            omega: &omega,
+            h: h.iter()
+                .map(|r| r.iter().map(|v| v.as_slice()).collect())
+                .collect(),
+        };
+        // The z-domain model is not the s-domain pole–residue model: its poles converge
+        // with the order (here 8e-1, 1e-2, 3e-4, 4e-6 and 7e-9 at orders 2, 4, 6, 8, 12).
+        let sw = sweep(&data, 12);
+        let err = |o: &OrderPoles| {
+            poles
+                .iter()
+                .map(|p| {
+                    o.poles
+                        .iter()
+                        .map(|q| (q.0 - p.0).norm() / p.0.norm())
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .fold(0.0, f64::max)
+        };
+        let e: Vec<f64> = [4, 8, 12].iter().map(|&n| err(&sw[n - 1])).collect();
+        assert!(e[0] > e[1] && e[1] > e[2], "{e:?}");
+        let o2 = &sw[11];
+        assert_eq!(o2.order, 12);
+        for (r, p) in poles.iter().enumerate() {
+            let (i, q) = o2
+                .poles
+                .iter()
+                .enumerate()
+                .min_by(|a, b| (a.1 .0 - p.0).norm().total_cmp(&(b.1 .0 - p.0).norm()))
+                .unwrap();
+            assert!((q.0 - p.0).norm() < 1e-7 * p.0.norm(), "{q:?} vs {p:?}");
+            let mut want = l[r].to_vec();
+            normalise_phase(&mut want);
+            let got = &o2.shapes[i];
+            let d: f64 = got.iter().zip(&want).map(|(a, b)| (a - b).norm()).sum();
+            assert!(d < 1e-7, "{got:?} vs {want:?}");
+        }
+    }
+}

@@ -1,0 +1,176 @@
+//! Poly-reference LSFD: mode shapes `ψ_r` for known poles `λ_r` and participation
+//! vectors `l_r` over every excitation of a set-up at once.
+//!
+//! Model of output `o` and excitation `e` in the measured quantity (`q(ω) = (iω)^k`):
+//!
+//! ```text
+//!   H_oe(ω) = q(ω) [ Σ_r ( ψ_ro l_re/(iω−λ_r) + conj(ψ_ro l_re)/(iω−λ_r*) ) + U_oe + L_oe/(iω)² ]
+//! ```
+//!
+//! so the residue of mode `r` seen by excitation `e` is `R_roe = ψ_ro l_re` (the rank-one
+//! residue matrix `ψ_r l_rᵀ`). With `ψ = a + ib` the pole columns are
+//! `a (l u + l̄ v) + b i(l u − l̄ v)`, `u = 1/(iω − λ)`, `v = 1/(iω − λ*)`, stacked over
+//! the excitations; the residual terms are per excitation. Every output shares the
+//! basis (one QR for all). Two poles at the same place with independent participation
+//! vectors give independent columns: a repeated root is separable here, where a
+//! single-reference fit sees one column.
+
+use crate::band::BandData;
+use crate::linalg::TallLs;
+use crate::lsfd::{line_weights, Residuals};
+use crate::pole::Pole;
+use faer::Mat;
+use rbprops_core::c64;
+
+/// Result of [`fit_shapes`].
+#[derive(Debug, Clone)]
+pub struct ShapeFit {
+    /// `ψ_ro` per mode and output (pole–residue units with `l_r` as given).
+    pub shapes: Vec<Vec<c64>>,
+    /// Standard error of Re ψ and Im ψ (root-mean of the two variances).
+    pub shape_std: Vec<Vec<f64>>,
+    /// Per excitation: residues `R_roe = ψ_ro l_re` `[e][r][o]` and their standard errors.
+    pub residues: Vec<Vec<Vec<c64>>>,
+    pub residue_std: Vec<Vec<Vec<f64>>>,
+    /// Per excitation, fitted FRFs `[e][o][line]` in the measured quantity.
+    pub synthesised: Vec<Vec<Vec<c64>>>,
+    /// Smallest / largest |diagonal of R| of the normalised basis.
+    pub basis_conditioning: f64,
+}
+
+/// Fits the mode shapes of every output of `bands` (one per excitation, same axis and
+/// outputs) for the poles `poles` with participation vectors `parts` (`parts[r][e]`).
+pub fn fit_shapes(
+    poles: &[Pole],
+    parts: &[Vec<c64>],
+    bands: &[&BandData],
+    res: Residuals,
+) -> ShapeFit {
+    let ni = bands.len();
+    let nm = poles.len();
+    let n = bands[0].n_lines();
+    let no = bands[0].channels.len();
+    let q = bands[0].quantity_factor();
+    let omega = &bands[0].omega;
+    let w: Vec<Vec<f64>> = bands.iter().map(|b| line_weights(&b.channels)).collect();
+    let nres = res.upper as usize + res.lower as usize;
+    let ncol = 2 * nm + nres * ni;
+    let rows = 2 * n * ni;
+    let mut a = Mat::<f64>::zeros(rows, ncol);
+    for e in 0..ni {
+        let base = 2 * n * e;
+        for k in 0..n {
+            let qk = q[k] * w[e][k];
+            let s = c64::new(0.0, omega[k]);
+            for (r, p) in poles.iter().enumerate() {
+                let (u, v) = (1.0 / (s - p.0), 1.0 / (s - p.0.conj()));
+                let le = parts[r][e];
+                let c1 = qk * (le * u + le.conj() * v);
+                let c2 = qk * c64::new(0.0, 1.0) * (le * u - le.conj() * v);
+                a[(base + k, 2 * r)] = c1.re;
+                a[(base + n + k, 2 * r)] = c1.im;
+                a[(base + k, 2 * r + 1)] = c2.re;
+                a[(base + n + k, 2 * r + 1)] = c2.im;
+            }
+            let mut j = 2 * nm + nres * e;
+            if res.upper {
+                a[(base + k, j)] = qk.re;
+                a[(base + n + k, j)] = qk.im;
+                j += 1;
+            }
+            if res.lower {
+                let x = qk * (-1.0 / (omega[k] * omega[k]));
+                a[(base + k, j)] = x.re;
+                a[(base + n + k, j)] = x.im;
+            }
+        }
+    }
+    // Unit column norms (the pole columns and the residual terms differ by orders of
+    // magnitude); the scales are undone on the coefficients.
+    let mut scale = vec![1.0; ncol];
+    for (j, sc) in scale.iter_mut().enumerate() {
+        let s = (0..rows).map(|i| a[(i, j)] * a[(i, j)]).sum::<f64>().sqrt();
+        if s > 0.0 {
+            *sc = s;
+            for i in 0..rows {
+                a[(i, j)] /= s;
+            }
+        }
+    }
+    let mut b = Mat::<f64>::zeros(rows, no);
+    for (e, band) in bands.iter().enumerate() {
+        let base = 2 * n * e;
+        for (o, h) in band.channels.iter().enumerate() {
+            for k in 0..n {
+                let z = h[k] * w[e][k];
+                b[(base + k, o)] = z.re;
+                b[(base + n + k, o)] = z.im;
+            }
+        }
+    }
+    let ls = TallLs::new(a);
+    let (x, resid, rss) = ls.solve_into(b);
+    let ginv = ls.inverse_gram();
+    let rd = ls.r_diag();
+    let basis_conditioning =
+        rd.iter().cloned().fold(f64::INFINITY, f64::min) / rd.iter().cloned().fold(0.0, f64::max);
+    let dof = rows.saturating_sub(ncol).max(1) as f64;
+    let mut shapes = vec![vec![c64::new(0.0, 0.0); no]; nm];
+    let mut shape_std = vec![vec![0.0; no]; nm];
+    for o in 0..no {
+        let s2 = rss[o] / dof;
+        for r in 0..nm {
+            let (ia, ib) = (2 * r, 2 * r + 1);
+            shapes[r][o] = c64::new(x[(ia, o)] / scale[ia], x[(ib, o)] / scale[ib]);
+            let va = s2 * ginv[(ia, ia)] / (scale[ia] * scale[ia]);
+            let vb = s2 * ginv[(ib, ib)] / (scale[ib] * scale[ib]);
+            shape_std[r][o] = ((va + vb) / 2.0).sqrt();
+        }
+    }
+    let residues = (0..ni)
+        .map(|e| {
+            (0..nm)
+                .map(|r| shapes[r].iter().map(|s| s * parts[r][e]).collect())
+                .collect()
+        })
+        .collect();
+    let residue_std = (0..ni)
+        .map(|e| {
+            (0..nm)
+                .map(|r| {
+                    shape_std[r]
+                        .iter()
+                        .map(|s| s * parts[r][e].norm())
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    let synthesised = bands
+        .iter()
+        .enumerate()
+        .map(|(e, band)| {
+            let base = 2 * n * e;
+            band.channels
+                .iter()
+                .enumerate()
+                .map(|(o, h)| {
+                    (0..n)
+                        .map(|k| {
+                            let r = c64::new(resid[(base + k, o)], resid[(base + n + k, o)]);
+                            h[k] - r / w[e][k]
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    ShapeFit {
+        shapes,
+        shape_std,
+        residues,
+        residue_std,
+        synthesised,
+        basis_conditioning,
+    }
+}

@@ -1,0 +1,282 @@
+//! Poly-reference identification of one suspension set-up: pLSCF stabilisation sweep
+//! over every excitation at once ([`crate::plscf`]), automatic pole selection
+//! ([`crate::stabilisation`], participation vectors as the shapes), poly-reference LSFD
+//! ([`crate::plsfd`]), then the same per-excitation records as the single-reference
+//! path, with shared poles and residues `ψ_r l_re`.
+
+use crate::band::BandData;
+use crate::fit::{assemble, ExcitationFit, ModeParts};
+use crate::lsfd::Residuals;
+use crate::options::FitOptions;
+use crate::plscf::{self, PolyData};
+use crate::plsfd;
+use crate::pole::Pole;
+use crate::reciprocity;
+use crate::stabilisation::{self, Selection};
+use crate::ModalError;
+use rbprops_core::{c64, FrfSet, Geometry};
+
+/// The method name written into the records.
+pub const METHOD: &str = "plscf";
+
+/// Lines of the stabilisation sweep (decimated to about this many).
+const SWEEP_LINES: usize = 1024;
+
+/// Highest matrix order of the sweep for `ni` references: about `max_order` poles
+/// (as the single-reference diagram), and at least 8 orders for the selection.
+pub(crate) fn max_matrix_order(max_order: usize, ni: usize) -> usize {
+    max_order.div_ceil(ni.max(1)).max(8)
+}
+
+/// The poles of one set-up with their participation vectors and diagram.
+#[derive(Debug, Clone)]
+pub(crate) struct PolyPoles {
+    pub poles: Vec<Pole>,
+    /// `parts[r][e]`, unit norm.
+    pub parts: Vec<Vec<c64>>,
+    pub std: Vec<(f64, f64)>,
+    pub confidence: Vec<f64>,
+    pub selection: Selection,
+    pub warnings: Vec<String>,
+}
+
+/// pLSCF sweep and selection on `bands` (one per excitation). When every stable mode
+/// sits low in the band, the sweep is repeated on the lines up to twice the highest one
+/// (polynomial z-domain models need far higher orders for modes crowded near z = 1).
+pub(crate) fn estimate(
+    bands: &[BandData],
+    opts: &FitOptions,
+    name: &str,
+) -> Result<PolyPoles, ModalError> {
+    let ni = bands.len();
+    let n_max = max_matrix_order(opts.max_order, ni);
+    let mut warnings = Vec::new();
+    let mut top_hz = *bands[0].frequency_hz.last().unwrap();
+    let mut pass = 0;
+    let sel = loop {
+        let subs: Vec<BandData> = bands.iter().map(|b| b.up_to(top_hz)).collect();
+        let keep = BandData::decimation_indices(subs[0].n_lines(), SWEEP_LINES);
+        let dec: Vec<BandData> = subs.iter().map(|b| b.lines(&keep)).collect();
+        let nl = dec[0].n_lines();
+        // 2·lines·refs real equations per output for (n+1)(1 + refs)·… unknowns: keep
+        // the orders well below the line count.
+        let n_here = n_max.min(nl.saturating_sub(2) / 2);
+        if n_here < 1 || nl < 4 {
+            return Err(ModalError::BadInput {
+                excitation: name.into(),
+                reason: format!("{nl} lines in the band: too few for a poly-reference fit"),
+            });
+        }
+        let no = dec[0].channels.len();
+        let data = PolyData {
+            omega: &dec[0].omega,
+            h: (0..no)
+                .map(|o| dec.iter().map(|b| b.channels[o].as_slice()).collect())
+                .collect(),
+        };
+        let orders = plscf::sweep(&data, n_here);
+        let band_w = (dec[0].omega[0], *dec[0].omega.last().unwrap());
+        let shared = plscf::stabilisation_shapes(&orders);
+        let mut sel = stabilisation::select(&shared, band_w, &opts.tolerances, opts.n_modes);
+        // Back to each selected pole's own participation vector (the representative is
+        // a pole of the sweep, bitwise).
+        for m in sel.modes.iter_mut().chain(sel.candidates.iter_mut()) {
+            if let Some(l) = orders.iter().find_map(|o| {
+                o.poles
+                    .iter()
+                    .position(|p| p.0 == m.pole.0)
+                    .map(|i| o.shapes[i].clone())
+            }) {
+                m.shape = l;
+            }
+        }
+        let f_top = sel
+            .modes
+            .iter()
+            .map(|m| m.pole.frequency_hz())
+            .reduce(f64::max);
+        let target = 2.0 * f_top.unwrap_or(0.25 * top_hz);
+        let lines = subs[0].frequency_hz.partition_point(|&f| f <= target);
+        if pass < 2 && target < 0.6 * top_hz && lines >= 4 * n_max.max(8) {
+            warnings.push(format!(
+                "{name}: poles estimated on {:.4}–{target:.4} Hz, where the modes are (shapes on the whole band)",
+                subs[0].frequency_hz[0]
+            ));
+            top_hz = target;
+            pass += 1;
+            continue;
+        }
+        break sel;
+    };
+    warnings.extend(sel.warnings.iter().map(|w| format!("{name}: {w}")));
+    if sel.modes.is_empty() {
+        return Err(ModalError::NoModes {
+            excitation: name.into(),
+            reason: format!(
+                "{} poles in the poly-reference diagram up to order {}, none stable in frequency, damping and participation",
+                sel.diagram.poles.len(),
+                sel.diagram.max_order
+            ),
+        });
+    }
+    Ok(PolyPoles {
+        poles: sel.modes.iter().map(|m| m.pole).collect(),
+        parts: sel.modes.iter().map(|m| m.shape.clone()).collect(),
+        std: sel.modes.iter().map(|m| m.spread).collect(),
+        confidence: sel.modes.iter().map(|m| m.presence).collect(),
+        selection: sel,
+        warnings,
+    })
+}
+
+/// Poles closer than this many half-power half-bandwidths are one repeated root.
+/// A pair this close changes the FRF by at most ~2 % of the group's peak, below what
+/// separates two roots at 1 % noise; farther pairs (0.15 half-bandwidths for 0.3 %
+/// apart at ζ = 2 %) are kept as two roots.
+pub(crate) const REPEATED_BANDWIDTHS: f64 = 0.02;
+
+/// Groups (ascending indices, two or more) of poles that are one repeated root: chains
+/// of neighbours closer than [`REPEATED_BANDWIDTHS`].
+fn repeated_groups(poles: &[Pole]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for i in 0..poles.len() {
+        let joined = groups.iter_mut().find(|g| {
+            g.iter()
+                .any(|&j| poles[j].distance_in_bandwidths(&poles[i]) < REPEATED_BANDWIDTHS)
+        });
+        match joined {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups.retain(|g| g.len() >= 2);
+    groups
+}
+
+/// Fits the excitations `members` of one set-up together; one [`ExcitationFit`] per
+/// member, in the order given.
+pub(crate) fn fit_setup(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    members: &[usize],
+    opts: &FitOptions,
+) -> Result<Vec<ExcitationFit>, ModalError> {
+    let setup = &geometry.excitations[members[0]].setup;
+    let name = format!("set-up {setup}");
+    let bands: Vec<BandData> = members
+        .iter()
+        .map(|&e| BandData::extract(frf, e, opts.band_hz, &geometry.excitations[e].id))
+        .collect::<Result<_, _>>()?;
+    let no = bands[0].channels.len();
+    let mut warnings = Vec::new();
+    for o in 0..no {
+        if bands
+            .iter()
+            .all(|b| b.channels[o].iter().all(|z| z.norm_sqr() == 0.0))
+        {
+            warnings.push(format!(
+                "{name}: channel '{}' is identically zero in the band for every excitation; its residues are 0",
+                geometry.channels[o].id
+            ));
+        }
+    }
+    if warnings.len() == no {
+        return Err(ModalError::BadInput {
+            excitation: name,
+            reason: "every channel is identically zero in the band".into(),
+        });
+    }
+    let mut pp = estimate(&bands, opts, &name)?;
+    warnings.extend(pp.warnings.iter().cloned());
+    let res = Residuals::for_band(opts.residual_terms, &bands[0]);
+    let band_refs: Vec<&BandData> = bands.iter().collect();
+    let mut sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+    // Repeated roots: the split of the group's residue matrix into modes is arbitrary;
+    // choose the reciprocal one (see `reciprocity`) and refit the shapes with it.
+    let groups = repeated_groups(&pp.poles);
+    if !groups.is_empty() {
+        for g in &groups {
+            let psi: Vec<Vec<c64>> = g.iter().map(|&r| sf.shapes[r].clone()).collect();
+            let parts: Vec<Vec<c64>> = g.iter().map(|&r| pp.parts[r].clone()).collect();
+            let freqs: Vec<String> = g
+                .iter()
+                .map(|&r| format!("{:.5}", pp.poles[r].frequency_hz()))
+                .collect();
+            match reciprocity::reciprocal_participation(geometry, members, &psi, &parts) {
+                Ok(l) => {
+                    let mean = g.iter().map(|&r| pp.poles[r].0).sum::<c64>() / g.len() as f64;
+                    for (&r, l) in g.iter().zip(l) {
+                        pp.parts[r] = l;
+                        pp.poles[r] = Pole(mean);
+                    }
+                    warnings.push(format!(
+                        "{name}: poles at {} Hz are one root of multiplicity {} (within {REPEATED_BANDWIDTHS} half-bandwidths); its modes are the reciprocal basis of the residue matrix (participation = shape at the forces)",
+                        freqs.join(", "),
+                        g.len()
+                    ));
+                }
+                Err(why) => warnings.push(format!(
+                    "{name}: poles at {} Hz are one repeated root, but its modes could not be made reciprocal ({why}): their split is arbitrary, use their sum",
+                    freqs.join(", ")
+                )),
+            }
+        }
+        sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+    }
+    if sf.basis_conditioning < 1e-8 {
+        warnings.push(format!(
+            "{name}: the poly-reference shape basis is nearly singular (conditioning {:.1e}): two poles with the same participation cannot be separated",
+            sf.basis_conditioning
+        ));
+    }
+    let nm = pp.poles.len();
+    let mut mode_warnings = vec![Vec::new(); nm];
+    for i in 0..nm {
+        for j in i + 1..nm {
+            let d = pp.poles[i].distance_in_bandwidths(&pp.poles[j]);
+            if d < 2.0 {
+                let msg = |other: usize| {
+                    format!(
+                        "close to mode {other} ({d:.2} half-bandwidths): separated by its participation vector (poly-reference)"
+                    )
+                };
+                mode_warnings[i].push(msg(j + 1));
+                mode_warnings[j].push(msg(i + 1));
+            }
+        }
+    }
+    let diagram = pp.selection.diagram.clone();
+    let mut out = Vec::with_capacity(members.len());
+    for (ei, &e) in members.iter().enumerate() {
+        let ex = &geometry.excitations[e];
+        let a: Vec<Vec<c64>> = (0..nm)
+            .map(|r| {
+                sf.residues[ei][r]
+                    .iter()
+                    .map(|&x| pp.poles[r].modal_constant(x))
+                    .collect()
+            })
+            .collect();
+        let a_std: Vec<Vec<f64>> = (0..nm)
+            .map(|r| {
+                sf.residue_std[ei][r]
+                    .iter()
+                    .map(|s| 2.0 * pp.poles[r].omega_d() * s)
+                    .collect()
+            })
+            .collect();
+        let parts = ModeParts {
+            poles: pp.poles.clone(),
+            std: pp.std.clone(),
+            confidence: pp.confidence.clone(),
+            mode_warnings: mode_warnings.clone(),
+            modal_constants: a,
+            modal_constant_std: a_std,
+            synthesised: sf.synthesised[ei].clone(),
+            warnings: warnings.clone(),
+            diagram: diagram.clone(),
+        };
+        out.push(assemble(ex, &bands[ei], parts, opts, METHOD));
+    }
+    Ok(out)
+}
