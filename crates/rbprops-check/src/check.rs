@@ -1,7 +1,7 @@
 //! The model check: noise floor → baseline fit → localisation → screening (score test)
 //! → refit and acceptance (likelihood ratio with Bonferroni, ΔBIC, plausible and
 //! significant parameters, distinctness) → forward–backward selection → report.
-//! Follows the research note's §6 (missing-physics.md), with the deviations listed in
+//! Follows docs/physics.md (M1–M8), with the deviations listed in
 //! the report's `method` field.
 
 use crate::candidates::{candidates, local_effect, Candidate, Screening};

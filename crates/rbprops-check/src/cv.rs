@@ -1,4 +1,4 @@
-//! Held-out check of an effect (research note §6, criterion A2): interleaved
+//! Held-out check of an effect (docs/physics.md, M1–M8, criterion A2): interleaved
 //! frequency-block cross-validation. The lines are cut into blocks of `w` lines
 //! (`w = max(1, n_lines/200)`), block b belongs to fold `b mod K` (K = 10), so every fold
 //! samples every part of the band. For each fold the model with and the model without

@@ -1,4 +1,4 @@
-//! **rbprops-check**: the model check (GitHub issue 9). Given a nominal campaign spec
+//! **rbprops-check**: the model check. Given a nominal campaign spec
 //! (as `frf-sim` reads it) and a recording, it
 //! 1. estimates the noise floor from the data alone ([`noise`]);
 //! 2. fits the nominal model's own parameters (inertia kept physical, suspension
@@ -15,7 +15,7 @@
 //! Models are evaluated with rbprops-sim's own noise-free simulator ([`predict`]), so the
 //! nominal model and each candidate are the code that generates recordings. No I/O.
 //!
-//! Statistics (research note §6, `missing-physics.md`): normalised residual
+//! Statistics (docs/physics.md, M1): normalised residual
 //! r = √2 (Y − Ŷ)/σ split into real and imaginary parts, χ² = ‖r‖², ν = 2N − p. A
 //! candidate c is screened by its score S_c = ‖Q_cᵀ r‖² (Q_c: orthonormal basis of its
 //! Jacobian with the current model's Jacobian projected out; rank d_c), significant above

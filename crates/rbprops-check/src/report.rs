@@ -49,7 +49,7 @@ pub struct AcceptedEffect {
     pub change_over_precision_floor: f64,
 }
 
-/// Held-out (cross-validation) evidence for an effect (research note §6, A2).
+/// Held-out (cross-validation) evidence for an effect (docs/physics.md, M1–M8, A2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct HeldOutCheck {
     pub scheme: String,

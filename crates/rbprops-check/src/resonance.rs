@@ -1,5 +1,5 @@
 //! Resonances inside the band that the rigid-body model lacks: an elastic mode of the
-//! article or of its fixture (catalogue `elastic_mode`, research note E13 when the mode
+//! article or of its fixture (catalogue `elastic_mode`, docs/physics.md, E13 when the mode
 //! sits in the band rather than above it).
 //!
 //! The catalogue's form `ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)` is bilinear in the

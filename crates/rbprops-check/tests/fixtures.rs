@@ -776,7 +776,7 @@ fn elastic_mode_above_the_band_is_found_as_residual_flexibility() {
 }
 
 // ---------------------------------------------------------------------------------------
-// The remaining catalogue effects FRFs can reveal (issue 9): each concealed, noise in the
+// The remaining catalogue effects FRFs can reveal: each concealed, noise in the
 // 0.5–2 % range. Parameter checks use k = 4 standard errors: the fits are local Gaussian
 // (LM with the Jacobian covariance scaled by max(χ²/ν, 1)), so a correct estimator lands
 // within 4 SE with probability 1 − 6e-5 per parameter; a larger k would hide a biased fit.

@@ -7,7 +7,7 @@
 //! only differences between its model and such a recording are the two formulations'
 //! rounding and, in single precision, the quantisation of the stored values.
 //!
-//! Python is found through `RBPROPS_PYTHON` (numpy and scipy needed); without it the
+//! Python is found through `RBPROPS_PYTHON` (numpy and pyuff needed); without it the
 //! tests are skipped with a note, unless `RBPROPS_REQUIRE_PYTHON=1`, which makes that a
 //! failure.
 //!
@@ -28,7 +28,7 @@ use std::process::Command;
 /// digits of a UFF record; these are exact, so both sides compute on the same axis).
 const LINES: usize = 201;
 
-/// The Python interpreter with numpy and scipy, or `None` (skip) when not configured.
+/// The Python interpreter with numpy and pyuff, or `None` (skip) when not configured.
 fn python() -> Option<String> {
     let require = std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some_and(|v| v == "1");
     let Ok(py) = std::env::var("RBPROPS_PYTHON") else {
@@ -36,16 +36,16 @@ fn python() -> Option<String> {
             !require,
             "RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set"
         );
-        eprintln!("skipping: RBPROPS_PYTHON not set (the reference generator needs Python with numpy and scipy)");
+        eprintln!("skipping: RBPROPS_PYTHON not set (the reference generator needs Python with numpy and pyuff)");
         return None;
     };
     let ok = Command::new(&py)
-        .args(["-c", "import numpy, scipy"])
+        .args(["-c", "import numpy, pyuff"])
         .status()
         .is_ok_and(|s| s.success());
     if !ok {
-        assert!(!require, "{py} cannot import numpy and scipy");
-        eprintln!("skipping: {py} cannot import numpy and scipy");
+        assert!(!require, "{py} cannot import numpy and pyuff");
+        eprintln!("skipping: {py} cannot import numpy and pyuff");
         return None;
     }
     Some(py)

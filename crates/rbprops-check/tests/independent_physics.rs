@@ -11,7 +11,7 @@
 //! degrees of freedom its half-width 3√(2/ν) ≈ 0.03 is the 3σ spread of χ²/ν for a
 //! correct model.
 
-use rbprops_check::{check, CheckOptions, ModelCheckReport, NoiseModel};
+use rbprops_check::{check, CheckOptions, ModelCheckReport, RecordingNoise};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_sim::CampaignSpec;
 use std::path::{Path, PathBuf};
@@ -120,12 +120,7 @@ fn refgen(
 
 fn given_noise(n_ch: usize) -> CheckOptions {
     CheckOptions {
-        noise: Some(NoiseModel {
-            relative: vec![REL; n_ch],
-            floor: vec![0.0; n_ch],
-            source: "given".into(),
-            variance_scale_se: 0.0,
-        }),
+        noise: Some(RecordingNoise::given(vec![REL; n_ch], vec![0.0; n_ch])),
         ..Default::default()
     }
 }

@@ -60,7 +60,6 @@ impl UffArgs {
     }
 }
 
-
 /// The integrity options of every stage that reads a run (flattened into its arguments).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct InputChecks {

@@ -1,4 +1,4 @@
-//! Issue 5 acceptance for the inertia-restraint (mass-line) estimator through the whole
+//! Acceptance tests for the inertia-restraint (mass-line) estimator through the whole
 //! pipeline: noise-free article whose first elastic mode is 10× the highest rigid mode,
 //! band chosen automatically. Limits: m within 0.5 %, c within 1 mm, J within 2 % of ‖J‖.
 

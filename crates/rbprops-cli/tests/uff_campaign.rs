@@ -316,7 +316,10 @@ fn uff_campaign_is_byte_identical_for_any_thread_count_and_refuses_unknown_optio
     let out = rbprops().arg("campaign").arg(&ex).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(err.contains("nodes.unv") && err.contains("no such file"), "{err}");
+    assert!(
+        err.contains("nodes.unv") && err.contains("no such file"),
+        "{err}"
+    );
     // No output file on failure.
     let out = rbprops()
         .arg("campaign")

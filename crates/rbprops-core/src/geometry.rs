@@ -11,7 +11,7 @@ pub fn cross_matrix(p: &Vec3) -> Mat3 {
     Mat3::new(0.0, -p.z, p.y, p.z, 0.0, -p.x, -p.y, p.x, 0.0)
 }
 
-/// Rigid-body transform `T(p) = [I | -[p]×]` (DOMAIN.md; the paper's R0 rows, Eq. 3):
+/// Rigid-body transform `T(p) = [I | -[p]×]` (docs/conventions.md; the paper's R0 rows, Eq. 3):
 /// the displacement of body point `p` is `T(p) q0` for rigid motion `q0 = [u0; θ]` about O.
 pub fn rigid_transform(p: &Vec3) -> Matrix3x6<f64> {
     let mut t = Matrix3x6::zeros();

@@ -49,7 +49,7 @@ impl RigidBodyProperties {
         }
     }
 
-    /// Products of inertia in the DOMAIN.md sense (negated off-diagonal tensor entries).
+    /// Products of inertia in the docs/conventions.md sense (negated off-diagonal tensor entries).
     pub fn products_of_inertia(&self) -> ProductsOfInertia {
         let j = &self.inertia_cm;
         ProductsOfInertia {
@@ -65,7 +65,7 @@ impl RigidBodyProperties {
         self.inertia_cm + self.mass * (c.norm_squared() * Mat3::identity() - c * c.transpose())
     }
 
-    /// The 6×6 mass matrix about O (DOMAIN.md; paper Eq. 6 with the (6,6) typo fixed).
+    /// The 6×6 mass matrix about O (docs/conventions.md; paper Eq. 6 with the (6,6) typo fixed).
     pub fn mass_matrix(&self) -> MassMatrix6 {
         let m = self.mass;
         let cx = cross_matrix(&self.com);
@@ -209,7 +209,7 @@ pub struct RelativeErrors {
 }
 
 /// The 6×6 rigid-body mass matrix about some origin O,
-/// `M0 = [[mI, −m[c]×], [m[c]×, J_O]]` (DOMAIN.md).
+/// `M0 = [[mI, −m[c]×], [m[c]×, J_O]]` (docs/conventions.md).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MassMatrix6(pub Mat6);
 

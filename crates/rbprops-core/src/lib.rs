@@ -1,6 +1,6 @@
 //! Domain model of **rbprops**: the types every pipeline stage shares.
 //!
-//! Conventions (fixed by `DOMAIN.md`, used everywhere):
+//! Conventions (fixed by docs/conventions.md, used everywhere):
 //! - SI units; frequencies in Hz in files, rad/s inside formulas.
 //! - Time dependence `e^{+iωt}`; receptance `H = X/F`, mobility `iωH`, accelerance `-ω²H`.
 //! - Small rigid motion about an origin `O`: `q0 = [u0; θ]`; a body point `p` moves as

@@ -30,7 +30,7 @@ impl RigidMode {
     }
 }
 
-/// Receptance of the modal sum `H(ω) = Σ_r A_r / (ω_r² − ω² + 2iζ_r ω_r ω)` (DOMAIN.md).
+/// Receptance of the modal sum `H(ω) = Σ_r A_r / (ω_r² − ω² + 2iζ_r ω_r ω)` (docs/conventions.md).
 pub fn modal_receptance(modes: &[RigidMode], a: &RowVector6<f64>, b: &Vec6, omega: f64) -> c64 {
     modes
         .iter()

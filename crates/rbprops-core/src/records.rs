@@ -21,7 +21,7 @@ pub struct StageProvenance {
     pub input_sha256: String,
 }
 
-/// Products of inertia `{xy, xz, yz}` in the DOMAIN.md sense (`J_xy = ∫xy dm`).
+/// Products of inertia `{xy, xz, yz}` in the docs/conventions.md sense (`J_xy = ∫xy dm`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct Products {
     pub xy: f64,
@@ -110,7 +110,7 @@ pub struct TruthRecord {
 
 /// One identified mode of one excitation (output of `modal-fit`).
 ///
-/// Residues are *modal constants* in the receptance form of DOMAIN.md:
+/// Residues are *modal constants* in the receptance form of docs/conventions.md:
 /// `H_i(ω) = Σ_r A_ir / (ω_r² − ω² + 2iζ_r ω_r ω)` with `A_ir` in 1/kg, whatever quantity
 /// the input FRFs were. For a proportionally damped rigid body `A_ir = (s_iᵀφ_r)(f_kᵀφ_r)`,
 /// real; the imaginary part measures modal complexity.

@@ -1,5 +1,5 @@
 //! The least-squares rigid-body transform of a measured shape (paper Eqs. 3–5) and the
-//! mass-normalisation from the force geometry (DOMAIN.md).
+//! mass-normalisation from the force geometry (docs/conventions.md).
 
 use crate::{c64, CoreError, Mat6, Vec6};
 use nalgebra::RowVector6;
@@ -117,7 +117,7 @@ pub fn real_modal_constants(a: &[c64]) -> (Vec<f64>, f64) {
 }
 
 /// Mass-normalises a rigid motion from the force geometry: with `q = c φ0` and
-/// `c = fᵀφ0`, `c² = fᵀq`, so `φ0 = q / sqrt(fᵀq)` (DOMAIN.md). Returns `(φ0, fᵀq)`.
+/// `c = fᵀφ0`, `c² = fᵀq`, so `φ0 = q / sqrt(fᵀq)` (docs/conventions.md). Returns `(φ0, fᵀq)`.
 /// `fᵀq ≤ 0` means the force does not excite the mode: an error, never a NaN.
 pub fn mass_normalise(q: &Vec6, force: &Vec6) -> Result<(Vec6, f64), CoreError> {
     let s = force.dot(q);

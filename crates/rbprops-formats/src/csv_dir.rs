@@ -161,7 +161,12 @@ fn stamp_digest(rec: &RunRecord, dir: &Path) -> Result<(), FormatError> {
         serde_json::Value::String(digest),
     );
     let mut tables = Vec::new();
-    flatten::to_tables(&table_name(&prov.name), &messages, &prov.schema, &mut tables);
+    flatten::to_tables(
+        &table_name(&prov.name),
+        &messages,
+        &prov.schema,
+        &mut tables,
+    );
     for tb in &tables {
         write_table(dir, tb)?;
     }

@@ -1,7 +1,7 @@
 //! The ten inertia parameters about an origin O and the linear map `p ↦ M0(p)`.
 //!
 //! `p = (m, m c_x, m c_y, m c_z, J_O,xx, J_O,yy, J_O,zz, J_O,xy, J_O,xz, J_O,yz)` where the
-//! last three are *products* of inertia about O in the DOMAIN.md sense (`J_xy = ∫xy dm`),
+//! last three are *products* of inertia about O in the docs/conventions.md sense (`J_xy = ∫xy dm`),
 //! so the tensor entry is their negative (paper Eq. 6, with its (6,6) typo fixed):
 //!
 //! ```text

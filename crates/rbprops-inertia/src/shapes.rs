@@ -1,6 +1,6 @@
 //! From identified residues to mass-normalised rigid-body shapes about a chosen origin:
 //! the least-squares rigid-body transform `q = (SᵀS)⁻¹SᵀA_r` (paper Eq. 5) and the
-//! normalisation from the force geometry `φ0 = q/√(f_kᵀq)` (DOMAIN.md).
+//! normalisation from the force geometry `φ0 = q/√(f_kᵀq)` (docs/conventions.md).
 
 use crate::error::InertiaError;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate, SelectedMode};

@@ -1,4 +1,4 @@
-//! Modal identification per excitation (rbprops stage `modal-fit`, issue 3).
+//! Modal identification per excitation (rbprops stage `modal-fit`).
 //!
 //! For each excitation (a SIMO data set: one force, all channels) the modes in the band
 //! are identified: natural frequency, damping ratio, complex modal constant per channel
@@ -14,7 +14,7 @@
 //!    half a bandwidth away is significant (merged pairs);
 //! 4. residues and residual terms by LSFD on every line ([`lsfd::fit_residues`]);
 //! 5. records: modal constants `A = 2iω_d R` (see [`pole`]) in the receptance form of
-//!    DOMAIN.md, whatever the input quantity.
+//!    docs/conventions.md, whatever the input quantity.
 //!
 //! [`Method::Circle`] replaces steps 3–4 by Kennedy–Pancu circle fits ([`circle`]).
 //!

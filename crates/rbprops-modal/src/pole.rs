@@ -4,7 +4,7 @@
 //! (time dependence `e^{+iωt}`, so `s = iω`). Its receptance contribution in
 //! pole–residue form is `R/(iω − λ) + R*/(iω − λ*)`.
 //!
-//! The records carry modal constants `A` of the DOMAIN.md receptance form
+//! The records carry modal constants `A` of the docs/conventions.md receptance form
 //! `A/(ω_r² − ω² + 2iζω_rω)`. Since `(iω − λ)(iω − λ*) = ω_r² − ω² + 2iζω_rω` and
 //! `1/((s−λ)(s−λ*)) = [1/(s−λ) − 1/(s−λ*)]/(2iω_d)`, a purely imaginary `R` gives exactly
 //!

@@ -4,7 +4,7 @@
 //! This crate
 //! - computes the Norm Indicator `NI_k(ω) = 20 log10 sqrt(Σ_i |H_ik(ω)|²)` (paper Eq. 12)
 //!   of every excitation, its peaks, and how strongly each excitation drives each mode
-//!   (`f_kᵀq = (f_kᵀφ0)²`, DOMAIN.md);
+//!   (`f_kᵀq = (f_kᵀφ0)²`, docs/conventions.md);
 //! - matches the modes `modal-fit` identified per excitation into the physical modes of a
 //!   suspension set-up by frequency and MAC of their rigid-body shapes
 //!   (`q = (SᵀS)⁻¹SᵀA`, paper Eq. 5), so that "mode 3" is the same mode everywhere;

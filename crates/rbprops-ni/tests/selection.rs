@@ -1,4 +1,4 @@
-//! Acceptance tests of the selection on noise-free models (issue 4).
+//! Acceptance tests of the selection on noise-free models.
 mod common;
 
 use common::*;

@@ -6,7 +6,16 @@
 
 use rbprops_plot::*;
 
-const FONT_DIRS: [&str; 3] = ["/usr/share/fonts", "/usr/local/share/fonts", "/root/.fonts"];
+const SYSTEM_FONT_DIRS: [&str; 2] = ["/usr/share/fonts", "/usr/local/share/fonts"];
+
+/// The system font directories and the user's own (`$HOME/.fonts`).
+fn font_dirs() -> Vec<String> {
+    let mut dirs: Vec<String> = SYSTEM_FONT_DIRS.iter().map(|d| d.to_string()).collect();
+    if let Some(home) = std::env::var_os("HOME") {
+        dirs.push(format!("{}/.fonts", home.to_string_lossy()));
+    }
+    dirs
+}
 const CHILD_ENV: &str = "RBPROPS_PLOT_FONTLESS_CHILD";
 
 fn render_everything() -> Vec<String> {
@@ -65,8 +74,8 @@ fn render_everything() -> Vec<String> {
 fn renders_with_no_fonts_installed() {
     if std::env::var_os(CHILD_ENV).is_some() {
         // Inside the namespace: prove the fonts are really gone, then render.
-        for d in FONT_DIRS {
-            if let Ok(mut entries) = std::fs::read_dir(d) {
+        for d in font_dirs() {
+            if let Ok(mut entries) = std::fs::read_dir(&d) {
                 assert!(entries.next().is_none(), "{d} is still visible");
             }
         }
@@ -79,7 +88,7 @@ fn renders_with_no_fonts_installed() {
         return;
     }
     let exe = std::env::current_exe().unwrap();
-    let mounts: Vec<String> = FONT_DIRS
+    let mounts: Vec<String> = font_dirs()
         .iter()
         .filter(|d| std::path::Path::new(d).is_dir())
         .map(|d| format!("mount -t tmpfs none {d} && "))

@@ -2,7 +2,7 @@
 //! **rbprops-sim**: simulated FRF campaigns of a rigid body on a linear suspension, the
 //! physics behind `frf-sim`. No I/O: specs come in as text, results go out as data.
 //!
-//! Model per suspension set-up (DOMAIN.md conventions, `e^{+iωt}`):
+//! Model per suspension set-up (docs/conventions.md conventions, `e^{+iωt}`):
 //! `H(ω) = S (K + iωC − ω²M0)⁻¹ F`, with `M0` the rigid-body mass matrix about the
 //! geometry origin, `K = Σ T(a)ᵀ k T(a)` the mount stiffness (a cord is its axial spring
 //! `k e eᵀ`, or with gravity the Hessian of the hanging body's potential at equilibrium,

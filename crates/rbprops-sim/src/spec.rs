@@ -59,7 +59,7 @@ pub struct FrequencySpec {
 }
 
 /// The rigid body: mass, CoM in the geometry frame and inertia at the CoM, given either as
-/// the tensor or as moments plus CAD products (tensor entry = −product, DOMAIN.md).
+/// the tensor or as moments plus CAD products (tensor entry = −product, docs/conventions.md).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {

@@ -1,4 +1,4 @@
-//! `cord_mass` (research note E3) against independent derivations: the closed-form
+//! `cord_mass` (docs/physics.md, E3) against independent derivations: the closed-form
 //! assumed-modes end stiffness of a taut string (partial Mittag-Leffler sum of
 //! `(T/ℓ) β cot β`), the exact taut string, the pinned-string frequencies
 //! `f_n = (n/2ℓ)√(T/μ)` as antiresonances, the low-frequency added mass `μℓ/3`, and

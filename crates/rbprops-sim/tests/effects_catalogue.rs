@@ -1,4 +1,4 @@
-//! The second part of the physics catalogue (issue 8) against independent derivations:
+//! The second part of the physics catalogue against independent derivations:
 //! augmented elastic DOF, state-space complex modes, shifted and truncated modal sums,
 //! moved sensors and forces in the spec, the Woodbury form of a mass below the gauge,
 //! the high-pass factor and the specific-force formula.

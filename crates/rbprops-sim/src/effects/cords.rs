@@ -1,5 +1,5 @@
 //! `cord_mass`: the inertia and the internal resonances of the suspension cords
-//! (research note E3).
+//! (docs/physics.md, E3).
 //!
 //! Each spring of the set-up is read as a vertical cord, as in
 //! [`gravity_stiffness`](super::gravity): lower end at the attachment point `a_i`, upper

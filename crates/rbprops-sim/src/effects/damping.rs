@@ -1,5 +1,5 @@
 //! `nonproportional_damping`: viscous dashpots at the suspension attachment points
-//! (research note E5), added to the nominal damping:
+//! (docs/physics.md, E5), added to the nominal damping:
 //!
 //! `ΔC = Σ_i T(a_i)ᵀ [c_a,i e eᵀ + c_l,i (I − e eᵀ)] T(a_i)`
 //!
@@ -30,7 +30,7 @@
 //! first order: a score test sees it. The modes' sign convention (largest component
 //! positive) makes R continuous in (M, K) except where modes cross.
 //!
-//! `hysteretic_damping`: the loss of rubber mounts and bungee cords (research note E5),
+//! `hysteretic_damping`: the loss of rubber mounts and bungee cords (docs/physics.md, E5),
 //! a loss factor η_i per spring, frequency-independent:
 //!
 //! `D = Σ_i η_i T(a_i)ᵀ k_i T(a_i)`, in `Z(ω) = K + iD + iωC − ω²M`,

@@ -1,4 +1,4 @@
-//! `elastic_mode`: an elastic mode of the article (research note E13), above or inside
+//! `elastic_mode`: an elastic mode of the article (docs/physics.md, E13), above or inside
 //! the band, as an extra mode of the model:
 //!
 //! `H_ce(ω) += ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)`

@@ -1,4 +1,4 @@
-//! Calibration errors (research note E10): real, frequency-independent factors.
+//! Calibration errors (docs/physics.md, E10): real, frequency-independent factors.
 //! - `channel_gain`: channel c reads `g_c` times its true value (`S` row c × g_c);
 //! - `excitation_gain`: the force of excitation e is `g_e` times what was recorded
 //!   (force column × g_e), as with a force-gauge sensitivity error;

@@ -13,7 +13,7 @@
 //! `K_θθ = −(Σ_i T_i [ẑ]×[a_i]× + [W]×[c]×)`
 //!
 //! (lateral pendulum stiffness of each cord, and the moments of the tensions and of
-//! the weight about arms that rotate with the body; research note E1, Griffis & Duffy).
+//! the weight about arms that rotate with the body; docs/physics.md, E1, Griffis & Duffy).
 //! `K_θθ` is symmetric exactly when the moments balance. Checked in the tests against a
 //! simple pendulum `ω² = g/ℓ`, the trifilar yaw `ω² = m g ρ²/(ℓ J)` and a
 //! finite-difference Hessian of the exact potential.

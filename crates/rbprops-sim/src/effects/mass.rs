@@ -1,9 +1,9 @@
 //! `sensor_mass`: point masses at sensor points (accelerometers, cable share).
 //!
-//! `ΔM = Σ_j m_j T(p_j)ᵀ T(p_j)` (research note E7): a point mass at `p_j` adds kinetic
+//! `ΔM = Σ_j m_j T(p_j)ᵀ T(p_j)` (docs/physics.md, E7): a point mass at `p_j` adds kinetic
 //! energy `½ m_j |T(p_j) q̇|²`. The truth properties stay those of the bare body.
 //!
-//! `added_mass` (research note E15: air added mass of large light panels, fluid
+//! `added_mass` (docs/physics.md, E15: air added mass of large light panels, fluid
 //! sloshing at low frequency): a symmetric 6×6 mass about O, `M += M_a` with
 //! `M_a = [[A, B], [Bᵀ, C]]`, A and C symmetric. Unlike a rigid body's (or a point
 //! mass's) it need not have the rigid structure `A = m I`, `B = −m[c]×`: potential

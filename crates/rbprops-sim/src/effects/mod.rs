@@ -1,5 +1,5 @@
 //! The physics catalogue: effects that modify the nominal model (see
-//! `/work/shared/research/missing-physics.md`). Each effect is switched on in the spec as
+//! docs/physics.md). Each effect is switched on in the spec as
 //! `[[effect]] id = "..."` with its parameters.
 //!
 //! Implemented: `gravity_stiffness`, `sensor_mass`, `added_mass` ([`mass`]), `channel_gain`, `excitation_gain`,

@@ -1,4 +1,4 @@
-//! `suspension_coupling`: stiffness the springs of the spec leave out (research note
+//! `suspension_coupling`: stiffness the springs of the spec leave out (docs/physics.md
 //! E4): per mount a rotational stiffness (bending and torsion of a rubber mount or a
 //! clamped cord end), `k_rot` (N m/rad, frame axes). A rotational spring resists the
 //! body rotation θ whatever the point it acts at, so
@@ -8,7 +8,7 @@
 //! and with `lateral_n_per_m` an extra isotropic lateral (⟂ `axis`) stiffness at each
 //! attachment point a_i, `ΔK += Σ_i T(a_i)ᵀ k_l,i (I − e eᵀ) T(a_i)` (mount shear).
 //!
-//! `suspension_drift` (research note E15, non-stationarity between runs): rubber creep
+//! `suspension_drift` (docs/physics.md, E15, non-stationarity between runs): rubber creep
 //! or temperature changes the suspension between the excitations' runs. During the run
 //! of excitation e the stiffness is `f_e K` (K the set-up's stiffness as built by the
 //! effects before it: springs, and the gravity stiffness when listed first), while the
@@ -16,7 +16,7 @@
 //! `Δω_r/ω_r = (f_e − 1)/2`, the residues hardly. A set-up measured in one run cannot
 //! show it (its stiffness is what was measured).
 //!
-//! `stinger_stiffness` (research note E12, force chain): a shaker's stinger resists
+//! `stinger_stiffness` (docs/physics.md, E12, force chain): a shaker's stinger resists
 //! motion across its axis. During excitation e's run (the stinger is attached only
 //! then) the model gains, with `n` the force direction, `r` the force point and
 //! `P = I − n nᵀ`,

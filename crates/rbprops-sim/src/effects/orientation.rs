@@ -1,5 +1,5 @@
 //! `sensor_misorientation`: each listed sensor is mounted rotated by a small rotation
-//! vector ψ (rad) (research note E8). Its true sensing axes are `R(ψ) s_k`, with
+//! vector ψ (rad) (docs/physics.md, E8). Its true sensing axes are `R(ψ) s_k`, with
 //! `R(ψ) = exp([ψ]×)` (Rodrigues), so channel k reads `(R s_k)ᵀ u(p) = s_kᵀ Rᵀ u(p)`:
 //! a triaxial sensor reports its point's motion rotated by `Rᵀ`. Output rows become
 //! `(R s_k)ᵀ T(p)`.

@@ -1,4 +1,4 @@
-//! Where the sensors and forces really are (research notes E9, E12):
+//! Where the sensors and forces really are (docs/physics.md, E9, E12):
 //!
 //! - `sensor_position`: sensor j sits at `p_j + δp_j`. A row `rᵀ = sᵀT(p)` becomes
 //!   `sᵀT(p + δp) = rᵀ + [0 | −sᵀ[δp]×]` (T is affine in p), with `s` the row's current

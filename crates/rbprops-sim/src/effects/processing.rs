@@ -1,4 +1,4 @@
-//! Processing-induced effects (research note E6).
+//! Processing-induced effects (docs/physics.md, E6).
 //!
 //! - `exponential_window`: force and response records multiplied by `w(t) = e^{−σt}`
 //!   (σ = 1/τ). For a transient inside the record the windowed transform of any signal

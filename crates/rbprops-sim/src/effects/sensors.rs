@@ -1,4 +1,4 @@
-//! The sensor chain beyond geometry (research notes E2, E11):
+//! The sensor chain beyond geometry (docs/physics.md, E2, E11):
 //!
 //! - `transducer_highpass`: the IEPE discharge / AC coupling of a response channel is a
 //!   first-order high-pass, so the channel's FRF is multiplied by `iωτ/(1 + iωτ)`
