@@ -379,3 +379,107 @@ fn model_check_names_the_undeclared_window() {
     // the noise is the only error).
     assert!((v - 0.25).abs() <= 4.0 * se, "σ = {v} ± {se}");
 }
+
+/// The datasets of a UFF file, each with its type, split at the `    -1` delimiter lines.
+fn uff_datasets(text: &str) -> Vec<(u32, String)> {
+    let mut out = Vec::new();
+    let mut lines = text.lines().peekable();
+    while let Some(l) = lines.next() {
+        if l.trim() != "-1" {
+            continue;
+        }
+        let Some(kind) = lines.next() else { break };
+        let ty: u32 = kind
+            .trim()
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        let mut block = format!("{l}\n{kind}\n");
+        for b in lines.by_ref() {
+            block.push_str(b);
+            block.push('\n');
+            if b.trim() == "-1" {
+                break;
+            }
+        }
+        out.push((ty, block));
+    }
+    out
+}
+
+/// Analyser exports split as several programs write them: the node and unit datasets once
+/// in a geometry file, the 58s alone in each data file. With `geometry` in the campaign
+/// file, the campaign gives the same summary as on the complete exports; without it, the
+/// data files are refused by name.
+#[test]
+fn uff_campaign_reads_exports_split_into_geometry_and_data() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    generate(&py, &whole, 2);
+    let split = dir.path().join("split");
+    let data = split.join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    let mut exports: Vec<PathBuf> = std::fs::read_dir(&whole)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| rbprops_cli::campaign::is_uff(p))
+        .collect();
+    exports.sort();
+    assert_eq!(exports.len(), 2);
+    let mut geometry = None;
+    for p in &exports {
+        let sets = uff_datasets(&std::fs::read_to_string(p).unwrap());
+        assert!(sets.iter().any(|(t, _)| *t == 58), "{}: no 58", p.display());
+        let (fun, geo): (Vec<_>, Vec<_>) = sets.into_iter().partition(|(t, _)| *t == 58);
+        assert!(!geo.is_empty(), "{}: nothing but 58s", p.display());
+        let geo: String = geo.into_iter().map(|(_, b)| b).collect();
+        // Every export of the campaign carries the same geometry.
+        assert_eq!(geometry.get_or_insert_with(|| geo.clone()), &geo);
+        let fun: String = fun.into_iter().map(|(_, b)| b).collect();
+        std::fs::write(data.join(p.file_name().unwrap()), fun).unwrap();
+    }
+    std::fs::write(split.join("geometry.unv"), geometry.unwrap()).unwrap();
+    let options = "uncertainty = \"linearised\"\nwindow_time_constant_s = 4.0\n";
+    std::fs::write(whole.join("campaign.toml"), options).unwrap();
+    let summary = |d: &Path| {
+        String::from_utf8(ok(rbprops().arg("campaign").arg(d).output().unwrap()).stdout).unwrap()
+    };
+    let reference = summary(&whole);
+    // Without the geometry the data files cannot be placed.
+    std::fs::write(split.join("campaign.toml"), options).unwrap();
+    let out = rbprops().arg("campaign").arg(&split).output().unwrap();
+    assert!(!out.status.success());
+    // Each data file's row says why (the geometry file alone has no functions).
+    let table = String::from_utf8_lossy(&out.stdout);
+    for name in exports
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy())
+    {
+        let row = table
+            .lines()
+            .find(|l| l.starts_with(&format!("data/{name},")))
+            .unwrap_or_else(|| panic!("no row for data/{name}: {table}"));
+        assert!(row.contains("no coordinates"), "{row}");
+    }
+    std::fs::write(
+        split.join("campaign.toml"),
+        format!("{options}geometry = \"geometry.unv\"\n"),
+    )
+    .unwrap();
+    let got = summary(&split);
+    // Same rows but for the label (data/…) of each recording.
+    let rows = |t: &str| -> Vec<String> {
+        t.lines()
+            .map(|l| {
+                l.split_once(',')
+                    .map(|(_, rest)| rest.to_string())
+                    .unwrap_or_default()
+            })
+            .collect()
+    };
+    assert_eq!(rows(&got), rows(&reference));
+    assert!(got.lines().skip(1).all(|l| l.starts_with("data/")), "{got}");
+}
