@@ -271,9 +271,9 @@ mod tests {
     use super::*;
     use crate::{RigidBodyProperties, Vec3};
 
-    #[test]
-    fn modes_are_mass_normalised_and_diagonalise_k() {
-        let props = RigidBodyProperties::from_moments_and_products(
+    /// Test Case II-like inertia with an offset centre and products.
+    fn test_body() -> RigidBodyProperties {
+        RigidBodyProperties::from_moments_and_products(
             15.69,
             Vec3::new(0.1, -0.05, 0.2),
             [0.357, 0.394, 0.317],
@@ -282,7 +282,12 @@ mod tests {
                 xz: -0.087,
                 yz: -0.069,
             },
-        );
+        )
+    }
+
+    #[test]
+    fn modes_are_mass_normalised_and_diagonalise_k() {
+        let props = test_body();
         let m = props.mass_matrix().0;
         let mut k = Mat6::zeros();
         for (i, v) in [100.0, 200.0, 300.0, 5.0, 7.0, 9.0].iter().enumerate() {
@@ -374,16 +379,7 @@ mod tests {
     /// free–free body (K = 0) has six zero modes, still mass-normalised.
     #[test]
     fn free_directions_are_zero_frequency_modes() {
-        let props = RigidBodyProperties::from_moments_and_products(
-            15.69,
-            Vec3::new(0.1, -0.05, 0.2),
-            [0.357, 0.394, 0.317],
-            crate::inertia::ProductsOfInertia {
-                xy: 0.077,
-                xz: -0.087,
-                yz: -0.069,
-            },
-        );
+        let props = test_body();
         let m = props.mass_matrix().0;
         let mut k = Mat6::zeros();
         for (x, y) in [(0.0, -0.1), (0.3, -0.1), (0.0, 0.2), (0.3, 0.2)] {

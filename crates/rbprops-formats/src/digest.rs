@@ -35,6 +35,21 @@ pub enum DigestCheck {
     },
 }
 
+impl DigestCheck {
+    /// The verdict of comparing the digest `tool` recorded with the one `found` now.
+    fn compare(tool: String, recorded: String, found: String) -> Self {
+        if found == recorded {
+            DigestCheck::Matches { tool }
+        } else {
+            DigestCheck::Mismatch {
+                tool,
+                recorded,
+                found,
+            }
+        }
+    }
+}
+
 fn hex(d: &[u8]) -> String {
     d.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -97,15 +112,7 @@ pub fn check_csv(dir: &Path) -> Result<DigestCheck, FormatError> {
         }
     };
     let found = csv_content_sha256(dir)?;
-    Ok(if found == recorded {
-        DigestCheck::Matches { tool }
-    } else {
-        DigestCheck::Mismatch {
-            tool,
-            recorded,
-            found,
-        }
-    })
+    Ok(DigestCheck::compare(tool, recorded, found))
 }
 
 const UFF_DELIM: &str = "    -1\n";
@@ -166,16 +173,7 @@ pub fn check_uff(bytes: &[u8]) -> DigestCheck {
         return DigestCheck::Unclaimed;
     };
     let found = hex(&sha2::Sha256::digest(&bytes[start..]));
-    let tool = "rbprops (UFF header)".to_string();
-    if found == recorded {
-        DigestCheck::Matches { tool }
-    } else {
-        DigestCheck::Mismatch {
-            tool,
-            recorded,
-            found,
-        }
-    }
+    DigestCheck::compare("rbprops (UFF header)".to_string(), recorded, found)
 }
 
 #[cfg(test)]
