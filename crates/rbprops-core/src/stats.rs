@@ -89,18 +89,25 @@ pub fn chi2_quantile(p: f64, k: f64) -> f64 {
 
 /// x with P(χ²_k > x) = q (bisection on the survival function, accurate for tiny q).
 pub fn chi2_isf(q: f64, k: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0f64, k.max(1.0));
-    while chi2_sf(hi, k) > q {
+    bisect_threshold(k.max(1.0), 1e-12, |x| chi2_sf(x, k) > q)
+}
+
+/// The point in (0, ∞) where `below(x)` turns from true to false, for a monotone `below`:
+/// the bracket [0, hi] is widened by doubling `hi` until `below(hi)` is false, then halved
+/// until its width is under `rel` of its top (at most 200 steps); returns its midpoint.
+fn bisect_threshold(mut hi: f64, rel: f64, below: impl Fn(f64) -> bool) -> f64 {
+    let mut lo = 0.0f64;
+    while below(hi) {
         hi *= 2.0;
     }
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if chi2_sf(mid, k) > q {
+        if below(mid) {
             lo = mid;
         } else {
             hi = mid;
         }
-        if hi - lo < 1e-12 * hi {
+        if hi - lo < rel * hi {
             break;
         }
     }
@@ -179,22 +186,7 @@ pub fn f_cdf(f: f64, d1: f64, d2: f64) -> f64 {
 
 /// The `p` quantile of F(d1, d2) (bisection on the CDF; p in (0, 1)).
 pub fn f_quantile(p: f64, d1: f64, d2: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0f64, 2.0f64);
-    while f_cdf(hi, d1, d2) < p {
-        hi *= 2.0;
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if f_cdf(mid, d1, d2) < p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo < 1e-13 * hi {
-            break;
-        }
-    }
-    0.5 * (lo + hi)
+    bisect_threshold(2.0, 1e-13, |x| f_cdf(x, d1, d2) < p)
 }
 
 /// Probability outside the noise band on each side: that of a normal beyond 3 sd.
