@@ -57,6 +57,7 @@ pub fn jacobian_with(
     r0: &[f64],
     central: bool,
 ) -> Result<DMatrix<f64>, CheckError> {
+    let _t = crate::prof::span(crate::prof::JACOBIAN);
     let n = r0.len();
     let cols: Vec<Result<Vec<f64>, CheckError>> = (0..theta.len())
         .into_par_iter()
@@ -106,6 +107,13 @@ pub fn fit(
     bounds: &Bounds,
     max_iter: usize,
 ) -> Result<Fit, CheckError> {
+    let _t = crate::prof::span(if stage == "baseline" {
+        crate::prof::FIT_BASELINE
+    } else if stage.starts_with("refit") {
+        crate::prof::FIT_REFIT
+    } else {
+        crate::prof::FIT_OTHER
+    });
     let mut theta = theta0.to_vec();
     clamp(&mut theta, bounds);
     let mut r = f(&theta).map_err(|e| CheckError::Fit {
@@ -119,8 +127,10 @@ pub fn fit(
     let mut it = 0;
     while it < max_iter {
         it += 1;
+        let algebra = crate::prof::span(crate::prof::LM_ALGEBRA);
         let a = jm.tr_mul(&jm);
         let g = jm.tr_mul(&DVector::from_column_slice(&r));
+        drop(algebra);
         let dmax = a.diagonal().max().max(f64::MIN_POSITIVE);
         let mut improved = false;
         while lambda < 1e12 {
