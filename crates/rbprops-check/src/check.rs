@@ -364,7 +364,7 @@ fn project_out(j: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
     if q.ncols() == 0 {
         return j.clone();
     }
-    j - q * (q.tr_mul(j))
+    j - q * lm::tr_mul(q, j)
 }
 
 /// Score-test quantities of one candidate at the current model.

@@ -78,7 +78,7 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
         }
     });
     let rv = DVector::from_column_slice(r);
-    let jtj = js.tr_mul(&js);
+    let jtj = crate::lm::gram(&js);
     let jtr = js.tr_mul(&rv);
     let mut jk = vec![DMatrix::<f64>::zeros(p, p); k];
     let mut gk = vec![DVector::<f64>::zeros(p); k];

@@ -81,6 +81,7 @@ pub mod locate;
 pub mod noise;
 pub mod params;
 pub mod predict;
+pub mod prof;
 pub mod report;
 pub mod resonance;
 

@@ -302,6 +302,7 @@ pub fn estimate(
     n_ch: usize,
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
+    let _t = crate::prof::span(crate::prof::NOISE);
     let precision = DataPrecision::detect(values);
     let q = precision_of(&precision, values, values);
     let fits = fits_of(values, values, &q, n_exc * n_ch, n_lines)?;
@@ -342,6 +343,7 @@ pub fn estimate_from_residual(
     n_ch: usize,
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
+    let _t = crate::prof::span(crate::prof::NOISE);
     let precision = DataPrecision::detect(values);
     let q = precision_of(&precision, values, prediction);
     let residual: Vec<c64> = values.iter().zip(prediction).map(|(y, m)| y - m).collect();

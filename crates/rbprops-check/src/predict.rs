@@ -140,6 +140,7 @@ pub fn predict(
     layout: &Layout,
     effects: &[Box<dyn Effect>],
 ) -> Result<Vec<c64>, CheckError> {
+    let _t = crate::prof::span(crate::prof::PREDICT);
     // Same application order as rbprops-sim's parse_effects: by `order()`, then as given.
     let mut ordered: Vec<&Box<dyn Effect>> = effects.iter().collect();
     ordered.sort_by_key(|e| e.order());

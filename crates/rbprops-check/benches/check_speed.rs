@@ -1,0 +1,162 @@
+//! Model-check speed on 1000-line × 9-channel × 3-excitation recordings with three
+//! concealed effects and 1 % noise, made by the independent reference generator
+//! (`fixtures/model-check/bench/`, see its README).
+//!
+//! ```sh
+//! RAYON_NUM_THREADS=2 cargo bench -p rbprops-check --bench check_speed \
+//!     [--features phase-timing] -- [--case STEM] [--repeat N]
+//! ```
+//!
+//! Prints per case: wall time, the effects named against the concealed ones, χ²/ν
+//! before → after, the time line of the check's stages (from its progress lines), a
+//! digest of the report (equal digests at 1 and 2 threads: the output does not depend
+//! on the thread count) and, with `phase-timing`, thread-seconds per phase. Then the
+//! anatomy of one model evaluation (set-up models vs the per-line solve).
+
+#[path = "bench_recording.rs"]
+mod bench_recording;
+
+use bench_recording::{nominal, recording, CASES};
+use rbprops_check::{check, prof, CheckOptions, Progress};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+/// FNV-1a of the report's JSON: a short stand-in for comparing whole reports.
+fn digest(s: &str) -> u64 {
+    s.bytes().fold(0xcbf29ce484222325u64, |h, b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut only: Option<String> = None;
+    let mut repeat = 1usize;
+    let mut i = 0;
+    while i < args.len() {
+        match args[i].as_str() {
+            "--case" => {
+                only = args.get(i + 1).cloned();
+                i += 1;
+            }
+            "--repeat" => {
+                repeat = args
+                    .get(i + 1)
+                    .and_then(|s| s.parse().ok())
+                    .expect("--repeat N");
+                i += 1;
+            }
+            _ => {} // `cargo bench` passes `--bench`; filters are not used
+        }
+        i += 1;
+    }
+    let spec = nominal();
+    println!(
+        "model-check speed: {} rayon threads{}",
+        rayon::current_num_threads(),
+        if prof::totals().is_some() {
+            ", phase timing on"
+        } else {
+            ""
+        }
+    );
+    let mut times = Vec::new();
+    for (stem, concealed) in CASES {
+        if only.as_deref().is_some_and(|o| o != stem) {
+            continue;
+        }
+        let (geometry, frf) = recording(stem);
+        for _ in 0..repeat {
+            prof::reset();
+            let t0 = Instant::now();
+            let lines: Arc<Mutex<Vec<(f64, String)>>> = Arc::default();
+            let sink = lines.clone();
+            let opts = CheckOptions {
+                progress: Progress::new(move |l| {
+                    sink.lock()
+                        .unwrap()
+                        .push((t0.elapsed().as_secs_f64(), l.to_string()))
+                }),
+                ..Default::default()
+            };
+            let out = check(&spec, &geometry, &frf, &opts).expect("check");
+            let dt = t0.elapsed().as_secs_f64();
+            times.push((stem, dt));
+            let r = &out.report;
+            let mut named: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
+            for f in &r.ambiguous {
+                named.push(format!("{{{}}}", f.ids.join("|")));
+            }
+            let missed: Vec<&str> = concealed
+                .iter()
+                .copied()
+                .filter(|c| !named.iter().any(|n| n.contains(c)))
+                .collect();
+            println!("\n== {stem}: {dt:.2} s");
+            println!("  concealed {concealed:?}");
+            println!("  named     {named:?}; missed {missed:?}");
+            println!(
+                "  χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}), floor reached: {}",
+                r.chi2_nu_before,
+                r.chi2_nu_after,
+                r.noise_band[0],
+                r.noise_band[1],
+                r.noise_floor_reached
+            );
+            let json = serde_json::to_string(r).expect("report json");
+            println!("  report digest {:016x}", digest(&json));
+            println!("  stages (s at the end of each; Δ since the previous):");
+            let mut last = 0.0;
+            for (t, l) in lines.lock().unwrap().iter() {
+                println!("    {t:7.2} (+{:6.2})  {l}", t - last);
+                last = *t;
+            }
+            println!("    {dt:7.2} (+{:6.2})  done", dt - last);
+            if let Some(tot) = prof::totals() {
+                println!("  phases (calls, thread-seconds; nested, see prof::PHASES):");
+                for ((n, s), name) in tot.iter().zip(prof::PHASES) {
+                    println!("    {name:<45} {n:>7} {s:9.2}");
+                }
+            }
+        }
+    }
+    if !times.is_empty() {
+        let worst = times.iter().map(|t| t.1).fold(0.0, f64::max);
+        let mut v: Vec<f64> = times.iter().map(|t| t.1).collect();
+        v.sort_by(f64::total_cmp);
+        println!(
+            "\nsummary: {} runs, median {:.2} s, worst {:.2} s",
+            v.len(),
+            v[v.len() / 2],
+            worst
+        );
+    }
+    model_evaluation_anatomy(&spec);
+}
+
+/// One model evaluation of the nominal spec on the bench axis, and its set-up models
+/// alone (mass, stiffness, damping, modes): the remainder is the per-line solve and the
+/// assembly of the FRFs.
+fn model_evaluation_anatomy(spec: &rbprops_sim::CampaignSpec) {
+    let (geometry, frf) = recording(CASES[0].0);
+    let layout = rbprops_check::predict::Layout::new(spec, &geometry, &frf).expect("layout");
+    let n = 200;
+    let t0 = Instant::now();
+    for _ in 0..n {
+        std::hint::black_box(rbprops_check::predict::predict(spec, &layout, &[]).unwrap());
+    }
+    let whole = t0.elapsed().as_secs_f64() / n as f64;
+    let t0 = Instant::now();
+    for _ in 0..n {
+        std::hint::black_box(
+            rbprops_sim::simulate::build_models(spec, &layout.spec_geometry, &[]).unwrap(),
+        );
+    }
+    let models = t0.elapsed().as_secs_f64() / n as f64;
+    println!(
+        "\none model evaluation ({} values): {:.3} ms, of which set-up models {:.3} ms",
+        layout.n_values(),
+        whole * 1e3,
+        models * 1e3
+    );
+}

@@ -1,0 +1,102 @@
+//! Where the model check spends its time, for the `check_speed` bench. Compiled to
+//! no-ops unless the `phase-timing` feature is on, so the library pays nothing for it.
+//!
+//! Each phase accumulates the wall time of its calls summed over the threads that made
+//! them (thread-seconds: with two threads busy, a phase can exceed the elapsed time) and
+//! its number of calls. Phases nest: an LM fit's time includes the Jacobians and model
+//! evaluations it makes.
+
+/// Names of the phases, by index.
+pub const PHASES: [&str; 7] = [
+    "model evaluations (predict)",
+    "finite-difference Jacobians",
+    "LM fit: baseline",
+    "LM fit: candidate refits",
+    "LM fit: other (backward, gauges)",
+    "LM linear algebra (normal equations, steps)",
+    "noise model (estimate, re-estimate)",
+];
+
+/// Phase indices (see [`PHASES`]).
+pub const PREDICT: usize = 0;
+pub const JACOBIAN: usize = 1;
+pub const FIT_BASELINE: usize = 2;
+pub const FIT_REFIT: usize = 3;
+pub const FIT_OTHER: usize = 4;
+pub const LM_ALGEBRA: usize = 5;
+pub const NOISE: usize = 6;
+
+#[cfg(feature = "phase-timing")]
+mod imp {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    const N: usize = super::PHASES.len();
+    static NANOS: [AtomicU64; N] = [const { AtomicU64::new(0) }; N];
+    static CALLS: [AtomicU64; N] = [const { AtomicU64::new(0) }; N];
+
+    /// Charges the time from its creation to its drop to a phase.
+    pub struct Span {
+        phase: usize,
+        start: std::time::Instant,
+    }
+
+    impl Drop for Span {
+        fn drop(&mut self) {
+            let t = self.start.elapsed().as_nanos() as u64;
+            NANOS[self.phase].fetch_add(t, Ordering::Relaxed);
+            CALLS[self.phase].fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    #[inline]
+    pub fn span(phase: usize) -> Span {
+        Span {
+            phase,
+            start: std::time::Instant::now(),
+        }
+    }
+
+    pub fn totals() -> Option<Vec<(u64, f64)>> {
+        Some(
+            (0..N)
+                .map(|i| {
+                    (
+                        CALLS[i].load(Ordering::Relaxed),
+                        NANOS[i].load(Ordering::Relaxed) as f64 * 1e-9,
+                    )
+                })
+                .collect(),
+        )
+    }
+
+    pub fn reset() {
+        for i in 0..N {
+            NANOS[i].store(0, Ordering::Relaxed);
+            CALLS[i].store(0, Ordering::Relaxed);
+        }
+    }
+}
+
+#[cfg(not(feature = "phase-timing"))]
+mod imp {
+    pub struct Span;
+
+    #[inline(always)]
+    pub fn span(_phase: usize) -> Span {
+        Span
+    }
+
+    pub fn totals() -> Option<Vec<(u64, f64)>> {
+        None
+    }
+
+    pub fn reset() {}
+}
+
+/// Zeroes the counters (between the bench's cases).
+pub use imp::reset;
+/// `(calls, thread-seconds)` per phase since the last [`reset`], or `None` without
+/// `phase-timing`.
+pub use imp::totals;
+/// `let _t = span(PHASE);` charges the time until `_t` is dropped to the phase (a
+/// no-op without `phase-timing`).
+pub use imp::{span, Span};
