@@ -14,6 +14,7 @@ use bench_recording::{nominal, recording, CASES};
 use rbprops_check::{check, CheckOptions};
 
 #[test]
+#[ignore = "long: two full checks of a 1000-line recording (minutes in a debug build); run with --ignored"]
 fn bench_recording_report_does_not_depend_on_thread_count() {
     let (stem, concealed) = CASES[0];
     let spec = nominal();
