@@ -63,3 +63,75 @@ pub fn get(rec: &RunRecord) -> Result<Option<CoherenceGrid>> {
     }
     Ok(Some(grid))
 }
+
+/// Sets up `modal-fit --weight coherence` on a record read from `source`: the fit options
+/// get the record's coherence as line weights (`rbprops_modal::weighting`, 1 − γ² floored
+/// at single precision, `rbprops_core::CoherenceNoise::SINGLE_PRECISION_FLOOR`), and the
+/// processing topic records the weighting, so the output says how it was fitted.
+/// Errors, naming `source`, when the record has no coherence or a value is not one.
+pub fn weight_fit(
+    rec: &mut RunRecord,
+    opts: &mut rbprops_modal::FitOptions,
+    source: &str,
+) -> Result<()> {
+    use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
+    let Some(grid) = get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))? else {
+        bail!(
+            "{source}: --weight coherence, but the recording holds no coherence (a UFF export needs coherence datasets, function type 6, beside its FRFs; an MCAP or CSV run the {} topic)",
+            topics::COHERENCE
+        );
+    };
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let weighting = rbprops_modal::CoherenceWeighting::new(
+        grid,
+        frf.n_channels,
+        frf.n_lines(),
+        rbprops_core::CoherenceNoise::SINGLE_PRECISION_FLOOR,
+    )
+    .map_err(|e| {
+        // Name the excitation and channel by their ids, not their indices.
+        anyhow::anyhow!("{source}: coherence topic: {}", name_ids(&e, &geometry))
+    })?;
+    let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    processing.line_weighting = Some(LineWeightingRecord {
+        weight: "coherence".into(),
+        one_minus_coherence_floor: weighting.floor(),
+        unweighted_excitations: weighting.unweighted_excitations(),
+    });
+    rec.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
+    opts.coherence_weighting = Some(std::sync::Arc::new(weighting));
+    Ok(())
+}
+
+/// `excitation E, channel C, …` with the ids of excitation index E and channel index C.
+fn name_ids(msg: &str, geometry: &Geometry) -> String {
+    let mut out = msg.to_string();
+    let mut words = msg.split(", ");
+    if let Some(e) = words.next().and_then(|w| w.strip_prefix("excitation ")) {
+        if let Some(x) = e
+            .parse::<usize>()
+            .ok()
+            .and_then(|i| geometry.excitations.get(i))
+        {
+            out = out.replacen(
+                &format!("excitation {e}"),
+                &format!("excitation '{}'", x.id),
+                1,
+            );
+        }
+    }
+    if let Some(c) = msg
+        .split(", ")
+        .find_map(|w| w.strip_prefix("channel "))
+        .and_then(|c| c.split(&[',', ':'][..]).next())
+    {
+        if let Some(x) = c
+            .parse::<usize>()
+            .ok()
+            .and_then(|i| geometry.channels.get(i))
+        {
+            out = out.replacen(&format!("channel {c}"), &format!("channel '{}'", x.id), 1);
+        }
+    }
+    out
+}

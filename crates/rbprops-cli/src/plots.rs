@@ -240,6 +240,22 @@ pub fn modal_fit(
     frf: &FrfSet,
     out: &rbprops_modal::ModalFitOutput,
 ) -> Result<Vec<(String, String)>> {
+    modal_fit_shaded(geometry, frf, out, None)
+}
+
+/// The default threshold of [`modal_fit_shaded`]'s shading: a line with γ² < 0.9 has
+/// `(1 − γ²)/γ² > 0.11`, an FRF error above a third of |H| per average (so above 12 % with
+/// 8 averages), which a reader should not take at face value.
+pub const LOW_COHERENCE: f64 = 0.9;
+
+/// [`modal_fit`] with the measured coherence `(grid, threshold)`: each channel's panel
+/// of the measured vs synthesised FRFs shades the lines where γ² < threshold.
+pub fn modal_fit_shaded(
+    geometry: &Geometry,
+    frf: &FrfSet,
+    out: &rbprops_modal::ModalFitOutput,
+    coherence: Option<(&crate::coherence::CoherenceGrid, f64)>,
+) -> Result<Vec<(String, String)>> {
     use rbprops_modal::StabilityClass as S;
     use rbprops_plot::{
         stabilisation_diagram, BackgroundCurve, PoleClass, StabilisationDiagram, StabilisationPole,
@@ -298,7 +314,10 @@ pub fn modal_fit(
             stabilisation_diagram(&diagram)?,
         ));
         let band = (d.frequency_hz[0], *d.frequency_hz.last().unwrap());
-        let panels = fit_panels(geometry, frf, e, band, &d.frequency_hz, &d.synthesised);
+        let mut panels = fit_panels(geometry, frf, e, band, &d.frequency_hz, &d.synthesised);
+        if let Some((grid, threshold)) = coherence {
+            shade_low_coherence(&mut panels, frf, &grid[e], band, threshold);
+        }
         let overlay = rbprops_plot::FrfPanels {
             title: format!("Measured vs synthesised FRFs, excitation {}", d.excitation),
             magnitude_label: format!("|H| [{}]", frf.quantity.unit()),
@@ -311,6 +330,30 @@ pub fn modal_fit(
         ));
     }
     Ok(plots)
+}
+
+/// Gives each channel's panel its coherence inside `band` as the quality measure
+/// shaded below `threshold` (channels without coherence get none).
+fn shade_low_coherence(
+    panels: &mut [rbprops_plot::FrfPanel],
+    frf: &FrfSet,
+    row: &[Option<Vec<f64>>],
+    band: (f64, f64),
+    threshold: f64,
+) {
+    let lines: Vec<usize> = (0..frf.n_lines())
+        .filter(|&l| frf.frequency_hz[l] >= band.0 && frf.frequency_hz[l] <= band.1)
+        .collect();
+    for (panel, g) in panels.iter_mut().zip(row) {
+        if let Some(g) = g {
+            panel.quality = Some(rbprops_plot::LineQuality {
+                frequency_hz: lines.iter().map(|&l| frf.frequency_hz[l]).collect(),
+                value: lines.iter().map(|&l| g[l]).collect(),
+                threshold,
+                label: format!("γ² < {threshold}"),
+            });
+        }
+    }
 }
 
 /// One panel per channel of excitation `e`: the measured FRF in `band` (solid) and the
@@ -360,6 +403,7 @@ fn fit_panels(
             FrfPanel {
                 title: format!("channel {}", ch.id),
                 traces,
+                quality: None,
             }
         })
         .collect()

@@ -33,7 +33,7 @@ pub use geometry::{
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
-pub use noise::{NoiseModel, NormalStream};
+pub use noise::{CoherenceNoise, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
 

@@ -186,6 +186,25 @@ pub struct ProcessingRecord {
     /// records (force window, if any, short against τ). Absent: no window.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub exponential_window_s: Option<f64>,
+    /// The line weighting `modal-fit` used for its least-squares fits; absent: the
+    /// default (`none`: relative weights `1/|H|`, no measured quality).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub line_weighting: Option<LineWeightingRecord>,
+}
+
+/// A measured-quality weighting of the FRF lines in `modal-fit` (`--weight coherence`):
+/// every line's least-squares weight is multiplied by `√(γ²/(1 − γ²))`, `γ²` the
+/// coherence of the line (averaged over the channels as relative variances, see
+/// `rbprops_core::CoherenceNoise`), with `1 − γ²` floored at `one_minus_coherence_floor`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct LineWeightingRecord {
+    /// `coherence`.
+    pub weight: String,
+    /// Floor of `1 − γ²` (the precision the coherence is trusted to).
+    pub one_minus_coherence_floor: f64,
+    /// Excitations with no coherence in the recording, fitted with the default weights.
+    #[serde(default)]
+    pub unweighted_excitations: usize,
 }
 
 /// Topic name of [`ProcessingRecord`].

@@ -15,6 +15,9 @@ pub struct BandData {
     pub channels: Vec<Vec<c64>>,
     /// Index of the band's first line in the full axis.
     pub first_line: usize,
+    /// Measured-quality factor of each line multiplying the fits' default weights
+    /// (`crate::weighting`); `None`: default weights.
+    pub line_quality: Option<Vec<f64>>,
 }
 
 impl BandData {
@@ -76,7 +79,21 @@ impl BandData {
             frequency_hz,
             channels,
             first_line: first,
+            line_quality: None,
         })
+    }
+
+    /// This band with the coherence factors of `excitations` (`crate::weighting`), when
+    /// `weighting` is given and they have coherence; unchanged otherwise.
+    pub fn with_line_factors(
+        mut self,
+        weighting: Option<&crate::weighting::CoherenceWeighting>,
+        excitations: &[usize],
+    ) -> Self {
+        if let Some(q) = weighting.and_then(|w| w.line_factors(excitations)) {
+            self.line_quality = Some(q[self.first_line..self.first_line + self.n_lines()].to_vec());
+        }
+        self
     }
 
     /// The lines up to `f_hi` Hz (a sub-band for pole estimation).
@@ -88,6 +105,7 @@ impl BandData {
             omega: self.omega[..n].to_vec(),
             channels: self.channels.iter().map(|h| h[..n].to_vec()).collect(),
             first_line: self.first_line,
+            line_quality: self.line_quality.as_ref().map(|q| q[..n].to_vec()),
         }
     }
 
@@ -157,6 +175,10 @@ impl BandData {
                 .map(|h| keep.iter().map(|&k| h[k]).collect())
                 .collect(),
             first_line: self.first_line,
+            line_quality: self
+                .line_quality
+                .as_ref()
+                .map(|q| keep.iter().map(|&k| q[k]).collect()),
         }
     }
 

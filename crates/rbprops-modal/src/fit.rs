@@ -864,6 +864,7 @@ fn setup_poles(
         excitation: name.clone(),
         reason: "no excitation belongs to this set-up".into(),
     })?;
+    let band = band.with_line_factors(opts.coherence_weighting.as_deref(), &members);
     if chans.is_empty() {
         return Err(ModalError::BadInput {
             excitation: name,
@@ -882,7 +883,8 @@ fn fit_one(
 ) -> Result<ExcitationFit, ModalError> {
     let ex = &geometry.excitations[e];
     let name = ex.id.as_str();
-    let band = BandData::extract(frf, e, opts.band_hz, name)?;
+    let band = BandData::extract(frf, e, opts.band_hz, name)?
+        .with_line_factors(opts.coherence_weighting.as_deref(), &[e]);
     let (live, mut warnings) = live_channels(&band, geometry, name);
     if live.is_empty() {
         return Err(ModalError::BadInput {

@@ -43,6 +43,7 @@ mod simd;
 pub mod stabilisation;
 mod tallmul;
 pub mod testdata;
+pub mod weighting;
 
 pub use error::ModalError;
 pub use fit::{
@@ -52,3 +53,4 @@ pub use fit::{
 pub use options::{FitOptions, Method, PoleMode, StabilisationTolerances};
 pub use pole::{mac, mpc, Pole};
 pub use stabilisation::{DiagramPole, StabilisationDiagram, StabilityClass};
+pub use weighting::CoherenceWeighting;

@@ -839,6 +839,15 @@ fn sweep_with_roots(
                 .collect()
         })
         .collect();
+    // With measured coherence, w² is multiplied by the line's factor squared (q_k² ∝
+    // γ²/(1 − γ²), `crate::weighting`): the inverse relative variance of the line.
+    let weights = match &band.line_quality {
+        None => weights,
+        Some(q) => weights
+            .into_iter()
+            .map(|w| w.iter().zip(q).map(|(w2, q)| w2 * q * q).collect())
+            .collect(),
+    };
     let s = crate::prof::time(4, || sums(&theta, chans, &weights, n_max));
     // All normal matrices are nested in the order (leading blocks), so the reduction
     // is updated one basis function at a time (see `Factors`).

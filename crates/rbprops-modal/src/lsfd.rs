@@ -85,6 +85,17 @@ pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
 }
 }
 
+/// The line weights of `chans` on `band`: [`line_weights`], times the band's measured
+/// quality factor `q_k ∝ √(γ²/(1 − γ²))` when it has one (`crate::weighting`), so that
+/// `w_k ∝ 1/σ_k` with `σ_k² ∝ |H|²(1 − γ²)/γ²`.
+pub fn band_line_weights(band: &BandData, chans: &[Vec<c64>]) -> Vec<f64> {
+    let w = line_weights(chans);
+    match &band.line_quality {
+        None => w,
+        Some(q) => w.iter().zip(q).map(|(w, q)| w * q).collect(),
+    }
+}
+
 /// `(1/(iω − λ), 1/(iω − λ*))` in real arithmetic (one real division per term).
 #[inline]
 fn recips(p: c64, w: f64) -> (c64, c64) {
@@ -243,7 +254,7 @@ pub fn fit_residues(
     chans: &[Vec<c64>],
     res: Residuals,
 ) -> ResidueFit {
-    let w = line_weights(chans);
+    let w = band_line_weights(band, chans);
     let (ls, synthesised) = match blocked::solve(poles, band, chans, res, &w) {
         Some(s) => s,
         None => solve_tall(poles, band, chans, res, &w),
@@ -605,7 +616,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let n = band.n_lines();
     let no = chans.len();
     let data = unit_rms(chans);
-    let lw = std::sync::Arc::new(line_weights(&data));
+    let lw = std::sync::Arc::new(band_line_weights(band, &data));
     let bw = stack_data(&data, &lw);
     let (qre, qim): (Vec<f64>, Vec<f64>) = band
         .quantity_factor()

@@ -128,6 +128,11 @@ pub struct FitOptions {
     /// or a pole shows multiplicity (a merged, split or inseparable pair); the records
     /// say so in their warnings.
     pub auto_poly_reference: bool,
+    /// Weight the lines by the measured coherence (`crate::weighting`) in the LSCF pole
+    /// estimate, the pole refinement and the LSFD residues; `None` (default): the
+    /// default relative weights `1/|H|`. LSCF and LSCE only (LSCE's time-domain pole
+    /// estimate itself is not weighted).
+    pub coherence_weighting: Option<std::sync::Arc<crate::weighting::CoherenceWeighting>>,
 }
 
 impl Default for FitOptions {
@@ -149,6 +154,7 @@ impl Default for FitOptions {
             // poly-reference fit there is not yet as complete as the single-reference
             // one (no pole refinement, no lower-quarter safety sweeps).
             auto_poly_reference: false,
+            coherence_weighting: None,
         }
     }
 }
@@ -163,6 +169,14 @@ impl FitOptions {
         }
         if self.max_order < 2 {
             return bad(format!("max_order {} < 2", self.max_order));
+        }
+        if self.coherence_weighting.is_some()
+            && matches!(self.method, Method::Plscf | Method::Circle)
+        {
+            return bad(format!(
+                "coherence weighting is available with the lscf and lsce methods, not {}",
+                self.method.name()
+            ));
         }
         if self.n_modes == Some(0) {
             return bad("n_modes = 0".into());

@@ -58,7 +58,9 @@ pub use bar::{bar_chart, BarChart, BarSeries, ReferenceLine};
 pub use error::PlotError;
 pub use heatmap::{heat_map, viridis, HeatMap};
 pub use line::{line_plot, LinePlot, Series, VerticalMarker};
-pub use panels::{frf_panels, FrfPanel, FrfPanels, FrfTrace};
+pub use panels::{
+    frf_panels, low_quality_spans, FrfPanel, FrfPanels, FrfTrace, LineQuality, LOW_QUALITY_SHADE,
+};
 pub use scatter::{scatter_plot, ScatterPlot, ScatterSeries};
 pub use stabilisation::{
     stabilisation_diagram, BackgroundCurve, PoleClass, StabilisationDiagram, StabilisationPole,

@@ -1,14 +1,14 @@
 //! Small multiples of FRFs: one panel per channel, magnitude over phase, so that a fit
 //! can be read against its data channel by channel instead of under 17 other curves.
 
-use plotters::element::{PathElement, Text};
+use plotters::element::{PathElement, Rectangle, Text};
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::RGBAColor;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_mesh, footnote, plot_name, render_err, render_svg, skipped_note,
-    text_style, Margins, Root, TITLE_SIZE,
+    chart, clip_polyline, draw_mesh, fill, footnote, plot_name, render_err, render_svg,
+    skipped_note, text_style, Margins, Root, TITLE_SIZE,
 };
 use crate::error::PlotError;
 use crate::line::check_series;
@@ -35,6 +35,61 @@ pub struct FrfPanel {
     /// E.g. the channel id.
     pub title: String,
     pub traces: Vec<FrfTrace>,
+    /// A per-line quality measure (the measured coherence γ²): the lines where it is
+    /// below its threshold are shaded behind the curves.
+    pub quality: Option<LineQuality>,
+}
+
+/// A per-line quality measure of a panel and the level below which a line is shaded
+/// (see [`low_quality_spans`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct LineQuality {
+    pub frequency_hz: Vec<f64>,
+    /// The measure per line (e.g. γ² in [0, 1]); NaN lines are not shaded.
+    pub value: Vec<f64>,
+    /// Lines with `value < threshold` are shaded (0.9 for coherence by default).
+    pub threshold: f64,
+    /// Legend text of the shading, e.g. "γ² < 0.9".
+    pub label: String,
+}
+
+/// Colour of the low-quality shading: a light amber, behind every curve.
+pub const LOW_QUALITY_SHADE: Rgb = Rgb(255, 226, 180);
+
+/// The frequency spans `[lo, hi]` to shade: each run of consecutive lines with
+/// `value < threshold` covers its lines out to halfway to the neighbouring lines (each
+/// line stands for the band around it; at the ends of the axis, half the spacing to the
+/// one neighbour). Runs come in ascending frequency; a single line's span is its own
+/// half-spacings.
+pub fn low_quality_spans(q: &LineQuality) -> Vec<(f64, f64)> {
+    let f = &q.frequency_hz;
+    let n = f.len().min(q.value.len());
+    let half_below = |k: usize| match (k > 0, k + 1 < n) {
+        (true, _) => 0.5 * (f[k] - f[k - 1]),
+        (false, true) => 0.5 * (f[k + 1] - f[k]),
+        _ => 0.0,
+    };
+    let half_above = |k: usize| match (k + 1 < n, k > 0) {
+        (true, _) => 0.5 * (f[k + 1] - f[k]),
+        (false, true) => 0.5 * (f[k] - f[k - 1]),
+        _ => 0.0,
+    };
+    let low = |k: usize| q.value[k] < q.threshold;
+    let mut spans = Vec::new();
+    let mut k = 0;
+    while k < n {
+        if !low(k) {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k + 1 < n && low(k + 1) {
+            k += 1;
+        }
+        spans.push((f[start] - half_below(start), f[k] + half_above(k)));
+        k += 1;
+    }
+    spans
 }
 
 /// Input of [`frf_panels`].
@@ -102,7 +157,7 @@ pub fn frf_panels(p: &FrfPanels) -> Result<String, PlotError> {
             title_style,
         ))
         .map_err(render_err(&plot))?;
-        draw_shared_legend(&plot, root, &p.panels[0], 44)?;
+        draw_shared_legend(&plot, root, &p.panels, 44)?;
         let (_, grid) = root.split_vertically(header);
         let (grid, _) = grid.split_vertically(cell.height * rows as u32);
         let cells = grid.split_evenly((rows, columns));
@@ -128,6 +183,8 @@ struct Prepared {
     y_mag: AxisSpec,
     y_phase: AxisSpec,
     skipped: usize,
+    /// Low-quality spans to shade ([`low_quality_spans`]).
+    spans: Vec<(f64, f64)>,
 }
 
 fn prepare(plot: &str, panel: &FrfPanel) -> Result<Prepared, PlotError> {
@@ -178,6 +235,13 @@ fn prepare(plot: &str, panel: &FrfPanel) -> Result<Prepared, PlotError> {
         magnitude,
         phase,
         skipped,
+        spans: match &panel.quality {
+            Some(q) => {
+                check_series(plot, &q.label, q.frequency_hz.len(), q.value.len())?;
+                low_quality_spans(q)
+            }
+            None => Vec::new(),
+        },
     })
 }
 
@@ -230,6 +294,7 @@ fn draw_panel(
         magnitude_label,
         true,
     )?;
+    shade(plot, &mut ch, &prep.spans, &prep.x, &prep.y_mag)?;
     for (i, (t, pts)) in panel.traces.iter().zip(&prep.magnitude).enumerate() {
         let style = stroke(t.color.unwrap_or_else(|| Rgb::palette(i)), t.style, 2);
         let pieces = clip_polyline(pts, &prep.x, &prep.y_mag);
@@ -251,6 +316,7 @@ fn draw_panel(
         "Phase [°]",
         true,
     )?;
+    shade(plot, &mut ch, &prep.spans, &prep.x, &prep.y_phase)?;
     for (i, (t, pts)) in panel.traces.iter().zip(&prep.phase).enumerate() {
         let style = stroke(t.color.unwrap_or_else(|| Rgb::palette(i)), t.style, 1);
         // Phase wraps at ±180°: a jump of more than 180° between lines is a wrap, not
@@ -260,6 +326,33 @@ fn draw_panel(
         ch.draw_series(pieces.into_iter().map(|q| PathElement::new(q, style)))
             .map_err(render_err(plot))?;
     }
+    Ok(())
+}
+
+/// The low-quality spans as light rectangles over the whole height of the chart, clipped
+/// to its frequency axis.
+fn shade(
+    plot: &str,
+    ch: &mut crate::canvas::Chart<'_, '_>,
+    spans: &[(f64, f64)],
+    x: &AxisSpec,
+    y: &AxisSpec,
+) -> Result<(), PlotError> {
+    // The frequency axis is linear: plot space is Hz.
+    let (x0, x1) = (x.lo, x.hi);
+    let (y0, y1) = (y.lo, y.hi);
+    let colour = RGBAColor(
+        LOW_QUALITY_SHADE.0,
+        LOW_QUALITY_SHADE.1,
+        LOW_QUALITY_SHADE.2,
+        1.0,
+    );
+    let rects = spans
+        .iter()
+        .map(|&(a, b)| (a.max(x0), b.min(x1)))
+        .filter(|(a, b)| b > a)
+        .map(|(a, b)| Rectangle::new([(a, y1), (b, y0)], fill(colour)));
+    ch.draw_series(rects).map_err(render_err(plot))?;
     Ok(())
 }
 
@@ -282,9 +375,10 @@ fn break_wraps(pts: &[Option<(f64, f64)>]) -> Vec<Option<(f64, f64)>> {
 fn draw_shared_legend(
     plot: &str,
     root: &Root<'_>,
-    panel: &FrfPanel,
+    panels: &[FrfPanel],
     y: i32,
 ) -> Result<(), PlotError> {
+    let panel = &panels[0];
     let label = text_style(
         14,
         RGBAColor(0, 0, 0, 1.0),
@@ -303,6 +397,22 @@ fn draw_shared_legend(
             .map(|(w, _)| w as i32)
             .unwrap_or(8 * t.name.len() as i32);
         x += 34 + w + 24;
+    }
+    // The shading's legend entry, when any panel has a quality measure.
+    if let Some(q) = panels.iter().find_map(|p| p.quality.as_ref()) {
+        let colour = RGBAColor(
+            LOW_QUALITY_SHADE.0,
+            LOW_QUALITY_SHADE.1,
+            LOW_QUALITY_SHADE.2,
+            1.0,
+        );
+        root.draw(&Rectangle::new(
+            [(x, mid - 7), (x + 28, mid + 7)],
+            fill(colour),
+        ))
+        .map_err(render_err(plot))?;
+        root.draw(&Text::new(q.label.clone(), (x + 34, mid), label))
+            .map_err(render_err(plot))?;
     }
     Ok(())
 }

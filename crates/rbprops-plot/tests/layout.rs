@@ -160,6 +160,7 @@ fn panels(n: usize) -> FrfPanels {
                             ..Default::default()
                         },
                     ],
+                    ..Default::default()
                 }
             })
             .collect(),

@@ -18,6 +18,15 @@ enum MethodArg {
     Circle,
 }
 
+#[derive(Clone, Copy, ValueEnum, PartialEq)]
+enum WeightArg {
+    /// Relative weights 1/|H| on every line (default).
+    None,
+    /// 1/|H| times √(γ²/(1 − γ²)) from the recording's coherence: a line's weight is
+    /// 1/σ with the H1 noise σ²/|H|² ≈ (1 − γ²)/(n_d γ²) (lscf and lsce).
+    Coherence,
+}
+
 #[derive(Clone, Copy, ValueEnum)]
 enum PolesArg {
     /// Poles estimated per excitation.
@@ -53,6 +62,9 @@ struct Args {
     max_order: Option<usize>,
     #[arg(long, value_enum, default_value = "excitation")]
     poles: PolesArg,
+    /// Line weights of the least-squares fits.
+    #[arg(long, value_enum, default_value = "none")]
+    weight: WeightArg,
     /// Leave out the lower/upper residual terms of the residue fit.
     #[arg(long)]
     no_residuals: bool,
@@ -63,6 +75,10 @@ struct Args {
     /// Write stabilisation diagrams and measured-vs-synthesised FRF overlays here.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// In the --plot overlays, shade the lines whose measured coherence γ² is below this
+    /// (when the recording has coherence).
+    #[arg(long, value_name = "GAMMA2", default_value_t = rbprops_cli::plots::LOW_COHERENCE)]
+    low_coherence: f64,
 }
 
 fn main() -> std::process::ExitCode {
@@ -97,6 +113,9 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }
+        if args.weight == WeightArg::Coherence {
+            rbprops_cli::coherence::weight_fit(&mut rec, &mut opts, &input.name)?;
+        }
         let out = rbprops_cli::stages::modal_fit_windowed(
             &mut rec,
             &opts,
@@ -118,7 +137,12 @@ fn main() -> std::process::ExitCode {
         }
         if let Some(dir) = &args.plot {
             let (geometry, frf) = rec.require_geometry_and_frf()?;
-            rbprops_cli::write_plots(dir, &rbprops_cli::plots::modal_fit(&geometry, frf, &out)?)?;
+            let coherence = rbprops_cli::coherence::get(&rec)?;
+            let shading = coherence.as_ref().map(|g| (g, args.low_coherence));
+            rbprops_cli::write_plots(
+                dir,
+                &rbprops_cli::plots::modal_fit_shaded(&geometry, frf, &out, shading)?,
+            )?;
         }
         rbprops_cli::write_output(&rec, args.output.as_deref())
     })

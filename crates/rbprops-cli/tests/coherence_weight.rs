@@ -1,0 +1,237 @@
+//! `modal-fit --weight coherence` on an analyser-style H1 export made independently of
+//! rbprops (scripts/h1_coherence_export.py: numpy averages n_d = 8 hits of a known
+//! three-mode system, estimates H1 and γ², writes the FRFs and the coherence datasets
+//! with pyuff). The weighted fit is compared with the default one against the exact
+//! poles and modal constants.
+//!
+//! Python is found through `RBPROPS_PYTHON` (numpy and pyuff); without it the tests print
+//! a note and pass, unless `RBPROPS_REQUIRE_PYTHON=1`.
+
+use rbprops_core::records::{LineWeightingRecord, ModalFitRecord, ProcessingRecord};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn python() -> Option<String> {
+    let require = std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some_and(|v| v == "1");
+    let Ok(py) = std::env::var("RBPROPS_PYTHON") else {
+        assert!(
+            !require,
+            "RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set"
+        );
+        eprintln!("skipping: RBPROPS_PYTHON not set (the H1 export needs numpy and pyuff)");
+        return None;
+    };
+    let ok = Command::new(&py)
+        .args(["-c", "import numpy, pyuff"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        assert!(!require, "{py} cannot import numpy and pyuff");
+        eprintln!("skipping: {py} cannot import numpy and pyuff");
+        return None;
+    }
+    Some(py)
+}
+
+/// Writes `<dir>/<case>.uff` and `<dir>/<case>.json` (the truth) for `case`, `seed`.
+fn export(py: &str, dir: &Path, case: &str, seed: u64) -> (PathBuf, serde_json::Value) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/h1_coherence_export.py");
+    let base = dir.join(format!("{case}-{seed}"));
+    let o = Command::new(py)
+        .arg(&script)
+        .args([case, &seed.to_string()])
+        .arg(&base)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(base.with_extension("json")).unwrap()).unwrap();
+    (base.with_extension("uff"), truth)
+}
+
+fn modal_fit(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_modal-fit"))
+        .arg(input)
+        .args(["--modes", "3", "-o"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+/// Largest relative errors over the three modes: (frequency, damping ratio, modal
+/// constants as ‖Â_r − A_r‖/‖A_r‖ over the channels).
+#[derive(Debug, Clone, Copy)]
+struct Errors {
+    frequency: f64,
+    damping: f64,
+    residues: f64,
+}
+
+fn errors(fit: &Path, truth: &serde_json::Value) -> Errors {
+    let rec = rbprops_formats::read_path(fit).unwrap();
+    let modal: ModalFitRecord = rec
+        .get_one(rbprops_formats::topics::MODAL_FIT)
+        .unwrap()
+        .unwrap();
+    let geometry = rec.geometry().unwrap().unwrap();
+    let f: Vec<f64> = serde_json::from_value(truth["frequency_hz"].clone()).unwrap();
+    let z: Vec<f64> = serde_json::from_value(truth["damping_ratio"].clone()).unwrap();
+    let a: Vec<Vec<f64>> = serde_json::from_value(truth["modal_constants"].clone()).unwrap();
+    // Channels are the script's nodes 1–4 (+z) in its order of x, y positions.
+    let nodes = [(0.0, 0.0), (0.3, 0.0), (0.3, 0.2), (0.0, 0.2)];
+    let truth_channel: Vec<usize> = geometry
+        .channels
+        .iter()
+        .map(|c| {
+            let p = c.position;
+            nodes
+                .iter()
+                .position(|&(x, y)| (p.x - x).abs() < 1e-9 && (p.y - y).abs() < 1e-9)
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(modal.modes.len(), 3, "{:?}", modal.excitations[0].warnings);
+    let mut e = Errors {
+        frequency: 0.0,
+        damping: 0.0,
+        residues: 0.0,
+    };
+    for (r, m) in modal.modes.iter().enumerate() {
+        e.frequency = e.frequency.max((m.frequency_hz - f[r]).abs() / f[r]);
+        e.damping = e.damping.max((m.damping_ratio - z[r]).abs() / z[r]);
+        let (mut d2, mut n2) = (0.0, 0.0);
+        for (c, &t) in truth_channel.iter().enumerate() {
+            d2 += (m.residues[c] - rbprops_core::c64::new(a[r][t], 0.0)).norm_sqr();
+            n2 += a[r][t] * a[r][t];
+        }
+        e.residues = e.residues.max((d2 / n2).sqrt());
+    }
+    e
+}
+
+fn fit_both(dir: &Path, uff: &Path, truth: &serde_json::Value) -> (Errors, Errors) {
+    let name = uff.file_stem().unwrap().to_string_lossy().to_string();
+    let plain = dir.join(format!("{name}-none.mcap"));
+    let weighted = dir.join(format!("{name}-coherence.mcap"));
+    let o = modal_fit(uff, &plain, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = modal_fit(uff, &weighted, &["--weight", "coherence"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The output says how it was fitted.
+    let rec = rbprops_formats::read_path(&weighted).unwrap();
+    let p: ProcessingRecord = rec
+        .get_one(rbprops_core::records::PROCESSING_TOPIC)
+        .unwrap()
+        .expect("processing topic");
+    assert_eq!(
+        p.line_weighting,
+        Some(LineWeightingRecord {
+            weight: "coherence".into(),
+            one_minus_coherence_floor: 1e-6,
+            unweighted_excitations: 0,
+        })
+    );
+    let rec = rbprops_formats::read_path(&plain).unwrap();
+    let p: Option<ProcessingRecord> = rec
+        .get_one(rbprops_core::records::PROCESSING_TOPIC)
+        .unwrap();
+    assert!(p.is_none_or(|p| p.line_weighting.is_none()));
+    (errors(&plain, truth), errors(&weighted, truth))
+}
+
+/// Noise-free H1 (γ² = 1 to rounding on every line): the coherence factors are all
+/// equal to rounding, so the weighted fit is the default one, and both are exact.
+#[test]
+fn exact_data_weighted_equals_unweighted() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let (uff, truth) = export(&py, dir.path(), "exact", 1);
+    let (plain, weighted) = fit_both(dir.path(), &uff, &truth);
+    eprintln!("exact: none {plain:?}\n       coherence {weighted:?}");
+    for e in [plain, weighted] {
+        // ASCII double (12 significant digits) data, refined poles: far below 1e-6.
+        assert!(
+            e.frequency < 1e-8 && e.damping < 1e-6 && e.residues < 1e-6,
+            "{e:?}"
+        );
+    }
+}
+
+/// A constant response-noise floor (coherence low where |H| is small: antiresonances
+/// and far from the modes, exactly the lines the default relative weights 1/|H| trust
+/// most) and, on top, a double hit in 5 of 8 averages (notches in the force spectrum at
+/// 16.7 Hz, next to the third mode, where the coherence drops to ~0.03).
+///
+/// Measured (debug build, seeds 1–4; largest relative error over the three modes):
+///
+/// | case | weight | frequency | damping | modal constants |
+/// |---|---|---|---|---|
+/// | floor | none | 1.5e-5 … 8.0e-5 | 8.2e-4 … 3.4e-3 | 3.4e-3 … 5.2e-3 |
+/// | floor | coherence | 4.8e-6 … 9.2e-6 | 6.3e-5 … 5.6e-4 | 4.7e-4 … 6.9e-4 |
+/// | double hit | none | 1.6e-5 … 6.0e-5 | 2.9e-4 … 2.5e-3 | 1.9e-3 … 3.6e-3 |
+/// | double hit | coherence | 4.2e-6 … 9.9e-6 | 3.3e-4 … 4.2e-4 | 4.1e-4 … 5.2e-4 |
+///
+/// What is asserted, and why it is not tuned: the weighted fit is the (approximately)
+/// maximum-likelihood one for this noise, the default is not, so its error is smaller
+/// *in expectation*; a single seed can still go the other way for one parameter (the
+/// damping of seed 1's double hit: 4.2e-4 weighted vs 2.9e-4). So per seed only the
+/// modal constants, where the measured gap is 3.5× or more, must be better; over the four
+/// seeds the mean error of every parameter must be no larger weighted, and the mean
+/// frequency and modal-constant errors at most half the default's (measured ratios
+/// 0.1–0.25).
+#[test]
+fn coherence_weights_are_closer_to_the_truth_on_corrupted_lines() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    for case in ["floor", "double-hit"] {
+        let (mut sum_plain, mut sum_weighted) = ([0.0; 3], [0.0; 3]);
+        for seed in 1..=4 {
+            let (uff, truth) = export(&py, dir.path(), case, seed);
+            let (plain, weighted) = fit_both(dir.path(), &uff, &truth);
+            eprintln!(
+                "{case} seed {seed}: none      {plain:?}\n{case} seed {seed}: coherence {weighted:?}"
+            );
+            assert!(weighted.residues < plain.residues, "{case} seed {seed}");
+            for (s, e) in [(&mut sum_plain, plain), (&mut sum_weighted, weighted)] {
+                s[0] += e.frequency;
+                s[1] += e.damping;
+                s[2] += e.residues;
+            }
+        }
+        for k in 0..3 {
+            assert!(
+                sum_weighted[k] <= sum_plain[k],
+                "{case}: parameter {k}: {sum_weighted:?} vs {sum_plain:?}"
+            );
+        }
+        assert!(sum_weighted[0] <= 0.5 * sum_plain[0], "{case}: frequency");
+        assert!(
+            sum_weighted[2] <= 0.5 * sum_plain[2],
+            "{case}: modal constants"
+        );
+    }
+}
+
+/// Without coherence in the input, `--weight coherence` is an error naming the file,
+/// and no output is written.
+#[test]
+fn weight_coherence_without_coherence_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim.mcap");
+    let o = Command::new(env!("CARGO_BIN_EXE_frf-sim"))
+        .args(["--example", "test-case-2", "-o"])
+        .arg(&sim)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = dir.path().join("fit.mcap");
+    let o = modal_fit(&sim, &out, &["--weight", "coherence"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&sim.display().to_string()) && err.contains("holds no coherence"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
