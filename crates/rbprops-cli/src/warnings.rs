@@ -68,6 +68,11 @@ const RULES: &[(&[&str], Class, &str)] = &[
         "A rigid-body mode was not found, so the estimate rests on fewer modes than the method needs and some properties may be unobservable.",
     ),
     (
+        &["candidate modes for six rigid-body modes"],
+        Class::Note,
+        "More candidate modes than rigid-body modes were found; the one with the least evidence (a spurious or weakly excited pole) was set aside and the six kept.",
+    ),
+    (
         &["rejected"],
         Class::ChangesAnswer,
         "A mode or band was refused as not rigid-body-like; the estimate is computed without it.",
@@ -88,7 +93,7 @@ const RULES: &[(&[&str], Class, &str)] = &[
         "The equations are ill-conditioned: small errors in the data move the result a lot, so its uncertainty is larger than the noise alone suggests.",
     ),
     (
-        &["identically zero", "is left out", "dead channel"],
+        &["identically zero", "the mode is left out", "dead channel"],
         Class::ChangesAnswer,
         "A channel or mode carried no usable data and was left out of the computation.",
     ),
@@ -101,6 +106,11 @@ const RULES: &[(&[&str], Class, &str)] = &[
         &["does not match the digest", "was changed after writing"],
         Class::ChangesAnswer,
         "The input was edited after it was written: the results may not be those of the original data.",
+    ),
+    (
+        &["0 hz line"],
+        Class::Note,
+        "The 0 Hz line carries no dynamic information (and is zero under AC coupling); it is left out of the fit.",
     ),
     (
         &["model-order test", "residual test", "refinement", "computational"],
@@ -273,6 +283,8 @@ mod tests {
         for t in [
             "excitation 'f1': pole at 3.1000 Hz dropped by the backward model-order test (it x, below the χ² threshold 3.0)",
             "m1: complex residues (rotated by 0.010 rad onto the real line)",
+            "the 0 Hz line is left out (27 values): a high-pass (AC coupling) makes it 0",
+            "set-up 'A': rejected the mode at 3.1818 Hz: 7 candidate modes for six rigid-body modes; this one has the least evidence",
             "something nobody anticipated",
         ] {
             assert_eq!(classify(t), Class::Note, "{t}");

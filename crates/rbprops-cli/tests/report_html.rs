@@ -162,17 +162,17 @@ fn rendered_svgs(chrome: &Path, page: &Path) -> (usize, usize) {
 fn campaign_report_is_one_page_with_every_figure_rendered() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    // Five exports: run-05 has channel 102y reading 6 % high (the generator's
+    // Six exports: run-06 (index 5) has channel 102y reading 6 % high (the generator's
     // calibration error), so one recording's check names an effect and draws its worst
     // channels.
-    let out = campaign(&py, dir.path(), 5);
+    let out = campaign(&py, dir.path(), 6);
     let page = out.join("report.html");
     ok(rbprops()
         .arg("report")
         .arg(&out)
         .arg("-o")
         .arg(&page)
-        .args(["--title", "UFF campaign <5 exports>"])
+        .args(["--title", "UFF campaign <6 exports>"])
         .output()
         .unwrap());
     let html = std::fs::read_to_string(&page).unwrap();
@@ -180,14 +180,14 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
     for banned in ["<script", "<link", "<img", "src=", "href=", "url("] {
         assert!(!html.contains(banned), "report holds '{banned}'");
     }
-    assert!(html.contains("<h1>UFF campaign &lt;5 exports&gt;</h1>"));
+    assert!(html.contains("<h1>UFF campaign &lt;6 exports&gt;</h1>"));
     // A section per recording, with its estimates, verdict and warnings.
-    for k in 1..=5 {
+    for k in 1..=6 {
         assert!(html.contains(&format!("Recording run-0{k}.")), "run-0{k}");
     }
-    assert_eq!(html.matches("<h3>Model check</h3>").count(), 5);
-    assert_eq!(html.matches("<h3>Warnings</h3>").count(), 5);
-    assert!(html.contains("channel_gain"), "run-05's verdict");
+    assert_eq!(html.matches("<h3>Model check</h3>").count(), 6);
+    assert_eq!(html.matches("<h3>Warnings</h3>").count(), 6);
+    assert!(html.contains("channel_gain"), "run-06's verdict");
     // Every figure each run directory holds is on the page, and the model check's
     // figures are among them (worst channels only where a cell was flagged).
     let mut n_files = 0;
@@ -214,16 +214,34 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
         assert!(names.iter().any(|n| n.starts_with("stabilisation_")));
         n_files += names.len();
     }
-    assert!(std::fs::read_dir(out.join("runs")).unwrap().any(|e| e
-        .unwrap()
-        .path()
-        .join("check_worst_channels.svg")
-        .exists()));
+    // The worst channels of run-06: its three strongest pairs are the miscalibrated
+    // channel 102y under each of the three excitations (weaker pairs follow where the
+    // baseline fit spread the error), each panel with the measured, nominal, baseline and
+    // improved traces.
+    let worst =
+        std::fs::read_to_string(out.join("runs/run-06_unv/check_worst_channels.svg")).unwrap();
+    let titles: Vec<&str> = worst
+        .split('>')
+        .filter_map(|t| t.split('<').next())
+        .map(str::trim)
+        .filter(|t| t.contains(" / "))
+        .collect();
+    assert!(titles.len() >= 3, "worst-channel panels: {titles:?}");
+    let mut first: Vec<&str> = titles[..3].to_vec();
+    first.sort();
+    assert_eq!(
+        first,
+        ["201-x / 102y", "202y / 102y", "203-z / 102y"],
+        "worst-channel panels: {titles:?}"
+    );
+    for legend in ["measured", "nominal spec", "baseline fit", "improved"] {
+        assert!(worst.contains(legend), "legend '{legend}'");
+    }
     // The campaign's own figure (mass per recording) plus every run's figures.
     let n_svg = html.matches("<svg").count();
     assert_eq!(n_svg, n_files + 1, "figures on the page vs files written");
     // pandas reads the summary with plain read_csv: one row per recording and estimator.
-    let check = "import pandas as pd, sys\nd = pd.read_csv(sys.argv[1])\nassert d['campaign'].nunique() == 5, set(d['campaign'])\nassert 'check_verdict' in d.columns and d['mass_kg'].dtype.kind == 'f'\nprint(len(d))\n";
+    let check = "import pandas as pd, sys\nd = pd.read_csv(sys.argv[1])\nassert d['campaign'].nunique() == 6, set(d['campaign'])\nassert 'check_verdict' in d.columns and d['mass_kg'].dtype.kind == 'f'\nprint(len(d))\n";
     let o = ok(Command::new(&py)
         .arg("-c")
         .arg(&check)
@@ -235,7 +253,7 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
             .trim()
             .parse::<usize>()
             .unwrap()
-            >= 5
+            >= 6
     );
     // The page in a browser: every figure has a non-empty box.
     let Some(chrome) = chromium() else { return };
