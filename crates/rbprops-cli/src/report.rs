@@ -220,11 +220,23 @@ pub fn run_section(
     figures_dir: Option<&Path>,
 ) -> Result<crate::html::RunSection> {
     use rbprops_formats::topics;
+    let mut warnings = crate::warnings::from_record(record)?;
+    // A report with a non-finite statistic (null in JSON) does not decode: the section
+    // says so instead of failing the whole page (the summary table keeps the verdict).
+    let check = record
+        .get_one(topics::MODEL_CHECK)
+        .unwrap_or_else(|e| {
+            warnings.push(crate::warnings::StageWarning::new(
+                "report",
+                format!("the model check's report could not be read ({e:#}); its verdict is in the summary table"),
+            ));
+            None
+        });
     Ok(crate::html::RunSection {
         label: label.to_string(),
         estimates: record.get(topics::ESTIMATES)?,
-        check: record.get_one(topics::MODEL_CHECK)?,
-        warnings: crate::warnings::from_record(record)?,
+        check,
+        warnings,
         figures: match figures_dir {
             Some(d) => read_figures(d)?,
             None => Vec::new(),

@@ -187,8 +187,14 @@ pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<StageWarning>> {
     for e in rec.get::<InertiaEstimate>(topics::ESTIMATES)? {
         out.extend("rb-solve", &e.warnings);
     }
-    if let Some(c) = rec.get_one::<rbprops_check::ModelCheckReport>(topics::MODEL_CHECK)? {
-        out.extend("model-check", &c.warnings);
+    // Read as plain JSON: a report with a non-finite statistic (written as null) does
+    // not decode as `ModelCheckReport`, and its warnings must still be listed.
+    if let Some(c) = rec.get_one::<serde_json::Value>(topics::MODEL_CHECK)? {
+        for w in c["warnings"].as_array().into_iter().flatten() {
+            if let Some(t) = w.as_str() {
+                out.push("model-check", t);
+            }
+        }
     }
     Ok(out.items)
 }
