@@ -338,7 +338,7 @@ pub fn model_check(
     nominal: &Nominal,
     window_time_constant_s: Option<f64>,
     options: &rbprops_check::CheckOptions,
-) -> Result<CheckColumns> {
+) -> Result<(CheckColumns, rbprops_check::CheckOutcome)> {
     let mut spec = nominal.spec.clone();
     if let Some(sigma) = window_time_constant_s.map(|tau| 1.0 / tau) {
         if !spec.effects.iter().any(|e| e.id == "exponential_window") {
@@ -356,19 +356,40 @@ pub fn model_check(
     let r = &out.report;
     let mut effects: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
     effects.extend(r.ambiguous.iter().map(|f| f.ids.join("/")));
-    Ok(CheckColumns {
+    let columns = CheckColumns {
         effects: effects.join(" "),
         chi2_nu_nominal: r.chi2_nu_nominal,
         chi2_nu_before: r.chi2_nu_before,
         chi2_nu_after: r.chi2_nu_after,
         noise_floor_reached: r.noise_floor_reached,
         verdict: r.verdict.clone(),
-    })
+    };
+    Ok((columns, out))
+}
+
+/// Name of the run file in an item's output directory (see [`run_all`]'s `runs`).
+pub const RUN_FILE: &str = "run.mcap";
+
+/// The output directory of the item labelled `rel` under `runs`: the label made
+/// file-name safe (`sub/run-01.uff` → `sub_run-01_uff`).
+pub fn run_dir(runs: &Path, rel: &str) -> PathBuf {
+    runs.join(crate::plots::sanitize(rel))
 }
 
 /// Runs one item through the pipeline with the campaign's options. `rel` is the item's
 /// path relative to the campaign directory (its label and the key of the nominal globs).
-pub fn run_item(item: &Item, rel: &str, opts: &CampaignOptions) -> Result<Vec<SummaryRow>> {
+///
+/// With `runs`, the item's final record (every stage's topic, the model check's report
+/// included) is written to `runs/<label>/run.mcap` with its figures beside it (FRF fit
+/// panels, stabilisation diagrams, NI and MIF curves, estimates with 95 % error bars,
+/// the model check's residual maps and worst channels): what `rbprops report` reads.
+pub fn run_item(
+    item: &Item,
+    rel: &str,
+    opts: &CampaignOptions,
+    runs: Option<&Path>,
+) -> Result<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> {
+    let mut read_warnings = Vec::new();
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
             let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
@@ -383,7 +404,8 @@ pub fn run_item(item: &Item, rel: &str, opts: &CampaignOptions) -> Result<Vec<Su
                 channels: None,
             };
             let checks = crate::InputChecks::default();
-            let inp = crate::read_stage_input("rbprops campaign", Some(p), &checks, &uff)?;
+            let inp = crate::read_stage_input_quiet("read", Some(p), &checks, &uff)?;
+            read_warnings = inp.warnings;
             (inp.record, inp.sha256)
         }
     };
@@ -397,15 +419,27 @@ pub fn run_item(item: &Item, rel: &str, opts: &CampaignOptions) -> Result<Vec<Su
         None => None,
     }
     .map(|(g, f)| (g, f.clone()));
-    crate::stages::modal_fit_windowed(&mut rec, &opts.fit, opts.window_time_constant_s, &sha)
+    let fit =
+        crate::stages::modal_fit_windowed(&mut rec, &opts.fit, opts.window_time_constant_s, &sha)
+            .with_context(|| name.clone())?;
+    let selection = crate::stages::ni_select(&mut rec, &Default::default(), &sha)
         .with_context(|| name.clone())?;
-    crate::stages::ni_select(&mut rec, &Default::default(), &sha).with_context(|| name.clone())?;
     crate::stages::rb_solve_with(&mut rec, &Default::default(), &opts.uncertainty, true, &sha)
         .with_context(|| name.clone())?;
     let mut rows = summary::rows(&rec, rel, "ni", "geometry")?;
+    let mut check_figures = Vec::new();
     if let (Some(n), Some((g, f))) = (nominal, recorded) {
         let c = match model_check(&name, &g, &f, n, opts.window_time_constant_s, &opts.check) {
-            Ok(c) => c,
+            Ok((c, outcome)) => {
+                if runs.is_some() {
+                    rec.set(
+                        rbprops_formats::topics::MODEL_CHECK,
+                        std::slice::from_ref(&outcome.report),
+                    );
+                    check_figures = crate::plots::model_check(&outcome, &g)?;
+                }
+                c
+            }
             Err(e) => CheckColumns {
                 verdict: format!("error: {e:#}"),
                 ..Default::default()
@@ -415,28 +449,50 @@ pub fn run_item(item: &Item, rel: &str, opts: &CampaignOptions) -> Result<Vec<Su
             r.set_check(&c);
         }
     }
-    Ok(rows)
+    if let Some(runs) = runs {
+        let dir = run_dir(runs, rel);
+        let (geometry, frf) = rec.require_geometry_and_frf()?;
+        let mut figures = crate::plots::modal_fit(&geometry, frf, &fit)?;
+        figures.extend(crate::plots::indicators(&selection)?);
+        // The record's estimates: the bootstrap's standard errors when it ran.
+        let estimates: Vec<rbprops_core::records::InertiaEstimate> =
+            rec.get(rbprops_formats::topics::ESTIMATES)?;
+        figures.extend(crate::plots::estimates(&estimates)?);
+        figures.extend(check_figures);
+        crate::write_plots(&dir, &figures)?;
+        rbprops_formats::write_path(&rec, &dir.join(RUN_FILE))?;
+    }
+    let mut warnings = crate::warnings::Collector::default();
+    warnings.extend("read", &read_warnings);
+    for w in crate::warnings::from_record(&rec)? {
+        warnings.add(w);
+    }
+    Ok((rows, warnings.items))
 }
 
 /// The outcome of a campaign: rows in item order and the failures counted.
 pub struct CampaignResult {
     pub rows: Vec<SummaryRow>,
+    /// Every item's warnings, each text prefixed by the item's label, in item order.
+    pub warnings: crate::warnings::Collector,
     /// Items whose pipeline failed (one row with method `error`).
     pub failed: usize,
     /// Items whose model check failed (their verdict starts with `error:`).
     pub checks_failed: usize,
 }
 
-/// Runs every item in parallel. Failed items become one row with method `error` and the
+/// Runs every item in parallel (with `runs`, each item's record and figures are written
+/// under it: see [`run_item`]). Failed items become one row with method `error` and the
 /// message in `warnings`, so the table still accounts for every input. Rows come out in
 /// item order whatever the thread count.
 pub fn run_all(
     items: &[Item],
     root: &Path,
     opts: &CampaignOptions,
+    runs: Option<&Path>,
     progress: &indicatif::ProgressBar,
 ) -> CampaignResult {
-    let results: Vec<Vec<SummaryRow>> = items
+    let results: Vec<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> = items
         .par_iter()
         .map(|item| {
             let rel = item
@@ -445,20 +501,29 @@ pub fn run_all(
                 .unwrap_or(item.path())
                 .to_string_lossy()
                 .replace(std::path::MAIN_SEPARATOR, "/");
-            let rows = run_item(item, &rel, opts).unwrap_or_else(|e| {
-                vec![SummaryRow {
+            let (rows, mut warnings) = run_item(item, &rel, opts, runs).unwrap_or_else(|e| {
+                let row = SummaryRow {
                     campaign: rel.clone(),
                     set: "ni".into(),
                     origin: "geometry".into(),
                     method: "error".into(),
                     warnings: format!("{e:#}"),
                     ..Default::default()
-                }]
+                };
+                (vec![row], Vec::new())
             });
+            for w in &mut warnings {
+                w.text = format!("{rel}: {}", w.text);
+            }
             progress.inc(1);
-            rows
+            (rows, warnings)
         })
         .collect();
+    let mut warnings = crate::warnings::Collector::default();
+    for w in results.iter().flat_map(|(_, w)| w) {
+        warnings.add(w.clone());
+    }
+    let results: Vec<Vec<SummaryRow>> = results.into_iter().map(|(r, _)| r).collect();
     let failed = results
         .iter()
         .filter(|r| r.len() == 1 && r[0].method == "error")
@@ -472,6 +537,7 @@ pub fn run_all(
         .count();
     CampaignResult {
         rows: results.into_iter().flatten().collect(),
+        warnings,
         failed,
         checks_failed,
     }

@@ -10,12 +10,14 @@ use std::path::{Path, PathBuf};
 
 pub mod campaign;
 pub mod coherence;
+pub mod html;
 pub mod init_spec;
 pub mod plots;
 pub mod report;
 pub mod stages;
 pub mod summary;
 pub mod table;
+pub mod warnings;
 
 /// The MCAP magic bytes, to recognise a stream on stdin.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -27,6 +29,9 @@ pub struct Input {
     pub name: String,
     /// What the integrity check could not verify (printed under `-v`).
     pub notes: Vec<String>,
+    /// What the reader noticed in the input (a UFF export's oddities), classified and
+    /// printed by [`read_stage_input`]; kept here by [`read_stage_input_quiet`].
+    pub warnings: Vec<String>,
 }
 
 /// How a UFF input is read: a separate geometry file (`--geometry`: UFF with datasets
@@ -94,6 +99,21 @@ pub fn read_stage_input(
     checks: &InputChecks,
     uff: &UffInputOptions,
 ) -> Result<Input> {
+    let input = read_stage_input_quiet(tool, path, checks, uff)?;
+    let mut w = warnings::Collector::default();
+    w.extend(tool, &input.warnings);
+    w.print(checks.verbose);
+    Ok(input)
+}
+
+/// [`read_stage_input`] without printing the reader's warnings (they are in
+/// [`Input::warnings`]; the campaign gathers them per item).
+pub fn read_stage_input_quiet(
+    tool: &str,
+    path: Option<&Path>,
+    checks: &InputChecks,
+    uff: &UffInputOptions,
+) -> Result<Input> {
     let plain = path.filter(|p| p.as_os_str() != "-");
     if (uff.geometry.is_some() || uff.channels.is_some()) && !plain.is_some_and(campaign::is_uff) {
         bail!("--geometry and --channels apply to UFF inputs (.uff/.unv/.58/.58b) only");
@@ -112,6 +132,7 @@ pub fn read_stage_input(
                     sha256: digest_dir(p)?,
                     name,
                     notes,
+                    warnings: Vec::new(),
                 }
             } else {
                 let bytes = std::fs::read(p).with_context(|| name.clone())?;
@@ -124,6 +145,7 @@ pub fn read_stage_input(
                     sha256: rbprops_formats::sha256_hex(&bytes),
                     name,
                     notes,
+                    warnings: Vec::new(),
                 }
             }
         }
@@ -246,9 +268,6 @@ fn uff_input(tool: &str, p: &Path, checks: &InputChecks, opts: &UffInputOptions)
         checks,
     )?;
     let (c, sha256) = read_uff_campaign(p, opts)?;
-    for w in &c.warnings {
-        eprintln!("warning: {w}");
-    }
     let mut record = RunRecord::default();
     record.set_geometry(&c.geometry);
     if let Some(coh) = &c.coherence {
@@ -260,6 +279,7 @@ fn uff_input(tool: &str, p: &Path, checks: &InputChecks, opts: &UffInputOptions)
         sha256,
         name,
         notes,
+        warnings: c.warnings,
     })
 }
 
@@ -312,6 +332,7 @@ fn read_stdin() -> Result<Input> {
         sha256: rbprops_formats::sha256_hex(&bytes),
         name: "<stdin>".into(),
         notes,
+        warnings: Vec::new(),
     })
 }
 

@@ -409,6 +409,190 @@ fn fit_panels(
         .collect()
 }
 
+/// Cells of the baseline residual map counted as "worst" for the overlays: those whose
+/// noise-normalised residual is beyond z = 5 (the model check's own flag), strongest first.
+pub const WORST_CELL_Z: f64 = 5.0;
+/// At most this many (excitation, channel) pairs are overlaid.
+pub const WORST_CELLS_SHOWN: usize = 6;
+
+/// The model check's figures: residual maps before (baseline fit) and after (final
+/// model) as heat maps of log10 χ²/n per channel × excitation, and the worst
+/// (excitation, channel) pairs of the baseline residual as small multiples (magnitude and
+/// phase per pair: measured, nominal spec, baseline fit, improved model).
+pub fn model_check(
+    out: &rbprops_check::CheckOutcome,
+    g: &Geometry,
+) -> Result<Vec<(String, String)>> {
+    let mut files = Vec::new();
+    if let Some(svg) = worst_channels(out, g)? {
+        files.push(("check_worst_channels.svg".to_string(), svg));
+    }
+    for (name, svg) in residual_maps(&out.report, &out.layout)? {
+        files.push((name, svg));
+    }
+    Ok(files)
+}
+
+/// The (excitation, channel) pairs whose baseline residual is worst (z > [`WORST_CELL_Z`],
+/// strongest first, each pair once, at most [`WORST_CELLS_SHOWN`]).
+pub fn worst_pairs(report: &rbprops_check::ModelCheckReport) -> Vec<(String, String)> {
+    let mut cells: Vec<&rbprops_check::locate::ResidualCell> = report
+        .residuals_before
+        .cells
+        .iter()
+        .filter(|c| c.z > WORST_CELL_Z)
+        .collect();
+    cells.sort_by(|a, b| b.z.total_cmp(&a.z));
+    let mut seen: Vec<(String, String)> = Vec::new();
+    for c in cells {
+        let key = (c.excitation.clone(), c.channel.clone());
+        if !seen.contains(&key) && seen.len() < WORST_CELLS_SHOWN {
+            seen.push(key);
+        }
+    }
+    seen
+}
+
+/// Small multiples of the worst pairs ([`worst_pairs`]); `None` when no cell is flagged.
+fn worst_channels(out: &rbprops_check::CheckOutcome, g: &Geometry) -> Result<Option<String>> {
+    use rbprops_plot::{FrfPanel, FrfTrace, LineStyle, Rgb};
+    let l = &out.layout;
+    let nl = l.n_lines();
+    let nch = l.channel_map.len();
+    let pairs = worst_pairs(&out.report);
+    if pairs.is_empty() {
+        return Ok(None);
+    }
+    let mut panels = Vec::new();
+    for (exc, chan) in &pairs {
+        // The layout's arrays are [exc][ch][line] in the recording's order.
+        let (Some(e), Some(c)) = (
+            g.excitations.iter().position(|x| &x.id == exc),
+            g.channels.iter().position(|x| &x.id == chan),
+        ) else {
+            continue;
+        };
+        let slice = |v: &[rbprops_core::c64]| -> Vec<rbprops_core::c64> {
+            v[(e * nch + c) * nl..(e * nch + c + 1) * nl].to_vec()
+        };
+        let trace = |name: &str, h: Vec<rbprops_core::c64>, style, color| FrfTrace {
+            name: name.to_string(),
+            frequency_hz: l.frequency_hz.clone(),
+            magnitude: h.iter().map(|v| v.norm()).collect(),
+            phase_deg: h.iter().map(|v| v.arg().to_degrees()).collect(),
+            style,
+            color: Some(color),
+        };
+        panels.push(FrfPanel {
+            title: format!("{exc} / {chan}"),
+            traces: vec![
+                trace(
+                    "measured",
+                    slice(&out.measured),
+                    LineStyle::Solid,
+                    Rgb(40, 40, 40),
+                ),
+                trace(
+                    "nominal spec",
+                    slice(&out.nominal),
+                    LineStyle::Dotted,
+                    Rgb(31, 119, 180),
+                ),
+                trace(
+                    "baseline fit",
+                    slice(&out.baseline),
+                    LineStyle::Dashed,
+                    Rgb(255, 127, 14),
+                ),
+                trace(
+                    "improved",
+                    slice(&out.improved),
+                    LineStyle::Dashed,
+                    Rgb(214, 39, 40),
+                ),
+            ],
+        });
+    }
+    if panels.is_empty() {
+        return Ok(None);
+    }
+    let fig = rbprops_plot::FrfPanels {
+        title: "Worst channels of the baseline fit: measured vs nominal vs improved".into(),
+        magnitude_label: format!("|H| [{}]", l.quantity.unit()),
+        panels,
+        ..Default::default()
+    };
+    Ok(Some(rbprops_plot::frf_panels(&fig)?))
+}
+
+/// Residual maps before and after: χ²/n per channel (rows) × excitation (columns), as
+/// log10 so that 0 is the noise level.
+pub fn residual_maps(
+    r: &rbprops_check::ModelCheckReport,
+    l: &rbprops_check::predict::Layout,
+) -> Result<Vec<(String, String)>> {
+    use rbprops_plot::{heat_map, HeatMap};
+    let mut files = Vec::new();
+    for (name, map) in [
+        ("before", &r.residuals_before),
+        ("after", &r.residuals_after),
+    ] {
+        let rows: Vec<String> = l
+            .channel_map
+            .iter()
+            .map(|&c| l.spec_geometry.channels[c].id.clone())
+            .collect();
+        let cols: Vec<String> = l
+            .excitation_map
+            .iter()
+            .map(|&e| l.spec_geometry.excitations[e].id.clone())
+            .collect();
+        let values = rows
+            .iter()
+            .map(|ch| {
+                cols.iter()
+                    .map(|ex| {
+                        let (mut n, mut c2) = (0usize, 0.0);
+                        for c in map
+                            .cells
+                            .iter()
+                            .filter(|c| &c.channel == ch && &c.excitation == ex)
+                        {
+                            n += c.n;
+                            c2 += c.chi2;
+                        }
+                        if n > 0 {
+                            (c2 / n as f64).log10()
+                        } else {
+                            f64::NAN
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let hm = HeatMap {
+            title: format!(
+                "noise-normalised residual {name} ({})",
+                if name == "before" {
+                    "baseline fit"
+                } else {
+                    "final model"
+                }
+            ),
+            row_labels: rows,
+            column_labels: cols,
+            values,
+            x_label: "excitation".into(),
+            y_label: "channel".into(),
+            value_label: "log10 χ²/n (0 = noise)".into(),
+            decimals: 2,
+            ..Default::default()
+        };
+        files.push((format!("residual_map_{name}.svg"), heat_map(&hm)?));
+    }
+    Ok(files)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,7 +1,7 @@
 //! One-page Markdown report: the summary table and the paper-style error figures.
 
 use crate::summary::SummaryRow;
-use anyhow::Result;
+use anyhow::{bail, Context, Result};
 use rbprops_plot::{bar_chart, BarChart, BarSeries};
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -76,9 +76,11 @@ pub fn error_figures(rows: &[SummaryRow]) -> Result<Vec<(String, String)>> {
     Ok(out)
 }
 
-/// Writes `report.md`, `summary.csv` and the error figures into `dir`.
+/// Writes the Markdown report `md_name` (e.g. `report.md`), `summary.csv` and the error
+/// figures into `dir`.
 pub fn write(
     dir: &Path,
+    md_name: &str,
     title: &str,
     rows: &[SummaryRow],
     extra_figures: &[PathBuf],
@@ -145,7 +147,7 @@ pub fn write(
             rel
         )?;
     }
-    crate::write_text(&dir.join("report.md"), &md)
+    crate::write_text(&dir.join(md_name), &md)
 }
 
 fn pathdiff(target: &Path, base: &Path) -> String {
@@ -165,4 +167,205 @@ fn pathdiff(target: &Path, base: &Path) -> String {
         }
         _ => target.display().to_string(),
     }
+}
+
+/// Order of the figure kinds on the page: the data and the fit first, then the mode
+/// selection, the estimates and the model check.
+const FIGURE_ORDER: [&str; 9] = [
+    "fit_",
+    "stabilisation_",
+    "frf_",
+    "ni",
+    "hybrid_mif",
+    "prf_mif",
+    "strength_",
+    "estimates",
+    "residual_map_",
+];
+
+fn figure_rank(name: &str) -> usize {
+    if name.starts_with("check_") {
+        return FIGURE_ORDER.len() + 1;
+    }
+    FIGURE_ORDER
+        .iter()
+        .position(|p| name.starts_with(p))
+        .unwrap_or(FIGURE_ORDER.len())
+}
+
+/// The SVG files of a directory (not recursive), in page order (kind, then name).
+pub fn read_figures(dir: &Path) -> Result<Vec<(String, String)>> {
+    let mut figs = Vec::new();
+    for e in std::fs::read_dir(dir).with_context(|| dir.display().to_string())? {
+        let p = e?.path();
+        if p.is_file() && p.extension().is_some_and(|x| x == "svg") {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            let text = std::fs::read_to_string(&p).with_context(|| p.display().to_string())?;
+            figs.push((name, text));
+        }
+    }
+    figs.sort_by(|a, b| {
+        figure_rank(&a.0)
+            .cmp(&figure_rank(&b.0))
+            .then_with(|| a.0.cmp(&b.0))
+    });
+    Ok(figs)
+}
+
+/// One run's section from its record (estimates, model check report, warnings) and the
+/// figures in `figures_dir`.
+pub fn run_section(
+    label: &str,
+    record: &rbprops_formats::RunRecord,
+    figures_dir: Option<&Path>,
+) -> Result<crate::html::RunSection> {
+    use rbprops_formats::topics;
+    let mut warnings = crate::warnings::from_record(record)?;
+    // A report with a non-finite statistic (null in JSON) does not decode: the section
+    // says so instead of failing the whole page (the summary table keeps the verdict).
+    let check = record
+        .get_one(topics::MODEL_CHECK)
+        .unwrap_or_else(|e| {
+            warnings.push(crate::warnings::StageWarning::new(
+                "report",
+                format!("the model check's report could not be read ({e:#}); its verdict is in the summary table"),
+            ));
+            None
+        });
+    Ok(crate::html::RunSection {
+        label: label.to_string(),
+        estimates: record.get(topics::ESTIMATES)?,
+        check,
+        warnings,
+        figures: match figures_dir {
+            Some(d) => read_figures(d)?,
+            None => Vec::new(),
+        },
+    })
+}
+
+/// What `rbprops report` reads, from one input path:
+///
+/// - a summary CSV (`campaign -o`, `summary`): its rows;
+/// - a campaign output directory holding `summary.csv` and, from `campaign --runs
+///   DIR/runs`, one directory per recording under `runs/` (`run.mcap` and its SVG
+///   figures): the rows, plus a section per recording;
+/// - a run directory holding `run.mcap` (or one `*.mcap`) and the SVG figures the stages
+///   wrote with `--plot`: one section;
+/// - a run file (MCAP) or CSV run directory with an estimates topic: one section.
+pub fn load(input: &Path, title: &str) -> Result<crate::html::ReportData> {
+    let name = input.display().to_string();
+    let mut d = crate::html::ReportData {
+        title: title.to_string(),
+        ..Default::default()
+    };
+    let read_rows = |p: &Path| -> Result<Vec<SummaryRow>> {
+        let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+        crate::summary::from_csv(&text).with_context(|| p.display().to_string())
+    };
+    if input.is_file() && input.extension().is_some_and(|e| e == "csv") {
+        d.rows = read_rows(input)?;
+    } else if input.is_dir() && input.join("summary.csv").is_file() {
+        d.rows = read_rows(&input.join("summary.csv"))?;
+        let runs = input.join("runs");
+        if runs.is_dir() {
+            let mut dirs: Vec<PathBuf> = std::fs::read_dir(&runs)
+                .with_context(|| runs.display().to_string())?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.join(crate::campaign::RUN_FILE).is_file())
+                .collect();
+            dirs.sort();
+            // Label each section with the campaign label of its rows (the directory name
+            // is that label made file-name safe).
+            let mut labels: Vec<&str> = d.rows.iter().map(|r| r.campaign.as_str()).collect();
+            labels.dedup();
+            for dir in dirs {
+                let stem = dir.file_name().unwrap().to_string_lossy().into_owned();
+                let label = labels
+                    .iter()
+                    .find(|l| crate::plots::sanitize(l) == stem)
+                    .map(|l| l.to_string())
+                    .unwrap_or(stem);
+                let rec = crate::read_input(Some(&dir.join(crate::campaign::RUN_FILE)))?.record;
+                d.runs.push(run_section(&label, &rec, Some(&dir))?);
+            }
+        }
+        d.figures = campaign_figures(&d.rows)?;
+    } else if input.is_dir() && !input.join("manifest.csv").exists() {
+        let mut mcaps: Vec<PathBuf> = std::fs::read_dir(input)
+            .with_context(|| name.clone())?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+            .collect();
+        mcaps.sort();
+        let run = input.join(crate::campaign::RUN_FILE);
+        let file = if run.is_file() {
+            run
+        } else if mcaps.len() == 1 {
+            mcaps.remove(0)
+        } else {
+            bail!("{name}: not a report input: expected summary.csv (a campaign's output), run.mcap or one *.mcap (a run's), found {} MCAP files", mcaps.len());
+        };
+        let rec = crate::read_input(Some(&file))?.record;
+        let label = input
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        d.rows = crate::summary::rows(&rec, &label, "ni", "geometry")?;
+        d.runs.push(run_section(&label, &rec, Some(input))?);
+    } else {
+        let rec = crate::read_input(Some(input))?.record;
+        let label = input
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        d.rows = crate::summary::rows(&rec, &label, "ni", "geometry")?;
+        d.runs.push(run_section(&label, &rec, None)?);
+    }
+    if d.rows.is_empty() && d.runs.iter().all(|r| r.estimates.is_empty()) {
+        bail!("{name}: no estimates to report (run rb-solve or rbprops campaign first)");
+    }
+    Ok(d)
+}
+
+/// Figures of a whole campaign: the error figures when the rows have reference values,
+/// and the mass per recording with its 95 % noise interval, one series per estimator.
+pub fn campaign_figures(rows: &[SummaryRow]) -> Result<Vec<(String, String)>> {
+    use rbprops_plot::{scatter_plot, ScatterPlot, ScatterSeries};
+    let mut figs = error_figures(rows)?;
+    let ok: Vec<&SummaryRow> = rows.iter().filter(|r| r.method != "error").collect();
+    let mut labels: Vec<&str> = ok.iter().map(|r| r.campaign.as_str()).collect();
+    labels.dedup();
+    if labels.len() < 2 {
+        return Ok(figs);
+    }
+    let mut methods: Vec<&str> = ok.iter().map(|r| r.method.as_str()).collect();
+    methods.sort();
+    methods.dedup();
+    let series = methods
+        .iter()
+        .map(|m| {
+            let sel: Vec<&&SummaryRow> = ok.iter().filter(|r| r.method == *m).collect();
+            let x = sel
+                .iter()
+                .map(|r| 1.0 + labels.iter().position(|l| *l == r.campaign).unwrap() as f64)
+                .collect();
+            ScatterSeries::new(*m, x, sel.iter().map(|r| r.mass_kg).collect())
+                .with_errors(sel.iter().map(|r| 1.96 * r.mass_std_kg).collect())
+        })
+        .collect();
+    let plot = ScatterPlot {
+        title: "Mass per recording (95 % noise intervals)".into(),
+        x_label: format!("recording (1 = {}, in table order)", labels[0]),
+        y_label: "m [kg]".into(),
+        series,
+        ..Default::default()
+    };
+    figs.push(("campaign_mass.svg".into(), scatter_plot(&plot)?));
+    Ok(figs)
+}
+
+/// Writes the HTML report of `data` to `path` (atomically: a temporary file renamed).
+pub fn write_html(path: &Path, data: &crate::html::ReportData) -> Result<()> {
+    crate::write_text(path, &crate::html::html(data)?)
 }

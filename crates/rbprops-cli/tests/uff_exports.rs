@@ -35,6 +35,8 @@ fn split_geometry_converts_to_the_library_result() {
         os(&geo),
         "-o".as_ref(),
         os(&out),
+        // The reader's notes are listed with -v.
+        "-v".as_ref(),
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // The unused geometry node 9 is reported.

@@ -29,6 +29,9 @@ struct Args {
     /// Write FRF magnitude plots (one SVG per excitation) into this directory.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// List every note on stderr (default: one summary line).
+    #[arg(short, long)]
+    verbose: bool,
 }
 
 fn main() -> std::process::ExitCode {
@@ -63,9 +66,14 @@ fn main() -> std::process::ExitCode {
             return Ok(());
         }
         let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
+        let mut notes = rbprops_cli::warnings::Collector::default();
         for note in &sim.notes {
-            eprintln!("note: {note}");
+            notes.add(rbprops_cli::warnings::StageWarning::note(
+                "frf-sim",
+                note.clone(),
+            ));
         }
+        notes.print(args.verbose);
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(
                 dir,

@@ -122,19 +122,24 @@ fn main() -> std::process::ExitCode {
             args.exp_window,
             &input.sha256,
         )?;
+        let mut warnings = rbprops_cli::warnings::Collector::default();
         for e in &out.record.excitations {
             for w in &e.warnings {
-                eprintln!("modal-fit: warning: excitation {}: {w}", e.excitation);
+                warnings.push("modal-fit", format!("excitation {}: {w}", e.excitation));
             }
         }
         for m in &out.record.modes {
             for w in &m.warnings {
-                eprintln!(
-                    "modal-fit: warning: excitation {} mode {} ({:.4} Hz): {w}",
-                    m.excitation, m.mode, m.frequency_hz
+                warnings.push(
+                    "modal-fit",
+                    format!(
+                        "excitation {} mode {} ({:.4} Hz): {w}",
+                        m.excitation, m.mode, m.frequency_hz
+                    ),
                 );
             }
         }
+        warnings.print(args.checks.verbose);
         if let Some(dir) = &args.plot {
             let (geometry, frf) = rec.require_geometry_and_frf()?;
             let coherence = rbprops_cli::coherence::get(&rec)?;

@@ -6,7 +6,6 @@ use anyhow::{bail, Context, Result};
 use clap::{Parser, ValueEnum};
 use rbprops_check::{CheckOptions, CheckOutcome, Progress, RecordingNoise};
 use rbprops_formats::topics;
-use rbprops_plot::{heat_map, line_plot, HeatMap, LinePlot, LineStyle, Scale, Series};
 use rbprops_sim::CampaignSpec;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -132,7 +131,9 @@ fn main() -> std::process::ExitCode {
         let out = rbprops_check::check(&spec, &geometry, &frf, &opts)
             .map_err(|e| rbprops_cli::init_spec::mismatch_hint(e, &input.name))
             .with_context(|| format!("{} against {source}", input.name))?;
-        rbprops_cli::warn_all("model-check", &out.report.warnings);
+        let mut warnings = rbprops_cli::warnings::Collector::default();
+        warnings.extend("model-check", &out.report.warnings);
+        warnings.print(args.checks.verbose);
         if let Some(p) = &args.improved_spec {
             let mut s = out.improved_spec.clone();
             s.description = format!(
@@ -142,7 +143,7 @@ fn main() -> std::process::ExitCode {
             rbprops_cli::write_text(p, &s.to_toml_string())?;
         }
         if let Some(dir) = &args.plot {
-            rbprops_cli::write_plots(dir, &plots(&out, &geometry)?)?;
+            rbprops_cli::write_plots(dir, &rbprops_cli::plots::model_check(&out, &geometry)?)?;
         }
         rec.push_provenance(rbprops_cli::provenance("model-check", &input.sha256))?;
         rec.set(topics::MODEL_CHECK, &[out.report.clone()]);
@@ -267,130 +268,4 @@ fn summary(out: &CheckOutcome) -> String {
         );
     }
     s
-}
-
-fn plots(out: &CheckOutcome, g: &rbprops_core::Geometry) -> Result<Vec<(String, String)>> {
-    let r = &out.report;
-    let l = &out.layout;
-    let nl = l.n_lines();
-    let nch = l.channel_map.len();
-    let mut files = Vec::new();
-    // Overlays in the flagged cells of the baseline residual (strongest first, up to 6).
-    let mut cells: Vec<&rbprops_check::locate::ResidualCell> = r
-        .residuals_before
-        .cells
-        .iter()
-        .filter(|c| c.z > 5.0)
-        .collect();
-    cells.sort_by(|a, b| b.z.total_cmp(&a.z));
-    let mut seen = Vec::new();
-    for c in cells {
-        let key = (c.excitation.clone(), c.channel.clone());
-        if seen.contains(&key) || seen.len() >= 6 {
-            continue;
-        }
-        seen.push(key);
-        let e = g
-            .excitations
-            .iter()
-            .position(|x| x.id == c.excitation)
-            .unwrap_or(0);
-        let ch = g
-            .channels
-            .iter()
-            .position(|x| x.id == c.channel)
-            .unwrap_or(0);
-        let at = |v: &[rbprops_core::c64]| -> Vec<f64> {
-            v[(e * nch + ch) * nl..(e * nch + ch + 1) * nl]
-                .iter()
-                .map(|x| x.norm())
-                .collect()
-        };
-        let f = l.frequency_hz.clone();
-        let plot = LinePlot {
-            title: format!(
-                "{} / {}: measured vs nominal vs improved",
-                c.excitation, c.channel
-            ),
-            x_label: "Frequency [Hz]".into(),
-            y_label: format!("|H| [{}]", l.quantity.unit()),
-            y_scale: Scale::Log10,
-            series: vec![
-                Series::new("measured", f.clone(), at(&out.measured)),
-                Series::new("nominal spec", f.clone(), at(&out.nominal))
-                    .with_style(LineStyle::Dotted),
-                Series::new("baseline fit", f.clone(), at(&out.baseline))
-                    .with_style(LineStyle::Dashed),
-                Series::new("improved", f, at(&out.improved)).with_style(LineStyle::Dashed),
-            ],
-            ..Default::default()
-        };
-        files.push((
-            format!(
-                "overlay_{}_{}.svg",
-                rbprops_cli::plots::sanitize(&c.excitation),
-                rbprops_cli::plots::sanitize(&c.channel)
-            ),
-            line_plot(&plot)?,
-        ));
-    }
-    // Residual maps: χ²/n per channel (rows) × excitation (columns), before and after.
-    for (name, map) in [
-        ("before", &r.residuals_before),
-        ("after", &r.residuals_after),
-    ] {
-        let rows: Vec<String> = l
-            .channel_map
-            .iter()
-            .map(|&c| l.spec_geometry.channels[c].id.clone())
-            .collect();
-        let cols: Vec<String> = l
-            .excitation_map
-            .iter()
-            .map(|&e| l.spec_geometry.excitations[e].id.clone())
-            .collect();
-        let values = rows
-            .iter()
-            .map(|ch| {
-                cols.iter()
-                    .map(|ex| {
-                        let (mut n, mut c2) = (0usize, 0.0);
-                        for c in map
-                            .cells
-                            .iter()
-                            .filter(|c| &c.channel == ch && &c.excitation == ex)
-                        {
-                            n += c.n;
-                            c2 += c.chi2;
-                        }
-                        if n > 0 {
-                            (c2 / n as f64).log10()
-                        } else {
-                            f64::NAN
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
-        let hm = HeatMap {
-            title: format!(
-                "noise-normalised residual {name} ({})",
-                if name == "before" {
-                    "baseline fit"
-                } else {
-                    "final model"
-                }
-            ),
-            row_labels: rows,
-            column_labels: cols,
-            values,
-            x_label: "excitation".into(),
-            y_label: "channel".into(),
-            value_label: "log10 χ²/n (0 = noise)".into(),
-            decimals: 2,
-            ..Default::default()
-        };
-        files.push((format!("residual_map_{name}.svg"), heat_map(&hm)?));
-    }
-    Ok(files)
 }

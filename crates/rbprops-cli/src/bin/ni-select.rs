@@ -85,11 +85,24 @@ fn main() -> std::process::ExitCode {
         }
         let out = rbprops_cli::stages::ni_select(&mut rec, &opts, &input.sha256)
             .with_context(|| input.name.clone())?;
-        rbprops_cli::warn_all("ni-select", &out.record.warnings);
+        let mut warnings = rbprops_cli::warnings::Collector::default();
+        warnings.extend("ni-select", &out.record.warnings);
         for m in &out.record.missing {
-            eprintln!("ni-select: warning: set-up {} mode {} ({:.4} Hz) not excited above the noise by {:?}: {}", m.setup, m.mode, m.frequency_hz, m.tried, m.reason);
+            warnings.push(
+                "ni-select",
+                format!(
+                    "set-up {} mode {} ({:.4} Hz) not excited above the noise by {:?}: {}",
+                    m.setup, m.mode, m.frequency_hz, m.tried, m.reason
+                ),
+            );
         }
-        rbprops_cli::warn_all("ni-select", &out.criterion_disagreements);
+        for d in &out.criterion_disagreements {
+            warnings.add(rbprops_cli::warnings::StageWarning::note(
+                "ni-select",
+                d.clone(),
+            ));
+        }
+        warnings.print(args.checks.verbose);
         if args.summary {
             let mut err = std::io::stderr().lock();
             for s in &out.excitation_summaries {

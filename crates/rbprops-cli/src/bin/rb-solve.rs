@@ -160,7 +160,9 @@ fn main() -> std::process::ExitCode {
             &input.sha256,
         )
         .with_context(|| input.name.clone())?;
-        rbprops_cli::warn_all("rb-solve", &out.warnings);
+        let mut warnings = rbprops_cli::warnings::Collector::default();
+        warnings.extend("rb-solve", &out.warnings);
+        warnings.print(args.checks.verbose);
         if out.estimates.is_empty() {
             bail!("no estimator produced an estimate (see the warnings above)");
         }

@@ -50,6 +50,15 @@ enum Command {
         /// as rb-solve) or `linearised` (faster). Default: the campaign file's, else bootstrap.
         #[arg(long)]
         uncertainty: Option<String>,
+        /// Also write each item's run (DIR/<label>/run.mcap, every stage's topic) and its
+        /// figures (SVG) under DIR, for `rbprops report`: put it beside the summary as
+        /// `runs/` (`-o OUT/summary.csv --runs OUT/runs`, then `rbprops report OUT`).
+        #[arg(long)]
+        runs: Option<PathBuf>,
+        /// List every item's warnings (default: one line per stage, plus the warnings
+        /// that change an answer).
+        #[arg(short, long)]
+        verbose: bool,
     },
     /// Write a campaign spec (the TOML frf-sim and model-check read) from a recording:
     /// sensors, channels, excitations and set-ups with the recording's ids; body, suspension
@@ -75,12 +84,17 @@ enum Command {
         #[arg(long, default_value = "geometry")]
         origin: String,
     },
-    /// A Markdown report with figures (errors per set, method and origin — the paper's
-    /// Figs. 5–8 and 14–17) from summary tables.
+    /// A report of finished runs: one self-contained HTML page (`-o report.html`: the
+    /// estimates with their intervals, every figure inline, the warnings grouped by stage
+    /// and explained, the model check's verdict) or Markdown with SVG figures beside it
+    /// (`-o DIR` writes DIR/report.md, `-o FILE.md` that file).
     Report {
-        /// Summary CSV files (from `campaign` or `summary`).
+        /// Summary CSV files (from `campaign` or `summary`); or, for HTML, one campaign
+        /// output directory (summary.csv, and runs/ from `campaign --runs`), one run
+        /// directory (run.mcap and the stages' `--plot` figures) or one run (MCAP/CSV).
+        #[arg(required = true)]
         summaries: Vec<PathBuf>,
-        /// Output directory (report.md and SVG figures).
+        /// Output: FILE.html, FILE.md or a directory (Markdown).
         #[arg(short, long)]
         output: PathBuf,
         #[arg(long, default_value = "rbprops report")]
@@ -125,6 +139,8 @@ fn main() -> std::process::ExitCode {
             output,
             config,
             uncertainty,
+            runs,
+            verbose,
         } => {
             let config = config.or_else(|| {
                 let p = dir.join(rbprops_cli::campaign::CONFIG_FILE);
@@ -148,8 +164,11 @@ fn main() -> std::process::ExitCode {
                 );
             }
             let pb = rbprops_cli::progress(items.len() as u64, "campaign");
-            let res = rbprops_cli::campaign::run_all(&items, &dir, &opts, &pb);
+            let res = rbprops_cli::campaign::run_all(&items, &dir, &opts, runs.as_deref(), &pb);
             pb.finish_and_clear();
+            for l in res.warnings.lines(verbose) {
+                eprintln!("rbprops campaign: {l}");
+            }
             let csv = rbprops_cli::summary::to_csv(&res.rows)?;
             match &output {
                 Some(p) => rbprops_cli::write_text(p, &csv)?,
@@ -223,15 +242,41 @@ fn main() -> std::process::ExitCode {
             title,
             figure,
         } => {
+            let ext = output
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase());
+            if matches!(ext.as_deref(), Some("html") | Some("htm")) {
+                let [input] = summaries.as_slice() else {
+                    bail!("an HTML report takes one input (a campaign output directory, a run directory or a summary CSV); got {}", summaries.len());
+                };
+                let mut data = rbprops_cli::report::load(input, &title)?;
+                for f in &figure {
+                    let svg =
+                        std::fs::read_to_string(f).with_context(|| f.display().to_string())?;
+                    let name = f
+                        .file_name()
+                        .map(|n| n.to_string_lossy().into_owned())
+                        .unwrap_or_default();
+                    data.figures.push((name, svg));
+                }
+                return rbprops_cli::report::write_html(&output, &data);
+            }
             let mut rows = Vec::new();
             for s in &summaries {
-                let text = std::fs::read_to_string(s).with_context(|| s.display().to_string())?;
-                rows.extend(
-                    rbprops_cli::summary::from_csv(&text)
-                        .with_context(|| s.display().to_string())?,
-                );
+                rows.extend(rbprops_cli::report::load(s, &title)?.rows);
             }
-            rbprops_cli::report::write(&output, &title, &rows, &figure)
+            let (dir, md) = if ext.as_deref() == Some("md") {
+                (
+                    output.parent().map(PathBuf::from).unwrap_or_default(),
+                    output
+                        .file_name()
+                        .map(|n| n.to_string_lossy().into_owned())
+                        .unwrap_or_default(),
+                )
+            } else {
+                (output.clone(), "report.md".to_string())
+            };
+            rbprops_cli::report::write(&dir, &md, &title, &rows, &figure)
         }
     })
 }
