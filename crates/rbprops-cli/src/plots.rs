@@ -511,6 +511,7 @@ fn worst_channels(out: &rbprops_check::CheckOutcome, g: &Geometry) -> Result<Opt
                     Rgb(214, 39, 40),
                 ),
             ],
+            quality: None,
         });
     }
     if panels.is_empty() {
