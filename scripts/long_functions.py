@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """List Rust functions longer than a limit (default 200 lines), outside tests.
 
-Usage: scripts/long_functions.py [--limit N] [--fail] [ROOT ...]   (ROOT defaults to crates/)
+Usage: scripts/long_functions.py [--limit N] [--fail] [ROOT ...]   (ROOT: a folder or a .rs file;
+defaults to crates/)
 
 A function is an `fn` item whose body is found by brace matching; strings, chars, and
 comments are skipped so braces inside them do not count. Files under `tests/`,
@@ -129,6 +130,9 @@ def main():
     args = ap.parse_args()
     rows = []
     for root in args.roots:
+        if os.path.isfile(root):
+            rows.extend((n, root, line, fn) for fn, line, n in functions(root) if n > args.limit)
+            continue
         for dirpath, dirnames, filenames in os.walk(root):
             dirnames[:] = sorted(d for d in dirnames if d not in ("tests", "benches", "examples", "target"))
             for name in sorted(filenames):
