@@ -92,6 +92,18 @@ pub fn chi2_isf(q: f64, k: f64) -> f64 {
     bisect_threshold(k.max(1.0), 1e-12, |x| chi2_sf(x, k) > q)
 }
 
+/// Wilson–Hilferty approximation of the upper quantile of χ²_k: x with P(χ²_k > x) ≈ q,
+/// where `z` is the standard-normal upper quantile of q (3.719 for q = 1e-4, 3.0902 for
+/// q = 1e-3): `x = k (1 − c + z √c)³`, `c = 2/(9k)`, because `(χ²_k/k)^(1/3)` is close to
+/// normal with mean `1 − c` and variance `c`. Relative error (against scipy's
+/// `chi2.isf`) at q = 1e-3: 1.7 % at k = 3, 0.6 % at k = 10; at q = 1e-4: 3.5 % and 1.1 %;
+/// below 0.03 % at k = 200. Closed form, so a threshold computed with it costs nothing.
+/// Use [`chi2_isf`] where accuracy matters.
+pub fn chi2_isf_wilson_hilferty(z: f64, k: f64) -> f64 {
+    let c = 2.0 / (9.0 * k);
+    k * (1.0 - c + z * c.sqrt()).powi(3)
+}
+
 /// The point in (0, ∞) where `below(x)` turns from true to false, for a monotone `below`:
 /// the bracket [0, hi] is widened by doubling `hi` until `below(hi)` is false, then halved
 /// until its width is under `rel` of its top (at most 200 steps); returns its midpoint.
@@ -225,6 +237,27 @@ mod tests {
         // Exponential case k = 2: P(X > x) = e^{-x/2}.
         assert!((chi2_sf(3.0, 2.0) - (-1.5f64).exp()).abs() < 1e-14);
         assert!((ln_gamma(5.0) - 24f64.ln()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn wilson_hilferty_is_close_to_the_exact_quantile() {
+        // The approximation's known accuracy against the exact survival-function
+        // inversion, at the two levels the workspace uses: 1e-4 (z = 3.719) and 1e-3
+        // (z = 3.0902). Bounds: the approximation's errors from scipy (3.47 %, 1.14 %,
+        // 0.53 %, 0.03 % at 1e-4; about half that at 1e-3), rounded up, so a wrong
+        // formula (a sign, a missing cube) fails by far more.
+        for (z, q) in [(3.719, 1e-4), (3.090_232_306_167_813, 1e-3)] {
+            for (k, tol) in [(3.0, 0.04), (10.0, 0.013), (20.0, 0.006), (200.0, 0.001)] {
+                let (wh, exact) = (chi2_isf_wilson_hilferty(z, k), chi2_isf(q, k));
+                assert!(
+                    (wh / exact - 1.0).abs() < tol,
+                    "k = {k}, q = {q}: {wh} vs {exact}"
+                );
+            }
+        }
+        // The closed form itself: k = 2/9 makes c = 1, x = k z³.
+        let k = 2.0 / 9.0;
+        assert!((chi2_isf_wilson_hilferty(2.0, k) - k * 8.0).abs() < 1e-12);
     }
 
     #[test]

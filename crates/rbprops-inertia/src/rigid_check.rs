@@ -58,10 +58,8 @@ pub const MATCH_MAC: f64 = 0.9;
 /// Upper 0.1 % point of χ² with `nu` dof, Wilson–Hilferty (relative error 1.8 % at ν = 3,
 /// < 0.6 % for ν ≥ 10; ample for a threshold that carries a factor 2 allowance).
 pub fn chi2_quantile_999(nu: usize) -> f64 {
-    let nu = nu.max(1) as f64;
-    let z = 3.090_232_306_167_813;
-    let a = 2.0 / (9.0 * nu);
-    (nu * (1.0 - a + z * a.sqrt()).powi(3)).max(0.0)
+    // z: the standard-normal upper 0.1 % point.
+    rbprops_core::stats::chi2_isf_wilson_hilferty(3.090_232_306_167_813, nu.max(1) as f64).max(0.0)
 }
 
 /// Threshold on `χ²/dof` for `dof` degrees of freedom.

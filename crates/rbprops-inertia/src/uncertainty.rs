@@ -13,9 +13,10 @@
 //! 95 % intervals are `value ± 1.96 σ` ([`Z95`]).
 
 use crate::error::InertiaError;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
+use rbprops_core::noise::standard_normal;
 use rbprops_core::RigidBodyProperties;
 
 /// Two-sided 95 % normal quantile.
@@ -127,13 +128,6 @@ fn draw_seed(seed: u64, s: u64) -> u64 {
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
     z ^ (z >> 31)
-}
-
-/// A standard normal deviate (Box–Muller).
-pub fn standard_normal(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = 1.0 - rng.random::<f64>(); // (0, 1]
-    let u2: f64 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
 }
 
 fn monte_carlo<F>(

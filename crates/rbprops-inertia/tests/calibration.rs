@@ -13,8 +13,8 @@ use common::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::c64;
+use rbprops_core::noise::standard_normal;
 use rbprops_core::records::InertiaEstimate;
-use rbprops_inertia::uncertainty::standard_normal;
 use rbprops_inertia::*;
 
 const SEEDS: u64 = 400;

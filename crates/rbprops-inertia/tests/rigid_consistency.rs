@@ -14,6 +14,7 @@ mod common;
 use common::*;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rbprops_core::noise::standard_normal as normal;
 use rbprops_core::records::InertiaEstimate;
 use rbprops_core::{c64, Geometry, Vec3};
 use rbprops_inertia::*;
@@ -29,12 +30,6 @@ enum Class {
     Position,
     Gain,
     ForceDirection,
-}
-
-fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    let u1 = 1.0 - rng.random::<f64>();
-    let u2 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 fn random_axis(rng: &mut ChaCha8Rng) -> Vec3 {

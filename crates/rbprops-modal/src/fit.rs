@@ -7,12 +7,13 @@ use crate::linalg;
 use crate::lsce;
 use crate::lscf;
 use crate::lsfd::{self, Residuals};
-use crate::options::{FitOptions, Method, PoleMode};
+use crate::options::{FitOptions, Method, PoleMode, PoleSearchParams};
 use crate::pole::{mpc, Pole};
 use crate::stabilisation::{self, StabilisationDiagram};
 use crate::ModalError;
 use rayon::prelude::*;
 use rbprops_core::records::{ExcitationFitRecord, ModalFitRecord, ModeEstimate};
+use rbprops_core::stats::chi2_isf_wilson_hilferty;
 use rbprops_core::{c64, FrfSet, Geometry, Quantity};
 use std::f64::consts::PI;
 
@@ -145,14 +146,6 @@ fn in_sigma2(noisy: impl FnOnce() -> String, exact_text: &str, exact: bool) -> S
     }
 }
 
-/// Upper 1e-4 quantile of χ² with `k` degrees of freedom (Wilson–Hilferty).
-fn chi2_threshold(k: usize) -> f64 {
-    let k = k as f64;
-    let z = 3.719; // standard normal upper 1e-4 quantile
-    let c = 2.0 / (9.0 * k);
-    k * (1.0 - c + z * c.sqrt()).powi(3)
-}
-
 /// Standard deviation of `(f, ζ)` from the covariance of `(Re λ, Im λ)`.
 fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
     let (re, im) = (p.0.re, p.0.im);
@@ -203,16 +196,16 @@ impl SweepDepth {
 /// Whether a safety sweep could only repeat what `sel` already shows below `f_hz`: the
 /// wider sweep resolved a stable mode there (its order reached that deep in its band),
 /// and neither a candidate cluster nor a physical pole of its highest order lies there
-/// away from the selected modes (a safety sweep adds only poles at least 3
-/// half-bandwidths from every known mode).
-fn safety_covered(sel: &stabilisation::Selection, f_hz: f64) -> bool {
+/// away from the selected modes (a safety sweep adds only poles at least
+/// `new_mode_bandwidths` half-bandwidths from every known mode).
+fn safety_covered(sel: &stabilisation::Selection, f_hz: f64, new_mode_bandwidths: f64) -> bool {
     let below = |p: &Pole| p.frequency_hz() < f_hz;
     let unexplained = |p: &Pole| {
         below(p)
             && sel
                 .modes
                 .iter()
-                .all(|m| m.pole.distance_in_bandwidths(p) >= 3.0)
+                .all(|m| m.pole.distance_in_bandwidths(p) >= new_mode_bandwidths)
     };
     let top = sel.diagram.max_order;
     sel.modes.iter().any(|m| below(&m.pole))
@@ -242,7 +235,31 @@ fn estimate_poles(
     estimate_poles_from(band, chans, opts, name, None)
 }
 
+/// The per-pole results while the refinement and the model-order tests change the poles.
+struct PoleTrack {
+    poles: Vec<Pole>,
+    /// Standard deviations of (f Hz, ζ) per pole.
+    std: Vec<(f64, f64)>,
+    confidence: Vec<f64>,
+    mode_warnings: Vec<Vec<String>>,
+}
+
+/// How the drop-and-refine stage ended.
+enum Refinement {
+    /// The refined poles (possibly none left).
+    Refined(lsfd::Refined),
+    /// A dropped pole showed that the modes sit low in the band: the whole estimate was
+    /// redone on a sub-band; its result.
+    Restarted(PoleSet),
+}
+
 /// As [`estimate_poles`], with the pole-estimation sub-band capped at `cap_hz`.
+///
+/// Stages: the model-order limit ([`order_limit`]), the sweep plan that chooses the
+/// sub-band of the stabilisation diagram ([`sweep_plan`]), the lower-band safety sweeps
+/// ([`safety_sweeps`]), the refinement that drops computational poles
+/// ([`refine_supported`]), the χ² model-order tests ([`OrderTest`]) and the close-pair
+/// report ([`flag_close_pairs`]). Thresholds: [`crate::PoleSearchParams`].
 fn estimate_poles_from(
     band: &BandData,
     chans: &[Vec<c64>],
@@ -252,128 +269,11 @@ fn estimate_poles_from(
 ) -> Result<PoleSet, ModalError> {
     let n = band.n_lines();
     let mut warnings = Vec::new();
-    // Each order n needs n + 1 numerator and n denominator coefficients per channel
-    // from 2N real equations; keep a margin of 2 so the fit is overdetermined.
-    let n_max = opts.max_order.min(n.saturating_sub(2));
-    if n_max < 2 || n < 4 {
-        return Err(ModalError::BadInput {
-            excitation: name.into(),
-            reason: format!(
-                "{n} lines in the band: too few for even one mode (need at least 4 lines)"
-            ),
-        });
-    }
-    if n_max < opts.max_order {
-        warnings.push(format!(
-            "excitation '{name}': only {n} lines in the band, maximum model order reduced from {} to {n_max}",
-            opts.max_order
-        ));
-    }
-    // Pole-estimation band. Polynomial (z-domain) estimators need a model order that
-    // grows with the band relative to where the modes are: rigid-body modes in the
-    // bottom quarter of a baseband need ~5× more orders than the same modes filling the
-    // band. So when the stable modes all sit low, the sweep is repeated on the lines up
-    // to twice the highest stable mode (or half the band when none is stable). The
-    // refinement and the residues still use the whole band.
-    // Borrowed while it is the whole band (no copy of every channel).
-    let mut sub = match cap_hz {
-        Some(f) => std::borrow::Cow::Owned(band.up_to(f)),
-        None => std::borrow::Cow::Borrowed(band),
-    };
-    let sweep_at =
-        |sub: &BandData, depth: SweepDepth| -> Result<stabilisation::Selection, ModalError> {
-            let (max_order, max_lines) = depth.limits(opts.max_order);
-            let nm = max_order.min(sub.n_lines().saturating_sub(2));
-            let orders = match opts.method {
-                Method::Lscf | Method::Circle | Method::Plscf => {
-                    // LSCF works on any axis: decimate the lines and solve even orders only.
-                    let keep = BandData::decimation_indices(sub.n_lines(), max_lines);
-                    let dec = sub.lines(&keep);
-                    let dec_chans = select_lines(chans, &keep);
-                    let nm = nm.min(dec.n_lines().saturating_sub(2));
-                    crate::prof::time(0, || lscf::sweep_orders(&dec, &dec_chans, nm, 2))
-                }
-                Method::Lsce => {
-                    let sub_chans: Vec<Vec<c64>> =
-                        chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
-                    lsce::sweep(sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
-                        excitation: name.into(),
-                        method: "LSCE",
-                        reason,
-                    })?
-                }
-            };
-            let band_w = (sub.omega[0], *sub.omega.last().unwrap());
-            Ok(crate::prof::time(1, || {
-                stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes)
-            }))
-        };
-    let min_sweep_lines = 4 * opts.max_order.max(8);
-    let mut sel;
-    // The first pass over the whole band only has to say where the modes are, so it
-    // runs at locator depth; a full sweep follows on whatever band that leaves.
-    let mut depth = if opts.method == Method::Lsce || opts.n_modes.is_some() {
-        SweepDepth::Full
-    } else {
-        SweepDepth::Locate
-    };
-    loop {
-        sel = sweep_at(&sub, depth)?;
-        let top = *sub.frequency_hz.last().unwrap();
-        let target = match sel
-            .modes
-            .iter()
-            .map(|m| m.pole.frequency_hz())
-            .reduce(f64::max)
-        {
-            Some(f) => 2.0 * f,
-            None => 0.5 * top,
-        };
-        let lines = sub.frequency_hz.partition_point(|&f| f <= target);
-        if target < 0.6 * top && lines >= min_sweep_lines {
-            warnings.push(format!(
-                "excitation '{name}': poles estimated on {:.4}–{target:.4} Hz, where the modes are (residues on the whole band)",
-                sub.frequency_hz[0]
-            ));
-            sub = std::borrow::Cow::Owned(sub.up_to(target));
-            depth = SweepDepth::Full;
-            continue;
-        }
-        if depth != SweepDepth::Full {
-            depth = SweepDepth::Full;
-            continue;
-        }
-        break;
-    }
-    // Wide bands: modes far below the band's top crowd near z = 1 and need far higher
-    // orders than the sweep allows (and decimation may under-sample them). Sweep the
-    // lower quarter again, and again, and add the modes each finds in the lower 60 % of
-    // its sub-band that the wider sweeps did not.
+    let n_max = order_limit(n, opts, name, &mut warnings)?;
+    let sweeper = Sweeper { chans, opts, name };
+    let (sub, mut sel) = sweep_plan(band, cap_hz, &sweeper, &mut warnings)?;
     if opts.n_modes.is_none() {
-        let mut low = 0.25 * *sub.frequency_hz.last().unwrap();
-        loop {
-            let lower = sub.up_to(low);
-            if lower.n_lines() < min_sweep_lines {
-                break;
-            }
-            if safety_covered(&sel, 0.6 * low) {
-                low *= 0.25;
-                continue;
-            }
-            let s_low = sweep_at(&lower, SweepDepth::Safety)?;
-            for m in s_low.modes {
-                let known = sel
-                    .modes
-                    .iter()
-                    .any(|k| k.pole.distance_in_bandwidths(&m.pole) < 3.0);
-                if m.pole.frequency_hz() < 0.6 * low && !known {
-                    sel.modes.push(m);
-                }
-            }
-            low *= 0.25;
-        }
-        sel.modes
-            .sort_by(|a, b| a.pole.omega_n().total_cmp(&b.pole.omega_n()));
+        safety_sweeps(&sub, &mut sel, &sweeper)?;
     }
     warnings.extend(
         sel.warnings
@@ -389,17 +289,19 @@ fn estimate_poles_from(
             ),
         });
     }
-    let mut poles: Vec<Pole> = sel.modes.iter().map(|m| m.pole).collect();
-    let mut std: Vec<(f64, f64)> = sel.modes.iter().map(|m| m.spread).collect();
-
-    let mut confidence: Vec<f64> = sel.modes.iter().map(|m| m.presence).collect();
-    let mut mode_warnings = vec![Vec::new(); poles.len()];
+    let mut track = PoleTrack {
+        poles: sel.modes.iter().map(|m| m.pole).collect(),
+        std: sel.modes.iter().map(|m| m.spread).collect(),
+        confidence: sel.modes.iter().map(|m| m.presence).collect(),
+        mode_warnings: vec![Vec::new(); sel.modes.len()],
+    };
     let res = Residuals::for_band(opts.residual_terms, band);
     // Refinement and model-order test on the lines that carry the pole information:
     // those near the selected poles and the candidates the residual test may add, plus
     // an even skeleton for the residual terms (see `BandData::focus_indices`). The
     // residues are then fitted on every line.
-    let focus: Vec<Pole> = poles
+    let focus: Vec<Pole> = track
+        .poles
         .iter()
         .copied()
         .chain(sel.candidates.iter().map(|c| c.pole))
@@ -410,217 +312,380 @@ fn estimate_poles_from(
     let rn = rband.n_lines();
     if opts.refine && opts.method != Method::Circle {
         let rows = 2 * rn;
-        let unknowns = 2 * poles.len() + 2;
-        if rows <= unknowns + 2 * poles.len() {
+        let unknowns = 2 * track.poles.len() + 2;
+        if rows <= unknowns + 2 * track.poles.len() {
             warnings.push(format!(
                 "excitation '{name}': {n} lines are too few to refine {} poles; LSCF poles kept",
-                poles.len()
+                track.poles.len()
             ));
         } else {
-            // Refinement is local. A pole it pushes more than ten half-bandwidths away,
-            // out of the band or past the damping limit is not supported by the data
-            // (a computational pole that looked stable): drop it and refine again.
-            let mut r = crate::prof::time(2, || lsfd::refine(&poles, &rband, &rchans, res));
-            let band_w = (band.omega[0], *band.omega.last().unwrap());
-            loop {
-                let bad = poles
-                    .iter()
-                    .zip(&r.poles)
-                    .enumerate()
-                    .map(|(i, (a, b))| {
-                        let off = b.damping() >= opts.tolerances.max_damping
-                            || b.omega_n() < band_w.0
-                            || b.omega_n() > band_w.1;
-                        (
-                            i,
-                            if off {
-                                f64::INFINITY
-                            } else {
-                                a.distance_in_bandwidths(b)
-                            },
-                        )
-                    })
-                    .filter(|(_, d)| *d > 10.0)
-                    .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
-                let Some((i, d)) = bad else { break };
-                warnings.push(format!(
-                    "excitation '{name}': pole at {:.4} Hz dropped: the refinement could not hold it (moved {d:.1} half-bandwidths or left the band), so it is computational",
-                    poles[i].frequency_hz()
-                ));
-                poles.remove(i);
-                // A spurious high pole can hide that the modes sit low in the band:
-                // redo the diagram on the lines up to twice the highest remaining mode.
-                let top_sub = *sub.frequency_hz.last().unwrap();
-                if let Some(f_top) = poles.iter().map(|p| p.frequency_hz()).reduce(f64::max) {
-                    let lines = band.frequency_hz.partition_point(|&f| f <= 2.0 * f_top);
-                    if cap_hz.is_none()
-                        && 2.0 * f_top < 0.6 * top_sub
-                        && lines >= 4 * opts.max_order.max(8)
-                    {
-                        let mut ps =
-                            estimate_poles_from(band, chans, opts, name, Some(2.0 * f_top))?;
-                        let mut w = warnings.clone();
-                        w.append(&mut ps.warnings);
-                        ps.warnings = w;
-                        return Ok(ps);
-                    }
-                }
-                std.remove(i);
-                confidence.remove(i);
-                mode_warnings.remove(i);
-                if poles.is_empty() {
-                    break;
-                }
-                r = crate::prof::time(2, || lsfd::refine(&poles, &rband, &rchans, res));
-            }
-            if poles.is_empty() {
+            let refine = RefineInputs {
+                band,
+                chans,
+                rband: &rband,
+                rchans: &rchans,
+                res,
+                opts,
+                name,
+                cap_hz,
+                sub_top_hz: *sub.frequency_hz.last().unwrap(),
+            };
+            let mut r = match refine_supported(&refine, &mut track, &mut warnings)? {
+                Refinement::Refined(r) => r,
+                Refinement::Restarted(ps) => return Ok(ps),
+            };
+            if track.poles.is_empty() {
                 return Err(ModalError::NoModes {
                     excitation: name.into(),
                     reason: "every selected pole was dropped by the refinement".into(),
                 });
             }
-            {
-                let mut r = r;
-                if opts.n_modes.is_none() {
-                    // Model-order test on the residual: a weak mode beside a strong one
-                    // is often only intermittently stable in the diagram. Try each
-                    // rejected cluster as an extra mode; keep it when the cost drop is
-                    // significant for the 2 + 2·channels parameters it adds (χ², p=1e-4).
-                    let no = chans.len();
-                    let dof_added = 2 + 2 * no;
-                    let threshold = chi2_threshold(dof_added);
-                    // Cheap screen: the cost drop with each candidate as it is, all
-                    // from one QR (recomputed only after a candidate is accepted); only
-                    // promising candidates get the full refinement.
-                    let cand_poles: Vec<Pole> = sel.candidates.iter().map(|c| c.pole).collect();
-                    let mut screen: Option<(f64, Vec<f64>)> = None;
-                    for (ci, cand) in sel.candidates.iter().enumerate() {
-                        let mut trial_poles = r.poles.clone();
-                        if trial_poles
-                            .iter()
-                            .any(|p| p.distance_in_bandwidths(&cand.pole) < 0.25)
-                        {
-                            continue;
-                        }
-                        trial_poles.push(cand.pole);
-                        if 2 * rn <= 2 * (2 * trial_poles.len() + 2) {
-                            break;
-                        }
-                        let dof0 = (2 * rn * no)
-                            .saturating_sub(
-                                no * (2 * trial_poles.len() + 2) + 2 * trial_poles.len(),
-                            )
-                            .max(1) as f64;
-                        let (c_now, c_with) = screen.get_or_insert_with(|| {
-                            crate::prof::time(3, || {
-                                lsfd::screen_extra_poles(&r, &cand_poles, &rband, &rchans)
-                            })
-                        });
-                        let c_screen = c_with[ci];
-                        if (*c_now - c_screen) / test_variance(c_screen, dof0).0 < threshold {
-                            continue;
-                        }
-                        let r2 = crate::prof::time(2, || {
-                            lsfd::refine(&trial_poles, &rband, &rchans, res)
-                        });
-                        let added = *r2.poles.last().unwrap();
-                        let dof = (2 * rn * no)
-                            .saturating_sub(no * (2 * r2.poles.len() + 2) + 2 * r2.poles.len())
-                            .max(1) as f64;
-                        let (s2, exact) = test_variance(r2.cost.1, dof);
-                        let separate = r2.poles[..r2.poles.len() - 1]
-                            .iter()
-                            .all(|p| p.distance_in_bandwidths(&added) > 0.25);
-                        let physical = added.damping() > 0.0
-                            && added.damping() < opts.tolerances.max_damping
-                            && added.omega_n() >= band.omega[0]
-                            && added.omega_n() <= *band.omega.last().unwrap();
-                        if physical
-                            && separate
-                            && !r2.singular
-                            && added.distance_in_bandwidths(&cand.pole) < 3.0
-                            && (r.cost.1 - r2.cost.1) / s2 > threshold
-                        {
-                            warnings.push(format!(
-                                "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, {})",
-                                added.frequency_hz(),
-                                in_sigma2(
-                                    || format!("cost −{:.1}σ²", (r.cost.1 - r2.cost.1) / s2),
-                                    "cost lowered",
-                                    exact
-                                )
-                            ));
-                            std.push(cand.spread);
-                            confidence.push(0.5 * cand.presence);
-                            mode_warnings.push(vec![
-                                "found by the residual model-order test, not stable throughout the diagram".into(),
-                            ]);
-                            r = r2;
-                            screen = None;
-                        }
-                    }
-                    let dof_of = |np: usize| {
-                        (2 * rn * no)
-                            .saturating_sub(no * (2 * np + 2) + 2 * np)
-                            .max(1) as f64
-                    };
-                    let test = OrderTest {
-                        band: &rband,
-                        chans: &rchans,
-                        res,
-                        threshold,
-                        max_damping: opts.tolerances.max_damping,
-                        dof_of: &dof_of,
-                        name,
-                    };
-                    test.prune_close_poles(TrackedPoles {
-                        r: &mut r,
-                        confidence: &mut confidence,
-                        mode_warnings: &mut mode_warnings,
-                        warnings: &mut warnings,
-                    });
-                    test.split_merged_poles(TrackedPoles {
-                        r: &mut r,
-                        confidence: &mut confidence,
-                        mode_warnings: &mut mode_warnings,
-                        warnings: &mut warnings,
-                    });
-                }
-                if r.singular {
-                    warnings.push(format!(
-                        "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
-                    ));
-                }
-                if !r.converged {
-                    warnings.push(format!(
-                        "excitation '{name}': pole refinement did not converge in {} iterations",
-                        r.iterations
-                    ));
-                }
-                poles = r.poles.clone();
-                std = poles
-                    .iter()
-                    .zip(&r.covariance)
-                    .map(|(p, c)| modal_std(p, c))
-                    .collect();
+            if opts.n_modes.is_none() {
+                let test = OrderTest {
+                    band: &rband,
+                    chans: &rchans,
+                    res,
+                    threshold: chi2_isf_wilson_hilferty(
+                        opts.search.order_test_z,
+                        (2 + 2 * chans.len()) as f64,
+                    ),
+                    max_damping: opts.tolerances.max_damping,
+                    full_band_w: (band.omega[0], *band.omega.last().unwrap()),
+                    search: &opts.search,
+                    name,
+                };
+                let mut tracked = TrackedPoles {
+                    r: &mut r,
+                    confidence: &mut track.confidence,
+                    mode_warnings: &mut track.mode_warnings,
+                    warnings: &mut warnings,
+                };
+                test.add_intermittent_modes(&mut tracked, &sel.candidates);
+                test.prune_close_poles(&mut tracked);
+                test.split_merged_poles(&mut tracked);
             }
+            if r.singular {
+                warnings.push(format!(
+                    "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
+                ));
+            }
+            if !r.converged {
+                warnings.push(format!(
+                    "excitation '{name}': pole refinement did not converge in {} iterations",
+                    r.iterations
+                ));
+            }
+            track.poles = r.poles.clone();
+            track.std = track
+                .poles
+                .iter()
+                .zip(&r.covariance)
+                .map(|(p, c)| modal_std(p, c))
+                .collect();
         }
     }
-    // Sort ascending (refinement may reorder two close poles).
-    let mut idx: Vec<usize> = (0..poles.len()).collect();
-    idx.sort_by(|&a, &b| poles[a].omega_n().total_cmp(&poles[b].omega_n()));
-    let poles: Vec<Pole> = idx.iter().map(|&i| poles[i]).collect();
-    let std: Vec<(f64, f64)> = idx.iter().map(|&i| std[i]).collect();
-    let mut confidence: Vec<f64> = idx.iter().map(|&i| confidence[i]).collect();
-    let mut mode_warnings: Vec<Vec<String>> =
-        idx.iter().map(|&i| mode_warnings[i].clone()).collect();
-    // Close pairs: say plainly when two poles cannot be told apart.
+    let mut track = track.sorted();
+    flag_close_pairs(&mut track, &opts.search, name, &mut warnings);
+    Ok(PoleSet {
+        poles: track.poles,
+        std: track.std,
+        confidence: track.confidence,
+        mode_warnings: track.mode_warnings,
+        diagram: sel.diagram,
+        warnings,
+    })
+}
+
+/// The highest model order the band supports: each order n needs n + 1 numerator and n
+/// denominator coefficients per channel from 2N real equations; a margin of 2 keeps the
+/// fit overdetermined. Too few lines for one mode is an error; a reduced order a warning.
+fn order_limit(
+    n: usize,
+    opts: &FitOptions,
+    name: &str,
+    warnings: &mut Vec<String>,
+) -> Result<usize, ModalError> {
+    let n_max = opts.max_order.min(n.saturating_sub(2));
+    if n_max < 2 || n < 4 {
+        return Err(ModalError::BadInput {
+            excitation: name.into(),
+            reason: format!(
+                "{n} lines in the band: too few for even one mode (need at least 4 lines)"
+            ),
+        });
+    }
+    if n_max < opts.max_order {
+        warnings.push(format!(
+            "excitation '{name}': only {n} lines in the band, maximum model order reduced from {} to {n_max}",
+            opts.max_order
+        ));
+    }
+    Ok(n_max)
+}
+
+/// Draws stabilisation diagrams of the channels `chans` on sub-bands of their band.
+struct Sweeper<'a> {
+    chans: &'a [Vec<c64>],
+    opts: &'a FitOptions,
+    name: &'a str,
+}
+
+impl Sweeper<'_> {
+    /// The diagram on the lines of `sub` (the first lines of the band) at `depth`, and the
+    /// modes it selects.
+    fn sweep(
+        &self,
+        sub: &BandData,
+        depth: SweepDepth,
+    ) -> Result<stabilisation::Selection, ModalError> {
+        let (opts, chans) = (self.opts, self.chans);
+        let (max_order, max_lines) = depth.limits(opts.max_order);
+        let nm = max_order.min(sub.n_lines().saturating_sub(2));
+        let orders = match opts.method {
+            Method::Lscf | Method::Circle | Method::Plscf => {
+                // LSCF works on any axis: decimate the lines and solve even orders only.
+                let keep = BandData::decimation_indices(sub.n_lines(), max_lines);
+                let dec = sub.lines(&keep);
+                let dec_chans = select_lines(chans, &keep);
+                let nm = nm.min(dec.n_lines().saturating_sub(2));
+                crate::prof::time(0, || lscf::sweep_orders(&dec, &dec_chans, nm, 2))
+            }
+            Method::Lsce => {
+                let sub_chans: Vec<Vec<c64>> =
+                    chans.iter().map(|h| h[..sub.n_lines()].to_vec()).collect();
+                lsce::sweep(sub, &sub_chans, nm).map_err(|reason| ModalError::Axis {
+                    excitation: self.name.into(),
+                    method: "LSCE",
+                    reason,
+                })?
+            }
+        };
+        let band_w = (sub.omega[0], *sub.omega.last().unwrap());
+        Ok(crate::prof::time(1, || {
+            stabilisation::select(&orders, band_w, &opts.tolerances, opts.n_modes)
+        }))
+    }
+
+    /// The fewest lines a sub-band sweep may have.
+    fn min_sweep_lines(&self) -> usize {
+        4 * self.opts.max_order.max(8)
+    }
+}
+
+/// The sweep plan: which sub-band the stabilisation diagram is drawn on. Polynomial
+/// (z-domain) estimators need a model order that grows with the band relative to where
+/// the modes are: rigid-body modes in the bottom quarter of a baseband need ~5× more
+/// orders than the same modes filling the band. So when the stable modes all sit low,
+/// the sweep is repeated on the lines up to `sub_band_margin` × the highest stable mode
+/// (or `sub_band_without_modes` of the band when none is stable). The first pass over the
+/// whole band only has to say where the modes are, so it runs at locator depth; a full
+/// sweep follows on whatever band that leaves. Returns the sub-band and its selection
+/// (the refinement and the residues still use the whole band).
+fn sweep_plan<'b>(
+    band: &'b BandData,
+    cap_hz: Option<f64>,
+    sweeper: &Sweeper,
+    warnings: &mut Vec<String>,
+) -> Result<(std::borrow::Cow<'b, BandData>, stabilisation::Selection), ModalError> {
+    let (opts, name, search) = (sweeper.opts, sweeper.name, &sweeper.opts.search);
+    // Borrowed while it is the whole band (no copy of every channel).
+    let mut sub = match cap_hz {
+        Some(f) => std::borrow::Cow::Owned(band.up_to(f)),
+        None => std::borrow::Cow::Borrowed(band),
+    };
+    let mut depth = if opts.method == Method::Lsce || opts.n_modes.is_some() {
+        SweepDepth::Full
+    } else {
+        SweepDepth::Locate
+    };
+    loop {
+        let sel = sweeper.sweep(&sub, depth)?;
+        let top = *sub.frequency_hz.last().unwrap();
+        let target = match sel
+            .modes
+            .iter()
+            .map(|m| m.pole.frequency_hz())
+            .reduce(f64::max)
+        {
+            Some(f) => search.sub_band_margin * f,
+            None => search.sub_band_without_modes * top,
+        };
+        let lines = sub.frequency_hz.partition_point(|&f| f <= target);
+        if target < search.sub_band_max_fraction * top && lines >= sweeper.min_sweep_lines() {
+            warnings.push(format!(
+                "excitation '{name}': poles estimated on {:.4}–{target:.4} Hz, where the modes are (residues on the whole band)",
+                sub.frequency_hz[0]
+            ));
+            sub = std::borrow::Cow::Owned(sub.up_to(target));
+            depth = SweepDepth::Full;
+            continue;
+        }
+        if depth != SweepDepth::Full {
+            depth = SweepDepth::Full;
+            continue;
+        }
+        return Ok((sub, sel));
+    }
+}
+
+/// The safety sweeps. On wide bands, modes far below the band's top crowd near z = 1 and
+/// need far higher orders than the sweep allows (and decimation may under-sample them).
+/// Sweep the lowest `safety_fraction` of `sub` again, and again, and add to `sel` the
+/// modes each finds in the lowest `safety_keep_fraction` of its sub-band that the wider
+/// sweeps did not; a sub-band the wider sweep already covers ([`safety_covered`]) is
+/// skipped. The modes end sorted by natural frequency.
+fn safety_sweeps(
+    sub: &BandData,
+    sel: &mut stabilisation::Selection,
+    sweeper: &Sweeper,
+) -> Result<(), ModalError> {
+    let search = &sweeper.opts.search;
+    let mut low = search.safety_fraction * *sub.frequency_hz.last().unwrap();
+    loop {
+        let lower = sub.up_to(low);
+        if lower.n_lines() < sweeper.min_sweep_lines() {
+            break;
+        }
+        if safety_covered(
+            sel,
+            search.safety_keep_fraction * low,
+            search.new_mode_bandwidths,
+        ) {
+            low *= search.safety_fraction;
+            continue;
+        }
+        let s_low = sweeper.sweep(&lower, SweepDepth::Safety)?;
+        for m in s_low.modes {
+            let known = sel
+                .modes
+                .iter()
+                .any(|k| k.pole.distance_in_bandwidths(&m.pole) < search.new_mode_bandwidths);
+            if m.pole.frequency_hz() < search.safety_keep_fraction * low && !known {
+                sel.modes.push(m);
+            }
+        }
+        low *= search.safety_fraction;
+    }
+    sel.modes
+        .sort_by(|a, b| a.pole.omega_n().total_cmp(&b.pole.omega_n()));
+    Ok(())
+}
+
+/// What the drop-and-refine stage reads: the whole band (for a restart), the refinement
+/// lines, and the top of the sub-band the diagram was drawn on.
+struct RefineInputs<'a> {
+    band: &'a BandData,
+    chans: &'a [Vec<c64>],
+    rband: &'a BandData,
+    rchans: &'a [Vec<c64>],
+    res: Residuals,
+    opts: &'a FitOptions,
+    name: &'a str,
+    cap_hz: Option<f64>,
+    sub_top_hz: f64,
+}
+
+/// Refines the poles jointly ([`lsfd::refine`]). Refinement is local: a pole it pushes
+/// more than `max_refinement_shift_bandwidths` away, out of the band or past the damping
+/// limit is not supported by the data (a computational pole that looked stable): drop it
+/// and refine again. A spurious high pole can hide that the modes sit low in the band:
+/// when one is dropped and the remaining modes sit low, the whole estimate is redone on
+/// the lines up to `sub_band_margin` × the highest remaining mode.
+fn refine_supported(
+    p: &RefineInputs,
+    track: &mut PoleTrack,
+    warnings: &mut Vec<String>,
+) -> Result<Refinement, ModalError> {
+    let (band, opts, name, search) = (p.band, p.opts, p.name, &p.opts.search);
+    let poles = &mut track.poles;
+    let mut r = crate::prof::time(2, || lsfd::refine(poles, p.rband, p.rchans, p.res));
+    let band_w = (band.omega[0], *band.omega.last().unwrap());
+    loop {
+        let bad = poles
+            .iter()
+            .zip(&r.poles)
+            .enumerate()
+            .map(|(i, (a, b))| {
+                let off = b.damping() >= opts.tolerances.max_damping
+                    || b.omega_n() < band_w.0
+                    || b.omega_n() > band_w.1;
+                (
+                    i,
+                    if off {
+                        f64::INFINITY
+                    } else {
+                        a.distance_in_bandwidths(b)
+                    },
+                )
+            })
+            .filter(|(_, d)| *d > search.max_refinement_shift_bandwidths)
+            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.0.cmp(&a.0)));
+        let Some((i, d)) = bad else { break };
+        warnings.push(format!(
+            "excitation '{name}': pole at {:.4} Hz dropped: the refinement could not hold it (moved {d:.1} half-bandwidths or left the band), so it is computational",
+            poles[i].frequency_hz()
+        ));
+        poles.remove(i);
+        if let Some(f_top) = poles.iter().map(|p| p.frequency_hz()).reduce(f64::max) {
+            let cap = search.sub_band_margin * f_top;
+            let lines = band.frequency_hz.partition_point(|&f| f <= cap);
+            if p.cap_hz.is_none()
+                && cap < search.sub_band_max_fraction * p.sub_top_hz
+                && lines >= 4 * opts.max_order.max(8)
+            {
+                let mut ps = estimate_poles_from(band, p.chans, opts, name, Some(cap))?;
+                let mut w = warnings.clone();
+                w.append(&mut ps.warnings);
+                ps.warnings = w;
+                return Ok(Refinement::Restarted(ps));
+            }
+        }
+        track.std.remove(i);
+        track.confidence.remove(i);
+        track.mode_warnings.remove(i);
+        if poles.is_empty() {
+            break;
+        }
+        r = crate::prof::time(2, || lsfd::refine(poles, p.rband, p.rchans, p.res));
+    }
+    Ok(Refinement::Refined(r))
+}
+
+impl PoleTrack {
+    /// Sorted by natural frequency (refinement may reorder two close poles).
+    fn sorted(self) -> Self {
+        let mut idx: Vec<usize> = (0..self.poles.len()).collect();
+        idx.sort_by(|&a, &b| self.poles[a].omega_n().total_cmp(&self.poles[b].omega_n()));
+        Self {
+            poles: idx.iter().map(|&i| self.poles[i]).collect(),
+            std: idx.iter().map(|&i| self.std[i]).collect(),
+            confidence: idx.iter().map(|&i| self.confidence[i]).collect(),
+            mode_warnings: idx.iter().map(|&i| self.mode_warnings[i].clone()).collect(),
+        }
+    }
+}
+
+/// Close pairs: says plainly when two poles cannot be told apart (closer than
+/// `inseparable_bandwidths`, or than twice their combined frequency standard deviation:
+/// both lose half their confidence) and notes the close ones (`close_bandwidths`).
+fn flag_close_pairs(
+    track: &mut PoleTrack,
+    search: &PoleSearchParams,
+    name: &str,
+    warnings: &mut Vec<String>,
+) {
+    let PoleTrack {
+        poles,
+        std,
+        confidence,
+        mode_warnings,
+    } = track;
     for i in 0..poles.len() {
         for j in i + 1..poles.len() {
             let d = poles[i].distance_in_bandwidths(&poles[j]);
             let sep_hz = (poles[j].frequency_hz() - poles[i].frequency_hz()).abs();
             let unc = 2.0 * (std[i].0.powi(2) + std[j].0.powi(2)).sqrt();
-            if d < 0.25 || (unc > 0.0 && sep_hz < unc) {
+            if d < search.inseparable_bandwidths || (unc > 0.0 && sep_hz < unc) {
                 let msg = format!(
                     "modes {} and {} ({:.5} and {:.5} Hz, {:.2} half-bandwidths apart) cannot be separated: treat them as one repeated root",
                     i + 1,
@@ -634,7 +699,7 @@ fn estimate_poles_from(
                 mode_warnings[j].push(msg);
                 confidence[i] *= 0.5;
                 confidence[j] *= 0.5;
-            } else if d < 2.0 {
+            } else if d < search.close_bandwidths {
                 let msg = format!(
                     "close to mode {} ({:.2} half-bandwidths): resolved, but sensitive to noise",
                     if i < j { j + 1 } else { i + 1 },
@@ -646,26 +711,20 @@ fn estimate_poles_from(
             }
         }
     }
-    Ok(PoleSet {
-        poles,
-        std,
-        confidence,
-        mode_warnings,
-        diagram: sel.diagram,
-        warnings,
-    })
 }
 
-/// The model-order tests after the refinement: the data a refinement runs on, the χ²
-/// threshold for one pole's 2 + 2·channels parameters, and the residual degrees of
-/// freedom for a given number of poles.
+/// The model-order tests after the refinement: the data a refinement runs on (the
+/// refinement lines), the χ² threshold for one pole's 2 + 2·channels parameters and the
+/// search thresholds.
 struct OrderTest<'a> {
     band: &'a BandData,
     chans: &'a [Vec<c64>],
     res: Residuals,
     threshold: f64,
     max_damping: f64,
-    dof_of: &'a dyn Fn(usize) -> f64,
+    /// The whole band's (ω_min, ω_max): where an added mode must lie.
+    full_band_w: (f64, f64),
+    search: &'a PoleSearchParams,
     name: &'a str,
 }
 
@@ -678,31 +737,121 @@ struct TrackedPoles<'a> {
 }
 
 impl OrderTest<'_> {
+    /// Residual degrees of freedom with `np` poles: 2 real equations per line and channel
+    /// less the 2np + 2 residue and residual-term parameters per channel and the 2np pole
+    /// parameters (at least 1).
+    fn dof(&self, np: usize) -> f64 {
+        let (rn, no) = (self.band.n_lines(), self.chans.len());
+        (2 * rn * no)
+            .saturating_sub(no * (2 * np + 2) + 2 * np)
+            .max(1) as f64
+    }
+
+    /// Forward model-order step on the residual: a weak mode beside a strong one is often
+    /// only intermittently stable in the diagram. Try each rejected cluster as an extra
+    /// mode; keep it when the cost drop is significant for the 2 + 2·channels parameters
+    /// it adds (χ² at the `order_test_z` level) and the refined pole is physical, separate
+    /// and stays within `candidate_drift_bandwidths` of the cluster. A cheap screen (the
+    /// cost drop with each candidate as it is, all from one QR, recomputed only after a
+    /// candidate is accepted) spares the full refinement for unpromising candidates.
+    fn add_intermittent_modes(
+        &self,
+        t: &mut TrackedPoles,
+        candidates: &[stabilisation::SelectedPole],
+    ) {
+        let (band, chans, res, threshold, name) =
+            (self.band, self.chans, self.res, self.threshold, self.name);
+        let search = self.search;
+        let rn = band.n_lines();
+        let cand_poles: Vec<Pole> = candidates.iter().map(|c| c.pole).collect();
+        let mut screen: Option<(f64, Vec<f64>)> = None;
+        for (ci, cand) in candidates.iter().enumerate() {
+            let r = &*t.r;
+            let mut trial_poles = r.poles.clone();
+            if trial_poles
+                .iter()
+                .any(|p| p.distance_in_bandwidths(&cand.pole) < search.inseparable_bandwidths)
+            {
+                continue;
+            }
+            trial_poles.push(cand.pole);
+            if 2 * rn <= 2 * (2 * trial_poles.len() + 2) {
+                break;
+            }
+            let dof0 = self.dof(trial_poles.len());
+            let (c_now, c_with) = screen.get_or_insert_with(|| {
+                crate::prof::time(3, || lsfd::screen_extra_poles(r, &cand_poles, band, chans))
+            });
+            let c_screen = c_with[ci];
+            if (*c_now - c_screen) / test_variance(c_screen, dof0).0 < threshold {
+                continue;
+            }
+            let r2 = crate::prof::time(2, || lsfd::refine(&trial_poles, band, chans, res));
+            let added = *r2.poles.last().unwrap();
+            let (s2, exact) = test_variance(r2.cost.1, self.dof(r2.poles.len()));
+            let separate = r2.poles[..r2.poles.len() - 1]
+                .iter()
+                .all(|p| p.distance_in_bandwidths(&added) > search.inseparable_bandwidths);
+            let physical = added.damping() > 0.0
+                && added.damping() < self.max_damping
+                && added.omega_n() >= self.full_band_w.0
+                && added.omega_n() <= self.full_band_w.1;
+            if physical
+                && separate
+                && !r2.singular
+                && added.distance_in_bandwidths(&cand.pole) < search.candidate_drift_bandwidths
+                && (r.cost.1 - r2.cost.1) / s2 > threshold
+            {
+                t.warnings.push(format!(
+                    "excitation '{name}': mode at {:.4} Hz added by the residual test (intermittently stable in the diagram, {})",
+                    added.frequency_hz(),
+                    in_sigma2(
+                        || format!("cost −{:.1}σ²", (r.cost.1 - r2.cost.1) / s2),
+                        "cost lowered",
+                        exact
+                    )
+                ));
+                // Half its diagram presence: it was not stable throughout.
+                t.confidence.push(0.5 * cand.presence);
+                t.mode_warnings.push(vec![
+                    "found by the residual model-order test, not stable throughout the diagram"
+                        .into(),
+                ]);
+                *t.r = r2;
+                screen = None;
+            }
+        }
+    }
+
     /// Backward model-order step: a pole within two half-bandwidths of another, or with
     /// low diagram confidence, is dropped when the refit without it costs less than the
     /// χ² threshold (in units of the residual variance). Over-split close pairs (three
     /// poles for two modes) and weak computational poles go this way.
-    fn prune_close_poles(&self, t: TrackedPoles) {
+    fn prune_close_poles(&self, t: &mut TrackedPoles) {
         let TrackedPoles {
             r,
             confidence,
             mode_warnings,
             warnings,
         } = t;
+        let r: &mut lsfd::Refined = r;
         let (band, chans, res, threshold, name) =
             (self.band, self.chans, self.res, self.threshold, self.name);
-        let dof_of = self.dof_of;
+        let search = self.search;
         loop {
             let n = r.poles.len();
             if n < 2 {
                 return;
             }
             let suspect = |i: usize| {
-                confidence[i] < 0.5
-                    || (0..n)
-                        .any(|j| j != i && r.poles[i].distance_in_bandwidths(&r.poles[j]) < 2.0)
+                confidence[i] < search.suspect_confidence
+                    || (0..n).any(|j| {
+                        j != i
+                            && r.poles[i].distance_in_bandwidths(&r.poles[j])
+                                < search.close_bandwidths
+                    })
             };
-            let (s2, exact) = test_variance(r.cost.1, dof_of(n));
+            let (s2, exact) = test_variance(r.cost.1, self.dof(n));
             // The least significant suspect pole, if any is insignificant.
             let weakest = (0..n)
                 .filter(|&i| suspect(i))
@@ -734,16 +883,17 @@ impl OrderTest<'_> {
     /// little below and above it (screened from one QR); the best significant one is
     /// refined jointly and kept when the χ² drop is significant and the pair stays
     /// separate, physical and identifiable.
-    fn split_merged_poles(&self, t: TrackedPoles) {
+    fn split_merged_poles(&self, t: &mut TrackedPoles) {
         let TrackedPoles {
             r,
             confidence,
             mode_warnings,
             warnings,
         } = t;
+        let r: &mut lsfd::Refined = r;
         let (band, chans, res, threshold, name) =
             (self.band, self.chans, self.res, self.threshold, self.name);
-        let (dof_of, max_damping) = (self.dof_of, self.max_damping);
+        let (search, max_damping) = (self.search, self.max_damping);
         let band_w = (band.omega[0], *band.omega.last().unwrap());
         let mut tried = 0;
         while tried < r.poles.len() {
@@ -756,7 +906,7 @@ impl OrderTest<'_> {
                 .iter()
                 .enumerate()
                 .flat_map(|(i, p)| {
-                    let d = 0.6 * p.half_bandwidth();
+                    let d = search.split_offset_bandwidths * p.half_bandwidth();
                     [-d, d].map(|x| (i, Pole(p.0 + c64::new(0.0, x))))
                 })
                 .filter(|(_, p)| p.0.im > band_w.0 && p.0.im < band_w.1)
@@ -764,7 +914,7 @@ impl OrderTest<'_> {
             let cands: Vec<Pole> = partners.iter().map(|(_, p)| *p).collect();
             let (c_now, c_with) =
                 crate::prof::time(3, || lsfd::screen_extra_poles(r, &cands, band, chans));
-            let dof = dof_of(n + 1);
+            let dof = self.dof(n + 1);
             let best = c_with
                 .iter()
                 .enumerate()
@@ -781,7 +931,7 @@ impl OrderTest<'_> {
             let gain = (r.cost.1 - r2.cost.1) / s2;
             let separate = r2.poles[..n]
                 .iter()
-                .all(|p| p.distance_in_bandwidths(&added) > 0.25);
+                .all(|p| p.distance_in_bandwidths(&added) > search.inseparable_bandwidths);
             let physical = added.damping() > 0.0
                 && added.damping() < max_damping
                 && added.omega_n() >= band_w.0

@@ -50,7 +50,7 @@ pub use fit::{
     fit_campaign, fit_excitation, ExcitationDiagnostics, ExcitationFit, ModalFitOutput,
     RESIDUE_CONVENTION,
 };
-pub use options::{FitOptions, Method, PoleMode, StabilisationTolerances};
+pub use options::{FitOptions, Method, PoleMode, PoleSearchParams, StabilisationTolerances};
 pub use pole::{mac, mpc, Pole};
 pub use stabilisation::{DiagramPole, StabilisationDiagram, StabilityClass};
 pub use weighting::CoherenceWeighting;

@@ -94,6 +94,73 @@ impl Default for StabilisationTolerances {
     }
 }
 
+/// The thresholds of the pole search in [`crate::fit_excitation`] that decide how many
+/// modes a fit finds: the sweep plan (which sub-band the stabilisation diagram is drawn
+/// on), the lower-band safety sweeps, the refinement's sanity check and the χ²
+/// model-order tests. Distances are in half-power half-bandwidths `ζω_r` of the pole
+/// (see [`crate::Pole::distance_in_bandwidths`]). `Default` gives the documented defaults.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoleSearchParams {
+    /// Sweep plan: polynomial (z-domain) estimators need an order that grows with the band
+    /// relative to where the modes are, so the diagram is drawn again on the lines up to
+    /// this multiple of the highest stable mode (default 2) …
+    pub sub_band_margin: f64,
+    /// … when that is below this fraction of the current band's top (default 0.6) …
+    pub sub_band_max_fraction: f64,
+    /// … or, when no mode is stable, on this fraction of the band (default 0.5).
+    pub sub_band_without_modes: f64,
+    /// Safety sweeps: each sweeps the lowest `safety_fraction` of the previous one's band
+    /// (default 0.25: the lower quarter, again and again) …
+    pub safety_fraction: f64,
+    /// … and adds the modes it finds in the lowest `safety_keep_fraction` of its own
+    /// sub-band (default 0.6) …
+    pub safety_keep_fraction: f64,
+    /// … at least this many half-bandwidths from every known mode (default 3).
+    pub new_mode_bandwidths: f64,
+    /// Refinement is local: a pole it moves more than this many half-bandwidths (or out of
+    /// the band, or past the damping limit) is computational and dropped (default 10).
+    pub max_refinement_shift_bandwidths: f64,
+    /// A rejected cluster tried as an extra mode by the residual model-order test must
+    /// refine to within this many half-bandwidths of where the diagram put it (default 3).
+    pub candidate_drift_bandwidths: f64,
+    /// The χ² model-order tests' false-alarm level, as the standard-normal upper quantile
+    /// `z` of their Wilson–Hilferty threshold (default 3.719, upper tail 1e-4).
+    pub order_test_z: f64,
+    /// Poles closer than this many half-bandwidths are one repeated root: a candidate or
+    /// split partner must end farther apart, and a final pair this close is reported
+    /// inseparable (default 0.25).
+    pub inseparable_bandwidths: f64,
+    /// Poles closer than this are a close pair: suspects of the backward model-order test,
+    /// and flagged "sensitive to noise" in the result (default 2).
+    pub close_bandwidths: f64,
+    /// A pole whose diagram confidence is below this is a suspect of the backward
+    /// model-order test (default 0.5).
+    pub suspect_confidence: f64,
+    /// The forward split test places a partner this many half-bandwidths below and above
+    /// each pole (default 0.6).
+    pub split_offset_bandwidths: f64,
+}
+
+impl Default for PoleSearchParams {
+    fn default() -> Self {
+        Self {
+            sub_band_margin: 2.0,
+            sub_band_max_fraction: 0.6,
+            sub_band_without_modes: 0.5,
+            safety_fraction: 0.25,
+            safety_keep_fraction: 0.6,
+            new_mode_bandwidths: 3.0,
+            max_refinement_shift_bandwidths: 10.0,
+            candidate_drift_bandwidths: 3.0,
+            order_test_z: 3.719,
+            inseparable_bandwidths: 0.25,
+            close_bandwidths: 2.0,
+            suspect_confidence: 0.5,
+            split_offset_bandwidths: 0.6,
+        }
+    }
+}
+
 /// Options of [`crate::fit_campaign`] / [`crate::fit_excitation`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
@@ -133,6 +200,8 @@ pub struct FitOptions {
     /// default relative weights `1/|H|`. LSCF and LSCE only (LSCE's time-domain pole
     /// estimate itself is not weighted).
     pub coherence_weighting: Option<std::sync::Arc<crate::weighting::CoherenceWeighting>>,
+    /// Thresholds of the pole search: how many modes a fit finds.
+    pub search: PoleSearchParams,
 }
 
 impl Default for FitOptions {
@@ -155,6 +224,7 @@ impl Default for FitOptions {
             // one (no pole refinement, no lower-quarter safety sweeps).
             auto_poly_reference: false,
             coherence_weighting: None,
+            search: PoleSearchParams::default(),
         }
     }
 }

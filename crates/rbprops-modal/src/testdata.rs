@@ -158,7 +158,10 @@ impl Synthetic {
     }
 }
 
-/// Standard normal deviate (Box–Muller).
+/// Standard normal deviate (Box–Muller). Not `rbprops_core::noise::standard_normal`: this
+/// one takes `u1 = U` (floored) where the core stream takes `1 − U`, so its draws differ,
+/// and the noisy fixtures built from them (the modal tests' noisy campaigns, the timing
+/// example's digest) must stay as they are.
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
     let u1: f64 = rng.random::<f64>().max(f64::MIN_POSITIVE);
     let u2: f64 = rng.random::<f64>();

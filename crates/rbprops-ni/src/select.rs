@@ -392,6 +392,88 @@ pub fn select_modes(
     let mut any_modes = false;
     for pool in &pools {
         // (3) rigid-body reduction of the pool's estimates.
+        let reduction = RigidReduction {
+            basis: &basis,
+            gram_inv: &gram_inv,
+            columns: &columns,
+        };
+        let members = reduction.pool_members(
+            pool,
+            modal,
+            &estimate_excitations,
+            opts.min_snr,
+            &mut warnings,
+        )?;
+        if members.is_empty() {
+            if opts.setup.is_some() || opts.manual.is_some() {
+                return Err(NiError::NoModes {
+                    setup: pool.label.clone(),
+                });
+            }
+            warnings.push(format!(
+                "set-up '{}': no identified modes, nothing selected",
+                pool.label
+            ));
+            continue;
+        }
+        any_modes = true;
+        let result = process_pool(&PoolInputs {
+            pool,
+            geometry,
+            frf,
+            modal,
+            opts,
+            members: &members,
+            columns: &columns,
+            gram: &gram,
+            tol: &tol,
+            curves: &out.curves,
+            curve_of: &curve_of,
+        })?;
+        out.record.selected.extend(result.selected);
+        out.record.missing.extend(result.missing);
+        warnings.extend(result.warnings);
+        out.excitation_summaries.extend(result.summaries);
+        out.matches.extend(result.groups);
+        out.strength_db.push(result.matrix);
+        out.criterion_disagreements.extend(result.disagreements);
+        out.rejected.extend(result.rejected);
+    }
+    if !any_modes {
+        return Err(NiError::NoModes {
+            setup: pools
+                .iter()
+                .map(|p| p.label.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        });
+    }
+    out.record.warnings = warnings;
+    Ok(out)
+}
+
+/// The rigid-body reduction of the estimates: the channel basis `S`, `(SᵀS)⁻¹` and the
+/// excitation columns `f_k` (geometry order).
+struct RigidReduction<'a> {
+    basis: &'a RigidBasis,
+    gram_inv: &'a Mat6,
+    columns: &'a [Vec6],
+}
+
+impl RigidReduction<'_> {
+    /// Reduces every estimate of the pool's excitations to its rigid motion
+    /// `q = (SᵀS)⁻¹SᵀA` (paper Eq. 5) and its strength `f_kᵀq`, with the standard error of
+    /// the strength propagated from the residue standard errors, and decides whether it is
+    /// reliable (not weak, `f_kᵀq` > 0, at least `min_snr` standard errors). Warns of a
+    /// shape far from rigid motion.
+    fn pool_members(
+        &self,
+        pool: &Pool,
+        modal: &ModalFitRecord,
+        estimate_excitations: &[usize],
+        min_snr: f64,
+        warnings: &mut Vec<String>,
+    ) -> Result<Vec<Member>, NiError> {
         let mut members = Vec::new();
         for (i, est) in modal.modes.iter().enumerate() {
             let k = estimate_excitations[i];
@@ -399,15 +481,15 @@ pub fn select_modes(
                 continue;
             }
             let (re, phase) = real_modal_constants(&est.residues);
-            let fit = basis.fit(&re)?;
-            let f = &columns[k];
+            let fit = self.basis.fit(&re)?;
+            let f = &self.columns[k];
             let strength = f.dot(&fit.q);
             let strength_std = if est.residue_std.is_empty() {
                 None
             } else {
                 let ms = est.residue_std.iter().map(|s| s * s).sum::<f64>()
                     / est.residue_std.len() as f64;
-                let var = ms * (f.transpose() * gram_inv * f)[0];
+                let var = ms * (f.transpose() * self.gram_inv * f)[0];
                 (var > 0.0).then(|| var.sqrt())
             };
             let why = if est.weak {
@@ -415,14 +497,9 @@ pub fn select_modes(
             } else if !(strength > 0.0) {
                 Some(format!("fᵀq = {strength:.3e} ≤ 0: not excited"))
             } else {
-                strength_std
-                    .filter(|sd| strength < opts.min_snr * sd)
-                    .map(|sd| {
-                        format!(
-                            "fᵀq = {strength:.3e} ± {sd:.1e} is below {} standard errors",
-                            opts.min_snr
-                        )
-                    })
+                strength_std.filter(|sd| strength < min_snr * sd).map(|sd| {
+                    format!("fᵀq = {strength:.3e} ± {sd:.1e} is below {min_snr} standard errors")
+                })
             };
             if fit.relative_residual > RIGID_RESIDUAL_WARNING {
                 warnings.push(format!(
@@ -444,52 +521,8 @@ pub fn select_modes(
                 why,
             });
         }
-        if members.is_empty() {
-            if opts.setup.is_some() || opts.manual.is_some() {
-                return Err(NiError::NoModes {
-                    setup: pool.label.clone(),
-                });
-            }
-            warnings.push(format!(
-                "set-up '{}': no identified modes, nothing selected",
-                pool.label
-            ));
-            continue;
-        }
-        any_modes = true;
-        let result = process_pool(
-            pool,
-            geometry,
-            frf,
-            modal,
-            opts,
-            &members,
-            &columns,
-            &gram,
-            &tol,
-            &out.curves,
-            &curve_of,
-        )?;
-        out.record.selected.extend(result.selected);
-        out.record.missing.extend(result.missing);
-        warnings.extend(result.warnings);
-        out.excitation_summaries.extend(result.summaries);
-        out.matches.extend(result.groups);
-        out.strength_db.push(result.matrix);
-        out.criterion_disagreements.extend(result.disagreements);
-        out.rejected.extend(result.rejected);
+        Ok(members)
     }
-    if !any_modes {
-        return Err(NiError::NoModes {
-            setup: pools
-                .iter()
-                .map(|p| p.label.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-        });
-    }
-    out.record.warnings = warnings;
-    Ok(out)
 }
 
 /// Checks every estimate against the geometry; returns each one's excitation index.
@@ -720,35 +753,138 @@ fn criterion_key(c: Criterion) -> impl Fn(&ModeExcitation) -> f64 {
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn process_pool(
-    pool: &Pool,
-    geometry: &Geometry,
-    frf: &FrfSet,
-    modal: &ModalFitRecord,
-    opts: &SelectOptions,
-    members: &[Member],
-    columns: &[Vec6],
-    gram: &Mat6,
-    tol: &MatchTolerances,
-    curves: &IndicatorCurves,
-    curve_of: &[usize],
-) -> Result<PoolResult, NiError> {
+/// What every stage of one pool reads: the pool, the inputs and the rigid-body reductions
+/// of the pool's estimates.
+struct PoolInputs<'a> {
+    pool: &'a Pool,
+    geometry: &'a Geometry,
+    frf: &'a FrfSet,
+    modal: &'a ModalFitRecord,
+    opts: &'a SelectOptions,
+    members: &'a [Member],
+    /// Excitation columns `f_k`, in geometry order.
+    columns: &'a [Vec6],
+    /// Gram matrix `SᵀS` of the channel rows: the MAC weight.
+    gram: &'a Mat6,
+    tol: &'a MatchTolerances,
+    curves: &'a IndicatorCurves,
+    /// Position of each excitation's curves in `curves` (geometry order).
+    curve_of: &'a [usize],
+}
+
+impl PoolInputs<'_> {
+    fn excitation_id(&self, k: usize) -> String {
+        self.geometry.excitations[k].id.clone()
+    }
+
+    fn estimate(&self, m: &Member) -> &rbprops_core::records::ModeEstimate {
+        &self.modal.modes[m.estimate]
+    }
+
+    fn curves_of(&self, k: usize) -> &ExcitationCurves {
+        &self.curves.excitations[self.curve_of[k]]
+    }
+}
+
+/// The pool's physical modes: the matcher's view of every member and the consolidated
+/// groups (indices into the members, ascending frequency, one estimate per excitation).
+struct PhysicalModes {
+    cands: Vec<Candidate>,
+    groups: Vec<Vec<usize>>,
+    rejected: Vec<RejectedEstimate>,
+}
+
+/// What the criteria would choose at one mode (None: nothing eligible).
+struct CriterionChoices {
+    ni: Option<String>,
+    hybrid_mif: Option<String>,
+    prf_mif: Option<String>,
+    strength: Option<String>,
+}
+
+/// What one pool's modes come to, filled mode by mode.
+#[derive(Default)]
+struct PoolChoices {
+    selected: Vec<SelectedMode>,
+    missing: Vec<MissingMode>,
+    warnings: Vec<String>,
+    disagreements: Vec<String>,
+}
+
+/// Processes one pool: (1) pool building and matching, (2) consolidation into at most six
+/// physical modes ([`physical_modes`]); then for each mode (3) the excitation table with
+/// eligibility ([`mode_table`]) and (4) the choice ([`choose`]); finally the
+/// per-excitation summaries and the strength matrix.
+fn process_pool(p: &PoolInputs) -> Result<PoolResult, NiError> {
     let mut warnings = Vec::new();
-    let cands: Vec<Candidate> = members
+    let modes = physical_modes(p, &mut warnings);
+    let floor_db = noise_floor_db(p, &modes.groups);
+    let mut mode_groups = Vec::with_capacity(modes.groups.len());
+    let mut choices = PoolChoices::default();
+    let mut per_excitation: Vec<Vec<ModeExcitation>> = vec![Vec::new(); p.pool.excitations.len()];
+    for (gi, group) in modes.groups.iter().enumerate() {
+        let mode = gi + 1;
+        let rm = &p.members[reference_member(group, &modes.cands)];
+        let table = mode_table(p, mode, group, rm, floor_db);
+        let by = CriterionChoices::of(&table);
+        let g = ModeGroup {
+            setup: p.pool.label.clone(),
+            mode,
+            frequency_hz: p.estimate(rm).frequency_hz,
+            damping_ratio: p.estimate(rm).damping_ratio,
+            reference_excitation: p.excitation_id(rm.excitation),
+            ranking: ranking(&table, p.opts.criterion),
+            choice_ni: by.ni.clone(),
+            choice_hybrid_mif: by.hybrid_mif.clone(),
+            choice_prf_mif: by.prf_mif.clone(),
+            choice_strength: by.strength.clone(),
+        };
+        if let Some(d) = by.disagreement(&p.pool.label, mode, g.frequency_hz) {
+            choices.disagreements.push(d);
+        }
+        choose(p, &g, group, &table, &by, &mut choices)?;
+        for (slot, row) in per_excitation.iter_mut().zip(&table) {
+            slot.push(row.clone());
+        }
+        mode_groups.push(g);
+    }
+    check_manual_modes(p, mode_groups.len())?;
+    warnings.append(&mut choices.warnings);
+    let summaries = excitation_summaries(p, per_excitation, &mode_groups, &mut warnings);
+    let matrix = strength_matrix(p, &mode_groups, &summaries);
+    Ok(PoolResult {
+        rejected: modes.rejected,
+        selected: choices.selected,
+        missing: choices.missing,
+        warnings,
+        summaries,
+        groups: mode_groups,
+        matrix,
+        disagreements: choices.disagreements,
+    })
+}
+
+/// Pool building, matching and consolidation: the members become matcher candidates,
+/// are matched across excitations by frequency and MAC ([`match_candidates`]) and
+/// consolidated into at most six rigid-body modes ([`consolidate`]). Warns when more than
+/// six or fewer than six modes come out.
+fn physical_modes(p: &PoolInputs, warnings: &mut Vec<String>) -> PhysicalModes {
+    let cands: Vec<Candidate> = p
+        .members
         .iter()
         .map(|m| Candidate {
             excitation: m.excitation,
-            frequency_hz: modal.modes[m.estimate].frequency_hz,
+            frequency_hz: p.estimate(m).frequency_hz,
             q: m.q,
             strength: m.strength,
             reliable: m.reliable,
         })
         .collect();
-    let evidence: Vec<Evidence> = members
+    let evidence: Vec<Evidence> = p
+        .members
         .iter()
         .map(|m| {
-            let est = &modal.modes[m.estimate];
+            let est = p.estimate(m);
             Evidence {
                 label: format!(
                     "{} mode {} ({:.4} Hz)",
@@ -762,26 +898,25 @@ fn process_pool(
             }
         })
         .collect();
-    let matched = match_candidates(&cands, gram, tol);
+    let matched = match_candidates(&cands, p.gram, p.tol);
     let n_matched = matched.len();
-    let consolidated = consolidate(matched, &cands, &evidence, gram, tol, &pool.label);
-    let groups = consolidated.groups;
-    let n_modes = groups.len();
+    let consolidated = consolidate(matched, &cands, &evidence, p.gram, p.tol, &p.pool.label);
+    let n_modes = consolidated.groups.len();
     if n_matched > RIGID_BODY_MODES {
         warnings.push(format!(
             "set-up '{}': {n_matched} distinct modes matched, more than the six rigid-body modes \
              (split, leakage, noise or elastic poles in the modal record); {n_modes} kept",
-            pool.label
+            p.pool.label
         ));
     }
     warnings.extend(consolidated.warnings);
-    let rejected: Vec<RejectedEstimate> = consolidated
+    let rejected = consolidated
         .rejected
         .iter()
         .map(|r| {
-            let est = &modal.modes[members[r.candidate].estimate];
+            let est = p.estimate(&p.members[r.candidate]);
             RejectedEstimate {
-                setup: pool.label.clone(),
+                setup: p.pool.label.clone(),
                 excitation: est.excitation.clone(),
                 excitation_mode: est.mode,
                 frequency_hz: est.frequency_hz,
@@ -793,337 +928,405 @@ fn process_pool(
     if n_modes < RIGID_BODY_MODES {
         warnings.push(format!(
             "set-up '{}': only {n_modes} of the six rigid-body modes were identified by any excitation",
-            pool.label
+            p.pool.label
         ));
     }
-    // Rejected estimates (a split pole's halves can be "stronger" than the mode) do not
-    // set the noise floor.
+    PhysicalModes {
+        cands,
+        groups: consolidated.groups,
+        rejected,
+    }
+}
+
+/// The set-up's noise floor: `min_strength_db` below its strongest reliable estimate kept
+/// in a mode (dB re 1/kg). Rejected estimates (a split pole's halves can be "stronger" than
+/// the mode) do not set it.
+fn noise_floor_db(p: &PoolInputs, groups: &[Vec<usize>]) -> Option<f64> {
     let strongest = groups
         .iter()
         .flatten()
-        .map(|&i| &members[i])
+        .map(|&i| &p.members[i])
         .filter(|m| m.reliable)
         .map(|m| m.strength)
         .fold(0.0f64, f64::max);
-    let floor_db = db10(strongest).map(|d| d - opts.min_strength_db);
+    db10(strongest).map(|d| d - p.opts.min_strength_db)
+}
 
-    let ex_id = |k: usize| geometry.excitations[k].id.clone();
-    let mut mode_groups = Vec::with_capacity(n_modes);
-    let mut selected = Vec::new();
-    let mut missing = Vec::new();
-    let mut disagreements = Vec::new();
-    let mut per_excitation: Vec<Vec<ModeExcitation>> = vec![Vec::new(); pool.excitations.len()];
+/// Half-width of a mode's band on the frequency axis: its half-power half-width `2ζf_r`,
+/// but at least 1.5 line spacings (`spacing`, the local line spacing) so that a lightly
+/// damped mode still spans a line.
+fn mode_half_width(f_r: f64, zeta: f64, spacing: f64) -> f64 {
+    (2.0 * zeta * f_r).max(1.5 * spacing)
+}
 
-    for (gi, group) in groups.iter().enumerate() {
-        let mode = gi + 1;
-        let r = reference_member(group, &cands);
-        let rm = &members[r];
-        let rest = &modal.modes[rm.estimate];
-        let (f_r, zeta) = (rest.frequency_hz, rest.damping_ratio);
-        let phi_ref = (rm.strength > 0.0).then(|| rm.q / rm.strength.sqrt());
-        let half_width = (2.0 * zeta * f_r).max(1.5 * local_spacing(&frf.frequency_hz, f_r));
-        let lines = window_lines(&frf.frequency_hz, f_r, half_width);
-
-        let mut table: Vec<ModeExcitation> = Vec::with_capacity(pool.excitations.len());
-        for &k in &pool.excitations {
-            let c = &curves.excitations[curve_of[k]];
-            let ni_db = c.ni_db[lines.clone()]
+/// How every excitation of the pool does at one physical mode (`group`, with reference
+/// member `rm`): the indicators within the mode's band, its own estimate's strength and
+/// quality, and whether it is eligible (identified, reliable, above the noise floor, and
+/// confident when another excitation is).
+fn mode_table(
+    p: &PoolInputs,
+    mode: usize,
+    group: &[usize],
+    rm: &Member,
+    floor_db: Option<f64>,
+) -> Vec<ModeExcitation> {
+    let rest = p.estimate(rm);
+    let (f_r, zeta) = (rest.frequency_hz, rest.damping_ratio);
+    let phi_ref = (rm.strength > 0.0).then(|| rm.q / rm.strength.sqrt());
+    let half_width = mode_half_width(f_r, zeta, local_spacing(&p.frf.frequency_hz, f_r));
+    let lines = window_lines(&p.frf.frequency_hz, f_r, half_width);
+    let mut table: Vec<ModeExcitation> = Vec::with_capacity(p.pool.excitations.len());
+    for &k in &p.pool.excitations {
+        let c = p.curves_of(k);
+        let mut row = ModeExcitation {
+            mode,
+            frequency_hz: f_r,
+            excitation: p.excitation_id(k),
+            excitation_mode: None,
+            weak: false,
+            ni_db: c.ni_db[lines.clone()]
                 .iter()
                 .copied()
-                .fold(f64::NEG_INFINITY, f64::max);
-            let hyb = c.hybrid_mif[lines.clone()]
+                .fold(f64::NEG_INFINITY, f64::max),
+            hybrid_mif: c.hybrid_mif[lines.clone()]
                 .iter()
                 .copied()
-                .fold(f64::INFINITY, f64::min);
-            let prf = c.prf_mif[lines.clone()]
+                .fold(f64::INFINITY, f64::min),
+            prf_mif: c.prf_mif[lines.clone()]
                 .iter()
                 .copied()
-                .fold(f64::INFINITY, f64::min);
-            let member = group
-                .iter()
-                .map(|&i| &members[i])
-                .find(|m| m.excitation == k);
-            let predicted_strength = phi_ref.map(|p| columns[k].dot(&p).powi(2));
-            let mut row = ModeExcitation {
-                mode,
-                frequency_hz: f_r,
-                excitation: ex_id(k),
-                excitation_mode: None,
-                weak: false,
-                ni_db,
-                hybrid_mif: hyb,
-                prf_mif: prf,
-                strength: None,
-                strength_std: None,
-                strength_db: None,
-                predicted_strength,
-                rigid_residual: None,
-                mac_to_reference: None,
-                confidence: None,
-                quality: None,
-                eligible: false,
-                reason: None,
-            };
-            match member {
-                None => {
-                    row.reason = Some(format!("no mode identified near {f_r:.4} Hz"));
-                }
-                Some(m) => {
-                    let est = &modal.modes[m.estimate];
-                    row.excitation_mode = Some(est.mode);
-                    row.weak = est.weak;
-                    row.strength = Some(m.strength);
-                    row.strength_std = m.strength_std;
-                    row.strength_db = db10(m.strength);
-                    row.rigid_residual = Some(m.relative_residual);
-                    row.mac_to_reference = Some(mac(&m.q, &rm.q, gram));
-                    row.confidence = Some(est.confidence);
-                    row.quality = Some(estimate_quality(
-                        est.confidence,
-                        m.phase,
-                        m.relative_residual,
-                    ));
-                    row.reason = m.why.clone();
-                    if row.reason.is_none() {
-                        if let (Some(s_db), Some(floor)) = (row.strength_db, floor_db) {
-                            if s_db < floor {
-                                row.reason = Some(format!(
-                                    "fᵀq = {:.3e} is {:.1} dB below the set-up's strongest (limit {} dB)",
-                                    m.strength,
-                                    floor + opts.min_strength_db - s_db,
-                                    opts.min_strength_db
-                                ));
-                            }
-                        }
-                    }
-                    row.eligible = row.reason.is_none();
-                }
-            }
-            table.push(row);
-        }
-        // A low-confidence estimate (typically half of a split pole) gives way to any
-        // confident one of the same mode.
-        if table
+                .fold(f64::INFINITY, f64::min),
+            strength: None,
+            strength_std: None,
+            strength_db: None,
+            predicted_strength: phi_ref.map(|phi| p.columns[k].dot(&phi).powi(2)),
+            rigid_residual: None,
+            mac_to_reference: None,
+            confidence: None,
+            quality: None,
+            eligible: false,
+            reason: None,
+        };
+        let member = group
             .iter()
-            .any(|r| r.eligible && r.confidence.is_some_and(|c| c >= opts.min_confidence))
-        {
-            for row in table.iter_mut().filter(|r| r.eligible) {
-                if let Some(c) = row.confidence.filter(|&c| c < opts.min_confidence) {
-                    row.eligible = false;
-                    row.reason = Some(format!(
-                        "modal-fit confidence {c:.2} is below {} and another excitation gives a \
-                         confident estimate of this mode",
-                        opts.min_confidence
-                    ));
-                }
+            .map(|&i| &p.members[i])
+            .find(|m| m.excitation == k);
+        match member {
+            None => row.reason = Some(format!("no mode identified near {f_r:.4} Hz")),
+            Some(m) => describe_estimate(p, &mut row, m, rm, floor_db),
+        }
+        table.push(row);
+    }
+    demote_low_confidence(&mut table, p.opts.min_confidence);
+    table
+}
+
+/// Fills `row` from the excitation's own estimate `m` of the mode and decides its
+/// eligibility: reliable (not weak, `f_kᵀq` > 0 and above `min_snr` standard errors) and
+/// no more than `min_strength_db` below the set-up's strongest.
+fn describe_estimate(
+    p: &PoolInputs,
+    row: &mut ModeExcitation,
+    m: &Member,
+    rm: &Member,
+    floor_db: Option<f64>,
+) {
+    let est = p.estimate(m);
+    row.excitation_mode = Some(est.mode);
+    row.weak = est.weak;
+    row.strength = Some(m.strength);
+    row.strength_std = m.strength_std;
+    row.strength_db = db10(m.strength);
+    row.rigid_residual = Some(m.relative_residual);
+    row.mac_to_reference = Some(mac(&m.q, &rm.q, p.gram));
+    row.confidence = Some(est.confidence);
+    row.quality = Some(estimate_quality(
+        est.confidence,
+        m.phase,
+        m.relative_residual,
+    ));
+    row.reason = m.why.clone();
+    if row.reason.is_none() {
+        if let (Some(s_db), Some(floor)) = (row.strength_db, floor_db) {
+            if s_db < floor {
+                row.reason = Some(format!(
+                    "fᵀq = {:.3e} is {:.1} dB below the set-up's strongest (limit {} dB)",
+                    m.strength,
+                    floor + p.opts.min_strength_db - s_db,
+                    p.opts.min_strength_db
+                ));
             }
         }
+    }
+    row.eligible = row.reason.is_none();
+}
 
+/// A low-confidence estimate (typically half of a split pole) gives way to any confident
+/// one of the same mode: when some eligible row has confidence ≥ `min_confidence`, the
+/// eligible rows below it become ineligible.
+fn demote_low_confidence(table: &mut [ModeExcitation], min_confidence: f64) {
+    if table
+        .iter()
+        .any(|r| r.eligible && r.confidence.is_some_and(|c| c >= min_confidence))
+    {
+        for row in table.iter_mut().filter(|r| r.eligible) {
+            if let Some(c) = row.confidence.filter(|&c| c < min_confidence) {
+                row.eligible = false;
+                row.reason = Some(format!(
+                    "modal-fit confidence {c:.2} is below {min_confidence} and another excitation \
+                     gives a confident estimate of this mode"
+                ));
+            }
+        }
+    }
+}
+
+impl CriterionChoices {
+    /// The best eligible excitation of `table` by each criterion and by strength.
+    fn of(table: &[ModeExcitation]) -> Self {
         let eligible: Vec<&ModeExcitation> = table.iter().filter(|m| m.eligible).collect();
         let pick = |c: Criterion| {
             best_by(&eligible, criterion_key(c)).map(|i| eligible[i].excitation.clone())
         };
-        let choice_ni = pick(Criterion::Ni);
-        let choice_hybrid = pick(Criterion::HybridMif);
-        let choice_prf = pick(Criterion::PrfMif);
-        let choice_strength = best_by(&eligible, |m| m.strength.unwrap_or(0.0))
-            .map(|i| eligible[i].excitation.clone());
-
-        // Ranking by the criterion in use: eligible first.
-        let key = criterion_key(opts.criterion);
-        let mut ranking = table.clone();
-        ranking.sort_by(|a, b| {
-            b.eligible
-                .cmp(&a.eligible)
-                .then_with(|| {
-                    if a.eligible {
-                        key(b).total_cmp(&key(a))
-                    } else {
-                        std::cmp::Ordering::Equal
-                    }
-                })
-                .then(b.ni_db.total_cmp(&a.ni_db))
-        });
-
-        let describe = |c: &Option<String>| c.clone().unwrap_or_else(|| "none".into());
-        let choices = [&choice_ni, &choice_hybrid, &choice_prf, &choice_strength];
-        if choices.iter().any(|c| *c != choices[0]) {
-            disagreements.push(format!(
-                "set-up '{}' mode {mode} ({f_r:.4} Hz): NI picks {}, hybrid MIF {}, PRF MIF {}, strength fᵀq {}",
-                pool.label,
-                describe(&choice_ni),
-                describe(&choice_hybrid),
-                describe(&choice_prf),
-                describe(&choice_strength)
-            ));
+        Self {
+            ni: pick(Criterion::Ni),
+            hybrid_mif: pick(Criterion::HybridMif),
+            prf_mif: pick(Criterion::PrfMif),
+            strength: best_by(&eligible, |m| m.strength.unwrap_or(0.0))
+                .map(|i| eligible[i].excitation.clone()),
         }
+    }
 
-        // The choice.
-        let manual_choice = opts
-            .manual
-            .as_ref()
-            .map(|m| m.excitation_for(mode).map(str::to_string));
-        let (chosen, criterion_name): (Option<String>, &str) = match &manual_choice {
-            Some(Some(ex)) => (Some(ex.clone()), "manual"),
-            Some(None) => (None, "manual"),
-            None => (
-                match opts.criterion {
-                    Criterion::Ni => choice_ni.clone(),
-                    Criterion::HybridMif => choice_hybrid.clone(),
-                    Criterion::PrfMif => choice_prf.clone(),
-                },
-                opts.criterion.name(),
-            ),
-        };
-        let tried: Vec<String> = table.iter().map(|m| m.excitation.clone()).collect();
-        let why_each = table
-            .iter()
-            .map(|m| {
-                format!(
-                    "{}: {}",
-                    m.excitation,
-                    m.reason.as_deref().unwrap_or("eligible")
-                )
+    fn of_criterion(&self, c: Criterion) -> Option<String> {
+        match c {
+            Criterion::Ni => self.ni.clone(),
+            Criterion::HybridMif => self.hybrid_mif.clone(),
+            Criterion::PrfMif => self.prf_mif.clone(),
+        }
+    }
+
+    /// A message when the criteria (and the strength ranking) do not all agree.
+    fn disagreement(&self, setup: &str, mode: usize, f_r: f64) -> Option<String> {
+        let choices = [&self.ni, &self.hybrid_mif, &self.prf_mif, &self.strength];
+        choices.iter().any(|c| *c != choices[0]).then(|| {
+            format!(
+                "set-up '{setup}' mode {mode} ({f_r:.4} Hz): NI picks {}, hybrid MIF {}, PRF MIF {}, strength fᵀq {}",
+                describe_choice(&self.ni),
+                describe_choice(&self.hybrid_mif),
+                describe_choice(&self.prf_mif),
+                describe_choice(&self.strength)
+            )
+        })
+    }
+}
+
+fn describe_choice(c: &Option<String>) -> String {
+    c.clone().unwrap_or_else(|| "none".into())
+}
+
+/// The table ordered for the report: eligible rows first, in the order of `criterion`;
+/// then the others by NI.
+fn ranking(table: &[ModeExcitation], criterion: Criterion) -> Vec<ModeExcitation> {
+    let key = criterion_key(criterion);
+    let mut ranking = table.to_vec();
+    ranking.sort_by(|a, b| {
+        b.eligible
+            .cmp(&a.eligible)
+            .then_with(|| {
+                if a.eligible {
+                    key(b).total_cmp(&key(a))
+                } else {
+                    std::cmp::Ordering::Equal
+                }
             })
-            .collect::<Vec<_>>()
-            .join("; ");
-        match (&manual_choice, chosen) {
-            (Some(None), _) => warnings.push(format!(
-                "set-up '{}' mode {mode} ({f_r:.4} Hz) is not in the manual set: not selected",
-                pool.label
-            )),
-            (Some(Some(ex)), _) if !table.iter().any(|m| &m.excitation == ex) => {
-                return Err(NiError::Manual(format!(
-                    "mode {mode}: excitation '{ex}' is not in set-up '{}'",
-                    pool.label
-                )));
-            }
-            (Some(Some(ex)), _) if table.iter().any(|m| &m.excitation == ex && m.excitation_mode.is_none()) => {
-                missing.push(MissingMode {
-                    setup: pool.label.clone(),
-                    mode,
-                    frequency_hz: f_r,
-                    tried: vec![ex.clone()],
-                    reason: format!(
-                        "the manual set takes mode {mode} ({f_r:.4} Hz) from '{ex}', which did not identify it"
-                    ),
-                });
-            }
-            (_, None) => missing.push(MissingMode {
-                setup: pool.label.clone(),
+            .then(b.ni_db.total_cmp(&a.ni_db))
+    });
+    ranking
+}
+
+/// The choice at mode `g`: the manual set's excitation when one is given, otherwise the
+/// criterion's. Records the selected mode (with its runner-up and margin) or a
+/// `MissingMode` naming every excitation tried and why it failed.
+fn choose(
+    p: &PoolInputs,
+    g: &ModeGroup,
+    group: &[usize],
+    table: &[ModeExcitation],
+    by: &CriterionChoices,
+    out: &mut PoolChoices,
+) -> Result<(), NiError> {
+    let (label, mode, f_r) = (&p.pool.label, g.mode, g.frequency_hz);
+    let manual_choice = p
+        .opts
+        .manual
+        .as_ref()
+        .map(|m| m.excitation_for(mode).map(str::to_string));
+    let (chosen, criterion_name): (Option<String>, &str) = match &manual_choice {
+        Some(Some(ex)) => (Some(ex.clone()), "manual"),
+        Some(None) => (None, "manual"),
+        None => (by.of_criterion(p.opts.criterion), p.opts.criterion.name()),
+    };
+    match (&manual_choice, chosen) {
+        (Some(None), _) => out.warnings.push(format!(
+            "set-up '{label}' mode {mode} ({f_r:.4} Hz) is not in the manual set: not selected"
+        )),
+        (Some(Some(ex)), _) if !table.iter().any(|m| &m.excitation == ex) => {
+            return Err(NiError::Manual(format!(
+                "mode {mode}: excitation '{ex}' is not in set-up '{label}'"
+            )));
+        }
+        (Some(Some(ex)), _)
+            if table
+                .iter()
+                .any(|m| &m.excitation == ex && m.excitation_mode.is_none()) =>
+        {
+            out.missing.push(MissingMode {
+                setup: label.clone(),
                 mode,
                 frequency_hz: f_r,
-                tried,
+                tried: vec![ex.clone()],
                 reason: format!(
-                    "mode {mode} ({f_r:.4} Hz) is not excited above the noise by any excitation of set-up '{}': {why_each}",
-                    pool.label
+                    "the manual set takes mode {mode} ({f_r:.4} Hz) from '{ex}', which did not identify it"
                 ),
-            }),
-            (_, Some(ex)) => {
-                let row = table.iter().find(|m| m.excitation == ex).expect("checked above");
-                if !row.eligible {
-                    warnings.push(format!(
-                        "set-up '{}' mode {mode}: the manual choice '{ex}' is not reliable ({})",
-                        pool.label,
-                        row.reason.as_deref().unwrap_or("")
-                    ));
-                }
-                if criterion_name == "manual" && choice_ni.as_ref().is_some_and(|c| c != &ex) {
-                    disagreements.push(format!(
-                        "set-up '{}' mode {mode} ({f_r:.4} Hz): the manual set takes {ex}, NI picks {}",
-                        pool.label,
-                        describe(&choice_ni)
-                    ));
-                }
-                // Runner-up: the best other eligible excitation under the same criterion
-                // (NI for a manual choice).
-                let rk = criterion_key(if criterion_name == "manual" { Criterion::Ni } else { opts.criterion });
-                let others: Vec<&ModeExcitation> =
-                    eligible.iter().copied().filter(|m| m.excitation != ex).collect();
-                let runner = best_by(&others, rk).map(|i| others[i]);
-                let member = group
-                    .iter()
-                    .map(|&i| &members[i])
-                    .find(|m| ex_id(m.excitation) == ex)
-                    .expect("a row with an excitation mode has a member");
-                let est = &modal.modes[member.estimate];
-                selected.push(SelectedMode {
-                    setup: pool.label.clone(),
-                    mode,
-                    frequency_hz: est.frequency_hz,
-                    excitation: ex.clone(),
-                    excitation_mode: est.mode,
-                    ni_db: row.ni_db,
-                    margin_db: runner.map_or(0.0, |r| row.ni_db - r.ni_db),
-                    runner_up: runner.map(|r| r.excitation.clone()),
-                    strength: member.strength,
-                    criterion: criterion_name.to_string(),
-                });
+            });
+        }
+        (_, None) => {
+            let why_each = table
+                .iter()
+                .map(|m| {
+                    format!(
+                        "{}: {}",
+                        m.excitation,
+                        m.reason.as_deref().unwrap_or("eligible")
+                    )
+                })
+                .collect::<Vec<_>>()
+                .join("; ");
+            out.missing.push(MissingMode {
+                setup: label.clone(),
+                mode,
+                frequency_hz: f_r,
+                tried: table.iter().map(|m| m.excitation.clone()).collect(),
+                reason: format!(
+                    "mode {mode} ({f_r:.4} Hz) is not excited above the noise by any excitation of set-up '{label}': {why_each}"
+                ),
+            })
+        }
+        (_, Some(ex)) => {
+            let row = table
+                .iter()
+                .find(|m| m.excitation == ex)
+                .expect("checked above");
+            if !row.eligible {
+                out.warnings.push(format!(
+                    "set-up '{label}' mode {mode}: the manual choice '{ex}' is not reliable ({})",
+                    row.reason.as_deref().unwrap_or("")
+                ));
             }
+            let manual = criterion_name == "manual";
+            if manual && by.ni.as_ref().is_some_and(|c| c != &ex) {
+                out.disagreements.push(format!(
+                    "set-up '{label}' mode {mode} ({f_r:.4} Hz): the manual set takes {ex}, NI picks {}",
+                    describe_choice(&by.ni)
+                ));
+            }
+            // Runner-up: the best other eligible excitation under the same criterion
+            // (NI for a manual choice).
+            let rk = criterion_key(if manual {
+                Criterion::Ni
+            } else {
+                p.opts.criterion
+            });
+            let others: Vec<&ModeExcitation> = table
+                .iter()
+                .filter(|m| m.eligible && m.excitation != ex)
+                .collect();
+            let runner = best_by(&others, rk).map(|i| others[i]);
+            let member = group
+                .iter()
+                .map(|&i| &p.members[i])
+                .find(|m| p.excitation_id(m.excitation) == ex)
+                .expect("a row with an excitation mode has a member");
+            let est = p.estimate(member);
+            out.selected.push(SelectedMode {
+                setup: label.clone(),
+                mode,
+                frequency_hz: est.frequency_hz,
+                excitation: ex.clone(),
+                excitation_mode: est.mode,
+                ni_db: row.ni_db,
+                margin_db: runner.map_or(0.0, |r| row.ni_db - r.ni_db),
+                runner_up: runner.map(|r| r.excitation.clone()),
+                strength: member.strength,
+                criterion: criterion_name.to_string(),
+            });
         }
-
-        for (slot, row) in per_excitation.iter_mut().zip(&table) {
-            slot.push(row.clone());
-        }
-        mode_groups.push(ModeGroup {
-            setup: pool.label.clone(),
-            mode,
-            frequency_hz: f_r,
-            damping_ratio: zeta,
-            reference_excitation: ex_id(rm.excitation),
-            ranking,
-            choice_ni,
-            choice_hybrid_mif: choice_hybrid,
-            choice_prf_mif: choice_prf,
-            choice_strength,
-        });
     }
-    if let Some(manual) = &opts.manual {
+    Ok(())
+}
+
+/// A manual set naming a mode beyond the pool's matched modes is refused.
+fn check_manual_modes(p: &PoolInputs, n_modes: usize) -> Result<(), NiError> {
+    if let Some(manual) = &p.opts.manual {
         for e in &manual.entries {
             if e.mode > n_modes {
                 return Err(NiError::Manual(format!(
                     "mode {} (from '{}') does not exist: set-up '{}' has {n_modes} matched modes",
-                    e.mode, e.excitation, pool.label
+                    e.mode, e.excitation, p.pool.label
                 )));
             }
         }
     }
+    Ok(())
+}
 
-    // Per-excitation summaries, with the NI peaks attributed to the modes.
-    let mut summaries = Vec::with_capacity(pool.excitations.len());
-    for (slot, &k) in per_excitation.into_iter().zip(&pool.excitations) {
-        let c = &curves.excitations[curve_of[k]];
+/// The mode a peak of the NI at `f` belongs to: the nearest mode whose band contains it.
+fn mode_of_peak(mode_groups: &[ModeGroup], f: f64, spacing: f64) -> Option<usize> {
+    mode_groups
+        .iter()
+        .filter(|g| {
+            (f - g.frequency_hz).abs() <= mode_half_width(g.frequency_hz, g.damping_ratio, spacing)
+        })
+        .min_by(|a, b| {
+            (f - a.frequency_hz)
+                .abs()
+                .total_cmp(&(f - b.frequency_hz).abs())
+        })
+        .map(|g| g.mode)
+}
+
+/// Per-excitation summaries (`per_excitation[j]`: the rows of the pool's j-th excitation,
+/// mode by mode), with the NI peaks attributed to the modes; warns of an NI peak where no
+/// mode was identified.
+fn excitation_summaries(
+    p: &PoolInputs,
+    per_excitation: Vec<Vec<ModeExcitation>>,
+    mode_groups: &[ModeGroup],
+    warnings: &mut Vec<String>,
+) -> Vec<ExcitationSummary> {
+    let opts = p.opts;
+    let mut summaries = Vec::with_capacity(p.pool.excitations.len());
+    for (slot, &k) in per_excitation.into_iter().zip(&p.pool.excitations) {
+        let c = p.curves_of(k);
         let top = c.ni_db.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let peaks: Vec<NiPeak> = find_peaks(&c.ni_db, opts.peak_prominence_db)
             .into_iter()
-            .filter(|p| c.ni_db[p.line] >= top - opts.min_strength_db)
-            .map(|p| {
-                let f = frf.frequency_hz[p.line];
-                let spacing = local_spacing(&frf.frequency_hz, f);
-                let mode = mode_groups
-                    .iter()
-                    .filter(|g| {
-                        let hw = (2.0 * g.damping_ratio * g.frequency_hz).max(1.5 * spacing);
-                        (f - g.frequency_hz).abs() <= hw
-                    })
-                    .min_by(|a, b| {
-                        (f - a.frequency_hz)
-                            .abs()
-                            .total_cmp(&(f - b.frequency_hz).abs())
-                    })
-                    .map(|g| g.mode);
+            .filter(|pk| c.ni_db[pk.line] >= top - opts.min_strength_db)
+            .map(|pk| {
+                let f = p.frf.frequency_hz[pk.line];
+                let spacing = local_spacing(&p.frf.frequency_hz, f);
                 NiPeak {
                     frequency_hz: f,
-                    level_db: c.ni_db[p.line],
-                    prominence_db: p.prominence,
-                    mode,
+                    level_db: c.ni_db[pk.line],
+                    prominence_db: pk.prominence,
+                    mode: mode_of_peak(mode_groups, f, spacing),
                 }
             })
             .collect();
-        for p in peaks.iter().filter(|p| p.mode.is_none()) {
+        for pk in peaks.iter().filter(|pk| pk.mode.is_none()) {
             warnings.push(format!(
                 "NI of '{}' peaks at {:.4} Hz ({:.1} dB) where no mode was identified",
-                c.excitation, p.frequency_hz, p.level_db
+                c.excitation, pk.frequency_hz, pk.level_db
             ));
         }
         let excited: Vec<&ModeExcitation> = slot.iter().filter(|m| m.eligible).collect();
@@ -1153,40 +1356,35 @@ fn process_pool(
             modes: slot,
         });
     }
+    summaries
+}
 
-    let matrix = StrengthMatrix {
-        setup: pool.label.clone(),
+/// The pool's mode × excitation matrices for the heat map.
+fn strength_matrix(
+    p: &PoolInputs,
+    mode_groups: &[ModeGroup],
+    summaries: &[ExcitationSummary],
+) -> StrengthMatrix {
+    let n_modes = mode_groups.len();
+    let by_mode = |value: &dyn Fn(&ModeExcitation) -> Option<f64>| -> Vec<Vec<Option<f64>>> {
+        (0..n_modes)
+            .map(|r| summaries.iter().map(|s| value(&s.modes[r])).collect())
+            .collect()
+    };
+    StrengthMatrix {
+        setup: p.pool.label.clone(),
         modes: mode_groups.iter().map(|g| g.mode).collect(),
         frequency_hz: mode_groups.iter().map(|g| g.frequency_hz).collect(),
-        excitations: pool.excitations.iter().map(|&k| ex_id(k)).collect(),
-        measured_db: (0..n_modes)
-            .map(|r| {
-                summaries
-                    .iter()
-                    .map(|s| s.modes[r].strength.and_then(db10))
-                    .collect()
-            })
+        excitations: p
+            .pool
+            .excitations
+            .iter()
+            .map(|&k| p.excitation_id(k))
             .collect(),
-        predicted_db: (0..n_modes)
-            .map(|r| {
-                summaries
-                    .iter()
-                    .map(|s| s.modes[r].predicted_strength.and_then(db10))
-                    .collect()
-            })
-            .collect(),
+        measured_db: by_mode(&|m| m.strength.and_then(db10)),
+        predicted_db: by_mode(&|m| m.predicted_strength.and_then(db10)),
         ni_db: (0..n_modes)
             .map(|r| summaries.iter().map(|s| s.modes[r].ni_db).collect())
             .collect(),
-    };
-    Ok(PoolResult {
-        rejected,
-        selected,
-        missing,
-        warnings,
-        summaries,
-        groups: mode_groups,
-        matrix,
-        disagreements,
-    })
+    }
 }

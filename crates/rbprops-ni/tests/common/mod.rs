@@ -3,7 +3,7 @@
 //! the true modes as `modal-fit` would report them.
 #![allow(dead_code)]
 
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::modal::modal_receptance;
@@ -204,12 +204,8 @@ pub fn frfs(model: &Model, hz: &[f64]) -> FrfSet {
     s
 }
 
-pub fn normal(rng: &mut ChaCha8Rng) -> f64 {
-    // Box–Muller.
-    let u1: f64 = rng.random::<f64>().max(1e-300);
-    let u2: f64 = rng.random::<f64>();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-}
+/// One standard normal (the workspace's Box–Muller, `rbprops_core::noise`).
+pub use rbprops_core::noise::standard_normal as normal;
 
 /// Adds complex Gaussian noise of `rel × |H|` per value (per-excitation seeds).
 pub fn add_frf_noise(s: &mut FrfSet, rel: f64, seed: u64) {
