@@ -43,7 +43,9 @@ pub struct CheckOptions {
     pub noise: Option<RecordingNoise>,
     /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
     pub alpha: f64,
-    /// At most this many effects are accepted.
+    /// Safety cap on the number of selection steps (each accepts one effect); the
+    /// selection normally ends earlier, when nothing significant is left. Reaching it
+    /// is reported in the warnings.
     pub max_effects: usize,
     /// Significant candidates refitted with full NLS per step.
     pub refit_top: usize,
@@ -98,7 +100,7 @@ impl Default for CheckOptions {
         CheckOptions {
             noise: None,
             alpha: 0.01,
-            max_effects: 4,
+            max_effects: 10,
             refit_top: 3,
             min_delta_bic: 10.0,
             max_correlation: 0.9,
@@ -417,12 +419,23 @@ fn check_with(
         (nex, nch, nl),
         free_base,
     );
+    // The selection ends when nothing significant is left or nothing passes the
+    // acceptance tests (with the residual at the noise floor no candidate is
+    // significant); `max_effects` is only a safety cap, and hitting it is reported.
+    let mut capped = options.max_effects > 0;
     for step in 1..=options.max_effects {
         if !sel.step(step)? {
+            capped = false;
             break;
         }
     }
     warnings.append(&mut sel.warnings);
+    if capped {
+        warnings.push(format!(
+            "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",
+            options.max_effects
+        ));
+    }
     let fin = Finish {
         spec,
         options,

@@ -91,8 +91,32 @@ impl<'p, 'a> Selection<'p, 'a> {
             return Ok(false);
         }
         let refit = self.refit_set(&significant);
+        self.options.progress.say(|| {
+            let list: Vec<String> = refit
+                .iter()
+                .map(|(c, s, g)| {
+                    format!("{} (gain {g:.1}, {} tests)", self.p.cands[*c].id, s.n_tests)
+                })
+                .collect();
+            format!("step {step}: refitting {}", list.join(", "))
+        });
         let fits = self.refit(&refit);
         let evals = self.evaluate_all(step, &refit, fits)?;
+        for e in &evals {
+            self.options.progress.say(|| {
+                format!(
+                    "step {step}: {} refitted: Δχ² {:.1}, ΔBIC {:.1}{}",
+                    self.p.cands[e.c].id,
+                    e.dchi2,
+                    e.dbic,
+                    if e.ok() {
+                        String::new()
+                    } else {
+                        format!("; fails: {}", e.why())
+                    }
+                )
+            });
+        }
         let Some(best_i) = evals.iter().position(|e| e.ok()) else {
             for e in &evals {
                 set_decision(
