@@ -235,6 +235,12 @@ fn cords_case(splayed: bool) {
         t0.elapsed().as_secs_f64(),
         r.warnings
     );
+    for e in &r.screening {
+        eprintln!(
+            "  step {} {:<28} rank {} score {:.1} thr {:.1} refit Δχ² {:?}: {}",
+            e.step, e.id, e.rank, e.score, e.threshold, e.refit_delta_chi2, e.decision
+        );
+    }
     assert!(
         r.warnings.iter().any(|w| w.contains("free")),
         "the nominal's free directions are reported: {:?}",
@@ -273,24 +279,32 @@ fn cords_case(splayed: bool) {
         .all(|m| m.frequency_hz > 0.3));
 }
 
-// Not yet passing (ignored, run with `--ignored`): on this recording the selection
-// accepts elastic_mode, added_mass, suspension_coupling, sensor_position before
-// gravity_stiffness (χ²/ν 8864 → 2831 after four steps, 4 min), although the hanging
-// body is exact at φ = (1/L̄, 1): its profile screening is not yet what the selection
-// refits first. The acceptance and selection logic is being reworked on another branch.
+// Not yet passing (ignored, run with `--ignored`): on this recording the first pass
+// accepts elastic_mode (then others) and never refits gravity_stiffness. Root cause,
+// measured with the check restricted to gravity_stiffness: under the first pass's
+// data-only noise estimate (a local polynomial over 11 lines, which reads the sharp
+// pendulum resonances near 0.5 Hz and the low-frequency lines as noise) the gravity
+// profile is not even significant, so the first pass never tries it; with the noise
+// re-estimated from the baseline's residual (the second pass) its profile gain is about 97 %
+// of χ² (3.76e9 of 3.9e9) and the refit takes χ²/ν from 2.4e5 to 33, still above the
+// band. The profile itself is sound; the data-only noise weights hide its signature.
 #[test]
-#[ignore = "known failure: the selection refits other effects before gravity_stiffness"]
+#[ignore = "known failure: the data-only noise estimate hides the pendulum signature (see above)"]
 fn parallel_cords_with_gravity_are_named_and_fitted() {
     cords_case(false);
 }
 
-// Not yet passing (ignored, run with `--ignored`): on this recording the selection
-// accepts elastic_mode, added_mass, suspension_coupling, sensor_position before
-// gravity_stiffness (χ²/ν 8864 → 2831 after four steps, 4 min), although the hanging
-// body is exact at φ = (1/L̄, 1): its profile screening is not yet what the selection
-// refits first. The acceptance and selection logic is being reworked on another branch.
+// Not yet passing (ignored, run with `--ignored`): on this recording the first pass
+// accepts elastic_mode (then others) and never refits gravity_stiffness. Root cause,
+// measured with the check restricted to gravity_stiffness: under the first pass's
+// data-only noise estimate (a local polynomial over 11 lines, which reads the sharp
+// pendulum resonances near 0.5 Hz and the low-frequency lines as noise) the gravity
+// profile is not even significant, so the first pass never tries it; with the noise
+// re-estimated from the baseline's residual (the second pass) its profile gain is about 97 %
+// of χ² (3.76e9 of 3.9e9) and the refit takes χ²/ν from 2.4e5 to 33, still above the
+// band. The profile itself is sound; the data-only noise weights hide its signature.
 #[test]
-#[ignore = "known failure: the selection refits other effects before gravity_stiffness"]
+#[ignore = "known failure: the data-only noise estimate hides the pendulum signature (see above)"]
 fn splayed_cords_with_gravity_are_named_and_fitted() {
     cords_case(true);
 }

@@ -300,3 +300,32 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
         0.001,
     );
 }
+
+/// Six concealed effects at once (`tc2-six-effects`: sensor 2 misoriented ≈ 2°, sensor 3
+/// displaced 5 mm, channel 1y gain +6 %, force 2's direction off by 5°, a 50 g gauge mass
+/// under force 3, an in-band elastic mode at 10 Hz; 1 % noise, single precision). With
+/// the selection no longer capped at four effects, each is named (or a family holding
+/// it: a force's direction and location, a sensor's position and orientation can trade
+/// at the few points a test has), nothing else, and χ²/ν ends in the noise band.
+#[test]
+#[ignore = "study (minutes; not yet measured on this branch): six concealed effects at once"]
+fn six_concealed_effects_are_all_named() {
+    let Some(py) = python() else { return };
+    let nom = nominal(400);
+    let (g, frf) = refgen(&py, "tc2-six-effects", &[], 7, &nom);
+    assert_explained(
+        "six concealed effects",
+        &nom,
+        &g,
+        &frf,
+        &[
+            "sensor_misorientation",
+            "sensor_position",
+            "channel_gain",
+            "force_direction",
+            "force_gauge_mass",
+            "elastic_mode",
+        ],
+        &["force_location"],
+    );
+}

@@ -65,8 +65,9 @@ struct Args {
     /// Family-wise false-positive rate per selection step.
     #[arg(long, default_value_t = 0.01)]
     alpha: f64,
-    /// At most this many effects are accepted.
-    #[arg(long, default_value_t = 4)]
+    /// Safety cap on the selection steps (one effect each); the selection ends when
+    /// nothing significant is left, and reaching the cap is reported.
+    #[arg(long, default_value_t = 10)]
     max_effects: usize,
     /// Screen only these effect ids (comma-separated).
     #[arg(long, value_delimiter = ',')]

@@ -1,0 +1,479 @@
+//! The model check: noise floor → baseline fit → localisation → screening (score test)
+//! → refit and acceptance (likelihood ratio with Bonferroni, ΔBIC, plausible and
+//! significant parameters, distinctness) → forward–backward selection → report.
+//! Follows docs/physics.md (M1–M8), with the deviations listed in
+//! the report's `method` field.
+
+use crate::candidates::{candidates, local_effect, Candidate, Screening};
+use crate::error::CheckError;
+use crate::lm::{self, Bounds, Fit};
+use crate::locate::{bands, residual_map};
+use crate::noise::{self, RecordingNoise};
+use crate::params::{inertia_quantities, theta_to_inertia, Baseline, ParamKind, INERTIA_NAMES};
+use crate::predict::{predict, Layout};
+use crate::report::*;
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use rbprops_core::stats::chi2_isf;
+use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
+use rbprops_sim::effects::Effect;
+use rbprops_sim::CampaignSpec;
+
+mod acceptance;
+mod gauges;
+mod problem;
+mod screening;
+mod selection;
+mod verdict;
+
+pub use acceptance::PRACTICAL_MARGIN;
+pub use verdict::{noise_band, verdict, MIN_BAND_UPPER};
+
+use acceptance::*;
+use gauges::*;
+use problem::*;
+use screening::*;
+use selection::*;
+use verdict::*;
+
+/// Options of [`check`]. `Default` gives the documented defaults.
+#[derive(Debug, Clone)]
+pub struct CheckOptions {
+    /// Noise model from side information (repeats, coherence); `None`: from the data.
+    pub noise: Option<RecordingNoise>,
+    /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
+    pub alpha: f64,
+    /// Safety cap on the number of selection steps (each accepts one effect); the
+    /// selection normally ends earlier, when nothing significant is left. Reaching it
+    /// is reported in the warnings.
+    pub max_effects: usize,
+    /// Significant candidates refitted with full NLS per step.
+    pub refit_top: usize,
+    /// ΔBIC an effect must exceed (and the margin under which rivals are ambiguous).
+    pub min_delta_bic: f64,
+    /// Largest canonical correlation under which two candidates count as distinct.
+    pub max_correlation: f64,
+    pub max_iterations: usize,
+    /// Weighed mass (side information): fixes m, which makes a global gain observable.
+    pub weighed_mass_kg: Option<f64>,
+    /// Known masses at sensor points (point id, kg): added to the model as a known
+    /// correction, so the reported inertia is the body's without the sensors.
+    pub sensor_masses_kg: Vec<(String, f64)>,
+    /// Restrict screening to these candidate ids (`None`: the whole catalogue).
+    pub only: Option<Vec<String>>,
+    /// Quantile of χ²_d the Wald statistic of an effect's parameters must exceed.
+    pub wald_level: f64,
+    /// Require the held-out check (cross-validation, [`crate::cv`]) for acceptance.
+    pub cross_validation: bool,
+    /// Receives one line per stage (noise, baseline, each selection step): a check
+    /// takes seconds to minutes, and a person at a terminal wants to see it move.
+    pub progress: Progress,
+}
+
+/// A sink for progress lines ([`CheckOptions::progress`]); silent by default.
+#[derive(Clone, Default)]
+pub struct Progress(Option<std::sync::Arc<dyn Fn(&str) + Send + Sync>>);
+
+impl Progress {
+    pub fn new(f: impl Fn(&str) + Send + Sync + 'static) -> Self {
+        Progress(Some(std::sync::Arc::new(f)))
+    }
+    fn say(&self, line: impl FnOnce() -> String) {
+        if let Some(f) = &self.0 {
+            f(&line());
+        }
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(on)"
+        } else {
+            "Progress(off)"
+        })
+    }
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        CheckOptions {
+            noise: None,
+            alpha: 0.01,
+            max_effects: 10,
+            refit_top: 3,
+            min_delta_bic: 10.0,
+            max_correlation: 0.9,
+            max_iterations: 60,
+            weighed_mass_kg: None,
+            sensor_masses_kg: Vec::new(),
+            only: None,
+            wald_level: 0.999,
+            cross_validation: true,
+            progress: Progress::default(),
+        }
+    }
+}
+
+/// Everything a front end needs: the report, the improved spec and the FRFs for plots.
+#[derive(Debug)]
+pub struct CheckOutcome {
+    pub report: ModelCheckReport,
+    /// The nominal spec with fitted parameters and the accepted effects switched on.
+    pub improved_spec: CampaignSpec,
+    pub layout: Layout,
+    /// `[exc][ch][line]` in the recording's layout.
+    pub measured: Vec<c64>,
+    pub nominal: Vec<c64>,
+    pub baseline: Vec<c64>,
+    pub improved: Vec<c64>,
+    /// σ per value (0: excluded).
+    pub sigma: Vec<f64>,
+    /// The final model's parameters, a start for the noise rerun of [`check`].
+    prior: Prior,
+}
+
+/// Runs the model check of a recording (`geometry`, `frf`) against a nominal spec.
+/// With the noise estimated from the data, the noise is re-estimated from the final
+/// model's residual and, if that moves the final χ²/ν out of its noise band, the check
+/// is run once more with it (see [`noise::estimate_from_residual`]).
+pub fn check(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    frf: &FrfSet,
+    options: &CheckOptions,
+) -> Result<CheckOutcome, CheckError> {
+    options.progress.say(|| "estimating the noise floor".into());
+    let first = check_with(spec, geometry, frf, options, None, None)?;
+    if options.noise.is_some() {
+        return Ok(first);
+    }
+    // Second pass: the noise re-estimated from the residual of the first pass's final
+    // model ([`noise::estimate_from_residual`]), which no longer reads the structure the
+    // accepted effects explain (a leakage ripple) as noise, nor, with nothing accepted,
+    // the curvature the local polynomial cannot follow on data without noise (a
+    // recording in single precision is then weighed by its quantisation alone).
+    let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
+    let nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
+    // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
+    // (χ²/ν · ρ), moves by more than the half-width of that noise's band on its side
+    // (see `noise_band`): only then can it change the verdict.
+    let rho = chi2_ratio(&first, &nf.sigma);
+    let [lo, hi] = rbprops_core::stats::chi2_nu_band(
+        first.report.nu_after,
+        nf.model.variance_scale_se,
+        rbprops_core::stats::BAND_TAIL,
+    );
+    let note = format!(
+        "noise re-estimated from the residual of the final model: its χ² changes by the factor ρ = {rho:.3} (band half-widths −{:.3}/+{:.3})",
+        1.0 - lo,
+        hi - 1.0
+    );
+    if rho >= lo && rho <= hi {
+        let mut first = first;
+        first
+            .report
+            .method
+            .push(format!("{note}: within it, the data-only estimate is kept"));
+        return Ok(first);
+    }
+    options.progress.say(|| {
+        format!("noise re-estimated from the final residual (χ² factor {rho:.3}): rerunning")
+    });
+    let mut second = check_with(
+        spec,
+        geometry,
+        frf,
+        options,
+        Some((nf.model, nf.sigma)),
+        Some(&first.prior),
+    )?;
+    second.report.method.push(format!(
+        "{note}: beyond it, so the check was rerun with it (first pass: {})",
+        first.report.verdict
+    ));
+    Ok(second)
+}
+
+/// ρ = χ²(σ')/χ²(σ) of the final model's residual of `o` under the noise `sigma2`
+/// instead of the σ it was fitted with (values where both are positive).
+fn chi2_ratio(o: &CheckOutcome, sigma2: &[f64]) -> f64 {
+    let (mut a, mut b) = (0.0, 0.0);
+    for i in 0..o.measured.len() {
+        let (s1, s2) = (o.sigma[i], sigma2[i]);
+        if s1 > 0.0 && s2 > 0.0 {
+            let e = (o.measured[i] - o.improved[i]).norm_sqr();
+            a += e / (s2 * s2);
+            b += e / (s1 * s1);
+        }
+    }
+    a / b
+}
+
+/// The methods text of the report that does not depend on the data.
+fn method_text() -> Vec<String> {
+    vec![
+            "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν out of the noise band); line-to-line correlation κ = 1 assumed".to_string(),
+            "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
+            "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
+            "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10), and practically significant: its fitted change to the FRFs at least 10 times the precision floor (RMS over the values); backward elimination after each acceptance".to_string(),
+            "not implemented: bootstrap calibration of the screening threshold".to_string(),
+    ]
+}
+
+/// Stage 0's weights of the residual: the noise model, σ per value (0: left out), σ of
+/// the precision floor alone (the yardstick of practical significance) and the values
+/// used.
+struct Weights {
+    noise_model: RecordingNoise,
+    sigma: Vec<f64>,
+    sigma_precision: Vec<f64>,
+    used: Vec<usize>,
+}
+
+/// Stage 0: the noise floor (given, overridden by the second pass, or estimated from
+/// the data), with the precision floor of the data's storage format; the 0 Hz line and
+/// values without noise information are left out.
+fn weights(
+    frf: &FrfSet,
+    options: &CheckOptions,
+    noise_override: Option<(RecordingNoise, Vec<f64>)>,
+    method: &mut Vec<String>,
+    warnings: &mut Vec<String>,
+) -> Result<Weights, CheckError> {
+    let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
+    let y = &frf.values;
+    // Stage 0: noise floor, with the precision floor of the data's storage format.
+    let (noise_model, sigma) = match (noise_override, &options.noise) {
+        (Some(given), _) => given,
+        (None, Some(m)) => {
+            if m.relative.len() != nch || m.floor.len() != nch {
+                return Err(CheckError::Noise(format!(
+                    "given noise model has {} / {} channel entries, the recording {nch}",
+                    m.relative.len(),
+                    m.floor.len()
+                )));
+            }
+            let mut m = m.clone();
+            m.precision = DataPrecision::detect(y);
+            let s = noise::sigma_of(&m, y, y, nex, nch, nl);
+            (m, s)
+        }
+        (None, None) => {
+            let nf = noise::estimate(y, nex, nch, nl)?;
+            (nf.model, nf.sigma)
+        }
+    };
+    method.push(format!(
+        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the computation floor of double precision ({:.0e}·|H|)²; an exact recording (no fitted noise) whose χ²/ν is below the band is within that floor, and counts as at the floor",
+        noise_model.precision.describe(),
+        noise::COMPUTATION_FLOOR
+    ));
+    // The yardstick of practical significance: σ with no noise but the precision floor.
+    let sigma_precision = noise::precision_sigma(&noise_model.precision, y, y, nl);
+    // The 0 Hz line is left out: an AC-coupled channel reads 0 there whatever its time
+    // constant and a DC-coupled one its static value, so a high-pass candidate's model
+    // jumps at 1/τ = 0 on that line (no derivative, no path for the fit) while the line
+    // next to it carries the same static information.
+    let mut sigma = sigma;
+    let dc: Vec<usize> = (0..nl).filter(|&l| frf.frequency_hz[l] == 0.0).collect();
+    let mut n_dc = 0;
+    for &l in &dc {
+        for fi in 0..nex * nch {
+            if sigma[fi * nl + l] > 0.0 {
+                sigma[fi * nl + l] = 0.0;
+                n_dc += 1;
+            }
+        }
+    }
+    if n_dc > 0 {
+        warnings.push(format!(
+            "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
+        ));
+    }
+    let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
+    let n_excluded = y.len() - used.len() - n_dc;
+    if n_excluded > 0 {
+        warnings.push(format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out"));
+    }
+    Ok(Weights {
+        noise_model,
+        sigma,
+        sigma_precision,
+        used,
+    })
+}
+
+/// The spec's own effects and, as side information, the known sensor masses (a fixed
+/// effect), in the model of every fit.
+fn fixed_effects(
+    spec: &CampaignSpec,
+    layout: &Layout,
+    options: &CheckOptions,
+) -> Result<Vec<Box<dyn Effect>>, CheckError> {
+    // Side information: known sensor masses become a fixed effect.
+    let mut fixed_effects: Vec<Box<dyn Effect>> = spec
+        .effects
+        .iter()
+        .map(|e| rbprops_sim::effects::parse_effect_in(e, spec).map_err(CheckError::Model))
+        .collect::<Result<_, _>>()?;
+    if !options.sensor_masses_kg.is_empty() {
+        let (pids, _) = point_ids(&layout.spec_geometry);
+        let mut vals = vec![0.0; pids.len()];
+        for (pid, m) in &options.sensor_masses_kg {
+            let k = pids.iter().position(|p| p == pid).ok_or_else(|| {
+                CheckError::Mismatch(format!(
+                    "sensor mass given for unknown point '{pid}' (points: {})",
+                    pids.join(", ")
+                ))
+            })?;
+            vals[k] = *m;
+        }
+        fixed_effects.push(local_effect("sensor_mass", spec, &vals).map_err(CheckError::Model)?);
+    }
+    Ok(fixed_effects)
+}
+
+/// One pass of the check; `noise` overrides `options.noise` with a noise model and its
+/// σ per value, and `prior` is the first pass's final model (the second pass of
+/// [`check`]): the effects it accepted are refitted from it, whatever their screening.
+fn check_with(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    frf: &FrfSet,
+    options: &CheckOptions,
+    noise_override: Option<(RecordingNoise, Vec<f64>)>,
+    prior: Option<&Prior>,
+) -> Result<CheckOutcome, CheckError> {
+    frf.validate()
+        .map_err(|e| CheckError::Data(e.to_string()))?;
+    let layout = Layout::new(spec, geometry, frf)?;
+    let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
+    let y = &frf.values;
+    let mut warnings = Vec::new();
+    let mut method = method_text();
+    let Weights {
+        noise_model,
+        sigma,
+        sigma_precision,
+        used,
+    } = weights(frf, options, noise_override, &mut method, &mut warnings)?;
+    let fixed_effects = fixed_effects(spec, &layout, options)?;
+    warnings.extend(crate::candidates::free_direction_note(
+        spec,
+        &layout.spec_geometry,
+    ));
+    let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
+    method.extend(notes);
+    warnings.extend(crate::candidates::vertical_axis_doubt(spec));
+    if let Some(only) = &options.only {
+        cands.retain(|c| only.contains(&c.id));
+    }
+    if !options.sensor_masses_kg.is_empty() {
+        cands.retain(|c| c.id != "sensor_mass");
+    }
+    let p = Problem {
+        baseline: Baseline::new(spec),
+        layout: &layout,
+        y,
+        sigma: &sigma,
+        used,
+        fixed_effects,
+        cands,
+        fixed_mass: options.weighed_mass_kg,
+    };
+    let n_real = p.n_real();
+    let theta_nom = p.baseline.initial();
+    // χ² of the nominal spec as given.
+    let r_nom = p.residual(&theta_nom, &[])?;
+    let chi2_nominal = lm::chi2(&r_nom);
+    let nominal_pred = p.model(&theta_nom, &[])?;
+    // Stage 1: baseline fit. Start from the nominal, with the weighed mass if given.
+    let mut theta0 = theta_nom.clone();
+    if let Some(m) = options.weighed_mass_kg {
+        theta0[0] = m.ln();
+    }
+    options.progress.say(|| {
+        format!(
+            "{} candidates; χ²/ν of the nominal model {:.3}; fitting its parameters",
+            p.cands.len(),
+            chi2_nominal / n_real
+        )
+    });
+    let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
+    if !base.converged {
+        warnings.push(format!(
+            "baseline fit stopped after {} iterations without converging",
+            base.iterations
+        ));
+    }
+    let free_base = p.n_base() - usize::from(options.weighed_mass_kg.is_some());
+    // Stages 3–4: forward selection with backward checks.
+    let mut sel = Selection::new(
+        &p,
+        options,
+        prior,
+        &theta_nom,
+        &sigma_precision,
+        base.clone(),
+        (nex, nch, nl),
+        free_base,
+    );
+    // The selection ends when nothing significant is left or nothing passes the
+    // acceptance tests (with the residual at the noise floor no candidate is
+    // significant); `max_effects` is only a safety cap, and hitting it is reported.
+    let mut capped = options.max_effects > 0;
+    for step in 1..=options.max_effects {
+        if !sel.step(step)? {
+            capped = false;
+            break;
+        }
+    }
+    warnings.append(&mut sel.warnings);
+    if capped {
+        warnings.push(format!(
+            "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",
+            options.max_effects
+        ));
+    }
+    let fin = Finish {
+        spec,
+        options,
+        p: &p,
+        noise_model,
+        base,
+        theta_nom: &theta_nom,
+        chi2_nominal,
+        free_base,
+    };
+    let (report, improved_spec, prior, final_pred, base_pred) =
+        fin.report(sel, warnings, method)?;
+    Ok(CheckOutcome {
+        prior,
+        report,
+        improved_spec,
+        measured: y.clone(),
+        nominal: nominal_pred,
+        baseline: base_pred,
+        improved: final_pred,
+        sigma,
+        layout,
+    })
+}
+
+fn point_ids(g: &Geometry) -> (Vec<String>, ()) {
+    let mut ids: Vec<String> = Vec::new();
+    for c in &g.channels {
+        if !ids.contains(&c.point) {
+            ids.push(c.point.clone());
+        }
+    }
+    (ids, ())
+}
+
+fn effect_spec(
+    e: &dyn Effect,
+    spec: &CampaignSpec,
+) -> Result<rbprops_sim::spec::EffectSpec, CheckError> {
+    crate::candidates::catalogue_entry(e, spec).map_err(CheckError::Model)
+}

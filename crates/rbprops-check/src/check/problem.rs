@@ -1,0 +1,262 @@
+use super::*;
+/// A pass's final model: the nominal model's parameters θ and each accepted effect's φ.
+/// The noise rerun of [`check`] refits every effect the first pass accepted from here
+/// as well: under the re-estimated noise the baseline may drift to stand in for the
+/// effect (a hanging body's mass ×4.5 for a record truncation), and from that basin the
+/// effect's screening statistic and its refit from the current model see nothing.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Prior {
+    pub(super) base: Vec<f64>,
+    pub(super) effects: Vec<(String, Vec<f64>)>,
+}
+
+impl Prior {
+    pub(super) fn phi(&self, id: &str) -> Option<&[f64]> {
+        self.effects
+            .iter()
+            .find(|(e, _)| e == id)
+            .map(|(_, phi)| phi.as_slice())
+    }
+
+    /// θ for `active` (the last entry the effect being refitted, with its start `alpha`
+    /// unless the prior has it) from the prior's θ and φ where it has them and from
+    /// `current` (the current fit's θ for `active` minus its last entry) elsewhere.
+    pub(super) fn start(
+        &self,
+        p: &Problem,
+        active: &[Act],
+        current: &[f64],
+        alpha: &[f64],
+    ) -> Vec<f64> {
+        let nb = p.n_base();
+        let mut t = self.base.clone();
+        let mut k = nb;
+        for (i, a) in active.iter().enumerate() {
+            let d = a.dim();
+            let fallback = if i + 1 == active.len() {
+                alpha
+            } else {
+                &current[k..k + d]
+            };
+            match self.phi(&p.cands[a.c].id) {
+                Some(phi) => t.extend(a.kept.iter().map(|&j| phi[j])),
+                None => t.extend_from_slice(fallback),
+            }
+            k += d;
+        }
+        t
+    }
+}
+
+/// An effect in the model. Its free parameters are the `kept` coordinates of φ; the
+/// others stay at their neutral values. A coordinate is dropped for each exact gauge
+/// of the effect (a direction with no signature once the current model's parameters
+/// are free: a common gain the mass absorbs, a rotation of a force about itself), so a
+/// gauge can neither drift nor take over the inertia parameters, while the kept
+/// parameters keep their own units and bounds.
+#[derive(Debug, Clone)]
+pub(super) struct Act {
+    pub(super) c: usize,
+    pub(super) kept: Vec<usize>,
+    /// Unit directions in φ-space the data cannot see at first order (reported).
+    pub(super) gauge: Vec<Vec<f64>>,
+}
+
+impl Act {
+    pub(super) fn full(c: usize, n: usize) -> Act {
+        Act {
+            c,
+            kept: (0..n).collect(),
+            gauge: Vec::new(),
+        }
+    }
+    pub(super) fn dim(&self) -> usize {
+        self.kept.len()
+    }
+    pub(super) fn phi(&self, neutral: &[f64], alpha: &[f64]) -> Vec<f64> {
+        let mut phi = neutral.to_vec();
+        for (&j, a) in self.kept.iter().zip(alpha) {
+            phi[j] = *a;
+        }
+        phi
+    }
+}
+
+/// The fitting problem: data, weights, parametrisation and candidates.
+pub(super) struct Problem<'a> {
+    pub(super) baseline: Baseline,
+    pub(super) layout: &'a Layout,
+    pub(super) y: &'a [c64],
+    pub(super) sigma: &'a [f64],
+    pub(super) used: Vec<usize>,
+    pub(super) fixed_effects: Vec<Box<dyn Effect>>,
+    pub(super) cands: Vec<Candidate>,
+    pub(super) fixed_mass: Option<f64>,
+}
+
+impl<'a> Problem<'a> {
+    pub(super) fn n_base(&self) -> usize {
+        self.baseline.len()
+    }
+
+    pub(super) fn build(
+        &self,
+        theta: &[f64],
+        active: &[Act],
+    ) -> Result<(CampaignSpec, Vec<Box<dyn Effect>>), CheckError> {
+        let spec = self.baseline.apply(&theta[..self.n_base()]);
+        let mut effects: Vec<Box<dyn Effect>> = self
+            .fixed_effects
+            .iter()
+            .map(|e| e.with_values(&e.values()).map_err(CheckError::Model))
+            .collect::<Result<_, _>>()?;
+        let mut k = self.n_base();
+        for a in active {
+            let cand = &self.cands[a.c];
+            let n = a.dim();
+            let phi = a.phi(&cand.neutral, &theta[k..k + n]);
+            effects.push(cand.effect.with_values(&phi).map_err(CheckError::Model)?);
+            k += n;
+        }
+        Ok((spec, effects))
+    }
+
+    pub(super) fn model(&self, theta: &[f64], active: &[Act]) -> Result<Vec<c64>, CheckError> {
+        let (spec, effects) = self.build(theta, active)?;
+        predict(&spec, self.layout, &effects)
+    }
+
+    pub(super) fn residual(&self, theta: &[f64], active: &[Act]) -> Result<Vec<f64>, CheckError> {
+        let m = self.model(theta, active)?;
+        let mut r = Vec::with_capacity(2 * self.used.len());
+        for &i in &self.used {
+            let d = (self.y[i] - m[i]) * (std::f64::consts::SQRT_2 / self.sigma[i]);
+            r.push(d.re);
+            r.push(d.im);
+        }
+        Ok(r)
+    }
+
+    pub(super) fn bounds(&self, active: &[Act]) -> Bounds {
+        let nb = self.n_base();
+        let mut lower = vec![f64::NEG_INFINITY; nb];
+        let mut upper = vec![f64::INFINITY; nb];
+        let mut scales = self.baseline.scales.clone();
+        if let Some(m) = self.fixed_mass {
+            lower[0] = m.ln();
+            upper[0] = m.ln();
+        }
+        for a in active {
+            let cand = &self.cands[a.c];
+            let infos = cand.effect.parameters();
+            for &j in &a.kept {
+                lower.push(infos[j].lower);
+                upper.push(infos[j].upper);
+                scales.push(cand.scales[j]);
+            }
+        }
+        Bounds {
+            lower,
+            upper,
+            scales,
+        }
+    }
+
+    pub(super) fn fit(
+        &self,
+        stage: &str,
+        theta0: &[f64],
+        active: &[Act],
+        max_iter: usize,
+    ) -> Result<Fit, CheckError> {
+        let f = |t: &[f64]| self.residual(t, active);
+        let b = self.bounds(active);
+        let mut fit = lm::fit(stage, &f, theta0, &b, max_iter)?;
+        self.zero_fixed(&mut fit.jacobian);
+        Ok(fit)
+    }
+
+    pub(super) fn zero_fixed(&self, j: &mut DMatrix<f64>) {
+        if self.fixed_mass.is_some() {
+            j.column_mut(0).fill(0.0);
+        }
+    }
+
+    /// ‖y‖ in the residual's noise units (√2 |y_i| / σ_i over the lines used).
+    pub(super) fn data_norm(&self) -> f64 {
+        self.used
+            .iter()
+            .map(|&i| 2.0 * (self.y[i].norm() / self.sigma[i]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    pub(super) fn n_real(&self) -> f64 {
+        2.0 * self.used.len() as f64
+    }
+
+    /// RMS over the values used of |Ŷ₁ − Ŷ₀|/σ_p: the change between two predictions in
+    /// units of the precision floor `sigma_precision` (values with σ_p = 0, exact zeros
+    /// of a model with no rounding to speak of, are left out).
+    pub(super) fn change_over_floor(&self, m1: &[c64], m0: &[c64], sigma_precision: &[f64]) -> f64 {
+        let (mut s, mut n) = (0.0, 0usize);
+        for &i in &self.used {
+            if sigma_precision[i] > 0.0 {
+                s += ((m1[i] - m0[i]).norm() / sigma_precision[i]).powi(2);
+                n += 1;
+            }
+        }
+        if n == 0 {
+            return 0.0;
+        }
+        (s / n as f64).sqrt()
+    }
+}
+
+/// Orthonormal basis of the column span of `j` (columns normalised first; directions
+/// with relative singular value below `tol` dropped).
+pub(super) fn span_basis(j: &DMatrix<f64>, tol: f64) -> (DMatrix<f64>, Vec<f64>) {
+    let mut js = j.clone();
+    for k in 0..js.ncols() {
+        let n = js.column(k).norm();
+        if n > 0.0 {
+            js.column_mut(k).scale_mut(1.0 / n);
+        }
+    }
+    let svd = js.svd(true, false);
+    let u = svd.u.expect("requested");
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > tol)
+        .collect();
+    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, c| u[(r, keep[c])]);
+    (
+        basis,
+        keep.iter().map(|&k| svd.singular_values[k]).collect(),
+    )
+}
+
+/// Removes the span of `q` (orthonormal columns) from the columns of `j`.
+pub(super) fn project_out(j: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
+    if q.ncols() == 0 {
+        return j.clone();
+    }
+    j - q * crate::lm::tr_mul(q, j)
+}
+
+pub(super) fn active_dims(active: &[Act]) -> usize {
+    active.iter().map(Act::dim).sum()
+}
+
+/// θ without the parameters of the k-th active effect.
+pub(super) fn drop_params(p: &Problem, theta: &[f64], active: &[Act], k: usize) -> Vec<f64> {
+    let mut out = theta[..p.n_base()].to_vec();
+    let mut off = p.n_base();
+    for (i, a) in active.iter().enumerate() {
+        let n = a.dim();
+        if i != k {
+            out.extend_from_slice(&theta[off..off + n]);
+        }
+        off += n;
+    }
+    out
+}

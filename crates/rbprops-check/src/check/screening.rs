@@ -1,0 +1,415 @@
+use super::*;
+/// Score-test quantities of one candidate at the current model.
+#[derive(Clone)]
+pub(super) struct Score {
+    pub(super) rank: usize,
+    pub(super) score: f64,
+    pub(super) basis: DMatrix<f64>,
+    /// Free coordinates of φ (one dropped per exact gauge).
+    pub(super) kept: Vec<usize>,
+    /// Gauss–Newton start of the kept coordinates.
+    pub(super) start: Vec<f64>,
+    /// Unit φ-space directions without first-order signature.
+    pub(super) gauge: Vec<Vec<f64>>,
+    /// Fraction of the candidate's signature each parameter group explains alone.
+    pub(super) absorbed_by: Vec<(String, f64)>,
+    /// Number of parameter points the statistic is the best of (1 for the score test;
+    /// the profile's size for grid-screened candidates): the threshold is Bonferroni
+    /// corrected for it.
+    pub(super) n_tests: usize,
+    /// Start of the current model's parameters for the refit (re-adjusted to the
+    /// profile's best point), when not the current fit's.
+    pub(super) theta_start: Option<Vec<f64>>,
+}
+
+/// Profile screening of a candidate whose signature vanishes to every order at its
+/// neutral point (see `Candidate::grid`): at each grid point φ_g the residual r_g of the
+/// current model plus the effect at φ_g, with the current parameters re-adjusted
+/// linearly (their Jacobian's span projected out), gives the approximate likelihood
+/// ratio `‖P⊥ r‖² − ‖P⊥ r_g‖²`. The best point starts the refit; the statistic is the
+/// best of `G` tests, so its threshold is Bonferroni corrected over the grid.
+pub(super) fn grid_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+    grid: &[Vec<f64>],
+    delay_scan: bool,
+) -> Result<Score, CheckError> {
+    let (grid, n_tests) = profile_points(p, grid, delay_scan, &cur.residual);
+    profile_candidate(p, cur, active, c, q0, &grid, n_tests)
+}
+
+/// An in-band resonance ([`crate::resonance`]): the profile over (ω_m, ζ_m) of the
+/// linear residue fit to the current residual proposes the starting points, which are
+/// then evaluated as a grid; Bonferroni over every profile point searched.
+pub(super) fn resonance_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+) -> Result<Score, CheckError> {
+    let (starts, n_tests) =
+        crate::resonance::profile_starts(p.layout, &p.used, p.sigma, &cur.residual);
+    if starts
+        .first()
+        .is_some_and(|s| s.len() != p.cands[c].neutral.len())
+    {
+        return Err(CheckError::Model(
+            "elastic_mode: the spec's channels and excitations do not match the recording's layout"
+                .into(),
+        ));
+    }
+    profile_candidate(p, cur, active, c, q0, &starts, n_tests)
+}
+
+/// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
+/// statistic the best of `n_tests` tests.
+pub(super) fn profile_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+    grid: &[Vec<f64>],
+    n_tests: usize,
+) -> Result<Score, CheckError> {
+    let cand = &p.cands[c];
+    let np = cand.neutral.len();
+    let mut act = active.to_vec();
+    act.push(Act::full(c, np));
+    let r0 = nalgebra::DVector::from_column_slice(&cur.residual);
+    let perp = |r: &nalgebra::DVector<f64>| {
+        if q0.ncols() == 0 {
+            r.clone()
+        } else {
+            r - q0 * q0.tr_mul(r)
+        }
+    };
+    let base = perp(&r0).norm_squared();
+    // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
+    // each grid point: a few model evaluations, enough when the effect moves them far.
+    let svd = cur.jacobian.clone().svd(true, true);
+    let nb = cur.theta.len();
+    let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
+        p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
+    };
+    let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
+    for (g, phi) in grid.iter().enumerate() {
+        let mut t = cur.theta.clone();
+        t.extend_from_slice(phi);
+        let Some(mut rg) = eval(&t) else { continue };
+        // Linearised gain at the current parameters (the score-like statistic).
+        let lin = base - perp(&rg).norm_squared();
+        let mut chi = rg.norm_squared();
+        for _ in 0..4 {
+            let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
+                break;
+            };
+            let mut t1 = t.clone();
+            t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
+            match eval(&t1) {
+                Some(r1) if r1.norm_squared() < chi => {
+                    chi = r1.norm_squared();
+                    rg = r1;
+                    t = t1;
+                }
+                _ => break,
+            }
+        }
+        let gain = lin.max(r0.norm_squared() - chi);
+        if best.as_ref().is_none_or(|b| gain > b.0) {
+            best = Some((gain, g, t[..nb].to_vec(), rg));
+        }
+    }
+    let Some((gain, g, theta_best, rg)) = best else {
+        return Err(CheckError::Model(format!(
+            "'{}': no point of its screening profile could be evaluated",
+            cand.id
+        )));
+    };
+    // Signature direction at the best point (for the distinctness check).
+    let sig = perp(&(&r0 - &rg));
+    let n = sig.norm();
+    let basis = if n > 0.0 {
+        DMatrix::from_column_slice(sig.len(), 1, (sig / n).as_slice())
+    } else {
+        DMatrix::zeros(r0.len(), 0)
+    };
+    let theta_start = Some(theta_best);
+    Ok(Score {
+        rank: if n > 0.0 { np } else { 0 },
+        score: gain.max(0.0),
+        basis,
+        kept: (0..np).collect(),
+        start: grid[g].clone(),
+        gauge: Vec::new(),
+        absorbed_by: Vec::new(),
+        n_tests,
+        theta_start,
+    })
+}
+
+/// The profile points of a grid-screened candidate and the number of tests its best
+/// point is selected from: the grid, plus for a record length (`delay_scan`) the lags
+/// of the current residual's lag scan ([`crate::candidates::delay_peaks`]) over
+/// 1/(8Δf)·0.9 < T < 0.95/Δf, counted as the number of independent lags scanned.
+pub(super) fn profile_points(
+    p: &Problem,
+    grid: &[Vec<f64>],
+    delay_scan: bool,
+    residual: &[f64],
+) -> (Vec<Vec<f64>>, usize) {
+    let n_grid = grid.len();
+    let mut grid = grid.to_vec();
+    let f = &p.layout.frequency_hz;
+    let nl = f.len();
+    if !delay_scan || nl < 2 {
+        return (grid, n_grid);
+    }
+    let df = (f[nl - 1] - f[0]) / (nl - 1) as f64;
+    let rows: Vec<(usize, usize, c64)> = p
+        .used
+        .iter()
+        .enumerate()
+        .map(|(j, &i)| {
+            (
+                i / nl,
+                i % nl,
+                c64::new(residual[2 * j], residual[2 * j + 1]),
+            )
+        })
+        .collect();
+    let (taus, m) = crate::candidates::delay_peaks(&rows, f, 0.9 / (8.0 * df), 0.95 / df, 4);
+    grid.extend(taus.iter().map(|t| vec![1.0 / t]));
+    (grid, n_grid + m)
+}
+
+/// Relative singular value below which a candidate direction counts as absorbed (no
+/// power to detect it at first order).
+pub(super) const ABSORBED: f64 = 1e-4;
+/// Residual change per typical step of a candidate parameter, relative to the norm of
+/// the data (both in noise units), below which the step has no signature at all: the
+/// model's rounding (~1e-15 relative) over a finite-difference step of 1e-7 is about
+/// 1e-8, and a signature this small would need 10⁴ typical steps to change χ² by 10.
+pub(super) const NO_SIGNATURE: f64 = 1e-6;
+/// Below this it is an exact gauge (a symmetry such as a common gain ↔ mass): such
+/// directions are removed from the refit. Directions between the two are absorbed only
+/// at first order and stay free in the refit, where the non-linear model can use them.
+pub(super) const GAUGE: f64 = 1e-7;
+
+pub(super) fn score_candidate(
+    p: &Problem,
+    cur: &Fit,
+    active: &[Act],
+    c: usize,
+    q0: &DMatrix<f64>,
+) -> Result<Score, CheckError> {
+    let cand = &p.cands[c];
+    let mut act = active.to_vec();
+    act.push(Act::full(c, cand.neutral.len()));
+    let theta = &cur.theta;
+    let f = |phi: &[f64]| {
+        let mut t = theta.clone();
+        t.extend_from_slice(phi);
+        p.residual(&t, &act)
+    };
+    let jc = lm::jacobian(&f, &cand.neutral, &cand.scales, &cur.residual)?;
+    // A column whose typical step moves the residual by less than NO_SIGNATURE of the
+    // data's norm is rounding, not a signature: normalised, it would count as a
+    // direction (the tilt of cords without gravity stiffness, 2e-4 noise units per
+    // step where the data are 2e4, gave a rank of 3 for 2 and a wrong start).
+    let floor = NO_SIGNATURE * p.data_norm();
+    let norms: Vec<f64> = (0..jc.ncols())
+        .map(|k| {
+            let n = jc.column(k).norm();
+            if n * cand.scales[k] < floor {
+                0.0
+            } else {
+                n
+            }
+        })
+        .collect();
+    let mut jcs = jc.clone();
+    for k in 0..jcs.ncols() {
+        if norms[k] > 0.0 {
+            jcs.column_mut(k).scale_mut(1.0 / norms[k]);
+        } else {
+            jcs.column_mut(k).fill(0.0);
+        }
+    }
+    let jt = project_out(&jcs, q0);
+    let svd = jt.clone().svd(true, true);
+    let u = svd.u.expect("requested");
+    let vt = svd.v_t.expect("requested");
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > ABSORBED)
+        .collect();
+    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, k| u[(r, keep[k])]);
+    let r = nalgebra::DVector::from_column_slice(&cur.residual);
+    let proj = basis.tr_mul(&r);
+    let score = proj.norm_squared();
+    // Gauss–Newton step on the candidate's parameters alone (projected problem):
+    // r + J̃ δ ≈ 0 → δ = −V Σ⁻¹ Uᵀ r in normalised coordinates.
+    let np = cand.neutral.len();
+    let sv = |k: usize| svd.singular_values.get(k).copied().unwrap_or(0.0);
+    // Null directions (exact gauges) in normalised coordinates; V is complete (np×np)
+    // only when rows ≥ columns, which holds (one row per residual entry).
+    let null: Vec<usize> = (0..np).filter(|&k| sv(k) <= GAUGE).collect();
+    // Gauss–Newton step in normalised coordinates over the detectable directions,
+    // δ = −Σ_k v_k (u_kᵀ r)/s_k (minimum norm: no gauge component).
+    let mut delta = vec![0.0; np];
+    for (kk, &k) in keep.iter().enumerate() {
+        let coef = -proj[kk] / svd.singular_values[k];
+        for (j, d) in delta.iter_mut().enumerate() {
+            *d += coef * vt[(k, j)];
+        }
+    }
+    let dropped = gauge_pivots(&null, &vt, &delta);
+    let kept: Vec<usize> = (0..np).filter(|j| !dropped.contains(j)).collect();
+    // Shift δ along the gauges so the dropped coordinates stay neutral (the gauges
+    // leave the residual unchanged).
+    if !dropped.is_empty() {
+        let g = dropped.len();
+        let a = DMatrix::from_fn(g, null.len(), |r, c| vt[(null[c], dropped[r])]);
+        let b = nalgebra::DVector::from_iterator(g, dropped.iter().map(|&j| -delta[j]));
+        if let Some(beta) = a.svd(true, true).solve(&b, 1e-12).ok() {
+            for (c, &k) in null.iter().enumerate() {
+                for (j, d) in delta.iter_mut().enumerate() {
+                    *d += beta[c] * vt[(k, j)];
+                }
+            }
+        }
+    }
+    let mut step: Vec<f64> = kept
+        .iter()
+        .map(|&j| {
+            if norms[j] > 0.0 {
+                delta[j] / norms[j]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // Shrink the start towards neutral until it respects the effect's bounds.
+    let infos = cand.effect.parameters();
+    let probe = Act {
+        c,
+        kept: kept.clone(),
+        gauge: Vec::new(),
+    };
+    let at = |step: &[f64]| -> Vec<f64> {
+        kept.iter()
+            .zip(step)
+            .map(|(&j, d)| cand.neutral[j] + d)
+            .collect()
+    };
+    for _ in 0..60 {
+        let phi = probe.phi(&cand.neutral, &at(&step));
+        if phi
+            .iter()
+            .zip(&infos)
+            .all(|(v, pi)| *v >= pi.lower && *v <= pi.upper)
+            && cand.effect.with_values(&phi).is_ok()
+        {
+            break;
+        }
+        step.iter_mut().for_each(|a| *a *= 0.5);
+    }
+    let start = at(&step);
+    let gauge: Vec<Vec<f64>> = (0..np)
+        .filter(|&k| sv(k) <= ABSORBED)
+        .map(|k| {
+            let v: Vec<f64> = (0..np)
+                .map(|j| {
+                    if norms[j] > 0.0 {
+                        vt[(k, j)] / norms[j]
+                    } else {
+                        vt[(k, j)]
+                    }
+                })
+                .collect();
+            let n = v
+                .iter()
+                .map(|x| x * x)
+                .sum::<f64>()
+                .sqrt()
+                .max(f64::MIN_POSITIVE);
+            v.iter().map(|x| x / n).collect()
+        })
+        .collect();
+    // Which parameter groups absorb the signature (for the not-observable report).
+    let mut absorbed_by = Vec::new();
+    if keep.is_empty() {
+        let groups: [(&str, &dyn Fn(&ParamKind) -> bool); 3] = [
+            ("inertia (10 free parameters)", &|k| {
+                matches!(k, ParamKind::Inertia(_))
+            }),
+            ("suspension stiffness scales", &|k| {
+                matches!(k, ParamKind::StiffnessScale { .. })
+            }),
+            ("damping", &|k| {
+                matches!(
+                    k,
+                    ParamKind::ModalDampingLog(_)
+                        | ParamKind::RayleighAlpha
+                        | ParamKind::RayleighBeta
+                )
+            }),
+        ];
+        for (name, sel) in groups {
+            let cols: Vec<usize> = p
+                .baseline
+                .kinds
+                .iter()
+                .enumerate()
+                .filter(|(_, k)| sel(k))
+                .map(|(i, _)| i)
+                .collect();
+            if cols.is_empty() {
+                continue;
+            }
+            let jg = DMatrix::from_fn(cur.jacobian.nrows(), cols.len(), |r, c| {
+                cur.jacobian[(r, cols[c])]
+            });
+            let (qg, _) = span_basis(&jg, 1e-10);
+            let rest = project_out(&jcs, &qg);
+            let tot = jcs.norm_squared().max(f64::MIN_POSITIVE);
+            absorbed_by.push((name.to_string(), 1.0 - rest.norm_squared() / tot));
+        }
+    }
+    Ok(Score {
+        rank: keep.len(),
+        score,
+        basis,
+        kept,
+        start,
+        gauge,
+        absorbed_by,
+        n_tests: 1,
+        theta_start: None,
+    })
+}
+
+/// Point masses rigidly attached to the body (`sensor_mass`) change only its mass, centre
+/// of mass and inertia tensor, so with those free they are an exact gauge: not
+/// observable, whatever the numerical rank at the current point says. (That rank can be
+/// > 0 where the pseudo-inertia parametrisation is at the edge of physical consistency
+/// and loses a direction; the masses then trade against the body's own and the fit
+/// drifts along the gauge, as on the hanging probe of scripts/model_check_probe.py.)
+/// With a weighed mass the total mass is pinned and the numerical screen applies.
+pub(super) fn rigid_mass_gauge(n_residuals: usize) -> Score {
+    Score {
+        rank: 0,
+        score: 0.0,
+        basis: DMatrix::zeros(n_residuals, 0),
+        kept: Vec::new(),
+        start: Vec::new(),
+        gauge: Vec::new(),
+        absorbed_by: vec![("inertia (10 free parameters)".to_string(), 1.0)],
+        n_tests: 1,
+        theta_start: None,
+    }
+}

@@ -1,0 +1,531 @@
+//! The steppable forward selection with backward checks (docs/physics.md, M5–M6): each
+//! [`Selection::step`] screens every candidate not yet in the model, refits the
+//! strongest, accepts at most one (see [`super::acceptance`]) and drops earlier effects
+//! that no longer pay for themselves.
+
+use super::*;
+
+/// The state of the selection between steps: the current model (the accepted effects
+/// and their joint fit) and what the report says about every candidate so far.
+pub(super) struct Selection<'p, 'a> {
+    pub(super) p: &'p Problem<'a>,
+    pub(super) options: &'p CheckOptions,
+    /// The first pass's final model (the second pass of [`check`]).
+    pub(super) prior: Option<&'p Prior>,
+    /// The nominal spec's parameters (the refit's second start while nothing is accepted).
+    pub(super) theta_nom: &'p [f64],
+    /// σ of the precision floor alone (the yardstick of practical significance).
+    pub(super) sigma_precision: &'p [f64],
+    pub(super) active: Vec<Act>,
+    pub(super) cur: Fit,
+    pub(super) screening: Vec<ScreenEntry>,
+    pub(super) not_observable: Vec<NotObservable>,
+    pub(super) ambiguous: Vec<AmbiguousFamily>,
+    /// The evidence of each active effect, in the order of `active`.
+    pub(super) accepted: Vec<Evidence>,
+    pub(super) warnings: Vec<String>,
+    /// Candidates no longer screened (not observable, failed, or in an ambiguous family).
+    excluded: Vec<usize>,
+    pub(super) folds: Vec<usize>,
+    pub(super) exc_folds: Vec<usize>,
+    /// Leave-one-excitation-out applies (cross-validation on, ≥ 3 excitations).
+    pub(super) loeo: bool,
+    pub(super) n_excitations: usize,
+    pub(super) n_cand: f64,
+    pub(super) ln_n: f64,
+    pub(super) free_base: usize,
+}
+
+impl<'p, 'a> Selection<'p, 'a> {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn new(
+        p: &'p Problem<'a>,
+        options: &'p CheckOptions,
+        prior: Option<&'p Prior>,
+        theta_nom: &'p [f64],
+        sigma_precision: &'p [f64],
+        base: Fit,
+        (nex, nch, nl): (usize, usize, usize),
+        free_base: usize,
+    ) -> Self {
+        Selection {
+            p,
+            options,
+            prior,
+            theta_nom,
+            sigma_precision,
+            active: Vec::new(),
+            cur: base,
+            screening: Vec::new(),
+            not_observable: Vec::new(),
+            ambiguous: Vec::new(),
+            accepted: Vec::new(),
+            warnings: Vec::new(),
+            excluded: Vec::new(),
+            folds: crate::cv::folds_of(&p.used, nl, crate::cv::FOLDS),
+            exc_folds: crate::cv::excitation_folds_of(&p.used, nch * nl),
+            loeo: options.cross_validation && nex >= 3,
+            n_excitations: nex,
+            n_cand: p.cands.len().max(1) as f64,
+            ln_n: p.n_real().ln(),
+            free_base,
+        }
+    }
+
+    /// Candidate `c` was accepted in the first pass (refitted whatever its screening).
+    pub(super) fn in_prior(&self, c: usize) -> bool {
+        self.prior
+            .is_some_and(|pr| pr.phi(&self.p.cands[c].id).is_some())
+    }
+
+    /// χ²/ν of the current model.
+    pub(super) fn chi2_nu(&self) -> f64 {
+        self.cur.chi2 / (self.p.n_real() - (self.free_base + active_dims(&self.active)) as f64)
+    }
+
+    /// One selection step: screen, refit, accept at most one effect, backward check.
+    /// `Ok(false)` when the selection is over (nothing significant, or nothing passes).
+    pub(super) fn step(&mut self, step: usize) -> Result<bool, CheckError> {
+        let significant = self.screen(step);
+        if significant.is_empty() {
+            return Ok(false);
+        }
+        let refit = self.refit_set(&significant);
+        self.options.progress.say(|| {
+            let list: Vec<String> = refit
+                .iter()
+                .map(|(c, s, g)| {
+                    format!("{} (gain {g:.1}, {} tests)", self.p.cands[*c].id, s.n_tests)
+                })
+                .collect();
+            format!("step {step}: refitting {}", list.join(", "))
+        });
+        let fits = self.refit(&refit);
+        let evals = self.evaluate_all(step, &refit, fits)?;
+        for e in &evals {
+            self.options.progress.say(|| {
+                format!(
+                    "step {step}: {} refitted: Δχ² {:.1}, ΔBIC {:.1}{}",
+                    self.p.cands[e.c].id,
+                    e.dchi2,
+                    e.dbic,
+                    if e.ok() {
+                        String::new()
+                    } else {
+                        format!("; fails: {}", e.why())
+                    }
+                )
+            });
+        }
+        let Some(best_i) = evals.iter().position(|e| e.ok()) else {
+            for e in &evals {
+                set_decision(
+                    &mut self.screening,
+                    step,
+                    &self.p.cands[e.c].id,
+                    format!("rejected: {}", e.why()),
+                );
+            }
+            return Ok(false);
+        };
+        self.accept(step, &refit, &evals, best_i);
+        self.backward(step)?;
+        Ok(true)
+    }
+
+    /// Screens every candidate not in the model and not excluded at the current model:
+    /// the significant ones (candidate, score, gain = score − rank·ln n), with the
+    /// screening table and the not-observable list updated.
+    fn screen(&mut self, step: usize) -> Vec<(usize, Score, f64)> {
+        let (p, cur, active) = (self.p, &self.cur, &self.active);
+        let (q0, _) = span_basis(&cur.jacobian, 1e-10);
+        let todo: Vec<usize> = (0..p.cands.len())
+            .filter(|c| !active.iter().any(|a| a.c == *c) && !self.excluded.contains(c))
+            .collect();
+        let r0_len = cur.residual.len();
+        let scores: Vec<(usize, Result<Score, CheckError>)> = todo
+            .par_iter()
+            .map(|&c| {
+                let s = match &p.cands[c].screening {
+                    Screening::RigidMassGauge if p.fixed_mass.is_none() => {
+                        Ok(rigid_mass_gauge(r0_len))
+                    }
+                    Screening::Score | Screening::RigidMassGauge => {
+                        score_candidate(p, cur, active, c, &q0)
+                    }
+                    Screening::Profile { grid, delay_scan } => {
+                        grid_candidate(p, cur, active, c, &q0, grid, *delay_scan)
+                    }
+                    Screening::Resonance => resonance_candidate(p, cur, active, c, &q0),
+                };
+                (c, s)
+            })
+            .collect();
+        let mut significant: Vec<(usize, Score, f64)> = Vec::new();
+        for (c, s) in scores {
+            let cand = &p.cands[c];
+            match s {
+                Err(e) => {
+                    self.warnings
+                        .push(format!("candidate '{}' cannot be evaluated: {e}", cand.id));
+                    self.excluded.push(c);
+                }
+                Ok(s) if s.rank == 0 => {
+                    self.not_observable.push(not_observable(cand, &s));
+                    self.screening.push(ScreenEntry {
+                        step,
+                        id: cand.id.clone(),
+                        rank: 0,
+                        n_parameters: cand.neutral.len(),
+                        score: 0.0,
+                        threshold: f64::INFINITY,
+                        refit_delta_chi2: None,
+                        refit_delta_bic: None,
+                        decision: "not observable (absorbed)".into(),
+                    });
+                    self.excluded.push(c);
+                }
+                Ok(s) => {
+                    let thr = chi2_isf(
+                        self.options.alpha / (self.n_cand * s.n_tests as f64),
+                        s.rank as f64,
+                    );
+                    let in_prior = self.in_prior(c);
+                    self.screening.push(ScreenEntry {
+                        step,
+                        id: cand.id.clone(),
+                        rank: s.rank,
+                        n_parameters: cand.neutral.len(),
+                        score: s.score,
+                        threshold: thr,
+                        refit_delta_chi2: None,
+                        refit_delta_bic: None,
+                        decision: if s.score > thr {
+                            "significant score".into()
+                        } else if in_prior {
+                            "not significant; refitted as accepted in the first pass".into()
+                        } else {
+                            "not significant".into()
+                        },
+                    });
+                    if s.score > thr || in_prior {
+                        let gain = s.score - s.rank as f64 * self.ln_n;
+                        significant.push((c, s, gain));
+                    }
+                }
+            }
+        }
+        self.options.progress.say(|| {
+            format!(
+                "step {step}: χ²/ν {:.3}; {} candidates screened, {} significant",
+                self.chi2_nu(),
+                todo.len(),
+                significant.len()
+            )
+        });
+        significant
+    }
+
+    /// The significant candidates worth a full refit: the `refit_top` strongest, those
+    /// within half the best gain, profile-screened ones within a tenth, the most
+    /// parsimonious and those the first pass accepted.
+    fn refit_set(&self, significant: &[(usize, Score, f64)]) -> Vec<(usize, Score, f64)> {
+        let mut significant: Vec<&(usize, Score, f64)> = significant.iter().collect();
+        significant.sort_by(|a, b| b.2.total_cmp(&a.2).then(a.0.cmp(&b.0)));
+        let gmax = significant[0].2;
+        let sorted: Vec<(usize, Score, f64)> = significant.into_iter().cloned().collect();
+        let parsimonious = top_by_score_per_parameter(&sorted, self.options.refit_top);
+        sorted
+            .into_iter()
+            .enumerate()
+            // Profile-screened candidates are refitted from a tenth of the best gain:
+            // their statistic (chord-refined at a coarse grid point) is a lower bound
+            // when the effect is far from its neutral point, not quite comparable
+            // with local scores.
+            .filter(|(i, s)| {
+                *i < self.options.refit_top
+                    || s.2 >= 0.5 * gmax
+                    || (s.1.n_tests > 1 && s.2 >= 0.1 * gmax)
+                    || parsimonious.contains(&s.0)
+                    || self.in_prior(s.0)
+            })
+            .map(|(_, s)| s)
+            .collect()
+    }
+
+    /// Full non-linear refit of each candidate in `refit` with the current model's
+    /// parameters free, from its screening start (and, while nothing is accepted, from
+    /// the nominal parameters; in the second pass, from the first pass's model), then
+    /// with the dropped coordinates the fit has made identifiable freed.
+    fn refit(
+        &self,
+        refit: &[(usize, Score, f64)],
+    ) -> Vec<(usize, Result<Fit, CheckError>, Vec<usize>)> {
+        refit
+            .par_iter()
+            .map(|(c, s, _)| {
+                let (c, stage) = (*c, format!("refit {}", self.p.cands[*c].id));
+                let (t0, act, iterations) = self.refit_start(c, s);
+                let mut fit = self.p.fit(&stage, &t0, &act, iterations);
+                for t in self.restarts(c, s, &act) {
+                    if let Ok(f_r) = self.p.fit(&stage, &t, &act, iterations) {
+                        if fit.as_ref().map_or(true, |f| f_r.chi2 < f.chi2) {
+                            fit = Ok(f_r);
+                        }
+                    }
+                }
+                match fit {
+                    Ok(f) => {
+                        let (f, kept) =
+                            reopen_dropped(self.p, f, &self.active, c, &s.kept, &stage, iterations);
+                        (c, Ok(f), kept)
+                    }
+                    Err(e) => (c, Err(e), s.kept.clone()),
+                }
+            })
+            .collect()
+    }
+
+    /// The refit's start θ, its active set and its iteration budget.
+    fn refit_start(&self, c: usize, s: &Score) -> (Vec<f64>, Vec<Act>, usize) {
+        let (p, cur) = (self.p, &self.cur);
+        let mut act = self.active.clone();
+        act.push(Act {
+            c,
+            kept: s.kept.clone(),
+            gauge: Vec::new(),
+        });
+        // The Gauss–Newton start can overshoot when the effect is strongly
+        // non-linear: halve it until it is no worse than the current model.
+        let cand = &p.cands[c];
+        let neutral: Vec<f64> = s.kept.iter().map(|&j| cand.neutral[j]).collect();
+        let mut alpha = s.start.clone();
+        let mut t0 = cur.theta.clone();
+        t0.extend_from_slice(&alpha);
+        if let Some(ts) = &s.theta_start {
+            // Profile start: the current parameters re-adjusted at the best
+            // grid point, if that is better than leaving them.
+            let mut t1 = ts.clone();
+            t1.extend_from_slice(&alpha);
+            let c0 = p.residual(&t0, &act).map(|r| lm::chi2(&r));
+            let c1 = p.residual(&t1, &act).map(|r| lm::chi2(&r));
+            if let (Ok(c0), Ok(c1)) = (c0, c1) {
+                if c1 < c0 {
+                    t0 = t1;
+                }
+            }
+        }
+        let halvings = if s.theta_start.is_some() { 0 } else { 40 };
+        for _ in 0..halvings {
+            match p.residual(&t0, &act) {
+                Ok(r) if lm::chi2(&r) <= cur.chi2 => break,
+                _ => {
+                    alpha
+                        .iter_mut()
+                        .zip(&neutral)
+                        .for_each(|(a, n)| *a = n + 0.5 * (*a - n));
+                    t0.truncate(cur.theta.len());
+                    t0.extend_from_slice(&alpha);
+                }
+            }
+        }
+        // A profile start is far from the neutral point and often from the
+        // optimum too: allow more iterations.
+        let iterations = if s.n_tests > 1 {
+            4 * self.options.max_iterations
+        } else {
+            self.options.max_iterations
+        };
+        (t0, act, iterations)
+    }
+
+    /// Further starts of the refit of `c`. With nothing accepted yet, the baseline may
+    /// have drifted far to stand in for the missing physics (a hanging body's mass
+    /// doubled without its pendulum stiffness), into a basin the true effect cannot
+    /// leave. The nominal parameters are the user's prior: refit from them too, keep
+    /// the better. In the second pass, the first pass's model.
+    fn restarts(&self, c: usize, s: &Score, act: &[Act]) -> Vec<Vec<f64>> {
+        let mut restarts = Vec::new();
+        if self.active.is_empty() {
+            let mut tn = self.theta_nom.to_vec();
+            tn.extend_from_slice(&s.start);
+            restarts.push(tn);
+        }
+        if let Some(pr) = self.prior.filter(|_| self.in_prior(c)) {
+            restarts.push(pr.start(self.p, act, &self.cur.theta, &s.start));
+        }
+        restarts
+    }
+
+    /// Accepts `evals[best_i]` (with its ambiguous family: rivals within the ΔBIC
+    /// margin whose signatures are strongly correlated) and records every decision.
+    fn accept(
+        &mut self,
+        step: usize,
+        refit: &[(usize, Score, f64)],
+        evals: &[Evidence],
+        best_i: usize,
+    ) {
+        let p = self.p;
+        let best = &evals[best_i];
+        self.options.progress.say(|| {
+            format!(
+                "step {step}: accepted {} (Δχ² {:.1})",
+                p.cands[best.c].id, best.dchi2
+            )
+        });
+        let score_of = |c: usize| &refit.iter().find(|x| x.0 == c).expect("refitted").1;
+        let (family, family_bic, corr_max) =
+            distinct_family(self.options, evals, best, |c| &score_of(c).basis);
+        for e in evals {
+            let d = if e.c == best.c {
+                if family.len() > 1 {
+                    "accepted as member of an ambiguous family".to_string()
+                } else {
+                    "accepted".to_string()
+                }
+            } else if family.contains(&e.c) {
+                "ambiguous with the accepted effect".to_string()
+            } else if e.ok() {
+                "significant but weaker".to_string()
+            } else {
+                format!("rejected: {}", e.why())
+            };
+            set_decision(&mut self.screening, step, &p.cands[e.c].id, d);
+        }
+        let before_inertia = inertia_report("", &self.cur.theta, &fit_covariance(&self.cur, 1.0));
+        let after_inertia = inertia_report("", &best.fit.theta, &fit_covariance(&best.fit, 1.0));
+        let change = inertia_change(&before_inertia, &after_inertia);
+        if family.len() > 1 {
+            self.ambiguous.push(AmbiguousFamily {
+                ids: family.iter().map(|&c| p.cands[c].id.clone()).collect(),
+                delta_bic: family_bic,
+                canonical_correlation: corr_max,
+                separating_measurement: family
+                    .iter()
+                    .map(|&c| format!("{}: {}", p.cands[c].id, p.cands[c].reveal))
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            });
+            self.excluded
+                .extend(family.iter().filter(|&&c| c != best.c));
+        }
+        let best_score = score_of(best.c);
+        let mut evidence = best.clone();
+        evidence.inertia_change = change;
+        let kept = evidence.kept.clone();
+        // Gauges of the neutral point that the refit found identifiable are gauges no more.
+        let reopened: Vec<usize> = kept
+            .iter()
+            .copied()
+            .filter(|j| !best_score.kept.contains(j))
+            .collect();
+        let gauge = best_score
+            .gauge
+            .iter()
+            .filter(|g| reopened.iter().map(|&j| g[j] * g[j]).sum::<f64>() < 0.5)
+            .cloned()
+            .collect();
+        self.active.push(Act {
+            c: best.c,
+            kept,
+            gauge,
+        });
+        self.cur = evidence.fit.clone();
+        self.accepted.push(evidence);
+    }
+
+    /// Backward check: drop an earlier effect whose removal no longer costs significance.
+    fn backward(&mut self, step: usize) -> Result<(), CheckError> {
+        if self.active.len() <= 1 {
+            return Ok(());
+        }
+        let p = self.p;
+        let mut k = 0;
+        while k + 1 < self.active.len() {
+            let without: Vec<Act> = self
+                .active
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, a)| a.clone())
+                .collect();
+            let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
+            let f_wo = p.fit("backward", &theta_wo, &without, self.options.max_iterations)?;
+            let (d, thr) = (self.accepted[k].rank, self.accepted[k].threshold);
+            if f_wo.chi2 - self.cur.chi2 < thr.max(d as f64 * self.ln_n) {
+                set_decision(
+                    &mut self.screening,
+                    step,
+                    &p.cands[self.active[k].c].id,
+                    "dropped in the backward check".into(),
+                );
+                self.accepted.remove(k);
+                self.active = without;
+                self.cur = f_wo;
+            } else {
+                k += 1;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The not-observable entry of a candidate screened at rank 0, naming the parameter
+/// groups that absorb its signature.
+fn not_observable(cand: &Candidate, s: &Score) -> NotObservable {
+    let by: Vec<String> = s
+        .absorbed_by
+        .iter()
+        .filter(|(_, f)| *f > 0.999)
+        .map(|(n, _)| n.clone())
+        .collect();
+    NotObservable {
+        id: cand.id.clone(),
+        title: cand.title.clone(),
+        reason: if by.is_empty() {
+            let joint: Vec<String> = s
+                .absorbed_by
+                .iter()
+                .filter(|(_, f)| *f > 0.01)
+                .map(|(n, _)| n.clone())
+                .collect();
+            format!(
+                "absorbed without trace by the free {} together",
+                joint.join(" and ")
+            )
+        } else {
+            format!("absorbed without trace by the free {}", by.join(" and "))
+        },
+        would_reveal: cand.reveal.to_string(),
+    }
+}
+
+pub(super) fn set_decision(screening: &mut [ScreenEntry], step: usize, id: &str, d: String) {
+    if let Some(e) = screening
+        .iter_mut()
+        .rev()
+        .find(|e| e.step <= step && e.id == id)
+    {
+        e.decision = d;
+    }
+}
+
+/// The `k` significant candidates with the largest score per fitted parameter.
+///
+/// The gain ranking (score − rank·ln n) favours many-parameter candidates, which can
+/// take up any shape of residual, while the score of a strong few-parameter effect is a
+/// linearisation that understates it when the baseline has bent to stand in for it (a
+/// bungee's pendulum stiffness absorbed into 2.7× lateral spring factors). These get a
+/// refit too, so an effect that explains the most per parameter is always tried.
+pub(super) fn top_by_score_per_parameter(
+    significant: &[(usize, Score, f64)],
+    k: usize,
+) -> Vec<usize> {
+    let mut v: Vec<(usize, f64)> = significant
+        .iter()
+        .map(|(c, s, _)| (*c, s.score / s.rank.max(1) as f64))
+        .collect();
+    v.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+    v.into_iter().take(k).map(|(c, _)| c).collect()
+}
