@@ -248,14 +248,19 @@ impl Collector {
             }
             let hidden = of.len() - shown.len();
             if hidden > 0 {
+                // Only notes are ever hidden: say so, so that a clean run does not read as
+                // one with warnings.
                 lines.push(format!(
-                    "{s}: {} warning{}{}; run with -v to list them",
-                    of.len(),
-                    if of.len() == 1 { "" } else { "s" },
+                    "{s}: {hidden} note{} on how the answer was reached{}; run with -v to list them",
+                    if hidden == 1 { "" } else { "s" },
                     if shown.is_empty() {
                         String::new()
                     } else {
-                        format!(" ({} shown above)", shown.len())
+                        format!(
+                            " ({} warning{} above)",
+                            shown.len(),
+                            if shown.len() == 1 { "" } else { "s" }
+                        )
                     }
                 ));
             }
@@ -316,7 +321,8 @@ mod tests {
         assert_eq!(
             c.lines(false),
             vec![
-                "modal-fit: 2 warnings; run with -v to list them".to_string(),
+                "modal-fit: 2 notes on how the answer was reached; run with -v to list them"
+                    .to_string(),
                 "rb-solve: warning: Φ0 is poorly conditioned (cond = 1e9)".to_string(),
             ]
         );
