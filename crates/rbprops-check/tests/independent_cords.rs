@@ -14,22 +14,10 @@ use rbprops_check::{check, CheckOptions};
 use rbprops_core::{c64, FrfSet, Geometry, Mat6};
 use rbprops_sim::spec::CordSpec;
 use rbprops_sim::CampaignSpec;
+use rbprops_testkit::{python, refgen as refgen_command, NUMPY_PYUFF};
 use std::path::PathBuf;
 
 const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
-
-fn python() -> Option<String> {
-    match std::env::var("RBPROPS_PYTHON") {
-        Ok(p) if !p.is_empty() => Some(p),
-        _ => {
-            if std::env::var("RBPROPS_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-                panic!("RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set");
-            }
-            eprintln!("note: RBPROPS_PYTHON is not set: the independent-generator test is skipped");
-            None
-        }
-    }
-}
 
 /// Cords (attachment, anchor, unstretched length, axial stiffness) of the two cases.
 fn cords(splayed: bool) -> Vec<CordSpec> {
@@ -102,8 +90,7 @@ fn refgen(
     let case_path = dir.join("case.toml");
     std::fs::write(&case_path, case).unwrap();
     let (rec, truth) = (dir.join("rec.json"), dir.join("truth.json"));
-    let out = std::process::Command::new(py)
-        .arg(format!("{REPO}/scripts/refgen/rbref.py"))
+    let out = refgen_command(py)
         .arg(&case_path)
         .arg("-o")
         .arg(&rec)
@@ -163,7 +150,9 @@ fn mat6(v: &serde_json::Value) -> Mat6 {
 /// 1e-8 of its norm, and the cord tensions to 1e-9 relative.
 #[test]
 fn hanging_stiffness_matches_the_independent_generator() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     for splayed in [false, true] {
         let mut s = tc2();
         s.setups[0].springs.clear();
@@ -207,7 +196,9 @@ fn mean_hanging_length(cords: &[CordSpec], truth: &serde_json::Value) -> f64 {
 /// directions free), mass 2 % off in the nominal: the check names `gravity_stiffness`,
 /// fits the mean hanging length, and the refit reaches the noise band.
 fn cords_case(splayed: bool) {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let mut truth_spec = tc2();
     truth_spec.setups[0].springs.clear();
     truth_spec.setups[0].cords = cords(splayed);
@@ -314,7 +305,9 @@ fn splayed_cords_with_gravity_are_named_and_fitted() {
 /// χ²/ν lies in the noise band.
 #[test]
 fn free_free_null_is_silent() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let mut s = tc2();
     s.setups[0].springs.clear();
     s.frequency.start_hz = 0.5;

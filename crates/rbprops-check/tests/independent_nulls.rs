@@ -21,39 +21,12 @@ use rbprops_check::{check, CheckOptions};
 use rbprops_core::noise::NormalStream;
 use rbprops_core::{FrfSet, Geometry};
 use rbprops_sim::CampaignSpec;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use rbprops_testkit::{python, refgen, NUMPY_PYUFF};
+use std::path::Path;
 
 /// 0–12.5 Hz in steps of exactly 1/16 Hz (the generator rounds start and step to the six
 /// digits of a UFF record; these are exact, so both sides compute on the same axis).
 const LINES: usize = 201;
-
-/// The Python interpreter with numpy and pyuff, or `None` (skip) when not configured.
-fn python() -> Option<String> {
-    let require = std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some_and(|v| v == "1");
-    let Ok(py) = std::env::var("RBPROPS_PYTHON") else {
-        assert!(
-            !require,
-            "RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set"
-        );
-        eprintln!("skipping: RBPROPS_PYTHON not set (the reference generator needs Python with numpy and pyuff)");
-        return None;
-    };
-    let ok = Command::new(&py)
-        .args(["-c", "import numpy, pyuff"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        assert!(!require, "{py} cannot import numpy and pyuff");
-        eprintln!("skipping: {py} cannot import numpy and pyuff");
-        return None;
-    }
-    Some(py)
-}
-
-fn refgen_script() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/refgen/rbref.py")
-}
 
 /// The nominal spec: Test Case II at [`LINES`] lines, no noise, no effects.
 fn nominal_spec() -> CampaignSpec {
@@ -114,8 +87,7 @@ fn generate(
     )
     .unwrap();
     let rec = dir.join("rec.json");
-    let out = Command::new(py)
-        .arg(refgen_script())
+    let out = refgen(py)
         .arg(&case)
         .arg("-o")
         .arg(&rec)
@@ -206,7 +178,9 @@ fn summary(seed: u64, precision: &str, r: &ModelCheckReport) -> String {
 /// `null_study`'s).
 #[test]
 fn exact_double_nulls_are_silent() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     for seed in [1, 2] {
         let r = null_check(&py, seed, "float64");
         eprintln!("{}", summary(seed, "float64", &r));
@@ -219,7 +193,9 @@ fn exact_double_nulls_are_silent() {
 /// the noise band: the quantisation floor is the noise of these data.
 #[test]
 fn float32_nulls_are_silent_and_at_the_floor() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     for seed in [1, 2] {
         let r = null_check(&py, seed, "float32");
         eprintln!("{}", summary(seed, "float32", &r));
@@ -241,7 +217,9 @@ fn float32_nulls_are_silent_and_at_the_floor() {
 /// χ²/ν is in the band — the 6-digit quantisation (relative 1e-6 … 1e-5) is the noise.
 #[test]
 fn six_digit_ascii_null_is_silent_and_at_the_floor() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let nom = nominal_spec();
     let truth = null_truth(&nom, 3);
@@ -270,7 +248,9 @@ fn six_digit_ascii_null_is_silent_and_at_the_floor() {
 /// the refit χ²/ν reaches the (non-negative) noise band.
 #[test]
 fn float32_effect_is_named_and_reaches_the_floor() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let nom = nominal_spec();
     let truth = null_truth(&nom, 11);
@@ -305,7 +285,9 @@ fn float32_effect_is_named_and_reaches_the_floor() {
 #[test]
 #[ignore]
 fn null_study() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let seeds: u64 = std::env::var("NULL_SEEDS")
         .ok()
         .and_then(|s| s.parse().ok())

@@ -14,32 +14,9 @@
 use rbprops_check::{check, CheckOptions, ModelCheckReport, RecordingNoise};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_sim::CampaignSpec;
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use rbprops_testkit::{python, refgen as refgen_command, repo_root, NUMPY_PYUFF};
 
 const REL: f64 = 0.01;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// Python with numpy, or `None` (skip) when absent and not required.
-fn python() -> Option<String> {
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let ok = Command::new(&py)
-        .args(["-c", "import numpy"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if ok {
-        return Some(py);
-    }
-    assert!(
-        std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
-        "python with numpy not available as {py}"
-    );
-    eprintln!("skipping: python with numpy not found (set RBPROPS_PYTHON; RBPROPS_REQUIRE_PYTHON=1 makes this fatal)");
-    None
-}
 
 /// The nominal model: Test Case II as written (modal damping 1.5 %), `lines` lines.
 fn nominal(lines: usize) -> CampaignSpec {
@@ -63,9 +40,8 @@ fn refgen(
     ));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("rec.json");
-    let mut cmd = Command::new(py);
-    cmd.current_dir(root())
-        .arg("scripts/refgen/rbref.py")
+    let mut cmd = refgen_command(py);
+    cmd.current_dir(repo_root())
         .arg(format!("scripts/refgen/examples/{case}.toml"))
         .args(["--seed", &seed.to_string(), "--quiet", "-o"])
         .arg(&out)
@@ -206,7 +182,9 @@ fn assert_explained_with(
 /// modes, pole damping 3–7 %. The general viscous damping explains them to the noise.
 #[test]
 fn general_dashpots_are_named_and_fitted_to_the_noise() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let nom = nominal(400);
     let (g, frf) = refgen(
         &py,
@@ -230,7 +208,9 @@ fn general_dashpots_are_named_and_fitted_to_the_noise() {
 /// loss was once claimed next to the viscous model), χ²/ν inside the band.
 #[test]
 fn dashpots_among_other_effects_are_separated() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let nom = nominal(400);
     let (g, frf) = refgen(
         &py,
@@ -262,7 +242,9 @@ fn dashpots_among_other_effects_are_separated() {
 /// family), nothing else, χ²/ν inside the band.
 #[test]
 fn two_elastic_modes_above_the_band_are_explained() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let nom = nominal(400);
     let (g, frf) = refgen(
         &py,
@@ -287,7 +269,9 @@ fn two_elastic_modes_above_the_band_are_explained() {
 #[test]
 #[ignore = "study (42 s): two out-of-band modes at 0.1 % noise"]
 fn two_elastic_modes_above_the_band_at_low_noise() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let nom = nominal(400);
     let (g, frf) = refgen(&py, "tc2-elastic-above", &["noise.relative=0.001"], 6, &nom);
     assert_explained_with(
@@ -310,7 +294,9 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
 #[test]
 #[ignore = "study (minutes; not yet measured on this branch): six concealed effects at once"]
 fn six_concealed_effects_are_all_named() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let nom = nominal(400);
     let (g, frf) = refgen(&py, "tc2-six-effects", &[], 7, &nom);
     assert_explained(

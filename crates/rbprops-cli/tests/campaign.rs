@@ -200,18 +200,9 @@ fn test_case_2_gives_the_same_properties_from_mcap_csv_and_uff() {
 
 #[test]
 fn pyuff_reads_what_we_write() {
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&py).args(["-c", "import pyuff"]).status();
-    if !matches!(probe, Ok(s) if s.success()) {
-        assert!(
-            std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
-            "python `pyuff` not importable with {py}"
-        );
-        eprintln!(
-            "skipping: pyuff not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)"
-        );
+    let Some(py) = rbprops_testkit::python(&["pyuff"]) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     for name in ["rbprops_ascii", "rbprops_binary"] {

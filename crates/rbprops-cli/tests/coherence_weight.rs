@@ -8,30 +8,9 @@
 //! a note and pass, unless `RBPROPS_REQUIRE_PYTHON=1`.
 
 use rbprops_core::records::{LineWeightingRecord, ModalFitRecord, ProcessingRecord};
+use rbprops_testkit::{python, NUMPY_PYUFF};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn python() -> Option<String> {
-    let require = std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some_and(|v| v == "1");
-    let Ok(py) = std::env::var("RBPROPS_PYTHON") else {
-        assert!(
-            !require,
-            "RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set"
-        );
-        eprintln!("skipping: RBPROPS_PYTHON not set (the H1 export needs numpy and pyuff)");
-        return None;
-    };
-    let ok = Command::new(&py)
-        .args(["-c", "import numpy, pyuff"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        assert!(!require, "{py} cannot import numpy and pyuff");
-        eprintln!("skipping: {py} cannot import numpy and pyuff");
-        return None;
-    }
-    Some(py)
-}
 
 /// Writes `<dir>/<case>.uff` and `<dir>/<case>.json` (the truth) for `case`, `seed`.
 fn export(py: &str, dir: &Path, case: &str, seed: u64) -> (PathBuf, serde_json::Value) {
@@ -144,7 +123,9 @@ fn fit_both(dir: &Path, uff: &Path, truth: &serde_json::Value) -> (Errors, Error
 /// equal to rounding, so the weighted fit is the default one, and both are exact.
 #[test]
 fn exact_data_weighted_equals_unweighted() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let (uff, truth) = export(&py, dir.path(), "exact", 1);
     let (plain, weighted) = fit_both(dir.path(), &uff, &truth);
@@ -182,7 +163,9 @@ fn exact_data_weighted_equals_unweighted() {
 /// 0.1–0.25).
 #[test]
 fn coherence_weights_are_closer_to_the_truth_on_corrupted_lines() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     for case in ["floor", "double-hit"] {
         let (mut sum_plain, mut sum_weighted) = ([0.0; 3], [0.0; 3]);

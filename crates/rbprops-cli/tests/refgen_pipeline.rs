@@ -17,22 +17,10 @@ use rbprops_core::records::{InertiaEstimate, SelectionRecord};
 use rbprops_formats::topics;
 use rbprops_inertia::{Estimator, SolveOptions};
 use rbprops_modal::{FitOptions, Method};
+use rbprops_testkit::{python, refgen, NUMPY_PYUFF};
 use std::path::Path;
 
 const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
-
-fn python() -> Option<String> {
-    match std::env::var("RBPROPS_PYTHON") {
-        Ok(p) if !p.is_empty() => Some(p),
-        _ => {
-            if std::env::var("RBPROPS_REQUIRE_PYTHON").is_ok_and(|v| v == "1") {
-                panic!("RBPROPS_REQUIRE_PYTHON=1 but RBPROPS_PYTHON is not set");
-            }
-            eprintln!("note: RBPROPS_PYTHON is not set: the independent-generator test is skipped");
-            None
-        }
-    }
-}
 
 /// What the generator says is true: mass, inertia about the CoM, the set-up's poles (Hz).
 struct Truth {

@@ -3,62 +3,12 @@
 //! check against a nominal spec from `init-spec`: one self-contained page, opened in
 //! headless Chromium, where every figure renders with a non-empty box.
 
+use rbprops_testkit::{chromium, ok, python, repo_root};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 fn rbprops() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rbprops"))
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-/// The Python with numpy, pyuff and pandas, or `None` (test skipped) unless CI requires it.
-fn python() -> Option<String> {
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&py)
-        .args(["-c", "import pyuff, numpy, pandas"])
-        .status();
-    if matches!(probe, Ok(s) if s.success()) {
-        return Some(py);
-    }
-    assert!(
-        std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
-        "python with pyuff, numpy and pandas not importable with {py}"
-    );
-    eprintln!("skipping: pyuff/numpy/pandas not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)");
-    None
-}
-
-/// Headless Chromium, or `None` (test skipped with the reason) unless
-/// `RBPROPS_REQUIRE_CHROMIUM=1`.
-fn chromium() -> Option<PathBuf> {
-    let candidates = [
-        std::env::var_os("RBPROPS_CHROMIUM").map(PathBuf::from),
-        Some(PathBuf::from("/usr/bin/chromium")),
-        Some(PathBuf::from("/usr/bin/chromium-browser")),
-        Some(PathBuf::from("/usr/bin/google-chrome")),
-    ];
-    if let Some(p) = candidates.into_iter().flatten().find(|p| p.is_file()) {
-        return Some(p);
-    }
-    assert!(
-        std::env::var_os("RBPROPS_REQUIRE_CHROMIUM").is_none(),
-        "RBPROPS_REQUIRE_CHROMIUM is set but no chromium was found (apt-get install chromium)"
-    );
-    eprintln!("skipping the browser check: chromium not installed (apt-get install chromium; set RBPROPS_REQUIRE_CHROMIUM=1 to make this fatal)");
-    None
 }
 
 /// A campaign of `n` exports with a nominal spec from init-spec, run with `--runs`, in
@@ -66,7 +16,7 @@ fn chromium() -> Option<PathBuf> {
 fn campaign(py: &str, dir: &Path, n: usize) -> PathBuf {
     let ex = dir.join("exports");
     ok(Command::new(py)
-        .arg(root().join("scripts/uff_campaign.py"))
+        .arg(repo_root().join("scripts/uff_campaign.py"))
         .arg("generate")
         .arg(&ex)
         .args(["--n", &n.to_string(), "--df", "0.05"])
@@ -81,7 +31,7 @@ fn campaign(py: &str, dir: &Path, n: usize) -> PathBuf {
         .output()
         .unwrap());
     ok(Command::new(py)
-        .arg(root().join("scripts/uff_campaign.py"))
+        .arg(repo_root().join("scripts/uff_campaign.py"))
         .arg("fill-spec")
         .arg(&init)
         .arg(ex.join("truth.json"))
@@ -160,7 +110,9 @@ fn rendered_svgs(chrome: &Path, page: &Path) -> (usize, usize) {
 
 #[test]
 fn campaign_report_is_one_page_with_every_figure_rendered() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(&["pyuff", "numpy", "pandas"]) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     // Six exports: run-06 (index 5) has channel 102y reading 6 % high (the generator's
     // calibration error), so one recording's check names an effect and draws its worst

@@ -5,50 +5,18 @@
 //! summary table with the model check's verdict per recording.
 
 use rbprops_cli::summary::SummaryRow;
+use rbprops_testkit::{ok, python, repo_root, NUMPY_PYUFF};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 fn rbprops() -> Command {
     Command::new(env!("CARGO_BIN_EXE_rbprops"))
 }
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-/// The Python with numpy and pyuff, or `None` (test skipped) unless CI requires it.
-fn python() -> Option<String> {
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&py)
-        .args(["-c", "import pyuff, numpy"])
-        .status();
-    if matches!(probe, Ok(s) if s.success()) {
-        return Some(py);
-    }
-    assert!(
-        std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
-        "python with pyuff and numpy not importable with {py}"
-    );
-    eprintln!(
-        "skipping: pyuff/numpy not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)"
-    );
-    None
-}
-
 /// Writes `n` exports into `dir` (0.05 Hz lines: 251 lines, small enough for debug builds).
 fn generate(py: &str, dir: &Path, n: usize) {
     ok(Command::new(py)
-        .arg(root().join("scripts/uff_campaign.py"))
+        .arg(repo_root().join("scripts/uff_campaign.py"))
         .arg("generate")
         .arg(dir)
         .args(["--n", &n.to_string(), "--df", "0.05"])
@@ -62,7 +30,9 @@ fn truth(dir: &Path) -> serde_json::Value {
 
 #[test]
 fn init_spec_names_everything_as_the_recording_does() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let ex = dir.path().join("exports");
     generate(&py, &ex, 1);
@@ -157,7 +127,9 @@ fn init_spec_names_everything_as_the_recording_does() {
 
 #[test]
 fn uff_campaign_gives_one_summary_with_model_check_verdicts() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let ex = dir.path().join("exports");
     let n = 20;
@@ -173,7 +145,7 @@ fn uff_campaign_gives_one_summary_with_model_check_verdicts() {
         .output()
         .unwrap());
     ok(Command::new(&py)
-        .arg(root().join("scripts/uff_campaign.py"))
+        .arg(repo_root().join("scripts/uff_campaign.py"))
         .arg("fill-spec")
         .arg(&init)
         .arg(ex.join("truth.json"))
@@ -272,7 +244,9 @@ fn uff_campaign_gives_one_summary_with_model_check_verdicts() {
 
 #[test]
 fn uff_campaign_is_byte_identical_for_any_thread_count_and_refuses_unknown_options() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let ex = dir.path().join("exports");
     generate(&py, &ex, 4);
@@ -336,7 +310,9 @@ fn uff_campaign_is_byte_identical_for_any_thread_count_and_refuses_unknown_optio
 fn model_check_names_the_undeclared_window() {
     // The generator's window (τ = 4 s, σ = 0.25 1/s) left out of the campaign file: the
     // model check must find it among the candidates and measure σ (one recording).
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let ex = dir.path().join("exports");
     generate(&py, &ex, 1);
@@ -350,7 +326,7 @@ fn model_check_names_the_undeclared_window() {
         .unwrap());
     let nominal = dir.path().join("nominal.toml");
     ok(Command::new(&py)
-        .arg(root().join("scripts/uff_campaign.py"))
+        .arg(repo_root().join("scripts/uff_campaign.py"))
         .arg("fill-spec")
         .arg(&init)
         .arg(ex.join("truth.json"))
@@ -415,7 +391,9 @@ fn uff_datasets(text: &str) -> Vec<(u32, String)> {
 /// data files are refused by name.
 #[test]
 fn uff_campaign_reads_exports_split_into_geometry_and_data() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let whole = dir.path().join("whole");
     generate(&py, &whole, 2);

@@ -5,39 +5,16 @@
 //! stage); `-v` lists the stages' notes, none of them
 //! a warning (the class that changes the answer).
 
+use rbprops_testkit::{python, refgen, repo_root, NUMPY_PYUFF};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// The Python with numpy and pyuff, or `None` (test skipped) unless CI requires it.
-fn python() -> Option<String> {
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = Command::new(&py)
-        .args(["-c", "import pyuff, numpy"])
-        .status();
-    if matches!(probe, Ok(s) if s.success()) {
-        return Some(py);
-    }
-    assert!(
-        std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_none(),
-        "python with pyuff and numpy not importable with {py}"
-    );
-    eprintln!(
-        "skipping: pyuff/numpy not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)"
-    );
-    None
-}
 
 /// Test Case II recorded by the reference generator with 0.1 % relative noise, 401 lines
 /// (0–12.5 Hz), plus the `extra` settings; returns the UFF file.
 fn record(py: &str, dir: &Path, extra: &[&str]) -> PathBuf {
     let rec = dir.join("rec.uff");
-    let mut cmd = Command::new(py);
-    cmd.arg(root().join("scripts/refgen/rbref.py"))
-        .arg(root().join("fixtures/specs/test-case-2.toml"))
+    let mut cmd = refgen(py);
+    cmd.arg(repo_root().join("fixtures/specs/test-case-2.toml"))
         .args([
             "--set",
             "frequency.lines=401",
@@ -95,7 +72,9 @@ fn pipeline(dir: &Path, rec: &Path, verbose: bool) -> (Vec<String>, serde_json::
 
 #[test]
 fn noise_only_recording_prints_no_warning() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let rec = record(&py, dir.path(), &[]);
     let (errs, est) = pipeline(dir.path(), &rec, false);

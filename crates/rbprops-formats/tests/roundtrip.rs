@@ -264,17 +264,9 @@ proptest! {
 #[test]
 fn python_mcap_reads_our_file() {
     // The reference reader (PyPI `mcap`) must decode every topic: CI installs it.
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = std::process::Command::new(&py)
-        .args(["-c", "import mcap"])
-        .status();
-    if !matches!(probe, Ok(s) if s.success()) {
-        if std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some() {
-            panic!("python `mcap` package not importable with {py}");
-        }
-        eprintln!("skipping: python `mcap` not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)");
+    let Some(py) = rbprops_testkit::python(&["mcap"]) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("run.mcap");
     std::fs::write(&file, mcap_file::write(&record()).unwrap()).unwrap();
@@ -305,19 +297,9 @@ fn pandas_reads_every_csv_table_without_custom_parsing() {
     // A person's tool: every table must load with plain `pd.read_csv`, ids must be the
     // ids (no JSON quoting), and each child table must hold exactly the rows its parent
     // rows count. CI installs pandas.
-    let py = std::env::var("RBPROPS_PYTHON").unwrap_or_else(|_| "python3".into());
-    let probe = std::process::Command::new(&py)
-        .args(["-c", "import pandas"])
-        .status();
-    if !matches!(probe, Ok(s) if s.success()) {
-        if std::env::var_os("RBPROPS_REQUIRE_PYTHON").is_some() {
-            panic!("python `pandas` not importable with {py}");
-        }
-        eprintln!(
-            "skipping: pandas not installed (set RBPROPS_REQUIRE_PYTHON=1 to make this fatal)"
-        );
+    let Some(py) = rbprops_testkit::python(&["pandas"]) else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("run");
     csv_dir::write(&record(), &path).unwrap();

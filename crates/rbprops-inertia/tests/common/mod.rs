@@ -4,8 +4,8 @@
 use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate, SelectedMode, SelectionRecord};
 use rbprops_core::{
-    c64, modal::modal_receptance, rigid_body_modes, rigid_transform, Channel, Excitation, FrfSet,
-    Geometry, Mat6, Point, Quantity, RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
+    c64, modal::modal_receptance, rigid_body_modes, rigid_transform, Excitation, FrfSet, Geometry,
+    Mat6, Quantity, RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
 };
 
 /// Test Case II inertia with an off-origin CoM.
@@ -26,25 +26,7 @@ fn unit(x: f64, y: f64, z: f64) -> Vec3 {
     Vec3::new(x, y, z).normalize()
 }
 
-pub fn triaxial(id: &str, p: Vec3) -> (Point, Vec<Channel>) {
-    let chans = ["x", "y", "z"]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| Channel {
-            id: format!("{id}{a}"),
-            point: id.into(),
-            position: p,
-            direction: Vec3::from_fn(|i, _| (i == k) as u8 as f64),
-        })
-        .collect();
-    (
-        Point {
-            id: id.into(),
-            position: p,
-        },
-        chans,
-    )
-}
+pub use rbprops_testkit::triaxial;
 
 /// Three triaxial accelerometers on a near-equilateral triangle and five forces.
 pub fn geometry() -> Geometry {

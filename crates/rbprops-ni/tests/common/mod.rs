@@ -9,8 +9,8 @@ use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::modal::modal_receptance;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate};
 use rbprops_core::{
-    c64, rigid_body_modes, rigid_transform, Channel, Excitation, FrfSet, Geometry, Mat6, Point,
-    Quantity, RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
+    c64, rigid_body_modes, rigid_transform, Excitation, FrfSet, Geometry, Mat6, Quantity,
+    RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
 };
 
 pub const ZETA: f64 = 0.01;
@@ -39,25 +39,7 @@ pub fn modes(props: &RigidBodyProperties, k: &Mat6, zeta: f64) -> Vec<RigidMode>
         .collect()
 }
 
-pub fn triaxial(id: &str, p: Vec3) -> (Point, Vec<Channel>) {
-    let chans = ["x", "y", "z"]
-        .iter()
-        .enumerate()
-        .map(|(i, a)| Channel {
-            id: format!("{id}{a}"),
-            point: id.into(),
-            position: p,
-            direction: Vec3::from_fn(|r, _| (r == i) as u8 as f64),
-        })
-        .collect();
-    (
-        Point {
-            id: id.into(),
-            position: p,
-        },
-        chans,
-    )
-}
+pub use rbprops_testkit::triaxial;
 
 pub fn force(id: &str, p: Vec3, d: Vec3, setup: &str) -> Excitation {
     Excitation {
