@@ -400,3 +400,21 @@ fn the_exponential_window_given_gives_the_unwindowed_properties() {
         }
     }
 }
+
+/// `modal-fit --auto-poly`: on the 0.3 %-apart pair the single-reference fits of the three
+/// excitations disagree (the pair merges in some), so the set-up is refitted with the
+/// poly-reference fit, every record says why, and the six modes come out.
+#[test]
+fn auto_poly_reference_switches_on_a_near_repeated_pair() {
+    let auto = FitOptions {
+        auto_poly_reference: true,
+        ..Default::default()
+    };
+    for (_, warnings) in six_modes("near-repeated-cords", 1..=1, &auto) {
+        let switched = warnings
+            .iter()
+            .filter(|w| w.contains("poly-reference fit (plscf) used instead of the lscf fits"))
+            .count();
+        assert_eq!(switched, 3, "{warnings:?}");
+    }
+}

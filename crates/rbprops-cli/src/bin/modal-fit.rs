@@ -65,6 +65,11 @@ struct Args {
     /// Line weights of the least-squares fits.
     #[arg(long, value_enum, default_value = "none")]
     weight: WeightArg,
+    /// Single-reference methods: refit a set-up with the poly-reference fit (plscf), with a
+    /// note, when its excitations' fits disagree on the number of modes or a pole shows
+    /// multiplicity (a merged, split or inseparable pair).
+    #[arg(long)]
+    auto_poly: bool,
     /// Leave out the lower/upper residual terms of the residue fit.
     #[arg(long)]
     no_residuals: bool,
@@ -105,6 +110,7 @@ fn main() -> std::process::ExitCode {
             n_modes: args.modes,
             residual_terms: !args.no_residuals,
             keep_synthesised: args.plot.is_some(),
+            auto_poly_reference: args.auto_poly,
             ..Default::default()
         };
         if let Some(b) = &args.band {
