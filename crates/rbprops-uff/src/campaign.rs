@@ -738,55 +738,139 @@ fn resolve_dofs(
     [side(0), side(1)]
 }
 
-/// Builds the campaign from `data` with the geometry and channel map of `opts`.
-pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, UffError> {
-    let file = data.file_name.as_str();
-    let campaign = |problem: String| UffError::Campaign {
+/// A [`UffError::Campaign`] of `file`.
+fn campaign_error(file: &str, problem: String) -> UffError {
+    UffError::Campaign {
         file: file.to_string(),
         problem,
-    };
-    let field_err = |at: &DatasetLocation, field: &str, problem: String| UffError::Field {
+    }
+}
+
+/// A [`UffError::Field`] of `file`.
+fn field_error(file: &str, at: &DatasetLocation, field: &str, problem: String) -> UffError {
+    UffError::Field {
         file: file.to_string(),
         at: at.clone(),
         field: field.to_string(),
         problem,
-    };
+    }
+}
+
+/// The location of a summary warning, which concerns no single dataset.
+fn no_dataset(number: i64) -> DatasetLocation {
+    DatasetLocation {
+        index: 0,
+        number,
+        line: 0,
+    }
+}
+
+/// Builds the campaign from `data` with the geometry and channel map of `opts`: the node
+/// table, every function's DOFs (pass 1), the FRFs (pass 2), the coherence matched to
+/// them (pass 3), then the geometry and the FRF set.
+pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, UffError> {
+    let file = data.file_name.as_str();
     let mut warnings = Warnings::default();
     let mut table = NodeTable::default();
-    let geometry_name = match opts.geometry {
-        GeometrySource::InFile => None,
+    let geometry_name = add_geometry_source(opts.geometry, &mut table)?;
+    let units_at = add_file_nodes(data, &mut table)?;
+    let (dofs, skipped) = resolve_function_dofs(data, opts.channels, &mut warnings)?;
+    check_nodes_exist(file, &dofs, &table, geometry_name.as_deref())?;
+    let mut frfs = FrfCollector::new(file);
+    for (di, (d, &units)) in data.datasets.iter().zip(&units_at).enumerate() {
+        match &d.record {
+            Record::Function(f) if f.function_type == 4 => {
+                frfs.add(&d.location, f, &dofs[&di].1, units, &mut warnings)?
+            }
+            _ => {}
+        }
+    }
+    let (Some((frequency_hz, _)), Some((quantity, _))) = (frfs.axis.take(), frfs.quantity.take())
+    else {
+        return Err(campaign_error(
+            file,
+            format!(
+                "no FRF datasets (dataset 58 with function type 4) in the file. It holds:\n{}",
+                crate::inventory::inventory(data)
+            ),
+        ));
+    };
+    if !skipped.is_empty() {
+        warnings
+            .list
+            .push((skipped_functions_note(&skipped), no_dataset(58), 1));
+    }
+    let coherence = match_coherence(data, &dofs, &frfs, &frequency_hz, &mut warnings);
+    let geometry = frfs.geometry(&table, geometry_name.is_some(), &mut warnings)?;
+    let frf = frfs.into_frf_set(quantity, frequency_hz)?;
+    geometry
+        .validate()
+        .map_err(|e| campaign_error(file, format!("geometry: {e}")))?;
+    frf.validate()
+        .map_err(|e| campaign_error(file, e.to_string()))?;
+    let mut warnings = warnings.finish(file);
+    for w in &mut warnings {
+        // Summary warnings carry no dataset: drop the placeholder location.
+        *w = w.replace(" dataset #0 (type 58, starting at line 0):", "");
+        *w = w.replace(" dataset #0 (type 0, starting at line 0):", "");
+    }
+    Ok(UffCampaign {
+        geometry,
+        frf,
+        coherence: (coherence.count() > 0).then_some(coherence),
+        warnings,
+    })
+}
+
+/// Adds the nodes of a separate geometry (a universal file or the spec's points) to
+/// `table`; returns its name for messages (`None`: the data file's own nodes only).
+fn add_geometry_source(
+    source: GeometrySource,
+    table: &mut NodeTable,
+) -> Result<Option<String>, UffError> {
+    match source {
+        GeometrySource::InFile => Ok(None),
         GeometrySource::Uff(g) => {
-            add_file_nodes(g, &mut table)?;
-            Some(g.file_name.clone())
+            add_file_nodes(g, table)?;
+            Ok(Some(g.file_name.clone()))
         }
         GeometrySource::Points(points) => {
-            let origin = DatasetLocation {
-                index: 0,
-                number: 0,
-                line: 0,
-            };
             for p in points {
                 let Ok(label) = p.id.trim().parse::<i64>() else {
                     continue;
                 };
-                table.insert(
-                    label,
-                    NodeEntry {
-                        position: p.position,
-                        axes: Ok([Vec3::x(), Vec3::y(), Vec3::z()]),
-                        file: "the spec".into(),
-                    },
-                    &origin,
-                )?;
+                let entry = NodeEntry {
+                    position: p.position,
+                    axes: Ok([Vec3::x(), Vec3::y(), Vec3::z()]),
+                    file: "the spec".into(),
+                };
+                table.insert(label, entry, &no_dataset(0))?;
             }
-            Some("the spec's points".to_string())
+            Ok(Some("the spec's points".to_string()))
         }
-    };
-    let units_at = add_file_nodes(data, &mut table)?;
+    }
+}
 
-    // Pass 1: the DOFs of every FRF and coherence; every node they name must exist.
-    let mut dofs: HashMap<usize, [(NodeDof, DofSource); 2]> = HashMap::new();
-    let mut missing: Vec<(i64, DatasetLocation)> = Vec::new();
+/// The response and reference DOFs of one function, with where each came from.
+type FunctionDofs = [(NodeDof, DofSource); 2];
+
+/// Pass 1: the DOFs of every FRF and coherence, keyed by dataset index with its location,
+/// and the number of other functions per function type (listed, not read). A coherence
+/// whose DOFs cannot be resolved is skipped with a warning; an FRF's is an error.
+#[allow(clippy::type_complexity)]
+fn resolve_function_dofs(
+    data: &UffFile,
+    channels: Option<&ChannelMap>,
+    warnings: &mut Warnings,
+) -> Result<
+    (
+        HashMap<usize, (DatasetLocation, FunctionDofs)>,
+        std::collections::BTreeMap<i64, usize>,
+    ),
+    UffError,
+> {
+    let file = data.file_name.as_str();
+    let mut dofs = HashMap::new();
     let mut skipped: std::collections::BTreeMap<i64, usize> = Default::default();
     for (di, d) in data.datasets.iter().enumerate() {
         let Record::Function(f) = &d.record else {
@@ -796,10 +880,9 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
             *skipped.entry(f.function_type).or_default() += 1;
             continue;
         }
-        let [r, e] = resolve_dofs(d.location.index, f, opts.channels);
-        let (r, e) = match (r, e) {
-            (Ok(r), Ok(e)) => (r, e),
-            (Err(why), _) | (_, Err(why)) => {
+        let (r, e) = match resolve_dofs(d.location.index, f, channels) {
+            [Ok(r), Ok(e)] => (r, e),
+            [Err(why), _] | [_, Err(why)] => {
                 if f.function_type == 6 {
                     warnings.add(&d.location, vec![format!("coherence skipped: {why}")]);
                     continue;
@@ -809,257 +892,431 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
                 } else {
                     "record 6 field 9-10 (reference node, direction)"
                 };
-                return Err(field_err(&d.location, field, why));
+                return Err(field_error(file, &d.location, field, why));
             }
         };
         for (dof, role) in [(&r.0, "response"), (&e.0, "reference")] {
             if dof.direction.abs() > 3 || dof.direction == 0 {
-                return Err(field_err(
+                return Err(field_error(
+                    file,
                     &d.location,
                     &format!("record 6 ({role} direction)"),
                     format!("{role} direction {} is not a translation (±1, ±2, ±3); scalar and rotational DOFs are not supported", dof.direction),
                 ));
             }
-            if !table.nodes.contains_key(&dof.node) {
-                missing.push((dof.node, d.location.clone()));
-            }
         }
-        dofs.insert(di, [r, e]);
+        dofs.insert(di, (d.location.clone(), [r, e]));
     }
-    if !missing.is_empty() {
-        let mut labels: Vec<i64> = missing.iter().map(|m| m.0).collect();
-        labels.sort_unstable();
-        labels.dedup();
-        let mut defined: Vec<i64> = table.order.clone();
-        defined.sort_unstable();
-        let shown: Vec<String> = labels.iter().take(20).map(|l| l.to_string()).collect();
-        let more = if labels.len() > 20 {
-            format!(" and {} more", labels.len() - 20)
-        } else {
-            String::new()
-        };
-        return Err(field_err(
-            &missing[0].1,
-            "record 6 (response/reference node)",
+    Ok((dofs, skipped))
+}
+
+/// Every node the functions name must have coordinates: one error lists all that do not
+/// (the first dataset that names one is its location) and the nodes that are defined.
+fn check_nodes_exist(
+    file: &str,
+    dofs: &HashMap<usize, (DatasetLocation, FunctionDofs)>,
+    table: &NodeTable,
+    geometry_name: Option<&str>,
+) -> Result<(), UffError> {
+    let mut missing: Vec<(usize, i64)> = dofs
+        .iter()
+        .flat_map(|(&di, (_, [r, e]))| [(di, r.0.node), (di, e.0.node)])
+        .filter(|(_, node)| !table.nodes.contains_key(node))
+        .collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    missing.sort_unstable();
+    let first_at = &dofs[&missing[0].0].0;
+    let mut labels: Vec<i64> = missing.iter().map(|m| m.1).collect();
+    labels.sort_unstable();
+    labels.dedup();
+    let mut defined: Vec<i64> = table.order.clone();
+    defined.sort_unstable();
+    let list = |v: &[i64]| {
+        let shown: Vec<String> = v.iter().take(20).map(|l| l.to_string()).collect();
+        shown.join(", ")
+    };
+    let more = if labels.len() > 20 {
+        format!(" and {} more", labels.len() - 20)
+    } else {
+        String::new()
+    };
+    let source = geometry_name.map_or("the file (datasets 15/2411)".to_string(), |g| {
+        format!("{g} with the file")
+    });
+    let defined_list = if defined.is_empty() {
+        " (give the geometry with --geometry FILE)".to_string()
+    } else {
+        format!(": {}", list(&defined))
+    };
+    Err(field_error(
+        file,
+        first_at,
+        "record 6 (response/reference node)",
+        format!(
+            "{} node(s) named by the functions have no coordinates: {}{more}; {source} defines {} node(s){defined_list}",
+            labels.len(),
+            list(&labels),
+            defined.len(),
+        ),
+    ))
+}
+
+/// The warning that lists the functions that are neither FRFs nor coherence.
+fn skipped_functions_note(skipped: &std::collections::BTreeMap<i64, usize>) -> String {
+    let list: Vec<String> = skipped
+        .iter()
+        .map(|(t, n)| {
             format!(
-                "{} node(s) named by the functions have no coordinates: {}{more}; {} defines {} node(s){}",
-                labels.len(),
-                shown.join(", "),
-                geometry_name
-                    .clone()
-                    .map_or("the file (datasets 15/2411)".to_string(), |g| format!(
-                        "{g} with the file"
-                    )),
-                defined.len(),
-                if defined.is_empty() {
-                    " (give the geometry with --geometry FILE)".to_string()
-                } else {
-                    format!(
-                        ": {}",
-                        defined
-                            .iter()
-                            .take(20)
-                            .map(|l| l.to_string())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )
-                }
-            ),
-        ));
+                "{n} {} (type {t})",
+                crate::inventory::function_type_name(*t)
+            )
+        })
+        .collect();
+    format!(
+        "datasets 58 that are neither FRFs nor coherence are not read: {}",
+        list.join(", ")
+    )
+}
+
+/// The notes on DOFs that were not taken from record 6 (one rule per message: the node
+/// values would make one message per DOF).
+fn dof_source_notes(dofs: &FunctionDofs) -> Vec<String> {
+    dofs.iter()
+        .zip(["response", "reference"])
+        .filter_map(|((_, src), role)| match src {
+            DofSource::EntityName => Some(format!("{role} DOF taken from the entity name")),
+            DofSource::IdLine(k) => Some(format!("{role} DOF taken from ID line {k}")),
+            DofSource::Record6 | DofSource::ChannelMap => None,
+        })
+        .collect()
+}
+
+/// A response or reference DOF of the campaign, as pass 2 meets it.
+struct Dof {
+    id: String,
+    node: i64,
+    direction: i64,
+    point: String,
+    setup: String,
+    at: DatasetLocation,
+}
+
+/// Which side of an FRF a DOF is on.
+#[derive(Clone, Copy, PartialEq)]
+enum Side {
+    Response,
+    Reference,
+}
+
+/// Pass 2's state: the channels and excitations in order of appearance, the FRF of each
+/// (excitation, channel) cell, and the one axis and quantity they must all share.
+struct FrfCollector<'a> {
+    file: &'a str,
+    channels: Vec<Dof>,
+    excitations: Vec<Dof>,
+    setups: Vec<SuspensionSetup>,
+    point_of_node: HashMap<i64, String>,
+    cells: HashMap<(usize, usize), (Vec<c64>, DatasetLocation)>,
+    axis: Option<(Vec<f64>, DatasetLocation)>,
+    quantity: Option<(Quantity, DatasetLocation)>,
+}
+
+impl<'a> FrfCollector<'a> {
+    fn new(file: &'a str) -> Self {
+        FrfCollector {
+            file,
+            channels: Vec::new(),
+            excitations: Vec::new(),
+            setups: Vec::new(),
+            point_of_node: HashMap::new(),
+            cells: HashMap::new(),
+            axis: None,
+            quantity: None,
+        }
     }
 
-    // Pass 2: FRFs.
-    struct Dof {
-        id: String,
-        node: i64,
-        direction: i64,
-        point: String,
-        setup: String,
-        at: DatasetLocation,
-    }
-    let mut channels: Vec<Dof> = Vec::new();
-    let mut excitations: Vec<Dof> = Vec::new();
-    let mut setups: Vec<SuspensionSetup> = Vec::new();
-    let mut point_of_node: HashMap<i64, String> = HashMap::new();
-    let mut cells: HashMap<(usize, usize), (usize, Vec<c64>, DatasetLocation)> = HashMap::new();
-    let mut axis: Option<(Vec<f64>, DatasetLocation)> = None;
-    let mut quantity: Option<(Quantity, DatasetLocation)> = None;
-    for (di, (d, &(length_si, force_si))) in data.datasets.iter().zip(&units_at).enumerate() {
-        let Record::Function(f) = &d.record else {
-            continue;
-        };
-        if f.function_type != 4 {
-            continue; // coherence is matched below; other functions are listed, not read.
-        }
-        let at = &d.location;
-        let [(resp, resp_src), (refr, ref_src)] = dofs[&di].clone();
+    /// Adds the FRF of dataset `at` (its DOFs resolved, `units` in SI per file unit of
+    /// length and force).
+    fn add(
+        &mut self,
+        at: &DatasetLocation,
+        f: &Function,
+        dofs: &FunctionDofs,
+        (length_si, force_si): (f64, f64),
+        warnings: &mut Warnings,
+    ) -> Result<(), UffError> {
         let mut w = Vec::new();
-        let s = scaling(file, at, f, length_si, force_si, &mut w)?;
-        for (dof, src, role) in [(resp, &resp_src, "response"), (refr, &ref_src, "reference")] {
-            match src {
-                DofSource::Record6 => {}
-                DofSource::EntityName => w.push(format!(
-                    "{role} DOF taken from the entity name (node {} {})",
-                    dof.node,
-                    direction_text(dof.direction)
-                )),
-                DofSource::IdLine(k) => w.push(format!(
-                    "{role} DOF taken from ID line {k} (node {} {})",
-                    dof.node,
-                    direction_text(dof.direction)
-                )),
-                DofSource::ChannelMap => {}
-            }
-        }
-        // One message per distinct DOF would flood: keep the rule, not the values.
-        let w = w
-            .into_iter()
-            .map(|m| match m.find(" (node ") {
-                Some(k) if m.contains("DOF taken from") => m[..k].to_string(),
-                _ => m,
-            })
-            .collect();
+        let s = scaling(self.file, at, f, length_si, force_si, &mut w)?;
+        w.extend(dof_source_notes(dofs));
         warnings.add(at, w);
-        match &quantity {
-            None => quantity = Some((s.quantity, at.clone())),
-            Some((q, first)) if *q != s.quantity => {
-                return Err(campaign(format!(
-                    "{first} holds {} but {at} holds {}: one FRF set has one quantity",
-                    q.name(),
-                    s.quantity.name()
-                )))
-            }
-            _ => {}
-        }
         let hz: Vec<f64> = f.abscissa.iter().map(|x| x * s.abscissa).collect();
-        match &axis {
-            None => axis = Some((hz, at.clone())),
-            Some((first, first_at)) => {
-                if !same_axis(first, &hz) {
-                    return Err(campaign(format!(
-                        "{first_at} and {at} have different abscissae ({} lines from {} to {} Hz vs {} lines from {} to {} Hz): all FRFs must share one frequency axis",
-                        first.len(), first[0], first[first.len() - 1], hz.len(), hz[0], hz[hz.len() - 1]
-                    )));
-                }
-            }
-        }
+        self.check_shared(at, s.quantity, hz)?;
         let tags = read_tags(f);
         let setup = tags
             .setup
             .clone()
             .unwrap_or_else(|| DEFAULT_SETUP.to_string());
-        if !setups.iter().any(|s| s.id == setup) {
-            setups.push(SuspensionSetup {
+        if !self.setups.iter().any(|s| s.id == setup) {
+            self.setups.push(SuspensionSetup {
                 id: setup.clone(),
                 description: tags.setup_description.clone(),
             });
         }
-        let mut locate = |role: &str,
-                          dof: NodeDof,
-                          id: Option<String>,
-                          point: Option<String>,
-                          list: &mut Vec<Dof>,
-                          setup: &str|
-         -> Result<usize, UffError> {
-            let (node, direction) = (dof.node, dof.direction);
-            let default_id = if role == "reference" && setup != DEFAULT_SETUP {
-                format!("{}@{setup}", dof_name(node, direction))
-            } else {
-                dof_name(node, direction)
-            };
-            let id = id.unwrap_or(default_id);
-            let point = point.unwrap_or_else(|| node.to_string());
-            let mapped = point_of_node.entry(node).or_insert_with(|| point.clone());
-            if *mapped != point {
-                return Err(field_err(
-                    at,
-                    "ID line 5 (rbprops tags)",
-                    format!("node {node} is named point '{point}' here but '{mapped}' elsewhere"),
-                ));
-            }
-            if let Some(k) = list.iter().position(|c| c.id == id) {
-                let c = &list[k];
-                if c.node != node || c.direction != direction || c.setup != setup {
-                    return Err(field_err(
-                        at,
-                        "ID line 5 (rbprops tags)",
-                        format!(
-                            "{role} '{id}' is node {node} direction {direction} set-up {setup} here but node {} direction {} set-up {} in {}",
-                            c.node, c.direction, c.setup, c.at
-                        ),
-                    ));
-                }
-                return Ok(k);
-            }
-            list.push(Dof {
-                id,
-                node,
-                direction,
-                point,
-                setup: setup.to_string(),
-                at: at.clone(),
-            });
-            Ok(list.len() - 1)
-        };
-        let ci = locate(
-            "response",
-            resp,
+        let [(resp, _), (refr, _)] = dofs;
+        let ci = self.locate(
+            Side::Response,
+            *resp,
             tags.channel,
             tags.channel_point,
-            &mut channels,
             DEFAULT_SETUP,
+            at,
         )?;
-        let ei = locate(
-            "reference",
-            refr,
+        let ei = self.locate(
+            Side::Reference,
+            *refr,
             tags.excitation,
             tags.excitation_point,
-            &mut excitations,
             &setup,
+            at,
         )?;
-        let values: Vec<c64> = f.ordinate.iter().map(|v| v * s.value).collect();
-        if let Some((_, _, prev)) = cells.get(&(ei, ci)) {
-            return Err(campaign(format!(
-                "{prev} and {at} both hold the FRF of channel '{}' for excitation '{}'",
-                channels[ci].id, excitations[ei].id
-            )));
-        }
-        cells.insert((ei, ci), (di, values, at.clone()));
-    }
-    let (Some((frequency_hz, _)), Some((quantity, _))) = (axis, quantity) else {
-        return Err(campaign(format!(
-            "no FRF datasets (dataset 58 with function type 4) in the file. It holds:\n{}",
-            crate::inventory::inventory(data)
-        )));
-    };
-    if !skipped.is_empty() {
-        let list: Vec<String> = skipped
-            .iter()
-            .map(|(t, n)| {
+        if let Some((_, prev)) = self.cells.get(&(ei, ci)) {
+            return Err(campaign_error(
+                self.file,
                 format!(
-                    "{n} {} (type {t})",
-                    crate::inventory::function_type_name(*t)
-                )
-            })
+                    "{prev} and {at} both hold the FRF of channel '{}' for excitation '{}'",
+                    self.channels[ci].id, self.excitations[ei].id
+                ),
+            ));
+        }
+        let values: Vec<c64> = f.ordinate.iter().map(|v| v * s.value).collect();
+        self.cells.insert((ei, ci), (values, at.clone()));
+        Ok(())
+    }
+
+    /// One FRF set has one quantity and one frequency axis: the first FRF sets them.
+    fn check_shared(
+        &mut self,
+        at: &DatasetLocation,
+        quantity: Quantity,
+        hz: Vec<f64>,
+    ) -> Result<(), UffError> {
+        match &self.quantity {
+            None => self.quantity = Some((quantity, at.clone())),
+            Some((q, first)) if *q != quantity => {
+                return Err(campaign_error(
+                    self.file,
+                    format!(
+                        "{first} holds {} but {at} holds {}: one FRF set has one quantity",
+                        q.name(),
+                        quantity.name()
+                    ),
+                ))
+            }
+            _ => {}
+        }
+        match &self.axis {
+            None => self.axis = Some((hz, at.clone())),
+            Some((first, first_at)) if !same_axis(first, &hz) => {
+                return Err(campaign_error(
+                    self.file,
+                    format!(
+                        "{first_at} and {at} have different abscissae ({} lines from {} to {} Hz vs {} lines from {} to {} Hz): all FRFs must share one frequency axis",
+                        first.len(), first[0], first[first.len() - 1], hz.len(), hz[0], hz[hz.len() - 1]
+                    ),
+                ));
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The index of the channel or excitation at `dof` (added on first sight), checking
+    /// that an id and a node keep one meaning across the file.
+    fn locate(
+        &mut self,
+        side: Side,
+        dof: NodeDof,
+        id: Option<String>,
+        point: Option<String>,
+        setup: &str,
+        at: &DatasetLocation,
+    ) -> Result<usize, UffError> {
+        let (node, direction) = (dof.node, dof.direction);
+        let role = match side {
+            Side::Response => "response",
+            Side::Reference => "reference",
+        };
+        let default_id = if side == Side::Reference && setup != DEFAULT_SETUP {
+            format!("{}@{setup}", dof_name(node, direction))
+        } else {
+            dof_name(node, direction)
+        };
+        let id = id.unwrap_or(default_id);
+        let point = point.unwrap_or_else(|| node.to_string());
+        let mapped = self
+            .point_of_node
+            .entry(node)
+            .or_insert_with(|| point.clone());
+        if *mapped != point {
+            return Err(field_error(
+                self.file,
+                at,
+                "ID line 5 (rbprops tags)",
+                format!("node {node} is named point '{point}' here but '{mapped}' elsewhere"),
+            ));
+        }
+        let list = match side {
+            Side::Response => &mut self.channels,
+            Side::Reference => &mut self.excitations,
+        };
+        if let Some(k) = list.iter().position(|c| c.id == id) {
+            let c = &list[k];
+            if c.node != node || c.direction != direction || c.setup != setup {
+                return Err(field_error(
+                    self.file,
+                    at,
+                    "ID line 5 (rbprops tags)",
+                    format!(
+                        "{role} '{id}' is node {node} direction {direction} set-up {setup} here but node {} direction {} set-up {} in {}",
+                        c.node, c.direction, c.setup, c.at
+                    ),
+                ));
+            }
+            return Ok(k);
+        }
+        list.push(Dof {
+            id,
+            node,
+            direction,
+            point,
+            setup: setup.to_string(),
+            at: at.clone(),
+        });
+        Ok(list.len() - 1)
+    }
+
+    /// The geometry: every node of the table as a point (named as the FRFs name it), the
+    /// channels and excitations in order of appearance. With a separate geometry, the
+    /// nodes that carry no DOF are listed in a warning (they stay points).
+    fn geometry(
+        &self,
+        table: &NodeTable,
+        separate_geometry: bool,
+        warnings: &mut Warnings,
+    ) -> Result<Geometry, UffError> {
+        let mut points: Vec<Point> = Vec::new();
+        for label in &table.order {
+            let id = self
+                .point_of_node
+                .get(label)
+                .cloned()
+                .unwrap_or_else(|| label.to_string());
+            if !points.iter().any(|p| p.id == id) {
+                points.push(Point {
+                    id,
+                    position: table.nodes[label].position,
+                });
+            }
+        }
+        if separate_geometry {
+            self.note_unused_nodes(table, warnings);
+        }
+        let direction_of = |dof: &Dof| -> Result<Vec3, UffError> {
+            let axes = table.nodes[&dof.node].axes.clone()?;
+            let k = dof.direction.unsigned_abs() as usize - 1;
+            Ok(axes[k] * dof.direction.signum() as f64)
+        };
+        let mut geometry = Geometry {
+            points,
+            setups: self.setups.clone(),
+            ..Default::default()
+        };
+        for c in &self.channels {
+            geometry.channels.push(Channel {
+                id: c.id.clone(),
+                point: c.point.clone(),
+                position: table.nodes[&c.node].position,
+                direction: direction_of(c)?,
+            });
+        }
+        for e in &self.excitations {
+            geometry.excitations.push(Excitation {
+                id: e.id.clone(),
+                point: e.point.clone(),
+                position: table.nodes[&e.node].position,
+                direction: direction_of(e)?,
+                setup: e.setup.clone(),
+            });
+        }
+        Ok(geometry)
+    }
+
+    fn note_unused_nodes(&self, table: &NodeTable, warnings: &mut Warnings) {
+        let used: std::collections::HashSet<i64> = self
+            .channels
+            .iter()
+            .chain(&self.excitations)
+            .map(|c| c.node)
             .collect();
+        let mut unused: Vec<i64> = table
+            .order
+            .iter()
+            .copied()
+            .filter(|l| !used.contains(l))
+            .collect();
+        unused.sort_unstable();
+        if unused.is_empty() {
+            return;
+        }
+        let shown: Vec<String> = unused.iter().take(20).map(|l| l.to_string()).collect();
         warnings.list.push((
             format!(
-                "datasets 58 that are neither FRFs nor coherence are not read: {}",
-                list.join(", ")
+                "{} geometry node(s) carry no FRF channel or excitation (kept as points): {}",
+                unused.len(),
+                shown.join(", ")
             ),
-            DatasetLocation {
-                index: 0,
-                number: 58,
-                line: 0,
-            },
+            no_dataset(0),
             1,
         ));
     }
 
-    // Pass 3: coherence matched to the FRF of the same response and reference DOF.
-    let mut coherence: Vec<Vec<Option<Vec<f64>>>> =
-        vec![vec![None; channels.len()]; excitations.len()];
-    let mut n_coherence = 0usize;
+    /// The FRF set: every excitation must have every channel.
+    fn into_frf_set(
+        mut self,
+        quantity: Quantity,
+        frequency_hz: Vec<f64>,
+    ) -> Result<FrfSet, UffError> {
+        let (ne, nc) = (self.excitations.len(), self.channels.len());
+        let mut frf = FrfSet::zeros(quantity, frequency_hz, ne, nc);
+        for (ei, e) in self.excitations.iter().enumerate() {
+            for (ci, c) in self.channels.iter().enumerate() {
+                let Some((values, _)) = self.cells.remove(&(ei, ci)) else {
+                    return Err(campaign_error(self.file, format!(
+                        "no FRF for channel '{}' (node {} direction {}) and excitation '{}' (node {} direction {}, set-up {}): every excitation needs every channel",
+                        c.id, c.node, c.direction, e.id, e.node, e.direction, e.setup
+                    )));
+                };
+                frf.frf_mut(ei, ci).copy_from_slice(&values);
+            }
+        }
+        Ok(frf)
+    }
+}
+
+/// Pass 3: each coherence (function type 6) matched to the FRF of the same response and
+/// reference DOF and set-up; one that matches none, lies on another axis, leaves [0, 1]
+/// or repeats a pair is skipped with a warning.
+fn match_coherence(
+    data: &UffFile,
+    dofs: &HashMap<usize, (DatasetLocation, FunctionDofs)>,
+    frfs: &FrfCollector,
+    frequency_hz: &[f64],
+    warnings: &mut Warnings,
+) -> CoherenceSet {
+    let mut values: Vec<Vec<Option<Vec<f64>>>> =
+        vec![vec![None; frfs.channels.len()]; frfs.excitations.len()];
     for (di, d) in data.datasets.iter().enumerate() {
         let Record::Function(f) = &d.record else {
             continue;
@@ -1067,17 +1324,19 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
         if f.function_type != 6 {
             continue;
         }
-        let Some([(resp, _), (refr, _)]) = dofs.get(&di).cloned() else {
+        let Some((_, [(resp, _), (refr, _)])) = dofs.get(&di) else {
             continue;
         };
         let at = &d.location;
         let setup = read_tags(f)
             .setup
             .unwrap_or_else(|| DEFAULT_SETUP.to_string());
-        let ci = channels
+        let ci = frfs
+            .channels
             .iter()
             .position(|c| c.node == resp.node && c.direction == resp.direction);
-        let ei = excitations
+        let ei = frfs
+            .excitations
             .iter()
             .position(|e| e.node == refr.node && e.direction == refr.direction && e.setup == setup);
         let (Some(ci), Some(ei)) = (ci, ei) else {
@@ -1094,140 +1353,49 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
             continue;
         };
         let mut w = Vec::new();
-        let hz_factor = abscissa_factor(file, at, f, &mut w).unwrap_or(1.0);
+        let hz_factor = abscissa_factor(data.file_name.as_str(), at, f, &mut w).unwrap_or(1.0);
         warnings.add(at, w);
         let hz: Vec<f64> = f.abscissa.iter().map(|x| x * hz_factor).collect();
-        if !same_axis(&frequency_hz, &hz) {
-            warnings.add(
-                at,
-                vec!["coherence on another frequency axis than the FRFs: skipped".into()],
-            );
+        let problem = coherence_problem(frequency_hz, &hz, f, values[ei][ci].is_some());
+        if let Some(p) = problem {
+            let p = p
+                .replace("{channel}", &frfs.channels[ci].id)
+                .replace("{excitation}", &frfs.excitations[ei].id);
+            warnings.add(at, vec![p]);
             continue;
         }
-        // γ² lies in [0, 1]; values just outside by rounding of the export are clamped,
-        // values clearly outside mean the dataset is not an ordinary coherence.
-        const SLACK: f64 = 1e-6;
-        let gamma2: Vec<f64> = f.ordinate.iter().map(|v| v.re).collect();
-        if gamma2.iter().any(|g| !(-SLACK..=1.0 + SLACK).contains(g)) {
-            warnings.add(at, vec!["coherence values outside [0, 1]: skipped".into()]);
-            continue;
-        }
-        if coherence[ei][ci].is_some() {
-            warnings.add(
-                at,
-                vec![format!(
-                    "a second coherence for channel '{}' and excitation '{}': skipped",
-                    channels[ci].id, excitations[ei].id
-                )],
-            );
-            continue;
-        }
-        coherence[ei][ci] = Some(gamma2.iter().map(|g| g.clamp(0.0, 1.0)).collect());
-        n_coherence += 1;
+        values[ei][ci] = Some(f.ordinate.iter().map(|v| v.re.clamp(0.0, 1.0)).collect());
     }
+    CoherenceSet { values }
+}
 
-    // Geometry.
-    let mut points: Vec<Point> = Vec::new();
-    let mut used: std::collections::HashSet<i64> = Default::default();
-    for c in channels.iter().chain(&excitations) {
-        used.insert(c.node);
+/// Why a coherence dataset cannot be used for its FRF (`{channel}` and `{excitation}`
+/// stand for the ids), or `None`.
+fn coherence_problem(
+    frequency_hz: &[f64],
+    hz: &[f64],
+    f: &Function,
+    duplicate: bool,
+) -> Option<String> {
+    // γ² lies in [0, 1]; values just outside by rounding of the export are clamped,
+    // values clearly outside mean the dataset is not an ordinary coherence.
+    const SLACK: f64 = 1e-6;
+    if !same_axis(frequency_hz, hz) {
+        Some("coherence on another frequency axis than the FRFs: skipped".into())
+    } else if f
+        .ordinate
+        .iter()
+        .any(|v| !(-SLACK..=1.0 + SLACK).contains(&v.re))
+    {
+        Some("coherence values outside [0, 1]: skipped".into())
+    } else if duplicate {
+        Some(
+            "a second coherence for channel '{channel}' and excitation '{excitation}': skipped"
+                .into(),
+        )
+    } else {
+        None
     }
-    for label in &table.order {
-        let id = point_of_node
-            .get(label)
-            .cloned()
-            .unwrap_or_else(|| label.to_string());
-        if !points.iter().any(|p| p.id == id) {
-            points.push(Point {
-                id,
-                position: table.nodes[label].position,
-            });
-        }
-    }
-    if geometry_name.is_some() {
-        let mut unused: Vec<i64> = table
-            .order
-            .iter()
-            .copied()
-            .filter(|l| !used.contains(l))
-            .collect();
-        unused.sort_unstable();
-        if !unused.is_empty() {
-            warnings.list.push((
-                format!(
-                    "{} geometry node(s) carry no FRF channel or excitation (kept as points): {}",
-                    unused.len(),
-                    unused
-                        .iter()
-                        .take(20)
-                        .map(|l| l.to_string())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-                DatasetLocation {
-                    index: 0,
-                    number: 0,
-                    line: 0,
-                },
-                1,
-            ));
-        }
-    }
-    let direction_of = |dof: &Dof| -> Result<Vec3, UffError> {
-        let axes = table.nodes[&dof.node].axes.clone()?;
-        let k = dof.direction.unsigned_abs() as usize - 1;
-        Ok(axes[k] * dof.direction.signum() as f64)
-    };
-    let mut geometry = Geometry {
-        points,
-        setups,
-        ..Default::default()
-    };
-    for c in &channels {
-        geometry.channels.push(Channel {
-            id: c.id.clone(),
-            point: c.point.clone(),
-            position: table.nodes[&c.node].position,
-            direction: direction_of(c)?,
-        });
-    }
-    for e in &excitations {
-        geometry.excitations.push(Excitation {
-            id: e.id.clone(),
-            point: e.point.clone(),
-            position: table.nodes[&e.node].position,
-            direction: direction_of(e)?,
-            setup: e.setup.clone(),
-        });
-    }
-    let mut frf = FrfSet::zeros(quantity, frequency_hz, excitations.len(), channels.len());
-    for (ei, e) in excitations.iter().enumerate() {
-        for (ci, c) in channels.iter().enumerate() {
-            let Some((_, values, _)) = cells.remove(&(ei, ci)) else {
-                return Err(campaign(format!(
-                    "no FRF for channel '{}' (node {} direction {}) and excitation '{}' (node {} direction {}, set-up {}): every excitation needs every channel",
-                    c.id, c.node, c.direction, e.id, e.node, e.direction, e.setup
-                )));
-            };
-            frf.frf_mut(ei, ci).copy_from_slice(&values);
-        }
-    }
-    geometry
-        .validate()
-        .map_err(|e| campaign(format!("geometry: {e}")))?;
-    frf.validate().map_err(|e| campaign(e.to_string()))?;
-    let mut warnings = warnings.finish(file);
-    for w in &mut warnings {
-        // Summary warnings carry no dataset: drop the placeholder location.
-        *w = w.replace(" dataset #0 (type 58, starting at line 0):", "");
-        *w = w.replace(" dataset #0 (type 0, starting at line 0):", "");
-    }
-    Ok(UffCampaign {
-        geometry,
-        frf,
-        coherence: (n_coherence > 0).then_some(CoherenceSet { values: coherence }),
-        warnings,
-    })
 }
 
 /// Whether two frequency axes are the same to [`ABSCISSA_TOLERANCE`] of their largest value.
