@@ -6,7 +6,7 @@ use crate::campaign::DEFAULT_SETUP;
 use crate::error::UffError;
 use crate::fortran::{fmt_e, fmt_exactish};
 use crate::model::NodeFormat;
-use rbprops_core::{FrfSet, Geometry, Quantity, Vec3};
+use rbprops_core::{c64, Channel, Excitation, FrfSet, Geometry, Quantity, SuspensionSetup, Vec3};
 use std::fmt::Write as _;
 
 /// Options of [`from_campaign`].
@@ -231,6 +231,40 @@ pub fn from_campaign(
     frf: &FrfSet,
     opts: &WriteOptions,
 ) -> Result<Vec<u8>, UffError> {
+    check_campaign(geometry, frf)?;
+    let plans = plan_nodes(geometry);
+    let mut s = String::new();
+    write_units(&mut s);
+    write_frames(&mut s, &plans);
+    write_nodes(&mut s, &plans, opts.nodes);
+    let mut out: Vec<u8> = s.into_bytes();
+    // 58: one per (excitation, channel).
+    let axis = AbscissaHeader::new(&frf.frequency_hz, opts.binary);
+    let mut function_id = 0;
+    for (ei, e) in geometry.excitations.iter().enumerate() {
+        let en = node_for(&plans, &e.point, e.position, &e.direction);
+        for (ci, c) in geometry.channels.iter().enumerate() {
+            function_id += 1;
+            let cn = node_for(&plans, &c.point, c.position, &c.direction);
+            let setup = geometry.setups.iter().find(|s| s.id == e.setup);
+            let dofs = [(cn, c.direction), (en, e.direction)];
+            let h = function_header(c, e, setup, dofs, function_id, frf, &axis, opts);
+            out.extend_from_slice(h.as_bytes());
+            write_ordinates(
+                &mut out,
+                &frf.frequency_hz,
+                frf.frf(ei, ci),
+                &axis,
+                opts.binary,
+            );
+            delimiter(&mut out);
+        }
+    }
+    Ok(out)
+}
+
+/// The geometry and the FRF set must be valid and agree in shape.
+fn check_campaign(geometry: &Geometry, frf: &FrfSet) -> Result<(), UffError> {
     let werr = |m: String| UffError::Write(m);
     geometry
         .validate()
@@ -246,11 +280,11 @@ pub fn from_campaign(
             geometry.channels.len()
         )));
     }
-    let plans = plan_nodes(geometry);
-    let mut out: Vec<u8> = Vec::new();
-    let mut s = String::new();
+    Ok(())
+}
 
-    // 164: SI units.
+/// Dataset 164: SI units.
+fn write_units(s: &mut String) {
     s.push_str("    -1\n   164\n");
     let _ = writeln!(s, "{:>10}{:<20}{:>10}", 1, "SI: meter (newton)", 2);
     let _ = writeln!(
@@ -262,40 +296,46 @@ pub fn from_campaign(
     );
     let _ = writeln!(s, "{}", fmt_e(273.15, 25, 17));
     s.push_str("    -1\n");
+}
 
-    // 2420: displacement systems.
-    if plans.iter().any(|n| n.frame.is_some()) {
-        s.push_str("    -1\n  2420\n");
-        let _ = writeln!(s, "{:>10}", 1);
-        s.push_str("rbprops sensor and force directions\n");
-        for n in plans.iter().filter(|n| n.frame.is_some()) {
-            let rows = n.frame.expect("filtered");
+/// Dataset 2420: the displacement systems of the nodes whose directions are not the
+/// global axes (none: no dataset).
+fn write_frames(s: &mut String, plans: &[NodePlan]) {
+    if !plans.iter().any(|n| n.frame.is_some()) {
+        return;
+    }
+    s.push_str("    -1\n  2420\n");
+    let _ = writeln!(s, "{:>10}", 1);
+    s.push_str("rbprops sensor and force directions\n");
+    for n in plans.iter().filter(|n| n.frame.is_some()) {
+        let rows = n.frame.expect("filtered");
+        let _ = writeln!(
+            s,
+            "{}{}{}",
+            fmt_i(n.cs_label, 10),
+            fmt_i(0, 10),
+            fmt_i(8, 10)
+        );
+        let _ = writeln!(s, "node {} directions", n.label);
+        for r in rows.iter().chain([Vec3::zeros()].iter()) {
             let _ = writeln!(
                 s,
                 "{}{}{}",
-                fmt_i(n.cs_label, 10),
-                fmt_i(0, 10),
-                fmt_i(8, 10)
+                fmt_e(r.x, 25, 17),
+                fmt_e(r.y, 25, 17),
+                fmt_e(r.z, 25, 17)
             );
-            let _ = writeln!(s, "node {} directions", n.label);
-            for r in rows.iter().chain([Vec3::zeros()].iter()) {
-                let _ = writeln!(
-                    s,
-                    "{}{}{}",
-                    fmt_e(r.x, 25, 17),
-                    fmt_e(r.y, 25, 17),
-                    fmt_e(r.z, 25, 17)
-                );
-            }
         }
-        s.push_str("    -1\n");
     }
+    s.push_str("    -1\n");
+}
 
-    // Nodes.
-    match opts.nodes {
+/// The nodes as dataset 2411 (double precision) or 15 (`E13.5`).
+fn write_nodes(s: &mut String, plans: &[NodePlan], format: NodeFormat) {
+    match format {
         NodeFormat::D2411 => {
             s.push_str("    -1\n  2411\n");
-            for n in &plans {
+            for n in plans {
                 let _ = writeln!(
                     s,
                     "{}{}{}{}",
@@ -316,7 +356,7 @@ pub fn from_campaign(
         }
         NodeFormat::D15 => {
             s.push_str("    -1\n    15\n");
-            for n in &plans {
+            for n in plans {
                 let p = n.position;
                 let _ = writeln!(
                     s,
@@ -333,161 +373,190 @@ pub fn from_campaign(
         }
     }
     s.push_str("    -1\n");
-    out.extend_from_slice(s.as_bytes());
+}
 
-    // 58: one per (excitation, channel).
-    let hz = &frf.frequency_hz;
-    let n = hz.len();
-    let (min, inc) = (hz[0], if n > 1 { hz[1] - hz[0] } else { 0.0 });
-    let (min_field, inc_field) = (fmt_exactish(min, 13), fmt_exactish(inc, 13));
-    let (min_back, inc_back) = (
-        crate::fortran::parse_real(&min_field).unwrap_or(f64::NAN),
-        crate::fortran::parse_real(&inc_field).unwrap_or(f64::NAN),
-    );
-    let span = hz
-        .iter()
-        .fold(0.0f64, |m, x| m.max(x.abs()))
-        .max(f64::MIN_POSITIVE);
-    let deviation = |tol: f64| {
-        hz.iter()
+/// Record 7's abscissa fields: the axis is written as even (start and step) when the
+/// fields reproduce it — bit for bit in binary (else the abscissa travels as doubles),
+/// to 1e-12 of its span in ASCII.
+struct AbscissaHeader {
+    even: bool,
+    min_field: String,
+    inc_field: String,
+}
+
+impl AbscissaHeader {
+    fn new(hz: &[f64], binary: bool) -> Self {
+        let n = hz.len();
+        let (min, inc) = (hz[0], if n > 1 { hz[1] - hz[0] } else { 0.0 });
+        let (min_field, inc_field) = (fmt_exactish(min, 13), fmt_exactish(inc, 13));
+        let (min_back, inc_back) = (
+            crate::fortran::parse_real(&min_field).unwrap_or(f64::NAN),
+            crate::fortran::parse_real(&inc_field).unwrap_or(f64::NAN),
+        );
+        let span = hz
+            .iter()
+            .fold(0.0f64, |m, x| m.max(x.abs()))
+            .max(f64::MIN_POSITIVE);
+        let tol = if binary { 0.0 } else { 1e-12 };
+        let even = hz
+            .iter()
             .enumerate()
-            .all(|(k, &f)| (min_back + k as f64 * inc_back - f).abs() <= tol * span)
-    };
-    // Binary: even only when the header fields reproduce the axis bit for bit (else the
-    // abscissa travels as doubles). ASCII: even when within 1e-12 of the axis.
-    let even = if opts.binary {
-        deviation(0.0)
+            .all(|(k, &f)| (min_back + k as f64 * inc_back - f).abs() <= tol * span);
+        AbscissaHeader {
+            even,
+            min_field,
+            inc_field,
+        }
+    }
+}
+
+/// ID lines 4 and 5 of a function: the set-up and the `rbprops` tags that make ids
+/// round-trip (left empty when tags are off or a value cannot be a tag).
+fn tag_lines(
+    c: &Channel,
+    e: &Excitation,
+    setup: Option<&SuspensionSetup>,
+    tags: bool,
+) -> (String, String) {
+    let tags = tags
+        && tag_value_ok(&e.setup)
+        && [&c.id, &c.point, &e.id, &e.point]
+            .iter()
+            .all(|v| tag_value_ok(v));
+    let id4 = if tags {
+        let desc = setup.map(|s| s.description.as_str()).unwrap_or("");
+        format!("setup={} {}", e.setup, desc)
+    } else if e.setup != DEFAULT_SETUP {
+        format!("setup={}", e.setup)
     } else {
-        deviation(1e-12)
+        String::new()
     };
+    let id5 = format!(
+        "rbprops ch={} cp={} ex={} ep={}",
+        c.id, c.point, e.id, e.point
+    );
+    let id5 = if tags && id5.len() <= 80 {
+        id5
+    } else {
+        String::new()
+    };
+    (id4, id5)
+}
+
+/// The header of one dataset 58 (records 1–11): ID lines, the DOFs (record 6), the
+/// abscissa (record 7) and the axes (records 8–11).
+#[allow(clippy::too_many_arguments)]
+fn function_header(
+    c: &Channel,
+    e: &Excitation,
+    setup: Option<&SuspensionSetup>,
+    [(cn, cd), (en, ed)]: [(&NodePlan, Vec3); 2],
+    function_id: usize,
+    frf: &FrfSet,
+    axis: &AbscissaHeader,
+    opts: &WriteOptions,
+) -> String {
+    let n = frf.frequency_hz.len();
+    let mut h = String::new();
+    h.push_str("    -1\n");
+    let n_bytes = n * if axis.even { 16 } else { 24 };
+    if opts.binary {
+        let _ = writeln!(
+            h,
+            "{:>6}b{:>6}{:>6}{:>12}{:>12}{:>6}{:>6}{:>12}{:>12}",
+            58, 1, 2, 11, n_bytes, 0, 0, 0, 0
+        );
+    } else {
+        h.push_str("    58\n");
+    }
+    let _ = writeln!(h, "{}", line80(&format!("FRF {} / {}", c.id, e.id)));
+    let _ = writeln!(h, "{}", line80(&opts.run_id));
+    h.push_str("NONE\n");
+    let (id4, id5) = tag_lines(c, e, setup, opts.tags);
+    let _ = writeln!(h, "{}", line80(id4.trim_end()));
+    let _ = writeln!(h, "{}", line80(&id5));
+    let _ = writeln!(
+        h,
+        "{:>5}{:>10}{:>5}{:>10} {:<10}{:>10}{:>4} {:<10}{:>10}{:>4}",
+        4,
+        function_id,
+        1,
+        0,
+        "NONE",
+        cn.label,
+        cn.code(&cd),
+        "NONE",
+        en.label,
+        en.code(&ed)
+    );
+    let zero = fmt_e(0.0, 13, 6);
+    let (min, inc) = if axis.even {
+        (axis.min_field.as_str(), axis.inc_field.as_str())
+    } else {
+        (zero.as_str(), zero.as_str())
+    };
+    let _ = writeln!(
+        h,
+        "{:>10}{:>10}{:>10}{min}{inc}{zero}",
+        6,
+        n,
+        i32::from(axis.even)
+    );
     let (num_type, num_label, num_units) = match frf.quantity {
         Quantity::Receptance => (8, "Displacement", "m"),
         Quantity::Mobility => (11, "Velocity", "m/s"),
         Quantity::Accelerance => (12, "Acceleration", "m/s^2"),
     };
-    let mut function_id = 0;
-    for (ei, e) in geometry.excitations.iter().enumerate() {
-        let en = node_for(&plans, &e.point, e.position, &e.direction);
-        for (ci, c) in geometry.channels.iter().enumerate() {
-            function_id += 1;
-            let cn = node_for(&plans, &c.point, c.position, &c.direction);
-            let mut h = String::new();
-            h.push_str("    -1\n");
-            let n_bytes = n * if even { 16 } else { 24 };
-            if opts.binary {
-                let _ = writeln!(
-                    h,
-                    "{:>6}b{:>6}{:>6}{:>12}{:>12}{:>6}{:>6}{:>12}{:>12}",
-                    58, 1, 2, 11, n_bytes, 0, 0, 0, 0
-                );
-            } else {
-                h.push_str("    58\n");
+    for (t, l, f, label, units) in [
+        (18, 0, 0, "Frequency", "Hz"),
+        (num_type, 1, 0, num_label, num_units),
+        (13, 0, 1, "Force", "N"),
+        (0, 0, 0, "NONE", "NONE"),
+    ] {
+        let _ = writeln!(
+            h,
+            "{:>10}{:>5}{:>5}{:>5} {:<20} {:<20}",
+            t, l, f, 0, label, units
+        );
+    }
+    h
+}
+
+/// Record 12 of one dataset 58: little-endian doubles in binary; in ASCII `4E20.12`
+/// (two complex values per line) on an even axis, else `E13.5,2E20.12` per point.
+fn write_ordinates(
+    out: &mut Vec<u8>,
+    hz: &[f64],
+    values: &[c64],
+    axis: &AbscissaHeader,
+    binary: bool,
+) {
+    if binary {
+        for (k, v) in values.iter().enumerate() {
+            if !axis.even {
+                out.extend_from_slice(&hz[k].to_le_bytes());
             }
-            let _ = writeln!(h, "{}", line80(&format!("FRF {} / {}", c.id, e.id)));
-            let _ = writeln!(h, "{}", line80(&opts.run_id));
-            h.push_str("NONE\n");
-            let setup = geometry.setups.iter().find(|s| s.id == e.setup);
-            let tags = opts.tags
-                && tag_value_ok(&e.setup)
-                && [&c.id, &c.point, &e.id, &e.point]
-                    .iter()
-                    .all(|v| tag_value_ok(v));
-            let id4 = if tags {
-                let desc = setup.map(|s| s.description.as_str()).unwrap_or("");
-                format!("setup={} {}", e.setup, desc)
-            } else if e.setup != DEFAULT_SETUP {
-                format!("setup={}", e.setup)
-            } else {
-                String::new()
-            };
-            let id5 = format!(
-                "rbprops ch={} cp={} ex={} ep={}",
-                c.id, c.point, e.id, e.point
-            );
-            let id5 = if tags && id5.len() <= 80 {
-                id5
-            } else {
-                String::new()
-            };
-            let _ = writeln!(h, "{}", line80(id4.trim_end()));
-            let _ = writeln!(h, "{}", line80(&id5));
-            let _ = writeln!(
-                h,
-                "{:>5}{:>10}{:>5}{:>10} {:<10}{:>10}{:>4} {:<10}{:>10}{:>4}",
-                4,
-                function_id,
-                1,
-                0,
-                "NONE",
-                cn.label,
-                cn.code(&c.direction),
-                "NONE",
-                en.label,
-                en.code(&e.direction)
-            );
-            let _ = writeln!(
-                h,
-                "{:>10}{:>10}{:>10}{}{}{}",
-                6,
-                n,
-                i32::from(even),
-                if even {
-                    min_field.clone()
-                } else {
-                    fmt_e(0.0, 13, 6)
-                },
-                if even {
-                    inc_field.clone()
-                } else {
-                    fmt_e(0.0, 13, 6)
-                },
-                fmt_e(0.0, 13, 6)
-            );
-            let axis = |h: &mut String, t: i64, l: i64, f: i64, label: &str, units: &str| {
-                let _ = writeln!(
-                    h,
-                    "{:>10}{:>5}{:>5}{:>5} {:<20} {:<20}",
-                    t, l, f, 0, label, units
-                );
-            };
-            axis(&mut h, 18, 0, 0, "Frequency", "Hz");
-            axis(&mut h, num_type, 1, 0, num_label, num_units);
-            axis(&mut h, 13, 0, 1, "Force", "N");
-            axis(&mut h, 0, 0, 0, "NONE", "NONE");
-            out.extend_from_slice(h.as_bytes());
-            let values = frf.frf(ei, ci);
-            if opts.binary {
-                for (k, v) in values.iter().enumerate() {
-                    if !even {
-                        out.extend_from_slice(&hz[k].to_le_bytes());
-                    }
-                    out.extend_from_slice(&v.re.to_le_bytes());
-                    out.extend_from_slice(&v.im.to_le_bytes());
-                }
-            } else {
-                let mut d = String::new();
-                if even {
-                    // 4E20.12: two complex values per line.
-                    for pair in values.chunks(2) {
-                        for v in pair {
-                            d.push_str(&fmt_e(v.re, 20, 13));
-                            d.push_str(&fmt_e(v.im, 20, 13));
-                        }
-                        d.push('\n');
-                    }
-                } else {
-                    // E13.5,2E20.12: one point per line.
-                    for (k, v) in values.iter().enumerate() {
-                        d.push_str(&fmt_exactish(hz[k], 13));
-                        d.push_str(&fmt_e(v.re, 20, 13));
-                        d.push_str(&fmt_e(v.im, 20, 13));
-                        d.push('\n');
-                    }
-                }
-                out.extend_from_slice(d.as_bytes());
+            out.extend_from_slice(&v.re.to_le_bytes());
+            out.extend_from_slice(&v.im.to_le_bytes());
+        }
+        return;
+    }
+    let mut d = String::new();
+    if axis.even {
+        for pair in values.chunks(2) {
+            for v in pair {
+                d.push_str(&fmt_e(v.re, 20, 13));
+                d.push_str(&fmt_e(v.im, 20, 13));
             }
-            delimiter(&mut out);
+            d.push('\n');
+        }
+    } else {
+        for (k, v) in values.iter().enumerate() {
+            d.push_str(&fmt_exactish(hz[k], 13));
+            d.push_str(&fmt_e(v.re, 20, 13));
+            d.push_str(&fmt_e(v.im, 20, 13));
+            d.push('\n');
         }
     }
-    Ok(out)
+    out.extend_from_slice(d.as_bytes());
 }
