@@ -235,7 +235,9 @@ fn refine_poles(
     warnings: &mut Vec<String>,
 ) {
     let roots = root_indices(pp.poles.len(), groups);
-    let rf = plsfd_refine::refine(&pp.poles, &pp.parts, &roots, bands, res);
+    let rf = crate::prof::time(2, || {
+        plsfd_refine::refine(&pp.poles, &pp.parts, &roots, bands, res)
+    });
     let moved = pp
         .poles
         .iter()
@@ -289,14 +291,16 @@ pub(crate) fn fit_setup(
             reason: "every channel is identically zero in the band".into(),
         });
     }
-    let mut pp = estimate(&bands, opts, &name)?;
+    let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;
     warnings.extend(pp.warnings.iter().cloned());
     let res = Residuals::for_band(opts.residual_terms, &bands[0]);
     let band_refs: Vec<&BandData> = bands.iter().collect();
     // Repeated roots: one pole per group from here on.
     let groups = repeated_groups(&pp.poles);
     refine_poles(&mut pp, &groups, &band_refs, res, &name, &mut warnings);
-    let mut sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+    let mut sf = crate::prof::time(6, || {
+        plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+    });
     // Repeated roots: the split of the group's residue matrix into modes is arbitrary;
     // choose the reciprocal one (see `reciprocity`) and refit the shapes with it.
     if !groups.is_empty() {
@@ -326,7 +330,9 @@ pub(crate) fn fit_setup(
                 )),
             }
         }
-        sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+        sf = crate::prof::time(6, || {
+            plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+        });
     }
     if sf.basis_conditioning < 1e-8 {
         warnings.push(format!(
