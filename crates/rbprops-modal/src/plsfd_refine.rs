@@ -297,88 +297,118 @@ fn apply(p: &Problem, s: &State, step: &Mat<f64>) -> State {
     out
 }
 
-/// `1/(iω_k − λ)` and `1/(iω_k − λ*)` of every mode and line.
-fn reciprocals(p: &Problem, poles: &[Pole]) -> Vec<Vec<(c64, c64)>> {
-    poles
-        .iter()
-        .map(|pole| {
-            p.bands[0]
-                .omega
-                .iter()
-                .map(|&w| {
+/// Per excitation `e`, the output-independent vectors of every mode `r`, real-stacked
+/// (`2N` rows, columns `4r..4r + 4`): `d1 = qw(u² + v²)`, `d2 = qw·i(u² − v²)`,
+/// `b1 = qw(u + v)`, `b2 = qw·i(u − v)` (`qw = q(ω)·w_e`). Every column of `D_o` on
+/// excitation `e`'s rows is a combination of them (see [`coefficients`]).
+fn line_vectors(p: &Problem, poles: &[Pole]) -> Vec<Mat<f64>> {
+    let n = p.bands[0].n_lines();
+    let omega = &p.bands[0].omega;
+    p.qw.iter()
+        .map(|qw| {
+            let mut m = Mat::<f64>::zeros(2 * n, 4 * poles.len());
+            for (r, pole) in poles.iter().enumerate() {
+                for (k, (&w, &q)) in omega.iter().zip(qw).enumerate() {
                     let s = c64::new(0.0, w);
-                    (1.0 / (s - pole.0), 1.0 / (s - pole.0.conj()))
-                })
-                .collect()
+                    let (u, v) = (1.0 / (s - pole.0), 1.0 / (s - pole.0.conj()));
+                    let (u2, v2) = (u * u, v * v);
+                    let i1 = c64::new(0.0, 1.0);
+                    let cols = [
+                        q * (u2 + v2),
+                        q * i1 * (u2 - v2),
+                        q * (u + v),
+                        q * i1 * (u - v),
+                    ];
+                    for (j, z) in cols.iter().enumerate() {
+                        m[(k, 4 * r + j)] = z.re;
+                        m[(n + k, 4 * r + j)] = z.im;
+                    }
+                }
+            }
+            m
         })
         .collect()
 }
 
-/// `D_o = (∂Φ/∂θ) c_o` of output `o`, real-stacked as the rows of the basis.
-fn derivatives(
-    p: &Problem,
-    s: &State,
-    psi: &[Vec<c64>],
-    uv: &[Vec<(c64, c64)>],
-    o: usize,
-) -> Mat<f64> {
-    let n = p.bands[0].n_lines();
-    let ni = p.bands.len();
-    let i1 = c64::new(0.0, 1.0);
-    let mut d = Mat::<f64>::zeros(2 * n * ni, p.n_params);
-    let put = |d: &mut Mat<f64>, row: usize, col: usize, z: c64, add: bool| {
-        if add {
-            d[(row, col)] += z.re;
-            d[(row + n, col)] += z.im;
-        } else {
-            d[(row, col)] = z.re;
-            d[(row + n, col)] = z.im;
-        }
-    };
+/// `C_oe` (`4·modes × θ`): `D_o` on excitation `e`'s rows is `E_e C_oe` ([`line_vectors`]).
+/// With `R = ψ_ro l_re = a + ib`: `∂/∂Re λ = a d1 + b d2`, `∂/∂Im λ = −b d1 + a d2`;
+/// with `ψ_ro = c + id`: `∂/∂Re l_re = c b1 + d b2`, `∂/∂Im l_re = −d b1 + c b2`.
+fn coefficients(p: &Problem, s: &State, psi: &[Vec<c64>], o: usize, e: usize) -> Mat<f64> {
+    let mut c = Mat::<f64>::zeros(4 * s.parts.len(), p.n_params);
     for (r, l) in s.parts.iter().enumerate() {
         let g = p.roots[r];
         let ps = psi[r][o];
-        for e in 0..ni {
-            let base = 2 * n * e;
-            let rr = ps * l[e];
-            let pc = (e != p.fixed[r]).then(|| part_column(p, r, e));
-            for (k, &(u, v)) in uv[r].iter().enumerate() {
-                let qk = p.qw[e][k];
-                let (ru2, rv2) = (rr * u * u, rr.conj() * v * v);
-                put(&mut d, base + k, 2 * g, qk * (ru2 + rv2), true);
-                put(&mut d, base + k, 2 * g + 1, qk * i1 * (ru2 - rv2), true);
-                if let Some(c) = pc {
-                    let (pu, pv) = (ps * u, ps.conj() * v);
-                    put(&mut d, base + k, c, qk * (pu + pv), false);
-                    put(&mut d, base + k, c + 1, qk * i1 * (pu - pv), false);
-                }
-            }
+        let rr = ps * l[e];
+        c[(4 * r, 2 * g)] = rr.re;
+        c[(4 * r + 1, 2 * g)] = rr.im;
+        c[(4 * r, 2 * g + 1)] = -rr.im;
+        c[(4 * r + 1, 2 * g + 1)] = rr.re;
+        if e != p.fixed[r] {
+            let j = part_column(p, r, e);
+            c[(4 * r + 2, j)] = ps.re;
+            c[(4 * r + 3, j)] = ps.im;
+            c[(4 * r + 2, j + 1)] = -ps.im;
+            c[(4 * r + 3, j + 1)] = ps.re;
         }
     }
-    d
+    c
 }
 
-/// `JᵀJ` and `−Jᵀr = Σ_o D_oᵀ r_o` at `s` (the trial `t`).
+/// `JᵀJ` and `−Jᵀr = Σ_o D_oᵀ r_o` at `s` (the trial `t`), from the small products of
+/// the line vectors `E_e` with themselves, with the basis and with the residuals:
+/// `D_oᵀD_o = Σ_e C_oeᵀ(E_eᵀE_e)C_oe`, `Φ̃ᵀD_o = Σ_e (Φ̃_eᵀE_e)C_oe`,
+/// `D_oᵀr_o = Σ_e C_oeᵀ(E_eᵀr_oe)`: O(N·Ni·modes²) per iteration, not O(N·Ni·No·θ²).
 fn normal_equations(p: &Problem, s: &State, t: &Trial) -> (Mat<f64>, Vec<f64>) {
     let np = p.n_params;
-    let uv = reciprocals(p, &s.poles(&p.roots));
+    let n = p.bands[0].n_lines();
+    let ni = p.bands.len();
+    let no = p.b.ncols();
+    let ev = line_vectors(p, &s.poles(&p.roots));
     let ginv = t.ls.inverse_gram();
+    let phi = t.ls.matrix().as_ref();
+    let k = ev[0].ncols();
+    let mut gee = Vec::with_capacity(ni);
+    let mut pe = Vec::with_capacity(ni);
+    let mut fe = Vec::with_capacity(ni);
+    for (e, em) in ev.iter().enumerate() {
+        gee.push(linalg::gram(em));
+        let rows = 2 * n * e..2 * n * (e + 1);
+        let mut pm = Mat::<f64>::zeros(phi.ncols(), k);
+        linalg::t_mul_add(&mut pm, phi.subrows(rows.start, 2 * n), em.as_ref(), 1.0);
+        pe.push(pm);
+        let mut f = Mat::<f64>::zeros(k, no);
+        linalg::t_mul_add(
+            &mut f,
+            em.as_ref(),
+            t.resid.as_ref().subrows(rows.start, 2 * n),
+            1.0,
+        );
+        fe.push(f);
+    }
     let mut jtj = Mat::<f64>::zeros(np, np);
     let mut g = vec![0.0; np];
-    for o in 0..p.b.ncols() {
-        let d = derivatives(p, s, &t.psi, &uv, o);
-        let dd = linalg::gram(&d);
-        let m = linalg::t_mul(t.ls.matrix(), &d);
+    for o in 0..no {
+        let mut m = Mat::<f64>::zeros(phi.ncols(), np);
+        for e in 0..ni {
+            let c = coefficients(p, s, &t.psi, o, e);
+            let gc = &gee[e] * &c;
+            let cgc = linalg::t_mul(&c, &gc);
+            for i in 0..np {
+                for j in 0..np {
+                    jtj[(i, j)] += cgc[(i, j)];
+                }
+                for q in 0..k {
+                    g[i] += c[(q, i)] * fe[e][(q, o)];
+                }
+            }
+            m += &pe[e] * &c;
+        }
         let z = linalg::t_mul(&ginv, &m);
         let mz = linalg::t_mul(&m, &z);
         for i in 0..np {
             for j in 0..np {
-                jtj[(i, j)] += dd[(i, j)] - mz[(i, j)];
+                jtj[(i, j)] -= mz[(i, j)];
             }
-        }
-        let r = t.resid.col(o).try_as_col_major().unwrap().as_slice();
-        for (j, gj) in g.iter_mut().enumerate() {
-            *gj += linalg::dot(d.col(j).try_as_col_major().unwrap().as_slice(), r);
         }
     }
     (jtj, g)
