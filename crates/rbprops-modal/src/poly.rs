@@ -1,8 +1,10 @@
 //! Poly-reference identification of one suspension set-up: pLSCF stabilisation sweep
 //! over every excitation at once ([`crate::plscf`]), automatic pole selection
-//! ([`crate::stabilisation`], participation vectors as the shapes), poly-reference LSFD
-//! ([`crate::plsfd`]), then the same per-excitation records as the single-reference
-//! path, with shared poles and residues `ψ_r l_re`.
+//! ([`crate::stabilisation`], participation vectors as the shapes), joint refinement of
+//! the poles and participation vectors on every line ([`crate::plsfd_refine`]: the
+//! sweep's z-domain poles carry a bias of up to ~1e-3 that the s-domain model removes),
+//! poly-reference LSFD ([`crate::plsfd`]), then the same per-excitation records as the
+//! single-reference path, with shared poles and residues `ψ_r l_re`.
 
 use crate::band::BandData;
 use crate::fit::{assemble, ExcitationFit, ModeParts};
