@@ -181,12 +181,13 @@ fn six_modes(
             t.frequencies_hz
         );
         // The six rigid-body modes, matched in order to the generator's undamped
-        // frequencies. 1e-3 relative: the poly-reference poles come from the sweep
-        // alone (no pole refinement yet) and carry a bias of up to 6.5e-4 here (the
-        // 4.00 Hz mode, measured over these seeds); the noise part is ~1e-5 (1 % noise,
-        // ζ = 2 %, 27 FRFs over ~16 lines per half-bandwidth). Before the low-band
-        // sweep, four modes came out (the pendulum pair merged, the yaw mode missed)
-        // and no estimator could run.
+        // frequencies. 3e-4 relative: with the poly-reference refinement the largest
+        // error measured over these seeds is 8.3e-5 (the 0.3 %-apart pair, 0.15
+        // half-bandwidths: its split carries the most noise), 1.5e-5 to 4.7e-5 on the
+        // other cases; the noise part is ~1e-5 per mode (1 % noise, ζ = 2 %, 27 FRFs
+        // over ~16 lines per half-bandwidth). The sweep's poles alone were biased by up
+        // to 6.5e-4 (the 4.00 Hz mode). Before the low-band sweep, four modes came out
+        // (the pendulum pair merged, the yaw mode missed) and no estimator could run.
         assert_eq!(
             f.len(),
             6,
@@ -195,7 +196,7 @@ fn six_modes(
         );
         for (a, b) in f.iter().zip(&t.frequencies_hz) {
             assert!(
-                (a / b - 1.0).abs() < 1e-3,
+                (a / b - 1.0).abs() < 3e-4,
                 "{case} seed {s}: {f:?} vs {:?}",
                 t.frequencies_hz
             );
@@ -252,14 +253,15 @@ fn near_repeated_pair_on_cords_gives_six_modes() {
 }
 
 /// The acceptance: m within 0.5 % and J within 2 % (‖ΔJ‖/‖J‖) for both
-/// estimators. NOT MET yet (measured over seeds 1–3, 1 % noise): repeated pair m +0.25
-/// to +1.0 %, J 0.4–1.25 %; 0.3 %-apart pair Bretl–Conti m +1.0 to +1.7 %,
-/// Toivola–Nuutila −0.8 to +0.4 %, J 1.0–2.1 %, and the rigid-body consistency check
-/// flags the participations (χ²/dof 8 to 1.5e4). The likely cause is the unrefined
-/// poly-reference poles and shapes (the single-reference path refines both). Ignored
-/// until then; run with `--run-ignored only`.
+/// estimators. Measured over seeds 1–3 (1 % noise) with the poly-reference pole and
+/// participation refinement: repeated pair m −0.038 to +0.020 %, J 0.03–0.08 %;
+/// 0.3 %-apart pair m −0.025 to +0.048 %, J 0.10 %. From the sweep's poles and
+/// participations alone (no refinement) they were: repeated pair m +0.25 to +1.0 %,
+/// J 0.4–1.25 %; 0.3 %-apart pair Bretl–Conti m +1.0 to +1.7 %, Toivola–Nuutila −0.8 to
+/// +0.4 %, J 1.0–2.1 %, with the rigid-body consistency check flagging the
+/// participations. The margins (10× on m, 20× on J) are the issue's, not tightened:
+/// the acceptance is a statement about the method on realistic recordings.
 #[test]
-#[ignore = "known gap: poly-reference poles and shapes are not refined; m off by up to 1.7 %"]
 fn near_and_exactly_repeated_pairs_meet_the_acceptance() {
     for case in ["repeated-cords", "near-repeated-cords"] {
         for (est, _) in six_modes(case, 1..=3, &plscf()) {

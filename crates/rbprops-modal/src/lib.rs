@@ -33,6 +33,7 @@ pub mod lsfd;
 pub mod options;
 pub mod plscf;
 pub mod plsfd;
+pub mod plsfd_refine;
 pub mod pole;
 mod poly;
 pub mod prof;

@@ -1,8 +1,10 @@
 //! Poly-reference identification of one suspension set-up: pLSCF stabilisation sweep
 //! over every excitation at once ([`crate::plscf`]), automatic pole selection
-//! ([`crate::stabilisation`], participation vectors as the shapes), poly-reference LSFD
-//! ([`crate::plsfd`]), then the same per-excitation records as the single-reference
-//! path, with shared poles and residues `ψ_r l_re`.
+//! ([`crate::stabilisation`], participation vectors as the shapes), joint refinement of
+//! the poles and participation vectors on every line ([`crate::plsfd_refine`]: the
+//! sweep's z-domain poles carry a bias of up to ~1e-3 that the s-domain model removes),
+//! poly-reference LSFD ([`crate::plsfd`]), then the same per-excitation records as the
+//! single-reference path, with shared poles and residues `ψ_r l_re`.
 
 use crate::band::BandData;
 use crate::fit::{assemble, ExcitationFit, ModeParts};
@@ -10,6 +12,7 @@ use crate::lsfd::Residuals;
 use crate::options::FitOptions;
 use crate::plscf::{self, PolyData};
 use crate::plsfd;
+use crate::plsfd_refine;
 use crate::pole::Pole;
 use crate::reciprocity;
 use crate::stabilisation::{self, Selection};
@@ -204,6 +207,59 @@ fn repeated_groups(poles: &[Pole]) -> Vec<Vec<usize>> {
     groups
 }
 
+/// Root index of each of `n` modes: the modes of one of `groups` share one.
+fn root_indices(n: usize, groups: &[Vec<usize>]) -> Vec<usize> {
+    let mut roots = vec![usize::MAX; n];
+    let mut next = 0;
+    for i in 0..n {
+        if roots[i] != usize::MAX {
+            continue;
+        }
+        match groups.iter().find(|g| g.contains(&i)) {
+            Some(g) => g.iter().for_each(|&j| roots[j] = next),
+            None => roots[i] = next,
+        }
+        next += 1;
+    }
+    roots
+}
+
+/// Joint refinement of the sweep's poles and participation vectors on every line of
+/// the set-up ([`plsfd_refine::refine`]); the sweep's values are kept when it fails to
+/// lower the cost or moves a pole by more than a half-bandwidth (a mode lost to a
+/// neighbour), with a warning.
+fn refine_poles(
+    pp: &mut PolyPoles,
+    groups: &[Vec<usize>],
+    bands: &[&BandData],
+    res: Residuals,
+    name: &str,
+    warnings: &mut Vec<String>,
+) {
+    let roots = root_indices(pp.poles.len(), groups);
+    let rf = crate::prof::time(2, || {
+        plsfd_refine::refine(&pp.poles, &pp.parts, &roots, bands, res)
+    });
+    let moved = pp
+        .poles
+        .iter()
+        .zip(&rf.poles)
+        .any(|(a, b)| a.distance_in_bandwidths(b) > MAX_REFINEMENT_BANDWIDTHS);
+    if !(rf.cost.1 <= rf.cost.0) || moved {
+        warnings.push(format!(
+            "{name}: the poly-reference pole refinement was not used (cost {:.3e} → {:.3e}, a pole moved more than {MAX_REFINEMENT_BANDWIDTHS} half-bandwidths: {moved}); poles from the sweep",
+            rf.cost.0, rf.cost.1
+        ));
+        return;
+    }
+    pp.poles = rf.poles;
+    pp.parts = rf.parts;
+}
+
+/// A refined pole further than this many half-bandwidths from the sweep's has been
+/// captured by another mode or by noise: the refinement is then not used.
+const MAX_REFINEMENT_BANDWIDTHS: f64 = 1.0;
+
 /// Fits the excitations `members` of one set-up together; one [`ExcitationFit`] per
 /// member, in the order given.
 pub(crate) fn fit_setup(
@@ -237,14 +293,18 @@ pub(crate) fn fit_setup(
             reason: "every channel is identically zero in the band".into(),
         });
     }
-    let mut pp = estimate(&bands, opts, &name)?;
+    let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;
     warnings.extend(pp.warnings.iter().cloned());
     let res = Residuals::for_band(opts.residual_terms, &bands[0]);
     let band_refs: Vec<&BandData> = bands.iter().collect();
-    let mut sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+    // Repeated roots: one pole per group from here on.
+    let groups = repeated_groups(&pp.poles);
+    refine_poles(&mut pp, &groups, &band_refs, res, &name, &mut warnings);
+    let mut sf = crate::prof::time(6, || {
+        plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+    });
     // Repeated roots: the split of the group's residue matrix into modes is arbitrary;
     // choose the reciprocal one (see `reciprocity`) and refit the shapes with it.
-    let groups = repeated_groups(&pp.poles);
     if !groups.is_empty() {
         for g in &groups {
             let psi: Vec<Vec<c64>> = g.iter().map(|&r| sf.shapes[r].clone()).collect();
@@ -272,7 +332,9 @@ pub(crate) fn fit_setup(
                 )),
             }
         }
-        sf = plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res);
+        sf = crate::prof::time(6, || {
+            plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+        });
     }
     if sf.basis_conditioning < 1e-8 {
         warnings.push(format!(
