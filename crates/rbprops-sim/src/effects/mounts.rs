@@ -318,3 +318,60 @@ impl Effect for StingerStiffness {
         Ok(())
     }
 }
+
+/// `stinger_stiffness` absent: the lateral spring and the bending stiffness per
+/// excitation at 0. A steel stinger of 3 mm × 200 mm has 4EI/L ≈ 17 N m/rad, a tenth of
+/// a soft suspension's rotational stiffness, and the lateral spring alone cannot stand
+/// in for it, so the screened form has both.
+const STINGER_NEUTRAL: super::NeutralForm = super::NeutralForm::Table(|_, g| {
+    super::table([
+        (
+            "lateral_n_per_m",
+            super::per_id(super::excitation_ids(g), 0.0.into()),
+        ),
+        (
+            "rotational_n_m_per_rad",
+            super::per_id(super::excitation_ids(g), 0.0.into()),
+        ),
+    ])
+});
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "suspension_coupling",
+        rank: 16,
+        title: "suspension rotational / lateral coupling stiffness",
+        reveal: "a second suspension length, or the mount's measured stiffness",
+        docs: "E4: rotational and lateral stiffness at each mount, `rotational_n_m_per_rad`, `lateral_n_per_m`",
+        parse: super::parse_as::<SuspensionCoupling>,
+        neutral: super::NeutralForm::Table(|_, _| super::table([
+            ("rotational_n_m_per_rad", super::zero3_value()),
+            ("lateral_n_per_m", 0.0.into()),
+        ])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/suspension_coupling.toml"),
+    },
+    super::EffectDescriptor {
+        id: "suspension_drift",
+        rank: 19,
+        title: "suspension drift between runs (creep, temperature)",
+        reveal: "repeated runs of one excitation, or the suspension modes measured before and after each run",
+        docs: "E15: a stiffness factor per excitation run, `stiffness_factors`",
+        parse: super::parse_as::<SuspensionDrift>,
+        neutral: super::NeutralForm::Table(|_, g| super::table([("stiffness_factors", super::per_id(super::excitation_ids(g), 1.0.into()))])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
+    },
+    super::EffectDescriptor {
+        id: "stinger_stiffness",
+        rank: 21,
+        title: "lateral stiffness of a shaker stinger (present only while that shaker drives)",
+        reveal: "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
+        docs: "E12: a stinger's lateral and bending stiffness at the force point during its run, `lateral_n_per_m`, `rotational_n_m_per_rad`",
+        parse: super::parse_as::<StingerStiffness>,
+        neutral: STINGER_NEUTRAL,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/stinger_stiffness.toml"),
+    },
+];
