@@ -65,3 +65,28 @@ fn an_effect_of_the_spec_is_not_a_candidate() {
         assert!(cands.iter().all(|c| c.id != d.id), "{}", d.id);
     }
 }
+
+/// The newest catalogue effect is screened with nothing added in rbprops-check: a
+/// score test from its registry neutral table, one axial stiffness per excitation at 0.
+#[test]
+fn stinger_axial_stiffness_is_screened_from_its_descriptor() {
+    let spec = tc2();
+    let g = spec.geometry().unwrap();
+    let (cands, _) = candidates(&spec, &g);
+    let c = cands
+        .iter()
+        .find(|c| c.id == "stinger_axial_stiffness")
+        .expect("a candidate");
+    let names: Vec<String> = c.effect.parameters().into_iter().map(|p| p.name).collect();
+    assert_eq!(
+        names,
+        [
+            "axial_n_per_m.force1",
+            "axial_n_per_m.force2",
+            "axial_n_per_m.force3"
+        ]
+    );
+    assert_eq!(c.neutral, [0.0; 3]);
+    assert_eq!(c.screening, Screening::Score);
+    assert_eq!(c.source, "rbprops-sim");
+}
