@@ -51,7 +51,7 @@
 
 use rbprops_core::geometry::cross_matrix;
 use rbprops_core::{rigid_transform, Geometry, Mat3, Mat6, Vec3};
-use rbprops_sim::effects::{BuildContext, Effect, OutputBlock, ParamInfo};
+use rbprops_sim::effects::{BuildContext, Effect, NeutralForm, OutputBlock, ParamInfo};
 use rbprops_sim::model::DynamicModel;
 use rbprops_sim::CampaignSpec;
 
@@ -136,40 +136,19 @@ impl Kind {
         }
     }
     fn title(self) -> &'static str {
-        match self {
-            Kind::ChannelGain => "per-channel calibration error",
-            Kind::ExcitationGain => "force-gauge sensitivity error per excitation",
-            Kind::GlobalGain => "global calibration error",
-            Kind::SensorMisorientation => "sensor misorientation",
-            Kind::SensorMass => "sensor mass",
-            Kind::GravityStiffness => "gravity (pendulum) stiffness of the suspension",
-            Kind::MountDashpots => "non-proportional damping at the suspension",
-            Kind::ForceDirection => "force direction error",
-            Kind::ResidualFlexibility => "elastic modes above the band (residual flexibility)",
-        }
+        describe(self.id()).0
     }
     fn reveal(self) -> &'static str {
-        match self {
-            Kind::GlobalGain => {
-                "a weighed mass (--weighed-mass) or a calibration against a known mass"
-            }
-            Kind::SensorMass => {
-                "known sensor masses (--sensor-mass) or a run with the sensors moved"
-            }
-            Kind::GravityStiffness => "a second suspension length, or the measured cord geometry",
-            Kind::MountDashpots => {
-                "a second record length or window (separates processing damping)"
-            }
-            Kind::ChannelGain => "a back-to-back calibration of the channels",
-            Kind::ExcitationGain => "a hammer calibration against a known mass",
-            Kind::SensorMisorientation => "a rotation check of each triaxial sensor",
-            Kind::ForceDirection => "more excitations than six, or a force direction check",
-            Kind::ResidualFlexibility => {
-                "data closer to the first elastic mode, or its measured frequency"
-            }
-        }
+        describe(self.id()).1
     }
 }
+
+/// Title and "what would reveal it" of the one local candidate the catalogue does not
+/// have (the catalogue's own come from its registry).
+const RESIDUAL_FLEXIBILITY_TEXT: (&str, &str) = (
+    "elastic modes above the band (residual flexibility)",
+    "data closer to the first elastic mode, or its measured frequency",
+);
 
 /// A locally implemented catalogue effect (see the module docs for the equations).
 #[derive(Debug, Clone)]
@@ -620,217 +599,37 @@ impl Effect for LocalEffect {
     }
 }
 
-/// Human title and "what would reveal or separate it" for a catalogue id.
+/// Human title and "what would reveal or separate it" for a catalogue id (from
+/// rbprops-sim's registry) or the local residual flexibility.
 pub fn describe(id: &str) -> (&'static str, &'static str) {
-    if let Some(k) = ALL.iter().find(|k| k.id() == id) {
-        return (k.title(), k.reveal());
+    if let Some(d) = rbprops_sim::effects::descriptor(id) {
+        return (d.title, d.reveal);
     }
-    match id {
-        "sensor_position" => (
-            "sensor position error",
-            "a measured sensor layout (or a second sensor layout)",
-        ),
-        "force_location" => (
-            "force location error",
-            "marked impact points, or more excitations than six",
-        ),
-        "force_gauge_mass" => (
-            "mass below the force gauge",
-            "a known mass calibration of the hammer or shaker",
-        ),
-        "exponential_window" => (
-            "exponential window (processing damping)",
-            "the window used, or a second record length / window",
-        ),
-        "record_truncation" => (
-            "record truncation (leakage)",
-            "the record length, or a longer record",
-        ),
-        "transducer_highpass" => (
-            "transducer / acquisition high-pass",
-            "the channels' time constants, or data below the suspension modes",
-        ),
-        "sensor_tilt_gravity" => (
-            "gravity seen by tilting accelerometers",
-            "data well below the suspension modes, or a rotation sensor",
-        ),
-        "suspension_coupling" => (
-            "suspension rotational / lateral coupling stiffness",
-            "a second suspension length, or the mount's measured stiffness",
-        ),
-        "cord_mass" => (
-            "mass and string / surge modes of the suspension cords",
-            "the cords' mass and length, or a suspension with lighter or shorter cords",
-        ),
-        "added_mass" => (
-            "added mass without a rigid body's structure (air on large faces, fluid, a loose part)",
-            "a test in a lighter fluid or vacuum, or the article's face areas (potential-flow added mass ≈ (8/3)ρR³ per face)",
-        ),
-        "suspension_drift" => (
-            "suspension drift between runs (creep, temperature)",
-            "repeated runs of one excitation, or the suspension modes measured before and after each run",
-        ),
-        "hysteretic_damping" => (
-            "hysteretic (loss-factor) damping of the mounts (rubber, bungee)",
-            "data well below the suspension modes (a loss constant in frequency, where a dashpot's vanishes), or the mounts' measured loss factors",
-        ),
-        "stinger_stiffness" => (
-            "lateral stiffness of a shaker stinger (present only while that shaker drives)",
-            "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
-        ),
-        "channel_delay" => (
-            "acquisition delay per channel (ADC skew, filter group delay)",
-            "a loop-back calibration of each channel's delay against the force channel",
-        ),
-        "elastic_mode" => (
-            "elastic mode (a resonance the rigid-body model lacks, in or above the band)",
-            "more sensors or a roving hammer to map its shape, or a band that stops below it",
-        ),
-        _ => ("catalogue effect", "side information on this effect"),
+    if id == Kind::ResidualFlexibility.id() {
+        return RESIDUAL_FLEXIBILITY_TEXT;
     }
+    ("catalogue effect", "side information on this effect")
 }
 
-/// The parameter table of a neutral ("absent") instance of a catalogue effect, for the
-/// ids whose spec form is known; `None` for others (an empty table is then tried).
+/// The parameter table of a neutral ("absent") instance of a catalogue effect, from
+/// rbprops-sim's registry; `None` for an id screened through a local reparametrised
+/// form ([`NeutralForm::Reparametrised`]: `record_truncation` and `transducer_highpass`
+/// through reciprocals, `cord_mass` by a profile, `gravity_stiffness`, `added_mass`,
+/// `elastic_mode` as residual flexibility and an in-band resonance; module docs) or
+/// unknown.
 fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Table> {
-    let mut t = toml::Table::new();
-    let ones = |ids: Vec<String>, v: toml::Value| -> toml::Value {
-        toml::Value::Table(ids.into_iter().map(|k| (k, v.clone())).collect())
-    };
-    let sensors: Vec<String> = spec.sensors.iter().map(|s| s.id.clone()).collect();
-    let excitations: Vec<String> = g.excitations.iter().map(|e| e.id.clone()).collect();
-    let zero3 = || toml::Value::Array(vec![0.0.into(), 0.0.into(), 0.0.into()]);
-    match id {
-        "channel_gain" => {
-            t.insert(
-                "gains".into(),
-                ones(
-                    g.channels.iter().map(|c| c.id.clone()).collect(),
-                    1.0.into(),
-                ),
-            );
-        }
-        "excitation_gain" => {
-            t.insert(
-                "gains".into(),
-                ones(
-                    g.excitations.iter().map(|e| e.id.clone()).collect(),
-                    1.0.into(),
-                ),
-            );
-        }
-        "global_gain" => {
-            t.insert("gain".into(), 1.0.into());
-        }
-        "sensor_misorientation" => {
-            let zero = toml::Value::Array(vec![0.0.into(), 0.0.into(), 0.0.into()]);
-            t.insert("rotations_rad".into(), ones(sensors, zero));
-        }
-        "sensor_mass" => {
-            t.insert("masses_kg".into(), ones(sensors, 0.0.into()));
-        }
-        "sensor_position" => {
-            t.insert("offsets_m".into(), ones(sensors, zero3()));
-        }
-        "force_direction" => {
-            t.insert("rotations_rad".into(), ones(excitations, zero3()));
-        }
-        "force_location" => {
-            t.insert("offsets_m".into(), ones(excitations, zero3()));
-        }
-        "force_gauge_mass" => {
-            t.insert("masses_kg".into(), ones(excitations, 0.0.into()));
-        }
-        "exponential_window" => {
-            t.insert("decay_per_s".into(), 0.0.into());
-        }
-        "nonproportional_damping" => {
-            // General viscous damping: the nominal damping's modal diagonal (the six
-            // ratios the baseline fits) coupled by a correlation matrix R(N), 15 values
-            // (rbprops_sim::effects::damping::coupled_damping). With the ratios it spans
-            // every positive definite 6×6 C, identifiably, and is positive semi-definite
-            // by construction; dashpots at the mounts (3×3 each, 24 numbers for four
-            // mounts onto at most 21) are one such C but not identifiable.
-            t.insert(
-                "modal_coupling".into(),
-                toml::Value::Array(vec![
-                    0.0.into();
-                    rbprops_sim::effects::damping::MODAL_COUPLINGS
-                ]),
-            );
-        }
-        "hysteretic_damping" => {
-            t.insert("loss_factors".into(), per_spring_zeros(spec));
-        }
-        "suspension_coupling" => {
-            t.insert("rotational_n_m_per_rad".into(), zero3());
-            t.insert("lateral_n_per_m".into(), 0.0.into());
-        }
-        "sensor_tilt_gravity" => {
-            t.insert("g_m_per_s2".into(), 0.0.into());
-            if let Some(up) = spec.up {
-                t.insert("up".into(), rbprops_sim::spec::up_value(up));
-            }
-        }
-        "suspension_drift" => {
-            t.insert("stiffness_factors".into(), ones(excitations, 1.0.into()));
-        }
-        "stinger_stiffness" => {
-            // The lateral spring and the bending stiffness per excitation: a steel
-            // stinger of 3 mm × 200 mm has 4EI/L ≈ 17 N m/rad, a tenth of a soft
-            // suspension's rotational stiffness, and the lateral spring alone cannot
-            // stand in for it (scripts/model_check_probe.py, case stinger-bending).
-            t.insert(
-                "lateral_n_per_m".into(),
-                ones(excitations.clone(), 0.0.into()),
-            );
-            t.insert(
-                "rotational_n_m_per_rad".into(),
-                ones(excitations, 0.0.into()),
-            );
-        }
-        "channel_delay" => {
-            // A delay per channel and per force: only differences are seen, so the
-            // common delay is a gauge the score test finds and the fit holds.
-            t.insert(
-                "channels_s".into(),
-                ones(
-                    g.channels.iter().map(|c| c.id.clone()).collect(),
-                    0.0.into(),
-                ),
-            );
-            t.insert("excitations_s".into(), ones(excitations, 0.0.into()));
-        }
-        // Neutral only at infinity (1/T, 1/τ, or a mode shape product that is bilinear
-        // at zero): screened through the local forms below, or (elastic_mode) as
-        // residual flexibility.
-        "record_truncation" | "elastic_mode" | "cord_mass" => return None,
-        _ => return None,
+    match rbprops_sim::effects::descriptor(id)?.neutral {
+        NeutralForm::Table(build) => Some(build(spec, g)),
+        NeutralForm::Reparametrised => None,
     }
-    Some(t)
 }
 
-/// One zero per spring of the set-ups (one in all when set-ups differ in spring count:
-/// a coefficient per spring is then not one list for every set-up).
-fn per_spring_zeros(spec: &CampaignSpec) -> toml::Value {
-    let counts: Vec<usize> = spec.setups.iter().map(|s| s.springs.len()).collect();
-    let n = match counts.first() {
-        Some(&n) if n > 0 && counts.iter().all(|&c| c == n) => n,
-        _ => 1,
-    };
-    toml::Value::Array(vec![0.0.into(); n])
+/// Whether the model check screens a catalogue id through its own local form, because
+/// the catalogue's parametrisation has no neutral point (see module docs).
+fn reparametrised(id: &str) -> bool {
+    rbprops_sim::effects::descriptor(id)
+        .is_some_and(|d| matches!(d.neutral, NeutralForm::Reparametrised))
 }
-
-/// Ids for which a local form is used even though the catalogue has the effect,
-/// because the catalogue's parametrisation has no neutral point (see module docs).
-const REPARAMETRISED: &[&str] = &[
-    "added_mass",
-    "gravity_stiffness",
-    "transducer_highpass",
-    "record_truncation",
-    "cord_mass",
-    "elastic_mode",
-];
 
 /// A catalogue effect whose parameters (a time constant, a length) are neutral only at
 /// infinity, fitted through their reciprocals: φ = 1/τ, with φ = 0 meaning "absent" (no
@@ -1095,7 +894,7 @@ impl Effect for Reciprocal {
 }
 
 /// The candidate list for a spec: rbprops-sim's catalogue
-/// ([`rbprops_sim::effects::KNOWN_EFFECTS`]) at neutral parameter values, completed by
+/// ([`rbprops_sim::effects::registry`], in its order) at neutral parameter values, completed by
 /// the local effects the catalogue does not offer (yet). Effects already switched on in
 /// the nominal spec are not candidates. Also returns notes on catalogue effects that
 /// could not be screened.
@@ -1103,8 +902,9 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     let mut out: Vec<Candidate> = Vec::new();
     let mut notes = Vec::new();
     let in_spec: Vec<&str> = spec.effects.iter().map(|e| e.id.as_str()).collect();
-    for &id in rbprops_sim::effects::KNOWN_EFFECTS {
-        if in_spec.contains(&id) || REPARAMETRISED.contains(&id) {
+    for d in rbprops_sim::effects::registry() {
+        let id = d.id;
+        if in_spec.contains(&id) || reparametrised(id) {
             continue;
         }
         let Some(parameters) = neutral_entry(id, spec, geometry) else {
@@ -1167,7 +967,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             neutral: e.values(),
             scales: e.scale(spec),
             effect: Box::new(e),
-            source: if rbprops_sim::effects::KNOWN_EFFECTS.contains(&k.id()) {
+            source: if rbprops_sim::effects::descriptor(k.id()).is_some() {
                 "rbprops-sim (reparametrised for screening)"
             } else {
                 "rbprops-check (local)"
@@ -1182,9 +982,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             },
         });
     }
-    if rbprops_sim::effects::KNOWN_EFFECTS.contains(&"transducer_highpass")
-        && !in_spec.contains(&"transducer_highpass")
-    {
+    if reparametrised("transducer_highpass") && !in_spec.contains(&"transducer_highpass") {
         let (title, reveal) = describe("transducer_highpass");
         let groups = sensors(geometry);
         let infos: Vec<ParamInfo> = groups
@@ -1352,7 +1150,7 @@ pub fn catalogue_entry(
     e: &dyn Effect,
     spec: &CampaignSpec,
 ) -> Result<rbprops_sim::spec::EffectSpec, String> {
-    if !rbprops_sim::effects::KNOWN_EFFECTS.contains(&e.id()) {
+    if rbprops_sim::effects::descriptor(e.id()).is_none() {
         return Err(format!(
             "rbprops-sim's catalogue has no '{}' (fitted parameters are in the report)",
             e.id()

@@ -914,6 +914,25 @@ fn force_gauge_mass_is_found() {
     within(param(&r, "force_gauge_mass", "masses_kg.force3"), 0.0, 4.0);
 }
 
+/// A shaker's armature suspension (E12), 300 N/m along force 2's stinger during that run
+/// only, the force taken from the coil current (the suspension's springs along y are
+/// 4 × 220 N/m): that run's y-translation mode stiffens; the other runs are nominal.
+#[test]
+fn stinger_axial_stiffness_is_found() {
+    let (r, truth) = concealed(
+        "stinger_axial_stiffness",
+        &["id = \"stinger_axial_stiffness\"\naxial_n_per_m = { force2 = 300.0 }"],
+        0.01,
+        67,
+    );
+    assert_found(&r, &["stinger_axial_stiffness"], &truth.properties());
+    let id = "stinger_axial_stiffness";
+    within(param(&r, id, "axial_n_per_m.force2"), 300.0, 4.0);
+    within(param(&r, id, "axial_n_per_m.force1"), 0.0, 4.0);
+    within(param(&r, id, "axial_n_per_m.force3"), 0.0, 4.0);
+    mass_within(&r, truth.properties().mass, 4.0);
+}
+
 /// A shaker stinger (E12) drives force 2 and resists 60 N/m across its axis during that
 /// run only (the suspension's lateral springs are 150–220 N/m): the run's lateral poles
 /// move while the other two runs see the nominal suspension.

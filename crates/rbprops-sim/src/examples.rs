@@ -39,107 +39,17 @@ pub fn example_names() -> &'static [&'static str] {
     NAMES
 }
 
-const EFFECT_EXAMPLES: &[(&str, &str)] = &[
-    (
-        "nominal",
-        include_str!("../../../fixtures/specs/effects/nominal.toml"),
-    ),
-    (
-        "gravity_stiffness",
-        include_str!("../../../fixtures/specs/effects/gravity_stiffness.toml"),
-    ),
-    (
-        "sensor_mass",
-        include_str!("../../../fixtures/specs/effects/sensor_mass.toml"),
-    ),
-    (
-        "channel_gain",
-        include_str!("../../../fixtures/specs/effects/channel_gain.toml"),
-    ),
-    (
-        "excitation_gain",
-        include_str!("../../../fixtures/specs/effects/excitation_gain.toml"),
-    ),
-    (
-        "global_gain",
-        include_str!("../../../fixtures/specs/effects/global_gain.toml"),
-    ),
-    (
-        "sensor_misorientation",
-        include_str!("../../../fixtures/specs/effects/sensor_misorientation.toml"),
-    ),
-    (
-        "elastic_mode",
-        include_str!("../../../fixtures/specs/effects/elastic_mode.toml"),
-    ),
-    (
-        "nonproportional_damping",
-        include_str!("../../../fixtures/specs/effects/nonproportional_damping.toml"),
-    ),
-    (
-        "exponential_window",
-        include_str!("../../../fixtures/specs/effects/exponential_window.toml"),
-    ),
-    (
-        "record_truncation",
-        include_str!("../../../fixtures/specs/effects/record_truncation.toml"),
-    ),
-    (
-        "sensor_position",
-        include_str!("../../../fixtures/specs/effects/sensor_position.toml"),
-    ),
-    (
-        "force_direction",
-        include_str!("../../../fixtures/specs/effects/force_direction.toml"),
-    ),
-    (
-        "force_location",
-        include_str!("../../../fixtures/specs/effects/force_location.toml"),
-    ),
-    (
-        "force_gauge_mass",
-        include_str!("../../../fixtures/specs/effects/force_gauge_mass.toml"),
-    ),
-    (
-        "transducer_highpass",
-        include_str!("../../../fixtures/specs/effects/transducer_highpass.toml"),
-    ),
-    (
-        "sensor_tilt_gravity",
-        include_str!("../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
-    ),
-    (
-        "suspension_coupling",
-        include_str!("../../../fixtures/specs/effects/suspension_coupling.toml"),
-    ),
-    (
-        "cord_mass",
-        include_str!("../../../fixtures/specs/effects/cord_mass.toml"),
-    ),
-    (
-        "channel_delay",
-        include_str!("../../../fixtures/specs/effects/channel_delay.toml"),
-    ),
-    (
-        "suspension_drift",
-        include_str!("../../../fixtures/specs/effects/suspension_drift.toml"),
-    ),
-    (
-        "added_mass",
-        include_str!("../../../fixtures/specs/effects/added_mass.toml"),
-    ),
-    (
-        "stinger_stiffness",
-        include_str!("../../../fixtures/specs/effects/stinger_stiffness.toml"),
-    ),
-    (
-        "hysteretic_damping",
-        include_str!("../../../fixtures/specs/effects/hysteretic_damping.toml"),
-    ),
-];
-
 /// The effect fixtures (`fixtures/specs/effects/<id>.toml`): test-case-2 with one effect
-/// on and 1 % noise, plus `nominal` without any. Pairs of (effect id or `nominal`, TOML text).
+/// on and 1 % noise, plus `nominal` without any. Pairs of (effect id or `nominal`, TOML
+/// text): `nominal` first, then every effect of the catalogue in its order
+/// ([`crate::effects::registry`], [`crate::effects::EffectDescriptor::example`]).
 pub fn effect_examples() -> &'static [(&'static str, &'static str)] {
-    EFFECT_EXAMPLES
+    static EXAMPLES: std::sync::OnceLock<Vec<(&'static str, &'static str)>> =
+        std::sync::OnceLock::new();
+    EXAMPLES.get_or_init(|| {
+        let nominal = include_str!("../../../fixtures/specs/effects/nominal.toml");
+        std::iter::once(("nominal", nominal))
+            .chain(crate::effects::registry().iter().map(|d| (d.id, d.example)))
+            .collect()
+    })
 }

@@ -413,7 +413,10 @@ fn effects_rebuild_from_their_parameter_vectors() {
 
 #[test]
 fn effect_fixtures_are_test_case_2_plus_one_effect() {
-    let known = rbprops_sim::effects::KNOWN_EFFECTS;
+    let known: Vec<&str> = rbprops_sim::effects::registry()
+        .iter()
+        .map(|d| d.id)
+        .collect();
     let fixtures = rbprops_sim::effect_examples();
     assert_eq!(fixtures.len(), known.len() + 1);
     for (id, text) in fixtures {

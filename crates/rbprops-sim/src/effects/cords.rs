@@ -509,3 +509,26 @@ impl Effect for CordMass {
         Ok(())
     }
 }
+
+/// [`super::EffectDescriptor::parse`] of `cord_mass`: the table, checked.
+fn parse_cord_mass(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Effect>, String> {
+    let c: CordMass = super::params(spec)?;
+    c.check_self()
+        .map_err(|e| format!("effect 'cord_mass': {e}"))?;
+    Ok(Box::new(c))
+}
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "cord_mass",
+        rank: 17,
+        title: "mass and string / surge modes of the suspension cords",
+        reveal: "the cords' mass and length, or a suspension with lighter or shorter cords",
+        docs: "E3: the suspension cords' mass and their string and surge modes, `mass_per_length_kg_per_m`, `cord_length_m`",
+        parse: parse_cord_mass,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: true,
+        example: include_str!("../../../../fixtures/specs/effects/cord_mass.toml"),
+    },
+];

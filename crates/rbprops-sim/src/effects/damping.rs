@@ -531,3 +531,40 @@ mod tests {
         }
     }
 }
+
+/// One zero per spring of the set-ups (one in all when set-ups differ in spring count:
+/// a coefficient per spring is then not one list for every set-up).
+fn per_spring_zeros(spec: &CampaignSpec) -> toml::Value {
+    let counts: Vec<usize> = spec.setups.iter().map(|s| s.springs.len()).collect();
+    let n = match counts.first() {
+        Some(&n) if n > 0 && counts.iter().all(|&c| c == n) => n,
+        _ => 1,
+    };
+    toml::Value::Array(vec![0.0.into(); n])
+}
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "nonproportional_damping",
+        rank: 7,
+        title: "non-proportional damping at the suspension",
+        reveal: "a second record length or window (separates processing damping)",
+        docs: "E5: dashpots at the mounts and the general viscous damping `modal_coupling` (15 values)",
+        parse: super::parse_as::<NonproportionalDamping>,
+        neutral: super::NeutralForm::Table(|_, _| super::table([("modal_coupling", toml::Value::Array(vec![0.0.into(); MODAL_COUPLINGS]))])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/nonproportional_damping.toml"),
+    },
+    super::EffectDescriptor {
+        id: "hysteretic_damping",
+        rank: 22,
+        title: "hysteretic (loss-factor) damping of the mounts (rubber, bungee)",
+        reveal: "data well below the suspension modes (a loss constant in frequency, where a dashpot's vanishes), or the mounts' measured loss factors",
+        docs: "E5: a loss factor per spring, `loss_factors`",
+        parse: super::parse_as::<HystereticDamping>,
+        neutral: super::NeutralForm::Table(|spec, _| super::table([("loss_factors", per_spring_zeros(spec))])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/hysteretic_damping.toml"),
+    },
+];

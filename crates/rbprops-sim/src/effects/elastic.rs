@@ -162,3 +162,18 @@ impl Effect for ElasticMode {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "elastic_mode",
+        rank: 6,
+        title: "elastic mode (a resonance the rigid-body model lacks, in or above the band)",
+        reveal: "more sensors or a roving hammer to map its shape, or a band that stops below it",
+        docs: "E13: an elastic mode with its own frequency, damping and participations per channel and excitation",
+        parse: super::parse_as::<ElasticMode>,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/elastic_mode.toml"),
+    },
+];

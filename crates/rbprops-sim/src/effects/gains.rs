@@ -179,3 +179,45 @@ impl Effect for GlobalGain {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "channel_gain",
+        rank: 2,
+        title: "per-channel calibration error",
+        reveal: "a back-to-back calibration of the channels",
+        docs: "E10: a real gain per channel, `gains` per channel id",
+        parse: super::parse_as::<ChannelGain>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([("gains", super::per_id(super::channel_ids(g), 1.0.into()))])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/channel_gain.toml"),
+    },
+    super::EffectDescriptor {
+        id: "excitation_gain",
+        rank: 3,
+        title: "force-gauge sensitivity error per excitation",
+        reveal: "a hammer calibration against a known mass",
+        docs:
+            "E10: a real gain per excitation (force-gauge sensitivity), `gains` per excitation id",
+        parse: super::parse_as::<ExcitationGain>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([("gains", super::per_id(super::excitation_ids(g), 1.0.into()))])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/excitation_gain.toml"),
+    },
+    super::EffectDescriptor {
+        id: "global_gain",
+        rank: 4,
+        title: "global calibration error",
+        reveal: "a weighed mass (--weighed-mass) or a calibration against a known mass",
+        docs: "E10: one real gain on every FRF, `gain` (indistinguishable from the mass)",
+        parse: super::parse_as::<GlobalGain>,
+        neutral: super::NeutralForm::Table(|_, _| super::table([("gain", 1.0.into())])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/global_gain.toml"),
+    },
+];

@@ -550,3 +550,25 @@ impl Effect for GravityStiffness {
         Ok(())
     }
 }
+
+/// [`super::EffectDescriptor::parse`] of `gravity_stiffness`: the table, checked.
+fn parse_gravity_stiffness(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Effect>, String> {
+    let g: GravityStiffness = super::params(spec)?;
+    g.check_self()?;
+    Ok(Box::new(g))
+}
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "gravity_stiffness",
+        rank: 0,
+        title: "gravity (pendulum) stiffness of the suspension",
+        reveal: "a second suspension length, or the measured cord geometry",
+        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m`, or the set-up's cords hanging at their static equilibrium",
+        parse: parse_gravity_stiffness,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: true,
+        example: include_str!("../../../../fixtures/specs/effects/gravity_stiffness.toml"),
+    },
+];

@@ -259,3 +259,29 @@ impl Effect for AddedMass {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "sensor_mass",
+        rank: 1,
+        title: "sensor mass",
+        reveal: "known sensor masses (--sensor-mass) or a run with the sensors moved",
+        docs: "E7: a point mass at each listed sensor, `masses_kg` per sensor",
+        parse: super::parse_as::<SensorMass>,
+        neutral: super::NeutralForm::Table(|spec, _| super::table([("masses_kg", super::per_id(super::sensor_ids(spec), 0.0.into()))])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
+    },
+    super::EffectDescriptor {
+        id: "added_mass",
+        rank: 20,
+        title: "added mass without a rigid body's structure (air on large faces, fluid, a loose part)",
+        reveal: "a test in a lighter fluid or vacuum, or the article's face areas (potential-flow added mass ≈ (8/3)ρR³ per face)",
+        docs: "E15: a symmetric 6×6 mass about the origin without the rigid structure (air on large faces, fluid)",
+        parse: super::parse_as::<AddedMass>,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/added_mass.toml"),
+    },
+];

@@ -1,15 +1,12 @@
 //! The physics catalogue: effects that modify the nominal model (see
 //! docs/physics.md). Each effect is switched on in the spec as
-//! `[[effect]] id = "..."` with its parameters.
-//!
-//! Implemented: `gravity_stiffness`, `sensor_mass`, `added_mass` ([`mass`]), `channel_gain`, `excitation_gain`,
-//! `global_gain`, `sensor_misorientation` (structure and rows); `elastic_mode`
-//! ([`elastic`]); `nonproportional_damping`, `hysteretic_damping` ([`damping`]); `exponential_window`,
-//! `record_truncation` ([`processing`]); `sensor_position`, `force_direction`,
-//! `force_location`, `force_gauge_mass` ([`placement`]); `transducer_highpass`,
-//! `sensor_tilt_gravity`, `channel_delay` ([`sensors`]); `suspension_coupling`, `suspension_drift`, `stinger_stiffness` ([`mounts`]); `cord_mass`
-//! ([`cords`]). Each effect is a plain struct deserialised from
-//! its spec table (unknown parameters are refused) that implements [`Effect`].
+//! `[[effect]] id = "..."` with its parameters. Each module lists the effects it
+//! implements as `DESCRIPTORS` ([`EffectDescriptor`]: id, title, parse, neutral form,
+//! docs line, example), and [`registry`] chains them: the spec validation
+//! ([`parse_effect`]), the gravity direction ([`parse_effect_in`]), the effect examples
+//! and the model check's candidates all read it, so an effect is added in its module
+//! alone. Each effect is a plain struct deserialised from its spec table (unknown
+//! parameters are refused) that implements [`Effect`].
 
 pub mod cords;
 pub mod damping;
@@ -109,32 +106,102 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
 }
 
-/// Ids of the effects this version knows.
-pub const KNOWN_EFFECTS: &[&str] = &[
-    "gravity_stiffness",
-    "sensor_mass",
-    "channel_gain",
-    "excitation_gain",
-    "global_gain",
-    "sensor_misorientation",
-    "elastic_mode",
-    "nonproportional_damping",
-    "exponential_window",
-    "record_truncation",
-    "sensor_position",
-    "force_direction",
-    "force_location",
-    "force_gauge_mass",
-    "transducer_highpass",
-    "sensor_tilt_gravity",
-    "suspension_coupling",
-    "cord_mass",
-    "channel_delay",
-    "suspension_drift",
-    "added_mass",
-    "stinger_stiffness",
-    "hysteretic_damping",
-];
+/// What the model check starts an effect's screening from (docs/physics.md, M5).
+#[derive(Clone, Copy)]
+pub enum NeutralForm {
+    /// The spec parameter table of the effect switched on but absent (every gain 1,
+    /// every added stiffness 0), for a spec and its geometry: a score test starts there.
+    Table(fn(&CampaignSpec, &Geometry) -> toml::Table),
+    /// The catalogue's parametrisation has no neutral point (a length or time constant
+    /// absent only at infinity, a shape bilinear at zero): the model check screens the
+    /// effect through its own reparametrised local form.
+    Reparametrised,
+}
+
+/// One effect of the physics catalogue: everything the crates need to know about it,
+/// in one place (its module's `DESCRIPTORS`, chained by [`registry`]).
+pub struct EffectDescriptor {
+    /// Stable snake_case id, as written in the spec.
+    pub id: &'static str,
+    /// Place in the catalogue, in the order the effects were added: the registry, the
+    /// error listing of known ids and the model check's candidates follow it (the
+    /// check's determinism depends on that order). A new effect takes the next number.
+    pub rank: u16,
+    /// Human title (reports, listings).
+    pub title: &'static str,
+    /// What measurement or side information would reveal or separate it.
+    pub reveal: &'static str,
+    /// Its line in docs/physics.md ("Effect ids"): the catalogue entry (E*n*) and what
+    /// the spec parameters are.
+    pub docs: &'static str,
+    /// Builds the effect from its spec table; the error says what is wrong.
+    pub parse: fn(&EffectSpec) -> Result<Box<dyn Effect>, String>,
+    /// Its neutral ("absent") form for screening.
+    pub neutral: NeutralForm,
+    /// Its physics depends on the direction of gravity: an entry without its own `up`
+    /// takes the spec's ([`CampaignSpec::up`]).
+    pub follows_spec_up: bool,
+    /// Its example campaign (`fixtures/specs/effects/<id>.toml`: test-case-2 with this
+    /// effect alone and 1 % noise).
+    pub example: &'static str,
+}
+
+impl std::fmt::Debug for EffectDescriptor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("EffectDescriptor")
+            .field("id", &self.id)
+            .field("rank", &self.rank)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Every effect this version knows, in catalogue order ([`EffectDescriptor::rank`]):
+/// the modules' descriptor lists chained.
+pub fn registry() -> &'static [&'static EffectDescriptor] {
+    static REGISTRY: std::sync::OnceLock<Vec<&'static EffectDescriptor>> =
+        std::sync::OnceLock::new();
+    REGISTRY.get_or_init(|| {
+        let mut all: Vec<&'static EffectDescriptor> = [
+            gravity::DESCRIPTORS,
+            mass::DESCRIPTORS,
+            gains::DESCRIPTORS,
+            orientation::DESCRIPTORS,
+            elastic::DESCRIPTORS,
+            damping::DESCRIPTORS,
+            processing::DESCRIPTORS,
+            placement::DESCRIPTORS,
+            sensors::DESCRIPTORS,
+            mounts::DESCRIPTORS,
+            cords::DESCRIPTORS,
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
+        all.sort_by_key(|d| d.rank);
+        all
+    })
+}
+
+/// The descriptor of an effect id.
+pub fn descriptor(id: &str) -> Option<&'static EffectDescriptor> {
+    registry().iter().copied().find(|d| d.id == id)
+}
+
+/// Ids of the effects this version knows, in catalogue order ([`registry`]).
+pub static KNOWN_EFFECTS: std::sync::LazyLock<Vec<&'static str>> =
+    std::sync::LazyLock::new(|| registry().iter().map(|d| d.id).collect());
+
+/// The effects whose physics depends on the direction of gravity
+/// ([`EffectDescriptor::follows_spec_up`]): an entry without its own `up` takes the
+/// spec's ([`CampaignSpec::up`]).
+pub static GRAVITY_EFFECTS: std::sync::LazyLock<Vec<&'static str>> =
+    std::sync::LazyLock::new(|| {
+        registry()
+            .iter()
+            .filter(|d| d.follows_spec_up)
+            .map(|d| d.id)
+            .collect()
+    });
 
 /// Serde default of `g_m_per_s2` for the gravity-related effects (standard gravity).
 pub(crate) fn default_g() -> f64 {
@@ -237,6 +304,39 @@ pub(crate) fn replace_list(n: usize, values: &[f64]) -> Result<Vec<f64>, String>
     Ok(values.to_vec())
 }
 
+/// A per-id map parameter with one value for every id (a neutral table's entry).
+pub(crate) fn per_id(ids: impl IntoIterator<Item = String>, value: toml::Value) -> toml::Value {
+    toml::Value::Table(ids.into_iter().map(|k| (k, value.clone())).collect())
+}
+
+/// The zero 3-vector of a neutral table.
+pub(crate) fn zero3_value() -> toml::Value {
+    toml::Value::Array(vec![0.0.into(), 0.0.into(), 0.0.into()])
+}
+
+/// The channel ids of a geometry, in its order.
+pub(crate) fn channel_ids(g: &Geometry) -> Vec<String> {
+    g.channels.iter().map(|c| c.id.clone()).collect()
+}
+
+/// The excitation ids of a geometry, in its order.
+pub(crate) fn excitation_ids(g: &Geometry) -> Vec<String> {
+    g.excitations.iter().map(|e| e.id.clone()).collect()
+}
+
+/// The sensor ids of a spec, in its order.
+pub(crate) fn sensor_ids(spec: &CampaignSpec) -> Vec<String> {
+    spec.sensors.iter().map(|s| s.id.clone()).collect()
+}
+
+/// A parameter table from its entries.
+pub(crate) fn table<const N: usize>(entries: [(&str, toml::Value); N]) -> toml::Table {
+    entries
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+}
+
 /// Checks that an optional set-up id names a set-up of the spec.
 pub(crate) fn check_setup(spec: &CampaignSpec, setup: Option<&str>) -> Result<(), String> {
     match setup {
@@ -247,67 +347,39 @@ pub(crate) fn check_setup(spec: &CampaignSpec, setup: Option<&str>) -> Result<()
     }
 }
 
-fn params<T: serde::de::DeserializeOwned>(spec: &EffectSpec) -> Result<T, String> {
+pub(crate) fn params<T: serde::de::DeserializeOwned>(spec: &EffectSpec) -> Result<T, String> {
     toml::Value::Table(spec.parameters.clone())
         .try_into()
         .map_err(|e| format!("effect '{}': {}", spec.id, e.to_string().trim()))
 }
 
-/// Builds an effect from its spec entry; the error says what is wrong.
-pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
-    let e: Box<dyn Effect> = match spec.id.as_str() {
-        "gravity_stiffness" => {
-            let g: gravity::GravityStiffness = params(spec)?;
-            g.check_self()?;
-            Box::new(g)
-        }
-        "sensor_mass" => Box::new(params::<mass::SensorMass>(spec)?),
-        "channel_gain" => Box::new(params::<gains::ChannelGain>(spec)?),
-        "excitation_gain" => Box::new(params::<gains::ExcitationGain>(spec)?),
-        "global_gain" => Box::new(params::<gains::GlobalGain>(spec)?),
-        "sensor_misorientation" => Box::new(params::<orientation::SensorMisorientation>(spec)?),
-        "elastic_mode" => Box::new(params::<elastic::ElasticMode>(spec)?),
-        "nonproportional_damping" => Box::new(params::<damping::NonproportionalDamping>(spec)?),
-        "exponential_window" => Box::new(params::<processing::ExponentialWindow>(spec)?),
-        "record_truncation" => Box::new(params::<processing::RecordTruncation>(spec)?),
-        "sensor_position" => Box::new(params::<placement::SensorPosition>(spec)?),
-        "force_direction" => Box::new(params::<placement::ForceDirection>(spec)?),
-        "force_location" => Box::new(params::<placement::ForceLocation>(spec)?),
-        "force_gauge_mass" => Box::new(params::<placement::ForceGaugeMass>(spec)?),
-        "transducer_highpass" => Box::new(params::<sensors::TransducerHighpass>(spec)?),
-        "sensor_tilt_gravity" => Box::new(params::<sensors::SensorTiltGravity>(spec)?),
-        "suspension_coupling" => Box::new(params::<mounts::SuspensionCoupling>(spec)?),
-        "channel_delay" => Box::new(params::<sensors::ChannelDelay>(spec)?),
-        "suspension_drift" => Box::new(params::<mounts::SuspensionDrift>(spec)?),
-        "added_mass" => Box::new(params::<mass::AddedMass>(spec)?),
-        "stinger_stiffness" => Box::new(params::<mounts::StingerStiffness>(spec)?),
-        "hysteretic_damping" => Box::new(params::<damping::HystereticDamping>(spec)?),
-        "cord_mass" => {
-            let c: cords::CordMass = params(spec)?;
-            c.check_self()
-                .map_err(|e| format!("effect 'cord_mass': {e}"))?;
-            Box::new(c)
-        }
-        other => {
-            return Err(format!(
-                "unknown effect id '{other}' (known: {})",
-                KNOWN_EFFECTS.join(", ")
-            ))
-        }
-    };
-    Ok(e)
+/// [`EffectDescriptor::parse`] of an effect that is its spec table deserialised.
+pub(crate) fn parse_as<T>(spec: &EffectSpec) -> Result<Box<dyn Effect>, String>
+where
+    T: serde::de::DeserializeOwned + Effect + 'static,
+{
+    Ok(Box::new(params::<T>(spec)?))
 }
 
-/// The effects whose physics depends on the direction of gravity: an entry without its
-/// own `up` takes the spec's ([`CampaignSpec::up`]).
-pub const GRAVITY_EFFECTS: [&str; 3] = ["gravity_stiffness", "cord_mass", "sensor_tilt_gravity"];
+/// Builds an effect from its spec entry ([`EffectDescriptor::parse`]); the error says
+/// what is wrong.
+pub fn parse_effect(spec: &EffectSpec) -> Result<Box<dyn Effect>, String> {
+    match descriptor(&spec.id) {
+        Some(d) => (d.parse)(spec),
+        None => Err(format!(
+            "unknown effect id '{}' (known: {})",
+            spec.id,
+            KNOWN_EFFECTS.join(", ")
+        )),
+    }
+}
 
 /// Builds an effect from its entry in `spec`: [`parse_effect`], with the spec's `up` as
 /// the default `up` of a gravity effect.
 pub fn parse_effect_in(entry: &EffectSpec, spec: &CampaignSpec) -> Result<Box<dyn Effect>, String> {
     match spec.up {
         Some(up)
-            if GRAVITY_EFFECTS.contains(&entry.id.as_str())
+            if descriptor(&entry.id).is_some_and(|d| d.follows_spec_up)
                 && !entry.parameters.contains_key("up") =>
         {
             let mut e = entry.clone();

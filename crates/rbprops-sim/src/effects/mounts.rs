@@ -28,6 +28,22 @@
 //! stinger of bending stiffness EI and length L has `k_l = 12EI/L³`, `k_r = 4EI/L`
 //! (3 mm steel, 100 mm: about 9,500 N/m and 32 N m/rad). The spring along the axis is
 //! the force gauge's own path and is measured, so it is not in `K_a`.
+//!
+//! `stinger_axial_stiffness` (docs/physics.md, E12, force chain): the armature of a
+//! shaker hangs in its own suspension (flexures) of axial stiffness `k_a`, and the
+//! stinger, stiff along its axis, passes that spring on to the structure while the
+//! shaker is attached (its excitation's run only):
+//!
+//! `K_a = k_a T(r)ᵀ n nᵀ T(r)`,
+//!
+//! a spring along the force direction `n` at the force point `r`. The FRF sees it when
+//! the force is the shaker's drive (from the coil current, `F = Bl i`); a force gauge at
+//! the stinger's tip measures the spring's force with the drive, and then `k_a` is not
+//! in the FRF (as for the axial spring of `stinger_stiffness`). A rank-one change along
+//! the driving point's own direction, so by Sherman–Morrison the driving-point
+//! receptance of that run is exactly `1/h' = 1/h + k_a` (tested): below the suspension
+//! modes the FRF stiffens, a translational mode along `n` with modal mass `m` moves to
+//! `ω² = (k + k_a)/m`. Armature flexures: a few hundred to a few thousand N/m.
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
@@ -318,3 +334,150 @@ impl Effect for StingerStiffness {
         Ok(())
     }
 }
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StingerAxialStiffness {
+    /// Axial stiffness k_a (N/m) of the shaker's armature suspension, per excitation id.
+    pub axial_n_per_m: BTreeMap<String, f64>,
+}
+
+impl StingerAxialStiffness {
+    fn check_values(&self) -> Result<(), String> {
+        if self.axial_n_per_m.is_empty() {
+            return Err("give axial_n_per_m per excitation".into());
+        }
+        match self
+            .axial_n_per_m
+            .iter()
+            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+        {
+            Some((k, v)) => Err(format!(
+                "axial_n_per_m.{k}: must be finite and ≥ 0, got {v}"
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// `K_a` of an axial spring `k_a` along `n` at `r` (module docs).
+    pub fn matrix(r: &Vec3, n: &Vec3, k_axial: f64) -> Mat6 {
+        let n = n.normalize();
+        let t = rigid_transform(r);
+        k_axial * t.transpose() * (n * n.transpose()) * t
+    }
+}
+
+impl Effect for StingerAxialStiffness {
+    fn id(&self) -> &'static str {
+        "stinger_axial_stiffness"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        super::map_info("axial_n_per_m", &self.axial_n_per_m, "N/m", (0.0, 5000.0))
+    }
+    fn values(&self) -> Vec<f64> {
+        self.axial_n_per_m.values().copied().collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let e = StingerAxialStiffness {
+            axial_n_per_m: super::replace_map(&self.axial_n_per_m, values)?,
+        };
+        e.check_values()?;
+        Ok(Box::new(e))
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::placement::excitations_exist(
+            spec,
+            "axial_n_per_m",
+            self.axial_n_per_m.keys().cloned(),
+        )
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for input in &mut model.inputs {
+            let ex = &ctx.geometry.excitations[input.excitation];
+            match self.axial_n_per_m.get(&ex.id) {
+                Some(&k) if k != 0.0 => {
+                    input.attached_stiffness += Self::matrix(&ex.position, &ex.direction, k);
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `stinger_stiffness` absent: the lateral spring and the bending stiffness per
+/// excitation at 0. A steel stinger of 3 mm × 200 mm has 4EI/L ≈ 17 N m/rad, a tenth of
+/// a soft suspension's rotational stiffness, and the lateral spring alone cannot stand
+/// in for it, so the screened form has both.
+const STINGER_NEUTRAL: super::NeutralForm = super::NeutralForm::Table(|_, g| {
+    super::table([
+        (
+            "lateral_n_per_m",
+            super::per_id(super::excitation_ids(g), 0.0.into()),
+        ),
+        (
+            "rotational_n_m_per_rad",
+            super::per_id(super::excitation_ids(g), 0.0.into()),
+        ),
+    ])
+});
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "suspension_coupling",
+        rank: 16,
+        title: "suspension rotational / lateral coupling stiffness",
+        reveal: "a second suspension length, or the mount's measured stiffness",
+        docs: "E4: rotational and lateral stiffness at each mount, `rotational_n_m_per_rad`, `lateral_n_per_m`",
+        parse: super::parse_as::<SuspensionCoupling>,
+        neutral: super::NeutralForm::Table(|_, _| super::table([
+            ("rotational_n_m_per_rad", super::zero3_value()),
+            ("lateral_n_per_m", 0.0.into()),
+        ])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/suspension_coupling.toml"),
+    },
+    super::EffectDescriptor {
+        id: "suspension_drift",
+        rank: 19,
+        title: "suspension drift between runs (creep, temperature)",
+        reveal: "repeated runs of one excitation, or the suspension modes measured before and after each run",
+        docs: "E15: a stiffness factor per excitation run, `stiffness_factors`",
+        parse: super::parse_as::<SuspensionDrift>,
+        neutral: super::NeutralForm::Table(|_, g| super::table([("stiffness_factors", super::per_id(super::excitation_ids(g), 1.0.into()))])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
+    },
+    super::EffectDescriptor {
+        id: "stinger_stiffness",
+        rank: 21,
+        title: "lateral stiffness of a shaker stinger (present only while that shaker drives)",
+        reveal: "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
+        docs: "E12: a stinger's lateral and bending stiffness at the force point during its run, `lateral_n_per_m`, `rotational_n_m_per_rad`",
+        parse: super::parse_as::<StingerStiffness>,
+        neutral: STINGER_NEUTRAL,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/stinger_stiffness.toml"),
+    },
+    super::EffectDescriptor {
+        id: "stinger_axial_stiffness",
+        rank: 23,
+        title: "axial stiffness of a shaker's armature suspension, felt through the stinger (present only while that shaker drives)",
+        reveal: "a force gauge at the stinger's tip (it measures the spring's force), or a run of that excitation by hammer",
+        docs: "E12: the shaker armature's suspension stiffness along the stinger at the force point during its run, `axial_n_per_m` (a force from the coil current)",
+        parse: super::parse_as::<StingerAxialStiffness>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([(
+                "axial_n_per_m",
+                super::per_id(super::excitation_ids(g), 0.0.into()),
+            )])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/stinger_axial_stiffness.toml"),
+    },
+];

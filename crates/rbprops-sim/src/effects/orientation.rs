@@ -85,3 +85,21 @@ impl SensorMisorientation {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescriptor {
+    id: "sensor_misorientation",
+    rank: 5,
+    title: "sensor misorientation",
+    reveal: "a rotation check of each triaxial sensor",
+    docs: "E8: a small rotation vector per sensor, `rotations_rad`",
+    parse: super::parse_as::<SensorMisorientation>,
+    neutral: super::NeutralForm::Table(|spec, _| {
+        super::table([(
+            "rotations_rad",
+            super::per_id(super::sensor_ids(spec), super::zero3_value()),
+        )])
+    }),
+    follows_spec_up: false,
+    example: include_str!("../../../../fixtures/specs/effects/sensor_misorientation.toml"),
+}];

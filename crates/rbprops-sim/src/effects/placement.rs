@@ -287,3 +287,71 @@ impl Effect for ForceGaugeMass {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "sensor_position",
+        rank: 10,
+        title: "sensor position error",
+        reveal: "a measured sensor layout (or a second sensor layout)",
+        docs: "E9: an offset per sensor, `offsets_m`",
+        parse: super::parse_as::<SensorPosition>,
+        neutral: super::NeutralForm::Table(|spec, _| {
+            super::table([(
+                "offsets_m",
+                super::per_id(super::sensor_ids(spec), super::zero3_value()),
+            )])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/sensor_position.toml"),
+    },
+    super::EffectDescriptor {
+        id: "force_direction",
+        rank: 11,
+        title: "force direction error",
+        reveal: "more excitations than six, or a force direction check",
+        docs: "E12: a small rotation of each excitation's direction, `rotations_rad`",
+        parse: super::parse_as::<ForceDirection>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([(
+                "rotations_rad",
+                super::per_id(super::excitation_ids(g), super::zero3_value()),
+            )])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/force_direction.toml"),
+    },
+    super::EffectDescriptor {
+        id: "force_location",
+        rank: 12,
+        title: "force location error",
+        reveal: "marked impact points, or more excitations than six",
+        docs: "E12: an offset of each excitation's point, `offsets_m`",
+        parse: super::parse_as::<ForceLocation>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([(
+                "offsets_m",
+                super::per_id(super::excitation_ids(g), super::zero3_value()),
+            )])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/force_location.toml"),
+    },
+    super::EffectDescriptor {
+        id: "force_gauge_mass",
+        rank: 13,
+        title: "mass below the force gauge",
+        reveal: "a known mass calibration of the hammer or shaker",
+        docs: "E12: a mass between the force gauge and the structure per excitation, `masses_kg`",
+        parse: super::parse_as::<ForceGaugeMass>,
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::table([(
+                "masses_kg",
+                super::per_id(super::excitation_ids(g), 0.0.into()),
+            )])
+        }),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/force_gauge_mass.toml"),
+    },
+];

@@ -174,3 +174,29 @@ impl Effect for RecordTruncation {
         Ok(())
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "exponential_window",
+        rank: 8,
+        title: "exponential window (processing damping)",
+        reveal: "the window used, or a second record length / window",
+        docs: "E6: an exponential window on force and response, `decay_per_s` or `time_constant_s`",
+        parse: super::parse_as::<ExponentialWindow>,
+        neutral: super::NeutralForm::Table(|_, _| super::table([("decay_per_s", 0.0.into())])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/exponential_window.toml"),
+    },
+    super::EffectDescriptor {
+        id: "record_truncation",
+        rank: 9,
+        title: "record truncation (leakage)",
+        reveal: "the record length, or a longer record",
+        docs: "E6: records of length `record_length_s` without a window (leakage)",
+        parse: super::parse_as::<RecordTruncation>,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/record_truncation.toml"),
+    },
+];

@@ -339,3 +339,49 @@ impl Effect for ChannelDelay {
         }
     }
 }
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
+pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
+    super::EffectDescriptor {
+        id: "transducer_highpass",
+        rank: 14,
+        title: "transducer / acquisition high-pass",
+        reveal: "the channels' time constants, or data below the suspension modes",
+        docs: "E11: a first-order high-pass per channel, `time_constant_s` or `time_constants_s`",
+        parse: super::parse_as::<TransducerHighpass>,
+        neutral: super::NeutralForm::Reparametrised,
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/transducer_highpass.toml"),
+    },
+    super::EffectDescriptor {
+        id: "sensor_tilt_gravity",
+        rank: 15,
+        title: "gravity seen by tilting accelerometers",
+        reveal: "data well below the suspension modes, or a rotation sensor",
+        docs: "E2: gravity in the sensor equation of rotating accelerometers, `g_m_per_s2`, `up`",
+        parse: super::parse_as::<SensorTiltGravity>,
+        neutral: super::NeutralForm::Table(|spec, _| {
+            let mut t = super::table([("g_m_per_s2", 0.0.into())]);
+            if let Some(up) = spec.up {
+                t.insert("up".into(), crate::spec::up_value(up));
+            }
+            t
+        }),
+        follows_spec_up: true,
+        example: include_str!("../../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
+    },
+    super::EffectDescriptor {
+        id: "channel_delay",
+        rank: 18,
+        title: "acquisition delay per channel (ADC skew, filter group delay)",
+        reveal: "a loop-back calibration of each channel's delay against the force channel",
+        docs: "E15: a delay per channel and per force, `channels_s`, `excitations_s` (only differences are seen)",
+        parse: super::parse_as::<ChannelDelay>,
+        neutral: super::NeutralForm::Table(|_, g| super::table([
+            ("channels_s", super::per_id(super::channel_ids(g), 0.0.into())),
+            ("excitations_s", super::per_id(super::excitation_ids(g), 0.0.into())),
+        ])),
+        follows_spec_up: false,
+        example: include_str!("../../../../fixtures/specs/effects/channel_delay.toml"),
+    },
+];

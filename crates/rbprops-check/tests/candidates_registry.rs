@@ -1,0 +1,92 @@
+//! The model check's candidate list comes from rbprops-sim's effect registry: every
+//! catalogue effect is screened (or a note says why not), at its registry title, in the
+//! registry's order.
+
+use rbprops_check::candidates::{candidates, describe, Screening};
+use rbprops_sim::effects::{registry, NeutralForm};
+use rbprops_sim::{example, CampaignSpec};
+
+fn tc2() -> CampaignSpec {
+    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
+}
+
+#[test]
+fn candidates_follow_the_registry() {
+    let spec = tc2();
+    let g = spec.geometry().unwrap();
+    let (cands, notes) = candidates(&spec, &g);
+    for d in registry() {
+        assert_eq!(describe(d.id), (d.title, d.reveal), "{}", d.id);
+        let screened = cands.iter().find(|c| c.id == d.id);
+        match screened {
+            Some(c) => {
+                assert_eq!(c.title, d.title, "{}", d.id);
+                assert_eq!(c.reveal, d.reveal, "{}", d.id);
+                assert_eq!(c.neutral, c.effect.values(), "{}", d.id);
+            }
+            None => assert!(
+                notes.iter().any(|n| n.contains(d.id)),
+                "{} is neither a candidate nor in a note: {notes:?}",
+                d.id
+            ),
+        }
+    }
+    // The score-tested catalogue forms come first, in registry order.
+    let scored: Vec<&str> = registry()
+        .iter()
+        .filter(|d| matches!(d.neutral, NeutralForm::Table(_)))
+        .map(|d| d.id)
+        .collect();
+    let first: Vec<&str> = cands[..scored.len()]
+        .iter()
+        .map(|c| c.id.as_str())
+        .collect();
+    assert_eq!(first, scored);
+    assert!(cands[..scored.len()]
+        .iter()
+        .all(|c| c.source == "rbprops-sim" && c.screening == Screening::Score));
+    // The one local candidate the catalogue lacks.
+    let local: Vec<&str> = cands
+        .iter()
+        .filter(|c| c.source == "rbprops-check (local)")
+        .map(|c| c.id.as_str())
+        .collect();
+    assert_eq!(local, ["residual_flexibility"]);
+}
+
+/// An effect the nominal spec already has is not a candidate.
+#[test]
+fn an_effect_of_the_spec_is_not_a_candidate() {
+    let mut spec = tc2();
+    let g = spec.geometry().unwrap();
+    for d in registry() {
+        spec.effects = CampaignSpec::from_toml_str(d.example).unwrap().effects;
+        let (cands, _) = candidates(&spec, &g);
+        assert!(cands.iter().all(|c| c.id != d.id), "{}", d.id);
+    }
+}
+
+/// The newest catalogue effect is screened with nothing added in rbprops-check: a
+/// score test from its registry neutral table, one axial stiffness per excitation at 0.
+#[test]
+fn stinger_axial_stiffness_is_screened_from_its_descriptor() {
+    let spec = tc2();
+    let g = spec.geometry().unwrap();
+    let (cands, _) = candidates(&spec, &g);
+    let c = cands
+        .iter()
+        .find(|c| c.id == "stinger_axial_stiffness")
+        .expect("a candidate");
+    let names: Vec<String> = c.effect.parameters().into_iter().map(|p| p.name).collect();
+    assert_eq!(
+        names,
+        [
+            "axial_n_per_m.force1",
+            "axial_n_per_m.force2",
+            "axial_n_per_m.force3"
+        ]
+    );
+    assert_eq!(c.neutral, [0.0; 3]);
+    assert_eq!(c.screening, Screening::Score);
+    assert_eq!(c.source, "rbprops-sim");
+}

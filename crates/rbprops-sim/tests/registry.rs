@@ -1,0 +1,190 @@
+//! The effect registry is the one list of the physics catalogue: the spec validation,
+//! the gravity direction, the effect examples and docs/physics.md all follow it.
+
+use rbprops_sim::effects::{parse_effect, registry, EffectDescriptor, NeutralForm};
+use rbprops_sim::spec::EffectSpec;
+use rbprops_sim::{example, simulate, CampaignSpec};
+
+fn tc2() -> CampaignSpec {
+    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
+}
+
+/// The row of docs/physics.md's "Effect ids" table for an effect.
+fn docs_row(d: &EffectDescriptor) -> String {
+    format!("| `{}` | {} |", d.id, d.docs)
+}
+
+#[test]
+fn ranks_number_the_catalogue_and_ids_are_unique_snake_case() {
+    let reg = registry();
+    let ranks: Vec<u16> = reg.iter().map(|d| d.rank).collect();
+    let expect: Vec<u16> = (0..reg.len() as u16).collect();
+    assert_eq!(ranks, expect, "ranks must be 0..n, each once");
+    for (i, d) in reg.iter().enumerate() {
+        assert!(
+            !d.id.is_empty()
+                && d.id
+                    .chars()
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_'),
+            "{}",
+            d.id
+        );
+        assert!(reg[..i].iter().all(|e| e.id != d.id), "{} twice", d.id);
+        for (what, text) in [("title", d.title), ("reveal", d.reveal), ("docs", d.docs)] {
+            assert!(!text.trim().is_empty(), "{}: empty {what}", d.id);
+        }
+    }
+    assert_eq!(
+        *rbprops_sim::effects::KNOWN_EFFECTS,
+        reg.iter().map(|d| d.id).collect::<Vec<_>>()
+    );
+}
+
+/// docs/physics.md lists every id with its registry line, and no id the registry lacks.
+#[test]
+fn physics_docs_list_every_effect_with_its_line() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/physics.md");
+    let text = std::fs::read_to_string(path).unwrap();
+    let missing: Vec<String> = registry()
+        .iter()
+        .map(|d| docs_row(d))
+        .filter(|row| !text.lines().any(|l| l == row))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/physics.md lacks these rows of its \"Effect ids\" table:\n{}",
+        missing.join("\n")
+    );
+    let section = text
+        .split("## Effect ids")
+        .nth(1)
+        .expect("an \"Effect ids\" section");
+    let listed: Vec<&str> = section
+        .lines()
+        .take_while(|l| !l.starts_with('#'))
+        .filter_map(|l| l.strip_prefix("| `"))
+        .filter_map(|l| l.split('`').next())
+        .collect();
+    let ids: Vec<&str> = registry().iter().map(|d| d.id).collect();
+    assert_eq!(listed, ids, "the table's ids, in catalogue order");
+}
+
+/// The unknown-id error names every effect of the registry, in its order.
+#[test]
+fn spec_validation_reads_the_registry() {
+    let e = parse_effect(&EffectSpec {
+        id: "no_such_effect".into(),
+        parameters: toml::Table::new(),
+    })
+    .unwrap_err();
+    let ids: Vec<&str> = registry().iter().map(|d| d.id).collect();
+    assert!(e.ends_with(&format!("(known: {})", ids.join(", "))), "{e}");
+    for d in registry() {
+        let spec = CampaignSpec::from_toml_str(d.example).unwrap();
+        spec.validate()
+            .unwrap_or_else(|e| panic!("{}: example does not validate: {e}", d.id));
+        assert_eq!(spec.effects.len(), 1, "{}", d.id);
+        assert_eq!(spec.effects[0].id, d.id);
+        let effect = (d.parse)(&spec.effects[0]).unwrap();
+        assert_eq!(effect.id(), d.id);
+    }
+}
+
+/// Every neutral table parses and leaves the simulated FRFs as they are (to roundoff):
+/// "absent" really is absent. The ids without one are exactly those the model check
+/// screens through its own forms.
+#[test]
+fn neutral_tables_parse_and_change_nothing() {
+    let mut s = tc2();
+    s.noise.relative = 0.0;
+    s.noise.floor = 0.0;
+    s.frequency.lines = 201;
+    let g = s.geometry().unwrap();
+    let nominal = simulate(&s).unwrap();
+    let scale = nominal
+        .frf
+        .values
+        .iter()
+        .map(|v| v.norm())
+        .fold(0.0, f64::max);
+    let mut reparametrised = Vec::new();
+    for d in registry() {
+        let NeutralForm::Table(build) = d.neutral else {
+            reparametrised.push(d.id);
+            continue;
+        };
+        let entry = EffectSpec {
+            id: d.id.into(),
+            parameters: build(&s, &g),
+        };
+        let e = parse_effect(&entry).unwrap_or_else(|e| panic!("{}: {e}", d.id));
+        assert!(!e.values().is_empty(), "{}: nothing to fit", d.id);
+        let mut with = s.clone();
+        with.effects.push(entry);
+        let out = simulate(&with).unwrap_or_else(|e| panic!("{}: {e}", d.id));
+        let worst = out
+            .frf
+            .values
+            .iter()
+            .zip(&nominal.frf.values)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        // Roundoff of a solve at 1e-16 relative, times the model's condition.
+        assert!(
+            worst <= 1e-10 * scale,
+            "{}: neutral moves the FRFs by {worst:e}",
+            d.id
+        );
+    }
+    assert_eq!(
+        reparametrised,
+        [
+            "gravity_stiffness",
+            "elastic_mode",
+            "record_truncation",
+            "transducer_highpass",
+            "cord_mass",
+            "added_mass"
+        ]
+    );
+}
+
+/// The gravity effects take the spec's `up`; the others refuse it as unknown.
+#[test]
+fn gravity_effects_follow_the_spec_up() {
+    let up: Vec<&str> = registry()
+        .iter()
+        .filter(|d| d.follows_spec_up)
+        .map(|d| d.id)
+        .collect();
+    assert_eq!(
+        up,
+        ["gravity_stiffness", "sensor_tilt_gravity", "cord_mass"]
+    );
+    let mut s = tc2();
+    s.up = Some([0.0, 1.0, 0.0]);
+    let e = rbprops_sim::effects::parse_effect_in(
+        &EffectSpec {
+            id: "sensor_tilt_gravity".into(),
+            parameters: toml::Table::new(),
+        },
+        &s,
+    )
+    .unwrap();
+    assert_eq!(
+        e.parameters_json()["up"],
+        serde_json::json!([0.0, 1.0, 0.0])
+    );
+}
+
+/// The effect examples are `nominal` then the registry, in its order.
+#[test]
+fn effect_examples_follow_the_registry() {
+    let ids: Vec<&str> = rbprops_sim::effect_examples()
+        .iter()
+        .map(|(id, _)| *id)
+        .collect();
+    let mut expect = vec!["nominal"];
+    expect.extend(registry().iter().map(|d| d.id));
+    assert_eq!(ids, expect);
+}
