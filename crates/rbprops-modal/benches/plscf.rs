@@ -1,7 +1,7 @@
 //! Cost of one poly-reference fit (`Method::Plscf`: pLSCF sweep and selection, pole and
 //! participation refinement, shapes, records) of a set-up of 3 excitations × 9 channels
 //! × 1,000 lines (accelerance, 0–12.5 Hz, 1 % noise, the Test Case II body on springs,
-//! the data of the `plscf_timing` example), on one thread.
+//! built by `testdata::test_case`), on one thread.
 //!
 //! `cargo bench -p rbprops-modal --bench plscf [-- repeats]` prints the median and the
 //! minimum wall time per fit; with `--features phase-timing` also where the time goes
