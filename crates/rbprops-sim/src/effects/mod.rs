@@ -337,6 +337,18 @@ pub(crate) fn table<const N: usize>(entries: [(&str, toml::Value); N]) -> toml::
         .collect()
 }
 
+/// Checks that every value of the per-id map `field` is finite and non-negative (a
+/// stiffness, a mass).
+pub(crate) fn check_non_negative_map(
+    field: &str,
+    map: &std::collections::BTreeMap<String, f64>,
+) -> Result<(), String> {
+    match map.iter().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
+        Some((k, v)) => Err(format!("{field}.{k}: must be finite and ≥ 0, got {v}")),
+        None => Ok(()),
+    }
+}
+
 /// Checks that an optional set-up id names a set-up of the spec.
 pub(crate) fn check_setup(spec: &CampaignSpec, setup: Option<&str>) -> Result<(), String> {
     match setup {

@@ -245,15 +245,8 @@ impl StingerStiffness {
         if self.lateral_n_per_m.is_empty() && self.rotational_n_m_per_rad.is_empty() {
             return Err("give lateral_n_per_m and/or rotational_n_m_per_rad per excitation".into());
         }
-        for (field, map) in [
-            ("lateral_n_per_m", &self.lateral_n_per_m),
-            ("rotational_n_m_per_rad", &self.rotational_n_m_per_rad),
-        ] {
-            if let Some((k, v)) = map.iter().find(|(_, v)| !(v.is_finite() && **v >= 0.0)) {
-                return Err(format!("{field}.{k}: must be finite and ≥ 0, got {v}"));
-            }
-        }
-        Ok(())
+        super::check_non_negative_map("lateral_n_per_m", &self.lateral_n_per_m)?;
+        super::check_non_negative_map("rotational_n_m_per_rad", &self.rotational_n_m_per_rad)
     }
 
     /// `K_a` of a stinger along `n` at `r` (module docs).
@@ -347,16 +340,7 @@ impl StingerAxialStiffness {
         if self.axial_n_per_m.is_empty() {
             return Err("give axial_n_per_m per excitation".into());
         }
-        match self
-            .axial_n_per_m
-            .iter()
-            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
-        {
-            Some((k, v)) => Err(format!(
-                "axial_n_per_m.{k}: must be finite and ≥ 0, got {v}"
-            )),
-            None => Ok(()),
-        }
+        super::check_non_negative_map("axial_n_per_m", &self.axial_n_per_m)
     }
 
     /// `K_a` of an axial spring `k_a` along `n` at `r` (module docs).

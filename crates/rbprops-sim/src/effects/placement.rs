@@ -243,12 +243,7 @@ impl ForceGaugeMass {
         if self.masses_kg.is_empty() {
             return Err("masses_kg: list at least one excitation".into());
         }
-        for (k, m) in &self.masses_kg {
-            if !(m.is_finite() && *m >= 0.0) {
-                return Err(format!("masses_kg.{k}: must be finite and ≥ 0, got {m}"));
-            }
-        }
-        Ok(())
+        super::check_non_negative_map("masses_kg", &self.masses_kg)
     }
 }
 
