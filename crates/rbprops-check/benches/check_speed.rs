@@ -134,29 +134,65 @@ fn main() {
     model_evaluation_anatomy(&spec);
 }
 
-/// One model evaluation of the nominal spec on the bench axis, and its set-up models
-/// alone (mass, stiffness, damping, modes): the remainder is the per-line solve and the
-/// assembly of the FRFs.
+/// One model evaluation of the nominal spec on the bench axis as the check makes it
+/// ([`rbprops_sim::SolveMethod::Columns`]), the same with the simulator's default solve
+/// (`Direct`: the inverse of Z and `S G` per line, what the check used before), and the
+/// set-up models alone (mass, stiffness, damping, modes): the remainder is the per-line
+/// solve and the assembly of the FRFs. Also the largest relative difference between the
+/// two solves (rounding).
 fn model_evaluation_anatomy(spec: &rbprops_sim::CampaignSpec) {
+    use rbprops_sim::{SimOptions, SolveMethod};
     let (geometry, frf) = recording(CASES[0].0);
     let layout = rbprops_check::predict::Layout::new(spec, &geometry, &frf).expect("layout");
     let n = 200;
-    let t0 = Instant::now();
-    for _ in 0..n {
+    let time = |f: &dyn Fn()| {
+        let t0 = Instant::now();
+        for _ in 0..n {
+            f();
+        }
+        t0.elapsed().as_secs_f64() / n as f64
+    };
+    let whole = time(&|| {
         std::hint::black_box(rbprops_check::predict::predict(spec, &layout, &[]).unwrap());
-    }
-    let whole = t0.elapsed().as_secs_f64() / n as f64;
-    let t0 = Instant::now();
-    for _ in 0..n {
+    });
+    let axis = &layout.frequency_hz[1..];
+    let sim = |method| {
+        rbprops_sim::simulate::predict(
+            spec,
+            &layout.spec_geometry,
+            &[],
+            axis,
+            &SimOptions { method },
+        )
+        .unwrap()
+        .0
+    };
+    let direct = time(&|| {
+        std::hint::black_box(sim(SolveMethod::Direct));
+    });
+    let columns = time(&|| {
+        std::hint::black_box(sim(SolveMethod::Columns));
+    });
+    let models = time(&|| {
         std::hint::black_box(
             rbprops_sim::simulate::build_models(spec, &layout.spec_geometry, &[]).unwrap(),
         );
-    }
-    let models = t0.elapsed().as_secs_f64() / n as f64;
+    });
+    let (a, b) = (sim(SolveMethod::Direct), sim(SolveMethod::Columns));
+    let rel = a
+        .values
+        .iter()
+        .zip(&b.values)
+        .map(|(x, y)| (x - y).norm() / x.norm().max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max);
     println!(
-        "\none model evaluation ({} values): {:.3} ms, of which set-up models {:.3} ms",
+        "\none model evaluation ({} values): {:.3} ms as the check makes it; \
+         simulator only: {:.3} ms by the column solve, {:.3} ms by the inverse (Direct); \
+         set-up models {:.3} ms; largest relative difference Direct vs Columns {rel:.1e}",
         layout.n_values(),
         whole * 1e3,
+        columns * 1e3,
+        direct * 1e3,
         models * 1e3
     );
 }
