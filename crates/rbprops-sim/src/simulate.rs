@@ -260,24 +260,26 @@ fn input_responses(sm: &SetupModel, omegas: &[f64]) -> Result<Vec<Vec<c64>>, Sim
             .par_chunks_mut(ng * n_ch)
             .zip(omegas.par_iter())
             .with_min_len(LINES_PER_TASK)
-            .map(|(y, &w)| {
-                let mut x = vec![[c64::new(0.0, 0.0); 6]; ng];
-                let ok = solve_columns(
-                    &mass,
-                    &stiffness,
-                    &model.damping,
-                    &model.structural_damping,
-                    w,
-                    &forces,
-                    &mut x,
-                );
-                for (x, y) in x.iter().zip(y.chunks_exact_mut(n_ch)) {
-                    for (row, y) in model.outputs.iter().zip(y.iter_mut()) {
-                        *y = (0..6).map(|k| x[k] * row[k]).sum();
+            .map_init(
+                || vec![[c64::new(0.0, 0.0); 6]; ng],
+                |x, (y, &w)| {
+                    let ok = solve_columns(
+                        &mass,
+                        &stiffness,
+                        &model.damping,
+                        &model.structural_damping,
+                        w,
+                        &forces,
+                        x,
+                    );
+                    for (x, y) in x.iter().zip(y.chunks_exact_mut(n_ch)) {
+                        for (row, y) in model.outputs.iter().zip(y.iter_mut()) {
+                            *y = (0..6).map(|k| x[k] * row[k]).sum();
+                        }
                     }
-                }
-                ok
-            })
+                    ok
+                },
+            )
             .collect();
         if let Some(l) = ok.iter().position(|ok| !ok) {
             return Err(SimError::Setup {
