@@ -21,6 +21,26 @@ use rbprops_check::{check, prof, CheckOptions, Progress};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// CPU seconds of this process so far, all threads (the sum of the first field of
+/// `/proc/self/task/*/schedstat`, nanoseconds on a CPU; Linux): on a shared machine
+/// the comparable figure, where wall time depends on the other load. `NaN` elsewhere.
+fn cpu_seconds() -> f64 {
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return f64::NAN;
+    };
+    let mut ns = 0u64;
+    for t in tasks.flatten() {
+        if let Ok(s) = std::fs::read_to_string(t.path().join("schedstat")) {
+            ns += s
+                .split_whitespace()
+                .next()
+                .and_then(|v| v.parse::<u64>().ok())
+                .unwrap_or(0);
+        }
+    }
+    ns as f64 * 1e-9
+}
+
 /// FNV-1a of the report's JSON: a short stand-in for comparing whole reports.
 fn digest(s: &str) -> u64 {
     s.bytes().fold(0xcbf29ce484222325u64, |h, b| {
@@ -68,6 +88,7 @@ fn main() {
         let (geometry, frf) = recording(stem);
         for _ in 0..repeat {
             prof::reset();
+            let c0 = cpu_seconds();
             let t0 = Instant::now();
             let lines: Arc<Mutex<Vec<(f64, String)>>> = Arc::default();
             let sink = lines.clone();
@@ -81,6 +102,7 @@ fn main() {
             };
             let out = check(&spec, &geometry, &frf, &opts).expect("check");
             let dt = t0.elapsed().as_secs_f64();
+            let cpu = cpu_seconds() - c0;
             times.push((stem, dt));
             let r = &out.report;
             let mut named: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
@@ -92,7 +114,7 @@ fn main() {
                 .copied()
                 .filter(|c| !named.iter().any(|n| n.contains(c)))
                 .collect();
-            println!("\n== {stem}: {dt:.2} s");
+            println!("\n== {stem}: {dt:.2} s wall, {cpu:.2} CPU s");
             println!("  concealed {concealed:?}");
             println!("  named     {named:?}; missed {missed:?}");
             println!(
@@ -145,12 +167,13 @@ fn model_evaluation_anatomy(spec: &rbprops_sim::CampaignSpec) {
     let (geometry, frf) = recording(CASES[0].0);
     let layout = rbprops_check::predict::Layout::new(spec, &geometry, &frf).expect("layout");
     let n = 200;
+    // CPU time of the process (the column solve runs on the rayon pool, not here).
     let time = |f: &dyn Fn()| {
-        let t0 = Instant::now();
+        let c0 = cpu_seconds();
         for _ in 0..n {
             f();
         }
-        t0.elapsed().as_secs_f64() / n as f64
+        (cpu_seconds() - c0) / n as f64
     };
     let whole = time(&|| {
         std::hint::black_box(rbprops_check::predict::predict(spec, &layout, &[]).unwrap());
@@ -186,7 +209,7 @@ fn model_evaluation_anatomy(spec: &rbprops_sim::CampaignSpec) {
         .map(|(x, y)| (x - y).norm() / x.norm().max(f64::MIN_POSITIVE))
         .fold(0.0, f64::max);
     println!(
-        "\none model evaluation ({} values): {:.3} ms as the check makes it; \
+        "\none model evaluation ({} values, CPU ms): {:.3} ms as the check makes it; \
          simulator only: {:.3} ms by the column solve, {:.3} ms by the inverse (Direct); \
          set-up models {:.3} ms; largest relative difference Direct vs Columns {rel:.1e}",
         layout.n_values(),

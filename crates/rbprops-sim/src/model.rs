@@ -108,6 +108,30 @@ pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], valu
     }
 }
 
+/// [`add_extra_receptances`] at complex Laplace variables `s` (one per line): `H_ce +=
+/// Σ_m ψ_c ψ_e / (s² + 2ζ_m ω_m s + ω_m²)` ([`ExtraMode::receptance_at`] summed, to
+/// rounding).
+pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values: &mut [c64]) {
+    let nl = s.len();
+    let mut h = vec![c64::new(0.0, 0.0); nl];
+    for m in modes {
+        let pe = m.at_excitations[e];
+        if pe == 0.0 {
+            continue;
+        }
+        let wm = std::f64::consts::TAU * m.frequency_hz;
+        for (h, &s) in h.iter_mut().zip(s) {
+            *h = (s * s + s * (2.0 * m.damping_ratio * wm) + wm * wm).inv();
+        }
+        for (dst, &pc) in values.chunks_exact_mut(nl).zip(&m.at_channels) {
+            let a = pc * pe;
+            if a != 0.0 {
+                dst.iter_mut().zip(&h).for_each(|(d, h)| *d += h * a);
+            }
+        }
+    }
+}
+
 impl ExtraMode {
     /// The mode's receptance term at a complex Laplace variable `s`:
     /// `ψ_c ψ_e / (ω_m² + 2ζ_m ω_m s + s²)` (equals [`Self::receptance`] at `s = iω`).
@@ -238,10 +262,12 @@ impl DynamicModel {
     }
 }
 
-/// Displacements `x = Z(ω)⁻¹ f` of a few force columns `f` for one dynamic stiffness
-/// `Z(ω) = K + i sgn(ω) D + iωC − ω²M` (as [`DynamicModel::dynamic_stiffness`], with the
-/// mass and stiffness given: an input's attached ones included), by Gaussian elimination
-/// with partial pivoting on the 6×6 complex system and all columns at once.
+/// Displacements `x = Z(s)⁻¹ f` of a few force columns `f` for one dynamic stiffness
+/// `Z(s) = K + i sgn(Im s) D + sC + s²M` (at `s = iω` it is
+/// [`DynamicModel::dynamic_stiffness`]; `s = σ + iω` under an exponential window, as in
+/// [`crate::observe`]), with the mass and stiffness given (an input's attached ones
+/// included), by Gaussian elimination with partial pivoting on the 6×6 complex system
+/// and all columns at once.
 ///
 /// Why not `G = Z⁻¹` as [`DynamicModel::direct_compliance`]: a model fitter needs only
 /// the set-up's inputs, so one elimination and a solve per input (≈ 200 complex
@@ -259,17 +285,17 @@ pub fn solve_columns(
     stiffness: &Mat6,
     damping: &Mat6,
     structural_damping: &Mat6,
-    omega: f64,
+    s: c64,
     forces: &[[c64; 6]],
     x: &mut [[c64; 6]],
 ) -> bool {
-    let sgn = if omega < 0.0 { -1.0 } else { 1.0 };
-    let w2 = omega * omega;
+    let sgn = if s.im < 0.0 { -1.0 } else { 1.0 };
+    let s2 = s * s;
     let mut a: [[c64; 6]; 6] = std::array::from_fn(|i| {
         std::array::from_fn(|j| {
             c64::new(
-                stiffness[(i, j)] - w2 * mass[(i, j)],
-                omega * damping[(i, j)] + sgn * structural_damping[(i, j)],
+                stiffness[(i, j)] + s.re * damping[(i, j)] + s2.re * mass[(i, j)],
+                s.im * damping[(i, j)] + sgn * structural_damping[(i, j)] + s2.im * mass[(i, j)],
             )
         })
     });
