@@ -7,11 +7,33 @@
 //!     [--features phase-timing] -- [--case STEM] [--repeat N]
 //! ```
 //!
-//! Prints per case: wall time, the effects named against the concealed ones, χ²/ν
-//! before → after, the time line of the check's stages (from its progress lines), a
+//! Prints per case: wall and CPU time, the effects named against the concealed ones,
+//! χ²/ν before → after, the time line of the check's stages (from its progress lines), a
 //! digest of the report (equal digests at 1 and 2 threads: the output does not depend
 //! on the thread count) and, with `phase-timing`, thread-seconds per phase. Then the
-//! anatomy of one model evaluation (set-up models vs the per-line solve).
+//! anatomy of one model evaluation in CPU time: as the check makes it, by the
+//! simulator's column solve and by its inverse, the set-up models alone.
+//!
+//! Figures (2-core machine shared with other builds, load 10–16: wall times were 45–660 s
+//! and are not comparable, CPU seconds are; `--features phase-timing`, 2 threads; two
+//! free cores would give about CPU/2 of wall time, i.e. 11, 16 and 23 s):
+//!
+//! | case | CPU s before | CPU s after | model evaluations | named (all three concealed) |
+//! |---|---|---|---|---|
+//! | gain-orient-gauge | 27.9 | 21.9 | 8181 → 8036 | same; χ²/ν 142.236 → 0.970 both |
+//! | position-force-elastic | not re-measured | 31.1 | 14520 after | same; χ²/ν 3359.213 → 0.975 |
+//! | gravity-window-gain | 74.1 | 45.5 | 24950 → 24911 | same, with the false `elastic_mode`; χ²/ν 156.956 → 1.980 both |
+//!
+//! One model evaluation of the nominal model (27 000 values): 1.08 ms CPU before
+//! (inverse of Z, `S G` per line), 0.53 ms after ([`rbprops_sim::SolveMethod::Columns`]:
+//! one LU per line solved for the three force columns; the same under an exponential
+//! window, which before took one nalgebra LU per input and line); set-up models
+//! 0.004 ms. The two solves differ by 5e-14 relative at most (model rounding), so report
+//! digests moved (986a20fda0c3ec5b → 16e695e2e9371eb3 on the first case) while every
+//! named effect and χ²/ν to the digits printed stayed. The model evaluations are now a
+//! minority of the time: the rest is spread over the normal equations (`lm::gram`,
+//! ~12 %), the screening's SVDs and eigen-decompositions, the noise model and the
+//! cross-validation (`perf record` of the first case).
 
 #[path = "bench_recording.rs"]
 mod bench_recording;
