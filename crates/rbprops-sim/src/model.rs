@@ -314,12 +314,13 @@ pub fn solve_columns(
         perm.swap(k, p);
         let inv = a[k][k].inv();
         a[k][k] = inv;
-        for i in k + 1..6 {
-            let m = a[i][k] * inv;
-            a[i][k] = m;
-            for j in k + 1..6 {
-                let t = a[k][j];
-                a[i][j] -= m * t;
+        let (top, below) = a.split_at_mut(k + 1);
+        let pivot_row = &top[k];
+        for row in below {
+            let m = row[k] * inv;
+            row[k] = m;
+            for (r, p) in row[k + 1..].iter_mut().zip(&pivot_row[k + 1..]) {
+                *r -= m * p;
             }
         }
     }
