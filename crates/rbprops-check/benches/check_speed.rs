@@ -7,11 +7,33 @@
 //!     [--features phase-timing] -- [--case STEM] [--repeat N]
 //! ```
 //!
-//! Prints per case: wall time, the effects named against the concealed ones, χ²/ν
-//! before → after, the time line of the check's stages (from its progress lines), a
+//! Prints per case: wall and CPU time, the effects named against the concealed ones,
+//! χ²/ν before → after, the time line of the check's stages (from its progress lines), a
 //! digest of the report (equal digests at 1 and 2 threads: the output does not depend
 //! on the thread count) and, with `phase-timing`, thread-seconds per phase. Then the
-//! anatomy of one model evaluation (set-up models vs the per-line solve).
+//! anatomy of one model evaluation in CPU time: as the check makes it, by the
+//! simulator's column solve and by its inverse, the set-up models alone.
+//!
+//! Figures (2-core machine shared with other builds, load 10–16: wall times were 45–660 s
+//! and are not comparable, CPU seconds are; `--features phase-timing`, 2 threads; two
+//! free cores would give about CPU/2 of wall time, i.e. 11, 16 and 23 s):
+//!
+//! | case | CPU s before | CPU s after | model evaluations | named (all three concealed) |
+//! |---|---|---|---|---|
+//! | gain-orient-gauge | 27.9 | 21.9 | 8181 → 8036 | same; χ²/ν 142.236 → 0.970 both |
+//! | position-force-elastic | not re-measured | 31.1 | 14520 after | same; χ²/ν 3359.213 → 0.975 |
+//! | gravity-window-gain | 74.1 | 45.5 | 24950 → 24911 | same, with the false `elastic_mode`; χ²/ν 156.956 → 1.980 both |
+//!
+//! One model evaluation of the nominal model (27 000 values): 1.08 ms CPU before
+//! (inverse of Z, `S G` per line), 0.53 ms after ([`rbprops_sim::SolveMethod::Columns`]:
+//! one LU per line solved for the three force columns; the same under an exponential
+//! window, which before took one nalgebra LU per input and line); set-up models
+//! 0.004 ms. The two solves differ by 5e-14 relative at most (model rounding), so report
+//! digests moved (986a20fda0c3ec5b → 16e695e2e9371eb3 on the first case) while every
+//! named effect and χ²/ν to the digits printed stayed. The model evaluations are now a
+//! minority of the time: the rest is spread over the normal equations (`lm::gram`,
+//! ~12 %), the screening's SVDs and eigen-decompositions, the noise model and the
+//! cross-validation (`perf record` of the first case).
 
 #[path = "bench_recording.rs"]
 mod bench_recording;
@@ -20,6 +42,26 @@ use bench_recording::{nominal, recording, CASES};
 use rbprops_check::{check, prof, CheckOptions, Progress};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
+
+/// CPU seconds of this process so far, all threads (the sum of the first field of
+/// `/proc/self/task/*/schedstat`, nanoseconds on a CPU; Linux): on a shared machine
+/// the comparable figure, where wall time depends on the other load. `NaN` elsewhere.
+fn cpu_seconds() -> f64 {
+    let Ok(tasks) = std::fs::read_dir("/proc/self/task") else {
+        return f64::NAN;
+    };
+    let mut ns = 0u64;
+    for t in tasks.flatten() {
+        if let Ok(s) = std::fs::read_to_string(t.path().join("schedstat")) {
+            ns += s
+                .split_whitespace()
+                .next()
+                .and_then(|v| v.parse::<u64>().ok())
+                .unwrap_or(0);
+        }
+    }
+    ns as f64 * 1e-9
+}
 
 /// FNV-1a of the report's JSON: a short stand-in for comparing whole reports.
 fn digest(s: &str) -> u64 {
@@ -68,6 +110,7 @@ fn main() {
         let (geometry, frf) = recording(stem);
         for _ in 0..repeat {
             prof::reset();
+            let c0 = cpu_seconds();
             let t0 = Instant::now();
             let lines: Arc<Mutex<Vec<(f64, String)>>> = Arc::default();
             let sink = lines.clone();
@@ -81,6 +124,7 @@ fn main() {
             };
             let out = check(&spec, &geometry, &frf, &opts).expect("check");
             let dt = t0.elapsed().as_secs_f64();
+            let cpu = cpu_seconds() - c0;
             times.push((stem, dt));
             let r = &out.report;
             let mut named: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
@@ -92,7 +136,7 @@ fn main() {
                 .copied()
                 .filter(|c| !named.iter().any(|n| n.contains(c)))
                 .collect();
-            println!("\n== {stem}: {dt:.2} s");
+            println!("\n== {stem}: {dt:.2} s wall, {cpu:.2} CPU s");
             println!("  concealed {concealed:?}");
             println!("  named     {named:?}; missed {missed:?}");
             println!(
@@ -134,29 +178,66 @@ fn main() {
     model_evaluation_anatomy(&spec);
 }
 
-/// One model evaluation of the nominal spec on the bench axis, and its set-up models
-/// alone (mass, stiffness, damping, modes): the remainder is the per-line solve and the
-/// assembly of the FRFs.
+/// One model evaluation of the nominal spec on the bench axis as the check makes it
+/// ([`rbprops_sim::SolveMethod::Columns`]), the same with the simulator's default solve
+/// (`Direct`: the inverse of Z and `S G` per line, what the check used before), and the
+/// set-up models alone (mass, stiffness, damping, modes): the remainder is the per-line
+/// solve and the assembly of the FRFs. Also the largest relative difference between the
+/// two solves (rounding).
 fn model_evaluation_anatomy(spec: &rbprops_sim::CampaignSpec) {
+    use rbprops_sim::{SimOptions, SolveMethod};
     let (geometry, frf) = recording(CASES[0].0);
     let layout = rbprops_check::predict::Layout::new(spec, &geometry, &frf).expect("layout");
     let n = 200;
-    let t0 = Instant::now();
-    for _ in 0..n {
+    // CPU time of the process (the column solve runs on the rayon pool, not here).
+    let time = |f: &dyn Fn()| {
+        let c0 = cpu_seconds();
+        for _ in 0..n {
+            f();
+        }
+        (cpu_seconds() - c0) / n as f64
+    };
+    let whole = time(&|| {
         std::hint::black_box(rbprops_check::predict::predict(spec, &layout, &[]).unwrap());
-    }
-    let whole = t0.elapsed().as_secs_f64() / n as f64;
-    let t0 = Instant::now();
-    for _ in 0..n {
+    });
+    let axis = &layout.frequency_hz[1..];
+    let sim = |method| {
+        rbprops_sim::simulate::predict(
+            spec,
+            &layout.spec_geometry,
+            &[],
+            axis,
+            &SimOptions { method },
+        )
+        .unwrap()
+        .0
+    };
+    let direct = time(&|| {
+        std::hint::black_box(sim(SolveMethod::Direct));
+    });
+    let columns = time(&|| {
+        std::hint::black_box(sim(SolveMethod::Columns));
+    });
+    let models = time(&|| {
         std::hint::black_box(
             rbprops_sim::simulate::build_models(spec, &layout.spec_geometry, &[]).unwrap(),
         );
-    }
-    let models = t0.elapsed().as_secs_f64() / n as f64;
+    });
+    let (a, b) = (sim(SolveMethod::Direct), sim(SolveMethod::Columns));
+    let rel = a
+        .values
+        .iter()
+        .zip(&b.values)
+        .map(|(x, y)| (x - y).norm() / x.norm().max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max);
     println!(
-        "\none model evaluation ({} values): {:.3} ms, of which set-up models {:.3} ms",
+        "\none model evaluation ({} values, CPU ms): {:.3} ms as the check makes it; \
+         simulator only: {:.3} ms by the column solve, {:.3} ms by the inverse (Direct); \
+         set-up models {:.3} ms; largest relative difference Direct vs Columns {rel:.1e}",
         layout.n_values(),
         whole * 1e3,
+        columns * 1e3,
+        direct * 1e3,
         models * 1e3
     );
 }

@@ -108,6 +108,30 @@ pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], valu
     }
 }
 
+/// [`add_extra_receptances`] at complex Laplace variables `s` (one per line): `H_ce +=
+/// Σ_m ψ_c ψ_e / (s² + 2ζ_m ω_m s + ω_m²)` ([`ExtraMode::receptance_at`] summed, to
+/// rounding).
+pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values: &mut [c64]) {
+    let nl = s.len();
+    let mut h = vec![c64::new(0.0, 0.0); nl];
+    for m in modes {
+        let pe = m.at_excitations[e];
+        if pe == 0.0 {
+            continue;
+        }
+        let wm = std::f64::consts::TAU * m.frequency_hz;
+        for (h, &s) in h.iter_mut().zip(s) {
+            *h = (s * s + s * (2.0 * m.damping_ratio * wm) + wm * wm).inv();
+        }
+        for (dst, &pc) in values.chunks_exact_mut(nl).zip(&m.at_channels) {
+            let a = pc * pe;
+            if a != 0.0 {
+                dst.iter_mut().zip(&h).for_each(|(d, h)| *d += h * a);
+            }
+        }
+    }
+}
+
 impl ExtraMode {
     /// The mode's receptance term at a complex Laplace variable `s`:
     /// `ψ_c ψ_e / (ω_m² + 2ζ_m ω_m s + s²)` (equals [`Self::receptance`] at `s = iω`).
@@ -236,6 +260,90 @@ impl DynamicModel {
         }
         off / diag
     }
+}
+
+/// Displacements `x = Z(s)⁻¹ f` of a few force columns `f` for one dynamic stiffness
+/// `Z(s) = K + i sgn(Im s) D + sC + s²M` (at `s = iω` it is
+/// [`DynamicModel::dynamic_stiffness`]; `s = σ + iω` under an exponential window, as in
+/// [`crate::observe`]), with the mass and stiffness given (an input's attached ones
+/// included), by Gaussian elimination with partial pivoting on the 6×6 complex system
+/// and all columns at once.
+///
+/// Why not `G = Z⁻¹` as [`DynamicModel::direct_compliance`]: a model fitter needs only
+/// the set-up's inputs, so one elimination and a solve per input (≈ 200 complex
+/// multiplications) replace the inverse, its check `Z G = I` and `S G` for every
+/// coordinate (≈ 900). The values agree with the inverse's to rounding, not bit for bit.
+///
+/// `x[i]` receives the displacement of `forces[i]`. Returns `false` when `Z` is singular
+/// to working precision: a pivot below 1e-10 of Z's largest entry (|re| + |im|), i.e.
+/// a condition number above about 1e10, where the inverse's guard `‖Z G − I‖ < 1e-6`
+/// (rounding 1e-16 × condition) fails too; or a non-finite solution. The pivots are
+/// free by-products of the elimination, where checking `Z x = f` would cost another
+/// third of the solve.
+pub fn solve_columns(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    damping: &Mat6,
+    structural_damping: &Mat6,
+    s: c64,
+    forces: &[[c64; 6]],
+    x: &mut [[c64; 6]],
+) -> bool {
+    let sgn = if s.im < 0.0 { -1.0 } else { 1.0 };
+    let s2 = s * s;
+    let mut a: [[c64; 6]; 6] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            c64::new(
+                stiffness[(i, j)] + s.re * damping[(i, j)] + s2.re * mass[(i, j)],
+                s.im * damping[(i, j)] + sgn * structural_damping[(i, j)] + s2.im * mass[(i, j)],
+            )
+        })
+    });
+    let tiny = 1e-10 * a.iter().flatten().map(|v| v.l1_norm()).fold(0.0, f64::max);
+    // Row k of the eliminated system; `perm` tracks the row swaps of the right-hand sides.
+    let mut perm: [usize; 6] = std::array::from_fn(|i| i);
+    for k in 0..6 {
+        let p = (k..6)
+            .max_by(|&x, &y| a[x][k].l1_norm().total_cmp(&a[y][k].l1_norm()))
+            .unwrap_or(k);
+        let pivot = a[p][k].l1_norm();
+        if !(pivot > tiny && pivot.is_finite()) {
+            return false;
+        }
+        a.swap(k, p);
+        perm.swap(k, p);
+        let inv = a[k][k].inv();
+        a[k][k] = inv;
+        let (top, below) = a.split_at_mut(k + 1);
+        let pivot_row = &top[k];
+        for row in below {
+            let m = row[k] * inv;
+            row[k] = m;
+            for (r, p) in row[k + 1..].iter_mut().zip(&pivot_row[k + 1..]) {
+                *r -= m * p;
+            }
+        }
+    }
+    for (x, b) in x.iter_mut().zip(forces) {
+        let mut y: [c64; 6] = std::array::from_fn(|i| b[perm[i]]);
+        for i in 1..6 {
+            for j in 0..i {
+                let t = a[i][j] * y[j];
+                y[i] -= t;
+            }
+        }
+        for i in (0..6).rev() {
+            for j in i + 1..6 {
+                let t = a[i][j] * y[j];
+                y[i] -= t;
+            }
+            y[i] *= a[i][i];
+        }
+        *x = y;
+    }
+    x.iter()
+        .flatten()
+        .all(|v| v.re.is_finite() && v.im.is_finite())
 }
 
 /// Assembles `C = M Φ diag(2ζ_r ω_r) Φᵀ M`, which gives mode r the ratio ζ_r exactly
