@@ -259,6 +259,12 @@ fn cords_case(splayed: bool) {
     let p = &grav.parameters[0];
     assert_eq!(p.name, "inverse_cord_length_per_m");
     let want = 1.0 / mean_hanging_length(&truth_spec.setups[0].cords, &truth);
+    eprintln!(
+        "1/L̄ = {:.6} ± {:.6} 1/m, truth {want:.6} ({:.2} SE)",
+        p.value,
+        p.standard_error,
+        (p.value - want) / p.standard_error
+    );
     assert!(
         (p.value - want).abs() <= 4.0 * p.standard_error,
         "1/L̄ = {} ± {} vs {want}",
