@@ -331,7 +331,9 @@ fn free_free_null_is_silent() {
 /// leaves a factor 20 and is still 1e5 times below the 1 % noise of the check cases.
 #[test]
 fn hanging_body_frfs_match_the_independent_generator() {
-    let Some(py) = python() else { return };
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
     for splayed in [false, true] {
         let mut s = tc2();
         s.setups[0].springs.clear();
