@@ -111,12 +111,16 @@ pub fn coupled_damping(
     let modes = rigid_body_modes(mass, stiffness).map_err(|e| e.to_string())?;
     let phi = Mat6::from_columns(&modes.iter().map(|m| m.1).collect::<Vec<_>>());
     let d = (phi.transpose() * damping * phi).diagonal();
-    if let Some(x) = d.iter().find(|x| !(**x >= 0.0)) {
+    // An undamped mode (a free direction, a hanging body's pendulum) comes out of the
+    // product as ±1e-17 rounding: only a negative value beyond the rounding of the
+    // largest modal damping is an error.
+    let rounding = 1e-12 * d.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if let Some(x) = d.iter().find(|x| !(**x >= -rounding)) {
         return Err(format!(
             "modal_coupling: a mode has negative damping φᵀCφ = {x:e}"
         ));
     }
-    let sd = d.map(f64::sqrt);
+    let sd = d.map(|x| x.max(0.0).sqrt());
     let mut cm = r - Mat6::identity();
     for i in 0..6 {
         for j in 0..6 {
@@ -474,6 +478,23 @@ mod tests {
         let c0 = modal_classical(&m, &k, &c);
         let same = coupled_damping(&m, &k, &c0, &[0.0; 15]).unwrap();
         assert!((same - c0).abs().max() <= 1e-14 * c0.abs().max());
+    }
+
+    /// An undamped mode whose modal damping comes out as −1e-17 rounding (a hanging
+    /// body's pendulum on undamped cords) is accepted as undamped; a mode with damping
+    /// clearly below zero is still refused.
+    #[test]
+    fn an_undamped_mode_is_not_refused_for_its_rounding() {
+        let (m, k, c) = body();
+        let c0 = modal_classical(&m, &k, &c);
+        let modes = rigid_body_modes(&m, &k).unwrap();
+        let phi0 = modes[0].1;
+        let mp = m * phi0;
+        let strip = |x: f64| c0 - mp * mp.transpose() * ((phi0.transpose() * c0 * phi0)[0] + x);
+        let n = vec![0.2; MODAL_COUPLINGS];
+        let scale = c0.abs().max();
+        assert!(coupled_damping(&m, &k, &strip(1e-17 * scale), &n).is_ok());
+        assert!(coupled_damping(&m, &k, &strip(1e-3 * scale), &n).is_err());
     }
 
     /// PSD by construction: for large arbitrary N, every eigenvalue of C' is ≥ −1e-12 of
