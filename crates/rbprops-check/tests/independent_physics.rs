@@ -238,8 +238,11 @@ fn dashpots_among_other_effects_are_separated() {
 }
 
 /// Two elastic modes above the band (37.5 and 50 Hz, 3× and 4× its top) with different
-/// shapes, at 1 % noise: named as residual flexibility (or the elastic mode of its
-/// family), nothing else, χ²/ν inside the band.
+/// shapes, at 1 % noise: named as residual flexibility or as an elastic mode above the
+/// band (the two describe the same physics here, and which one the selection takes
+/// depends on the recording: with the same code, this seed gave `residual_flexibility`
+/// in one Python environment and `elastic_mode` at 37.5 Hz, χ²/ν 23.5 → 1.001, in a
+/// newer one), nothing else, χ²/ν inside the band.
 #[test]
 fn two_elastic_modes_above_the_band_are_explained() {
     let Some(py) = python(NUMPY_PYUFF) else {
@@ -253,14 +256,34 @@ fn two_elastic_modes_above_the_band_are_explained() {
         6,
         &nom,
     );
-    assert_explained(
+    let r = assert_explained(
         "two elastic modes above the band",
         &nom,
         &g,
         &frf,
-        &["residual_flexibility"],
-        &["elastic_mode"],
+        &[],
+        &["residual_flexibility", "elastic_mode"],
     );
+    assert_out_of_band_modes_named(&r, &frf);
+}
+
+/// At least one of the out-of-band family is named, and an elastic mode named for it
+/// sits above the band (not an in-band resonance the data do not have).
+fn assert_out_of_band_modes_named(r: &ModelCheckReport, frf: &FrfSet) {
+    assert!(!named(r).is_empty(), "nothing named: {}", r.verdict);
+    let top = frf.frequency_hz.last().copied().unwrap_or(0.0);
+    for a in r.accepted.iter().filter(|a| a.id == "elastic_mode") {
+        let f = a
+            .parameters
+            .iter()
+            .find(|p| p.name == "frequency_hz")
+            .map(|p| p.value)
+            .expect("an elastic mode has a frequency");
+        assert!(
+            f > top,
+            "elastic mode at {f} Hz, inside the band (top {top} Hz)"
+        );
+    }
 }
 
 /// The same two modes at 0.1 % noise, where χ²/ν of the baseline is 2250: one
@@ -274,15 +297,16 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
     };
     let nom = nominal(400);
     let (g, frf) = refgen(&py, "tc2-elastic-above", &["noise.relative=0.001"], 6, &nom);
-    assert_explained_with(
+    let r = assert_explained_with(
         "two elastic modes, 0.1 % noise",
         &nom,
         &g,
         &frf,
-        &["residual_flexibility"],
-        &["elastic_mode"],
+        &[],
+        &["residual_flexibility", "elastic_mode"],
         0.001,
     );
+    assert_out_of_band_modes_named(&r, &frf);
 }
 
 /// Six concealed effects at once (`tc2-six-effects`: sensor 2 misoriented ≈ 2°, sensor 3
