@@ -141,12 +141,18 @@ mod tests {
         assert!(toml.contains("[workspace]"));
     }
 
+    /// Without the requirement a missing module is a skip (`None`); with it (CI), a panic.
     #[test]
-    fn a_missing_module_is_a_skip_without_the_requirement() {
+    fn a_missing_module_is_a_skip_or_a_failure_as_required() {
+        let probe = std::panic::catch_unwind(|| python(&["rbprops_no_such_module_xyz"]));
         if required("RBPROPS_REQUIRE_PYTHON") {
-            return; // under CI's requirement the probe of a missing module must panic
+            assert!(
+                probe.is_err(),
+                "a missing module passed under the requirement"
+            );
+        } else {
+            assert_eq!(probe.ok(), Some(None));
         }
-        assert_eq!(python(&["rbprops_no_such_module_xyz"]), None);
     }
 
     #[test]
