@@ -180,42 +180,17 @@ fn sdof_mobility(wr: f64, zeta: f64, a: c64, w: f64) -> c64 {
     c64::new(0.0, w) * a / c64::new(wr * wr - w * w, 2.0 * zeta * wr * w)
 }
 
+/// A mode's current SDOF model: `(ω_r, ζ, A per channel)`.
+type SdofModel = (f64, f64, Vec<c64>);
+
 /// Circle-fits every mode located by `poles` (ascending) on every channel of `band`.
 pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
     let no = band.channels.len();
-    let nl = band.n_lines();
-    let k = band.quantity.order();
-    // Measured quantity → mobility: multiply by (iω)^{1−k}.
-    let to_mob: Vec<c64> = band
-        .omega
-        .iter()
-        .map(|&w| c64::new(0.0, w).powi(1 - k))
-        .collect();
-    let mob: Vec<Vec<c64>> = band
-        .channels
-        .iter()
-        .map(|h| h.iter().zip(&to_mob).map(|(a, b)| a * b).collect())
-        .collect();
+    let mob = mobilities(band);
     let nm = poles.len();
     let mut warnings = Vec::new();
-    let mut mode_warn = vec![Vec::new(); nm];
-    for m in 0..nm {
-        for j in 0..nm {
-            if j == m {
-                continue;
-            }
-            let bw = 2.0 * poles[m].half_bandwidth();
-            let sep = (poles[j].omega_d() - poles[m].omega_d()).abs() / bw;
-            if sep < min_separation {
-                mode_warn[m].push(format!(
-                    "circle fit expected to fail: mode at {:.4} Hz is only {sep:.2} half-power bandwidths away (SDOF needs ≥ {min_separation})",
-                    poles[j].frequency_hz()
-                ));
-            }
-        }
-    }
-    // Current SDOF models: (ω_r, ζ, A per channel).
-    let mut model: Vec<Option<(f64, f64, Vec<c64>)>> = vec![None; nm];
+    let mut mode_warn = separation_warnings(poles, min_separation);
+    let mut model: Vec<Option<SdofModel>> = vec![None; nm];
     let mut per_channel: Vec<Vec<Option<Circ>>> = vec![vec![None; no]; nm];
     for _sweep in 0..6 {
         for m in 0..nm {
@@ -223,18 +198,7 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
                 Some((w, z, _)) => (*w, *z),
                 None => (poles[m].omega_n(), poles[m].damping()),
             };
-            // Lines within ±2 half-bandwidths, widened until at least 6 lines.
-            let mut half = 2.0 * z0 * wr0;
-            let mut idx: Vec<usize>;
-            loop {
-                idx = (0..nl)
-                    .filter(|&l| (band.omega[l] - wr0).abs() <= half && band.omega[l] > 0.0)
-                    .collect();
-                if idx.len() >= 6 || half > 0.5 * wr0 {
-                    break;
-                }
-                half *= 1.5;
-            }
+            let idx = window_lines(band, wr0, z0);
             if idx.len() < 4 {
                 if model[m].is_none() {
                     mode_warn[m].push(format!(
@@ -245,98 +209,17 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
                 }
                 continue;
             }
-            let w: Vec<f64> = idx.iter().map(|&l| band.omega[l]).collect();
-            let mut fits = Vec::with_capacity(no);
-            for o in 0..no {
-                let y: Vec<c64> = idx
-                    .iter()
-                    .map(|&l| {
-                        let mut v = mob[o][l];
-                        for (j, mj) in model.iter().enumerate() {
-                            if j != m {
-                                if let Some((wj, zj, aj)) = mj {
-                                    v -= sdof_mobility(*wj, *zj, aj[o], band.omega[l]);
-                                }
-                            }
-                        }
-                        v
-                    })
-                    .collect();
-                fits.push(fit_channel(&w, &y, wr0, z0));
+            let fits = fit_channels_without_neighbours(band, &mob, &model, m, &idx, (wr0, z0));
+            if let Some(consensus) = consensus_model(&fits) {
+                model[m] = Some(consensus);
+                per_channel[m] = fits;
             }
-            // Consensus ω_r and ζ: weighted by the squared diameter (large circles are
-            // the reliable ones); tiny circles (< 1e-3 of the largest) do not vote.
-            let rmax = fits
-                .iter()
-                .flatten()
-                .filter(|c| c.ok)
-                .map(|c| c.radius)
-                .fold(0.0, f64::max);
-            let voters: Vec<&Circ> = fits
-                .iter()
-                .flatten()
-                .filter(|c| c.ok && c.radius > 1e-3 * rmax)
-                .collect();
-            if voters.is_empty() {
-                continue;
-            }
-            let wsum: f64 = voters.iter().map(|c| c.radius * c.radius).sum();
-            let wr = voters
-                .iter()
-                .map(|c| c.wr * c.radius * c.radius)
-                .sum::<f64>()
-                / wsum;
-            let zeta = voters
-                .iter()
-                .map(|c| c.zeta * c.radius * c.radius)
-                .sum::<f64>()
-                / wsum;
-            let a: Vec<c64> = fits
-                .iter()
-                .map(|c| match c {
-                    Some(c) if c.ok => c64::from_polar(2.0 * zeta * wr * 2.0 * c.radius, c.phi0),
-                    _ => c64::new(0.0, 0.0),
-                })
-                .collect();
-            model[m] = Some((wr, zeta, a));
-            per_channel[m] = fits;
         }
     }
     let mut modes = Vec::with_capacity(nm);
     for m in 0..nm {
         match &model[m] {
-            Some((wr, zeta, a)) => {
-                let fits: Vec<&Circ> = per_channel[m].iter().flatten().filter(|c| c.ok).collect();
-                let rmax = fits.iter().map(|c| c.radius).fold(0.0, f64::max);
-                let voters: Vec<&&Circ> = fits.iter().filter(|c| c.radius > 1e-3 * rmax).collect();
-                let wsum: f64 = voters.iter().map(|c| c.radius * c.radius).sum();
-                let nv = voters.len().max(1) as f64;
-                let vw = voters
-                    .iter()
-                    .map(|c| c.radius * c.radius * (c.wr - wr).powi(2))
-                    .sum::<f64>()
-                    / wsum;
-                let vz = voters
-                    .iter()
-                    .map(|c| c.radius * c.radius * (c.zeta - zeta).powi(2))
-                    .sum::<f64>()
-                    / wsum;
-                let a_std = per_channel[m]
-                    .iter()
-                    .map(|c| match c {
-                        Some(c) if c.ok => 2.0 * zeta * wr * 2.0 * c.rms_dev,
-                        _ => 0.0,
-                    })
-                    .collect();
-                let wd = wr * (1.0 - zeta * zeta).max(0.0).sqrt();
-                modes.push(CircleMode {
-                    pole: Pole(c64::new(-zeta * wr, wd)),
-                    std: ((vw / nv).sqrt() / (2.0 * PI), (vz / nv).sqrt()),
-                    modal_constants: a.clone(),
-                    modal_constant_std: a_std,
-                    warnings: mode_warn[m].clone(),
-                });
-            }
+            Some(sdof) => modes.push(fitted_mode(sdof, &per_channel[m], mode_warn[m].clone())),
             None => {
                 let mut w = mode_warn[m].clone();
                 w.push(
@@ -370,11 +253,182 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
             ));
         }
     }
-    // Synthesis in the measured quantity: receptance A/(ω_r² − ω² + 2iζω_rω) · (iω)^k.
+    let synthesised = synthesise(band, &modes);
+    CircleFit {
+        modes,
+        warnings,
+        synthesised,
+    }
+}
+
+/// The band's channels as mobility, `[channel][line]`: the measured quantity times
+/// `(iω)^{1−k}`.
+fn mobilities(band: &BandData) -> Vec<Vec<c64>> {
+    let k = band.quantity.order();
+    let to_mob: Vec<c64> = band
+        .omega
+        .iter()
+        .map(|&w| c64::new(0.0, w).powi(1 - k))
+        .collect();
+    band.channels
+        .iter()
+        .map(|h| h.iter().zip(&to_mob).map(|(a, b)| a * b).collect())
+        .collect()
+}
+
+/// Per mode, a warning for every other mode closer than `min_separation` half-power
+/// bandwidths: there the SDOF assumption of the circle fit is expected to fail.
+fn separation_warnings(poles: &[Pole], min_separation: f64) -> Vec<Vec<String>> {
+    let nm = poles.len();
+    let mut mode_warn = vec![Vec::new(); nm];
+    for m in 0..nm {
+        for j in 0..nm {
+            if j == m {
+                continue;
+            }
+            let bw = 2.0 * poles[m].half_bandwidth();
+            let sep = (poles[j].omega_d() - poles[m].omega_d()).abs() / bw;
+            if sep < min_separation {
+                mode_warn[m].push(format!(
+                    "circle fit expected to fail: mode at {:.4} Hz is only {sep:.2} half-power bandwidths away (SDOF needs ≥ {min_separation})",
+                    poles[j].frequency_hz()
+                ));
+            }
+        }
+    }
+    mode_warn
+}
+
+/// Lines of the fitting window around `wr0`: within ±2 half-power half-bandwidths,
+/// widened until at least 6 lines (or half of `wr0`).
+fn window_lines(band: &BandData, wr0: f64, z0: f64) -> Vec<usize> {
+    let nl = band.n_lines();
+    let mut half = 2.0 * z0 * wr0;
+    loop {
+        let idx: Vec<usize> = (0..nl)
+            .filter(|&l| (band.omega[l] - wr0).abs() <= half && band.omega[l] > 0.0)
+            .collect();
+        if idx.len() >= 6 || half > 0.5 * wr0 {
+            return idx;
+        }
+        half *= 1.5;
+    }
+}
+
+/// Circle fit of mode `m` on every channel over the window lines `idx`, after
+/// subtracting the current SDOF models of all the other modes; `guess` is `(ω_r, ζ)`.
+fn fit_channels_without_neighbours(
+    band: &BandData,
+    mob: &[Vec<c64>],
+    model: &[Option<SdofModel>],
+    m: usize,
+    idx: &[usize],
+    guess: (f64, f64),
+) -> Vec<Option<Circ>> {
+    let w: Vec<f64> = idx.iter().map(|&l| band.omega[l]).collect();
+    let mut fits = Vec::with_capacity(mob.len());
+    for (o, mob_o) in mob.iter().enumerate() {
+        let y: Vec<c64> = idx
+            .iter()
+            .map(|&l| {
+                let mut v = mob_o[l];
+                for (j, mj) in model.iter().enumerate() {
+                    if j != m {
+                        if let Some((wj, zj, aj)) = mj {
+                            v -= sdof_mobility(*wj, *zj, aj[o], band.omega[l]);
+                        }
+                    }
+                }
+                v
+            })
+            .collect();
+        fits.push(fit_channel(&w, &y, guess.0, guess.1));
+    }
+    fits
+}
+
+/// The channels that vote: clean circles (`ok`) not tiny (radius above 1e-3 of the
+/// largest clean one).
+fn voters<'a>(fits: impl Iterator<Item = &'a Circ> + Clone) -> Vec<&'a Circ> {
+    let rmax = fits
+        .clone()
+        .filter(|c| c.ok)
+        .map(|c| c.radius)
+        .fold(0.0, f64::max);
+    fits.filter(|c| c.ok && c.radius > 1e-3 * rmax).collect()
+}
+
+/// Consensus SDOF model of one mode from its per-channel circles: `ω_r` and `ζ`
+/// weighted by the squared diameter (large circles are the reliable ones), and each
+/// clean channel's modal constant `A = 2ζω_r · 2r e^{iφ_0}`. `None` when no channel votes.
+fn consensus_model(fits: &[Option<Circ>]) -> Option<SdofModel> {
+    let voters = voters(fits.iter().flatten());
+    if voters.is_empty() {
+        return None;
+    }
+    let wsum: f64 = voters.iter().map(|c| c.radius * c.radius).sum();
+    let wr = voters
+        .iter()
+        .map(|c| c.wr * c.radius * c.radius)
+        .sum::<f64>()
+        / wsum;
+    let zeta = voters
+        .iter()
+        .map(|c| c.zeta * c.radius * c.radius)
+        .sum::<f64>()
+        / wsum;
+    let a: Vec<c64> = fits
+        .iter()
+        .map(|c| match c {
+            Some(c) if c.ok => c64::from_polar(2.0 * zeta * wr * 2.0 * c.radius, c.phi0),
+            _ => c64::new(0.0, 0.0),
+        })
+        .collect();
+    Some((wr, zeta, a))
+}
+
+/// A fitted mode: its pole from the consensus model, the standard deviation of
+/// `(f, ζ)` from the weighted scatter of the voting channels, and each modal
+/// constant's uncertainty from the scatter of the points about its circle.
+fn fitted_mode(sdof: &SdofModel, fits: &[Option<Circ>], warnings: Vec<String>) -> CircleMode {
+    let (wr, zeta, a) = (sdof.0, sdof.1, &sdof.2);
+    let voters = voters(fits.iter().flatten());
+    let wsum: f64 = voters.iter().map(|c| c.radius * c.radius).sum();
+    let nv = voters.len().max(1) as f64;
+    let vw = voters
+        .iter()
+        .map(|c| c.radius * c.radius * (c.wr - wr).powi(2))
+        .sum::<f64>()
+        / wsum;
+    let vz = voters
+        .iter()
+        .map(|c| c.radius * c.radius * (c.zeta - zeta).powi(2))
+        .sum::<f64>()
+        / wsum;
+    let a_std = fits
+        .iter()
+        .map(|c| match c {
+            Some(c) if c.ok => 2.0 * zeta * wr * 2.0 * c.rms_dev,
+            _ => 0.0,
+        })
+        .collect();
+    let wd = wr * (1.0 - zeta * zeta).max(0.0).sqrt();
+    CircleMode {
+        pole: Pole(c64::new(-zeta * wr, wd)),
+        std: ((vw / nv).sqrt() / (2.0 * PI), (vz / nv).sqrt()),
+        modal_constants: a.clone(),
+        modal_constant_std: a_std,
+        warnings,
+    }
+}
+
+/// Sum of the SDOF models in the measured quantity, `[channel][line]`: receptance
+/// `A/(ω_r² − ω² + 2iζω_rω)` times `(iω)^k`.
+fn synthesise(band: &BandData, modes: &[CircleMode]) -> Vec<Vec<c64>> {
     let q = band.quantity_factor();
-    let synthesised = (0..no)
+    (0..band.channels.len())
         .map(|o| {
-            (0..nl)
+            (0..band.n_lines())
                 .map(|l| {
                     let w = band.omega[l];
                     modes
@@ -388,12 +442,7 @@ pub fn fit(band: &BandData, poles: &[Pole], min_separation: f64) -> CircleFit {
                 })
                 .collect()
         })
-        .collect();
-    CircleFit {
-        modes,
-        warnings,
-        synthesised,
-    }
+        .collect()
 }
 
 #[cfg(test)]

@@ -96,6 +96,17 @@ fn physical(p: &Pole, band_w: (f64, f64), tol: &StabilisationTolerances) -> bool
     z > 0.0 && z < tol.max_damping && w >= band_w.0 && w <= band_w.1
 }
 
+/// (diagram index, order index, pole index) of a pole that may join a cluster.
+type PoleRef = (usize, usize, usize);
+
+/// Poles of successive model orders that the clustering groups as one mode.
+struct Cluster {
+    anchor: Pole,
+    shape: Vec<c64>,
+    members: Vec<PoleRef>,
+    lowest_order: usize,
+}
+
 /// Classifies every pole and selects the physical modes.
 ///
 /// `band_w` is the band in rad/s. `n_modes` forces the number of modes (the best
@@ -106,12 +117,44 @@ pub fn select(
     tol: &StabilisationTolerances,
     n_modes: Option<usize>,
 ) -> Selection {
+    let (mut diagram, stable) = classify(orders, band_w, tol);
+    let clusters = cluster_stable_poles(orders, &stable, tol);
+    let ranking = ClusterRanking {
+        orders,
+        clusters: &clusters,
+        diagram: &diagram,
+    };
+    let mut warnings = Vec::new();
+    let keep = ranking.kept_clusters(tol, n_modes, &mut warnings);
+    let mut modes: Vec<(usize, SelectedPole)> =
+        keep.iter().map(|&ci| (ci, ranking.summarise(ci))).collect();
+    let candidates = ranking.candidates(&keep, &modes, band_w, tol);
+    modes.sort_by(|a, b| a.1.pole.omega_n().total_cmp(&b.1.pole.omega_n()));
+    for (mi, (ci, _)) in modes.iter().enumerate() {
+        for &(di, _, _) in &clusters[*ci].members {
+            diagram.poles[di].mode = Some(mi);
+        }
+    }
+    Selection {
+        diagram,
+        modes: modes.into_iter().map(|m| m.1).collect(),
+        candidates,
+        warnings,
+    }
+}
+
+/// Builds the diagram: every pole of every order, classified against the nearest
+/// physical pole of the previous order. Also returns the poles that may join a cluster.
+fn classify(
+    orders: &[OrderPoles],
+    band_w: (f64, f64),
+    tol: &StabilisationTolerances,
+) -> (StabilisationDiagram, Vec<PoleRef>) {
     let mut diagram = StabilisationDiagram {
         poles: Vec::new(),
         max_order: orders.iter().map(|o| o.order).max().unwrap_or(0),
     };
-    // (diagram index, order index, pole index) of the stable poles.
-    let mut stable: Vec<(usize, usize, usize)> = Vec::new();
+    let mut stable: Vec<PoleRef> = Vec::new();
     // Per order, each pole's natural frequency and whether it is physical, computed once
     // (the comparisons below would otherwise recompute them for every pair of poles).
     let props: Vec<Vec<(f64, bool)>> = orders
@@ -124,38 +167,11 @@ pub fn select(
         })
         .collect();
     for (oi, op) in orders.iter().enumerate() {
-        let prev = if oi > 0 { Some(&orders[oi - 1]) } else { None };
         for (pi, p) in op.poles.iter().enumerate() {
-            let (wp, phys) = props[oi][pi];
-            let class = if !phys {
+            let class = if !props[oi][pi].1 {
                 StabilityClass::Computational
-            } else if let Some(prev) = prev {
-                let pp = &props[oi - 1];
-                let best = prev
-                    .poles
-                    .iter()
-                    .enumerate()
-                    .filter(|(qi, _)| pp[*qi].1)
-                    .min_by(|a, b| {
-                        let da = (pp[a.0].0 - wp).abs();
-                        let db = (pp[b.0].0 - wp).abs();
-                        da.total_cmp(&db)
-                    });
-                match best {
-                    None => StabilityClass::New,
-                    Some((qi, q)) => {
-                        let df = (q.omega_n() - p.omega_n()).abs() / p.omega_n();
-                        let dz = (q.damping() - p.damping()).abs() / p.damping();
-                        let dm = 1.0 - mac(&op.shapes[pi], &prev.shapes[qi]);
-                        match (df < tol.frequency, dz < tol.damping, dm < tol.shape) {
-                            (false, _, _) => StabilityClass::New,
-                            (true, true, true) => StabilityClass::Stable,
-                            (true, true, false) => StabilityClass::Damping,
-                            (true, false, true) => StabilityClass::Shape,
-                            (true, false, false) => StabilityClass::Frequency,
-                        }
-                    }
-                }
+            } else if oi > 0 {
+                class_against_previous(orders, &props, oi, pi, tol)
             } else {
                 StabilityClass::New
             };
@@ -178,17 +194,62 @@ pub fn select(
             });
         }
     }
+    (diagram, stable)
+}
 
-    // Cluster, highest orders first (their poles are the best converged).
-    struct Cluster {
-        anchor: Pole,
-        shape: Vec<c64>,
-        members: Vec<(usize, usize, usize)>,
-        lowest_order: usize,
+/// Stability class of physical pole `pi` of order `oi` (> 0) against the nearest (in
+/// natural frequency) physical pole of order `oi − 1`; `props` holds each pole's
+/// natural frequency and physicality.
+fn class_against_previous(
+    orders: &[OrderPoles],
+    props: &[Vec<(f64, bool)>],
+    oi: usize,
+    pi: usize,
+    tol: &StabilisationTolerances,
+) -> StabilityClass {
+    let (op, prev) = (&orders[oi], &orders[oi - 1]);
+    let p = &op.poles[pi];
+    let wp = props[oi][pi].0;
+    let pp = &props[oi - 1];
+    let best = prev
+        .poles
+        .iter()
+        .enumerate()
+        .filter(|(qi, _)| pp[*qi].1)
+        .min_by(|a, b| {
+            let da = (pp[a.0].0 - wp).abs();
+            let db = (pp[b.0].0 - wp).abs();
+            da.total_cmp(&db)
+        });
+    match best {
+        None => StabilityClass::New,
+        Some((qi, q)) => {
+            let df = (q.omega_n() - p.omega_n()).abs() / p.omega_n();
+            let dz = (q.damping() - p.damping()).abs() / p.damping();
+            let dm = 1.0 - mac(&op.shapes[pi], &prev.shapes[qi]);
+            match (df < tol.frequency, dz < tol.damping, dm < tol.shape) {
+                (false, _, _) => StabilityClass::New,
+                (true, true, true) => StabilityClass::Stable,
+                (true, true, false) => StabilityClass::Damping,
+                (true, false, true) => StabilityClass::Shape,
+                (true, false, false) => StabilityClass::Frequency,
+            }
+        }
     }
+}
+
+/// Groups the `stable` poles into clusters, highest orders first (their poles are the
+/// best converged). Each order's poles are matched to the clusters greedily, nearest
+/// (in half-power bandwidths) first, at most one pole per cluster and order; a pole
+/// left unmatched starts a new cluster.
+fn cluster_stable_poles(
+    orders: &[OrderPoles],
+    stable: &[PoleRef],
+    tol: &StabilisationTolerances,
+) -> Vec<Cluster> {
     let mut clusters: Vec<Cluster> = Vec::new();
     for oi in (0..orders.len()).rev() {
-        let here: Vec<&(usize, usize, usize)> = stable.iter().filter(|s| s.1 == oi).collect();
+        let here: Vec<&PoleRef> = stable.iter().filter(|s| s.1 == oi).collect();
         // All candidate (distance, pole, cluster) pairs, then greedy smallest-first.
         let mut pairs = Vec::new();
         for (a, s) in here.iter().enumerate() {
@@ -224,48 +285,80 @@ pub fn select(
             }
         }
     }
+    clusters
+}
 
-    let n_orders = orders.len().max(1);
-    // Orders of the diagram from `lowest` up (the sweep may skip orders, e.g. odd ones).
-    let orders_from = |lowest: usize| orders.iter().filter(|o| o.order >= lowest).count().max(1);
-    let min_support = 3usize.max(n_orders / 8);
-    let fully_stable = |c: &Cluster| {
-        c.members
+/// The clusters with what is needed to judge them: their support across the orders of
+/// the diagram and whether they hold a fully stable pole.
+struct ClusterRanking<'a> {
+    orders: &'a [OrderPoles],
+    clusters: &'a [Cluster],
+    diagram: &'a StabilisationDiagram,
+}
+
+impl ClusterRanking<'_> {
+    /// Orders of the diagram from `lowest` up (the sweep may skip orders, e.g. odd ones).
+    fn orders_from(&self, lowest: usize) -> usize {
+        self.orders
             .iter()
-            .any(|&(di, _, _)| diagram.poles[di].class == StabilityClass::Stable)
-    };
-    let mut ranked: Vec<(usize, f64, usize)> = clusters
-        .iter()
-        .enumerate()
-        .filter(|(_, c)| fully_stable(c))
-        .map(|(ci, c)| {
-            let span = orders_from(c.lowest_order);
-            (ci, c.members.len() as f64 / span as f64, c.members.len())
-        })
-        .collect();
-    let mut warnings = Vec::new();
-    let keep: Vec<usize> = match n_modes {
-        None => ranked
+            .filter(|o| o.order >= lowest)
+            .count()
+            .max(1)
+    }
+
+    /// Indices of the clusters kept as modes: those present in enough orders with
+    /// enough poles or, when `n_modes` forces the count, the best supported ones
+    /// (a warning when fewer are available).
+    fn kept_clusters(
+        &self,
+        tol: &StabilisationTolerances,
+        n_modes: Option<usize>,
+        warnings: &mut Vec<String>,
+    ) -> Vec<usize> {
+        let n_orders = self.orders.len().max(1);
+        let min_support = 3usize.max(n_orders / 8);
+        let fully_stable = |c: &Cluster| {
+            c.members
+                .iter()
+                .any(|&(di, _, _)| self.diagram.poles[di].class == StabilityClass::Stable)
+        };
+        // (cluster, presence, support) of the clusters with a fully stable pole.
+        let mut ranked: Vec<(usize, f64, usize)> = self
+            .clusters
             .iter()
-            .filter(|(_, pres, n)| *pres >= tol.min_presence && *n >= min_support)
-            .map(|r| r.0)
-            .collect(),
-        Some(k) => {
-            ranked.sort_by(|a, b| b.2.cmp(&a.2).then(b.1.total_cmp(&a.1)).then(a.0.cmp(&b.0)));
-            if ranked.len() < k {
-                warnings.push(format!(
-                    "{k} modes requested but the stabilisation diagram shows only {} stable pole clusters",
-                    ranked.len()
-                ));
+            .enumerate()
+            .filter(|(_, c)| fully_stable(c))
+            .map(|(ci, c)| {
+                let span = self.orders_from(c.lowest_order);
+                (ci, c.members.len() as f64 / span as f64, c.members.len())
+            })
+            .collect();
+        match n_modes {
+            None => ranked
+                .iter()
+                .filter(|(_, pres, n)| *pres >= tol.min_presence && *n >= min_support)
+                .map(|r| r.0)
+                .collect(),
+            Some(k) => {
+                ranked.sort_by(|a, b| b.2.cmp(&a.2).then(b.1.total_cmp(&a.1)).then(a.0.cmp(&b.0)));
+                if ranked.len() < k {
+                    warnings.push(format!(
+                        "{k} modes requested but the stabilisation diagram shows only {} stable pole clusters",
+                        ranked.len()
+                    ));
+                }
+                ranked.iter().take(k).map(|r| r.0).collect()
             }
-            ranked.iter().take(k).map(|r| r.0).collect()
         }
-    };
-    let summarise = |ci: usize| -> SelectedPole {
-        let c = &clusters[ci];
-        // The highest-order member (first pushed) is the representative.
+    }
+
+    /// Cluster `ci` as a selected pole: its highest-order member (first pushed) is the
+    /// representative, the scatter of its members across the orders the spread.
+    fn summarise(&self, ci: usize) -> SelectedPole {
+        let orders = self.orders;
+        let c = &self.clusters[ci];
         let (_, oi, pi) = c.members[0];
-        let span = orders_from(c.lowest_order);
+        let span = self.orders_from(c.lowest_order);
         let fz: Vec<(f64, f64)> = c
             .members
             .iter()
@@ -288,53 +381,53 @@ pub fn select(
             presence: (c.members.len() as f64 / span as f64).min(1.0),
             spread: (var.0.sqrt(), var.1.sqrt()),
         }
-    };
-    let mut modes: Vec<(usize, SelectedPole)> =
-        keep.iter().map(|&ci| (ci, summarise(ci))).collect();
-    let mut rest: Vec<usize> = (0..clusters.len())
-        .filter(|ci| !keep.contains(ci) && clusters[*ci].members.len() >= 2)
-        .collect();
-    rest.sort_by(|&a, &b| {
-        clusters[b]
-            .members
-            .len()
-            .cmp(&clusters[a].members.len())
-            .then(a.cmp(&b))
-    });
-    let mut candidates: Vec<SelectedPole> = rest.iter().take(4).map(|&ci| summarise(ci)).collect();
-    // Also the physical poles of the highest order that no kept or candidate cluster
-    // explains: a weak mode beside a strong one may appear only there.
-    if let Some(top) = orders.last() {
-        for (pi, p) in top.poles.iter().enumerate() {
-            if candidates.len() >= 6 || !physical(p, band_w, tol) {
-                continue;
-            }
-            let near = modes
-                .iter()
-                .map(|m| &m.1.pole)
-                .chain(candidates.iter().map(|c| &c.pole))
-                .any(|q| q.distance_in_bandwidths(p) < tol.cluster_bandwidths);
-            if !near {
-                candidates.push(SelectedPole {
-                    pole: *p,
-                    shape: top.shapes[pi].clone(),
-                    support: 1,
-                    presence: 1.0 / orders_from(top.order) as f64,
-                    spread: (0.0, 0.0),
-                });
+    }
+
+    /// Candidates for a residual-driven model-order test: the best supported rejected
+    /// clusters of at least two poles (up to four), then the physical poles of the
+    /// highest order that no kept or candidate cluster explains (up to six in all): a
+    /// weak mode beside a strong one may appear only there.
+    fn candidates(
+        &self,
+        keep: &[usize],
+        modes: &[(usize, SelectedPole)],
+        band_w: (f64, f64),
+        tol: &StabilisationTolerances,
+    ) -> Vec<SelectedPole> {
+        let clusters = self.clusters;
+        let mut rest: Vec<usize> = (0..clusters.len())
+            .filter(|ci| !keep.contains(ci) && clusters[*ci].members.len() >= 2)
+            .collect();
+        rest.sort_by(|&a, &b| {
+            clusters[b]
+                .members
+                .len()
+                .cmp(&clusters[a].members.len())
+                .then(a.cmp(&b))
+        });
+        let mut candidates: Vec<SelectedPole> =
+            rest.iter().take(4).map(|&ci| self.summarise(ci)).collect();
+        if let Some(top) = self.orders.last() {
+            for (pi, p) in top.poles.iter().enumerate() {
+                if candidates.len() >= 6 || !physical(p, band_w, tol) {
+                    continue;
+                }
+                let near = modes
+                    .iter()
+                    .map(|m| &m.1.pole)
+                    .chain(candidates.iter().map(|c| &c.pole))
+                    .any(|q| q.distance_in_bandwidths(p) < tol.cluster_bandwidths);
+                if !near {
+                    candidates.push(SelectedPole {
+                        pole: *p,
+                        shape: top.shapes[pi].clone(),
+                        support: 1,
+                        presence: 1.0 / self.orders_from(top.order) as f64,
+                        spread: (0.0, 0.0),
+                    });
+                }
             }
         }
-    }
-    modes.sort_by(|a, b| a.1.pole.omega_n().total_cmp(&b.1.pole.omega_n()));
-    for (mi, (ci, _)) in modes.iter().enumerate() {
-        for &(di, _, _) in &clusters[*ci].members {
-            diagram.poles[di].mode = Some(mi);
-        }
-    }
-    Selection {
-        diagram,
-        modes: modes.into_iter().map(|m| m.1).collect(),
-        candidates,
-        warnings,
+        candidates
     }
 }

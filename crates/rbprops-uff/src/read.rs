@@ -690,11 +690,64 @@ fn parse_axis(ctx: &Ctx, line: Option<&Line>, which: &str) -> Result<AxisInfo, U
     Ok(info)
 }
 
+/// Dataset 58 (function at nodal DOF): ID lines, records 6–11 (identification, data
+/// characteristics, the four axes), then the data, ASCII (record 12) or binary (58b).
 fn parse_58(
     ctx: &Ctx,
     lines: &[Line],
     binary: Option<(BinaryLayout, &[u8])>,
 ) -> Result<Function, UffError> {
+    let id_lines = read_id_lines(ctx, lines)?;
+    let ident = parse_58_identification(ctx, lines.get(5))?;
+    let data = parse_58_data_characteristics(ctx, lines.get(6))?;
+    let abscissa_axis = parse_axis(ctx, lines.get(7), "record 8 (abscissa)")?;
+    let numerator = parse_axis(ctx, lines.get(8), "record 9 (ordinate numerator)")?;
+    let denominator = parse_axis(ctx, lines.get(9), "record 10 (ordinate denominator)")?;
+    let z_axis = parse_axis(ctx, lines.get(10), "record 11 (z axis)")?;
+
+    let n = data.n;
+    let n_numbers = n.checked_mul(data.numbers_per_point()).ok_or_else(|| {
+        ctx.err(
+            "record 7 field 2 (number of values)",
+            format!("{n} is too large"),
+        )
+    })?;
+    let (numbers, layout) = if let Some((layout, bytes)) = binary {
+        let v = read_binary_values(ctx, lines.len(), &data, n_numbers, layout, bytes)?;
+        (v, Some(layout))
+    } else {
+        (read_ascii_values(ctx, lines, &data, n_numbers)?, None)
+    };
+    let (abscissa, ordinate) = data.points(&numbers);
+    Ok(Function {
+        id_lines,
+        function_type: ident.function_type,
+        function_id: ident.function_id,
+        version: ident.version,
+        load_case: ident.load_case,
+        response_entity: ident.response_entity,
+        response_node: ident.response_node,
+        response_direction: ident.response_direction,
+        reference_entity: ident.reference_entity,
+        reference_node: ident.reference_node,
+        reference_direction: ident.reference_direction,
+        ordinate_type: data.ordinate_type,
+        even: data.even,
+        abscissa_min: data.abscissa_min,
+        abscissa_increment: data.abscissa_increment,
+        z_value: data.z_value,
+        abscissa_axis,
+        numerator,
+        denominator,
+        z_axis,
+        binary: layout,
+        abscissa,
+        ordinate,
+    })
+}
+
+/// Records 1–5 of dataset 58: the five free-text ID lines.
+fn read_id_lines(ctx: &Ctx, lines: &[Line]) -> Result<[String; 5], UffError> {
     let mut id_lines: [String; 5] = Default::default();
     for (k, id) in id_lines.iter_mut().enumerate() {
         let l = lines.get(k).ok_or_else(|| {
@@ -705,7 +758,30 @@ fn parse_58(
         })?;
         *id = free_text(l.bytes);
     }
-    let r6 = Rec::new(ctx, lines.get(5), "record 6")?;
+    Ok(id_lines)
+}
+
+/// Record 6 of dataset 58: what the function is and which response and reference
+/// DOFs it relates.
+struct FunctionIdentification {
+    function_type: i64,
+    function_id: i64,
+    version: i64,
+    load_case: i64,
+    response_entity: String,
+    response_node: i64,
+    response_direction: i64,
+    reference_entity: String,
+    reference_node: i64,
+    reference_direction: i64,
+}
+
+/// Reads record 6, refusing unknown function type and direction codes.
+fn parse_58_identification(
+    ctx: &Ctx,
+    line: Option<&Line>,
+) -> Result<FunctionIdentification, UffError> {
+    let r6 = Rec::new(ctx, line, "record 6")?;
     let function_type = r6.int(0, 5, "field 1 (function type)")?;
     if !(0..=27).contains(&function_type) {
         return Err(ctx.err(
@@ -713,19 +789,22 @@ fn parse_58(
             format!("unknown function type code {function_type} (expected 0..27; 4 = FRF)"),
         ));
     }
-    let function_id = r6.int_or_zero(5, 10, "field 2 (function identification number)")?;
-    let version = r6.int_or_zero(15, 5, "field 3 (version number)")?;
-    let load_case = r6.int_or_zero(20, 10, "field 4 (load case)")?;
-    let response_entity = r6.text(31, 10);
-    let response_node = r6.int(41, 10, "field 6 (response node)")?;
-    let response_direction = r6.int(51, 4, "field 7 (response direction)")?;
-    let reference_entity = r6.text(56, 10);
-    let reference_node = r6.int_or_zero(66, 10, "field 9 (reference node)")?;
-    let reference_direction = r6.int_or_zero(76, 4, "field 10 (reference direction)")?;
+    let ident = FunctionIdentification {
+        function_type,
+        function_id: r6.int_or_zero(5, 10, "field 2 (function identification number)")?,
+        version: r6.int_or_zero(15, 5, "field 3 (version number)")?,
+        load_case: r6.int_or_zero(20, 10, "field 4 (load case)")?,
+        response_entity: r6.text(31, 10),
+        response_node: r6.int(41, 10, "field 6 (response node)")?,
+        response_direction: r6.int(51, 4, "field 7 (response direction)")?,
+        reference_entity: r6.text(56, 10),
+        reference_node: r6.int_or_zero(66, 10, "field 9 (reference node)")?,
+        reference_direction: r6.int_or_zero(76, 4, "field 10 (reference direction)")?,
+    };
     r6.end(80)?;
     for (dir, name) in [
-        (response_direction, "field 7 (response direction)"),
-        (reference_direction, "field 10 (reference direction)"),
+        (ident.response_direction, "field 7 (response direction)"),
+        (ident.reference_direction, "field 10 (reference direction)"),
     ] {
         if !(-6..=6).contains(&dir) {
             return Err(ctx.err(
@@ -734,7 +813,28 @@ fn parse_58(
             ));
         }
     }
-    let r7 = Rec::new(ctx, lines.get(6), "record 7")?;
+    Ok(ident)
+}
+
+/// Record 7 of dataset 58: how the data are laid out.
+struct DataCharacteristics {
+    ordinate_type: OrdinateType,
+    /// The ordinate data type code as written (for messages).
+    code: i64,
+    /// Number of points (at least one).
+    n: usize,
+    even: bool,
+    abscissa_min: f64,
+    abscissa_increment: f64,
+    z_value: f64,
+}
+
+/// Reads record 7, refusing unknown codes and an empty function.
+fn parse_58_data_characteristics(
+    ctx: &Ctx,
+    line: Option<&Line>,
+) -> Result<DataCharacteristics, UffError> {
+    let r7 = Rec::new(ctx, line, "record 7")?;
     let code = r7.int(0, 10, "field 1 (ordinate data type)")?;
     let ordinate_type = OrdinateType::from_code(code).ok_or_else(|| {
         ctx.err(
@@ -768,137 +868,137 @@ fn parse_58(
             format!("{n} values: a function needs at least one"),
         ));
     }
-    let n = n as usize;
-    let abscissa_axis = parse_axis(ctx, lines.get(7), "record 8 (abscissa)")?;
-    let numerator = parse_axis(ctx, lines.get(8), "record 9 (ordinate numerator)")?;
-    let denominator = parse_axis(ctx, lines.get(9), "record 10 (ordinate denominator)")?;
-    let z_axis = parse_axis(ctx, lines.get(10), "record 11 (z axis)")?;
-
-    let per_point = match (ordinate_type.is_complex(), even) {
-        (false, true) => 1,
-        (false, false) | (true, true) => 2,
-        (true, false) => 3,
-    };
-    let n_numbers = n.checked_mul(per_point).ok_or_else(|| {
-        ctx.err(
-            "record 7 field 2 (number of values)",
-            format!("{n} is too large"),
-        )
-    })?;
-    let (numbers, layout) = if let Some((layout, data)) = binary {
-        if lines.len() != 11 {
-            return Err(ctx.err(
-                "binary header field 5 (number of ASCII lines)",
-                format!(
-                    "dataset 58b has 11 ASCII records, the header announces {}",
-                    lines.len()
-                ),
-            ));
-        }
-        let size = if ordinate_type.is_double() { 8 } else { 4 };
-        let expect = n_numbers.checked_mul(size);
-        if expect != Some(data.len()) {
-            return Err(ctx.err(
-                "binary header field 6 (number of bytes)",
-                format!(
-                    "{} bytes, but {n} values of ordinate type {} need {}",
-                    data.len(),
-                    code,
-                    expect.map_or("more than addressable".to_string(), |e| e.to_string())
-                ),
-            ));
-        }
-        let v: Vec<f64> = data
-            .chunks_exact(size)
-            .map(|c| match (size, layout.little_endian) {
-                (8, true) => f64::from_le_bytes(c.try_into().expect("8 bytes")),
-                (8, false) => f64::from_be_bytes(c.try_into().expect("8 bytes")),
-                (_, true) => f32::from_le_bytes(c.try_into().expect("4 bytes")) as f64,
-                (_, false) => f32::from_be_bytes(c.try_into().expect("4 bytes")) as f64,
-            })
-            .collect();
-        if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-            return Err(ctx.err(
-                "record 12 (binary data)",
-                format!("value {} of {} is not finite ({})", i + 1, v.len(), v[i]),
-            ));
-        }
-        (v, Some(layout))
-    } else {
-        let widths: &[usize] = match (ordinate_type.is_double(), ordinate_type.is_complex(), even) {
-            (false, _, _) => &[13, 13, 13, 13, 13, 13],
-            (true, _, true) => &[20, 20, 20, 20],
-            (true, false, false) => &[13, 20, 13, 20],
-            (true, true, false) => &[13, 20, 20],
-        };
-        // Fixed columns first; when they do not read, values separated by blanks are
-        // accepted if (and only if) their count matches record 7 exactly.
-        let data = &lines[11.min(lines.len())..];
-        let fixed = read_fixed_values(ctx, lines, widths, n, n_numbers);
-        let v = match fixed {
-            Ok(v) => v,
-            Err(fixed_err) => match blank_separated_values(data) {
-                Some(v) if v.len() == n_numbers => v,
-                Some(v) => {
-                    let extra = format!(
-                        "read as blank-separated values instead there are {} numbers, but record 7 ({n} values, ordinate type {code}, {}) needs {n_numbers}: not guessing",
-                        v.len(),
-                        if even { "even spacing" } else { "uneven spacing" }
-                    );
-                    return Err(match fixed_err {
-                        UffError::Field { field, problem, .. } => {
-                            ctx.err(field, format!("{problem}; {extra}"))
-                        }
-                        other => other,
-                    });
-                }
-                None => return Err(fixed_err),
-            },
-        };
-        (v, None)
-    };
-    let mut abscissa = Vec::with_capacity(n);
-    let mut ordinate = Vec::with_capacity(n);
-    for k in 0..n {
-        let p = &numbers[k * per_point..(k + 1) * per_point];
-        let (x, y) = match (even, ordinate_type.is_complex()) {
-            (true, false) => (
-                abscissa_min + k as f64 * abscissa_increment,
-                c64::new(p[0], 0.0),
-            ),
-            (true, true) => (
-                abscissa_min + k as f64 * abscissa_increment,
-                c64::new(p[0], p[1]),
-            ),
-            (false, false) => (p[0], c64::new(p[1], 0.0)),
-            (false, true) => (p[0], c64::new(p[1], p[2])),
-        };
-        abscissa.push(x);
-        ordinate.push(y);
-    }
-    Ok(Function {
-        id_lines,
-        function_type,
-        function_id,
-        version,
-        load_case,
-        response_entity,
-        response_node,
-        response_direction,
-        reference_entity,
-        reference_node,
-        reference_direction,
+    Ok(DataCharacteristics {
         ordinate_type,
+        code,
+        n: n as usize,
         even,
         abscissa_min,
         abscissa_increment,
         z_value,
-        abscissa_axis,
-        numerator,
-        denominator,
-        z_axis,
-        binary: layout,
-        abscissa,
-        ordinate,
     })
+}
+
+impl DataCharacteristics {
+    /// Numbers stored per point: the abscissa unless evenly spaced, then the real
+    /// part and, for complex data, the imaginary part.
+    fn numbers_per_point(&self) -> usize {
+        match (self.ordinate_type.is_complex(), self.even) {
+            (false, true) => 1,
+            (false, false) | (true, true) => 2,
+            (true, false) => 3,
+        }
+    }
+
+    /// Abscissa and ordinate of every point from the stored `numbers`.
+    fn points(&self, numbers: &[f64]) -> (Vec<f64>, Vec<c64>) {
+        let (n, per_point) = (self.n, self.numbers_per_point());
+        let (x0, dx) = (self.abscissa_min, self.abscissa_increment);
+        let mut abscissa = Vec::with_capacity(n);
+        let mut ordinate = Vec::with_capacity(n);
+        for k in 0..n {
+            let p = &numbers[k * per_point..(k + 1) * per_point];
+            let (x, y) = match (self.even, self.ordinate_type.is_complex()) {
+                (true, false) => (x0 + k as f64 * dx, c64::new(p[0], 0.0)),
+                (true, true) => (x0 + k as f64 * dx, c64::new(p[0], p[1])),
+                (false, false) => (p[0], c64::new(p[1], 0.0)),
+                (false, true) => (p[0], c64::new(p[1], p[2])),
+            };
+            abscissa.push(x);
+            ordinate.push(y);
+        }
+        (abscissa, ordinate)
+    }
+}
+
+/// The data of a 58b dataset: `n_numbers` single or double values in the announced
+/// byte order, all finite. `n_ascii_lines` is the count of ASCII records read.
+fn read_binary_values(
+    ctx: &Ctx,
+    n_ascii_lines: usize,
+    data: &DataCharacteristics,
+    n_numbers: usize,
+    layout: BinaryLayout,
+    bytes: &[u8],
+) -> Result<Vec<f64>, UffError> {
+    let n = data.n;
+    if n_ascii_lines != 11 {
+        return Err(ctx.err(
+            "binary header field 5 (number of ASCII lines)",
+            format!("dataset 58b has 11 ASCII records, the header announces {n_ascii_lines}"),
+        ));
+    }
+    let size = if data.ordinate_type.is_double() { 8 } else { 4 };
+    let expect = n_numbers.checked_mul(size);
+    if expect != Some(bytes.len()) {
+        return Err(ctx.err(
+            "binary header field 6 (number of bytes)",
+            format!(
+                "{} bytes, but {n} values of ordinate type {} need {}",
+                bytes.len(),
+                data.code,
+                expect.map_or("more than addressable".to_string(), |e| e.to_string())
+            ),
+        ));
+    }
+    let v: Vec<f64> = bytes
+        .chunks_exact(size)
+        .map(|c| match (size, layout.little_endian) {
+            (8, true) => f64::from_le_bytes(c.try_into().expect("8 bytes")),
+            (8, false) => f64::from_be_bytes(c.try_into().expect("8 bytes")),
+            (_, true) => f32::from_le_bytes(c.try_into().expect("4 bytes")) as f64,
+            (_, false) => f32::from_be_bytes(c.try_into().expect("4 bytes")) as f64,
+        })
+        .collect();
+    if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+        return Err(ctx.err(
+            "record 12 (binary data)",
+            format!("value {} of {} is not finite ({})", i + 1, v.len(), v[i]),
+        ));
+    }
+    Ok(v)
+}
+
+/// Record 12 of an ASCII dataset 58: `n_numbers` values in the fixed columns of the
+/// ordinate type. When they do not read, values separated by blanks are accepted if
+/// (and only if) their count matches record 7 exactly.
+fn read_ascii_values(
+    ctx: &Ctx,
+    lines: &[Line],
+    data: &DataCharacteristics,
+    n_numbers: usize,
+) -> Result<Vec<f64>, UffError> {
+    let (n, code, even) = (data.n, data.code, data.even);
+    let widths: &[usize] = match (
+        data.ordinate_type.is_double(),
+        data.ordinate_type.is_complex(),
+        even,
+    ) {
+        (false, _, _) => &[13, 13, 13, 13, 13, 13],
+        (true, _, true) => &[20, 20, 20, 20],
+        (true, false, false) => &[13, 20, 13, 20],
+        (true, true, false) => &[13, 20, 20],
+    };
+    let values = &lines[11.min(lines.len())..];
+    let fixed = read_fixed_values(ctx, lines, widths, n, n_numbers);
+    match fixed {
+        Ok(v) => Ok(v),
+        Err(fixed_err) => match blank_separated_values(values) {
+            Some(v) if v.len() == n_numbers => Ok(v),
+            Some(v) => {
+                let extra = format!(
+                    "read as blank-separated values instead there are {} numbers, but record 7 ({n} values, ordinate type {code}, {}) needs {n_numbers}: not guessing",
+                    v.len(),
+                    if even { "even spacing" } else { "uneven spacing" }
+                );
+                Err(match fixed_err {
+                    UffError::Field { field, problem, .. } => {
+                        ctx.err(field, format!("{problem}; {extra}"))
+                    }
+                    other => other,
+                })
+            }
+            None => Err(fixed_err),
+        },
+    }
 }
