@@ -902,6 +902,34 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     let mut out: Vec<Candidate> = Vec::new();
     let mut notes = Vec::new();
     let in_spec: Vec<&str> = spec.effects.iter().map(|e| e.id.as_str()).collect();
+    catalogue_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
+    local_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
+    if reparametrised("transducer_highpass") && !in_spec.contains(&"transducer_highpass") {
+        out.push(transducer_highpass_candidate(geometry));
+    }
+    if !in_spec.contains(&"record_truncation") {
+        out.push(record_truncation_candidate(spec));
+    }
+    out.extend(cord_mass_candidate(spec, &in_spec, &mut notes));
+    if !in_spec.contains(&"added_mass") {
+        out.push(added_mass_candidate());
+    }
+    if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
+        out.push(elastic_mode_candidate(spec));
+    }
+    (out, notes)
+}
+
+/// The catalogue's effects, in its order, at their neutral values and screened by a score;
+/// skipped when the spec switches them on or the check reparametrises them, and noted when
+/// they have no neutral form or no parameters.
+fn catalogue_candidates(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    in_spec: &[&str],
+    out: &mut Vec<Candidate>,
+    notes: &mut Vec<String>,
+) {
     for d in rbprops_sim::effects::registry() {
         let id = d.id;
         if in_spec.contains(&id) || reparametrised(id) {
@@ -943,6 +971,18 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             )),
         }
     }
+}
+
+/// The local effects ([`ALL`], in order) not in the spec and not already offered by the
+/// catalogue. The sensor mass is screened by its rigid-mass gauge, gravity stiffness by a
+/// cord-length profile when the nominal model has free directions, the others by a score.
+fn local_candidates(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    in_spec: &[&str],
+    out: &mut Vec<Candidate>,
+    notes: &mut Vec<String>,
+) {
     // Free directions in the nominal model: gravity turns zero-frequency modes into
     // in-band pendulum resonances, far from linear in φ at φ = 0, so it is screened by
     // a profile over cord lengths instead of a score (see [`gravity_profile`]).
@@ -982,78 +1022,94 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
             },
         });
     }
-    if reparametrised("transducer_highpass") && !in_spec.contains(&"transducer_highpass") {
-        let (title, reveal) = describe("transducer_highpass");
-        let groups = sensors(geometry);
-        let infos: Vec<ParamInfo> = groups
-            .iter()
-            .map(|(sensor, _)| ParamInfo {
-                name: format!("inverse_time_constant_per_s.{sensor}"),
+}
+
+/// The transducer high-pass reparametrised by inverse time constants (one per sensor), so
+/// that its neutral value, no high-pass, is 0 rather than an infinite time constant.
+fn transducer_highpass_candidate(geometry: &Geometry) -> Candidate {
+    let (title, reveal) = describe("transducer_highpass");
+    let groups = sensors(geometry);
+    let infos: Vec<ParamInfo> = groups
+        .iter()
+        .map(|(sensor, _)| ParamInfo {
+            name: format!("inverse_time_constant_per_s.{sensor}"),
+            unit: "1/s",
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible: (0.0, 2.0),
+        })
+        .collect();
+    let n = infos.len();
+    Candidate {
+        id: "transducer_highpass".into(),
+        title: title.into(),
+        effect: Box::new(Reciprocal {
+            id: "transducer_highpass",
+            infos,
+            values: vec![0.0; n],
+            inner: None,
+            build: highpass_build(groups),
+        }),
+        neutral: vec![0.0; n],
+        scales: vec![0.05; n],
+        source: "rbprops-sim (reparametrised for screening)",
+        reveal,
+        screening: Screening::Score,
+    }
+}
+
+/// Record truncation reparametrised by the inverse record length (neutral: 0, an endless
+/// record) and screened by a profile over the record lengths zero padding can give.
+fn record_truncation_candidate(spec: &CampaignSpec) -> Candidate {
+    let (title, reveal) = describe("record_truncation");
+    // The record length is 1/Δf of the recording's lines, or a fraction of it
+    // when the records were zero-padded: T = 1/(kΔf), k = 1..8. The leakage
+    // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so a
+    // record padded by a non-integer factor (to a power of two) is off this grid
+    // and outside the refit's reach from it: such a T is located by the lag scan
+    // of the residual (`delay_scan`, [`delay_peaks`]) and added to the profile.
+    let fr = &spec.frequency;
+    let df = if fr.lines > 1 && fr.stop_hz > fr.start_hz {
+        (fr.stop_hz - fr.start_hz) / (fr.lines - 1) as f64
+    } else {
+        1.0 / 16.0
+    };
+    let grid: Vec<Vec<f64>> = (1..=8).map(|k| vec![k as f64 * df]).collect();
+    Candidate {
+        id: "record_truncation".into(),
+        title: title.into(),
+        effect: Box::new(Reciprocal {
+            id: "record_truncation",
+            infos: vec![ParamInfo {
+                name: "inverse_record_length_per_s".into(),
                 unit: "1/s",
                 lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 2.0),
-            })
-            .collect();
-        let n = infos.len();
-        out.push(Candidate {
-            id: "transducer_highpass".into(),
-            title: title.into(),
-            effect: Box::new(Reciprocal {
-                id: "transducer_highpass",
-                infos,
-                values: vec![0.0; n],
-                inner: None,
-                build: highpass_build(groups),
-            }),
-            neutral: vec![0.0; n],
-            scales: vec![0.05; n],
-            source: "rbprops-sim (reparametrised for screening)",
-            reveal,
-            screening: Screening::Score,
-        });
+                upper: 10.0,
+                plausible: (1.0 / 64.0, 0.25),
+            }],
+            values: vec![0.0],
+            inner: None,
+            build: std::sync::Arc::new(truncation_build),
+        }),
+        neutral: vec![0.0],
+        scales: vec![0.005],
+        source: "rbprops-sim (reparametrised for screening)",
+        reveal,
+        screening: Screening::Profile {
+            grid,
+            delay_scan: true,
+        },
     }
-    if !in_spec.contains(&"record_truncation") {
-        let (title, reveal) = describe("record_truncation");
-        // The record length is 1/Δf of the recording's lines, or a fraction of it
-        // when the records were zero-padded: T = 1/(kΔf), k = 1..8. The leakage
-        // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so a
-        // record padded by a non-integer factor (to a power of two) is off this grid
-        // and outside the refit's reach from it: such a T is located by the lag scan
-        // of the residual (`delay_scan`, [`delay_peaks`]) and added to the profile.
-        let fr = &spec.frequency;
-        let df = if fr.lines > 1 && fr.stop_hz > fr.start_hz {
-            (fr.stop_hz - fr.start_hz) / (fr.lines - 1) as f64
-        } else {
-            1.0 / 16.0
-        };
-        let grid: Vec<Vec<f64>> = (1..=8).map(|k| vec![k as f64 * df]).collect();
-        out.push(Candidate {
-            id: "record_truncation".into(),
-            title: title.into(),
-            effect: Box::new(Reciprocal {
-                id: "record_truncation",
-                infos: vec![ParamInfo {
-                    name: "inverse_record_length_per_s".into(),
-                    unit: "1/s",
-                    lower: 0.0,
-                    upper: 10.0,
-                    plausible: (1.0 / 64.0, 0.25),
-                }],
-                values: vec![0.0],
-                inner: None,
-                build: std::sync::Arc::new(truncation_build),
-            }),
-            neutral: vec![0.0],
-            scales: vec![0.005],
-            source: "rbprops-sim (reparametrised for screening)",
-            reveal,
-            screening: Screening::Profile {
-                grid,
-                delay_scan: true,
-            },
-        });
-    }
+}
+
+/// The cords' own mass (string modes of the suspension), screened by a profile over cord
+/// mass and length; only when the spec has springs whose tension puts a plausible cord's
+/// string mode in (or just above) the band, with a note when it has springs but no such cord.
+fn cord_mass_candidate(
+    spec: &CampaignSpec,
+    in_spec: &[&str],
+    notes: &mut Vec<String>,
+) -> Option<Candidate> {
     let has_springs = spec.setups.iter().any(|s| !s.springs.is_empty());
     let cord_profile = if in_spec.contains(&"cord_mass") || !has_springs {
         Vec::new()
@@ -1065,80 +1121,86 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     if !in_spec.contains(&"cord_mass") && has_springs && cord_profile.is_empty() {
         notes.push("cord_mass is not screened: the springs hold no cord tension, or no cord of plausible length and mass has a string mode below 1.2× the band's top".into());
     }
-    if !cord_profile.is_empty() {
-        let (title, reveal) = describe("cord_mass");
-        let grid = cord_profile;
-        out.push(Candidate {
-            id: "cord_mass".into(),
-            title: title.into(),
-            effect: Box::new(Reciprocal {
-                id: "cord_mass",
-                infos: vec![
-                    ParamInfo {
-                        name: "mass_per_length_kg_per_m".into(),
-                        unit: "kg/m",
-                        lower: 0.0,
-                        upper: 10.0,
-                        plausible: (0.01, 0.15),
-                    },
-                    ParamInfo {
-                        name: "cord_length_m".into(),
-                        unit: "m",
-                        lower: 0.05,
-                        upper: 50.0,
-                        plausible: (0.2, 5.0),
-                    },
-                ],
-                values: vec![0.0, 1.0],
-                inner: None,
-                build: {
-                    let up = spec.up;
-                    std::sync::Arc::new(move |v: &[f64]| cord_build(v, up))
+    if cord_profile.is_empty() {
+        return None;
+    }
+    let (title, reveal) = describe("cord_mass");
+    let grid = cord_profile;
+    Some(Candidate {
+        id: "cord_mass".into(),
+        title: title.into(),
+        effect: Box::new(Reciprocal {
+            id: "cord_mass",
+            infos: vec![
+                ParamInfo {
+                    name: "mass_per_length_kg_per_m".into(),
+                    unit: "kg/m",
+                    lower: 0.0,
+                    upper: 10.0,
+                    plausible: (0.01, 0.15),
                 },
-            }),
-            neutral: vec![0.0, 1.0],
-            // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
-            // μ and ℓ: the string modes make some FRF values (antiresonances, cross
-            // terms near 0 Hz) 1e-9 of the largest, where the model's roundoff is ~1e-7
-            // of the value, and a smaller step turns that into Jacobian noise.
-            scales: vec![0.1, 1.0],
-            source: "rbprops-sim (screened by a parameter profile)",
-            reveal,
-            screening: Screening::Profile {
-                grid,
-                delay_scan: false,
+                ParamInfo {
+                    name: "cord_length_m".into(),
+                    unit: "m",
+                    lower: 0.05,
+                    upper: 50.0,
+                    plausible: (0.2, 5.0),
+                },
+            ],
+            values: vec![0.0, 1.0],
+            inner: None,
+            build: {
+                let up = spec.up;
+                std::sync::Arc::new(move |v: &[f64]| cord_build(v, up))
             },
-        });
+        }),
+        neutral: vec![0.0, 1.0],
+        // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
+        // μ and ℓ: the string modes make some FRF values (antiresonances, cross
+        // terms near 0 Hz) 1e-9 of the largest, where the model's roundoff is ~1e-7
+        // of the value, and a smaller step turns that into Jacobian noise.
+        scales: vec![0.1, 1.0],
+        source: "rbprops-sim (screened by a parameter profile)",
+        reveal,
+        screening: Screening::Profile {
+            grid,
+            delay_scan: false,
+        },
+    })
+}
+
+/// The added mass's non-rigid part (its rigid part is absorbed by the free inertia),
+/// screened by a score.
+fn added_mass_candidate() -> Candidate {
+    let (title, reveal) = describe("added_mass");
+    let e = NonRigidMass { values: [0.0; 11] };
+    Candidate {
+        id: "added_mass".into(),
+        title: title.into(),
+        neutral: e.values(),
+        scales: [vec![0.05; 5], vec![0.01; 6]].concat(),
+        effect: Box::new(e),
+        source: "rbprops-sim (its non-rigid part; the rigid part is the free inertia's)",
+        reveal,
+        screening: Screening::Score,
     }
-    if !in_spec.contains(&"added_mass") {
-        let (title, reveal) = describe("added_mass");
-        let e = NonRigidMass { values: [0.0; 11] };
-        out.push(Candidate {
-            id: "added_mass".into(),
-            title: title.into(),
-            neutral: e.values(),
-            scales: [vec![0.05; 5], vec![0.01; 6]].concat(),
-            effect: Box::new(e),
-            source: "rbprops-sim (its non-rigid part; the rigid part is the free inertia's)",
-            reveal,
-            screening: Screening::Score,
-        });
+}
+
+/// An elastic mode in the band, in its in-band form (one pole, a residue per channel and
+/// excitation), screened by the resonance search.
+fn elastic_mode_candidate(spec: &CampaignSpec) -> Candidate {
+    let (title, reveal) = describe("elastic_mode");
+    let e = crate::resonance::InBandResonance::neutral(spec);
+    Candidate {
+        id: "elastic_mode".into(),
+        title: title.into(),
+        neutral: e.values(),
+        scales: e.scales(),
+        effect: Box::new(e),
+        source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
+        reveal,
+        screening: Screening::Resonance,
     }
-    if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
-        let (title, reveal) = describe("elastic_mode");
-        let e = crate::resonance::InBandResonance::neutral(spec);
-        out.push(Candidate {
-            id: "elastic_mode".into(),
-            title: title.into(),
-            neutral: e.values(),
-            scales: e.scales(),
-            effect: Box::new(e),
-            source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
-            reveal,
-            screening: Screening::Resonance,
-        });
-    }
-    (out, notes)
 }
 
 /// The spec entry of a fitted effect: the catalogue's own form where one exists

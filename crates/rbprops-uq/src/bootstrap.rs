@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
 use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
-use rbprops_core::{FrfSet, Geometry};
+use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_inertia::{solve, Estimator, SolveOptions, SolveOutput};
 use rbprops_modal::PoleMode;
 
@@ -148,6 +148,84 @@ pub fn bootstrap(
             opts.replicates
         )));
     }
+    let targets = modal_targets(original)?;
+    // A record whose poles were corrected for an exponential window describes the physical
+    // modes, not the measured (windowed) FRFs: resample the prefiltered windowed data with
+    // the windowed poles, and correct each replicate's poles as modal-fit did.
+    let windowed = rbprops_core::ExponentialWindow::windowed_modal_fit(modal);
+    let prefiltered;
+    let (frf, modal) = match &windowed {
+        None => (frf, modal),
+        Some((w, m)) => {
+            prefiltered = w.prefilter(frf);
+            (&prefiltered, m)
+        }
+    };
+    let model = FittedModel::new(
+        geometry,
+        frf,
+        modal,
+        selection,
+        opts.residual_terms,
+        opts.pole_mode,
+    )?;
+    let replication = Replication {
+        geometry,
+        frf,
+        modal,
+        selection,
+        model: &model,
+        windowed: &windowed,
+        window_source: modal_source(&windowed),
+        solve_opts: replicate_solve_options(solve_opts),
+        required: selection
+            .selected
+            .iter()
+            .map(|s| (s.excitation.clone(), s.excitation_mode))
+            .collect(),
+        targets: &targets,
+        opts,
+    };
+    // Collected in replicate order whatever the thread count: the statistics below are
+    // sequential sums over that order, so the output is bit-identical.
+    let results: Vec<ReplicateResult> = (0..opts.replicates)
+        .into_par_iter()
+        .map(|b| replication.run(b))
+        .collect();
+
+    let mut warnings = misfit_warnings(&model, geometry);
+    let mut estimates = Vec::new();
+    for (t_idx, t) in targets.iter().enumerate() {
+        if let Some(e) = target_statistics(t, t_idx, &results, opts, &mut warnings) {
+            estimates.push(e);
+        }
+    }
+    if estimates.is_empty() {
+        return Err(UqError::Nothing(warnings));
+    }
+    Ok(BootstrapOutput {
+        estimates,
+        noise: model
+            .excitations
+            .iter()
+            .map(|e| ExcitationNoise {
+                excitation: e.id.clone(),
+                channels: e.noise.clone(),
+            })
+            .collect(),
+        replicates: opts.replicates,
+        pole_mode: model.pole_mode,
+        warnings,
+    })
+}
+
+/// One replicate's outcome: an error that sank the whole replicate (its re-identification
+/// or solve failed), else per target (in target order) its property vector or why it has none.
+type ReplicateResult = Result<Vec<Result<[f64; N_PROPS], String>>, String>;
+
+/// The estimates to bootstrap: the modal estimators' (Bretl–Conti, Toivola–Nuutila) in
+/// `original`, in their order, with the modes each used (a replicate must use the same).
+fn modal_targets(original: &[InertiaEstimate]) -> Result<Vec<Target>, UqError> {
     let modal_names = [
         Estimator::BretlConti.name(),
         Estimator::ToivolaNuutila.name(),
@@ -167,131 +245,174 @@ pub fn bootstrap(
             "no Bretl–Conti or Toivola–Nuutila estimate to bootstrap".into(),
         ]));
     }
-    // A record whose poles were corrected for an exponential window describes the physical
-    // modes, not the measured (windowed) FRFs: resample the prefiltered windowed data with
-    // the windowed poles, and correct each replicate's poles as modal-fit did.
-    let windowed = rbprops_core::ExponentialWindow::windowed_modal_fit(modal);
-    let prefiltered;
-    let (frf, modal) = match &windowed {
-        None => (frf, modal),
-        Some((w, m)) => {
-            prefiltered = w.prefilter(frf);
-            (&prefiltered, m)
-        }
-    };
-    let window_source = modal_source(&windowed);
-    let model = FittedModel::new(
-        geometry,
-        frf,
-        modal,
-        selection,
-        opts.residual_terms,
-        opts.pole_mode,
-    )?;
+    Ok(targets)
+}
+
+/// The solve options of a replicate: the measured data's, without what a replicate does not
+/// need (the mass line, which is not bootstrapped; the reference comparison; the Monte
+/// Carlo errors, which the bootstrap replaces; the rigid-body check).
+fn replicate_solve_options(solve_opts: &SolveOptions) -> SolveOptions {
     let mut ropts = solve_opts.clone();
     ropts.estimators.retain(|e| *e != Estimator::MassLine);
     ropts.reference = None;
     ropts.monte_carlo_samples = 0;
     ropts.rigid_body_check = false;
-    let required: Vec<(String, usize)> = selection
-        .selected
-        .iter()
-        .map(|s| (s.excitation.clone(), s.excitation_mode))
-        .collect();
+    ropts
+}
 
-    let replicate = |b: usize| -> Result<Vec<Result<[f64; N_PROPS], String>>, String> {
-        let mut rng = replicate_rng(opts.seed, b);
-        let data: Vec<_> = model.excitations.iter().map(|e| e.draw(&mut rng)).collect();
-        let modes: Vec<ReplicateModes> = match &opts.reidentify {
-            Reidentify::Refine => {
-                let mut v = Vec::new();
-                for g in &model.groups {
-                    v.extend(refine_group(&model, g, &data, modal, &opts.tolerances)?);
-                }
-                v
-            }
-            Reidentify::Full(fo) => full_refit(
-                geometry,
-                frf,
-                &model,
-                &data,
-                modal,
-                fo,
-                &required,
-                &opts.tolerances,
-            )?,
-        };
-        let mut modal_b = modal.clone();
-        modal_b
-            .modes
-            .retain(|m| !modes.iter().any(|r| r.excitation == m.excitation));
-        for r in &modes {
-            modal_b.modes.extend(r.modes.iter().cloned());
-        }
-        let mut selection_b = selection.clone();
-        for s in &mut selection_b.selected {
-            if let Some(r) = modes.iter().find(|r| r.excitation == s.excitation) {
-                let n = r
-                    .mode_map
-                    .iter()
-                    .find(|(a, _)| *a == s.excitation_mode)
-                    .map(|(_, n)| *n)
-                    .ok_or_else(|| {
-                        format!(
-                            "excitation '{}' mode {} was not found again",
-                            s.excitation, s.excitation_mode
-                        )
-                    })?;
-                s.excitation_mode = n;
-                if let Some(m) = r.modes.iter().find(|m| m.mode == n) {
-                    s.frequency_hz = m.frequency_hz;
-                }
-            }
-        }
-        if let Some((w, _)) = &windowed {
-            w.correct_modal_fit(&mut modal_b, &window_source)
+/// What every replicate shares: the (possibly windowed) measured records, the fitted noise
+/// model to draw from, and the targets to re-estimate.
+struct Replication<'a> {
+    geometry: &'a Geometry,
+    frf: &'a FrfSet,
+    modal: &'a ModalFitRecord,
+    selection: &'a SelectionRecord,
+    model: &'a FittedModel,
+    windowed: &'a Option<(rbprops_core::ExponentialWindow, ModalFitRecord)>,
+    window_source: String,
+    solve_opts: SolveOptions,
+    /// The selected (excitation, mode) pairs a full refit must find again.
+    required: Vec<(String, usize)>,
+    targets: &'a [Target],
+    opts: &'a BootstrapOptions,
+}
+
+impl Replication<'_> {
+    /// Replicate `b`: draws noisy FRFs from the model, re-identifies the modes, swaps them
+    /// into copies of the records, and solves again for the targets.
+    fn run(&self, b: usize) -> ReplicateResult {
+        let mut rng = replicate_rng(self.opts.seed, b);
+        let data: Vec<_> = self
+            .model
+            .excitations
+            .iter()
+            .map(|e| e.draw(&mut rng))
+            .collect();
+        let modes = self.reidentify(&data)?;
+        let (mut modal_b, selection_b) = replicate_records(self.modal, self.selection, &modes)?;
+        if let Some((w, _)) = self.windowed {
+            w.correct_modal_fit(&mut modal_b, &self.window_source)
                 .map_err(|e| e.to_string())?;
         }
-        let out =
-            solve(geometry, &modal_b, &selection_b, None, &ropts).map_err(|e| e.to_string())?;
-        Ok(targets
+        let out = solve(
+            self.geometry,
+            &modal_b,
+            &selection_b,
+            None,
+            &self.solve_opts,
+        )
+        .map_err(|e| e.to_string())?;
+        Ok(self
+            .targets
             .iter()
-            .map(|t| {
-                let e = out
-                    .estimates
-                    .iter()
-                    .find(|e| e.method == t.method && e.setup == t.setup)
-                    .ok_or_else(|| {
-                        let why: Vec<&str> = out
-                            .warnings
-                            .iter()
-                            .filter(|w| w.contains(&t.method) || w.contains("left out"))
-                            .map(String::as_str)
-                            .collect();
-                        format!("{} gave no estimate ({})", t.method, why.join("; "))
-                    })?;
-                if e.modes_used != t.modes_used {
-                    return Err(format!(
-                        "{} used modes {:?} instead of {:?}",
-                        t.method, e.modes_used, t.modes_used
-                    ));
-                }
-                let v = estimate_vector(e);
-                if v.iter().all(|x| x.is_finite()) {
-                    Ok(v)
-                } else {
-                    Err(format!("{}: non-finite properties", t.method))
-                }
-            })
+            .map(|t| target_vector(t, &out))
             .collect())
-    };
-    // Collected in replicate order whatever the thread count: the statistics below are
-    // sequential sums over that order, so the output is bit-identical.
-    let results: Vec<_> = (0..opts.replicates)
-        .into_par_iter()
-        .map(replicate)
-        .collect();
+    }
 
+    /// The modes of a replicate's band data `data` (one entry per model excitation), by
+    /// the options' [`Reidentify`] method.
+    fn reidentify(&self, data: &[Vec<Vec<c64>>]) -> Result<Vec<ReplicateModes>, String> {
+        let opts = self.opts;
+        match &opts.reidentify {
+            Reidentify::Refine => {
+                let mut v = Vec::new();
+                for g in &self.model.groups {
+                    v.extend(refine_group(
+                        self.model,
+                        g,
+                        data,
+                        self.modal,
+                        &opts.tolerances,
+                    )?);
+                }
+                Ok(v)
+            }
+            Reidentify::Full(fo) => full_refit(
+                self.geometry,
+                self.frf,
+                self.model,
+                data,
+                self.modal,
+                fo,
+                &self.required,
+                &opts.tolerances,
+            ),
+        }
+    }
+}
+
+/// Copies of the measured modal-fit and selection records with a replicate's modes in place
+/// of the re-identified excitations' modes; each selected mode is renumbered through the
+/// replicate's mode map and takes its new frequency.
+fn replicate_records(
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    modes: &[ReplicateModes],
+) -> Result<(ModalFitRecord, SelectionRecord), String> {
+    let mut modal_b = modal.clone();
+    modal_b
+        .modes
+        .retain(|m| !modes.iter().any(|r| r.excitation == m.excitation));
+    for r in modes {
+        modal_b.modes.extend(r.modes.iter().cloned());
+    }
+    let mut selection_b = selection.clone();
+    for s in &mut selection_b.selected {
+        if let Some(r) = modes.iter().find(|r| r.excitation == s.excitation) {
+            let n = r
+                .mode_map
+                .iter()
+                .find(|(a, _)| *a == s.excitation_mode)
+                .map(|(_, n)| *n)
+                .ok_or_else(|| {
+                    format!(
+                        "excitation '{}' mode {} was not found again",
+                        s.excitation, s.excitation_mode
+                    )
+                })?;
+            s.excitation_mode = n;
+            if let Some(m) = r.modes.iter().find(|m| m.mode == n) {
+                s.frequency_hz = m.frequency_hz;
+            }
+        }
+    }
+    Ok((modal_b, selection_b))
+}
+
+/// A target's property vector in a replicate's solve output, or why it has none: no
+/// estimate (with the solve's warnings that say why), other modes used than on the
+/// measured data, or non-finite properties.
+fn target_vector(t: &Target, out: &SolveOutput) -> Result<[f64; N_PROPS], String> {
+    let e = out
+        .estimates
+        .iter()
+        .find(|e| e.method == t.method && e.setup == t.setup)
+        .ok_or_else(|| {
+            let why: Vec<&str> = out
+                .warnings
+                .iter()
+                .filter(|w| w.contains(&t.method) || w.contains("left out"))
+                .map(String::as_str)
+                .collect();
+            format!("{} gave no estimate ({})", t.method, why.join("; "))
+        })?;
+    if e.modes_used != t.modes_used {
+        return Err(format!(
+            "{} used modes {:?} instead of {:?}",
+            t.method, e.modes_used, t.modes_used
+        ));
+    }
+    let v = estimate_vector(e);
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(format!("{}: non-finite properties", t.method))
+    }
+}
+
+/// Warnings on FRF lines the modal model misses: they are not resampled as noise, so the
+/// replicates keep the measured values there.
+fn misfit_warnings(model: &FittedModel, geometry: &Geometry) -> Vec<String> {
     let mut warnings = Vec::new();
     for e in &model.excitations {
         let n: usize = e.misfit_lines.iter().sum();
@@ -305,61 +426,54 @@ pub fn bootstrap(
             ));
         }
     }
-    let mut estimates = Vec::new();
-    for (t_idx, t) in targets.iter().enumerate() {
-        let mut samples = Vec::new();
-        let mut reasons: Vec<String> = Vec::new();
-        let mut failed = 0;
-        for r in &results {
-            let one = match r {
-                Ok(v) => v[t_idx].clone(),
-                Err(e) => Err(e.clone()),
-            };
-            match one {
-                Ok(v) => samples.push(v),
-                Err(e) => {
-                    failed += 1;
-                    if reasons.len() < 5 && !reasons.contains(&e) {
-                        reasons.push(e);
-                    }
+    warnings
+}
+
+/// The bootstrap estimate of target `t` (index `t_idx`) from the replicates' `results`, in
+/// replicate order; `None` (with a warning) when fewer than two replicates succeeded, and a
+/// warning when more than the options' fraction failed.
+fn target_statistics(
+    t: &Target,
+    t_idx: usize,
+    results: &[ReplicateResult],
+    opts: &BootstrapOptions,
+    warnings: &mut Vec<String>,
+) -> Option<BootstrapEstimate> {
+    let mut samples = Vec::new();
+    let mut reasons: Vec<String> = Vec::new();
+    let mut failed = 0;
+    for r in results {
+        let one = match r {
+            Ok(v) => v[t_idx].clone(),
+            Err(e) => Err(e.clone()),
+        };
+        match one {
+            Ok(v) => samples.push(v),
+            Err(e) => {
+                failed += 1;
+                if reasons.len() < 5 && !reasons.contains(&e) {
+                    reasons.push(e);
                 }
             }
         }
-        let id = format!("{} (set-up '{}')", t.method, t.setup);
-        if samples.len() < 2 {
-            warnings.push(format!(
-                "bootstrap of {id}: {failed} of {} replicates failed ({}); its standard errors are left as they were",
-                opts.replicates,
-                reasons.join("; ")
-            ));
-            continue;
-        }
-        if failed as f64 > opts.failure_warning_fraction * opts.replicates as f64 {
-            warnings.push(format!(
-                "bootstrap of {id}: {failed} of {} replicates failed ({}); the standard errors come from the others and may be too small",
-                opts.replicates,
-                reasons.join("; ")
-            ));
-        }
-        estimates.push(statistics(t, samples, failed, reasons));
     }
-    if estimates.is_empty() {
-        return Err(UqError::Nothing(warnings));
+    let id = format!("{} (set-up '{}')", t.method, t.setup);
+    if samples.len() < 2 {
+        warnings.push(format!(
+            "bootstrap of {id}: {failed} of {} replicates failed ({}); its standard errors are left as they were",
+            opts.replicates,
+            reasons.join("; ")
+        ));
+        return None;
     }
-    Ok(BootstrapOutput {
-        estimates,
-        noise: model
-            .excitations
-            .iter()
-            .map(|e| ExcitationNoise {
-                excitation: e.id.clone(),
-                channels: e.noise.clone(),
-            })
-            .collect(),
-        replicates: opts.replicates,
-        pole_mode: model.pole_mode,
-        warnings,
-    })
+    if failed as f64 > opts.failure_warning_fraction * opts.replicates as f64 {
+        warnings.push(format!(
+            "bootstrap of {id}: {failed} of {} replicates failed ({}); the standard errors come from the others and may be too small",
+            opts.replicates,
+            reasons.join("; ")
+        ));
+    }
+    Some(statistics(t, samples, failed, reasons))
 }
 
 /// The source named in a replicate's window correction (the original record's).
