@@ -88,41 +88,44 @@ impl ExtraMode {
 /// factor `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` computed once per mode and line, not
 /// once per channel (it is [`ExtraMode::receptance`] summed, to rounding).
 pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], values: &mut [c64]) {
-    let nl = omegas.len();
-    let mut h = vec![c64::new(0.0, 0.0); nl];
-    for m in modes {
-        let pe = m.at_excitations[e];
-        if pe == 0.0 {
-            continue;
-        }
-        let wm = std::f64::consts::TAU * m.frequency_hz;
+    accumulate_extra_modes(modes, e, omegas.len(), values, |wm, zeta, h| {
         for (h, &w) in h.iter_mut().zip(omegas) {
-            *h = c64::new(wm * wm - w * w, 2.0 * m.damping_ratio * wm * w).inv();
+            *h = c64::new(wm * wm - w * w, 2.0 * zeta * wm * w).inv();
         }
-        for (dst, &pc) in values.chunks_exact_mut(nl).zip(&m.at_channels) {
-            let a = pc * pe;
-            if a != 0.0 {
-                dst.iter_mut().zip(&h).for_each(|(d, h)| *d += h * a);
-            }
-        }
-    }
+    });
 }
 
 /// [`add_extra_receptances`] at complex Laplace variables `s` (one per line): `H_ce +=
 /// Σ_m ψ_c ψ_e / (s² + 2ζ_m ω_m s + ω_m²)` ([`ExtraMode::receptance_at`] summed, to
 /// rounding).
 pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values: &mut [c64]) {
-    let nl = s.len();
+    accumulate_extra_modes(modes, e, s.len(), values, |wm, zeta, h| {
+        for (h, &s) in h.iter_mut().zip(s) {
+            *h = (s * s + s * (2.0 * zeta * wm) + wm * wm).inv();
+        }
+    });
+}
+
+/// `H_ce += Σ_m ψ_c ψ_e h_m` over the modes that excitation `e` drives, with the line
+/// factors `h_m` (per line) written by `line_factor(ω_m, ζ_m, h)`.
+fn accumulate_extra_modes(
+    modes: &[ExtraMode],
+    e: usize,
+    nl: usize,
+    values: &mut [c64],
+    line_factor: impl Fn(f64, f64, &mut [c64]),
+) {
     let mut h = vec![c64::new(0.0, 0.0); nl];
     for m in modes {
         let pe = m.at_excitations[e];
         if pe == 0.0 {
             continue;
         }
-        let wm = std::f64::consts::TAU * m.frequency_hz;
-        for (h, &s) in h.iter_mut().zip(s) {
-            *h = (s * s + s * (2.0 * m.damping_ratio * wm) + wm * wm).inv();
-        }
+        line_factor(
+            std::f64::consts::TAU * m.frequency_hz,
+            m.damping_ratio,
+            &mut h,
+        );
         for (dst, &pc) in values.chunks_exact_mut(nl).zip(&m.at_channels) {
             let a = pc * pe;
             if a != 0.0 {
