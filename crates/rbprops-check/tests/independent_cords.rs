@@ -154,9 +154,7 @@ fn hanging_stiffness_matches_the_independent_generator() {
         return;
     };
     for splayed in [false, true] {
-        let mut s = tc2();
-        s.setups[0].springs.clear();
-        s.setups[0].cords = cords(splayed);
+        let s = hanging_spec(splayed);
         let case = case_toml(&s.setups[0].cords, 0.0, 11, 1);
         let (_, _, truth) = refgen(&py, &format!("k{splayed}"), &case, &s);
         let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
@@ -179,6 +177,14 @@ fn hanging_stiffness_matches_the_independent_generator() {
             assert!((a - b).abs() < 1e-9 * b, "tension {a} vs {b}");
         }
     }
+}
+
+/// Test Case II hung on the cords of [`cords`] instead of its springs.
+fn hanging_spec(splayed: bool) -> CampaignSpec {
+    let mut s = tc2();
+    s.setups[0].springs.clear();
+    s.setups[0].cords = cords(splayed);
+    s
 }
 
 /// Mean hanging length L₀ + T/k of the truth's cords.
@@ -335,9 +341,7 @@ fn hanging_body_frfs_match_the_independent_generator() {
         return;
     };
     for splayed in [false, true] {
-        let mut s = tc2();
-        s.setups[0].springs.clear();
-        s.setups[0].cords = cords(splayed);
+        let mut s = hanging_spec(splayed);
         s.frequency.start_hz = 0.0;
         s.frequency.lines = 300;
         let case =
