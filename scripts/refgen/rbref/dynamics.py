@@ -49,10 +49,15 @@ def undamped_modes(k, m):
 
 
 def modal_damping(m, w2, phi, ratios):
-    """C = M Φ diag(2 ζ_r ω_r) Φᵀ M over the elastic-support modes (free modes get none)."""
+    """C = M Φ diag(2 ζ_r ω_r) Φᵀ M over the elastic-support modes (free modes get none).
+    A free mode is one with ω² ≤ FREE_TOLERANCE of the largest, as in `Terms`: its ω²
+    comes out of the eigen-solver as ±1e-18 of rounding, and a damping 2ζ√ω² built on
+    that would make it a (barely) damped mode, which the split then keeps in the state
+    space."""
     c = np.zeros_like(m)
+    floor = FREE_TOLERANCE * max(np.abs(w2).max(), 0.0)
     for r in range(len(w2)):
-        if w2[r] > 0:
+        if w2[r] > floor:
             mp = m @ phi[:, r]
             c += 2.0 * ratios[r] * np.sqrt(w2[r]) * np.outer(mp, mp)
     return 0.5 * (c + c.T)
