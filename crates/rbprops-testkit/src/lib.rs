@@ -101,14 +101,6 @@ pub fn ok(out: Output) -> Output {
     out
 }
 
-/// Runs `cmd` and returns its output when it succeeded ([`ok`]).
-#[track_caller]
-pub fn run(cmd: &mut Command) -> Output {
-    ok(cmd
-        .output()
-        .unwrap_or_else(|e| panic!("cannot start {cmd:?}: {e}")))
-}
-
 /// A triaxial accelerometer at `p`: the point `id` and its channels `{id}x`, `{id}y`,
 /// `{id}z` along the body axes.
 pub fn triaxial(id: &str, p: Vec3) -> (Point, Vec<Channel>) {

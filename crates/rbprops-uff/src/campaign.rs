@@ -1356,11 +1356,13 @@ fn match_coherence(
         let hz_factor = abscissa_factor(data.file_name.as_str(), at, f, &mut w).unwrap_or(1.0);
         warnings.add(at, w);
         let hz: Vec<f64> = f.abscissa.iter().map(|x| x * hz_factor).collect();
-        let problem = coherence_problem(frequency_hz, &hz, f, values[ei][ci].is_some());
-        if let Some(p) = problem {
-            let p = p
-                .replace("{channel}", &frfs.channels[ci].id)
-                .replace("{excitation}", &frfs.excitations[ei].id);
+        let duplicate = values[ei][ci].is_some().then(|| {
+            (
+                frfs.channels[ci].id.as_str(),
+                frfs.excitations[ei].id.as_str(),
+            )
+        });
+        if let Some(p) = coherence_problem(frequency_hz, &hz, f, duplicate) {
             warnings.add(at, vec![p]);
             continue;
         }
@@ -1369,13 +1371,13 @@ fn match_coherence(
     CoherenceSet { values }
 }
 
-/// Why a coherence dataset cannot be used for its FRF (`{channel}` and `{excitation}`
-/// stand for the ids), or `None`.
+/// Why a coherence dataset cannot be used for its FRF, or `None`. `duplicate`: the
+/// (channel, excitation) ids when that pair already has a coherence.
 fn coherence_problem(
     frequency_hz: &[f64],
     hz: &[f64],
     f: &Function,
-    duplicate: bool,
+    duplicate: Option<(&str, &str)>,
 ) -> Option<String> {
     // γ² lies in [0, 1]; values just outside by rounding of the export are clamped,
     // values clearly outside mean the dataset is not an ordinary coherence.
@@ -1388,11 +1390,10 @@ fn coherence_problem(
         .any(|v| !(-SLACK..=1.0 + SLACK).contains(&v.re))
     {
         Some("coherence values outside [0, 1]: skipped".into())
-    } else if duplicate {
-        Some(
+    } else if let Some((channel, excitation)) = duplicate {
+        Some(format!(
             "a second coherence for channel '{channel}' and excitation '{excitation}': skipped"
-                .into(),
-        )
+        ))
     } else {
         None
     }
