@@ -573,26 +573,11 @@ fn parse_2420(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError
     if lines.len() < 2 {
         return Err(ctx.err("record 2 (part name)", "missing (dataset truncated)"));
     }
-    let mut systems = Vec::new();
-    let mut i = 2;
-    while i < lines.len() {
-        if trim_ascii(lines[i].bytes).is_empty() {
-            i += 1;
-            continue;
-        }
-        let n = systems.len() + 1;
-        let r3 = Rec::new(ctx, lines.get(i), format!("system {n} record 3"))?;
-        let label = r3.int(0, 10, "field 1 (label)")?;
-        let code = r3.int(10, 10, "field 2 (type)")?;
-        let kind = cs_kind(ctx, &r3, code)?;
+    let systems = read_systems(ctx, lines, 2, "record 3", |r3, i| {
+        let (label, kind) = system_label_kind(ctx, r3, "field 1 (label)")?;
         let color = r3.int_or_zero(20, 10, "field 3 (color)")?;
         r3.end(40)?;
-        let name_line = lines.get(i + 1).ok_or_else(|| {
-            ctx.err(
-                format!("system {label} record 4 (name)"),
-                "missing (truncated)",
-            )
-        })?;
+        let name = system_name(ctx, lines, i + 1, label, "record 4 (name)")?;
         let (m, next) = read_reals(
             ctx,
             lines,
@@ -601,18 +586,21 @@ fn parse_2420(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError
             12,
             &format!("system {label} records 5-8 (transformation matrix)"),
         )?;
-        systems.push(CoordinateSystem {
-            label,
-            kind,
-            color,
-            name: free_text(name_line.bytes).trim().to_string(),
-            definition: CsDefinition::Matrix {
-                rows: [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
-                origin: [m[9], m[10], m[11]],
+        let definition = CsDefinition::Matrix {
+            rows: [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
+            origin: [m[9], m[10], m[11]],
+        };
+        Ok((
+            CoordinateSystem {
+                label,
+                kind,
+                color,
+                name,
+                definition,
             },
-        });
-        i = next;
-    }
+            next,
+        ))
+    })?;
     Ok(CoordinateSystemSet {
         dataset: 2420,
         part_uid: Some(part_uid),
@@ -622,28 +610,13 @@ fn parse_2420(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError
 }
 
 fn parse_18(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> {
-    let mut systems = Vec::new();
-    let mut i = 0;
-    while i < lines.len() {
-        if trim_ascii(lines[i].bytes).is_empty() {
-            i += 1;
-            continue;
-        }
-        let n = systems.len() + 1;
-        let r1 = Rec::new(ctx, lines.get(i), format!("system {n} record 1"))?;
-        let label = r1.int(0, 10, "field 1 (coordinate system number)")?;
-        let code = r1.int(10, 10, "field 2 (type)")?;
-        let kind = cs_kind(ctx, &r1, code)?;
+    let systems = read_systems(ctx, lines, 0, "record 1", |r1, i| {
+        let (label, kind) = system_label_kind(ctx, r1, "field 1 (coordinate system number)")?;
         let reference_cs = r1.int_or_zero(20, 10, "field 3 (reference system)")?;
         let color = r1.int_or_zero(30, 10, "field 4 (color)")?;
         let method = r1.int_or_zero(40, 10, "field 5 (method of definition)")?;
         r1.end(50)?;
-        let name_line = lines.get(i + 1).ok_or_else(|| {
-            ctx.err(
-                format!("system {label} record 2 (name)"),
-                "missing (truncated)",
-            )
-        })?;
+        let name = system_name(ctx, lines, i + 1, label, "record 2 (name)")?;
         let (p, next) = read_reals(
             ctx,
             lines,
@@ -652,27 +625,78 @@ fn parse_18(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> 
             9,
             &format!("system {label} record 3 (definition points)"),
         )?;
-        systems.push(CoordinateSystem {
-            label,
-            kind,
-            color,
-            name: free_text(name_line.bytes).trim().to_string(),
-            definition: CsDefinition::ThreePoints {
-                reference_cs,
-                method,
-                origin: [p[0], p[1], p[2]],
-                x_point: [p[3], p[4], p[5]],
-                xz_point: [p[6], p[7], p[8]],
+        let definition = CsDefinition::ThreePoints {
+            reference_cs,
+            method,
+            origin: [p[0], p[1], p[2]],
+            x_point: [p[3], p[4], p[5]],
+            xz_point: [p[6], p[7], p[8]],
+        };
+        Ok((
+            CoordinateSystem {
+                label,
+                kind,
+                color,
+                name,
+                definition,
             },
-        });
-        i = next;
-    }
+            next,
+        ))
+    })?;
     Ok(CoordinateSystemSet {
         dataset: 18,
         part_uid: None,
         part_name: String::new(),
         systems,
     })
+}
+
+/// The coordinate systems of datasets 18 and 2420 from `lines[start..]`, blank lines
+/// between them skipped: `system` reads one from its first record (`header`, read here
+/// so that a truncated dataset is named by system) and the index of that record, and
+/// returns it with the index of the line after it.
+fn read_systems<'c, 'f>(
+    ctx: &'c Ctx<'f>,
+    lines: &[Line],
+    start: usize,
+    header: &str,
+    system: impl Fn(&Rec<'c, 'f>, usize) -> Result<(CoordinateSystem, usize), UffError>,
+) -> Result<Vec<CoordinateSystem>, UffError> {
+    let mut systems = Vec::new();
+    let mut i = start;
+    while i < lines.len() {
+        if trim_ascii(lines[i].bytes).is_empty() {
+            i += 1;
+            continue;
+        }
+        let n = systems.len() + 1;
+        let r = Rec::new(ctx, lines.get(i), format!("system {n} {header}"))?;
+        let (s, next) = system(&r, i)?;
+        systems.push(s);
+        i = next;
+    }
+    Ok(systems)
+}
+
+/// Fields 1 and 2 of a coordinate system's first record: its label and its type.
+fn system_label_kind(ctx: &Ctx, r: &Rec, label_field: &str) -> Result<(i64, CsKind), UffError> {
+    let label = r.int(0, 10, label_field)?;
+    let code = r.int(10, 10, "field 2 (type)")?;
+    Ok((label, cs_kind(ctx, r, code)?))
+}
+
+/// A coordinate system's name line (free text), at `lines[at]`.
+fn system_name(
+    ctx: &Ctx,
+    lines: &[Line],
+    at: usize,
+    label: i64,
+    record: &str,
+) -> Result<String, UffError> {
+    let line = lines
+        .get(at)
+        .ok_or_else(|| ctx.err(format!("system {label} {record}"), "missing (truncated)"))?;
+    Ok(free_text(line.bytes).trim().to_string())
 }
 
 fn parse_axis(ctx: &Ctx, line: Option<&Line>, which: &str) -> Result<AxisInfo, UffError> {
