@@ -295,6 +295,24 @@ fn precision_of(precision: &DataPrecision, recorded: &[c64], reference: &[c64]) 
         .collect()
 }
 
+/// The local-polynomial fits of `series` (the recording or a residual of it; |H| and
+/// the computation floor from `reference`) with the precision floor of the recorded
+/// `values`, and the noise model their quantile fit gives, described as from `source`.
+fn local_fit(
+    values: &[c64],
+    series: &[c64],
+    reference: &[c64],
+    (n_exc, n_ch, n_lines): (usize, usize, usize),
+    source: &str,
+) -> Result<(Vec<Vec<LineFit>>, RecordingNoise), CheckError> {
+    let precision = DataPrecision::detect(values);
+    let q = precision_of(&precision, values, reference);
+    let fits = fits_of(series, reference, &q, n_exc * n_ch, n_lines)?;
+    let source = format!("{source} (local quartic over 11 lines, {LEVEL}-quantile fit)");
+    let model = model_of(&fits, n_exc, n_ch, source, precision)?;
+    Ok((fits, model))
+}
+
 /// Estimates the noise from the recorded FRFs alone (values `[exc][ch][line]`).
 pub fn estimate(
     values: &[c64],
@@ -303,16 +321,8 @@ pub fn estimate(
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
     let _t = crate::prof::span(crate::prof::NOISE);
-    let precision = DataPrecision::detect(values);
-    let q = precision_of(&precision, values, values);
-    let fits = fits_of(values, values, &q, n_exc * n_ch, n_lines)?;
-    let model = model_of(
-        &fits,
-        n_exc,
-        n_ch,
-        format!("data (local quartic over 11 lines, {LEVEL}-quantile fit)"),
-        precision,
-    )?;
+    let dims = (n_exc, n_ch, n_lines);
+    let (fits, model) = local_fit(values, values, values, dims, "data")?;
     let smooth: Vec<c64> = fits
         .iter()
         .flat_map(|f| f.iter().map(|x| x.smooth))
@@ -344,17 +354,10 @@ pub fn estimate_from_residual(
     n_lines: usize,
 ) -> Result<NoiseFloor, CheckError> {
     let _t = crate::prof::span(crate::prof::NOISE);
-    let precision = DataPrecision::detect(values);
-    let q = precision_of(&precision, values, prediction);
     let residual: Vec<c64> = values.iter().zip(prediction).map(|(y, m)| y - m).collect();
-    let fits = fits_of(&residual, prediction, &q, n_exc * n_ch, n_lines)?;
-    let mut model = model_of(
-        &fits,
-        n_exc,
-        n_ch,
-        format!("residual of the fitted model (local quartic over 11 lines, {LEVEL}-quantile fit)"),
-        precision,
-    )?;
+    let dims = (n_exc, n_ch, n_lines);
+    let source = "residual of the fitted model";
+    let (_, mut model) = local_fit(values, &residual, prediction, dims, source)?;
     rescale_homoscedastic(
         &mut model, values, &residual, prediction, n_exc, n_ch, n_lines,
     )?;

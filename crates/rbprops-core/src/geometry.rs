@@ -72,6 +72,16 @@ pub struct SuspensionSetup {
     pub description: String,
 }
 
+impl SuspensionSetup {
+    /// A set-up named `id`, described in words (cords, springs, orientation).
+    pub fn new(id: impl Into<String>, description: impl Into<String>) -> Self {
+        SuspensionSetup {
+            id: id.into(),
+            description: description.into(),
+        }
+    }
+}
+
 /// Everything the stages need to know about where things are.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Geometry {

@@ -57,16 +57,7 @@ pub fn gamma_p(a: f64, x: f64) -> f64 {
         for i in 1..10_000 {
             let an = -(i as f64) * (i as f64 - a);
             b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
+            let del = lentz_step(an, b, &mut c, &mut d);
             h *= del;
             if (del - 1.0).abs() < 1e-16 {
                 break;
@@ -127,6 +118,23 @@ fn bisect_threshold(mut hi: f64, rel: f64, below: impl Fn(f64) -> bool) -> f64 {
 }
 
 /// Regularised incomplete beta I_x(a, b) (continued fraction, modified Lentz;
+
+/// One step of the modified Lentz algorithm for a continued fraction with partial
+/// numerator `a` and denominator `b`: D ← 1/(a·D + b), C ← b + a/C, each kept off zero;
+/// returns the factor C·D by which the convergent changes.
+fn lentz_step(a: f64, b: f64, c: &mut f64, d: &mut f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    *d = a * *d + b;
+    if d.abs() < TINY {
+        *d = TINY;
+    }
+    *c = b + a / *c;
+    if c.abs() < TINY {
+        *c = TINY;
+    }
+    *d = 1.0 / *d;
+    *d * *c
+}
 /// Numerical Recipes §6.4), for a, b > 0 and x in [0, 1].
 pub fn beta_i(a: f64, b: f64, x: f64) -> f64 {
     if x <= 0.0 {
@@ -157,28 +165,15 @@ fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
     for m in 1..100_000 {
         let m = m as f64;
         let m2 = 2.0 * m;
-        let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < tiny {
-            d = tiny;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < tiny {
-            c = tiny;
-        }
-        d = 1.0 / d;
-        h *= d * c;
-        let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < tiny {
-            d = tiny;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < tiny {
-            c = tiny;
-        }
-        d = 1.0 / d;
-        let del = d * c;
+        // Even and odd terms of the fraction, one modified-Lentz step each.
+        h *= lentz_step(
+            m * (b - m) * x / ((qam + m2) * (a + m2)),
+            1.0,
+            &mut c,
+            &mut d,
+        );
+        let an = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
+        let del = lentz_step(an, 1.0, &mut c, &mut d);
         h *= del;
         if (del - 1.0).abs() < 1e-15 {
             break;

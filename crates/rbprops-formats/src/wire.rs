@@ -129,10 +129,7 @@ impl GeometryMsg {
             setups: self
                 .setups
                 .iter()
-                .map(|s| SuspensionSetup {
-                    id: s.id.clone(),
-                    description: s.description.clone(),
-                })
+                .map(|s| SuspensionSetup::new(&s.id, &s.description))
                 .collect(),
         };
         g.validate()

@@ -828,23 +828,15 @@ impl OrderTest<'_> {
     /// χ² threshold (in units of the residual variance). Over-split close pairs (three
     /// poles for two modes) and weak computational poles go this way.
     fn prune_close_poles(&self, t: &mut TrackedPoles) {
-        let TrackedPoles {
-            r,
-            confidence,
-            mode_warnings,
-            warnings,
-        } = t;
-        let r: &mut lsfd::Refined = r;
-        let (band, chans, res, threshold, name) =
-            (self.band, self.chans, self.res, self.threshold, self.name);
         let search = self.search;
         loop {
+            let r: &lsfd::Refined = t.r;
             let n = r.poles.len();
             if n < 2 {
                 return;
             }
             let suspect = |i: usize| {
-                confidence[i] < search.suspect_confidence
+                t.confidence[i] < search.suspect_confidence
                     || (0..n).any(|j| {
                         j != i
                             && r.poles[i].distance_in_bandwidths(&r.poles[j])
@@ -857,24 +849,28 @@ impl OrderTest<'_> {
                 .filter(|&i| suspect(i))
                 .map(|i| {
                     let rest: Vec<Pole> = (0..n).filter(|&j| j != i).map(|j| r.poles[j]).collect();
-                    let ri = crate::prof::time(2, || lsfd::refine(&rest, band, chans, res));
+                    let ri = crate::prof::time(2, || {
+                        lsfd::refine(&rest, self.band, self.chans, self.res)
+                    });
                     (i, (ri.cost.1 - r.cost.1) / s2, ri)
                 })
-                .filter(|(_, gain, ri)| *gain < threshold && !ri.singular)
+                .filter(|(_, gain, ri)| *gain < self.threshold && !ri.singular)
                 .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             let Some((i, gain, ri)) = weakest else { return };
-            warnings.push(format!(
-            "excitation '{name}': pole at {:.4} Hz dropped by the backward model-order test (it {}, below the χ² threshold {threshold:.1})",
+            t.warnings.push(format!(
+            "excitation '{}': pole at {:.4} Hz dropped by the backward model-order test (it {}, below the χ² threshold {:.1})",
+            self.name,
             r.poles[i].frequency_hz(),
             in_sigma2(
                 || format!("lowers the cost by only {gain:.1}σ²"),
                 "lowers the cost",
                 exact
-            )
+            ),
+            self.threshold
         ));
-            confidence.remove(i);
-            mode_warnings.remove(i);
-            *r = ri;
+            t.confidence.remove(i);
+            t.mode_warnings.remove(i);
+            *t.r = ri;
         }
     }
 

@@ -854,10 +854,7 @@ impl CampaignSpec {
             setups: self
                 .setups
                 .iter()
-                .map(|s| SuspensionSetup {
-                    id: s.id.clone(),
-                    description: s.description.clone(),
-                })
+                .map(|s| SuspensionSetup::new(&s.id, &s.description))
                 .collect(),
         }
     }
