@@ -60,6 +60,20 @@ const DEGREE: usize = 4;
 /// Quantile level of the robust fit.
 const LEVEL: f64 = 0.15;
 
+/// The local fit in words, for the report's method text.
+pub(crate) fn local_fit_text() -> String {
+    let degree = match DEGREE {
+        2 => "quadratic",
+        3 => "cubic",
+        4 => "quartic",
+        _ => "polynomial",
+    };
+    format!(
+        "local {degree} over {} lines, {LEVEL}-quantile fit",
+        2 * HALF_WIDTH + 1
+    )
+}
+
 /// The LEVEL-quantile of χ²_{2(w−d−1)}/(2(w−d−1)), the distribution of σ̂²/σ².
 fn reference_quantile() -> f64 {
     let k = 2.0 * (2 * HALF_WIDTH + 1 - (DEGREE + 1)) as f64;
@@ -308,7 +322,7 @@ fn local_fit(
     let precision = DataPrecision::detect(values);
     let q = precision_of(&precision, values, reference);
     let fits = fits_of(series, reference, &q, n_exc * n_ch, n_lines)?;
-    let source = format!("{source} (local quartic over 11 lines, {LEVEL}-quantile fit)");
+    let source = format!("{source} ({})", local_fit_text());
     let model = model_of(&fits, n_exc, n_ch, source, precision)?;
     Ok((fits, model))
 }

@@ -210,14 +210,48 @@ fn chi2_ratio(o: &CheckOutcome, sigma2: &[f64]) -> f64 {
     a / b
 }
 
-/// The methods text of the report that does not depend on the data.
-fn method_text() -> Vec<String> {
+/// The methods text of the report that does not depend on the data, stated with the
+/// options and thresholds this run used.
+fn method_text(options: &CheckOptions) -> Vec<String> {
+    let noise = if options.noise.is_some() {
+        "per-channel σ² = a²|H|² + b², given (side information: repeats or coherence)".to_string()
+    } else {
+        format!(
+            "per-channel σ² = a²|H|² + b², from a {} (data only), re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν out of the noise band)",
+            noise::local_fit_text()
+        )
+    };
+    let held_out = if options.cross_validation {
+        format!(
+            "held-out χ² ({} interleaved frequency-block folds, one-step refit without each fold) lower by > {} SE and in ≥ {:.0} % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < {LOEO_MAX_CHI2_NU} no held-out excitation (leave one out) worse by > 2 SE, ",
+            crate::cv::FOLDS,
+            crate::cv::MIN_SE,
+            100.0 * crate::cv::MIN_FRACTION
+        )
+    } else {
+        "no held-out check (cross-validation switched off), ".to_string()
+    };
+    let mass = match options.weighed_mass_kg {
+        Some(m) => format!("; the mass fixed at the weighed {m} kg"),
+        None => String::new(),
+    };
     vec![
-            "noise: per-channel σ² = a²|H|² + b², from a local quartic over 11 lines (data only) unless given; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; re-estimated from the final model's residual (the check is rerun with it if that moves χ²/ν out of the noise band); line-to-line correlation κ = 1 assumed".to_string(),
-            "baseline: Levenberg–Marquardt on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model".to_string(),
-            "screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{d,1−α/N}".to_string(),
-            "acceptance: likelihood ratio > χ²_{d,1−α/N} (Bonferroni), ΔBIC > 10, Wald χ² > χ²_{d,0.999}, parameters not pinned at a bound, held-out χ² (10 interleaved frequency-block folds, one-step refit without each fold) lower by > 2 SE and in ≥ 80 % of folds, with ≥ 3 excitations and the candidate's fit at χ²/ν < 2 no held-out excitation (leave one out) worse by > 2 SE, distinct from rivals (canonical correlation ≤ 0.9 or ΔBIC margin > 10), and practically significant: its fitted change to the FRFs at least 10 times the precision floor (RMS over the values); backward elimination after each acceptance".to_string(),
-            "not implemented: bootstrap calibration of the screening threshold".to_string(),
+        format!("noise: {noise}; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; line-to-line correlation κ = 1 assumed"),
+        format!("baseline: Levenberg–Marquardt (at most {} iterations) on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model{mass}", options.max_iterations),
+        format!("screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{{d,1−α/N}} with α = {}{}", options.alpha, match &options.only {
+            Some(only) => format!("; candidates restricted to {}", only.join(", ")),
+            None => String::new(),
+        }),
+        format!(
+            "acceptance (the {} strongest significant candidates refitted per step, at most {} steps): likelihood ratio > χ²_{{d,1−α/N}} (Bonferroni), ΔBIC > {}, Wald χ² > χ²_{{d,{}}}, parameters not pinned at a bound, {held_out}distinct from rivals (canonical correlation ≤ {} or ΔBIC margin > {}), and practically significant: its fitted change to the FRFs at least {PRACTICAL_MARGIN} times the precision floor (RMS over the values); backward elimination after each acceptance",
+            options.refit_top,
+            options.max_effects,
+            options.min_delta_bic,
+            options.wald_level,
+            options.max_correlation,
+            options.min_delta_bic
+        ),
+        "not implemented: bootstrap calibration of the screening threshold".to_string(),
     ]
 }
 
@@ -351,7 +385,7 @@ fn check_with(
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
     let mut warnings = Vec::new();
-    let mut method = method_text();
+    let mut method = method_text(options);
     let Weights {
         noise_model,
         sigma,
@@ -476,4 +510,34 @@ fn effect_spec(
     spec: &CampaignSpec,
 ) -> Result<rbprops_sim::spec::EffectSpec, CheckError> {
     crate::candidates::catalogue_entry(e, spec).map_err(CheckError::Model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The method text states the thresholds of the run, not the defaults.
+    #[test]
+    fn method_text_follows_the_options() {
+        let joined = |o: &CheckOptions| method_text(o).join("\n");
+        let default = joined(&CheckOptions::default());
+        assert!(default.contains("α = 0.01"), "{default}");
+        assert!(default.contains("ΔBIC > 10,"), "{default}");
+        assert!(default.contains("10 interleaved frequency-block folds"));
+        assert!(default.contains("local quartic over 11 lines, 0.15-quantile fit"));
+        let o = CheckOptions {
+            alpha: 0.05,
+            min_delta_bic: 6.0,
+            cross_validation: false,
+            weighed_mass_kg: Some(12.5),
+            only: Some(vec!["channel_gain".into()]),
+            ..CheckOptions::default()
+        };
+        let text = joined(&o);
+        assert!(text.contains("α = 0.05"), "{text}");
+        assert!(text.contains("ΔBIC > 6,") && text.contains("ΔBIC margin > 6)"));
+        assert!(text.contains("no held-out check") && !text.contains("folds"));
+        assert!(text.contains("weighed 12.5 kg"));
+        assert!(text.contains("restricted to channel_gain"));
+    }
 }
