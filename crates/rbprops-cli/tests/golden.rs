@@ -5,6 +5,10 @@
 //! relative error within 1e-9 absolute. The runs are deterministic, so anything beyond
 //! round-off across machines is a change of behaviour. `RBPROPS_BLESS=1` rewrites the
 //! golden files (review the diff before committing).
+//!
+//! The tables of docs/results.md are the golden numbers as printed
+//! (`results_md_tables_are_the_golden_numbers`): `RBPROPS_BLESS=1` rewrites them too, so
+//! the document cannot drift from what the code computes.
 
 use rbprops_cli::stages;
 use rbprops_cli::summary::{self, SummaryRow};
@@ -85,9 +89,24 @@ fn test_case_2(name: &str, spec: &str) -> Vec<SummaryRow> {
                 "1:force2,2:force2,3:force3,4:force3,5:force1,6:force1",
             ),
             (
+                "set-II",
+                None,
+                "1:force1,2:force2,3:force3,4:force2,5:force2,6:force1",
+            ),
+            (
                 "set-III",
                 None,
                 "1:force1,2:force2,3:force3,4:force3,5:force2,6:force1",
+            ),
+            (
+                "set-IV",
+                None,
+                "1:force1,2:force2,3:force3,4:force3,5:force1,6:force3",
+            ),
+            (
+                "set-V",
+                None,
+                "1:force1,2:force3,3:force3,4:force3,5:force1,6:force1",
             ),
         ],
         &[
@@ -170,4 +189,162 @@ fn golden_comparison_fails_when_an_input_is_perturbed() {
         ABS_TOL
     )
     .is_empty());
+}
+
+/// The Σ error of the golden row (`set`, `setup` or any, `origin`, `method`).
+fn err_sum(rows: &[SummaryRow], set: &str, setup: Option<&str>, origin: &str, method: &str) -> f64 {
+    rows.iter()
+        .find(|r| {
+            r.set == set
+                && setup.is_none_or(|s| r.setup == s)
+                && r.origin == origin
+                && r.method == method
+        })
+        .and_then(|r| r.err_sum)
+        .unwrap_or_else(|| panic!("no golden row {set}/{setup:?}/{origin}/{method} with errors"))
+}
+
+/// Test Case I's table: Σ errors of both estimators, one significant digit.
+fn test_case_1_table(rows: &[SummaryRow]) -> String {
+    let both = |set: &str, setup: &str| {
+        format!(
+            "{:.0e} / {:.0e}",
+            err_sum(rows, set, Some(setup), "geometry", "bretl_conti"),
+            err_sum(rows, set, Some(setup), "geometry", "toivola_nuutila")
+        )
+    };
+    let bt = "Bretl–Conti / Toivola–Nuutila";
+    let mut t = String::from("| run | method | Σ errors |\n|---|---|---|\n");
+    for (label, set, setup) in [
+        ("NI selection, set-up A", "ni", "A"),
+        ("NI selection, set-up B", "ni", "B"),
+        ("Set 1 (set-up A, paper's choice)", "set1", "A"),
+        ("Set 2 (set-up B, paper's choice)", "set2", "B"),
+    ] {
+        t += &format!("| {label} | {bt} | {} |\n", both(set, setup));
+    }
+    t += &format!(
+        "| F2y alone (5 modes) | Toivola–Nuutila (Bretl–Conti refuses) | {:.0e} |\n",
+        err_sum(rows, "F2y", Some("B"), "geometry", "toivola_nuutila")
+    );
+    t
+}
+
+/// Test Case II's table (1 % noise): Σ errors in %, three significant digits (two
+/// decimals under 10 %), per origin I–III for the paper's sets.
+fn test_case_2_table(rows: &[SummaryRow]) -> String {
+    let pct = |x: f64| {
+        let p = 100.0 * x;
+        if p < 10.0 {
+            format!("{p:.2} %")
+        } else {
+            format!("{p:.1} %")
+        }
+    };
+    let origins = |set: &str, method: &str| {
+        (1..=3)
+            .map(|o| {
+                pct(err_sum(
+                    rows,
+                    set,
+                    None,
+                    &format!("accelerometer {o}"),
+                    method,
+                ))
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut t = String::from(
+        "| set | Bretl–Conti Σ (origins I, II, III) | Toivola–Nuutila Σ (origins I, II, III) |\n|---|---|---|\n",
+    );
+    t += &format!(
+        "| NI (automatic, `ni-select`, geometry origin) | {} | {} |\n",
+        pct(err_sum(rows, "ni", None, "geometry", "bretl_conti")),
+        pct(err_sum(rows, "ni", None, "geometry", "toivola_nuutila"))
+    );
+    for (label, set) in [
+        ("I (no criterion)", "set-I"),
+        ("II (PRF MIF)", "set-II"),
+        ("III (NI, paper)", "set-III"),
+        ("IV (no criterion)", "set-IV"),
+        ("V (hybrid MIF)", "set-V"),
+    ] {
+        t += &format!(
+            "| {label} | {} | {} |\n",
+            origins(set, "bretl_conti"),
+            origins(set, "toivola_nuutila")
+        );
+    }
+    t
+}
+
+/// Replaces the Markdown table of `doc` whose header line starts like `table`'s with
+/// `table`; `None` when there is no such table.
+fn with_table(doc: &str, table: &str) -> Option<String> {
+    let header = table.lines().next()?;
+    let start = doc.find(header)?;
+    let len = doc[start..]
+        .split_inclusive('\n')
+        .take_while(|l| l.starts_with('|'))
+        .map(str::len)
+        .sum::<usize>();
+    Some(format!("{}{table}{}", &doc[..start], &doc[start + len..]))
+}
+
+/// docs/results.md prints the golden numbers: its Test Case I and II tables are
+/// generated from `fixtures/golden/*.csv` (which `*_matches_golden` check against fresh
+/// runs), so the published figures cannot drift from the code's.
+#[test]
+fn results_md_tables_are_the_golden_numbers() {
+    let golden = |name: &str| {
+        summary::from_csv(&std::fs::read_to_string(golden_path(name)).unwrap()).unwrap()
+    };
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../docs/results.md");
+    let doc = std::fs::read_to_string(&path).unwrap();
+    let mut expected = doc.clone();
+    for table in [
+        test_case_1_table(&golden("test-case-1")),
+        test_case_2_table(&golden("demo")),
+    ] {
+        expected = with_table(&expected, &table).unwrap_or_else(|| {
+            panic!(
+                "{}: no table headed {:?}",
+                path.display(),
+                table.lines().next()
+            )
+        });
+    }
+    // Noise-free Test Case II: the text's bound on every set and origin, the worst Σ
+    // error rounded up to one significant digit.
+    let worst = golden("test-case-2")
+        .iter()
+        .filter_map(|r| r.err_sum)
+        .fold(0.0, f64::max);
+    let scale = 10f64.powf(worst.log10().floor());
+    let bound = format!(
+        "Σ errors below {:.0e} for both",
+        (worst / scale).floor() * scale + scale
+    );
+    let at = expected
+        .find("Σ errors below ")
+        .expect("the noise-free Test Case II sentence");
+    let end = at + expected[at..].find(" for both").expect("its bound") + " for both".len();
+    expected.replace_range(at..end, &bound);
+    if std::env::var_os("RBPROPS_BLESS").is_some() {
+        std::fs::write(&path, &expected).unwrap();
+        return;
+    }
+    assert!(
+        doc == expected,
+        "{} has drifted from the golden numbers (RBPROPS_BLESS=1 rewrites its tables):\n{}",
+        path.display(),
+        expected
+            .lines()
+            .zip(doc.lines())
+            .filter(|(e, d)| e != d)
+            .map(|(e, d)| format!("  doc:    {d}\n  golden: {e}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
 }
