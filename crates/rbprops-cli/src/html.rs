@@ -127,20 +127,15 @@ fn summary_table(h: &mut String, rows: &[SummaryRow]) -> Result<()> {
             )?;
             continue;
         }
+        let c = r.property_cells();
         write!(
             h,
-            "<td>{:.4}</td><td>{:.4}</td><td>{:.2}, {:.2}, {:.2}</td><td>{:.5} {:.5} {:.5}</td><td>{:.5} {:.5} {:.5}</td>",
-            r.mass_kg,
+            "<td>{}</td><td>{:.4}</td><td>{}</td><td>{}</td><td>{}</td>",
+            c.mass,
             1.96 * r.mass_std_kg,
-            1e3 * r.com_x_m,
-            1e3 * r.com_y_m,
-            1e3 * r.com_z_m,
-            r.jxx,
-            r.jyy,
-            r.jzz,
-            r.jxy,
-            r.jxz,
-            r.jyz
+            c.com_mm,
+            c.moments,
+            c.products
         )?;
         if checked {
             let chi = match (r.check_chi2_nu_before, r.check_chi2_nu_after) {

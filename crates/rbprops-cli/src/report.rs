@@ -98,23 +98,18 @@ pub fn write(
             .unwrap_or_else(|| "–".into())
     };
     for r in rows {
+        let c = r.property_cells();
         writeln!(
             md,
-            "| {} | {} | {} | {} | {:.4} | {:.2}, {:.2}, {:.2} | {:.5} {:.5} {:.5} | {:.5} {:.5} {:.5} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.campaign,
             r.set,
             r.origin,
             r.method,
-            r.mass_kg,
-            1e3 * r.com_x_m,
-            1e3 * r.com_y_m,
-            1e3 * r.com_z_m,
-            r.jxx,
-            r.jyy,
-            r.jzz,
-            r.jxy,
-            r.jxz,
-            r.jyz,
+            c.mass,
+            c.com_mm,
+            c.moments,
+            c.products,
             pct(r.err_mass),
             pct(r.err_com),
             pct(r.err_inertia),

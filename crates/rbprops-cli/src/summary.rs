@@ -125,6 +125,32 @@ impl SummaryRow {
     }
 }
 
+/// The printed inertia properties of a row, as every table shows them: mass [kg] to
+/// 4 decimals, the centre of mass in mm to 2, moments and products [kg m²] to 5.
+pub struct PropertyCells {
+    pub mass: String,
+    pub com_mm: String,
+    pub moments: String,
+    pub products: String,
+}
+
+impl SummaryRow {
+    /// The row's properties formatted for a table cell each (HTML and Markdown alike).
+    pub fn property_cells(&self) -> PropertyCells {
+        PropertyCells {
+            mass: format!("{:.4}", self.mass_kg),
+            com_mm: format!(
+                "{:.2}, {:.2}, {:.2}",
+                1e3 * self.com_x_m,
+                1e3 * self.com_y_m,
+                1e3 * self.com_z_m
+            ),
+            moments: format!("{:.5} {:.5} {:.5}", self.jxx, self.jyy, self.jzz),
+            products: format!("{:.5} {:.5} {:.5}", self.jxy, self.jxz, self.jyz),
+        }
+    }
+}
+
 /// Rows for every estimate in a run record.
 pub fn rows(rec: &RunRecord, campaign: &str, set: &str, origin: &str) -> Result<Vec<SummaryRow>> {
     let est: Vec<InertiaEstimate> = rec.get(topics::ESTIMATES)?;
