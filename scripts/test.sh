@@ -1,13 +1,29 @@
 #!/usr/bin/env bash
 # The project's test command (README, .ci/run and `just test` all call this).
-# Uses cargo-nextest when installed, plain `cargo test` otherwise.
+# Uses cargo-nextest when installed, plain `cargo test` otherwise. Arguments go to
+# `cargo nextest run`: `scripts/test.sh` runs nextest's `default` profile (the quick
+# run, without the few end-to-end model-check tests listed in .config/nextest.toml),
+# `scripts/test.sh --profile ci` runs every test that is not #[ignore]d (what CI runs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 if cargo nextest --version >/dev/null 2>&1; then
   cargo nextest run --workspace --no-fail-fast "$@"
   cargo test --workspace --doc
 else
-  cargo test --workspace --no-fail-fast "$@"
+  # `cargo test` knows no nextest profile: it runs every test that is not ignored, as
+  # the `ci` profile does, so `--profile NAME` is dropped; other arguments pass through.
+  args=()
+  skip_value=0
+  for a in "$@"; do
+    if [ "$skip_value" = 1 ]; then skip_value=0; continue; fi
+    case "$a" in
+      --profile) skip_value=1 ;;
+      --profile=*) ;;
+      *) args+=("$a") ;;
+    esac
+  done
+  echo "cargo-nextest not found: running every test that is not ignored with cargo test" >&2
+  cargo test --workspace --no-fail-fast ${args[@]+"${args[@]}"}
 fi
 # The reference generator's own exact tests (Python with numpy and pyuff; 4–10 s).
 PY="${RBPROPS_PYTHON:-python3}"
