@@ -27,13 +27,13 @@ use std::path::Path;
 
 /// Topic names (MCAP topics; CSV tables drop the `/rbprops/` prefix).
 pub mod topics {
-    /// Provenance of every stage that wrote to the run ([`StageProvenance`], one message per stage).
+    /// Provenance of every stage that wrote to the run ([`rbprops_core::records::StageProvenance`], one message per stage).
     pub const PROVENANCE: &str = "/rbprops/provenance";
-    /// The test geometry ([`wire::GeometryMsg`], one message).
+    /// The test geometry ([`crate::wire::GeometryMsg`], one message).
     pub const GEOMETRY: &str = "/rbprops/geometry";
-    /// FRF values ([`wire::FrfMsg`], one message per excitation).
+    /// FRF values ([`crate::wire::FrfMsg`], one message per excitation).
     pub const FRF: &str = "/rbprops/frf";
-    /// Frequency axis, quantity and layout of the FRFs ([`wire::FrfAxisMsg`], one message).
+    /// Frequency axis, quantity and layout of the FRFs ([`crate::wire::FrfAxisMsg`], one message).
     pub const FRF_AXIS: &str = "/rbprops/frf_axis";
     /// True properties and modes of a simulated campaign (absent for measured data).
     pub const TRUTH: &str = "/rbprops/truth";

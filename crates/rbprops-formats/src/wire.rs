@@ -16,7 +16,7 @@ pub struct PointMsg {
     /// Point id, unique in the geometry.
     #[schemars(description = "")]
     pub id: String,
-    /// Position in the geometry frame [m].
+    /// Position in the geometry frame (m).
     #[schemars(description = "")]
     pub position_m: [f64; 3],
 }
@@ -30,7 +30,7 @@ pub struct ChannelMsg {
     /// Id of the point the sensor sits on.
     #[schemars(description = "")]
     pub point: String,
-    /// Sensor position [m].
+    /// Sensor position (m).
     #[schemars(description = "")]
     pub position_m: [f64; 3],
     /// Unit sensing direction in the geometry frame.
@@ -50,7 +50,7 @@ pub struct ExcitationMsg {
     /// Id of the suspension set-up the FRFs were measured in.
     #[schemars(description = "")]
     pub setup: String,
-    /// Point of application [m].
+    /// Point of application (m).
     #[schemars(description = "")]
     pub position_m: [f64; 3],
     /// Unit force direction in the geometry frame.
@@ -192,7 +192,7 @@ pub struct FrfAxisMsg {
     pub excitations: Vec<String>,
     /// Channel ids in the order of each message's values.
     pub channels: Vec<String>,
-    /// Frequency of every line [Hz], increasing.
+    /// Frequency of every line (Hz), increasing.
     #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
 }

@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 pub struct BandData {
     /// Receptance, mobility or accelerance, as measured.
     pub quantity: Quantity,
-    /// Frequency of every line [Hz], ascending.
+    /// Frequency of every line (Hz), ascending.
     pub frequency_hz: Vec<f64>,
     /// `ω = 2πf`, rad/s.
     pub omega: Vec<f64>,
@@ -205,7 +205,7 @@ impl BandData {
             .collect()
     }
 
-    /// First and last frequency of the band [Hz].
+    /// First and last frequency of the band (Hz).
     pub fn band_hz(&self) -> [f64; 2] {
         [self.frequency_hz[0], *self.frequency_hz.last().unwrap()]
     }

@@ -38,7 +38,7 @@ use rbprops_core::c64;
 /// FRFs of one set-up on one band: `h[o][e][k]`, output `o`, reference `e`, line `k`.
 #[derive(Debug, Clone)]
 pub struct PolyData<'a> {
-    /// Angular frequency of every line [rad/s].
+    /// Angular frequency of every line (rad/s).
     pub omega: &'a [f64],
     /// `h[output][reference]`: each FRF's values on `omega`.
     pub h: Vec<Vec<&'a [c64]>>,

@@ -53,7 +53,7 @@ impl StabilityClass {
 pub struct DiagramPole {
     /// Model order (denominator degree) the pole was found at.
     pub order: usize,
-    /// Natural frequency [Hz].
+    /// Natural frequency (Hz).
     pub frequency_hz: f64,
     /// Damping ratio (fraction of critical).
     pub damping_ratio: f64,

@@ -143,7 +143,7 @@ pub struct ModeExcitation {
     /// 1-based physical mode number within the set-up.
     #[schemars(description = "")]
     pub mode: usize,
-    /// Natural frequency of the mode's reference estimate [Hz].
+    /// Natural frequency of the mode's reference estimate (Hz).
     #[schemars(description = "")]
     pub frequency_hz: f64,
     /// The excitation this row is about.
@@ -194,7 +194,7 @@ pub struct ModeGroup {
     pub setup: String,
     /// 1-based, ascending frequency within the set-up.
     pub mode: usize,
-    /// Natural frequency of the reference estimate [Hz].
+    /// Natural frequency of the reference estimate (Hz).
     #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Damping ratio of the reference estimate (fraction of critical).
@@ -220,13 +220,13 @@ pub struct ModeGroup {
 /// An NI peak.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct NiPeak {
-    /// Frequency of the peak's line [Hz].
+    /// Frequency of the peak's line (Hz).
     #[schemars(description = "")]
     pub frequency_hz: f64,
-    /// NI at the peak [dB].
+    /// NI at the peak (dB).
     #[schemars(description = "")]
     pub level_db: f64,
-    /// Topographic prominence of the peak [dB].
+    /// Topographic prominence of the peak (dB).
     #[schemars(description = "")]
     pub prominence_db: f64,
     /// The physical mode it belongs to, if any.
@@ -264,7 +264,7 @@ pub struct ExcitationCurves {
     /// Its suspension set-up.
     #[schemars(description = "")]
     pub setup: String,
-    /// Norm Indicator per line [dB] (paper Eq. 12).
+    /// Norm Indicator per line in dB (paper Eq. 12).
     #[schemars(description = "")]
     pub ni_db: Vec<f64>,
     /// Hybrid MIF per line (Rades 1994), in [0, 1].
@@ -285,7 +285,7 @@ pub struct ExcitationCurves {
 /// Plot data: the NI (Figs. 4/11), hybrid MIF (Fig. 12) and PRF MIF (Fig. 13) curves.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct IndicatorCurves {
-    /// Frequency of every line [Hz], shared by all curves.
+    /// Frequency of every line (Hz), shared by all curves.
     #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
     /// Receptance, mobility or accelerance: the FRFs the curves come from.
@@ -305,7 +305,7 @@ pub struct StrengthMatrix {
     /// Physical mode numbers, one per row.
     #[schemars(description = "")]
     pub modes: Vec<usize>,
-    /// Natural frequency of each mode [Hz].
+    /// Natural frequency of each mode (Hz).
     #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
     /// Excitation ids, one per column.
@@ -353,7 +353,7 @@ pub struct RejectedEstimate {
     pub excitation: String,
     /// Its mode number in `modal-fit`'s output.
     pub excitation_mode: usize,
-    /// Its natural frequency [Hz].
+    /// Its natural frequency (Hz).
     #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Frequency of the candidate mode it was matched into.

@@ -59,9 +59,9 @@ pub enum PlotError {
     InvalidSize {
         /// The plot's title.
         plot: String,
-        /// Width as given [px].
+        /// Width as given (px).
         width: u32,
-        /// Height as given [px].
+        /// Height as given (px).
         height: u32,
     },
     /// The plotting backend failed (should not happen when writing to a string).

@@ -17,7 +17,7 @@ use crate::style::{marker_stroke, stroke, LegendPosition, LineStyle, PlotSize, R
 pub struct Series {
     /// Legend text.
     pub name: String,
-    /// Abscissa of every point, e.g. frequency [Hz].
+    /// Abscissa of every point, e.g. frequency (Hz).
     pub x: Vec<f64>,
     /// Same length as `x`. Non-finite values (and non-positive ones on log/dB
     /// axes) are not drawn; the curve is broken there.

@@ -19,7 +19,7 @@ use crate::style::{stroke, LineStyle, PlotSize, Rgb};
 pub struct FrfTrace {
     /// Legend text (shared by every panel: the first panel's names are listed once).
     pub name: String,
-    /// Frequency of every line [Hz].
+    /// Frequency of every line (Hz).
     pub frequency_hz: Vec<f64>,
     /// |H|, drawn on a log axis (values ≤ 0 are not drawn).
     pub magnitude: Vec<f64>,
@@ -47,7 +47,7 @@ pub struct FrfPanel {
 /// (see [`low_quality_spans`]).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LineQuality {
-    /// Frequency of every line [Hz], as `value`.
+    /// Frequency of every line (Hz), as `value`.
     pub frequency_hz: Vec<f64>,
     /// The measure per line (e.g. γ² in [0, 1]); NaN lines are not shaded.
     pub value: Vec<f64>,

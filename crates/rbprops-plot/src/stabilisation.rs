@@ -69,7 +69,7 @@ impl PoleClass {
 /// One pole of one model order.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StabilisationPole {
-    /// Frequency of the pole [Hz] (x position).
+    /// Frequency of the pole in Hz (x position).
     pub frequency_hz: f64,
     /// Model order the pole was found at (y position).
     pub order: usize,
@@ -82,7 +82,7 @@ pub struct StabilisationPole {
 pub struct BackgroundCurve {
     /// Legend text, e.g. "Σ|H|".
     pub name: String,
-    /// Frequency of every line [Hz].
+    /// Frequency of every line (Hz).
     pub frequency_hz: Vec<f64>,
     /// Positive magnitudes; drawn on a log axis at the right.
     pub magnitude: Vec<f64>,

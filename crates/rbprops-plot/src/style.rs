@@ -107,9 +107,9 @@ pub(crate) const OUTSIDE_GAP: u32 = 12;
 /// Canvas size in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PlotSize {
-    /// Width [px].
+    /// Width (px).
     pub width: u32,
-    /// Height [px].
+    /// Height (px).
     pub height: u32,
 }
 

@@ -63,7 +63,7 @@ impl Observation {
 /// receptance as `ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExtraMode {
-    /// Natural frequency `ω_m/2π` [Hz].
+    /// Natural frequency `ω_m/2π` (Hz).
     pub frequency_hz: f64,
     /// Damping ratio `ζ_m` (fraction of critical).
     pub damping_ratio: f64,

@@ -63,9 +63,9 @@ pub struct CampaignSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FrequencySpec {
-    /// First line [Hz].
+    /// First line (Hz).
     pub start_hz: f64,
-    /// Last line [Hz].
+    /// Last line (Hz).
     pub stop_hz: f64,
     /// Number of lines (at least 2, at most [`MAX_LINES`]).
     pub lines: usize,
@@ -76,17 +76,17 @@ pub struct FrequencySpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
-    /// Mass [kg].
+    /// Mass (kg).
     pub mass_kg: f64,
-    /// Centre of mass in the geometry frame [m].
+    /// Centre of mass in the geometry frame (m).
     pub com_m: [f64; 3],
-    /// Inertia tensor at the CoM [kg m²] (symmetric positive definite); or give `moments_kg_m2`.
+    /// Inertia tensor at the CoM in kg m² (symmetric positive definite); or give `moments_kg_m2`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inertia_cm_kg_m2: Option<[[f64; 3]; 3]>,
-    /// Moments of inertia `J_xx, J_yy, J_zz` at the CoM, frame axes [kg m²]; needs `products_kg_m2`.
+    /// Moments of inertia `J_xx, J_yy, J_zz` at the CoM, frame axes (kg m²); needs `products_kg_m2`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub moments_kg_m2: Option<[f64; 3]>,
-    /// CAD products of inertia at the CoM [kg m²], given with the moments (zero for principal axes).
+    /// CAD products of inertia at the CoM (kg m²), given with the moments (zero for principal axes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub products_kg_m2: Option<ProductsSpec>,
 }
@@ -95,11 +95,11 @@ pub struct BodySpec {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProductsSpec {
-    /// `J_xy` [kg m²].
+    /// `J_xy` (kg m²).
     pub xy: f64,
-    /// `J_xz` [kg m²].
+    /// `J_xz` (kg m²).
     pub xz: f64,
-    /// `J_yz` [kg m²].
+    /// `J_yz` (kg m²).
     pub yz: f64,
 }
 
@@ -137,13 +137,13 @@ pub struct SetupSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CordSpec {
-    /// Body attachment point [m].
+    /// Body attachment point (m).
     pub at_m: [f64; 3],
-    /// Fixed anchor point [m].
+    /// Fixed anchor point (m).
     pub anchor_m: [f64; 3],
-    /// Axial stiffness `k` [N/m].
+    /// Axial stiffness `k` (N/m).
     pub axial_stiffness_n_per_m: f64,
-    /// Free length `L₀` [m] (only used when the body hangs under gravity).
+    /// Free length `L₀` in m (only used when the body hangs under gravity).
     pub unstretched_length_m: f64,
 }
 
@@ -151,12 +151,12 @@ pub struct CordSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpringSpec {
-    /// Body attachment point [m].
+    /// Body attachment point (m).
     pub at_m: [f64; 3],
-    /// Stiffnesses along x, y, z [N/m] (a diagonal `k`).
+    /// Stiffnesses along x, y, z in N/m (a diagonal `k`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stiffness_n_per_m: Option<[f64; 3]>,
-    /// Full symmetric positive semi-definite stiffness [N/m], instead of the diagonal.
+    /// Full symmetric positive semi-definite stiffness (N/m), instead of the diagonal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stiffness_matrix_n_per_m: Option<[[f64; 3]; 3]>,
 }
@@ -180,7 +180,7 @@ pub enum SensorKind {
 pub struct SensorSpec {
     /// Sensor id, also its geometry point's id.
     pub id: String,
-    /// Position in the geometry frame [m].
+    /// Position in the geometry frame (m).
     pub at_m: [f64; 3],
     /// Triaxial or uniaxial.
     pub kind: SensorKind,
@@ -203,7 +203,7 @@ pub struct SensorSpec {
 pub struct ExcitationSpec {
     /// Excitation id.
     pub id: String,
-    /// Point of application [m].
+    /// Point of application (m).
     pub at_m: [f64; 3],
     /// Unit force direction.
     pub direction: [f64; 3],

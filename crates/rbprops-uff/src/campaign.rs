@@ -499,7 +499,7 @@ impl CoherenceSet {
 pub struct UffCampaign {
     /// SI geometry: one point per node used, one channel per response DOF, one excitation per reference DOF.
     pub geometry: Geometry,
-    /// The FRFs in SI receptance, mobility or accelerance, on one frequency axis [Hz].
+    /// The FRFs in SI receptance, mobility or accelerance, on one frequency axis (Hz).
     pub frf: FrfSet,
     /// `None` when the file holds no coherence that matches an FRF.
     pub coherence: Option<CoherenceSet>,

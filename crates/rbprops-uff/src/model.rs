@@ -270,7 +270,7 @@ pub struct Function {
     pub ordinate_type: OrdinateType,
     /// Record 7 field 3: even abscissa spacing (no abscissa values stored).
     pub even: bool,
-    /// Record 7 field 4: first abscissa (frequency [Hz] for an FRF).
+    /// Record 7 field 4: first abscissa (frequency (Hz) for an FRF).
     pub abscissa_min: f64,
     /// Record 7 field 5: abscissa increment (used when `even`).
     pub abscissa_increment: f64,

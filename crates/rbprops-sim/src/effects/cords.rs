@@ -88,7 +88,7 @@ pub struct CordMass {
     /// Damping ratio of the cord modes.
     #[serde(default = "default_damping")]
     pub damping_ratio: f64,
-    /// Gravitational acceleration [m/s²].
+    /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.

@@ -24,7 +24,7 @@ pub struct ElasticMode {
     /// Set-up in which the mode is seen; all set-ups when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
-    /// Natural frequency `ω_m/2π` of the elastic mode [Hz].
+    /// Natural frequency `ω_m/2π` of the elastic mode (Hz).
     pub frequency_hz: f64,
     /// Its damping ratio `ζ_m` (fraction of critical).
     pub damping_ratio: f64,

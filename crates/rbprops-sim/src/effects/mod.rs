@@ -59,7 +59,7 @@ pub struct OutputBlock<'a> {
     pub geometry: &'a Geometry,
     /// Index of the excitation in the geometry.
     pub excitation: usize,
-    /// Frequency of every line [Hz].
+    /// Frequency of every line (Hz).
     pub frequency_hz: &'a [f64],
     /// Number of channels (`values` holds `n_channels × lines`).
     pub n_channels: usize,

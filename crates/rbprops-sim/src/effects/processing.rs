@@ -29,7 +29,7 @@ pub struct ExponentialWindow {
     /// Decay rate σ (1/s); or give `time_constant_s` τ = 1/σ instead.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decay_per_s: Option<f64>,
-    /// Time constant τ = 1/σ [s], instead of `decay_per_s`.
+    /// Time constant τ = 1/σ (s), instead of `decay_per_s`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_constant_s: Option<f64>,
 }

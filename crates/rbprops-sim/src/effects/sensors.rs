@@ -143,7 +143,7 @@ impl Effect for TransducerHighpass {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorTiltGravity {
-    /// Gravitational acceleration [m/s²].
+    /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
