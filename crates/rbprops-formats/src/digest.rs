@@ -24,13 +24,19 @@ pub const CONTENT_FIELD: &str = "content_sha256";
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DigestCheck {
     /// The content matches the digest `tool` recorded.
-    Matches { tool: String },
+    Matches {
+        /// Who recorded the digest (the stage's tool name).
+        tool: String,
+    },
     /// No digest is recorded: nothing to check against.
     Unclaimed,
     /// The content changed after `tool` recorded its digest.
     Mismatch {
+        /// Who recorded the digest (the stage's tool name).
         tool: String,
+        /// The digest recorded in the provenance, hex SHA-256.
         recorded: String,
+        /// The digest of the content as it is now, hex SHA-256.
         found: String,
     },
 }

@@ -25,6 +25,7 @@ use serde_json::{Map, Value};
 /// One flat table.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Table {
+    /// Table name: the topic's for the top table, `{parent}_{field}` (dots as `_`) for a child table.
     pub name: String,
     /// Parent table and the field (dotted path) whose items this table holds.
     pub parent: Option<(String, String)>,
@@ -32,7 +33,9 @@ pub struct Table {
     pub key: Vec<String>,
     /// How many of `key` come from the parent.
     pub inherited: usize,
+    /// Column names: key columns first, then the flattened fields.
     pub header: Vec<String>,
+    /// Cells, one `Vec` per row in `header` order.
     pub rows: Vec<Vec<String>>,
 }
 
@@ -56,6 +59,7 @@ pub struct Schema<'a> {
 static ANY: Value = Value::Bool(true);
 
 impl<'a> Schema<'a> {
+    /// The schema's root node (a `$ref` at the root is followed).
     pub fn new(root: &'a Value) -> Self {
         Schema { root, node: root }.resolved()
     }

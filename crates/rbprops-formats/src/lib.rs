@@ -10,6 +10,8 @@
 //!
 //! See `docs/formats.md` for the byte-level description.
 
+#![warn(missing_docs)]
+
 pub mod atomic;
 pub mod csv_dir;
 pub mod digest;
@@ -25,14 +27,23 @@ use std::path::Path;
 
 /// Topic names (MCAP topics; CSV tables drop the `/rbprops/` prefix).
 pub mod topics {
+    /// Provenance of every stage that wrote to the run ([`rbprops_core::records::StageProvenance`], one message per stage).
     pub const PROVENANCE: &str = "/rbprops/provenance";
+    /// The test geometry ([`crate::wire::GeometryMsg`], one message).
     pub const GEOMETRY: &str = "/rbprops/geometry";
+    /// FRF values ([`crate::wire::FrfMsg`], one message per excitation).
     pub const FRF: &str = "/rbprops/frf";
+    /// Frequency axis, quantity and layout of the FRFs ([`crate::wire::FrfAxisMsg`], one message).
     pub const FRF_AXIS: &str = "/rbprops/frf_axis";
+    /// True properties and modes of a simulated campaign (absent for measured data).
     pub const TRUTH: &str = "/rbprops/truth";
+    /// Modes identified per excitation by `modal-fit`.
     pub const MODAL_FIT: &str = "/rbprops/modal_fit";
+    /// Best excitation per mode chosen by `ni-select`.
     pub const SELECTION: &str = "/rbprops/selection";
+    /// Rigid-body property estimates from `rb-solve`.
     pub const ESTIMATES: &str = "/rbprops/estimates";
+    /// Verdict of the model check: which effects the recording shows beyond the nominal model.
     pub const MODEL_CHECK: &str = "/rbprops/model_check";
     /// Ordinary coherence γ² per FRF line, from the measurement (UFF import).
     pub const COHERENCE: &str = "/rbprops/coherence";
@@ -41,24 +52,44 @@ pub mod topics {
 /// Errors of the format layer. Each names the file and, where known, the record.
 #[derive(Debug, thiserror::Error)]
 pub enum FormatError {
+    /// Reading or writing the file failed.
     #[error("{file}: {source}")]
     Io {
+        /// The file, as the caller named it.
         file: String,
+        /// The underlying I/O error.
         source: std::io::Error,
     },
+    /// The file is not MCAP or its structure is broken.
     #[error("{file}: not a valid MCAP file: {detail}")]
-    Mcap { file: String, detail: String },
-    #[error("{file}: {record}: {detail}")]
-    Record {
+    Mcap {
+        /// The file.
         file: String,
-        record: String,
+        /// What the MCAP reader refused.
         detail: String,
     },
+    /// A record (topic message, CSV row) does not decode.
+    #[error("{file}: {record}: {detail}")]
+    Record {
+        /// The file.
+        file: String,
+        /// Which record: topic and message index, or table and row.
+        record: String,
+        /// What is wrong with it.
+        detail: String,
+    },
+    /// Anything else, e.g. a required topic missing.
     #[error("{file}: {detail}")]
-    Other { file: String, detail: String },
+    Other {
+        /// The file.
+        file: String,
+        /// What is wrong.
+        detail: String,
+    },
 }
 
 impl FormatError {
+    /// A [`FormatError::Record`] in `file`.
     pub fn record(file: &str, record: impl Into<String>, detail: impl std::fmt::Display) -> Self {
         FormatError::Record {
             file: file.into(),
@@ -66,6 +97,7 @@ impl FormatError {
             detail: detail.to_string(),
         }
     }
+    /// A [`FormatError::Other`] in `file`.
     pub fn other(file: &str, detail: impl std::fmt::Display) -> Self {
         FormatError::Other {
             file: file.into(),
@@ -77,21 +109,30 @@ impl FormatError {
 /// One JSON topic: schema plus messages (as JSON values, so unknown topics pass through).
 #[derive(Debug, Clone, PartialEq)]
 pub struct JsonTopic {
+    /// Topic name, e.g. [`topics::GEOMETRY`].
     pub name: String,
+    /// Schema title, `rbprops.` followed by the record type's name.
     pub schema_name: String,
     /// JSON schema (draft 2020-12) of one message.
     pub schema: serde_json::Value,
+    /// The messages in file order.
     pub messages: Vec<serde_json::Value>,
 }
 
 /// A topic in a foreign encoding, passed through MCAP untouched (CSV cannot hold it).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RawTopic {
+    /// Topic name as the writer gave it.
     pub name: String,
+    /// Schema name as the writer gave it.
     pub schema_name: String,
+    /// Schema encoding, e.g. `protobuf` or `ros2msg`.
     pub schema_encoding: String,
+    /// Schema bytes, untouched.
     pub schema_data: Vec<u8>,
+    /// Message encoding, e.g. `protobuf` or `cdr`.
     pub message_encoding: String,
+    /// Message bytes in log order, untouched.
     pub messages: Vec<Vec<u8>>,
 }
 
@@ -100,11 +141,14 @@ pub struct RawTopic {
 pub struct RunRecord {
     /// The FRFs; excitation/channel order is the geometry's.
     pub frf: Option<FrfSet>,
+    /// The JSON topics in the order they were written or set.
     pub topics: Vec<JsonTopic>,
+    /// Topics in foreign encodings (MCAP only), written back as they came.
     pub raw_topics: Vec<RawTopic>,
 }
 
 impl RunRecord {
+    /// The JSON topic of this name, if present.
     pub fn topic(&self, name: &str) -> Option<&JsonTopic> {
         self.topics.iter().find(|t| t.name == name)
     }
@@ -167,12 +211,14 @@ impl RunRecord {
         Ok(())
     }
 
+    /// The geometry topic decoded and validated; `None` when the run has none.
     pub fn geometry(&self) -> Result<Option<Geometry>, FormatError> {
         self.get_one::<wire::GeometryMsg>(topics::GEOMETRY)?
             .map(|g| g.to_geometry())
             .transpose()
     }
 
+    /// Replaces the geometry topic with `g`.
     pub fn set_geometry(&mut self, g: &Geometry) {
         self.set(topics::GEOMETRY, &[wire::GeometryMsg::from_geometry(g)]);
     }
@@ -209,7 +255,9 @@ fn schema_title<T: JsonSchema>() -> String {
 /// On-disk representation, chosen from a path.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {
+    /// An MCAP file (`*.mcap`, or stdin/stdout).
     Mcap,
+    /// A directory of CSV tables, one per topic (see [`csv_dir`]).
     CsvDir,
 }
 

@@ -9,47 +9,86 @@ use rbprops_core::{
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
+/// A measurement point: where channels and excitations sit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[schemars(description = "")]
 pub struct PointMsg {
+    /// Point id, unique in the geometry.
+    #[schemars(description = "")]
     pub id: String,
+    /// Position in the geometry frame (m).
+    #[schemars(description = "")]
     pub position_m: [f64; 3],
 }
 
 /// A response channel: unit sensing direction at a point.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ChannelMsg {
+    /// Channel id, unique in the geometry.
+    #[schemars(description = "")]
     pub id: String,
+    /// Id of the point the sensor sits on.
+    #[schemars(description = "")]
     pub point: String,
+    /// Sensor position (m).
+    #[schemars(description = "")]
     pub position_m: [f64; 3],
+    /// Unit sensing direction in the geometry frame.
+    #[schemars(description = "")]
     pub direction: [f64; 3],
 }
 
 /// A force input: unit direction at a point, in a suspension set-up.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ExcitationMsg {
+    /// Excitation id, unique in the geometry.
+    #[schemars(description = "")]
     pub id: String,
+    /// Id of the point the force acts on.
+    #[schemars(description = "")]
     pub point: String,
+    /// Id of the suspension set-up the FRFs were measured in.
+    #[schemars(description = "")]
     pub setup: String,
+    /// Point of application (m).
+    #[schemars(description = "")]
     pub position_m: [f64; 3],
+    /// Unit force direction in the geometry frame.
+    #[schemars(description = "")]
     pub direction: [f64; 3],
 }
 
+/// A suspension set-up: one way of hanging or supporting the body.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+#[schemars(description = "")]
 pub struct SetupMsg {
+    /// Set-up id, referenced by [`ExcitationMsg::setup`].
+    #[schemars(description = "")]
     pub id: String,
+    /// Free text, e.g. "cords at the four top corners".
+    #[schemars(description = "")]
     pub description: String,
 }
 
 /// The test geometry (topic `/rbprops/geometry`, one message). Right-handed frame, metres.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct GeometryMsg {
+    /// Measurement points.
+    #[schemars(description = "")]
     pub points: Vec<PointMsg>,
+    /// Response channels, in FRF order.
+    #[schemars(description = "")]
     pub channels: Vec<ChannelMsg>,
+    /// Force inputs, in FRF order.
+    #[schemars(description = "")]
     pub excitations: Vec<ExcitationMsg>,
+    /// Suspension set-ups the excitations refer to.
+    #[schemars(description = "")]
     pub setups: Vec<SetupMsg>,
 }
 
 impl GeometryMsg {
+    /// The message of a [`Geometry`] (ids and vectors copied as they are).
     pub fn from_geometry(g: &Geometry) -> Self {
         let a = |v: &Vec3| [v.x, v.y, v.z];
         GeometryMsg {
@@ -141,6 +180,8 @@ impl GeometryMsg {
 /// Frequency axis and layout of the FRFs (topic `/rbprops/frf_axis`, one message).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FrfAxisMsg {
+    /// Receptance, mobility or accelerance (docs/conventions.md).
+    #[schemars(description = "")]
     pub quantity: Quantity,
     /// SI unit of the values (`m/N`, `m/(N s)`, `m/(N s^2)`).
     pub unit: String,
@@ -148,12 +189,16 @@ pub struct FrfAxisMsg {
     pub excitations: Vec<String>,
     /// Channel ids in the order of each message's values.
     pub channels: Vec<String>,
+    /// Frequency of every line (Hz), increasing.
+    #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
 }
 
 /// FRFs of one excitation (topic `/rbprops/frf`, one message per excitation).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FrfMsg {
+    /// Id of the excitation these FRFs belong to.
+    #[schemars(description = "")]
     pub excitation: String,
     /// Base64 of little-endian IEEE-754 f64, laid out `[channel][line][re, im]`.
     #[schemars(extend("contentEncoding" = "base64"))]
@@ -164,6 +209,8 @@ pub struct FrfMsg {
 /// one message per excitation that has any): the tester's quality measure per line.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct CoherenceMsg {
+    /// Id of the excitation whose FRFs these coherences belong to.
+    #[schemars(description = "")]
     pub excitation: String,
     /// Channels with a coherence, in the FRF set's channel order.
     pub channels: Vec<String>,
@@ -173,6 +220,7 @@ pub struct CoherenceMsg {
     pub values_f64le: String,
 }
 
+/// Base64 of little-endian f64 `[re, im]` pairs, the layout of [`FrfMsg::values_f64le`]; exact bit for bit.
 pub fn encode_values(values: &[c64]) -> String {
     let mut bytes = Vec::with_capacity(values.len() * 16);
     for v in values {
@@ -182,6 +230,7 @@ pub fn encode_values(values: &[c64]) -> String {
     base64::engine::general_purpose::STANDARD.encode(bytes)
 }
 
+/// Inverse of [`encode_values`]: `expect` complex numbers, else an error saying how many bytes came.
 pub fn decode_values(s: &str, expect: usize) -> Result<Vec<c64>, String> {
     let bytes = base64::engine::general_purpose::STANDARD
         .decode(s)

@@ -7,7 +7,9 @@ use std::f64::consts::PI;
 /// FRFs of several channels on one band (any quantity, any axis).
 #[derive(Debug, Clone)]
 pub struct BandData {
+    /// Receptance, mobility or accelerance, as measured.
     pub quantity: Quantity,
+    /// Frequency of every line (Hz), ascending.
     pub frequency_hz: Vec<f64>,
     /// `ω = 2πf`, rad/s.
     pub omega: Vec<f64>,
@@ -182,6 +184,7 @@ impl BandData {
         }
     }
 
+    /// Number of frequency lines.
     pub fn n_lines(&self) -> usize {
         self.omega.len()
     }
@@ -202,6 +205,7 @@ impl BandData {
             .collect()
     }
 
+    /// First and last frequency of the band (Hz).
     pub fn band_hz(&self) -> [f64; 2] {
         [self.frequency_hz[0], *self.frequency_hz.last().unwrap()]
     }

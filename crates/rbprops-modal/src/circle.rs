@@ -24,6 +24,7 @@ use std::f64::consts::PI;
 /// One mode's circle-fit estimate.
 #[derive(Debug, Clone)]
 pub struct CircleMode {
+    /// The mode's pole (natural frequency and damping ratio).
     pub pole: Pole,
     /// Standard deviation of (f Hz, ζ) from the scatter of the per-channel estimates.
     pub std: (f64, f64),
@@ -31,12 +32,16 @@ pub struct CircleMode {
     pub modal_constants: Vec<c64>,
     /// From the scatter of the points about the fitted circle.
     pub modal_constant_std: Vec<f64>,
+    /// This mode's warnings (fit failed, neighbour too close, …).
     pub warnings: Vec<String>,
 }
 
+/// Circle fits of every mode of one excitation (Kennedy–Pancu), with the FRFs they synthesise.
 #[derive(Debug, Clone)]
 pub struct CircleFit {
+    /// The modes, ascending frequency.
     pub modes: Vec<CircleMode>,
+    /// One line per mode whose circle fit failed or is expected to fail.
     pub warnings: Vec<String>,
     /// Sum of the SDOF models, measured quantity, `[channel][line]`.
     pub synthesised: Vec<Vec<c64>>,

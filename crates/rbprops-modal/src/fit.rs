@@ -26,9 +26,11 @@ whatever the input quantity";
 /// Plot data of one excitation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExcitationDiagnostics {
+    /// The excitation's id.
     pub excitation: String,
     /// Poles per model order with their stability class (for PerSetup: the set-up's).
     pub stabilisation: StabilisationDiagram,
+    /// Receptance, mobility or accelerance: the quantity of `synthesised`.
     pub quantity: Quantity,
     /// Lines of the fitted band.
     pub frequency_hz: Vec<f64>,
@@ -42,14 +44,18 @@ pub struct ExcitationDiagnostics {
 /// Result of one excitation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExcitationFit {
+    /// The excitation's record as `modal-fit` writes it (modes, warnings, fit quality).
     pub record: ExcitationFitRecord,
+    /// The identified modes, ascending frequency.
     pub modes: Vec<ModeEstimate>,
+    /// Plot data.
     pub diagnostics: ExcitationDiagnostics,
 }
 
 /// Result of a campaign.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModalFitOutput {
+    /// The `modal-fit` record of every excitation.
     pub record: ModalFitRecord,
     /// One per excitation, geometry order (empty plot data for a failed excitation).
     pub diagnostics: Vec<ExcitationDiagnostics>,

@@ -22,6 +22,8 @@
 //! sequential and seeded by nothing, so results are identical for any thread count.
 //! The crate does no I/O.
 
+#![warn(missing_docs)]
+
 pub mod band;
 pub mod circle;
 pub mod error;

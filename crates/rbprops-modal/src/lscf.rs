@@ -24,6 +24,7 @@ use rbprops_core::c64;
 pub struct OrderPoles {
     /// Denominator degree `n` (number of poles of the polynomial, both half-planes).
     pub order: usize,
+    /// The poles found at this order.
     pub poles: Vec<Pole>,
     /// Per pole, residue-like vector over the channels (scale arbitrary; for MAC).
     pub shapes: Vec<Vec<c64>>,

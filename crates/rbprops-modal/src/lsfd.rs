@@ -25,7 +25,9 @@ use rbprops_core::c64;
 /// Which residual terms the model carries.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Residuals {
+    /// Carry the upper residual term (modes above the band, a constant receptance).
     pub upper: bool,
+    /// Carry the lower residual term (modes below the band, a mass line `1/(iω)²`).
     pub lower: bool,
 }
 
@@ -232,7 +234,9 @@ pub struct ResidueFit {
     pub residues: Vec<Vec<c64>>,
     /// Standard error of Re R and Im R (root-mean of the two variances), per mode and channel.
     pub residue_std: Vec<Vec<f64>>,
+    /// Upper residual term per channel (receptance units m/N), empty when not carried.
     pub upper: Vec<f64>,
+    /// Lower residual term per channel (m/N·(rad/s)²), empty when not carried.
     pub lower: Vec<f64>,
     /// Residual sum of squares per channel (measured quantity units²).
     pub rss: Vec<f64>,
@@ -420,12 +424,15 @@ pub fn synthesise(poles: &[Pole], fit: &ResidueFit, band: &BandData) -> Vec<Vec<
 /// Result of the pole refinement.
 #[derive(Debug, Clone)]
 pub struct Refined {
+    /// The refined poles, in input order.
     pub poles: Vec<Pole>,
     /// Covariance of `(Re λ, Im λ)` per pole (rad/s)².
     pub covariance: Vec<[[f64; 2]; 2]>,
     /// `JᵀJ` was singular: some pole is not identifiable (two poles coincide).
     pub singular: bool,
+    /// Gauss–Newton iterations taken.
     pub iterations: usize,
+    /// Stopped at the minimum (negligible step or cost stall), not at the iteration limit.
     pub converged: bool,
     /// Weighted cost before and after.
     pub cost: (f64, f64),

@@ -24,6 +24,7 @@ pub enum Method {
 }
 
 impl Method {
+    /// The method's name as `modal-fit --method` takes it.
     pub fn name(self) -> &'static str {
         match self {
             Method::Lscf => "lscf",
@@ -164,6 +165,7 @@ impl Default for PoleSearchParams {
 /// Options of [`crate::fit_campaign`] / [`crate::fit_excitation`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitOptions {
+    /// Pole estimator (LSCF, LSCE, pLSCF or circle fit).
     pub method: Method,
     /// Band to fit (Hz, inclusive); `None` = the whole axis.
     pub band_hz: Option<(f64, f64)>,
@@ -172,6 +174,7 @@ pub struct FitOptions {
     /// Highest denominator order of the stabilisation diagram (2 per mode). Reduced
     /// automatically when the band has too few lines.
     pub max_order: usize,
+    /// One pole set per excitation, or one per suspension set-up.
     pub poles: PoleMode,
     /// Lower (`1/(iω)²` in receptance, only when the band starts above 0 Hz) and upper
     /// (constant receptance) residual terms in the residue fit.
@@ -179,6 +182,7 @@ pub struct FitOptions {
     /// Refine poles and residues jointly by Gauss–Newton on the frequency-domain
     /// least-squares error (variable projection). Needed for accuracy beyond ~1e-4.
     pub refine: bool,
+    /// Stabilisation criteria between successive model orders.
     pub tolerances: StabilisationTolerances,
     /// A mode whose peak Norm Indicator is more than this many dB below the
     /// excitation's strongest mode is flagged `weak`.
@@ -230,6 +234,7 @@ impl Default for FitOptions {
 }
 
 impl FitOptions {
+    /// Refuses out-of-range values, naming the option.
     pub fn validate(&self) -> Result<(), crate::ModalError> {
         let bad = |s: String| Err(crate::ModalError::Options(s));
         if let Some((a, b)) = self.band_hz {

@@ -38,14 +38,18 @@ use rbprops_core::c64;
 /// FRFs of one set-up on one band: `h[o][e][k]`, output `o`, reference `e`, line `k`.
 #[derive(Debug, Clone)]
 pub struct PolyData<'a> {
+    /// Angular frequency of every line (rad/s).
     pub omega: &'a [f64],
+    /// `h[output][reference]`: each FRF's values on `omega`.
     pub h: Vec<Vec<&'a [c64]>>,
 }
 
 impl PolyData<'_> {
+    /// Number of outputs (response channels).
     pub fn n_outputs(&self) -> usize {
         self.h.len()
     }
+    /// Number of references (excitations).
     pub fn n_references(&self) -> usize {
         self.h.first().map_or(0, |r| r.len())
     }

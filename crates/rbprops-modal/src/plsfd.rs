@@ -31,6 +31,7 @@ pub struct ShapeFit {
     pub shape_std: Vec<Vec<f64>>,
     /// Per excitation: residues `R_roe = ψ_ro l_re` `[e][r][o]` and their standard errors.
     pub residues: Vec<Vec<Vec<c64>>>,
+    /// Standard errors of `residues`, same layout.
     pub residue_std: Vec<Vec<Vec<f64>>>,
     /// Per excitation, fitted FRFs `[e][o][line]` in the measured quantity.
     pub synthesised: Vec<Vec<Vec<c64>>>,

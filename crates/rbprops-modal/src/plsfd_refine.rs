@@ -44,7 +44,9 @@ pub struct PolyRefined {
     pub poles: Vec<Pole>,
     /// `parts[r][e]`, unit norm, largest entry real positive.
     pub parts: Vec<Vec<c64>>,
+    /// Gauss–Newton iterations taken.
     pub iterations: usize,
+    /// Stopped at the minimum (negligible step or cost stall), not at the iteration limit.
     pub converged: bool,
     /// Weighted cost before and after.
     pub cost: (f64, f64),

@@ -33,6 +33,7 @@ impl Pole {
     pub fn omega_n(&self) -> f64 {
         self.0.norm()
     }
+    /// Natural frequency `f_r = ω_r/2π` (Hz).
     pub fn frequency_hz(&self) -> f64 {
         self.omega_n() / (2.0 * PI)
     }

@@ -25,6 +25,7 @@ mod imp {
     static CALLS: [AtomicU64; 8] = [const { AtomicU64::new(0) }; 8];
 
     #[inline]
+    /// Runs `f`, charging its wall time to `phase` (a no-op without `phase-timing`).
     pub fn time<R>(phase: usize, f: impl FnOnce() -> R) -> R {
         let t = std::time::Instant::now();
         let r = f();
@@ -33,6 +34,7 @@ mod imp {
         r
     }
 
+    /// `(calls, seconds)` per phase since the start, or `None` without `phase-timing`.
     pub fn totals() -> Option<Vec<(u64, f64)>> {
         Some(
             (0..8)
@@ -50,16 +52,16 @@ mod imp {
 #[cfg(not(feature = "phase-timing"))]
 mod imp {
     #[inline(always)]
+    /// Runs `f`, charging its wall time to `phase` (a no-op without `phase-timing`).
     pub fn time<R>(_phase: usize, f: impl FnOnce() -> R) -> R {
         f()
     }
 
+    /// `(calls, seconds)` per phase since the start, or `None` without `phase-timing`.
     pub fn totals() -> Option<Vec<(u64, f64)>> {
         None
     }
 }
 
-/// Runs `f`, charging its wall time to `phase` (a no-op without `phase-timing`).
 pub use imp::time;
-/// `(calls, seconds)` per phase since the start, or `None` without `phase-timing`.
 pub use imp::totals;

@@ -35,6 +35,7 @@ pub enum StabilityClass {
 }
 
 impl StabilityClass {
+    /// The letter drawn for this class in the diagram.
     pub fn symbol(self) -> &'static str {
         match self {
             StabilityClass::New => "o",
@@ -50,9 +51,13 @@ impl StabilityClass {
 /// One point of the stabilisation diagram.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagramPole {
+    /// Model order (denominator degree) the pole was found at.
     pub order: usize,
+    /// Natural frequency (Hz).
     pub frequency_hz: f64,
+    /// Damping ratio (fraction of critical).
     pub damping_ratio: f64,
+    /// Stability against the next lower order.
     pub class: StabilityClass,
     /// Index of the selected mode (0-based, ascending frequency) this pole supports.
     pub mode: Option<usize>,
@@ -61,14 +66,18 @@ pub struct DiagramPole {
 /// The stabilisation diagram of one excitation (or set-up): plot data.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct StabilisationDiagram {
+    /// Every pole of every order.
     pub poles: Vec<DiagramPole>,
+    /// Highest model order computed.
     pub max_order: usize,
 }
 
 /// A selected mode: representative pole and shape, and how sure the selection is.
 #[derive(Debug, Clone)]
 pub struct SelectedPole {
+    /// Representative pole of the cluster.
     pub pole: Pole,
+    /// Representative shape (relative residues per channel, for MAC).
     pub shape: Vec<c64>,
     /// Stable poles supporting it.
     pub support: usize,
@@ -82,11 +91,14 @@ pub struct SelectedPole {
 /// Output of the selection.
 #[derive(Debug, Clone)]
 pub struct Selection {
+    /// The diagram, with each pole's selected mode.
     pub diagram: StabilisationDiagram,
+    /// The selected modes, ascending frequency.
     pub modes: Vec<SelectedPole>,
     /// Rejected clusters with at least two poles, best supported first: candidates for
     /// a residual-driven model-order test (a weak mode next to a strong one).
     pub candidates: Vec<SelectedPole>,
+    /// Selection warnings (e.g. fewer stable clusters than asked for).
     pub warnings: Vec<String>,
 }
 

@@ -101,8 +101,11 @@ pub fn spring_modes(body: &RigidBodyProperties, k: [f64; 3], zeta: &[f64; 6]) ->
 /// A campaign: geometry, modes and (noise-free) FRFs.
 #[derive(Debug, Clone)]
 pub struct Synthetic {
+    /// Points, channels, excitations and set-ups.
     pub geometry: Geometry,
+    /// The true rigid-body modes (mass-normalised).
     pub modes: Vec<RigidMode>,
+    /// Noise-free receptance FRFs of every excitation.
     pub frf: FrfSet,
 }
 

@@ -17,6 +17,7 @@
 //! [`parse_manual_set`], [`ManualSet::from_toml`], [`ManualSet::from_csv`].
 //! The crate does no I/O.
 
+#![warn(missing_docs)]
 // `!(x > 0.0)` is deliberate throughout: it is also true for NaN, which must be refused.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 

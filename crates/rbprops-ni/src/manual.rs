@@ -17,13 +17,19 @@ use std::collections::BTreeMap;
 /// One manual choice: physical mode `mode` is taken from excitation `excitation`.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ManualEntry {
+    /// 1-based physical mode number within the set-up.
+    #[schemars(description = "")]
     pub mode: usize,
+    /// Id of the excitation whose estimate is taken.
+    #[schemars(description = "")]
     pub excitation: String,
 }
 
 /// A manual set, sorted by mode; each mode appears once.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ManualSet {
+    /// One entry per mode, by ascending mode.
+    #[schemars(description = "")]
     pub entries: Vec<ManualEntry>,
 }
 

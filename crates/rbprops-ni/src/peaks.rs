@@ -3,6 +3,7 @@
 /// A local maximum of a curve.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Peak {
+    /// Index of the peak's line on the curve.
     pub line: usize,
     /// Height above the higher of the two valleys that separate it from higher ground
     /// (or from the ends of the curve), in the curve's units.

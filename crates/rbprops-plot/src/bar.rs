@@ -15,16 +15,19 @@ use crate::style::{stroke, LegendPosition, LineStyle, PlotSize, Rgb};
 /// One bar per group, all in one colour and one legend entry.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarSeries {
+    /// Legend text.
     pub name: String,
     /// One value per group; non-finite values leave the slot empty.
     pub values: Vec<f64>,
     /// Optional error-bar half-widths (e.g. 1.96σ), one per group; a
     /// non-finite or negative entry draws no error bar for that bar.
     pub errors: Option<Vec<f64>>,
+    /// `None`: colour `i` of [`Rgb::palette`] for the `i`-th series.
     pub color: Option<Rgb>,
 }
 
 impl BarSeries {
+    /// A series with the palette colour and no error bars.
     pub fn new(name: impl Into<String>, values: Vec<f64>) -> Self {
         BarSeries {
             name: name.into(),
@@ -33,11 +36,13 @@ impl BarSeries {
         }
     }
 
+    /// Adds error-bar half-widths, one per group.
     pub fn with_errors(mut self, half_widths: Vec<f64>) -> Self {
         self.errors = Some(half_widths);
         self
     }
 
+    /// Fixes the colour instead of the palette's.
     pub fn with_color(mut self, color: Rgb) -> Self {
         self.color = Some(color);
         self
@@ -47,6 +52,7 @@ impl BarSeries {
 /// A horizontal line across the chart, e.g. the true value.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ReferenceLine {
+    /// Height of the line, in the chart's y units.
     pub y: f64,
     /// Legend text, e.g. "true value".
     pub label: String,
@@ -55,18 +61,23 @@ pub struct ReferenceLine {
 /// Input of [`bar_chart`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct BarChart {
+    /// Printed above the chart.
     pub title: String,
     /// Group names along x, e.g. data sets "I" … "V".
     pub groups: Vec<String>,
     /// Bars within each group, e.g. origins I–III or methods.
     pub series: Vec<BarSeries>,
+    /// Printed below the groups.
     pub x_label: String,
     /// With units, e.g. "m [kg]" or "relative error [%]".
     pub y_label: String,
+    /// Horizontal lines across the chart, each with a legend entry.
     pub references: Vec<ReferenceLine>,
     /// Fixed y limits; default: zero, all bar ends ± errors and references.
     pub y_range: Option<(f64, f64)>,
+    /// Where the legend goes.
     pub legend: LegendPosition,
+    /// Canvas size.
     pub size: PlotSize,
 }
 

@@ -16,6 +16,7 @@ use crate::style::{PlotSize, Rgb};
 /// Input of [`heat_map`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct HeatMap {
+    /// Printed above the map.
     pub title: String,
     /// One label per row (top to bottom), e.g. "mode 1".
     pub row_labels: Vec<String>,
@@ -23,7 +24,9 @@ pub struct HeatMap {
     pub column_labels: Vec<String>,
     /// `values[row][column]`; non-finite cells are drawn grey with "n/a".
     pub values: Vec<Vec<f64>>,
+    /// Printed below the columns.
     pub x_label: String,
+    /// Printed beside the rows.
     pub y_label: String,
     /// Colour-bar description with units, e.g. "excitation strength [dB]".
     pub value_label: String,
@@ -31,6 +34,7 @@ pub struct HeatMap {
     pub decimals: usize,
     /// Fixed colour scale limits; default: the finite data extent.
     pub value_range: Option<(f64, f64)>,
+    /// Canvas size.
     pub size: PlotSize,
 }
 

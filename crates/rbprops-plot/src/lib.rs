@@ -42,6 +42,8 @@
 //! draw, empty series and length mismatches are [`PlotError`]s naming the
 //! plot and series. Series colours default to [`Rgb::palette`] by index.
 
+#![warn(missing_docs)]
+
 mod axis;
 mod bar;
 mod canvas;

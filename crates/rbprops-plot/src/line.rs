@@ -17,10 +17,12 @@ use crate::style::{marker_stroke, stroke, LegendPosition, LineStyle, PlotSize, R
 pub struct Series {
     /// Legend text.
     pub name: String,
+    /// Abscissa of every point, e.g. frequency (Hz).
     pub x: Vec<f64>,
     /// Same length as `x`. Non-finite values (and non-positive ones on log/dB
     /// axes) are not drawn; the curve is broken there.
     pub y: Vec<f64>,
+    /// Solid, dashed or dotted.
     pub style: LineStyle,
     /// `None`: colour `i` of [`Rgb::palette`] for the `i`-th series.
     pub color: Option<Rgb>,
@@ -37,11 +39,13 @@ impl Series {
         }
     }
 
+    /// Sets the dash pattern.
     pub fn with_style(mut self, style: LineStyle) -> Self {
         self.style = style;
         self
     }
 
+    /// Fixes the colour instead of the palette's.
     pub fn with_color(mut self, color: Rgb) -> Self {
         self.color = Some(color);
         self
@@ -51,12 +55,14 @@ impl Series {
 /// A labelled vertical line, e.g. an identified natural frequency.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct VerticalMarker {
+    /// Position on the x axis, in its data units.
     pub x: f64,
     /// Printed vertically beside the line at the top; may be empty.
     pub label: String,
 }
 
 impl VerticalMarker {
+    /// A marker at `x` with this label.
     pub fn new(x: f64, label: impl Into<String>) -> Self {
         VerticalMarker {
             x,
@@ -68,20 +74,26 @@ impl VerticalMarker {
 /// Input of [`line_plot`]. Start from `LinePlot::default()` and fill in.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LinePlot {
+    /// Printed above the plot.
     pub title: String,
     /// E.g. "Frequency [Hz]".
     pub x_label: String,
     /// E.g. "|H| [m/s²/N]".
     pub y_label: String,
+    /// Linear, log10 or dB (`20 log10`) y axis.
     pub y_scale: Scale,
+    /// The curves, drawn in order (later ones on top).
     pub series: Vec<Series>,
+    /// Vertical lines drawn over the curves.
     pub markers: Vec<VerticalMarker>,
     /// Fixed x limits; default: the data extent.
     pub x_range: Option<(f64, f64)>,
     /// Fixed y limits in axis units (dB for [`Scale::Decibel`]); default: the
     /// data extent, on whole decades for [`Scale::Log10`].
     pub y_range: Option<(f64, f64)>,
+    /// Where the legend goes.
     pub legend: LegendPosition,
+    /// Canvas size.
     pub size: PlotSize,
 }
 

@@ -19,11 +19,13 @@ use crate::style::{stroke, LineStyle, PlotSize, Rgb};
 pub struct FrfTrace {
     /// Legend text (shared by every panel: the first panel's names are listed once).
     pub name: String,
+    /// Frequency of every line (Hz).
     pub frequency_hz: Vec<f64>,
     /// |H|, drawn on a log axis (values ≤ 0 are not drawn).
     pub magnitude: Vec<f64>,
     /// Phase in degrees, drawn in [−180, 180].
     pub phase_deg: Vec<f64>,
+    /// Solid, dashed or dotted.
     pub style: LineStyle,
     /// `None`: colour `i` of [`Rgb::palette`] for the `i`-th trace of the panel.
     pub color: Option<Rgb>,
@@ -34,6 +36,7 @@ pub struct FrfTrace {
 pub struct FrfPanel {
     /// E.g. the channel id.
     pub title: String,
+    /// The curves, drawn in order (later ones on top).
     pub traces: Vec<FrfTrace>,
     /// A per-line quality measure (the measured coherence γ²): the lines where it is
     /// below its threshold are shaded behind the curves.
@@ -44,6 +47,7 @@ pub struct FrfPanel {
 /// (see [`low_quality_spans`]).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LineQuality {
+    /// Frequency of every line (Hz), as `value`.
     pub frequency_hz: Vec<f64>,
     /// The measure per line (e.g. γ² in [0, 1]); NaN lines are not shaded.
     pub value: Vec<f64>,
@@ -95,9 +99,11 @@ pub fn low_quality_spans(q: &LineQuality) -> Vec<(f64, f64)> {
 /// Input of [`frf_panels`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FrfPanels {
+    /// Printed above the panels.
     pub title: String,
     /// Magnitude axis description, e.g. "|H| [m/s²/N]".
     pub magnitude_label: String,
+    /// One panel per channel, filled row by row.
     pub panels: Vec<FrfPanel>,
     /// Panels per row; 0 chooses 3 (or fewer when there are fewer panels).
     pub columns: usize,

@@ -16,15 +16,20 @@ use crate::style::{stroke, LegendPosition, LineStyle, PlotSize, Rgb};
 /// One named set of points.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ScatterSeries {
+    /// Legend text.
     pub name: String,
+    /// Abscissae, e.g. the true values.
     pub x: Vec<f64>,
+    /// Ordinates, same length as `x`, e.g. the estimates.
     pub y: Vec<f64>,
     /// Optional symmetric error half-widths in y (e.g. 1.96σ), one per point.
     pub y_errors: Option<Vec<f64>>,
+    /// `None`: colour `i` of [`Rgb::palette`] for the `i`-th series.
     pub color: Option<Rgb>,
 }
 
 impl ScatterSeries {
+    /// A series with the palette colour and no error bars.
     pub fn new(name: impl Into<String>, x: Vec<f64>, y: Vec<f64>) -> Self {
         ScatterSeries {
             name: name.into(),
@@ -34,11 +39,13 @@ impl ScatterSeries {
         }
     }
 
+    /// Adds y error-bar half-widths, one per point.
     pub fn with_errors(mut self, half_widths: Vec<f64>) -> Self {
         self.y_errors = Some(half_widths);
         self
     }
 
+    /// Fixes the colour instead of the palette's.
     pub fn with_color(mut self, color: Rgb) -> Self {
         self.color = Some(color);
         self
@@ -48,17 +55,27 @@ impl ScatterSeries {
 /// Input of [`scatter_plot`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ScatterPlot {
+    /// Printed above the plot.
     pub title: String,
+    /// Printed below the x axis, with units.
     pub x_label: String,
+    /// Printed beside the y axis, with units.
     pub y_label: String,
+    /// Scale of the x axis.
     pub x_scale: Scale,
+    /// Scale of the y axis.
     pub y_scale: Scale,
+    /// The point sets, drawn in order.
     pub series: Vec<ScatterSeries>,
     /// Draw the identity line y = x (estimated vs true).
     pub identity_line: bool,
+    /// Fixed x limits; default: the data extent.
     pub x_range: Option<(f64, f64)>,
+    /// Fixed y limits; default: the data extent.
     pub y_range: Option<(f64, f64)>,
+    /// Where the legend goes.
     pub legend: LegendPosition,
+    /// Canvas size.
     pub size: PlotSize,
 }
 

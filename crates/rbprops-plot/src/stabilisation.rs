@@ -28,6 +28,7 @@ pub enum PoleClass {
 }
 
 impl PoleClass {
+    /// Every class, in legend order (most to least stable).
     pub const ALL: [PoleClass; 4] = [
         PoleClass::Stable,
         PoleClass::FrequencyDamping,
@@ -68,8 +69,11 @@ impl PoleClass {
 /// One pole of one model order.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StabilisationPole {
+    /// Frequency of the pole in Hz (x position).
     pub frequency_hz: f64,
+    /// Model order the pole was found at (y position).
     pub order: usize,
+    /// How stable it is against the next lower order.
     pub class: PoleClass,
 }
 
@@ -78,6 +82,7 @@ pub struct StabilisationPole {
 pub struct BackgroundCurve {
     /// Legend text, e.g. "Σ|H|".
     pub name: String,
+    /// Frequency of every line (Hz).
     pub frequency_hz: Vec<f64>,
     /// Positive magnitudes; drawn on a log axis at the right.
     pub magnitude: Vec<f64>,
@@ -88,14 +93,19 @@ pub struct BackgroundCurve {
 /// Input of [`stabilisation_diagram`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct StabilisationDiagram {
+    /// Printed above the diagram.
     pub title: String,
+    /// Every pole of every model order.
     pub poles: Vec<StabilisationPole>,
+    /// Magnitude curve behind the poles, on its own right axis.
     pub background: Option<BackgroundCurve>,
     /// Selected (physical) poles: solid vertical lines with labels.
     pub selected: Vec<VerticalMarker>,
     /// Fixed frequency band; default: the extent of poles and curve.
     pub x_range: Option<(f64, f64)>,
+    /// Where the legend goes.
     pub legend: LegendPosition,
+    /// Canvas size.
     pub size: PlotSize,
 }
 

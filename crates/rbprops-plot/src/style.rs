@@ -13,7 +13,9 @@ use plotters::style::{RGBAColor, ShapeStyle};
 pub struct Rgb(pub u8, pub u8, pub u8);
 
 impl Rgb {
+    /// Error bars and reference lines.
     pub const BLACK: Rgb = Rgb(0, 0, 0);
+    /// Vertical markers and the identity line.
     pub const GREY: Rgb = Rgb(110, 110, 110);
 
     /// Colour `i` of the default categorical palette (Tableau 10, the
@@ -71,9 +73,13 @@ pub enum LegendPosition {
     /// narrowed to make room.
     #[default]
     Outside,
+    /// Inside the plotting area, upper right corner.
     UpperRight,
+    /// Inside the plotting area, upper left corner.
     UpperLeft,
+    /// Inside the plotting area, lower left corner.
     LowerLeft,
+    /// Inside the plotting area, lower right corner.
     LowerRight,
     /// No legend.
     Hidden,
@@ -101,7 +107,9 @@ pub(crate) const OUTSIDE_GAP: u32 = 12;
 /// Canvas size in pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PlotSize {
+    /// Width (px).
     pub width: u32,
+    /// Height (px).
     pub height: u32,
 }
 

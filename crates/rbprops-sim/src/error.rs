@@ -8,6 +8,7 @@ use thiserror::Error;
 pub struct SpecIssue {
     /// TOML path, array indices 0-based (`setup[1].spring[0].stiffness_n_per_m`).
     pub path: String,
+    /// What is wrong there.
     pub problem: String,
 }
 
@@ -50,21 +51,31 @@ impl SpecError {
 /// Errors of [`crate::simulate`].
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SimError {
+    /// The campaign spec cannot be used.
     #[error(transparent)]
     Spec(#[from] SpecError),
     /// A set-up whose dynamics cannot be solved (free direction, unstable, singular).
     #[error("set-up '{setup}': {problem}")]
-    Setup { setup: String, problem: String },
+    Setup {
+        /// The set-up's id.
+        setup: String,
+        /// What is wrong.
+        problem: String,
+    },
     /// An effect that cannot be applied with its parameters.
     #[error("effect[{index}] '{id}': {problem}")]
     Effect {
+        /// 0-based index of the effect in the spec's `[[effect]]` list.
         index: usize,
+        /// The effect's id.
         id: String,
+        /// What is wrong with its parameters.
         problem: String,
     },
     /// The requested output would not fit in memory.
     #[error("campaign too large: {0}")]
     TooLarge(String),
+    /// The core types refused the built geometry or FRF set.
     #[error(transparent)]
     Core(#[from] rbprops_core::CoreError),
 }

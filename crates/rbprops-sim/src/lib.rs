@@ -12,6 +12,8 @@
 //! converted to mobility (`iωH`) or accelerance (`−ω²H`) as asked, then noise is added
 //! (see [`noise`]).
 
+#![warn(missing_docs)]
+
 pub mod effects;
 pub mod error;
 pub mod examples;

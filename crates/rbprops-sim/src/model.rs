@@ -63,7 +63,9 @@ impl Observation {
 /// receptance as `ψ_c ψ_e / (ω_m² − ω² + 2iζ_m ω_m ω)`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExtraMode {
+    /// Natural frequency `ω_m/2π` (Hz).
     pub frequency_hz: f64,
+    /// Damping ratio `ζ_m` (fraction of critical).
     pub damping_ratio: f64,
     /// Mass-normalised modal displacement along each channel (campaign channel order).
     pub at_channels: Vec<f64>,
@@ -148,6 +150,7 @@ impl ExtraMode {
 /// Mass, stiffness, viscous damping, output rows and input columns of one set-up.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DynamicModel {
+    /// The set-up's id.
     pub setup: String,
     /// 6×6 mass matrix about O (body plus any attached masses).
     pub mass: Mat6,

@@ -39,14 +39,18 @@ pub enum SolveMethod {
 /// Options of [`simulate_with`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SimOptions {
+    /// How the FRFs are solved.
     pub method: SolveMethod,
 }
 
 /// A simulated campaign.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Simulation {
+    /// The test geometry the spec describes.
     pub geometry: Geometry,
+    /// The simulated FRFs, noise included.
     pub frf: FrfSet,
+    /// The truth to compare estimates with: properties, true modes per set-up, effects, seed, noise.
     pub truth: TruthRecord,
     /// What the simulator changed or wants the user to know (a skipped 0 Hz line).
     pub notes: Vec<String>,
@@ -72,7 +76,9 @@ pub fn simulate(spec: &CampaignSpec) -> Result<Simulation, SimError> {
 /// A set-up's model with its true modes.
 #[derive(Debug, Clone)]
 pub struct SetupModel {
+    /// Mass, stiffness, damping, output rows and input columns.
     pub model: DynamicModel,
+    /// The set-up's true rigid-body modes, mass-normalised.
     pub modes: Vec<RigidMode>,
 }
 

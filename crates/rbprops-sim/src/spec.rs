@@ -22,7 +22,9 @@ pub const MAX_LINES: usize = 10_000_000;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CampaignSpec {
+    /// Campaign name.
     pub name: String,
+    /// Free text.
     #[serde(default)]
     pub description: String,
     /// Seed of the noise generator (see [`crate::noise`]).
@@ -30,21 +32,29 @@ pub struct CampaignSpec {
     pub seed: u64,
     /// What the FRFs measure: `receptance`, `mobility` or `accelerance`.
     pub quantity: Quantity,
+    /// The frequency axis.
     pub frequency: FrequencySpec,
+    /// The rigid body whose properties are to be identified.
     pub body: BodySpec,
+    /// Suspension set-ups (TOML `[[setup]]`).
     #[serde(rename = "setup")]
     pub setups: Vec<SetupSpec>,
+    /// Sensors, giving the response channels (TOML `[[sensor]]`).
     #[serde(rename = "sensor")]
     pub sensors: Vec<SensorSpec>,
+    /// Force inputs (TOML `[[excitation]]`).
     #[serde(rename = "excitation")]
     pub excitations: Vec<ExcitationSpec>,
+    /// Viscous damping of the nominal model.
     pub damping: DampingSpec,
+    /// Measurement noise; none when absent.
     #[serde(default)]
     pub noise: NoiseSpec,
     /// Upward unit vector of the geometry frame (gravity acts along −`up`); +z when
     /// absent. It is the default `up` of the gravity effects ([`crate::effects::GRAVITY_EFFECTS`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub up: Option<[f64; 3]>,
+    /// Effects beyond the nominal model (TOML `[[effect]]`), applied in order.
     #[serde(rename = "effect", default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<EffectSpec>,
 }
@@ -53,8 +63,11 @@ pub struct CampaignSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FrequencySpec {
+    /// First line (Hz).
     pub start_hz: f64,
+    /// Last line (Hz).
     pub stop_hz: f64,
+    /// Number of lines (at least 2, at most [`MAX_LINES`]).
     pub lines: usize,
 }
 
@@ -63,12 +76,17 @@ pub struct FrequencySpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BodySpec {
+    /// Mass (kg).
     pub mass_kg: f64,
+    /// Centre of mass in the geometry frame (m).
     pub com_m: [f64; 3],
+    /// Inertia tensor at the CoM in kg m² (symmetric positive definite); or give `moments_kg_m2`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub inertia_cm_kg_m2: Option<[[f64; 3]; 3]>,
+    /// Moments of inertia `J_xx, J_yy, J_zz` at the CoM, frame axes (kg m²); needs `products_kg_m2`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub moments_kg_m2: Option<[f64; 3]>,
+    /// CAD products of inertia at the CoM (kg m²), given with the moments (zero for principal axes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub products_kg_m2: Option<ProductsSpec>,
 }
@@ -77,8 +95,11 @@ pub struct BodySpec {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ProductsSpec {
+    /// `J_xy` (kg m²).
     pub xy: f64,
+    /// `J_xz` (kg m²).
     pub xz: f64,
+    /// `J_yz` (kg m²).
     pub yz: f64,
 }
 
@@ -87,11 +108,15 @@ pub struct ProductsSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SetupSpec {
+    /// Set-up id, referenced by the excitations.
     pub id: String,
+    /// Free text.
     #[serde(default)]
     pub description: String,
+    /// Springs (TOML `[[setup.spring]]`).
     #[serde(rename = "spring", default)]
     pub springs: Vec<SpringSpec>,
+    /// Elastic cords (TOML `[[setup.cord]]`).
     #[serde(rename = "cord", default, skip_serializing_if = "Vec::is_empty")]
     pub cords: Vec<CordSpec>,
 }
@@ -112,9 +137,13 @@ pub struct SetupSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CordSpec {
+    /// Body attachment point (m).
     pub at_m: [f64; 3],
+    /// Fixed anchor point (m).
     pub anchor_m: [f64; 3],
+    /// Axial stiffness `k` (N/m).
     pub axial_stiffness_n_per_m: f64,
+    /// Free length `L₀` in m (only used when the body hangs under gravity).
     pub unstretched_length_m: f64,
 }
 
@@ -122,17 +151,23 @@ pub struct CordSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpringSpec {
+    /// Body attachment point (m).
     pub at_m: [f64; 3],
+    /// Stiffnesses along x, y, z in N/m (a diagonal `k`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stiffness_n_per_m: Option<[f64; 3]>,
+    /// Full symmetric positive semi-definite stiffness (N/m), instead of the diagonal.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stiffness_matrix_n_per_m: Option<[[f64; 3]; 3]>,
 }
 
+/// How many channels a sensor has.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum SensorKind {
+    /// Three orthogonal channels.
     Triaxial,
+    /// One channel along `direction`.
     Uniaxial,
 }
 
@@ -143,11 +178,16 @@ pub enum SensorKind {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorSpec {
+    /// Sensor id, also its geometry point's id.
     pub id: String,
+    /// Position in the geometry frame (m).
     pub at_m: [f64; 3],
+    /// Triaxial or uniaxial.
     pub kind: SensorKind,
+    /// Triaxial: the three sensing directions as rows (orthonormal); frame axes when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axes: Option<[[f64; 3]; 3]>,
+    /// Uniaxial: the unit sensing direction.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub direction: Option<[f64; 3]>,
     /// Explicit channel ids, one per axis (3 for a triaxial sensor, 1 for a uniaxial).
@@ -161,14 +201,20 @@ pub struct SensorSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExcitationSpec {
+    /// Excitation id.
     pub id: String,
+    /// Point of application (m).
     pub at_m: [f64; 3],
+    /// Unit force direction.
     pub direction: [f64; 3],
+    /// Id of the set-up the body is in.
     pub setup: String,
+    /// Geometry point the force acts at; the excitation id when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub point: Option<String>,
 }
 
+/// How the nominal model is damped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum DampingModel {
@@ -182,6 +228,7 @@ pub enum DampingModel {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DampingSpec {
+    /// Modal or proportional (Rayleigh).
     pub model: DampingModel,
     /// `modal`: one ratio for every mode.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -203,8 +250,10 @@ pub struct DampingSpec {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 pub struct NoiseSpec {
+    /// Relative level: the noise's RMS as a fraction of |H|.
     #[serde(default)]
     pub relative: f64,
+    /// Absolute floor: RMS of the noise independent of |H|, in FRF units.
     #[serde(default)]
     pub floor: f64,
 }
@@ -212,7 +261,9 @@ pub struct NoiseSpec {
 /// An effect of the physics catalogue: its id and its parameters (checked by the effect).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EffectSpec {
+    /// The effect's id in the catalogue ([`crate::effects`]).
     pub id: String,
+    /// The effect's parameters, as the TOML entry gives them.
     #[serde(flatten)]
     pub parameters: toml::Table,
 }

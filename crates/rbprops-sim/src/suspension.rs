@@ -6,7 +6,9 @@ use rbprops_core::{rigid_transform, Mat3, Mat6, Vec3};
 /// (N/m) acting on the displacement of that point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Spring {
+    /// Attachment point on the body, geometry frame (m).
     pub at: Vec3,
+    /// 3×3 stiffness `k` (N/m), symmetric positive semi-definite.
     pub stiffness: Mat3,
 }
 

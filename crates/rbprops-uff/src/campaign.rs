@@ -472,6 +472,7 @@ pub enum GeometrySource<'a> {
 /// Options of [`read_campaign`].
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ReadOptions<'a> {
+    /// Where node coordinates come from: the file's own datasets or a campaign spec's points.
     pub geometry: GeometrySource<'a>,
     /// DOFs of datasets whose record 6 leaves them out (node 0 or direction 0).
     pub channels: Option<&'a ChannelMap>,
@@ -482,6 +483,7 @@ pub struct ReadOptions<'a> {
 /// `None` when the file holds none for that pair.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CoherenceSet {
+    /// `values[excitation][channel]`: γ² per FRF line, or `None`.
     pub values: Vec<Vec<Option<Vec<f64>>>>,
 }
 
@@ -495,7 +497,9 @@ impl CoherenceSet {
 /// A campaign read from a universal file.
 #[derive(Debug, Clone)]
 pub struct UffCampaign {
+    /// SI geometry: one point per node used, one channel per response DOF, one excitation per reference DOF.
     pub geometry: Geometry,
+    /// The FRFs in SI receptance, mobility or accelerance, on one frequency axis (Hz).
     pub frf: FrfSet,
     /// `None` when the file holds no coherence that matches an FRF.
     pub coherence: Option<CoherenceSet>,

@@ -23,7 +23,9 @@ use crate::model::Function;
 /// A translational DOF: node label and direction code ±1..±3.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct NodeDof {
+    /// Node label as in the file.
     pub node: i64,
+    /// Direction code: +1..+3 along x, y, z of the node's displacement system, negative for −x..−z.
     pub direction: i64,
 }
 
@@ -120,9 +122,13 @@ pub fn dof_tokens(text: &str) -> Vec<NodeDof> {
 /// How a dataset's DOF was determined.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DofSource {
+    /// Record 6 of the dataset (node and direction fields).
     Record6,
+    /// The response or reference entity name of record 6, e.g. `12X+`.
     EntityName,
+    /// The ID line with this 1-based number.
     IdLine(usize),
+    /// A row of the caller's channel map.
     ChannelMap,
 }
 
@@ -159,7 +165,9 @@ pub struct ChannelMapRow {
     pub dataset: Option<usize>,
     /// ID line 1 text (blanks collapsed), used when `dataset` is blank.
     pub id_text: String,
+    /// Response DOF the row assigns, if any.
     pub response: Option<NodeDof>,
+    /// Reference (excitation) DOF the row assigns, if any.
     pub reference: Option<NodeDof>,
     /// 1-based line of the map file.
     pub line: usize,
@@ -168,7 +176,9 @@ pub struct ChannelMapRow {
 /// A channel map (`--channels map.csv`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ChannelMap {
+    /// The map file's name, for messages.
     pub name: String,
+    /// Rows in file order.
     pub rows: Vec<ChannelMapRow>,
 }
 

@@ -25,28 +25,40 @@ impl std::fmt::Display for DatasetLocation {
     }
 }
 
+/// Why a universal file could not be read or written. Each reading error names the file and, where known, the dataset and field.
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum UffError {
     /// A malformed or unsupported field inside one dataset.
     #[error("{file}: {at}: {field}: {problem}")]
     Field {
+        /// The file's name as the caller gave it.
         file: String,
+        /// Which dataset.
         at: DatasetLocation,
         /// Record and field, e.g. "record 7 field 2 (number of values)" or "line 31 value 3".
         field: String,
+        /// What is wrong with the field.
         problem: String,
     },
     /// A problem with the file structure outside any one dataset (delimiters, truncation).
     #[error("{file}: line {line}: {problem}")]
     Structure {
+        /// The file's name as the caller gave it.
         file: String,
+        /// 1-based line number.
         line: usize,
+        /// What is wrong.
         problem: String,
     },
     /// The datasets are individually valid but do not form one campaign
     /// (abscissae differ, a combination is missing, …).
     #[error("{file}: {problem}")]
-    Campaign { file: String, problem: String },
+    Campaign {
+        /// The file's name as the caller gave it.
+        file: String,
+        /// What does not fit.
+        problem: String,
+    },
     /// The writer was given an inconsistent geometry / FRF set.
     #[error("cannot write UFF: {0}")]
     Write(String),

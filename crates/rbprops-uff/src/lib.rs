@@ -96,6 +96,8 @@
 //! `python3 scripts/check_uff_with_pyuff.py fixtures/uff/written/rbprops_ascii.uff
 //! fixtures/uff/written/rbprops_ascii.json` (exit status 1 on any mismatch).
 
+#![warn(missing_docs)]
+
 pub mod campaign;
 pub mod dof;
 pub mod error;

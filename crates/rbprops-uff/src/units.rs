@@ -8,19 +8,25 @@
 /// A unit: `value_SI = value × factor`, dimension `L^length F^force T^time`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Unit {
+    /// Multiply a value in this unit by it to get SI.
     pub factor: f64,
+    /// Length exponent.
     pub length: i32,
+    /// Force exponent.
     pub force: i32,
+    /// Time exponent.
     pub time: i32,
 }
 
 impl Unit {
+    /// Dimensionless, factor 1.
     pub const ONE: Unit = Unit {
         factor: 1.0,
         length: 0,
         force: 0,
         time: 0,
     };
+    /// A unit of this factor to SI and dimension.
     pub const fn base(factor: f64, length: i32, force: i32, time: i32) -> Unit {
         Unit {
             factor,
@@ -29,6 +35,7 @@ impl Unit {
             time,
         }
     }
+    /// This unit to the power `k`.
     pub fn powi(self, k: i32) -> Unit {
         Unit {
             factor: self.factor.powi(k),
@@ -37,6 +44,7 @@ impl Unit {
             time: self.time * k,
         }
     }
+    /// The product of two units.
     pub fn times(self, o: Unit) -> Unit {
         Unit {
             factor: self.factor * o.factor,
@@ -45,6 +53,7 @@ impl Unit {
             time: self.time + o.time,
         }
     }
+    /// Whether the dimensions agree (factors may differ).
     pub fn same_dimension(&self, o: &Unit) -> bool {
         (self.length, self.force, self.time) == (o.length, o.force, o.time)
     }

@@ -15,6 +15,7 @@ pub struct TallQr {
 }
 
 impl TallQr {
+    /// Factorises `a` (`m ≥ n > 0` rows and columns).
     pub fn new(a: Mat<f64>) -> Self {
         let (m, n) = a.shape();
         assert!(m >= n && n > 0, "TallQr needs a tall matrix, got {m}×{n}");
@@ -38,6 +39,7 @@ impl TallQr {
         Self { qr, q_coeff }
     }
 
+    /// Number of columns of `A`.
     pub fn ncols(&self) -> usize {
         self.qr.ncols()
     }
@@ -202,6 +204,7 @@ impl TallLs {
     /// already accurate to `κ²ε ≲ 10⁻¹²` relative and the refinement step is skipped.
     pub const REFINE_BELOW: f64 = 1e-2;
 
+    /// Prepares the solve of `min ‖a x − b‖`: Cholesky of the Gram matrix when well conditioned, else Householder QR.
     pub fn new(a: Mat<f64>) -> Self {
         let (m, n) = a.shape();
         assert!(m >= n && n > 0, "TallLs needs a tall matrix, got {m}×{n}");
@@ -221,6 +224,7 @@ impl TallLs {
         }
     }
 
+    /// Number of columns of `A`.
     pub fn ncols(&self) -> usize {
         self.a.ncols()
     }

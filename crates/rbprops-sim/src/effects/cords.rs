@@ -88,6 +88,7 @@ pub struct CordMass {
     /// Damping ratio of the cord modes.
     #[serde(default = "default_damping")]
     pub damping_ratio: f64,
+    /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
@@ -129,7 +130,9 @@ impl MassiveCord {
 /// `stiffness` of size `6 + 3 N n_cords`, body first (see the module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AugmentedModel {
+    /// Mass matrix of the body and cord coordinates.
     pub mass: DMatrix<f64>,
+    /// Stiffness matrix of the body and cord coordinates (tension stiffness included).
     pub stiffness: DMatrix<f64>,
 }
 

@@ -51,6 +51,7 @@ fn default_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
 }
 
+/// `nonproportional_damping`: viscous dashpots at the suspension attachment points (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NonproportionalDamping {
@@ -338,6 +339,7 @@ fn modal_coupling_names(n: usize) -> impl Iterator<Item = String> {
         .take(n)
 }
 
+/// `hysteretic_damping`: structural (loss-factor) damping of the suspension mounts (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct HystereticDamping {

@@ -17,13 +17,16 @@ use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// `elastic_mode`: an elastic mode of the article added to the receptance (see the module docs).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ElasticMode {
     /// Set-up in which the mode is seen; all set-ups when absent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
+    /// Natural frequency `ω_m/2π` of the elastic mode (Hz).
     pub frequency_hz: f64,
+    /// Its damping ratio `ζ_m` (fraction of critical).
     pub damping_ratio: f64,
     /// Mass-normalised shape along each channel (1/√kg), by channel id.
     #[serde(default)]

@@ -39,6 +39,7 @@ fn replace_values(
     Ok(out)
 }
 
+/// `channel_gain`: channel calibration errors, channel c reads `g_c` times its true value.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ChannelGain {
@@ -87,6 +88,7 @@ impl Effect for ChannelGain {
     }
 }
 
+/// `excitation_gain`: force calibration errors, the force of excitation e is `g_e` times what was recorded.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExcitationGain {
@@ -137,9 +139,11 @@ impl Effect for ExcitationGain {
     }
 }
 
+/// `global_gain`: every FRF times `g` (indistinguishable from 1/mass).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GlobalGain {
+    /// The common factor `g`.
     pub gain: f64,
 }
 

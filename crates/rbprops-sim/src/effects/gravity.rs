@@ -58,6 +58,7 @@ pub struct GravityStiffness {
     /// set-ups with `[[setup.cord]]` (empty: the spec's own).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unstretched_length_m: Vec<f64>,
+    /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
@@ -68,8 +69,11 @@ pub struct GravityStiffness {
 /// A vertical cord: attachment point, length (m), axial stiffness (N/m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cord {
+    /// Attachment point on the body (m).
     pub at: Vec3,
+    /// Cord length (m).
     pub length: f64,
+    /// Axial stiffness (N/m).
     pub axial_stiffness: f64,
 }
 
@@ -160,9 +164,13 @@ pub fn geometric_stiffness(
 /// geometry frame at the body's reference pose): tension `k (L − L₀)₊` at length `L`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AnchoredCord {
+    /// Attachment point, body frame (m).
     pub at: Vec3,
+    /// Fixed anchor point, geometry frame (m).
     pub anchor: Vec3,
+    /// Axial stiffness `k` (N/m).
     pub axial_stiffness: f64,
+    /// Free length `L₀` (m).
     pub unstretched_length: f64,
 }
 
@@ -188,9 +196,11 @@ pub struct HangingEquilibrium {
     /// Pose of the body at equilibrium: body point `a` sits at `R a + t` (geometry frame
     /// of the reference pose).
     pub rotation: Mat3,
+    /// Translation `t` of the pose (m).
     pub translation: Vec3,
     /// Cord tensions (N) and stretched lengths (m), spec order.
     pub tensions: Vec<f64>,
+    /// Stretched cord lengths `L` (m), spec order.
     pub lengths: Vec<f64>,
     /// Unit vectors from the attachments to the anchors, in body axes.
     pub directions: Vec<Vec3>,
@@ -411,6 +421,7 @@ impl GravityStiffness {
         }
         cords
     }
+    /// Checks the parameters that need no campaign (finite, positive, a unit `up`).
     pub fn check_self(&self) -> Result<(), String> {
         for (name, v) in [
             ("cord_length_m", &self.cord_length_m),

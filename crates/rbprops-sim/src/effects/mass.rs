@@ -18,6 +18,7 @@ use rbprops_core::{rigid_transform, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// `sensor_mass`: point masses at the sensor points, `ΔM = Σ m_j T(p_j)ᵀ T(p_j)`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorMass {
@@ -125,6 +126,7 @@ impl SensorMass {
     }
 }
 
+/// `added_mass`: a symmetric 6×6 mass about O added to the model (air or fluid).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AddedMass {

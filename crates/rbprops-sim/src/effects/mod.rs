@@ -28,10 +28,13 @@ use rbprops_core::{c64, Geometry, RigidBodyProperties};
 /// Description of one effect parameter, for fitters and for documentation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamInfo {
+    /// Parameter name as the spec writes it (`gains[1x]`, …).
     pub name: String,
+    /// Unit of the parameter, e.g. `kg` or `N/m`.
     pub unit: &'static str,
     /// Hard bounds: values outside make the effect unphysical.
     pub lower: f64,
+    /// Upper hard bound.
     pub upper: f64,
     /// Plausible range in real tests (for priors and starting values).
     pub plausible: (f64, f64),
@@ -39,8 +42,11 @@ pub struct ParamInfo {
 
 /// What an effect may need to know about the campaign while it modifies a model.
 pub struct BuildContext<'a> {
+    /// The campaign spec.
     pub spec: &'a CampaignSpec,
+    /// The body's true properties.
     pub properties: &'a RigidBodyProperties,
+    /// The campaign's geometry.
     pub geometry: &'a Geometry,
     /// Index of the set-up whose model is being built.
     pub setup_index: usize,
@@ -51,9 +57,13 @@ pub struct BuildContext<'a> {
 pub struct OutputBlock<'a> {
     /// The campaign's geometry (channel and excitation ids, in the block's order).
     pub geometry: &'a Geometry,
+    /// Index of the excitation in the geometry.
     pub excitation: usize,
+    /// Frequency of every line (Hz).
     pub frequency_hz: &'a [f64],
+    /// Number of channels (`values` holds `n_channels × lines`).
     pub n_channels: usize,
+    /// The FRFs, `[channel][line]` flattened, modified in place.
     pub values: &'a mut [c64],
 }
 
@@ -87,6 +97,7 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn order(&self) -> u8 {
         1
     }
+    /// Changes the structure: M, K, output rows, input columns, extra modes.
     fn modify_structure(
         &self,
         _ctx: &BuildContext,
@@ -94,10 +105,13 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     ) -> Result<(), String> {
         Ok(())
     }
+    /// Changes the damping, after the nominal damping is assembled.
     fn modify_damping(&self, _ctx: &BuildContext, _model: &mut DynamicModel) -> Result<(), String> {
         Ok(())
     }
+    /// Changes the computed FRFs of one excitation, as a per-line, per-channel gain.
     fn transform_output(&self, _block: &mut OutputBlock) {}
+    /// The effect as the truth records it: its id and parameters.
     fn record(&self) -> EffectRecord {
         EffectRecord {
             id: self.id().to_string(),

@@ -56,6 +56,7 @@ fn default_axis() -> [f64; 3] {
     [0.0, 0.0, 1.0]
 }
 
+/// `suspension_coupling`: rotational (and lateral) mount stiffness the spec's springs leave out.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SuspensionCoupling {
@@ -68,6 +69,7 @@ pub struct SuspensionCoupling {
     /// Extra lateral stiffness (N/m) ⟂ `axis` at every mount.
     #[serde(default)]
     pub lateral_n_per_m: f64,
+    /// Cord or mount axis that `lateral_n_per_m` acts across; +z by default.
     #[serde(default = "default_axis")]
     pub axis: [f64; 3],
 }
@@ -158,6 +160,7 @@ impl Effect for SuspensionCoupling {
     }
 }
 
+/// `suspension_drift`: the suspension stiffness changes between excitation runs (rubber creep, temperature).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SuspensionDrift {
@@ -229,6 +232,7 @@ impl Effect for SuspensionDrift {
     }
 }
 
+/// `stinger_stiffness`: a shaker stinger's lateral (and rotational) stiffness acting during its own excitation's run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StingerStiffness {
@@ -328,6 +332,7 @@ impl Effect for StingerStiffness {
     }
 }
 
+/// `stinger_axial_stiffness`: a shaker armature's suspension spring passed on along the stinger axis.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct StingerAxialStiffness {

@@ -11,6 +11,7 @@ use rbprops_core::{rigid_transform, Mat3, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// `sensor_misorientation`: sensors mounted rotated by a small rotation vector.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorMisorientation {

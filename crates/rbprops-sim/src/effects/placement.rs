@@ -91,6 +91,7 @@ pub(super) fn excitations_exist(
 /// Largest position error accepted (m).
 const MAX_OFFSET_M: f64 = 1.0;
 
+/// `sensor_position`: sensors not where the geometry says.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorPosition {
@@ -135,6 +136,7 @@ impl Effect for SensorPosition {
     }
 }
 
+/// `force_direction`: forces along rotated directions.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ForceDirection {
@@ -187,6 +189,7 @@ impl Effect for ForceDirection {
     }
 }
 
+/// `force_location`: forces applied away from their nominal points.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ForceLocation {
@@ -231,6 +234,7 @@ impl Effect for ForceLocation {
     }
 }
 
+/// `force_gauge_mass`: mass between the force gauge and the structure, whose inertia force the gauge does not see.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ForceGaugeMass {

@@ -22,12 +22,14 @@ use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 
+/// `exponential_window`: records multiplied by `e^{−σt}`, so every FRF is its transfer function at `s = iω + σ`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ExponentialWindow {
     /// Decay rate σ (1/s); or give `time_constant_s` τ = 1/σ instead.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub decay_per_s: Option<f64>,
+    /// Time constant τ = 1/σ (s), instead of `decay_per_s`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_constant_s: Option<f64>,
 }
@@ -110,6 +112,7 @@ impl Effect for ExponentialWindow {
     }
 }
 
+/// `record_truncation`: records of length T without a window (the FRF of the finite record).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RecordTruncation {

@@ -32,6 +32,7 @@ use rbprops_core::{cross_matrix, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// `transducer_highpass`: a response channel's first-order high-pass `iωτ/(1 + iωτ)` (IEPE, AC coupling).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TransducerHighpass {
@@ -138,9 +139,11 @@ impl Effect for TransducerHighpass {
     }
 }
 
+/// `sensor_tilt_gravity`: accelerometers sense specific force, so a rotating body tilts gravity into them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorTiltGravity {
+    /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
     /// Upward unit vector in the geometry frame.
