@@ -4,7 +4,7 @@
 //! are identified: natural frequency, damping ratio, complex modal constant per channel
 //! with standard errors, and fit quality. Pipeline of the default method:
 //!
-//! 1. poles per model order by LSCF ([`lscf`]) or LSCE ([`lsce`]);
+//! 1. poles per model order by LSCF (module `lscf`) or LSCE (module `lsce`);
 //! 2. stabilisation diagram and automatic selection by clustering ([`stabilisation`]);
 //! 3. joint refinement of the poles by variable-projection least squares ([`lsfd::refine`])
 //!    on the lines near the poles ([`band::BandData::focus_indices`]), then model-order
@@ -16,31 +16,34 @@
 //! 5. records: modal constants `A = 2iω_d R` (see [`pole`]) in the receptance form of
 //!    docs/conventions.md, whatever the input quantity.
 //!
-//! [`Method::Circle`] replaces steps 3–4 by Kennedy–Pancu circle fits ([`circle`]).
+//! [`Method::Circle`] replaces steps 3–4 by Kennedy–Pancu circle fits (module `circle`).
 //!
 //! Excitations run in parallel with rayon; every per-excitation computation is
 //! sequential and seeded by nothing, so results are identical for any thread count.
-//! The crate does no I/O.
+//! The crate does no I/O. Its public surface is the campaign fit ([`fit_campaign`],
+//! [`fit_excitation`]), its options and results, poles, the stabilisation diagram and the
+//! LSFD residues; the estimators behind them (LSCF, LSCE, poly-reference, circle fit,
+//! root finding, linear algebra) are internal.
 
 #![warn(missing_docs)]
 
 pub mod band;
-pub mod circle;
+pub(crate) mod circle;
 pub mod error;
 mod fit;
-pub mod linalg;
-pub mod lsce;
-pub mod lscf;
+pub(crate) mod linalg;
+pub(crate) mod lsce;
+pub(crate) mod lscf;
 pub mod lsfd;
 pub mod options;
-pub mod plscf;
-pub mod plsfd;
-pub mod plsfd_refine;
+pub(crate) mod plscf;
+pub(crate) mod plsfd;
+pub(crate) mod plsfd_refine;
 pub mod pole;
 mod poly;
 pub mod prof;
-pub mod reciprocity;
-pub mod roots;
+pub(crate) mod reciprocity;
+pub(crate) mod roots;
 #[macro_use]
 mod simd;
 pub mod stabilisation;

@@ -792,15 +792,10 @@ crate::simd::avx_fn! {
     }
 }
 
-/// The LSCF stabilisation sweep: poles for every order `2..=n_max`.
-///
-/// `chans` are the channels to use (already restricted to non-zero ones); each is
-/// weighted by the inverse of its RMS so that every channel counts equally.
-pub fn sweep(band: &BandData, chans: &[Vec<c64>], n_max: usize) -> Vec<OrderPoles> {
-    sweep_orders(band, chans, n_max, 1)
-}
-
-/// As [`sweep`], solving only every `step`-th order (`n % step == 0`). The reduced
+/// The LSCF stabilisation sweep: poles for the orders `2..=n_max`, solving only every
+/// `step`-th (`n % step == 0`; `step = 1`: every order). `chans` are the channels to use
+/// (already restricted to non-zero ones); each is weighted by the inverse of its RMS so
+/// that every channel counts equally. The reduced
 /// normal equations are still built incrementally through every order; only the
 /// companion eigenvalue problems (the dominant cost) are skipped. With real
 /// coefficients the physical poles come in conjugate pairs, so even orders (`step = 2`)

@@ -27,8 +27,6 @@ use rbprops_core::c64;
 pub struct ShapeFit {
     /// `ψ_ro` per mode and output (pole–residue units with `l_r` as given).
     pub shapes: Vec<Vec<c64>>,
-    /// Standard error of Re ψ and Im ψ (root-mean of the two variances).
-    pub shape_std: Vec<Vec<f64>>,
     /// Per excitation: residues `R_roe = ψ_ro l_re` `[e][r][o]` and their standard errors.
     pub residues: Vec<Vec<Vec<c64>>>,
     /// Standard errors of `residues`, same layout.
@@ -115,7 +113,6 @@ pub fn fit_shapes(
         .collect();
     ShapeFit {
         shapes,
-        shape_std,
         residues,
         residue_std,
         synthesised,

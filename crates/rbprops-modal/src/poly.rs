@@ -252,6 +252,12 @@ fn refine_poles(
         ));
         return;
     }
+    if !rf.converged {
+        warnings.push(format!(
+            "{name}: the poly-reference pole refinement stopped at its limit of {} iterations before converging; its poles lower the cost ({:.3e} → {:.3e}) and are used, but may be short of the minimum",
+            rf.iterations, rf.cost.0, rf.cost.1
+        ));
+    }
     pp.poles = rf.poles;
     pp.parts = rf.parts;
 }

@@ -40,13 +40,9 @@ impl TallQr {
     }
 
     /// Number of columns of `A`.
-    pub fn ncols(&self) -> usize {
+    #[cfg(test)]
+    fn ncols(&self) -> usize {
         self.qr.ncols()
-    }
-
-    /// Diagonal of R: its smallest/largest ratio bounds the conditioning of the basis.
-    pub fn r_diag(&self) -> Vec<f64> {
-        (0..self.ncols()).map(|i| self.qr[(i, i)].abs()).collect()
     }
 
     /// Entry `(i, j)` of the triangular factor R (`i ≤ j`).
@@ -92,7 +88,8 @@ impl TallQr {
     }
 
     /// `(AᵀA)⁻¹ = R⁻¹R⁻ᵀ`, the unscaled covariance of least-squares coefficients.
-    pub fn inverse_gram(&self) -> Mat<f64> {
+    #[cfg(test)]
+    fn inverse_gram(&self) -> Mat<f64> {
         inverse_gram_of(self.ncols(), |i, j| self.qr[(i, j)])
     }
 }
@@ -264,12 +261,6 @@ impl TallLs {
         if let LsKind::Gram(r, _) = &self.kind {
             cholesky_solve(r, c);
         }
-    }
-
-    /// Least-squares solution for every column of `b`: `(x, residuals b − Ax, residual
-    /// sum of squares per column)`.
-    pub fn solve(&self, b: &Mat<f64>) -> (Mat<f64>, Mat<f64>, Vec<f64>) {
-        self.solve_into(b.clone())
     }
 
     /// As [`TallLs::solve`], the residuals overwriting `b` (no copy of the data).
