@@ -204,6 +204,8 @@ pub fn fit(
     let mut jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     let mut lambda = 1e-3;
     let mut converged = false;
+    // `jm` is the Jacobian at the current θ (no step accepted since it was taken).
+    let mut jm_current = max_iter == 0;
     let mut it = 0;
     while it < max_iter {
         it += 1;
@@ -283,7 +285,10 @@ pub fn fit(
         }
         if !improved {
             // No descent direction left at any damping: a minimum (to working precision).
+            // θ and r did not move since `jm` was taken, so it is already the Jacobian
+            // at the solution (the same forward differences, bit for bit).
             converged = true;
+            jm_current = true;
             break;
         }
         if converged {
@@ -291,8 +296,12 @@ pub fn fit(
         }
         jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     }
-    // The Jacobian at the solution, for standard errors and score tests.
-    let jm = jacobian(f, &theta, &bounds.scales, &r)?;
+    // The Jacobian at the solution, for standard errors and score tests: the last one
+    // taken when no step was accepted after it (`max_iter` = 0 or no descent left),
+    // otherwise one more.
+    if !jm_current {
+        jm = jacobian(f, &theta, &bounds.scales, &r)?;
+    }
     Ok(Fit {
         theta,
         residual: r,
