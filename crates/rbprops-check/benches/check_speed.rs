@@ -63,6 +63,11 @@ fn cpu_seconds() -> f64 {
     ns as f64 * 1e-9
 }
 
+/// Model evaluations so far (calls of the `predict` phase; 0 without `phase-timing`).
+fn evaluations() -> u64 {
+    prof::totals().map_or(0, |t| t[prof::PREDICT].0)
+}
+
 /// FNV-1a of the report's JSON: a short stand-in for comparing whole reports.
 fn digest(s: &str) -> u64 {
     s.bytes().fold(0xcbf29ce484222325u64, |h, b| {
@@ -112,13 +117,15 @@ fn main() {
             prof::reset();
             let c0 = cpu_seconds();
             let t0 = Instant::now();
-            let lines: Arc<Mutex<Vec<(f64, String)>>> = Arc::default();
+            let lines: Arc<Mutex<Vec<(f64, u64, String)>>> = Arc::default();
             let sink = lines.clone();
             let opts = CheckOptions {
                 progress: Progress::new(move |l| {
-                    sink.lock()
-                        .unwrap()
-                        .push((t0.elapsed().as_secs_f64(), l.to_string()))
+                    sink.lock().unwrap().push((
+                        t0.elapsed().as_secs_f64(),
+                        evaluations(),
+                        l.to_string(),
+                    ))
                 }),
                 ..Default::default()
             };
@@ -149,13 +156,19 @@ fn main() {
             );
             let json = serde_json::to_string(r).expect("report json");
             println!("  report digest {:016x}", digest(&json));
-            println!("  stages (s at the end of each; Δ since the previous):");
-            let mut last = 0.0;
-            for (t, l) in lines.lock().unwrap().iter() {
-                println!("    {t:7.2} (+{:6.2})  {l}", t - last);
-                last = *t;
+            println!(
+                "  stages (s at the end of each; Δ since the previous; model evaluations since the previous, with phase-timing):"
+            );
+            let (mut last, mut last_n) = (0.0, 0);
+            for (t, n, l) in lines.lock().unwrap().iter() {
+                println!("    {t:7.2} (+{:6.2}) {:>6}  {l}", t - last, n - last_n);
+                (last, last_n) = (*t, *n);
             }
-            println!("    {dt:7.2} (+{:6.2})  done", dt - last);
+            println!(
+                "    {dt:7.2} (+{:6.2}) {:>6}  done",
+                dt - last,
+                evaluations() - last_n
+            );
             if let Some(tot) = prof::totals() {
                 println!("  phases (calls, thread-seconds; nested, see prof::PHASES):");
                 for ((n, s), name) in tot.iter().zip(prof::PHASES) {

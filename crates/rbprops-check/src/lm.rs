@@ -139,14 +139,34 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
         let end = (start + GRAM_BLOCK).min(n8);
         for i in 0..pa {
             let ca = &col(a, i)[start..end];
-            for j in first(i)..pb {
+            let mut j = first(i);
+            // Two columns of B per pass over A's column: each x is loaded once for two
+            // products, and each accumulator still receives its own products in order.
+            while j + 1 < pb {
+                let (cb0, cb1) = (&col(b, j)[start..end], &col(b, j + 1)[start..end]);
+                let (mut s0, mut s1) = (acc[i * pb + j], acc[i * pb + j + 1]);
+                for ((x, y0), y1) in ca
+                    .chunks_exact(8)
+                    .zip(cb0.chunks_exact(8))
+                    .zip(cb1.chunks_exact(8))
+                {
+                    for m in 0..8 {
+                        s0[m] += x[m] * y0[m];
+                        s1[m] += x[m] * y1[m];
+                    }
+                }
+                (acc[i * pb + j], acc[i * pb + j + 1]) = (s0, s1);
+                j += 2;
+            }
+            if j < pb {
                 let cb = &col(b, j)[start..end];
-                let s = &mut acc[i * pb + j];
+                let mut s = acc[i * pb + j];
                 for (x, y) in ca.chunks_exact(8).zip(cb.chunks_exact(8)) {
                     for m in 0..8 {
                         s[m] += x[m] * y[m];
                     }
                 }
+                acc[i * pb + j] = s;
             }
         }
         start = end;
