@@ -8,7 +8,8 @@
 //! ```
 //!
 //! Prints per case: wall and CPU time, the effects named against the concealed ones,
-//! χ²/ν before → after, the time line of the check's stages (from its progress lines), a
+//! χ²/ν before → after, the time line of the check's stages (from its progress lines,
+//! with the model evaluations made since the previous line under `phase-timing`), a
 //! digest of the report (equal digests at 1 and 2 threads: the output does not depend
 //! on the thread count) and, with `phase-timing`, thread-seconds per phase. Then the
 //! anatomy of one model evaluation in CPU time: as the check makes it, by the
@@ -34,6 +35,35 @@
 //! minority of the time: the rest is spread over the normal equations (`lm::gram`,
 //! ~12 %), the screening's SVDs and eigen-decompositions, the noise model and the
 //! cross-validation (`perf record` of the first case).
+//!
+//! Later figures (same command, same load of 10–16; the reference run was re-measured in
+//! the same session, since CPU seconds too move with the load, 21.9 → 27.0 s on the
+//! first case). Changes: the chord solver's SVD of the current Jacobian taken once per
+//! screening step instead of once per profile-screened candidate; a profile's points
+//! refined in parallel (same best point); `lm::gram`/`tr_mul` two columns per pass; the
+//! held-out folds' information summed in place; `lm::fit` keeps its last Jacobian when no
+//! step followed it. All bit-identical: report digests unchanged.
+//!
+//! | case | CPU s before → after | model evaluations | ms CPU per evaluation, all in | report digest (unchanged) |
+//! |---|---|---|---|---|
+//! | gain-orient-gauge | 27.0 → 24.3 | 9 803 | 2.5 | 6eb49ea7241b12bc |
+//! | position-force-elastic | 39.5 → 35.7 | 17 099 | 2.1 | bd0f8c804e4d13e3 |
+//! | gravity-window-gain | 54.5 → 46.2 | 27 978 | 1.7 | 860332042e338d0f |
+//!
+//! Wall time on two free cores would be about CPU/2: 12, 18 and 23 s (goal: 5 s typical,
+//! 20 s worst; not met). Where the evaluations go (counts from the stage lines): the
+//! screening steps with the backward fits 4 520 / 8 817 / 15 947 and 61–68 % of the
+//! wall time, the candidate refits 5 159 / 8 278 / 11 650 and 25–32 %, the rest (noise
+//! floors, final report) under 8 %. One evaluation of the nominal model is 0.5 ms, but
+//! the screening's profiles evaluate the cords' model (a 102-dof modal reduction per
+//! evaluation) and their chord steps read the 54 000 × p singular vectors each
+//! (`SVD::solve`). perf of the first case after the change (self time; before in
+//! brackets): the per-line solve 15 % (14), extra-mode terms (the cords' string modes)
+//! 12 % (9), the elastic-mode profile `resonance::profile_starts` (999 lines × 6 damping
+//! ratios × 27 000 values per step) 7 % (7), `SVD::solve` 7 % (6), the cords' modal
+//! reduction 9 % (10), the noise model 6 % (5), `lm::gram` 5 % (10), the screening's
+//! tall SVDs 4 % (5). Next: `profile_starts` with its line factors computed per line
+//! rather than per value, and fewer or cheaper profile points for the cords.
 
 #[path = "bench_recording.rs"]
 mod bench_recording;
