@@ -90,6 +90,10 @@ pub(super) fn resonance_candidate(
     profile_candidate(p, cur, active, c, (q0, chord), &starts, n_tests, false)
 }
 
+/// A profile point after its chord refinement: the gain, the grid index, the current
+/// model's re-adjusted parameters and the residual there.
+type ProfilePoint = (f64, usize, Vec<f64>, nalgebra::DVector<f64>);
+
 /// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
 /// statistic the best of `n_tests` tests.
 ///
@@ -145,7 +149,7 @@ pub(super) fn profile_candidate(
     let points: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..starts.len()).map(move |k| (g, k)))
         .collect();
-    let refined: Vec<Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)>> = points
+    let refined: Vec<Option<ProfilePoint>> = points
         .par_iter()
         .map(|&(g, k)| {
             let mut t = starts[k].clone();
@@ -177,7 +181,7 @@ pub(super) fn profile_candidate(
             Some((gain, g, t[..nb].to_vec(), rg))
         })
         .collect();
-    let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
+    let mut best: Option<ProfilePoint> = None;
     for point in refined.into_iter().flatten() {
         if best.as_ref().is_none_or(|b| point.0 > b.0) {
             best = Some(point);
