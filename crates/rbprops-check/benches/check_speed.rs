@@ -8,7 +8,8 @@
 //! ```
 //!
 //! Prints per case: wall and CPU time, the effects named against the concealed ones,
-//! χ²/ν before → after, the time line of the check's stages (from its progress lines), a
+//! χ²/ν before → after, the time line of the check's stages (from its progress lines,
+//! with the model evaluations made since the previous line under `phase-timing`), a
 //! digest of the report (equal digests at 1 and 2 threads: the output does not depend
 //! on the thread count) and, with `phase-timing`, thread-seconds per phase. Then the
 //! anatomy of one model evaluation in CPU time: as the check makes it, by the
@@ -34,6 +35,35 @@
 //! minority of the time: the rest is spread over the normal equations (`lm::gram`,
 //! ~12 %), the screening's SVDs and eigen-decompositions, the noise model and the
 //! cross-validation (`perf record` of the first case).
+//!
+//! Later figures (same command, same load of 10–16; the reference run was re-measured in
+//! the same session, since CPU seconds too move with the load, 21.9 → 27.0 s on the
+//! first case). Changes: the chord solver's SVD of the current Jacobian taken once per
+//! screening step instead of once per profile-screened candidate; a profile's points
+//! refined in parallel (same best point); `lm::gram`/`tr_mul` two columns per pass; the
+//! held-out folds' information summed in place; `lm::fit` keeps its last Jacobian when no
+//! step followed it. All bit-identical: report digests unchanged.
+//!
+//! | case | CPU s before → after | model evaluations | ms CPU per evaluation, all in | report digest (unchanged) |
+//! |---|---|---|---|---|
+//! | gain-orient-gauge | 27.0 → 24.3 | 9 803 | 2.5 | 6eb49ea7241b12bc |
+//! | position-force-elastic | 39.5 → 35.7 | 17 099 | 2.1 | bd0f8c804e4d13e3 |
+//! | gravity-window-gain | 54.5 → 46.2 | 27 978 | 1.7 | 860332042e338d0f |
+//!
+//! Wall time on two free cores would be about CPU/2: 12, 18 and 23 s (goal: 5 s typical,
+//! 20 s worst; not met). Where the evaluations go (counts from the stage lines): the
+//! screening steps with the backward fits 4 520 / 8 817 / 15 947 and 61–68 % of the
+//! wall time, the candidate refits 5 159 / 8 278 / 11 650 and 25–32 %, the rest (noise
+//! floors, final report) under 8 %. One evaluation of the nominal model is 0.5 ms, but
+//! the screening's profiles evaluate the cords' model (a 102-dof modal reduction per
+//! evaluation) and their chord steps read the 54 000 × p singular vectors each
+//! (`SVD::solve`). perf of the first case after the change (self time; before in
+//! brackets): the per-line solve 15 % (14), extra-mode terms (the cords' string modes)
+//! 12 % (9), the elastic-mode profile `resonance::profile_starts` (999 lines × 6 damping
+//! ratios × 27 000 values per step) 7 % (7), `SVD::solve` 7 % (6), the cords' modal
+//! reduction 9 % (10), the noise model 6 % (5), `lm::gram` 5 % (10), the screening's
+//! tall SVDs 4 % (5). Next: `profile_starts` with its line factors computed per line
+//! rather than per value, and fewer or cheaper profile points for the cords.
 
 #[path = "bench_recording.rs"]
 mod bench_recording;
@@ -61,6 +91,11 @@ fn cpu_seconds() -> f64 {
         }
     }
     ns as f64 * 1e-9
+}
+
+/// Model evaluations so far (calls of the `predict` phase; 0 without `phase-timing`).
+fn evaluations() -> u64 {
+    prof::totals().map_or(0, |t| t[prof::PREDICT].0)
 }
 
 /// FNV-1a of the report's JSON: a short stand-in for comparing whole reports.
@@ -112,13 +147,15 @@ fn main() {
             prof::reset();
             let c0 = cpu_seconds();
             let t0 = Instant::now();
-            let lines: Arc<Mutex<Vec<(f64, String)>>> = Arc::default();
+            let lines: Arc<Mutex<Vec<(f64, u64, String)>>> = Arc::default();
             let sink = lines.clone();
             let opts = CheckOptions {
                 progress: Progress::new(move |l| {
-                    sink.lock()
-                        .unwrap()
-                        .push((t0.elapsed().as_secs_f64(), l.to_string()))
+                    sink.lock().unwrap().push((
+                        t0.elapsed().as_secs_f64(),
+                        evaluations(),
+                        l.to_string(),
+                    ))
                 }),
                 ..Default::default()
             };
@@ -149,13 +186,19 @@ fn main() {
             );
             let json = serde_json::to_string(r).expect("report json");
             println!("  report digest {:016x}", digest(&json));
-            println!("  stages (s at the end of each; Δ since the previous):");
-            let mut last = 0.0;
-            for (t, l) in lines.lock().unwrap().iter() {
-                println!("    {t:7.2} (+{:6.2})  {l}", t - last);
-                last = *t;
+            println!(
+                "  stages (s at the end of each; Δ since the previous; model evaluations since the previous, with phase-timing):"
+            );
+            let (mut last, mut last_n) = (0.0, 0);
+            for (t, n, l) in lines.lock().unwrap().iter() {
+                println!("    {t:7.2} (+{:6.2}) {:>6}  {l}", t - last, n - last_n);
+                (last, last_n) = (*t, *n);
             }
-            println!("    {dt:7.2} (+{:6.2})  done", dt - last);
+            println!(
+                "    {dt:7.2} (+{:6.2}) {:>6}  done",
+                dt - last,
+                evaluations() - last_n
+            );
             if let Some(tot) = prof::totals() {
                 println!("  phases (calls, thread-seconds; nested, see prof::PHASES):");
                 for ((n, s), name) in tot.iter().zip(prof::PHASES) {

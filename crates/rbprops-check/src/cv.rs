@@ -80,13 +80,7 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
     let rv = DVector::from_column_slice(r);
     let jtj = crate::lm::gram(&js);
     let jtr = js.tr_mul(&rv);
-    let mut jk = vec![DMatrix::<f64>::zeros(p, p); k];
-    let mut gk = vec![DVector::<f64>::zeros(p); k];
-    for (row, f) in (0..r.len()).map(|a| (a, fold[a / 2])) {
-        let jr = js.row(row);
-        jk[f] += jr.transpose() * jr;
-        gk[f] += jr.transpose() * r[row];
-    }
+    let (jk, gk) = fold_information(&js, r, fold, k);
     let mut out = HeldOut::default();
     let mut deltas = Vec::with_capacity(k);
     for f in 0..k {
@@ -104,6 +98,48 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
         .map(|row| r[row] + js.row(row).dot(&deltas[fold[row / 2]].transpose()))
         .collect();
     out
+}
+
+/// Per fold, the information `C_f = Σ_{rows in f} jᵣᵀjᵣ` and the gradient
+/// `Σ_{rows in f} jᵣᵀ rᵣ` of the column-scaled Jacobian `js`.
+///
+/// Row by row in the order of the rows, each entry adding the single product
+/// `j[a]·j[b]` (resp. `j[a]·r`): the sums of an outer product per row, bit for bit,
+/// without forming it. The rows are read from a row-major copy of `js` (a row of the
+/// column-major matrix is strided by its 54 000 rows).
+fn fold_information(
+    js: &DMatrix<f64>,
+    r: &[f64],
+    fold: &[usize],
+    k: usize,
+) -> (Vec<DMatrix<f64>>, Vec<DVector<f64>>) {
+    let p = js.ncols();
+    let rows = js.transpose(); // column `row` of `rows` is row `row` of `js`
+    let mut jk = vec![vec![0.0f64; p * p]; k];
+    let mut gk = vec![vec![0.0f64; p]; k];
+    for (row, jr) in rows
+        .as_slice()
+        .chunks_exact(p.max(1))
+        .enumerate()
+        .take(r.len())
+    {
+        if p == 0 {
+            break;
+        }
+        let f = fold[row / 2];
+        let (c, g) = (&mut jk[f], &mut gk[f]);
+        for b in 0..p {
+            let cb = &mut c[b * p..(b + 1) * p];
+            for a in 0..p {
+                cb[a] += jr[a] * jr[b];
+            }
+            g[b] += jr[b] * r[row];
+        }
+    }
+    (
+        jk.into_iter().map(|c| DMatrix::from_vec(p, p, c)).collect(),
+        gk.into_iter().map(DVector::from_vec).collect(),
+    )
 }
 
 /// Held-out residuals of the model without (`e`) and with (`f`) an effect → the
@@ -208,6 +244,35 @@ mod tests {
         let yv = DVector::from_iterator(2 * n, (0..2 * n).map(row));
         let th = j.clone().svd(true, true).solve(&(-&yv), 1e-12).unwrap();
         ((&yv + &j * th).iter().copied().collect(), j)
+    }
+
+    /// The per-fold information and gradient are the sums of each row's outer product
+    /// `jᵣᵀjᵣ` and `jᵣᵀrᵣ`, bit for bit (values of mixed sign and magnitude, so a
+    /// change of summation order would show in the last bits).
+    #[test]
+    fn fold_information_is_the_sum_of_row_outer_products_bit_for_bit() {
+        let mut rnd = uniform(99);
+        for (n, p, k) in [(0, 3, 2), (2, 1, 1), (40, 4, 3), (301, 9, FOLDS)] {
+            let js = DMatrix::from_fn(n, p, |_, c| rnd() * 10f64.powi(c as i32 % 5 - 2));
+            let r: Vec<f64> = (0..n).map(|_| rnd() * 7.0).collect();
+            let fold: Vec<usize> = (0..n.div_ceil(2)).map(|i| (i * 7 + i / 3) % k).collect();
+            let (jk, gk) = fold_information(&js, &r, &fold, k);
+            let mut want_c = vec![DMatrix::<f64>::zeros(p, p); k];
+            let mut want_g = vec![DVector::<f64>::zeros(p); k];
+            for row in 0..n {
+                let jr = js.row(row);
+                want_c[fold[row / 2]] += jr.transpose() * jr;
+                want_g[fold[row / 2]] += jr.transpose() * r[row];
+            }
+            for f in 0..k {
+                for (a, b) in jk[f].iter().zip(want_c[f].iter()) {
+                    assert_eq!(a.to_bits(), b.to_bits(), "C, n = {n}, p = {p}: {a} vs {b}");
+                }
+                for (a, b) in gk[f].iter().zip(want_g[f].iter()) {
+                    assert_eq!(a.to_bits(), b.to_bits(), "g, n = {n}, p = {p}: {a} vs {b}");
+                }
+            }
+        }
     }
 
     /// Linear model y = a + noise; adding a useless regressor (noise-fitting) does not

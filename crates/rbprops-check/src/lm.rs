@@ -139,14 +139,34 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
         let end = (start + GRAM_BLOCK).min(n8);
         for i in 0..pa {
             let ca = &col(a, i)[start..end];
-            for j in first(i)..pb {
+            let mut j = first(i);
+            // Two columns of B per pass over A's column: each x is loaded once for two
+            // products, and each accumulator still receives its own products in order.
+            while j + 1 < pb {
+                let (cb0, cb1) = (&col(b, j)[start..end], &col(b, j + 1)[start..end]);
+                let (mut s0, mut s1) = (acc[i * pb + j], acc[i * pb + j + 1]);
+                for ((x, y0), y1) in ca
+                    .chunks_exact(8)
+                    .zip(cb0.chunks_exact(8))
+                    .zip(cb1.chunks_exact(8))
+                {
+                    for m in 0..8 {
+                        s0[m] += x[m] * y0[m];
+                        s1[m] += x[m] * y1[m];
+                    }
+                }
+                (acc[i * pb + j], acc[i * pb + j + 1]) = (s0, s1);
+                j += 2;
+            }
+            if j < pb {
                 let cb = &col(b, j)[start..end];
-                let s = &mut acc[i * pb + j];
+                let mut s = acc[i * pb + j];
                 for (x, y) in ca.chunks_exact(8).zip(cb.chunks_exact(8)) {
                     for m in 0..8 {
                         s[m] += x[m] * y[m];
                     }
                 }
+                acc[i * pb + j] = s;
             }
         }
         start = end;
@@ -204,6 +224,8 @@ pub fn fit(
     let mut jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     let mut lambda = 1e-3;
     let mut converged = false;
+    // `jm` is the Jacobian at the current θ (no step accepted since it was taken).
+    let mut jm_current = max_iter == 0;
     let mut it = 0;
     while it < max_iter {
         it += 1;
@@ -283,7 +305,10 @@ pub fn fit(
         }
         if !improved {
             // No descent direction left at any damping: a minimum (to working precision).
+            // θ and r did not move since `jm` was taken, so it is already the Jacobian
+            // at the solution (the same forward differences, bit for bit).
             converged = true;
+            jm_current = true;
             break;
         }
         if converged {
@@ -291,8 +316,12 @@ pub fn fit(
         }
         jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
     }
-    // The Jacobian at the solution, for standard errors and score tests.
-    let jm = jacobian(f, &theta, &bounds.scales, &r)?;
+    // The Jacobian at the solution, for standard errors and score tests: the last one
+    // taken when no step was accepted after it (`max_iter` = 0 or no descent left),
+    // otherwise one more.
+    if !jm_current {
+        jm = jacobian(f, &theta, &bounds.scales, &r)?;
+    }
     Ok(Fit {
         theta,
         residual: r,

@@ -22,23 +22,47 @@ pub(super) struct Score {
     pub(super) theta_start: Option<Vec<f64>>,
 }
 
+/// The chord (fixed-Jacobian Gauss–Newton) solver of a screening: the SVD of the
+/// current model's Jacobian, taken on first use and shared by every profile-screened
+/// candidate of the step (the same factorisation each of them took on its own before).
+pub(super) struct Chord<'f> {
+    jacobian: &'f DMatrix<f64>,
+    svd: std::sync::OnceLock<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+}
+
+impl<'f> Chord<'f> {
+    pub(super) fn new(jacobian: &'f DMatrix<f64>) -> Self {
+        Chord {
+            jacobian,
+            svd: std::sync::OnceLock::new(),
+        }
+    }
+
+    fn svd(&self) -> &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
+        self.svd
+            .get_or_init(|| self.jacobian.clone().svd(true, true))
+    }
+}
+
 /// Profile screening of a candidate whose signature vanishes to every order at its
 /// neutral point (see `Candidate::grid`): at each grid point φ_g the residual r_g of the
 /// current model plus the effect at φ_g, with the current parameters re-adjusted
 /// linearly (their Jacobian's span projected out), gives the approximate likelihood
 /// ratio `‖P⊥ r‖² − ‖P⊥ r_g‖²`. The best point starts the refit; the statistic is the
 /// best of `G` tests, so its threshold is Bonferroni corrected over the grid.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn grid_candidate(
     p: &Problem,
     cur: &Fit,
     active: &[Act],
     c: usize,
     q0: &DMatrix<f64>,
+    chord: &Chord,
     grid: &[Vec<f64>],
     delay_scan: bool,
 ) -> Result<Score, CheckError> {
     let (grid, n_tests) = profile_points(p, grid, delay_scan, &cur.residual);
-    profile_candidate(p, cur, active, c, q0, &grid, n_tests, true)
+    profile_candidate(p, cur, active, c, (q0, chord), &grid, n_tests, true)
 }
 
 /// An in-band resonance ([`crate::resonance`]): the profile over (ω_m, ζ_m) of the
@@ -50,6 +74,7 @@ pub(super) fn resonance_candidate(
     active: &[Act],
     c: usize,
     q0: &DMatrix<f64>,
+    chord: &Chord,
 ) -> Result<Score, CheckError> {
     let (starts, n_tests) =
         crate::resonance::profile_starts(p.layout, &p.used, p.sigma, &cur.residual);
@@ -62,8 +87,12 @@ pub(super) fn resonance_candidate(
                 .into(),
         ));
     }
-    profile_candidate(p, cur, active, c, q0, &starts, n_tests, false)
+    profile_candidate(p, cur, active, c, (q0, chord), &starts, n_tests, false)
 }
+
+/// A profile point after its chord refinement: the gain, the grid index, the current
+/// model's re-adjusted parameters and the residual there.
+type ProfilePoint = (f64, usize, Vec<f64>, nalgebra::DVector<f64>);
 
 /// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
 /// statistic the best of `n_tests` tests.
@@ -82,7 +111,7 @@ pub(super) fn profile_candidate(
     cur: &Fit,
     active: &[Act],
     c: usize,
-    q0: &DMatrix<f64>,
+    (q0, chord): (&DMatrix<f64>, &Chord),
     grid: &[Vec<f64>],
     n_tests: usize,
     from_nominal: bool,
@@ -102,7 +131,7 @@ pub(super) fn profile_candidate(
     let base = perp(&r0).norm_squared();
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
     // each grid point: a few model evaluations, enough when the effect moves them far.
-    let svd = cur.jacobian.clone().svd(true, true);
+    let svd = chord.svd();
     let nb = cur.theta.len();
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
@@ -113,12 +142,19 @@ pub(super) fn profile_candidate(
         t[..p.n_base()].copy_from_slice(&p.baseline.initial());
         starts.push(t);
     }
-    let mut best: Option<(f64, usize, Vec<f64>, nalgebra::DVector<f64>)> = None;
-    for (g, phi) in grid.iter().enumerate() {
-        for (k, start) in starts.iter().enumerate() {
-            let mut t = start.clone();
-            t.extend_from_slice(phi);
-            let Some(mut rg) = eval(&t) else { continue };
+    // Each point's chord refinement is independent of the others: they run in parallel
+    // (a profile of slow models, cords with their string modes, was the last candidate
+    // of the screening to finish), and the best is then taken in the order of the points,
+    // the first of equal gains, as a loop over them takes it.
+    let points: Vec<(usize, usize)> = (0..grid.len())
+        .flat_map(|g| (0..starts.len()).map(move |k| (g, k)))
+        .collect();
+    let refined: Vec<Option<ProfilePoint>> = points
+        .par_iter()
+        .map(|&(g, k)| {
+            let mut t = starts[k].clone();
+            t.extend_from_slice(&grid[g]);
+            let mut rg = eval(&t)?;
             // Linearised gain at the current parameters (the score-like statistic).
             let lin = if k == 0 {
                 base - perp(&rg).norm_squared()
@@ -142,9 +178,13 @@ pub(super) fn profile_candidate(
                 }
             }
             let gain = lin.max(r0.norm_squared() - chi);
-            if best.as_ref().is_none_or(|b| gain > b.0) {
-                best = Some((gain, g, t[..nb].to_vec(), rg));
-            }
+            Some((gain, g, t[..nb].to_vec(), rg))
+        })
+        .collect();
+    let mut best: Option<ProfilePoint> = None;
+    for point in refined.into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| point.0 > b.0) {
+            best = Some(point);
         }
     }
     let Some((gain, g, theta_best, rg)) = best else {

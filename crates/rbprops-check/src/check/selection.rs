@@ -139,6 +139,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn screen(&mut self, step: usize) -> Vec<(usize, Score, f64)> {
         let (p, cur, active) = (self.p, &self.cur, &self.active);
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
+        let chord = Chord::new(&cur.jacobian);
         let todo: Vec<usize> = (0..p.cands.len())
             .filter(|c| !active.iter().any(|a| a.c == *c) && !self.excluded.contains(c))
             .collect();
@@ -154,9 +155,9 @@ impl<'p, 'a> Selection<'p, 'a> {
                         score_candidate(p, cur, active, c, &q0)
                     }
                     Screening::Profile { grid, delay_scan } => {
-                        grid_candidate(p, cur, active, c, &q0, grid, *delay_scan)
+                        grid_candidate(p, cur, active, c, &q0, &chord, grid, *delay_scan)
                     }
-                    Screening::Resonance => resonance_candidate(p, cur, active, c, &q0),
+                    Screening::Resonance => resonance_candidate(p, cur, active, c, &q0, &chord),
                 };
                 (c, s)
             })
