@@ -169,6 +169,17 @@ pub struct LocalEffect {
 /// Name of the gravity candidate's fifth parameter φ₅ (see [`gravity_stiffness`]).
 const SPRING_TURN: &str = "spring_turn_fraction";
 
+/// Whether φ₅ is a parameter of the gravity candidate: some set-up hangs on springs
+/// alone (no cords: a cord set-up's hanging equilibrium already turns its springs), and
+/// the nominal model leaves no rigid direction free (springs that cannot hold the body
+/// have no sagged equilibrium to turn about). Elsewhere φ₅ would have no signature.
+fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
+    spec.setups
+        .iter()
+        .any(|s| s.cords.is_empty() && !s.springs.is_empty())
+        && free_direction_note(spec, g).is_none()
+}
+
 /// Name of the residual flexibility's frequency parameter q = (f_top/f_e)².
 const RESIDUAL_MODE_Q: &str = "band_top_over_mode_frequency_squared";
 /// Its neutral value: the modes at 4× the top of the band, where their ω² growth is
@@ -214,13 +225,18 @@ impl LocalEffect {
                 .flat_map(|p| ["rx", "ry", "rz"].map(|a| format!("{p}.{a}_rad")))
                 .collect(),
             Kind::SensorMass => pids.iter().map(|p| format!("{p}.mass_kg")).collect(),
-            Kind::GravityStiffness => vec![
-                "inverse_cord_length_per_m".into(),
-                "load_term_factor".into(),
-                "up_tilt1_rad".into(),
-                "up_tilt2_rad".into(),
-                SPRING_TURN.into(),
-            ],
+            Kind::GravityStiffness => {
+                let mut v: Vec<String> = vec![
+                    "inverse_cord_length_per_m".into(),
+                    "load_term_factor".into(),
+                    "up_tilt1_rad".into(),
+                    "up_tilt2_rad".into(),
+                ];
+                if springs_can_sag(spec, g) {
+                    v.push(SPRING_TURN.into());
+                }
+                v
+            }
             Kind::MountDashpots => spec
                 .setups
                 .iter()
@@ -364,7 +380,8 @@ pub fn tilted_direction(d: &Vec3, a: f64, b: f64) -> Vec3 {
 /// stiff vertical springs couples bounce and sway through that turn (Rᵀk R − k, of order
 /// ψ·k_z), which neither the cords' load term nor the per-axis stiffness scales can
 /// express; the catalogue has no such entry, so the improved spec keeps the cords'
-/// form and the report gives φ₅.
+/// form and the report gives φ₅. φ₅ is a parameter only where springs alone hold the
+/// body (see [`springs_can_sag`]): a cord set-up's equilibrium turns its springs already.
 ///
 /// A set-up with cords (`[[setup.cord]]`) hangs instead: with `E` the body at the static
 /// equilibrium of the weight and the cords (rbprops-sim's
@@ -444,7 +461,7 @@ const GRAVITY_LENGTH_STEP: f64 = 0.05;
 /// body (φ = (1/ℓ, 1, 0, 0)) at lengths ℓ in steps of [`GRAVITY_LENGTH_STEP`]: ×0.37 to
 /// ×2.7 the cords' mean hanging length when the spec has cords (L₀ + T/k of the nominal
 /// body), else 0.2 to 5 m.
-fn gravity_profile(spec: &CampaignSpec) -> Screening {
+fn gravity_profile(spec: &CampaignSpec, n_params: usize) -> Screening {
     let up = spec.up_vector();
     let m = spec.properties().mass_matrix().0;
     let lbar = spec
@@ -468,7 +485,11 @@ fn gravity_profile(spec: &CampaignSpec) -> Screening {
     Screening::Profile {
         grid: lengths
             .iter()
-            .map(|l| vec![1.0 / l, 1.0, 0.0, 0.0, 0.0])
+            .map(|l| {
+                let mut phi = vec![1.0 / l, 1.0, 0.0, 0.0];
+                phi.resize(n_params, 0.0);
+                phi
+            })
             .collect(),
         delay_scan: false,
     }
@@ -1034,6 +1055,7 @@ fn local_candidates(
             continue;
         }
         let e = LocalEffect::neutral(k, spec, geometry);
+        let n_params = e.values.len();
         out.push(Candidate {
             id: k.id().to_string(),
             title: k.title().to_string(),
@@ -1049,7 +1071,7 @@ fn local_candidates(
             screening: if k == Kind::SensorMass {
                 Screening::RigidMassGauge
             } else if k == Kind::GravityStiffness && has_free {
-                gravity_profile(spec)
+                gravity_profile(spec, n_params)
             } else {
                 Screening::Score
             },
