@@ -15,6 +15,8 @@
 //!   parameter space: `K(φ) = φ₁·lateral(ℓ = 1) + φ₂·load term`, φ₁ = 1/ℓ (1/m), φ₂ the
 //!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
+//!   Two tilts of the vertical and φ₅, the fraction by which springs (rather than cords)
+//!   turn with the sagged body, complete it (see [`gravity_stiffness`]).
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
 //!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up. Only a recording-side
 //!   helper ([`local_effect`]): the candidate screened is the catalogue's general
@@ -164,6 +166,20 @@ pub struct LocalEffect {
     band_top_hz: f64,
 }
 
+/// Name of the gravity candidate's fifth parameter φ₅ (see [`gravity_stiffness`]).
+const SPRING_TURN: &str = "spring_turn_fraction";
+
+/// Whether φ₅ is a parameter of the gravity candidate: some set-up hangs on springs
+/// alone (no cords: a cord set-up's hanging equilibrium already turns its springs), and
+/// the nominal model leaves no rigid direction free (springs that cannot hold the body
+/// have no sagged equilibrium to turn about). Elsewhere φ₅ would have no signature.
+fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
+    spec.setups
+        .iter()
+        .any(|s| s.cords.is_empty() && !s.springs.is_empty())
+        && free_direction_note(spec, g).is_none()
+}
+
 /// Name of the residual flexibility's frequency parameter q = (f_top/f_e)².
 const RESIDUAL_MODE_Q: &str = "band_top_over_mode_frequency_squared";
 /// Its neutral value: the modes at 4× the top of the band, where their ω² growth is
@@ -209,12 +225,18 @@ impl LocalEffect {
                 .flat_map(|p| ["rx", "ry", "rz"].map(|a| format!("{p}.{a}_rad")))
                 .collect(),
             Kind::SensorMass => pids.iter().map(|p| format!("{p}.mass_kg")).collect(),
-            Kind::GravityStiffness => vec![
-                "inverse_cord_length_per_m".into(),
-                "load_term_factor".into(),
-                "up_tilt1_rad".into(),
-                "up_tilt2_rad".into(),
-            ],
+            Kind::GravityStiffness => {
+                let mut v: Vec<String> = vec![
+                    "inverse_cord_length_per_m".into(),
+                    "load_term_factor".into(),
+                    "up_tilt1_rad".into(),
+                    "up_tilt2_rad".into(),
+                ];
+                if springs_can_sag(spec, g) {
+                    v.push(SPRING_TURN.into());
+                }
+                v
+            }
             Kind::MountDashpots => spec
                 .setups
                 .iter()
@@ -264,6 +286,10 @@ impl LocalEffect {
             Kind::SensorMass => ("kg", 0.0, f64::INFINITY, (0.0, 0.5)),
             Kind::GravityStiffness if i == 0 => ("1/m", 0.0, 100.0, (0.2, 10.0)),
             Kind::GravityStiffness if i == 1 => ("1", 0.0, 3.0, (0.5, 1.5)),
+            // 0: the springs' stiffness stays along the spec's axes (cords); 1: it turns
+            // with the sagged body (linear springs to the ground). Bounds wide enough
+            // that neither end is pinned.
+            Kind::GravityStiffness if i == 4 => ("1", -2.0, 3.0, (-0.5, 1.5)),
             Kind::GravityStiffness => ("rad", -0.5, 0.5, (-0.1, 0.1)),
             Kind::MountDashpots => ("N s/m", 0.0, f64::INFINITY, (0.0, 100.0)),
         };
@@ -290,7 +316,7 @@ impl LocalEffect {
                 }
                 Kind::SensorMass => 0.01 * m,
                 Kind::GravityStiffness => {
-                    if i < 2 {
+                    if i < 2 || i == 4 {
                         1.0
                     } else {
                         0.01
@@ -343,9 +369,19 @@ pub fn tilted_direction(d: &Vec3, a: f64, b: f64) -> Vec3 {
 /// ([`tilted_direction`]), through rbprops-sim's own
 /// [`rbprops_sim::effects::gravity::geometric_stiffness`], split into its two parts:
 /// `K(φ) = φ₁ [K_geo(ℓ = 1) − K_geo(ℓ → ∞)] + φ₂ K_geo(ℓ → ∞)`, exact for
-/// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1, 0, 0) reproduces the catalogue
+/// K_geo(ℓ) = (1/ℓ)·lateral + load term; φ = (1/ℓ, 1, 0, 0, 0) reproduces the catalogue
 /// effect. The tilt is bilinear with φ₁, φ₂: no signature at neutral, so the model
-/// check frees it only after a refit has moved them.
+/// check frees it only after a refit has moved them. So is φ₅, which moves the load
+/// term from the cords' reading of the springs (φ₅ = 0: tensions along ẑ, stiffness
+/// axes fixed) to the springs as linear springs to the ground (φ₅ = 1: the exact Hessian
+/// of the weight and the springs at the sagged equilibrium, `ΔK_s = K_E − K_nominal`
+/// from [`rbprops_sim::effects::gravity::hanging_equilibrium`], whose springs turn with
+/// the body: `φ₂ [K_geo(∞) + φ₅ (ΔK_s − K_geo(∞))]`). A body sagging a few mrad on
+/// stiff vertical springs couples bounce and sway through that turn (Rᵀk R − k, of order
+/// ψ·k_z), which neither the cords' load term nor the per-axis stiffness scales can
+/// express; the catalogue has no such entry, so the improved spec keeps the cords'
+/// form and the report gives φ₅. φ₅ is a parameter only where springs alone hold the
+/// body (see [`springs_can_sag`]): a cord set-up's equilibrium turns its springs already.
 ///
 /// A set-up with cords (`[[setup.cord]]`) hangs instead: with `E` the body at the static
 /// equilibrium of the weight and the cords (rbprops-sim's
@@ -381,7 +417,21 @@ fn gravity_stiffness(
     };
     let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;
     let (kinf, _) = geometric_stiffness(&model.mass, &cords(1e12), STANDARD_GRAVITY, &z)?;
-    Ok((k1 - kinf) * phi[0] + kinf * phi[1])
+    let mut load = kinf;
+    let turn = phi.get(4).copied().unwrap_or(0.0);
+    if turn != 0.0 {
+        // The springs as linear springs to the ground (not cords): at the body's sagged
+        // equilibrium their stiffness axes turn with it, `Σ T(a)ᵀ Rᵀk R T(a)`, and their
+        // preloads carry horizontal parts; the exact Hessian there less the nominal
+        // springs, against the cords' load term. Springs that cannot hold the body
+        // alone (a free direction) have no sagged equilibrium to turn about: there φ₅
+        // has no signature, and the other parameters keep theirs.
+        if let Ok(eq) = hanging(ctx.spec, ctx.setup_index, &model.mass, &z) {
+            let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
+            load += (dk - kinf) * turn;
+        }
+    }
+    Ok((k1 - kinf) * phi[0] + load * phi[1])
 }
 
 /// The hanging equilibrium of set-up `i`'s cords and springs for a body of mass matrix
@@ -411,7 +461,7 @@ const GRAVITY_LENGTH_STEP: f64 = 0.05;
 /// body (φ = (1/ℓ, 1, 0, 0)) at lengths ℓ in steps of [`GRAVITY_LENGTH_STEP`]: ×0.37 to
 /// ×2.7 the cords' mean hanging length when the spec has cords (L₀ + T/k of the nominal
 /// body), else 0.2 to 5 m.
-fn gravity_profile(spec: &CampaignSpec) -> Screening {
+fn gravity_profile(spec: &CampaignSpec, n_params: usize) -> Screening {
     let up = spec.up_vector();
     let m = spec.properties().mass_matrix().0;
     let lbar = spec
@@ -435,7 +485,11 @@ fn gravity_profile(spec: &CampaignSpec) -> Screening {
     Screening::Profile {
         grid: lengths
             .iter()
-            .map(|l| vec![1.0 / l, 1.0, 0.0, 0.0])
+            .map(|l| {
+                let mut phi = vec![1.0 / l, 1.0, 0.0, 0.0];
+                phi.resize(n_params, 0.0);
+                phi
+            })
             .collect(),
         delay_scan: false,
     }
@@ -1001,6 +1055,7 @@ fn local_candidates(
             continue;
         }
         let e = LocalEffect::neutral(k, spec, geometry);
+        let n_params = e.values.len();
         out.push(Candidate {
             id: k.id().to_string(),
             title: k.title().to_string(),
@@ -1016,7 +1071,7 @@ fn local_candidates(
             screening: if k == Kind::SensorMass {
                 Screening::RigidMassGauge
             } else if k == Kind::GravityStiffness && has_free {
-                gravity_profile(spec)
+                gravity_profile(spec, n_params)
             } else {
                 Screening::Score
             },

@@ -90,3 +90,55 @@ fn stinger_axial_stiffness_is_screened_from_its_descriptor() {
     assert_eq!(c.screening, Screening::Score);
     assert_eq!(c.source, "rbprops-sim");
 }
+
+/// The gravity candidate on a body hung from linear springs (Test Case II, the mass of
+/// the bench recording `gravity-window-gain`): with φ = (0, 1, 0, 0, 1) (no cord
+/// lateral term, the load term of the weight, the springs turning with the sagged
+/// body) its stiffness is the independent generator's Hessian at the sagged
+/// equilibrium (`*.truth.json`, finite-difference Hessian of the potential with finite
+/// rotations, ~1e-12 relative), to 1e-10 of the largest entry (measured: 3.3e-9 N/m,
+/// 3e-13 of it); the cords' reading of
+/// the springs (φ₅ = 0) misses the bounce–sway coupling of the turned springs (≈ 14 and
+/// 22 N/m between z and x, y), which is what this parameter is for.
+#[test]
+fn gravity_candidate_with_turned_springs_is_the_generators_hanging_stiffness() {
+    let truth: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(
+            rbprops_testkit::repo_root()
+                .join("fixtures/model-check/bench/gravity-window-gain.truth.json"),
+        )
+        .unwrap(),
+    )
+    .unwrap();
+    let k_truth = &truth["setups"][0]["stiffness_6x6"];
+    let mut spec = tc2();
+    spec.body.mass_kg = truth["properties"]["mass_kg"].as_f64().unwrap();
+    let g = spec.geometry().unwrap();
+    let stiffness = |phi: &[f64]| {
+        let e = rbprops_check::candidates::local_effect("gravity_stiffness", &spec, phi).unwrap();
+        rbprops_sim::build_models(&spec, &g, &[e]).unwrap()[0]
+            .model
+            .stiffness
+    };
+    let worst = |k: &rbprops_core::Mat6| {
+        let mut d: f64 = 0.0;
+        for i in 0..6 {
+            for j in 0..6 {
+                d = d.max((k[(i, j)] - k_truth[i][j].as_f64().unwrap()).abs());
+            }
+        }
+        d
+    };
+    let scale = 10_000.0; // the largest entry, the vertical spring stiffness (N/m)
+    let turned = worst(&stiffness(&[0.0, 1.0, 0.0, 0.0, 1.0]));
+    let cords = worst(&stiffness(&[0.0, 1.0, 0.0, 0.0, 0.0]));
+    eprintln!("worst entry off: turned springs {turned:.3e} N/m, cords {cords:.3e} N/m");
+    assert!(
+        turned < 1e-10 * scale,
+        "turned springs: worst entry off by {turned:.3e}"
+    );
+    assert!(
+        cords > 10.0,
+        "the cords' reading should miss the turn: {cords:.3e}"
+    );
+}

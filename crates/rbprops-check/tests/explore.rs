@@ -14,7 +14,7 @@ fn explore() {
     let mut truth = nom.clone();
     truth.body.mass_kg *= 1.02;
     let effects: Vec<(&str, Vec<f64>)> = match eff.as_str() {
-        "gravity" => vec![("gravity_stiffness", vec![1.0, 1.0, 0.0, 0.0])],
+        "gravity" => vec![("gravity_stiffness", vec![1.0, 1.0, 0.0, 0.0, 0.0])],
         "gain" => vec![(
             "channel_gain",
             vec![0.0, 0.03, 0.0, 0.0, 0.0, -0.02, 0.0, 0.0, 0.0],
