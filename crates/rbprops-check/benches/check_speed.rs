@@ -184,6 +184,13 @@ fn main() {
                 r.noise_band[1],
                 r.noise_floor_reached
             );
+            for m in r
+                .method
+                .iter()
+                .filter(|m| m.starts_with("noise re-estimated"))
+            {
+                println!("  {m}");
+            }
             let json = serde_json::to_string(r).expect("report json");
             println!("  report digest {:016x}", digest(&json));
             println!(
