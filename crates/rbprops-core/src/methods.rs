@@ -267,6 +267,36 @@ mod tests {
     }
 
     #[test]
+    fn record_schemas_keep_the_fields_plain_strings() {
+        use crate::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
+        let plain = |v: &serde_json::Value, description: &str| {
+            assert_eq!(
+                *v,
+                serde_json::json!({ "description": description, "type": "string" })
+            );
+        };
+        let e = serde_json::to_value(schemars::schema_for!(InertiaEstimate)).unwrap();
+        plain(
+            &e["properties"]["method"],
+            "`bretl_conti`, `toivola_nuutila`, `mass_line`, `model_fit`.",
+        );
+        plain(
+            &e["properties"]["uncertainty_method"],
+            "How the standard errors were obtained (`linearised`, `monte_carlo`, `none`).",
+        );
+        let s = serde_json::to_value(schemars::schema_for!(SelectionRecord)).unwrap();
+        plain(
+            &s["$defs"]["SelectedMode"]["properties"]["criterion"],
+            "`ni`, `hybrid_mif`, `prf_mif` or `manual`.",
+        );
+        let m = serde_json::to_value(schemars::schema_for!(ModalFitRecord)).unwrap();
+        plain(
+            &m["$defs"]["ExcitationFitRecord"]["properties"]["method"],
+            "`lsce`, `lscf` or `circle`.",
+        );
+    }
+
+    #[test]
     fn display_honours_width_as_the_strings_did() {
         assert_eq!(
             format!("[{:<14}]", EstimateMethod::MassLine),
