@@ -15,7 +15,7 @@
 //! Damping follows the spec's model: `modal` → six `ln ζ_r` (by ascending mode),
 //! `proportional` → α, β (linear, clamped at 0).
 
-use rbprops_core::{Mat3, RigidBodyProperties, Vec3};
+use rbprops_core::{InertiaProperties, Mat3, RigidBodyProperties, Vec3};
 use rbprops_sim::spec::{BodySpec, DampingModel, DampingSpec};
 use rbprops_sim::CampaignSpec;
 
@@ -85,35 +85,13 @@ pub fn theta_to_inertia(t: &[f64]) -> RigidBodyProperties {
 }
 
 /// The ten reported inertia quantities of a body: m, c (3), J_xx, J_yy, J_zz and the
-/// products J_xy, J_xz, J_yz (CAD sense: minus the tensor entries).
+/// products J_xy, J_xz, J_yz (CAD sense: minus the tensor entries), the ten-vector of
+/// [`InertiaProperties`].
 pub fn inertia_quantities(p: &RigidBodyProperties) -> [f64; 10] {
-    let j = &p.inertia_cm;
-    [
-        p.mass,
-        p.com.x,
-        p.com.y,
-        p.com.z,
-        j[(0, 0)],
-        j[(1, 1)],
-        j[(2, 2)],
-        -j[(0, 1)],
-        -j[(0, 2)],
-        -j[(1, 2)],
-    ]
+    InertiaProperties::from_rigid_body(p).to_vector()
 }
 
-pub const INERTIA_NAMES: [&str; 10] = [
-    "mass_kg",
-    "com_x_m",
-    "com_y_m",
-    "com_z_m",
-    "jxx_kg_m2",
-    "jyy_kg_m2",
-    "jzz_kg_m2",
-    "jxy_kg_m2",
-    "jxz_kg_m2",
-    "jyz_kg_m2",
-];
+pub const INERTIA_NAMES: [&str; 10] = InertiaProperties::NAMES;
 
 fn spring_matrix(s: &rbprops_sim::spec::SpringSpec) -> Mat3 {
     match (&s.stiffness_n_per_m, &s.stiffness_matrix_n_per_m) {

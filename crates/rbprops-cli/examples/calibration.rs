@@ -10,6 +10,7 @@
 
 use rbprops_cli::stages::{self, Uncertainty};
 use rbprops_core::records::{InertiaEstimate, TruthRecord};
+use rbprops_core::InertiaProperties;
 use rbprops_formats::topics;
 use rbprops_inertia::{Estimator, SolveOptions};
 use rbprops_uq::{estimate_vector, BootstrapOptions, N_PROPS, PROPERTY_NAMES};
@@ -69,22 +70,9 @@ fn main() -> anyhow::Result<()> {
         t_boot += tb.elapsed().as_secs_f64();
         let boot = boot.ok_or_else(|| anyhow::anyhow!("seed {seed}: the bootstrap did not run"))?;
         let truth: TruthRecord = rec.get_one(topics::TRUTH)?.unwrap();
-        let tp = truth.properties;
-        let j = tp.inertia_cm_kg_m2;
-        let tv = [
-            tp.mass_kg,
-            tp.com_m[0],
-            tp.com_m[1],
-            tp.com_m[2],
-            j[0][0],
-            j[1][1],
-            j[2][2],
-            j[0][1],
-            j[0][2],
-            j[1][2],
-        ];
+        let tv = InertiaProperties::from_rigid_body(&truth.properties.to_properties()).to_vector();
         for e in rec.get::<InertiaEstimate>(topics::ESTIMATES)? {
-            let Some(k) = METHODS.iter().position(|m| *m == e.method) else {
+            let Some(k) = METHODS.iter().position(|m| e.method == *m) else {
                 continue;
             };
             let lin = linearised
@@ -193,17 +181,5 @@ fn main() -> anyhow::Result<()> {
 }
 
 fn std_vector(e: &InertiaEstimate) -> [f64; N_PROPS] {
-    let s = &e.inertia_cm_std_kg_m2;
-    [
-        e.mass_std_kg,
-        e.com_std_m[0],
-        e.com_std_m[1],
-        e.com_std_m[2],
-        s[0][0],
-        s[1][1],
-        s[2][2],
-        s[0][1],
-        s[0][2],
-        s[1][2],
-    ]
+    InertiaProperties::standard_errors_of(e).to_vector()
 }

@@ -69,7 +69,7 @@ pub struct CampaignConfig {
     pub band_hz: Option<[f64; 2]>,
     pub method: Option<String>,
     pub modes: Option<usize>,
-    pub uncertainty: Option<String>,
+    pub uncertainty: Option<crate::stages::UncertaintyChoice>,
     /// Time constant τ (s) of the exponential window `w(t) = e^{−t/τ}` applied to force and
     /// response records before the FRFs were estimated.
     pub window_time_constant_s: Option<f64>,
@@ -112,15 +112,6 @@ pub struct CampaignOptions {
     pub named_files: Vec<PathBuf>,
 }
 
-/// Parses an uncertainty method name.
-pub fn parse_uncertainty(s: &str) -> Result<crate::stages::Uncertainty> {
-    match s {
-        "bootstrap" => Ok(crate::stages::Uncertainty::Bootstrap(Default::default())),
-        "linearised" | "linearized" => Ok(crate::stages::Uncertainty::Linearised),
-        other => bail!("uncertainty '{other}': expected bootstrap or linearised"),
-    }
-}
-
 impl CampaignConfig {
     /// Reads a campaign file.
     pub fn read(path: &Path) -> Result<CampaignConfig> {
@@ -134,15 +125,13 @@ impl CampaignConfig {
         &self,
         base: &Path,
         source: &str,
-        uncertainty: Option<&str>,
+        uncertainty: Option<crate::stages::UncertaintyChoice>,
     ) -> Result<CampaignOptions> {
         let mut o = CampaignOptions {
-            uncertainty: parse_uncertainty(
-                uncertainty
-                    .or(self.uncertainty.as_deref())
-                    .unwrap_or("bootstrap"),
-            )
-            .with_context(|| source.to_string())?,
+            uncertainty: uncertainty
+                .or(self.uncertainty)
+                .unwrap_or_default()
+                .with_defaults(),
             ..Default::default()
         };
         if let Some([a, b]) = self.band_hz {

@@ -210,7 +210,7 @@ fn estimates_table(h: &mut String, list: &[InertiaEstimate]) -> Result<()> {
                 write!(
                     h,
                     "<td class=\"t\" rowspan=\"{n}\">{}{}</td><td class=\"t\" rowspan=\"{n}\">{}</td>",
-                    escape(&e.method),
+                    escape(e.method.as_str()),
                     if e.physically_consistent {
                         ""
                     } else {

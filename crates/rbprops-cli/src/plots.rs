@@ -74,33 +74,17 @@ pub fn sanitize(id: &str) -> String {
         .collect()
 }
 
-/// Estimates with 95 % error bars: mass, CoM and the six tensor entries, one group per
-/// property, one bar per estimator (relative to the first estimate, so scales mix).
+/// Estimates with 95 % error bars: the ten properties (mass, CoM, moments and products
+/// of inertia, docs/conventions.md §3), one group per property, one bar per estimator
+/// (relative to the first estimate, so scales mix).
 pub fn estimates(list: &[rbprops_core::records::InertiaEstimate]) -> Result<Vec<(String, String)>> {
+    use rbprops_core::InertiaProperties;
     use rbprops_plot::{bar_chart, BarChart, BarSeries};
-    let names = [
-        "m", "cx", "cy", "cz", "Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz",
-    ];
+    let names = InertiaProperties::SYMBOLS;
     let values = |e: &rbprops_core::records::InertiaEstimate| -> ([f64; 10], [f64; 10]) {
-        let j = &e.inertia_cm_kg_m2;
-        let s = &e.inertia_cm_std_kg_m2;
         (
-            [
-                e.mass_kg, e.com_m[0], e.com_m[1], e.com_m[2], j[0][0], j[1][1], j[2][2], j[0][1],
-                j[0][2], j[1][2],
-            ],
-            [
-                e.mass_std_kg,
-                e.com_std_m[0],
-                e.com_std_m[1],
-                e.com_std_m[2],
-                s[0][0],
-                s[1][1],
-                s[2][2],
-                s[0][1],
-                s[0][2],
-                s[1][2],
-            ],
+            InertiaProperties::of_estimate(e).to_vector(),
+            InertiaProperties::standard_errors_of(e).to_vector(),
         )
     };
     let Some(first) = list.first() else {
@@ -115,8 +99,11 @@ pub fn estimates(list: &[rbprops_core::records::InertiaEstimate]) -> Result<Vec<
                 .iter()
                 .map(|x| if x.abs() > 0.0 { x.abs() } else { 1.0 })
                 .collect();
-            BarSeries::new(e.method.clone(), (0..10).map(|i| v[i] / scale[i]).collect())
-                .with_errors((0..10).map(|i| 1.96 * s[i] / scale[i]).collect())
+            BarSeries::new(
+                e.method.to_string(),
+                (0..10).map(|i| v[i] / scale[i]).collect(),
+            )
+            .with_errors((0..10).map(|i| 1.96 * s[i] / scale[i]).collect())
         })
         .collect();
     let chart = BarChart {

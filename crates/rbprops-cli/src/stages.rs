@@ -92,6 +92,30 @@ pub fn ni_select(
 }
 
 /// How `rb-solve` obtains the standard errors of the modal estimates.
+/// The standard-error choices of `rb-solve --uncertainty`, `rbprops campaign
+/// --uncertainty` and the campaign file's `uncertainty` key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UncertaintyChoice {
+    /// FRF-level parametric bootstrap of the modal estimators (rbprops-uq).
+    #[default]
+    Bootstrap,
+    /// Propagation of the residue standard errors (or Monte Carlo with --monte-carlo).
+    #[value(alias = "linearized")]
+    #[serde(alias = "linearized")]
+    Linearised,
+}
+
+impl UncertaintyChoice {
+    /// The choice with the default options (a bootstrap of 100 replicates, seed 0).
+    pub fn with_defaults(self) -> Uncertainty {
+        match self {
+            UncertaintyChoice::Bootstrap => Uncertainty::Bootstrap(Default::default()),
+            UncertaintyChoice::Linearised => Uncertainty::Linearised,
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Uncertainty {
     /// `rbprops_inertia` propagation of the residue standard errors (linearised, or Monte

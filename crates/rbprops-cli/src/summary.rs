@@ -64,7 +64,7 @@ impl SummaryRow {
             campaign: campaign.into(),
             set: set.into(),
             origin: origin.into(),
-            method: e.method.clone(),
+            method: e.method.to_string(),
             setup: e.setup.clone(),
             mass_kg: e.mass_kg,
             com_x_m: e.com_m[0],

@@ -216,7 +216,7 @@ fn six_modes(
                 e.physically_consistent,
                 e.rigid_body_consistent
             );
-            est.push((e.method.clone(), dm, dj));
+            est.push((e.method.to_string(), dm, dj));
         }
         out.push((est, run.warnings));
     }

@@ -19,9 +19,11 @@ pub mod error;
 pub mod frf;
 pub mod geometry;
 pub mod inertia;
+pub mod methods;
 pub mod modal;
 pub mod noise;
 pub mod precision;
+pub mod properties;
 pub mod records;
 pub mod rigid;
 pub mod stats;
@@ -35,6 +37,7 @@ pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
 pub use noise::{CoherenceNoise, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
+pub use properties::InertiaProperties;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.

@@ -5,6 +5,7 @@
 //! Field names carry their units. Complex numbers are `[re, im]` pairs.
 
 use crate::c64;
+pub use crate::methods::{EstimateMethod, FitMethod, SelectionCriterion, UncertaintyMethod};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -144,7 +145,10 @@ pub struct ExcitationFitRecord {
     pub excitation: String,
     pub setup: String,
     /// `lsce`, `lscf` or `circle`.
-    pub method: String,
+    // Also `plscf`: the names are those of [`FitMethod`]. A plain comment, not a doc
+    // comment: the record's JSON schema stays as published.
+    #[schemars(with = "String")]
+    pub method: FitMethod,
     /// Model order chosen (number of modes in the band).
     pub model_order: usize,
     pub band_hz: [f64; 2],
@@ -228,7 +232,8 @@ pub struct SelectedMode {
     /// Excitation strength `f_kᵀq` (1/kg); ≤ 0 means not excited.
     pub strength: f64,
     /// `ni`, `hybrid_mif`, `prf_mif` or `manual`.
-    pub criterion: String,
+    #[schemars(with = "String")]
+    pub criterion: SelectionCriterion,
 }
 
 /// A mode no excitation excites above the noise.
@@ -253,7 +258,10 @@ pub struct SelectionRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct InertiaEstimate {
     /// `bretl_conti`, `toivola_nuutila`, `mass_line`, `model_fit`.
-    pub method: String,
+    // The names are those of [`EstimateMethod`] (`model_fit` is not produced; `_projected`
+    // versions are). A plain comment: the record's JSON schema stays as published.
+    #[schemars(with = "String")]
+    pub method: EstimateMethod,
     pub setup: String,
     /// Origin the estimator worked about, geometry frame (m).
     pub origin_m: [f64; 3],
@@ -273,7 +281,9 @@ pub struct InertiaEstimate {
     /// Estimator residual (dimensionless, defined per method).
     pub residual: f64,
     /// How the standard errors were obtained (`linearised`, `monte_carlo`, `none`).
-    pub uncertainty_method: String,
+    // Also `bootstrap` ([`UncertaintyMethod`]); plain comment, the schema stays as published.
+    #[schemars(with = "String")]
+    pub uncertainty_method: UncertaintyMethod,
     pub modes_used: Vec<usize>,
     pub excitations_used: Vec<String>,
     /// Relative errors vs reference values when given: mass, com, inertia, sum.

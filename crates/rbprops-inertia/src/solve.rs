@@ -12,10 +12,13 @@ use crate::shapes::{
 };
 use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
 use rbprops_core::records::{
-    ErrorsRecord, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord,
+    ErrorsRecord, EstimateMethod, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord,
     RigidBodyCheckRecord, SelectedMode, SelectionRecord, SystematicIntervalRecord,
+    UncertaintyMethod,
 };
-use rbprops_core::{c64, FrfSet, Geometry, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6};
+use rbprops_core::{
+    c64, FrfSet, Geometry, InertiaProperties, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6,
+};
 use serde::{Deserialize, Serialize};
 
 /// The estimators.
@@ -32,10 +35,15 @@ pub enum Estimator {
 impl Estimator {
     /// The `method` string of [`InertiaEstimate`].
     pub fn name(self) -> &'static str {
+        self.method().as_str()
+    }
+
+    /// The `method` of [`InertiaEstimate`].
+    pub fn method(self) -> EstimateMethod {
         match self {
-            Estimator::BretlConti => "bretl_conti",
-            Estimator::ToivolaNuutila => "toivola_nuutila",
-            Estimator::MassLine => "mass_line",
+            Estimator::BretlConti => EstimateMethod::BretlConti,
+            Estimator::ToivolaNuutila => EstimateMethod::ToivolaNuutila,
+            Estimator::MassLine => EstimateMethod::MassLine,
         }
     }
 }
@@ -360,12 +368,12 @@ impl SideConstraints {
 
 /// An estimate before packaging.
 struct EstimateParts {
-    method: &'static str,
+    method: EstimateMethod,
     setup: String,
     /// About the working origin.
     mass_matrix: MassMatrix6,
     std: Option<[f64; N_PROPS]>,
-    uncertainty_method: String,
+    uncertainty_method: UncertaintyMethod,
     mount_stiffness: Option<Mat6>,
     residual: f64,
     modes_used: Vec<usize>,
@@ -416,7 +424,7 @@ impl EstimateParts {
                 self.method
             ));
             let mut p = self.package(&fixed, origin, reference, w);
-            p.method = format!("{}_projected", self.method);
+            p.method = self.method.projected();
             p.physically_consistent = fixed.consistency_violations().is_empty();
             out.push(p);
         }
@@ -431,12 +439,7 @@ impl EstimateParts {
         warnings: Vec<String>,
     ) -> InertiaEstimate {
         let rec = PropertiesRecord::from_properties(props);
-        let std = self.std.unwrap_or([0.0; N_PROPS]);
-        let j_std = [
-            [std[4], std[7], std[8]],
-            [std[7], std[5], std[9]],
-            [std[8], std[9], std[6]],
-        ];
+        let std = InertiaProperties::from_vector(&self.std.unwrap_or([0.0; N_PROPS]));
         let pr = props.products_of_inertia();
         let (moments, axes) = props.principal();
         let errors = reference.map(|r| {
@@ -452,24 +455,24 @@ impl EstimateParts {
             }
         });
         let mut est = InertiaEstimate {
-            method: self.method.to_string(),
+            method: self.method,
             setup: self.setup.clone(),
             origin_m: (*origin).into(),
             mass_kg: rec.mass_kg,
-            mass_std_kg: std[0],
+            mass_std_kg: std.mass,
             com_m: rec.com_m,
-            com_std_m: [std[1], std[2], std[3]],
+            com_std_m: std.com.into(),
             inertia_cm_kg_m2: rec.inertia_cm_kg_m2,
-            inertia_cm_std_kg_m2: j_std,
+            inertia_cm_std_kg_m2: std.tensor_standard_errors(),
             products_of_inertia_kg_m2: Products {
                 xy: pr.xy,
                 xz: pr.xz,
                 yz: pr.yz,
             },
             products_of_inertia_std_kg_m2: Products {
-                xy: std[7],
-                xz: std[8],
-                yz: std[9],
+                xy: std.products.xy,
+                xz: std.products.xz,
+                yz: std.products.yz,
             },
             principal_moments_kg_m2: moments.into(),
             principal_axes: std::array::from_fn(|r| std::array::from_fn(|c| axes[(r, c)])),
@@ -477,7 +480,7 @@ impl EstimateParts {
                 .mount_stiffness
                 .map(|k| std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)]))),
             residual: self.residual,
-            uncertainty_method: self.uncertainty_method.clone(),
+            uncertainty_method: self.uncertainty_method,
             modes_used: self.modes_used.clone(),
             excitations_used: self.excitations_used.clone(),
             errors,
@@ -485,22 +488,18 @@ impl EstimateParts {
             warnings,
             rigid_body_consistent: self.check.as_ref().map(|c| c.rigid_body_consistent),
             rigid_body_check: self.check.clone(),
-            systematic: self
-                .systematic
-                .as_ref()
-                .map(|(s, how)| SystematicIntervalRecord {
+            systematic: self.systematic.as_ref().map(|(s, how)| {
+                let s = InertiaProperties::from_vector(s);
+                SystematicIntervalRecord {
                     method: how.clone(),
-                    mass_std_kg: s[0],
-                    com_std_m: [s[1], s[2], s[3]],
-                    inertia_cm_std_kg_m2: [
-                        [s[4], s[7], s[8]],
-                        [s[7], s[5], s[9]],
-                        [s[8], s[9], s[6]],
-                    ],
+                    mass_std_kg: s.mass,
+                    com_std_m: s.com.into(),
+                    inertia_cm_std_kg_m2: s.tensor_standard_errors(),
                     mass_95_kg: [0.0; 2],
                     com_95_m: [[0.0; 2]; 3],
                     inertia_cm_95_kg_m2: [[[0.0; 2]; 3]; 3],
-                }),
+                }
+            }),
         };
         est.update_systematic_interval();
         est
@@ -576,21 +575,21 @@ fn uncertainty<F>(
     sigma: &[f64],
     how: Propagation,
     warnings: &mut Vec<String>,
-) -> (Option<[f64; N_PROPS]>, String)
+) -> (Option<[f64; N_PROPS]>, UncertaintyMethod)
 where
     F: Fn(&[f64]) -> Result<[f64; N_PROPS], InertiaError> + Sync,
 {
     if sigma.iter().all(|s| *s == 0.0) {
         warnings.push("no input standard errors: the reported standard errors are zero".into());
-        return (None, "none".into());
+        return (None, UncertaintyMethod::None);
     }
     match propagate(f, x, sigma, how) {
-        Ok(s) => (Some(s), how.name().into()),
+        Ok(s) => (Some(s), how.record_name()),
         Err(e) => {
             warnings.push(format!(
                 "uncertainty propagation failed ({e}); standard errors are reported as zero"
             ));
-            (None, "none".into())
+            (None, UncertaintyMethod::None)
         }
     }
 }
@@ -669,7 +668,7 @@ fn modal_estimate(
     };
     let (std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
     Ok(EstimateParts {
-        method: est.name(),
+        method: est.method(),
         setup: setup.to_string(),
         mass_matrix,
         std,
@@ -857,7 +856,7 @@ fn mass_line_estimate(
     let setup = distinct(geometry.excitations.iter().map(|e| e.setup.clone())).join("+");
     Ok((
         EstimateParts {
-            method: Estimator::MassLine.name(),
+            method: Estimator::MassLine.method(),
             setup,
             mass_matrix: sol.mass_matrix,
             std,

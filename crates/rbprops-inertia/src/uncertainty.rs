@@ -17,30 +17,20 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rbprops_core::noise::standard_normal;
-use rbprops_core::RigidBodyProperties;
+use rbprops_core::records::UncertaintyMethod;
+use rbprops_core::{InertiaProperties, RigidBodyProperties};
 
 /// Two-sided 95 % normal quantile.
 pub const Z95: f64 = 1.959963984540054;
 
-/// Number of properties propagated: m, c (3, geometry frame), J tensor entries
-/// (xx, yy, zz, xy, xz, yz) about the CoM.
-pub const N_PROPS: usize = 10;
+/// Number of properties propagated: the ten-vector of [`InertiaProperties`] (m, c in the
+/// geometry frame, moments and products of inertia about the CoM; docs/conventions.md §3).
+pub const N_PROPS: usize = InertiaProperties::LEN;
 
-/// The propagated property vector of a [`RigidBodyProperties`]; `offset` is added to the CoM.
+/// The propagated property vector of a [`RigidBodyProperties`]
+/// ([`InertiaProperties::to_vector`]). A product's standard error is its tensor entry's.
 pub fn property_vector(p: &RigidBodyProperties) -> [f64; N_PROPS] {
-    let j = &p.inertia_cm;
-    [
-        p.mass,
-        p.com.x,
-        p.com.y,
-        p.com.z,
-        j[(0, 0)],
-        j[(1, 1)],
-        j[(2, 2)],
-        j[(0, 1)],
-        j[(0, 2)],
-        j[(1, 2)],
-    ]
+    InertiaProperties::from_rigid_body(p).to_vector()
 }
 
 /// How to propagate.
@@ -53,9 +43,14 @@ pub enum Propagation {
 impl Propagation {
     /// The `uncertainty_method` string of the record.
     pub fn name(&self) -> &'static str {
+        self.record_name().as_str()
+    }
+
+    /// The `uncertainty_method` of the record.
+    pub fn record_name(&self) -> UncertaintyMethod {
         match self {
-            Propagation::Linearised => "linearised",
-            Propagation::MonteCarlo { .. } => "monte_carlo",
+            Propagation::Linearised => UncertaintyMethod::Linearised,
+            Propagation::MonteCarlo { .. } => UncertaintyMethod::MonteCarlo,
         }
     }
 }

@@ -42,7 +42,7 @@ fn coverage(
     estimators: &[Estimator],
     monte_carlo: usize,
     seeds: u64,
-) -> Vec<(String, [u32; 10])> {
+) -> Vec<(rbprops_core::records::EstimateMethod, [u32; 10])> {
     let truth = body();
     let g = geometry();
     let modes = modes(&truth);
@@ -61,7 +61,7 @@ fn coverage(
         t.inertia_cm_kg_m2[0][2],
         t.inertia_cm_kg_m2[1][2],
     ];
-    let mut hits: Vec<(String, [u32; 10])> = Vec::new();
+    let mut hits: Vec<(rbprops_core::records::EstimateMethod, [u32; 10])> = Vec::new();
     for seed in 0..seeds {
         let mut rng = ChaCha8Rng::seed_from_u64(1000 + seed);
         let mut modal = clean.clone();
@@ -77,15 +77,11 @@ fn coverage(
             ..Default::default()
         };
         let out = solve(&g, &modal, &sel, None, &opts).unwrap();
-        for e in out
-            .estimates
-            .iter()
-            .filter(|e| !e.method.ends_with("_projected"))
-        {
+        for e in out.estimates.iter().filter(|e| !e.method.is_projected()) {
             let slot = match hits.iter().position(|(m, _)| *m == e.method) {
                 Some(i) => i,
                 None => {
-                    hits.push((e.method.clone(), [0; 10]));
+                    hits.push((e.method, [0; 10]));
                     hits.len() - 1
                 }
             };

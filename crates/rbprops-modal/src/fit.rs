@@ -1119,7 +1119,7 @@ fn fit_one(
         warnings,
         diagram: ps.diagram.clone(),
     };
-    Ok(assemble(ex, &band, parts, opts, opts.method.name()))
+    Ok(assemble(ex, &band, parts, opts, opts.method.record_name()))
 }
 
 /// What one excitation's records are made of, whichever estimator produced them.
@@ -1146,7 +1146,7 @@ pub(crate) fn assemble(
     band: &BandData,
     parts: ModeParts,
     opts: &FitOptions,
-    method: &str,
+    method: rbprops_core::records::FitMethod,
 ) -> ExcitationFit {
     let ModeParts {
         poles,
@@ -1226,7 +1226,7 @@ pub(crate) fn assemble(
     let record = ExcitationFitRecord {
         excitation: name.into(),
         setup: ex.setup.clone(),
-        method: method.into(),
+        method,
         model_order: nm,
         band_hz: band.band_hz(),
         n_lines: band.n_lines(),
@@ -1463,7 +1463,7 @@ pub fn fit_campaign(
                 record.excitations.push(ExcitationFitRecord {
                     excitation: ex.id.clone(),
                     setup: ex.setup.clone(),
-                    method: opts.method.name().into(),
+                    method: opts.method.record_name(),
                     model_order: 0,
                     band_hz: opts.band_hz.map(|(a, b)| [a, b]).unwrap_or([
                         frf.frequency_hz.first().copied().unwrap_or(0.0),

@@ -26,11 +26,17 @@ pub enum Method {
 impl Method {
     /// The method's name as `modal-fit --method` takes it.
     pub fn name(self) -> &'static str {
+        self.record_name().as_str()
+    }
+
+    /// The name written in `ExcitationFitRecord::method`.
+    pub fn record_name(self) -> rbprops_core::records::FitMethod {
+        use rbprops_core::records::FitMethod;
         match self {
-            Method::Lscf => "lscf",
-            Method::Lsce => "lsce",
-            Method::Circle => "circle",
-            Method::Plscf => "plscf",
+            Method::Lscf => FitMethod::Lscf,
+            Method::Lsce => FitMethod::Lsce,
+            Method::Circle => FitMethod::Circle,
+            Method::Plscf => FitMethod::Plscf,
         }
     }
 }

@@ -20,7 +20,7 @@ use crate::ModalError;
 use rbprops_core::{c64, FrfSet, Geometry};
 
 /// The method name written into the records.
-pub const METHOD: &str = "plscf";
+pub const METHOD: rbprops_core::records::FitMethod = rbprops_core::records::FitMethod::Plscf;
 
 /// Lines of the stabilisation sweep (decimated to about this many).
 const SWEEP_LINES: usize = 1024;

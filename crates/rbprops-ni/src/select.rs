@@ -9,7 +9,9 @@ use crate::manual::ManualSet;
 use crate::matching::{mac, match_candidates, reference_member, Candidate, MatchTolerances};
 use crate::peaks::find_peaks;
 use crate::NiError;
-use rbprops_core::records::{MissingMode, ModalFitRecord, SelectedMode, SelectionRecord};
+use rbprops_core::records::{
+    MissingMode, ModalFitRecord, SelectedMode, SelectionCriterion, SelectionRecord,
+};
 use rbprops_core::{real_modal_constants, FrfSet, Geometry, Mat6, Quantity, RigidBasis, Vec6};
 use serde::{Deserialize, Serialize};
 
@@ -33,10 +35,15 @@ impl Criterion {
     pub const NAMES: &'static str = "ni, hybrid_mif, prf_mif";
     /// The name written in `SelectedMode::criterion`.
     pub fn name(self) -> &'static str {
+        self.record_name().as_str()
+    }
+
+    /// The value written in `SelectedMode::criterion`.
+    pub fn record_name(self) -> SelectionCriterion {
         match self {
-            Criterion::Ni => "ni",
-            Criterion::HybridMif => "hybrid_mif",
-            Criterion::PrfMif => "prf_mif",
+            Criterion::Ni => SelectionCriterion::Ni,
+            Criterion::HybridMif => SelectionCriterion::HybridMif,
+            Criterion::PrfMif => SelectionCriterion::PrfMif,
         }
     }
 }
@@ -1230,10 +1237,13 @@ fn choose(
         .manual
         .as_ref()
         .map(|m| m.excitation_for(mode).map(str::to_string));
-    let (chosen, criterion_name): (Option<String>, &str) = match &manual_choice {
-        Some(Some(ex)) => (Some(ex.clone()), "manual"),
-        Some(None) => (None, "manual"),
-        None => (by.of_criterion(p.opts.criterion), p.opts.criterion.name()),
+    let (chosen, criterion): (Option<String>, SelectionCriterion) = match &manual_choice {
+        Some(Some(ex)) => (Some(ex.clone()), SelectionCriterion::Manual),
+        Some(None) => (None, SelectionCriterion::Manual),
+        None => (
+            by.of_criterion(p.opts.criterion),
+            p.opts.criterion.record_name(),
+        ),
     };
     match (&manual_choice, chosen) {
         (Some(None), _) => out.warnings.push(format!(
@@ -1292,7 +1302,7 @@ fn choose(
                     row.reason.as_deref().unwrap_or("")
                 ));
             }
-            let manual = criterion_name == "manual";
+            let manual = criterion == SelectionCriterion::Manual;
             if manual && by.ni.as_ref().is_some_and(|c| c != &ex) {
                 out.disagreements.push(format!(
                     "set-up '{label}' mode {mode} ({f_r:.4} Hz): the manual set takes {ex}, NI picks {}",
@@ -1327,7 +1337,7 @@ fn choose(
                 margin_db: runner.map_or(0.0, |r| row.ni_db - r.ni_db),
                 runner_up: runner.map(|r| r.excitation.clone()),
                 strength: member.strength,
-                criterion: criterion_name.to_string(),
+                criterion,
             });
         }
     }

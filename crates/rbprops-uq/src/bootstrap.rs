@@ -8,19 +8,19 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
-use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
-use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_core::records::{
+    EstimateMethod, InertiaEstimate, ModalFitRecord, SelectionRecord, UncertaintyMethod,
+};
+use rbprops_core::{c64, FrfSet, Geometry, InertiaProperties};
 use rbprops_inertia::{solve, Estimator, SolveOptions, SolveOutput};
 use rbprops_modal::PoleMode;
 
-/// Number of properties: m, c (3), J tensor entries xx, yy, zz, xy, xz, yz (about the
-/// CoM, geometry frame; tensor off-diagonals are minus the products of inertia).
-pub const N_PROPS: usize = 10;
+/// Number of properties: the ten-vector of [`InertiaProperties`] (m, c, moments and
+/// products of inertia about the CoM, geometry frame; docs/conventions.md §3).
+pub const N_PROPS: usize = InertiaProperties::LEN;
 
 /// Names of the properties in [`N_PROPS`] order.
-pub const PROPERTY_NAMES: [&str; N_PROPS] = [
-    "m", "cx", "cy", "cz", "Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz",
-];
+pub const PROPERTY_NAMES: [&str; N_PROPS] = InertiaProperties::SYMBOLS;
 
 /// Options of [`bootstrap`].
 #[derive(Debug, Clone, PartialEq)]
@@ -57,7 +57,7 @@ impl Default for BootstrapOptions {
 /// Bootstrap distribution of one estimate (one modal estimator on one set-up).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BootstrapEstimate {
-    pub method: String,
+    pub method: EstimateMethod,
     pub setup: String,
     /// The estimate from the measured data.
     pub estimate: [f64; N_PROPS],
@@ -102,17 +102,13 @@ pub struct BootstrapOutput {
     pub warnings: Vec<String>,
 }
 
-/// The property vector of an estimate in [`N_PROPS`] order.
+/// The property vector of an estimate ([`InertiaProperties::to_vector`]).
 pub fn estimate_vector(e: &InertiaEstimate) -> [f64; N_PROPS] {
-    let j = &e.inertia_cm_kg_m2;
-    [
-        e.mass_kg, e.com_m[0], e.com_m[1], e.com_m[2], j[0][0], j[1][1], j[2][2], j[0][1], j[0][2],
-        j[1][2],
-    ]
+    InertiaProperties::of_estimate(e).to_vector()
 }
 
 struct Target {
-    method: String,
+    method: EstimateMethod,
     setup: String,
     modes_used: Vec<usize>,
     estimate: [f64; N_PROPS],
@@ -226,15 +222,15 @@ type ReplicateResult = Result<Vec<Result<[f64; N_PROPS], String>>, String>;
 /// The estimates to bootstrap: the modal estimators' (Bretl–Conti, Toivola–Nuutila) in
 /// `original`, in their order, with the modes each used (a replicate must use the same).
 fn modal_targets(original: &[InertiaEstimate]) -> Result<Vec<Target>, UqError> {
-    let modal_names = [
-        Estimator::BretlConti.name(),
-        Estimator::ToivolaNuutila.name(),
+    let modal = [
+        Estimator::BretlConti.method(),
+        Estimator::ToivolaNuutila.method(),
     ];
     let targets: Vec<Target> = original
         .iter()
-        .filter(|e| modal_names.contains(&e.method.as_str()))
+        .filter(|e| modal.contains(&e.method))
         .map(|e| Target {
-            method: e.method.clone(),
+            method: e.method,
             setup: e.setup.clone(),
             modes_used: e.modes_used.clone(),
             estimate: estimate_vector(e),
@@ -391,7 +387,7 @@ fn target_vector(t: &Target, out: &SolveOutput) -> Result<[f64; N_PROPS], String
             let why: Vec<&str> = out
                 .warnings
                 .iter()
-                .filter(|w| w.contains(&t.method) || w.contains("left out"))
+                .filter(|w| w.contains(t.method.as_str()) || w.contains("left out"))
                 .map(String::as_str)
                 .collect();
             format!("{} gave no estimate ({})", t.method, why.join("; "))
@@ -515,7 +511,7 @@ fn statistics(
         [quantile(&v, 0.025), quantile(&v, 0.975)]
     });
     BootstrapEstimate {
-        method: t.method.clone(),
+        method: t.method,
         setup: t.setup.clone(),
         estimate: t.estimate,
         std,
@@ -533,7 +529,7 @@ fn statistics(
 pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize {
     let mut n = 0;
     for e in estimates.iter_mut() {
-        let base = e.method.strip_suffix("_projected").unwrap_or(&e.method);
+        let base = e.method.base();
         let Some(b) = boot
             .estimates
             .iter()
@@ -541,14 +537,8 @@ pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize
         else {
             continue;
         };
-        let s = &b.std;
-        e.mass_std_kg = s[0];
-        e.com_std_m = [s[1], s[2], s[3]];
-        e.inertia_cm_std_kg_m2 = [[s[4], s[7], s[8]], [s[7], s[5], s[9]], [s[8], s[9], s[6]]];
-        e.products_of_inertia_std_kg_m2.xy = s[7];
-        e.products_of_inertia_std_kg_m2.xz = s[8];
-        e.products_of_inertia_std_kg_m2.yz = s[9];
-        e.uncertainty_method = "bootstrap".into();
+        InertiaProperties::from_vector(&b.std).set_standard_errors_of(e);
+        e.uncertainty_method = UncertaintyMethod::Bootstrap;
         e.update_systematic_interval();
         if b.failed > 0 {
             e.warnings.push(format!(

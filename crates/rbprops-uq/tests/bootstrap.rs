@@ -133,7 +133,7 @@ fn apply_fills_the_records() {
         let b = boot
             .estimates
             .iter()
-            .find(|b| e.method.starts_with(&b.method))
+            .find(|b| e.method.base() == b.method)
             .unwrap();
         assert_eq!(e.uncertainty_method, "bootstrap");
         assert_eq!(e.mass_std_kg, b.std[0]);

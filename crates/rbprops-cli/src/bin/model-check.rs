@@ -232,18 +232,14 @@ fn summary(out: &CheckOutcome) -> String {
     }
     s += "\ninertia              nominal        before (±SE)              after (±SE)\n";
     let q = |e: &rbprops_check::report::InertiaEstimateReport| {
-        [
-            e.mass_kg,
-            e.com_m[0],
-            e.com_m[1],
-            e.com_m[2],
-            e.moments_kg_m2[0],
-            e.moments_kg_m2[1],
-            e.moments_kg_m2[2],
-            e.products_kg_m2[0],
-            e.products_kg_m2[1],
-            e.products_kg_m2[2],
-        ]
+        let [xy, xz, yz] = e.products_kg_m2;
+        rbprops_core::InertiaProperties {
+            mass: e.mass_kg,
+            com: e.com_m.into(),
+            moments: e.moments_kg_m2,
+            products: rbprops_core::inertia::ProductsOfInertia { xy, xz, yz },
+        }
+        .to_vector()
     };
     let (n, b, a) = (
         q(&r.inertia_nominal),

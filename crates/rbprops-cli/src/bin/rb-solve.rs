@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, ValueEnum};
+use rbprops_cli::stages::UncertaintyChoice;
 use rbprops_core::records::{InertiaEstimate, PropertiesRecord};
 use rbprops_inertia::{Estimator, OriginChoice, SolveOptions};
 use std::path::PathBuf;
@@ -14,14 +15,6 @@ enum OutFormat {
     Json,
     /// The run record as MCAP (default when stdout is not a terminal).
     Mcap,
-}
-
-#[derive(Clone, Copy, ValueEnum, PartialEq)]
-enum UncertaintyKind {
-    /// FRF-level parametric bootstrap of the modal estimators (rbprops-uq).
-    Bootstrap,
-    /// Propagation of the residue standard errors (or Monte Carlo with --monte-carlo).
-    Linearised,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -71,7 +64,7 @@ struct Args {
     /// propagates its own). The FRF-level bootstrap is the calibrated one (see rbprops-uq
     /// and docs/results.md); linearised propagation is faster but under-covers J.
     #[arg(long, value_enum, default_value = "bootstrap")]
-    uncertainty: UncertaintyKind,
+    uncertainty: UncertaintyChoice,
     /// Bootstrap replicates (with --uncertainty bootstrap; the seed is --seed).
     #[arg(long, default_value_t = 100)]
     bootstrap: usize,
@@ -143,8 +136,8 @@ fn main() -> std::process::ExitCode {
         opts.monte_carlo_samples = args.monte_carlo;
         opts.seed = args.seed;
         let uncertainty = match args.uncertainty {
-            UncertaintyKind::Linearised => rbprops_cli::stages::Uncertainty::Linearised,
-            UncertaintyKind::Bootstrap => {
+            UncertaintyChoice::Linearised => rbprops_cli::stages::Uncertainty::Linearised,
+            UncertaintyChoice::Bootstrap => {
                 rbprops_cli::stages::Uncertainty::Bootstrap(rbprops_uq::BootstrapOptions {
                     replicates: args.bootstrap,
                     seed: args.seed,

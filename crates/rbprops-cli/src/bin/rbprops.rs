@@ -48,8 +48,8 @@ enum Command {
         config: Option<PathBuf>,
         /// Standard errors as rb-solve computes them: `bootstrap` (100 replicates, seed 0,
         /// as rb-solve) or `linearised` (faster). Default: the campaign file's, else bootstrap.
-        #[arg(long)]
-        uncertainty: Option<String>,
+        #[arg(long, value_enum)]
+        uncertainty: Option<rbprops_cli::stages::UncertaintyChoice>,
         /// Also write each item's run (DIR/<label>/run.mcap, every stage's topic) and its
         /// figures (SVG) under DIR, for `rbprops report`: put it beside the summary as
         /// `runs/` (`-o OUT/summary.csv --runs OUT/runs`, then `rbprops report OUT`).
@@ -154,7 +154,7 @@ fn main() -> std::process::ExitCode {
                 ),
                 None => (Default::default(), dir.clone(), "defaults".to_string()),
             };
-            let mut opts = cfg.resolve(&base, &source, uncertainty.as_deref())?;
+            let mut opts = cfg.resolve(&base, &source, uncertainty)?;
             opts.named_files.extend(config.clone());
             let items = rbprops_cli::campaign::discover(&dir, &opts.named_files)?;
             if items.is_empty() {

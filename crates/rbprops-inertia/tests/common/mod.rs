@@ -153,7 +153,7 @@ pub fn selection(g: &Geometry, modes: &[RigidMode], which: &[usize]) -> Selectio
             margin_db: 0.0,
             runner_up: None,
             strength: s,
-            criterion: "manual".into(),
+            criterion: rbprops_core::records::SelectionCriterion::Manual,
         });
     }
     sel

@@ -44,10 +44,5 @@ pub fn case(example: &str, seed: u64, relative_noise: Option<f64>) -> Case {
 
 /// The truth in `rbprops_uq::N_PROPS` order.
 pub fn truth_vector(t: &TruthRecord) -> [f64; 10] {
-    let p = &t.properties;
-    let j = &p.inertia_cm_kg_m2;
-    [
-        p.mass_kg, p.com_m[0], p.com_m[1], p.com_m[2], j[0][0], j[1][1], j[2][2], j[0][1], j[0][2],
-        j[1][2],
-    ]
+    rbprops_core::InertiaProperties::from_rigid_body(&t.properties.to_properties()).to_vector()
 }
