@@ -13,7 +13,7 @@
 //! `(m, c_x, c_y, c_z, J_xx, J_yy, J_zz, J_xy, J_xz, J_yz)`.
 
 use crate::inertia::ProductsOfInertia;
-use crate::records::InertiaEstimate;
+use crate::records::{InertiaEstimate, Products};
 use crate::{Mat3, RigidBodyProperties, Vec3};
 
 /// Mass, centre of mass, and the moments and products of inertia about the centre of mass.
@@ -124,13 +124,12 @@ impl InertiaProperties {
         })
     }
 
-    /// An estimate's values.
-    pub fn of_estimate(e: &InertiaEstimate) -> Self {
-        let j = &e.inertia_cm_kg_m2;
-        let p = &e.products_of_inertia_kg_m2;
+    /// From an estimate record's fields: the moments are the tensor's diagonal, the
+    /// products are taken as recorded.
+    fn of_record_fields(mass: f64, com: [f64; 3], j: &[[f64; 3]; 3], p: &Products) -> Self {
         Self {
-            mass: e.mass_kg,
-            com: Vec3::from(e.com_m),
+            mass,
+            com: Vec3::from(com),
             moments: [j[0][0], j[1][1], j[2][2]],
             products: ProductsOfInertia {
                 xy: p.xy,
@@ -140,20 +139,24 @@ impl InertiaProperties {
         }
     }
 
+    /// An estimate's values.
+    pub fn of_estimate(e: &InertiaEstimate) -> Self {
+        Self::of_record_fields(
+            e.mass_kg,
+            e.com_m,
+            &e.inertia_cm_kg_m2,
+            &e.products_of_inertia_kg_m2,
+        )
+    }
+
     /// An estimate's standard errors, entry by entry (a product's is its tensor entry's).
     pub fn standard_errors_of(e: &InertiaEstimate) -> Self {
-        let j = &e.inertia_cm_std_kg_m2;
-        let p = &e.products_of_inertia_std_kg_m2;
-        Self {
-            mass: e.mass_std_kg,
-            com: Vec3::from(e.com_std_m),
-            moments: [j[0][0], j[1][1], j[2][2]],
-            products: ProductsOfInertia {
-                xy: p.xy,
-                xz: p.xz,
-                yz: p.yz,
-            },
-        }
+        Self::of_record_fields(
+            e.mass_std_kg,
+            e.com_std_m,
+            &e.inertia_cm_std_kg_m2,
+            &e.products_of_inertia_std_kg_m2,
+        )
     }
 
     /// Standard errors laid out as the tensor's entries: the moments' on the diagonal,

@@ -590,16 +590,7 @@ fn parse_2420(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError
             rows: [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]],
             origin: [m[9], m[10], m[11]],
         };
-        Ok((
-            CoordinateSystem {
-                label,
-                kind,
-                color,
-                name,
-                definition,
-            },
-            next,
-        ))
+        Ok((system_of((label, kind, color), name, definition), next))
     })?;
     Ok(CoordinateSystemSet {
         dataset: 2420,
@@ -632,16 +623,7 @@ fn parse_18(ctx: &Ctx, lines: &[Line]) -> Result<CoordinateSystemSet, UffError> 
             x_point: [p[3], p[4], p[5]],
             xz_point: [p[6], p[7], p[8]],
         };
-        Ok((
-            CoordinateSystem {
-                label,
-                kind,
-                color,
-                name,
-                definition,
-            },
-            next,
-        ))
+        Ok((system_of((label, kind, color), name, definition), next))
     })?;
     Ok(CoordinateSystemSet {
         dataset: 18,
@@ -676,6 +658,21 @@ fn read_systems<'c, 'f>(
         i = next;
     }
     Ok(systems)
+}
+
+/// A coordinate system from its header fields (label, type, colour), name and definition.
+fn system_of(
+    (label, kind, color): (i64, CsKind, i64),
+    name: String,
+    definition: CsDefinition,
+) -> CoordinateSystem {
+    CoordinateSystem {
+        label,
+        kind,
+        color,
+        name,
+        definition,
+    }
 }
 
 /// Fields 1 and 2 of a coordinate system's first record: its label and its type.
