@@ -175,7 +175,9 @@ pub fn check(
             .report
             .method
             .push(format!("{note}: within it, the data-only estimate is kept"));
-        if first.report.chi2_nu_after < first.report.noise_band[0] {
+        if !first.report.noise_floor_reached
+            && first.report.chi2_nu_after < first.report.noise_band[0]
+        {
             restate_in_residual_noise(&mut first, nf);
         }
         return Ok(first);
@@ -218,7 +220,8 @@ fn chi2_ratio_of(o: &CheckOutcome, model: &[c64], sigma2: &[f64]) -> f64 {
     a / b
 }
 
-/// A kept first pass whose final χ²/ν fell below its band: the data-only noise is too
+/// A kept first pass whose final χ²/ν fell below its band and is not at the floor (with a
+/// precision-only noise below the band already is, see `at_noise_floor`): the data-only noise is too
 /// high there (the local quartic also reads the curvature it cannot follow as noise),
 /// and the re-estimate from the final residual, which agrees with it within its own
 /// band, is the better yardstick (see [`noise::estimate_from_residual`]). The final
@@ -239,9 +242,12 @@ fn restate_in_residual_noise(o: &mut CheckOutcome, nf: noise::NoiseFloor) {
     r.chi2_nu_before *= ratios[1];
     r.chi2_nu_nominal *= ratios[2];
     r.noise_band = noise_band(r.nu_after, nf.model.variance_scale_se);
-    r.noise_floor_reached = r.chi2_nu_after >= r.noise_band[0]
-        && r.chi2_nu_after <= r.noise_band[1]
-        && r.residuals_after.flagged.is_empty();
+    r.noise_floor_reached = at_noise_floor(
+        r.chi2_nu_after,
+        r.noise_band,
+        &nf.model,
+        &r.residuals_after.flagged,
+    );
     r.noise = nf.model;
     r.method.push(format!(
         "the final χ²/ν {old:.3} was below its band [{:.3}, {:.3}] in the data-only noise: the final statistics are stated in the noise re-estimated from the final residual (χ²/ν {:.3}, band [{:.3}, {:.3}])",
@@ -556,6 +562,26 @@ fn effect_spec(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The floor rule shared by the report and the restatement in the residual's noise:
+    /// below the band counts only for a precision-only noise, never past its top or with a
+    /// flagged cell.
+    #[test]
+    fn the_floor_rule_reads_below_the_band_only_for_precision_alone() {
+        let fitted = RecordingNoise::given(vec![0.01; 3], vec![0.0; 3]);
+        let exact = RecordingNoise::given(vec![0.0; 3], vec![0.0; 3]);
+        let band = [0.97, 1.05];
+        assert!(at_noise_floor(1.0, band, &fitted, &[]));
+        assert!(!at_noise_floor(0.96, band, &fitted, &[]));
+        assert!(at_noise_floor(0.96, band, &exact, &[]));
+        assert!(!at_noise_floor(1.06, band, &exact, &[]));
+        assert!(!at_noise_floor(
+            1.0,
+            band,
+            &fitted,
+            &["force1/1x/2–4 Hz (z 6.1)".into()]
+        ));
+    }
 
     /// The method text states the thresholds of the run, not the defaults.
     #[test]

@@ -125,6 +125,20 @@ pub fn noise_band(nu: f64, se: f64) -> [f64; 2] {
     [lo, hi.max(MIN_BAND_UPPER)]
 }
 
+/// The floor rule: χ²/ν of the final model inside the noise `band` and no residual cell
+/// flagged. With no fitted noise (a = b = 0 on every channel) σ is the precision floor
+/// alone, and its computation-floor part is a bound on the agreement of two exact
+/// computations, not a variance: a χ²/ν below the band then means agreement within it.
+pub(super) fn at_noise_floor(
+    chi2_nu: f64,
+    band: [f64; 2],
+    noise: &RecordingNoise,
+    flagged: &[String],
+) -> bool {
+    let precision_only = noise.relative.iter().chain(&noise.floor).all(|x| *x == 0.0);
+    (chi2_nu >= band[0] || precision_only) && chi2_nu <= band[1] && flagged.is_empty()
+}
+
 /// `x` with `n` significant digits.
 pub(super) fn sig(x: f64, n: i32) -> String {
     if x == 0.0 || !x.is_finite() {
@@ -307,17 +321,8 @@ impl<'p, 'a> Finish<'p, 'a> {
         let noise_model = self.noise_model;
         let band = noise_band(nu_after, noise_model.variance_scale_se);
         let chi2_nu_after = cur.chi2 / nu_after;
-        // With no fitted noise (a = b = 0 on every channel) σ is the precision floor alone,
-        // and its computation-floor part is a bound on the agreement of two exact
-        // computations, not a variance: a χ²/ν below the band means agreement within it.
-        let precision_only = noise_model
-            .relative
-            .iter()
-            .chain(&noise_model.floor)
-            .all(|x| *x == 0.0);
-        let noise_floor_reached = (chi2_nu_after >= band[0] || precision_only)
-            && chi2_nu_after <= band[1]
-            && residuals_after.flagged.is_empty();
+        let noise_floor_reached =
+            at_noise_floor(chi2_nu_after, band, &noise_model, &residuals_after.flagged);
         let mut report = ModelCheckReport {
             campaign: self.spec.name.clone(),
             verdict: String::new(),
