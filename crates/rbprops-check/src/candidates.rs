@@ -74,6 +74,11 @@ pub struct Candidate {
     pub reveal: &'static str,
     /// How it is screened at the current model.
     pub screening: Screening,
+    /// A further instance of physics that can occur more than once (a second elastic
+    /// mode): the id of the instance before it. It is screened only once that one has
+    /// left the pool (accepted, or excluded as absorbed or ambiguous), so a recording that
+    /// needs one such term is screened exactly as if there were no further instances.
+    pub follows: Option<String>,
 }
 
 /// How a candidate is screened: its first-order evidence at the current model.
@@ -971,7 +976,51 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
         out.push(elastic_mode_candidate(spec));
     }
+    let further: Vec<Candidate> = out
+        .iter()
+        .filter(|c| REPEATABLE.contains(&c.id.as_str()))
+        .flat_map(|c| further_instances(c, FURTHER_INSTANCES))
+        .collect();
+    out.extend(further);
     (out, notes)
+}
+
+/// Physics a recording may hold more than once, each occurrence its own term: elastic
+/// modes (a pole with its residues, in or above the band) and out-of-band terms (one
+/// pole per excitation with a general residue matrix). Several modes just above the band
+/// with different shapes are not one residual flexibility: each needs its own pole.
+const REPEATABLE: [&str; 2] = ["elastic_mode", "residual_flexibility"];
+
+/// Further instances of each repeatable candidate beyond the first. They open one at a
+/// time ([`Candidate::follows`]); a recording that uses the last one is told so.
+pub const FURTHER_INSTANCES: usize = 3;
+
+/// Instances 2..=n+1 of `first`, named `{id}_2`, `{id}_3`, …, each following the one
+/// before it, at the same neutral point and screened the same way.
+fn further_instances(first: &Candidate, n: usize) -> Vec<Candidate> {
+    let name = |k: usize| {
+        if k == 1 {
+            first.id.clone()
+        } else {
+            format!("{}_{k}", first.id)
+        }
+    };
+    (2..=n + 1)
+        .filter_map(|k| {
+            let effect = first.effect.with_values(&first.neutral).ok()?;
+            Some(Candidate {
+                id: name(k),
+                title: format!("{} (term {k})", first.title),
+                effect,
+                neutral: first.neutral.clone(),
+                scales: first.scales.clone(),
+                source: first.source,
+                reveal: first.reveal,
+                screening: first.screening.clone(),
+                follows: Some(name(k - 1)),
+            })
+        })
+        .collect()
 }
 
 /// The catalogue's effects, in its order, at their neutral values and screened by a score;
@@ -1017,6 +1066,7 @@ fn catalogue_candidates(
                     source: "rbprops-sim",
                     reveal,
                     screening: Screening::Score,
+                    follows: None,
                 });
             }
             Ok(_) => notes.push(format!("catalogue effect '{id}' has no parameters to fit; not screened")),
@@ -1075,6 +1125,7 @@ fn local_candidates(
             } else {
                 Screening::Score
             },
+            follows: None,
         });
     }
 }
@@ -1110,6 +1161,7 @@ fn transducer_highpass_candidate(geometry: &Geometry) -> Candidate {
         source: "rbprops-sim (reparametrised for screening)",
         reveal,
         screening: Screening::Score,
+        follows: None,
     }
 }
 
@@ -1154,6 +1206,7 @@ fn record_truncation_candidate(spec: &CampaignSpec) -> Candidate {
             grid,
             delay_scan: true,
         },
+        follows: None,
     }
 }
 
@@ -1221,6 +1274,7 @@ fn cord_mass_candidate(
             grid,
             delay_scan: false,
         },
+        follows: None,
     })
 }
 
@@ -1238,6 +1292,7 @@ fn added_mass_candidate() -> Candidate {
         source: "rbprops-sim (its non-rigid part; the rigid part is the free inertia's)",
         reveal,
         screening: Screening::Score,
+        follows: None,
     }
 }
 
@@ -1255,6 +1310,7 @@ fn elastic_mode_candidate(spec: &CampaignSpec) -> Candidate {
         source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
         reveal,
         screening: Screening::Resonance,
+        follows: None,
     }
 }
 

@@ -9,7 +9,8 @@
 //! [`InBandResonance`]: one pole with a free real residue `A_ce` per channel and
 //! excitation (linear in `A`, no scale gauge between ψ_c and ψ_e, and general enough for
 //! a resonance local to one sensor mount), screened by a profile over (ω_m, ζ_m)
-//! ([`profile_starts`]). The improved spec receives the rank-1 catalogue form
+//! ([`profile_starts`], over the band's lines and a few frequencies above it, where a
+//! mode is seen only through its smooth tail). The improved spec receives the rank-1 catalogue form
 //! `A ≈ σ₁ u vᵀ`, `ψ_c = √σ₁ u_c`, `ψ_e = √σ₁ v_e`.
 
 use crate::predict::Layout;
@@ -27,6 +28,19 @@ use std::f64::consts::TAU;
 const PROFILE_DAMPING: [f64; 6] = [0.002, 0.005, 0.01, 0.02, 0.04, 0.08];
 /// Starting points handed to the profile evaluation (the best separate peaks).
 const STARTS: usize = 3;
+/// Modes above the band enter the profile at `f_m = f_top/√q` for these `q`: there a
+/// mode is a smooth term across the band (its reach to the top grows as q → 1), so a
+/// coarse grid in q finds the basin of a mode between 1.05 and 3.5 times the top.
+const ABOVE_BAND_Q: [f64; 8] = [0.9, 0.8, 0.65, 0.5, 0.35, 0.25, 0.15, 0.08];
+
+/// The profile's frequencies above the band (empty without lines).
+fn above_band(frequency_hz: &[f64]) -> Vec<f64> {
+    let top = frequency_hz.iter().copied().fold(0.0, f64::max);
+    if !(top > 0.0) {
+        return Vec::new();
+    }
+    ABOVE_BAND_Q.iter().map(|q| top / q.sqrt()).collect()
+}
 
 /// One in-band mode: `Δ H_ce(ω) = A_ce / (ω_m² − ω² + 2iζ_m ω_m ω)` (receptance, before
 /// the other output effects and the quantity conversion), spec channels × excitations.
@@ -215,12 +229,13 @@ pub fn profile_starts(
         .iter()
         .map(|&w| layout.quantity.from_receptance_factor(w))
         .collect();
-    let f_grid: Vec<f64> = layout
+    let mut f_grid: Vec<f64> = layout
         .frequency_hz
         .iter()
         .copied()
         .filter(|f| *f > 0.0)
         .collect();
+    f_grid.extend(above_band(&layout.frequency_hz));
     // Per value: √2 Q(ω)/σ, its cell and its line.
     let scaled: Vec<(c64, usize, usize)> = used
         .iter()

@@ -771,8 +771,10 @@ fn elastic_mode_above_the_band_is_found_as_residual_flexibility() {
         19,
     );
     let r = run(&nom, &g, &frf, &given_noise(9));
-    let ids = accepted_ids(&r);
-    if ids.iter().any(|i| i == "elastic_mode") {
+    // Above the band the two are one function family (a pole with a residue per channel
+    // and excitation): named alone, the elastic mode must carry the true pole; named
+    // together, they form an ambiguous family, which is what the report then says.
+    if r.accepted.iter().any(|a| a.id == "elastic_mode") {
         assert_found(&r, &["elastic_mode"], &truth.properties());
         within(param(&r, "elastic_mode", "frequency_hz"), 35.0, 4.0);
         within(param(&r, "elastic_mode", "damping_ratio"), 0.02, 4.0);

@@ -272,7 +272,11 @@ fn two_elastic_modes_above_the_band_are_explained() {
 fn assert_out_of_band_modes_named(r: &ModelCheckReport, frf: &FrfSet) {
     assert!(!named(r).is_empty(), "nothing named: {}", r.verdict);
     let top = frf.frequency_hz.last().copied().unwrap_or(0.0);
-    for a in r.accepted.iter().filter(|a| a.id == "elastic_mode") {
+    for a in r
+        .accepted
+        .iter()
+        .filter(|a| a.id.starts_with("elastic_mode"))
+    {
         let f = a
             .parameters
             .iter()
@@ -307,6 +311,56 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
         0.001,
     );
     assert_out_of_band_modes_named(&r, &frf);
+}
+
+/// Three elastic modes just above the band (14, 19 and 27 Hz; top 12.5 Hz) with
+/// different shapes, 0.1 % noise, 400 lines: no single out-of-band term can take them
+/// (their ω² expansions differ channel by channel), so each needs its own pole. Named
+/// only from the elastic family, at least three terms, and χ²/ν inside the band; each
+/// elastic mode named sits above the band. Before further instances of the family
+/// existed, this recording got one `elastic_mode` and one `residual_flexibility`, then
+/// seven false effects (sensor position, channel gain, force direction, …) and ended at
+/// χ²/ν 2.88. Now (release, 2 loaded cores, 90–95 CPU s): seeds 7 and 8 each get three
+/// terms of the family (e.g. `elastic_mode` at 14.00 Hz, `residual_flexibility` at
+/// 18.8 Hz, `residual_flexibility_2` at 26.9 Hz), nothing else, χ²/ν 0.980 and 0.984 in
+/// [0.971, 1.050], mass within 0.002 %. Known limit (docs/results.md): at 200 lines the
+/// third term is vetoed by the held-out excitation and spurious terms follow.
+#[test]
+fn three_elastic_modes_above_the_band_each_get_a_term() {
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
+    let nom = nominal(400);
+    let (g, frf) = refgen(&py, "tc2-three-above", &["noise.relative=0.001"], 7, &nom);
+    let family: Vec<String> = ["elastic_mode", "residual_flexibility"]
+        .iter()
+        .flat_map(|id| {
+            (1..=1 + rbprops_check::candidates::FURTHER_INSTANCES).map(move |k| {
+                if k == 1 {
+                    id.to_string()
+                } else {
+                    format!("{id}_{k}")
+                }
+            })
+        })
+        .collect();
+    let allowed: Vec<&str> = family.iter().map(String::as_str).collect();
+    let r = assert_explained_with(
+        "three elastic modes above the band",
+        &nom,
+        &g,
+        &frf,
+        &[],
+        &allowed,
+        0.001,
+    );
+    assert_out_of_band_modes_named(&r, &frf);
+    assert!(
+        r.accepted.len() >= 3,
+        "three modes above the band, {} terms: {}",
+        r.accepted.len(),
+        r.verdict
+    );
 }
 
 /// Six concealed effects at once (`tc2-six-effects`: sensor 2 misoriented ≈ 2°, sensor 3

@@ -448,7 +448,10 @@ fn check_with(
     method.extend(notes);
     warnings.extend(crate::candidates::vertical_axis_doubt(spec));
     if let Some(only) = &options.only {
-        cands.retain(|c| only.contains(&c.id));
+        // A further instance goes with its first (`elastic_mode` keeps `elastic_mode_2`).
+        cands.retain(|c| {
+            only.contains(&c.id) || (c.follows.is_some() && only.iter().any(|o| o == c.effect.id()))
+        });
     }
     if !options.sensor_masses_kg.is_empty() {
         cands.retain(|c| c.id != "sensor_mass");
@@ -477,7 +480,7 @@ fn check_with(
     options.progress.say(|| {
         format!(
             "{} candidates; χ²/ν of the nominal model {:.3}; fitting its parameters",
-            p.cands.len(),
+            p.n_first_instances(),
             chi2_nominal / n_real
         )
     });

@@ -95,6 +95,11 @@ pub(super) struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
+    /// The number of candidates that are not further instances of a repeatable effect.
+    pub(super) fn n_first_instances(&self) -> usize {
+        self.cands.iter().filter(|c| c.follows.is_none()).count()
+    }
+
     pub(super) fn n_base(&self) -> usize {
         self.baseline.len()
     }

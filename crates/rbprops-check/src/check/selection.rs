@@ -66,7 +66,9 @@ impl<'p, 'a> Selection<'p, 'a> {
             exc_folds: crate::cv::excitation_folds_of(&p.used, nch * nl),
             loeo: options.cross_validation && nex >= 3,
             n_excitations: nex,
-            n_cand: p.cands.len().max(1) as f64,
+            // Further instances of a repeatable effect are the same hypothesis tested
+            // again once the one before is in the model: not counted as candidates.
+            n_cand: p.n_first_instances().max(1) as f64,
             ln_n: p.n_real().ln(),
             free_base,
         }
@@ -76,6 +78,25 @@ impl<'p, 'a> Selection<'p, 'a> {
     pub(super) fn in_prior(&self, c: usize) -> bool {
         self.prior
             .is_some_and(|pr| pr.phi(&self.p.cands[c].id).is_some())
+    }
+
+    /// Candidate `c` is neither in the model nor excluded from screening.
+    fn waiting(&self, c: usize) -> bool {
+        !self.active.iter().any(|a| a.c == c) && !self.excluded.contains(&c)
+    }
+
+    /// A further instance of a repeatable effect opens once the instance it follows has
+    /// left the pool; every other candidate is always open.
+    fn opened(&self, c: usize) -> bool {
+        match &self.p.cands[c].follows {
+            None => true,
+            Some(prev) => self
+                .p
+                .cands
+                .iter()
+                .position(|x| &x.id == prev)
+                .is_none_or(|k| !self.waiting(k)),
+        }
     }
 
     /// χ²/ν of the current model.
@@ -141,7 +162,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
         let chord = Chord::new(&cur.jacobian);
         let todo: Vec<usize> = (0..p.cands.len())
-            .filter(|c| !active.iter().any(|a| a.c == *c) && !self.excluded.contains(c))
+            .filter(|&c| self.waiting(c) && self.opened(c))
             .collect();
         let r0_len = cur.residual.len();
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
@@ -434,6 +455,14 @@ impl<'p, 'a> Selection<'p, 'a> {
         });
         self.cur = evidence.fit.clone();
         self.accepted.push(evidence);
+        let cand = &p.cands[best.c];
+        if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
+            self.warnings.push(format!(
+                "'{}' is the last term of its kind the check offers: the recording may hold more {} terms than it could fit",
+                cand.id,
+                cand.effect.id()
+            ));
+        }
     }
 
     /// Backward check: drop an earlier effect whose removal no longer costs significance.
