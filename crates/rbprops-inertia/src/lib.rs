@@ -16,6 +16,7 @@
 
 // `!(x > 0.0)` is deliberate: it also rejects NaN. Index loops mirror the equations.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+#![warn(missing_docs)]
 
 pub mod consistency;
 pub mod error;
