@@ -71,6 +71,8 @@
 //!
 //! No I/O: data in, data (or typed errors) out.
 
+#![warn(missing_docs)]
+
 pub mod bootstrap;
 pub mod error;
 pub mod model;
