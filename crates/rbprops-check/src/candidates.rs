@@ -60,10 +60,13 @@ use rbprops_sim::CampaignSpec;
 /// The catalogue entry of a candidate: what it is and how to reveal or separate it.
 #[derive(Debug)]
 pub struct Candidate {
+    /// The effect's id (the simulator's catalogue id, or a local one).
     pub id: String,
+    /// One-line title for reports.
     pub title: String,
     /// The effect at its neutral parameter values.
     pub effect: Box<dyn Effect>,
+    /// Parameter values at which the effect vanishes (the nominal model).
     pub neutral: Vec<f64>,
     /// Typical parameter magnitude (finite-difference step scale).
     pub scales: Vec<f64>,
@@ -87,7 +90,9 @@ pub enum Screening {
     /// model's parameters re-adjusted). With `delay_scan`, a record length seen through
     /// φ = 1/T: the profile also tries the lags [`delay_peaks`] finds in the residual.
     Profile {
+        /// Parameter points of the profile, each a full parameter vector of the candidate.
         grid: Vec<Vec<f64>>,
+        /// Also try the lags the residual's delay scan finds (a record length via `φ = 1/T`).
         delay_scan: bool,
     },
     /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile

@@ -72,6 +72,8 @@
 //! # }
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod candidates;
 pub mod check;
 pub mod cv;

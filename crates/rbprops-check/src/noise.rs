@@ -140,6 +140,7 @@ impl RecordingNoise {
 /// Result of the estimate: the model and the per-value σ (layout `[exc][ch][line]`).
 #[derive(Debug, Clone)]
 pub struct NoiseFloor {
+    /// The fitted noise model of the recording.
     pub model: RecordingNoise,
     /// σ per value; 0 marks a value without information (excluded from fits).
     pub sigma: Vec<f64>,
