@@ -147,8 +147,8 @@ impl SummaryRow {
     }
 }
 
-/// The printed inertia properties of a row, as every table shows them: mass [kg] to
-/// 4 decimals, the centre of mass in mm to 2, moments and products [kg m²] to 5.
+/// The printed inertia properties of a row, as every table shows them: mass (kg) to
+/// 4 decimals, the centre of mass in mm to 2, moments and products (kg m²) to 5.
 pub struct PropertyCells {
     /// Mass (kg), 4 decimals.
     pub mass: String,

@@ -120,19 +120,19 @@ impl Default for CheckOptions {
 /// Everything a front end needs: the report, the improved spec and the FRFs for plots.
 #[derive(Debug)]
 pub struct CheckOutcome {
-    /// Layout of the recording (excitations, channels, lines) the vectors below follow.
+    /// The machine-readable report and its verdict.
     pub report: ModelCheckReport,
     /// The nominal spec with fitted parameters and the accepted effects switched on.
     pub improved_spec: CampaignSpec,
-    /// The nominal spec's prediction, same layout.
+    /// How the recording maps onto the spec (the order of the vectors below).
     pub layout: Layout,
     /// `[exc][ch][line]` in the recording's layout.
     pub measured: Vec<c64>,
-    /// The baseline (nominal physics, fitted parameters), same layout.
+    /// The nominal spec's prediction, same layout.
     pub nominal: Vec<c64>,
-    /// The improved model (accepted effects on), same layout.
+    /// The baseline (nominal physics, fitted parameters), same layout.
     pub baseline: Vec<c64>,
-    /// σ per value of the noise model (docs/conventions.md §8); 0 excludes the value.
+    /// The improved model (accepted effects on), same layout.
     pub improved: Vec<c64>,
     /// σ per value (0: excluded).
     pub sigma: Vec<f64>,
