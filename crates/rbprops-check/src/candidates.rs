@@ -7,7 +7,7 @@
 //! - `excitation_gain` (E12 sensitivity): excitation e's FRFs scaled by (1+δ_e).
 //! - `global_gain` (E10 global): every FRF scaled by (1+κ). Absorbed by the free mass.
 //! - `sensor_misorientation` (E8): the channels at a point sense along R(ψ) s, with
-//!   R(ψ) = exp([ψ]×) (Rodrigues), three angles per sensor point.
+//!   `R(ψ) = exp([ψ]×)` (Rodrigues), three angles per sensor point.
 //! - `sensor_mass` (E7): point mass m_p at each sensor point, M += m_p T(p)ᵀT(p).
 //!   Absorbed by the free inertia.
 //! - `gravity_stiffness` (E1): rbprops-sim's cord geometric stiffness (every spring read
@@ -16,11 +16,11 @@
 //!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //!   Two tilts of the vertical and φ₅, the fraction by which springs (rather than cords)
-//!   turn with the sagged body, complete it (see [`gravity_stiffness`]).
+//!   turn with the sagged body, complete it (see `gravity_stiffness`).
 //! - `nonproportional_damping` (E5): dashpots at the spring points,
 //!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up. Only a recording-side
 //!   helper ([`local_effect`]): the candidate screened is the catalogue's general
-//!   viscous damping (`modal_coupling`, see [`neutral_entry`] and docs/physics.md, E5).
+//!   viscous damping (`modal_coupling`, see `neutral_entry` and docs/physics.md, E5).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
@@ -60,10 +60,13 @@ use rbprops_sim::CampaignSpec;
 /// The catalogue entry of a candidate: what it is and how to reveal or separate it.
 #[derive(Debug)]
 pub struct Candidate {
+    /// The effect's id (the simulator's catalogue id, or a local one).
     pub id: String,
+    /// One-line title for reports.
     pub title: String,
     /// The effect at its neutral parameter values.
     pub effect: Box<dyn Effect>,
+    /// Parameter values at which the effect vanishes (the nominal model).
     pub neutral: Vec<f64>,
     /// Typical parameter magnitude (finite-difference step scale).
     pub scales: Vec<f64>,
@@ -92,7 +95,9 @@ pub enum Screening {
     /// model's parameters re-adjusted). With `delay_scan`, a record length seen through
     /// φ = 1/T: the profile also tries the lags [`delay_peaks`] finds in the residual.
     Profile {
+        /// Parameter points of the profile, each a full parameter vector of the candidate.
         grid: Vec<Vec<f64>>,
+        /// Also try the lags the residual's delay scan finds (a record length via `φ = 1/T`).
         delay_scan: bool,
     },
     /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile

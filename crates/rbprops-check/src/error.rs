@@ -2,6 +2,7 @@
 
 use thiserror::Error;
 
+/// Why a model check could not run to the end.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CheckError {
     /// The spec and the recording do not describe the same test.
@@ -18,5 +19,10 @@ pub enum CheckError {
     Noise(String),
     /// The least-squares problem is singular or diverged.
     #[error("fit '{stage}': {problem}")]
-    Fit { stage: String, problem: String },
+    Fit {
+        /// Which fit (the baseline, a candidate's refit, …).
+        stage: String,
+        /// What went wrong.
+        problem: String,
+    },
 }

@@ -7,7 +7,7 @@
 //! 3. locates the remaining residual by excitation × channel × band, rigid/non-rigid and
 //!    in-phase/quadrature ([`locate`]);
 //! 4. screens every candidate effect of the physics catalogue with a score test, refits
-//!    the strongest and accepts only with statistical evidence ([`check`]);
+//!    the strongest and accepts only with statistical evidence ([`check()`]);
 //! 5. reports χ²/ν before/after against the noise band, the corrected parameters, the
 //!    accepted / ambiguous / not-observable effects and the inertia before/after with
 //!    standard errors ([`report`]).
@@ -71,6 +71,8 @@
 //! println!("{}", out.report.verdict);
 //! # }
 //! ```
+
+#![warn(missing_docs)]
 
 pub mod candidates;
 pub mod check;

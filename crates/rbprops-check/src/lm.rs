@@ -15,7 +15,9 @@ pub type ResidualFn<'a> = dyn Fn(&[f64]) -> Result<Vec<f64>, CheckError> + Sync 
 /// Bounds and scales of the parameters.
 #[derive(Debug, Clone)]
 pub struct Bounds {
+    /// Lower bound of each parameter.
     pub lower: Vec<f64>,
+    /// Upper bound of each parameter.
     pub upper: Vec<f64>,
     /// Typical magnitudes: finite-difference steps are 1e-5 of these.
     pub scales: Vec<f64>,
@@ -24,14 +26,21 @@ pub struct Bounds {
 /// Result of a fit.
 #[derive(Debug, Clone)]
 pub struct Fit {
+    /// The parameters at the end.
     pub theta: Vec<f64>,
+    /// The residual vector there.
     pub residual: Vec<f64>,
+    /// `χ² = ‖r‖²` there.
     pub chi2: f64,
+    /// The Jacobian `∂r/∂θ` there.
     pub jacobian: DMatrix<f64>,
+    /// Iterations used.
     pub iterations: usize,
+    /// True when a convergence test was met before the iteration cap.
     pub converged: bool,
 }
 
+/// `χ² = ‖r‖²` of a normalised residual vector (docs/conventions.md §8).
 pub fn chi2(r: &[f64]) -> f64 {
     r.iter().map(|x| x * x).sum()
 }

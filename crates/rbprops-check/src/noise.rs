@@ -140,6 +140,7 @@ impl RecordingNoise {
 /// Result of the estimate: the model and the per-value σ (layout `[exc][ch][line]`).
 #[derive(Debug, Clone)]
 pub struct NoiseFloor {
+    /// The fitted noise model of the recording.
     pub model: RecordingNoise,
     /// σ per value; 0 marks a value without information (excluded from fits).
     pub sigma: Vec<f64>,
@@ -597,7 +598,7 @@ fn noise_magnitudes(reference: &[c64], n_lines: usize) -> Vec<f64> {
 
 /// σ per value from a noise model, reference magnitudes and the recorded values (all
 /// `[exc][ch][line]`): σ²_i = a²h_i² + b² + q(Y_i) + (ρ_c h_i)² (module docs, h_i from
-/// [`noise_magnitudes`]); values with σ below 1e-9 of the median σ get 0 (excluded).
+/// `noise_magnitudes`); values with σ below 1e-9 of the median σ get 0 (excluded).
 pub fn sigma_of(
     model: &RecordingNoise,
     reference: &[c64],

@@ -22,18 +22,31 @@ use rbprops_sim::CampaignSpec;
 /// Which quantity one baseline parameter is.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamKind {
+    /// One of the ten inertia parameters of θ (`ln m`, `c`, the Cholesky factor `L` of `Σ_c`), by index.
     Inertia(usize),
-    StiffnessScale { setup: usize, axis: usize },
+    /// The log scale `s_d` of one set-up's springs along a global axis (module docs).
+    StiffnessScale {
+        /// Index of the set-up.
+        setup: usize,
+        /// Global axis d (0 = x, 1 = y, 2 = z).
+        axis: usize,
+    },
+    /// `ln ζ_r` of one mode (ascending order) under the `modal` damping model.
     ModalDampingLog(usize),
+    /// Mass-proportional coefficient α of `C = αM + βK` (1/s).
     RayleighAlpha,
+    /// Stiffness-proportional coefficient β of `C = αM + βK` (s).
     RayleighBeta,
 }
 
 /// The baseline parametrisation of a nominal spec.
 #[derive(Debug, Clone)]
 pub struct Baseline {
+    /// The nominal spec the parameters perturb.
     pub nominal: CampaignSpec,
+    /// What each parameter is, in θ order.
     pub kinds: Vec<ParamKind>,
+    /// Each parameter's name for reports (`mass_kg`, `setup.A.ln_stiffness_scale_x`, …).
     pub names: Vec<String>,
     /// Typical magnitude of each parameter (finite-difference steps, LM scaling).
     pub scales: Vec<f64>,
@@ -91,6 +104,7 @@ pub fn inertia_quantities(p: &RigidBodyProperties) -> [f64; 10] {
     InertiaProperties::from_rigid_body(p).to_vector()
 }
 
+/// Names of the ten inertia properties, docs/conventions.md §3 order.
 pub const INERTIA_NAMES: [&str; 10] = InertiaProperties::NAMES;
 
 fn spring_matrix(s: &rbprops_sim::spec::SpringSpec) -> Mat3 {
@@ -102,6 +116,7 @@ fn spring_matrix(s: &rbprops_sim::spec::SpringSpec) -> Mat3 {
 }
 
 impl Baseline {
+    /// The baseline parameters of `spec`: the inertia parameters first, then damping and stiffness scales.
     pub fn new(spec: &CampaignSpec) -> Baseline {
         let props = spec.properties();
         let mut kinds = Vec::new();
@@ -166,6 +181,7 @@ impl Baseline {
         }
     }
 
+    /// Number of parameters.
     pub fn len(&self) -> usize {
         self.kinds.len()
     }

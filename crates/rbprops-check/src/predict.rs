@@ -11,12 +11,15 @@ use rbprops_sim::{CampaignSpec, SolveMethod};
 /// one is, and the recording's axis and quantity.
 #[derive(Debug, Clone)]
 pub struct Layout {
+    /// The spec's geometry (the model's channels and excitations).
     pub spec_geometry: Geometry,
     /// Recording channel i is spec channel `channel_map[i]`.
     pub channel_map: Vec<usize>,
     /// Recording excitation e is spec excitation `excitation_map[e]`.
     pub excitation_map: Vec<usize>,
+    /// The recording's spectral lines (Hz).
     pub frequency_hz: Vec<f64>,
+    /// What the recording's FRFs measure per newton.
     pub quantity: Quantity,
 }
 
@@ -124,9 +127,11 @@ impl Layout {
         })
     }
 
+    /// Number of spectral lines.
     pub fn n_lines(&self) -> usize {
         self.frequency_hz.len()
     }
+    /// Number of complex values, excitations × channels × lines.
     pub fn n_values(&self) -> usize {
         self.channel_map.len() * self.excitation_map.len() * self.n_lines()
     }

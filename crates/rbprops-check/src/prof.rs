@@ -19,11 +19,17 @@ pub const PHASES: [&str; 7] = [
 
 /// Phase indices (see [`PHASES`]).
 pub const PREDICT: usize = 0;
+/// Finite-difference Jacobians.
 pub const JACOBIAN: usize = 1;
+/// The baseline fit.
 pub const FIT_BASELINE: usize = 2;
+/// The refits of candidate effects.
 pub const FIT_REFIT: usize = 3;
+/// Other fits (backward elimination, gauge checks).
 pub const FIT_OTHER: usize = 4;
+/// Levenberg–Marquardt linear algebra (normal equations, steps).
 pub const LM_ALGEBRA: usize = 5;
+/// The noise model (estimate and re-estimate).
 pub const NOISE: usize = 6;
 
 #[cfg(feature = "phase-timing")]
@@ -78,17 +84,21 @@ mod imp {
 
 #[cfg(not(feature = "phase-timing"))]
 mod imp {
+    /// Without `phase-timing`: a guard that records nothing.
     pub struct Span;
 
+    /// Without `phase-timing`: does nothing.
     #[inline(always)]
     pub fn span(_phase: usize) -> Span {
         Span
     }
 
+    /// Without `phase-timing`: nothing was counted.
     pub fn totals() -> Option<Vec<(u64, f64)>> {
         None
     }
 
+    /// Without `phase-timing`: nothing to reset.
     pub fn reset() {}
 }
 

@@ -8,9 +8,17 @@ use serde::{Deserialize, Serialize};
 /// A fitted parameter with its standard error.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct FittedParameter {
+    /// Parameter name as the effect declares it.
+    #[schemars(description = "")]
     pub name: String,
+    /// Its unit (`m`, `rad`, `1`, …).
+    #[schemars(description = "")]
     pub unit: String,
+    /// Fitted value.
+    #[schemars(description = "")]
     pub value: f64,
+    /// Standard error of the value (from the fit's information matrix).
+    #[schemars(description = "")]
     pub standard_error: f64,
 }
 
@@ -19,15 +27,23 @@ pub struct FittedParameter {
 pub struct AcceptedEffect {
     /// Physics-catalogue id (`gravity_stiffness`, ...).
     pub id: String,
+    /// One-line title.
+    #[schemars(description = "")]
     pub title: String,
     /// "rbprops-sim" or "rbprops-check (local)".
     pub source: String,
+    /// The effect's fitted parameters.
+    #[schemars(description = "")]
     pub parameters: Vec<FittedParameter>,
     /// χ² decrease when the effect was added, and its degrees of freedom (identifiable rank).
     pub delta_chi2: f64,
+    /// Degrees of freedom of `delta_chi2`.
+    #[schemars(description = "")]
     pub dof: usize,
     /// Likelihood-ratio threshold χ²_{d, 1−α/N_candidates}.
     pub lr_threshold: f64,
+    /// `ΔBIC` of adding the effect (positive favours it).
+    #[schemars(description = "")]
     pub delta_bic: f64,
     /// Relative change of each inertia quantity caused by adding this effect.
     pub inertia_change: Vec<RelativeChange>,
@@ -52,7 +68,11 @@ pub struct AcceptedEffect {
 /// Held-out (cross-validation) evidence for an effect (docs/physics.md, M1–M8, A2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct HeldOutCheck {
+    /// How the values were split into folds (frequency or excitation).
+    #[schemars(description = "")]
     pub scheme: String,
+    /// Number of folds.
+    #[schemars(description = "")]
     pub folds: usize,
     /// Decrease of the held-out χ² summed over folds (model without − with the effect).
     pub delta_chi2: f64,
@@ -73,6 +93,8 @@ pub struct HeldOutCheck {
 /// Effects that fit about equally well and could not be separated on these data.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct AmbiguousFamily {
+    /// The members' ids.
+    #[schemars(description = "")]
     pub ids: Vec<String>,
     /// ΔBIC of each member relative to the model without it.
     pub delta_bic: Vec<f64>,
@@ -85,7 +107,11 @@ pub struct AmbiguousFamily {
 /// Effects the free parameters absorb completely: they cannot be seen in FRFs alone.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct NotObservable {
+    /// Physics-catalogue id.
+    #[schemars(description = "")]
     pub id: String,
+    /// One-line title.
+    #[schemars(description = "")]
     pub title: String,
     /// Which free parameters absorb it.
     pub reason: String,
@@ -96,26 +122,46 @@ pub struct NotObservable {
 /// Screening statistics of one candidate at one step.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ScreenEntry {
+    /// Step of the forward selection (1 = the first effect added).
+    #[schemars(description = "")]
     pub step: usize,
+    /// Candidate id.
+    #[schemars(description = "")]
     pub id: String,
     /// Identifiable rank d_c after projecting out the current model's parameters.
     pub rank: usize,
+    /// Number of the candidate's parameters.
+    #[schemars(description = "")]
     pub n_parameters: usize,
     /// Score statistic S_c and its threshold.
     pub score: f64,
+    /// Threshold of the score statistic at this step.
+    #[schemars(description = "")]
     pub threshold: f64,
     /// χ² decrease of the full refit (when refitted).
     pub refit_delta_chi2: Option<f64>,
+    /// ΔBIC of the full refit (when refitted).
+    #[schemars(description = "")]
     pub refit_delta_bic: Option<f64>,
+    /// What the step decided for the candidate, in words.
+    #[schemars(description = "")]
     pub decision: String,
 }
 
 /// A nominal-model parameter as the final fit (with the accepted effects) corrects it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct CorrectedParameter {
+    /// Parameter name.
+    #[schemars(description = "")]
     pub name: String,
+    /// Value in the nominal spec.
+    #[schemars(description = "")]
     pub nominal: f64,
+    /// Value after the final fit.
+    #[schemars(description = "")]
     pub fitted: f64,
+    /// Standard error of the fitted value.
+    #[schemars(description = "")]
     pub standard_error: f64,
     /// (fitted − nominal)/standard error.
     pub z: f64,
@@ -126,9 +172,17 @@ pub struct CorrectedParameter {
 /// An inertia estimate with standard errors: m, c, moments and CAD products.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct InertiaEstimateReport {
+    /// Which fit the estimate comes from (`nominal spec`, `baseline fit …`, …).
+    #[schemars(description = "")]
     pub label: String,
+    /// Mass `m` (kg).
+    #[schemars(description = "")]
     pub mass_kg: f64,
+    /// Centre of mass `c` in the spec's frame (m).
+    #[schemars(description = "")]
     pub com_m: [f64; 3],
+    /// Moments `J_xx, J_yy, J_zz` about the CoM, along the spec's axes (kg m²).
+    #[schemars(description = "")]
     pub moments_kg_m2: [f64; 3],
     /// Products J_xy, J_xz, J_yz = ∫xy dm, ... (tensor entries are their negatives).
     pub products_kg_m2: [f64; 3],
@@ -139,8 +193,12 @@ pub struct InertiaEstimateReport {
     pub standard_errors: [f64; 10],
 }
 
+/// The relative change of one inertia quantity between two fits.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+#[schemars(description = "")]
 pub struct RelativeChange {
+    /// The quantity's name (`mass_kg`, `com_x_m`, …: `InertiaProperties::NAMES`).
+    #[schemars(description = "")]
     pub quantity: String,
     /// (after − before)/|before| (for CoM: change in m divided by the body size).
     pub relative: f64,
@@ -149,10 +207,20 @@ pub struct RelativeChange {
 /// The model-check report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ModelCheckReport {
+    /// Campaign name of the spec.
+    #[schemars(description = "")]
     pub campaign: String,
+    /// One-paragraph human verdict.
+    #[schemars(description = "")]
     pub verdict: String,
+    /// Effects accepted with statistical evidence, in order of acceptance.
+    #[schemars(description = "")]
     pub accepted: Vec<AcceptedEffect>,
+    /// Effects that could not be separated from each other.
+    #[schemars(description = "")]
     pub ambiguous: Vec<AmbiguousFamily>,
+    /// Effects the free parameters absorb completely.
+    #[schemars(description = "")]
     pub not_observable: Vec<NotObservable>,
     /// χ²/ν of the nominal spec as given (no parameter fitted).
     pub chi2_nu_nominal: f64,
@@ -160,7 +228,11 @@ pub struct ModelCheckReport {
     pub chi2_nu_before: f64,
     /// χ²/ν of the final model (baseline + accepted effects).
     pub chi2_nu_after: f64,
+    /// Degrees of freedom ν of `chi2_nu_before` (docs/conventions.md §8, `ν = 2N − p`).
+    #[schemars(description = "")]
     pub nu_before: f64,
+    /// Degrees of freedom ν of `chi2_nu_after`.
+    #[schemars(description = "")]
     pub nu_after: f64,
     /// Band in which χ²/ν is consistent with noise: the central 99.73 % interval of
     /// F(ν, 2/se²) (χ²_ν/ν when the noise is given, se = 0), se the relative standard
@@ -169,20 +241,36 @@ pub struct ModelCheckReport {
     /// χ²/ν_after inside the noise band (or below it when no noise was fitted and σ is
     /// the precision floor alone) and no residual cell with z > 5.
     pub noise_floor_reached: bool,
+    /// The recording's noise model used for the weights.
+    #[schemars(description = "")]
     pub noise: RecordingNoise,
     /// Values used (complex FRF values with noise information).
     pub n_values: usize,
+    /// The nominal parameters as the final fit corrects them.
+    #[schemars(description = "")]
     pub corrected_parameters: Vec<CorrectedParameter>,
+    /// The nominal spec's inertia, with the standard errors of the baseline fit.
+    #[schemars(description = "")]
     pub inertia_nominal: InertiaEstimateReport,
     /// Baseline fit (nominal physics, fitted parameters).
     pub inertia_before: InertiaEstimateReport,
     /// Final fit (accepted effects included): the FRF-level inertia estimate.
     pub inertia_after: InertiaEstimateReport,
+    /// Relative change of each inertia quantity from the baseline to the final fit.
+    #[schemars(description = "")]
     pub inertia_change: Vec<RelativeChange>,
+    /// Screening statistics of every candidate at every step.
+    #[schemars(description = "")]
     pub screening: Vec<ScreenEntry>,
+    /// Where the residual sits after the baseline fit.
+    #[schemars(description = "")]
     pub residuals_before: ResidualMap,
+    /// Where the residual sits after the final fit.
+    #[schemars(description = "")]
     pub residuals_after: ResidualMap,
     /// Statistical settings and caveats.
     pub method: Vec<String>,
+    /// Notes on the check, human-readable.
+    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }

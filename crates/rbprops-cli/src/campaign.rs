@@ -38,6 +38,7 @@ pub enum Item {
 }
 
 impl Item {
+    /// The file the item names.
     pub fn path(&self) -> &Path {
         match self {
             Item::Spec(p) | Item::Recording(p) => p,
@@ -66,13 +67,18 @@ impl Item {
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CampaignConfig {
+    /// Modal-fit band `[low, high]` (Hz); default: the whole axis.
     pub band_hz: Option<[f64; 2]>,
+    /// Modal-fit method (`lscf`, `lsce` or `circle`).
     pub method: Option<String>,
+    /// Modes in the band; default: from the stabilisation diagram.
     pub modes: Option<usize>,
+    /// How `rb-solve` obtains standard errors (default: the bootstrap).
     pub uncertainty: Option<crate::stages::UncertaintyChoice>,
     /// Time constant τ (s) of the exponential window `w(t) = e^{−t/τ}` applied to force and
     /// response records before the FRFs were estimated.
     pub window_time_constant_s: Option<f64>,
+    /// Nominal spec(s) for the model check: one for all recordings, or one per glob.
     pub nominal: Option<NominalConfig>,
     /// Effect ids the model check screens (`model-check --only`); default: all.
     pub check_only: Option<Vec<String>>,
@@ -85,21 +91,27 @@ pub struct CampaignConfig {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
 pub enum NominalConfig {
+    /// One nominal spec for every recording.
     One(PathBuf),
+    /// A nominal spec per recording, by glob on its path relative to the campaign directory.
     ByGlob(BTreeMap<String, PathBuf>),
 }
 
 /// A nominal spec, loaded and validated once.
 #[derive(Debug, Clone)]
 pub struct Nominal {
+    /// The spec's path.
     pub path: PathBuf,
+    /// The spec, parsed and validated.
     pub spec: CampaignSpec,
 }
 
 /// The options of one campaign run, resolved (files read, values checked).
 #[derive(Debug, Clone, Default)]
 pub struct CampaignOptions {
+    /// The modal fit's options.
     pub fit: rbprops_modal::FitOptions,
+    /// How standard errors are obtained.
     pub uncertainty: crate::stages::Uncertainty,
     /// Time constant τ (s) of the exponential window, when one was used.
     pub window_time_constant_s: Option<f64>,
@@ -107,6 +119,7 @@ pub struct CampaignOptions {
     pub nominal: Vec<(String, Nominal)>,
     /// The model check's options (screened effects).
     pub check: rbprops_check::CheckOptions,
+    /// UFF file with the nodes and coordinate systems of recordings that carry only datasets 58.
     pub geometry: Option<PathBuf>,
     /// Files the options name (excluded from the items).
     pub named_files: Vec<PathBuf>,
@@ -311,10 +324,15 @@ fn walk(dir: &Path, exclude: &[PathBuf], out: &mut Vec<Item>) -> std::io::Result
 pub struct CheckColumns {
     /// Accepted effect ids, then ambiguous families as `a/b`, space separated.
     pub effects: String,
+    /// `χ²/ν` of the nominal model on the recording (docs/conventions.md §8).
     pub chi2_nu_nominal: f64,
+    /// `χ²/ν` before the accepted effects: the nominal model with its fitted nuisance parameters.
     pub chi2_nu_before: f64,
+    /// `χ²/ν` with the accepted effects.
     pub chi2_nu_after: f64,
+    /// True when the final residual is at the data's noise floor.
     pub noise_floor_reached: bool,
+    /// The check's verdict in words (`error: …` when it failed).
     pub verdict: String,
 }
 
@@ -461,6 +479,7 @@ pub fn run_item(
 
 /// The outcome of a campaign: rows in item order and the failures counted.
 pub struct CampaignResult {
+    /// One summary row per estimate of every item.
     pub rows: Vec<SummaryRow>,
     /// Every item's warnings, each text prefixed by the item's label, in item order.
     pub warnings: crate::warnings::Collector,

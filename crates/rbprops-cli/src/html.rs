@@ -15,8 +15,11 @@ use std::fmt::Write;
 pub struct RunSection {
     /// The campaign label (path relative to the campaign directory) or the run's name.
     pub label: String,
+    /// The run's inertia estimates.
     pub estimates: Vec<InertiaEstimate>,
+    /// Its model check, when one ran.
     pub check: Option<rbprops_check::ModelCheckReport>,
+    /// Every stage's warnings, classified.
     pub warnings: Vec<StageWarning>,
     /// (file name, SVG document), in the order they are shown.
     pub figures: Vec<(String, String)>,
@@ -25,11 +28,13 @@ pub struct RunSection {
 /// Everything the page shows.
 #[derive(Debug, Clone, Default)]
 pub struct ReportData {
+    /// Page title.
     pub title: String,
     /// The summary table (a campaign's), one row per recording and estimator.
     pub rows: Vec<SummaryRow>,
     /// Figures of the whole campaign (estimates across recordings, error figures).
     pub figures: Vec<(String, String)>,
+    /// One section per run, in order.
     pub runs: Vec<RunSection>,
 }
 

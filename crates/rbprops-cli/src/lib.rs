@@ -1,6 +1,8 @@
 //! Shared plumbing of the rbprops executables: input/output selection, provenance,
 //! progress on stderr and error reporting. Numerics live in the library crates.
 
+#![warn(missing_docs)]
+
 use anyhow::{bail, Context, Result};
 use rbprops_core::records::StageProvenance;
 use rbprops_formats::digest::DigestCheck;
@@ -24,8 +26,11 @@ const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 /// An input as read: the record and the digest of its bytes (for provenance).
 pub struct Input {
+    /// The run it holds (geometry, FRFs, earlier stages' records).
     pub record: RunRecord,
+    /// SHA-256 (hex) of the input bytes, for the next stage's provenance.
     pub sha256: String,
+    /// The input's name as given (path, or `-` for stdin).
     pub name: String,
     /// What the integrity check could not verify (printed under `-v`).
     pub notes: Vec<String>,
@@ -39,7 +44,9 @@ pub struct Input {
 /// channel map (`--channels`) for datasets whose record 6 gives node 0.
 #[derive(Debug, Clone, Default)]
 pub struct UffInputOptions {
+    /// `--geometry`: the separate geometry file.
     pub geometry: Option<PathBuf>,
+    /// `--channels`: the channel map (CSV).
     pub channels: Option<PathBuf>,
 }
 
@@ -57,6 +64,7 @@ pub struct UffArgs {
 }
 
 impl UffArgs {
+    /// The reading options these arguments name.
     pub fn options(&self) -> UffInputOptions {
         UffInputOptions {
             geometry: self.geometry.clone(),

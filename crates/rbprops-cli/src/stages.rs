@@ -116,6 +116,7 @@ impl UncertaintyChoice {
     }
 }
 
+/// How `rb-solve` obtains its standard errors, resolved from [`UncertaintyChoice`].
 #[derive(Debug, Clone, PartialEq, Default)]
 pub enum Uncertainty {
     /// `rbprops_inertia` propagation of the residue standard errors (linearised, or Monte

@@ -8,31 +8,51 @@ use serde::{Deserialize, Serialize};
 /// A row of the summary table (CSV columns in this order).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct SummaryRow {
+    /// Campaign name (from the spec, or the recording's file stem).
     pub campaign: String,
     /// Mode set: `ni` (automatic) or the manual set's label.
     pub set: String,
     /// Origin label (`geometry` or the point/channel id or coordinates).
     pub origin: String,
+    /// Estimator (`bretl_conti`, `toivola_nuutila`, `mass_line`, `…_projected`, or `error`).
     pub method: String,
+    /// Suspension set-up of the estimate.
     pub setup: String,
+    /// Mass `m` (kg).
     pub mass_kg: f64,
+    /// Centre of mass, x (m).
     pub com_x_m: f64,
+    /// Centre of mass, y (m).
     pub com_y_m: f64,
+    /// Centre of mass, z (m).
     pub com_z_m: f64,
+    /// Moment `J_xx` about the CoM (kg m²).
     pub jxx: f64,
+    /// Moment `J_yy` about the CoM (kg m²).
     pub jyy: f64,
+    /// Moment `J_zz` about the CoM (kg m²).
     pub jzz: f64,
     /// Products of inertia (∫xy dm), not tensor entries.
     pub jxy: f64,
+    /// `J_xz` (kg m²).
     pub jxz: f64,
+    /// `J_yz` (kg m²).
     pub jyz: f64,
+    /// Standard error of the mass (kg).
     pub mass_std_kg: f64,
+    /// Norm of the CoM's standard errors, `√(σ_x² + σ_y² + σ_z²)` (m).
     pub com_std_m: f64,
+    /// Relative mass error against the reference, when one is given.
     pub err_mass: Option<f64>,
+    /// Relative CoM error `‖ĉ − c‖/‖c‖`.
     pub err_com: Option<f64>,
+    /// Relative inertia error over `{Jxx Jxy Jxz Jyy Jyz Jzz}`.
     pub err_inertia: Option<f64>,
+    /// Sum of the three relative errors.
     pub err_sum: Option<f64>,
+    /// Mode numbers used, space separated.
     pub modes: String,
+    /// The estimate's warnings, joined by ` | `.
     pub warnings: String,
     /// Model check against the nominal spec (campaigns with `nominal`; empty otherwise):
     /// the effects it names (accepted ids, ambiguous families as `a/b`).
@@ -45,6 +65,7 @@ pub struct SummaryRow {
     /// model; ≈ 1 means the residual is noise.
     #[serde(default)]
     pub check_chi2_nu_before: Option<f64>,
+    /// χ²/ν of the final model.
     #[serde(default)]
     pub check_chi2_nu_after: Option<f64>,
     /// The final model's residual is consistent with the noise.
@@ -56,6 +77,7 @@ pub struct SummaryRow {
 }
 
 impl SummaryRow {
+    /// The row of one estimate (the check columns left empty; see [`Self::set_check`]).
     pub fn from_estimate(campaign: &str, set: &str, origin: &str, e: &InertiaEstimate) -> Self {
         let j = &e.inertia_cm_kg_m2;
         let p = &e.products_of_inertia_kg_m2;
@@ -125,12 +147,16 @@ impl SummaryRow {
     }
 }
 
-/// The printed inertia properties of a row, as every table shows them: mass [kg] to
-/// 4 decimals, the centre of mass in mm to 2, moments and products [kg m²] to 5.
+/// The printed inertia properties of a row, as every table shows them: mass (kg) to
+/// 4 decimals, the centre of mass in mm to 2, moments and products (kg m²) to 5.
 pub struct PropertyCells {
+    /// Mass (kg), 4 decimals.
     pub mass: String,
+    /// Centre of mass (mm), 2 decimals each.
     pub com_mm: String,
+    /// `J_xx J_yy J_zz` (kg m²), 5 decimals each.
     pub moments: String,
+    /// `J_xy J_xz J_yz` (kg m²), 5 decimals each: products, not tensor entries.
     pub products: String,
 }
 
@@ -172,6 +198,7 @@ pub fn to_csv(rows: &[SummaryRow]) -> Result<String> {
     Ok(String::from_utf8(w.into_inner()?)?)
 }
 
+/// Rows of a summary CSV (the inverse of [`to_csv`]).
 pub fn from_csv(text: &str) -> Result<Vec<SummaryRow>> {
     let mut r = csv::Reader::from_reader(text.as_bytes());
     Ok(r.deserialize().collect::<Result<Vec<SummaryRow>, _>>()?)

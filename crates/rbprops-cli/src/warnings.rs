@@ -27,7 +27,9 @@ pub enum Class {
 pub struct StageWarning {
     /// The stage that raised it (`modal-fit`, `ni-select`, `rb-solve`, `model-check`, …).
     pub stage: String,
+    /// The warning's text as the stage wrote it.
     pub text: String,
+    /// How much it matters.
     pub class: Class,
 }
 
@@ -50,10 +52,12 @@ impl StageWarning {
         }
     }
 
+    /// How much it matters ([`Class::ChangesAnswer`] or [`Class::Note`]).
     pub fn class(&self) -> Class {
         self.class
     }
 
+    /// One sentence on what the warning means for the result.
     pub fn explanation(&self) -> &'static str {
         explain(&self.text).1
     }
@@ -202,10 +206,12 @@ pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<StageWarning>> {
 /// Warnings gathered in order, each text once per stage.
 #[derive(Debug, Clone, Default)]
 pub struct Collector {
+    /// The warnings, in the order they were added.
     pub items: Vec<StageWarning>,
 }
 
 impl Collector {
+    /// Adds a warning of `stage`, classified by its text.
     pub fn push(&mut self, stage: &str, text: impl Into<String>) {
         self.add(StageWarning::new(stage, text));
     }
@@ -217,6 +223,7 @@ impl Collector {
         }
     }
 
+    /// Adds every text of `stage`, each once.
     pub fn extend<'a>(&mut self, stage: &str, texts: impl IntoIterator<Item = &'a String>) {
         for t in texts {
             self.push(stage, t.clone());

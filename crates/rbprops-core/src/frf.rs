@@ -16,8 +16,10 @@ pub enum Quantity {
 }
 
 impl Quantity {
+    /// The accepted names, for error messages and help texts.
     pub const NAMES: &'static str = "receptance, mobility, accelerance";
 
+    /// The lowercase name used in files and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Quantity::Receptance => "receptance",
@@ -95,10 +97,15 @@ pub fn validate_frequency_axis(hz: &[f64]) -> Result<(), CoreError> {
 /// excitation and channel order as in the [`crate::Geometry`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrfSet {
+    /// What the values are per newton (readers convert to receptance on the way in).
     pub quantity: Quantity,
+    /// Spectral lines (Hz), strictly ascending.
     pub frequency_hz: Vec<f64>,
+    /// Number of excitations (force inputs), the slowest index.
     pub n_excitations: usize,
+    /// Number of response channels.
     pub n_channels: usize,
+    /// The complex FRF values, `[excitation][channel][line]`, row-major; the quantity's units.
     pub values: Vec<c64>,
 }
 
@@ -120,6 +127,7 @@ impl FrfSet {
         }
     }
 
+    /// Number of spectral lines.
     pub fn n_lines(&self) -> usize {
         self.frequency_hz.len()
     }
@@ -134,6 +142,7 @@ impl FrfSet {
         &self.values[o..o + self.n_lines()]
     }
 
+    /// The FRF of one channel for one excitation, to write into.
     pub fn frf_mut(&mut self, excitation: usize, channel: usize) -> &mut [c64] {
         let o = self.offset(excitation, channel);
         let n = self.n_lines();

@@ -24,17 +24,22 @@ pub fn rigid_transform(p: &Vec3) -> Matrix3x6<f64> {
 /// A named point of the test article, in the geometry's frame (m).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Point {
+    /// Unique id (sensor location name in the test).
     pub id: String,
+    /// Position in the geometry's frame (m).
     pub position: Vec3,
 }
 
 /// A response channel: a unit sensing direction `s` at a point `p`. Its row is `sᵀT(p)`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Channel {
+    /// Unique channel id.
     pub id: String,
     /// Id of the [`Point`] it sits at.
     pub point: String,
+    /// Position of the point `p` (m), copied from the point.
     pub position: Vec3,
+    /// Unit sensing direction `s` in the geometry's frame.
     pub direction: Vec3,
 }
 
@@ -49,10 +54,13 @@ impl Channel {
 /// Its column (generalised force about O) is `T(p)ᵀ d = [d; p × d]`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Excitation {
+    /// Unique excitation id.
     pub id: String,
     /// Id of the [`Point`] it acts at.
     pub point: String,
+    /// Position of the point `p` (m), copied from the point.
     pub position: Vec3,
+    /// Unit force direction `d` in the geometry's frame.
     pub direction: Vec3,
     /// Id of the [`SuspensionSetup`] the test article hung in.
     pub setup: String,
@@ -68,7 +76,9 @@ impl Excitation {
 /// A suspension set-up. Modes of different set-ups are different modes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SuspensionSetup {
+    /// Unique set-up id, referenced by [`Excitation::setup`].
     pub id: String,
+    /// Free text: how the article hung (cords, springs, orientation).
     pub description: String,
 }
 
@@ -85,9 +95,13 @@ impl SuspensionSetup {
 /// Everything the stages need to know about where things are.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Geometry {
+    /// Named points of the article.
     pub points: Vec<Point>,
+    /// Response channels, in the order of the FRF set's channel index.
     pub channels: Vec<Channel>,
+    /// Force inputs, in the order of the FRF set's excitation index.
     pub excitations: Vec<Excitation>,
+    /// Suspension set-ups the excitations refer to.
     pub setups: Vec<SuspensionSetup>,
 }
 
@@ -132,12 +146,15 @@ fn check_unique<'a>(kind: &str, ids: impl Iterator<Item = &'a String>) -> Result
 }
 
 impl Geometry {
+    /// The point with this id.
     pub fn point(&self, id: &str) -> Option<&Point> {
         self.points.iter().find(|p| p.id == id)
     }
+    /// Index of the channel with this id (the FRF set's channel index).
     pub fn channel_index(&self, id: &str) -> Option<usize> {
         self.channels.iter().position(|c| c.id == id)
     }
+    /// Index of the excitation with this id (the FRF set's excitation index).
     pub fn excitation_index(&self, id: &str) -> Option<usize> {
         self.excitations.iter().position(|e| e.id == id)
     }

@@ -8,18 +8,18 @@ use crate::{CoreError, Mat3, Mat6, Vec3, Vec6};
 /// products of inertia, paper Eq. 6 sign).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidBodyProperties {
+    /// Mass `m` (kg).
     pub mass: f64,
+    /// Centre of mass `c` in the geometry's frame (m).
     pub com: Vec3,
+    /// Inertia tensor `J` about the centre of mass (kg m²), off-diagonals `−J_xy`, `−J_xz`, `−J_yz`.
     pub inertia_cm: Mat3,
 }
 
-/// Products of inertia `J_xy = ∫xy dm`, `J_xz`, `J_yz` (the negated tensor entries).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ProductsOfInertia {
-    pub xy: f64,
-    pub xz: f64,
-    pub yz: f64,
-}
+/// Products of inertia `J_xy = ∫xy dm`, `J_xz`, `J_yz` (kg m², docs/conventions.md §3;
+/// the tensor's off-diagonal entries are their negatives). The same type as the record
+/// field [`crate::records::Products`]: one products type, whether computed or read.
+pub type ProductsOfInertia = crate::records::Products;
 
 impl RigidBodyProperties {
     /// Builds the tensor from moments and *products* of inertia (CAD convention,
@@ -202,9 +202,13 @@ impl RigidBodyProperties {
 /// Relative errors of an estimate against reference properties (paper's error measures).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RelativeErrors {
+    /// `|m̂ − m| / |m|`.
     pub mass: f64,
+    /// `‖ĉ − c‖ / ‖c‖` (the reference CoM's norm floored at the smallest positive `f64`).
     pub com: f64,
+    /// `‖ĵ − j‖ / ‖j‖` over `j = {Jxx Jxy Jxz Jyy Jyz Jzz}`, the tensor's upper triangle.
     pub inertia: f64,
+    /// The sum of the three: the single figure the paper's error plots rank by.
     pub sum: f64,
 }
 

@@ -15,6 +15,8 @@
 //! This crate does no I/O. Types that cross stage boundaries ([`records`]) derive
 //! `serde` and `schemars` so the formats crate can write them with a JSON schema.
 
+#![warn(missing_docs)]
+
 pub mod error;
 pub mod frf;
 pub mod geometry;

@@ -126,8 +126,11 @@ named_values! {
         ToivolaNuutila => "toivola_nuutila",
         /// Inertia restraint (mass line) from the FRFs.
         MassLine => "mass_line",
+        /// [`EstimateMethod::BretlConti`] projected onto the physical cone.
         BretlContiProjected => "bretl_conti_projected",
+        /// [`EstimateMethod::ToivolaNuutila`] projected onto the physical cone.
         ToivolaNuutilaProjected => "toivola_nuutila_projected",
+        /// [`EstimateMethod::MassLine`] projected onto the physical cone.
         MassLineProjected => "mass_line_projected",
     }
 }

@@ -7,13 +7,16 @@ use nalgebra::RowVector6;
 /// One real mode about an origin O, mass-normalised: `φᵀ M0 φ = 1`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigidMode {
+    /// Natural frequency `ω_r/2π` (Hz); 0 for a free rigid-body direction.
     pub frequency_hz: f64,
+    /// Viscous damping ratio `ζ_r` (docs/conventions.md §5).
     pub damping_ratio: f64,
     /// `φ0 = [u; θ]` about the origin of the geometry.
     pub shape: Vec6,
 }
 
 impl RigidMode {
+    /// Natural angular frequency `ω_r = 2π f_r` (rad/s).
     pub fn omega(&self) -> f64 {
         2.0 * std::f64::consts::PI * self.frequency_hz
     }

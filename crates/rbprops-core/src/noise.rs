@@ -40,6 +40,7 @@ impl NoiseModel {
         floor: 0.0,
     };
 
+    /// The model `σ² = a²|H|² + b²` with `a = relative` and `b = floor` (docs/conventions.md §8).
     pub fn new(relative: f64, floor: f64) -> Self {
         NoiseModel { relative, floor }
     }
@@ -104,6 +105,7 @@ impl CoherenceNoise {
     /// of 0.999999 weigh the same.
     pub const SINGLE_PRECISION_FLOOR: f64 = 1e-6;
 
+    /// A coherence noise model whose `1 − γ²` is floored at `floor`.
     pub fn new(floor: f64) -> Self {
         CoherenceNoise { floor }
     }

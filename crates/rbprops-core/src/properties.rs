@@ -131,11 +131,7 @@ impl InertiaProperties {
             mass,
             com: Vec3::from(com),
             moments: [j[0][0], j[1][1], j[2][2]],
-            products: ProductsOfInertia {
-                xy: p.xy,
-                xz: p.xz,
-                yz: p.yz,
-            },
+            products: *p,
         }
     }
 

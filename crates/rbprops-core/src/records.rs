@@ -25,14 +25,22 @@ pub struct StageProvenance {
 /// Products of inertia `{xy, xz, yz}` in the docs/conventions.md sense (`J_xy = ∫xy dm`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct Products {
+    /// `J_xy = ∫xy dm` about the centre of mass (kg m²).
+    #[schemars(description = "")]
     pub xy: f64,
+    /// `J_xz = ∫xz dm` about the centre of mass (kg m²).
+    #[schemars(description = "")]
     pub xz: f64,
+    /// `J_yz = ∫yz dm` about the centre of mass (kg m²).
+    #[schemars(description = "")]
     pub yz: f64,
 }
 
 /// Mass, CoM and inertia at the CoM.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PropertiesRecord {
+    /// Mass `m` (kg).
+    #[schemars(description = "")]
     pub mass_kg: f64,
     /// Centre of mass in the geometry's frame (m).
     pub com_m: [f64; 3],
@@ -41,6 +49,7 @@ pub struct PropertiesRecord {
 }
 
 impl PropertiesRecord {
+    /// The record of in-memory properties (the tensor copied entry by entry).
     pub fn from_properties(p: &crate::RigidBodyProperties) -> Self {
         let j = &p.inertia_cm;
         Self {
@@ -53,6 +62,7 @@ impl PropertiesRecord {
             ],
         }
     }
+    /// The in-memory properties this record holds.
     pub fn to_properties(&self) -> crate::RigidBodyProperties {
         let j = &self.inertia_cm_kg_m2;
         crate::RigidBodyProperties {
@@ -68,11 +78,14 @@ impl PropertiesRecord {
 pub struct TrueModeRecord {
     /// 1-based mode number within its set-up, ascending frequency.
     pub mode: usize,
-    // Exactly 0 for a free rigid-body direction (the suspension gives it no stiffness),
-    // whose damping ratio is then 0 and whose shape is one of a mass-orthonormal basis
-    // of the free directions (`rigid_body_modes`). A plain comment, not a doc comment:
-    // the record's JSON schema stays as published.
+    /// Natural frequency (Hz). Exactly 0 for a free rigid-body direction (the suspension
+    /// gives it no stiffness), whose damping ratio is then 0 and whose shape is one of a
+    /// mass-orthonormal basis of the free directions ([`crate::rigid_body_modes`]).
+    // The empty schema description keeps the record's published JSON schema unchanged.
+    #[schemars(description = "")]
     pub frequency_hz: f64,
+    /// Viscous damping ratio `ζ` (0 for a free direction).
+    #[schemars(description = "")]
     pub damping_ratio: f64,
     /// Mass-normalised shape `[u_x, u_y, u_z, θ_x, θ_y, θ_z]` about the origin.
     pub shape: [f64; 6],
@@ -81,9 +94,13 @@ pub struct TrueModeRecord {
 /// The true modes of one suspension set-up.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TrueSetupRecord {
+    /// Id of the suspension set-up.
+    #[schemars(description = "")]
     pub setup: String,
     /// Mount stiffness about the origin, 6×6 row-major (N/m, N, N m/rad).
     pub stiffness: [[f64; 6]; 6],
+    /// Its real modes, ascending frequency.
+    #[schemars(description = "")]
     pub modes: Vec<TrueModeRecord>,
 }
 
@@ -99,13 +116,25 @@ pub struct EffectRecord {
 /// Ground truth written by `frf-sim`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TruthRecord {
+    /// Campaign name from the spec.
+    #[schemars(description = "")]
     pub campaign: String,
+    /// The body's true inertia properties.
+    #[schemars(description = "")]
     pub properties: PropertiesRecord,
+    /// True modes and mount stiffness per suspension set-up.
+    #[schemars(description = "")]
     pub setups: Vec<TrueSetupRecord>,
+    /// Effects of the physics catalogue the simulation switched on.
+    #[schemars(description = "")]
     pub effects: Vec<EffectRecord>,
+    /// Seed of the noise stream.
+    #[schemars(description = "")]
     pub seed: u64,
     /// Relative noise level (fraction of |H|) and absolute floor (FRF units).
     pub noise_relative: f64,
+    /// Absolute noise floor `b` of `σ² = a²|H|² + b²` (FRF units; docs/conventions.md §8).
+    #[schemars(description = "")]
     pub noise_floor: f64,
 }
 
@@ -117,13 +146,25 @@ pub struct TruthRecord {
 /// real; the imaginary part measures modal complexity.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ModeEstimate {
+    /// Excitation id the fit is of.
+    #[schemars(description = "")]
     pub excitation: String,
+    /// Its suspension set-up.
+    #[schemars(description = "")]
     pub setup: String,
     /// 1-based mode number within this excitation, ascending frequency.
     pub mode: usize,
+    /// Natural frequency `f_r` (Hz).
+    #[schemars(description = "")]
     pub frequency_hz: f64,
+    /// Standard error of `frequency_hz` (Hz).
+    #[schemars(description = "")]
     pub frequency_std_hz: f64,
+    /// Viscous damping ratio `ζ_r`.
+    #[schemars(description = "")]
     pub damping_ratio: f64,
+    /// Standard error of `damping_ratio`.
+    #[schemars(description = "")]
     pub damping_std: f64,
     /// Modal constants per channel (geometry channel order), `[re, im]`, 1/kg.
     #[schemars(with = "Vec<[f64; 2]>")]
@@ -136,13 +177,19 @@ pub struct ModeEstimate {
     pub mpc: f64,
     /// True when the excitation barely excites this mode: its numbers are unreliable.
     pub weak: bool,
+    /// Notes on this mode (a close pair, a weak excitation, …), human-readable.
+    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }
 
 /// Per-excitation summary of the identification.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ExcitationFitRecord {
+    /// Excitation id.
+    #[schemars(description = "")]
     pub excitation: String,
+    /// Its suspension set-up.
+    #[schemars(description = "")]
     pub setup: String,
     /// `lsce`, `lscf` or `circle`.
     // Also `plscf`: the names are those of [`FitMethod`]. A plain comment, not a doc
@@ -151,18 +198,30 @@ pub struct ExcitationFitRecord {
     pub method: FitMethod,
     /// Model order chosen (number of modes in the band).
     pub model_order: usize,
+    /// Frequency band fitted, `[low, high]` (Hz).
+    #[schemars(description = "")]
     pub band_hz: [f64; 2],
+    /// Number of spectral lines in the band.
+    #[schemars(description = "")]
     pub n_lines: usize,
     /// Normalised fit error per channel: ‖H_meas − H_synth‖² / ‖H_meas‖² over the band.
     pub fit_error: Vec<f64>,
+    /// Notes on the fit, human-readable.
+    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }
 
 /// Output of `modal-fit`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct ModalFitRecord {
+    /// How residues are scaled (the receptance modal-constant form above).
+    #[schemars(description = "")]
     pub residue_convention: String,
+    /// One summary per excitation, geometry order.
+    #[schemars(description = "")]
     pub excitations: Vec<ExcitationFitRecord>,
+    /// Every identified mode of every excitation.
+    #[schemars(description = "")]
     pub modes: Vec<ModeEstimate>,
     /// Present when the poles were corrected for an exponential window on the responses:
     /// the frequencies and damping ratios are the physical ones, the window's damping
@@ -217,10 +276,16 @@ pub const PROCESSING_TOPIC: &str = "/rbprops/processing";
 /// A mode chosen for the inertia estimate: which excitation's shape is used.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SelectedMode {
+    /// Suspension set-up the mode belongs to.
+    #[schemars(description = "")]
     pub setup: String,
     /// 1-based physical mode number within the set-up (matched across excitations).
     pub mode: usize,
+    /// Natural frequency of the chosen estimate (Hz).
+    #[schemars(description = "")]
     pub frequency_hz: f64,
+    /// Excitation whose shape is used.
+    #[schemars(description = "")]
     pub excitation: String,
     /// The mode number within that excitation's `ModeEstimate`s.
     pub excitation_mode: usize,
@@ -228,6 +293,8 @@ pub struct SelectedMode {
     pub ni_db: f64,
     /// NI margin over the runner-up excitation (dB); NaN-free: 0 when there is none.
     pub margin_db: f64,
+    /// The excitation with the next-highest NI, when there is one.
+    #[schemars(description = "")]
     pub runner_up: Option<String>,
     /// Excitation strength `f_kᵀq` (1/kg); ≤ 0 means not excited.
     pub strength: f64,
@@ -239,18 +306,34 @@ pub struct SelectedMode {
 /// A mode no excitation excites above the noise.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct MissingMode {
+    /// Suspension set-up.
+    #[schemars(description = "")]
     pub setup: String,
+    /// 1-based physical mode number within the set-up.
+    #[schemars(description = "")]
     pub mode: usize,
+    /// Expected frequency (Hz).
+    #[schemars(description = "")]
     pub frequency_hz: f64,
+    /// Excitations that were considered.
+    #[schemars(description = "")]
     pub tried: Vec<String>,
+    /// Why none was usable, human-readable.
+    #[schemars(description = "")]
     pub reason: String,
 }
 
 /// Output of `ni-select`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct SelectionRecord {
+    /// The modes chosen, one per physical mode.
+    #[schemars(description = "")]
     pub selected: Vec<SelectedMode>,
+    /// Modes no excitation excites usably.
+    #[schemars(description = "")]
     pub missing: Vec<MissingMode>,
+    /// Notes on the selection, human-readable.
+    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }
 
@@ -262,19 +345,39 @@ pub struct InertiaEstimate {
     // versions are). A plain comment: the record's JSON schema stays as published.
     #[schemars(with = "String")]
     pub method: EstimateMethod,
+    /// Suspension set-up of the modes used (or a combination of set-ups).
+    #[schemars(description = "")]
     pub setup: String,
     /// Origin the estimator worked about, geometry frame (m).
     pub origin_m: [f64; 3],
+    /// Mass `m` (kg).
+    #[schemars(description = "")]
     pub mass_kg: f64,
+    /// Standard error of `mass_kg` (kg).
+    #[schemars(description = "")]
     pub mass_std_kg: f64,
+    /// Centre of mass `c` in the geometry's frame (m).
+    #[schemars(description = "")]
     pub com_m: [f64; 3],
+    /// Standard errors of `com_m` (m).
+    #[schemars(description = "")]
     pub com_std_m: [f64; 3],
+    /// Inertia tensor `J` about the CoM, row-major (kg m²), docs/conventions.md §3.
+    #[schemars(description = "")]
     pub inertia_cm_kg_m2: [[f64; 3]; 3],
+    /// Standard errors of `inertia_cm_kg_m2` entry by entry (kg m²).
+    #[schemars(description = "")]
     pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
+    /// Products `J_xy, J_xz, J_yz` (kg m²), the negated off-diagonals of the tensor.
+    #[schemars(description = "")]
     pub products_of_inertia_kg_m2: Products,
+    /// Standard errors of the products (kg m²), those of the tensor entries.
+    #[schemars(description = "")]
     pub products_of_inertia_std_kg_m2: Products,
     /// Principal moments (ascending) and their axes (columns of the 3×3).
     pub principal_moments_kg_m2: [f64; 3],
+    /// Principal axes, unit columns matching `principal_moments_kg_m2`.
+    #[schemars(description = "")]
     pub principal_axes: [[f64; 3]; 3],
     /// Mount stiffness about the origin `K0 = Φ0⁻ᵀΩ²Φ0⁻¹` when six modes exist.
     pub mount_stiffness: Option<[[f64; 6]; 6]>,
@@ -284,16 +387,26 @@ pub struct InertiaEstimate {
     // Also `bootstrap` ([`UncertaintyMethod`]); plain comment, the schema stays as published.
     #[schemars(with = "String")]
     pub uncertainty_method: UncertaintyMethod,
+    /// Mode numbers (per set-up) the estimator used.
+    #[schemars(description = "")]
     pub modes_used: Vec<usize>,
+    /// Excitations whose shapes were used.
+    #[schemars(description = "")]
     pub excitations_used: Vec<String>,
     /// Relative errors vs reference values when given: mass, com, inertia, sum.
     pub errors: Option<ErrorsRecord>,
+    /// True when the tensor is positive definite and obeys the triangle inequalities.
+    #[schemars(description = "")]
     pub physically_consistent: bool,
+    /// Notes on the estimate, human-readable.
+    #[schemars(description = "")]
     pub warnings: Vec<String>,
     /// Whether the modes the estimate used are rigid-body consistent with the geometry
     /// (sensor rows and force columns) within their noise; see `rigid_body_check`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rigid_body_consistent: Option<bool>,
+    /// The statistics behind `rigid_body_consistent`.
+    #[schemars(description = "")]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rigid_body_check: Option<RigidBodyCheckRecord>,
     /// Systematic-error interval: leave-one-sensor-out and leave-one-excitation-out
@@ -305,6 +418,8 @@ pub struct InertiaEstimate {
 /// One channel, sensor or excitation of the rigid-body consistency check.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ConsistencyItemRecord {
+    /// Id of the channel, sensor (point) or excitation.
+    #[schemars(description = "")]
     pub id: String,
     /// Drop of the noise-weighted residual χ² when this item is left out.
     pub chi2_drop: f64,
@@ -317,6 +432,8 @@ pub struct ConsistencyItemRecord {
 /// The rigid-body consistency of the identified modes with the geometry.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RigidBodyCheckRecord {
+    /// True when `statistic ≤ threshold`.
+    #[schemars(description = "")]
     pub rigid_body_consistent: bool,
     /// What `statistic` is.
     pub statistic_definition: String,
@@ -324,15 +441,27 @@ pub struct RigidBodyCheckRecord {
     pub statistic: f64,
     /// The statistic's upper limit for noise alone.
     pub threshold: f64,
+    /// Degrees of freedom of `statistic`.
+    #[schemars(description = "")]
     pub dof: usize,
     /// χ²/dof of the rigid-body transform residuals (paper Eq. 5), per channel noise.
     pub shape_statistic: f64,
+    /// Degrees of freedom of `shape_statistic`.
+    #[schemars(description = "")]
     pub shape_dof: usize,
     /// χ²/dof of the modal participations across excitations (force geometry).
     pub participation_statistic: f64,
+    /// Degrees of freedom of `participation_statistic`.
+    #[schemars(description = "")]
     pub participation_dof: usize,
+    /// Per response channel.
+    #[schemars(description = "")]
     pub channels: Vec<ConsistencyItemRecord>,
+    /// Per sensor (all channels at one point).
+    #[schemars(description = "")]
     pub sensors: Vec<ConsistencyItemRecord>,
+    /// Per excitation.
+    #[schemars(description = "")]
     pub excitations: Vec<ConsistencyItemRecord>,
 }
 
@@ -342,11 +471,23 @@ pub struct RigidBodyCheckRecord {
 pub struct SystematicIntervalRecord {
     /// How the units were left out (`sensor`, `channel`, `excitation` counts).
     pub method: String,
+    /// Jackknife standard error of the mass (kg).
+    #[schemars(description = "")]
     pub mass_std_kg: f64,
+    /// Jackknife standard errors of the CoM (m).
+    #[schemars(description = "")]
     pub com_std_m: [f64; 3],
+    /// Jackknife standard errors of the tensor entries (kg m²).
+    #[schemars(description = "")]
     pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
+    /// 95 % interval of the mass (kg).
+    #[schemars(description = "")]
     pub mass_95_kg: [f64; 2],
+    /// 95 % interval of each CoM coordinate (m).
+    #[schemars(description = "")]
     pub com_95_m: [[f64; 2]; 3],
+    /// 95 % interval of each tensor entry (kg m²).
+    #[schemars(description = "")]
     pub inertia_cm_95_kg_m2: [[[f64; 2]; 3]; 3],
 }
 
@@ -378,8 +519,16 @@ impl InertiaEstimate {
 /// The paper's relative error measures.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ErrorsRecord {
+    /// `|m̂ − m|/|m|`.
+    #[schemars(description = "")]
     pub mass: f64,
+    /// `‖ĉ − c‖/‖c‖`.
+    #[schemars(description = "")]
     pub com: f64,
+    /// `‖ĵ − j‖/‖j‖` over `{Jxx Jxy Jxz Jyy Jyz Jzz}`.
+    #[schemars(description = "")]
     pub inertia: f64,
+    /// The sum of the three.
+    #[schemars(description = "")]
     pub sum: f64,
 }

@@ -44,6 +44,7 @@ impl RigidBasis {
         })
     }
 
+    /// Number of channels (rows of `S`).
     pub fn n_channels(&self) -> usize {
         self.rows.len()
     }

@@ -2,12 +2,12 @@
 //! tensor about the CoM) from identified rigid-body modes and from the mass line of FRFs,
 //! with standard errors and physical-consistency checks.
 //!
-//! Pipeline of [`solve`]:
+//! Pipeline of [`solve()`]:
 //! 1. each selected mode's residues → least-squares rigid motion `q = (SᵀS)⁻¹SᵀA` (paper
 //!    Eq. 5) about the chosen origin → `φ0 = q/√(f_kᵀq)` ([`shapes`]);
 //! 2. [`bretl_conti`] (Eq. 2, six modes) and [`toivola_nuutila`] (Eq. 10, ≥ 4 modes, with
 //!    rank detection and a description of what four modes cannot determine);
-//! 3. [`mass_line`]: the inertia-restraint method straight from the FRFs (Lee et al. 1999);
+//! 3. [`mass_line()`]: the inertia-restraint method straight from the FRFs (Lee et al. 1999);
 //! 4. `m`, `c` (Eq. 7) and `J` at the CoM (Eqs. 8–9) via `MassMatrix6::properties`, mount
 //!    stiffness `K0 = Φ0⁻ᵀΩ²Φ0⁻¹`, standard errors ([`uncertainty`]), consistency and the
 //!    nearest consistent estimate ([`consistency`]), relative errors against a reference.
@@ -16,6 +16,7 @@
 
 // `!(x > 0.0)` is deliberate: it also rejects NaN. Index loops mirror the equations.
 #![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+#![warn(missing_docs)]
 
 pub mod consistency;
 pub mod error;

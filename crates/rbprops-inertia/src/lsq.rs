@@ -18,7 +18,9 @@ pub const RANK_TOLERANCE: f64 = 1e-9;
 /// An exact linear constraint `rowᵀ p = value` on the parameters.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearConstraint {
+    /// Coefficients on the ten properties `p` of docs/conventions.md §3 (about O).
     pub row: [f64; N_PARAMS],
+    /// The value the combination must take.
     pub value: f64,
     /// What the constraint says, for labels and errors.
     pub label: String,

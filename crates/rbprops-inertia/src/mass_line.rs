@@ -58,11 +58,17 @@ impl Default for MassLineOptions {
 /// The band used, and how it was found.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MassLineBand {
+    /// Lower band edge (Hz).
     pub lo_hz: f64,
+    /// Upper band edge (Hz).
     pub hi_hz: f64,
+    /// True when the band was chosen from the modes, false when given.
     pub automatic: bool,
+    /// Highest rigid-body (suspension) mode frequency seen (Hz), when known.
     pub highest_rigid_hz: Option<f64>,
+    /// Lowest elastic mode frequency seen (Hz), when known.
     pub first_elastic_hz: Option<f64>,
+    /// Spectral lines inside the band.
     pub n_lines: usize,
 }
 
@@ -155,6 +161,7 @@ pub fn choose_band(
 /// The fitted mass-line values `a0` of every FRF (accelerance, m/(N s²) = 1/kg).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MassLineValues {
+    /// The band fitted.
     pub band: MassLineBand,
     /// `a0` per `[excitation][channel]`.
     pub values: Vec<Vec<f64>>,
@@ -262,10 +269,15 @@ pub fn mass_line_values(
 /// Result of the mass-line estimator.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlSolution {
+    /// Mass matrix `M0(p)` about O of the fitted properties (rigid-body form).
     pub mass_matrix: MassMatrix6,
+    /// The ten properties about O, docs/conventions.md §3.
     pub params: [f64; N_PARAMS],
+    /// Numerical rank of the design matrix (10 when all properties are determined).
     pub rank: usize,
+    /// Condition number of the design matrix.
     pub condition: f64,
+    /// Basis of the directions in property space the data do not determine.
     pub null_space: Vec<[f64; N_PARAMS]>,
     /// `‖M0(p)Y − F‖/‖F‖`.
     pub residual: f64,

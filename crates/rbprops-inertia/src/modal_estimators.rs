@@ -80,6 +80,7 @@ pub fn mount_stiffness(phi0: &[Vec6], omegas: &[f64]) -> Result<Mat6, InertiaErr
 pub struct TnSolution {
     /// `M0(p)` of the least-squares parameters (rigid-body form by construction).
     pub mass_matrix: MassMatrix6,
+    /// The ten properties about O, docs/conventions.md §3.
     pub params: [f64; N_PARAMS],
     /// Rank of the `n(n+1)/2 × 10` system (with constraints counted).
     pub rank: usize,

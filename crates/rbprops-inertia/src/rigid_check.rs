@@ -53,6 +53,7 @@ pub const NOISE_ALLOWANCE: f64 = 2.0;
 /// A mode of another excitation is the same physical mode when its frequency is within
 /// this many half-power bandwidths and its channel shape has MAC ≥ [`MATCH_MAC`].
 pub const MATCH_BANDWIDTHS: f64 = 3.0;
+/// Minimum MAC for a mode of another excitation to count as the same physical mode.
 pub const MATCH_MAC: f64 = 0.9;
 
 /// Upper 0.1 % point of χ² with `nu` dof, Wilson–Hilferty (relative error 1.8 % at ν = 3,
@@ -76,6 +77,7 @@ pub struct Observation {
     pub estimate: ModeEstimate,
     /// Real modal constants and their standard errors (with the precision floor).
     pub a: Vec<f64>,
+    /// Standard errors of `a` (same units, 1/kg).
     pub sigma: Vec<f64>,
 }
 

@@ -52,10 +52,13 @@ pub fn resolve_origin(geometry: &Geometry, choice: &OriginChoice) -> Result<Vec3
 pub struct RigidFrame {
     /// The origin, geometry frame (m).
     pub origin: Vec3,
+    /// Channel rows `sᵀT(p − o)` about the origin, and their Gram matrix `SᵀS`.
     pub basis: RigidBasis,
     /// Force column of every geometry excitation, about the origin.
     pub forces: Vec<Vec6>,
+    /// Excitation ids, geometry order.
     pub excitation_ids: Vec<String>,
+    /// Channel ids, geometry order.
     pub channel_ids: Vec<String>,
 }
 
@@ -88,6 +91,7 @@ impl RigidFrame {
         })
     }
 
+    /// Index of the excitation with this id (geometry order).
     pub fn excitation_index(&self, id: &str) -> Option<usize> {
         self.excitation_ids.iter().position(|e| e == id)
     }
@@ -116,12 +120,15 @@ impl RigidFrame {
 /// The numbers of one rigid-body transform.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ShapeCore {
+    /// Least-squares rigid motion `q = (SᵀS)⁻¹SᵀA` about the origin (Eq. 5), `[u; θ]`.
     pub q: Vec6,
+    /// Mass-normalised shape `φ0 = q/√(f_kᵀq)` (docs/conventions.md §5).
     pub phi0: Vec6,
     /// `f_kᵀq` (1/kg) = the square of the modal participation of excitation k.
     pub force_projection: f64,
     /// Per-channel rigid-body residual `A − S q` (1/kg).
     pub residual: Vec<f64>,
+    /// `‖A − Sq‖/‖A‖`: 0 for a perfectly rigid shape.
     pub relative_residual: f64,
     /// Rotation applied to bring the complex residues onto the real line (rad).
     pub complexity_angle_rad: f64,
@@ -130,11 +137,15 @@ pub struct ShapeCore {
 /// One selected mode as the inertia stage used it (serialisable for reports).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShapeDiagnostics {
+    /// Suspension set-up.
     pub setup: String,
     /// Physical mode number within the set-up.
     pub mode: usize,
+    /// Excitation whose estimate was used.
     pub excitation: String,
+    /// That estimate's mode number within the excitation.
     pub excitation_mode: usize,
+    /// Natural frequency (Hz).
     pub frequency_hz: f64,
     /// Origin of `q` and `φ0`, geometry frame (m).
     pub origin_m: [f64; 3],
@@ -146,27 +157,34 @@ pub struct ShapeDiagnostics {
     pub force_projection: f64,
     /// Channel ids and the per-channel residual `A − Sq` (1/kg).
     pub channels: Vec<String>,
+    /// Per-channel residual `A − Sq` (1/kg), in `channels` order.
     pub rigid_residual: Vec<f64>,
     /// `‖A − Sq‖/‖A‖`.
     pub relative_residual: f64,
+    /// Rotation applied to bring the complex residues onto the real line (rad).
     pub complexity_angle_rad: f64,
 }
 
 /// A selected mode ready for the estimators.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RigidShape {
+    /// The selection this shape comes from.
     pub selected: SelectedMode,
     /// Index of the selected excitation in the geometry.
     pub excitation: usize,
+    /// The selected excitation's mode estimate.
     pub estimate: ModeEstimate,
+    /// The rigid-body transform of its residues.
     pub core: ShapeCore,
 }
 
 impl RigidShape {
+    /// Natural angular frequency `ω_r` (rad/s).
     pub fn omega(&self) -> f64 {
         2.0 * std::f64::consts::PI * self.estimate.frequency_hz
     }
 
+    /// The serialisable record of this shape, for reports.
     pub fn diagnostics(&self, frame: &RigidFrame) -> ShapeDiagnostics {
         let c = &self.core;
         ShapeDiagnostics {

@@ -12,7 +12,7 @@ use crate::shapes::{
 };
 use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
 use rbprops_core::records::{
-    ErrorsRecord, EstimateMethod, InertiaEstimate, ModalFitRecord, Products, PropertiesRecord,
+    ErrorsRecord, EstimateMethod, InertiaEstimate, ModalFitRecord, PropertiesRecord,
     RigidBodyCheckRecord, SelectedMode, SelectionRecord, SystematicIntervalRecord,
     UncertaintyMethod,
 };
@@ -62,6 +62,7 @@ pub struct SideInformation {
 }
 
 impl SideInformation {
+    /// True when no side information is given.
     pub fn is_empty(&self) -> bool {
         self.known_mass_kg.is_none() && self.known_com_m.is_none() && self.nominal.is_none()
     }
@@ -76,7 +77,9 @@ pub struct SolveOptions {
     pub origin: OriginChoice,
     /// Reference properties for the paper's relative errors.
     pub reference: Option<PropertiesRecord>,
+    /// Options of the mass-line estimator (band, terms).
     pub mass_line: MassLineOptions,
+    /// Known values imposed on the estimates as exact constraints.
     pub side_information: SideInformation,
     /// 0 (default): linearised propagation; otherwise Monte Carlo with this many draws.
     pub monte_carlo_samples: usize,
@@ -117,9 +120,11 @@ pub struct SolveOutput {
     /// One estimate per estimator and set-up, followed (for each inconsistent one) by its
     /// nearest physically consistent version, method `<method>_projected`.
     pub estimates: Vec<InertiaEstimate>,
+    /// The rigid-body transform of every selected mode (Eq. 5), for reports.
     pub shapes: Vec<ShapeDiagnostics>,
     /// The mass-line band actually used.
     pub mass_line_band: Option<MassLineBand>,
+    /// Notes on the whole solve, human-readable.
     pub warnings: Vec<String>,
 }
 
@@ -464,16 +469,8 @@ impl EstimateParts {
             com_std_m: std.com.into(),
             inertia_cm_kg_m2: rec.inertia_cm_kg_m2,
             inertia_cm_std_kg_m2: std.tensor_standard_errors(),
-            products_of_inertia_kg_m2: Products {
-                xy: pr.xy,
-                xz: pr.xz,
-                yz: pr.yz,
-            },
-            products_of_inertia_std_kg_m2: Products {
-                xy: std.products.xy,
-                xz: std.products.xz,
-                yz: std.products.yz,
-            },
+            products_of_inertia_kg_m2: pr,
+            products_of_inertia_std_kg_m2: std.products,
             principal_moments_kg_m2: moments.into(),
             principal_axes: std::array::from_fn(|r| std::array::from_fn(|c| axes[(r, c)])),
             mount_stiffness: self

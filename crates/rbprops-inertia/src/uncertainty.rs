@@ -36,8 +36,15 @@ pub fn property_vector(p: &RigidBodyProperties) -> [f64; N_PROPS] {
 /// How to propagate.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Propagation {
+    /// First-order propagation of the residue and pole standard errors (Jacobian).
     Linearised,
-    MonteCarlo { samples: usize, seed: u64 },
+    /// Monte Carlo: redraw the modal data from their standard errors and re-estimate.
+    MonteCarlo {
+        /// Number of draws.
+        samples: usize,
+        /// Seed of the draws' normal stream.
+        seed: u64,
+    },
 }
 
 impl Propagation {

@@ -50,6 +50,43 @@ pub struct ExcitationFit {
     pub modes: Vec<ModeEstimate>,
     /// Plot data.
     pub diagnostics: ExcitationDiagnostics,
+    /// The warnings of `record` that say a pole has multiplicity above one, in the
+    /// record's order: what the automatic poly-reference switch decides on.
+    pub multiplicity: Vec<MultiplicityWarning>,
+}
+
+/// What showed that two poles of a single-reference fit cannot be told apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Multiplicity {
+    /// The forward model-order test split one pole into a close pair.
+    SplitPair,
+    /// The pole refinement's information matrix is singular.
+    SingularInformation,
+    /// Two poles closer than the separable distance: one repeated root.
+    RepeatedRoot,
+    /// The residue basis of the poles is nearly singular.
+    SingularResidueBasis,
+}
+
+/// A warning of an excitation's record that says a pole has multiplicity above one,
+/// with its kind: the poly-reference switch decides on the kind, never on the text.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MultiplicityWarning {
+    /// What showed the multiplicity.
+    pub kind: Multiplicity,
+    /// The warning as the record holds it.
+    pub text: String,
+}
+
+/// Pushes a multiplicity warning onto the record's warnings and, typed, onto `kinds`.
+fn warn_multiplicity(
+    warnings: &mut Vec<String>,
+    kinds: &mut Vec<MultiplicityWarning>,
+    kind: Multiplicity,
+    text: String,
+) {
+    warnings.push(text.clone());
+    kinds.push(MultiplicityWarning { kind, text });
 }
 
 /// Result of a campaign.
@@ -72,6 +109,8 @@ struct PoleSet {
     mode_warnings: Vec<Vec<String>>,
     diagram: StabilisationDiagram,
     warnings: Vec<String>,
+    /// The multiplicity warnings among `warnings`, in order.
+    multiplicity: Vec<MultiplicityWarning>,
 }
 
 fn check_shapes(geometry: &Geometry, frf: &FrfSet) -> Result<(), ModalError> {
@@ -275,6 +314,7 @@ fn estimate_poles_from(
 ) -> Result<PoleSet, ModalError> {
     let n = band.n_lines();
     let mut warnings = Vec::new();
+    let mut multiplicity = Vec::new();
     let n_max = order_limit(n, opts, name, &mut warnings)?;
     let sweeper = Sweeper { chans, opts, name };
     let (sub, mut sel) = sweep_plan(band, cap_hz, &sweeper, &mut warnings)?;
@@ -365,15 +405,21 @@ fn estimate_poles_from(
                     confidence: &mut track.confidence,
                     mode_warnings: &mut track.mode_warnings,
                     warnings: &mut warnings,
+                    multiplicity: &mut multiplicity,
                 };
                 test.add_intermittent_modes(&mut tracked, &sel.candidates);
                 test.prune_close_poles(&mut tracked);
                 test.split_merged_poles(&mut tracked);
             }
             if r.singular {
-                warnings.push(format!(
-                    "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
-                ));
+                warn_multiplicity(
+                    &mut warnings,
+                    &mut multiplicity,
+                    Multiplicity::SingularInformation,
+                    format!(
+                        "excitation '{name}': the poles are not all identifiable (singular information matrix): two poles cannot be separated"
+                    ),
+                );
             }
             if !r.converged {
                 warnings.push(format!(
@@ -391,7 +437,13 @@ fn estimate_poles_from(
         }
     }
     let mut track = track.sorted();
-    flag_close_pairs(&mut track, &opts.search, name, &mut warnings);
+    flag_close_pairs(
+        &mut track,
+        &opts.search,
+        name,
+        &mut warnings,
+        &mut multiplicity,
+    );
     Ok(PoleSet {
         poles: track.poles,
         std: track.std,
@@ -399,6 +451,7 @@ fn estimate_poles_from(
         mode_warnings: track.mode_warnings,
         diagram: sel.diagram,
         warnings,
+        multiplicity,
     })
 }
 
@@ -679,6 +732,7 @@ fn flag_close_pairs(
     search: &PoleSearchParams,
     name: &str,
     warnings: &mut Vec<String>,
+    multiplicity: &mut Vec<MultiplicityWarning>,
 ) {
     let PoleTrack {
         poles,
@@ -700,7 +754,12 @@ fn flag_close_pairs(
                     poles[j].frequency_hz(),
                     d
                 );
-                warnings.push(format!("excitation '{name}': {msg}"));
+                warn_multiplicity(
+                    warnings,
+                    multiplicity,
+                    Multiplicity::RepeatedRoot,
+                    format!("excitation '{name}': {msg}"),
+                );
                 mode_warnings[i].push(msg.clone());
                 mode_warnings[j].push(msg);
                 confidence[i] *= 0.5;
@@ -740,6 +799,7 @@ struct TrackedPoles<'a> {
     confidence: &'a mut Vec<f64>,
     mode_warnings: &'a mut Vec<Vec<String>>,
     warnings: &'a mut Vec<String>,
+    multiplicity: &'a mut Vec<MultiplicityWarning>,
 }
 
 impl OrderTest<'_> {
@@ -891,6 +951,7 @@ impl OrderTest<'_> {
             confidence,
             mode_warnings,
             warnings,
+            multiplicity,
         } = t;
         let r: &mut lsfd::Refined = r;
         let (band, chans, res, threshold, name) =
@@ -941,13 +1002,18 @@ impl OrderTest<'_> {
             if !(physical && separate && !r2.singular && gain > threshold) {
                 return;
             }
-            warnings.push(format!(
-            "excitation '{name}': pole at {:.4} Hz split into {:.4} and {:.4} Hz by the forward model-order test ({}): a close pair",
-            r.poles[i].frequency_hz(),
-            r2.poles[i].frequency_hz(),
-            added.frequency_hz(),
-            in_sigma2(|| format!("cost −{gain:.1}σ²"), "cost lowered", exact)
-        ));
+            warn_multiplicity(
+                warnings,
+                multiplicity,
+                Multiplicity::SplitPair,
+                format!(
+                    "excitation '{name}': pole at {:.4} Hz split into {:.4} and {:.4} Hz by the forward model-order test ({}): a close pair",
+                    r.poles[i].frequency_hz(),
+                    r2.poles[i].frequency_hz(),
+                    added.frequency_hz(),
+                    in_sigma2(|| format!("cost −{gain:.1}σ²"), "cost lowered", exact)
+                ),
+            );
             confidence.push(confidence[i]);
             mode_warnings.push(vec![format!(
                 "split from the pole at {:.4} Hz by the forward model-order test (close pair)",
@@ -1059,6 +1125,7 @@ fn fit_one(
         }
     };
     warnings.extend(ps.warnings.iter().cloned());
+    let mut multiplicity = ps.multiplicity.clone();
     let no = band.channels.len();
     let nm = ps.poles.len();
 
@@ -1092,10 +1159,15 @@ fn fit_one(
                 lsfd::fit_residues(&ps.poles, &band, &band.channels, res)
             });
             if rf.basis_conditioning < 1e-8 {
-                warnings.push(format!(
-                    "excitation '{name}': the residue basis is nearly singular (conditioning {:.1e}); two poles are not separable with these data",
-                    rf.basis_conditioning
-                ));
+                warn_multiplicity(
+                    &mut warnings,
+                    &mut multiplicity,
+                    Multiplicity::SingularResidueBasis,
+                    format!(
+                        "excitation '{name}': the residue basis is nearly singular (conditioning {:.1e}); two poles are not separable with these data",
+                        rf.basis_conditioning
+                    ),
+                );
             }
             for m in 0..nm {
                 let p = &ps.poles[m];
@@ -1117,6 +1189,7 @@ fn fit_one(
         modal_constant_std: a_std,
         synthesised: synth,
         warnings,
+        multiplicity,
         diagram: ps.diagram.clone(),
     };
     Ok(assemble(ex, &band, parts, opts, opts.method.record_name()))
@@ -1136,6 +1209,8 @@ pub(crate) struct ModeParts {
     /// Fitted FRFs `[channel][line]` in the measured quantity.
     pub synthesised: Vec<Vec<c64>>,
     pub warnings: Vec<String>,
+    /// The multiplicity warnings among `warnings`, in order.
+    pub multiplicity: Vec<MultiplicityWarning>,
     pub diagram: StabilisationDiagram,
 }
 
@@ -1157,6 +1232,7 @@ pub(crate) fn assemble(
         modal_constant_std: a_std,
         synthesised: synth,
         warnings,
+        multiplicity,
         diagram,
     } = parts;
     let name = ex.id.as_str();
@@ -1250,6 +1326,7 @@ pub(crate) fn assemble(
             },
             poles_rad_s: poles.iter().map(|p| p.0).collect(),
         },
+        multiplicity,
     }
 }
 
@@ -1276,7 +1353,8 @@ fn single_reference_fits(
 /// Why the single-reference fits of a set-up (`fits`) call for a poly-reference fit, if
 /// they do: they disagree on the number of modes, or a pole shows multiplicity (a pair
 /// that could not be separated, was split by the model-order test, or made the residue
-/// basis singular).
+/// basis singular). The multiplicity is read from the fits' typed
+/// [`MultiplicityWarning`]s, never from warning texts (an excitation id may say anything).
 fn poly_reference_reason(fits: &[&ExcitationFit]) -> Option<String> {
     let counts: Vec<usize> = fits.iter().map(|f| f.modes.len()).collect();
     let (lo, hi) = (
@@ -1288,15 +1366,9 @@ fn poly_reference_reason(fits: &[&ExcitationFit]) -> Option<String> {
             "the per-excitation fits disagree on the number of modes ({lo} to {hi})"
         ));
     }
-    let multiple = |w: &String| {
-        w.contains("treat them as one repeated root")
-            || w.contains("by the forward model-order test")
-            || w.contains("residue basis is nearly singular")
-            || w.contains("not all identifiable")
-    };
     fits.iter()
-        .find_map(|f| f.record.warnings.iter().find(|w| multiple(w)))
-        .map(|w| format!("a pole shows multiplicity ({w})"))
+        .find_map(|f| f.multiplicity.first())
+        .map(|w| format!("a pole shows multiplicity ({})", w.text))
 }
 
 /// The automatic switch of [`FitOptions::auto_poly_reference`]: every set-up of two or
@@ -1509,5 +1581,114 @@ mod statistic_tests {
         assert!(!s.contains("18000"), "{s}");
         // Float32-quantised data (relative residual ~6e-8) stay far above the floor.
         assert!(!test_variance((6e-8f64).powi(2) * 100.0, 100.0).1);
+    }
+}
+
+#[cfg(test)]
+mod multiplicity_tests {
+    use super::*;
+    use crate::testdata;
+    use rbprops_core::Quantity;
+
+    /// The rule the switch used before the warnings were typed: a phrase in the text.
+    fn by_text(w: &str) -> bool {
+        w.contains("treat them as one repeated root")
+            || w.contains("by the forward model-order test")
+            || w.contains("residue basis is nearly singular")
+            || w.contains("not all identifiable")
+    }
+
+    fn reason_by_text(fits: &[&ExcitationFit]) -> Option<String> {
+        let counts: Vec<usize> = fits.iter().map(|f| f.modes.len()).collect();
+        let (lo, hi) = (
+            counts.iter().copied().min().unwrap_or(0),
+            counts.iter().copied().max().unwrap_or(0),
+        );
+        if lo != hi {
+            return Some(format!(
+                "the per-excitation fits disagree on the number of modes ({lo} to {hi})"
+            ));
+        }
+        fits.iter()
+            .find_map(|f| f.record.warnings.iter().find(|w| by_text(w)))
+            .map(|w| format!("a pole shows multiplicity ({w})"))
+    }
+
+    /// Test-case campaigns with the second mode moved next to the first: every
+    /// multiplicity warning is typed (the typed list is exactly the warnings the text
+    /// rule picks, in order) and the switch's decision and reason are those of the text
+    /// rule. At least one fit must report a multiplicity, or the test proves nothing.
+    #[test]
+    fn typed_multiplicity_decides_as_the_text_did() {
+        let mut typed = 0;
+        for (apart, noise) in [(5e-4, 0.0), (3e-3, 0.0), (3e-3, 0.01), (2e-2, 0.01)] {
+            let mut case = testdata::test_case(3.0, 1024, Quantity::Accelerance);
+            case.modes[1].frequency_hz = case.modes[0].frequency_hz * (1.0 + apart);
+            case.frf = testdata::synthesise(
+                &case.geometry,
+                &case.modes,
+                3.0,
+                1024,
+                Quantity::Accelerance,
+            );
+            let case = if noise > 0.0 {
+                case.with_noise(noise, 7)
+            } else {
+                case
+            };
+            let opts = FitOptions::default();
+            let results = single_reference_fits(&case.geometry, &case.frf, &opts, &[]);
+            let fits: Vec<&ExcitationFit> =
+                results.iter().filter_map(|r| r.as_ref().ok()).collect();
+            for f in &fits {
+                let texts: Vec<&String> = f.multiplicity.iter().map(|m| &m.text).collect();
+                let picked: Vec<&String> =
+                    f.record.warnings.iter().filter(|w| by_text(w)).collect();
+                assert_eq!(texts, picked, "{apart} apart, noise {noise}");
+                typed += texts.len();
+            }
+            assert_eq!(
+                poly_reference_reason(&fits),
+                reason_by_text(&fits),
+                "{apart} apart, noise {noise}"
+            );
+        }
+        assert!(typed > 0, "no fit reported a multiplicity");
+    }
+
+    /// The switch no longer reads texts: an excitation whose id contains a phrase of the
+    /// old rule does not trigger it, and a typed warning does whatever its text.
+    #[test]
+    fn the_switch_reads_kinds_not_texts() {
+        let case = testdata::test_case(3.0, 512, Quantity::Accelerance);
+        let results = single_reference_fits(&case.geometry, &case.frf, &FitOptions::default(), &[]);
+        let mut fits: Vec<ExcitationFit> = results.into_iter().map(|r| r.unwrap()).collect();
+        // Fits that agree on the mode count and report no multiplicity: no switch.
+        let n = fits.iter().map(|f| f.modes.len()).min().unwrap();
+        for f in &mut fits {
+            f.modes.truncate(n);
+            f.multiplicity.clear();
+            f.record.warnings.retain(|w| !by_text(w));
+        }
+        assert_eq!(
+            poly_reference_reason(&fits.iter().collect::<Vec<_>>()),
+            None
+        );
+        fits[0].record.warnings.push(
+            "excitation 'not all identifiable': pole refinement did not converge in 40 iterations"
+                .into(),
+        );
+        assert_eq!(
+            poly_reference_reason(&fits.iter().collect::<Vec<_>>()),
+            None
+        );
+        fits[1].multiplicity.push(MultiplicityWarning {
+            kind: Multiplicity::RepeatedRoot,
+            text: "excitation 'F1': modes 1 and 2 cannot be separated".into(),
+        });
+        assert_eq!(
+            poly_reference_reason(&fits.iter().collect::<Vec<_>>()).as_deref(),
+            Some("a pole shows multiplicity (excitation 'F1': modes 1 and 2 cannot be separated)")
+        );
     }
 }

@@ -393,6 +393,8 @@ pub(crate) fn fit_setup(
             modal_constant_std: a_std,
             synthesised: sf.synthesised[ei].clone(),
             warnings: warnings.clone(),
+            // The poly-reference fit is what a multiplicity switches to: none to report.
+            multiplicity: Vec::new(),
             diagram: diagram.clone(),
         };
         out.push(assemble(ex, &bands[ei], parts, opts, METHOD));

@@ -35,6 +35,7 @@ pub struct BootstrapOptions {
     pub residual_terms: bool,
     /// Poles per excitation or per set-up; `None` (default) infers it from the record.
     pub pole_mode: Option<PoleMode>,
+    /// How a replicate's modes are matched to the measured ones (frequency, MAC).
     pub tolerances: MatchTolerances,
     /// Warn when more than this fraction of the replicates fail (default 0.05).
     pub failure_warning_fraction: f64,
@@ -57,7 +58,9 @@ impl Default for BootstrapOptions {
 /// Bootstrap distribution of one estimate (one modal estimator on one set-up).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BootstrapEstimate {
+    /// The estimator.
     pub method: EstimateMethod,
+    /// Suspension set-up.
     pub setup: String,
     /// The estimate from the measured data.
     pub estimate: [f64; N_PROPS],
@@ -69,6 +72,7 @@ pub struct BootstrapEstimate {
     pub percentile_95: [[f64; 2]; N_PROPS],
     /// The successful replicates' property vectors, in replicate order.
     pub samples: Vec<[f64; N_PROPS]>,
+    /// Number of replicates whose estimate failed.
     pub failed: usize,
     /// Distinct failure reasons (at most five).
     pub failure_reasons: Vec<String>,
@@ -87,18 +91,24 @@ impl BootstrapEstimate {
 /// The noise model of one excitation (per channel, geometry order).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExcitationNoise {
+    /// Excitation id.
     pub excitation: String,
+    /// Noise model `σ² = a²|H|² + b²` per channel (docs/conventions.md §8).
     pub channels: Vec<NoiseModel>,
 }
 
 /// Everything [`bootstrap`] found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BootstrapOutput {
+    /// One distribution per estimator and set-up.
     pub estimates: Vec<BootstrapEstimate>,
+    /// The noise model of every excitation, estimated from the fit residuals.
     pub noise: Vec<ExcitationNoise>,
+    /// Replicates drawn.
     pub replicates: usize,
     /// The pole mode used (given or inferred).
     pub pole_mode: PoleMode,
+    /// Notes on the bootstrap, human-readable.
     pub warnings: Vec<String>,
 }
 

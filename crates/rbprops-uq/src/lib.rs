@@ -7,7 +7,7 @@
 //! instead, so every such correlation is carried through the same code that made the
 //! estimate.
 //!
-//! # Procedure ([`bootstrap`])
+//! # Procedure ([`bootstrap()`])
 //! 1. **Fitted model.** For each excitation the selection uses (with poles shared per
 //!    set-up: every fitted excitation of its set-up), the poles of the `ModalFitRecord`
 //!    and LSFD residues (`rbprops_modal::lsfd::fit_residues`, residual terms as in the
@@ -70,6 +70,8 @@
 //! machine.
 //!
 //! No I/O: data in, data (or typed errors) out.
+
+#![warn(missing_docs)]
 
 pub mod bootstrap;
 pub mod error;

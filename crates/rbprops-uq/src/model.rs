@@ -16,7 +16,9 @@ use rbprops_modal::{Pole, PoleMode};
 pub struct ExcitationModel {
     /// Index in the geometry (and FRF set).
     pub excitation: usize,
+    /// Excitation id.
     pub id: String,
+    /// Its suspension set-up.
     pub setup: String,
     /// The measured lines of the fit's band.
     pub band: BandData,
@@ -31,6 +33,7 @@ pub struct ExcitationModel {
     /// The bootstrap's centre: the synthesis, except on lines of structured misfit where
     /// it is the measured value (so every replicate carries the misfit the data carry).
     pub centre: Vec<Vec<c64>>,
+    /// Noise model per channel, estimated from the fit residuals (docs/conventions.md §8).
     pub noise: Vec<NoiseModel>,
     /// Per channel, the number of misfit lines.
     pub misfit_lines: Vec<usize>,
@@ -59,11 +62,14 @@ impl ExcitationModel {
 /// The models of the excitations a bootstrap has to refit, grouped by shared poles.
 #[derive(Debug, Clone)]
 pub struct FittedModel {
+    /// Every excitation that is refitted.
     pub excitations: Vec<ExcitationModel>,
     /// Indices into `excitations` that share one pole set (one per excitation for
     /// [`PoleMode::PerExcitation`], one per set-up for [`PoleMode::PerSetup`]).
     pub groups: Vec<Vec<usize>>,
+    /// Whether poles are shared per excitation or per set-up.
     pub pole_mode: PoleMode,
+    /// Whether the refits carry residual terms, as the measured fit did.
     pub residuals_enabled: bool,
 }
 

@@ -37,6 +37,7 @@ pub const MISFIT_PRECISION_FLOOR: f64 = 1e-5;
 /// The noise of one channel and the lines where the modal model misses structure.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ChannelFit {
+    /// Noise model `σ² = a²|H|² + b²` fitted to the residuals off the misfit lines.
     pub noise: NoiseModel,
     /// Per line: the residual there is structured (a mode the fit missed, …), not noise.
     pub misfit: Vec<bool>,

@@ -49,8 +49,11 @@ impl Default for MatchTolerances {
 /// the replicate's.
 #[derive(Debug, Clone)]
 pub struct ReplicateModes {
+    /// Excitation id.
     pub excitation: String,
+    /// The replicate's modes of this excitation.
     pub modes: Vec<ModeEstimate>,
+    /// `(record mode number, replicate mode number)` of every mode found again.
     pub mode_map: Vec<(usize, usize)>,
 }
 

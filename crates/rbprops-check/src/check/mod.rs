@@ -53,6 +53,7 @@ pub struct CheckOptions {
     pub min_delta_bic: f64,
     /// Largest canonical correlation under which two candidates count as distinct.
     pub max_correlation: f64,
+    /// Iteration cap of each Levenberg–Marquardt fit.
     pub max_iterations: usize,
     /// Weighed mass (side information): fixes m, which makes a global gain observable.
     pub weighed_mass_kg: Option<f64>,
@@ -75,6 +76,7 @@ pub struct CheckOptions {
 pub struct Progress(Option<std::sync::Arc<dyn Fn(&str) + Send + Sync>>);
 
 impl Progress {
+    /// Progress reported through `f` (one line of text per step).
     pub fn new(f: impl Fn(&str) + Send + Sync + 'static) -> Self {
         Progress(Some(std::sync::Arc::new(f)))
     }
@@ -118,14 +120,19 @@ impl Default for CheckOptions {
 /// Everything a front end needs: the report, the improved spec and the FRFs for plots.
 #[derive(Debug)]
 pub struct CheckOutcome {
+    /// The machine-readable report and its verdict.
     pub report: ModelCheckReport,
     /// The nominal spec with fitted parameters and the accepted effects switched on.
     pub improved_spec: CampaignSpec,
+    /// How the recording maps onto the spec (the order of the vectors below).
     pub layout: Layout,
     /// `[exc][ch][line]` in the recording's layout.
     pub measured: Vec<c64>,
+    /// The nominal spec's prediction, same layout.
     pub nominal: Vec<c64>,
+    /// The baseline (nominal physics, fitted parameters), same layout.
     pub baseline: Vec<c64>,
+    /// The improved model (accepted effects on), same layout.
     pub improved: Vec<c64>,
     /// σ per value (0: excluded).
     pub sigma: Vec<f64>,
