@@ -7,9 +7,7 @@
 //! over the 20 property/estimator pairs a 50-run check fails more often than not by chance
 //! alone. It did: seeds 1000–1049 gave 43/50 (Bretl–Conti c_x) and 42/50 (J_yz) while 400
 //! runs gave 0.938–0.970 for every pair. With n = 400, P(X < 360) = 0.07 % per pair at 94 %.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::c64;

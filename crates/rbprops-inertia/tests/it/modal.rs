@@ -1,7 +1,5 @@
 //! Bretl–Conti and Toivola–Nuutila on exact and noisy modes of a fixture.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rbprops_core::records::InertiaEstimate;
 use rbprops_core::{c64, MassMatrix6, RigidBodyProperties, Vec3};
 use rbprops_inertia::*;

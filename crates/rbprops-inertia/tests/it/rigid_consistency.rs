@@ -9,9 +9,7 @@
 //! channel or excitation, in ≥ 90 % of seeds; noise alone warns in ≤ 5 % of seeds. The CI
 //! test runs 6 seeds per class; `study_over_100_seeds` (ignored, `--ignored --nocapture`)
 //! prints the rates over 100.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::noise::standard_normal as normal;

@@ -1,7 +1,5 @@
 //! Physical consistency flags, the projected estimate and thread-count independence.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rbprops_core::{Mat3, RigidBodyProperties, Vec3};
 use rbprops_inertia::*;
 

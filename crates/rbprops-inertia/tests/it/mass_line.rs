@@ -1,7 +1,5 @@
 //! The inertia-restraint (mass-line) estimate from FRFs.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rbprops_core::{Mat3, Vec3};
 use rbprops_inertia::*;
 
