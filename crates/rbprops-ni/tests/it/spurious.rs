@@ -1,9 +1,7 @@
 //! What `modal-fit` returns on noisy data: split poles, leakage poles, noise and elastic
 //! poles. Per set-up at most six physical modes are kept, the true ones, each from the
 //! right excitation, and every rejected estimate is reported with its reason.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate};

@@ -1,7 +1,5 @@
 //! Acceptance tests of the selection on noise-free models.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rbprops_ni::{select_modes, Criterion, NiError, SelectOptions, SelectionOutput};
 
 fn run(

@@ -1,7 +1,5 @@
 //! Selection on noisy data, over many seeds.
-mod common;
-
-use common::*;
+use crate::common::*;
 use rbprops_ni::{select_modes, SelectOptions};
 
 /// FRFs with 2 % complex Gaussian noise per value and mode estimates with residue noise of
