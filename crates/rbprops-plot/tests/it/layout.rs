@@ -1,7 +1,6 @@
 //! Layout a reader relies on: legends never cover data, and small multiples give every
 //! channel its own magnitude and phase axes.
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_plot::*;
 
 fn grid(n: usize, lo: f64, hi: f64) -> Vec<f64> {

@@ -1,5 +1,4 @@
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_plot::*;
 
 fn grid(n: usize, lo: f64, hi: f64) -> Vec<f64> {

@@ -1,7 +1,6 @@
 //! Low-quality shading of FRF panels: the lines whose quality (coherence γ²) is below the
 //! threshold are light spans behind the curves, where they should be.
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_plot::*;
 
 /// 1 … 20 Hz in 0.1 Hz steps (191 lines).
