@@ -3,9 +3,7 @@
 //! tests). The expected JSON comes from the campaign, not from the file.
 //! Output: fixtures/uff/written/rbprops_{ascii,binary}.{uff,json} (deterministic bytes).
 
-mod common;
-
-use common::{campaign, even_axis, Spec};
+use crate::common::{campaign, even_axis, Spec};
 use nalgebra::Rotation3;
 use rbprops_core::{Quantity, Vec3};
 use rbprops_uff::{from_campaign, parse, to_campaign, WriteOptions};

@@ -1,8 +1,6 @@
 //! Mapping rules on hand-edited files: unit systems and labels, coordinate systems.
 
-mod common;
-
-use common::{campaign, even_axis, Spec};
+use crate::common::{campaign, even_axis, Spec};
 use rbprops_core::{FrfSet, Geometry, Quantity, Vec3};
 use rbprops_uff::{from_campaign, parse, to_campaign, UffError, WriteOptions};
 

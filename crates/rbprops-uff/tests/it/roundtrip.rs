@@ -1,8 +1,6 @@
 //! Our campaign → UFF → our campaign.
 
-mod common;
-
-use common::{campaign, even_axis, Spec};
+use crate::common::{campaign, even_axis, Spec};
 use rbprops_core::{FrfSet, Geometry, Quantity};
 use rbprops_uff::{from_campaign, parse, to_campaign, NodeFormat, Record, WriteOptions};
 

@@ -1,8 +1,6 @@
 //! Bad input: clear errors naming the file, the dataset and the field; never a panic.
 
-mod common;
-
-use common::{campaign, even_axis, Spec};
+use crate::common::{campaign, even_axis, Spec};
 use proptest::prelude::*;
 use rbprops_core::Quantity;
 use rbprops_uff::{from_campaign, parse, to_campaign, UffError, WriteOptions};
