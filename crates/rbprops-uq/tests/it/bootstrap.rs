@@ -1,6 +1,6 @@
 //! The bootstrap on the demo campaign (Test Case II, 1 % relative FRF noise).
 
-mod common;
+use crate::common;
 use rbprops_uq::*;
 
 fn run(c: &common::Case, opts: &BootstrapOptions) -> BootstrapOutput {
