@@ -2,10 +2,7 @@
 //! (`fixtures/model-check/bench/`, 1000 lines × 9 × 3, 1 % noise, single precision),
 //! checked as the bench does (default options, noise from the data).
 
-#[path = "../benches/bench_recording.rs"]
-mod bench_recording;
-
-use bench_recording::{nominal, recording, CASES};
+use crate::bench_recording::{nominal, recording, CASES};
 use rbprops_check::{check, CheckOptions};
 
 /// `gravity-window-gain`: the body on its four springs under gravity (the nominal model

@@ -2,8 +2,7 @@
 //! against rbprops-sim, the improved spec, determinism across thread counts, and the
 //! end-to-end run with the data-only noise estimate.
 
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_check::noise::estimate;
 use rbprops_check::predict::{predict, Layout};
 use rbprops_check::{check, CheckOptions};

@@ -1,8 +1,7 @@
 //! Longer studies, run on demand (release recommended):
 //! `cargo test -p rbprops-check --release --test studies -- --ignored --nocapture`
 
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_check::{check, CheckOptions};
 
 /// Null study: 100 seeded replicates with only nominal-parameter errors (mass, CoM,

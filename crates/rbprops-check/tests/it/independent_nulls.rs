@@ -14,8 +14,7 @@
 //! The study over 100 seeds per precision (`null_study`, `#[ignore]`):
 //! `cargo test --release -p rbprops-check --test independent_nulls -- --ignored --nocapture`.
 
-mod common;
-use common::nominal;
+use crate::common::nominal;
 use rbprops_check::report::ModelCheckReport;
 use rbprops_check::{check, CheckOptions};
 use rbprops_core::noise::NormalStream;

@@ -4,8 +4,7 @@
 //! level is given as side information here (the data-only estimator is tested in
 //! `noise.rs` at a resolution where it is unbiased, and end to end in `end_to_end`).
 
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_check::report::{InertiaEstimateReport, ModelCheckReport};
 use rbprops_check::{check, CheckOptions, RecordingNoise};
 use rbprops_core::{FrfSet, Geometry, RigidBodyProperties};

@@ -7,10 +7,7 @@
 //! Screening is restricted to the concealed effects and two rivals to keep the debug
 //! build's run short; the parallel paths are the same as in a full run.
 
-#[path = "../benches/bench_recording.rs"]
-mod bench_recording;
-
-use bench_recording::{nominal, recording, CASES};
+use crate::bench_recording::{nominal, recording, CASES};
 use rbprops_check::{check, CheckOptions};
 
 #[test]

@@ -1,5 +1,4 @@
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_check::{check, CheckOptions};
 
 #[test]
