@@ -1,15 +1,13 @@
 //! Bad input, per-excitation failures, thread-count determinism, PerSetup poles, and
 //! the axis limits of LSCE.
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_core::{c64, Quantity};
-use rbprops_modal::{
-    fit_campaign, fit_excitation, testdata, FitOptions, Method, ModalError, PoleMode,
-};
+use rbprops_modal::{fit_campaign, fit_excitation, FitOptions, Method, ModalError, PoleMode};
+use rbprops_testkit::synthetic;
 
 #[test]
 fn bad_excitations_become_warnings_and_others_complete() {
-    let mut s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
+    let mut s = synthetic::test_case(12.5, 1024, Quantity::Accelerance);
     s.frf.frf_mut(1, 4)[100] = c64::new(f64::NAN, 0.0);
     for v in s.frf.frf_mut(2, 7) {
         *v = c64::new(0.0, 0.0);
@@ -50,7 +48,7 @@ fn bad_excitations_become_warnings_and_others_complete() {
 
 #[test]
 fn clear_errors_for_empty_band_too_few_lines_and_bad_options() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Accelerance);
     let o = FitOptions {
         band_hz: Some((20.0, 30.0)),
         ..Default::default()
@@ -91,7 +89,7 @@ fn clear_errors_for_empty_band_too_few_lines_and_bad_options() {
 
 #[test]
 fn lsce_refuses_zoom_and_non_uniform_axes() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Accelerance);
     let o = FitOptions {
         method: Method::Lsce,
         band_hz: Some((0.5, 5.0)),
@@ -137,7 +135,7 @@ fn lsce_refuses_zoom_and_non_uniform_axes() {
 
 #[test]
 fn results_are_identical_for_any_thread_count() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Accelerance).with_noise(0.01, 7);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Accelerance).with_noise(0.01, 7);
     let run = |t: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)
@@ -152,7 +150,7 @@ fn results_are_identical_for_any_thread_count() {
 
 #[test]
 fn per_setup_poles_are_shared_and_exact() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Accelerance);
     let o = FitOptions {
         poles: PoleMode::PerSetup,
         ..Default::default()
@@ -192,7 +190,7 @@ fn per_setup_poles_are_shared_and_exact() {
 
 #[test]
 fn standard_errors_and_records_are_finite_and_consistent() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Mobility).with_noise(0.01, 3);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Mobility).with_noise(0.01, 3);
     let keep = FitOptions {
         keep_synthesised: true,
         ..Default::default()

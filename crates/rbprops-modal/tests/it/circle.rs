@@ -1,11 +1,11 @@
 //! Circle fit and LSCF agree on well-separated modes (≥ 5 half-power bandwidths).
-mod common;
-use common::*;
-use rbprops_modal::{fit_campaign, testdata, FitOptions, Method};
+use crate::common::*;
+use rbprops_modal::{fit_campaign, FitOptions, Method};
+use rbprops_testkit::synthetic;
 
 #[test]
 fn circle_fit_agrees_with_lscf_on_separated_modes() {
-    let s = testdata::with_modes(
+    let s = synthetic::with_modes(
         [0.6, 0.9, 1.3, 1.8, 2.4, 3.1],
         [0.012, 0.010, 0.015, 0.012, 0.014, 0.010],
         3,

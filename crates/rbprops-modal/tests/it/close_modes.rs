@@ -1,13 +1,13 @@
 //! Two pairs of rigid modes each closer than its half-power bandwidth (0.800/0.812 Hz
 //! and 1.550/1.575 Hz), 1 % noise, 5 excitations: every excited mode found, none merged
 //! (frequency error < 1e-3, MAC > 0.99). Several seeds, all required to pass.
-mod common;
-use common::*;
-use rbprops_modal::{fit_campaign, testdata, FitOptions, Method};
+use crate::common::*;
+use rbprops_modal::{fit_campaign, FitOptions, Method};
+use rbprops_testkit::synthetic;
 
 #[test]
 fn close_pairs_are_resolved_not_merged() {
-    let base = testdata::close_modes(5.0, 4096);
+    let base = synthetic::close_modes(5.0, 4096);
     for (a, b) in [(0, 1), (2, 3)] {
         let (ma, mb) = (&base.modes[a], &base.modes[b]);
         let hpb = 2.0 * ma.damping_ratio.min(mb.damping_ratio) * ma.frequency_hz;
@@ -36,7 +36,7 @@ fn close_pairs_are_resolved_not_merged() {
 
 #[test]
 fn circle_fit_fails_on_close_modes_and_says_so() {
-    let s = testdata::close_modes(5.0, 4096);
+    let s = synthetic::close_modes(5.0, 4096);
     let opts = FitOptions {
         method: Method::Circle,
         ..Default::default()
@@ -86,7 +86,7 @@ fn circle_fit_fails_on_close_modes_and_says_so() {
 /// seed 0 (excitation 1 merges the pair into one pole).
 #[test]
 fn model_order_of_a_close_pair_is_right_neither_merged_nor_over_split() {
-    let base = testdata::with_modes(
+    let base = synthetic::with_modes(
         [0.873, 1.042, 1.612, 3.672, 3.709, 5.007],
         [0.015; 6],
         3,

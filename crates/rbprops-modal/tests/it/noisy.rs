@@ -2,14 +2,14 @@
 //! for every mode the excitation excites (peak NI within 20 dB of its strongest mode).
 //! Required of all 20 seeds × 3 excitations (60 fits): the tolerances sit 10–50× above
 //! the observed scatter, so a single failure is a real defect, not bad luck.
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_core::Quantity;
-use rbprops_modal::{fit_campaign, testdata, FitOptions};
+use rbprops_modal::{fit_campaign, FitOptions};
+use rbprops_testkit::synthetic;
 
 #[test]
 fn one_percent_noise_twenty_seeds() {
-    let base = testdata::test_case(12.5, 2048, Quantity::Accelerance);
+    let base = synthetic::test_case(12.5, 2048, Quantity::Accelerance);
     let (mut wf, mut wz, mut wm) = (0.0f64, 0.0f64, 1.0f64);
     let mut std_ratio = Vec::new();
     for seed in 0..20 {
@@ -57,7 +57,7 @@ fn one_percent_noise_twenty_seeds() {
 /// sweeps find every excited mode within the same tolerances, without `--band`.
 #[test]
 fn wide_baseband_without_band_option_finds_every_excited_mode() {
-    let base = testdata::test_case(100.0, 8001, Quantity::Accelerance);
+    let base = synthetic::test_case(100.0, 8001, Quantity::Accelerance);
     let mut wf = 0.0f64;
     for seed in 0..5 {
         let s = base.with_noise(0.01, 700 + seed);

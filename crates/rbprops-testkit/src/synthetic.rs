@@ -1,6 +1,6 @@
 //! Seeded synthetic SIMO data of a rigid body on springs, built only from rbprops-core
-//! (the paper's Test Case II body). Used by the tests and the benchmark, and usable by
-//! the CLI for self-checks. Pure data generation, no I/O.
+//! (the paper's Test Case II body). Used by rbprops-modal's tests, its benches and its
+//! `timing` example. Pure data generation, no I/O.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -4,7 +4,7 @@
 use rbprops_core::c64;
 use rbprops_core::records::ModeEstimate;
 use rbprops_modal::mac;
-use rbprops_modal::testdata::Synthetic;
+use rbprops_testkit::synthetic::Synthetic;
 
 /// Error of one identified mode against its true counterpart.
 #[derive(Debug, Clone, Copy)]

@@ -1,11 +1,11 @@
 //! Noise-free Test-Case-like data: the identified modes must be exact to the issue's
 //! tolerances (frequency 1e-6, damping 1e-3 relative, MAC > 0.99999, amplitude 1e-4).
-mod common;
-use common::*;
+use crate::common::*;
 use rbprops_core::Quantity;
-use rbprops_modal::{fit_campaign, testdata, FitOptions, Method, RESIDUE_CONVENTION};
+use rbprops_modal::{fit_campaign, FitOptions, Method, RESIDUE_CONVENTION};
+use rbprops_testkit::synthetic;
 
-fn assert_exact(s: &testdata::Synthetic, opts: &FitOptions, label: &str) -> f64 {
+fn assert_exact(s: &synthetic::Synthetic, opts: &FitOptions, label: &str) -> f64 {
     let out = fit_campaign(&s.geometry, &s.frf, opts).unwrap();
     assert_eq!(out.record.residue_convention, RESIDUE_CONVENTION);
     let mut worst: f64 = 0.0;
@@ -40,7 +40,7 @@ fn lscf_is_exact_for_every_quantity() {
         Quantity::Receptance,
         Quantity::Mobility,
     ] {
-        let s = testdata::test_case(12.5, 1024, q);
+        let s = synthetic::test_case(12.5, 1024, q);
         let w = assert_exact(&s, &FitOptions::default(), q.name());
         assert!(w < 1e-9, "{q:?}: worst relative error {w:e}");
     }
@@ -52,7 +52,7 @@ fn zoom_band_needs_and_uses_residual_terms() {
     // and upper (constant) residual terms are first-order models of those modes, so the
     // in-band modes are accurate but not exact (measured: freq ≤ 8e-5, amplitude ≤ 0.6 %);
     // without residual terms the out-of-band modes wreck the fit.
-    let s = testdata::with_modes(
+    let s = synthetic::with_modes(
         [0.3, 0.4, 1.5, 1.8, 2.2, 6.0],
         [0.012, 0.015, 0.010, 0.018, 0.014, 0.02],
         3,
@@ -101,7 +101,7 @@ fn zoom_band_needs_and_uses_residual_terms() {
 
 #[test]
 fn lsce_is_exact_on_a_baseband_with_or_without_refinement() {
-    let s = testdata::test_case(12.5, 1024, Quantity::Accelerance);
+    let s = synthetic::test_case(12.5, 1024, Quantity::Accelerance);
     let lsce = FitOptions {
         method: Method::Lsce,
         ..Default::default()
