@@ -139,7 +139,7 @@ fn explore_predict_cost() {
     println!("build_models: {:?} per call", t.elapsed() / 100);
 }
 
-/// `EFFSPEC='id = "..."\n...' cargo test --test explore explore_spec -- --ignored --nocapture`:
+/// `EFFSPEC='id = "..."\n...' cargo test -p rbprops-check --test it explore::explore_spec -- --ignored --nocapture`:
 /// a concealed rbprops-sim effect at 400 lines, 1 % given noise, truth = nominal with
 /// mass +2 % and vertical springs +8 %.
 #[test]

@@ -12,7 +12,7 @@
 //! failure.
 //!
 //! The study over 100 seeds per precision (`null_study`, `#[ignore]`):
-//! `cargo test --release -p rbprops-check --test independent_nulls -- --ignored --nocapture`.
+//! `cargo test --release -p rbprops-check --test it -- --ignored --nocapture independent_nulls::`.
 
 use crate::common::nominal;
 use rbprops_check::report::ModelCheckReport;

@@ -1,5 +1,5 @@
 //! Longer studies, run on demand (release recommended):
-//! `cargo test -p rbprops-check --release --test studies -- --ignored --nocapture`
+//! `cargo test -p rbprops-check --release --test it -- --ignored --nocapture studies::`
 
 use crate::common::*;
 use rbprops_check::{check, CheckOptions};

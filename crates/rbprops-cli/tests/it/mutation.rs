@@ -649,7 +649,7 @@ fn crc_errors_name_file_offset_and_topic() {
 /// The acceptance study: 1,000 seeded one-bit flips of a recording (Test Case II with
 /// 1 % noise, 300 lines) through `modal-fit | ni-select | rb-solve`, each flip fed on stdin
 /// to the first stage. Every run must fail with a named error or give the clean numbers.
-/// `cargo test -p rbprops-cli --test mutation -- --ignored --nocapture`.
+/// `cargo test -p rbprops-cli --test it -- --ignored --nocapture mutation::acceptance`.
 #[test]
 #[ignore = "acceptance study: 1,000 pipeline runs (a few minutes)"]
 fn acceptance_one_bit_flips_through_the_pipeline() {

@@ -203,7 +203,7 @@ fn systematic_errors_are_named_or_covered_on_a_few_seeds() {
 }
 
 /// The acceptance study: 100 seeds per class (`cargo nextest run -p rbprops-inertia
-/// --test rigid_consistency --run-ignored only --no-capture`).
+/// --test it rigid_consistency:: --run-ignored only --no-capture`).
 #[test]
 #[ignore]
 fn study_over_100_seeds() {
