@@ -1,7 +1,7 @@
 //! Cost of one poly-reference fit (`Method::Plscf`: pLSCF sweep and selection, pole and
 //! participation refinement, shapes, records) of a set-up of 3 excitations × 9 channels
 //! × 1,000 lines (accelerance, 0–12.5 Hz, 1 % noise, the Test Case II body on springs,
-//! built by `testdata::test_case`), on one thread.
+//! built by `synthetic::test_case`), on one thread.
 //!
 //! `cargo bench -p rbprops-modal --bench plscf [-- repeats]` prints the median and the
 //! minimum wall time per fit; with `--features phase-timing` also where the time goes
@@ -9,7 +9,8 @@
 //! 2 refinement, 6 shapes).
 
 use rbprops_core::Quantity;
-use rbprops_modal::{fit_campaign, prof, testdata, FitOptions, Method};
+use rbprops_modal::{fit_campaign, prof, FitOptions, Method};
+use rbprops_testkit::synthetic;
 use std::time::Instant;
 
 fn main() {
@@ -18,7 +19,7 @@ fn main() {
         .skip(1)
         .find_map(|s| s.parse().ok())
         .unwrap_or(31);
-    let s = testdata::test_case(12.5, 1000, Quantity::Accelerance).with_noise(0.01, 7);
+    let s = synthetic::test_case(12.5, 1000, Quantity::Accelerance).with_noise(0.01, 7);
     let opts = FitOptions {
         method: Method::Plscf,
         ..Default::default()

@@ -6,7 +6,8 @@
 //! `TIMING_DIGEST` prints a hash of every estimate's bits, `TIMING_DUMP=file` writes
 //! every estimate (one mode a line), `TIMING_GEN_ONLY` stops after the data generation.
 
-use rbprops_modal::{fit_campaign, testdata, FitOptions, PoleMode};
+use rbprops_modal::{fit_campaign, FitOptions, PoleMode};
+use rbprops_testkit::synthetic;
 use std::time::Instant;
 
 fn main() {
@@ -14,7 +15,7 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(24);
-    let (geometry, frf) = testdata::bench_campaign(batch);
+    let (geometry, frf) = synthetic::bench_campaign(batch);
     // The data generation alone (to subtract from instruction counts of whole runs).
     if std::env::var_os("TIMING_GEN_ONLY").is_some() {
         println!("{} values generated", frf.values.len());

@@ -48,7 +48,6 @@ pub(crate) mod roots;
 mod simd;
 pub mod stabilisation;
 mod tallmul;
-pub mod testdata;
 pub mod weighting;
 
 pub use error::ModalError;

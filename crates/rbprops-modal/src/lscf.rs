@@ -910,8 +910,8 @@ fn sweep_with_roots(
 mod tests {
     use super::*;
     use crate::linalg;
-    use crate::testdata::{self, max_nearest};
     use rbprops_core::Quantity;
+    use rbprops_testkit::synthetic::{self, max_nearest};
 
     /// Every order's warm-started Aberth roots are the companion eigenvalues to the
     /// rounding level, on sweeps like those of the fit (noisy and close-mode data,
@@ -919,9 +919,9 @@ mod tests {
     #[test]
     fn warm_started_roots_match_the_companion_eigenvalues() {
         let cases = [
-            testdata::test_case(12.5, 4096, Quantity::Accelerance).with_noise(0.01, 7),
-            testdata::close_modes(5.0, 2048).with_noise(0.01, 8),
-            testdata::test_case(50.0, 4096, Quantity::Receptance).with_noise(0.03, 9),
+            synthetic::test_case(12.5, 4096, Quantity::Accelerance).with_noise(0.01, 7),
+            synthetic::close_modes(5.0, 2048).with_noise(0.01, 8),
+            synthetic::test_case(50.0, 4096, Quantity::Receptance).with_noise(0.03, 9),
         ];
         let (mut solved, mut fallbacks, mut sweeps, mut worst) = (0, 0, 0, 0.0f64);
         for case in &cases {

@@ -279,7 +279,7 @@ fn aberth_sweeps(coef: &[f64], z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testdata::{max_nearest, poly_from_roots};
+    use rbprops_testkit::synthetic::{max_nearest, poly_from_roots};
 
     fn sorted(mut v: Vec<c64>) -> Vec<c64> {
         v.sort_by(|a, b| {

@@ -8,6 +8,8 @@
 //!   in which case a missing tool fails the test, so CI never passes by skipping.
 #![warn(missing_docs)]
 
+pub mod synthetic;
+
 use rbprops_core::{Channel, Point, Vec3};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -304,7 +304,7 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testdata::poly_from_roots;
+    use rbprops_testkit::synthetic::poly_from_roots;
 
     #[test]
     fn companion_eigenvalues_are_polynomial_roots() {

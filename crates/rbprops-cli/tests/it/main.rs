@@ -1,0 +1,15 @@
+//! The integration tests of rbprops-cli, one binary (`cargo nextest run -p rbprops-cli --test it`):
+//! one module per topic, shared fixtures in `common`.
+
+mod campaign;
+mod coherence_weight;
+mod exp_window;
+mod frf_sim;
+mod golden;
+mod mass_line;
+mod mutation;
+mod refgen_pipeline;
+mod report_html;
+mod uff_campaign;
+mod uff_exports;
+mod warnings_null;
