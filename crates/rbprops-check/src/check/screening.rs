@@ -104,7 +104,7 @@ type ProfilePoint = (f64, usize, Vec<f64>, nalgebra::DVector<f64>);
 /// directions fits the pendulum region of a hanging body's FRFs with mass lines, with a
 /// mass several times the body's and damping ratios of 0.5 and more, and from there the hanging
 /// body at its true cord length fits worse than nothing and no re-adjustment reaches it,
-/// while from the nominal's values it is nearly exact (tests/independent_cords.rs).
+/// while from the nominal's values it is nearly exact (the `independent_cords` tests).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn profile_candidate(
     p: &Problem,
