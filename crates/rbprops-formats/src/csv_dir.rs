@@ -260,7 +260,7 @@ fn write_frf(dir: &Path, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(),
     w.flush().map_err(|e| io(&path, e))
 }
 
-/// Reads a CSV directory written by [`write`] (or by another program following it).
+/// Reads a CSV directory written by [`write()`] (or by another program following it).
 pub fn read(path: &Path) -> Result<RunRecord, FormatError> {
     let entries = read_manifest(path)?;
     let mut rec = RunRecord::default();

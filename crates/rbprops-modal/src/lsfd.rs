@@ -250,8 +250,8 @@ pub struct ResidueFit {
 /// LSFD: residues (and residual terms) for every channel given the poles.
 ///
 /// The basis is shared by every channel: its normal equations are formed once, by
-/// blocks of lines ([`blocked`]), and solved by the Cholesky factor of its Gram matrix
-/// as in [`TallLs`]; by Householder QR of the whole basis when that is ill-conditioned.
+/// blocks of lines (`blocked`), and solved by the Cholesky factor of its Gram matrix
+/// as in `TallLs`; by Householder QR of the whole basis when that is ill-conditioned.
 pub fn fit_residues(
     poles: &[Pole],
     band: &BandData,

@@ -40,7 +40,7 @@ const RANGE_SLACK: f64 = 1e-4;
 
 impl CoherenceWeighting {
     /// Checks `coherence` (`[excitation][channel]`, each `n_lines` long where present):
-    /// every value finite and in `[0, 1]` (to [`RANGE_SLACK`]), and no excitation whose
+    /// every value finite and in `[0, 1]` (to `RANGE_SLACK`), and no excitation whose
     /// factor is 0 on every line. Errors name the excitation, channel and line.
     pub fn new(
         coherence: Vec<Vec<Option<Vec<f64>>>>,

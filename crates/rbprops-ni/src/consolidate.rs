@@ -10,7 +10,7 @@
 //!   mode's shape (its shape duplicates another group's at a different frequency);
 //! - a *noise or elastic pole*: a shape far from rigid-body motion, or seen only weakly.
 //!
-//! [`consolidate`] (1) merges groups with the same shape at nearly the same frequency,
+//! `consolidate` (1) merges groups with the same shape at nearly the same frequency,
 //! (2) keeps one estimate per excitation and group, (3) rejects groups whose shape
 //! duplicates a better-supported group's, (4) if more than six groups remain, rejects the
 //! least supported. Every rejection carries its reason.

@@ -69,7 +69,7 @@ pub struct BarChart {
     pub series: Vec<BarSeries>,
     /// Printed below the groups.
     pub x_label: String,
-    /// With units, e.g. "m [kg]" or "relative error [%]".
+    /// With units, e.g. "m \[kg\]" or "relative error [%]".
     pub y_label: String,
     /// Horizontal lines across the chart, each with a legend entry.
     pub references: Vec<ReferenceLine>,

@@ -28,7 +28,7 @@ pub struct HeatMap {
     pub x_label: String,
     /// Printed beside the rows.
     pub y_label: String,
-    /// Colour-bar description with units, e.g. "excitation strength [dB]".
+    /// Colour-bar description with units, e.g. "excitation strength \[dB\]".
     pub value_label: String,
     /// Decimal places of the printed cell values.
     pub decimals: usize,

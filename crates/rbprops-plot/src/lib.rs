@@ -10,7 +10,7 @@
 //! | [`line_plot`] | [`LinePlot`] | FRF magnitude overlays (measured solid, synthesised dashed), NI curves, hybrid/PRF MIF, measured vs nominal vs improved |
 //! | [`frf_panels`] | [`FrfPanels`] | small multiples: one panel per channel, magnitude over phase, measured vs fitted |
 //! | [`stabilisation_diagram`] | [`StabilisationDiagram`] | pole stability letters s/d/f/o per model order over the Σ-FRF or NI curve |
-//! | [`heat_map`] | [`HeatMap`] | mode × excitation strength [dB], any labelled table |
+//! | [`heat_map`] | [`HeatMap`] | mode × excitation strength \[dB\], any labelled table |
 //! | [`bar_chart`] | [`BarChart`] | property value / relative error per data set and origin or method, ±1.96σ, true value |
 //! | [`scatter_plot`] | [`ScatterPlot`] | estimated vs true with error bars and the identity line |
 //!

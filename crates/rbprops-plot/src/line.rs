@@ -76,7 +76,7 @@ impl VerticalMarker {
 pub struct LinePlot {
     /// Printed above the plot.
     pub title: String,
-    /// E.g. "Frequency [Hz]".
+    /// E.g. "Frequency \[Hz\]".
     pub x_label: String,
     /// E.g. "|H| [m/s²/N]".
     pub y_label: String,

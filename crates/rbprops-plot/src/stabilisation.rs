@@ -109,7 +109,7 @@ pub struct StabilisationDiagram {
     pub size: PlotSize,
 }
 
-/// Render a stabilisation diagram: x = frequency [Hz], y = model order, one
+/// Render a stabilisation diagram: x = frequency (Hz), y = model order, one
 /// coloured letter per pole (s/d/f/o, see [`PoleClass`]), selected poles as
 /// dashed vertical lines, and the optional background curve on a log axis at
 /// the right, drawn first so that it lies behind the letters.

@@ -48,7 +48,7 @@ impl SpecError {
     }
 }
 
-/// Errors of [`crate::simulate`].
+/// Errors of [`crate::simulate()`].
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum SimError {
     /// The campaign spec cannot be used.

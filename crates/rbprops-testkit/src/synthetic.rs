@@ -236,7 +236,7 @@ pub fn test_case(f_max: f64, n_lines: usize, quantity: Quantity) -> Synthetic {
 }
 
 /// The bench workload: `batch` excitations, 9 channels × 4,096 lines of
-/// accelerance on 0–12.5 Hz, each a copy of one of [`test_case`]'s three excitations
+/// accelerance on 0–12.5 Hz, each a copy of one of [`test_case()`]'s three excitations
 /// (in turn) with its own 1 % complex noise (seed `1000 + index`). Shared by the
 /// `timing` example and the criterion bench so that both measure the same data.
 pub fn bench_campaign(batch: usize) -> (Geometry, FrfSet) {

@@ -22,7 +22,7 @@
 //!
 //! # Mapping to a campaign ([`to_campaign`])
 //! - Datasets 58 with function type 4 (FRF) make the FRF set; there must be at least
-//!   one (else the error lists what the file holds, [`inventory`]). Coherence (type 6)
+//!   one (else the error lists what the file holds, [`inventory()`]). Coherence (type 6)
 //!   is matched to the FRF of the same DOFs ([`CoherenceSet`]); other functions are
 //!   listed in a warning.
 //! - **Quantity** from record 9 (numerator) data type: 8 displacement → receptance,

@@ -391,7 +391,7 @@ fn describe(t: &Tok) -> String {
 
 /// Parses a units label into an SI factor and a dimension.
 ///
-/// Grammar (case-insensitive symbols where unambiguous, see [`symbol`]):
+/// Grammar (case-insensitive symbols where unambiguous, see `symbol`):
 /// products with `*`, `.`, `·`, `×` or a blank; quotients with `/`, left-associative
 /// (`m/s^2/N` = m·s⁻²·N⁻¹); nested and multiplied parenthesised groups
 /// (`(1/N)*(m/s²)`); powers with `^`, `**`, superscripts (`²`, `³`, `⁻²`) or digits

@@ -50,7 +50,7 @@ enum Command {
         /// as rb-solve) or `linearised` (faster). Default: the campaign file's, else bootstrap.
         #[arg(long, value_enum)]
         uncertainty: Option<rbprops_cli::stages::UncertaintyChoice>,
-        /// Also write each item's run (DIR/<label>/run.mcap, every stage's topic) and its
+        /// Also write each item's run (`DIR/<label>/run.mcap`, every stage's topic) and its
         /// figures (SVG) under DIR, for `rbprops report`: put it beside the summary as
         /// `runs/` (`-o OUT/summary.csv --runs OUT/runs`, then `rbprops report OUT`).
         #[arg(long)]
