@@ -2,7 +2,7 @@
 //! catalogue effect is screened (or a note says why not), at its registry title, in the
 //! registry's order.
 
-use rbprops_check::candidates::{candidates, describe, Screening};
+use rbprops_check::candidates::{candidates, describe, Screening, FURTHER_INSTANCES};
 use rbprops_sim::effects::{registry, NeutralForm};
 use rbprops_sim::{example, CampaignSpec};
 
@@ -45,13 +45,32 @@ fn candidates_follow_the_registry() {
     assert!(cands[..scored.len()]
         .iter()
         .all(|c| c.source == "rbprops-sim" && c.screening == Screening::Score));
-    // The one local candidate the catalogue lacks.
+    // The one local candidate the catalogue lacks (and its further instances).
     let local: Vec<&str> = cands
         .iter()
-        .filter(|c| c.source == "rbprops-check (local)")
+        .filter(|c| c.source == "rbprops-check (local)" && c.follows.is_none())
         .map(|c| c.id.as_str())
         .collect();
     assert_eq!(local, ["residual_flexibility"]);
+    // Repeatable physics: each further instance follows the one before it, at the same
+    // neutral point and screened the same way as the first.
+    for first in ["elastic_mode", "residual_flexibility"] {
+        let f = cands.iter().find(|c| c.id == first).expect(first);
+        let mut prev = first.to_string();
+        for k in 2..=1 + FURTHER_INSTANCES {
+            let id = format!("{first}_{k}");
+            let c = cands.iter().find(|c| c.id == id).expect(&id);
+            assert_eq!(c.follows.as_deref(), Some(prev.as_str()), "{id}");
+            assert_eq!(c.neutral, f.neutral, "{id}");
+            assert_eq!(c.screening, f.screening, "{id}");
+            assert_eq!(c.effect.id(), f.effect.id(), "{id}");
+            prev = id;
+        }
+    }
+    assert_eq!(
+        cands.iter().filter(|c| c.follows.is_some()).count(),
+        2 * FURTHER_INSTANCES
+    );
 }
 
 /// An effect the nominal spec already has is not a candidate.
