@@ -90,9 +90,14 @@ pub(super) fn resonance_candidate(
     profile_candidate(p, cur, active, c, (q0, chord), &starts, n_tests, false)
 }
 
-/// A profile point after its chord refinement: the gain, the grid index, the current
-/// model's re-adjusted parameters and the residual there.
-type ProfilePoint = (f64, usize, Vec<f64>, nalgebra::DVector<f64>);
+/// A profile point after its chord refinement: the gain, the index of the (grid point,
+/// start) pair, and the current model's re-adjusted parameters and the residual there
+/// (`None` for a point not chord-refined).
+type ProfilePoint = (f64, usize, Option<(Vec<f64>, nalgebra::DVector<f64>)>);
+
+/// Points per start of a profile that are chord-refined (the most promising by the
+/// first chord step's prediction; see [`profile_candidate`]).
+const PROFILE_REFINED: usize = 8;
 
 /// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
 /// statistic the best of `n_tests` tests.
@@ -130,7 +135,8 @@ pub(super) fn profile_candidate(
     };
     let base = perp(&r0).norm_squared();
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
-    // each grid point: a few model evaluations, enough when the effect moves them far.
+    // the most promising grid points: a few model evaluations, enough when the effect
+    // moves them far.
     let svd = chord.svd();
     let nb = cur.theta.len();
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
@@ -142,25 +148,70 @@ pub(super) fn profile_candidate(
         t[..p.n_base()].copy_from_slice(&p.baseline.initial());
         starts.push(t);
     }
-    // Each point's chord refinement is independent of the others: they run in parallel
-    // (a profile of slow models, cords with their string modes, was the last candidate
-    // of the screening to finish), and the best is then taken in the order of the points,
-    // the first of equal gains, as a loop over them takes it.
     let points: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..starts.len()).map(move |k| (g, k)))
         .collect();
-    let refined: Vec<Option<ProfilePoint>> = points
+    let theta_at = |(g, k): (usize, usize)| {
+        let mut t = starts[k].clone();
+        t.extend_from_slice(&grid[g]);
+        t
+    };
+    // Every point once at each start: its χ² and the χ² the first chord step predicts,
+    // ‖P⊥ r_g‖² (the step solves the linearised problem of the current Jacobian, whose
+    // span `q0` is). From the current fit's parameters that prediction is also the
+    // linearised gain (the score-like statistic).
+    let first: Vec<Option<(f64, f64)>> = points
         .par_iter()
         .map(|&(g, k)| {
-            let mut t = starts[k].clone();
-            t.extend_from_slice(&grid[g]);
-            let mut rg = eval(&t)?;
-            // Linearised gain at the current parameters (the score-like statistic).
-            let lin = if k == 0 {
-                base - perp(&rg).norm_squared()
+            let rg = eval(&theta_at((g, k)))?;
+            let predicted = if k == 0 {
+                perp(&rg).norm_squared()
+            } else if q0.ncols() == 0 {
+                rg.norm_squared()
             } else {
-                f64::NEG_INFINITY
+                rg.norm_squared() - q0.tr_mul(&rg).norm_squared()
             };
+            Some((rg.norm_squared(), predicted))
+        })
+        .collect();
+    // Only the points the first step promises most, per start, are chord-refined (the
+    // model evaluations of a profile were mostly those steps, and a profile of the
+    // cords' string modes has hundreds of points): the others keep their one-point gain.
+    let mut refine = vec![false; points.len()];
+    for k in 0..starts.len() {
+        let mut order: Vec<usize> = (0..points.len())
+            .filter(|&i| points[i].1 == k && first[i].is_some())
+            .collect();
+        order.sort_by(|&i, &j| {
+            let (pi, pj) = (first[i].unwrap().1, first[j].unwrap().1);
+            pi.total_cmp(&pj).then(i.cmp(&j))
+        });
+        for &i in order.iter().take(PROFILE_REFINED) {
+            refine[i] = true;
+        }
+    }
+    let gain_of = |i: usize, chi: f64| {
+        let (_, predicted) = first[i].expect("evaluated");
+        let lin = if points[i].1 == 0 {
+            base - predicted
+        } else {
+            f64::NEG_INFINITY
+        };
+        lin.max(r0.norm_squared() - chi)
+    };
+    // The refinements are independent of each other: they run in parallel (a profile
+    // of slow models, cords with their string modes, was the last candidate of the
+    // screening to finish), and the best is then taken in the order of the points, the
+    // first of equal gains, as a loop over them takes it.
+    let refined: Vec<Option<ProfilePoint>> = (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let (chi0, _) = first[i]?;
+            if !refine[i] {
+                return Some((gain_of(i, chi0), i, None));
+            }
+            let mut t = theta_at(points[i]);
+            let mut rg = eval(&t)?;
             let mut chi = rg.norm_squared();
             for _ in 0..4 {
                 let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
@@ -177,8 +228,7 @@ pub(super) fn profile_candidate(
                     _ => break,
                 }
             }
-            let gain = lin.max(r0.norm_squared() - chi);
-            Some((gain, g, t[..nb].to_vec(), rg))
+            Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
     let mut best: Option<ProfilePoint> = None;
@@ -187,12 +237,24 @@ pub(super) fn profile_candidate(
             best = Some(point);
         }
     }
-    let Some((gain, g, theta_best, rg)) = best else {
+    let Some((gain, i, refined)) = best else {
         return Err(CheckError::Model(format!(
             "'{}': no point of its screening profile could be evaluated",
             cand.id
         )));
     };
+    // A best point that was not refined: its residual again (the same evaluation).
+    let (theta_best, rg) = match refined {
+        Some(refined) => refined,
+        None => {
+            let t = theta_at(points[i]);
+            let rg = eval(&t).ok_or_else(|| {
+                CheckError::Model(format!("'{}': its best profile point failed", cand.id))
+            })?;
+            (t[..nb].to_vec(), rg)
+        }
+    };
+    let g = points[i].0;
     // Signature direction at the best point (for the distinctness check).
     let sig = perp(&(&r0 - &rg));
     let n = sig.norm();
