@@ -26,21 +26,23 @@
 //! effects and nothing else with χ²/ν 0.986, 0.975 and 0.995 as before, every screening
 //! step finds as many significant candidates and refits the same ones; report digests
 //! 7daafb35d6ea4778, 84036c32b012f0ca, 6b319ca0a56017bd (equal at 1 and 2 threads; they
-//! moved from the last bits of the elastic-mode profile and the profiles' scores).
+//! moved: the elastic-mode profile's last bits, and a profile point no longer
+//! chord-refined keeps its lower one-point gain).
 //! Changes: the profile screening chord-refines only the 8 points per start whose first
 //! chord step promises most (the cords' profile, ~170 points × 2 starts × up to 5
 //! evaluations of the slow cords' model, was half the CPU time: screening evaluations
 //! per step on the first case 1 493 / 1 318 / 831 / 882 → 735 / 588 / 620 / 869);
 //! `resonance::profile_starts` takes its line factor per line, not per value; extra
-//! modes (the cords' string modes) are added in line blocks that stay in L1
-//! (bit-identical). Where the time goes now (perf, first case, 1 thread, self time; 16.3
-//! CPU s and the same digest at 1 thread): the per-line solve 20 %, extra-mode terms 8 %,
-//! `lm::gram` and `tr_mul` 10 %, the noise model 5 %, the cords' eigen-decomposition 4 %,
-//! `profile_starts` 3.5 % (8 % before); by stage the
-//! candidate refits are now the largest share of the evaluations (5 159 of 8 095), the
-//! screening's Jacobians and the backward fits next. Next: grouped finite-difference
-//! columns for parameters that touch disjoint cells (an elastic mode's 27 residues, the
-//! channel gains), and a cheaper reduction of the cords' model.
+//! modes (the cords' string modes) are added in line blocks that stay in L1, and the
+//! noise model's quantile fit takes ln(s/q_r) once per value, not per grid point (both
+//! bit-identical; the noise phase halved). Where the time goes now (perf, first case,
+//! 1 thread, self time; 16.3 CPU s and the same digest at 1 thread): the per-line solve
+//! 20 %, extra-mode terms 8 %, `lm::gram` and `tr_mul` 10 %, the noise model 9 % (before
+//! its ln change), the cords' eigen-decomposition 4 %, `profile_starts` 3.5 % (8 %
+//! before); by stage the candidate refits are now the largest share of the evaluations
+//! (5 159 of 8 095), the screening's Jacobians and the backward fits next. Next: grouped
+//! finite-difference columns for parameters that touch disjoint cells (an elastic mode's
+//! 27 residues, the channel gains), and a cheaper reduction of the cords' model.
 //!
 //! The tables below are the history, each with the code of its time (gravity-window-gain
 //! then still named a false `elastic_mode`; see docs/results.md, "Model check speed").
