@@ -15,12 +15,41 @@
 //! anatomy of one model evaluation in CPU time: as the check makes it, by the
 //! simulator's column solve and by its inverse, the set-up models alone.
 //!
-//! Current figures (idle 2-core machine, load under 2; 2 threads, `phase-timing`):
-//! gain-orient-gauge 13.1 s wall / 22.6 CPU s / 9 807 evaluations, position-force-elastic
-//! 18.9 / 32.6 / 17 104, gravity-window-gain 12.9 / 22.5 / 11 147; each names its three
-//! concealed effects and nothing else, and ends in its noise band. The tables below are
-//! the history, each with the code of its time (gravity-window-gain then still named a
-//! false `elastic_mode`; see docs/results.md, "Model check speed").
+//! Current figures (2 threads, `phase-timing`; 2-core machine shared with other work,
+//! load 9–10, so wall times are inflated and CPU seconds are the comparable figure; the
+//! reference, the code before these changes, gave 23.4 CPU s on the first case under the
+//! same load and 22.6 idle): gain-orient-gauge 14.8 CPU s / 7 572 evaluations (before
+//! 22.6 / 9 807), position-force-elastic 21.3 / 13 737 (32.6 / 17 104),
+//! gravity-window-gain 13.1 / 8 265 (22.5 / 11 147); 2.0, 1.6 and 1.6 ms CPU per
+//! evaluation all in. Idle, the wall time was 0.58 × CPU s, so about 9, 12 and 8 s:
+//! under the 20 s worst case, not under the 5 s typical. Each names its three concealed
+//! effects and nothing else with χ²/ν 0.986, 0.975 and 0.995 as before, every screening
+//! step finds as many significant candidates and refits the same ones; report digests
+//! 7daafb35d6ea4778, 84036c32b012f0ca, 6b319ca0a56017bd (equal at 1 and 2 threads; they
+//! moved: the elastic-mode profile's last bits, and a profile point no longer
+//! chord-refined keeps its lower one-point gain).
+//! Changes: the profile screening chord-refines only the 8 points per start whose first
+//! chord step promises most, and a grid of more than 100 points (the cords', ~170
+//! string-mode frequencies 2 % apart × 2 starts, each an evaluation of the slow cords'
+//! model; this profile was half the CPU time) is first evaluated at every other point,
+//! then at the skipped neighbours of the most promising ones (screening evaluations per
+//! step on the first case 1 493 / 1 318 / 831 / 882 → 603 / 457 / 490 / 739; the
+//! coarse pass alone changed no digest); `resonance::profile_starts` takes its line
+//! factor per line, not per value; extra modes (the cords' string modes) are added in
+//! line blocks that stay in L1, and the noise model's quantile fit takes ln(s/q_r) once
+//! per value, not per grid point (both bit-identical; the noise phase halved). Where the
+//! time goes (perf, first case, 1 thread, self time, before the coarse pass; 16.3 CPU s
+//! and the same digest at 1 thread): the per-line solve 20 %, extra-mode terms 8 %,
+//! `lm::gram` and `tr_mul` 10 %, the noise model 9 % (before its ln change), the cords'
+//! eigen-decomposition 4 %, `profile_starts` 3.5 % (8 % before); the cords' profile was
+//! still about a third of the CPU time then (~350 evaluations per step at ~3.5 ms).
+//! By stage the candidate refits are now the largest share of the evaluations (5 159 of
+//! 7 572), the screening's Jacobians and the backward fits next. Next: grouped
+//! finite-difference columns for parameters that touch disjoint cells (an elastic mode's
+//! 27 residues, the channel gains), and a cheaper reduction of the cords' model.
+//!
+//! The tables below are the history, each with the code of its time (gravity-window-gain
+//! then still named a false `elastic_mode`; see docs/results.md, "Model check speed").
 //!
 //! Figures (2-core machine shared with other builds, load 10–16: wall times were 45–660 s
 //! and are not comparable, CPU seconds are; `--features phase-timing`, 2 threads; two

@@ -228,11 +228,14 @@ fn median(v: &mut [f64]) -> f64 {
 /// (`q` the known precision variance of each line, not fitted).
 fn fit_variance_model(h: &[f64], s: &[f64], q: &[f64]) -> (f64, f64) {
     let qr = reference_quantile();
+    // ln(s/q_r) does not depend on the grid point: taken once per value, not once per
+    // value and point (the same numbers, so the same cost to the bit).
+    let ls: Vec<f64> = s.iter().map(|&s| (s / qr).ln()).collect();
     let cost = |a2: f64, b2: f64| -> f64 {
         h.iter()
-            .zip(s)
+            .zip(&ls)
             .zip(q)
-            .map(|((&h, &s), &q)| pinball((s / qr).ln() - (a2 * h + b2 + q).ln()))
+            .map(|((&h, &ls), &q)| pinball(ls - (a2 * h + b2 + q).ln()))
             .sum()
     };
     let hmax = h.iter().cloned().fold(0.0, f64::max);

@@ -207,7 +207,7 @@ impl Effect for InBandResonance {
 
 /// Starting points for [`InBandResonance`] from the current normalised residual
 /// `r = √2 (y − ŷ)/σ` (re, im interleaved over `used`): for every line frequency f_m of
-/// the recording and every ζ_m of [`PROFILE_DAMPING`], the residue of each cell is the
+/// the recording and every ζ_m of `PROFILE_DAMPING`, the residue of each cell is the
 /// linear least-squares coefficient of `b = √2 Q(ω)/(σ (ω_m² − ω² + 2iζ_m ω_m ω))`
 /// (`Q` the receptance-to-quantity factor), and the χ² it removes is
 /// `Σ_cells (bᵀr)²/‖b‖²`. Returns the best `STARTS` points at separate frequencies
@@ -236,16 +236,18 @@ pub fn profile_starts(
         .filter(|f| *f > 0.0)
         .collect();
     f_grid.extend(above_band(&layout.frequency_hz));
-    // Per value: √2 Q(ω)/σ, its cell and its line.
-    let scaled: Vec<(c64, usize, usize)> = used
+    // Per value, what no profile point changes: with `b = s g(ω)`, `s = √2 Q(ω)/σ` and the
+    // line factor `g = 1/(ω_m² − ω² + 2iζ_m ω_m ω)`, `bᵀr = Re(g · s r̄)` and
+    // `‖b‖² = |s|² |g|²`: so `w = s r̄`, `|s|²`, its cell and its line, and per point
+    // only one factor per line (not one complex division per value).
+    let scaled: Vec<(c64, f64, usize, usize)> = used
         .iter()
-        .map(|&i| {
+        .enumerate()
+        .map(|(k, &i)| {
             let line = i % nl;
-            (
-                q[line] * (std::f64::consts::SQRT_2 / sigma[i]),
-                i / nl,
-                line,
-            )
+            let s = q[line] * (std::f64::consts::SQRT_2 / sigma[i]);
+            let r = c64::new(residual[2 * k], residual[2 * k + 1]);
+            (s * r.conj(), s.norm_sqr(), i / nl, line)
         })
         .collect();
     let mut points: Vec<(f64, f64, f64, Vec<f64>)> = f_grid
@@ -253,14 +255,26 @@ pub fn profile_starts(
         .flat_map_iter(|&fm| PROFILE_DAMPING.iter().map(move |&z| (fm, z)))
         .map(|(fm, z)| {
             let wm = TAU * fm;
+            let g: Vec<(c64, f64)> = omega
+                .iter()
+                .map(|&w| {
+                    let g = c64::new(wm * wm - w * w, 2.0 * z * wm * w).inv();
+                    (g, g.norm_sqr())
+                })
+                .collect();
             let mut num = vec![0.0; n_cells];
             let mut den = vec![0.0; n_cells];
-            for (k, &(qs, cell, line)) in scaled.iter().enumerate() {
-                let w = omega[line];
-                let d = c64::new(wm * wm - w * w, 2.0 * z * wm * w);
-                let b = qs * d.conj() / d.norm_sqr();
-                num[cell] += b.re * residual[2 * k] + b.im * residual[2 * k + 1];
-                den[cell] += b.norm_sqr();
+            // A cell's values are consecutive (`used` is in value order): summed in
+            // registers, not through `num[cell]` in memory (a store-to-load chain).
+            for run in scaled.chunk_by(|a, b| a.2 == b.2) {
+                let (mut n, mut d) = (0.0, 0.0);
+                for &(w, s2, _, line) in run {
+                    let (g, g2) = g[line];
+                    n += g.re * w.re - g.im * w.im;
+                    d += s2 * g2;
+                }
+                num[run[0].2] += n;
+                den[run[0].2] += d;
             }
             let drop: f64 = num
                 .iter()
@@ -304,6 +318,68 @@ pub fn profile_starts(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The profile with its line factors taken per line equals the per-value form of its
+    /// definition (`b = √2 Q/(σ d)` per value, `Σ (bᵀr)²/‖b‖²` over the cells) to
+    /// rounding, at every point, with values left out as the check leaves the 0 Hz line
+    /// out; and its best start sits at the resonance planted in the residual.
+    #[test]
+    fn profile_starts_follow_the_per_value_definition() {
+        let mut spec =
+            CampaignSpec::from_toml_str(rbprops_sim::example("test-case-2").unwrap()).unwrap();
+        spec.frequency.lines = 60;
+        let sim = rbprops_sim::simulate(&spec).unwrap();
+        let layout = Layout::new(&spec, &sim.geometry, &sim.frf).unwrap();
+        let (nl, n) = (layout.n_lines(), layout.n_values());
+        let used: Vec<usize> = (0..n).filter(|i| i % nl != 0).collect();
+        let sigma: Vec<f64> = (0..n).map(|i| 1e-6 * (1.0 + (i % 7) as f64)).collect();
+        let omega: Vec<f64> = layout.frequency_hz.iter().map(|f| TAU * f).collect();
+        let q: Vec<c64> = omega
+            .iter()
+            .map(|&w| layout.quantity.from_receptance_factor(w))
+            .collect();
+        // A residual of one resonance at a line frequency (each cell its own residue)
+        // plus a deterministic disturbance.
+        let (fm0, z0) = (layout.frequency_hz[31], 0.01);
+        let b_of = |i: usize, fm: f64, z: f64| {
+            let (w, wm) = (omega[i % nl], TAU * fm);
+            q[i % nl] * (std::f64::consts::SQRT_2 / sigma[i])
+                / c64::new(wm * wm - w * w, 2.0 * z * wm * w)
+        };
+        let residual: Vec<f64> = used
+            .iter()
+            .flat_map(|&i| {
+                let b = b_of(i, fm0, z0) * (1e-4 * (1.0 + (i / nl) as f64));
+                [b.re + (i as f64).sin(), b.im + (i as f64).cos()]
+            })
+            .collect();
+        let (starts, n_tests) = profile_starts(&layout, &used, &sigma, &residual);
+        assert_eq!(n_tests, (nl - 1) * PROFILE_DAMPING.len());
+        assert_eq!((starts[0][0], starts[0][1]), (fm0, z0));
+        for start in &starts {
+            let (fm, z) = (start[0], start[1]);
+            let n_cells = layout.channel_map.len() * layout.excitation_map.len();
+            let (mut num, mut den) = (vec![0.0; n_cells], vec![0.0; n_cells]);
+            for (k, &i) in used.iter().enumerate() {
+                let b = b_of(i, fm, z);
+                num[i / nl] += b.re * residual[2 * k] + b.im * residual[2 * k + 1];
+                den[i / nl] += b.norm_sqr();
+            }
+            let ne = layout.spec_geometry.excitations.len();
+            for cell in 0..n_cells {
+                let n_rch = layout.channel_map.len();
+                let (se, sc) = (
+                    layout.excitation_map[cell / n_rch],
+                    layout.channel_map[cell % n_rch],
+                );
+                let (got, want) = (start[2 + sc * ne + se], num[cell] / den[cell]);
+                assert!(
+                    (got - want).abs() <= 1e-12 * want.abs().max(1e-300),
+                    "f {fm}, ζ {z}, cell {cell}: {got} vs {want}"
+                );
+            }
+        }
+    }
 
     #[test]
     fn rank_one_factors_reproduce_a_rank_one_residue_matrix() {

@@ -90,9 +90,39 @@ pub(super) fn resonance_candidate(
     profile_candidate(p, cur, active, c, (q0, chord), &starts, n_tests, false)
 }
 
-/// A profile point after its chord refinement: the gain, the grid index, the current
-/// model's re-adjusted parameters and the residual there.
-type ProfilePoint = (f64, usize, Vec<f64>, nalgebra::DVector<f64>);
+/// A profile point after its chord refinement: the gain, the index of the (grid point,
+/// start) pair, and the current model's re-adjusted parameters and the residual there
+/// (`None` for a point not chord-refined).
+type ProfilePoint = (f64, usize, Option<(Vec<f64>, nalgebra::DVector<f64>)>);
+
+/// Points per start of a profile that are chord-refined (the most promising by the
+/// first chord step's prediction; see [`profile_candidate`]).
+const PROFILE_REFINED: usize = 8;
+
+/// Grid size above which a profile is first evaluated at every other point (see
+/// [`profile_candidate`]): the cords' grid (string-mode frequencies 2 % apart, about
+/// 170 points), not the gravity stiffness's lengths (41 or 66) nor the record lengths
+/// (8 and the lag scan's, whose neighbours are not close).
+const PROFILE_COARSE_ABOVE: usize = 100;
+
+/// Indices into `points` ((grid point, start) pairs) of the [`PROFILE_REFINED`]
+/// evaluated points per start with the smallest predicted χ² (ties: the first).
+fn most_promising(
+    first: &[Option<(f64, f64)>],
+    points: &[(usize, usize)],
+    n_starts: usize,
+) -> Vec<usize> {
+    let mut out = Vec::new();
+    for k in 0..n_starts {
+        let mut order: Vec<(f64, usize)> = (0..points.len())
+            .filter(|&i| points[i].1 == k)
+            .filter_map(|i| first[i].map(|(_, predicted)| (predicted, i)))
+            .collect();
+        order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        out.extend(order.iter().take(PROFILE_REFINED).map(|&(_, i)| i));
+    }
+    out
+}
 
 /// Profile screening over the parameter points `grid` (see [`grid_candidate`]), the
 /// statistic the best of `n_tests` tests.
@@ -130,7 +160,8 @@ pub(super) fn profile_candidate(
     };
     let base = perp(&r0).norm_squared();
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
-    // each grid point: a few model evaluations, enough when the effect moves them far.
+    // the most promising grid points: a few model evaluations, enough when the effect
+    // moves them far.
     let svd = chord.svd();
     let nb = cur.theta.len();
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
@@ -142,25 +173,86 @@ pub(super) fn profile_candidate(
         t[..p.n_base()].copy_from_slice(&p.baseline.initial());
         starts.push(t);
     }
-    // Each point's chord refinement is independent of the others: they run in parallel
-    // (a profile of slow models, cords with their string modes, was the last candidate
-    // of the screening to finish), and the best is then taken in the order of the points,
-    // the first of equal gains, as a loop over them takes it.
     let points: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..starts.len()).map(move |k| (g, k)))
         .collect();
-    let refined: Vec<Option<ProfilePoint>> = points
+    let theta_at = |(g, k): (usize, usize)| {
+        let mut t = starts[k].clone();
+        t.extend_from_slice(&grid[g]);
+        t
+    };
+    // A point once at a start: its χ² and the χ² the first chord step predicts,
+    // ‖P⊥ r_g‖² (the step solves the linearised problem of the current Jacobian, whose
+    // span `q0` is). From the current fit's parameters that prediction is also the
+    // linearised gain (the score-like statistic).
+    let probe = |(g, k): (usize, usize)| -> Option<(f64, f64)> {
+        let rg = eval(&theta_at((g, k)))?;
+        let predicted = if k == 0 {
+            perp(&rg).norm_squared()
+        } else if q0.ncols() == 0 {
+            rg.norm_squared()
+        } else {
+            rg.norm_squared() - q0.tr_mul(&rg).norm_squared()
+        };
+        Some((rg.norm_squared(), predicted))
+    };
+    // Every point at each start; a large grid (the cords' string-mode frequencies, 2 %
+    // apart) first at every other point, then the skipped neighbours of the most
+    // promising ones. A point left out counts as not evaluated.
+    let n_starts = starts.len();
+    let coarse = grid.len() > PROFILE_COARSE_ABOVE;
+    let mut first: Vec<Option<(f64, f64)>> = points
         .par_iter()
-        .map(|&(g, k)| {
-            let mut t = starts[k].clone();
-            t.extend_from_slice(&grid[g]);
+        .map(|&(g, k)| (!coarse || g % 2 == 0).then(|| probe((g, k))).flatten())
+        .collect();
+    if coarse {
+        let mut fill: Vec<usize> = most_promising(&first, &points, n_starts)
+            .into_iter()
+            .flat_map(|i| {
+                let (g, k) = points[i];
+                [g.wrapping_sub(1), g + 1]
+                    .into_iter()
+                    .filter(|&h| h < grid.len() && h % 2 == 1)
+                    .map(move |h| h * n_starts + k)
+            })
+            .collect();
+        fill.sort_unstable();
+        fill.dedup();
+        let filled: Vec<(usize, Option<(f64, f64)>)> =
+            fill.par_iter().map(|&i| (i, probe(points[i]))).collect();
+        for (i, f) in filled {
+            first[i] = f;
+        }
+    }
+    // Only the points the first step promises most, per start, are chord-refined (the
+    // model evaluations of a profile were mostly those steps, and a profile of the
+    // cords' string modes has hundreds of points): the others keep their one-point gain.
+    let mut refine = vec![false; points.len()];
+    for i in most_promising(&first, &points, n_starts) {
+        refine[i] = true;
+    }
+    let gain_of = |i: usize, chi: f64| {
+        let (_, predicted) = first[i].expect("evaluated");
+        let lin = if points[i].1 == 0 {
+            base - predicted
+        } else {
+            f64::NEG_INFINITY
+        };
+        lin.max(r0.norm_squared() - chi)
+    };
+    // The refinements are independent of each other: they run in parallel (a profile
+    // of slow models, cords with their string modes, was the last candidate of the
+    // screening to finish), and the best is then taken in the order of the points, the
+    // first of equal gains, as a loop over them takes it.
+    let refined: Vec<Option<ProfilePoint>> = (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let (chi0, _) = first[i]?;
+            if !refine[i] {
+                return Some((gain_of(i, chi0), i, None));
+            }
+            let mut t = theta_at(points[i]);
             let mut rg = eval(&t)?;
-            // Linearised gain at the current parameters (the score-like statistic).
-            let lin = if k == 0 {
-                base - perp(&rg).norm_squared()
-            } else {
-                f64::NEG_INFINITY
-            };
             let mut chi = rg.norm_squared();
             for _ in 0..4 {
                 let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
@@ -177,8 +269,7 @@ pub(super) fn profile_candidate(
                     _ => break,
                 }
             }
-            let gain = lin.max(r0.norm_squared() - chi);
-            Some((gain, g, t[..nb].to_vec(), rg))
+            Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
     let mut best: Option<ProfilePoint> = None;
@@ -187,12 +278,24 @@ pub(super) fn profile_candidate(
             best = Some(point);
         }
     }
-    let Some((gain, g, theta_best, rg)) = best else {
+    let Some((gain, i, refined)) = best else {
         return Err(CheckError::Model(format!(
             "'{}': no point of its screening profile could be evaluated",
             cand.id
         )));
     };
+    // A best point that was not refined: its residual again (the same evaluation).
+    let (theta_best, rg) = match refined {
+        Some(refined) => refined,
+        None => {
+            let t = theta_at(points[i]);
+            let rg = eval(&t).ok_or_else(|| {
+                CheckError::Model(format!("'{}': its best profile point failed", cand.id))
+            })?;
+            (t[..nb].to_vec(), rg)
+        }
+    };
+    let g = points[i].0;
     // Signature direction at the best point (for the distinctness check).
     let sig = perp(&(&r0 - &rg));
     let n = sig.norm();
@@ -474,5 +577,41 @@ pub(super) fn rigid_mass_gauge(n_residuals: usize) -> Score {
         absorbed_by: vec![("inertia (10 free parameters)".to_string(), 1.0)],
         n_tests: 1,
         theta_start: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Per start, the evaluated points with the smallest predicted χ², the first of equal
+    /// ones, at most `PROFILE_REFINED`; points not evaluated are never chosen.
+    #[test]
+    fn most_promising_takes_the_smallest_predictions_per_start() {
+        let n = PROFILE_REFINED + 4;
+        let points: Vec<(usize, usize)> = (0..n).flat_map(|g| [(g, 0), (g, 1)]).collect();
+        let first: Vec<Option<(f64, f64)>> = points
+            .iter()
+            .map(|&(g, k)| match (g, k) {
+                (0, 0) => None,
+                (_, 0) => Some((0.0, (n - g) as f64)),
+                (_, 1) => Some((0.0, if g < 3 { 1.0 } else { g as f64 })),
+                _ => unreachable!(),
+            })
+            .collect();
+        let chosen = most_promising(&first, &points, 2);
+        let of_start = |k: usize| -> Vec<usize> {
+            chosen
+                .iter()
+                .filter(|&&i| points[i].1 == k)
+                .map(|&i| points[i].0)
+                .collect()
+        };
+        // Start 0: the largest g have the smallest predictions; g = 0 was not evaluated.
+        let want0: Vec<usize> = (n - PROFILE_REFINED..n).rev().collect();
+        assert_eq!(of_start(0), want0);
+        // Start 1: g = 0, 1, 2 tie at 1.0 (taken in order), then 3, 4, …
+        let want1: Vec<usize> = (0..PROFILE_REFINED).collect();
+        assert_eq!(of_start(1), want1);
     }
 }
