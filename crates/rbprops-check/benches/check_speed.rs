@@ -16,18 +16,18 @@
 //! simulator's column solve and by its inverse, the set-up models alone.
 //!
 //! Current figures (2 threads, `phase-timing`; 2-core machine shared with other work,
-//! load 9–10, so wall times are inflated and CPU seconds are the comparable figure; the
-//! reference, the code before these changes, gave 23.4 CPU s on the first case under the
-//! same load and 22.6 idle): gain-orient-gauge 14.8 CPU s / 7 572 evaluations (before
-//! 22.6 / 9 807), position-force-elastic 21.3 / 13 737 (32.6 / 17 104),
-//! gravity-window-gain 13.1 / 8 265 (22.5 / 11 147); 2.0, 1.6 and 1.6 ms CPU per
-//! evaluation all in. Idle, the wall time was 0.58 × CPU s, so about 9, 12 and 8 s:
-//! under the 20 s worst case, not under the 5 s typical. Each names its three concealed
-//! effects and nothing else with χ²/ν 0.986, 0.975 and 0.995 as before, every screening
-//! step finds as many significant candidates and refits the same ones; report digests
-//! 7daafb35d6ea4778, 84036c32b012f0ca, 6b319ca0a56017bd (equal at 1 and 2 threads; they
-//! moved: the elastic-mode profile's last bits, and a profile point no longer
-//! chord-refined keeps its lower one-point gain).
+//! load 8–10, so wall times (29.9, 37.7, 27.2 s) are inflated and CPU seconds are the
+//! comparable figure; the reference, the code before these changes, gave 23.4 CPU s on
+//! the first case under such load and 22.6 idle): gain-orient-gauge 14.2 CPU s / 7 572
+//! evaluations (before 22.6 / 9 807), position-force-elastic 19.8 / 13 737
+//! (32.6 / 17 104), gravity-window-gain 12.8 / 8 265 (22.5 / 11 147); 1.9, 1.4 and
+//! 1.5 ms CPU per evaluation all in. Idle, the wall time was 0.58 × CPU s, so about 8,
+//! 11 and 7 s: under the 20 s worst case, not under the 5 s typical. Each names its
+//! three concealed effects and nothing else with χ²/ν 0.986, 0.975 and 0.995 as before,
+//! every screening step finds as many significant candidates and refits the same ones;
+//! report digests 7daafb35d6ea4778, 84036c32b012f0ca, 6b319ca0a56017bd (equal at 1 and
+//! 2 threads; they moved: the elastic-mode profile's last bits, and a profile point no
+//! longer chord-refined keeps its lower one-point gain).
 //! Changes: the profile screening chord-refines only the 8 points per start whose first
 //! chord step promises most, and a grid of more than 100 points (the cords', ~170
 //! string-mode frequencies 2 % apart × 2 starts, each an evaluation of the slow cords'
