@@ -10,7 +10,10 @@
 
 pub mod synthetic;
 
-use rbprops_core::{Channel, Point, Vec3};
+use rbprops_core::{
+    rigid_body_modes, rigid_transform, Channel, Mat3, Mat6, Point, RigidBodyProperties, RigidMode,
+    Vec3,
+};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -123,6 +126,38 @@ pub fn triaxial(id: &str, p: Vec3) -> (Point, Vec<Channel>) {
         },
         chans,
     )
+}
+
+/// The stiffness about the origin of point springs on a rigid body:
+/// `K = Σ T(a)ᵀ diag(k) T(a)` over the springs `(a, k)`, each attached at `a` with
+/// stiffness `k` along x, y and z.
+pub fn spring_stiffness(springs: impl IntoIterator<Item = (Vec3, [f64; 3])>) -> Mat6 {
+    springs.into_iter().fold(Mat6::zeros(), |acc, (a, k)| {
+        let t = rigid_transform(&a);
+        acc + t.transpose() * Mat3::from_diagonal(&Vec3::from(k)) * t
+    })
+}
+
+/// The rigid-body modes of `body` on the suspension stiffness `k` (ascending frequency,
+/// mass-normalised shapes), mode `r` (0-based) with damping ratio `zeta(r)`.
+///
+/// # Panics
+/// When `k` gives no stable suspension.
+pub fn rigid_modes(
+    body: &RigidBodyProperties,
+    k: &Mat6,
+    zeta: impl Fn(usize) -> f64,
+) -> Vec<RigidMode> {
+    rigid_body_modes(&body.mass_matrix().0, k)
+        .expect("the springs give a stable suspension")
+        .into_iter()
+        .enumerate()
+        .map(|(r, (w, shape))| RigidMode {
+            frequency_hz: w / (2.0 * std::f64::consts::PI),
+            damping_ratio: zeta(r),
+            shape,
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -7,8 +7,8 @@ use rand_chacha::ChaCha8Rng;
 use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::modal::modal_receptance;
 use rbprops_core::{
-    c64, rigid_body_modes, rigid_transform, Channel, Excitation, FrfSet, Geometry, Mat6, Point,
-    Quantity, RigidBodyProperties, RigidMode, SuspensionSetup, Vec3,
+    c64, Channel, Excitation, FrfSet, Geometry, Mat6, Point, Quantity, RigidBodyProperties,
+    RigidMode, SuspensionSetup, Vec3,
 };
 
 /// The paper's Test Case II body (m = 15.69 kg, CAD inertia) with its CoM at
@@ -77,25 +77,12 @@ pub fn spring_stiffness(k: [f64; 3]) -> Mat6 {
         Vec3::new(-0.30, -0.20, -0.15),
         Vec3::new(0.35, -0.20, -0.15),
     ];
-    let kd = nalgebra::Matrix3::from_diagonal(&Vec3::new(k[0], k[1], k[2]));
-    corners.iter().fold(Mat6::zeros(), |acc, a| {
-        let t = rigid_transform(a);
-        acc + t.transpose() * kd * t
-    })
+    crate::spring_stiffness(corners.map(|a| (a, k)))
 }
 
 /// Modes of the body on the springs with the given damping ratios (ascending frequency).
 pub fn spring_modes(body: &RigidBodyProperties, k: [f64; 3], zeta: &[f64; 6]) -> Vec<RigidMode> {
-    rigid_body_modes(&body.mass_matrix().0, &spring_stiffness(k))
-        .expect("springs give a stable suspension")
-        .into_iter()
-        .enumerate()
-        .map(|(i, (w, shape))| RigidMode {
-            frequency_hz: w / (2.0 * std::f64::consts::PI),
-            damping_ratio: zeta[i],
-            shape,
-        })
-        .collect()
+    crate::rigid_modes(body, &spring_stiffness(k), |r| zeta[r])
 }
 
 /// A campaign: geometry, modes and (noise-free) FRFs.

@@ -3,6 +3,7 @@
 
 use rbprops_check::candidates::local_effect;
 use rbprops_check::predict::{predict, Layout};
+use rbprops_check::{CheckOptions, RecordingNoise};
 use rbprops_core::{FrfSet, Geometry};
 use rbprops_sim::effects::Effect;
 use rbprops_sim::noise::{add_noise, excitation_rng};
@@ -119,4 +120,12 @@ pub fn y_up(spec: &CampaignSpec) -> CampaignSpec {
     }
     s.up = Some([0.0, 1.0, 0.0]);
     s
+}
+
+/// Check options with the noise given: relative `rel` on each of `n_ch` channels, no floor.
+pub fn given_noise(rel: f64, n_ch: usize) -> CheckOptions {
+    CheckOptions {
+        noise: Some(RecordingNoise::given(vec![rel; n_ch], vec![0.0; n_ch])),
+        ..Default::default()
+    }
 }

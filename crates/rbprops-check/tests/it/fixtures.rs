@@ -6,19 +6,12 @@
 
 use crate::common::*;
 use rbprops_check::report::{InertiaEstimateReport, ModelCheckReport};
-use rbprops_check::{check, CheckOptions, RecordingNoise};
+use rbprops_check::{check, CheckOptions};
 use rbprops_core::{FrfSet, Geometry, RigidBodyProperties};
 use rbprops_sim::CampaignSpec;
 
 const LINES: usize = 400;
 const REL: f64 = 0.01;
-
-fn given_noise(n_ch: usize) -> CheckOptions {
-    CheckOptions {
-        noise: Some(RecordingNoise::given(vec![REL; n_ch], vec![0.0; n_ch])),
-        ..Default::default()
-    }
-}
 
 /// The truth: nominal parameters off by a few percent (mass +2 %, vertical springs
 /// +8 %), so the baseline fit has real corrections to make.
@@ -225,7 +218,7 @@ fn cords_of_0_8_m_are_found(label: &str, nom: &CampaignSpec) -> ModelCheckReport
         REL,
         11,
     );
-    let r = run(nom, &g, &frf, &given_noise(9));
+    let r = run(nom, &g, &frf, &given_noise(REL, 9));
     summary(label, &r, &truth.properties());
     assert_found(&r, &["gravity_stiffness"], &truth.properties());
     within(
@@ -253,7 +246,7 @@ fn gravity_stiffness_is_found_with_a_tilted_vertical() {
         t.cos()
     );
     let (g, frf) = record_sim(&truth, &[entry.as_str()], REL, 12);
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     summary("gravity_stiffness, tilted 5°", &r, &truth.properties());
     assert_found(&r, &["gravity_stiffness"], &truth.properties());
     within(
@@ -293,7 +286,7 @@ fn channel_gain_is_found() {
         REL,
         12,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_named(&r, &["channel_gain"]);
     let t = truth.properties();
     assert!(scale_free_error(&r.inertia_after, &t) < scale_free_error(&r.inertia_before, &t));
@@ -315,7 +308,7 @@ fn sensor_misorientation_is_found() {
         REL,
         13,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(&r, &["sensor_misorientation"], &truth.properties());
     within(
         param(&r, "sensor_misorientation", "rotations_rad.3.x"),
@@ -344,7 +337,7 @@ fn excitation_gain_is_found() {
         REL,
         14,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_named(&r, &["excitation_gain"]);
     let t = truth.properties();
     assert!(scale_free_error(&r.inertia_after, &t) < scale_free_error(&r.inertia_before, &t));
@@ -367,7 +360,7 @@ fn force_direction_error_is_found() {
         REL,
         15,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(&r, &["force_direction"], &truth.properties());
     // Parameters: rotation vectors of force1, force2, force3 (x, y, z each).
     let mut t = vec![0.0; 9];
@@ -441,7 +434,7 @@ fn two_concealed_effects_gravity_and_channel_gain() {
         REL,
         21,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(
         &r,
         &["gravity_stiffness", "channel_gain"],
@@ -467,7 +460,7 @@ fn two_concealed_effects_misorientation_and_excitation_gain() {
         REL,
         22,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(
         &r,
         &["sensor_misorientation", "excitation_gain"],
@@ -493,7 +486,7 @@ fn two_concealed_effects_gravity_and_misorientation() {
         REL,
         23,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(
         &r,
         &["gravity_stiffness", "sensor_misorientation"],
@@ -517,7 +510,7 @@ fn absorbed_effects_are_not_claimed_and_say_what_would_reveal_them() {
     .enumerate()
     {
         let (g, frf) = record_sim(&nom, &[e], REL, 31 + k as u64);
-        let r = run(&nom, &g, &frf, &given_noise(9));
+        let r = run(&nom, &g, &frf, &given_noise(REL, 9));
         assert!(
             r.accepted.is_empty() && r.ambiguous.is_empty(),
             "claimed: {}",
@@ -540,7 +533,7 @@ fn weighed_mass_makes_a_global_gain_visible() {
     let nom = nominal(LINES);
     let truth = truth_of(&nom);
     let (g, frf) = record_sim(&truth, &["id = \"global_gain\"\ngain = 1.04"], REL, 33);
-    let mut opts = given_noise(9);
+    let mut opts = given_noise(REL, 9);
     opts.weighed_mass_kg = Some(truth.body.mass_kg);
     let r = run(&nom, &g, &frf, &opts);
     assert_found(&r, &["global_gain"], &truth.properties());
@@ -552,8 +545,8 @@ fn known_sensor_masses_are_applied_as_a_correction() {
     let nom = nominal(LINES);
     let truth = truth_of(&nom);
     let (g, frf) = record_sim(&truth, &["id = \"sensor_mass\"\nmass_kg = 0.15"], REL, 34);
-    let plain = run(&nom, &g, &frf, &given_noise(9));
-    let mut opts = given_noise(9);
+    let plain = run(&nom, &g, &frf, &given_noise(REL, 9));
+    let mut opts = given_noise(REL, 9);
     opts.sensor_masses_kg = ["1", "2", "3"]
         .iter()
         .map(|p| (p.to_string(), 0.15))
@@ -584,7 +577,7 @@ fn null_fixtures_claim_nothing_and_correct_the_parameters() {
     let truth = truth_of(&nom);
     for seed in [41, 42] {
         let (g, frf) = record_sim(&truth, &[], REL, seed);
-        let r = run(&nom, &g, &frf, &given_noise(9));
+        let r = run(&nom, &g, &frf, &given_noise(REL, 9));
         assert!(
             r.accepted.is_empty() && r.ambiguous.is_empty(),
             "seed {seed}: {}",
@@ -623,7 +616,7 @@ fn transducer_highpass_is_found() {
         REL,
         17,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_found(&r, &["transducer_highpass"], &truth.properties());
     // One τ per sensor (the channels at a point); all three share τ = 2 s here.
     for sensor in ["1", "2", "3"] {
@@ -670,7 +663,7 @@ fn channel_delay_is_found() {
         REL,
         27,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     summary("channel_delay", &r, &truth.properties());
     assert_found(&r, &["channel_delay"], &truth.properties());
     // Parameters: channels 1x..3z (sorted ids), then force1..force3.
@@ -701,7 +694,7 @@ fn air_added_mass_is_found() {
     let table =
         toml::to_string(&CampaignSpec::from_toml_str(text).unwrap().effects[0].parameters).unwrap();
     let (g, frf) = record_sim(&truth, &[&format!("id = \"added_mass\"\n{table}")], REL, 31);
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     summary("added_mass", &r, &truth.properties());
     assert_named(&r, &["added_mass"]);
     let (m, px, py) = (0.3, 0.18, 0.035);
@@ -730,7 +723,7 @@ fn suspension_drift_between_runs_is_found() {
         REL,
         29,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     summary("suspension_drift", &r, &truth.properties());
     assert_found(&r, &["suspension_drift"], &truth.properties());
     within_mod_gauge(&r, "suspension_drift", &[1.0, 1.0, 1.02], 4.0);
@@ -747,7 +740,7 @@ fn sensor_position_error_is_found() {
         REL,
         18,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     assert_named(&r, &["sensor_position"]);
     // A common shift of all sensors moves the CoM instead (gauge): compare modulo gauge.
     let mut t = vec![0.0; 9];
@@ -769,7 +762,7 @@ fn elastic_mode_above_the_band_is_found_as_residual_flexibility() {
         REL,
         19,
     );
-    let r = run(&nom, &g, &frf, &given_noise(9));
+    let r = run(&nom, &g, &frf, &given_noise(REL, 9));
     // Above the band the two are one function family (a pole with a residue per channel
     // and excitation): named alone, the elastic mode must carry the true pole; named
     // together, they form an ambiguous family, which is what the report then says.
@@ -789,7 +782,7 @@ fn elastic_mode_above_the_band_is_found_as_residual_flexibility() {
 // within 4 SE with probability 1 − 6e-5 per parameter; a larger k would hide a biased fit.
 
 fn given(n_ch: usize, rel: f64) -> CheckOptions {
-    let mut o = given_noise(n_ch);
+    let mut o = given_noise(REL, n_ch);
     if let Some(n) = &mut o.noise {
         n.relative = vec![rel; n_ch];
     }

@@ -11,7 +11,8 @@
 //! degrees of freedom its half-width 3√(2/ν) ≈ 0.03 is the 3σ spread of χ²/ν for a
 //! correct model.
 
-use rbprops_check::{check, CheckOptions, ModelCheckReport, RecordingNoise};
+use crate::common::given_noise;
+use rbprops_check::{check, ModelCheckReport};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_sim::CampaignSpec;
 use rbprops_testkit::{python, refgen as refgen_command, repo_root, NUMPY_PYUFF};
@@ -94,13 +95,6 @@ fn refgen(
     (g, frf)
 }
 
-fn given_noise(n_ch: usize) -> CheckOptions {
-    CheckOptions {
-        noise: Some(RecordingNoise::given(vec![REL; n_ch], vec![0.0; n_ch])),
-        ..Default::default()
-    }
-}
-
 fn named(r: &ModelCheckReport) -> Vec<String> {
     let mut v: Vec<String> = r.accepted.iter().map(|a| a.id.clone()).collect();
     for f in &r.ambiguous {
@@ -145,7 +139,7 @@ fn assert_explained_with(
     rel: f64,
 ) -> ModelCheckReport {
     let t0 = std::time::Instant::now();
-    let mut opts = given_noise(g.channels.len());
+    let mut opts = given_noise(REL, g.channels.len());
     if let Some(n) = &mut opts.noise {
         n.relative = vec![rel; g.channels.len()];
     }

@@ -3,6 +3,7 @@
 
 mod campaign;
 mod coherence_weight;
+mod common;
 mod exp_window;
 mod frf_sim;
 mod golden;

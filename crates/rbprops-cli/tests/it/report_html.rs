@@ -3,13 +3,10 @@
 //! check against a nominal spec from `init-spec`: one self-contained page, opened in
 //! headless Chromium, where every figure renders with a non-empty box.
 
+use crate::common::rbprops;
 use rbprops_testkit::{chromium, ok, python, repo_root};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn rbprops() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rbprops"))
-}
 
 /// A campaign of `n` exports with a nominal spec from init-spec, run with `--runs`, in
 /// `dir/out` (summary.csv and runs/).

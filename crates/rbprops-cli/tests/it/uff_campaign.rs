@@ -4,14 +4,11 @@
 //! `rbprops campaign` with a campaign file (window τ, nominal spec, uncertainty) giving one
 //! summary table with the model check's verdict per recording.
 
+use crate::common::rbprops;
 use rbprops_cli::summary::SummaryRow;
 use rbprops_testkit::{ok, python, repo_root, NUMPY_PYUFF};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn rbprops() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_rbprops"))
-}
 
 /// Writes `n` exports into `dir` (0.05 Hz lines: 251 lines, small enough for debug builds).
 fn generate(py: &str, dir: &Path, n: usize) {

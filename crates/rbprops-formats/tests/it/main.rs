@@ -1,4 +1,4 @@
 //! The integration tests of rbprops-formats, one binary (`cargo nextest run -p rbprops-formats --test it`):
-//! one module per topic, shared fixtures in `common`.
+//! one module per topic.
 
 mod roundtrip;

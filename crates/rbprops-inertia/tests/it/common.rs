@@ -4,8 +4,8 @@
 use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate, SelectedMode, SelectionRecord};
 use rbprops_core::{
-    c64, modal::modal_receptance, rigid_body_modes, rigid_transform, Excitation, FrfSet, Geometry,
-    Mat6, Quantity, RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
+    c64, modal::modal_receptance, Excitation, FrfSet, Geometry, Mat6, Quantity,
+    RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
 };
 
 /// Test Case II inertia with an off-origin CoM.
@@ -69,31 +69,17 @@ pub fn geometry_with_points(pts: &[(&str, Vec3)]) -> Geometry {
 
 /// Suspension: springs at four corners with (kx, ky, kz) each.
 pub fn stiffness() -> Mat6 {
-    let mut k = Mat6::zeros();
-    let corners = [
+    rbprops_testkit::spring_stiffness([
         (Vec3::new(0.4, 0.3, 0.2), [800.0, 1500.0, 3000.0]),
         (Vec3::new(-0.4, 0.3, 0.25), [900.0, 1300.0, 2500.0]),
         (Vec3::new(-0.35, -0.3, 0.2), [1000.0, 1700.0, 2800.0]),
         (Vec3::new(0.45, -0.3, 0.15), [700.0, 1100.0, 3300.0]),
-    ];
-    for (p, ks) in corners {
-        let t = rigid_transform(&p);
-        let d = nalgebra::Matrix3::from_diagonal(&Vec3::from(ks));
-        k += t.transpose() * d * t;
-    }
-    k
+    ])
 }
 
+/// The body's modes on [`stiffness`], 2 % damping each.
 pub fn modes(props: &RigidBodyProperties) -> Vec<RigidMode> {
-    rigid_body_modes(&props.mass_matrix().0, &stiffness())
-        .unwrap()
-        .into_iter()
-        .map(|(w, phi)| RigidMode {
-            frequency_hz: w / (2.0 * std::f64::consts::PI),
-            damping_ratio: 0.02,
-            shape: phi,
-        })
-        .collect()
+    rbprops_testkit::rigid_modes(props, &stiffness(), |_| 0.02)
 }
 
 /// Exact modal record: every excitation has all six modes with residues `(Sφ)(fᵀφ)`;

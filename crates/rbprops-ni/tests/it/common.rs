@@ -9,36 +9,18 @@ use rbprops_core::inertia::ProductsOfInertia;
 use rbprops_core::modal::modal_receptance;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate};
 use rbprops_core::{
-    c64, rigid_body_modes, rigid_transform, Excitation, FrfSet, Geometry, Mat6, Quantity,
-    RigidBodyProperties, RigidMode, SuspensionSetup, Vec3, Vec6,
+    c64, Excitation, FrfSet, Geometry, Mat6, Quantity, RigidBodyProperties, RigidMode,
+    SuspensionSetup, Vec3, Vec6,
 };
 
 pub const ZETA: f64 = 0.01;
 
-/// Σ T(a)ᵀ diag(k) T(a) over the spring attachment points.
+/// Σ T(a)ᵀ diag(k) T(a) over the spring attachment points, the same `k` at each.
 pub fn spring_stiffness(points: &[Vec3], k: [f64; 3]) -> Mat6 {
-    let kd = nalgebra::Matrix3::from_diagonal(&Vec3::from(k));
-    points
-        .iter()
-        .map(|a| {
-            let t = rigid_transform(a);
-            t.transpose() * kd * t
-        })
-        .sum()
+    rbprops_testkit::spring_stiffness(points.iter().map(|&a| (a, k)))
 }
 
-pub fn modes(props: &RigidBodyProperties, k: &Mat6, zeta: f64) -> Vec<RigidMode> {
-    rigid_body_modes(&props.mass_matrix().0, k)
-        .unwrap()
-        .into_iter()
-        .map(|(w, shape)| RigidMode {
-            frequency_hz: w / (2.0 * std::f64::consts::PI),
-            damping_ratio: zeta,
-            shape,
-        })
-        .collect()
-}
-
+pub use rbprops_testkit::rigid_modes;
 pub use rbprops_testkit::triaxial;
 
 pub fn force(id: &str, p: Vec3, d: Vec3, setup: &str) -> Excitation {
@@ -151,8 +133,8 @@ pub fn test_case_one() -> Model {
     g.validate().unwrap();
     Model {
         setups: vec![
-            ("A".into(), modes(&props, &ka, ZETA)),
-            ("B".into(), modes(&props, &kb, ZETA)),
+            ("A".into(), rigid_modes(&props, &ka, |_| ZETA)),
+            ("B".into(), rigid_modes(&props, &kb, |_| ZETA)),
         ],
         props,
         geometry: g,

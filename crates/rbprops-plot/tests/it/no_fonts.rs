@@ -93,8 +93,10 @@ fn renders_with_no_fonts_installed() {
         .filter(|d| std::path::Path::new(d).is_dir())
         .map(|d| format!("mount -t tmpfs none {d} && "))
         .collect();
+    // This test's name in the test binary: its module path without the crate.
+    let (_, module) = module_path!().split_once("::").unwrap();
     let script = format!(
-        "{}exec \"$0\" --exact renders_with_no_fonts_installed --test-threads 1",
+        "{}exec \"$0\" --exact {module}::renders_with_no_fonts_installed --test-threads 1",
         mounts.concat()
     );
     let out = std::process::Command::new("unshare")

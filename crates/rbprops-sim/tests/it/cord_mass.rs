@@ -4,24 +4,15 @@
 //! `f_n = (n/2ℓ)√(T/μ)` as antiresonances, the low-frequency added mass `μℓ/3`, and
 //! exact neutrality at μ = 0.
 
+use crate::common::{tc2, with_effect};
 use rbprops_core::{c64, Vec3};
 use rbprops_sim::effects::cords::{augmented_model, reduce, MassiveCord};
 use rbprops_sim::effects::parse_effects;
 use rbprops_sim::spec::EffectSpec;
-use rbprops_sim::{build_models, example, predict, simulate, CampaignSpec, SimOptions};
+use rbprops_sim::{build_models, predict, simulate, CampaignSpec, SimOptions};
 use std::f64::consts::{PI, TAU};
 
 const G: f64 = 9.80665;
-
-fn tc2() -> CampaignSpec {
-    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
-}
-
-fn with_effect(mut s: CampaignSpec, table: &str) -> CampaignSpec {
-    let e: EffectSpec = toml::from_str(table).unwrap();
-    s.effects.push(e);
-    s
-}
 
 /// A body of mass `m`, CoM at the origin, on four identical cords at `(±a, ±b, 0)`
 /// (the CoM's plane), with gravity stiffness and cord mass; one triaxial sensor at the

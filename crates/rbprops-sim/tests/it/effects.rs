@@ -1,20 +1,11 @@
 //! Effects of the physics catalogue against independent derivations.
 
+use crate::common::{max_dev, tc2, with_effect};
 use rbprops_core::{c64, rigid_transform, Mat3, Mat6, Vec3, Vec6};
 use rbprops_sim::effects::gravity::{cord_tensions, geometric_stiffness, Cord};
 use rbprops_sim::effects::{parse_effect, parse_effects};
 use rbprops_sim::spec::EffectSpec;
-use rbprops_sim::{example, simulate, CampaignSpec, SimError};
-
-fn tc2() -> CampaignSpec {
-    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
-}
-
-fn with_effect(mut s: CampaignSpec, toml_table: &str) -> CampaignSpec {
-    let e: EffectSpec = toml::from_str(toml_table).unwrap();
-    s.effects.push(e);
-    s
-}
+use rbprops_sim::{simulate, CampaignSpec, SimError};
 
 /// Three vertical cords of length ℓ at radius ρ, 120° apart, in the CoM's horizontal
 /// plane: lateral modes are pendulums `ω² = g/ℓ`, yaw is trifilar `ω² = m g ρ²/(ℓ J_zz)`.
@@ -227,15 +218,6 @@ fn slack_cords_and_bad_lengths_are_errors() {
         let e = s.validate().unwrap_err().to_string();
         assert!(e.contains("effect[0]"), "{bad}: {e}");
     }
-}
-
-fn max_dev(a: &[c64], b: &[c64]) -> f64 {
-    let scale = b.iter().map(|x| x.norm()).fold(0.0, f64::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).norm())
-        .fold(0.0, f64::max)
-        / scale
 }
 
 /// Point masses at the sensors ≡ a heavier body with the combined m, c, J (parallel axes).

@@ -5,36 +5,16 @@
 
 #![allow(clippy::needless_range_loop)] // index-heavy linear algebra reads clearer with indices
 
+use crate::common::{max_dev, tc2, with_effect};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rbprops_core::{c64, Mat6, Quantity, Vec3, Vec6};
 use rbprops_sim::effects::parse_effects;
-use rbprops_sim::spec::EffectSpec;
 use rbprops_sim::{build_models, example, simulate, CampaignSpec, Simulation};
 
 const TAU: f64 = std::f64::consts::TAU;
 
-fn tc2() -> CampaignSpec {
-    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
-}
-
-fn with_effect(mut s: CampaignSpec, table: &str) -> CampaignSpec {
-    let e: EffectSpec = toml::from_str(table).unwrap();
-    s.effects.push(e);
-    s
-}
-
 fn sim(s: &CampaignSpec) -> Simulation {
     simulate(s).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// Largest deviation relative to the largest |expected| of the FRF.
-fn max_dev(a: &[c64], b: &[c64]) -> f64 {
-    let scale = b.iter().map(|x| x.norm()).fold(0.0, f64::max);
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).norm())
-        .fold(0.0, f64::max)
-        / scale
 }
 
 fn c(x: f64) -> c64 {

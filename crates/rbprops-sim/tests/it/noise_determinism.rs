@@ -1,11 +1,8 @@
 //! Noise statistics and reproducibility.
 
+use crate::common::spec;
 use rbprops_core::c64;
-use rbprops_sim::{example, simulate, CampaignSpec};
-
-fn spec(name: &str) -> CampaignSpec {
-    CampaignSpec::from_toml_str(example(name).unwrap()).unwrap()
-}
+use rbprops_sim::simulate;
 
 /// Noise normalised by its specified scale, `ε / (√(rel²|H|² + floor²)/√2)` (the
 /// workspace's noise model, `E|ε|² = a²|H|² + b²`), must have independent

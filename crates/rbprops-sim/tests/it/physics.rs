@@ -1,15 +1,12 @@
 //! The nominal simulator against independent closed forms.
 
+use crate::common::spec;
 use nalgebra::Matrix6;
 use rbprops_core::modal::modal_receptance;
 use rbprops_core::{c64, rigid_body_modes, Mat6, Quantity, RigidMode};
 use rbprops_sim::{
     example, example_names, simulate, simulate_with, CampaignSpec, SimOptions, SolveMethod,
 };
-
-fn spec(name: &str) -> CampaignSpec {
-    CampaignSpec::from_toml_str(example(name).unwrap()).unwrap()
-}
 
 fn rel(a: c64, b: c64) -> f64 {
     (a - b).norm() / b.norm().max(f64::MIN_POSITIVE)

@@ -1,13 +1,10 @@
 //! The effect registry is the one list of the physics catalogue: the spec validation,
 //! the gravity direction, the effect examples and docs/physics.md all follow it.
 
+use crate::common::tc2;
 use rbprops_sim::effects::{parse_effect, registry, EffectDescriptor, NeutralForm};
 use rbprops_sim::spec::EffectSpec;
-use rbprops_sim::{example, simulate, CampaignSpec};
-
-fn tc2() -> CampaignSpec {
-    CampaignSpec::from_toml_str(example("test-case-2").unwrap()).unwrap()
-}
+use rbprops_sim::{simulate, CampaignSpec};
 
 /// The row of docs/physics.md's "Effect ids" table for an effect.
 fn docs_row(d: &EffectDescriptor) -> String {
