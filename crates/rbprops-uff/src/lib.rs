@@ -86,12 +86,12 @@
 //!
 //! # Independent checks (pyuff)
 //! `scripts/make_uff_fixtures.py` writes `fixtures/uff/*.uff` with pyuff and JSON sidecars
-//! of the exact values; `tests/pyuff_fixtures.rs` reads them to the printed precision.
+//! of the exact values; `tests/it/pyuff_fixtures.rs` reads them to the printed precision.
 //! `scripts/make_uff_exports.py` writes `fixtures/uff/exports/`: pyuff files edited the
 //! way analysers write them (labels, CRLF, node 0, split geometry, coherence, no FRF);
-//! `tests/exports.rs` reads each to the SI values the script computed by hand, or checks
+//! `tests/it/exports.rs` reads each to the SI values the script computed by hand, or checks
 //! the error.
-//! The test `tests/written_for_pyuff.rs` writes `fixtures/uff/written/rbprops_{ascii,binary}
+//! The test `tests/it/written_for_pyuff.rs` writes `fixtures/uff/written/rbprops_{ascii,binary}
 //! .{uff,json}`; CI then runs, for both,
 //! `python3 scripts/check_uff_with_pyuff.py fixtures/uff/written/rbprops_ascii.uff
 //! fixtures/uff/written/rbprops_ascii.json` (exit status 1 on any mismatch).
