@@ -314,11 +314,12 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
 /// elastic mode named sits above the band. Before further instances of the family
 /// existed, this recording got one `elastic_mode` and one `residual_flexibility`, then
 /// seven false effects (sensor position, channel gain, force direction, …) and ended at
-/// χ²/ν 2.88. Now (release, 2 loaded cores, 90–95 CPU s): seeds 7 and 8 each get three
-/// terms of the family (e.g. `elastic_mode` at 14.00 Hz, `residual_flexibility` at
-/// 18.8 Hz, `residual_flexibility_2` at 26.9 Hz), nothing else, χ²/ν 0.980 and 0.984 in
-/// [0.971, 1.050], mass within 0.002 %. Known limit (docs/results.md): at 200 lines the
-/// third term is vetoed by the held-out excitation and spurious terms follow.
+/// χ²/ν 2.88. Now (release, 2 loaded cores, 90–100 CPU s): seeds 7, 8 and 9 each get
+/// three terms of the family — the 14 Hz mode as the ambiguous pair `elastic_mode` /
+/// `residual_flexibility` (one term, two descriptions), then `residual_flexibility_2`
+/// and `_3` for the 19 and 27 Hz modes — nothing else, χ²/ν 0.980, 0.984 and 0.998 in
+/// [0.971, 1.050]. Known limit (docs/results.md): at 200 lines the third term is vetoed
+/// by the held-out excitation and spurious terms follow.
 #[test]
 fn three_elastic_modes_above_the_band_each_get_a_term() {
     let Some(py) = python(NUMPY_PYUFF) else {
