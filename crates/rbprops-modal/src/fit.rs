@@ -1587,7 +1587,7 @@ mod statistic_tests {
 #[cfg(test)]
 mod multiplicity_tests {
     use super::*;
-    use crate::testdata;
+    use rbprops_testkit::synthetic as testdata;
     use rbprops_core::Quantity;
 
     /// The rule the switch used before the warnings were typed: a phrase in the text.
