@@ -1587,8 +1587,8 @@ mod statistic_tests {
 #[cfg(test)]
 mod multiplicity_tests {
     use super::*;
-    use rbprops_testkit::synthetic as testdata;
     use rbprops_core::Quantity;
+    use rbprops_testkit::synthetic as testdata;
 
     /// The rule the switch used before the warnings were typed: a phrase in the text.
     fn by_text(w: &str) -> bool {

@@ -44,38 +44,39 @@ impl<'f> Chord<'f> {
     }
 }
 
+/// The current model a candidate is screened at: the problem, the current fit with its
+/// active effects, the orthonormal basis of the fit's Jacobian span and the chord solver
+/// shared by the step's profile-screened candidates.
+#[derive(Clone, Copy)]
+pub(super) struct AtModel<'s, 'a> {
+    pub(super) p: &'s Problem<'a>,
+    pub(super) cur: &'s Fit,
+    pub(super) active: &'s [Act],
+    pub(super) q0: &'s DMatrix<f64>,
+    pub(super) chord: &'s Chord<'s>,
+}
+
 /// Profile screening of a candidate whose signature vanishes to every order at its
 /// neutral point (see `Candidate::grid`): at each grid point φ_g the residual r_g of the
 /// current model plus the effect at φ_g, with the current parameters re-adjusted
 /// linearly (their Jacobian's span projected out), gives the approximate likelihood
 /// ratio `‖P⊥ r‖² − ‖P⊥ r_g‖²`. The best point starts the refit; the statistic is the
 /// best of `G` tests, so its threshold is Bonferroni corrected over the grid.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn grid_candidate(
-    p: &Problem,
-    cur: &Fit,
-    active: &[Act],
+    at: AtModel,
     c: usize,
-    q0: &DMatrix<f64>,
-    chord: &Chord,
     grid: &[Vec<f64>],
     delay_scan: bool,
 ) -> Result<Score, CheckError> {
-    let (grid, n_tests) = profile_points(p, grid, delay_scan, &cur.residual);
-    profile_candidate(p, cur, active, c, (q0, chord), &grid, n_tests, true)
+    let (grid, n_tests) = profile_points(at.p, grid, delay_scan, &at.cur.residual);
+    profile_candidate(at, c, &grid, n_tests, true)
 }
 
 /// An in-band resonance ([`crate::resonance`]): the profile over (ω_m, ζ_m) of the
 /// linear residue fit to the current residual proposes the starting points, which are
 /// then evaluated as a grid; Bonferroni over every profile point searched.
-pub(super) fn resonance_candidate(
-    p: &Problem,
-    cur: &Fit,
-    active: &[Act],
-    c: usize,
-    q0: &DMatrix<f64>,
-    chord: &Chord,
-) -> Result<Score, CheckError> {
+pub(super) fn resonance_candidate(at: AtModel, c: usize) -> Result<Score, CheckError> {
+    let AtModel { p, cur, .. } = at;
     let (starts, n_tests) =
         crate::resonance::profile_starts(p.layout, &p.used, p.sigma, &cur.residual);
     if starts
@@ -87,7 +88,7 @@ pub(super) fn resonance_candidate(
                 .into(),
         ));
     }
-    profile_candidate(p, cur, active, c, (q0, chord), &starts, n_tests, false)
+    profile_candidate(at, c, &starts, n_tests, false)
 }
 
 /// A profile point after its chord refinement: the gain, the index of the (grid point,
@@ -135,17 +136,20 @@ fn most_promising(
 /// mass several times the body's and damping ratios of 0.5 and more, and from there the hanging
 /// body at its true cord length fits worse than nothing and no re-adjustment reaches it,
 /// while from the nominal's values it is nearly exact (the `independent_cords` tests).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn profile_candidate(
-    p: &Problem,
-    cur: &Fit,
-    active: &[Act],
+    at: AtModel,
     c: usize,
-    (q0, chord): (&DMatrix<f64>, &Chord),
     grid: &[Vec<f64>],
     n_tests: usize,
     from_nominal: bool,
 ) -> Result<Score, CheckError> {
+    let AtModel {
+        p,
+        cur,
+        active,
+        q0,
+        chord,
+    } = at;
     let cand = &p.cands[c];
     let np = cand.neutral.len();
     let mut act = active.to_vec();
@@ -366,13 +370,10 @@ pub(super) const NO_SIGNATURE: f64 = 1e-6;
 /// at first order and stay free in the refit, where the non-linear model can use them.
 pub(super) const GAUGE: f64 = 1e-7;
 
-pub(super) fn score_candidate(
-    p: &Problem,
-    cur: &Fit,
-    active: &[Act],
-    c: usize,
-    q0: &DMatrix<f64>,
-) -> Result<Score, CheckError> {
+pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError> {
+    let AtModel {
+        p, cur, active, q0, ..
+    } = at;
     let cand = &p.cands[c];
     let mut act = active.to_vec();
     act.push(Act::full(c, cand.neutral.len()));

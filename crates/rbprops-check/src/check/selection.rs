@@ -165,6 +165,13 @@ impl<'p, 'a> Selection<'p, 'a> {
             .filter(|&c| self.waiting(c) && self.opened(c))
             .collect();
         let r0_len = cur.residual.len();
+        let at = AtModel {
+            p,
+            cur,
+            active,
+            q0: &q0,
+            chord: &chord,
+        };
         let scores: Vec<(usize, Result<Score, CheckError>)> = todo
             .par_iter()
             .map(|&c| {
@@ -172,13 +179,11 @@ impl<'p, 'a> Selection<'p, 'a> {
                     Screening::RigidMassGauge if p.fixed_mass.is_none() => {
                         Ok(rigid_mass_gauge(r0_len))
                     }
-                    Screening::Score | Screening::RigidMassGauge => {
-                        score_candidate(p, cur, active, c, &q0)
-                    }
+                    Screening::Score | Screening::RigidMassGauge => score_candidate(at, c),
                     Screening::Profile { grid, delay_scan } => {
-                        grid_candidate(p, cur, active, c, &q0, &chord, grid, *delay_scan)
+                        grid_candidate(at, c, grid, *delay_scan)
                     }
-                    Screening::Resonance => resonance_candidate(p, cur, active, c, &q0, &chord),
+                    Screening::Resonance => resonance_candidate(at, c),
                 };
                 (c, s)
             })
