@@ -44,28 +44,6 @@ impl Layout {
                 frf.n_excitations
             )));
         }
-        // Every id that does not match, channels and excitations alike, in one message:
-        // a spec written by hand usually misnames a whole family (`1:1` for `101x`).
-        let unmatched = |kind: &str, missing: Vec<&str>, known: Vec<&str>| {
-            const SHOWN: usize = 20;
-            let list = |v: &[&str]| {
-                let mut s = v
-                    .iter()
-                    .take(SHOWN)
-                    .map(|x| format!("'{x}'"))
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                if v.len() > SHOWN {
-                    s += &format!(" and {} more", v.len() - SHOWN);
-                }
-                s
-            };
-            format!(
-                "recorded {kind} not in the spec: {} (the spec has {})",
-                list(&missing),
-                list(&known)
-            )
-        };
         let channel_map: Vec<Option<usize>> = recording
             .channels
             .iter()
@@ -76,43 +54,37 @@ impl Layout {
             .iter()
             .map(|e| spec_geometry.excitation_index(&e.id))
             .collect();
-        let mut problems = Vec::new();
-        let missing_ch: Vec<&str> = recording
-            .channels
-            .iter()
-            .zip(&channel_map)
-            .filter(|(_, m)| m.is_none())
-            .map(|(c, _)| c.id.as_str())
-            .collect();
-        if !missing_ch.is_empty() {
-            problems.push(unmatched(
+        // Every id that does not match, channels and excitations alike, in one message:
+        // a spec written by hand usually misnames a whole family (`1:1` for `101x`).
+        let problems: Vec<String> = [
+            unmatched(
                 "channels",
-                missing_ch,
+                recording.channels.iter().map(|c| c.id.as_str()).collect(),
+                &channel_map,
                 spec_geometry
                     .channels
                     .iter()
                     .map(|c| c.id.as_str())
                     .collect(),
-            ));
-        }
-        let missing_ex: Vec<&str> = recording
-            .excitations
-            .iter()
-            .zip(&excitation_map)
-            .filter(|(_, m)| m.is_none())
-            .map(|(e, _)| e.id.as_str())
-            .collect();
-        if !missing_ex.is_empty() {
-            problems.push(unmatched(
+            ),
+            unmatched(
                 "excitations",
-                missing_ex,
+                recording
+                    .excitations
+                    .iter()
+                    .map(|e| e.id.as_str())
+                    .collect(),
+                &excitation_map,
                 spec_geometry
                     .excitations
                     .iter()
                     .map(|e| e.id.as_str())
                     .collect(),
-            ));
-        }
+            ),
+        ]
+        .into_iter()
+        .flatten()
+        .collect();
         if !problems.is_empty() {
             return Err(CheckError::Mismatch(problems.join("; ")));
         }
@@ -197,4 +169,67 @@ pub fn predict(
         )));
     }
     Ok(out)
+}
+
+/// The recorded ids (`recorded`, mapped to the spec by `map`) that the spec lacks, as one
+/// message listing them and the spec's own (`known`); `None` when every id matches.
+fn unmatched(
+    kind: &str,
+    recorded: Vec<&str>,
+    map: &[Option<usize>],
+    known: Vec<&str>,
+) -> Option<String> {
+    const SHOWN: usize = 20;
+    let missing: Vec<&str> = recorded
+        .into_iter()
+        .zip(map)
+        .filter(|(_, m)| m.is_none())
+        .map(|(id, _)| id)
+        .collect();
+    if missing.is_empty() {
+        return None;
+    }
+    let list = |v: &[&str]| {
+        let mut s = v
+            .iter()
+            .take(SHOWN)
+            .map(|x| format!("'{x}'"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        if v.len() > SHOWN {
+            s += &format!(" and {} more", v.len() - SHOWN);
+        }
+        s
+    };
+    Some(format!(
+        "recorded {kind} not in the spec: {} (the spec has {})",
+        list(&missing),
+        list(&known)
+    ))
+}
+
+#[cfg(test)]
+mod unmatched_tests {
+    use super::unmatched;
+
+    #[test]
+    fn unmatched_ids_are_listed_with_the_specs_own() {
+        assert_eq!(
+            unmatched(
+                "channels",
+                vec!["1x", "9z"],
+                &[Some(0), None],
+                vec!["1x", "1y"]
+            ),
+            Some("recorded channels not in the spec: '9z' (the spec has '1x', '1y')".into())
+        );
+        assert_eq!(
+            unmatched("excitations", vec!["f1"], &[Some(0)], vec!["f1"]),
+            None
+        );
+        let many: Vec<String> = (0..23).map(|i| format!("c{i}")).collect();
+        let recorded: Vec<&str> = many.iter().map(String::as_str).collect();
+        let msg = unmatched("channels", recorded, &[None; 23], vec!["a"]).unwrap();
+        assert!(msg.contains("'c19' and 3 more (the spec has 'a')"), "{msg}");
+    }
 }
