@@ -10,15 +10,8 @@ use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-fn gain_info(name: String) -> ParamInfo {
-    ParamInfo {
-        name,
-        unit: "1",
-        lower: 0.0,
-        upper: f64::INFINITY,
-        plausible: (0.9, 1.1),
-    }
-}
+/// Plausible range of a calibration gain.
+const GAIN_PLAUSIBLE: (f64, f64) = (0.9, 1.1);
 
 fn check_gain(what: &str, g: f64) -> Result<(), String> {
     if g.is_finite() && g > 0.0 {
@@ -52,10 +45,7 @@ impl Effect for ChannelGain {
         "channel_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.gains
-            .keys()
-            .map(|k| gain_info(format!("gains.{k}")))
-            .collect()
+        super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
     }
     fn values(&self) -> Vec<f64> {
         self.gains.values().copied().collect()
@@ -101,10 +91,7 @@ impl Effect for ExcitationGain {
         "excitation_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.gains
-            .keys()
-            .map(|k| gain_info(format!("gains.{k}")))
-            .collect()
+        super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
     }
     fn values(&self) -> Vec<f64> {
         self.gains.values().copied().collect()
@@ -152,7 +139,7 @@ impl Effect for GlobalGain {
         "global_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec![gain_info("gain".into())]
+        vec![super::positive_info("gain".into(), "1", GAIN_PLAUSIBLE)]
     }
     fn values(&self) -> Vec<f64> {
         vec![self.gain]

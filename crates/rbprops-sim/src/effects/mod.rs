@@ -235,13 +235,7 @@ pub(crate) fn list_info(
     plausible: (f64, f64),
 ) -> Vec<ParamInfo> {
     (0..n)
-        .map(|i| ParamInfo {
-            name: format!("{name}[{i}]"),
-            unit,
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible,
-        })
+        .map(|i| positive_info(format!("{name}[{i}]"), unit, plausible))
         .collect()
 }
 
@@ -253,14 +247,19 @@ pub(crate) fn map_info(
     plausible: (f64, f64),
 ) -> Vec<ParamInfo> {
     map.keys()
-        .map(|k| ParamInfo {
-            name: format!("{name}.{k}"),
-            unit,
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible,
-        })
+        .map(|k| positive_info(format!("{name}.{k}"), unit, plausible))
         .collect()
+}
+
+/// Description of a parameter that is positive (bounded below by 0, unbounded above).
+pub(crate) fn positive_info(name: String, unit: &'static str, plausible: (f64, f64)) -> ParamInfo {
+    ParamInfo {
+        name,
+        unit,
+        lower: 0.0,
+        upper: f64::INFINITY,
+        plausible,
+    }
 }
 
 /// `values` (a fitter's new values, in key order) as a replacement of a per-id map.
