@@ -277,6 +277,17 @@ pub(crate) fn replace_map(
     Ok(map.keys().cloned().zip(values.iter().copied()).collect())
 }
 
+/// `values` as a replacement of an optional value for every id followed by a per-id map
+/// (a fitter's new values for an effect with both, in that order).
+pub(crate) fn replace_common_and_map(
+    common: Option<f64>,
+    map: &std::collections::BTreeMap<String, f64>,
+    values: &[f64],
+) -> Result<(Option<f64>, std::collections::BTreeMap<String, f64>), String> {
+    let (common_value, per_id) = split_values(values, usize::from(common.is_some()), map.len())?;
+    Ok((common_value.first().copied(), replace_map(map, per_id)?))
+}
+
 /// `values` (three per id, in key order) as a replacement of a per-id map of 3-vectors.
 pub(crate) fn replace_vec3_map(
     map: &std::collections::BTreeMap<String, [f64; 3]>,
@@ -425,4 +436,26 @@ pub fn parse_effects(spec: &CampaignSpec) -> Result<Vec<Box<dyn Effect>>, (usize
     }
     v.sort_by_key(|e| e.order());
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    /// A fitter's values go to the common value first (when there is one), then to the map
+    /// in key order; a wrong count is refused with the count expected.
+    #[test]
+    fn common_value_then_map_in_key_order() {
+        let map: BTreeMap<String, f64> = [("b".into(), 1.0), ("a".into(), 2.0)].into();
+        let (common, new) = super::replace_common_and_map(Some(9.0), &map, &[3.0, 4.0, 5.0])
+            .expect("three values for a common value and two ids");
+        assert_eq!(common, Some(3.0));
+        assert_eq!(new, [("a".into(), 4.0), ("b".into(), 5.0)].into());
+        let (common, new) = super::replace_common_and_map(None, &map, &[6.0, 7.0]).unwrap();
+        assert_eq!((common, new["a"], new["b"]), (None, 6.0, 7.0));
+        assert_eq!(
+            super::replace_common_and_map(None, &map, &[1.0; 3]),
+            Err("expected 2 values, got 3".into())
+        );
+    }
 }
