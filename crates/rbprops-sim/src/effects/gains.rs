@@ -145,13 +145,9 @@ impl Effect for GlobalGain {
         vec![self.gain]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        match values {
-            [g] => {
-                check_gain("gain", *g)?;
-                Ok(Box::new(GlobalGain { gain: *g }))
-            }
-            _ => Err(format!("expected 1 value, got {}", values.len())),
-        }
+        let gain = super::single_value(values)?;
+        check_gain("gain", gain)?;
+        Ok(Box::new(GlobalGain { gain }))
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()

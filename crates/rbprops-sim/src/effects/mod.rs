@@ -320,6 +320,14 @@ pub(crate) fn split_values(
     Ok(values.split_at(na))
 }
 
+/// `values` as the new value of a one-parameter effect (a fitter's new values).
+pub(crate) fn single_value(values: &[f64]) -> Result<f64, String> {
+    match values {
+        [v] => Ok(*v),
+        _ => Err(format!("expected 1 value, got {}", values.len())),
+    }
+}
+
 /// `values` as a replacement of a list parameter of length `n` (a fitter's new values).
 pub(crate) fn replace_list(n: usize, values: &[f64]) -> Result<Vec<f64>, String> {
     if values.len() != n {
@@ -456,6 +464,20 @@ mod tests {
         assert_eq!(
             super::replace_common_and_map(None, &map, &[1.0; 3]),
             Err("expected 2 values, got 3".into())
+        );
+    }
+
+    /// A one-parameter effect takes exactly one value.
+    #[test]
+    fn single_value_takes_exactly_one() {
+        assert_eq!(super::single_value(&[2.5]), Ok(2.5));
+        assert_eq!(
+            super::single_value(&[]),
+            Err("expected 1 value, got 0".into())
+        );
+        assert_eq!(
+            super::single_value(&[1.0, 2.0]),
+            Err("expected 1 value, got 2".into())
         );
     }
 }

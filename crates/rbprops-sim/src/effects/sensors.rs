@@ -181,11 +181,8 @@ impl Effect for SensorTiltGravity {
         vec![self.g_m_per_s2]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let [g] = values else {
-            return Err(format!("expected 1 value, got {}", values.len()));
-        };
         let e = SensorTiltGravity {
-            g_m_per_s2: *g,
+            g_m_per_s2: super::single_value(values)?,
             ..self.clone()
         };
         e.check_values()?;
