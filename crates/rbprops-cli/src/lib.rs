@@ -73,6 +73,32 @@ impl UffArgs {
     }
 }
 
+/// The run a pipeline stage reads and the run it writes (flattened into its arguments).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct StageIo {
+    /// Input run (MCAP, CSV directory); default MCAP on stdin.
+    pub input: Option<PathBuf>,
+    /// The input's integrity options.
+    #[command(flatten)]
+    pub checks: InputChecks,
+    /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+impl StageIo {
+    /// Reads the input of the stage `tool` ([`read_stage_input`]) with the options of a
+    /// UFF input.
+    pub fn read(&self, tool: &str, uff: &UffInputOptions) -> Result<Input> {
+        read_stage_input(tool, self.input.as_deref(), &self.checks, uff)
+    }
+
+    /// Writes the stage's run record to the output ([`write_output`]).
+    pub fn write(&self, rec: &RunRecord) -> Result<()> {
+        write_output(rec, self.output.as_deref())
+    }
+}
+
 /// The integrity options of every stage that reads a run (flattened into its arguments).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct InputChecks {

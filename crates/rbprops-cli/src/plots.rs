@@ -472,32 +472,30 @@ fn worst_channels(out: &rbprops_check::CheckOutcome, g: &Geometry) -> Result<Opt
         };
         panels.push(FrfPanel {
             title: format!("{exc} / {chan}"),
-            traces: vec![
-                trace(
-                    "measured",
-                    slice(&out.measured),
-                    LineStyle::Solid,
-                    Rgb(40, 40, 40),
-                ),
-                trace(
+            traces: [
+                ("measured", &out.measured, LineStyle::Solid, Rgb(40, 40, 40)),
+                (
                     "nominal spec",
-                    slice(&out.nominal),
+                    &out.nominal,
                     LineStyle::Dotted,
                     Rgb(31, 119, 180),
                 ),
-                trace(
+                (
                     "baseline fit",
-                    slice(&out.baseline),
+                    &out.baseline,
                     LineStyle::Dashed,
                     Rgb(255, 127, 14),
                 ),
-                trace(
+                (
                     "improved",
-                    slice(&out.improved),
+                    &out.improved,
                     LineStyle::Dashed,
                     Rgb(214, 39, 40),
                 ),
-            ],
+            ]
+            .into_iter()
+            .map(|(name, h, style, color)| trace(name, slice(h), style, color))
+            .collect(),
             quality: None,
         });
     }

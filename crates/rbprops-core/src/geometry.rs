@@ -44,6 +44,21 @@ pub struct Channel {
 }
 
 impl Channel {
+    /// The channels of a triaxial accelerometer at `position`, the point `point`:
+    /// `{point}x`, `{point}y`, `{point}z` along the body axes.
+    pub fn triaxial(point: &str, position: Vec3) -> Vec<Channel> {
+        ["x", "y", "z"]
+            .iter()
+            .enumerate()
+            .map(|(k, a)| Channel {
+                id: format!("{point}{a}"),
+                point: point.into(),
+                position,
+                direction: Vec3::from_fn(|i, _| f64::from(u8::from(i == k))),
+            })
+            .collect()
+    }
+
     /// The channel's row of `S` (or R0): `sᵀ T(p)`.
     pub fn row(&self) -> RowVector6<f64> {
         self.direction.transpose() * rigid_transform(&self.position)
@@ -292,29 +307,20 @@ mod tests {
         assert!((f.fixed_rows::<3>(3).into_owned() - m).norm() < 1e-15);
     }
 
-    fn triax(id: &str, p: Vec3) -> Vec<Channel> {
-        ["x", "y", "z"]
-            .iter()
-            .enumerate()
-            .map(|(k, a)| Channel {
-                id: format!("{id}{a}"),
-                point: id.into(),
-                position: p,
-                direction: Vec3::from_fn(|i, _| if i == k { 1.0 } else { 0.0 }),
-            })
-            .collect()
-    }
-
     #[test]
     fn observability_needs_three_noncollinear_triaxials() {
         let mut g = Geometry::default();
-        g.channels.extend(triax("a", Vec3::new(0.0, 0.0, 0.0)));
-        g.channels.extend(triax("b", Vec3::new(1.0, 0.0, 0.0)));
+        g.channels
+            .extend(Channel::triaxial("a", Vec3::new(0.0, 0.0, 0.0)));
+        g.channels
+            .extend(Channel::triaxial("b", Vec3::new(1.0, 0.0, 0.0)));
         assert!(g.check_rigid_observability().is_err());
-        g.channels.extend(triax("c", Vec3::new(2.0, 0.0, 0.0)));
+        g.channels
+            .extend(Channel::triaxial("c", Vec3::new(2.0, 0.0, 0.0)));
         let err = g.check_rigid_observability().unwrap_err().to_string();
         assert!(err.contains("collinear"), "{err}");
-        g.channels.extend(triax("d", Vec3::new(0.0, 1.0, 0.0)));
+        g.channels
+            .extend(Channel::triaxial("d", Vec3::new(0.0, 1.0, 0.0)));
         g.check_rigid_observability().unwrap();
     }
 

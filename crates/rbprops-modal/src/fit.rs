@@ -1356,19 +1356,20 @@ fn single_reference_fits(
 /// basis singular). The multiplicity is read from the fits' typed
 /// [`MultiplicityWarning`]s, never from warning texts (an excitation id may say anything).
 fn poly_reference_reason(fits: &[&ExcitationFit]) -> Option<String> {
-    let counts: Vec<usize> = fits.iter().map(|f| f.modes.len()).collect();
-    let (lo, hi) = (
-        counts.iter().copied().min().unwrap_or(0),
-        counts.iter().copied().max().unwrap_or(0),
-    );
-    if lo != hi {
-        return Some(format!(
-            "the per-excitation fits disagree on the number of modes ({lo} to {hi})"
-        ));
-    }
-    fits.iter()
-        .find_map(|f| f.multiplicity.first())
-        .map(|w| format!("a pole shows multiplicity ({})", w.text))
+    mode_count_disagreement(fits).or_else(|| {
+        fits.iter()
+            .find_map(|f| f.multiplicity.first())
+            .map(|w| format!("a pole shows multiplicity ({})", w.text))
+    })
+}
+
+/// The first reason of [`poly_reference_reason`]: the fits of a set-up disagree on the
+/// number of modes.
+fn mode_count_disagreement(fits: &[&ExcitationFit]) -> Option<String> {
+    let counts = fits.iter().map(|f| f.modes.len());
+    let (lo, hi) = (counts.clone().min().unwrap_or(0), counts.max().unwrap_or(0));
+    (lo != hi)
+        .then(|| format!("the per-excitation fits disagree on the number of modes ({lo} to {hi})"))
 }
 
 /// The automatic switch of [`FitOptions::auto_poly_reference`]: every set-up of two or
@@ -1599,19 +1600,11 @@ mod multiplicity_tests {
     }
 
     fn reason_by_text(fits: &[&ExcitationFit]) -> Option<String> {
-        let counts: Vec<usize> = fits.iter().map(|f| f.modes.len()).collect();
-        let (lo, hi) = (
-            counts.iter().copied().min().unwrap_or(0),
-            counts.iter().copied().max().unwrap_or(0),
-        );
-        if lo != hi {
-            return Some(format!(
-                "the per-excitation fits disagree on the number of modes ({lo} to {hi})"
-            ));
-        }
-        fits.iter()
-            .find_map(|f| f.record.warnings.iter().find(|w| by_text(w)))
-            .map(|w| format!("a pole shows multiplicity ({w})"))
+        mode_count_disagreement(fits).or_else(|| {
+            fits.iter()
+                .find_map(|f| f.record.warnings.iter().find(|w| by_text(w)))
+                .map(|w| format!("a pole shows multiplicity ({w})"))
+        })
     }
 
     /// Test-case campaigns with the second mode moved next to the first: every

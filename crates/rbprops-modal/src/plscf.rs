@@ -432,29 +432,26 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
     let Some(red) = Reduced::new(data, dt, n_max) else {
         return Vec::new();
     };
-    let mut out = Vec::new();
-    for n in 1..=n_max {
-        let m = red.matrix(n);
-        let nc = (n + 1) * ni;
-        let d = n * ni;
-        // M11 α = −M12 with α_n = I.
-        let m11: Vec<f64> = (0..d * d).map(|i| m[(i / d) * nc + i % d]).collect();
-        let rhs: Vec<f64> = (0..d * ni)
-            .map(|i| -m[(i / ni) * nc + d + i % ni])
-            .collect();
-        let Some(alpha) = linalg::solve_rows(m11, rhs, d, ni) else {
-            continue;
-        };
-        let Some((poles, shapes)) = companion_poles(&alpha, n, ni, dt) else {
-            continue;
-        };
-        out.push(OrderPoles {
-            order: n,
-            poles,
-            shapes,
-        });
-    }
-    out
+    // Orders whose normal equations or companion matrix are singular are left out.
+    (1..=n_max)
+        .filter_map(|n| {
+            let m = red.matrix(n);
+            let nc = (n + 1) * ni;
+            let d = n * ni;
+            // M11 α = −M12 with α_n = I.
+            let m11: Vec<f64> = (0..d * d).map(|i| m[(i / d) * nc + i % d]).collect();
+            let rhs: Vec<f64> = (0..d * ni)
+                .map(|i| -m[(i / ni) * nc + d + i % ni])
+                .collect();
+            let alpha = linalg::solve_rows(m11, rhs, d, ni)?;
+            let (poles, shapes) = companion_poles(&alpha, n, ni, dt)?;
+            Some(OrderPoles {
+                order: n,
+                poles,
+                shapes,
+            })
+        })
+        .collect()
 }
 
 #[cfg(test)]

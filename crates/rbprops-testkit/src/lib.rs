@@ -109,22 +109,12 @@ pub fn ok(out: Output) -> Output {
 /// A triaxial accelerometer at `p`: the point `id` and its channels `{id}x`, `{id}y`,
 /// `{id}z` along the body axes.
 pub fn triaxial(id: &str, p: Vec3) -> (Point, Vec<Channel>) {
-    let chans = ["x", "y", "z"]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| Channel {
-            id: format!("{id}{a}"),
-            point: id.into(),
-            position: p,
-            direction: Vec3::from_fn(|i, _| f64::from(u8::from(i == k))),
-        })
-        .collect();
     (
         Point {
             id: id.into(),
             position: p,
         },
-        chans,
+        Channel::triaxial(id, p),
     )
 }
 

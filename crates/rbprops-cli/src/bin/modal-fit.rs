@@ -40,13 +40,8 @@ enum PolesArg {
 #[derive(Parser)]
 #[command(name = "modal-fit", version, about)]
 struct Args {
-    /// Input run (MCAP, CSV directory); default MCAP on stdin.
-    input: Option<PathBuf>,
     #[command(flatten)]
-    checks: rbprops_cli::InputChecks,
-    /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
+    io: rbprops_cli::StageIo,
     #[command(flatten)]
     uff: rbprops_cli::UffArgs,
     #[arg(long, value_enum, default_value = "lscf")]
@@ -89,12 +84,7 @@ struct Args {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
-        let input = rbprops_cli::read_stage_input(
-            "modal-fit",
-            args.input.as_deref(),
-            &args.checks,
-            &args.uff.options(),
-        )?;
+        let input = args.io.read("modal-fit", &args.uff.options())?;
         let mut rec = input.record;
         let mut opts = FitOptions {
             method: match args.method {
@@ -145,7 +135,7 @@ fn main() -> std::process::ExitCode {
                 );
             }
         }
-        warnings.print(args.checks.verbose);
+        warnings.print(args.io.checks.verbose);
         if let Some(dir) = &args.plot {
             let (geometry, frf) = rec.require_geometry_and_frf()?;
             let coherence = rbprops_cli::coherence::get(&rec)?;
@@ -155,6 +145,6 @@ fn main() -> std::process::ExitCode {
                 &rbprops_cli::plots::modal_fit_shaded(&geometry, frf, &out, shading)?,
             )?;
         }
-        rbprops_cli::write_output(&rec, args.output.as_deref())
+        args.io.write(&rec)
     })
 }

@@ -18,13 +18,8 @@ enum Crit {
 #[derive(Parser)]
 #[command(name = "ni-select", version, about)]
 struct Args {
-    /// Input run (MCAP, CSV directory); default MCAP on stdin.
-    input: Option<PathBuf>,
     #[command(flatten)]
-    checks: rbprops_cli::InputChecks,
-    /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
+    io: rbprops_cli::StageIo,
     /// Selection criterion.
     #[arg(long, value_enum, default_value = "ni")]
     criterion: Crit,
@@ -64,8 +59,7 @@ fn manual(s: &str) -> Result<ManualSet> {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("ni-select", || {
         let args = Args::parse();
-        let input =
-            rbprops_cli::read_input_checked("ni-select", args.input.as_deref(), &args.checks)?;
+        let input = args.io.read("ni-select", &Default::default())?;
         let mut rec = input.record;
         let mut opts = SelectOptions {
             criterion: match args.criterion {
@@ -102,7 +96,7 @@ fn main() -> std::process::ExitCode {
                 d.clone(),
             ));
         }
-        warnings.print(args.checks.verbose);
+        warnings.print(args.io.checks.verbose);
         if args.summary {
             let mut err = std::io::stderr().lock();
             for s in &out.excitation_summaries {
@@ -120,6 +114,6 @@ fn main() -> std::process::ExitCode {
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::indicators(&out)?)?;
         }
-        rbprops_cli::write_output(&rec, args.output.as_deref())
+        args.io.write(&rec)
     })
 }

@@ -27,15 +27,13 @@ enum Method {
 /// Estimate mass, centre of mass and inertia tensor (Bretl–Conti, Toivola–Nuutila, mass
 /// line) with standard errors, from `modal-fit` + `ni-select` output.
 #[derive(Parser)]
-#[command(name = "rb-solve", version, about)]
+// The output is optional here (the estimates go to stdout), hence its own help text.
+#[command(name = "rb-solve", version, about, mut_arg("output", |a| a.help(
+    "Write the run record (with the estimates topic) here: FILE.mcap or a CSV directory"
+)))]
 struct Args {
-    /// Input run (MCAP, CSV directory); default MCAP on stdin.
-    input: Option<PathBuf>,
     #[command(flatten)]
-    checks: rbprops_cli::InputChecks,
-    /// Write the run record (with the estimates topic) here: FILE.mcap or a CSV directory.
-    #[arg(short, long)]
-    output: Option<PathBuf>,
+    io: rbprops_cli::StageIo,
     /// What to print on stdout.
     #[arg(long, value_enum)]
     format: Option<OutFormat>,
@@ -105,8 +103,7 @@ fn origin(s: &str) -> OriginChoice {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rb-solve", || {
         let args = Args::parse();
-        let input =
-            rbprops_cli::read_input_checked("rb-solve", args.input.as_deref(), &args.checks)?;
+        let input = args.io.read("rb-solve", &Default::default())?;
         let mut rec = input.record;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
@@ -155,7 +152,7 @@ fn main() -> std::process::ExitCode {
         .with_context(|| input.name.clone())?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
         warnings.extend("rb-solve", &out.warnings);
-        warnings.print(args.checks.verbose);
+        warnings.print(args.io.checks.verbose);
         if out.estimates.is_empty() {
             bail!("no estimator produced an estimate (see the warnings above)");
         }
@@ -163,13 +160,13 @@ fn main() -> std::process::ExitCode {
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::estimates(&out.estimates)?)?;
         }
         let format = args.format.unwrap_or(
-            if rbprops_cli::stdout_is_terminal() || args.output.is_some() {
+            if rbprops_cli::stdout_is_terminal() || args.io.output.is_some() {
                 OutFormat::Table
             } else {
                 OutFormat::Mcap
             },
         );
-        if let Some(p) = &args.output {
+        if let Some(p) = &args.io.output {
             rbprops_cli::write_output(&rec, Some(p))?;
         }
         match format {

@@ -10,15 +10,8 @@ use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-fn gain_info(name: String) -> ParamInfo {
-    ParamInfo {
-        name,
-        unit: "1",
-        lower: 0.0,
-        upper: f64::INFINITY,
-        plausible: (0.9, 1.1),
-    }
-}
+/// Plausible range of a calibration gain.
+const GAIN_PLAUSIBLE: (f64, f64) = (0.9, 1.1);
 
 fn check_gain(what: &str, g: f64) -> Result<(), String> {
     if g.is_finite() && g > 0.0 {
@@ -52,10 +45,7 @@ impl Effect for ChannelGain {
         "channel_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.gains
-            .keys()
-            .map(|k| gain_info(format!("gains.{k}")))
-            .collect()
+        super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
     }
     fn values(&self) -> Vec<f64> {
         self.gains.values().copied().collect()
@@ -101,10 +91,7 @@ impl Effect for ExcitationGain {
         "excitation_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.gains
-            .keys()
-            .map(|k| gain_info(format!("gains.{k}")))
-            .collect()
+        super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
     }
     fn values(&self) -> Vec<f64> {
         self.gains.values().copied().collect()
@@ -152,19 +139,15 @@ impl Effect for GlobalGain {
         "global_gain"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec![gain_info("gain".into())]
+        vec![super::positive_info("gain".into(), "1", GAIN_PLAUSIBLE)]
     }
     fn values(&self) -> Vec<f64> {
         vec![self.gain]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        match values {
-            [g] => {
-                check_gain("gain", *g)?;
-                Ok(Box::new(GlobalGain { gain: *g }))
-            }
-            _ => Err(format!("expected 1 value, got {}", values.len())),
-        }
+        let gain = super::single_value(values)?;
+        check_gain("gain", gain)?;
+        Ok(Box::new(GlobalGain { gain }))
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()

@@ -78,18 +78,9 @@ impl Effect for SensorMass {
         self.all()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let n = self.all().len();
-        if values.len() != n {
-            return Err(format!("expected {n} values, got {}", values.len()));
-        }
-        let mut e = self.clone();
-        let mut it = values.iter();
-        if e.mass_kg.is_some() {
-            e.mass_kg = it.next().copied();
-        }
-        for v in e.masses_kg.values_mut() {
-            *v = *it.next().unwrap();
-        }
+        let (mass_kg, masses_kg) =
+            super::replace_common_and_map(self.mass_kg, &self.masses_kg, values)?;
+        let e = SensorMass { mass_kg, masses_kg };
         e.check_values()?;
         Ok(Box::new(e))
     }

@@ -235,13 +235,7 @@ pub(crate) fn list_info(
     plausible: (f64, f64),
 ) -> Vec<ParamInfo> {
     (0..n)
-        .map(|i| ParamInfo {
-            name: format!("{name}[{i}]"),
-            unit,
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible,
-        })
+        .map(|i| positive_info(format!("{name}[{i}]"), unit, plausible))
         .collect()
 }
 
@@ -253,14 +247,19 @@ pub(crate) fn map_info(
     plausible: (f64, f64),
 ) -> Vec<ParamInfo> {
     map.keys()
-        .map(|k| ParamInfo {
-            name: format!("{name}.{k}"),
-            unit,
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible,
-        })
+        .map(|k| positive_info(format!("{name}.{k}"), unit, plausible))
         .collect()
+}
+
+/// Description of a parameter that is positive (bounded below by 0, unbounded above).
+pub(crate) fn positive_info(name: String, unit: &'static str, plausible: (f64, f64)) -> ParamInfo {
+    ParamInfo {
+        name,
+        unit,
+        lower: 0.0,
+        upper: f64::INFINITY,
+        plausible,
+    }
 }
 
 /// `values` (a fitter's new values, in key order) as a replacement of a per-id map.
@@ -276,6 +275,17 @@ pub(crate) fn replace_map(
         ));
     }
     Ok(map.keys().cloned().zip(values.iter().copied()).collect())
+}
+
+/// `values` as a replacement of an optional value for every id followed by a per-id map
+/// (a fitter's new values for an effect with both, in that order).
+pub(crate) fn replace_common_and_map(
+    common: Option<f64>,
+    map: &std::collections::BTreeMap<String, f64>,
+    values: &[f64],
+) -> Result<(Option<f64>, std::collections::BTreeMap<String, f64>), String> {
+    let (common_value, per_id) = split_values(values, usize::from(common.is_some()), map.len())?;
+    Ok((common_value.first().copied(), replace_map(map, per_id)?))
 }
 
 /// `values` (three per id, in key order) as a replacement of a per-id map of 3-vectors.
@@ -308,6 +318,14 @@ pub(crate) fn split_values(
         return Err(format!("expected {} values, got {}", na + nb, values.len()));
     }
     Ok(values.split_at(na))
+}
+
+/// `values` as the new value of a one-parameter effect (a fitter's new values).
+pub(crate) fn single_value(values: &[f64]) -> Result<f64, String> {
+    match values {
+        [v] => Ok(*v),
+        _ => Err(format!("expected 1 value, got {}", values.len())),
+    }
 }
 
 /// `values` as a replacement of a list parameter of length `n` (a fitter's new values).
@@ -426,4 +444,40 @@ pub fn parse_effects(spec: &CampaignSpec) -> Result<Vec<Box<dyn Effect>>, (usize
     }
     v.sort_by_key(|e| e.order());
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::BTreeMap;
+
+    /// A fitter's values go to the common value first (when there is one), then to the map
+    /// in key order; a wrong count is refused with the count expected.
+    #[test]
+    fn common_value_then_map_in_key_order() {
+        let map: BTreeMap<String, f64> = [("b".into(), 1.0), ("a".into(), 2.0)].into();
+        let (common, new) = super::replace_common_and_map(Some(9.0), &map, &[3.0, 4.0, 5.0])
+            .expect("three values for a common value and two ids");
+        assert_eq!(common, Some(3.0));
+        assert_eq!(new, [("a".into(), 4.0), ("b".into(), 5.0)].into());
+        let (common, new) = super::replace_common_and_map(None, &map, &[6.0, 7.0]).unwrap();
+        assert_eq!((common, new["a"], new["b"]), (None, 6.0, 7.0));
+        assert_eq!(
+            super::replace_common_and_map(None, &map, &[1.0; 3]),
+            Err("expected 2 values, got 3".into())
+        );
+    }
+
+    /// A one-parameter effect takes exactly one value.
+    #[test]
+    fn single_value_takes_exactly_one() {
+        assert_eq!(super::single_value(&[2.5]), Ok(2.5));
+        assert_eq!(
+            super::single_value(&[]),
+            Err("expected 1 value, got 0".into())
+        );
+        assert_eq!(
+            super::single_value(&[1.0, 2.0]),
+            Err("expected 1 value, got 2".into())
+        );
+    }
 }

@@ -84,14 +84,12 @@ impl Effect for ExponentialWindow {
             .unwrap_or(f64::NAN)]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let [v] = values else {
-            return Err(format!("expected 1 value, got {}", values.len()));
-        };
+        let v = super::single_value(values)?;
         let mut e = self.clone();
         if e.time_constant_s.is_some() {
-            e.time_constant_s = Some(*v);
+            e.time_constant_s = Some(v);
         } else {
-            e.decay_per_s = Some(*v);
+            e.decay_per_s = Some(v);
         }
         e.check_values()?;
         Ok(Box::new(e))
@@ -150,11 +148,8 @@ impl Effect for RecordTruncation {
         vec![self.record_length_s]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let [v] = values else {
-            return Err(format!("expected 1 value, got {}", values.len()));
-        };
         let e = RecordTruncation {
-            record_length_s: *v,
+            record_length_s: super::single_value(values)?,
         };
         e.check_values()?;
         Ok(Box::new(e))

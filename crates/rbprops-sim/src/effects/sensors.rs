@@ -93,18 +93,12 @@ impl Effect for TransducerHighpass {
         self.all()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let n = self.all().len();
-        if values.len() != n {
-            return Err(format!("expected {n} values, got {}", values.len()));
-        }
-        let mut e = self.clone();
-        let mut it = values.iter();
-        if e.time_constant_s.is_some() {
-            e.time_constant_s = it.next().copied();
-        }
-        for v in e.time_constants_s.values_mut() {
-            *v = *it.next().expect("length checked");
-        }
+        let (time_constant_s, time_constants_s) =
+            super::replace_common_and_map(self.time_constant_s, &self.time_constants_s, values)?;
+        let e = TransducerHighpass {
+            time_constant_s,
+            time_constants_s,
+        };
         e.check_values()?;
         Ok(Box::new(e))
     }
@@ -187,11 +181,8 @@ impl Effect for SensorTiltGravity {
         vec![self.g_m_per_s2]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let [g] = values else {
-            return Err(format!("expected 1 value, got {}", values.len()));
-        };
         let e = SensorTiltGravity {
-            g_m_per_s2: *g,
+            g_m_per_s2: super::single_value(values)?,
             ..self.clone()
         };
         e.check_values()?;
@@ -281,19 +272,12 @@ impl Effect for ChannelDelay {
             .collect()
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let n = self.channels_s.len() + self.excitations_s.len();
-        if values.len() != n {
-            return Err(format!("expected {n} values, got {}", values.len()));
-        }
-        let mut e = self.clone();
-        for (v, x) in e
-            .channels_s
-            .values_mut()
-            .chain(e.excitations_s.values_mut())
-            .zip(values)
-        {
-            *v = *x;
-        }
+        let (channels, excitations) =
+            super::split_values(values, self.channels_s.len(), self.excitations_s.len())?;
+        let e = ChannelDelay {
+            channels_s: super::replace_map(&self.channels_s, channels)?,
+            excitations_s: super::replace_map(&self.excitations_s, excitations)?,
+        };
         e.check_values()?;
         Ok(Box::new(e))
     }
