@@ -354,7 +354,10 @@ mod tests {
             })
             .collect();
         let (starts, n_tests) = profile_starts(&layout, &used, &sigma, &residual);
-        assert_eq!(n_tests, (nl - 1) * PROFILE_DAMPING.len());
+        assert_eq!(
+            n_tests,
+            (nl - 1 + ABOVE_BAND_Q.len()) * PROFILE_DAMPING.len()
+        );
         assert_eq!((starts[0][0], starts[0][1]), (fm0, z0));
         for start in &starts {
             let (fm, z) = (start[0], start[1]);
