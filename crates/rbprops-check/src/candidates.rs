@@ -1010,8 +1010,9 @@ fn further_instances(first: &Candidate, n: usize) -> Vec<Candidate> {
             format!("{}_{k}", first.id)
         }
     };
+    // A chain: an instance that cannot be built ends it (the next would follow nothing).
     (2..=n + 1)
-        .filter_map(|k| {
+        .map_while(|k| {
             let effect = first.effect.with_values(&first.neutral).ok()?;
             Some(Candidate {
                 id: name(k),

@@ -86,7 +86,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     }
 
     /// A further instance of a repeatable effect opens once the instance it follows has
-    /// left the pool; every other candidate is always open.
+    /// left the pool (and never without it); every other candidate is always open.
     fn opened(&self, c: usize) -> bool {
         match &self.p.cands[c].follows {
             None => true,
@@ -95,7 +95,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 .cands
                 .iter()
                 .position(|x| &x.id == prev)
-                .is_none_or(|k| !self.waiting(k)),
+                .is_some_and(|k| !self.waiting(k)),
         }
     }
 
