@@ -12,7 +12,8 @@
 //! failure.
 //!
 //! The study over 100 seeds per precision (`null_study`, `#[ignore]`):
-//! `cargo test --release -p rbprops-check --test it -- --ignored --nocapture independent_nulls::`.
+//! `cargo test --release -p rbprops-check --test it -- --ignored --nocapture independent_nulls::`
+//! (`NULL_SEEDS=N` seeds from `NULL_FIRST_SEED`, default 100 from 1).
 
 use crate::common::nominal;
 use rbprops_check::report::ModelCheckReport;
@@ -287,6 +288,11 @@ fn null_study() {
     let Some(py) = python(NUMPY_PYUFF) else {
         return;
     };
+    // NULL_FIRST_SEED reruns a part of the study (one seed: NULL_SEEDS=1).
+    let first: u64 = std::env::var("NULL_FIRST_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
     let seeds: u64 = std::env::var("NULL_SEEDS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -295,7 +301,7 @@ fn null_study() {
         let t0 = std::time::Instant::now();
         let mut silent = 0;
         let mut at_floor = 0;
-        for seed in 1..=seeds {
+        for seed in first..first + seeds {
             let r = null_check(&py, seed, precision);
             eprintln!("{}", summary(seed, precision, &r));
             silent += usize::from(claimed(&r).is_empty());
