@@ -98,9 +98,15 @@ pub fn chi2_isf_wilson_hilferty(z: f64, k: f64) -> f64 {
 /// The point in (0, ∞) where `below(x)` turns from true to false, for a monotone `below`:
 /// the bracket [0, hi] is widened by doubling `hi` until `below(hi)` is false, then halved
 /// until its width is under `rel` of its top (at most 200 steps); returns its midpoint.
+/// When `below` holds up to infinity (degenerate parameters: a distribution that never
+/// reaches the level), there is no finite threshold and it returns +∞ rather than
+/// doubling forever.
 fn bisect_threshold(mut hi: f64, rel: f64, below: impl Fn(f64) -> bool) -> f64 {
     let mut lo = 0.0f64;
     while below(hi) {
+        if hi == f64::INFINITY {
+            return hi;
+        }
         hi *= 2.0;
     }
     for _ in 0..200 {
@@ -220,6 +226,15 @@ pub fn chi2_nu_band(nu: f64, se: f64, tail: f64) -> [f64; 2] {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn a_level_never_reached_gives_an_infinite_threshold_not_a_hang() {
+        assert_eq!(bisect_threshold(1.0, 1e-12, |_| true), f64::INFINITY);
+        // A level reached gives the finite threshold as before.
+        let t = bisect_threshold(1.0, 1e-12, |x| x < 37.5);
+        assert!((t - 37.5).abs() < 1e-9, "{t}");
+    }
+
     use super::*;
 
     #[test]
