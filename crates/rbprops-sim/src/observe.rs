@@ -50,7 +50,7 @@ fn rigid_state_at(
         .copy_from(&(-minv * model.damping));
     let mut x0 = SVector::<f64, 12>::zeros();
     x0.fixed_rows_mut::<6>(6).copy_from(&(minv * f));
-    let xt = (a * t).exp() * x0;
+    let xt = finite_then(a * t, t)?.exp() * x0;
     if !xt.iter().all(|x| x.is_finite()) {
         return Err(format!("the state at T = {t} s is not finite"));
     }
@@ -58,9 +58,23 @@ fn rigid_state_at(
 }
 
 /// Scalar state `(η, η̇)` at T of `η̈ + 2ζω η̇ + ω² η = δ(t)`.
-fn mode_state_at(wm: f64, zeta: f64, t: f64) -> Vector2<f64> {
+fn mode_state_at(wm: f64, zeta: f64, t: f64) -> Result<Vector2<f64>, String> {
     let a = nalgebra::Matrix2::new(0.0, 1.0, -wm * wm, -2.0 * zeta * wm);
-    (a * t).exp() * Vector2::new(0.0, 1.0)
+    Ok(finite_then(a * t, t)?.exp() * Vector2::new(0.0, 1.0))
+}
+
+/// `A·T`, refused when an entry is not finite: nalgebra's matrix exponential (scaling
+/// and squaring) never returns for such a matrix (its squaring count has no bound), so
+/// a fit that strays to a non-finite state must get an error, not a hung evaluation.
+fn finite_then<const N: usize>(
+    at: nalgebra::SMatrix<f64, N, N>,
+    t: f64,
+) -> Result<nalgebra::SMatrix<f64, N, N>, String> {
+    if at.iter().all(|x| x.is_finite()) {
+        Ok(at)
+    } else {
+        Err(format!("the state matrix over T = {t} s is not finite"))
+    }
 }
 
 /// `Y_k` from the untruncated transform `x` and, when truncated, the tail transform
@@ -124,8 +138,9 @@ pub fn observed_block(
         .map(|m| {
             obs.record_length_s
                 .map(|t| mode_state_at(std::f64::consts::TAU * m.frequency_hz, m.damping_ratio, t))
+                .transpose()
         })
-        .collect();
+        .collect::<Result<_, _>>()?;
     let rows: Vec<Vec6c> = model
         .outputs
         .iter()
@@ -205,4 +220,29 @@ pub fn observed_block(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod exponential_tests {
+    use super::mode_state_at;
+
+    /// A non-finite state matrix is an error: nalgebra's exponential of such a matrix
+    /// never returns (a model check's profile once hung there for half an hour).
+    #[test]
+    fn a_non_finite_state_is_an_error_not_a_hang() {
+        for (wm, zeta, t) in [
+            (f64::NAN, 0.01, 1.0),
+            (f64::INFINITY, 0.01, 1.0),
+            (10.0, 0.01, f64::INFINITY),
+        ] {
+            let e = mode_state_at(wm, zeta, t).unwrap_err();
+            assert!(e.contains("not finite"), "{e}");
+        }
+        // A finite one is the impulse response: η(T) = e^{−ζωT} sin(ω_d T)/ω_d.
+        let (wm, zeta, t) = (10.0, 0.02, 0.7);
+        let wd = wm * (1.0 - zeta * zeta).sqrt();
+        let x = mode_state_at(wm, zeta, t).unwrap();
+        let expect = (-zeta * wm * t).exp() * (wd * t).sin() / wd;
+        assert!((x[0] - expect).abs() < 1e-12, "{} vs {expect}", x[0]);
+    }
 }
