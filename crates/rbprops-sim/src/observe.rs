@@ -239,7 +239,7 @@ mod exponential_tests {
             assert!(e.contains("not finite"), "{e}");
         }
         // A finite one is the impulse response: η(T) = e^{−ζωT} sin(ω_d T)/ω_d.
-        let (wm, zeta, t) = (10.0, 0.02, 0.7);
+        let (wm, zeta, t): (f64, f64, f64) = (10.0, 0.02, 0.7);
         let wd = wm * (1.0 - zeta * zeta).sqrt();
         let x = mode_state_at(wm, zeta, t).unwrap();
         let expect = (-zeta * wm * t).exp() * (wd * t).sin() / wd;
