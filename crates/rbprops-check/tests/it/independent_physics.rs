@@ -308,24 +308,25 @@ fn two_elastic_modes_above_the_band_at_low_noise() {
 }
 
 /// Three elastic modes just above the band (14, 19 and 27 Hz; top 12.5 Hz) with
-/// different shapes, 0.1 % noise, 400 lines: no single out-of-band term can take them
+/// different shapes, 0.1 % noise, 200 lines: no single out-of-band term can take them
 /// (their ω² expansions differ channel by channel), so each needs its own pole. Named
 /// only from the elastic family, at least three terms, and χ²/ν inside the band; each
 /// elastic mode named sits above the band. Before further instances of the family
-/// existed, this recording got one `elastic_mode` and one `residual_flexibility`, then
-/// seven false effects (sensor position, channel gain, force direction, …) and ended at
-/// χ²/ν 2.88. Now (release, 2 loaded cores, 90–100 CPU s): seeds 7, 8 and 9 each get
-/// three terms of the family — the 14 Hz mode as the ambiguous pair `elastic_mode` /
-/// `residual_flexibility` (one term, two descriptions), then `residual_flexibility_2`
-/// and `_3` for the 19 and 27 Hz modes — nothing else, χ²/ν 0.980, 0.984 and 0.998 in
-/// [0.971, 1.050]. Known limit (docs/results.md): at 200 lines the third term is vetoed
-/// by the held-out excitation and spurious terms follow.
+/// existed, this recording (at 400 lines) got one `elastic_mode` and one
+/// `residual_flexibility`, then seven false effects and ended at χ²/ν 2.88; at 200
+/// lines the third term was then still vetoed by the held-out excitation (an
+/// excitation the others cannot predict, tested with a normal tail where its
+/// estimation noise has a χ²₁'s: see `cv`), and spurious poles, a delay and a gain
+/// filled in (χ²/ν 2.6). Now each of seeds 7, 8 (200 lines) and 7, 8, 9 (400 lines)
+/// gets three terms of the family — the 14 Hz mode as the ambiguous pair
+/// `elastic_mode` / `residual_flexibility` (one term, two descriptions), then
+/// `residual_flexibility_2` and `_3` — and nothing else, χ²/ν in its band.
 #[test]
 fn three_elastic_modes_above_the_band_each_get_a_term() {
     let Some(py) = python(NUMPY_PYUFF) else {
         return;
     };
-    let nom = nominal(400);
+    let nom = nominal(200);
     let (g, frf) = refgen(&py, "tc2-three-above", &["noise.relative=0.001"], 7, &nom);
     let family: Vec<String> = ["elastic_mode", "residual_flexibility"]
         .iter()
