@@ -231,11 +231,7 @@ impl NonproportionalDamping {
                 return Err(format!("{what}[{i}]: must be finite and ≥ 0, got {c}"));
             }
         }
-        let n = Vec3::from(self.axis).norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("axis: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
+        super::check_unit_vector("axis", self.axis)
     }
 }
 
@@ -244,26 +240,15 @@ impl Effect for NonproportionalDamping {
         "nonproportional_damping"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let info = |name: String| ParamInfo {
-            name,
-            unit: "N s/m",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (0.0, 20.0),
-        };
+        let info = |name: String| super::positive_info(name, "N s/m", (0.0, 20.0));
         (0..self.axial_n_s_per_m.len())
             .map(|i| info(format!("axial_n_s_per_m[{i}]")))
             .chain(
                 (0..self.lateral_n_s_per_m.len()).map(|i| info(format!("lateral_n_s_per_m[{i}]"))),
             )
             .chain(
-                modal_coupling_names(self.modal_coupling.len()).map(|name| ParamInfo {
-                    name,
-                    unit: "1",
-                    lower: f64::NEG_INFINITY,
-                    upper: f64::INFINITY,
-                    plausible: (-1.0, 1.0),
-                }),
+                modal_coupling_names(self.modal_coupling.len())
+                    .map(|name| super::unbounded_info(name, "1", (-1.0, 1.0))),
             )
             .collect()
     }
@@ -307,7 +292,7 @@ impl Effect for NonproportionalDamping {
         )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let springs = ctx.spec.springs(ctx.setup_index);
@@ -405,7 +390,7 @@ impl Effect for HystereticDamping {
         )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let springs = ctx.spec.springs(ctx.setup_index);

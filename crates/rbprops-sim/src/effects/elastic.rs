@@ -73,21 +73,9 @@ impl Effect for ElasticMode {
         "elastic_mode"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let shape = |name: String| ParamInfo {
-            name,
-            unit: "1/sqrt(kg)",
-            lower: f64::NEG_INFINITY,
-            upper: f64::INFINITY,
-            plausible: (-0.5, 0.5),
-        };
+        let shape = |name: String| super::unbounded_info(name, "1/sqrt(kg)", (-0.5, 0.5));
         let mut v = vec![
-            ParamInfo {
-                name: "frequency_hz".into(),
-                unit: "Hz",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (10.0, 500.0),
-            },
+            super::positive_info("frequency_hz".into(), "Hz", (10.0, 500.0)),
             ParamInfo {
                 name: "damping_ratio".into(),
                 unit: "1",
@@ -130,21 +118,12 @@ impl Effect for ElasticMode {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        let channels = spec.channels();
-        for k in self.channels.keys() {
-            if !channels.iter().any(|c| &c.id == k) {
-                return Err(format!("channels: channel '{k}' is not defined"));
-            }
-        }
-        for k in self.excitations.keys() {
-            if !spec.excitations.iter().any(|e| &e.id == k) {
-                return Err(format!("excitations: excitation '{k}' is not defined"));
-            }
-        }
+        super::check_channels_defined(spec, "channels", self.channels.keys())?;
+        super::check_excitations_defined(spec, "excitations", self.excitations.keys())?;
         super::check_setup(spec, self.setup.as_deref())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let g = ctx.geometry;

@@ -433,18 +433,19 @@ impl GravityStiffness {
                 ));
             }
         }
-        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 > 0.0) {
-            return Err(format!(
-                "g_m_per_s2 must be positive, got {}",
-                self.g_m_per_s2
-            ));
-        }
-        let n = self.up().norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
+        check_weight(self.g_m_per_s2, self.up, "")
     }
+}
+
+/// Checks the weight of a hanging body's effect: `g_m_per_s2` positive (`why`, when not
+/// empty, says what needs it, after a space) and `up` a unit vector.
+pub(crate) fn check_weight(g_m_per_s2: f64, up: [f64; 3], why: &str) -> Result<(), String> {
+    if !(g_m_per_s2.is_finite() && g_m_per_s2 > 0.0) {
+        return Err(format!(
+            "g_m_per_s2 must be positive{why}, got {g_m_per_s2}"
+        ));
+    }
+    super::check_unit_vector("up", up)
 }
 
 /// `v` for `n` items: itself, or its single value repeated.

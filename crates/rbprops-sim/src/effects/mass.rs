@@ -42,11 +42,7 @@ impl SensorMass {
             .collect()
     }
     fn all(&self) -> Vec<f64> {
-        self.mass_kg
-            .iter()
-            .chain(self.masses_kg.values())
-            .copied()
-            .collect()
+        super::common_and_map_values(self.mass_kg, &self.masses_kg)
     }
 }
 
@@ -58,21 +54,14 @@ impl Effect for SensorMass {
         0
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let mut v: Vec<ParamInfo> = self
-            .mass_kg
-            .iter()
-            .map(|_| "mass_kg".to_string())
-            .chain(self.masses_kg.keys().map(|k| format!("masses_kg.{k}")))
-            .map(|name| ParamInfo {
-                name,
-                unit: "kg",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.001, 0.05),
-            })
-            .collect();
-        v.shrink_to_fit();
-        v
+        super::common_and_map_info(
+            "mass_kg",
+            self.mass_kg,
+            "masses_kg",
+            &self.masses_kg,
+            "kg",
+            (0.001, 0.05),
+        )
     }
     fn values(&self) -> Vec<f64> {
         self.all()
@@ -89,12 +78,7 @@ impl Effect for SensorMass {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        for id in self.masses_kg.keys() {
-            if !spec.sensors.iter().any(|s| &s.id == id) {
-                return Err(format!("masses_kg: sensor '{id}' is not defined"));
-            }
-        }
-        Ok(())
+        super::check_sensors_defined(spec, "masses_kg", self.masses_kg.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for (_, p, m) in self.masses(ctx.spec) {
@@ -181,13 +165,7 @@ impl Effect for AddedMass {
         0
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let info = |name: String, unit: &'static str| ParamInfo {
-            name,
-            unit,
-            lower: f64::NEG_INFINITY,
-            upper: f64::INFINITY,
-            plausible: (-1.0, 1.0),
-        };
+        let info = |name: String, unit| super::unbounded_info(name, unit, (-1.0, 1.0));
         let sym = |block: &str, unit| {
             UPPER.map(|(i, j)| info(format!("{block}.{}{}", AXES[i], AXES[j]), unit))
         };
@@ -262,7 +240,9 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "known sensor masses (--sensor-mass) or a run with the sensors moved",
         docs: "E7: a point mass at each listed sensor, `masses_kg` per sensor",
         parse: super::parse_as::<SensorMass>,
-        neutral: super::NeutralForm::Table(|spec, _| super::table([("masses_kg", super::per_id(super::sensor_ids(spec), 0.0.into()))])),
+        neutral: super::NeutralForm::Table(|spec, _| {
+            super::per_sensor_table(spec, "masses_kg", 0.0.into())
+        }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
     },

@@ -88,11 +88,7 @@ impl SuspensionCoupling {
         {
             return Err(format!("stiffness must be finite and ≥ 0, got {k}"));
         }
-        let n = Vec3::from(self.axis).norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("axis: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
+        super::check_unit_vector("axis", self.axis)
     }
 }
 
@@ -101,24 +97,11 @@ impl Effect for SuspensionCoupling {
         "suspension_coupling"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let mut v: Vec<ParamInfo> = ["x", "y", "z"]
-            .iter()
-            .map(|a| ParamInfo {
-                name: format!("rotational_n_m_per_rad.{a}"),
-                unit: "N m/rad",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 5.0),
-            })
-            .collect();
-        v.push(ParamInfo {
-            name: "lateral_n_per_m".into(),
-            unit: "N/m",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (0.0, 100.0),
+        let rotational = ["x", "y", "z"].map(|a| {
+            super::positive_info(format!("rotational_n_m_per_rad.{a}"), "N m/rad", (0.0, 5.0))
         });
-        v
+        let lateral = super::positive_info("lateral_n_per_m".into(), "N/m", (0.0, 100.0));
+        rotational.into_iter().chain([lateral]).collect()
     }
     fn values(&self) -> Vec<f64> {
         let r = self.rotational_n_m_per_rad;
@@ -144,7 +127,7 @@ impl Effect for SuspensionCoupling {
         super::check_setup(spec, self.setup.as_deref())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let e = Vec3::from(self.axis);
@@ -215,11 +198,7 @@ impl Effect for SuspensionDrift {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::placement::excitations_exist(
-            spec,
-            "stiffness_factors",
-            self.stiffness_factors.keys().cloned(),
-        )
+        super::check_excitations_defined(spec, "stiffness_factors", self.stiffness_factors.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -313,7 +292,7 @@ impl Effect for StingerStiffness {
             .lateral_n_per_m
             .keys()
             .chain(self.rotational_n_m_per_rad.keys());
-        super::placement::excitations_exist(spec, "stinger_stiffness", ids.cloned())
+        super::check_excitations_defined(spec, "stinger_stiffness", ids)
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -378,11 +357,7 @@ impl Effect for StingerAxialStiffness {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::placement::excitations_exist(
-            spec,
-            "axial_n_per_m",
-            self.axial_n_per_m.keys().cloned(),
-        )
+        super::check_excitations_defined(spec, "axial_n_per_m", self.axial_n_per_m.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -438,7 +413,9 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "repeated runs of one excitation, or the suspension modes measured before and after each run",
         docs: "E15: a stiffness factor per excitation run, `stiffness_factors`",
         parse: super::parse_as::<SuspensionDrift>,
-        neutral: super::NeutralForm::Table(|_, g| super::table([("stiffness_factors", super::per_id(super::excitation_ids(g), 1.0.into()))])),
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::per_excitation_table(g, "stiffness_factors", 1.0.into())
+        }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
     },
@@ -461,10 +438,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: the shaker armature's suspension stiffness along the stinger at the force point during its run, `axial_n_per_m` (a force from the coil current)",
         parse: super::parse_as::<StingerAxialStiffness>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "axial_n_per_m",
-                super::per_id(super::excitation_ids(g), 0.0.into()),
-            )])
+            super::per_excitation_table(g, "axial_n_per_m", 0.0.into())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_axial_stiffness.toml"),

@@ -29,18 +29,13 @@ impl Effect for SensorMisorientation {
         "sensor_misorientation"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.rotations_rad
-            .keys()
-            .flat_map(|k| {
-                ["x", "y", "z"].map(|a| ParamInfo {
-                    name: format!("rotations_rad.{k}.{a}"),
-                    unit: "rad",
-                    lower: -std::f64::consts::PI,
-                    upper: std::f64::consts::PI,
-                    plausible: (-0.09, 0.09),
-                })
-            })
-            .collect()
+        super::vec3_map_info(
+            "rotations_rad",
+            &self.rotations_rad,
+            "rad",
+            std::f64::consts::PI,
+            0.09,
+        )
     }
     fn values(&self) -> Vec<f64> {
         self.rotations_rad.values().flatten().copied().collect()
@@ -56,12 +51,7 @@ impl Effect for SensorMisorientation {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        for k in self.rotations_rad.keys() {
-            if !spec.sensors.iter().any(|s| &s.id == k) {
-                return Err(format!("rotations_rad: sensor '{k}' is not defined"));
-            }
-        }
-        Ok(())
+        super::check_sensors_defined(spec, "rotations_rad", self.rotations_rad.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for (c, ch) in ctx.geometry.channels.iter().enumerate() {
@@ -96,10 +86,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescri
     docs: "E8: a small rotation vector per sensor, `rotations_rad`",
     parse: super::parse_as::<SensorMisorientation>,
     neutral: super::NeutralForm::Table(|spec, _| {
-        super::table([(
-            "rotations_rad",
-            super::per_id(super::sensor_ids(spec), super::zero3_value()),
-        )])
+        super::per_sensor_table(spec, "rotations_rad", super::zero3_value())
     }),
     follows_spec_up: false,
     example: include_str!("../../../../fixtures/specs/effects/sensor_misorientation.toml"),

@@ -23,27 +23,6 @@ use rbprops_core::{cross_matrix, rigid_transform, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// Parameter descriptions of a map id → 3-vector.
-fn vec3_info(
-    map: &BTreeMap<String, [f64; 3]>,
-    field: &str,
-    unit: &'static str,
-    bound: f64,
-    plausible: f64,
-) -> Vec<ParamInfo> {
-    map.keys()
-        .flat_map(|k| {
-            ["x", "y", "z"].map(|a| ParamInfo {
-                name: format!("{field}.{k}.{a}"),
-                unit,
-                lower: -bound,
-                upper: bound,
-                plausible: (-plausible, plausible),
-            })
-        })
-        .collect()
-}
-
 fn vec3_values(map: &BTreeMap<String, [f64; 3]>) -> Vec<f64> {
     map.values().flatten().copied().collect()
 }
@@ -57,32 +36,6 @@ fn vec3_check(map: &BTreeMap<String, [f64; 3]>, field: &str, bound: f64) -> Resu
             return Err(format!(
                 "{field}.{k}: need a finite vector of norm at most {bound}, got {v:?}"
             ));
-        }
-    }
-    Ok(())
-}
-
-fn sensors_exist(
-    spec: &CampaignSpec,
-    field: &str,
-    ids: impl Iterator<Item = String>,
-) -> Result<(), String> {
-    for k in ids {
-        if !spec.sensors.iter().any(|s| s.id == k) {
-            return Err(format!("{field}: sensor '{k}' is not defined"));
-        }
-    }
-    Ok(())
-}
-
-pub(super) fn excitations_exist(
-    spec: &CampaignSpec,
-    field: &str,
-    ids: impl Iterator<Item = String>,
-) -> Result<(), String> {
-    for k in ids {
-        if !spec.excitations.iter().any(|e| e.id == k) {
-            return Err(format!("{field}: excitation '{k}' is not defined"));
         }
     }
     Ok(())
@@ -104,7 +57,7 @@ impl Effect for SensorPosition {
         "sensor_position"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+        super::vec3_map_info("offsets_m", &self.offsets_m, "m", MAX_OFFSET_M, 0.005)
     }
     fn values(&self) -> Vec<f64> {
         vec3_values(&self.offsets_m)
@@ -119,7 +72,7 @@ impl Effect for SensorPosition {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        sensors_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+        super::check_sensors_defined(spec, "offsets_m", self.offsets_m.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for (c, ch) in ctx.geometry.channels.iter().enumerate() {
@@ -149,9 +102,9 @@ impl Effect for ForceDirection {
         "force_direction"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(
-            &self.rotations_rad,
+        super::vec3_map_info(
             "rotations_rad",
+            &self.rotations_rad,
             "rad",
             std::f64::consts::PI,
             0.17,
@@ -170,7 +123,7 @@ impl Effect for ForceDirection {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         vec3_check(&self.rotations_rad, "rotations_rad", std::f64::consts::PI)?;
-        excitations_exist(spec, "rotations_rad", self.rotations_rad.keys().cloned())
+        super::check_excitations_defined(spec, "rotations_rad", self.rotations_rad.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -202,7 +155,7 @@ impl Effect for ForceLocation {
         "force_location"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+        super::vec3_map_info("offsets_m", &self.offsets_m, "m", MAX_OFFSET_M, 0.005)
     }
     fn values(&self) -> Vec<f64> {
         vec3_values(&self.offsets_m)
@@ -217,7 +170,7 @@ impl Effect for ForceLocation {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        excitations_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+        super::check_excitations_defined(spec, "offsets_m", self.offsets_m.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -273,7 +226,7 @@ impl Effect for ForceGaugeMass {
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        excitations_exist(spec, "masses_kg", self.masses_kg.keys().cloned())
+        super::check_excitations_defined(spec, "masses_kg", self.masses_kg.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -297,10 +250,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E9: an offset per sensor, `offsets_m`",
         parse: super::parse_as::<SensorPosition>,
         neutral: super::NeutralForm::Table(|spec, _| {
-            super::table([(
-                "offsets_m",
-                super::per_id(super::sensor_ids(spec), super::zero3_value()),
-            )])
+            super::per_sensor_table(spec, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_position.toml"),
@@ -313,10 +263,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: a small rotation of each excitation's direction, `rotations_rad`",
         parse: super::parse_as::<ForceDirection>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "rotations_rad",
-                super::per_id(super::excitation_ids(g), super::zero3_value()),
-            )])
+            super::per_excitation_table(g, "rotations_rad", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_direction.toml"),
@@ -329,10 +276,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: an offset of each excitation's point, `offsets_m`",
         parse: super::parse_as::<ForceLocation>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "offsets_m",
-                super::per_id(super::excitation_ids(g), super::zero3_value()),
-            )])
+            super::per_excitation_table(g, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_location.toml"),
@@ -345,10 +289,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: a mass between the force gauge and the structure per excitation, `masses_kg`",
         parse: super::parse_as::<ForceGaugeMass>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "masses_kg",
-                super::per_id(super::excitation_ids(g), 0.0.into()),
-            )])
+            super::per_excitation_table(g, "masses_kg", 0.0.into())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_gauge_mass.toml"),

@@ -60,21 +60,9 @@ impl Effect for ExponentialWindow {
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         vec![if self.time_constant_s.is_some() {
-            ParamInfo {
-                name: "time_constant_s".into(),
-                unit: "s",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (1.5, 10.0),
-            }
+            super::positive_info("time_constant_s".into(), "s", (1.5, 10.0))
         } else {
-            ParamInfo {
-                name: "decay_per_s".into(),
-                unit: "1/s",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 0.7),
-            }
+            super::positive_info("decay_per_s".into(), "1/s", (0.0, 0.7))
         }]
     }
     fn values(&self) -> Vec<f64> {
@@ -136,13 +124,11 @@ impl Effect for RecordTruncation {
         "record_truncation"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec![ParamInfo {
-            name: "record_length_s".into(),
-            unit: "s",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (4.0, 64.0),
-        }]
+        vec![super::positive_info(
+            "record_length_s".into(),
+            "s",
+            (4.0, 64.0),
+        )]
     }
     fn values(&self) -> Vec<f64> {
         vec![self.record_length_s]
