@@ -197,44 +197,6 @@ fn per_spring_lists_fit(
     Ok(())
 }
 
-impl NonproportionalDamping {
-    fn check_values(&self) -> Result<(), String> {
-        if self.axial_n_s_per_m.is_empty() && self.modal_coupling.is_empty() {
-            return Err(
-                "axial_n_s_per_m: give one coefficient per spring or one for all (or modal_coupling)"
-                    .into(),
-            );
-        }
-        if !self.modal_coupling.is_empty() && self.modal_coupling.len() != MODAL_COUPLINGS {
-            return Err(format!(
-                "modal_coupling: give {MODAL_COUPLINGS} values (the strict lower triangle, row by row), got {}",
-                self.modal_coupling.len()
-            ));
-        }
-        if let Some((i, c)) = self
-            .modal_coupling
-            .iter()
-            .enumerate()
-            .find(|(_, c)| !c.is_finite())
-        {
-            return Err(format!("modal_coupling[{i}]: must be finite, got {c}"));
-        }
-        for (what, v) in [
-            ("axial_n_s_per_m", &self.axial_n_s_per_m),
-            ("lateral_n_s_per_m", &self.lateral_n_s_per_m),
-        ] {
-            if let Some((i, c)) = v
-                .iter()
-                .enumerate()
-                .find(|(_, c)| !(c.is_finite() && **c >= 0.0))
-            {
-                return Err(format!("{what}[{i}]: must be finite and ≥ 0, got {c}"));
-            }
-        }
-        super::check_unit_vector("axis", self.axis)
-    }
-}
-
 impl Effect for NonproportionalDamping {
     fn id(&self) -> &'static str {
         "nonproportional_damping"
@@ -274,11 +236,45 @@ impl Effect for NonproportionalDamping {
             modal_coupling: coupling.to_vec(),
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.axial_n_s_per_m.is_empty() && self.modal_coupling.is_empty() {
+            return Err(
+                "axial_n_s_per_m: give one coefficient per spring or one for all (or modal_coupling)"
+                    .into(),
+            );
+        }
+        if !self.modal_coupling.is_empty() && self.modal_coupling.len() != MODAL_COUPLINGS {
+            return Err(format!(
+                "modal_coupling: give {MODAL_COUPLINGS} values (the strict lower triangle, row by row), got {}",
+                self.modal_coupling.len()
+            ));
+        }
+        if let Some((i, c)) = self
+            .modal_coupling
+            .iter()
+            .enumerate()
+            .find(|(_, c)| !c.is_finite())
+        {
+            return Err(format!("modal_coupling[{i}]: must be finite, got {c}"));
+        }
+        for (what, v) in [
+            ("axial_n_s_per_m", &self.axial_n_s_per_m),
+            ("lateral_n_s_per_m", &self.lateral_n_s_per_m),
+        ] {
+            if let Some((i, c)) = v
+                .iter()
+                .enumerate()
+                .find(|(_, c)| !(c.is_finite() && **c >= 0.0))
+            {
+                return Err(format!("{what}[{i}]: must be finite and ≥ 0, got {c}"));
+            }
+        }
+        super::check_unit_vector("axis", self.axis)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -335,23 +331,6 @@ pub struct HystereticDamping {
     pub loss_factors: Vec<f64>,
 }
 
-impl HystereticDamping {
-    fn check_values(&self) -> Result<(), String> {
-        if self.loss_factors.is_empty() {
-            return Err("loss_factors: give one loss factor per spring or one for all".into());
-        }
-        match self
-            .loss_factors
-            .iter()
-            .enumerate()
-            .find(|(_, e)| !(e.is_finite() && (0.0..=2.0).contains(*e)))
-        {
-            Some((i, e)) => Err(format!("loss_factors[{i}]: must be in [0, 2], got {e}")),
-            None => Ok(()),
-        }
-    }
-}
-
 impl Effect for HystereticDamping {
     fn id(&self) -> &'static str {
         "hysteretic_damping"
@@ -375,11 +354,24 @@ impl Effect for HystereticDamping {
             loss_factors: super::replace_list(self.loss_factors.len(), values)?,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.loss_factors.is_empty() {
+            return Err("loss_factors: give one loss factor per spring or one for all".into());
+        }
+        match self
+            .loss_factors
+            .iter()
+            .enumerate()
+            .find(|(_, e)| !(e.is_finite() && (0.0..=2.0).contains(*e)))
+        {
+            Some((i, e)) => Err(format!("loss_factors[{i}]: must be in [0, 2], got {e}")),
+            None => Ok(()),
+        }
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;

@@ -36,38 +36,6 @@ pub struct ElasticMode {
     pub excitations: BTreeMap<String, f64>,
 }
 
-impl ElasticMode {
-    fn check_values(&self) -> Result<(), String> {
-        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
-            return Err(format!(
-                "frequency_hz must be positive and finite, got {}",
-                self.frequency_hz
-            ));
-        }
-        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
-            return Err(format!(
-                "damping_ratio must be in [0, 1), got {}",
-                self.damping_ratio
-            ));
-        }
-        for (what, map) in [
-            ("channels", &self.channels),
-            ("excitations", &self.excitations),
-        ] {
-            if let Some((k, v)) = map.iter().find(|(_, v)| !v.is_finite()) {
-                return Err(format!("{what}.{k}: shape value {v} is not finite"));
-            }
-        }
-        if self.channels.is_empty() || self.excitations.is_empty() {
-            return Err(
-                "give the shape at one channel and one excitation at least (channels, excitations)"
-                    .into(),
-            );
-        }
-        Ok(())
-    }
-}
-
 impl Effect for ElasticMode {
     fn id(&self) -> &'static str {
         "elastic_mode"
@@ -110,11 +78,39 @@ impl Effect for ElasticMode {
         for v in e.channels.values_mut().chain(e.excitations.values_mut()) {
             *v = *it.next().expect("length checked");
         }
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
+            return Err(format!(
+                "frequency_hz must be positive and finite, got {}",
+                self.frequency_hz
+            ));
+        }
+        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
+            return Err(format!(
+                "damping_ratio must be in [0, 1), got {}",
+                self.damping_ratio
+            ));
+        }
+        for (what, map) in [
+            ("channels", &self.channels),
+            ("excitations", &self.excitations),
+        ] {
+            if let Some((k, v)) = map.iter().find(|(_, v)| !v.is_finite()) {
+                return Err(format!("{what}.{k}: shape value {v} is not finite"));
+            }
+        }
+        if self.channels.is_empty() || self.excitations.is_empty() {
+            return Err(
+                "give the shape at one channel and one excitation at least (channels, excitations)"
+                    .into(),
+            );
+        }
+        Ok(())
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;

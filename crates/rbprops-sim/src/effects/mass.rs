@@ -70,11 +70,19 @@ impl Effect for SensorMass {
         let (mass_kg, masses_kg) =
             super::replace_common_and_map(self.mass_kg, &self.masses_kg, values)?;
         let e = SensorMass { mass_kg, masses_kg };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.mass_kg.is_none() && self.masses_kg.is_empty() {
+            return Err("give mass_kg (all sensors) and/or masses_kg (per sensor)".into());
+        }
+        if let Some(m) = self.all().iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+            return Err(format!("sensor masses must be finite and ≥ 0, got {m}"));
+        }
+        Ok(())
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -84,18 +92,6 @@ impl Effect for SensorMass {
         for (_, p, m) in self.masses(ctx.spec) {
             let t = rigid_transform(&p);
             model.mass += m * t.transpose() * t;
-        }
-        Ok(())
-    }
-}
-
-impl SensorMass {
-    fn check_values(&self) -> Result<(), String> {
-        if self.mass_kg.is_none() && self.masses_kg.is_empty() {
-            return Err("give mass_kg (all sensors) and/or masses_kg (per sensor)".into());
-        }
-        if let Some(m) = self.all().iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
-            return Err(format!("sensor masses must be finite and ≥ 0, got {m}"));
         }
         Ok(())
     }
@@ -134,26 +130,6 @@ impl AddedMass {
         m.fixed_view_mut::<3, 3>(3, 0).copy_from(&b.transpose());
         m.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
         m
-    }
-    fn check_values(&self) -> Result<(), String> {
-        for (name, blk, sym) in [
-            ("translational_kg", &self.translational_kg, true),
-            ("coupling_kg_m", &self.coupling_kg_m, false),
-            ("rotational_kg_m2", &self.rotational_kg_m2, true),
-        ] {
-            if blk.iter().flatten().any(|x| !x.is_finite()) {
-                return Err(format!("{name}: entries must be finite"));
-            }
-            let scale = blk.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
-            if sym
-                && UPPER
-                    .iter()
-                    .any(|&(i, j)| (blk[i][j] - blk[j][i]).abs() > 1e-12 * scale)
-            {
-                return Err(format!("{name}: the block must be symmetric"));
-            }
-        }
-        Ok(())
     }
 }
 
@@ -211,14 +187,30 @@ impl Effect for AddedMass {
             coupling_kg_m: coupling,
             rotational_kg_m2: sym(&values[15..]),
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        for (name, blk, sym) in [
+            ("translational_kg", &self.translational_kg, true),
+            ("coupling_kg_m", &self.coupling_kg_m, false),
+            ("rotational_kg_m2", &self.rotational_kg_m2, true),
+        ] {
+            if blk.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(format!("{name}: entries must be finite"));
+            }
+            let scale = blk.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
+            if sym
+                && UPPER
+                    .iter()
+                    .any(|&(i, j)| (blk[i][j] - blk[j][i]).abs() > 1e-12 * scale)
+            {
+                return Err(format!("{name}: the block must be symmetric"));
+            }
+        }
+        Ok(())
     }
     /// The total mass matrix must stay positive definite; the model build says so if not.
     fn modify_structure(

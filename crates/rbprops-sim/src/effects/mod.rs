@@ -85,9 +85,15 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String>;
     /// The parameters as a JSON object, for `TruthRecord.effects`.
     fn parameters_json(&self) -> serde_json::Value;
-    /// Checks the parameters against the campaign (ids exist, counts match, bounds).
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+    /// Checks the parameters on their own, without the campaign (finite, within their
+    /// bounds, the lists they need given): what [`Self::with_values`] refuses.
+    fn check_values(&self) -> Result<(), String> {
         Ok(())
+    }
+    /// Checks the parameters against the campaign (ids exist, counts match, bounds):
+    /// [`Self::check_values`], and what the campaign must provide where the effect says so.
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
     }
     /// Effects apply in ascending order (stable in spec order): masses (0) before
     /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
@@ -289,21 +295,97 @@ pub(crate) fn symmetric_info(
     }
 }
 
-/// Parameter descriptions of a per-id map of 3-vectors, `name.{id}.{x,y,z}` in key order,
-/// each component within `±bound`.
-pub(crate) fn vec3_map_info(
-    name: &str,
-    map: &std::collections::BTreeMap<String, [f64; 3]>,
-    unit: &'static str,
-    bound: f64,
-    plausible: f64,
-) -> Vec<ParamInfo> {
-    map.keys()
-        .flat_map(|k| {
-            ["x", "y", "z"]
-                .map(|a| symmetric_info(format!("{name}.{k}.{a}"), unit, bound, plausible))
-        })
-        .collect()
+/// What the ids of a per-id parameter name in the campaign.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum IdKind {
+    /// A sensor of the spec.
+    Sensor,
+    /// An excitation of the spec.
+    Excitation,
+}
+
+impl IdKind {
+    /// Checks that the ids of the parameter `field` name this kind of item of the spec.
+    fn check_defined<'a>(
+        self,
+        spec: &CampaignSpec,
+        field: &str,
+        ids: impl IntoIterator<Item = &'a String>,
+    ) -> Result<(), String> {
+        match self {
+            IdKind::Sensor => check_sensors_defined(spec, field, ids),
+            IdKind::Excitation => check_excitations_defined(spec, field, ids),
+        }
+    }
+}
+
+/// A per-id map of 3-vectors as an effect's parameter (offsets, rotation vectors): its
+/// spec name, unit, hard bound on each vector's norm, plausible size of a component and
+/// what its ids name.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Vec3MapParam {
+    /// Parameter name as the spec writes it.
+    pub name: &'static str,
+    /// Unit of every component.
+    pub unit: &'static str,
+    /// Largest norm accepted (and hard bound of every component).
+    pub bound: f64,
+    /// Plausible size of a component in real tests.
+    pub plausible: f64,
+    /// What the map's ids name.
+    pub ids: IdKind,
+}
+
+impl Vec3MapParam {
+    /// Parameter descriptions, `name.{id}.{x,y,z}` in key order.
+    pub(crate) fn info(
+        &self,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Vec<ParamInfo> {
+        map.keys()
+            .flat_map(|k| {
+                ["x", "y", "z"].map(|a| {
+                    symmetric_info(
+                        format!("{}.{k}.{a}", self.name),
+                        self.unit,
+                        self.bound,
+                        self.plausible,
+                    )
+                })
+            })
+            .collect()
+    }
+    /// The values, three per id in key order ([`Self::info`] order).
+    pub(crate) fn values(&self, map: &std::collections::BTreeMap<String, [f64; 3]>) -> Vec<f64> {
+        map.values().flatten().copied().collect()
+    }
+    /// Checks the map on its own: one entry at least, every vector finite and within the
+    /// bound.
+    pub(crate) fn check_values(
+        &self,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Result<(), String> {
+        let (name, bound) = (self.name, self.bound);
+        if map.is_empty() {
+            return Err(format!("{name}: list at least one entry"));
+        }
+        for (k, v) in map {
+            if v.iter().any(|x| !x.is_finite()) || rbprops_core::Vec3::from(*v).norm() > bound {
+                return Err(format!(
+                    "{name}.{k}: need a finite vector of norm at most {bound}, got {v:?}"
+                ));
+            }
+        }
+        Ok(())
+    }
+    /// Checks that the map's ids name items of the spec.
+    pub(crate) fn check_ids(
+        &self,
+        spec: &CampaignSpec,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Result<(), String> {
+        self.ids.check_defined(spec, self.name, map.keys())
+    }
 }
 
 /// Parameter descriptions of a positive value common to every id (`common`, when given)
@@ -331,6 +413,13 @@ pub(crate) fn common_and_map_values(
     map: &std::collections::BTreeMap<String, f64>,
 ) -> Vec<f64> {
     common.iter().chain(map.values()).copied().collect()
+}
+
+/// The effect a fitter's new values make ([`Effect::with_values`]), once they pass
+/// [`Effect::check_values`].
+pub(crate) fn checked<E: Effect + 'static>(effect: E) -> Result<Box<dyn Effect>, String> {
+    effect.check_values()?;
+    Ok(Box::new(effect))
 }
 
 /// `values` (a fitter's new values, in key order) as a replacement of a per-id map.

@@ -78,20 +78,6 @@ fn zero3() -> [f64; 3] {
     [0.0; 3]
 }
 
-impl SuspensionCoupling {
-    fn check_values(&self) -> Result<(), String> {
-        if let Some(k) = self
-            .rotational_n_m_per_rad
-            .iter()
-            .chain([&self.lateral_n_per_m])
-            .find(|k| !(k.is_finite() && **k >= 0.0))
-        {
-            return Err(format!("stiffness must be finite and ≥ 0, got {k}"));
-        }
-        super::check_unit_vector("axis", self.axis)
-    }
-}
-
 impl Effect for SuspensionCoupling {
     fn id(&self) -> &'static str {
         "suspension_coupling"
@@ -116,11 +102,21 @@ impl Effect for SuspensionCoupling {
             lateral_n_per_m: *l,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if let Some(k) = self
+            .rotational_n_m_per_rad
+            .iter()
+            .chain([&self.lateral_n_per_m])
+            .find(|k| !(k.is_finite() && **k >= 0.0))
+        {
+            return Err(format!("stiffness must be finite and ≥ 0, got {k}"));
+        }
+        super::check_unit_vector("axis", self.axis)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -152,21 +148,6 @@ pub struct SuspensionDrift {
     pub stiffness_factors: BTreeMap<String, f64>,
 }
 
-impl SuspensionDrift {
-    fn check_values(&self) -> Result<(), String> {
-        match self
-            .stiffness_factors
-            .iter()
-            .find(|(_, f)| !(f.is_finite() && **f > 0.0))
-        {
-            Some((k, f)) => Err(format!(
-                "stiffness_factors.{k}: must be positive and finite, got {f}"
-            )),
-            None => Ok(()),
-        }
-    }
-}
-
 impl Effect for SuspensionDrift {
     fn id(&self) -> &'static str {
         "suspension_drift"
@@ -190,11 +171,22 @@ impl Effect for SuspensionDrift {
         let e = SuspensionDrift {
             stiffness_factors: super::replace_map(&self.stiffness_factors, values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        match self
+            .stiffness_factors
+            .iter()
+            .find(|(_, f)| !(f.is_finite() && **f > 0.0))
+        {
+            Some((k, f)) => Err(format!(
+                "stiffness_factors.{k}: must be positive and finite, got {f}"
+            )),
+            None => Ok(()),
+        }
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -224,14 +216,6 @@ pub struct StingerStiffness {
 }
 
 impl StingerStiffness {
-    fn check_values(&self) -> Result<(), String> {
-        if self.lateral_n_per_m.is_empty() && self.rotational_n_m_per_rad.is_empty() {
-            return Err("give lateral_n_per_m and/or rotational_n_m_per_rad per excitation".into());
-        }
-        super::check_non_negative_map("lateral_n_per_m", &self.lateral_n_per_m)?;
-        super::check_non_negative_map("rotational_n_m_per_rad", &self.rotational_n_m_per_rad)
-    }
-
     /// `K_a` of a stinger along `n` at `r` (module docs).
     pub fn matrix(r: &Vec3, n: &Vec3, k_lateral: f64, k_rotational: f64) -> Mat6 {
         let n = n.normalize();
@@ -280,11 +264,17 @@ impl Effect for StingerStiffness {
             lateral_n_per_m: super::replace_map(&self.lateral_n_per_m, lateral)?,
             rotational_n_m_per_rad: super::replace_map(&self.rotational_n_m_per_rad, rotational)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.lateral_n_per_m.is_empty() && self.rotational_n_m_per_rad.is_empty() {
+            return Err("give lateral_n_per_m and/or rotational_n_m_per_rad per excitation".into());
+        }
+        super::check_non_negative_map("lateral_n_per_m", &self.lateral_n_per_m)?;
+        super::check_non_negative_map("rotational_n_m_per_rad", &self.rotational_n_m_per_rad)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -320,13 +310,6 @@ pub struct StingerAxialStiffness {
 }
 
 impl StingerAxialStiffness {
-    fn check_values(&self) -> Result<(), String> {
-        if self.axial_n_per_m.is_empty() {
-            return Err("give axial_n_per_m per excitation".into());
-        }
-        super::check_non_negative_map("axial_n_per_m", &self.axial_n_per_m)
-    }
-
     /// `K_a` of an axial spring `k_a` along `n` at `r` (module docs).
     pub fn matrix(r: &Vec3, n: &Vec3, k_axial: f64) -> Mat6 {
         let n = n.normalize();
@@ -349,11 +332,16 @@ impl Effect for StingerAxialStiffness {
         let e = StingerAxialStiffness {
             axial_n_per_m: super::replace_map(&self.axial_n_per_m, values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.axial_n_per_m.is_empty() {
+            return Err("give axial_n_per_m per excitation".into());
+        }
+        super::check_non_negative_map("axial_n_per_m", &self.axial_n_per_m)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;

@@ -19,7 +19,6 @@
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
-use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 
 /// `exponential_window`: records multiplied by `e^{−σt}`, so every FRF is its transfer function at `s = iω + σ`.
@@ -41,15 +40,6 @@ impl ExponentialWindow {
             (Some(s), _) => s,
             (None, Some(t)) => 1.0 / t,
             (None, None) => f64::NAN,
-        }
-    }
-    fn check_values(&self) -> Result<(), String> {
-        match (self.decay_per_s, self.time_constant_s) {
-            (Some(s), None) if s.is_finite() && s >= 0.0 => Ok(()),
-            (Some(s), None) => Err(format!("decay_per_s must be finite and ≥ 0, got {s}")),
-            (None, Some(t)) if t.is_finite() && t > 0.0 => Ok(()),
-            (None, Some(t)) => Err(format!("time_constant_s must be positive, got {t}")),
-            _ => Err("give exactly one of decay_per_s (σ) and time_constant_s (τ = 1/σ)".into()),
         }
     }
 }
@@ -79,14 +69,19 @@ impl Effect for ExponentialWindow {
         } else {
             e.decay_per_s = Some(v);
         }
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        match (self.decay_per_s, self.time_constant_s) {
+            (Some(s), None) if s.is_finite() && s >= 0.0 => Ok(()),
+            (Some(s), None) => Err(format!("decay_per_s must be finite and ≥ 0, got {s}")),
+            (None, Some(t)) if t.is_finite() && t > 0.0 => Ok(()),
+            (None, Some(t)) => Err(format!("time_constant_s must be positive, got {t}")),
+            _ => Err("give exactly one of decay_per_s (σ) and time_constant_s (τ = 1/σ)".into()),
+        }
     }
     fn modify_structure(
         &self,
@@ -104,19 +99,6 @@ impl Effect for ExponentialWindow {
 pub struct RecordTruncation {
     /// Record length T (s).
     pub record_length_s: f64,
-}
-
-impl RecordTruncation {
-    fn check_values(&self) -> Result<(), String> {
-        if self.record_length_s.is_finite() && self.record_length_s > 0.0 {
-            Ok(())
-        } else {
-            Err(format!(
-                "record_length_s must be positive and finite, got {}",
-                self.record_length_s
-            ))
-        }
-    }
 }
 
 impl Effect for RecordTruncation {
@@ -137,14 +119,20 @@ impl Effect for RecordTruncation {
         let e = RecordTruncation {
             record_length_s: super::single_value(values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        if self.record_length_s.is_finite() && self.record_length_s > 0.0 {
+            Ok(())
+        } else {
+            Err(format!(
+                "record_length_s must be positive and finite, got {}",
+                self.record_length_s
+            ))
+        }
     }
     fn modify_structure(
         &self,

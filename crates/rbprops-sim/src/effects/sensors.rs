@@ -48,19 +48,6 @@ impl TransducerHighpass {
     fn all(&self) -> Vec<f64> {
         super::common_and_map_values(self.time_constant_s, &self.time_constants_s)
     }
-    fn check_values(&self) -> Result<(), String> {
-        if self.time_constant_s.is_none() && self.time_constants_s.is_empty() {
-            return Err(
-                "give time_constant_s (all channels) and/or time_constants_s (per channel)".into(),
-            );
-        }
-        if let Some(t) = self.all().iter().find(|t| !(t.is_finite() && **t > 0.0)) {
-            return Err(format!(
-                "time constants must be positive and finite, got {t}"
-            ));
-        }
-        Ok(())
-    }
 }
 
 impl Effect for TransducerHighpass {
@@ -87,11 +74,23 @@ impl Effect for TransducerHighpass {
             time_constant_s,
             time_constants_s,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.time_constant_s.is_none() && self.time_constants_s.is_empty() {
+            return Err(
+                "give time_constant_s (all channels) and/or time_constants_s (per channel)".into(),
+            );
+        }
+        if let Some(t) = self.all().iter().find(|t| !(t.is_finite() && **t > 0.0)) {
+            return Err(format!(
+                "time constants must be positive and finite, got {t}"
+            ));
+        }
+        Ok(())
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -127,18 +126,6 @@ pub struct SensorTiltGravity {
     pub up: [f64; 3],
 }
 
-impl SensorTiltGravity {
-    fn check_values(&self) -> Result<(), String> {
-        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 >= 0.0) {
-            return Err(format!(
-                "g_m_per_s2 must be finite and ≥ 0, got {}",
-                self.g_m_per_s2
-            ));
-        }
-        super::check_unit_vector("up", self.up)
-    }
-}
-
 impl Effect for SensorTiltGravity {
     fn id(&self) -> &'static str {
         "sensor_tilt_gravity"
@@ -161,14 +148,19 @@ impl Effect for SensorTiltGravity {
             g_m_per_s2: super::single_value(values)?,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 >= 0.0) {
+            return Err(format!(
+                "g_m_per_s2 must be finite and ≥ 0, got {}",
+                self.g_m_per_s2
+            ));
+        }
+        super::check_unit_vector("up", self.up)
     }
     fn modify_structure(
         &self,
@@ -205,19 +197,6 @@ pub struct ChannelDelay {
 /// line spacing a rigid-body test uses).
 const MAX_DELAY_S: f64 = 1.0;
 
-impl ChannelDelay {
-    fn check_values(&self) -> Result<(), String> {
-        for (k, t) in self.channels_s.iter().chain(&self.excitations_s) {
-            if !(t.is_finite() && t.abs() <= MAX_DELAY_S) {
-                return Err(format!(
-                    "delay of '{k}' must be finite and within ±{MAX_DELAY_S} s, got {t}"
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
 impl Effect for ChannelDelay {
     fn id(&self) -> &'static str {
         "channel_delay"
@@ -248,11 +227,20 @@ impl Effect for ChannelDelay {
             channels_s: super::replace_map(&self.channels_s, channels)?,
             excitations_s: super::replace_map(&self.excitations_s, excitations)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        for (k, t) in self.channels_s.iter().chain(&self.excitations_s) {
+            if !(t.is_finite() && t.abs() <= MAX_DELAY_S) {
+                return Err(format!(
+                    "delay of '{k}' must be finite and within ±{MAX_DELAY_S} s, got {t}"
+                ));
+            }
+        }
+        Ok(())
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
