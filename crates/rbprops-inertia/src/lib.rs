@@ -31,7 +31,7 @@ pub mod uncertainty;
 
 pub use consistency::{nearest_consistent, project_moments};
 pub use error::InertiaError;
-pub use lsq::{solve_parameters, LinearConstraint, LsqSolution};
+pub use lsq::{solve_parameters, LinearConstraint, LsqSolution, PropertiesEstimate};
 pub use mass_line::{
     choose_band, mass_line, mass_line_values, MassLineBand, MassLineOptions, MassLineValues,
     MlSolution,

@@ -9,8 +9,9 @@
 //! combinations the data determine are untouched.
 
 use crate::error::InertiaError;
-use crate::params::N_PARAMS;
+use crate::params::{mass_matrix_of, N_PARAMS};
 use faer::Mat;
+use rbprops_core::MassMatrix6;
 
 /// Singular values below this fraction of the largest count as zero.
 pub const RANK_TOLERANCE: f64 = 1e-9;
@@ -44,6 +45,44 @@ pub struct LsqSolution {
     pub null_space_scaled: Vec<[f64; N_PARAMS]>,
     /// `‖A p − b‖ / ‖b‖`.
     pub residual: f64,
+}
+
+/// The ten properties a least-squares estimator found (Toivola–Nuutila, the mass line):
+/// the solution, its mass matrix and how well the data determine it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PropertiesEstimate {
+    /// `M0(p)` about O of the fitted properties (rigid-body form by construction).
+    pub mass_matrix: MassMatrix6,
+    /// The ten properties about O, docs/conventions.md §3.
+    pub params: [f64; N_PARAMS],
+    /// Rank of the estimator's system with the constraints counted (10 when every
+    /// property is determined).
+    pub rank: usize,
+    /// Condition number of the column-equilibrated system.
+    pub condition: f64,
+    /// Directions in property space the data do not determine (parameter units), empty
+    /// when the rank is 10.
+    pub null_space: Vec<[f64; N_PARAMS]>,
+    /// The same, unit vectors in column-equilibrated variables (for describing them).
+    pub null_space_scaled: Vec<[f64; N_PARAMS]>,
+    /// `‖A p − b‖/‖b‖` of the estimator's equations (Toivola–Nuutila: the orthogonality
+    /// equations; the mass line: `M0(p) (S⁺ G_k) = f_k`).
+    pub residual: f64,
+}
+
+impl PropertiesEstimate {
+    /// The estimate a least-squares solution of the ten properties gives.
+    pub(crate) fn from_solution(sol: LsqSolution) -> PropertiesEstimate {
+        PropertiesEstimate {
+            mass_matrix: mass_matrix_of(&sol.p),
+            params: sol.p,
+            rank: sol.rank,
+            condition: sol.condition,
+            null_space: sol.null_space,
+            null_space_scaled: sol.null_space_scaled,
+            residual: sol.residual,
+        }
+    }
 }
 
 /// Solves `A p ≈ b` (rows of `A` given as arrays) subject to `C p = d`.

@@ -17,10 +17,10 @@
 //! parts), so at least three are required.
 
 use crate::error::InertiaError;
-use crate::lsq::{solve_parameters, LinearConstraint};
-use crate::params::{action_block, basis_matrices, mass_matrix_of, N_PARAMS};
+use crate::lsq::{solve_parameters, LinearConstraint, PropertiesEstimate};
+use crate::params::{action_block, basis_matrices, N_PARAMS};
 use crate::shapes::RigidFrame;
-use rbprops_core::{FrfSet, MassMatrix6, Quantity, Vec6};
+use rbprops_core::{FrfSet, Quantity, Vec6};
 use serde::{Deserialize, Serialize};
 
 /// Band selection for the mass line.
@@ -269,18 +269,9 @@ pub fn mass_line_values(
 /// Result of the mass-line estimator.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MlSolution {
-    /// Mass matrix `M0(p)` about O of the fitted properties (rigid-body form).
-    pub mass_matrix: MassMatrix6,
-    /// The ten properties about O, docs/conventions.md §3.
-    pub params: [f64; N_PARAMS],
-    /// Numerical rank of the design matrix (10 when all properties are determined).
-    pub rank: usize,
-    /// Condition number of the design matrix.
-    pub condition: f64,
-    /// Basis of the directions in property space the data do not determine.
-    pub null_space: Vec<[f64; N_PARAMS]>,
-    /// `‖M0(p)Y − F‖/‖F‖`.
-    pub residual: f64,
+    /// The ten properties: rank and residual of `M0(p) (S⁺ G_k) = f_k` over the
+    /// excitations.
+    pub estimate: PropertiesEstimate,
     /// Per excitation: `‖G_k − S y_k‖/‖G_k‖`, how rigid the mass line looks.
     pub rigid_residual: Vec<f64>,
 }
@@ -316,14 +307,13 @@ pub fn mass_line(
             rhs.push(frame.forces[k][r]);
         }
     }
-    let sol = solve_parameters(&rows, &rhs, constraints, nominal)?;
     Ok(MlSolution {
-        mass_matrix: mass_matrix_of(&sol.p),
-        params: sol.p,
-        rank: sol.rank,
-        condition: sol.condition,
-        null_space: sol.null_space,
-        residual: sol.residual,
+        estimate: PropertiesEstimate::from_solution(solve_parameters(
+            &rows,
+            &rhs,
+            constraints,
+            nominal,
+        )?),
         rigid_residual,
     })
 }

@@ -2,8 +2,8 @@
 //! (orthogonality least squares, Eq. 10), and the mount stiffness of Conti & Bretl (1989).
 
 use crate::error::InertiaError;
-use crate::lsq::{solve_parameters, LinearConstraint};
-use crate::params::{basis_matrices, mass_matrix_of, orthogonality_row, N_PARAMS, PARAM_NAMES};
+use crate::lsq::{solve_parameters, LinearConstraint, PropertiesEstimate};
+use crate::params::{basis_matrices, orthogonality_row, N_PARAMS, PARAM_NAMES};
 use rbprops_core::{MassMatrix6, Mat6, Vec3, Vec6};
 
 /// Above this condition number Φ0 counts as singular for Bretl–Conti.
@@ -75,24 +75,9 @@ pub fn mount_stiffness(phi0: &[Vec6], omegas: &[f64]) -> Result<Mat6, InertiaErr
     Ok((k + k.transpose()) / 2.0)
 }
 
-/// Result of Toivola–Nuutila.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TnSolution {
-    /// `M0(p)` of the least-squares parameters (rigid-body form by construction).
-    pub mass_matrix: MassMatrix6,
-    /// The ten properties about O, docs/conventions.md §3.
-    pub params: [f64; N_PARAMS],
-    /// Rank of the `n(n+1)/2 × 10` system (with constraints counted).
-    pub rank: usize,
-    /// Condition number of the column-equilibrated system.
-    pub condition: f64,
-    /// Unidentifiable parameter directions (parameter units), empty when rank = 10.
-    pub null_space: Vec<[f64; N_PARAMS]>,
-    /// The same, unit vectors in column-equilibrated variables (for describing them).
-    pub null_space_scaled: Vec<[f64; N_PARAMS]>,
-    /// `‖A p − δ‖/‖δ‖` of the orthogonality equations.
-    pub residual: f64,
-}
+/// Result of Toivola–Nuutila: the rank and residual are those of the `n(n+1)/2 × 10`
+/// orthogonality system.
+pub type TnSolution = PropertiesEstimate;
 
 /// Toivola & Nuutila: every pair `i ≤ j` of the `n ≥ 4` modes gives
 /// `φ0_iᵀ M0(p) φ0_j = δ_ij` (paper Eq. 10), linear in the ten parameters; the
@@ -120,16 +105,12 @@ pub fn toivola_nuutila(
             rhs.push((i == j) as u8 as f64);
         }
     }
-    let sol = solve_parameters(&rows, &rhs, constraints, nominal)?;
-    Ok(TnSolution {
-        mass_matrix: mass_matrix_of(&sol.p),
-        params: sol.p,
-        rank: sol.rank,
-        condition: sol.condition,
-        null_space: sol.null_space,
-        null_space_scaled: sol.null_space_scaled,
-        residual: sol.residual,
-    })
+    Ok(PropertiesEstimate::from_solution(solve_parameters(
+        &rows,
+        &rhs,
+        constraints,
+        nominal,
+    )?))
 }
 
 /// The pure translation contained in the span of the modes, if any: a combination

@@ -744,10 +744,10 @@ fn mass_line_estimate(
         }
     ));
     let sol = mass_line(frame, &excitations, &ml.values, &side.constraints, None)?;
-    if sol.rank < N_PARAMS && side.nominal.is_none() {
+    if sol.estimate.rank < N_PARAMS && side.nominal.is_none() {
         return Err(InertiaError::Unidentifiable {
             method: "mass_line",
-            rank: sol.rank,
+            rank: sol.estimate.rank,
             description: "the excitations' moment arms do not span three independent directions"
                 .into(),
         });
@@ -781,7 +781,10 @@ fn mass_line_estimate(
             &side.constraints,
             side.nominal.as_ref(),
         )?;
-        Ok(property_vector(&properties_about(&s.mass_matrix, &origin)))
+        Ok(property_vector(&properties_about(
+            &s.estimate.mass_matrix,
+            &origin,
+        )))
     };
     let (mut std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
     // Truncation bias of the rigid-body tail: the rigid modes' 1/ω^{2k} terms beyond the
@@ -819,8 +822,8 @@ fn mass_line_estimate(
             ));
         }
         if let (Some(s2), Some(sd)) = (shifted, std.as_mut()) {
-            let a = property_vector(&properties_about(&sol.mass_matrix, &frame.origin));
-            let b = property_vector(&properties_about(&s2.mass_matrix, &frame.origin));
+            let a = property_vector(&properties_about(&sol.estimate.mass_matrix, &frame.origin));
+            let b = property_vector(&properties_about(&s2.estimate.mass_matrix, &frame.origin));
             // Richardson: a bias ∝ f_lo^{−2(R+1)} (the first unfitted tail term) changes by
             // the fraction 1 − (f_lo/f_lo')^{2(R+1)} between the two bands.
             let p = 2.0 * (opts.mass_line.rigid_terms as f64 + 1.0);
@@ -838,7 +841,7 @@ fn mass_line_estimate(
     }
     // A mass line fitted on a band too short or too noisy gives numbers that look like an
     // estimate (even a negative mass); refuse them instead of reporting them.
-    let m = sol.mass_matrix.mass();
+    let m = sol.estimate.mass_matrix.mass();
     let sd_m = std.map(|s| s[0]).unwrap_or(0.0);
     if !(m > 0.0) || !sd_m.is_finite() || sd_m > MASS_LINE_MAX_RELATIVE_STD * m {
         return Err(InertiaError::MassLine(format!(
@@ -855,11 +858,11 @@ fn mass_line_estimate(
         EstimateParts {
             method: Estimator::MassLine.method(),
             setup,
-            mass_matrix: sol.mass_matrix,
+            mass_matrix: sol.estimate.mass_matrix,
             std,
             uncertainty_method: method,
             mount_stiffness: None,
-            residual: sol.residual,
+            residual: sol.estimate.residual,
             modes_used: Vec::new(),
             excitations_used: frame.excitation_ids.clone(),
             warnings,

@@ -1223,26 +1223,17 @@ pub(crate) fn assemble(
     opts: &FitOptions,
     method: rbprops_core::records::FitMethod,
 ) -> ExcitationFit {
-    let ModeParts {
-        poles,
-        std: fstd,
-        confidence,
-        mode_warnings: mode_warn,
-        modal_constants: a_all,
-        modal_constant_std: a_std,
-        synthesised: synth,
-        warnings,
-        multiplicity,
-        diagram,
-    } = parts;
     let name = ex.id.as_str();
     let no = band.channels.len();
-    let nm = poles.len();
+    let nm = parts.poles.len();
     let k = band.quantity.order();
     let fit_error: Vec<f64> = (0..no)
         .map(|o| {
             let h = &band.channels[o];
-            let (meas, err) = (linalg::cdot(h, h), linalg::cdist_sqr(h, &synth[o]));
+            let (meas, err) = (
+                linalg::cdot(h, h),
+                linalg::cdist_sqr(h, &parts.synthesised[o]),
+            );
             if meas > 0.0 {
                 err / meas
             } else {
@@ -1254,22 +1245,34 @@ pub(crate) fn assemble(
     // Peak Norm Indicator of each mode alone in the measured quantity.
     let ni: Vec<f64> = (0..nm)
         .map(|m| {
-            let w = poles[m].omega_n();
-            let na = a_all[m].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
-            na * w.powi(k) / (2.0 * poles[m].damping().max(1e-12) * w * w)
+            let w = parts.poles[m].omega_n();
+            let na = parts.modal_constants[m]
+                .iter()
+                .map(|z| z.norm_sqr())
+                .sum::<f64>()
+                .sqrt();
+            na * w.powi(k) / (2.0 * parts.poles[m].damping().max(1e-12) * w * w)
         })
         .collect();
     let ni_max = ni.iter().cloned().fold(0.0, f64::max);
     let mut modes = Vec::with_capacity(nm);
     for m in 0..nm {
-        let mut mw = mode_warn[m].clone();
+        let mut mw = parts.mode_warnings[m].clone();
         let rel_db = if ni_max > 0.0 && ni[m] > 0.0 {
             20.0 * (ni[m] / ni_max).log10()
         } else {
             f64::NEG_INFINITY
         };
-        let na = a_all[m].iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
-        let ns = a_std[m].iter().map(|s| s * s).sum::<f64>().sqrt();
+        let na = parts.modal_constants[m]
+            .iter()
+            .map(|z| z.norm_sqr())
+            .sum::<f64>()
+            .sqrt();
+        let ns = parts.modal_constant_std[m]
+            .iter()
+            .map(|s| s * s)
+            .sum::<f64>()
+            .sqrt();
         let mut weak = false;
         if rel_db < -opts.weak_below_db {
             weak = true;
@@ -1287,14 +1290,14 @@ pub(crate) fn assemble(
             excitation: name.into(),
             setup: ex.setup.clone(),
             mode: m + 1,
-            frequency_hz: poles[m].frequency_hz(),
-            frequency_std_hz: fstd[m].0,
-            damping_ratio: poles[m].damping(),
-            damping_std: fstd[m].1,
-            residues: a_all[m].clone(),
-            residue_std: a_std[m].clone(),
-            confidence: confidence[m].clamp(0.0, 1.0),
-            mpc: mpc(&a_all[m]),
+            frequency_hz: parts.poles[m].frequency_hz(),
+            frequency_std_hz: parts.std[m].0,
+            damping_ratio: parts.poles[m].damping(),
+            damping_std: parts.std[m].1,
+            residues: parts.modal_constants[m].clone(),
+            residue_std: parts.modal_constant_std[m].clone(),
+            confidence: parts.confidence[m].clamp(0.0, 1.0),
+            mpc: mpc(&parts.modal_constants[m]),
             weak,
             warnings: mw,
         });
@@ -1307,26 +1310,26 @@ pub(crate) fn assemble(
         band_hz: band.band_hz(),
         n_lines: band.n_lines(),
         fit_error,
-        warnings,
+        warnings: parts.warnings,
     };
     ExcitationFit {
         record,
         modes,
         diagnostics: ExcitationDiagnostics {
             excitation: name.into(),
-            stabilisation: diagram,
+            stabilisation: parts.diagram,
             quantity: band.quantity,
             frequency_hz: band.frequency_hz.clone(),
             // Dropped here unless asked for: freed now, its pages serve the next
             // excitation instead of fresh ones (−140 page faults per excitation).
             synthesised: if opts.keep_synthesised {
-                synth
+                parts.synthesised
             } else {
                 Vec::new()
             },
-            poles_rad_s: poles.iter().map(|p| p.0).collect(),
+            poles_rad_s: parts.poles.iter().map(|p| p.0).collect(),
         },
-        multiplicity,
+        multiplicity: parts.multiplicity,
     }
 }
 

@@ -39,17 +39,9 @@ pub struct HeatMap {
 }
 
 /// Viridis colour map sampled at 9 equidistant points (matplotlib `_viridis_data`).
-const VIRIDIS: [Rgb; 9] = [
-    Rgb(68, 1, 84),
-    Rgb(71, 44, 122),
-    Rgb(59, 81, 139),
-    Rgb(44, 113, 142),
-    Rgb(33, 144, 141),
-    Rgb(39, 173, 129),
-    Rgb(92, 200, 99),
-    Rgb(170, 220, 50),
-    Rgb(253, 231, 37),
-];
+const VIRIDIS: [Rgb; 9] = Rgb::table([
+    0x440154, 0x472c7a, 0x3b518b, 0x2c718e, 0x21908d, 0x27ad81, 0x5cc863, 0xaadc32, 0xfde725,
+]);
 
 /// Viridis colour at `t ∈ [0, 1]` (clamped), linearly interpolated.
 pub fn viridis(t: f64) -> Rgb {

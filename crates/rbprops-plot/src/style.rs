@@ -18,21 +18,29 @@ impl Rgb {
     /// Vertical markers and the identity line.
     pub const GREY: Rgb = Rgb(110, 110, 110);
 
+    /// The colour written `0xRRGGBB`.
+    pub(crate) const fn from_hex(rrggbb: u32) -> Rgb {
+        Rgb((rrggbb >> 16) as u8, (rrggbb >> 8) as u8, rrggbb as u8)
+    }
+
+    /// A colour table written as `0xRRGGBB` values (the form colour maps are published in).
+    pub(crate) const fn table<const N: usize>(rrggbb: [u32; N]) -> [Rgb; N] {
+        let mut colours = [Rgb(0, 0, 0); N];
+        let mut i = 0;
+        while i < N {
+            colours[i] = Rgb::from_hex(rrggbb[i]);
+            i += 1;
+        }
+        colours
+    }
+
     /// Colour `i` of the default categorical palette (Tableau 10, the
     /// matplotlib default), cycling after ten.
     pub fn palette(i: usize) -> Rgb {
-        const TAB10: [Rgb; 10] = [
-            Rgb(31, 119, 180),
-            Rgb(255, 127, 14),
-            Rgb(44, 160, 44),
-            Rgb(214, 39, 40),
-            Rgb(148, 103, 189),
-            Rgb(140, 86, 75),
-            Rgb(227, 119, 194),
-            Rgb(127, 127, 127),
-            Rgb(188, 189, 34),
-            Rgb(23, 190, 207),
-        ];
+        const TAB10: [Rgb; 10] = Rgb::table([
+            0x1f77b4, 0xff7f0e, 0x2ca02c, 0xd62728, 0x9467bd, 0x8c564b, 0xe377c2, 0x7f7f7f,
+            0xbcbd22, 0x17becf,
+        ]);
         TAB10[i % TAB10.len()]
     }
 
@@ -176,6 +184,17 @@ mod tests {
         assert_eq!(Rgb::palette(0), Rgb::palette(10));
         assert_ne!(Rgb::palette(0), Rgb::palette(1));
         assert_eq!(Rgb(255, 127, 14).hex(), "#FF7F0E");
+    }
+
+    /// A table written `0xRRGGBB` gives the bytes in red, green, blue order.
+    #[test]
+    fn hex_tables_read_red_green_blue() {
+        assert_eq!(Rgb::from_hex(0xff7f0e), Rgb(255, 127, 14));
+        assert_eq!(
+            Rgb::table([0x010203, 0xfdfeff]),
+            [Rgb(1, 2, 3), Rgb(253, 254, 255)]
+        );
+        assert_eq!(Rgb::palette(9).hex(), "#17BECF");
     }
 
     #[test]

@@ -345,17 +345,11 @@ impl CordMass {
                 self.damping_ratio
             ));
         }
-        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 > 0.0) {
-            return Err(format!(
-                "g_m_per_s2 must be positive (the cords' tension comes from the weight), got {}",
-                self.g_m_per_s2
-            ));
-        }
-        let n = self.up().norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
+        super::gravity::check_weight(
+            self.g_m_per_s2,
+            self.up,
+            " (the cords' tension comes from the weight)",
+        )
     }
 
     fn applies_to(&self, setup: &str) -> bool {

@@ -197,7 +197,50 @@ fn per_spring_lists_fit(
     Ok(())
 }
 
-impl NonproportionalDamping {
+impl Effect for NonproportionalDamping {
+    fn id(&self) -> &'static str {
+        "nonproportional_damping"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let info = |name: String| super::positive_info(name, "N s/m", (0.0, 20.0));
+        (0..self.axial_n_s_per_m.len())
+            .map(|i| info(format!("axial_n_s_per_m[{i}]")))
+            .chain(
+                (0..self.lateral_n_s_per_m.len()).map(|i| info(format!("lateral_n_s_per_m[{i}]"))),
+            )
+            .chain(
+                modal_coupling_names(self.modal_coupling.len())
+                    .map(|name| super::unbounded_info(name, "1", (-1.0, 1.0))),
+            )
+            .collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.axial_n_s_per_m
+            .iter()
+            .chain(&self.lateral_n_s_per_m)
+            .chain(&self.modal_coupling)
+            .copied()
+            .collect()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let na = self.axial_n_s_per_m.len();
+        let (dashpots, coupling) = super::split_values(
+            values,
+            na + self.lateral_n_s_per_m.len(),
+            self.modal_coupling.len(),
+        )?;
+        let (axial, lateral) = dashpots.split_at(na);
+        let e = NonproportionalDamping {
+            axial_n_s_per_m: axial.to_vec(),
+            lateral_n_s_per_m: lateral.to_vec(),
+            modal_coupling: coupling.to_vec(),
+            ..self.clone()
+        };
+        super::checked(e)
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
     fn check_values(&self) -> Result<(), String> {
         if self.axial_n_s_per_m.is_empty() && self.modal_coupling.is_empty() {
             return Err(
@@ -231,69 +274,7 @@ impl NonproportionalDamping {
                 return Err(format!("{what}[{i}]: must be finite and ≥ 0, got {c}"));
             }
         }
-        let n = Vec3::from(self.axis).norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("axis: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
-    }
-}
-
-impl Effect for NonproportionalDamping {
-    fn id(&self) -> &'static str {
-        "nonproportional_damping"
-    }
-    fn parameters(&self) -> Vec<ParamInfo> {
-        let info = |name: String| ParamInfo {
-            name,
-            unit: "N s/m",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (0.0, 20.0),
-        };
-        (0..self.axial_n_s_per_m.len())
-            .map(|i| info(format!("axial_n_s_per_m[{i}]")))
-            .chain(
-                (0..self.lateral_n_s_per_m.len()).map(|i| info(format!("lateral_n_s_per_m[{i}]"))),
-            )
-            .chain(
-                modal_coupling_names(self.modal_coupling.len()).map(|name| ParamInfo {
-                    name,
-                    unit: "1",
-                    lower: f64::NEG_INFINITY,
-                    upper: f64::INFINITY,
-                    plausible: (-1.0, 1.0),
-                }),
-            )
-            .collect()
-    }
-    fn values(&self) -> Vec<f64> {
-        self.axial_n_s_per_m
-            .iter()
-            .chain(&self.lateral_n_s_per_m)
-            .chain(&self.modal_coupling)
-            .copied()
-            .collect()
-    }
-    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let na = self.axial_n_s_per_m.len();
-        let (dashpots, coupling) = super::split_values(
-            values,
-            na + self.lateral_n_s_per_m.len(),
-            self.modal_coupling.len(),
-        )?;
-        let (axial, lateral) = dashpots.split_at(na);
-        let e = NonproportionalDamping {
-            axial_n_s_per_m: axial.to_vec(),
-            lateral_n_s_per_m: lateral.to_vec(),
-            modal_coupling: coupling.to_vec(),
-            ..self.clone()
-        };
-        e.check_values()?;
-        Ok(Box::new(e))
-    }
-    fn parameters_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
+        super::check_unit_vector("axis", self.axis)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -307,7 +288,7 @@ impl Effect for NonproportionalDamping {
         )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let springs = ctx.spec.springs(ctx.setup_index);
@@ -350,23 +331,6 @@ pub struct HystereticDamping {
     pub loss_factors: Vec<f64>,
 }
 
-impl HystereticDamping {
-    fn check_values(&self) -> Result<(), String> {
-        if self.loss_factors.is_empty() {
-            return Err("loss_factors: give one loss factor per spring or one for all".into());
-        }
-        match self
-            .loss_factors
-            .iter()
-            .enumerate()
-            .find(|(_, e)| !(e.is_finite() && (0.0..=2.0).contains(*e)))
-        {
-            Some((i, e)) => Err(format!("loss_factors[{i}]: must be in [0, 2], got {e}")),
-            None => Ok(()),
-        }
-    }
-}
-
 impl Effect for HystereticDamping {
     fn id(&self) -> &'static str {
         "hysteretic_damping"
@@ -390,11 +354,24 @@ impl Effect for HystereticDamping {
             loss_factors: super::replace_list(self.loss_factors.len(), values)?,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.loss_factors.is_empty() {
+            return Err("loss_factors: give one loss factor per spring or one for all".into());
+        }
+        match self
+            .loss_factors
+            .iter()
+            .enumerate()
+            .find(|(_, e)| !(e.is_finite() && (0.0..=2.0).contains(*e)))
+        {
+            Some((i, e)) => Err(format!("loss_factors[{i}]: must be in [0, 2], got {e}")),
+            None => Ok(()),
+        }
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -405,7 +382,7 @@ impl Effect for HystereticDamping {
         )
     }
     fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let springs = ctx.spec.springs(ctx.setup_index);

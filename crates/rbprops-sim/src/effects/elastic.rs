@@ -36,58 +36,14 @@ pub struct ElasticMode {
     pub excitations: BTreeMap<String, f64>,
 }
 
-impl ElasticMode {
-    fn check_values(&self) -> Result<(), String> {
-        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
-            return Err(format!(
-                "frequency_hz must be positive and finite, got {}",
-                self.frequency_hz
-            ));
-        }
-        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
-            return Err(format!(
-                "damping_ratio must be in [0, 1), got {}",
-                self.damping_ratio
-            ));
-        }
-        for (what, map) in [
-            ("channels", &self.channels),
-            ("excitations", &self.excitations),
-        ] {
-            if let Some((k, v)) = map.iter().find(|(_, v)| !v.is_finite()) {
-                return Err(format!("{what}.{k}: shape value {v} is not finite"));
-            }
-        }
-        if self.channels.is_empty() || self.excitations.is_empty() {
-            return Err(
-                "give the shape at one channel and one excitation at least (channels, excitations)"
-                    .into(),
-            );
-        }
-        Ok(())
-    }
-}
-
 impl Effect for ElasticMode {
     fn id(&self) -> &'static str {
         "elastic_mode"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let shape = |name: String| ParamInfo {
-            name,
-            unit: "1/sqrt(kg)",
-            lower: f64::NEG_INFINITY,
-            upper: f64::INFINITY,
-            plausible: (-0.5, 0.5),
-        };
+        let shape = |name: String| super::unbounded_info(name, "1/sqrt(kg)", (-0.5, 0.5));
         let mut v = vec![
-            ParamInfo {
-                name: "frequency_hz".into(),
-                unit: "Hz",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (10.0, 500.0),
-            },
+            super::positive_info("frequency_hz".into(), "Hz", (10.0, 500.0)),
             ParamInfo {
                 name: "damping_ratio".into(),
                 unit: "1",
@@ -122,29 +78,48 @@ impl Effect for ElasticMode {
         for v in e.channels.values_mut().chain(e.excitations.values_mut()) {
             *v = *it.next().expect("length checked");
         }
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.frequency_hz.is_finite() && self.frequency_hz > 0.0) {
+            return Err(format!(
+                "frequency_hz must be positive and finite, got {}",
+                self.frequency_hz
+            ));
+        }
+        if !(self.damping_ratio.is_finite() && (0.0..1.0).contains(&self.damping_ratio)) {
+            return Err(format!(
+                "damping_ratio must be in [0, 1), got {}",
+                self.damping_ratio
+            ));
+        }
+        for (what, map) in [
+            ("channels", &self.channels),
+            ("excitations", &self.excitations),
+        ] {
+            if let Some((k, v)) = map.iter().find(|(_, v)| !v.is_finite()) {
+                return Err(format!("{what}.{k}: shape value {v} is not finite"));
+            }
+        }
+        if self.channels.is_empty() || self.excitations.is_empty() {
+            return Err(
+                "give the shape at one channel and one excitation at least (channels, excitations)"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        let channels = spec.channels();
-        for k in self.channels.keys() {
-            if !channels.iter().any(|c| &c.id == k) {
-                return Err(format!("channels: channel '{k}' is not defined"));
-            }
-        }
-        for k in self.excitations.keys() {
-            if !spec.excitations.iter().any(|e| &e.id == k) {
-                return Err(format!("excitations: excitation '{k}' is not defined"));
-            }
-        }
+        super::check_channels_defined(spec, "channels", self.channels.keys())?;
+        super::check_excitations_defined(spec, "excitations", self.excitations.keys())?;
         super::check_setup(spec, self.setup.as_deref())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let g = ctx.geometry;

@@ -145,14 +145,14 @@ impl Effect for GlobalGain {
         vec![self.gain]
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let gain = super::single_value(values)?;
-        check_gain("gain", gain)?;
-        Ok(Box::new(GlobalGain { gain }))
+        super::checked(GlobalGain {
+            gain: super::single_value(values)?,
+        })
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+    fn check_values(&self) -> Result<(), String> {
         check_gain("gain", self.gain)
     }
     fn modify_structure(

@@ -421,30 +421,17 @@ impl GravityStiffness {
         }
         cords
     }
-    /// Checks the parameters that need no campaign (finite, positive, a unit `up`).
-    pub fn check_self(&self) -> Result<(), String> {
-        for (name, v) in [
-            ("cord_length_m", &self.cord_length_m),
-            ("unstretched_length_m", &self.unstretched_length_m),
-        ] {
-            if let Some(l) = v.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
-                return Err(format!(
-                    "{name}: lengths must be positive and finite, got {l}"
-                ));
-            }
-        }
-        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 > 0.0) {
-            return Err(format!(
-                "g_m_per_s2 must be positive, got {}",
-                self.g_m_per_s2
-            ));
-        }
-        let n = self.up().norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
+}
+
+/// Checks the weight of a hanging body's effect: `g_m_per_s2` positive (`why`, when not
+/// empty, says what needs it, after a space) and `up` a unit vector.
+pub(crate) fn check_weight(g_m_per_s2: f64, up: [f64; 3], why: &str) -> Result<(), String> {
+    if !(g_m_per_s2.is_finite() && g_m_per_s2 > 0.0) {
+        return Err(format!(
+            "g_m_per_s2 must be positive{why}, got {g_m_per_s2}"
+        ));
     }
+    super::check_unit_vector("up", up)
 }
 
 /// `v` for `n` items: itself, or its single value repeated.
@@ -483,14 +470,26 @@ impl Effect for GravityStiffness {
             unstretched_length_m: values[nc..].to_vec(),
             ..self.clone()
         };
-        e.check_self()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        for (name, v) in [
+            ("cord_length_m", &self.cord_length_m),
+            ("unstretched_length_m", &self.unstretched_length_m),
+        ] {
+            if let Some(l) = v.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+                return Err(format!(
+                    "{name}: lengths must be positive and finite, got {l}"
+                ));
+            }
+        }
+        check_weight(self.g_m_per_s2, self.up, "")
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        self.check_self()?;
+        self.check_values()?;
         super::check_setup(spec, self.setup.as_deref())?;
         for (i, s) in spec.setups.iter().enumerate() {
             if !self.applies_to(&s.id) {
@@ -565,7 +564,7 @@ impl Effect for GravityStiffness {
 /// [`super::EffectDescriptor::parse`] of `gravity_stiffness`: the table, checked.
 fn parse_gravity_stiffness(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Effect>, String> {
     let g: GravityStiffness = super::params(spec)?;
-    g.check_self()?;
+    g.check_values()?;
     Ok(Box::new(g))
 }
 

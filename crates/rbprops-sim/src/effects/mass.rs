@@ -42,11 +42,7 @@ impl SensorMass {
             .collect()
     }
     fn all(&self) -> Vec<f64> {
-        self.mass_kg
-            .iter()
-            .chain(self.masses_kg.values())
-            .copied()
-            .collect()
+        super::common_and_map_values(self.mass_kg, &self.masses_kg)
     }
 }
 
@@ -58,21 +54,14 @@ impl Effect for SensorMass {
         0
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let mut v: Vec<ParamInfo> = self
-            .mass_kg
-            .iter()
-            .map(|_| "mass_kg".to_string())
-            .chain(self.masses_kg.keys().map(|k| format!("masses_kg.{k}")))
-            .map(|name| ParamInfo {
-                name,
-                unit: "kg",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.001, 0.05),
-            })
-            .collect();
-        v.shrink_to_fit();
-        v
+        super::common_and_map_info(
+            "mass_kg",
+            self.mass_kg,
+            "masses_kg",
+            &self.masses_kg,
+            "kg",
+            (0.001, 0.05),
+        )
     }
     fn values(&self) -> Vec<f64> {
         self.all()
@@ -81,37 +70,28 @@ impl Effect for SensorMass {
         let (mass_kg, masses_kg) =
             super::replace_common_and_map(self.mass_kg, &self.masses_kg, values)?;
         let e = SensorMass { mass_kg, masses_kg };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()?;
-        for id in self.masses_kg.keys() {
-            if !spec.sensors.iter().any(|s| &s.id == id) {
-                return Err(format!("masses_kg: sensor '{id}' is not defined"));
-            }
-        }
-        Ok(())
-    }
-    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        for (_, p, m) in self.masses(ctx.spec) {
-            let t = rigid_transform(&p);
-            model.mass += m * t.transpose() * t;
-        }
-        Ok(())
-    }
-}
-
-impl SensorMass {
     fn check_values(&self) -> Result<(), String> {
         if self.mass_kg.is_none() && self.masses_kg.is_empty() {
             return Err("give mass_kg (all sensors) and/or masses_kg (per sensor)".into());
         }
         if let Some(m) = self.all().iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
             return Err(format!("sensor masses must be finite and ≥ 0, got {m}"));
+        }
+        Ok(())
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::check_sensors_defined(spec, "masses_kg", self.masses_kg.keys())
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for (_, p, m) in self.masses(ctx.spec) {
+            let t = rigid_transform(&p);
+            model.mass += m * t.transpose() * t;
         }
         Ok(())
     }
@@ -151,26 +131,6 @@ impl AddedMass {
         m.fixed_view_mut::<3, 3>(3, 3).copy_from(&c);
         m
     }
-    fn check_values(&self) -> Result<(), String> {
-        for (name, blk, sym) in [
-            ("translational_kg", &self.translational_kg, true),
-            ("coupling_kg_m", &self.coupling_kg_m, false),
-            ("rotational_kg_m2", &self.rotational_kg_m2, true),
-        ] {
-            if blk.iter().flatten().any(|x| !x.is_finite()) {
-                return Err(format!("{name}: entries must be finite"));
-            }
-            let scale = blk.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
-            if sym
-                && UPPER
-                    .iter()
-                    .any(|&(i, j)| (blk[i][j] - blk[j][i]).abs() > 1e-12 * scale)
-            {
-                return Err(format!("{name}: the block must be symmetric"));
-            }
-        }
-        Ok(())
-    }
 }
 
 impl Effect for AddedMass {
@@ -181,13 +141,7 @@ impl Effect for AddedMass {
         0
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let info = |name: String, unit: &'static str| ParamInfo {
-            name,
-            unit,
-            lower: f64::NEG_INFINITY,
-            upper: f64::INFINITY,
-            plausible: (-1.0, 1.0),
-        };
+        let info = |name: String, unit| super::unbounded_info(name, unit, (-1.0, 1.0));
         let sym = |block: &str, unit| {
             UPPER.map(|(i, j)| info(format!("{block}.{}{}", AXES[i], AXES[j]), unit))
         };
@@ -233,14 +187,30 @@ impl Effect for AddedMass {
             coupling_kg_m: coupling,
             rotational_kg_m2: sym(&values[15..]),
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        for (name, blk, sym) in [
+            ("translational_kg", &self.translational_kg, true),
+            ("coupling_kg_m", &self.coupling_kg_m, false),
+            ("rotational_kg_m2", &self.rotational_kg_m2, true),
+        ] {
+            if blk.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(format!("{name}: entries must be finite"));
+            }
+            let scale = blk.iter().flatten().fold(0.0f64, |s, x| s.max(x.abs()));
+            if sym
+                && UPPER
+                    .iter()
+                    .any(|&(i, j)| (blk[i][j] - blk[j][i]).abs() > 1e-12 * scale)
+            {
+                return Err(format!("{name}: the block must be symmetric"));
+            }
+        }
+        Ok(())
     }
     /// The total mass matrix must stay positive definite; the model build says so if not.
     fn modify_structure(
@@ -262,7 +232,9 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "known sensor masses (--sensor-mass) or a run with the sensors moved",
         docs: "E7: a point mass at each listed sensor, `masses_kg` per sensor",
         parse: super::parse_as::<SensorMass>,
-        neutral: super::NeutralForm::Table(|spec, _| super::table([("masses_kg", super::per_id(super::sensor_ids(spec), 0.0.into()))])),
+        neutral: super::NeutralForm::Table(|spec, _| {
+            super::per_sensor_table(spec, "masses_kg", 0.0.into())
+        }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
     },

@@ -85,9 +85,15 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String>;
     /// The parameters as a JSON object, for `TruthRecord.effects`.
     fn parameters_json(&self) -> serde_json::Value;
-    /// Checks the parameters against the campaign (ids exist, counts match, bounds).
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+    /// Checks the parameters on their own, without the campaign (finite, within their
+    /// bounds, the lists they need given): what [`Self::with_values`] refuses.
+    fn check_values(&self) -> Result<(), String> {
         Ok(())
+    }
+    /// Checks the parameters against the campaign (ids exist, counts match, bounds):
+    /// [`Self::check_values`], and what the campaign must provide where the effect says so.
+    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()
     }
     /// Effects apply in ascending order (stable in spec order): masses (0) before
     /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
@@ -262,6 +268,160 @@ pub(crate) fn positive_info(name: String, unit: &'static str, plausible: (f64, f
     }
 }
 
+/// Description of a parameter without hard bounds (a mode shape value, a coupling).
+pub(crate) fn unbounded_info(name: String, unit: &'static str, plausible: (f64, f64)) -> ParamInfo {
+    ParamInfo {
+        name,
+        unit,
+        lower: f64::NEG_INFINITY,
+        upper: f64::INFINITY,
+        plausible,
+    }
+}
+
+/// Description of a signed parameter within `±bound`, plausible within `±plausible`.
+pub(crate) fn symmetric_info(
+    name: String,
+    unit: &'static str,
+    bound: f64,
+    plausible: f64,
+) -> ParamInfo {
+    ParamInfo {
+        name,
+        unit,
+        lower: -bound,
+        upper: bound,
+        plausible: (-plausible, plausible),
+    }
+}
+
+/// What the ids of a per-id parameter name in the campaign.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum IdKind {
+    /// A sensor of the spec.
+    Sensor,
+    /// An excitation of the spec.
+    Excitation,
+}
+
+impl IdKind {
+    /// Checks that the ids of the parameter `field` name this kind of item of the spec.
+    fn check_defined<'a>(
+        self,
+        spec: &CampaignSpec,
+        field: &str,
+        ids: impl IntoIterator<Item = &'a String>,
+    ) -> Result<(), String> {
+        match self {
+            IdKind::Sensor => check_sensors_defined(spec, field, ids),
+            IdKind::Excitation => check_excitations_defined(spec, field, ids),
+        }
+    }
+}
+
+/// A per-id map of 3-vectors as an effect's parameter (offsets, rotation vectors): its
+/// spec name, unit, hard bound on each vector's norm, plausible size of a component and
+/// what its ids name.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Vec3MapParam {
+    /// Parameter name as the spec writes it.
+    pub name: &'static str,
+    /// Unit of every component.
+    pub unit: &'static str,
+    /// Largest norm accepted (and hard bound of every component).
+    pub bound: f64,
+    /// Plausible size of a component in real tests.
+    pub plausible: f64,
+    /// What the map's ids name.
+    pub ids: IdKind,
+}
+
+impl Vec3MapParam {
+    /// Parameter descriptions, `name.{id}.{x,y,z}` in key order.
+    pub(crate) fn info(
+        &self,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Vec<ParamInfo> {
+        map.keys()
+            .flat_map(|k| {
+                ["x", "y", "z"].map(|a| {
+                    symmetric_info(
+                        format!("{}.{k}.{a}", self.name),
+                        self.unit,
+                        self.bound,
+                        self.plausible,
+                    )
+                })
+            })
+            .collect()
+    }
+    /// The values, three per id in key order ([`Self::info`] order).
+    pub(crate) fn values(&self, map: &std::collections::BTreeMap<String, [f64; 3]>) -> Vec<f64> {
+        map.values().flatten().copied().collect()
+    }
+    /// Checks the map on its own: one entry at least, every vector finite and within the
+    /// bound.
+    pub(crate) fn check_values(
+        &self,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Result<(), String> {
+        let (name, bound) = (self.name, self.bound);
+        if map.is_empty() {
+            return Err(format!("{name}: list at least one entry"));
+        }
+        for (k, v) in map {
+            if v.iter().any(|x| !x.is_finite()) || rbprops_core::Vec3::from(*v).norm() > bound {
+                return Err(format!(
+                    "{name}.{k}: need a finite vector of norm at most {bound}, got {v:?}"
+                ));
+            }
+        }
+        Ok(())
+    }
+    /// Checks that the map's ids name items of the spec.
+    pub(crate) fn check_ids(
+        &self,
+        spec: &CampaignSpec,
+        map: &std::collections::BTreeMap<String, [f64; 3]>,
+    ) -> Result<(), String> {
+        self.ids.check_defined(spec, self.name, map.keys())
+    }
+}
+
+/// Parameter descriptions of a positive value common to every id (`common`, when given)
+/// followed by its per-id overrides (`map_name.{id}` in key order).
+pub(crate) fn common_and_map_info(
+    common_name: &str,
+    common: Option<f64>,
+    map_name: &str,
+    map: &std::collections::BTreeMap<String, f64>,
+    unit: &'static str,
+    plausible: (f64, f64),
+) -> Vec<ParamInfo> {
+    let mut v: Vec<ParamInfo> = common
+        .map(|_| positive_info(common_name.to_string(), unit, plausible))
+        .into_iter()
+        .collect();
+    v.extend(map_info(map_name, map, unit, plausible));
+    v
+}
+
+/// The values of a value common to every id (when given) followed by its per-id map, in
+/// [`common_and_map_info`] order.
+pub(crate) fn common_and_map_values(
+    common: Option<f64>,
+    map: &std::collections::BTreeMap<String, f64>,
+) -> Vec<f64> {
+    common.iter().chain(map.values()).copied().collect()
+}
+
+/// The effect a fitter's new values make ([`Effect::with_values`]), once they pass
+/// [`Effect::check_values`].
+pub(crate) fn checked<E: Effect + 'static>(effect: E) -> Result<Box<dyn Effect>, String> {
+    effect.check_values()?;
+    Ok(Box::new(effect))
+}
+
 /// `values` (a fitter's new values, in key order) as a replacement of a per-id map.
 pub(crate) fn replace_map(
     map: &std::collections::BTreeMap<String, f64>,
@@ -361,6 +521,21 @@ pub(crate) fn sensor_ids(spec: &CampaignSpec) -> Vec<String> {
     spec.sensors.iter().map(|s| s.id.clone()).collect()
 }
 
+/// A neutral table of one per-sensor parameter `name`, `value` for every sensor.
+pub(crate) fn per_sensor_table(spec: &CampaignSpec, name: &str, value: toml::Value) -> toml::Table {
+    table([(name, per_id(sensor_ids(spec), value))])
+}
+
+/// A neutral table of one per-channel parameter `name`, `value` for every channel.
+pub(crate) fn per_channel_table(g: &Geometry, name: &str, value: toml::Value) -> toml::Table {
+    table([(name, per_id(channel_ids(g), value))])
+}
+
+/// A neutral table of one per-excitation parameter `name`, `value` for every excitation.
+pub(crate) fn per_excitation_table(g: &Geometry, name: &str, value: toml::Value) -> toml::Table {
+    table([(name, per_id(excitation_ids(g), value))])
+}
+
 /// A parameter table from its entries.
 pub(crate) fn table<const N: usize>(entries: [(&str, toml::Value); N]) -> toml::Table {
     entries
@@ -379,6 +554,66 @@ pub(crate) fn check_non_negative_map(
         Some((k, v)) => Err(format!("{field}.{k}: must be finite and ≥ 0, got {v}")),
         None => Ok(()),
     }
+}
+
+/// Checks that `v` (the parameter `field`) is a unit vector.
+pub(crate) fn check_unit_vector(field: &str, v: [f64; 3]) -> Result<(), String> {
+    let n = rbprops_core::Vec3::from(v).norm();
+    if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+        return Err(format!("{field}: not a unit vector (|d| = {n:.6})"));
+    }
+    Ok(())
+}
+
+/// Checks that every id of the parameter `field` names a `kind` (sensor, channel,
+/// excitation) of `defined`; the first one that does not (in `ids` order) is the error.
+fn check_defined<'a>(
+    field: &str,
+    kind: &str,
+    ids: impl IntoIterator<Item = &'a String>,
+    defined: &[&str],
+) -> Result<(), String> {
+    match ids.into_iter().find(|k| !defined.contains(&k.as_str())) {
+        Some(k) => Err(format!("{field}: {kind} '{k}' is not defined")),
+        None => Ok(()),
+    }
+}
+
+/// Checks that the ids of the parameter `field` are sensors of the spec.
+pub(crate) fn check_sensors_defined<'a>(
+    spec: &CampaignSpec,
+    field: &str,
+    ids: impl IntoIterator<Item = &'a String>,
+) -> Result<(), String> {
+    let defined: Vec<&str> = spec.sensors.iter().map(|s| s.id.as_str()).collect();
+    check_defined(field, "sensor", ids, &defined)
+}
+
+/// Checks that the ids of the parameter `field` are channels of the spec.
+pub(crate) fn check_channels_defined<'a>(
+    spec: &CampaignSpec,
+    field: &str,
+    ids: impl IntoIterator<Item = &'a String>,
+) -> Result<(), String> {
+    let channels = spec.channels();
+    let defined: Vec<&str> = channels.iter().map(|c| c.id.as_str()).collect();
+    check_defined(field, "channel", ids, &defined)
+}
+
+/// Checks that the ids of the parameter `field` are excitations of the spec.
+pub(crate) fn check_excitations_defined<'a>(
+    spec: &CampaignSpec,
+    field: &str,
+    ids: impl IntoIterator<Item = &'a String>,
+) -> Result<(), String> {
+    let defined: Vec<&str> = spec.excitations.iter().map(|e| e.id.as_str()).collect();
+    check_defined(field, "excitation", ids, &defined)
+}
+
+/// Whether an effect limited to an optional set-up acts in set-up `setup` (all set-ups
+/// when it names none).
+pub(crate) fn acts_in_setup(only: Option<&str>, setup: &str) -> bool {
+    only.is_none_or(|id| id == setup)
 }
 
 /// Checks that an optional set-up id names a set-up of the spec.

@@ -78,47 +78,16 @@ fn zero3() -> [f64; 3] {
     [0.0; 3]
 }
 
-impl SuspensionCoupling {
-    fn check_values(&self) -> Result<(), String> {
-        if let Some(k) = self
-            .rotational_n_m_per_rad
-            .iter()
-            .chain([&self.lateral_n_per_m])
-            .find(|k| !(k.is_finite() && **k >= 0.0))
-        {
-            return Err(format!("stiffness must be finite and ≥ 0, got {k}"));
-        }
-        let n = Vec3::from(self.axis).norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("axis: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
-    }
-}
-
 impl Effect for SuspensionCoupling {
     fn id(&self) -> &'static str {
         "suspension_coupling"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let mut v: Vec<ParamInfo> = ["x", "y", "z"]
-            .iter()
-            .map(|a| ParamInfo {
-                name: format!("rotational_n_m_per_rad.{a}"),
-                unit: "N m/rad",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 5.0),
-            })
-            .collect();
-        v.push(ParamInfo {
-            name: "lateral_n_per_m".into(),
-            unit: "N/m",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (0.0, 100.0),
+        let rotational = ["x", "y", "z"].map(|a| {
+            super::positive_info(format!("rotational_n_m_per_rad.{a}"), "N m/rad", (0.0, 5.0))
         });
-        v
+        let lateral = super::positive_info("lateral_n_per_m".into(), "N/m", (0.0, 100.0));
+        rotational.into_iter().chain([lateral]).collect()
     }
     fn values(&self) -> Vec<f64> {
         let r = self.rotational_n_m_per_rad;
@@ -133,18 +102,28 @@ impl Effect for SuspensionCoupling {
             lateral_n_per_m: *l,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if let Some(k) = self
+            .rotational_n_m_per_rad
+            .iter()
+            .chain([&self.lateral_n_per_m])
+            .find(|k| !(k.is_finite() && **k >= 0.0))
+        {
+            return Err(format!("stiffness must be finite and ≥ 0, got {k}"));
+        }
+        super::check_unit_vector("axis", self.axis)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
         super::check_setup(spec, self.setup.as_deref())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.setup.as_ref().is_some_and(|id| id != &model.setup) {
+        if !super::acts_in_setup(self.setup.as_deref(), &model.setup) {
             return Ok(());
         }
         let e = Vec3::from(self.axis);
@@ -167,21 +146,6 @@ pub struct SuspensionDrift {
     /// Factor f_e on the set-up's stiffness during excitation e's run; excitations not
     /// listed see the set-up's stiffness.
     pub stiffness_factors: BTreeMap<String, f64>,
-}
-
-impl SuspensionDrift {
-    fn check_values(&self) -> Result<(), String> {
-        match self
-            .stiffness_factors
-            .iter()
-            .find(|(_, f)| !(f.is_finite() && **f > 0.0))
-        {
-            Some((k, f)) => Err(format!(
-                "stiffness_factors.{k}: must be positive and finite, got {f}"
-            )),
-            None => Ok(()),
-        }
-    }
 }
 
 impl Effect for SuspensionDrift {
@@ -207,19 +171,26 @@ impl Effect for SuspensionDrift {
         let e = SuspensionDrift {
             stiffness_factors: super::replace_map(&self.stiffness_factors, values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        match self
+            .stiffness_factors
+            .iter()
+            .find(|(_, f)| !(f.is_finite() && **f > 0.0))
+        {
+            Some((k, f)) => Err(format!(
+                "stiffness_factors.{k}: must be positive and finite, got {f}"
+            )),
+            None => Ok(()),
+        }
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::placement::excitations_exist(
-            spec,
-            "stiffness_factors",
-            self.stiffness_factors.keys().cloned(),
-        )
+        super::check_excitations_defined(spec, "stiffness_factors", self.stiffness_factors.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -245,14 +216,6 @@ pub struct StingerStiffness {
 }
 
 impl StingerStiffness {
-    fn check_values(&self) -> Result<(), String> {
-        if self.lateral_n_per_m.is_empty() && self.rotational_n_m_per_rad.is_empty() {
-            return Err("give lateral_n_per_m and/or rotational_n_m_per_rad per excitation".into());
-        }
-        super::check_non_negative_map("lateral_n_per_m", &self.lateral_n_per_m)?;
-        super::check_non_negative_map("rotational_n_m_per_rad", &self.rotational_n_m_per_rad)
-    }
-
     /// `K_a` of a stinger along `n` at `r` (module docs).
     pub fn matrix(r: &Vec3, n: &Vec3, k_lateral: f64, k_rotational: f64) -> Mat6 {
         let n = n.normalize();
@@ -301,11 +264,17 @@ impl Effect for StingerStiffness {
             lateral_n_per_m: super::replace_map(&self.lateral_n_per_m, lateral)?,
             rotational_n_m_per_rad: super::replace_map(&self.rotational_n_m_per_rad, rotational)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
+    }
+    fn check_values(&self) -> Result<(), String> {
+        if self.lateral_n_per_m.is_empty() && self.rotational_n_m_per_rad.is_empty() {
+            return Err("give lateral_n_per_m and/or rotational_n_m_per_rad per excitation".into());
+        }
+        super::check_non_negative_map("lateral_n_per_m", &self.lateral_n_per_m)?;
+        super::check_non_negative_map("rotational_n_m_per_rad", &self.rotational_n_m_per_rad)
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
@@ -313,7 +282,7 @@ impl Effect for StingerStiffness {
             .lateral_n_per_m
             .keys()
             .chain(self.rotational_n_m_per_rad.keys());
-        super::placement::excitations_exist(spec, "stinger_stiffness", ids.cloned())
+        super::check_excitations_defined(spec, "stinger_stiffness", ids)
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -341,13 +310,6 @@ pub struct StingerAxialStiffness {
 }
 
 impl StingerAxialStiffness {
-    fn check_values(&self) -> Result<(), String> {
-        if self.axial_n_per_m.is_empty() {
-            return Err("give axial_n_per_m per excitation".into());
-        }
-        super::check_non_negative_map("axial_n_per_m", &self.axial_n_per_m)
-    }
-
     /// `K_a` of an axial spring `k_a` along `n` at `r` (module docs).
     pub fn matrix(r: &Vec3, n: &Vec3, k_axial: f64) -> Mat6 {
         let n = n.normalize();
@@ -370,19 +332,20 @@ impl Effect for StingerAxialStiffness {
         let e = StingerAxialStiffness {
             axial_n_per_m: super::replace_map(&self.axial_n_per_m, values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        if self.axial_n_per_m.is_empty() {
+            return Err("give axial_n_per_m per excitation".into());
+        }
+        super::check_non_negative_map("axial_n_per_m", &self.axial_n_per_m)
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        super::placement::excitations_exist(
-            spec,
-            "axial_n_per_m",
-            self.axial_n_per_m.keys().cloned(),
-        )
+        super::check_excitations_defined(spec, "axial_n_per_m", self.axial_n_per_m.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -438,7 +401,9 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "repeated runs of one excitation, or the suspension modes measured before and after each run",
         docs: "E15: a stiffness factor per excitation run, `stiffness_factors`",
         parse: super::parse_as::<SuspensionDrift>,
-        neutral: super::NeutralForm::Table(|_, g| super::table([("stiffness_factors", super::per_id(super::excitation_ids(g), 1.0.into()))])),
+        neutral: super::NeutralForm::Table(|_, g| {
+            super::per_excitation_table(g, "stiffness_factors", 1.0.into())
+        }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
     },
@@ -461,10 +426,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: the shaker armature's suspension stiffness along the stinger at the force point during its run, `axial_n_per_m` (a force from the coil current)",
         parse: super::parse_as::<StingerAxialStiffness>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "axial_n_per_m",
-                super::per_id(super::excitation_ids(g), 0.0.into()),
-            )])
+            super::per_excitation_table(g, "axial_n_per_m", 0.0.into())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_axial_stiffness.toml"),

@@ -4,7 +4,7 @@
 //! a triaxial sensor reports its point's motion rotated by `Rᵀ`. Output rows become
 //! `(R s_k)ᵀ T(p)`.
 
-use super::{BuildContext, Effect, ParamInfo};
+use super::{BuildContext, Effect, IdKind, ParamInfo, Vec3MapParam};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use rbprops_core::{rigid_transform, Mat3, Vec3};
@@ -19,6 +19,15 @@ pub struct SensorMisorientation {
     pub rotations_rad: BTreeMap<String, [f64; 3]>,
 }
 
+/// `sensor_misorientation`'s parameter: the rotation vector of each sensor.
+const SENSOR_ROTATIONS: Vec3MapParam = Vec3MapParam {
+    name: "rotations_rad",
+    unit: "rad",
+    bound: std::f64::consts::PI,
+    plausible: 0.09,
+    ids: IdKind::Sensor,
+};
+
 /// `exp([ψ]×)` by Rodrigues' formula.
 pub fn rotation(psi: &Vec3) -> Mat3 {
     nalgebra::Rotation3::new(*psi).into_inner()
@@ -29,58 +38,38 @@ impl Effect for SensorMisorientation {
         "sensor_misorientation"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        self.rotations_rad
-            .keys()
-            .flat_map(|k| {
-                ["x", "y", "z"].map(|a| ParamInfo {
-                    name: format!("rotations_rad.{k}.{a}"),
-                    unit: "rad",
-                    lower: -std::f64::consts::PI,
-                    upper: std::f64::consts::PI,
-                    plausible: (-0.09, 0.09),
-                })
-            })
-            .collect()
+        SENSOR_ROTATIONS.info(&self.rotations_rad)
     }
     fn values(&self) -> Vec<f64> {
-        self.rotations_rad.values().flatten().copied().collect()
+        SENSOR_ROTATIONS.values(&self.rotations_rad)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
         let rotations_rad = super::replace_vec3_map(&self.rotations_rad, values)?;
         let e = SensorMisorientation { rotations_rad };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()?;
-        for k in self.rotations_rad.keys() {
-            if !spec.sensors.iter().any(|s| &s.id == k) {
-                return Err(format!("rotations_rad: sensor '{k}' is not defined"));
-            }
-        }
-        Ok(())
-    }
-    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
-            if let Some(psi) = self.rotations_rad.get(&ch.point) {
-                let s = rotation(&Vec3::from(*psi)) * ch.direction;
-                model.outputs[c] = s.transpose() * rigid_transform(&ch.position);
-            }
-        }
-        Ok(())
-    }
-}
-
-impl SensorMisorientation {
     fn check_values(&self) -> Result<(), String> {
         for (k, v) in &self.rotations_rad {
             if v.iter().any(|x| !x.is_finite()) || Vec3::from(*v).norm() > std::f64::consts::PI {
                 return Err(format!(
                     "rotations_rad.{k}: need a finite rotation vector of at most π rad, got {v:?}"
                 ));
+            }
+        }
+        Ok(())
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        SENSOR_ROTATIONS.check_ids(spec, &self.rotations_rad)
+    }
+    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
+        for (c, ch) in ctx.geometry.channels.iter().enumerate() {
+            if let Some(psi) = self.rotations_rad.get(&ch.point) {
+                let s = rotation(&Vec3::from(*psi)) * ch.direction;
+                model.outputs[c] = s.transpose() * rigid_transform(&ch.position);
             }
         }
         Ok(())
@@ -96,10 +85,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescri
     docs: "E8: a small rotation vector per sensor, `rotations_rad`",
     parse: super::parse_as::<SensorMisorientation>,
     neutral: super::NeutralForm::Table(|spec, _| {
-        super::table([(
-            "rotations_rad",
-            super::per_id(super::sensor_ids(spec), super::zero3_value()),
-        )])
+        super::per_sensor_table(spec, "rotations_rad", super::zero3_value())
     }),
     follows_spec_up: false,
     example: include_str!("../../../../fixtures/specs/effects/sensor_misorientation.toml"),

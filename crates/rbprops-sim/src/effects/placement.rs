@@ -16,80 +16,42 @@
 //!   `y = H d + ω² m_b H₃ (I − ω² m_b D)⁻¹ D d`, with H₃ the channels' receptances to unit
 //!   forces along x, y, z at p and D the 3×3 driving-point receptance.
 
-use super::{BuildContext, Effect, ParamInfo};
+use super::{BuildContext, Effect, IdKind, ParamInfo, Vec3MapParam};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use rbprops_core::{cross_matrix, rigid_transform, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// Parameter descriptions of a map id → 3-vector.
-fn vec3_info(
-    map: &BTreeMap<String, [f64; 3]>,
-    field: &str,
-    unit: &'static str,
-    bound: f64,
-    plausible: f64,
-) -> Vec<ParamInfo> {
-    map.keys()
-        .flat_map(|k| {
-            ["x", "y", "z"].map(|a| ParamInfo {
-                name: format!("{field}.{k}.{a}"),
-                unit,
-                lower: -bound,
-                upper: bound,
-                plausible: (-plausible, plausible),
-            })
-        })
-        .collect()
-}
-
-fn vec3_values(map: &BTreeMap<String, [f64; 3]>) -> Vec<f64> {
-    map.values().flatten().copied().collect()
-}
-
-fn vec3_check(map: &BTreeMap<String, [f64; 3]>, field: &str, bound: f64) -> Result<(), String> {
-    if map.is_empty() {
-        return Err(format!("{field}: list at least one entry"));
-    }
-    for (k, v) in map {
-        if v.iter().any(|x| !x.is_finite()) || Vec3::from(*v).norm() > bound {
-            return Err(format!(
-                "{field}.{k}: need a finite vector of norm at most {bound}, got {v:?}"
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn sensors_exist(
-    spec: &CampaignSpec,
-    field: &str,
-    ids: impl Iterator<Item = String>,
-) -> Result<(), String> {
-    for k in ids {
-        if !spec.sensors.iter().any(|s| s.id == k) {
-            return Err(format!("{field}: sensor '{k}' is not defined"));
-        }
-    }
-    Ok(())
-}
-
-pub(super) fn excitations_exist(
-    spec: &CampaignSpec,
-    field: &str,
-    ids: impl Iterator<Item = String>,
-) -> Result<(), String> {
-    for k in ids {
-        if !spec.excitations.iter().any(|e| e.id == k) {
-            return Err(format!("{field}: excitation '{k}' is not defined"));
-        }
-    }
-    Ok(())
-}
-
 /// Largest position error accepted (m).
 const MAX_OFFSET_M: f64 = 1.0;
+
+/// `sensor_position`'s parameter: the offset of each sensor.
+const SENSOR_OFFSETS: Vec3MapParam = Vec3MapParam {
+    name: "offsets_m",
+    unit: "m",
+    bound: MAX_OFFSET_M,
+    plausible: 0.005,
+    ids: IdKind::Sensor,
+};
+
+/// `force_direction`'s parameter: the rotation vector of each excitation's direction.
+const FORCE_ROTATIONS: Vec3MapParam = Vec3MapParam {
+    name: "rotations_rad",
+    unit: "rad",
+    bound: std::f64::consts::PI,
+    plausible: 0.17,
+    ids: IdKind::Excitation,
+};
+
+/// `force_location`'s parameter: the offset of each excitation's point.
+const FORCE_OFFSETS: Vec3MapParam = Vec3MapParam {
+    name: "offsets_m",
+    unit: "m",
+    bound: MAX_OFFSET_M,
+    plausible: 0.005,
+    ids: IdKind::Excitation,
+};
 
 /// `sensor_position`: sensors not where the geometry says.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -104,22 +66,25 @@ impl Effect for SensorPosition {
         "sensor_position"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+        SENSOR_OFFSETS.info(&self.offsets_m)
     }
     fn values(&self) -> Vec<f64> {
-        vec3_values(&self.offsets_m)
+        SENSOR_OFFSETS.values(&self.offsets_m)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let offsets_m = super::replace_vec3_map(&self.offsets_m, values)?;
-        vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        Ok(Box::new(SensorPosition { offsets_m }))
+        super::checked(SensorPosition {
+            offsets_m: super::replace_vec3_map(&self.offsets_m, values)?,
+        })
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        SENSOR_OFFSETS.check_values(&self.offsets_m)
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        sensors_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+        self.check_values()?;
+        SENSOR_OFFSETS.check_ids(spec, &self.offsets_m)
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for (c, ch) in ctx.geometry.channels.iter().enumerate() {
@@ -149,28 +114,25 @@ impl Effect for ForceDirection {
         "force_direction"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(
-            &self.rotations_rad,
-            "rotations_rad",
-            "rad",
-            std::f64::consts::PI,
-            0.17,
-        )
+        FORCE_ROTATIONS.info(&self.rotations_rad)
     }
     fn values(&self) -> Vec<f64> {
-        vec3_values(&self.rotations_rad)
+        FORCE_ROTATIONS.values(&self.rotations_rad)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let rotations_rad = super::replace_vec3_map(&self.rotations_rad, values)?;
-        vec3_check(&rotations_rad, "rotations_rad", std::f64::consts::PI)?;
-        Ok(Box::new(ForceDirection { rotations_rad }))
+        super::checked(ForceDirection {
+            rotations_rad: super::replace_vec3_map(&self.rotations_rad, values)?,
+        })
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        FORCE_ROTATIONS.check_values(&self.rotations_rad)
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        vec3_check(&self.rotations_rad, "rotations_rad", std::f64::consts::PI)?;
-        excitations_exist(spec, "rotations_rad", self.rotations_rad.keys().cloned())
+        self.check_values()?;
+        FORCE_ROTATIONS.check_ids(spec, &self.rotations_rad)
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -202,22 +164,25 @@ impl Effect for ForceLocation {
         "force_location"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec3_info(&self.offsets_m, "offsets_m", "m", MAX_OFFSET_M, 0.005)
+        FORCE_OFFSETS.info(&self.offsets_m)
     }
     fn values(&self) -> Vec<f64> {
-        vec3_values(&self.offsets_m)
+        FORCE_OFFSETS.values(&self.offsets_m)
     }
     fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let offsets_m = super::replace_vec3_map(&self.offsets_m, values)?;
-        vec3_check(&offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        Ok(Box::new(ForceLocation { offsets_m }))
+        super::checked(ForceLocation {
+            offsets_m: super::replace_vec3_map(&self.offsets_m, values)?,
+        })
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        FORCE_OFFSETS.check_values(&self.offsets_m)
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        vec3_check(&self.offsets_m, "offsets_m", MAX_OFFSET_M)?;
-        excitations_exist(spec, "offsets_m", self.offsets_m.keys().cloned())
+        self.check_values()?;
+        FORCE_OFFSETS.check_ids(spec, &self.offsets_m)
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -242,15 +207,6 @@ pub struct ForceGaugeMass {
     pub masses_kg: BTreeMap<String, f64>,
 }
 
-impl ForceGaugeMass {
-    fn check_values(&self) -> Result<(), String> {
-        if self.masses_kg.is_empty() {
-            return Err("masses_kg: list at least one excitation".into());
-        }
-        super::check_non_negative_map("masses_kg", &self.masses_kg)
-    }
-}
-
 impl Effect for ForceGaugeMass {
     fn id(&self) -> &'static str {
         "force_gauge_mass"
@@ -265,15 +221,20 @@ impl Effect for ForceGaugeMass {
         let e = ForceGaugeMass {
             masses_kg: super::replace_map(&self.masses_kg, values)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
+    fn check_values(&self) -> Result<(), String> {
+        if self.masses_kg.is_empty() {
+            return Err("masses_kg: list at least one excitation".into());
+        }
+        super::check_non_negative_map("masses_kg", &self.masses_kg)
+    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        excitations_exist(spec, "masses_kg", self.masses_kg.keys().cloned())
+        super::check_excitations_defined(spec, "masses_kg", self.masses_kg.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for input in &mut model.inputs {
@@ -297,10 +258,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E9: an offset per sensor, `offsets_m`",
         parse: super::parse_as::<SensorPosition>,
         neutral: super::NeutralForm::Table(|spec, _| {
-            super::table([(
-                "offsets_m",
-                super::per_id(super::sensor_ids(spec), super::zero3_value()),
-            )])
+            super::per_sensor_table(spec, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_position.toml"),
@@ -313,10 +271,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: a small rotation of each excitation's direction, `rotations_rad`",
         parse: super::parse_as::<ForceDirection>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "rotations_rad",
-                super::per_id(super::excitation_ids(g), super::zero3_value()),
-            )])
+            super::per_excitation_table(g, "rotations_rad", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_direction.toml"),
@@ -329,10 +284,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: an offset of each excitation's point, `offsets_m`",
         parse: super::parse_as::<ForceLocation>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "offsets_m",
-                super::per_id(super::excitation_ids(g), super::zero3_value()),
-            )])
+            super::per_excitation_table(g, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_location.toml"),
@@ -345,10 +297,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         docs: "E12: a mass between the force gauge and the structure per excitation, `masses_kg`",
         parse: super::parse_as::<ForceGaugeMass>,
         neutral: super::NeutralForm::Table(|_, g| {
-            super::table([(
-                "masses_kg",
-                super::per_id(super::excitation_ids(g), 0.0.into()),
-            )])
+            super::per_excitation_table(g, "masses_kg", 0.0.into())
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_gauge_mass.toml"),

@@ -19,7 +19,6 @@
 
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
-use crate::spec::CampaignSpec;
 use serde::{Deserialize, Serialize};
 
 /// `exponential_window`: records multiplied by `e^{−σt}`, so every FRF is its transfer function at `s = iω + σ`.
@@ -43,15 +42,6 @@ impl ExponentialWindow {
             (None, None) => f64::NAN,
         }
     }
-    fn check_values(&self) -> Result<(), String> {
-        match (self.decay_per_s, self.time_constant_s) {
-            (Some(s), None) if s.is_finite() && s >= 0.0 => Ok(()),
-            (Some(s), None) => Err(format!("decay_per_s must be finite and ≥ 0, got {s}")),
-            (None, Some(t)) if t.is_finite() && t > 0.0 => Ok(()),
-            (None, Some(t)) => Err(format!("time_constant_s must be positive, got {t}")),
-            _ => Err("give exactly one of decay_per_s (σ) and time_constant_s (τ = 1/σ)".into()),
-        }
-    }
 }
 
 impl Effect for ExponentialWindow {
@@ -60,21 +50,9 @@ impl Effect for ExponentialWindow {
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         vec![if self.time_constant_s.is_some() {
-            ParamInfo {
-                name: "time_constant_s".into(),
-                unit: "s",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (1.5, 10.0),
-            }
+            super::positive_info("time_constant_s".into(), "s", (1.5, 10.0))
         } else {
-            ParamInfo {
-                name: "decay_per_s".into(),
-                unit: "1/s",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.0, 0.7),
-            }
+            super::positive_info("decay_per_s".into(), "1/s", (0.0, 0.7))
         }]
     }
     fn values(&self) -> Vec<f64> {
@@ -91,14 +69,19 @@ impl Effect for ExponentialWindow {
         } else {
             e.decay_per_s = Some(v);
         }
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        match (self.decay_per_s, self.time_constant_s) {
+            (Some(s), None) if s.is_finite() && s >= 0.0 => Ok(()),
+            (Some(s), None) => Err(format!("decay_per_s must be finite and ≥ 0, got {s}")),
+            (None, Some(t)) if t.is_finite() && t > 0.0 => Ok(()),
+            (None, Some(t)) => Err(format!("time_constant_s must be positive, got {t}")),
+            _ => Err("give exactly one of decay_per_s (σ) and time_constant_s (τ = 1/σ)".into()),
+        }
     }
     fn modify_structure(
         &self,
@@ -118,7 +101,29 @@ pub struct RecordTruncation {
     pub record_length_s: f64,
 }
 
-impl RecordTruncation {
+impl Effect for RecordTruncation {
+    fn id(&self) -> &'static str {
+        "record_truncation"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        vec![super::positive_info(
+            "record_length_s".into(),
+            "s",
+            (4.0, 64.0),
+        )]
+    }
+    fn values(&self) -> Vec<f64> {
+        vec![self.record_length_s]
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let e = RecordTruncation {
+            record_length_s: super::single_value(values)?,
+        };
+        super::checked(e)
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
+    }
     fn check_values(&self) -> Result<(), String> {
         if self.record_length_s.is_finite() && self.record_length_s > 0.0 {
             Ok(())
@@ -128,37 +133,6 @@ impl RecordTruncation {
                 self.record_length_s
             ))
         }
-    }
-}
-
-impl Effect for RecordTruncation {
-    fn id(&self) -> &'static str {
-        "record_truncation"
-    }
-    fn parameters(&self) -> Vec<ParamInfo> {
-        vec![ParamInfo {
-            name: "record_length_s".into(),
-            unit: "s",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (4.0, 64.0),
-        }]
-    }
-    fn values(&self) -> Vec<f64> {
-        vec![self.record_length_s]
-    }
-    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let e = RecordTruncation {
-            record_length_s: super::single_value(values)?,
-        };
-        e.check_values()?;
-        Ok(Box::new(e))
-    }
-    fn parameters_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
-    }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
     }
     fn modify_structure(
         &self,

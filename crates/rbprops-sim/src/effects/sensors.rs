@@ -46,11 +46,38 @@ pub struct TransducerHighpass {
 
 impl TransducerHighpass {
     fn all(&self) -> Vec<f64> {
-        self.time_constant_s
-            .iter()
-            .chain(self.time_constants_s.values())
-            .copied()
-            .collect()
+        super::common_and_map_values(self.time_constant_s, &self.time_constants_s)
+    }
+}
+
+impl Effect for TransducerHighpass {
+    fn id(&self) -> &'static str {
+        "transducer_highpass"
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        super::common_and_map_info(
+            "time_constant_s",
+            self.time_constant_s,
+            "time_constants_s",
+            &self.time_constants_s,
+            "s",
+            (0.5, 10.0),
+        )
+    }
+    fn values(&self) -> Vec<f64> {
+        self.all()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let (time_constant_s, time_constants_s) =
+            super::replace_common_and_map(self.time_constant_s, &self.time_constants_s, values)?;
+        let e = TransducerHighpass {
+            time_constant_s,
+            time_constants_s,
+        };
+        super::checked(e)
+    }
+    fn parameters_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or_default()
     }
     fn check_values(&self) -> Result<(), String> {
         if self.time_constant_s.is_none() && self.time_constants_s.is_empty() {
@@ -65,55 +92,9 @@ impl TransducerHighpass {
         }
         Ok(())
     }
-}
-
-impl Effect for TransducerHighpass {
-    fn id(&self) -> &'static str {
-        "transducer_highpass"
-    }
-    fn parameters(&self) -> Vec<ParamInfo> {
-        self.time_constant_s
-            .iter()
-            .map(|_| "time_constant_s".to_string())
-            .chain(
-                self.time_constants_s
-                    .keys()
-                    .map(|k| format!("time_constants_s.{k}")),
-            )
-            .map(|name| ParamInfo {
-                name,
-                unit: "s",
-                lower: 0.0,
-                upper: f64::INFINITY,
-                plausible: (0.5, 10.0),
-            })
-            .collect()
-    }
-    fn values(&self) -> Vec<f64> {
-        self.all()
-    }
-    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        let (time_constant_s, time_constants_s) =
-            super::replace_common_and_map(self.time_constant_s, &self.time_constants_s, values)?;
-        let e = TransducerHighpass {
-            time_constant_s,
-            time_constants_s,
-        };
-        e.check_values()?;
-        Ok(Box::new(e))
-    }
-    fn parameters_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or_default()
-    }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()?;
-        let channels = spec.channels();
-        for k in self.time_constants_s.keys() {
-            if !channels.iter().any(|c| &c.id == k) {
-                return Err(format!("time_constants_s: channel '{k}' is not defined"));
-            }
-        }
-        Ok(())
+        super::check_channels_defined(spec, "time_constants_s", self.time_constants_s.keys())
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         let n = ctx.geometry.channels.len();
@@ -145,22 +126,6 @@ pub struct SensorTiltGravity {
     pub up: [f64; 3],
 }
 
-impl SensorTiltGravity {
-    fn check_values(&self) -> Result<(), String> {
-        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 >= 0.0) {
-            return Err(format!(
-                "g_m_per_s2 must be finite and ≥ 0, got {}",
-                self.g_m_per_s2
-            ));
-        }
-        let n = Vec3::from(self.up).norm();
-        if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
-            return Err(format!("up: not a unit vector (|d| = {n:.6})"));
-        }
-        Ok(())
-    }
-}
-
 impl Effect for SensorTiltGravity {
     fn id(&self) -> &'static str {
         "sensor_tilt_gravity"
@@ -169,13 +134,11 @@ impl Effect for SensorTiltGravity {
         2
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        vec![ParamInfo {
-            name: "g_m_per_s2".into(),
-            unit: "m/s2",
-            lower: 0.0,
-            upper: f64::INFINITY,
-            plausible: (9.78, 9.84),
-        }]
+        vec![super::positive_info(
+            "g_m_per_s2".into(),
+            "m/s2",
+            (9.78, 9.84),
+        )]
     }
     fn values(&self) -> Vec<f64> {
         vec![self.g_m_per_s2]
@@ -185,14 +148,19 @@ impl Effect for SensorTiltGravity {
             g_m_per_s2: super::single_value(values)?,
             ..self.clone()
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()
+    fn check_values(&self) -> Result<(), String> {
+        if !(self.g_m_per_s2.is_finite() && self.g_m_per_s2 >= 0.0) {
+            return Err(format!(
+                "g_m_per_s2 must be finite and ≥ 0, got {}",
+                self.g_m_per_s2
+            ));
+        }
+        super::check_unit_vector("up", self.up)
     }
     fn modify_structure(
         &self,
@@ -229,31 +197,12 @@ pub struct ChannelDelay {
 /// line spacing a rigid-body test uses).
 const MAX_DELAY_S: f64 = 1.0;
 
-impl ChannelDelay {
-    fn check_values(&self) -> Result<(), String> {
-        for (k, t) in self.channels_s.iter().chain(&self.excitations_s) {
-            if !(t.is_finite() && t.abs() <= MAX_DELAY_S) {
-                return Err(format!(
-                    "delay of '{k}' must be finite and within ±{MAX_DELAY_S} s, got {t}"
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
 impl Effect for ChannelDelay {
     fn id(&self) -> &'static str {
         "channel_delay"
     }
     fn parameters(&self) -> Vec<ParamInfo> {
-        let info = |name: String| ParamInfo {
-            name,
-            unit: "s",
-            lower: -MAX_DELAY_S,
-            upper: MAX_DELAY_S,
-            plausible: (-1e-3, 1e-3),
-        };
+        let info = |name: String| super::symmetric_info(name, "s", MAX_DELAY_S, 1e-3);
         self.channels_s
             .keys()
             .map(|k| info(format!("channels_s.{k}")))
@@ -278,30 +227,25 @@ impl Effect for ChannelDelay {
             channels_s: super::replace_map(&self.channels_s, channels)?,
             excitations_s: super::replace_map(&self.excitations_s, excitations)?,
         };
-        e.check_values()?;
-        Ok(Box::new(e))
+        super::checked(e)
     }
     fn parameters_json(&self) -> serde_json::Value {
         serde_json::to_value(self).unwrap_or_default()
     }
-    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
-        self.check_values()?;
-        let channels = spec.channels();
-        if let Some(k) = self
-            .channels_s
-            .keys()
-            .find(|k| !channels.iter().any(|c| &c.id == *k))
-        {
-            return Err(format!("channels_s: channel '{k}' is not defined"));
-        }
-        if let Some(k) = self
-            .excitations_s
-            .keys()
-            .find(|k| !spec.excitations.iter().any(|e| &e.id == *k))
-        {
-            return Err(format!("excitations_s: excitation '{k}' is not defined"));
+    fn check_values(&self) -> Result<(), String> {
+        for (k, t) in self.channels_s.iter().chain(&self.excitations_s) {
+            if !(t.is_finite() && t.abs() <= MAX_DELAY_S) {
+                return Err(format!(
+                    "delay of '{k}' must be finite and within ±{MAX_DELAY_S} s, got {t}"
+                ));
+            }
         }
         Ok(())
+    }
+    fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
+        self.check_values()?;
+        super::check_channels_defined(spec, "channels_s", self.channels_s.keys())?;
+        super::check_excitations_defined(spec, "excitations_s", self.excitations_s.keys())
     }
     fn transform_output(&self, block: &mut OutputBlock) {
         let g = block.geometry;
@@ -364,10 +308,11 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "a loop-back calibration of each channel's delay against the force channel",
         docs: "E15: a delay per channel and per force, `channels_s`, `excitations_s` (only differences are seen)",
         parse: super::parse_as::<ChannelDelay>,
-        neutral: super::NeutralForm::Table(|_, g| super::table([
-            ("channels_s", super::per_id(super::channel_ids(g), 0.0.into())),
-            ("excitations_s", super::per_id(super::excitation_ids(g), 0.0.into())),
-        ])),
+        neutral: super::NeutralForm::Table(|_, g| {
+            let mut t = super::per_channel_table(g, "channels_s", 0.0.into());
+            t.extend(super::per_excitation_table(g, "excitations_s", 0.0.into()));
+            t
+        }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_delay.toml"),
     },
