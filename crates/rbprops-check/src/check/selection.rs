@@ -293,18 +293,23 @@ impl<'p, 'a> Selection<'p, 'a> {
             .map(|(c, s, _)| {
                 let (c, stage) = (*c, format!("refit {}", self.p.cands[*c].id));
                 let (t0, act, iterations) = self.refit_start(c, s);
-                let mut fit = self.p.fit(&stage, &t0, &act, iterations);
-                for t in self.restarts(c, s, &act) {
-                    if let Ok(f_r) = self.p.fit(&stage, &t, &act, iterations) {
-                        if fit.as_ref().map_or(true, |f| f_r.chi2 < f.chi2) {
-                            fit = Ok(f_r);
+                let mut fit = self
+                    .p
+                    .fit(&stage, &t0, &act, iterations)
+                    .map(|f| (f, s.kept.clone()));
+                for (t, kept) in self.restarts(c, s, &act) {
+                    let mut act_r = act.clone();
+                    act_r.last_mut().expect("the refitted effect").kept = kept.clone();
+                    if let Ok(f_r) = self.p.fit(&stage, &t, &act_r, iterations) {
+                        if fit.as_ref().map_or(true, |(f, _)| f_r.chi2 < f.chi2) {
+                            fit = Ok((f_r, kept));
                         }
                     }
                 }
                 match fit {
-                    Ok(f) => {
+                    Ok((f, kept)) => {
                         let (f, kept) =
-                            reopen_dropped(self.p, f, &self.active, c, &s.kept, &stage, iterations);
+                            reopen_dropped(self.p, f, &self.active, c, &kept, &stage, iterations);
                         (c, Ok(f), kept)
                     }
                     Err(e) => (c, Err(e), s.kept.clone()),
@@ -366,20 +371,33 @@ impl<'p, 'a> Selection<'p, 'a> {
         (t0, act, iterations)
     }
 
-    /// Further starts of the refit of `c`. With nothing accepted yet, the baseline may
-    /// have drifted far to stand in for the missing physics (a hanging body's mass
-    /// doubled without its pendulum stiffness), into a basin the true effect cannot
-    /// leave. The nominal parameters are the user's prior: refit from them too, keep
-    /// the better. In the second pass, the first pass's model.
-    fn restarts(&self, c: usize, s: &Score, act: &[Act]) -> Vec<Vec<f64>> {
+    /// Further starts of the refit of `c`, each with the coordinates of `c` it frees.
+    /// With nothing accepted yet, the baseline may have drifted far to stand in for
+    /// the missing physics (a hanging body's mass doubled without its pendulum
+    /// stiffness), into a basin the true effect cannot leave. The nominal parameters
+    /// are the user's prior: refit from them too, keep the better. In the second pass,
+    /// the first pass's model, with every coordinate it moved from neutral free: a
+    /// coordinate the screening dropped as having no signature at the neutral point
+    /// (an out-of-band term's frequency and damping, while its residues are zero) has
+    /// one at the first pass's values, and left at neutral the start would not be
+    /// that model at all (on exact data 1e11 times its χ²).
+    fn restarts(&self, c: usize, s: &Score, act: &[Act]) -> Vec<(Vec<f64>, Vec<usize>)> {
         let mut restarts = Vec::new();
         if self.active.is_empty() {
             let mut tn = self.theta_nom.to_vec();
             tn.extend_from_slice(&s.start);
-            restarts.push(tn);
+            restarts.push((tn, s.kept.clone()));
         }
-        if let Some(pr) = self.prior.filter(|_| self.in_prior(c)) {
-            restarts.push(pr.start(self.p, act, &self.cur.theta, &s.start));
+        let id = &self.p.cands[c].id;
+        if let Some((pr, phi)) = self.prior.and_then(|pr| pr.phi(id).map(|phi| (pr, phi))) {
+            let neutral = &self.p.cands[c].neutral;
+            let kept: Vec<usize> = (0..neutral.len())
+                .filter(|&j| s.kept.contains(&j) || phi[j] != neutral[j])
+                .collect();
+            let mut act = act.to_vec();
+            act.last_mut().expect("the refitted effect").kept = kept.clone();
+            let alpha: Vec<f64> = kept.iter().map(|&j| phi[j]).collect();
+            restarts.push((pr.start(self.p, &act, &self.cur.theta, &alpha), kept));
         }
         restarts
     }
