@@ -111,11 +111,55 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// Changes the computed FRFs of one excitation, as a per-line, per-channel gain.
     fn transform_output(&self, _block: &mut OutputBlock) {}
+    /// Which FRFs each parameter ([`Self::values`] order) can change, for fitters that
+    /// perturb parameters reaching disjoint FRFs in one evaluation. A declaration other
+    /// than [`Reach::Any`] must hold whatever the other effects: it does for a parameter
+    /// that acts only through what the simulator keeps per channel and excitation, a
+    /// per-channel gain of [`Self::transform_output`] or an extra mode's `at_channels[c]`
+    /// for a mode whose `at_excitations` is zero but at e (each FRF `H_ce` is assembled
+    /// from its own channel's and excitation's terms). Default: every parameter `Any`.
+    fn parameter_reach(&self, _geometry: &Geometry) -> Vec<Reach> {
+        vec![Reach::Any; self.values().len()]
+    }
     /// The effect as the truth records it: its id and parameters.
     fn record(&self) -> EffectRecord {
         EffectRecord {
             id: self.id().to_string(),
             parameters: self.parameters_json(),
+        }
+    }
+}
+
+/// The FRFs one effect parameter can change ([`Effect::parameter_reach`]); channel and
+/// excitation indices are those of the geometry the effect is built with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Reach {
+    /// Any FRF (nothing narrower declared).
+    Any,
+    /// The FRFs of one channel, every excitation.
+    Channel(usize),
+    /// The FRFs of one excitation, every channel.
+    Excitation(usize),
+    /// The one FRF of a channel and an excitation.
+    Cell {
+        /// Channel index.
+        channel: usize,
+        /// Excitation index.
+        excitation: usize,
+    },
+}
+
+impl Reach {
+    /// Whether the FRF of channel `c` and excitation `e` is reached.
+    pub fn reaches(&self, c: usize, e: usize) -> bool {
+        match *self {
+            Reach::Any => true,
+            Reach::Channel(ch) => ch == c,
+            Reach::Excitation(ex) => ex == e,
+            Reach::Cell {
+                channel,
+                excitation,
+            } => channel == c && excitation == e,
         }
     }
 }
