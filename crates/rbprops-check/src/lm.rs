@@ -118,12 +118,43 @@ pub fn jacobian(
 }
 
 /// [`jacobian`] with the columns of `columns`' groups evaluated together (the same
-/// matrix, fewer evaluations).
+/// matrix, fewer evaluations); `r0` is the residual at `theta`.
 pub fn jacobian_grouped(
     f: &ResidualFn,
     theta: &[f64],
     scales: &[f64],
     r0: &[f64],
+    columns: &Columns,
+) -> Result<DMatrix<f64>, CheckError> {
+    jacobian_grouped_from(f, theta, scales, r0, None, columns)
+}
+
+/// [`jacobian_grouped`] against a reference residual `r0` other than the residual at
+/// `theta` (a score test's current model, which lacks the candidate at its neutral
+/// point): the residual at `theta` is evaluated once more and a column's rows outside its parameter's reach are `(r(θ) − r0)/h`, what the
+/// column's own step leaves them, so the matrix is still [`jacobian`]'s.
+pub fn jacobian_grouped_against(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    columns: &Columns,
+) -> Result<DMatrix<f64>, CheckError> {
+    if columns.groups.iter().all(|g| g.len() == 1) {
+        return jacobian_grouped_from(f, theta, scales, r0, None, columns);
+    }
+    match f(theta) {
+        Ok(at) => jacobian_grouped_from(f, theta, scales, r0, Some(&at), columns),
+        Err(_) => jacobian_with(f, theta, scales, r0, false),
+    }
+}
+
+fn jacobian_grouped_from(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    at_theta: Option<&[f64]>,
     columns: &Columns,
 ) -> Result<DMatrix<f64>, CheckError> {
     let _t = crate::prof::span(crate::prof::JACOBIAN);
@@ -144,7 +175,10 @@ pub fn jacobian_grouped(
                         .iter()
                         .map(|&j| {
                             let h = step(j);
-                            let mut c = vec![0.0; n];
+                            let mut c = match at_theta {
+                                Some(at) => at.iter().zip(r0).map(|(a, b)| (a - b) / h).collect(),
+                                None => vec![0.0; n],
+                            };
                             for &i in columns.rows[j].as_deref().expect("grouped rows") {
                                 c[i] = (p[i] - r0[i]) / h;
                             }
@@ -588,6 +622,19 @@ mod tests {
         let grouped = jacobian_grouped(&f, &theta, &scales, &r0, &columns).unwrap();
         assert_eq!(calls.load(Ordering::Relaxed), 2);
         for (g, d) in grouped.iter().zip(dense.iter()) {
+            assert_eq!(g.to_bits(), d.to_bits(), "{g} vs {d}");
+        }
+        // Against a reference other than the residual at θ: still the dense matrix.
+        let r_ref: Vec<f64> = r0
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r + 1e-3 * i as f64)
+            .collect();
+        let dense = jacobian(&f, &theta, &scales, &r_ref).unwrap();
+        calls.store(0, Ordering::Relaxed);
+        let against = jacobian_grouped_against(&f, &theta, &scales, &r_ref, &columns).unwrap();
+        assert_eq!(calls.load(Ordering::Relaxed), 3);
+        for (g, d) in against.iter().zip(dense.iter()) {
             assert_eq!(g.to_bits(), d.to_bits(), "{g} vs {d}");
         }
         // Overlapping declarations are not grouped.

@@ -114,10 +114,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// Which FRFs each parameter ([`Self::values`] order) can change, for fitters that
     /// perturb parameters reaching disjoint FRFs in one evaluation. A declaration other
     /// than [`Reach::Any`] must hold whatever the other effects: it does for a parameter
-    /// that acts only through what the simulator keeps per channel and excitation, a
-    /// per-channel gain of [`Self::transform_output`] or an extra mode's `at_channels[c]`
-    /// for a mode whose `at_excitations` is zero but at e (each FRF `H_ce` is assembled
-    /// from its own channel's and excitation's terms). Default: every parameter `Any`.
+    /// that acts only through what the simulator keeps per channel and excitation, the
+    /// output row of channel c (every effect reads and writes the rows channel by
+    /// channel), a per-channel gain of [`Self::transform_output`] or an extra mode's
+    /// `at_channels[c]` for a mode whose `at_excitations` is zero but at e (each FRF
+    /// `H_ce` is assembled from its own channel's and excitation's terms). Default:
+    /// every parameter `Any`.
     fn parameter_reach(&self, _geometry: &Geometry) -> Vec<Reach> {
         vec![Reach::Any; self.values().len()]
     }
@@ -132,12 +134,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
 
 /// The FRFs one effect parameter can change ([`Effect::parameter_reach`]); channel and
 /// excitation indices are those of the geometry the effect is built with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Reach {
     /// Any FRF (nothing narrower declared).
     Any,
-    /// The FRFs of one channel, every excitation.
-    Channel(usize),
+    /// The FRFs of some channels, every excitation.
+    Channels(Vec<usize>),
     /// The FRFs of one excitation, every channel.
     Excitation(usize),
     /// The one FRF of a channel and an excitation.
@@ -154,7 +156,7 @@ impl Reach {
     pub fn reaches(&self, c: usize, e: usize) -> bool {
         match *self {
             Reach::Any => true,
-            Reach::Channel(ch) => ch == c,
+            Reach::Channels(ref chs) => chs.contains(&c),
             Reach::Excitation(ex) => ex == e,
             Reach::Cell {
                 channel,
@@ -162,6 +164,23 @@ impl Reach {
             } => channel == c && excitation == e,
         }
     }
+}
+
+/// The reach of a map's parameters, `per` values per key in key order: the channels
+/// whose `key` (their id, their sensor point) is that key.
+pub(crate) fn channel_reach<'a>(
+    keys: impl Iterator<Item = &'a String>,
+    per: usize,
+    geometry: &Geometry,
+    key: impl Fn(&rbprops_core::geometry::Channel) -> &str,
+) -> Vec<Reach> {
+    keys.flat_map(|k| {
+        let channels: Vec<usize> = (0..geometry.channels.len())
+            .filter(|&c| key(&geometry.channels[c]) == k)
+            .collect();
+        std::iter::repeat_n(Reach::Channels(channels), per)
+    })
+    .collect()
 }
 
 /// What the model check starts an effect's screening from (docs/physics.md, M5).

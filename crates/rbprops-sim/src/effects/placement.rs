@@ -134,6 +134,10 @@ impl Effect for SensorPosition {
         }
         Ok(())
     }
+    /// A sensor's offset reaches its channels' FRFs (their output rows).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::channel_reach(self.offsets_m.keys(), 3, geometry, |c| &c.point)
+    }
 }
 
 /// `force_direction`: forces along rotated directions.
