@@ -157,47 +157,84 @@ fn jacobian_grouped_from(
     at_theta: Option<&[f64]>,
     columns: &Columns,
 ) -> Result<DMatrix<f64>, CheckError> {
+    let mut jm = DMatrix::zeros(r0.len(), theta.len());
+    jacobian_into(f, theta, scales, r0, at_theta, columns, &mut jm)?;
+    Ok(jm)
+}
+
+/// [`jacobian_grouped`] written over `jm` (n × p), which need not be zero: an LM fit
+/// reuses its matrix, and each column is written in place, without a column vector and a
+/// copy per parameter or a fresh 20 MB matrix per iteration.
+fn jacobian_into(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    at_theta: Option<&[f64]>,
+    columns: &Columns,
+    jm: &mut DMatrix<f64>,
+) -> Result<(), CheckError> {
     let _t = crate::prof::span(crate::prof::JACOBIAN);
     assert_eq!(columns.rows.len(), theta.len(), "one row set per parameter");
     let n = r0.len();
+    assert_eq!(jm.shape(), (n, theta.len()), "Jacobian shape");
+    if n == 0 {
+        return Ok(());
+    }
     let step = |j: usize| 1e-7f64 * scales[j].abs().max(1e-12);
-    let cols: Vec<Vec<(usize, Result<Vec<f64>, CheckError>)>> = columns
+    let mut slots: Vec<Option<&mut [f64]>> = jm.as_mut_slice().chunks_mut(n).map(Some).collect();
+    let work: Vec<(&Vec<usize>, Vec<&mut [f64]>)> = columns
         .groups
-        .par_iter()
+        .iter()
         .map(|g| {
+            let outs = g
+                .iter()
+                .map(|&j| slots[j].take().expect("a partition"))
+                .collect();
+            (g, outs)
+        })
+        .collect();
+    let errors: Vec<(usize, CheckError)> = work
+        .into_par_iter()
+        .flat_map_iter(|(g, mut outs)| {
             if g.len() > 1 {
                 let mut tp = theta.to_vec();
                 for &j in g {
                     tp[j] = theta[j] + step(j);
                 }
                 if let Ok(p) = f(&tp) {
-                    return g
-                        .iter()
-                        .map(|&j| {
-                            let h = step(j);
-                            let mut c = match at_theta {
-                                Some(at) => at.iter().zip(r0).map(|(a, b)| (a - b) / h).collect(),
-                                None => vec![0.0; n],
-                            };
-                            for &i in columns.rows[j].as_deref().expect("grouped rows") {
-                                c[i] = (p[i] - r0[i]) / h;
-                            }
-                            (j, Ok(c))
-                        })
-                        .collect();
+                    for (&j, c) in g.iter().zip(outs.iter_mut()) {
+                        let h = step(j);
+                        match at_theta {
+                            Some(at) => c
+                                .iter_mut()
+                                .zip(at.iter().zip(r0))
+                                .for_each(|(c, (a, b))| *c = (a - b) / h),
+                            None => c.fill(0.0),
+                        }
+                        for &i in columns.rows[j].as_deref().expect("grouped rows") {
+                            c[i] = (p[i] - r0[i]) / h;
+                        }
+                    }
+                    return Vec::new();
                 }
             }
             // A parameter of its own, or a group whose joint step failed: one by one.
             g.iter()
-                .map(|&j| (j, column(f, theta, scales, r0, false, j)))
+                .zip(outs)
+                .filter_map(|(&j, c)| {
+                    column_into(f, theta, scales, r0, false, j, c)
+                        .err()
+                        .map(|e| (j, e))
+                })
                 .collect()
         })
         .collect();
-    let mut jm = DMatrix::zeros(n, theta.len());
-    for (j, c) in cols.into_iter().flatten() {
-        jm.column_mut(j).copy_from_slice(&c?);
+    // The error of the first failing column, as when the columns were taken in order.
+    match errors.into_iter().min_by_key(|(j, _)| *j) {
+        Some((_, e)) => Err(e),
+        None => Ok(()),
     }
-    Ok(jm)
 }
 
 /// Finite-difference Jacobian, central or forward (half the cost; used while iterating,
@@ -211,28 +248,42 @@ pub fn jacobian_with(
 ) -> Result<DMatrix<f64>, CheckError> {
     let _t = crate::prof::span(crate::prof::JACOBIAN);
     let n = r0.len();
-    let cols: Vec<Result<Vec<f64>, CheckError>> = (0..theta.len())
-        .into_par_iter()
-        .map(|j| column(f, theta, scales, r0, central, j))
-        .collect();
     let mut jm = DMatrix::zeros(n, theta.len());
-    for (j, c) in cols.into_iter().enumerate() {
-        let c = c?;
-        jm.column_mut(j).copy_from_slice(&c);
+    if n == 0 {
+        return Ok(jm);
     }
-    Ok(jm)
+    let errors: Vec<(usize, CheckError)> = jm
+        .as_mut_slice()
+        .par_chunks_mut(n)
+        .enumerate()
+        .filter_map(|(j, c)| {
+            column_into(f, theta, scales, r0, central, j, c)
+                .err()
+                .map(|e| (j, e))
+        })
+        .collect();
+    match errors.into_iter().next() {
+        Some((_, e)) => Err(e),
+        None => Ok(jm),
+    }
 }
 
-/// Column j of [`jacobian_with`].
-fn column(
+/// Column j of [`jacobian_with`], written to `out`.
+fn column_into(
     f: &ResidualFn,
     theta: &[f64],
     scales: &[f64],
     r0: &[f64],
     central: bool,
     j: usize,
-) -> Result<Vec<f64>, CheckError> {
+    out: &mut [f64],
+) -> Result<(), CheckError> {
     let h = if central { 1e-5 } else { 1e-7f64 } * scales[j].abs().max(1e-12);
+    let mut write = |a: &[f64], b: &[f64], d: f64| {
+        out.iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(o, (a, b))| *o = (a - b) / d);
+    };
     let mut tp = theta.to_vec();
     if !central {
         if let Ok(p) = f(&tp
@@ -241,18 +292,20 @@ fn column(
             .map(|(i, t)| if i == j { t + h } else { *t })
             .collect::<Vec<_>>())
         {
-            return Ok(p.iter().zip(r0).map(|(a, b)| (a - b) / h).collect());
+            write(&p, r0, h);
+            return Ok(());
         }
     }
     tp[j] += h;
     let mut tm = theta.to_vec();
     tm[j] -= h;
     match (f(&tp), f(&tm)) {
-        (Ok(p), Ok(m)) => Ok(p.iter().zip(&m).map(|(a, b)| (a - b) / (2.0 * h)).collect()),
-        (Ok(p), Err(_)) => Ok(p.iter().zip(r0).map(|(a, b)| (a - b) / h).collect()),
-        (Err(_), Ok(m)) => Ok(r0.iter().zip(&m).map(|(a, b)| (a - b) / h).collect()),
-        (Err(e), Err(_)) => Err(e),
+        (Ok(p), Ok(m)) => write(&p, &m, 2.0 * h),
+        (Ok(p), Err(_)) => write(&p, r0, h),
+        (Err(_), Ok(m)) => write(r0, &m, h),
+        (Err(e), Err(_)) => return Err(e),
     }
+    Ok(())
 }
 
 /// Rows per block of [`gram`]: a block of a 54 000 × 40 Jacobian's columns (40 × 256 × 8
@@ -495,13 +548,13 @@ pub fn fit_grouped(
         if converged {
             break;
         }
-        jm = jacobian_grouped(f, &theta, &bounds.scales, &r, columns)?;
+        jacobian_into(f, &theta, &bounds.scales, &r, None, columns, &mut jm)?;
     }
     // The Jacobian at the solution, for standard errors and score tests: the last one
     // taken when no step was accepted after it (`max_iter` = 0 or no descent left),
     // otherwise one more.
     if !jm_current {
-        jm = jacobian_grouped(f, &theta, &bounds.scales, &r, columns)?;
+        jacobian_into(f, &theta, &bounds.scales, &r, None, columns, &mut jm)?;
     }
     Ok(Fit {
         theta,
