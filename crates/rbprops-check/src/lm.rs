@@ -349,22 +349,26 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
     }
     let first = |i: usize| if symmetric { i } else { 0 };
     let mut acc = vec![[0.0f64; 8]; pa * pb];
-    let (nz_a, nz_b) = (nonzero_blocks(a, n8), nonzero_blocks(b, n8));
+    let st_a = block_states(a, n8);
+    let st_b = if symmetric {
+        st_a.clone()
+    } else {
+        block_states(b, n8)
+    };
     let nb = n8.div_ceil(GRAM_BLOCK);
     let mut start = 0;
     while start < n8 {
         let end = (start + GRAM_BLOCK).min(n8);
         let blk = start / GRAM_BLOCK;
         for i in 0..pa {
-            if !nz_a[i * nb + blk] {
-                continue;
-            }
+            let sa = st_a[i * nb + blk];
+            let skip = |j: usize| adds_nothing(sa, st_b[j * nb + blk]);
             let ca = &col(a, i)[start..end];
             let mut j = first(i);
             // Two columns of B per pass over A's column: each x is loaded once for two
             // products, and each accumulator still receives its own products in order.
             while j + 1 < pb {
-                if !nz_b[j * nb + blk] && !nz_b[(j + 1) * nb + blk] {
+                if skip(j) && skip(j + 1) {
                     j += 2;
                     continue;
                 }
@@ -383,7 +387,7 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
                 (acc[i * pb + j], acc[i * pb + j + 1]) = (s0, s1);
                 j += 2;
             }
-            if j < pb && nz_b[j * nb + blk] {
+            if j < pb && !skip(j) {
                 let cb = &col(b, j)[start..end];
                 let mut s = acc[i * pb + j];
                 for (x, y) in ca.chunks_exact(8).zip(cb.chunks_exact(8)) {
@@ -418,24 +422,49 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
     out
 }
 
-/// Whether each column of `m` has a non-zero entry in each [`GRAM_BLOCK`] of its first
-/// `n8` rows (`[column × block]`): a block of zeros adds only products ±0 to the
-/// accumulators of [`blocked_tr_mul`], which leave them as they are (an accumulator starts
-/// at +0 and a sum is −0 only when both terms are), so it is skipped bit-identically.
-/// Grouped finite-difference columns (an elastic mode's residues) are zero outside their
-/// FRF. With a non-finite entry anywhere (0 · ∞ is no zero) nothing is skipped.
-fn nonzero_blocks(m: &DMatrix<f64>, n8: usize) -> Vec<bool> {
-    let nb = n8.div_ceil(GRAM_BLOCK);
-    if m.iter().any(|x| !x.is_finite()) {
-        return vec![true; m.ncols() * nb];
-    }
+/// A row block of a column with only zeros ([`block_states`]).
+const ZERO: u8 = 0;
+/// A row block of a column with a non-finite entry.
+const NON_FINITE: u8 = 2;
+
+/// The state of each column of `m` in each [`GRAM_BLOCK`] of its first `n8` rows
+/// (`[column × block]`): [`ZERO`], finite with a non-zero (1) or [`NON_FINITE`].
+///
+/// Why: a pair of column blocks one of which is zero and the other finite adds only
+/// products ±0 to the accumulators of [`blocked_tr_mul`], which leave them as they are
+/// (an accumulator starts at +0, and a sum is −0 only when both terms are), so the pair
+/// is skipped bit-identically. Grouped finite-difference columns (an elastic mode's
+/// residues, a channel's gain) are zero outside their FRFs. (0 · ∞ is no zero: such a
+/// pair is summed.)
+fn block_states(m: &DMatrix<f64>, n8: usize) -> Vec<u8> {
     let n = m.nrows();
     (0..m.ncols())
         .flat_map(|c| {
             let col = &m.as_slice()[c * n..c * n + n8];
-            col.chunks(GRAM_BLOCK).map(|b| b.iter().any(|x| *x != 0.0))
+            col.chunks(GRAM_BLOCK).map(|b| {
+                // x · 0 is ±0 for a finite x and NaN otherwise; both tests by lanes.
+                let (mut fin, mut nz) = ([0.0f64; 8], [false; 8]);
+                for ch in b.chunks_exact(8) {
+                    for k in 0..8 {
+                        fin[k] += ch[k] * 0.0;
+                        nz[k] |= ch[k] != 0.0;
+                    }
+                }
+                if fin.iter().any(|f| f.is_nan()) {
+                    NON_FINITE
+                } else if nz.iter().any(|z| *z) {
+                    1
+                } else {
+                    ZERO
+                }
+            })
         })
         .collect()
+}
+
+/// Whether the pair of column blocks in states `x` and `y` adds nothing ([`block_states`]).
+fn adds_nothing(x: u8, y: u8) -> bool {
+    (x == ZERO && y != NON_FINITE) || (y == ZERO && x != NON_FINITE)
 }
 
 fn clamp(theta: &mut [f64], b: &Bounds) {
@@ -732,6 +761,24 @@ mod tests {
         // Overlapping declarations are not grouped.
         let overlapping = Columns::grouped(vec![Some(vec![0, 1]), Some(vec![1, 2])], 3);
         assert_eq!(overlapping.evaluations(), 2);
+    }
+
+    /// A zero block against an infinite entry is summed, as nalgebra does (0 · ∞ is NaN).
+    #[test]
+    fn gram_sums_a_zero_block_against_an_infinite_entry() {
+        let mut j = DMatrix::from_fn(600, 3, |r, c| (r + 3 * c) as f64 * 0.01 + 1.0);
+        for r in 0..GRAM_BLOCK {
+            j[(r, 0)] = 0.0;
+        }
+        j[(5, 1)] = f64::INFINITY;
+        let (want, got) = (j.tr_mul(&j), gram(&j));
+        for (g, w) in got.iter().zip(want.iter()) {
+            assert!(
+                g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                "{g} vs {w}"
+            );
+        }
+        assert!(got[(0, 1)].is_nan());
     }
 
     #[test]
