@@ -128,6 +128,10 @@ impl Effect for ExcitationGain {
         }
         Ok(())
     }
+    /// A gain reaches its excitation's FRFs (its input column).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::excitation_reach(self.gains.keys(), 1, geometry)
+    }
 }
 
 /// `global_gain`: every FRF times `g` (indistinguishable from 1/mass).

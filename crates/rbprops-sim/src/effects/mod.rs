@@ -115,8 +115,9 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     /// perturb parameters reaching disjoint FRFs in one evaluation. A declaration other
     /// than [`Reach::Any`] must hold whatever the other effects: it does for a parameter
     /// that acts only through what the simulator keeps per channel and excitation, the
-    /// output row of channel c (every effect reads and writes the rows channel by
-    /// channel), a per-channel gain of [`Self::transform_output`] or an extra mode's
+    /// output row of channel c or the input of excitation e (every effect reads and
+    /// writes rows and inputs one by one, and each input is solved on its own), a
+    /// per-channel gain of [`Self::transform_output`] or an extra mode's
     /// `at_channels[c]` for a mode whose `at_excitations` is zero but at e (each FRF
     /// `H_ce` is assembled from its own channel's and excitation's terms). Default:
     /// every parameter `Any`.
@@ -179,6 +180,25 @@ pub(crate) fn channel_reach<'a>(
             .filter(|&c| key(&geometry.channels[c]) == k)
             .collect();
         std::iter::repeat_n(Reach::Channels(channels), per)
+    })
+    .collect()
+}
+
+/// The reach of a map's parameters keyed by excitation id, `per` values per key in key
+/// order: that excitation's FRFs (its input column, attached mass and stiffness: each
+/// input is solved on its own).
+pub(crate) fn excitation_reach<'a>(
+    keys: impl Iterator<Item = &'a String>,
+    per: usize,
+    geometry: &Geometry,
+) -> Vec<Reach> {
+    keys.flat_map(|k| {
+        let mut at = (0..geometry.excitations.len()).filter(|&e| &geometry.excitations[e].id == k);
+        let reach = match (at.next(), at.next()) {
+            (Some(e), None) => Reach::Excitation(e),
+            _ => Reach::Any,
+        };
+        std::iter::repeat_n(reach, per)
     })
     .collect()
 }
