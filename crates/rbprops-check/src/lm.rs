@@ -689,8 +689,8 @@ mod tests {
             // zero but in one row, an all-zero column), where the blocks are skipped.
             for c in (1..p).step_by(2) {
                 for r in 0..n {
-                    if (r / (GRAM_BLOCK / 2) + c) % 3 != 0 && (c % 4 != 1 || r != n / 2) {
-                        j[(r, c)] = if r % 2 == 0 { 0.0 } else { -0.0 };
+                    if !(r / (GRAM_BLOCK / 2) + c).is_multiple_of(3) && (c % 4 != 1 || r != n / 2) {
+                        j[(r, c)] = if r.is_multiple_of(2) { 0.0 } else { -0.0 };
                     }
                 }
             }

@@ -522,7 +522,7 @@ fn model_of(
     // Channels are independent (the grid search is most of the noise model's time): in
     // parallel, collected and reduced in channel order, so the same values at any thread
     // count and the first failing channel's error.
-    let per_channel: Vec<Result<(f64, f64, Vec<f64>), CheckError>> = (0..n_ch)
+    let per_channel: Vec<Result<ChannelModel, CheckError>> = (0..n_ch)
         .into_par_iter()
         .map(|c| channel_model(fits, n_exc, n_ch, c))
         .collect();
@@ -552,6 +552,9 @@ fn model_of(
     })
 }
 
+/// A channel's relative and absolute noise and the scale of each of its FRFs.
+type ChannelModel = (f64, f64, Vec<f64>);
+
 /// One channel's variance model of [`model_of`]: its relative and absolute noise and the
 /// scale of each of its FRFs (`[excitation]`, those with enough lines).
 fn channel_model(
@@ -559,7 +562,7 @@ fn channel_model(
     n_exc: usize,
     n_ch: usize,
     c: usize,
-) -> Result<(f64, f64, Vec<f64>), CheckError> {
+) -> Result<ChannelModel, CheckError> {
     let mut frf_scales = Vec::new();
     let lines: Vec<&LineFit> = (0..n_exc)
         .flat_map(|e| fits[e * n_ch + c].iter())
