@@ -16,19 +16,18 @@
 //! simulator's column solve and by its inverse, the set-up models alone.
 //!
 //! Current figures (2 threads, `phase-timing`; 2-core machine shared with three other
-//! builds, load 3–8, so CPU seconds are the comparable figure; the code before these
-//! changes was re-measured in the same session, just before):
+//! builds, so CPU seconds are the comparable figure; the code before these changes was
+//! re-measured in the same session):
 //!
-//! | case | CPU s before → after | model evaluations before → after | ms CPU per evaluation, all in | wall s, load ≈ 3 | report digest (unchanged) |
+//! | case | CPU s before → after | model evaluations before → after | ms CPU per evaluation, all in | wall s at 0.57 × CPU | report digest (unchanged) |
 //! |---|---|---|---|---|---|
-//! | gain-orient-gauge | 18.6 → 13.8 | 11 487 → 7 044 | 1.9 | 7.8 | 4a015e7558eaf5a5 |
-//! | position-force-elastic | 19.5 → 15.2 | 13 356 → 8 030 | 1.8 | 9.1 | 7714b2b4e5737b1a |
-//! | gravity-window-gain | 12.7 → 11.0 | 8 265 → 6 404 | 1.7 | 6.3 | 280826b00c8113ef |
+//! | gain-orient-gauge | 18.6 → 12.6 | 11 487 → 7 044 | 1.8 | ≈ 7.2 | 4a015e7558eaf5a5 |
+//! | position-force-elastic | 19.5 → 14.5 | 13 356 → 8 030 | 1.8 | ≈ 8.3 | 7714b2b4e5737b1a |
+//! | gravity-window-gain | 12.7 → 10.6 | 8 265 → 6 404 | 1.7 | ≈ 6.0 | 280826b00c8113ef |
 //!
-//! (CPU and wall times with the code before the inputs' reach was declared, at
-//! 7 354 / 8 633 / 6 472 evaluations: the last change was measured at load 9 only, 13.8,
-//! 15.2 and 11.0 CPU s. The wall times are from a run at load ≈ 3, CPU 13.6, 15.7 and
-//! 11.2 s: 0.57 × CPU.)
+//! (The "after" run had one core free, load 2–3.5, the "before" run load 3–4. On a run at
+//! load ≈ 3 with two cores free, before the inputs' reach was declared, the wall times
+//! were 7.8, 9.1 and 6.3 s for 13.6, 15.7 and 11.2 CPU s: 0.57 × CPU.)
 //! Under the 20 s worst case, not under the 5 s typical. Each case names its three
 //! concealed effects and nothing else, χ²/ν 0.986, 0.975 and 0.995, every stage line
 //! as before, and the report is bit for bit the same (digests unchanged, equal at 1 and
