@@ -15,39 +15,57 @@
 //! anatomy of one model evaluation in CPU time: as the check makes it, by the
 //! simulator's column solve and by its inverse, the set-up models alone.
 //!
-//! Current figures (2 threads, `phase-timing`; 2-core machine shared with other work,
-//! load 8–10, so wall times (29.9, 37.7, 27.2 s) are inflated and CPU seconds are the
-//! comparable figure; the reference, the code before these changes, gave 23.4 CPU s on
-//! the first case under such load and 22.6 idle): gain-orient-gauge 14.2 CPU s / 7 572
-//! evaluations (before 22.6 / 9 807), position-force-elastic 19.8 / 13 737
-//! (32.6 / 17 104), gravity-window-gain 12.8 / 8 265 (22.5 / 11 147); 1.9, 1.4 and
-//! 1.5 ms CPU per evaluation all in. Idle, the wall time was 0.58 × CPU s, so about 8,
-//! 11 and 7 s: under the 20 s worst case, not under the 5 s typical. Each names its
-//! three concealed effects and nothing else with χ²/ν 0.986, 0.975 and 0.995 as before,
-//! every screening step finds as many significant candidates and refits the same ones;
-//! report digests 7daafb35d6ea4778, 84036c32b012f0ca, 6b319ca0a56017bd (equal at 1 and
-//! 2 threads; they moved: the elastic-mode profile's last bits, and a profile point no
-//! longer chord-refined keeps its lower one-point gain).
-//! Changes: the profile screening chord-refines only the 8 points per start whose first
-//! chord step promises most, and a grid of more than 100 points (the cords', ~170
-//! string-mode frequencies 2 % apart × 2 starts, each an evaluation of the slow cords'
-//! model; this profile was half the CPU time) is first evaluated at every other point,
-//! then at the skipped neighbours of the most promising ones (screening evaluations per
-//! step on the first case 1 493 / 1 318 / 831 / 882 → 603 / 457 / 490 / 739; the
-//! coarse pass alone changed no digest); `resonance::profile_starts` takes its line
-//! factor per line, not per value; extra modes (the cords' string modes) are added in
-//! line blocks that stay in L1, and the noise model's quantile fit takes ln(s/q_r) once
-//! per value, not per grid point (both bit-identical; the noise phase halved). Where the
-//! time goes (perf, first case, 1 thread, self time, before the coarse pass; 16.3 CPU s
-//! and the same digest at 1 thread): the per-line solve 20 %, extra-mode terms 8 %,
-//! `lm::gram` and `tr_mul` 10 %, the noise model 9 % (before its ln change), the cords'
-//! eigen-decomposition 4 %, `profile_starts` 3.5 % (8 % before); the cords' profile was
-//! still about a third of the CPU time then (~350 evaluations per step at ~3.5 ms).
-//! By stage the candidate refits are now the largest share of the evaluations (5 159 of
-//! 7 572), the screening's Jacobians and the backward fits next. Next: grouped
-//! finite-difference columns for parameters that touch disjoint cells (an elastic mode's
-//! 27 residues, the channel gains), and a cheaper reduction of the cords' model.
+//! Current figures (2 threads, `phase-timing`; 2-core machine shared with three other
+//! builds, so CPU seconds are the comparable figure; the code before these changes was
+//! re-measured in the same session):
 //!
+//! | case | CPU s before → after | model evaluations before → after | ms CPU per evaluation, all in | wall s at 0.57 × CPU | report digest (unchanged) |
+//! |---|---|---|---|---|---|
+//! | gain-orient-gauge | 18.6 → 12.6 | 11 487 → 7 044 | 1.8 | ≈ 7.2 | 4a015e7558eaf5a5 |
+//! | position-force-elastic | 19.5 → 14.5 | 13 356 → 8 030 | 1.8 | ≈ 8.3 | 7714b2b4e5737b1a |
+//! | gravity-window-gain | 12.7 → 10.6 | 8 265 → 6 404 | 1.7 | ≈ 6.0 | 280826b00c8113ef |
+//!
+//! (The "after" run had one core free, load 2–3.5, the "before" run load 3–4. On a run at
+//! load ≈ 3 with two cores free, before the inputs' reach was declared, the wall times
+//! were 7.8, 9.1 and 6.3 s for 13.6, 15.7 and 11.2 CPU s: 0.57 × CPU.)
+//! Under the 20 s worst case, not under the 5 s typical. Each case names its three
+//! concealed effects and nothing else, χ²/ν 0.986, 0.975 and 0.995, every stage line
+//! as before, and the report is bit for bit the same (digests unchanged, equal at 1 and
+//! 2 threads). Changes, all bit-identical:
+//! - grouped finite-difference columns (Curtis, Powell & Reid): parameters whose declared
+//!   reach ([`rbprops_sim::effects::Effect::parameter_reach`]: an in-band resonance's and
+//!   a residual flexibility's residues, one FRF each; channel gains, sensor
+//!   misorientations and offsets, their channels' FRFs; excitation gains, force
+//!   directions, locations and gauge masses, their excitation's) is disjoint are stepped in one
+//!   evaluation, each reading its own rows (the elastic mode's 29 columns in 3
+//!   evaluations); the score test's Jacobian takes the other rows from one evaluation at
+//!   the neutral point, so it is the dense matrix to the bit. A test steps every declared
+//!   parameter of every candidate, alone and beside effects that rewrite output rows and
+//!   inputs, and finds no other FRF moved by a bit;
+//! - Jacobian columns written in place, the LM fit reusing its matrix;
+//! - the normal equations skip row blocks where a column is zero (zero products leave the
+//!   accumulators as they are): LM linear algebra 3.0 → 1.3 thread-s on the first case;
+//! - the noise model's local fits per FRF and variance models per channel in parallel
+//!   (noise floor stage 0.53 → 0.30 s wall).
+//!
+//! Where the time goes now (perf, position-force-elastic, 1 thread, self time): the
+//! per-line solve 19 %, extra-mode terms (the cords' string modes) 6 %, the screening's
+//! tall SVDs (Householder reflections) 10 %, `blocked_tr_mul` 5 % and nalgebra's `tr_mul`
+//! 4 % (the profiles' projection `q0ᵀ r_g`), the residual 3 %, symmetric eigen 3 %, the
+//! held-out residuals 3 %. By stage: the candidate refits 5 008 / 4 576 / 3 954 of the
+//! evaluations (the elastic mode's refits that end pinned at a bound are the longest: 71
+//! iterations in step 3 of the first case), the screening steps with the backward fits
+//! 1 957 / 3 450 / 2 337. Next: fewer LM iterations in the refits that end
+//! pinned (a decision of the selection), cheaper tall SVDs in the screening, Broyden
+//! updates between Jacobians (not bit-identical; every decision to be re-checked).
+//!
+//! Before these changes (the lead's further instances of `elastic_mode` and
+//! `residual_flexibility` since the previous table): the profile screening chord-refined
+//! only the 8 points per start whose first chord step promises most and took a grid of
+//! more than 100 points (the cords') at every other point first; `profile_starts` its
+//! line factor per line; extra modes in line blocks; the noise model's ln(s/q_r) once per
+//! value: 14.2 / 19.8 / 12.8 CPU s, 7 572 / 13 737 / 8 265 evaluations then.
+
 //! The tables below are the history, each with the code of its time (gravity-window-gain
 //! then still named a false `elastic_mode`; see docs/results.md, "Model check speed").
 //!

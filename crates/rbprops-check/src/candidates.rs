@@ -53,7 +53,7 @@
 
 use rbprops_core::geometry::cross_matrix;
 use rbprops_core::{rigid_transform, Geometry, Mat3, Mat6, Vec3};
-use rbprops_sim::effects::{BuildContext, Effect, NeutralForm, OutputBlock, ParamInfo};
+use rbprops_sim::effects::{BuildContext, Effect, NeutralForm, OutputBlock, ParamInfo, Reach};
 use rbprops_sim::model::DynamicModel;
 use rbprops_sim::CampaignSpec;
 
@@ -640,6 +640,28 @@ impl Effect for LocalEffect {
             }
         }
         Ok(())
+    }
+    /// A channel's gain reaches that channel's FRFs, an excitation's its own
+    /// (`transform_output`), a sensor's misorientation its channels' (their output rows),
+    /// a residual flexibility `R_ce` the FRF of c and e (the `at_channels[c]` of the
+    /// mode driven by e alone); everything else reaches any FRF.
+    fn parameter_reach(&self, g: &Geometry) -> Vec<Reach> {
+        let n = self.values.len();
+        let (n_ch, n_ex) = (g.channels.len(), g.excitations.len());
+        (0..n)
+            .map(|i| match self.kind {
+                Kind::ChannelGain if n == n_ch => Reach::Channels(vec![i]),
+                Kind::SensorMisorientation if n == 3 * self.groups.len() => {
+                    Reach::Channels(self.groups[i / 3].clone())
+                }
+                Kind::ExcitationGain if n == n_ex => Reach::Excitation(i),
+                Kind::ResidualFlexibility if n == n_ch * n_ex + 2 && i < n - 2 => Reach::Cell {
+                    channel: i % n_ch,
+                    excitation: i / n_ch,
+                },
+                _ => Reach::Any,
+            })
+            .collect()
     }
     fn transform_output(&self, block: &mut OutputBlock) {
         let nl = block.frequency_hz.len();

@@ -45,6 +45,66 @@ pub fn chi2(r: &[f64]) -> f64 {
     r.iter().map(|x| x * x).sum()
 }
 
+/// Which finite-difference columns may share an evaluation (Curtis, Powell & Reid
+/// 1974): parameters whose declared residual rows are disjoint are perturbed together,
+/// and each reads its own rows of the one evaluation. Every other row of its column is
+/// zero by declaration, and its own rows are what a separate evaluation gives, bit for
+/// bit, when the declaration holds (nothing but the parameter itself changes them).
+#[derive(Debug, Clone)]
+pub struct Columns {
+    /// The residual rows each parameter can change (ascending); `None`: any row.
+    rows: Vec<Option<Vec<usize>>>,
+    /// The parameters evaluated together, a partition of `0..p`.
+    groups: Vec<Vec<usize>>,
+}
+
+impl Columns {
+    /// Every column its own evaluation.
+    pub fn dense(p: usize) -> Columns {
+        Columns {
+            rows: vec![None; p],
+            groups: (0..p).map(|j| vec![j]).collect(),
+        }
+    }
+
+    /// Columns grouped greedily in parameter order: a parameter with declared rows
+    /// joins the first group of declared parameters none of whose rows it shares.
+    pub fn grouped(rows: Vec<Option<Vec<usize>>>, n_rows: usize) -> Columns {
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        let mut taken: Vec<Vec<bool>> = Vec::new();
+        // The groups of declared parameters (indices into `groups`).
+        let mut sparse: Vec<usize> = Vec::new();
+        for (j, r) in rows.iter().enumerate() {
+            let Some(r) = r else {
+                groups.push(vec![j]);
+                continue;
+            };
+            let fits = |t: &Vec<bool>| r.iter().all(|&i| !t[i]);
+            let k = match sparse.iter().copied().find(|&g| fits(&taken[g])) {
+                Some(g) => g,
+                None => {
+                    groups.push(Vec::new());
+                    taken.resize(groups.len(), Vec::new());
+                    let g = groups.len() - 1;
+                    taken[g] = vec![false; n_rows];
+                    sparse.push(g);
+                    g
+                }
+            };
+            groups[k].push(j);
+            for &i in r {
+                taken[k][i] = true;
+            }
+        }
+        Columns { rows, groups }
+    }
+
+    /// Model evaluations per Jacobian.
+    pub fn evaluations(&self) -> usize {
+        self.groups.len()
+    }
+}
+
 /// Forward-difference Jacobian ∂r/∂θ (step 1e-7 of the scale; backward where the
 /// forward evaluation fails, e.g. at a bound). Forward differences halve the cost; their
 /// relative error (~1e-7) is far below what standard errors and score tests need.
@@ -55,6 +115,126 @@ pub fn jacobian(
     r0: &[f64],
 ) -> Result<DMatrix<f64>, CheckError> {
     jacobian_with(f, theta, scales, r0, false)
+}
+
+/// [`jacobian`] with the columns of `columns`' groups evaluated together (the same
+/// matrix, fewer evaluations); `r0` is the residual at `theta`.
+pub fn jacobian_grouped(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    columns: &Columns,
+) -> Result<DMatrix<f64>, CheckError> {
+    jacobian_grouped_from(f, theta, scales, r0, None, columns)
+}
+
+/// [`jacobian_grouped`] against a reference residual `r0` other than the residual at
+/// `theta` (a score test's current model, which lacks the candidate at its neutral
+/// point): the residual at `theta` is evaluated once more and a column's rows outside its parameter's reach are `(r(θ) − r0)/h`, what the
+/// column's own step leaves them, so the matrix is still [`jacobian`]'s.
+pub fn jacobian_grouped_against(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    columns: &Columns,
+) -> Result<DMatrix<f64>, CheckError> {
+    if columns.groups.iter().all(|g| g.len() == 1) {
+        return jacobian_grouped_from(f, theta, scales, r0, None, columns);
+    }
+    match f(theta) {
+        Ok(at) => jacobian_grouped_from(f, theta, scales, r0, Some(&at), columns),
+        Err(_) => jacobian_with(f, theta, scales, r0, false),
+    }
+}
+
+fn jacobian_grouped_from(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    at_theta: Option<&[f64]>,
+    columns: &Columns,
+) -> Result<DMatrix<f64>, CheckError> {
+    let mut jm = DMatrix::zeros(r0.len(), theta.len());
+    jacobian_into(f, theta, scales, r0, at_theta, columns, &mut jm)?;
+    Ok(jm)
+}
+
+/// [`jacobian_grouped`] written over `jm` (n × p), which need not be zero: an LM fit
+/// reuses its matrix, and each column is written in place, without a column vector and a
+/// copy per parameter or a fresh 20 MB matrix per iteration.
+fn jacobian_into(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    at_theta: Option<&[f64]>,
+    columns: &Columns,
+    jm: &mut DMatrix<f64>,
+) -> Result<(), CheckError> {
+    let _t = crate::prof::span(crate::prof::JACOBIAN);
+    assert_eq!(columns.rows.len(), theta.len(), "one row set per parameter");
+    let n = r0.len();
+    assert_eq!(jm.shape(), (n, theta.len()), "Jacobian shape");
+    if n == 0 {
+        return Ok(());
+    }
+    let step = |j: usize| 1e-7f64 * scales[j].abs().max(1e-12);
+    let mut slots: Vec<Option<&mut [f64]>> = jm.as_mut_slice().chunks_mut(n).map(Some).collect();
+    let work: Vec<(&Vec<usize>, Vec<&mut [f64]>)> = columns
+        .groups
+        .iter()
+        .map(|g| {
+            let outs = g
+                .iter()
+                .map(|&j| slots[j].take().expect("a partition"))
+                .collect();
+            (g, outs)
+        })
+        .collect();
+    let errors: Vec<(usize, CheckError)> = work
+        .into_par_iter()
+        .flat_map_iter(|(g, mut outs)| {
+            if g.len() > 1 {
+                let mut tp = theta.to_vec();
+                for &j in g {
+                    tp[j] = theta[j] + step(j);
+                }
+                if let Ok(p) = f(&tp) {
+                    for (&j, c) in g.iter().zip(outs.iter_mut()) {
+                        let h = step(j);
+                        match at_theta {
+                            Some(at) => c
+                                .iter_mut()
+                                .zip(at.iter().zip(r0))
+                                .for_each(|(c, (a, b))| *c = (a - b) / h),
+                            None => c.fill(0.0),
+                        }
+                        for &i in columns.rows[j].as_deref().expect("grouped rows") {
+                            c[i] = (p[i] - r0[i]) / h;
+                        }
+                    }
+                    return Vec::new();
+                }
+            }
+            // A parameter of its own, or a group whose joint step failed: one by one.
+            g.iter()
+                .zip(outs)
+                .filter_map(|(&j, c)| {
+                    column_into(f, theta, scales, r0, false, j, c)
+                        .err()
+                        .map(|e| (j, e))
+                })
+                .collect()
+        })
+        .collect();
+    // The error of the first failing column, as when the columns were taken in order.
+    match errors.into_iter().min_by_key(|(j, _)| *j) {
+        Some((_, e)) => Err(e),
+        None => Ok(()),
+    }
 }
 
 /// Finite-difference Jacobian, central or forward (half the cost; used while iterating,
@@ -68,38 +248,64 @@ pub fn jacobian_with(
 ) -> Result<DMatrix<f64>, CheckError> {
     let _t = crate::prof::span(crate::prof::JACOBIAN);
     let n = r0.len();
-    let cols: Vec<Result<Vec<f64>, CheckError>> = (0..theta.len())
-        .into_par_iter()
-        .map(|j| {
-            let h = if central { 1e-5 } else { 1e-7f64 } * scales[j].abs().max(1e-12);
-            let mut tp = theta.to_vec();
-            if !central {
-                if let Ok(p) = f(&tp
-                    .iter()
-                    .enumerate()
-                    .map(|(i, t)| if i == j { t + h } else { *t })
-                    .collect::<Vec<_>>())
-                {
-                    return Ok(p.iter().zip(r0).map(|(a, b)| (a - b) / h).collect());
-                }
-            }
-            tp[j] += h;
-            let mut tm = theta.to_vec();
-            tm[j] -= h;
-            match (f(&tp), f(&tm)) {
-                (Ok(p), Ok(m)) => Ok(p.iter().zip(&m).map(|(a, b)| (a - b) / (2.0 * h)).collect()),
-                (Ok(p), Err(_)) => Ok(p.iter().zip(r0).map(|(a, b)| (a - b) / h).collect()),
-                (Err(_), Ok(m)) => Ok(r0.iter().zip(&m).map(|(a, b)| (a - b) / h).collect()),
-                (Err(e), Err(_)) => Err(e),
-            }
+    let mut jm = DMatrix::zeros(n, theta.len());
+    if n == 0 {
+        return Ok(jm);
+    }
+    let errors: Vec<(usize, CheckError)> = jm
+        .as_mut_slice()
+        .par_chunks_mut(n)
+        .enumerate()
+        .filter_map(|(j, c)| {
+            column_into(f, theta, scales, r0, central, j, c)
+                .err()
+                .map(|e| (j, e))
         })
         .collect();
-    let mut jm = DMatrix::zeros(n, theta.len());
-    for (j, c) in cols.into_iter().enumerate() {
-        let c = c?;
-        jm.column_mut(j).copy_from_slice(&c);
+    match errors.into_iter().next() {
+        Some((_, e)) => Err(e),
+        None => Ok(jm),
     }
-    Ok(jm)
+}
+
+/// Column j of [`jacobian_with`], written to `out`.
+fn column_into(
+    f: &ResidualFn,
+    theta: &[f64],
+    scales: &[f64],
+    r0: &[f64],
+    central: bool,
+    j: usize,
+    out: &mut [f64],
+) -> Result<(), CheckError> {
+    let h = if central { 1e-5 } else { 1e-7f64 } * scales[j].abs().max(1e-12);
+    let mut write = |a: &[f64], b: &[f64], d: f64| {
+        out.iter_mut()
+            .zip(a.iter().zip(b))
+            .for_each(|(o, (a, b))| *o = (a - b) / d);
+    };
+    let mut tp = theta.to_vec();
+    if !central {
+        if let Ok(p) = f(&tp
+            .iter()
+            .enumerate()
+            .map(|(i, t)| if i == j { t + h } else { *t })
+            .collect::<Vec<_>>())
+        {
+            write(&p, r0, h);
+            return Ok(());
+        }
+    }
+    tp[j] += h;
+    let mut tm = theta.to_vec();
+    tm[j] -= h;
+    match (f(&tp), f(&tm)) {
+        (Ok(p), Ok(m)) => write(&p, &m, 2.0 * h),
+        (Ok(p), Err(_)) => write(&p, r0, h),
+        (Err(_), Ok(m)) => write(r0, &m, h),
+        (Err(e), Err(_)) => return Err(e),
+    }
+    Ok(())
 }
 
 /// Rows per block of [`gram`]: a block of a 54 000 × 40 Jacobian's columns (40 × 256 × 8
@@ -143,15 +349,29 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
     }
     let first = |i: usize| if symmetric { i } else { 0 };
     let mut acc = vec![[0.0f64; 8]; pa * pb];
+    let st_a = block_states(a, n8);
+    let st_b = if symmetric {
+        st_a.clone()
+    } else {
+        block_states(b, n8)
+    };
+    let nb = n8.div_ceil(GRAM_BLOCK);
     let mut start = 0;
     while start < n8 {
         let end = (start + GRAM_BLOCK).min(n8);
+        let blk = start / GRAM_BLOCK;
         for i in 0..pa {
+            let sa = st_a[i * nb + blk];
+            let skip = |j: usize| adds_nothing(sa, st_b[j * nb + blk]);
             let ca = &col(a, i)[start..end];
             let mut j = first(i);
             // Two columns of B per pass over A's column: each x is loaded once for two
             // products, and each accumulator still receives its own products in order.
             while j + 1 < pb {
+                if skip(j) && skip(j + 1) {
+                    j += 2;
+                    continue;
+                }
                 let (cb0, cb1) = (&col(b, j)[start..end], &col(b, j + 1)[start..end]);
                 let (mut s0, mut s1) = (acc[i * pb + j], acc[i * pb + j + 1]);
                 for ((x, y0), y1) in ca
@@ -167,7 +387,7 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
                 (acc[i * pb + j], acc[i * pb + j + 1]) = (s0, s1);
                 j += 2;
             }
-            if j < pb {
+            if j < pb && !skip(j) {
                 let cb = &col(b, j)[start..end];
                 let mut s = acc[i * pb + j];
                 for (x, y) in ca.chunks_exact(8).zip(cb.chunks_exact(8)) {
@@ -202,6 +422,51 @@ fn blocked_tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>, symmetric: bool) -> DMatri
     out
 }
 
+/// A row block of a column with only zeros ([`block_states`]).
+const ZERO: u8 = 0;
+/// A row block of a column with a non-finite entry.
+const NON_FINITE: u8 = 2;
+
+/// The state of each column of `m` in each [`GRAM_BLOCK`] of its first `n8` rows
+/// (`[column × block]`): [`ZERO`], finite with a non-zero (1) or [`NON_FINITE`].
+///
+/// Why: a pair of column blocks one of which is zero and the other finite adds only
+/// products ±0 to the accumulators of [`blocked_tr_mul`], which leave them as they are
+/// (an accumulator starts at +0, and a sum is −0 only when both terms are), so the pair
+/// is skipped bit-identically. Grouped finite-difference columns (an elastic mode's
+/// residues, a channel's gain) are zero outside their FRFs. (0 · ∞ is no zero: such a
+/// pair is summed.)
+fn block_states(m: &DMatrix<f64>, n8: usize) -> Vec<u8> {
+    let n = m.nrows();
+    (0..m.ncols())
+        .flat_map(|c| {
+            let col = &m.as_slice()[c * n..c * n + n8];
+            col.chunks(GRAM_BLOCK).map(|b| {
+                // x · 0 is ±0 for a finite x and NaN otherwise; both tests by lanes.
+                let (mut fin, mut nz) = ([0.0f64; 8], [false; 8]);
+                for ch in b.chunks_exact(8) {
+                    for k in 0..8 {
+                        fin[k] += ch[k] * 0.0;
+                        nz[k] |= ch[k] != 0.0;
+                    }
+                }
+                if fin.iter().any(|f| f.is_nan()) {
+                    NON_FINITE
+                } else if nz.iter().any(|z| *z) {
+                    1
+                } else {
+                    ZERO
+                }
+            })
+        })
+        .collect()
+}
+
+/// Whether the pair of column blocks in states `x` and `y` adds nothing ([`block_states`]).
+fn adds_nothing(x: u8, y: u8) -> bool {
+    (x == ZERO && y != NON_FINITE) || (y == ZERO && x != NON_FINITE)
+}
+
 fn clamp(theta: &mut [f64], b: &Bounds) {
     for (t, (lo, hi)) in theta.iter_mut().zip(b.lower.iter().zip(&b.upper)) {
         *t = t.clamp(*lo, *hi);
@@ -215,6 +480,25 @@ pub fn fit(
     theta0: &[f64],
     bounds: &Bounds,
     max_iter: usize,
+) -> Result<Fit, CheckError> {
+    fit_grouped(
+        stage,
+        f,
+        theta0,
+        bounds,
+        max_iter,
+        &Columns::dense(theta0.len()),
+    )
+}
+
+/// [`fit`] with the Jacobians' columns evaluated in `columns`' groups.
+pub fn fit_grouped(
+    stage: &str,
+    f: &ResidualFn,
+    theta0: &[f64],
+    bounds: &Bounds,
+    max_iter: usize,
+    columns: &Columns,
 ) -> Result<Fit, CheckError> {
     let _t = crate::prof::span(if stage == "baseline" {
         crate::prof::FIT_BASELINE
@@ -230,7 +514,7 @@ pub fn fit(
         problem: format!("cannot evaluate the starting model: {e}"),
     })?;
     let mut c2 = chi2(&r);
-    let mut jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
+    let mut jm = jacobian_grouped(f, &theta, &bounds.scales, &r, columns)?;
     let mut lambda = 1e-3;
     let mut converged = false;
     // `jm` is the Jacobian at the current θ (no step accepted since it was taken).
@@ -323,13 +607,13 @@ pub fn fit(
         if converged {
             break;
         }
-        jm = jacobian_with(f, &theta, &bounds.scales, &r, false)?;
+        jacobian_into(f, &theta, &bounds.scales, &r, None, columns, &mut jm)?;
     }
     // The Jacobian at the solution, for standard errors and score tests: the last one
     // taken when no step was accepted after it (`max_iter` = 0 or no descent left),
     // otherwise one more.
     if !jm_current {
-        jm = jacobian(f, &theta, &bounds.scales, &r)?;
+        jacobian_into(f, &theta, &bounds.scales, &r, None, columns, &mut jm)?;
     }
     Ok(Fit {
         theta,
@@ -400,7 +684,16 @@ mod tests {
             (777, 9),
             (2 * GRAM_BLOCK + 11, 17),
         ] {
-            let j = DMatrix::from_fn(n, p, |_, c| next() * 10f64.powi(c as i32 % 7 - 3));
+            let mut j = DMatrix::from_fn(n, p, |_, c| next() * 10f64.powi(c as i32 % 7 - 3));
+            // Zero runs as grouped finite differences leave them (whole blocks, a column
+            // zero but in one row, an all-zero column), where the blocks are skipped.
+            for c in (1..p).step_by(2) {
+                for r in 0..n {
+                    if !(r / (GRAM_BLOCK / 2) + c).is_multiple_of(3) && (c % 4 != 1 || r != n / 2) {
+                        j[(r, c)] = if r.is_multiple_of(2) { 0.0 } else { -0.0 };
+                    }
+                }
+            }
             let want = j.tr_mul(&j);
             let got = gram(&j);
             for (g, w) in got.iter().zip(want.iter()) {
@@ -418,6 +711,74 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Grouped columns are the dense Jacobian bit for bit, in fewer evaluations: three
+    /// parameters each scaling its own block of rows (declared, disjoint) share one
+    /// evaluation, a fourth reaching every row has its own.
+    #[test]
+    fn grouped_columns_are_the_dense_jacobian_in_fewer_evaluations() {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let calls = AtomicUsize::new(0);
+        let xs: Vec<f64> = (0..12).map(|i| 0.3 + i as f64 * 0.17).collect();
+        let f = |t: &[f64]| -> Result<Vec<f64>, CheckError> {
+            calls.fetch_add(1, Ordering::Relaxed);
+            Ok(xs
+                .iter()
+                .enumerate()
+                .map(|(i, x)| (t[i / 4] * x).sin() * (t[3] * x).exp() - 0.1 * x)
+                .collect())
+        };
+        let theta = [0.7, -1.3, 2.1, 0.4];
+        let scales = [1.0, 0.5, 2.0, 0.1];
+        let r0 = f(&theta).unwrap();
+        let dense = jacobian(&f, &theta, &scales, &r0).unwrap();
+        let rows = (0..3)
+            .map(|g| Some((4 * g..4 * g + 4).collect()))
+            .chain([None])
+            .collect();
+        let columns = Columns::grouped(rows, 12);
+        assert_eq!(columns.evaluations(), 2);
+        calls.store(0, Ordering::Relaxed);
+        let grouped = jacobian_grouped(&f, &theta, &scales, &r0, &columns).unwrap();
+        assert_eq!(calls.load(Ordering::Relaxed), 2);
+        for (g, d) in grouped.iter().zip(dense.iter()) {
+            assert_eq!(g.to_bits(), d.to_bits(), "{g} vs {d}");
+        }
+        // Against a reference other than the residual at θ: still the dense matrix.
+        let r_ref: Vec<f64> = r0
+            .iter()
+            .enumerate()
+            .map(|(i, r)| r + 1e-3 * i as f64)
+            .collect();
+        let dense = jacobian(&f, &theta, &scales, &r_ref).unwrap();
+        calls.store(0, Ordering::Relaxed);
+        let against = jacobian_grouped_against(&f, &theta, &scales, &r_ref, &columns).unwrap();
+        assert_eq!(calls.load(Ordering::Relaxed), 3);
+        for (g, d) in against.iter().zip(dense.iter()) {
+            assert_eq!(g.to_bits(), d.to_bits(), "{g} vs {d}");
+        }
+        // Overlapping declarations are not grouped.
+        let overlapping = Columns::grouped(vec![Some(vec![0, 1]), Some(vec![1, 2])], 3);
+        assert_eq!(overlapping.evaluations(), 2);
+    }
+
+    /// A zero block against an infinite entry is summed, as nalgebra does (0 · ∞ is NaN).
+    #[test]
+    fn gram_sums_a_zero_block_against_an_infinite_entry() {
+        let mut j = DMatrix::from_fn(600, 3, |r, c| (r + 3 * c) as f64 * 0.01 + 1.0);
+        for r in 0..GRAM_BLOCK {
+            j[(r, 0)] = 0.0;
+        }
+        j[(5, 1)] = f64::INFINITY;
+        let (want, got) = (j.tr_mul(&j), gram(&j));
+        for (g, w) in got.iter().zip(want.iter()) {
+            assert!(
+                g.to_bits() == w.to_bits() || (g.is_nan() && w.is_nan()),
+                "{g} vs {w}"
+            );
+        }
+        assert!(got[(0, 1)].is_nan());
     }
 
     #[test]

@@ -29,6 +29,7 @@
 //! that quantile and barely move it.
 
 use crate::error::CheckError;
+use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
 use rbprops_core::{c64, DataPrecision};
 use serde::{Deserialize, Serialize};
@@ -457,7 +458,9 @@ fn fits_of(
             2 * HALF_WIDTH + 1
         )));
     }
+    // FRFs are independent (collected in order: the same values at any thread count).
     Ok((0..n_frf)
+        .into_par_iter()
         .map(|b| {
             let r = b * n_lines..(b + 1) * n_lines;
             local_fits(&res[r.clone()], &refr[r.clone()], &q[r])
@@ -516,42 +519,21 @@ fn model_of(
     source: String,
     precision: DataPrecision,
 ) -> Result<RecordingNoise, CheckError> {
+    // Channels are independent (the grid search is most of the noise model's time): in
+    // parallel, collected and reduced in channel order, so the same values at any thread
+    // count and the first failing channel's error.
+    let per_channel: Vec<Result<ChannelModel, CheckError>> = (0..n_ch)
+        .into_par_iter()
+        .map(|c| channel_model(fits, n_exc, n_ch, c))
+        .collect();
     let mut relative = Vec::with_capacity(n_ch);
     let mut floor = Vec::with_capacity(n_ch);
     let mut frf_scales = Vec::new();
-    for c in 0..n_ch {
-        let lines: Vec<&LineFit> = (0..n_exc)
-            .flat_map(|e| fits[e * n_ch + c].iter())
-            .filter(|f| f.s > 0.0 && f.s.is_finite())
-            .collect();
-        if lines.len() < 10 {
-            return Err(CheckError::Noise(format!(
-                "channel {c}: only {} lines carry information (constant or noise-free data?)",
-                lines.len()
-            )));
-        }
-        // Subsample evenly to bound the cost of the grid search.
-        let step = (lines.len() / 3000).max(1);
-        let sub: Vec<&LineFit> = lines.iter().step_by(step).copied().collect();
-        let hsub: Vec<f64> = sub.iter().map(|f| f.hbar).collect();
-        let ssub: Vec<f64> = sub.iter().map(|f| f.s).collect();
-        let qsub: Vec<f64> = sub.iter().map(|f| f.qbar).collect();
-        let (a2, b2) = fit_variance_model(&hsub, &ssub, &qsub);
-        // Final scale on all lines: the p-quantile of σ̂²/model must be that of χ²/k.
-        let scale = scale_of(&lines, a2, b2);
-        relative.push((a2 * scale).sqrt());
-        floor.push((b2 * scale).sqrt());
-        for e in 0..n_exc {
-            let mut u: Vec<f64> = fits[e * n_ch + c]
-                .iter()
-                .filter(|f| f.s > 0.0 && f.s.is_finite())
-                .map(|f| f.s / ((a2 * f.hbar + b2) * scale + f.qbar))
-                .filter(|x| x.is_finite())
-                .collect();
-            if u.len() >= 20 {
-                frf_scales.push(quantile(&mut u) / reference_quantile());
-            }
-        }
+    for r in per_channel {
+        let (rel, fl, scales) = r?;
+        relative.push(rel);
+        floor.push(fl);
+        frf_scales.extend(scales);
     }
     let variance_scale_se = if frf_scales.len() >= 2 {
         let n = frf_scales.len() as f64;
@@ -568,6 +550,51 @@ fn model_of(
         variance_scale_se,
         precision,
     })
+}
+
+/// A channel's relative and absolute noise and the scale of each of its FRFs.
+type ChannelModel = (f64, f64, Vec<f64>);
+
+/// One channel's variance model of [`model_of`]: its relative and absolute noise and the
+/// scale of each of its FRFs (`[excitation]`, those with enough lines).
+fn channel_model(
+    fits: &[Vec<LineFit>],
+    n_exc: usize,
+    n_ch: usize,
+    c: usize,
+) -> Result<ChannelModel, CheckError> {
+    let mut frf_scales = Vec::new();
+    let lines: Vec<&LineFit> = (0..n_exc)
+        .flat_map(|e| fits[e * n_ch + c].iter())
+        .filter(|f| f.s > 0.0 && f.s.is_finite())
+        .collect();
+    if lines.len() < 10 {
+        return Err(CheckError::Noise(format!(
+            "channel {c}: only {} lines carry information (constant or noise-free data?)",
+            lines.len()
+        )));
+    }
+    // Subsample evenly to bound the cost of the grid search.
+    let step = (lines.len() / 3000).max(1);
+    let sub: Vec<&LineFit> = lines.iter().step_by(step).copied().collect();
+    let hsub: Vec<f64> = sub.iter().map(|f| f.hbar).collect();
+    let ssub: Vec<f64> = sub.iter().map(|f| f.s).collect();
+    let qsub: Vec<f64> = sub.iter().map(|f| f.qbar).collect();
+    let (a2, b2) = fit_variance_model(&hsub, &ssub, &qsub);
+    // Final scale on all lines: the p-quantile of σ̂²/model must be that of χ²/k.
+    let scale = scale_of(&lines, a2, b2);
+    for e in 0..n_exc {
+        let mut u: Vec<f64> = fits[e * n_ch + c]
+            .iter()
+            .filter(|f| f.s > 0.0 && f.s.is_finite())
+            .map(|f| f.s / ((a2 * f.hbar + b2) * scale + f.qbar))
+            .filter(|x| x.is_finite())
+            .collect();
+        if u.len() >= 20 {
+            frf_scales.push(quantile(&mut u) / reference_quantile());
+        }
+    }
+    Ok(((a2 * scale).sqrt(), (b2 * scale).sqrt(), frf_scales))
 }
 
 /// Fraction of the local median magnitude below which a reference magnitude is not

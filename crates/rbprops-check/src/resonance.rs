@@ -17,7 +17,7 @@ use crate::predict::Layout;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use rbprops_core::c64;
-use rbprops_sim::effects::{BuildContext, Effect, ParamInfo};
+use rbprops_sim::effects::{BuildContext, Effect, ParamInfo, Reach};
 use rbprops_sim::model::{DynamicModel, ExtraMode};
 use rbprops_sim::CampaignSpec;
 use std::f64::consts::TAU;
@@ -203,6 +203,26 @@ impl Effect for InBandResonance {
         }
         Ok(())
     }
+    /// A residue `A_ce` reaches the FRF of channel c and excitation e alone: it is
+    /// `at_channels[c]` of the extra mode driven by excitation e only
+    /// ([`Self::modify_structure`]); the pole (f_m, ζ_m) reaches every FRF.
+    fn parameter_reach(&self, g: &rbprops_core::Geometry) -> Vec<Reach> {
+        let mut v = vec![Reach::Any; 2];
+        for c in &self.channels {
+            let channel = g.channels.iter().position(|x| &x.id == c);
+            for e in &self.excitations {
+                let mut at = g.excitations.iter().enumerate().filter(|(_, x)| &x.id == e);
+                v.push(match (channel, at.next(), at.next()) {
+                    (Some(channel), Some((excitation, _)), None) => Reach::Cell {
+                        channel,
+                        excitation,
+                    },
+                    _ => Reach::Any,
+                });
+            }
+        }
+        v
+    }
 }
 
 /// Starting points for [`InBandResonance`] from the current normalised residual
@@ -318,6 +338,49 @@ pub fn profile_starts(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The declared reach holds: a residue `A_ce` moved, every FRF but that of c and e
+    /// is bit for bit what it was (and that one moved); the pole reaches every FRF.
+    #[test]
+    fn a_residue_reaches_its_own_frf_alone() {
+        let mut spec =
+            CampaignSpec::from_toml_str(rbprops_sim::example("test-case-2").unwrap()).unwrap();
+        spec.frequency.lines = 40;
+        let sim = rbprops_sim::simulate(&spec).unwrap();
+        let layout = Layout::new(&spec, &sim.geometry, &sim.frf).unwrap();
+        let neutral = InBandResonance::neutral(&spec);
+        let reach = neutral.parameter_reach(&layout.spec_geometry);
+        assert_eq!(reach.len(), neutral.values().len());
+        assert_eq!(&reach[..2], &[Reach::Any, Reach::Any]);
+        let mut v = neutral.values();
+        for (k, x) in v.iter_mut().enumerate().skip(2) {
+            *x = 1e-3 * ((k * 7 % 11) as f64 - 5.0);
+        }
+        let model = |v: &[f64]| {
+            crate::predict::predict(&spec, &layout, &[neutral.with_values(v).unwrap()]).unwrap()
+        };
+        let m0 = model(&v);
+        let (nl, n_ch) = (layout.n_lines(), layout.channel_map.len());
+        for j in [2, 3, v.len() / 2, v.len() - 1] {
+            let mut w = v.clone();
+            w[j] += 1e-4;
+            let m1 = model(&w);
+            for (i, (a, b)) in m0.iter().zip(&m1).enumerate() {
+                let (c, e) = (
+                    layout.channel_map[(i / nl) % n_ch],
+                    layout.excitation_map[i / (nl * n_ch)],
+                );
+                if !reach[j].reaches(c, e) {
+                    assert_eq!(
+                        (a.re.to_bits(), a.im.to_bits()),
+                        (b.re.to_bits(), b.im.to_bits())
+                    );
+                } else if i % nl != 0 {
+                    assert_ne!(a, b, "parameter {j}, value {i}");
+                }
+            }
+        }
+    }
 
     /// The profile with its line factors taken per line equals the per-value form of its
     /// definition (`b = √2 Q/(σ d)` per value, `Σ (bᵀr)²/‖b‖²` over the cells) to

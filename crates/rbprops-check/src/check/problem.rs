@@ -1,4 +1,5 @@
 use super::*;
+use rbprops_sim::effects::Reach;
 /// A pass's final model: the nominal model's parameters θ and each accepted effect's φ.
 /// The noise rerun of [`check`] refits every effect the first pass accepted from here
 /// as well: under the re-estimated noise the baseline may drift to stand in for the
@@ -167,6 +168,45 @@ impl<'a> Problem<'a> {
         }
     }
 
+    /// The finite-difference column groups of θ for `active` (with the nominal model's
+    /// parameters first when `base`): an effect parameter whose declared reach
+    /// ([`Effect::parameter_reach`]) is some channels or excitations changes only the
+    /// residual rows of their values; the nominal model's parameters change any row.
+    pub(super) fn columns(&self, active: &[Act], base: bool) -> lm::Columns {
+        let (nl, n_rch) = (self.layout.n_lines(), self.layout.channel_map.len());
+        // The spec channel and excitation of each value used (rows 2k, 2k + 1).
+        let cells: Vec<(usize, usize)> = self
+            .used
+            .iter()
+            .map(|&i| {
+                (
+                    self.layout.channel_map[(i / nl) % n_rch],
+                    self.layout.excitation_map[i / (nl * n_rch)],
+                )
+            })
+            .collect();
+        let mut rows = vec![None; if base { self.n_base() } else { 0 }];
+        for a in active {
+            let reach = self.cands[a.c]
+                .effect
+                .parameter_reach(&self.layout.spec_geometry);
+            for &j in &a.kept {
+                rows.push(match reach.get(j) {
+                    None | Some(Reach::Any) => None,
+                    Some(r) => Some(
+                        cells
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, &(c, e))| r.reaches(c, e))
+                            .flat_map(|(k, _)| [2 * k, 2 * k + 1])
+                            .collect(),
+                    ),
+                });
+            }
+        }
+        lm::Columns::grouped(rows, 2 * self.used.len())
+    }
+
     pub(super) fn fit(
         &self,
         stage: &str,
@@ -176,7 +216,8 @@ impl<'a> Problem<'a> {
     ) -> Result<Fit, CheckError> {
         let f = |t: &[f64]| self.residual(t, active);
         let b = self.bounds(active);
-        let mut fit = lm::fit(stage, &f, theta0, &b, max_iter)?;
+        let columns = self.columns(active, true);
+        let mut fit = lm::fit_grouped(stage, &f, theta0, &b, max_iter, &columns)?;
         self.zero_fixed(&mut fit.jacobian);
         Ok(fit)
     }

@@ -383,7 +383,9 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
         t.extend_from_slice(phi);
         p.residual(&t, &act)
     };
-    let jc = lm::jacobian(&f, &cand.neutral, &cand.scales, &cur.residual)?;
+    let columns = p.columns(&act[act.len() - 1..], false);
+    let jc =
+        lm::jacobian_grouped_against(&f, &cand.neutral, &cand.scales, &cur.residual, &columns)?;
     // A column whose typical step moves the residual by less than NO_SIGNATURE of the
     // data's norm is rounding, not a signature: normalised, it would count as a
     // direction (the tilt of cords without gravity stiffness, 2e-4 noise units per

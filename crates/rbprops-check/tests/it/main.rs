@@ -13,4 +13,5 @@ mod independent_cords;
 mod independent_nulls;
 mod independent_physics;
 mod pipeline;
+mod reach;
 mod studies;

@@ -76,6 +76,10 @@ impl Effect for ChannelGain {
         }
         Ok(())
     }
+    /// A gain reaches its channel's FRFs (its output row).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::channel_reach(self.gains.keys(), 1, geometry, |c| &c.id)
+    }
 }
 
 /// `excitation_gain`: force calibration errors, the force of excitation e is `g_e` times what was recorded.
@@ -123,6 +127,10 @@ impl Effect for ExcitationGain {
             }
         }
         Ok(())
+    }
+    /// A gain reaches its excitation's FRFs (its input column).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::excitation_reach(self.gains.keys(), 1, geometry)
     }
 }
 

@@ -117,6 +117,19 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     }
     /// Changes the computed FRFs of one excitation, as a per-line, per-channel gain.
     fn transform_output(&self, _block: &mut OutputBlock) {}
+    /// Which FRFs each parameter ([`Self::values`] order) can change, for fitters that
+    /// perturb parameters reaching disjoint FRFs in one evaluation. A declaration other
+    /// than [`Reach::Any`] must hold whatever the other effects: it does for a parameter
+    /// that acts only through what the simulator keeps per channel and excitation, the
+    /// output row of channel c or the input of excitation e (every effect reads and
+    /// writes rows and inputs one by one, and each input is solved on its own), a
+    /// per-channel gain of [`Self::transform_output`] or an extra mode's
+    /// `at_channels[c]` for a mode whose `at_excitations` is zero but at e (each FRF
+    /// `H_ce` is assembled from its own channel's and excitation's terms). Default:
+    /// every parameter `Any`.
+    fn parameter_reach(&self, _geometry: &Geometry) -> Vec<Reach> {
+        vec![Reach::Any; self.values().len()]
+    }
     /// The effect as the truth records it: its id and parameters.
     fn record(&self) -> EffectRecord {
         EffectRecord {
@@ -124,6 +137,76 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
             parameters: self.parameters_json(),
         }
     }
+}
+
+/// The FRFs one effect parameter can change ([`Effect::parameter_reach`]); channel and
+/// excitation indices are those of the geometry the effect is built with.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Reach {
+    /// Any FRF (nothing narrower declared).
+    Any,
+    /// The FRFs of some channels, every excitation.
+    Channels(Vec<usize>),
+    /// The FRFs of one excitation, every channel.
+    Excitation(usize),
+    /// The one FRF of a channel and an excitation.
+    Cell {
+        /// Channel index.
+        channel: usize,
+        /// Excitation index.
+        excitation: usize,
+    },
+}
+
+impl Reach {
+    /// Whether the FRF of channel `c` and excitation `e` is reached.
+    pub fn reaches(&self, c: usize, e: usize) -> bool {
+        match *self {
+            Reach::Any => true,
+            Reach::Channels(ref chs) => chs.contains(&c),
+            Reach::Excitation(ex) => ex == e,
+            Reach::Cell {
+                channel,
+                excitation,
+            } => channel == c && excitation == e,
+        }
+    }
+}
+
+/// The reach of a map's parameters, `per` values per key in key order: the channels
+/// whose `key` (their id, their sensor point) is that key.
+pub(crate) fn channel_reach<'a>(
+    keys: impl Iterator<Item = &'a String>,
+    per: usize,
+    geometry: &Geometry,
+    key: impl Fn(&rbprops_core::geometry::Channel) -> &str,
+) -> Vec<Reach> {
+    keys.flat_map(|k| {
+        let channels: Vec<usize> = (0..geometry.channels.len())
+            .filter(|&c| key(&geometry.channels[c]) == k)
+            .collect();
+        std::iter::repeat_n(Reach::Channels(channels), per)
+    })
+    .collect()
+}
+
+/// The reach of a map's parameters keyed by excitation id, `per` values per key in key
+/// order: that excitation's FRFs (its input column, attached mass and stiffness: each
+/// input is solved on its own).
+pub(crate) fn excitation_reach<'a>(
+    keys: impl Iterator<Item = &'a String>,
+    per: usize,
+    geometry: &Geometry,
+) -> Vec<Reach> {
+    keys.flat_map(|k| {
+        let mut at = (0..geometry.excitations.len()).filter(|&e| &geometry.excitations[e].id == k);
+        let reach = match (at.next(), at.next()) {
+            (Some(e), None) => Reach::Excitation(e),
+            _ => Reach::Any,
+        };
+        std::iter::repeat_n(reach, per)
+    })
+    .collect()
 }
 
 /// What the model check starts an effect's screening from (docs/physics.md, M5).

@@ -74,6 +74,10 @@ impl Effect for SensorMisorientation {
         }
         Ok(())
     }
+    /// A sensor's rotation reaches its channels' FRFs (their output rows).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::channel_reach(self.rotations_rad.keys(), 3, geometry, |c| &c.point)
+    }
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).

@@ -99,6 +99,10 @@ impl Effect for SensorPosition {
         }
         Ok(())
     }
+    /// A sensor's offset reaches its channels' FRFs (their output rows).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::channel_reach(self.offsets_m.keys(), 3, geometry, |c| &c.point)
+    }
 }
 
 /// `force_direction`: forces along rotated directions.
@@ -149,6 +153,10 @@ impl Effect for ForceDirection {
         }
         Ok(())
     }
+    /// An excitation's rotation reaches its FRFs (its input column).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::excitation_reach(self.rotations_rad.keys(), 3, geometry)
+    }
 }
 
 /// `force_location`: forces applied away from their nominal points.
@@ -196,6 +204,10 @@ impl Effect for ForceLocation {
             }
         }
         Ok(())
+    }
+    /// An excitation's offset reaches its FRFs (its input column).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::excitation_reach(self.offsets_m.keys(), 3, geometry)
     }
 }
 
@@ -245,6 +257,10 @@ impl Effect for ForceGaugeMass {
             }
         }
         Ok(())
+    }
+    /// A gauge's mass reaches its excitation's FRFs (the input's attached mass).
+    fn parameter_reach(&self, geometry: &rbprops_core::Geometry) -> Vec<super::Reach> {
+        super::excitation_reach(self.masses_kg.keys(), 1, geometry)
     }
 }
 
