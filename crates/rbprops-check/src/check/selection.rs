@@ -396,8 +396,8 @@ impl<'p, 'a> Selection<'p, 'a> {
                 .collect();
             let mut act = act.to_vec();
             act.last_mut().expect("the refitted effect").kept = kept.clone();
-            let alpha: Vec<f64> = kept.iter().map(|&j| phi[j]).collect();
-            restarts.push((pr.start(self.p, &act, &self.cur.theta, &alpha), kept));
+            // The prior has φ for `c`, so `start` takes it, not the fallback start.
+            restarts.push((pr.start(self.p, &act, &self.cur.theta, &s.start), kept));
         }
         restarts
     }
