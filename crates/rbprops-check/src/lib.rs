@@ -63,7 +63,8 @@
 //! rerun with it if that moves χ²/ν out of its band ([`noise::estimate_from_residual`]).
 //!
 //! Not implemented (see the report's `method` field): bootstrap calibration of the
-//! screening threshold, line-to-line noise correlation (κ = 1 assumed).
+//! screening threshold; noise correlated from line to line (windowed time histories)
+//! is detected and reported ([`correlation`]), not modelled.
 //!
 //! ```no_run
 //! # fn demo(spec: &rbprops_sim::CampaignSpec, g: &rbprops_core::Geometry, frf: &rbprops_core::FrfSet) {
@@ -76,6 +77,7 @@
 
 pub mod candidates;
 pub mod check;
+pub mod correlation;
 pub mod cv;
 pub mod error;
 pub mod lm;

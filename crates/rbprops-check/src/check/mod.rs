@@ -290,7 +290,7 @@ fn method_text(options: &CheckOptions) -> Vec<String> {
         None => String::new(),
     };
     vec![
-        format!("noise: {noise}; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; line-to-line correlation κ = 1 assumed"),
+        format!("noise: {noise}; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; lines independent (a correlation from line to line is tested for and reported, not modelled)"),
         format!("baseline: Levenberg–Marquardt (at most {} iterations) on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model{mass}", options.max_iterations),
         format!("screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{{d,1−α/N}} with α = {}{}", options.alpha, match &options.only {
             Some(only) => format!("; candidates restricted to {}", only.join(", ")),
@@ -379,6 +379,11 @@ fn weights(
             "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
         ));
     }
+    if let Some(w) = correlated_noise(y, &noise_model, &sigma, nex * nch, nl) {
+        // Said at once: on such a recording the selection can run long.
+        options.progress.say(|| format!("warning: {w}"));
+        warnings.push(w);
+    }
     let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
     let n_excluded = y.len() - used.len() - n_dc;
     if n_excluded > 0 {
@@ -390,6 +395,33 @@ fn weights(
         sigma_precision,
         used,
     })
+}
+
+/// The warning of noise correlated from line to line ([`crate::correlation`]), tested
+/// where the fitted noise (a, b) is most of σ² on most values: an exact or quantised
+/// recording's local-polynomial residual is the FRF's own curvature and rounding.
+fn correlated_noise(
+    y: &[c64],
+    noise: &RecordingNoise,
+    sigma: &[f64],
+    n_frf: usize,
+    nl: usize,
+) -> Option<String> {
+    let n_ch = noise.relative.len();
+    let (mut fitted, mut total) = (0usize, 0usize);
+    for (i, s) in sigma.iter().enumerate() {
+        if *s > 0.0 {
+            total += 1;
+            let nm = noise.channel((i / nl) % n_ch);
+            fitted += usize::from(nm.variance(y[i]) >= 0.5 * s * s);
+        }
+    }
+    if 2 * fitted <= total {
+        return None;
+    }
+    crate::correlation::detect(y, sigma, n_frf, nl)
+        .filter(|d| d.detected())
+        .map(|d| d.describe())
 }
 
 /// The spec's own effects and, as side information, the known sensor masses (a fixed
