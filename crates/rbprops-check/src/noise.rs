@@ -160,6 +160,40 @@ struct LineFit {
     qbar: f64,
 }
 
+/// The local polynomial's hat matrix P over its window of 2R+1 lines: projection onto
+/// quartics on the abscissae −R..R (uniform lines).
+pub(crate) fn hat_matrix() -> nalgebra::DMatrix<f64> {
+    let w = 2 * HALF_WIDTH + 1;
+    let v = nalgebra::DMatrix::from_fn(w, DEGREE + 1, |i, j| {
+        ((i as f64 - HALF_WIDTH as f64) / HALF_WIDTH as f64).powi(j as i32)
+    });
+    &v * (v.transpose() * &v)
+        .try_inverse()
+        .expect("Vandermonde of 11 distinct points")
+        * v.transpose()
+}
+
+/// The factor by which the estimate reads σ² when the noise has the correlation `r`
+/// between the lines of a window (R_ab = E[ε_a ε̄_b]/σ², Hermitian): σ̂² = SSR/(w−d−1)
+/// with SSR = Σ_j λ_j |z_j|² (λ the eigenvalues of M R M, M = I − P, z independent unit
+/// circular normals), approximated by the gamma law of the same mean Σλ and variance
+/// Σλ² (Satterthwaite), whose LEVEL-quantile over the reference quantile of
+/// χ²₁₂/12 is the factor. 1 for independent lines (R = I: λ = six ones).
+pub(crate) fn correlated_level(r: &nalgebra::DMatrix<num_complex::Complex<f64>>) -> f64 {
+    let m = nalgebra::DMatrix::identity(r.nrows(), r.ncols()) - hat_matrix();
+    let m = m.map(|v| num_complex::Complex::new(v, 0.0));
+    let a = &m * r * &m;
+    let s1: f64 = (0..a.nrows()).map(|i| a[(i, i)].re).sum();
+    let s2 = a.norm_squared();
+    let (shape, scale) = (s1 * s1 / s2, s2 / s1);
+    let dof = (2 * HALF_WIDTH - DEGREE) as f64;
+    // quantile of Σλ|z|² ≈ scale·χ²_{2·shape}/2, of σ̂² that over dof; reference χ²₁₂/12.
+    scale * rbprops_core::stats::chi2_quantile(LEVEL, 2.0 * shape)
+        / 2.0
+        / dof
+        / reference_quantile()
+}
+
 /// Local polynomial fit at each line of `res`. h̄ is the magnitude the window's residual
 /// variance refers to: E[SSR] = Σ_j (1 − P_jj) σ_j² for a hat matrix P, so with
 /// σ_j² = a²|H_j|² + b² + q_j, E[σ̂²] = a² h̄ + b² + q̄ even where |H| changes across the
@@ -169,16 +203,7 @@ struct LineFit {
 fn local_fits(res: &[c64], refr: &[c64], q: &[f64]) -> Vec<LineFit> {
     let n = res.len();
     let w = 2 * HALF_WIDTH + 1;
-    // Projection onto quartics on abscissae −R..R (uniform lines), as the hat matrix.
-    let xs: Vec<f64> = (0..w).map(|i| i as f64 - HALF_WIDTH as f64).collect();
-    let v = nalgebra::DMatrix::from_fn(w, DEGREE + 1, |i, j| {
-        (xs[i] / HALF_WIDTH as f64).powi(j as i32)
-    });
-    let hat = &v
-        * (v.transpose() * &v)
-            .try_inverse()
-            .expect("Vandermonde of 11 distinct points")
-        * v.transpose();
+    let hat = hat_matrix();
     let dof = (w - DEGREE - 1) as f64;
     let mut out = Vec::with_capacity(n);
     for k in 0..n {

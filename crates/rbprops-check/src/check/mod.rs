@@ -5,6 +5,7 @@
 //! the report's `method` field.
 
 use crate::candidates::{candidates, local_effect, Candidate, Screening};
+use crate::correlation::LineCorrelation;
 use crate::error::CheckError;
 use crate::lm::{self, Bounds, Fit};
 use crate::locate::{bands, residual_map};
@@ -138,6 +139,8 @@ pub struct CheckOutcome {
     pub sigma: Vec<f64>,
     /// The final model's parameters, a start for the noise rerun of [`check`].
     prior: Prior,
+    /// Noise correlated from line to line, as found in this pass, if any.
+    correlation: Option<LineCorrelation>,
 }
 
 /// Runs the model check of a recording (`geometry`, `frf`) against a nominal spec.
@@ -161,13 +164,36 @@ pub fn check(
     // the curvature the local polynomial cannot follow on data without noise (a
     // recording in single precision is then weighed by its quantisation alone).
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
-    let nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
+    let mut nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
+    // A line correlation found in the data is estimated again from the final residual,
+    // which no longer holds the FRF's structure; the residual's noise estimate reads it
+    // low as the data's does.
+    let correlation = first.correlation.as_ref().map(|c| {
+        let residual: Vec<c64> = first
+            .measured
+            .iter()
+            .zip(&first.improved)
+            .map(|(y, m)| y - m)
+            .collect();
+        crate::correlation::detect(&residual, &first.sigma, nex * nch, nl)
+            .filter(|d| d.detected())
+            .unwrap_or_else(|| c.clone())
+    });
+    let inflation = correlation.as_ref().and_then(|c| c.inflation());
+    let kappa = inflation.map_or(1.0, |inf| {
+        // The level from the residual's mean square, which reads σ² whatever the
+        // correlation (the local polynomial's L depends on c, known to ±10 %: ±20 % in σ²),
+        // then κ for the smooth signatures.
+        let s2 = mean_square(&first.measured, &first.improved, &nf.sigma);
+        scale_noise(&mut nf.model, &mut nf.sigma, (s2 * inf.kappa).sqrt());
+        inf.kappa
+    });
     // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
     // (χ²/ν · ρ), moves by more than the half-width of that noise's band on its side
     // (see `noise_band`): only then can it change the verdict.
     let rho = chi2_ratio(&first, &nf.sigma);
     let [lo, hi] = rbprops_core::stats::chi2_nu_band(
-        first.report.nu_after,
+        first.report.nu_after / kappa,
         nf.model.variance_scale_se,
         rbprops_core::stats::BAND_TAIL,
     );
@@ -197,7 +223,7 @@ pub fn check(
         geometry,
         frf,
         options,
-        Some((nf.model, nf.sigma)),
+        Some((nf.model, nf.sigma, correlation)),
         Some(&first.prior),
     )?;
     second.report.method.push(format!(
@@ -248,7 +274,12 @@ fn restate_in_residual_noise(o: &mut CheckOutcome, nf: noise::NoiseFloor) {
     r.chi2_nu_after *= ratios[0];
     r.chi2_nu_before *= ratios[1];
     r.chi2_nu_nominal *= ratios[2];
-    r.noise_band = noise_band(r.nu_after, nf.model.variance_scale_se);
+    let kappa = o
+        .correlation
+        .as_ref()
+        .and_then(|c| c.inflation())
+        .map_or(1.0, |i| i.kappa);
+    r.noise_band = noise_band(r.nu_after / kappa, nf.model.variance_scale_se);
     r.noise_floor_reached = at_noise_floor(
         r.chi2_nu_after,
         r.noise_band,
@@ -317,6 +348,7 @@ struct Weights {
     sigma: Vec<f64>,
     sigma_precision: Vec<f64>,
     used: Vec<usize>,
+    correlation: Option<LineCorrelation>,
 }
 
 /// Stage 0: the noise floor (given, overridden by the second pass, or estimated from
@@ -325,15 +357,20 @@ struct Weights {
 fn weights(
     frf: &FrfSet,
     options: &CheckOptions,
-    noise_override: Option<(RecordingNoise, Vec<f64>)>,
+    noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
     method: &mut Vec<String>,
     warnings: &mut Vec<String>,
 ) -> Result<Weights, CheckError> {
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
     // Stage 0: noise floor, with the precision floor of the data's storage format.
+    let source = (noise_override.is_some(), options.noise.is_some());
+    let mut rerun_correlation = None;
     let (noise_model, sigma) = match (noise_override, &options.noise) {
-        (Some(given), _) => given,
+        (Some((model, sigma, correlation)), _) => {
+            rerun_correlation = Some(correlation);
+            (model, sigma)
+        }
         (None, Some(m)) => {
             if m.relative.len() != nch || m.floor.len() != nch {
                 return Err(CheckError::Noise(format!(
@@ -379,10 +416,38 @@ fn weights(
             "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
         ));
     }
-    if let Some(w) = correlated_noise(y, &noise_model, &sigma, nex * nch, nl) {
-        // Said at once: on such a recording the selection can run long.
+    let mut noise_model = noise_model;
+    // The second pass takes the correlation the first found in its residual.
+    let found = match rerun_correlation {
+        Some(c) => c,
+        None => correlated_noise(y, &noise_model, &sigma, nex * nch, nl),
+    };
+    let inflation = found.as_ref().and_then(|d| d.inflation());
+    if let Some(d) = &found {
+        let w = d.describe(line_spacing(frf));
+        // Said at once: without a calibrated weighting the selection can run long.
         options.progress.say(|| format!("warning: {w}"));
         warnings.push(w);
+    }
+    if let Some(inf) = &inflation {
+        // From the data σ² is read low by L and smooth signatures vary κ times more; a
+        // given σ is right per line; the second pass's is already scaled.
+        let how = match source {
+            (true, _) => format!("σ from the first pass's residual, its level that residual's mean square (distribution-free), times √κ = {:.3}", inf.kappa.sqrt()),
+            (false, true) => format!("the given σ times √κ = {:.3}", inf.kappa.sqrt()),
+            (false, false) => format!("the data-only σ times √(κ/L) = {:.3}", (inf.kappa / inf.level).sqrt()),
+        };
+        match source {
+            (true, _) => {}
+            (false, true) => scale_noise(&mut noise_model, &mut sigma, inf.kappa.sqrt()),
+            (false, false) => {
+                scale_noise(&mut noise_model, &mut sigma, (inf.kappa / inf.level).sqrt())
+            }
+        }
+        method.push(format!(
+            "noise correlated from line to line as by an exponential window (c = {:.3}, κ = {:.3}, L = {:.3}): {how}; χ²/ν stated per line (×κ) with a band of ν/κ lines",
+            inf.c, inf.kappa, inf.level
+        ));
     }
     let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
     let n_excluded = y.len() - used.len() - n_dc;
@@ -394,19 +459,20 @@ fn weights(
         sigma,
         sigma_precision,
         used,
+        correlation: found,
     })
 }
 
-/// The warning of noise correlated from line to line ([`crate::correlation`]), tested
-/// where the fitted noise (a, b) is most of σ² on most values: an exact or quantised
-/// recording's local-polynomial residual is the FRF's own curvature and rounding.
+/// Noise correlated from line to line ([`crate::correlation`]), tested where the fitted
+/// noise (a, b) is most of σ² on most values: an exact or quantised recording's
+/// local-polynomial residual is the FRF's own curvature and rounding.
 fn correlated_noise(
     y: &[c64],
     noise: &RecordingNoise,
     sigma: &[f64],
     n_frf: usize,
     nl: usize,
-) -> Option<String> {
+) -> Option<crate::correlation::LineCorrelation> {
     let n_ch = noise.relative.len();
     let (mut fitted, mut total) = (0usize, 0usize);
     for (i, s) in sigma.iter().enumerate() {
@@ -419,9 +485,36 @@ fn correlated_noise(
     if 2 * fitted <= total {
         return None;
     }
-    crate::correlation::detect(y, sigma, n_frf, nl)
-        .filter(|d| d.detected())
-        .map(|d| d.describe())
+    crate::correlation::detect(y, sigma, n_frf, nl).filter(|d| d.detected())
+}
+
+/// Mean over the values with σ > 0 of |y − m|²/σ²: the residual's level in units of σ².
+fn mean_square(y: &[c64], m: &[c64], sigma: &[f64]) -> f64 {
+    let (mut s, mut n) = (0.0, 0usize);
+    for i in 0..y.len() {
+        if sigma[i] > 0.0 {
+            s += (y[i] - m[i]).norm_sqr() / (sigma[i] * sigma[i]);
+            n += 1;
+        }
+    }
+    s / n.max(1) as f64
+}
+
+/// Scales a noise model and its σ per value by `factor`.
+fn scale_noise(model: &mut RecordingNoise, sigma: &mut [f64], factor: f64) {
+    for v in model.relative.iter_mut().chain(model.floor.iter_mut()) {
+        *v *= factor;
+    }
+    for s in sigma.iter_mut() {
+        *s *= factor;
+    }
+}
+
+/// The median spacing of the recording's lines (Hz).
+fn line_spacing(frf: &FrfSet) -> f64 {
+    let mut d: Vec<f64> = frf.frequency_hz.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
 }
 
 /// The spec's own effects and, as side information, the known sensor masses (a fixed
@@ -462,7 +555,7 @@ fn check_with(
     geometry: &Geometry,
     frf: &FrfSet,
     options: &CheckOptions,
-    noise_override: Option<(RecordingNoise, Vec<f64>)>,
+    noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
     prior: Option<&Prior>,
 ) -> Result<CheckOutcome, CheckError> {
     frf.validate()
@@ -477,6 +570,7 @@ fn check_with(
         sigma,
         sigma_precision,
         used,
+        correlation,
     } = weights(frf, options, noise_override, &mut method, &mut warnings)?;
     let fixed_effects = fixed_effects(spec, &layout, options)?;
     warnings.extend(crate::candidates::free_direction_note(
@@ -568,6 +662,7 @@ fn check_with(
         theta_nom: &theta_nom,
         chi2_nominal,
         free_base,
+        inflation: correlation.as_ref().and_then(|c| c.inflation()),
     };
     let (report, improved_spec, prior, final_pred, base_pred) =
         fin.report(sel, warnings, method)?;
@@ -581,6 +676,7 @@ fn check_with(
         improved: final_pred,
         sigma,
         layout,
+        correlation,
     })
 }
 

@@ -257,6 +257,9 @@ pub(super) struct Finish<'p, 'a> {
     pub(super) theta_nom: &'p [f64],
     pub(super) chi2_nominal: f64,
     pub(super) free_base: usize,
+    /// The weighting for noise correlated from line to line: χ²/ν is stated per line
+    /// (×κ) with a band of ν/κ effective lines ([`crate::correlation`]).
+    pub(super) inflation: Option<crate::correlation::Inflation>,
 }
 
 /// The report, the improved spec, the final model (the second pass's prior), and the
@@ -319,8 +322,9 @@ impl<'p, 'a> Finish<'p, 'a> {
         let residuals_before = residual_map(layout, y, &base_pred, sigma, bnds.clone());
         let residuals_after = residual_map(layout, y, &final_pred, sigma, bnds);
         let noise_model = self.noise_model;
-        let band = noise_band(nu_after, noise_model.variance_scale_se);
-        let chi2_nu_after = cur.chi2 / nu_after;
+        let kappa = self.inflation.map_or(1.0, |i| i.kappa);
+        let band = noise_band(nu_after / kappa, noise_model.variance_scale_se);
+        let chi2_nu_after = kappa * cur.chi2 / nu_after;
         let noise_floor_reached =
             at_noise_floor(chi2_nu_after, band, &noise_model, &residuals_after.flagged);
         let mut report = ModelCheckReport {
@@ -329,8 +333,8 @@ impl<'p, 'a> Finish<'p, 'a> {
             accepted,
             ambiguous,
             not_observable,
-            chi2_nu_nominal: self.chi2_nominal / n_real,
-            chi2_nu_before: base.chi2 / nu_base,
+            chi2_nu_nominal: kappa * self.chi2_nominal / n_real,
+            chi2_nu_before: kappa * base.chi2 / nu_base,
             chi2_nu_after,
             nu_before: nu_base,
             nu_after,
