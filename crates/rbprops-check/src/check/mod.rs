@@ -168,6 +168,7 @@ pub fn check(
     // A line correlation found in the data is estimated again from the final residual,
     // which no longer holds the FRF's structure; the residual's noise estimate reads it
     // low as the data's does.
+    let decay = window_decay(&first.improved_spec);
     let correlation = first.correlation.as_ref().map(|c| {
         let residual: Vec<c64> = first
             .measured
@@ -178,14 +179,16 @@ pub fn check(
         crate::correlation::detect(&residual, &first.sigma, nex * nch, nl)
             .filter(|d| d.detected())
             .unwrap_or_else(|| c.clone())
+            .with_window_decay(decay, line_spacing(frf))
     });
     let inflation = correlation.as_ref().and_then(|c| c.inflation());
     let kappa = inflation.map_or(1.0, |inf| {
-        // The level from the residual's mean square, which reads σ² whatever the
-        // correlation (the local polynomial's L depends on c, known to ±10 %: ±20 % in σ²),
-        // then κ for the smooth signatures.
-        let s2 = mean_square(&first.measured, &first.improved, &nf.sigma);
-        scale_noise(&mut nf.model, &mut nf.sigma, (s2 * inf.kappa).sqrt());
+        // The level from the median of |r|²/σ² over the values: each residual value is
+        // circular normal whatever the correlation between lines (|r|²/σ² exponential,
+        // median ln 2), where the local polynomial reads σ² low by L(c), steep in c;
+        // the median ignores misfit left at up to half the values. Then κ.
+        let level = median_level(&first.measured, &first.improved, &nf.sigma);
+        scale_noise(&mut nf.model, &mut nf.sigma, (level * inf.kappa).sqrt());
         inf.kappa
     });
     // The rerun is needed when the final χ²/ν, re-expressed in the re-estimated noise
@@ -355,6 +358,7 @@ struct Weights {
 /// the data), with the precision floor of the data's storage format; the 0 Hz line and
 /// values without noise information are left out.
 fn weights(
+    spec: &CampaignSpec,
     frf: &FrfSet,
     options: &CheckOptions,
     noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
@@ -420,7 +424,8 @@ fn weights(
     // The second pass takes the correlation the first found in its residual.
     let found = match rerun_correlation {
         Some(c) => c,
-        None => correlated_noise(y, &noise_model, &sigma, nex * nch, nl),
+        None => correlated_noise(y, &noise_model, &sigma, nex * nch, nl)
+            .map(|c| c.with_window_decay(window_decay(spec), line_spacing(frf))),
     };
     let inflation = found.as_ref().and_then(|d| d.inflation());
     if let Some(d) = &found {
@@ -433,9 +438,15 @@ fn weights(
         // From the data σ² is read low by L and smooth signatures vary κ times more; a
         // given σ is right per line; the second pass's is already scaled.
         let how = match source {
-            (true, _) => format!("σ from the first pass's residual, its level that residual's mean square (distribution-free), times √κ = {:.3}", inf.kappa.sqrt()),
+            (true, _) => format!(
+                "σ from the first pass's residual times √(κ/L) = {:.3}",
+                (inf.kappa / inf.level).sqrt()
+            ),
             (false, true) => format!("the given σ times √κ = {:.3}", inf.kappa.sqrt()),
-            (false, false) => format!("the data-only σ times √(κ/L) = {:.3}", (inf.kappa / inf.level).sqrt()),
+            (false, false) => format!(
+                "the data-only σ times √(κ/L) = {:.3}",
+                (inf.kappa / inf.level).sqrt()
+            ),
         };
         match source {
             (true, _) => {}
@@ -488,16 +499,29 @@ fn correlated_noise(
     crate::correlation::detect(y, sigma, n_frf, nl).filter(|d| d.detected())
 }
 
-/// Mean over the values with σ > 0 of |y − m|²/σ²: the residual's level in units of σ².
-fn mean_square(y: &[c64], m: &[c64], sigma: &[f64]) -> f64 {
-    let (mut s, mut n) = (0.0, 0usize);
-    for i in 0..y.len() {
-        if sigma[i] > 0.0 {
-            s += (y[i] - m[i]).norm_sqr() / (sigma[i] * sigma[i]);
-            n += 1;
-        }
+/// The decay rate of the exponential window in `spec`'s effects (nominal, or accepted
+/// by a check), if any.
+fn window_decay(spec: &CampaignSpec) -> Option<f64> {
+    spec.effects
+        .iter()
+        .find(|e| e.id == "exponential_window")
+        .and_then(|e| e.parameters.get("decay_per_s"))
+        .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+}
+
+/// The median over the values with σ > 0 of |y − m|²/σ², over ln 2: the residual's
+/// variance in units of σ² when it is circular normal (|r|²/σ² then exponential).
+fn median_level(y: &[c64], m: &[c64], sigma: &[f64]) -> f64 {
+    let mut v: Vec<f64> = (0..y.len())
+        .filter(|&i| sigma[i] > 0.0)
+        .map(|i| (y[i] - m[i]).norm_sqr() / (sigma[i] * sigma[i]))
+        .collect();
+    if v.is_empty() {
+        return 1.0;
     }
-    s / n.max(1) as f64
+    let k = v.len() / 2;
+    let (_, med, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *med / std::f64::consts::LN_2
 }
 
 /// Scales a noise model and its σ per value by `factor`.
@@ -571,7 +595,14 @@ fn check_with(
         sigma_precision,
         used,
         correlation,
-    } = weights(frf, options, noise_override, &mut method, &mut warnings)?;
+    } = weights(
+        spec,
+        frf,
+        options,
+        noise_override,
+        &mut method,
+        &mut warnings,
+    )?;
     let fixed_effects = fixed_effects(spec, &layout, options)?;
     warnings.extend(crate::candidates::free_direction_note(
         spec,
