@@ -33,7 +33,8 @@
 //! removed from the refit by holding one coordinate per gauge at its neutral value.
 //! An effect is also claimed only when it is practically significant: its fitted change
 //! to the FRFs is at least [`check::PRACTICAL_MARGIN`] = 10 times the precision floor
-//! (RMS over the values), so rounding is never claimed as physics.
+//! (RMS over the values), so rounding is never claimed as physics, and it changes some
+//! FRF by at least [`check::RESOLUTION`] = 1e-4 relative, what a calibration resolves.
 //! The noise floor is reached when χ²/ν_after lies in the central 99.73 % interval of
 //! its distribution under the noise model — χ²_ν/ν with given noise, F(ν, 2/se²) with
 //! the noise variance estimated to a relative standard error se — its upper end at

@@ -27,7 +27,7 @@ mod screening;
 mod selection;
 mod verdict;
 
-pub use acceptance::PRACTICAL_MARGIN;
+pub use acceptance::{PRACTICAL_MARGIN, RESOLUTION};
 pub use verdict::{noise_band, verdict, MIN_BAND_UPPER};
 
 use acceptance::*;
@@ -169,17 +169,25 @@ pub fn check(
     // which no longer holds the FRF's structure; the residual's noise estimate reads it
     // low as the data's does.
     let decay = window_decay(&first.improved_spec);
-    let correlation = first.correlation.as_ref().map(|c| {
+    // Found again in the final residual, with its noise model (which no longer reads the
+    // FRF's own curvature as noise: on exact data the data's local residual is that
+    // curvature, smooth, and reads as correlated).
+    let correlation = first.correlation.as_ref().and_then(|_| {
         let residual: Vec<c64> = first
             .measured
             .iter()
             .zip(&first.improved)
             .map(|(y, m)| y - m)
             .collect();
-        crate::correlation::detect(&residual, &first.sigma, nex * nch, nl)
-            .filter(|d| d.detected())
-            .unwrap_or_else(|| c.clone())
-            .with_window_decay(decay, line_spacing(frf))
+        correlated_noise(
+            &first.improved,
+            &residual,
+            &nf.model,
+            &nf.sigma,
+            nex * nch,
+            nl,
+        )
+        .map(|c| c.with_window_decay(decay, line_spacing(frf)))
     });
     let inflation = correlation.as_ref().and_then(|c| c.inflation());
     let kappa = inflation.map_or(1.0, |inf| {
@@ -331,7 +339,7 @@ fn method_text(options: &CheckOptions) -> Vec<String> {
             None => String::new(),
         }),
         format!(
-            "acceptance (the {} strongest significant candidates refitted per step, at most {} steps): likelihood ratio > χ²_{{d,1−α/N}} (Bonferroni), ΔBIC > {}, Wald χ² > χ²_{{d,{}}}, parameters not pinned at a bound, {held_out}distinct from rivals (canonical correlation ≤ {} or ΔBIC margin > {}), and practically significant: its fitted change to the FRFs at least {PRACTICAL_MARGIN} times the precision floor (RMS over the values); backward elimination after each acceptance",
+            "acceptance (the {} strongest significant candidates refitted per step, at most {} steps): likelihood ratio > χ²_{{d,1−α/N}} (Bonferroni), ΔBIC > {}, Wald χ² > χ²_{{d,{}}}, parameters not pinned at a bound, {held_out}distinct from rivals (canonical correlation ≤ {} or ΔBIC margin > {}), and practically significant: its fitted change to the FRFs at least {PRACTICAL_MARGIN} times the precision floor (RMS over the values) and at least {RESOLUTION:.0e} of some FRF (relative RMS: what a calibration resolves); backward elimination after each acceptance",
             options.refit_top,
             options.max_effects,
             options.min_delta_bic,
@@ -424,7 +432,7 @@ fn weights(
     // The second pass takes the correlation the first found in its residual.
     let found = match rerun_correlation {
         Some(c) => c,
-        None => correlated_noise(y, &noise_model, &sigma, nex * nch, nl)
+        None => correlated_noise(y, y, &noise_model, &sigma, nex * nch, nl)
             .map(|c| c.with_window_decay(window_decay(spec), line_spacing(frf))),
     };
     let inflation = found.as_ref().and_then(|d| d.inflation());
@@ -474,11 +482,14 @@ fn weights(
     })
 }
 
-/// Noise correlated from line to line ([`crate::correlation`]), tested where the fitted
-/// noise (a, b) is most of σ² on most values: an exact or quantised recording's
-/// local-polynomial residual is the FRF's own curvature and rounding.
+/// Noise correlated from line to line ([`crate::correlation`]) in `series` (the
+/// recording, or a model's residual; `y` the magnitudes the noise model refers to),
+/// tested where the fitted noise (a, b) is most of σ² on most values: an exact or
+/// quantised recording's local-polynomial residual is the FRF's own curvature and
+/// rounding.
 fn correlated_noise(
     y: &[c64],
+    series: &[c64],
     noise: &RecordingNoise,
     sigma: &[f64],
     n_frf: usize,
@@ -496,7 +507,7 @@ fn correlated_noise(
     if 2 * fitted <= total {
         return None;
     }
-    crate::correlation::detect(y, sigma, n_frf, nl).filter(|d| d.detected())
+    crate::correlation::detect(series, sigma, n_frf, nl).filter(|d| d.detected())
 }
 
 /// The decay rate of the exponential window in `spec`'s effects (nominal, or accepted

@@ -241,6 +241,23 @@ impl<'a> Problem<'a> {
         2.0 * self.used.len() as f64
     }
 
+    /// The largest over the FRFs of ‖Ŷ₁ − Ŷ₀‖/‖Ŷ₀‖ over each FRF's values used: the
+    /// relative change a prediction makes to some FRF (see `RESOLUTION`).
+    pub(super) fn largest_relative_change(&self, m1: &[c64], m0: &[c64]) -> f64 {
+        let nl = self.layout.n_lines();
+        let mut by_frf: std::collections::BTreeMap<usize, (f64, f64)> = Default::default();
+        for &i in &self.used {
+            let e = by_frf.entry(i / nl).or_default();
+            e.0 += (m1[i] - m0[i]).norm_sqr();
+            e.1 += m0[i].norm_sqr();
+        }
+        by_frf
+            .values()
+            .filter(|(_, d)| *d > 0.0)
+            .map(|(n, d)| (n / d).sqrt())
+            .fold(0.0, f64::max)
+    }
+
     /// RMS over the values used of |Ŷ₁ − Ŷ₀|/σ_p: the change between two predictions in
     /// units of the precision floor `sigma_precision` (values with σ_p = 0, exact zeros
     /// of a model with no rounding to speak of, are left out).
