@@ -541,6 +541,61 @@ fn clamp(theta: &mut [f64], b: &Bounds) {
     }
 }
 
+/// Iterations of a refit after which its steps take geodesic acceleration (see
+/// [`fit_grouped`]): all other refits of the bench's recordings converge in 1 to 24.
+const ACCELERATE_AFTER: usize = 25;
+
+/// Largest ratio `2‖a‖/‖v‖` (D-norms, D the normal matrix's diagonal) of the geodesic
+/// acceleration `a` to the velocity `v` for which a step `v + a/2` is tried
+/// (Transtrum & Sethna 2012 recommend 0.75).
+const GEODESIC_RATIO: f64 = 0.75;
+
+/// `√(Σ d_i x_i²)`.
+fn scaled_norm(x: &DVector<f64>, d: &[f64]) -> f64 {
+    x.iter().zip(d).map(|(x, d)| d * x * x).sum::<f64>().sqrt()
+}
+
+/// The geodesic acceleration of a Levenberg–Marquardt step `v` (Transtrum & Sethna
+/// 2012, eq. 13–15): the residual's second directional derivative along v by a finite
+/// difference, `r_vv ≈ (2/h) ((r(θ + h v) − r(θ))/h − J v)` with h = 0.1, and `a` the
+/// damped normal equations' solution for it, `(JᵀJ + λD) a = −Jᵀ r_vv`, over the free
+/// parameters `free` (`ch` their factorisation). `None` when θ + h v cannot be
+/// evaluated.
+#[allow(clippy::too_many_arguments)]
+fn geodesic_acceleration(
+    f: &ResidualFn,
+    theta: &[f64],
+    r: &[f64],
+    jm: &DMatrix<f64>,
+    v: &DVector<f64>,
+    ch: &nalgebra::Cholesky<f64, nalgebra::Dyn>,
+    free: &[usize],
+    bounds: &Bounds,
+) -> Option<DVector<f64>> {
+    const H: f64 = 0.1;
+    let mut tp: Vec<f64> = theta.iter().zip(v.iter()).map(|(t, d)| t + H * d).collect();
+    clamp(&mut tp, bounds);
+    let rp = f(&tp).ok()?;
+    let jv = jm * v;
+    let rvv = DVector::from_iterator(
+        r.len(),
+        rp.iter()
+            .zip(r)
+            .zip(jv.iter())
+            .map(|((p, r), jv)| (2.0 / H) * ((p - r) / H - jv)),
+    );
+    let gv = jm.tr_mul(&rvv);
+    let af = ch.solve(&DVector::from_iterator(
+        free.len(),
+        free.iter().map(|&i| -gv[i]),
+    ));
+    let mut a = DVector::zeros(theta.len());
+    for (k, &i) in free.iter().enumerate() {
+        a[i] = af[k];
+    }
+    Some(a).filter(|a| a.iter().all(|x| x.is_finite()))
+}
+
 /// Levenberg–Marquardt from `theta0`.
 pub fn fit(
     stage: &str,
@@ -575,6 +630,15 @@ pub fn fit_grouped(
     } else {
         crate::prof::FIT_OTHER
     });
+    // A refit starts from a screening's point, often far from its optimum, and an
+    // effect's parameters can run off along a curved valley towards a limit (an
+    // elastic mode leaving the band with residues growing as its frequency squared, so
+    // that it becomes a residual flexibility): there straight Gauss–Newton steps
+    // overshoot and the fit crawls (71 iterations of 1e-4 relative each). A refit still
+    // descending after `ACCELERATE_AFTER` iterations follows the valley's bend by
+    // geodesic acceleration (Transtrum & Sethna 2012) from then on; shorter fits take
+    // the plain steps, unchanged.
+    let refit = stage.starts_with("refit");
     let mut theta = theta0.to_vec();
     clamp(&mut theta, bounds);
     let mut r = f(&theta).map_err(|e| CheckError::Fit {
@@ -595,6 +659,7 @@ pub fn fit_grouped(
         let g = jm.tr_mul(&DVector::from_column_slice(&r));
         drop(algebra);
         let dmax = a.diagonal().max().max(f64::MIN_POSITIVE);
+        let a_diag: Vec<f64> = a.diagonal().iter().map(|d| d.max(1e-12 * dmax)).collect();
         let mut improved = false;
         while lambda < 1e12 {
             let mut m = a.clone();
@@ -606,6 +671,8 @@ pub fn fit_grouped(
             let mut frozen = vec![false; theta.len()];
             let mut delta = DVector::zeros(theta.len());
             let mut solved = false;
+            // The factorisation of the free parameters' damped normal matrix.
+            let mut factor = None;
             for _ in 0..=theta.len() {
                 let free: Vec<usize> = (0..theta.len()).filter(|&i| !frozen[i]).collect();
                 let mf = DMatrix::from_fn(free.len(), free.len(), |r, c| m[(free[r], free[c])]);
@@ -614,6 +681,7 @@ pub fn fit_grouped(
                     break;
                 };
                 let df = ch.solve(&gf);
+                factor = Some((ch, free.clone()));
                 delta.fill(0.0);
                 for (k, &i) in free.iter().enumerate() {
                     delta[i] = df[k];
@@ -635,6 +703,22 @@ pub fn fit_grouped(
             if !solved {
                 lambda *= 10.0;
                 continue;
+            }
+            if refit && it > ACCELERATE_AFTER {
+                let (ch, free) = factor.as_ref().expect("solved");
+                match geodesic_acceleration(f, &theta, &r, &jm, &delta, ch, free, bounds) {
+                    Some(a)
+                        if 2.0 * scaled_norm(&a, &a_diag)
+                            <= GEODESIC_RATIO * scaled_norm(&delta, &a_diag) =>
+                    {
+                        delta += 0.5 * a;
+                    }
+                    // The path bends faster than the step could follow: a shorter step.
+                    _ => {
+                        lambda *= 10.0;
+                        continue;
+                    }
+                }
             }
             let mut t2: Vec<f64> = theta.iter().zip(delta.iter()).map(|(t, d)| t + d).collect();
             clamp(&mut t2, bounds);
@@ -921,6 +1005,54 @@ mod tests {
             );
         }
         assert!(got[(0, 1)].is_nan());
+    }
+
+    /// A pole fitted to a smooth term runs off towards infinity with its residue growing
+    /// as its frequency squared (`A/(w² − x²) → A/w²`): the plain steps crawl along that
+    /// curved valley, the refit's take geodesic acceleration after `ACCELERATE_AFTER`
+    /// iterations and get further in the same budget (χ² 2.3e-6 against 1.0e-5 after 50
+    /// iterations, the pole 1.4 times as far out). A fit that converges before then
+    /// is the plain one bit for bit.
+    #[test]
+    fn a_refit_crawling_along_a_curved_valley_is_accelerated() {
+        let xs: Vec<f64> = (0..40).map(|i| i as f64 * 0.05).collect();
+        let f = |t: &[f64]| -> Result<Vec<f64>, CheckError> {
+            Ok(xs
+                .iter()
+                .map(|x| t[1] / (t[0] * t[0] - x * x) - (1.0 + 0.02 * x * x) + t[2])
+                .collect())
+        };
+        let b = Bounds {
+            lower: vec![2.5, f64::NEG_INFINITY, f64::NEG_INFINITY],
+            upper: vec![f64::INFINITY; 3],
+            scales: vec![0.01, 0.01, 0.01],
+        };
+        let start = [3.0, 9.0, 0.0];
+        let n = 2 * ACCELERATE_AFTER;
+        let plain = fit("test", &f, &start, &b, n).unwrap();
+        let refit = fit("refit test", &f, &start, &b, n).unwrap();
+        assert!(plain.iterations > ACCELERATE_AFTER, "{}", plain.iterations);
+        assert!(
+            refit.chi2 < 0.5 * plain.chi2,
+            "accelerated χ² {:e} vs plain {:e}",
+            refit.chi2,
+            plain.chi2
+        );
+        assert!(
+            refit.theta[0] > 1.2 * plain.theta[0],
+            "{:?} vs {:?}",
+            refit.theta,
+            plain.theta
+        );
+        // Converged before the acceleration starts: the same fit.
+        let short = |stage: &str| fit(stage, &f, &start, &b, ACCELERATE_AFTER).unwrap();
+        let (p, r) = (short("test"), short("refit test"));
+        assert_eq!(p.chi2.to_bits(), r.chi2.to_bits());
+        assert!(p
+            .theta
+            .iter()
+            .zip(&r.theta)
+            .all(|(x, y)| x.to_bits() == y.to_bits()));
     }
 
     #[test]

@@ -236,7 +236,7 @@ pub(super) fn profile_candidate(
     let coarse = grid.len() > PROFILE_COARSE_ABOVE;
     let mut first: Vec<Option<(f64, f64)>> = vec![None; points.len()];
     let probed: Vec<usize> = (0..points.len())
-        .filter(|&i| !coarse || points[i].0 % 2 == 0)
+        .filter(|&i| !coarse || points[i].0.is_multiple_of(2))
         .collect();
     for (i, f) in probed.iter().zip(probe_all(&probed)) {
         first[*i] = f;
