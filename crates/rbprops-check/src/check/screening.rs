@@ -209,7 +209,21 @@ pub(super) fn profile_candidate(
     // span `q0` is). From the current fit's parameters that prediction is also the
     // linearised gain (the score-like statistic).
     // The points of `idx` are evaluated in batches of [`PROBE_BATCH`], whose projections
-    // onto q0 are one matrix product (see [`projected_norms`]).
+    // onto q0 are one matrix product (see [`projected_norms`]). The residuals of the
+    // most promising points so far are kept per start (at most `PROFILE_REFINED`, in
+    // the order of [`most_promising`]): the chord refinement starts from them rather
+    // than evaluating them again. The set kept is the same in any order of the batches.
+    let n_starts = starts.len();
+    type Kept = Vec<(f64, usize, nalgebra::DVector<f64>)>;
+    let kept: Vec<std::sync::Mutex<Kept>> = (0..n_starts).map(|_| Default::default()).collect();
+    let keep = |i: usize, predicted: f64, r: &nalgebra::DVector<f64>| {
+        let mut list = kept[points[i].1].lock().expect("no panic while held");
+        let pos = list.partition_point(|(p, j, _)| p.total_cmp(&predicted).then(j.cmp(&i)).is_lt());
+        if pos < PROFILE_REFINED {
+            list.insert(pos, (predicted, i, r.clone()));
+            list.truncate(PROFILE_REFINED);
+        }
+    };
     let probe_all = |idx: &[usize]| -> Vec<Option<(f64, f64)>> {
         idx.par_chunks(PROBE_BATCH)
             .flat_map_iter(|batch| {
@@ -219,11 +233,15 @@ pub(super) fn profile_candidate(
                     .collect();
                 let evaluated: Vec<&nalgebra::DVector<f64>> = rs.iter().flatten().collect();
                 let mut projected = projected_norms(q0, &evaluated).into_iter();
-                rs.iter()
-                    .map(|r| {
+                batch
+                    .iter()
+                    .zip(&rs)
+                    .map(|(&i, r)| {
                         let r = r.as_ref()?;
                         let n2 = r.norm_squared();
-                        Some((n2, n2 - projected.next().expect("one per residual")))
+                        let predicted = n2 - projected.next().expect("one per residual");
+                        keep(i, predicted, r);
+                        Some((n2, predicted))
                     })
                     .collect::<Vec<_>>()
             })
@@ -232,7 +250,6 @@ pub(super) fn profile_candidate(
     // Every point at each start; a large grid (the cords' string-mode frequencies, 2 %
     // apart) first at every other point, then the skipped neighbours of the most
     // promising ones. A point left out counts as not evaluated.
-    let n_starts = starts.len();
     let coarse = grid.len() > PROFILE_COARSE_ABOVE;
     let mut first: Vec<Option<(f64, f64)>> = vec![None; points.len()];
     let probed: Vec<usize> = (0..points.len())
@@ -265,6 +282,11 @@ pub(super) fn profile_candidate(
     for i in most_promising(&first, &points, n_starts) {
         refine[i] = true;
     }
+    let kept: Vec<(usize, nalgebra::DVector<f64>)> = kept
+        .into_iter()
+        .flat_map(|m| m.into_inner().expect("no panic while held"))
+        .map(|(_, i, r)| (i, r))
+        .collect();
     let gain_of = |i: usize, chi: f64| {
         let (_, predicted) = first[i].expect("evaluated");
         let lin = if points[i].1 == 0 {
@@ -286,7 +308,10 @@ pub(super) fn profile_candidate(
                 return Some((gain_of(i, chi0), i, None));
             }
             let mut t = theta_at(points[i]);
-            let mut rg = eval(&t)?;
+            let mut rg = match kept.iter().find(|(j, _)| *j == i) {
+                Some((_, r)) => r.clone(),
+                None => eval(&t)?,
+            };
             let mut chi = rg.norm_squared();
             for _ in 0..4 {
                 let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
