@@ -15,56 +15,62 @@
 //! anatomy of one model evaluation in CPU time: as the check makes it, by the
 //! simulator's column solve and by its inverse, the set-up models alone.
 //!
-//! Current figures (2 threads, `phase-timing`; 2-core machine shared with three other
-//! builds, so CPU seconds are the comparable figure; the code before these changes was
-//! re-measured in the same session):
+//! Current figures (2 threads, `phase-timing`; 2-core machine shared with another
+//! build, so CPU seconds are the comparable figure; "before" is the previous code run in
+//! the same session; wall times from runs with both cores mostly free):
 //!
-//! | case | CPU s before → after | model evaluations before → after | ms CPU per evaluation, all in | wall s at 0.57 × CPU | report digest (unchanged) |
-//! |---|---|---|---|---|---|
-//! | gain-orient-gauge | 18.6 → 12.6 | 11 487 → 7 044 | 1.8 | ≈ 7.2 | 4a015e7558eaf5a5 |
-//! | position-force-elastic | 19.5 → 14.5 | 13 356 → 8 030 | 1.8 | ≈ 8.3 | 7714b2b4e5737b1a |
-//! | gravity-window-gain | 12.7 → 10.6 | 8 265 → 6 404 | 1.7 | ≈ 6.0 | 280826b00c8113ef |
+//! | case | CPU s before → after | model evaluations before → after | wall s before → after | report digest after |
+//! |---|---|---|---|---|
+//! | gain-orient-gauge | 13.1 → 10.8 | 7 044 → 6 116 | 7.5 → 6.3 | 046b15e7ac9a8cf5 |
+//! | position-force-elastic | 14.7 → 13.1 | 8 030 → 8 322 | 8.6 → 7.7 | 821bea2aeff5e51a |
+//! | gravity-window-gain | 10.7 → 9.6 | 6 404 → 6 309 | 6.0 → 5.4 | 6746b124190ebc19 |
 //!
-//! (The "after" run had one core free, load 2–3.5, the "before" run load 3–4. On a run at
-//! load ≈ 3 with two cores free, before the inputs' reach was declared, the wall times
-//! were 7.8, 9.1 and 6.3 s for 13.6, 15.7 and 11.2 CPU s: 0.57 × CPU.)
-//! Under the 20 s worst case, not under the 5 s typical. Each case names its three
-//! concealed effects and nothing else, χ²/ν 0.986, 0.975 and 0.995, every stage line
-//! as before, and the report is bit for bit the same (digests unchanged, equal at 1 and
-//! 2 threads). Changes, all bit-identical:
-//! - grouped finite-difference columns (Curtis, Powell & Reid): parameters whose declared
-//!   reach ([`rbprops_sim::effects::Effect::parameter_reach`]: an in-band resonance's and
-//!   a residual flexibility's residues, one FRF each; channel gains, sensor
-//!   misorientations and offsets, their channels' FRFs; excitation gains, force
-//!   directions, locations and gauge masses, their excitation's) is disjoint are stepped in one
-//!   evaluation, each reading its own rows (the elastic mode's 29 columns in 3
-//!   evaluations); the score test's Jacobian takes the other rows from one evaluation at
-//!   the neutral point, so it is the dense matrix to the bit. A test steps every declared
-//!   parameter of every candidate, alone and beside effects that rewrite output rows and
-//!   inputs, and finds no other FRF moved by a bit;
-//! - Jacobian columns written in place, the LM fit reusing its matrix;
-//! - the normal equations skip row blocks where a column is zero (zero products leave the
-//!   accumulators as they are): LM linear algebra 3.0 → 1.3 thread-s on the first case;
-//! - the noise model's local fits per FRF and variance models per channel in parallel
-//!   (noise floor stage 0.53 → 0.30 s wall).
+//! Wall ≈ 0.57 × CPU, as before. Under the 20 s worst case, not under the 5 s typical
+//! (median 6.3 s). Each case names its three concealed effects and nothing else, χ²/ν
+//! 0.986, 0.975 and 0.995, and every stage line states the same decisions for the same
+//! reasons; the reports moved in the last bits (digests before 4a015e7558eaf5a5,
+//! 8f83002d94c57710, 11d8bf7df4ae646c) and are equal at 1 and 2 threads. Changes:
+//! - the screening's tall SVDs (the current model's span, the chord solver, each score
+//!   test) through a blocked QR (TSQR: row blocks factorised in cache and in parallel)
+//!   and the SVD of the p × p factor (`lm::thin_svd`): the span at 63
+//!   parameters 0.22 → 0.10 s;
+//! - a profile's points projected onto the current span in batches, one matrix product
+//!   per 16 points instead of two passes over the 27 MB basis per point, and the chord
+//!   refinement starting from the residuals kept from the probes (no second evaluation);
+//! - the in-band resonance's profile as two matrix products per batch of frequencies
+//!   (the elastic mode's screening 0.18 → 0.05–0.09 s per step);
+//! - geodesic acceleration (Transtrum & Sethna 2012) for a refit still descending after
+//!   25 iterations: the elastic mode's refit in step 3 of the first case crawled 71
+//!   iterations of 1e-4 relative each along a valley where the mode leaves the band with
+//!   residues growing as its frequency squared (a residual flexibility in the limit);
+//!   that step's refits 2 526 → 1 738 evaluations. Fits that converge within 25
+//!   iterations are unchanged to the bit.
 //!
-//! Where the time goes now (perf, position-force-elastic, 1 thread, self time): the
-//! per-line solve 19 %, extra-mode terms (the cords' string modes) 6 %, the screening's
-//! tall SVDs (Householder reflections) 10 %, `blocked_tr_mul` 5 % and nalgebra's `tr_mul`
-//! 4 % (the profiles' projection `q0ᵀ r_g`), the residual 3 %, symmetric eigen 3 %, the
-//! held-out residuals 3 %. By stage: the candidate refits 5 008 / 4 576 / 3 954 of the
-//! evaluations (the elastic mode's refits that end pinned at a bound are the longest: 71
-//! iterations in step 3 of the first case), the screening steps with the backward fits
-//! 1 957 / 3 450 / 2 337. Next: fewer LM iterations in the refits that end
-//! pinned (a decision of the selection), cheaper tall SVDs in the screening, Broyden
-//! updates between Jacobians (not bit-identical; every decision to be re-checked).
+//! The second case's evaluations rose (refits 4 576 → 5 007): the excitation gain's two
+//! refits took 14 + 14 iterations instead of 10 + 12 from a start that moved in the last
+//! bits (its score test's SVD); an LM path to a relative χ² decrease of 1e-7 is that
+//! sensitive. Tried and left out: Broyden updates between finite-difference Jacobians
+//! (Schubert's sparse form, one finite-difference Jacobian in three): 2–4 % fewer
+//! evaluations for 50–80 % more iterations, baseline fits ending elsewhere within their
+//! tolerance, and one refit's stated rejection reason changed.
 //!
-//! Before these changes (the lead's further instances of `elastic_mode` and
-//! `residual_flexibility` since the previous table): the profile screening chord-refined
-//! only the 8 points per start whose first chord step promises most and took a grid of
-//! more than 100 points (the cords') at every other point first; `profile_starts` its
-//! line factor per line; extra modes in line blocks; the noise model's ln(s/q_r) once per
-//! value: 14.2 / 19.8 / 12.8 CPU s, 7 572 / 13 737 / 8 265 evaluations then.
+//! Where the time goes now (perf, gain-orient-gauge, 1 thread, inclusive): the model
+//! evaluations 50 % (the per-line solve 23 % self, the cords' modal reduction 8 % and
+//! string-mode terms 6.5 %), the LM fits 34 % (their finite-difference Jacobians 27 %),
+//! the profile screening 26 % (mostly the cords': 190–250 evaluations of about 2.5 ms
+//! per step), the score tests 9 %, the thin QRs 6.6 %, the held-out residuals 5 %, the
+//! delay scan 3 %. By stage: the refits 4 220 / 5 007 / 3 954 evaluations, the screening
+//! steps with the backward fits 1 817 / 3 311 / 2 242. Next: the nominal model's 19
+//! Jacobian columns from the factorised per-line solve (one back-substitution per
+//! parameter and line instead of a model evaluation), and the cords' evaluations (their
+//! modal reduction is redone at every point).
+//!
+//! Previous figures (grouped finite-difference columns by declared reach, in-place
+//! Jacobians, normal equations skipping zero blocks, a parallel noise model; all
+//! bit-identical): CPU s 18.6 / 19.5 / 12.7 → 12.6 / 14.5 / 10.6, evaluations 11 487 /
+//! 13 356 / 8 265 → 7 044 / 8 030 / 6 404. Before those (the lead's further instances of
+//! `elastic_mode` and `residual_flexibility`, the profile screening refining every
+//! point): 14.2 / 19.8 / 12.8 CPU s, 7 572 / 13 737 / 8 265 evaluations.
 
 //! The tables below are the history, each with the code of its time (gravity-window-gain
 //! then still named a false `elastic_mode`; see docs/results.md, "Model check speed").

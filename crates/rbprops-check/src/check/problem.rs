@@ -286,7 +286,7 @@ pub(super) fn span_basis(j: &DMatrix<f64>, tol: f64) -> (DMatrix<f64>, Vec<f64>)
             js.column_mut(k).scale_mut(1.0 / n);
         }
     }
-    let svd = js.svd(true, false);
+    let svd = lm::thin_svd(&js);
     let u = svd.u.expect("requested");
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&k| svd.singular_values[k] > tol)

@@ -39,8 +39,7 @@ impl<'f> Chord<'f> {
     }
 
     fn svd(&self) -> &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
-        self.svd
-            .get_or_init(|| self.jacobian.clone().svd(true, true))
+        self.svd.get_or_init(|| lm::thin_svd(self.jacobian))
     }
 }
 
@@ -95,6 +94,26 @@ pub(super) fn resonance_candidate(at: AtModel, c: usize) -> Result<Score, CheckE
 /// start) pair, and the current model's re-adjusted parameters and the residual there
 /// (`None` for a point not chord-refined).
 type ProfilePoint = (f64, usize, Option<(Vec<f64>, nalgebra::DVector<f64>)>);
+
+/// Profile points whose residuals are projected onto the current span together
+/// ([`projected_norms`]).
+const PROBE_BATCH: usize = 16;
+
+/// `‖q0ᵀ r‖²` of each residual `r` (q0 orthonormal, n × p), so that `‖P⊥ r‖² = ‖r‖² −
+/// ‖q0ᵀ r‖²`: the residuals lie mostly outside the span (the current fit's residual is
+/// orthogonal to it), so the difference loses no significant digits.
+///
+/// Why a batch: one residual's projection reads all of q0 (27 MB at 60 parameters) for
+/// 2np flops, from memory; the batch's is one matrix product `Rᵀ q0` (cache-blocked),
+/// which reads q0 once for all of them. A profile of the cords has about 180 points.
+fn projected_norms(q0: &DMatrix<f64>, rs: &[&nalgebra::DVector<f64>]) -> Vec<f64> {
+    if q0.ncols() == 0 || rs.is_empty() {
+        return vec![0.0; rs.len()];
+    }
+    let rt = DMatrix::from_fn(rs.len(), q0.nrows(), |k, i| rs[k][i]);
+    let c = rt * q0;
+    (0..rs.len()).map(|k| c.row(k).norm_squared()).collect()
+}
 
 /// Points per start of a profile that are chord-refined (the most promising by the
 /// first chord step's prediction; see [`profile_candidate`]).
@@ -162,7 +181,7 @@ pub(super) fn profile_candidate(
             r - q0 * q0.tr_mul(r)
         }
     };
-    let base = perp(&r0).norm_squared();
+    let base = r0.norm_squared() - projected_norms(q0, &[&r0])[0];
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
     // the most promising grid points: a few model evaluations, enough when the effect
     // moves them far.
@@ -189,26 +208,56 @@ pub(super) fn profile_candidate(
     // ‖P⊥ r_g‖² (the step solves the linearised problem of the current Jacobian, whose
     // span `q0` is). From the current fit's parameters that prediction is also the
     // linearised gain (the score-like statistic).
-    let probe = |(g, k): (usize, usize)| -> Option<(f64, f64)> {
-        let rg = eval(&theta_at((g, k)))?;
-        let predicted = if k == 0 {
-            perp(&rg).norm_squared()
-        } else if q0.ncols() == 0 {
-            rg.norm_squared()
-        } else {
-            rg.norm_squared() - q0.tr_mul(&rg).norm_squared()
-        };
-        Some((rg.norm_squared(), predicted))
+    // The points of `idx` are evaluated in batches of [`PROBE_BATCH`], whose projections
+    // onto q0 are one matrix product (see [`projected_norms`]). The residuals of the
+    // most promising points so far are kept per start (at most `PROFILE_REFINED`, in
+    // the order of [`most_promising`]): the chord refinement starts from them rather
+    // than evaluating them again. The set kept is the same in any order of the batches.
+    let n_starts = starts.len();
+    type Kept = Vec<(f64, usize, nalgebra::DVector<f64>)>;
+    let kept: Vec<std::sync::Mutex<Kept>> = (0..n_starts).map(|_| Default::default()).collect();
+    let keep = |i: usize, predicted: f64, r: &nalgebra::DVector<f64>| {
+        let mut list = kept[points[i].1].lock().expect("no panic while held");
+        let pos = list.partition_point(|(p, j, _)| p.total_cmp(&predicted).then(j.cmp(&i)).is_lt());
+        if pos < PROFILE_REFINED {
+            list.insert(pos, (predicted, i, r.clone()));
+            list.truncate(PROFILE_REFINED);
+        }
+    };
+    let probe_all = |idx: &[usize]| -> Vec<Option<(f64, f64)>> {
+        idx.par_chunks(PROBE_BATCH)
+            .flat_map_iter(|batch| {
+                let rs: Vec<Option<nalgebra::DVector<f64>>> = batch
+                    .par_iter()
+                    .map(|&i| eval(&theta_at(points[i])))
+                    .collect();
+                let evaluated: Vec<&nalgebra::DVector<f64>> = rs.iter().flatten().collect();
+                let mut projected = projected_norms(q0, &evaluated).into_iter();
+                batch
+                    .iter()
+                    .zip(&rs)
+                    .map(|(&i, r)| {
+                        let r = r.as_ref()?;
+                        let n2 = r.norm_squared();
+                        let predicted = n2 - projected.next().expect("one per residual");
+                        keep(i, predicted, r);
+                        Some((n2, predicted))
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect()
     };
     // Every point at each start; a large grid (the cords' string-mode frequencies, 2 %
     // apart) first at every other point, then the skipped neighbours of the most
     // promising ones. A point left out counts as not evaluated.
-    let n_starts = starts.len();
     let coarse = grid.len() > PROFILE_COARSE_ABOVE;
-    let mut first: Vec<Option<(f64, f64)>> = points
-        .par_iter()
-        .map(|&(g, k)| (!coarse || g % 2 == 0).then(|| probe((g, k))).flatten())
+    let mut first: Vec<Option<(f64, f64)>> = vec![None; points.len()];
+    let probed: Vec<usize> = (0..points.len())
+        .filter(|&i| !coarse || points[i].0.is_multiple_of(2))
         .collect();
+    for (i, f) in probed.iter().zip(probe_all(&probed)) {
+        first[*i] = f;
+    }
     if coarse {
         let mut fill: Vec<usize> = most_promising(&first, &points, n_starts)
             .into_iter()
@@ -222,10 +271,8 @@ pub(super) fn profile_candidate(
             .collect();
         fill.sort_unstable();
         fill.dedup();
-        let filled: Vec<(usize, Option<(f64, f64)>)> =
-            fill.par_iter().map(|&i| (i, probe(points[i]))).collect();
-        for (i, f) in filled {
-            first[i] = f;
+        for (i, f) in fill.iter().zip(probe_all(&fill)) {
+            first[*i] = f;
         }
     }
     // Only the points the first step promises most, per start, are chord-refined (the
@@ -235,6 +282,11 @@ pub(super) fn profile_candidate(
     for i in most_promising(&first, &points, n_starts) {
         refine[i] = true;
     }
+    let kept: Vec<(usize, nalgebra::DVector<f64>)> = kept
+        .into_iter()
+        .flat_map(|m| m.into_inner().expect("no panic while held"))
+        .map(|(_, i, r)| (i, r))
+        .collect();
     let gain_of = |i: usize, chi: f64| {
         let (_, predicted) = first[i].expect("evaluated");
         let lin = if points[i].1 == 0 {
@@ -256,7 +308,10 @@ pub(super) fn profile_candidate(
                 return Some((gain_of(i, chi0), i, None));
             }
             let mut t = theta_at(points[i]);
-            let mut rg = eval(&t)?;
+            let mut rg = match kept.iter().find(|(j, _)| *j == i) {
+                Some((_, r)) => r.clone(),
+                None => eval(&t)?,
+            };
             let mut chi = rg.norm_squared();
             for _ in 0..4 {
                 let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
@@ -410,7 +465,7 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
         }
     }
     let jt = project_out(&jcs, q0);
-    let svd = jt.clone().svd(true, true);
+    let svd = lm::thin_svd(&jt);
     let u = svd.u.expect("requested");
     let vt = svd.v_t.expect("requested");
     let keep: Vec<usize> = (0..svd.singular_values.len())
