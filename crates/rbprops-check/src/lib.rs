@@ -63,9 +63,12 @@
 //! as noise; the noise is re-estimated from the final model's residual and the check
 //! rerun with it if that moves χ²/ν out of its band ([`noise::estimate_from_residual`]).
 //!
+//! Noise correlated from line to line (a window on the time histories) is detected and,
+//! when it is an exponential window's, weighed conservatively ([`correlation`]).
+//!
 //! Not implemented (see the report's `method` field): bootstrap calibration of the
-//! screening threshold; noise correlated from line to line (windowed time histories)
-//! is detected and reported ([`correlation`]), not modelled.
+//! screening threshold; noise correlated across channels (the force channel's noise in
+//! an H1 estimate is common to an excitation's channels).
 //!
 //! ```no_run
 //! # fn demo(spec: &rbprops_sim::CampaignSpec, g: &rbprops_core::Geometry, frf: &rbprops_core::FrfSet) {

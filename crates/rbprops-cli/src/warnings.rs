@@ -67,6 +67,11 @@ impl StageWarning {
 /// it to a test engineer. Matched case-insensitively, first match wins.
 const RULES: &[(&[&str], Class, &str)] = &[
     (
+        &["correlated from line to line"],
+        Class::ChangesAnswer,
+        "The FRFs' noise is shared by neighbouring lines (a window on the time histories, as in impact testing): the model check weighs it conservatively when it is an exponential window's, and otherwise its claims are not calibrated.",
+    ),
+    (
         &["is missing", "of the six rigid-body modes", "no identified modes", "not excited above the noise"],
         Class::ChangesAnswer,
         "A rigid-body mode was not found, so the estimate rests on fewer modes than the method needs and some properties may be unobservable.",
@@ -295,6 +300,7 @@ mod tests {
             "set-up 'a': rejected the mode at 9.0000 Hz: elastic; its evidence: x",
             "Φ0 is poorly conditioned (cond = 1.0e9): the estimate is sensitive to shape errors",
             "uncertainty propagation failed (x); standard errors are reported as zero",
+            "the noise is correlated from line to line (lag-1 excess 0.59 of the local polynomial residual, 51 SE over 7396 windows), as a window on the time histories makes it: an exponential window's correlation fits it",
         ] {
             assert_eq!(classify(t), Class::ChangesAnswer, "{t}");
         }

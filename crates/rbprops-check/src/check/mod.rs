@@ -332,7 +332,7 @@ fn method_text(options: &CheckOptions) -> Vec<String> {
         None => String::new(),
     };
     vec![
-        format!("noise: {noise}; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; lines independent (a correlation from line to line is tested for and reported, not modelled)"),
+        format!("noise: {noise}; |H| at least half its local median over 11 lines (no runaway weight at a zero of the FRF); the 0 Hz line left out; lines independent, unless the noise is found correlated from line to line (then weighed as below)"),
         format!("baseline: Levenberg–Marquardt (at most {} iterations) on inertia (pseudo-inertia Cholesky, always physical), per-set-up axis stiffness scales, damping of the spec's model{mass}", options.max_iterations),
         format!("screening: score test on the candidate Jacobian with the current model's Jacobian projected out; threshold χ²_{{d,1−α/N}} with α = {}{}", options.alpha, match &options.only {
             Some(only) => format!("; candidates restricted to {}", only.join(", ")),
