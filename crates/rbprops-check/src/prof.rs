@@ -53,6 +53,7 @@ mod imp {
         }
     }
 
+    /// A guard that adds the time until it is dropped to `phase`'s total.
     #[inline]
     pub fn span(phase: usize) -> Span {
         Span {
@@ -61,6 +62,7 @@ mod imp {
         }
     }
 
+    /// Calls and seconds per phase since the last [`reset`].
     pub fn totals() -> Option<Vec<(u64, f64)>> {
         Some(
             (0..N)
@@ -74,6 +76,7 @@ mod imp {
         )
     }
 
+    /// Sets every phase's calls and seconds to zero.
     pub fn reset() {
         for i in 0..N {
             NANOS[i].store(0, Ordering::Relaxed);
