@@ -312,22 +312,7 @@ pub(super) fn profile_candidate(
                 Some((_, r)) => r.clone(),
                 None => eval(&t)?,
             };
-            let mut chi = rg.norm_squared();
-            for _ in 0..4 {
-                let Ok(d) = svd.solve(&(-&rg), 1e-10) else {
-                    break;
-                };
-                let mut t1 = t.clone();
-                t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
-                match eval(&t1) {
-                    Some(r1) if r1.norm_squared() < chi => {
-                        chi = r1.norm_squared();
-                        rg = r1;
-                        t = t1;
-                    }
-                    _ => break,
-                }
-            }
+            let chi = chord_refine(svd, &eval, &mut t, &mut rg);
             Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
@@ -354,27 +339,74 @@ pub(super) fn profile_candidate(
             (t[..nb].to_vec(), rg)
         }
     };
-    let g = points[i].0;
     // Signature direction at the best point (for the distinctness check).
     let sig = perp(&(&r0 - &rg));
+    Ok(profile_score(
+        sig,
+        np,
+        gain,
+        grid[points[i].0].clone(),
+        n_tests,
+        theta_best,
+    ))
+}
+
+/// Up to four chord (fixed-Jacobian Gauss–Newton) steps from `t` with residual `rg`,
+/// each kept only if it lowers χ²: `t` and `rg` end at the last improvement; returns
+/// its χ².
+fn chord_refine(
+    svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    eval: &dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>>,
+    t: &mut Vec<f64>,
+    rg: &mut nalgebra::DVector<f64>,
+) -> f64 {
+    let mut chi = rg.norm_squared();
+    for _ in 0..4 {
+        let Ok(d) = svd.solve(&(-&*rg), 1e-10) else {
+            break;
+        };
+        let mut t1 = t.clone();
+        t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
+        match eval(&t1) {
+            Some(r1) if r1.norm_squared() < chi => {
+                chi = r1.norm_squared();
+                *rg = r1;
+                *t = t1;
+            }
+            _ => break,
+        }
+    }
+    chi
+}
+
+/// The score of a profiled candidate with `np` parameters from its best point: the
+/// signature `sig` (the residual's change there, the current span projected out) as its
+/// one-column basis, the gain, the grid point as the refit's start.
+fn profile_score(
+    sig: nalgebra::DVector<f64>,
+    np: usize,
+    gain: f64,
+    start: Vec<f64>,
+    n_tests: usize,
+    theta_best: Vec<f64>,
+) -> Score {
     let n = sig.norm();
     let basis = if n > 0.0 {
         DMatrix::from_column_slice(sig.len(), 1, (sig / n).as_slice())
     } else {
-        DMatrix::zeros(r0.len(), 0)
+        DMatrix::zeros(sig.len(), 0)
     };
-    let theta_start = Some(theta_best);
-    Ok(Score {
+    Score {
         rank: if n > 0.0 { np } else { 0 },
         score: gain.max(0.0),
         basis,
         kept: (0..np).collect(),
-        start: grid[g].clone(),
+        start,
         gauge: Vec::new(),
         absorbed_by: Vec::new(),
         n_tests,
-        theta_start,
-    })
+        theta_start: Some(theta_best),
+    }
 }
 
 /// The profile points of a grid-screened candidate and the number of tests its best
