@@ -129,3 +129,14 @@ pub fn given_noise(rel: f64, n_ch: usize) -> CheckOptions {
         ..Default::default()
     }
 }
+
+/// Asserts that the final χ²/ν of `r` lies in its noise band (`label` names the case).
+pub fn assert_chi2_in_band(label: &str, r: &rbprops_check::ModelCheckReport) {
+    assert!(
+        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
+        "{label}: χ²/ν {:.4} outside the band {:?}: {}",
+        r.chi2_nu_after,
+        r.noise_band,
+        r.verdict
+    );
+}

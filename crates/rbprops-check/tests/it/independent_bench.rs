@@ -45,12 +45,7 @@ fn spring_hung_body_under_gravity_needs_no_elastic_mode() {
     want.sort_unstable();
     named.sort_unstable();
     assert_eq!(named, want, "{}", r.verdict);
-    assert!(
-        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
-        "χ²/ν {:.4} outside {:?}",
-        r.chi2_nu_after,
-        r.noise_band
-    );
+    crate::common::assert_chi2_in_band(stem, &r);
     let gravity = r
         .accepted
         .iter()

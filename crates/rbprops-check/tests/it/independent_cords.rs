@@ -268,11 +268,13 @@ fn cords_case(splayed: bool) {
         p.value,
         p.standard_error
     );
-    assert!(
-        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
-        "χ²/ν {} outside the band {:?}",
-        r.chi2_nu_after,
-        r.noise_band
+    crate::common::assert_chi2_in_band(
+        if splayed {
+            "splayed cords"
+        } else {
+            "parallel cords"
+        },
+        &r,
     );
     // The improved spec is the hanging body: it simulates with no free direction.
     let sim = rbprops_sim::simulate(&out.improved_spec).unwrap();
@@ -326,7 +328,7 @@ fn free_free_null_is_silent() {
         r.warnings
     );
     assert!(r.accepted.is_empty() && r.ambiguous.is_empty());
-    assert!(r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1]);
+    crate::common::assert_chi2_in_band("null", &r);
 }
 
 /// The hanging body of rbprops-sim (the spec's cords with `gravity_stiffness`, the

@@ -162,13 +162,7 @@ fn assert_explained_with(
         "{label}: false claims {stray:?}: {}",
         r.verdict
     );
-    assert!(
-        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
-        "{label}: χ²/ν {:.4} outside the band {:?}: {}",
-        r.chi2_nu_after,
-        r.noise_band,
-        r.verdict
-    );
+    crate::common::assert_chi2_in_band(label, &r);
     r
 }
 
@@ -464,12 +458,7 @@ fn impact_testing_with_an_exponential_window_names_the_window_and_the_record() {
         "{:?}",
         r.warnings
     );
-    assert!(
-        r.chi2_nu_after >= r.noise_band[0] && r.chi2_nu_after <= r.noise_band[1],
-        "χ²/ν {} outside {:?}",
-        r.chi2_nu_after,
-        r.noise_band
-    );
+    crate::common::assert_chi2_in_band("impact testing", &r);
     // The decay rate to 0.1 % (the record's sampling leaves a few standard errors,
     // ≈ 2e-5 each, between the time route's H1 and the analytic window).
     let window = r
