@@ -65,11 +65,24 @@ impl Effect for SensorMisorientation {
         self.check_values()?;
         SENSOR_ROTATIONS.check_ids(spec, &self.rotations_rad)
     }
+    /// The row becomes `(R s)ᵀ T(p)` plus whatever effects applied before it added to the
+    /// nominal row `sᵀ T(p)` (a channel gain's `(g − 1) sᵀ T(p)`, a sensor offset's
+    /// `−sᵀ [d×]`): so a misorientation at its neutral point leaves the model as it was,
+    /// and with both a rotation ψ and such a change the row is right to first order in
+    /// each (their product, e.g. ψ·d, is left out, as it is when the offset comes after).
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         for (c, ch) in ctx.geometry.channels.iter().enumerate() {
             if let Some(psi) = self.rotations_rad.get(&ch.point) {
                 let s = rotation(&Vec3::from(*psi)) * ch.direction;
-                model.outputs[c] = s.transpose() * rigid_transform(&ch.position);
+                let added = model.outputs[c] - ch.row();
+                let rotated = s.transpose() * rigid_transform(&ch.position);
+                // Added only when there is something: a model without earlier row changes
+                // keeps the rotated row to the bit.
+                model.outputs[c] = if added.iter().any(|x| *x != 0.0) {
+                    rotated + added
+                } else {
+                    rotated
+                };
             }
         }
         Ok(())

@@ -333,6 +333,64 @@ fn misorientation_rotates_the_triax_reading() {
     }
 }
 
+/// A misorientation applied after a sensor offset or a channel gain on the same sensor
+/// keeps them: at its neutral point the FRFs are exactly those without it, and with a
+/// rotation they are the rotated FRFs with the gain (to first order in the offset's and
+/// the rotation's product). It used to rewrite the sensor's rows from the geometry,
+/// dropping both.
+#[test]
+fn misorientation_after_an_offset_or_a_gain_keeps_them() {
+    let earlier = [
+        "id = \"sensor_position\"\noffsets_m = { \"2\" = [0.004, -0.003, 0.005] }",
+        "id = \"channel_gain\"\ngains = { \"2y\" = 1.05 }",
+    ];
+    for first in earlier {
+        let without = simulate(&with_effect(tc2(), first)).unwrap().frf;
+        let neutral = with_effect(
+            with_effect(tc2(), first),
+            "id = \"sensor_misorientation\"\nrotations_rad = { \"2\" = [0.0, 0.0, 0.0] }",
+        );
+        let sim = simulate(&neutral).unwrap().frf;
+        for e in 0..3 {
+            for c in 0..9 {
+                assert!(
+                    max_dev(sim.frf(e, c), without.frf(e, c)) < 1e-13,
+                    "{first}: e{e} c{c}"
+                );
+            }
+        }
+    }
+    // A gain and a rotation on sensor 2: channel 2y reads 1.05 × the rotated reading up
+    // to the product of the two, (1.05 − 1)(R s − s)ᵀ u with |R s − s| ≤ |ψ|: at most
+    // 0.05·|ψ|·|u| ≤ 0.087·|ψ| of the sensor's largest reading (|u| ≤ √3 × it), where a
+    // dropped gain or rotation is of first order (0.05, or |ψ| = 0.037).
+    let psi = Vec3::new(0.03, -0.02, 0.01);
+    let rotations =
+        "id = \"sensor_misorientation\"\nrotations_rad = { \"2\" = [0.03, -0.02, 0.01] }";
+    let rotated = simulate(&with_effect(tc2(), rotations)).unwrap().frf;
+    let both = simulate(&with_effect(with_effect(tc2(), earlier[1]), rotations))
+        .unwrap()
+        .frf;
+    for e in 0..3 {
+        let reading = (3..6)
+            .flat_map(|c| rotated.frf(e, c).iter().map(|x| x.norm()))
+            .fold(0.0, f64::max);
+        let dev = |other: &dyn Fn(c64) -> c64| {
+            both.frf(e, 4)
+                .iter()
+                .zip(rotated.frf(e, 4))
+                .map(|(b, r)| (b - other(*r)).norm())
+                .fold(0.0, f64::max)
+                / reading
+        };
+        let with_gain = dev(&|r| r * 1.05);
+        assert!(with_gain < 0.087 * psi.norm(), "e{e}: {with_gain}");
+        // The gain is there: 2y moves by ≈ 5 % of its own largest value.
+        let gain = max_dev(both.frf(e, 4), rotated.frf(e, 4));
+        assert!(gain > 0.04, "e{e}: the gain is kept ({gain})");
+    }
+}
+
 #[test]
 fn effects_rebuild_from_their_parameter_vectors() {
     for (table, n) in [
