@@ -447,8 +447,8 @@ fn weights(
         // given σ is right per line; the second pass's is already scaled.
         let how = match source {
             (true, _) => format!(
-                "σ from the first pass's residual times √(κ/L) = {:.3}",
-                (inf.kappa / inf.level).sqrt()
+                "σ from the first pass's residual, its level the median of |r|²/σ² over ln 2 (circular normal values whatever the correlation), times √κ = {:.3}",
+                inf.kappa.sqrt()
             ),
             (false, true) => format!("the given σ times √κ = {:.3}", inf.kappa.sqrt()),
             (false, false) => format!(
