@@ -165,13 +165,11 @@ pub fn check(
     // recording in single precision is then weighed by its quantisation alone).
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let mut nf = noise::estimate_from_residual(&first.measured, &first.improved, nex, nch, nl)?;
-    // A line correlation found in the data is estimated again from the final residual,
-    // which no longer holds the FRF's structure; the residual's noise estimate reads it
-    // low as the data's does.
+    // A line correlation found in the data is looked for again in the final residual,
+    // with that residual's noise model, which no longer reads the FRF's own curvature as
+    // noise (on exact data the data's local residual is that curvature, smooth, and
+    // reads as correlated); c from the final model's window when it has one.
     let decay = window_decay(&first.improved_spec);
-    // Found again in the final residual, with its noise model (which no longer reads the
-    // FRF's own curvature as noise: on exact data the data's local residual is that
-    // curvature, smooth, and reads as correlated).
     let correlation = first.correlation.as_ref().and_then(|_| {
         let residual: Vec<c64> = first
             .measured
@@ -511,13 +509,15 @@ fn correlated_noise(
 }
 
 /// The decay rate of the exponential window in `spec`'s effects (nominal, or accepted
-/// by a check), if any.
+/// by a check), if any: its `decay_per_s`, or 1/`time_constant_s`.
 fn window_decay(spec: &CampaignSpec) -> Option<f64> {
-    spec.effects
-        .iter()
-        .find(|e| e.id == "exponential_window")
-        .and_then(|e| e.parameters.get("decay_per_s"))
-        .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+    let e = spec.effects.iter().find(|e| e.id == "exponential_window")?;
+    let number = |k: &str| {
+        e.parameters
+            .get(k)
+            .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+    };
+    number("decay_per_s").or_else(|| number("time_constant_s").map(|t| 1.0 / t))
 }
 
 /// The median over the values with σ > 0 of |y − m|²/σ², over ln 2: the residual's
