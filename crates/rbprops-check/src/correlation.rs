@@ -12,7 +12,7 @@
 //! |γ₁| = 0.79 for τ = T/4 (c = πτΔf = 0.785 below). Every χ² of the check counts
 //! independent lines. With such noise (a) the local polynomial noise estimate reads only
 //! the part of the noise a quartic cannot follow, and its lower quantile less still: σ²
-//! is read low by the factor L of [`crate::noise::correlated_level`] (0.26 at c = 0.785;
+//! is read low by the factor L of `noise::correlated_level` (0.26 at c = 0.785;
 //! measured on the H1 of five impacts: 0.27), and (b) the χ² of a smooth signature —
 //! what every effect's change to the FRFs is over a few lines — has the variance of the
 //! noise's spectral density at zero quefrency, κ = Σ_m Re γ_m times the per-line one
@@ -38,7 +38,7 @@
 //! Detection, from the data without a model: the local quartic's residual over a window
 //! of 11 lines is r = M ε (M = I − P, P the quartic's hat matrix), so E[r rᴴ] = c·M R M
 //! with R the lines' correlation. Averaged over windows (each scaled by the current noise
-//! model's mean σ² over its lines; windows whose residual exceeds [`TRIM`] × the median
+//! model's mean σ² over its lines; windows whose residual exceeds `TRIM` × the median
 //! left out: there the quartic cannot follow the FRF), the lag-1 ratio
 //! ĝ = Σ_a Ĝ_{a+1,a} / Σ_a Ĝ_aa equals Σ_a M_{a+1,a} / tr M for independent noise
 //! whatever its level. Its excess is the statistic: reported when it is both practically
@@ -60,7 +60,7 @@ const TRIM: f64 = 4.0;
 /// values), rounded up.
 const SE_LAG1: f64 = 1.0;
 
-/// The local polynomial's window (lines), that of [`crate::noise::hat_matrix`].
+/// The local polynomial's window (lines), that of `noise::hat_matrix`.
 const W: usize = 11;
 
 /// The detection statistic of the module docs.

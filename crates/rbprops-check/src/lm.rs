@@ -314,7 +314,7 @@ const QR_BLOCK: usize = 1024;
 
 /// Thin QR `A = Q R` (Q n × p with orthonormal columns, R p × p upper triangular) of a
 /// tall matrix (n ≥ p), by row blocks (TSQR, Demmel, Grigori, Hoemmen & Langou 2012):
-/// each block of [`QR_BLOCK`] rows (the last takes the remainder) factorised by
+/// each block of `QR_BLOCK` rows (the last takes the remainder) factorised by
 /// Householder reflections, the blocks' stacked R factorised again, and each block of Q
 /// the product of its own Q and its slice of the second one.
 ///
