@@ -32,7 +32,10 @@
 //! 8f83002d94c57710, 11d8bf7df4ae646c) and are equal at 1 and 2 threads. (The method
 //! text's line on correlated noise, added after, moved the digests again, decisions and
 //! χ²/ν unchanged: c8289bc65169c78f, cb4c622e567e14cc, 04d4071b978dc312; wall 5.96 / 7.54
-//! / 5.45 s at 10.4 / 13.0 / 9.6 CPU s on an idle machine, median 5.96 s.) Changes:
+//! / 5.45 s at 10.4 / 13.0 / 9.6 CPU s on an idle machine, median 5.96 s. The
+//! misorientation fix after that — it keeps an accepted gain or offset when screened at
+//! neutral — moved the last two in the last bits, same effects and χ²/ν:
+//! 8a068f925da22b53, 1bf5b33dbea6f621.) Changes:
 //! - the screening's tall SVDs (the current model's span, the chord solver, each score
 //!   test) through a blocked QR (TSQR: row blocks factorised in cache and in parallel)
 //!   and the SVD of the p × p factor (`lm::thin_svd`): the span at 63

@@ -119,10 +119,8 @@ fn window_toeplitz(c: f64) -> DMatrix<Complex<f64>> {
 }
 
 /// Relative misfit min_λ ‖M R M − λ Ĝ‖ / ‖M R M‖ of the window's correlation to Ĝ.
-fn misfit(g: &DMatrix<Complex<f64>>, c: f64) -> f64 {
-    let m = residual_projector().map(|v| Complex::new(v, 0.0));
-    let r = window_toeplitz(c);
-    let a = &m * r * &m;
+fn misfit(g: &DMatrix<Complex<f64>>, m: &DMatrix<Complex<f64>>, c: f64) -> f64 {
+    let a = m * window_toeplitz(c) * m;
     let lam = g
         .iter()
         .zip(a.iter())
@@ -135,11 +133,12 @@ fn misfit(g: &DMatrix<Complex<f64>>, c: f64) -> f64 {
 /// The window's c that fits Ĝ best (|c| on a log grid 0.05..50, either sign: the sign
 /// follows the transform's convention) and its misfit.
 fn fit_window(g: &DMatrix<Complex<f64>>) -> (f64, f64) {
+    let m = residual_projector().map(|v| Complex::new(v, 0.0));
     let mut best = (0.0, f64::INFINITY);
     for k in 0..400 {
         let mag = 0.05 * 1000f64.powf((k % 200) as f64 / 199.0);
         let c = if k < 200 { mag } else { -mag };
-        let r = misfit(g, c);
+        let r = misfit(g, &m, c);
         if r < best.1 {
             best = (c, r);
         }

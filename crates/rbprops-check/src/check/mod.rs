@@ -169,7 +169,6 @@ pub fn check(
     // with that residual's noise model, which no longer reads the FRF's own curvature as
     // noise (on exact data the data's local residual is that curvature, smooth, and
     // reads as correlated); c from the final model's window when it has one.
-    let decay = window_decay(&first.improved_spec);
     let correlation = first.correlation.as_ref().and_then(|_| {
         let residual: Vec<c64> = first
             .measured
@@ -185,7 +184,7 @@ pub fn check(
             nex * nch,
             nl,
         )
-        .map(|c| c.with_window_decay(decay, line_spacing(frf)))
+        .map(|c| c.with_window_decay(window_decay(&first.improved_spec), line_spacing(frf)))
     });
     let inflation = correlation.as_ref().and_then(|c| c.inflation());
     let kappa = inflation.map_or(1.0, |inf| {
@@ -443,24 +442,24 @@ fn weights(
     if let Some(inf) = &inflation {
         // From the data σ² is read low by L and smooth signatures vary κ times more; a
         // given σ is right per line; the second pass's is already scaled.
-        let how = match source {
-            (true, _) => format!(
-                "σ from the first pass's residual, its level the median of |r|²/σ² over ln 2 (circular normal values whatever the correlation), times √κ = {:.3}",
-                inf.kappa.sqrt()
+        let (factor, how) = match source {
+            (true, _) => (
+                1.0,
+                format!(
+                    "σ from the first pass's residual, its level the median of |r|²/σ² over ln 2 (circular normal values whatever the correlation), times √κ = {:.3}",
+                    inf.kappa.sqrt()
+                ),
             ),
-            (false, true) => format!("the given σ times √κ = {:.3}", inf.kappa.sqrt()),
-            (false, false) => format!(
-                "the data-only σ times √(κ/L) = {:.3}",
-                (inf.kappa / inf.level).sqrt()
+            (false, true) => (
+                inf.kappa.sqrt(),
+                format!("the given σ times √κ = {:.3}", inf.kappa.sqrt()),
             ),
-        };
-        match source {
-            (true, _) => {}
-            (false, true) => scale_noise(&mut noise_model, &mut sigma, inf.kappa.sqrt()),
             (false, false) => {
-                scale_noise(&mut noise_model, &mut sigma, (inf.kappa / inf.level).sqrt())
+                let f = (inf.kappa / inf.level).sqrt();
+                (f, format!("the data-only σ times √(κ/L) = {f:.3}"))
             }
-        }
+        };
+        scale_noise(&mut noise_model, &mut sigma, factor);
         method.push(format!(
             "noise correlated from line to line as by an exponential window (c = {:.3}, κ = {:.3}, L = {:.3}): {how}; χ²/ν stated per line (×κ) with a band of ν/κ lines",
             inf.c, inf.kappa, inf.level

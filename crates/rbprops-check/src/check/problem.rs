@@ -245,14 +245,14 @@ impl<'a> Problem<'a> {
     /// relative change a prediction makes to some FRF (see `RESOLUTION`).
     pub(super) fn largest_relative_change(&self, m1: &[c64], m0: &[c64]) -> f64 {
         let nl = self.layout.n_lines();
-        let mut by_frf: std::collections::BTreeMap<usize, (f64, f64)> = Default::default();
+        let mut by_frf = vec![(0.0, 0.0); self.y.len() / nl];
         for &i in &self.used {
-            let e = by_frf.entry(i / nl).or_default();
+            let e = &mut by_frf[i / nl];
             e.0 += (m1[i] - m0[i]).norm_sqr();
             e.1 += m0[i].norm_sqr();
         }
         by_frf
-            .values()
+            .iter()
             .filter(|(_, d)| *d > 0.0)
             .map(|(n, d)| (n / d).sqrt())
             .fold(0.0, f64::max)
