@@ -541,6 +541,36 @@ fn clamp(theta: &mut [f64], b: &Bounds) {
     }
 }
 
+/// Relative χ² decrease of a step below which a fit has converged.
+const CONVERGED_REL: f64 = 1e-7;
+/// Largest scaled parameter change of a step below which a fit has converged.
+const CONVERGED_STEP: f64 = 1e-9;
+
+/// Whether the step `delta`, solved from the damped normal equations at θ, would end
+/// the fit by the convergence test once taken: its decrease of χ² predicted by the
+/// linearised residual, `−2gᵀδ − δᵀAδ` (g = Jᵀr, A = JᵀJ), is below `CONVERGED_REL`
+/// of χ², or its largest scaled parameter change below `CONVERGED_STEP`. Such a step
+/// is not taken: it would cost a model evaluation and a Jacobian at a point that
+/// differs from θ by less than the fit resolves, and θ's Jacobian is already at hand.
+fn step_would_converge(
+    g: &DVector<f64>,
+    a: &DMatrix<f64>,
+    delta: &DVector<f64>,
+    c2: f64,
+    theta: &[f64],
+    bounds: &Bounds,
+) -> bool {
+    let predicted = -2.0 * g.dot(delta) - (a * delta).dot(delta);
+    let step = delta
+        .iter()
+        .zip(theta)
+        .zip(bounds.upper.iter().zip(&bounds.lower))
+        .zip(&bounds.scales)
+        .map(|(((d, t), (hi, lo)), s)| ((t + d).clamp(*lo, *hi) - t).abs() / s.abs().max(1e-12))
+        .fold(0.0, f64::max);
+    predicted < CONVERGED_REL * c2.max(f64::MIN_POSITIVE) || step < CONVERGED_STEP
+}
+
 /// Iterations of a refit after which its steps take geodesic acceleration (see
 /// [`fit_grouped`]): all other refits of the bench's recordings converge in 1 to 24.
 const ACCELERATE_AFTER: usize = 25;
@@ -661,6 +691,7 @@ pub fn fit_grouped(
         let dmax = a.diagonal().max().max(f64::MIN_POSITIVE);
         let a_diag: Vec<f64> = a.diagonal().iter().map(|d| d.max(1e-12 * dmax)).collect();
         let mut improved = false;
+        let mut stalled = false;
         while lambda < 1e12 {
             let mut m = a.clone();
             for i in 0..m.nrows() {
@@ -704,6 +735,10 @@ pub fn fit_grouped(
                 lambda *= 10.0;
                 continue;
             }
+            if step_would_converge(&g, &a, &delta, c2, &theta, bounds) {
+                stalled = true;
+                break;
+            }
             if refit && it > ACCELERATE_AFTER {
                 let (ch, free) = factor.as_ref().expect("solved");
                 match geodesic_acceleration(f, &theta, &r, &jm, &delta, ch, free, bounds) {
@@ -738,7 +773,7 @@ pub fn fit_grouped(
                         c2 = c2n;
                         lambda = (lambda / 10.0).max(1e-12);
                         improved = true;
-                        if rel < 1e-7 || step < 1e-9 {
+                        if rel < CONVERGED_REL || step < CONVERGED_STEP {
                             converged = true;
                         }
                         break;
@@ -748,10 +783,11 @@ pub fn fit_grouped(
                 Err(_) => lambda *= 10.0,
             }
         }
-        if !improved {
-            // No descent direction left at any damping: a minimum (to working precision).
-            // θ and r did not move since `jm` was taken, so it is already the Jacobian
-            // at the solution (the same forward differences, bit for bit).
+        if stalled || !improved {
+            // The next step would end the fit by the convergence test below, or no
+            // descent direction is left at any damping: a minimum (to working
+            // precision). θ and r did not move since `jm` was taken, so it is already
+            // the Jacobian at the solution (the same forward differences, bit for bit).
             converged = true;
             jm_current = true;
             break;
