@@ -4,7 +4,7 @@ use crate::effects::{parse_effects, BuildContext, Effect, OutputBlock};
 use crate::error::SimError;
 use crate::model::{
     add_extra_receptances, add_extra_receptances_at, modal_compliance, modal_damping_matrix,
-    solve_columns, DynamicModel, ModelInput, Observation,
+    solve_columns_lines, DynamicModel, ModelInput, Observation, LINES_PER_SOLVE,
 };
 use crate::noise::{add_noise, excitation_rng};
 use crate::spec::{CampaignSpec, DampingModel};
@@ -280,32 +280,38 @@ fn input_responses(sm: &SetupModel, s: &[c64]) -> Result<Vec<Vec<c64>>, SimError
             .map(|&i| std::array::from_fn(|k| c64::new(model.inputs[i].column[k], 0.0)))
             .collect();
         let ng = group.len();
-        // Line-major `[line][input of the group][channel]`.
+        // Line-major `[line][input of the group][channel]`, solved in batches of
+        // `LINES_PER_SOLVE` lines (the last padded with copies of its last line).
         let mut y = vec![c64::new(0.0, 0.0); nl * ng * n_ch];
+        const L: usize = LINES_PER_SOLVE;
         let ok: Vec<bool> = y
-            .par_chunks_mut(ng * n_ch)
-            .zip(s.par_iter())
-            .with_min_len(LINES_PER_TASK)
+            .par_chunks_mut(L * ng * n_ch)
+            .zip(s.par_chunks(L))
+            .with_min_len(LINES_PER_TASK / L)
             .map_init(
-                || vec![[c64::new(0.0, 0.0); 6]; ng],
-                |x, (y, &s)| {
-                    let ok = solve_columns(
+                || vec![[[c64::new(0.0, 0.0); 6]; L]; ng],
+                |x, (y, s)| {
+                    let batch: [c64; L] = std::array::from_fn(|l| s[l.min(s.len() - 1)]);
+                    let ok = solve_columns_lines(
                         &mass,
                         &stiffness,
                         &model.damping,
                         &model.structural_damping,
-                        s,
+                        &batch,
                         &forces,
                         x,
                     );
-                    for (x, y) in x.iter().zip(y.chunks_exact_mut(n_ch)) {
-                        for (row, y) in model.outputs.iter().zip(y.iter_mut()) {
-                            *y = (0..6).map(|k| x[k] * row[k]).sum();
+                    for (l, y) in y.chunks_exact_mut(ng * n_ch).enumerate() {
+                        for (x, y) in x.iter().zip(y.chunks_exact_mut(n_ch)) {
+                            for (row, y) in model.outputs.iter().zip(y.iter_mut()) {
+                                *y = (0..6).map(|k| x[l][k] * row[k]).sum();
+                            }
                         }
                     }
-                    ok
+                    ok[..s.len()].to_vec()
                 },
             )
+            .flatten()
             .collect();
         if let Some(l) = ok.iter().position(|ok| !ok) {
             return Err(SimError::Setup {
