@@ -123,7 +123,9 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
 /// Row by row in the order of the rows, each entry adding the single product
 /// `j[a]·j[b]` (resp. `j[a]·r`): the sums of an outer product per row, bit for bit,
 /// without forming it. The rows are read from a row-major copy of `js` (a row of the
-/// column-major matrix is strided by its 54 000 rows).
+/// column-major matrix is strided by its 54 000 rows). Entry (b, a) receives the same
+/// products as (a, b) in the same order (`x·y = y·x` exactly), so only a ≤ b is summed
+/// and the other triangle copied.
 fn fold_information(
     js: &DMatrix<f64>,
     r: &[f64],
@@ -146,11 +148,18 @@ fn fold_information(
         let f = fold[row / 2];
         let (c, g) = (&mut jk[f], &mut gk[f]);
         for b in 0..p {
-            let cb = &mut c[b * p..(b + 1) * p];
-            for a in 0..p {
-                cb[a] += jr[a] * jr[b];
+            let cb = &mut c[b * p..=b * p + b];
+            for (x, &ja) in cb.iter_mut().zip(&jr[..=b]) {
+                *x += ja * jr[b];
             }
             g[b] += jr[b] * r[row];
+        }
+    }
+    for c in jk.iter_mut() {
+        for b in 0..p {
+            for a in b + 1..p {
+                c[b * p + a] = c[a * p + b];
+            }
         }
     }
     (
