@@ -434,8 +434,8 @@ pub fn solve_columns_lines(
     solve_columns_lines_body(mass, stiffness, damping, structural_damping, s, forces, x)
 }
 
-/// [`solve_columns_lines_body`] compiled for AVX2 (four lines per vector instruction).
-/// No fused multiply–add is enabled, so every operation rounds as in the portable build.
+/// [`solve_columns_lines_body`] compiled for AVX2 (see [`factor_lines_avx2`]): the
+/// factorisation and the solves in one function, inlined together.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn solve_columns_lines_avx2(
@@ -450,8 +450,6 @@ unsafe fn solve_columns_lines_avx2(
     solve_columns_lines_body(mass, stiffness, damping, structural_damping, s, forces, x)
 }
 
-// Indexed loops over the lines: the same index into several arrays is what vectorises.
-#[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn solve_columns_lines_body(
     mass: &Mat6,
@@ -462,8 +460,113 @@ fn solve_columns_lines_body(
     forces: &[[c64; 6]],
     x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
 ) -> [bool; LINES_PER_SOLVE] {
+    let lu = factor_lines(assemble_lines(
+        mass,
+        stiffness,
+        damping,
+        structural_damping,
+        s,
+    ));
+    let mut ok = lu.regular;
+    for (x, f) in x.iter_mut().zip(forces) {
+        solve_lines_into(&lu, &[*f; LINES_PER_SOLVE], x);
+        for (ok, x) in ok.iter_mut().zip(x.iter()) {
+            *ok &= x.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+        }
+    }
+    ok
+}
+
+/// The LU factors (partial pivoting) of `Z(s) = K + i sgn(Im s) D + sC + s²M` on each
+/// line of a batch of [`LINES_PER_SOLVE`] lines, by the elimination of
+/// [`solve_columns`] (see [`solve_columns_lines`]): factor once, then solve for any
+/// right-hand sides, one per line.
+pub struct LinesLu {
+    /// Multipliers below the diagonal, the pivots' reciprocals on it, U above it.
+    a: SplitMatrix,
+    /// Row permutation of each line.
+    perm: [[usize; 6]; LINES_PER_SOLVE],
+    /// Whether each line's Z is regular (no pivot below 1e-10 of Z's largest entry).
+    pub regular: [bool; LINES_PER_SOLVE],
+}
+
+impl LinesLu {
+    /// Factorises Z(s) of each line of the batch `s`.
+    pub fn factor(
+        mass: &Mat6,
+        stiffness: &Mat6,
+        damping: &Mat6,
+        structural_damping: &Mat6,
+        s: &[c64; LINES_PER_SOLVE],
+    ) -> LinesLu {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                return unsafe {
+                    factor_lines_avx2(mass, stiffness, damping, structural_damping, s)
+                };
+            }
+        }
+        factor_lines(assemble_lines(
+            mass,
+            stiffness,
+            damping,
+            structural_damping,
+            s,
+        ))
+    }
+
+    /// `x = Z⁻¹ b` on each line (`b[l]` line l's right-hand side); a line that is not
+    /// [`Self::regular`] gets meaningless values.
+    pub fn solve(&self, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2 (checked just above).
+                return unsafe { solve_lines_avx2(self, b) };
+            }
+        }
+        solve_lines(self, b)
+    }
+}
+
+/// [`factor_lines`] compiled for AVX2 (four lines per vector instruction). No fused
+/// multiply–add is enabled, so every operation rounds as in the portable build.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn factor_lines_avx2(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    damping: &Mat6,
+    structural_damping: &Mat6,
+    s: &[c64; LINES_PER_SOLVE],
+) -> LinesLu {
+    factor_lines(assemble_lines(
+        mass,
+        stiffness,
+        damping,
+        structural_damping,
+        s,
+    ))
+}
+
+/// [`solve_lines`] compiled for AVX2 (see [`factor_lines_avx2`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn solve_lines_avx2(
+    lu: &LinesLu,
+    b: &[[c64; 6]; LINES_PER_SOLVE],
+) -> [[c64; 6]; LINES_PER_SOLVE] {
+    solve_lines(lu, b)
+}
+
+/// The elimination of [`solve_columns`] on every line of a batch (see [`LinesLu`]).
+// Indexed loops over the lines: the same index into several arrays is what vectorises.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn factor_lines(mut a: SplitMatrix) -> LinesLu {
     const L: usize = LINES_PER_SOLVE;
-    let mut a = assemble_lines(mass, stiffness, damping, structural_damping, s);
     let mut tiny = [0.0f64; L];
     for i in 0..6 {
         for j in 0..6 {
@@ -472,7 +575,7 @@ fn solve_columns_lines_body(
             }
         }
     }
-    let mut ok = [true; L];
+    let mut regular = [true; L];
     let mut perm = [[0usize; 6]; L];
     for p in perm.iter_mut() {
         *p = std::array::from_fn(|i| i);
@@ -496,7 +599,7 @@ fn solve_columns_lines_body(
                 }
             }
             if !(best > 1e-10 * tiny[l] && best.is_finite()) {
-                ok[l] = false;
+                regular[l] = false;
             }
             if p != k {
                 for j in 0..6 {
@@ -533,50 +636,66 @@ fn solve_columns_lines_body(
             }
         }
     }
-    for (x, b) in x.iter_mut().zip(forces) {
-        let mut yr = [[0.0; L]; 6];
-        let mut yi = [[0.0; L]; 6];
-        for l in 0..L {
-            for i in 0..6 {
-                yr[i][l] = b[perm[l][i]].re;
-                yi[i][l] = b[perm[l][i]].im;
-            }
+    LinesLu { a, perm, regular }
+}
+
+/// Forward and back substitution of [`solve_columns`] on every line of a batch.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn solve_lines(lu: &LinesLu, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
+    let mut x = [[c64::new(0.0, 0.0); 6]; LINES_PER_SOLVE];
+    solve_lines_into(lu, b, &mut x);
+    x
+}
+
+/// [`solve_lines`] into `x`.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn solve_lines_into(
+    lu: &LinesLu,
+    b: &[[c64; 6]; LINES_PER_SOLVE],
+    x: &mut [[c64; 6]; LINES_PER_SOLVE],
+) {
+    const L: usize = LINES_PER_SOLVE;
+    let a = &lu.a;
+    let mut yr = [[0.0; L]; 6];
+    let mut yi = [[0.0; L]; 6];
+    for l in 0..L {
+        for i in 0..6 {
+            yr[i][l] = b[l][lu.perm[l][i]].re;
+            yi[i][l] = b[l][lu.perm[l][i]].im;
         }
-        for i in 1..6 {
-            for j in 0..i {
-                let (tr, ti) = lanes_mul(&a.re[i][j], &a.im[i][j], &yr[j], &yi[j]);
-                for l in 0..L {
-                    yr[i][l] -= tr[l];
-                    yi[i][l] -= ti[l];
-                }
-            }
-        }
-        for i in (0..6).rev() {
-            for j in i + 1..6 {
-                let (tr, ti) = lanes_mul(&a.re[i][j], &a.im[i][j], &yr[j], &yi[j]);
-                for l in 0..L {
-                    yr[i][l] -= tr[l];
-                    yi[i][l] -= ti[l];
-                }
-            }
-            // `y *= d` as `num_complex`'s `*=`: re = yr dr − yi di, im = yi dr + yr di.
-            let (dr, di) = (a.re[i][i], a.im[i][i]);
+    }
+    for i in 1..6 {
+        for j in 0..i {
+            let (tr, ti) = lanes_mul(&a.re[i][j], &a.im[i][j], &yr[j], &yi[j]);
             for l in 0..L {
-                let (r0, i0) = (yr[i][l], yi[i][l]);
-                yr[i][l] = r0 * dr[l] - i0 * di[l];
-                yi[i][l] = i0 * dr[l] + r0 * di[l];
-            }
-        }
-        for l in 0..L {
-            for i in 0..6 {
-                x[l][i] = c64::new(yr[i][l], yi[i][l]);
-            }
-            if !x[l].iter().all(|v| v.re.is_finite() && v.im.is_finite()) {
-                ok[l] = false;
+                yr[i][l] -= tr[l];
+                yi[i][l] -= ti[l];
             }
         }
     }
-    ok
+    for i in (0..6).rev() {
+        for j in i + 1..6 {
+            let (tr, ti) = lanes_mul(&a.re[i][j], &a.im[i][j], &yr[j], &yi[j]);
+            for l in 0..L {
+                yr[i][l] -= tr[l];
+                yi[i][l] -= ti[l];
+            }
+        }
+        // `y *= d` as `num_complex`'s `*=`: re = yr dr − yi di, im = yi dr + yr di.
+        let (dr, di) = (a.re[i][i], a.im[i][i]);
+        for l in 0..L {
+            let (r0, i0) = (yr[i][l], yi[i][l]);
+            yr[i][l] = r0 * dr[l] - i0 * di[l];
+            yi[i][l] = i0 * dr[l] + r0 * di[l];
+        }
+    }
+    for (l, x) in x.iter_mut().enumerate() {
+        for (i, x) in x.iter_mut().enumerate() {
+            *x = c64::new(yr[i][l], yi[i][l]);
+        }
+    }
 }
 
 /// `Z(s) = K + i sgn(Im s) D + sC + s²M` of each line of a batch, each entry computed as

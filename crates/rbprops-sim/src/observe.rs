@@ -20,11 +20,10 @@
 //! scalar state). `h_c = Π sτ/(1 + sτ)` is the high-pass product of channel c.
 //! The direct term of the accelerance (`S M⁻¹ f` at t = 0) is inside `s² x`.
 
-use crate::model::{DynamicModel, ModelInput};
+use crate::model::{DynamicModel, LinesLu, ModelInput, LINES_PER_SOLVE};
 use nalgebra::{SMatrix, SVector, Vector2};
 use rbprops_core::{c64, Mat6, Quantity, Vec6};
 
-type Mat6c = nalgebra::Matrix6<c64>;
 type Vec6c = nalgebra::Vector6<c64>;
 
 fn cplx6(v: &Vec6) -> Vec6c {
@@ -151,29 +150,14 @@ pub fn observed_block(
         .iter()
         .map(|r| cplx6(&r.transpose()))
         .collect();
-    let fc = cplx6(&f);
+    let s_of = |w: f64| c64::new(sigma, w);
+    let (xs, qts) = responses(&mass, &stiffness, model, &f, omegas, sigma, &rigid_tail)?;
     for (l, &w) in omegas.iter().enumerate() {
-        let s = c64::new(sigma, w);
-        let z = Mat6c::from_fn(|i, j| {
-            c64::new(stiffness[(i, j)], model.structural_damping[(i, j)])
-                + s * model.damping[(i, j)]
-                + s * s * mass[(i, j)]
-        });
-        let lu = z.lu();
-        let x = lu.solve(&fc).ok_or_else(|| {
-            format!(
-                "dynamic stiffness is singular at {:.6} Hz (s = {s})",
-                w / std::f64::consts::TAU
-            )
-        })?;
-        let tail = match &rigid_tail {
-            Some((t, (q0, v0))) => {
-                let rhs = (mass * (q0 * 1.0)).map(|v| c64::new(v, 0.0)) * s
-                    + cplx6(&(mass * v0 + model.damping * q0));
-                let qt = lu.solve(&rhs).ok_or("singular dynamic stiffness")?;
-                Some((qt, cplx6(q0), cplx6(v0), (-s * *t).exp()))
-            }
-            None => None,
+        let s = s_of(w);
+        let x = xs[l];
+        let tail = match (&rigid_tail, qts.get(l)) {
+            (Some((t, (q0, v0))), Some(&qt)) => Some((qt, cplx6(q0), cplx6(v0), (-s * *t).exp())),
+            _ => None,
         };
         let yk = derivative_transform(k, s, x, tail);
         let disp = if grows.is_empty() {
@@ -220,6 +204,64 @@ pub fn observed_block(
         }
     }
     Ok(())
+}
+
+/// `x = Z(s)⁻¹ f` on every line (`s = σ + iω`) and, for a finite record (`rigid_tail`:
+/// T and the state at T), the tail transform `Q_T = Z(s)⁻¹[(M + M_a)(s q_T + v_T) + C q_T]`
+/// (empty without one), by the batched LU of [`LinesLu`] (one factorisation per line
+/// for both). A line whose Z is singular to working precision (see
+/// [`crate::model::solve_columns`]) is an error naming its frequency.
+fn responses(
+    mass: &Mat6,
+    stiffness: &Mat6,
+    model: &DynamicModel,
+    f: &Vec6,
+    omegas: &[f64],
+    sigma: f64,
+    rigid_tail: &Option<(f64, (Vec6, Vec6))>,
+) -> Result<(Vec<Vec6c>, Vec<Vec6c>), String> {
+    const L: usize = LINES_PER_SOLVE;
+    let fc: [c64; 6] = std::array::from_fn(|i| c64::new(f[i], 0.0));
+    let mut xs = Vec::with_capacity(omegas.len());
+    let mut qts = Vec::with_capacity(if rigid_tail.is_some() {
+        omegas.len()
+    } else {
+        0
+    });
+    for batch in omegas.chunks(L) {
+        let s: [c64; L] = std::array::from_fn(|l| c64::new(sigma, batch[l.min(batch.len() - 1)]));
+        let lu = LinesLu::factor(
+            mass,
+            stiffness,
+            &model.damping,
+            &model.structural_damping,
+            &s,
+        );
+        let x = lu.solve(&[fc; L]);
+        let qt = rigid_tail.as_ref().map(|(_, (q0, v0))| {
+            let static_part = mass * v0 + model.damping * q0;
+            let mq = mass * q0;
+            let rhs: [[c64; 6]; L] = std::array::from_fn(|l| {
+                std::array::from_fn(|i| c64::new(mq[i], 0.0) * s[l] + c64::new(static_part[i], 0.0))
+            });
+            lu.solve(&rhs)
+        });
+        for l in 0..batch.len() {
+            let finite = |v: &[c64; 6]| v.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+            if !(lu.regular[l] && finite(&x[l]) && qt.as_ref().is_none_or(|q| finite(&q[l]))) {
+                return Err(format!(
+                    "dynamic stiffness is singular at {:.6} Hz (s = {})",
+                    batch[l] / std::f64::consts::TAU,
+                    s[l]
+                ));
+            }
+            xs.push(Vec6c::from_row_slice(&x[l]));
+            if let Some(q) = &qt {
+                qts.push(Vec6c::from_row_slice(&q[l]));
+            }
+        }
+    }
+    Ok((xs, qts))
 }
 
 #[cfg(test)]
