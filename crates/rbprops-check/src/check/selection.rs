@@ -172,7 +172,16 @@ impl<'p, 'a> Selection<'p, 'a> {
             q0: &q0,
             chord: &chord,
         };
-        let scores: Vec<(usize, Result<Score, CheckError>)> = todo
+        // The profile-screened candidates (the cords' string modes, the record length's
+        // lag scan) take most of a screening: started first, so that the step does not
+        // wait for one of them begun last. Collected back in the candidates' order.
+        let mut order = todo.clone();
+        order.sort_by_key(|&c| match p.cands[c].screening {
+            Screening::Profile { .. } => 0,
+            Screening::Resonance => 1,
+            _ => 2,
+        });
+        let mut scores: Vec<(usize, Result<Score, CheckError>)> = order
             .par_iter()
             .map(|&c| {
                 let s = match &p.cands[c].screening {
@@ -188,6 +197,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 (c, s)
             })
             .collect();
+        scores.sort_by_key(|(c, _)| todo.iter().position(|t| t == c));
         let mut significant: Vec<(usize, Score, f64)> = Vec::new();
         for (c, s) in scores {
             let cand = &p.cands[c];
