@@ -635,6 +635,10 @@ fn check_with(
         layout: &layout,
         y,
         sigma: &sigma,
+        weight: used
+            .iter()
+            .map(|&i| std::f64::consts::SQRT_2 / sigma[i])
+            .collect(),
         used,
         fixed_effects,
         cands,

@@ -90,6 +90,9 @@ pub(super) struct Problem<'a> {
     pub(super) y: &'a [c64],
     pub(super) sigma: &'a [f64],
     pub(super) used: Vec<usize>,
+    /// `√2/σ` of each used value (in the order of `used`): the residual's weights,
+    /// divided once rather than at every model evaluation.
+    pub(super) weight: Vec<f64>,
     pub(super) fixed_effects: Vec<Box<dyn Effect>>,
     pub(super) cands: Vec<Candidate>,
     pub(super) fixed_mass: Option<f64>,
@@ -135,8 +138,8 @@ impl<'a> Problem<'a> {
     pub(super) fn residual(&self, theta: &[f64], active: &[Act]) -> Result<Vec<f64>, CheckError> {
         let m = self.model(theta, active)?;
         let mut r = Vec::with_capacity(2 * self.used.len());
-        for &i in &self.used {
-            let d = (self.y[i] - m[i]) * (std::f64::consts::SQRT_2 / self.sigma[i]);
+        for (&i, &w) in self.used.iter().zip(&self.weight) {
+            let d = (self.y[i] - m[i]) * w;
             r.push(d.re);
             r.push(d.im);
         }
