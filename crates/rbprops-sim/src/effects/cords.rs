@@ -492,7 +492,9 @@ fn wilkinson_shift(tmm: f64, tnn: f64, tmn: f64) -> f64 {
 }
 
 /// Solves the augmented model's real modes and reduces it; `body_mass` (the body
-/// without cords) measures each mode's body kinetic energy.
+/// without cords) measures each mode's body kinetic energy. `aug` must have the form
+/// [`augmented_model`] assembles (unit cord mass block, diagonal cord stiffness, no
+/// stiffness coupling): an error otherwise.
 pub fn reduce(aug: &AugmentedModel, body_mass: &Mat6) -> Result<ReducedModel, String> {
     let n = aug.mass.nrows();
     let (h, l) = standard_form(aug)?;
