@@ -52,7 +52,7 @@ use super::gravity::{cord_tensions, Cord};
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::{DynamicModel, ExtraMode};
 use crate::spec::CampaignSpec;
-use nalgebra::{DMatrix, SymmetricEigen};
+use nalgebra::{DMatrix, Matrix6xX};
 use rbprops_core::{rigid_transform, MassMatrix6, Mat6, Vec3, Vec6};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -209,30 +209,304 @@ pub struct ReducedModel {
     pub extra: Vec<(f64, Vec6)>,
 }
 
+/// The augmented model in standard form after the change of cord coordinates
+/// `q_c' = q_c + Bᵀ q_b`, with `L` the Cholesky factor of the body block of the mass.
+///
+/// With the mass `[[A, B], [Bᵀ, I]]` (cord coordinates mass-normalised) and the
+/// stiffness `[[K_b, 0], [0, D]]` (`D` diagonal) that [`augmented_model`] assembles, the
+/// kinetic energy `q̇_bᵀAq̇_b + 2q̇_bᵀBq̇_c + q̇_cᵀq̇_c` becomes `q̇_bᵀ(A − BBᵀ)q̇_b + q̇_c'ᵀq̇_c'`
+/// and the strain energy `q_bᵀK_bq_b + (q_c' − Bᵀq_b)ᵀD(q_c' − Bᵀq_b)`: mass
+/// `[[A − BBᵀ, 0], [0, I]]` (`A − BBᵀ`, the Schur complement of the unit block, is
+/// positive definite with the whole mass), stiffness `[[K_b + BDBᵀ, −BD], [−DBᵀ, D]]`.
+/// With `A − BBᵀ = LLᵀ` the standard form is
+/// `[[L⁻¹(K_b + BDBᵀ)L⁻ᵀ, −L⁻¹BD], [−DBᵀL⁻ᵀ, D]]`; the body coordinates are unchanged,
+/// so a mode's body part is `L⁻ᵀ` times the first six entries of its eigenvector, and
+/// only a 6×6 Cholesky factor is needed (not one of the whole mass).
+fn standard_form(aug: &AugmentedModel) -> Result<(DMatrix<f64>, Mat6), String> {
+    let n = aug.mass.nrows();
+    if n < 6 || aug.mass.ncols() != n || aug.stiffness.shape() != (n, n) {
+        return Err("the augmented model's matrices are not square of size ≥ 6".into());
+    }
+    let nc = n - 6;
+    let (m, k) = (&aug.mass, &aug.stiffness);
+    let assembled = (6..n).all(|i| {
+        (0..n).all(|j| {
+            m[(i, j)]
+                == if i == j {
+                    1.0
+                } else if j < 6 {
+                    m[(j, i)]
+                } else {
+                    0.0
+                }
+                && (i == j || k[(i, j)] == 0.0 && k[(j, i)] == 0.0)
+        })
+    });
+    if !assembled {
+        return Err("the augmented model is not in the form `augmented_model` assembles".into());
+    }
+    let a: Mat6 = m.fixed_view::<6, 6>(0, 0).into_owned();
+    let b: Matrix6xX<f64> = m.fixed_rows::<6>(0).columns(6, nc).into_owned();
+    let d = k.diagonal().rows(6, nc).into_owned();
+    let kb: Mat6 = k.fixed_view::<6, 6>(0, 0).into_owned();
+    let mut bd = b.clone();
+    for (mut col, dj) in bd.column_iter_mut().zip(d.iter()) {
+        col *= *dj;
+    }
+    let k11 = (kb + kb.transpose()) / 2.0 + &bd * b.transpose();
+    let s = a - &b * b.transpose();
+    let l = ((s + s.transpose()) / 2.0)
+        .cholesky()
+        .ok_or("the mass matrix with the cords is not positive definite")?
+        .l();
+    let x = l
+        .solve_lower_triangular(&k11)
+        .ok_or("singular Cholesky factor")?;
+    let h11 = l
+        .solve_lower_triangular(&x.transpose())
+        .ok_or("singular Cholesky factor")?;
+    let h12 = -l
+        .solve_lower_triangular(&bd)
+        .ok_or("singular Cholesky factor")?;
+    let mut h = DMatrix::<f64>::zeros(n, n);
+    for (i, di) in d.iter().enumerate() {
+        h[(6 + i, 6 + i)] = *di;
+    }
+    h.fixed_view_mut::<6, 6>(0, 0)
+        .copy_from(&((h11 + h11.transpose()) / 2.0));
+    h.view_mut((0, 6), (6, nc)).copy_from(&h12);
+    h.view_mut((6, 0), (nc, 6)).copy_from(&h12.transpose());
+    Ok((h, l))
+}
+
+/// The eigenvalues of the symmetric `h` and `rows` (six rows of length n) times its
+/// orthonormal eigenvectors: with `h` and `rows = [L⁻ᵀ, 0]` from [`standard_form`],
+/// the body parts of the mass-normalised modes, without forming the modes.
+///
+/// Householder tridiagonalisation `h = Q T Qᵀ`, then the implicit symmetric QR
+/// iteration with Wilkinson's shift on `T = W Λ Wᵀ` (Golub & Van Loan §8.3; the
+/// iteration of nalgebra's `SymmetricEigen`), carrying only the six rows `rows Q` and
+/// then `rows Q W`. A general solver accumulates all n rows of `QW`, most of its cost.
+fn eigen_body_rows(
+    mut h: DMatrix<f64>,
+    rows: &Matrix6xX<f64>,
+) -> Result<(Vec<f64>, Matrix6xX<f64>), String> {
+    let n = h.nrows();
+    let largest = h.amax();
+    if !largest.is_finite() {
+        return Err("the modes of the body on massive cords are not finite".into());
+    }
+    // A power of two near the largest entry, so the scaling is exact.
+    let scale = if largest > 0.0 {
+        2f64.powi(largest.log2().round() as i32)
+    } else {
+        1.0
+    };
+    h /= scale;
+    let (mut d, mut e, mut z) = tridiagonalise(&mut h, rows);
+    tridiagonal_qr(&mut d, &mut e[..n.saturating_sub(1)], &mut z)?;
+    d.iter_mut().for_each(|x| *x *= scale);
+    Ok((d, Matrix6xX::from_fn(n, |r, c| z[6 * c + r])))
+}
+
+/// Householder reduction of the symmetric `a` (overwritten) to tridiagonal form: the
+/// diagonal, the subdiagonal (`e[i]` couples `i` and `i + 1`; `e[n − 1] = 0`) and
+/// `rows` times `Q`, stored by column (`z[6 c + r] = (rows Q)[r, c]`).
+fn tridiagonalise(a: &mut DMatrix<f64>, rows: &Matrix6xX<f64>) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let n = a.nrows();
+    let mut e = vec![0.0; n];
+    let mut z: Vec<f64> = rows.as_slice().to_vec();
+    let a = a.as_mut_slice();
+    let (mut v, mut p) = (vec![0.0; n], vec![0.0; n]);
+    for k in 0..n.saturating_sub(2) {
+        // The reflector I − τvvᵀ (v₀ = 1) taking a[k+1.., k] to βe₁.
+        let lo = k + 1;
+        let x = &a[k * n + lo..(k + 1) * n];
+        let alpha = x[0];
+        let sigma: f64 = x[1..].iter().map(|t| t * t).sum();
+        if sigma == 0.0 {
+            e[k] = alpha;
+            continue;
+        }
+        let beta = -alpha.signum() * (alpha * alpha + sigma).sqrt();
+        let tau = (beta - alpha) / beta;
+        let scale = 1.0 / (alpha - beta);
+        let v = &mut v[lo..];
+        v[0] = 1.0;
+        for (vi, xi) in v[1..].iter_mut().zip(&x[1..]) {
+            *vi = xi * scale;
+        }
+        e[k] = beta;
+        // Trailing block A ← HAH = A − vwᵀ − wvᵀ, p = τAv, w = p − (τ/2)(pᵀv)v.
+        let p = &mut p[lo..];
+        p.fill(0.0);
+        for (j, &vj) in v.iter().enumerate() {
+            let col = &a[(lo + j) * n + lo..(lo + j + 1) * n];
+            for (pi, aij) in p.iter_mut().zip(col) {
+                *pi += aij * vj;
+            }
+        }
+        let pv: f64 = p.iter().zip(v.iter()).map(|(pi, vi)| pi * vi).sum::<f64>() * tau;
+        for (pi, vi) in p.iter_mut().zip(v.iter()) {
+            *pi = tau * *pi - 0.5 * tau * pv * vi;
+        }
+        for (j, (&vj, &wj)) in v.iter().zip(p.iter()).enumerate() {
+            let col = &mut a[(lo + j) * n + lo..(lo + j + 1) * n];
+            for ((aij, vi), wi) in col.iter_mut().zip(v.iter()).zip(p.iter()) {
+                *aij -= vi * wj + wi * vj;
+            }
+        }
+        // The six rows: rows Q ← rows Q H.
+        let zk = &mut z[6 * lo..];
+        let mut s = [0.0; 6];
+        for (col, vj) in zk.chunks_exact(6).zip(v.iter()) {
+            for (sr, zr) in s.iter_mut().zip(col) {
+                *sr += zr * vj;
+            }
+        }
+        for (col, vj) in zk.chunks_exact_mut(6).zip(v.iter()) {
+            for (zr, sr) in col.iter_mut().zip(&s) {
+                *zr -= tau * sr * vj;
+            }
+        }
+    }
+    if n >= 2 {
+        e[n - 2] = a[(n - 2) * n + n - 1];
+    }
+    let d = (0..n).map(|i| a[i * n + i]).collect();
+    (d, e, z)
+}
+
+/// The unreduced block `(start, end)` at the bottom of the tridiagonal `(d, e)` up to
+/// `end`, its negligible couplings set to zero (`(0, 0)`: all decoupled).
+fn delimit_subproblem(d: &[f64], e: &mut [f64], end: usize) -> (usize, usize) {
+    let negligible = |e: f64, a: f64, b: f64| e.abs() <= f64::EPSILON * (a.abs() + b.abs());
+    let mut n = end;
+    while n > 0 && negligible(e[n - 1], d[n], d[n - 1]) {
+        n -= 1;
+    }
+    if n == 0 {
+        return (0, 0);
+    }
+    let mut start = n - 1;
+    while start > 0 {
+        let m = start - 1;
+        if e[m] == 0.0 || negligible(e[m], d[start], d[m]) {
+            e[m] = 0.0;
+            break;
+        }
+        start -= 1;
+    }
+    (start, n)
+}
+
+/// Most QR sweeps of [`tridiagonal_qr`] per eigenvalue (two or three are usual).
+const QR_MAX_SWEEPS: usize = 30;
+
+/// The implicit symmetric QR iteration with Wilkinson's shift on the tridiagonal
+/// `(d, e)` (`e[i]` couples `i` and `i + 1`): `d` becomes the eigenvalues and each
+/// rotation is applied to the six rows `z` (by column, `z[6 c + r]`).
+fn tridiagonal_qr(d: &mut [f64], e: &mut [f64], z: &mut [f64]) -> Result<(), String> {
+    let n = d.len();
+    if n < 2 {
+        return Ok(());
+    }
+    let rotate = |z: &mut [f64], i: usize, c: f64, s: f64| {
+        for k in 0..6 {
+            let (a, b) = (z[6 * i + k], z[6 * (i + 1) + k]);
+            z[6 * i + k] = c * a + s * b;
+            z[6 * (i + 1) + k] = c * b - s * a;
+        }
+    };
+    let (mut start, mut end) = delimit_subproblem(d, e, n - 1);
+    let mut sweeps = 0;
+    while end != start {
+        sweeps += 1;
+        if sweeps > QR_MAX_SWEEPS * n {
+            return Err("the modes of the body on massive cords did not converge".into());
+        }
+        if end - start + 1 > 2 {
+            let m = end - 1;
+            let shift = wilkinson_shift(d[m], d[end], e[m]);
+            let (mut x, mut y) = (d[start] - shift, e[start]);
+            for i in start..end {
+                if y == 0.0 {
+                    break;
+                }
+                // The rotation taking (x, y) to (r, 0).
+                let sign = if x >= 0.0 { 1.0 } else { -1.0 };
+                let norm = (x * x + y * y).sqrt();
+                let (c, s) = (x.abs() / norm, -y / (sign * norm));
+                if i > start {
+                    e[i - 1] = sign * norm;
+                }
+                let (dii, djj, eij) = (d[i], d[i + 1], e[i]);
+                let (cc, ss, cs) = (c * c, s * s, c * s);
+                let b = cs * 2.0 * eij;
+                d[i] = (cc * dii + ss * djj) - b;
+                d[i + 1] = (ss * dii + cc * djj) + b;
+                e[i] = cs * (dii - djj) + eij * (cc - ss);
+                if i != end - 1 {
+                    x = e[i];
+                    y = -s * e[i + 1];
+                    e[i + 1] *= c;
+                }
+                rotate(z, i, c, -s);
+            }
+            if e[m].abs() <= f64::EPSILON * (d[m].abs() + d[end].abs()) {
+                end -= 1;
+            }
+        } else {
+            // A 2×2 block: its eigenvalues and the rotation onto its eigenvectors.
+            let (a, b, c) = (d[start], e[start], d[start + 1]);
+            let half = (a - c) * 0.5;
+            let root = (b * b + half * half).sqrt();
+            let (l0, l1) = ((a + c) * 0.5 + root, (a + c) * 0.5 - root);
+            let (bx, by) = if (l0 - c).abs() > (l0 - a).abs() {
+                (l0 - c, b)
+            } else {
+                (b, l0 - a)
+            };
+            d[start] = l0;
+            d[start + 1] = l1;
+            let norm = (bx * bx + by * by).sqrt();
+            if norm > f64::EPSILON {
+                let sign = if bx >= 0.0 { 1.0 } else { -1.0 };
+                rotate(z, start, bx.abs() / norm, by / (sign * norm));
+            }
+            end -= 1;
+        }
+        (start, end) = delimit_subproblem(d, e, end);
+    }
+    Ok(())
+}
+
+/// The eigenvalue of `[[tmm, tmn], [tmn, tnn]]` nearer `tnn`.
+fn wilkinson_shift(tmm: f64, tnn: f64, tmn: f64) -> f64 {
+    let sq = tmn * tmn;
+    if sq == 0.0 {
+        return tnn;
+    }
+    let d = (tmm - tnn) * 0.5;
+    tnn - sq / (d + d.signum() * (d * d + sq).sqrt())
+}
+
 /// Solves the augmented model's real modes and reduces it; `body_mass` (the body
-/// without cords) measures each mode's body kinetic energy.
+/// without cords) measures each mode's body kinetic energy. `aug` must have the form
+/// [`augmented_model`] assembles (unit cord mass block, diagonal cord stiffness, no
+/// stiffness coupling): an error otherwise.
 pub fn reduce(aug: &AugmentedModel, body_mass: &Mat6) -> Result<ReducedModel, String> {
     let n = aug.mass.nrows();
-    let chol = aug
-        .mass
-        .clone()
-        .cholesky()
-        .ok_or("the mass matrix with the cords is not positive definite")?;
-    let l = chol.l();
-    let ks = (&aug.stiffness + aug.stiffness.transpose()) / 2.0;
-    let a = l
-        .solve_lower_triangular(&ks)
-        .ok_or("singular Cholesky factor")?;
-    let a = l
-        .solve_lower_triangular(&a.transpose())
-        .ok_or("singular Cholesky factor")?;
-    let a = (&a + a.transpose()) / 2.0;
-    let eig = SymmetricEigen::new(a);
-    let phi = l
+    let (h, l) = standard_form(aug)?;
+    // Body parts `L⁻ᵀ y_b`: the rows `[L⁻ᵀ, 0]` times the eigenvectors.
+    let l_inv_t = l
         .transpose()
-        .solve_upper_triangular(&eig.eigenvectors)
+        .try_inverse()
         .ok_or("singular Cholesky factor")?;
-    if !phi.iter().all(|x| x.is_finite()) || !eig.eigenvalues.iter().all(|x| x.is_finite()) {
+    let mut rows = Matrix6xX::<f64>::zeros(n);
+    rows.fixed_columns_mut::<6>(0).copy_from(&l_inv_t);
+    let (eigenvalues, phi) = eigen_body_rows(h, &rows)?;
+    if !phi.iter().all(|x| x.is_finite()) || !eigenvalues.iter().all(|x| x.is_finite()) {
         return Err("the modes of the body on massive cords are not finite".into());
     }
     let body = |r: usize| -> Vec6 { Vec6::from_fn(|i, _| phi[(i, r)]) };
@@ -245,11 +519,7 @@ pub fn reduce(aug: &AugmentedModel, body_mass: &Mat6) -> Result<ReducedModel, St
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&i, &j| energy[j].total_cmp(&energy[i]).then(i.cmp(&j)));
     let mut six: Vec<usize> = order[..6].to_vec();
-    six.sort_by(|&i, &j| {
-        eig.eigenvalues[i]
-            .total_cmp(&eig.eigenvalues[j])
-            .then(i.cmp(&j))
-    });
+    six.sort_by(|&i, &j| eigenvalues[i].total_cmp(&eigenvalues[j]).then(i.cmp(&j)));
     let psi = Mat6::from_columns(&six.iter().map(|&r| body(r)).collect::<Vec<_>>());
     let sv = psi.singular_values();
     let cond = sv.max() / sv.min();
@@ -261,18 +531,14 @@ pub fn reduce(aug: &AugmentedModel, body_mass: &Mat6) -> Result<ReducedModel, St
     let pinv = psi
         .try_inverse()
         .ok_or("the six body-dominated modes are singular")?;
-    let omega2 = Mat6::from_diagonal(&Vec6::from_fn(|i, _| eig.eigenvalues[six[i]]));
+    let omega2 = Mat6::from_diagonal(&Vec6::from_fn(|i, _| eigenvalues[six[i]]));
     let mass = pinv.transpose() * pinv;
     let stiffness = pinv.transpose() * omega2 * pinv;
     let mut extra = Vec::with_capacity(n - 6);
     let mut rest: Vec<usize> = order[6..].to_vec();
-    rest.sort_by(|&i, &j| {
-        eig.eigenvalues[i]
-            .total_cmp(&eig.eigenvalues[j])
-            .then(i.cmp(&j))
-    });
+    rest.sort_by(|&i, &j| eigenvalues[i].total_cmp(&eigenvalues[j]).then(i.cmp(&j)));
     for r in rest {
-        let w2 = eig.eigenvalues[r];
+        let w2 = eigenvalues[r];
         if !(w2 > 0.0) {
             return Err(format!(
                 "a cord mode has a non-positive eigenvalue ω² = {w2:.3e}"

@@ -340,6 +340,78 @@ fn augmented_model_holds_the_string_and_surge_series() {
     }
 }
 
+/// Four equal cords at `(±a, ±b, 0)` around the CoM (a symmetric suspension): each
+/// string and surge frequency is shared by the four cords, so the augmented model has
+/// repeated eigenvalues and modes in which the body stays still. The reduction still
+/// reproduces the augmented model's body receptance, solved directly, and the body-free
+/// modes (six per mode number) are dropped or invisible.
+#[test]
+fn four_equal_cords_reduce_to_the_augmented_receptance() {
+    let (a, b, l, n) = (0.25, 0.15, 1.2, 6);
+    let (m, kz, tension) = (12.0, 3000.0, 12.0 * G / 4.0);
+    let cords: Vec<MassiveCord> = [(a, b), (-a, b), (a, -b), (-a, -b)]
+        .iter()
+        .map(|&(x, y)| MassiveCord {
+            at: Vec3::new(x, y, 0.0),
+            length: l,
+            mass_per_length: 0.08,
+            tension,
+            axial_stiffness: kz,
+        })
+        .collect();
+    let mm = rbprops_core::Mat6::from_diagonal(&rbprops_core::Vec6::from_column_slice(&[
+        m, m, m, 0.2, 0.3, 0.25,
+    ]));
+    let kh = 4.0 * tension / l;
+    let k6 = rbprops_core::Mat6::from_diagonal(&rbprops_core::Vec6::from_column_slice(&[
+        kh,
+        kh,
+        4.0 * kz,
+        4.0 * kz * b * b,
+        4.0 * kz * a * a,
+        kh * (a * a + b * b),
+    ]));
+    let aug = augmented_model(&mm, &k6, &cords, &Vec3::z(), n);
+    let red = reduce(&aug, &mm).unwrap();
+    // Per mode number the eight string coordinates (two directions, four cords) reach
+    // the body through e_x, e_y and the yaw only, the four surge coordinates through
+    // e_z, roll and pitch: 5 + 1 body-free combinations. Those left in by roundoff (body
+    // energy above BODY_FREE_ENERGY) must be invisible; the others carry body energy.
+    let energy: Vec<f64> = red
+        .extra
+        .iter()
+        .map(|(_, p)| (p.transpose() * mm * p)[0])
+        .collect();
+    let visible = energy.iter().filter(|&&e| e > 1e-12).count();
+    assert_eq!(visible, 4 * 3 * n - 6 * n, "body energies {energy:?}");
+    assert!(
+        energy.iter().all(|&e| e > 1e-12 || e < 1e-20),
+        "body energies {energy:?}"
+    );
+    // Away from the undamped suspension modes (0.45, 0.92, 5.0, 5.8 and 8 Hz), where
+    // roundoff in the modes is amplified without bound.
+    for f in [0.3, 1.5, 3.3, 7.0, 11.0, 27.0, 61.0, 95.0] {
+        let w: f64 = TAU * f;
+        let g_aug = (&aug.stiffness - &aug.mass * (w * w))
+            .try_inverse()
+            .unwrap();
+        let g6 = (red.stiffness - red.mass * (w * w)).try_inverse().unwrap();
+        let scale = g_aug.view((0, 0), (6, 6)).abs().max();
+        let mut worst = 0.0f64;
+        for i in 0..6 {
+            for j in 0..6 {
+                let mut g = g6[(i, j)];
+                for (wr, psi) in &red.extra {
+                    g += psi[i] * psi[j] / (wr * wr - w * w);
+                }
+                worst = worst.max((g - g_aug[(i, j)]).abs() / scale);
+            }
+        }
+        eprintln!("{f} Hz: reduced vs augmented {worst:.2e}");
+        assert!(worst < 1e-9, "{f} Hz: reduced vs augmented {worst:.2e}");
+    }
+}
+
 /// μ = 0 is the neutral value: FRFs bit-identical to the spec without the effect; small
 /// μ changes them linearly (the model check screens from there).
 #[test]
