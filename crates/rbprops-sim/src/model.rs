@@ -85,16 +85,50 @@ impl ExtraMode {
     }
 }
 
+/// Defines a function whose body is compiled twice, for the baseline (SSE2) and with
+/// AVX, the AVX copy running when the CPU has it (`is_x86_feature_detected!` is a cached
+/// load). AVX's additions, multiplications and divisions are the same IEEE operations as
+/// SSE2's, every sum's order is fixed by the source and FMA is not enabled: the results
+/// are bitwise the same, with more lanes per instruction.
+macro_rules! avx_fn {
+    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
+        $(#[$m])*
+        fn $name($($arg: $ty),*) {
+            #[inline(always)]
+            fn lanes($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx")]
+                fn wide($($arg: $ty),*) {
+                    lanes($($arg),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx") {
+                    // SAFETY: the CPU supports AVX (checked just above).
+                    return unsafe { wide($($arg),*) };
+                }
+            }
+            lanes($($arg),*)
+        }
+    };
+}
+
 /// Adds the receptance terms of `modes` for excitation `e` to `values`
 /// (`[channel][line]` on the axis `omegas`): `H_ce += Σ_m ψ_c ψ_e h_m(ω)` with the line
 /// factor `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` computed once per mode and line, not
 /// once per channel (it is [`ExtraMode::receptance`] summed, to rounding).
 pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], values: &mut [c64]) {
     accumulate_extra_modes(modes, e, omegas.len(), values, |wm, zeta, lines, h| {
-        for (h, &w) in h.iter_mut().zip(&omegas[lines]) {
+        line_factors_at_iw(wm, zeta, &omegas[lines], h)
+    });
+}
+
+avx_fn! {
+    /// `h = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` per line.
+    fn line_factors_at_iw(wm: f64, zeta: f64, omegas: &[f64], h: &mut [c64]) {
+        for (h, &w) in h.iter_mut().zip(omegas) {
             *h = c64::new(wm * wm - w * w, 2.0 * zeta * wm * w).inv();
         }
-    });
+    }
 }
 
 /// [`add_extra_receptances`] at complex Laplace variables `s` (one per line): `H_ce +=
@@ -102,10 +136,17 @@ pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], valu
 /// rounding).
 pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values: &mut [c64]) {
     accumulate_extra_modes(modes, e, s.len(), values, |wm, zeta, lines, h| {
-        for (h, &s) in h.iter_mut().zip(&s[lines]) {
+        line_factors_at_s(wm, zeta, &s[lines], h)
+    });
+}
+
+avx_fn! {
+    /// `h = 1/(s² + 2ζ_m ω_m s + ω_m²)` per line.
+    fn line_factors_at_s(wm: f64, zeta: f64, s: &[c64], h: &mut [c64]) {
+        for (h, &s) in h.iter_mut().zip(s) {
             *h = (s * s + s * (2.0 * zeta * wm) + wm * wm).inv();
         }
-    });
+    }
 }
 
 /// Lines per block of [`accumulate_extra_modes`]: one channel's values of a block
@@ -166,25 +207,20 @@ fn accumulate_extra_modes(
     }
 }
 
-/// `values[c][start..end] += Σ_m coef[c][m] h[m][..]` in mode order (`coef` by channel,
-/// one entry per mode; `h` by mode, [`EXTRA_MODE_BLOCK`] lines each), a zero coefficient
-/// adding nothing: [`accumulate_extra_modes`]' inner loop, each channel's values of the
-/// block held in registers over all modes.
-///
-/// Compiled twice, for the baseline (SSE2) and with AVX, the AVX copy running when the
-/// CPU has it: its multiplications and additions are the same IEEE operations in the same
-/// order (no FMA), so the sums are bitwise the same, with two complex values per
-/// instruction instead of one.
-fn add_mode_terms(
-    values: &mut [c64],
-    nl: usize,
-    start: usize,
-    end: usize,
-    coef: &[f64],
-    h: &[c64],
-) {
-    #[inline(always)]
-    fn lanes(values: &mut [c64], nl: usize, start: usize, end: usize, coef: &[f64], h: &[c64]) {
+avx_fn! {
+    /// `values[c][start..end] += Σ_m coef[c][m] h[m][..]` in mode order (`coef` by
+    /// channel, one entry per mode; `h` by mode, [`EXTRA_MODE_BLOCK`] lines each), a zero
+    /// coefficient adding nothing: [`accumulate_extra_modes`]' inner loop, each channel's
+    /// values of the block held in registers over all modes (with AVX, two complex values
+    /// per instruction).
+    fn add_mode_terms(
+        values: &mut [c64],
+        nl: usize,
+        start: usize,
+        end: usize,
+        coef: &[f64],
+        h: &[c64],
+    ) {
         const B: usize = EXTRA_MODE_BLOCK;
         let w = end - start;
         let n_modes = h.len() / B;
@@ -208,18 +244,6 @@ fn add_mode_terms(
             dst.copy_from_slice(&acc[..w]);
         }
     }
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx")]
-        fn wide(values: &mut [c64], nl: usize, start: usize, end: usize, coef: &[f64], h: &[c64]) {
-            lanes(values, nl, start, end, coef, h)
-        }
-        if std::arch::is_x86_feature_detected!("avx") {
-            // SAFETY: the CPU supports AVX (checked just above).
-            return unsafe { wide(values, nl, start, end, coef, h) };
-        }
-    }
-    lanes(values, nl, start, end, coef, h)
 }
 
 impl ExtraMode {
