@@ -1518,56 +1518,30 @@ pub fn delay_peaks(
     )
 }
 
-/// Per FRF b, `Σ_k x_bk e_k` (the residual's lag transform at one lag; `x` line-major,
-/// `re`/`im` at `k n_frf + b`), each sum in line order from zero with `num_complex`'s
-/// product (`re = xr er − xi ei`, `im = xr ei + xi er`): bit for bit the sums of the
-/// complex values one FRF at a time, with the FRFs innermost so the loop is a vector
-/// loop (compiled for AVX2 too, without fused multiply–add).
-fn lag_sums(
-    re: &[f64],
-    im: &[f64],
-    ph: &[rbprops_core::c64],
-    n_frf: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe { lag_sums_avx2(re, im, ph, n_frf) };
+rbprops_core::avx_fn! {
+    /// Per FRF b, `Σ_k x_bk e_k` (the residual's lag transform at one lag; `x`
+    /// line-major, `re`/`im` at `k n_frf + b`), each sum in line order from zero with
+    /// `num_complex`'s product (`re = xr er − xi ei`, `im = xr ei + xi er`): bit for bit
+    /// the sums of the complex values one FRF at a time, with the FRFs innermost so the
+    /// loop is a vector loop.
+    fn lag_sums(
+        re: &[f64],
+        im: &[f64],
+        ph: &[rbprops_core::c64],
+        n_frf: usize,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (mut sr, mut si) = (vec![0.0; n_frf], vec![0.0; n_frf]);
+        if n_frf == 0 {
+            return (sr, si);
         }
-    }
-    lag_sums_body(re, im, ph, n_frf)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn lag_sums_avx2(
-    re: &[f64],
-    im: &[f64],
-    ph: &[rbprops_core::c64],
-    n_frf: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    lag_sums_body(re, im, ph, n_frf)
-}
-
-#[inline(always)]
-fn lag_sums_body(
-    re: &[f64],
-    im: &[f64],
-    ph: &[rbprops_core::c64],
-    n_frf: usize,
-) -> (Vec<f64>, Vec<f64>) {
-    let (mut sr, mut si) = (vec![0.0; n_frf], vec![0.0; n_frf]);
-    if n_frf == 0 {
-        return (sr, si);
-    }
-    for ((xr, xi), e) in re.chunks_exact(n_frf).zip(im.chunks_exact(n_frf)).zip(ph) {
-        for (((sr, si), xr), xi) in sr.iter_mut().zip(si.iter_mut()).zip(xr).zip(xi) {
-            *sr += xr * e.re - xi * e.im;
-            *si += xr * e.im + xi * e.re;
+        for ((xr, xi), e) in re.chunks_exact(n_frf).zip(im.chunks_exact(n_frf)).zip(ph) {
+            for (((sr, si), xr), xi) in sr.iter_mut().zip(si.iter_mut()).zip(xr).zip(xi) {
+                *sr += xr * e.re - xi * e.im;
+                *si += xr * e.im + xi * e.re;
+            }
         }
+        (sr, si)
     }
-    (sr, si)
 }
 
 /// `added_mass` restricted to the complement of the rigid-body mass structure (see the

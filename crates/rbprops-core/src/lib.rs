@@ -28,6 +28,7 @@ pub mod precision;
 pub mod properties;
 pub mod records;
 pub mod rigid;
+pub mod simd;
 pub mod stats;
 
 pub use error::CoreError;

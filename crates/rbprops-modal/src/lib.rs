@@ -45,7 +45,6 @@ pub mod prof;
 pub(crate) mod reciprocity;
 pub(crate) mod roots;
 #[macro_use]
-mod simd;
 pub mod stabilisation;
 mod tallmul;
 pub mod weighting;

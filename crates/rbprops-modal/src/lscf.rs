@@ -71,7 +71,7 @@ thread_local! {
     static POWER_TABLES: std::cell::RefCell<Vec<PowerTable>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 fn sums(theta: &[f64], chans: &[Vec<c64>], weights: &[Vec<f64>], n_max: usize) -> Sums {
     let no = chans.len();
     let nl = theta.len();
@@ -553,7 +553,7 @@ fn padded_width(n: usize) -> usize {
     n.next_multiple_of(4)
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// [`Factors::reduced_system`].
     fn reduced_system_into(f: &Factors, t_sum: &[f64], n: usize, a: &mut Vec<f64>, b: &mut Vec<f64>) -> () {
         let (pm, w) = (f.pm, padded_width(n));
@@ -627,7 +627,7 @@ crate::simd::avx_fn! {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// Solves `A x = b` for the reduced system of order `n` as [`Factors::reduced_system`]
     /// writes it (rows `padded_width(n)` long), overwriting both; `false` when `A` is
     /// (numerically) singular.
@@ -704,7 +704,7 @@ crate::simd::avx_fn! {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// [`Factors::extend`] (channel groups in turn).
     fn extend_factors(f: &mut Factors, q: usize) -> bool {
         // A plain loop: iterator adaptors' closures need not be inlined into the AVX copy.
@@ -717,7 +717,7 @@ crate::simd::avx_fn! {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// [`Factors::numerators`].
     fn factor_numerators(f: &Factors, coef: &[f64]) -> Vec<Vec<Lanes>> {
         let (p, pm) = (coef.len(), f.pm);
@@ -769,7 +769,7 @@ crate::simd::avx_fn! {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// The shape of the pole with powers `z^j` (`powers`) and `p'(z)` = `dprime`: per
     /// channel `Σ_j β_j z^j / p'(z)`, the sums over j in order for a group of channels
     /// at once (`betas` as [`Factors::numerators`] gives them; bitwise the sum channel

@@ -50,7 +50,7 @@ impl Residuals {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 /// Per-line weights shared by all channels: `w_k = 1/√(mean_o |h_ok/rms_o|²)`.
 ///
 /// Noise in measured FRFs is roughly proportional to |H| (1 % per line in the tests), so
@@ -143,7 +143,7 @@ fn basis_stacked(poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> 
     a
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 /// [`basis_stacked`] written over every entry of `a` (already of its shape): the
 /// refinement's trials reuse one matrix instead of allocating (and zeroing) each basis.
 fn basis_stacked_into(a: &mut Mat<f64>, poles: &[Pole], band: &BandData, res: Residuals, w: &[f64]) -> () {
@@ -193,7 +193,7 @@ fn basis_stacked_into(a: &mut Mat<f64>, poles: &[Pole], band: &BandData, res: Re
 }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 /// Scales every column of `a` to unit norm; returns the scales (1 for a zero column).
 fn normalise(a: &mut Mat<f64>) -> Vec<f64> {
     // A plain loop, not `map(..).collect()`: the closure of an iterator adaptor need not
@@ -830,7 +830,7 @@ fn pole_reciprocals(x: f64, pim: f64, w: f64) -> (f64, f64, f64, f64) {
     (x * v1, -y1 * v1, x * v2, -y2 * v2)
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// [`refine`]'s derivative vectors `d1_m, d2_m` for the poles `cur`, real-stacked
     /// into `d` (2N × 2M), with `(qre, qim)` the weighted quantity factors.
     fn derivative_columns(d: &mut Mat<f64>, cur: &[Pole], omega: &[f64], qre: &[f64], qim: &[f64]) -> () {

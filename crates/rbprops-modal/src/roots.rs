@@ -235,7 +235,7 @@ fn aberth(coef: &[f64], z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
     aberth_sweeps(coef, z)
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 /// [`aberth`] (compiled with AVX where the CPU has it: four divisions a vector).
 fn aberth_sweeps(coef: &[f64], z: Vec<c64>) -> Option<(Vec<c64>, usize)> {
     let mut z = z;

@@ -119,7 +119,7 @@ fn tile_needed(st: Store, (i0, j0): (usize, usize), ma: usize) -> bool {
     !(st.lower_only && i0 + ma <= j0)
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// `out (+)= α·aᵀb`, or only its lower triangle (`b = a`, Gram matrices).
     fn at_b_kernel(a: MatRef<'_, f64>, b: MatRef<'_, f64>, out: MatMut<'_, f64>, st: Store) -> () {
         let mut out = out;
@@ -270,7 +270,7 @@ fn update_tile<const MC: usize>(
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     fn add_a_x_kernel(a: MatRef<'_, f64>, x: MatRef<'_, f64>, c: MatMut<'_, f64>, alpha: f64) -> () {
         let mut c = c;
         let q = c.ncols();

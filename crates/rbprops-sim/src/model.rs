@@ -85,33 +85,6 @@ impl ExtraMode {
     }
 }
 
-/// Defines a function whose body is compiled twice, for the baseline (SSE2) and with
-/// AVX, the AVX copy running when the CPU has it (`is_x86_feature_detected!` is a cached
-/// load). AVX's additions, multiplications and divisions are the same IEEE operations as
-/// SSE2's, every sum's order is fixed by the source and FMA is not enabled: the results
-/// are bitwise the same, with more lanes per instruction.
-macro_rules! avx_fn {
-    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) $body:block) => {
-        $(#[$m])*
-        fn $name($($arg: $ty),*) {
-            #[inline(always)]
-            fn lanes($($arg: $ty),*) $body
-            #[cfg(target_arch = "x86_64")]
-            {
-                #[target_feature(enable = "avx")]
-                fn wide($($arg: $ty),*) {
-                    lanes($($arg),*)
-                }
-                if std::arch::is_x86_feature_detected!("avx") {
-                    // SAFETY: the CPU supports AVX (checked just above).
-                    return unsafe { wide($($arg),*) };
-                }
-            }
-            lanes($($arg),*)
-        }
-    };
-}
-
 /// Adds the receptance terms of `modes` for excitation `e` to `values`
 /// (`[channel][line]` on the axis `omegas`): `H_ce += Σ_m ψ_c ψ_e h_m(ω)` with the line
 /// factor `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` computed once per mode and line, not
@@ -122,7 +95,7 @@ pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], valu
     });
 }
 
-avx_fn! {
+rbprops_core::avx_fn! {
     /// `h = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` per line.
     fn line_factors_at_iw(wm: f64, zeta: f64, omegas: &[f64], h: &mut [c64]) {
         for (h, &w) in h.iter_mut().zip(omegas) {
@@ -140,7 +113,7 @@ pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values
     });
 }
 
-avx_fn! {
+rbprops_core::avx_fn! {
     /// `h = 1/(s² + 2ζ_m ω_m s + ω_m²)` per line.
     fn line_factors_at_s(wm: f64, zeta: f64, s: &[c64], h: &mut [c64]) {
         for (h, &s) in h.iter_mut().zip(s) {
@@ -207,7 +180,7 @@ fn accumulate_extra_modes(
     }
 }
 
-avx_fn! {
+rbprops_core::avx_fn! {
     /// `values[c][start..end] += Σ_m coef[c][m] h[m][..]` in mode order (`coef` by
     /// channel, one entry per mode; `h` by mode, [`EXTRA_MODE_BLOCK`] lines each), a zero
     /// coefficient adding nothing: [`accumulate_extra_modes`]' inner loop, each channel's
@@ -510,59 +483,31 @@ pub fn solve_columns_lines(
     forces: &[[c64; 6]],
     x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
 ) -> [bool; LINES_PER_SOLVE] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2 (checked just above).
-            return unsafe {
-                solve_columns_lines_avx2(mass, stiffness, damping, structural_damping, s, forces, x)
-            };
-        }
-    }
-    solve_columns_lines_body(mass, stiffness, damping, structural_damping, s, forces, x)
+    solve_columns_batch(mass, stiffness, damping, structural_damping, s, forces, x)
 }
 
-/// [`solve_columns_lines_body`] compiled for AVX2 (see [`factor_lines_avx2`]): the
-/// factorisation and the solves in one function, inlined together.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn solve_columns_lines_avx2(
-    mass: &Mat6,
-    stiffness: &Mat6,
-    damping: &Mat6,
-    structural_damping: &Mat6,
-    s: &[c64; LINES_PER_SOLVE],
-    forces: &[[c64; 6]],
-    x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
-) -> [bool; LINES_PER_SOLVE] {
-    solve_columns_lines_body(mass, stiffness, damping, structural_damping, s, forces, x)
-}
-
-#[inline(always)]
-fn solve_columns_lines_body(
-    mass: &Mat6,
-    stiffness: &Mat6,
-    damping: &Mat6,
-    structural_damping: &Mat6,
-    s: &[c64; LINES_PER_SOLVE],
-    forces: &[[c64; 6]],
-    x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
-) -> [bool; LINES_PER_SOLVE] {
-    let lu = factor_lines(assemble_lines(
-        mass,
-        stiffness,
-        damping,
-        structural_damping,
-        s,
-    ));
-    let mut ok = lu.regular;
-    for (x, f) in x.iter_mut().zip(forces) {
-        solve_lines_into(&lu, &[*f; LINES_PER_SOLVE], x);
-        for (ok, x) in ok.iter_mut().zip(x.iter()) {
-            *ok &= x.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+rbprops_core::avx_fn! {
+    /// [`solve_columns_lines`]: the factorisation and the solves inlined into one
+    /// function, compiled for the baseline and with AVX.
+    fn solve_columns_batch(
+        mass: &Mat6,
+        stiffness: &Mat6,
+        damping: &Mat6,
+        structural_damping: &Mat6,
+        s: &[c64; LINES_PER_SOLVE],
+        forces: &[[c64; 6]],
+        x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
+    ) -> [bool; LINES_PER_SOLVE] {
+        let lu = factor_lines(assemble_lines(mass, stiffness, damping, structural_damping, s));
+        let mut ok = lu.regular;
+        for (x, f) in x.iter_mut().zip(forces) {
+            solve_lines_into(&lu, &[*f; LINES_PER_SOLVE], x);
+            for (ok, x) in ok.iter_mut().zip(x.iter()) {
+                *ok &= x.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+            }
         }
+        ok
     }
-    ok
 }
 
 /// The LU factors (partial pivoting) of `Z(s) = K + i sgn(Im s) D + sC + s²M` on each
@@ -587,66 +532,36 @@ impl LinesLu {
         structural_damping: &Mat6,
         s: &[c64; LINES_PER_SOLVE],
     ) -> LinesLu {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                return unsafe {
-                    factor_lines_avx2(mass, stiffness, damping, structural_damping, s)
-                };
-            }
-        }
-        factor_lines(assemble_lines(
-            mass,
-            stiffness,
-            damping,
-            structural_damping,
-            s,
-        ))
+        factor_batch(mass, stiffness, damping, structural_damping, s)
     }
 
     /// `x = Z⁻¹ b` on each line (`b[l]` line l's right-hand side); a line that is not
     /// [`Self::regular`] gets meaningless values.
     pub fn solve(&self, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                return unsafe { solve_lines_avx2(self, b) };
-            }
-        }
-        solve_lines(self, b)
+        solve_batch(self, b)
     }
 }
 
-/// [`factor_lines`] compiled for AVX2 (four lines per vector instruction). No fused
-/// multiply–add is enabled, so every operation rounds as in the portable build.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn factor_lines_avx2(
-    mass: &Mat6,
-    stiffness: &Mat6,
-    damping: &Mat6,
-    structural_damping: &Mat6,
-    s: &[c64; LINES_PER_SOLVE],
-) -> LinesLu {
-    factor_lines(assemble_lines(
-        mass,
-        stiffness,
-        damping,
-        structural_damping,
-        s,
-    ))
+rbprops_core::avx_fn! {
+    /// [`LinesLu::factor`], compiled for the baseline and with AVX.
+    fn factor_batch(
+        mass: &Mat6,
+        stiffness: &Mat6,
+        damping: &Mat6,
+        structural_damping: &Mat6,
+        s: &[c64; LINES_PER_SOLVE],
+    ) -> LinesLu {
+        factor_lines(assemble_lines(mass, stiffness, damping, structural_damping, s))
+    }
 }
 
-/// [`solve_lines`] compiled for AVX2 (see [`factor_lines_avx2`]).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn solve_lines_avx2(
-    lu: &LinesLu,
-    b: &[[c64; 6]; LINES_PER_SOLVE],
-) -> [[c64; 6]; LINES_PER_SOLVE] {
-    solve_lines(lu, b)
+rbprops_core::avx_fn! {
+    /// [`LinesLu::solve`], compiled for the baseline and with AVX.
+    fn solve_batch(lu: &LinesLu, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
+        let mut x = [[c64::new(0.0, 0.0); 6]; LINES_PER_SOLVE];
+        solve_lines_into(lu, b, &mut x);
+        x
+    }
 }
 
 /// The elimination of [`solve_columns`] on every line of a batch (see [`LinesLu`]).
@@ -727,16 +642,7 @@ fn factor_lines(mut a: SplitMatrix) -> LinesLu {
     LinesLu { a, perm, regular }
 }
 
-/// Forward and back substitution of [`solve_columns`] on every line of a batch.
-#[allow(clippy::needless_range_loop)]
-#[inline(always)]
-fn solve_lines(lu: &LinesLu, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
-    let mut x = [[c64::new(0.0, 0.0); 6]; LINES_PER_SOLVE];
-    solve_lines_into(lu, b, &mut x);
-    x
-}
-
-/// [`solve_lines`] into `x`.
+/// Forward and back substitution of [`solve_columns`] on every line of a batch, into `x`.
 #[allow(clippy::needless_range_loop)]
 #[inline(always)]
 fn solve_lines_into(

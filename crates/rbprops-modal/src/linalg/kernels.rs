@@ -9,7 +9,7 @@
 use faer::prelude::*;
 use rbprops_core::c64;
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
 /// `Σ a_i b_i` over the common length, with eight independent partial sums combined in a
 /// fixed tree at the end.
 ///

@@ -312,7 +312,7 @@ pub fn solve_square(a: &Mat<f64>, b: &Mat<f64>) -> Option<Mat<f64>> {
     Some(Mat::from_fn(n, k, |i, j| x[i * k + j]))
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// [`solve_square`] on row-major storage: `m` is `A` (`n×n`), `x` is `B` (`n×k`),
     /// both consumed; returns `X = A⁻¹B` row-major.
     ///

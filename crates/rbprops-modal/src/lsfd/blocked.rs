@@ -199,7 +199,7 @@ impl<'a> Blocks<'a> {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// The pole pairs' columns and the residual terms (`q`, `q·(−1/ω²)`) of one block.
     fn block_basis(
         poles: &[Pole],
@@ -237,7 +237,7 @@ crate::simd::avx_fn! {
     }
 }
 
-crate::simd::avx_fn! {
+rbprops_core::avx_fn! {
     /// Weighted data `w h` of the lines from `k0` (`w` already restricted to them).
     fn block_data(chans: &[Vec<c64>], w: &[f64], k0: usize, dat: &mut [f64]) -> () {
         let b = w.len();
