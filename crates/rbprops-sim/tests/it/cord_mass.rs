@@ -22,6 +22,10 @@ const G: f64 = 9.80665;
 struct Bench {
     m: f64,
     kx: f64,
+    /// Axial stiffness of each cord (N/m).
+    kz: f64,
+    /// Assumed modes per cord and direction.
+    n_modes: usize,
     l: f64,
     mu: f64,
     tension: f64,
@@ -86,6 +90,8 @@ damping_ratio = 0.0
     Bench {
         m,
         kx,
+        kz,
+        n_modes,
         l,
         mu,
         tension: m * G / 4.0,
@@ -230,20 +236,27 @@ fn low_frequency_added_mass_is_a_third_of_the_cord() {
     let freq = b.spec.frequency_axis();
     let h = b.simulated(&freq);
     let expect = b.m + 4.0 * b.mu * b.l / 3.0;
+    // Rounding: the reduction's eigen-decomposition resolves the stiffness to a few ε
+    // of the augmented model's largest eigenvalue ω²_max (the N-th surge mode), i.e. the
+    // apparent mass (a stiffness over ω²) to about ε ω²_max m / ω²: 2e-6 kg at the
+    // lowest line (measured 1.1e-6 to 3.5e-6 across correct variants of the solver).
+    let nn = (b.n_modes as f64 * PI).powi(2);
+    let w2_max = (nn * b.kz / (b.mu * b.l)).max(nn * b.tension / (b.mu * b.l * b.l));
     let mut worst = 0.0f64;
     for (f, h) in freq.iter().zip(&h) {
         let w = TAU * f;
         let apparent = (4.0 * b.kx + 4.0 * b.tension / b.l - 1.0 / h.re) / (w * w);
         let next = 4.0 * b.mu * b.mu * b.l.powi(3) * w * w / (45.0 * b.tension);
+        let rounding = 4.0 * f64::EPSILON * w2_max * b.m / (w * w);
         let dev = apparent - expect;
         assert!(
-            dev.abs() <= 1.1 * next + 1e-9 * b.m,
-            "{f} Hz: apparent mass {apparent} vs {expect} (next term {next:.2e})"
+            dev.abs() <= 1.1 * next + rounding,
+            "{f} Hz: apparent mass {apparent} vs {expect} (next term {next:.2e}, rounding {rounding:.2e})"
         );
         // The tolerance resolves the cords' share (1.7 % of m here) to better than 1 %.
         let share = 4.0 * b.mu * b.l / 3.0;
         assert!(
-            1.1 * next + 1e-9 * b.m < 0.01 * share,
+            1.1 * next + rounding < 0.01 * share,
             "{f} Hz: tolerance too loose"
         );
         worst = worst.max((dev / share).abs());
