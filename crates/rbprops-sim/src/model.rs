@@ -464,32 +464,21 @@ fn lanes_mul(ar: &Lanes, ai: &Lanes, br: &Lanes, bi: &Lanes) -> (Lanes, Lanes) {
     (re, im)
 }
 
-/// [`solve_columns`] for [`LINES_PER_SOLVE`] lines at once (`s[l]` the Laplace variable
-/// of line l): the same elimination with partial pivoting, each line choosing its own
-/// pivots, and the same floating-point operations in the same order, so `x[f][l]` (force
-/// f, line l) is bit for bit what [`solve_columns`] gives for line l. Returns per line
-/// whether its `Z` was regular (see [`solve_columns`]).
-///
-/// Why: the per-line solve of 6×6 complex systems is a quarter of a model fitter's time,
-/// and one line at a time it is scalar code (a complex product mixes the real and
-/// imaginary parts of one value); with the lines innermost every operation is a vector
-/// operation over the batch.
-pub fn solve_columns_lines(
-    mass: &Mat6,
-    stiffness: &Mat6,
-    damping: &Mat6,
-    structural_damping: &Mat6,
-    s: &[c64; LINES_PER_SOLVE],
-    forces: &[[c64; 6]],
-    x: &mut [[[c64; 6]; LINES_PER_SOLVE]],
-) -> [bool; LINES_PER_SOLVE] {
-    solve_columns_batch(mass, stiffness, damping, structural_damping, s, forces, x)
-}
-
 rbprops_core::avx_fn! {
-    /// [`solve_columns_lines`]: the factorisation and the solves inlined into one
-    /// function, compiled for the baseline and with AVX.
-    fn solve_columns_batch(
+    /// [`solve_columns`] for [`LINES_PER_SOLVE`] lines at once (`s[l]` the Laplace variable
+    /// of line l): the same elimination with partial pivoting, each line choosing its own
+    /// pivots, and the same floating-point operations in the same order, so `x[f][l]` (force
+    /// f, line l) is bit for bit what [`solve_columns`] gives for line l. Returns per line
+    /// whether its `Z` was regular (see [`solve_columns`]).
+    ///
+    /// Why: the per-line solve of 6×6 complex systems is a quarter of a model fitter's time,
+    /// and one line at a time it is scalar code (a complex product mixes the real and
+    /// imaginary parts of one value); with the lines innermost every operation is a vector
+    /// operation over the batch.
+    ///
+    /// Compiled for the baseline and with AVX, the factorisation and the solves inlined
+    /// into one function.
+    pub fn solve_columns_lines(
         mass: &Mat6,
         stiffness: &Mat6,
         damping: &Mat6,
