@@ -501,8 +501,8 @@ rbprops_core::avx_fn! {
 
 /// The LU factors (partial pivoting) of `Z(s) = K + i sgn(Im s) D + sC + s²M` on each
 /// line of a batch of [`LINES_PER_SOLVE`] lines, by the elimination of
-/// [`solve_columns`] (see [`solve_columns_lines`]): factor once, then solve for any
-/// right-hand sides, one per line.
+/// [`solve_columns`] (see [`solve_columns_lines`]): factor once ([`factor_batch`]), then
+/// solve for any right-hand sides, one per line ([`solve_batch`]).
 pub struct LinesLu {
     /// Multipliers below the diagonal, the pivots' reciprocals on it, U above it.
     a: SplitMatrix,
@@ -512,28 +512,10 @@ pub struct LinesLu {
     pub regular: [bool; LINES_PER_SOLVE],
 }
 
-impl LinesLu {
-    /// Factorises Z(s) of each line of the batch `s`.
-    pub fn factor(
-        mass: &Mat6,
-        stiffness: &Mat6,
-        damping: &Mat6,
-        structural_damping: &Mat6,
-        s: &[c64; LINES_PER_SOLVE],
-    ) -> LinesLu {
-        factor_batch(mass, stiffness, damping, structural_damping, s)
-    }
-
-    /// `x = Z⁻¹ b` on each line (`b[l]` line l's right-hand side); a line that is not
-    /// [`Self::regular`] gets meaningless values.
-    pub fn solve(&self, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
-        solve_batch(self, b)
-    }
-}
-
 rbprops_core::avx_fn! {
-    /// [`LinesLu::factor`], compiled for the baseline and with AVX.
-    fn factor_batch(
+    /// Factorises Z(s) of each line of the batch `s` ([`LinesLu`]), compiled for the
+    /// baseline and with AVX.
+    pub fn factor_batch(
         mass: &Mat6,
         stiffness: &Mat6,
         damping: &Mat6,
@@ -545,8 +527,13 @@ rbprops_core::avx_fn! {
 }
 
 rbprops_core::avx_fn! {
-    /// [`LinesLu::solve`], compiled for the baseline and with AVX.
-    fn solve_batch(lu: &LinesLu, b: &[[c64; 6]; LINES_PER_SOLVE]) -> [[c64; 6]; LINES_PER_SOLVE] {
+    /// `x = Z⁻¹ b` on each line of a factorised batch (`b[l]` line l's right-hand side);
+    /// a line that is not [`LinesLu::regular`] gets meaningless values. Compiled for the
+    /// baseline and with AVX.
+    pub fn solve_batch(
+        lu: &LinesLu,
+        b: &[[c64; 6]; LINES_PER_SOLVE],
+    ) -> [[c64; 6]; LINES_PER_SOLVE] {
         let mut x = [[c64::new(0.0, 0.0); 6]; LINES_PER_SOLVE];
         solve_lines_into(lu, b, &mut x);
         x

@@ -20,7 +20,7 @@
 //! scalar state). `h_c = Π sτ/(1 + sτ)` is the high-pass product of channel c.
 //! The direct term of the accelerance (`S M⁻¹ f` at t = 0) is inside `s² x`.
 
-use crate::model::{DynamicModel, LinesLu, ModelInput, LINES_PER_SOLVE};
+use crate::model::{factor_batch, solve_batch, DynamicModel, ModelInput, LINES_PER_SOLVE};
 use nalgebra::{SMatrix, SVector, Vector2};
 use rbprops_core::{c64, Mat6, Quantity, Vec6};
 
@@ -208,7 +208,7 @@ pub fn observed_block(
 
 /// `x = Z(s)⁻¹ f` on every line (`s = σ + iω`) and, for a finite record (`rigid_tail`:
 /// T and the state at T), the tail transform `Q_T = Z(s)⁻¹[(M + M_a)(s q_T + v_T) + C q_T]`
-/// (empty without one), by the batched LU of [`LinesLu`] (one factorisation per line
+/// (empty without one), by the batched LU of [`crate::model::LinesLu`] (one factorisation per line
 /// for both). A line whose Z is singular to working precision (see
 /// [`crate::model::solve_columns`]) is an error naming its frequency.
 fn responses(
@@ -230,21 +230,21 @@ fn responses(
     });
     for batch in omegas.chunks(L) {
         let s: [c64; L] = std::array::from_fn(|l| c64::new(sigma, batch[l.min(batch.len() - 1)]));
-        let lu = LinesLu::factor(
+        let lu = factor_batch(
             mass,
             stiffness,
             &model.damping,
             &model.structural_damping,
             &s,
         );
-        let x = lu.solve(&[fc; L]);
+        let x = solve_batch(&lu, &[fc; L]);
         let qt = rigid_tail.as_ref().map(|(_, (q0, v0))| {
             let static_part = mass * v0 + model.damping * q0;
             let mq = mass * q0;
             let rhs: [[c64; 6]; L] = std::array::from_fn(|l| {
                 std::array::from_fn(|i| c64::new(mq[i], 0.0) * s[l] + c64::new(static_part[i], 0.0))
             });
-            lu.solve(&rhs)
+            solve_batch(&lu, &rhs)
         });
         for l in 0..batch.len() {
             let finite = |v: &[c64; 6]| v.iter().all(|v| v.re.is_finite() && v.im.is_finite());
