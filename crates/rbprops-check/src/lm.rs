@@ -1111,6 +1111,25 @@ mod tests {
             .all(|(x, y)| x.to_bits() == y.to_bits()));
     }
 
+    /// A last step that is tiny in scaled units but carries all of χ² (a very sensitive
+    /// direction, as exact data give) is taken, not predicted away.
+    #[test]
+    fn a_tiny_step_carrying_all_of_chi2_is_taken() {
+        let f = |t: &[f64]| -> Result<Vec<f64>, CheckError> {
+            Ok(vec![1e12 * (t[0] - 1.0), t[1] - 2.0])
+        };
+        let b = Bounds {
+            lower: vec![f64::NEG_INFINITY; 2],
+            upper: vec![f64::INFINITY; 2],
+            scales: vec![1.0, 1.0],
+        };
+        // The first step lands within the finite-difference slope's error, ~1e-11 off
+        // (χ² ~ 100); the next is below `CONVERGED_STEP` in size and ends the fit once
+        // taken, at the rounding of θ near 1 (χ² ~ 1e-4).
+        let fit = fit("test", &f, &[1.0 + 1e-8, 2.0], &b, 20).unwrap();
+        assert!(fit.chi2 < 1.0, "χ² {:e} at {:?}", fit.chi2, fit.theta);
+    }
+
     #[test]
     fn fits_an_exponential_exactly() {
         // y = a e^{-b x}: noise-free data, the fit recovers (a, b) to 1e-9.
