@@ -22,10 +22,10 @@
 //! | case | wall s before → after | CPU s before → after | model evaluations before → after | report digest after |
 //! |---|---|---|---|---|
 //! | gain-orient-gauge | 6.1 → 4.1 | 10.7 → 6.9 | 6 116 → 4 567 | 0dc874b1d61d2787 |
-//! | position-force-elastic | 7.4 → 5.2 | 12.9 → 8.7 | 8 322 → 6 541 | 04060a0d6aaee8f5 |
+//! | position-force-elastic | 7.4 → 5.1 | 12.9 → 8.7 | 8 322 → 6 592 | 16e0eafae6b987fe |
 //! | gravity-window-gain | 5.3 → 3.8 | 9.5 → 6.4 | 6 309 → 5 224 | c111fdd4cef5076c |
 //!
-//! Typical (median) 4.1 s, worst 5.2 s: under the 5 s typical and the 20 s worst case.
+//! Typical (median) 4.1 s, worst 5.1 s: under the 5 s typical and the 20 s worst case.
 //! Same named effects (all three concealed, nothing else) and χ²/ν (0.986, 0.975,
 //! 0.995) as before; every stage line the same decisions for the same reasons. One
 //! evaluation of the nominal model: 0.32 ms CPU (0.56 before: the batched per-line
