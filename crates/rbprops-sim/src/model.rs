@@ -85,14 +85,48 @@ impl ExtraMode {
     }
 }
 
-/// Adds the receptance terms of `modes` for excitation `e` to `values`
-/// (`[channel][line]` on the axis `omegas`): `H_ce += Σ_m ψ_c ψ_e h_m(ω)` with the line
-/// factor `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)` computed once per mode and line, not
-/// once per channel (it is [`ExtraMode::receptance`] summed, to rounding).
-pub fn add_extra_receptances(modes: &[ExtraMode], e: usize, omegas: &[f64], values: &mut [c64]) {
-    accumulate_extra_modes(modes, e, omegas.len(), values, |wm, zeta, lines, h| {
-        line_factors_at_iw(wm, zeta, &omegas[lines], h)
-    });
+/// The line factors `h_m` of every extra mode of a set-up on every line (`[mode][line]`).
+/// They do not depend on the excitation: a set-up's excitations share one table.
+pub struct ModeLineFactors {
+    n_lines: usize,
+    h: Vec<c64>,
+}
+
+impl ModeLineFactors {
+    /// At `s = iω` (the axis `omegas`): `h_m(ω) = 1/(ω_m² − ω² + 2iζ_m ω_m ω)`
+    /// ([`ExtraMode::receptance`] without its shape factors).
+    pub fn at_iw(modes: &[ExtraMode], omegas: &[f64]) -> ModeLineFactors {
+        Self::of(modes, omegas.len(), |wm, zeta, h| {
+            line_factors_at_iw(wm, zeta, omegas, h)
+        })
+    }
+
+    /// At complex Laplace variables `s` (one per line): `h_m = 1/(s² + 2ζ_m ω_m s + ω_m²)`
+    /// ([`ExtraMode::receptance_at`] without its shape factors).
+    pub fn at_s(modes: &[ExtraMode], s: &[c64]) -> ModeLineFactors {
+        Self::of(modes, s.len(), |wm, zeta, h| {
+            line_factors_at_s(wm, zeta, s, h)
+        })
+    }
+
+    fn of(
+        modes: &[ExtraMode],
+        n_lines: usize,
+        line_factors: impl Fn(f64, f64, &mut [c64]),
+    ) -> ModeLineFactors {
+        let mut h = vec![c64::new(0.0, 0.0); modes.len() * n_lines];
+        if n_lines > 0 {
+            for (m, h) in modes.iter().zip(h.chunks_exact_mut(n_lines)) {
+                line_factors(std::f64::consts::TAU * m.frequency_hz, m.damping_ratio, h);
+            }
+        }
+        ModeLineFactors { n_lines, h }
+    }
+
+    /// Mode m's factors on the lines `lines`.
+    fn of_mode(&self, m: usize, lines: std::ops::Range<usize>) -> &[c64] {
+        &self.h[m * self.n_lines..(m + 1) * self.n_lines][lines]
+    }
 }
 
 rbprops_core::avx_fn! {
@@ -104,15 +138,6 @@ rbprops_core::avx_fn! {
     }
 }
 
-/// [`add_extra_receptances`] at complex Laplace variables `s` (one per line): `H_ce +=
-/// Σ_m ψ_c ψ_e / (s² + 2ζ_m ω_m s + ω_m²)` ([`ExtraMode::receptance_at`] summed, to
-/// rounding).
-pub fn add_extra_receptances_at(modes: &[ExtraMode], e: usize, s: &[c64], values: &mut [c64]) {
-    accumulate_extra_modes(modes, e, s.len(), values, |wm, zeta, lines, h| {
-        line_factors_at_s(wm, zeta, &s[lines], h)
-    });
-}
-
 rbprops_core::avx_fn! {
     /// `h = 1/(s² + 2ζ_m ω_m s + ω_m²)` per line.
     fn line_factors_at_s(wm: f64, zeta: f64, s: &[c64], h: &mut [c64]) {
@@ -122,31 +147,31 @@ rbprops_core::avx_fn! {
     }
 }
 
-/// Lines per block of [`accumulate_extra_modes`]: one channel's values of a block
+/// Lines per block of [`add_extra_receptances`]: one channel's values of a block
 /// (16 complex values, eight AVX registers) stay in registers while every mode is added
 /// to them, eight independent sums in flight.
 const EXTRA_MODE_BLOCK: usize = 16;
 
-/// `H_ce += Σ_m ψ_c ψ_e h_m` over the modes that excitation `e` drives, with the line
-/// factors `h_m` (per line) written by `line_factor(ω_m, ζ_m, lines, h)`.
+/// Adds the receptance terms of `modes` for excitation `e` to `values` (`[channel][line]`):
+/// `H_ce += Σ_m ψ_c ψ_e h_m` over the modes that `e` drives, with the modes' line factors
+/// `factors` ([`ModeLineFactors`], computed once per set-up); it is
+/// [`ExtraMode::receptance`] (or [`ExtraMode::receptance_at`]) summed, to rounding.
 ///
-/// The lines are walked in blocks of [`EXTRA_MODE_BLOCK`]: the line factors of every
-/// driven mode on a block are computed first, then each channel's values of the block
-/// are loaded once, receive every mode's term and are stored once. With the cords'
+/// The lines are walked in blocks of [`EXTRA_MODE_BLOCK`]: each channel's values of a
+/// block are loaded once, receive every mode's term and are stored once. With the cords'
 /// string modes (about a hundred extra modes) the values were otherwise loaded and
-/// stored once per mode. Each value still receives the same terms in the same (mode)
-/// order, each computed as before, so the sums are bit-identical.
-fn accumulate_extra_modes(
+/// stored once per mode. Each value receives the same terms in the same (mode) order,
+/// so the sums are bit-identical to adding the modes one by one.
+pub fn add_extra_receptances(
     modes: &[ExtraMode],
     e: usize,
-    nl: usize,
+    factors: &ModeLineFactors,
     values: &mut [c64],
-    line_factor: impl Fn(f64, f64, std::ops::Range<usize>, &mut [c64]),
 ) {
     const B: usize = EXTRA_MODE_BLOCK;
-    let driven: Vec<&ExtraMode> = modes
-        .iter()
-        .filter(|m| m.at_excitations[e] != 0.0)
+    let nl = factors.n_lines;
+    let driven: Vec<usize> = (0..modes.len())
+        .filter(|&m| modes[m].at_excitations[e] != 0.0)
         .collect();
     if driven.is_empty() || nl == 0 {
         return;
@@ -155,10 +180,11 @@ fn accumulate_extra_modes(
     // ψ_c ψ_e per channel and driven mode; channels a mode does not list get none.
     let coef: Vec<f64> = (0..n_ch)
         .flat_map(|c| {
-            driven.iter().map(move |m| {
-                m.at_channels
+            driven.iter().map(move |&m| {
+                modes[m]
+                    .at_channels
                     .get(c)
-                    .map_or(0.0, |pc| pc * m.at_excitations[e])
+                    .map_or(0.0, |pc| pc * modes[m].at_excitations[e])
             })
         })
         .collect();
@@ -166,14 +192,8 @@ fn accumulate_extra_modes(
     let mut start = 0;
     while start < nl {
         let end = (start + B).min(nl);
-        let w = end - start;
-        for (m, h) in driven.iter().zip(h.chunks_exact_mut(B)) {
-            line_factor(
-                std::f64::consts::TAU * m.frequency_hz,
-                m.damping_ratio,
-                start..end,
-                &mut h[..w],
-            );
+        for (&m, h) in driven.iter().zip(h.chunks_exact_mut(B)) {
+            h[..end - start].copy_from_slice(factors.of_mode(m, start..end));
         }
         add_mode_terms(values, nl, start, end, &coef, &h);
         start = end;
@@ -183,7 +203,7 @@ fn accumulate_extra_modes(
 rbprops_core::avx_fn! {
     /// `values[c][start..end] += Σ_m coef[c][m] h[m][..]` in mode order (`coef` by
     /// channel, one entry per mode; `h` by mode, [`EXTRA_MODE_BLOCK`] lines each), a zero
-    /// coefficient adding nothing: [`accumulate_extra_modes`]' inner loop, each channel's
+    /// coefficient adding nothing: [`add_extra_receptances`]' inner loop, each channel's
     /// values of the block held in registers over all modes (with AVX, two complex values
     /// per instruction).
     fn add_mode_terms(
@@ -201,16 +221,12 @@ rbprops_core::avx_fn! {
             let dst = &mut dst[start..end];
             let mut acc = [c64::new(0.0, 0.0); B];
             acc[..w].copy_from_slice(dst);
+            // The whole block, fixed length: past `w` (the last block) the sums take
+            // stale factors and are not stored.
             for (&a, h) in coef.iter().zip(h.chunks_exact(B)) {
                 if a != 0.0 {
-                    if w == B {
-                        for (d, h) in acc.iter_mut().zip(h) {
-                            *d += h * a;
-                        }
-                    } else {
-                        for (d, h) in acc[..w].iter_mut().zip(h) {
-                            *d += h * a;
-                        }
+                    for (d, h) in acc.iter_mut().zip(h) {
+                        *d += h * a;
                     }
                 }
             }
@@ -824,7 +840,12 @@ mod tests {
         let omegas: Vec<f64> = (0..50).map(|l| 0.4 * l as f64).collect();
         for e in 0..2 {
             let mut got = vec![c64::new(1.0, -2.0); 2 * omegas.len()];
-            add_extra_receptances(&modes, e, &omegas, &mut got);
+            add_extra_receptances(
+                &modes,
+                e,
+                &ModeLineFactors::at_iw(&modes, &omegas),
+                &mut got,
+            );
             for (c, row) in got.chunks_exact(omegas.len()).enumerate() {
                 for (g, &w) in row.iter().zip(&omegas) {
                     let want: c64 = c64::new(1.0, -2.0)
@@ -882,8 +903,13 @@ mod tests {
                     }
                 }
                 let (mut got, mut got_s) = (start.clone(), start);
-                add_extra_receptances(&modes, e, &omegas, &mut got);
-                add_extra_receptances_at(&modes, e, &s, &mut got_s);
+                add_extra_receptances(
+                    &modes,
+                    e,
+                    &ModeLineFactors::at_iw(&modes, &omegas),
+                    &mut got,
+                );
+                add_extra_receptances(&modes, e, &ModeLineFactors::at_s(&modes, &s), &mut got_s);
                 for (g, w) in got.iter().zip(&want).chain(got_s.iter().zip(&want_s)) {
                     assert_eq!(
                         (g.re.to_bits(), g.im.to_bits()),

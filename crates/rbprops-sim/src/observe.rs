@@ -150,10 +150,9 @@ pub fn observed_block(
         .iter()
         .map(|r| cplx6(&r.transpose()))
         .collect();
-    let s_of = |w: f64| c64::new(sigma, w);
     let (xs, qts) = responses(&mass, &stiffness, model, &f, omegas, sigma, &rigid_tail)?;
     for (l, &w) in omegas.iter().enumerate() {
-        let s = s_of(w);
+        let s = c64::new(sigma, w);
         let x = xs[l];
         let tail = match (&rigid_tail, qts.get(l)) {
             (Some((t, (q0, v0))), Some(&qt)) => Some((qt, cplx6(q0), cplx6(v0), (-s * *t).exp())),
@@ -228,6 +227,10 @@ fn responses(
     } else {
         0
     });
+    // The tail's right-hand side `(M + M_a) q_T s + ((M + M_a) v_T + C q_T)` per line.
+    let tail_parts = rigid_tail
+        .as_ref()
+        .map(|(_, (q0, v0))| (mass * q0, mass * v0 + model.damping * q0));
     for batch in omegas.chunks(L) {
         let s: [c64; L] = std::array::from_fn(|l| c64::new(sigma, batch[l.min(batch.len() - 1)]));
         let lu = factor_batch(
@@ -238,9 +241,7 @@ fn responses(
             &s,
         );
         let x = solve_batch(&lu, &[fc; L]);
-        let qt = rigid_tail.as_ref().map(|(_, (q0, v0))| {
-            let static_part = mass * v0 + model.damping * q0;
-            let mq = mass * q0;
+        let qt = tail_parts.as_ref().map(|(mq, static_part)| {
             let rhs: [[c64; 6]; L] = std::array::from_fn(|l| {
                 std::array::from_fn(|i| c64::new(mq[i], 0.0) * s[l] + c64::new(static_part[i], 0.0))
             });

@@ -3,8 +3,8 @@
 use crate::effects::{parse_effects, BuildContext, Effect, OutputBlock};
 use crate::error::SimError;
 use crate::model::{
-    add_extra_receptances, add_extra_receptances_at, modal_compliance, modal_damping_matrix,
-    solve_columns_lines, DynamicModel, ModelInput, Observation, LINES_PER_SOLVE,
+    add_extra_receptances, modal_compliance, modal_damping_matrix, solve_columns_lines,
+    DynamicModel, ModeLineFactors, ModelInput, Observation, LINES_PER_SOLVE,
 };
 use crate::noise::{add_noise, excitation_rng};
 use crate::spec::{CampaignSpec, DampingModel};
@@ -411,6 +411,10 @@ pub fn predict(
         .iter()
         .map(|&w| spec.quantity.from_receptance_factor(w))
         .collect();
+    // The extra modes' line factors of each set-up, computed by its first excitation
+    // that needs them and shared by the others (they do not depend on the excitation).
+    let line_factors: Vec<std::sync::OnceLock<ModeLineFactors>> =
+        models.iter().map(|_| std::sync::OnceLock::new()).collect();
     let mut frf = FrfSet::zeros(spec.quantity, freq.clone(), n_ex, n_ch);
     let block = n_ch * nl;
     if block > 0 {
@@ -431,7 +435,9 @@ pub fn predict(
                 if let Some(ColumnResponses { values, s: Some(s) }) = &responses[si] {
                     // Under a window: the transfer functions at s, `s^k` for the quantity.
                     ob.values.copy_from_slice(&values[ii]);
-                    add_extra_receptances_at(&sm.model.extra_modes, e, s, ob.values);
+                    let modes_h = line_factors[si]
+                        .get_or_init(|| ModeLineFactors::at_s(&sm.model.extra_modes, s));
+                    add_extra_receptances(&sm.model.extra_modes, e, modes_h, ob.values);
                     for eff in effects {
                         eff.transform_output(&mut ob);
                     }
@@ -459,7 +465,9 @@ pub fn predict(
                 };
                 match receptance {
                     true => {
-                        add_extra_receptances(&sm.model.extra_modes, e, &omegas, ob.values);
+                        let modes_h = line_factors[si]
+                            .get_or_init(|| ModeLineFactors::at_iw(&sm.model.extra_modes, &omegas));
+                        add_extra_receptances(&sm.model.extra_modes, e, modes_h, ob.values);
                         for eff in effects {
                             eff.transform_output(&mut ob);
                         }

@@ -115,6 +115,22 @@ fn summary(label: &str, r: &ModelCheckReport, t: std::time::Duration) {
     );
 }
 
+/// The check with its default options (noise estimated from the data), its summary
+/// printed under `label`.
+fn checked_on_data_noise(
+    label: &str,
+    nom: &CampaignSpec,
+    g: &Geometry,
+    frf: &FrfSet,
+) -> ModelCheckReport {
+    let t0 = std::time::Instant::now();
+    let r = check(nom, g, frf, &rbprops_check::CheckOptions::default())
+        .unwrap()
+        .report;
+    summary(label, &r, t0.elapsed());
+    r
+}
+
 /// Runs the check and asserts: exactly the expected ids named (each may appear inside an
 /// ambiguity family, `allowed` lists the family members that are acceptable), nothing
 /// else, and χ²/ν after the refit inside the noise band.
@@ -270,11 +286,7 @@ fn two_elastic_modes_above_the_band_on_exact_data_reach_the_floor() {
     };
     let nom = nominal(200);
     let (g, frf) = refgen(&py, "tc2-elastic-above", &[], 5, &nom);
-    let t0 = std::time::Instant::now();
-    let r = check(&nom, &g, &frf, &rbprops_check::CheckOptions::default())
-        .unwrap()
-        .report;
-    summary("two elastic modes above the band, exact", &r, t0.elapsed());
+    let r = checked_on_data_noise("two elastic modes above the band, exact", &nom, &g, &frf);
     assert_out_of_band_modes_named(&r, &frf, 2);
     assert!(r.noise_floor_reached, "{}", r.verdict);
 }
@@ -438,11 +450,7 @@ fn impact_testing_with_an_exponential_window_names_the_window_and_the_record() {
     };
     let nom = nominal(401);
     let (g, frf) = refgen(&py, "tc2-impact", &[], 2, &nom);
-    let t0 = std::time::Instant::now();
-    let r = check(&nom, &g, &frf, &rbprops_check::CheckOptions::default())
-        .unwrap()
-        .report;
-    summary("impact testing", &r, t0.elapsed());
+    let r = checked_on_data_noise("impact testing", &nom, &g, &frf);
     let mut ids = named(&r);
     ids.sort();
     assert_eq!(
