@@ -157,7 +157,7 @@ const EXTRA_MODE_BLOCK: usize = 16;
 /// `factors` ([`ModeLineFactors`], computed once per set-up); it is
 /// [`ExtraMode::receptance`] (or [`ExtraMode::receptance_at`]) summed, to rounding.
 ///
-/// The lines are walked in blocks of [`EXTRA_MODE_BLOCK`]: each channel's values of a
+/// The lines are walked in blocks of `EXTRA_MODE_BLOCK` (16): each channel's values of a
 /// block are loaded once, receive every mode's term and are stored once. With the cords'
 /// string modes (about a hundred extra modes) the values were otherwise loaded and
 /// stored once per mode. Each value receives the same terms in the same (mode) order,
