@@ -5,13 +5,16 @@ Usage:
     rbref.py CASE.toml|CASE.json|SPEC.toml [-o OUT.uff|OUT.json|OUT.npz ...]
              [--truth TRUTH.json] [--binary] [--nodes auto|15|2411] [--seed N | --seeds A:B]
              [--set PATH=VALUE ...] [--precision float64|float32] [--quiet]
+             [--time-layout per-hit|throughput]
 
 Writes each output named with -o (the format follows the extension; .uff/.unv = UFF 58,
 ASCII unless --binary) and the truth JSON. --set changes one case field after the merge
 with the spec (VALUE is JSON, else a string; lists of tables by id), e.g.
 `--set noise.relative=0.01 --set sensor.2.misorientation_rad=[0.03,0,0]`. --seeds A:B
 writes one set of files per seed A..B (inclusive) in one run; every output name must then
-contain {seed}. Errors go to stderr as `error: ...` with exit status 1 and no output file
+contain {seed}. With --time-layout (a case with [time]), .uff/.unv outputs hold the
+recorded time histories (UFF 58 function type 1) per hit or as one continuous record per
+channel, and .json/.npz the numpy H1 of those samples. Errors go to stderr as `error: ...` with exit status 1 and no output file
 written.
 """
 import argparse
@@ -39,6 +42,9 @@ def main(argv=None):
                     help="set a case field (dotted path; JSON value); may repeat")
     ap.add_argument("--precision", choices=["float64", "float32"], help="override output.precision")
     ap.add_argument("--quiet", action="store_true")
+    ap.add_argument("--time-layout", choices=["per-hit", "throughput"],
+                    help="write the recorded time histories to .uff/.unv outputs (UFF 58 type 1): one "
+                         "record per hit and channel, or one continuous record per channel")
     a = ap.parse_args(argv)
     if not a.output and not a.truth:
         ap.error("nothing to write: give -o and/or --truth")
@@ -78,13 +84,20 @@ def main(argv=None):
         if a.precision is not None:
             overrides["output"] = {"precision": a.precision}
         case = rbref.load(a.case, overrides, settings)
+        if a.time_layout and case.time is None:
+            raise rbref.CaseError("time: --time-layout needs a [time] table in the case")
         terms = rbref.Terms(case)
         for seed in seeds or [None]:
-            result = rbref.generate(case, terms=terms, seed=seed)
+            result = rbref.generate(case, terms=terms, seed=seed, recording=True if a.time_layout else None)
             name = (lambda o: o.replace("{seed}", str(seed))) if seed is not None else (lambda o: o)
+            if a.time_layout and any(os.path.splitext(o)[1].lower() in (".uff", ".unv") for o in a.output):
+                rbref.writers.check_time_uff(result)
             for o in a.output:
                 ext = os.path.splitext(o)[1].lower()
-                if ext in (".uff", ".unv"):
+                if ext in (".uff", ".unv") and a.time_layout:
+                    rbref.write_time_uff(result, name(o), layout=a.time_layout, binary=a.binary,
+                                         node_dataset=a.nodes)
+                elif ext in (".uff", ".unv"):
                     rbref.write_uff(result, name(o), binary=a.binary, node_dataset=a.nodes)
                 elif ext == ".json":
                     rbref.write_json(result, name(o))

@@ -13,7 +13,7 @@ eigen-decomposition in pole–residue form.
 """
 from .case import Case, CaseError, load
 from .generate import Result, Terms, generate
-from .writers import write_json, write_npz, write_truth, write_uff
+from .writers import write_json, write_npz, write_time_uff, write_truth, write_uff
 
 __all__ = ["Case", "CaseError", "load", "Result", "Terms", "generate",
-           "write_json", "write_npz", "write_truth", "write_uff"]
+           "write_json", "write_npz", "write_time_uff", "write_truth", "write_uff"]

@@ -161,11 +161,20 @@ FIELDS = {
     "damping": {"model", "ratio", "ratios", "alpha", "beta"},
     "noise": {"relative", "floor"},
     "elastic_mode": {"frequency_hz", "damping_ratio", "at_channels", "at_excitations", "setups"},
-    "window": {"tau_s", "record_s"},
+    "window": {"tau_s", "record_s", "force_pre_s", "force_post_s", "apply_to_force"},
     "output": {"precision"},
     "time": {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise", "response_noise",
-             "clip_response", "amplitude_n", "amplitude_jitter"},
+             "clip_response", "amplitude_n", "amplitude_jitter", "pretrigger_s", "gap_s",
+             "subsample_onset", "adc_bits", "adc_headroom", "clip", "double", "double_probability",
+             "double_delay_s", "double_ratio", "reject", "anti_alias_order", "anti_alias_cutoff_hz"},
 }
+RECORDING_TIME_FIELDS = FIELDS["time"] - {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise",
+                                          "response_noise", "clip_response", "amplitude_n",
+                                          "amplitude_jitter"}
+RECORDING_WINDOW_FIELDS = {"force_pre_s", "force_post_s", "apply_to_force"}
+"""Fields that make a [time] case a recording (recording.py: time histories with
+pretrigger, ADC, double hits, windows from the trigger); without them the time route of
+timedomain.py runs as before."""
 """Known fields of each table: anything else is an error (a misspelt effect parameter
 would otherwise silently vanish from the physics)."""
 
@@ -290,6 +299,13 @@ class Case:
         win = data.get("window", {})
         self.window_tau = ck.num(win, "tau_s", "window", 0.0, lo=0.0, strict_lo=True) if "tau_s" in win else 0.0
         self.record_s = ck.num(win, "record_s", "window", 0.0, lo=0.0, strict_lo=True) if "record_s" in win else 0.0
+        self.window_force_pre = ck.num(win, "force_pre_s", "window", lo=0.0) if "force_pre_s" in win else None
+        self.window_force_post = ck.num(win, "force_post_s", "window", lo=0.0) if "force_post_s" in win else None
+        self.window_apply_to_force = win.get("apply_to_force", True)
+        if not isinstance(self.window_apply_to_force, bool):
+            ck.fail("window.apply_to_force", f"must be true or false, got {self.window_apply_to_force!r}")
+        if self.window_force_pre is not None and self.window_force_post is None:
+            ck.fail("window.force_pre_s", "the force window needs force_post_s too")
         noise = data.get("noise", {})
         self.noise_relative = ck.num(noise, "relative", "noise", 0.0, lo=0.0)
         self.noise_floor = ck.num(noise, "floor", "noise", 0.0, lo=0.0)
@@ -298,8 +314,12 @@ class Case:
         if self.precision not in ("float64", "float32"):
             ck.fail("output.precision", f"must be float64 or float32, got {self.precision!r}")
         self.time = data.get("time")
+        self.recording = False
         if self.time is not None:
+            self.recording = bool(set(self.time) & RECORDING_TIME_FIELDS or set(win) & RECORDING_WINDOW_FIELDS)
             self._time(ck, self.time)
+        elif set(win) & RECORDING_WINDOW_FIELDS:
+            ck.fail("window", "force_pre_s, force_post_s and apply_to_force need a [time] table")
 
     # --- body ----------------------------------------------------------------------------
     def _body(self, ck, b):
@@ -566,6 +586,86 @@ class Case:
             amplitude_n=ck.num(t, "amplitude_n", p, 100.0, lo=0.0, strict_lo=True),
             amplitude_jitter=ck.num(t, "amplitude_jitter", p, 0.0, lo=0.0),
         )
+        self._recording_fields(ck, t)
+
+    def _recording_fields(self, ck, t):
+        p = "time"
+        tm = self.time
+        tm["pretrigger_s"] = ck.num(t, "pretrigger_s", p, 0.0, lo=0.0)
+        tm["gap_s"] = ck.num(t, "gap_s", p, lo=0.0) if "gap_s" in t else None
+        for key in ("subsample_onset",):
+            tm[key] = t.get(key, False)
+            if not isinstance(tm[key], bool):
+                ck.fail(f"{p}.{key}", f"must be true or false, got {tm[key]!r}")
+        bits = t.get("adc_bits", 0)
+        if isinstance(bits, bool) or bits not in (0, 16, 24):
+            ck.fail(f"{p}.adc_bits", f"must be 0 (no ADC), 16 or 24, got {bits!r}")
+        tm["adc_bits"] = int(bits)
+        tm["adc_headroom"] = ck.num(t, "adc_headroom", p, 1.5, lo=1.0)
+        order = t.get("anti_alias_order", 0)
+        if isinstance(order, bool) or not isinstance(order, int) or not 0 <= order <= 16:
+            ck.fail(f"{p}.anti_alias_order", f"must be an integer 0 (no filter) .. 16, got {order!r}")
+        tm["anti_alias_order"] = order
+        tm["anti_alias_cutoff_hz"] = ck.num(t, "anti_alias_cutoff_hz", p, 0.4 * tm["sample_rate_hz"],
+                                           lo=0.0, strict_lo=True)
+        tm["double_probability"] = ck.num(t, "double_probability", p, 0.0, lo=0.0)
+        if tm["double_probability"] > 1:
+            ck.fail(f"{p}.double_probability", f"must be ≤ 1, got {tm['double_probability']}")
+        for key, dflt in (("double_delay_s", [0.0005, 0.02]), ("double_ratio", [0.05, 0.5])):
+            a = ck.arr(t, key, p, (2,), dflt)
+            if not (0 < a[0] <= a[1]):
+                ck.fail(f"{p}.{key}", f"must be [low, high] with 0 < low ≤ high, got {a.tolist()}")
+            tm[key] = [float(a[0]), float(a[1])]
+        reject = t.get("reject", ["double", "clipped"])
+        if not isinstance(reject, list) or any(r not in ("double", "clipped") for r in reject):
+            ck.fail(f"{p}.reject", f"must be a list of \"double\", \"clipped\", got {reject!r}")
+        tm["reject"] = list(reject)
+        ex = [e["id"] for e in self.excitations]
+        ch = [c["id"] for c in self.channels]
+        n_hits = tm["impacts"]
+
+        def hits(tab, path):
+            h = tab.get("hits")
+            if not isinstance(h, list) or not h or any(isinstance(x, bool) or not isinstance(x, int) for x in h):
+                ck.fail(f"{path}.hits", f"must be a non-empty list of hit numbers (1..{n_hits}), got {h!r}")
+            for x in h:
+                if not 1 <= x <= n_hits:
+                    ck.fail(f"{path}.hits", f"hit {x} is not in 1..{n_hits} (hits are numbered from 1)")
+            if len(set(h)) != len(h):
+                ck.fail(f"{path}.hits", "a hit is listed twice")
+            return list(h)
+
+        def excitation(tab, path):
+            e = tab.get("excitation")
+            if e not in ex:
+                ck.fail(f"{path}.excitation", f"no such excitation {e!r} (known: {', '.join(ex)})")
+            return e
+
+        tm["double"] = []
+        for i, d in enumerate(t.get("double", [])):
+            path = f"{p}.double[{i}]"
+            if not isinstance(d, dict):
+                ck.fail(path, "must be a table {excitation, hits, delay_s, ratio}")
+            for k in d:
+                if k not in ("excitation", "hits", "delay_s", "ratio"):
+                    ck.fail(f"{path}.{k}", "unknown field (known: delay_s, excitation, hits, ratio)")
+            tm["double"].append(dict(excitation=excitation(d, path), hits=hits(d, path),
+                                     delay_s=ck.num(d, "delay_s", path, lo=0.0, strict_lo=True),
+                                     ratio=ck.num(d, "ratio", path, lo=0.0, strict_lo=True)))
+        tm["clip"] = []
+        for i, c in enumerate(t.get("clip", [])):
+            path = f"{p}.clip[{i}]"
+            if not isinstance(c, dict):
+                ck.fail(path, "must be a table {excitation, channel, hits, peak_over_range}")
+            for k in c:
+                if k not in ("excitation", "channel", "hits", "peak_over_range"):
+                    ck.fail(f"{path}.{k}", "unknown field (known: channel, excitation, hits, peak_over_range)")
+            chan = c.get("channel")
+            if chan != "force" and chan not in ch:
+                ck.fail(f"{path}.channel", f"no such channel {chan!r} (known: force, {', '.join(ch)})")
+            por = ck.num(c, "peak_over_range", path, lo=1.0, strict_lo=True)
+            tm["clip"].append(dict(excitation=excitation(c, path), channel=chan, hits=hits(c, path),
+                                   peak_over_range=por))
 
     def frequency_axis(self):
         """f_l = start + l·step, with start and step rounded to the 6 significant digits a

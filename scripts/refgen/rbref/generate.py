@@ -298,18 +298,29 @@ def truth(case, terms):
 class Result:
     """frequency_hz (L,), frf[e, c, l] (complex128, or complex64 when float32), truth dict."""
 
-    def __init__(self, case, freq, frf, truth, coherence=None):
+    def __init__(self, case, freq, frf, truth, coherence=None, recording=None):
         self.case, self.frequency_hz, self.frf, self.truth = case, freq, frf, truth
         self.coherence = coherence
+        self.recording = recording   # recording.Recording (time histories) or None
 
 
-def generate(case, freq=None, terms=None, seed=None):
+def generate(case, freq=None, terms=None, seed=None, recording=None):
     """The case's FRFs (frequency or time route) with noise and precision applied, and the
     truth. `terms` (from an earlier call's `Terms(case)`) skips rebuilding the physics;
-    `seed` replaces the case's seed for the noise."""
+    `seed` replaces the case's seed for the noise. A [time] case is recorded (time
+    histories, ADC, double hits: recording.py; the FRFs are the numpy H1 of the written
+    samples, the truth gains "recording") when it uses a recording field or `recording`
+    is true; otherwise the time route of timedomain.py runs as before."""
     if seed is not None:
         case.seed = int(seed)
     terms = Terms(case) if terms is None else terms
+    if case.time is not None and (case.recording if recording is None else recording):
+        from . import recording as rc
+        rec = rc.record(case, terms)
+        freq, h, coh, used = rc.h1(case, rec)
+        tr = truth(case, terms)
+        tr["recording"] = rc.truth_record(case, rec, used)
+        return Result(case, freq, quantise(h, case.precision), tr, coh, rec)
     if case.time is not None:
         from .timedomain import measure
         freq, h, coh = measure(case, terms)

@@ -73,11 +73,29 @@ def write_npz(result, path):
         quantity=np.array(case.quantity))
     if result.coherence is not None:
         arrays["coherence"] = np.asarray(result.coherence)
+    if result.recording is not None:
+        arrays.update(recording_arrays(result))
 
     def w(tmp):
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
     _atomic(path, w)
+
+
+def recording_arrays(result):
+    """What the numpy H1 of a recording used, for a test that recomputes it: per
+    (excitation, hit) the trigger sample, the force rectangle (first, last; −1 when none),
+    whether the hit was averaged; and f_s, N, τ (0: none), apply_to_force."""
+    rec, case = result.recording, result.case
+    hits = [e["hits"] for e in rec.truth_ex]
+    rect = np.array([[h["windows"]["force_rectangle"] or [-1, -1] for h in e] for e in hits], np.int64)
+    return dict(
+        sample_rate_hz=np.float64(rec.fs), record_samples=np.int64(rec.n_record),
+        tau_s=np.float64(case.window_tau), apply_to_force=np.bool_(case.window_apply_to_force),
+        trigger_samples=np.array([[h["trigger_sample"] for h in e] for e in hits], np.int64),
+        force_rectangles=rect,
+        hits_used=np.array([[h["accepted"] for h in e] for e in hits]),
+        fft_bins=np.round(np.asarray(result.frequency_hz) * rec.n_record / rec.fs).astype(np.int64))
 
 
 def write_truth(result, path):
@@ -174,6 +192,30 @@ class UffLayout:
         return None
 
 
+def _header_sets(pyuff, case, lay, node_dataset):
+    """164 (SI), 2420 (when a frame is not the global one), 15 or 2411 nodes."""
+    sets = [pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=2,
+                              length=1.0, force=1.0, temp=1.0, temp_offset=273.15)]
+    if lay.systems:
+        sets.append(pyuff.prepare_2420(
+            Part_UID=1, Part_Name="rbref", CS_sys_labels=[s[0] for s in lay.systems],
+            CS_types=[0] * len(lay.systems), CS_colors=[8] * len(lay.systems),
+            CS_names=[f"cs{s[0]}" for s in lay.systems],
+            CS_matrices=[np.vstack([s[1], np.zeros((1, 3))]) for s in lay.systems]))
+    labels = [n[0] for n in lay.nodes]
+    xyz = np.array([n[1] for n in lay.nodes], float)
+    use15 = node_dataset == "15" or (node_dataset == "auto" and all(_fits_e13(v) for v in xyz.ravel()))
+    if use15:
+        sets.append(pyuff.prepare_15(node_nums=labels, def_cs=[0] * len(labels),
+                                     disp_cs=[n[2] for n in lay.nodes], color=[8] * len(labels),
+                                     x=xyz[:, 0].tolist(), y=xyz[:, 1].tolist(), z=xyz[:, 2].tolist()))
+    else:
+        sets.append(pyuff.prepare_2411(node_nums=np.array(labels), def_cs=np.zeros(len(labels), int),
+                                       disp_cs=np.array([n[2] for n in lay.nodes]),
+                                       color=np.full(len(labels), 8), x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2]))
+    return sets
+
+
 def write_uff(result, path, binary=False, node_dataset="auto"):
     """UFF: 164 (SI), 2420 (when needed), 15 or 2411 nodes, one 58/58b per (excitation,
     channel) in excitation-major order. Ordinates: complex single (type 5) for float32
@@ -195,25 +237,7 @@ def write_uff(result, path, binary=False, node_dataset="auto"):
               "significant digits: written as uneven abscissae, "
               + ("in the ordinates' precision" if binary else "each with 6 significant digits (E13.5)"),
               file=sys.stderr)
-    sets = [pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=2,
-                              length=1.0, force=1.0, temp=1.0, temp_offset=273.15)]
-    if lay.systems:
-        sets.append(pyuff.prepare_2420(
-            Part_UID=1, Part_Name="rbref", CS_sys_labels=[s[0] for s in lay.systems],
-            CS_types=[0] * len(lay.systems), CS_colors=[8] * len(lay.systems),
-            CS_names=[f"cs{s[0]}" for s in lay.systems],
-            CS_matrices=[np.vstack([s[1], np.zeros((1, 3))]) for s in lay.systems]))
-    labels = [n[0] for n in lay.nodes]
-    xyz = np.array([n[1] for n in lay.nodes], float)
-    use15 = node_dataset == "15" or (node_dataset == "auto" and all(_fits_e13(v) for v in xyz.ravel()))
-    if use15:
-        sets.append(pyuff.prepare_15(node_nums=labels, def_cs=[0] * len(labels),
-                                     disp_cs=[n[2] for n in lay.nodes], color=[8] * len(labels),
-                                     x=xyz[:, 0].tolist(), y=xyz[:, 1].tolist(), z=xyz[:, 2].tolist()))
-    else:
-        sets.append(pyuff.prepare_2411(node_nums=np.array(labels), def_cs=np.zeros(len(labels), int),
-                                       disp_cs=np.array([n[2] for n in lay.nodes]),
-                                       color=np.full(len(labels), 8), x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2]))
+    sets = _header_sets(pyuff, case, lay, node_dataset)
     single = case.precision == "float32"
     ord_type = 5 if single else 6
     setup_desc = {s["id"]: s["description"] for s in case.setups}
@@ -282,4 +306,118 @@ def _dataset_58b(r, quantity, single, even, start, step, freq):
                                                    start if even else 0.0, step if even else 0.0, 0.0)
             + lab(18, 0, 0, "Hz") + lab(UFF_DATA_TYPE[quantity], 1, 0, MOTION_LABEL[quantity])
             + lab(13, 0, 1, "N") + lab(0, 0, 0, "NONE"))
+    return text.encode("ascii") + payload + b"%6i\n" % -1
+
+
+TIME_DATA_TYPE = {"receptance": 8, "mobility": 11, "accelerance": 12}
+
+
+def time_records(result, layout):
+    """The UFF 58 function-type-1 records of a recording, in file order, as dicts:
+    per-hit: for each excitation, for each hit 1..n, the force then every channel
+    (load_case_id = hit number); throughput: for each excitation, the force then every
+    channel, each the run's whole stream of n segments (load_case_id = 0)."""
+    case, rec = result.case, result.recording
+    lay = UffLayout(case)
+    n = rec.n_record
+    out = []
+    for ei, e in enumerate(case.excitations):
+        rn, rd = lay.dof[("ex", e["id"])]
+        id4 = f"setup={e['setup']} " + next(s["description"] for s in case.setups if s["id"] == e["setup"])
+        hits = range(1, case.time["impacts"] + 1) if layout == "per-hit" else [0]
+        for h in hits:
+            hit_tag = f" hit={h}" if h else " hits=" + str(case.time["impacts"])
+            if h:
+                f, y = rec.force[ei][h - 1, :n], rec.response[ei][h - 1, :, :n]
+            else:
+                f = rec.force[ei].reshape(-1)
+                y = np.moveaxis(rec.response[ei], 1, 0).reshape(len(case.channels), -1)
+            tags = f"rbprops ex={e['id']} ep={e['point']}{hit_tag}"
+            what = f"hit {h}" if h else "throughput"
+            out.append(dict(id1=f"rbref {case.name} force {e['id']} {what}"[:80], id4=id4.strip()[:80],
+                            id5=tags if len(tags) <= 80 else "NONE", rsp=(rn, rd), ref=(rn, rd),
+                            load_case=h, force=True, data=np.ascontiguousarray(f, float)))
+            for ci, c in enumerate(case.channels):
+                sn, sd = lay.dof[("ch", c["id"])]
+                tags = f"rbprops ch={c['id']} cp={c['point']} ex={e['id']} ep={e['point']}{hit_tag}"
+                if len(tags) > 80 or any(" " in x or "=" in x for x in (c["id"], c["point"], e["id"], e["point"])):
+                    tags = "NONE"
+                out.append(dict(id1=f"rbref {case.name} {c['id']}/{e['id']} {what}"[:80], id4=id4.strip()[:80],
+                                id5=tags, rsp=(sn, sd), ref=(rn, rd), load_case=h, force=False,
+                                data=np.ascontiguousarray(y[ci], float)))
+    return out
+
+
+def _time_labels(quantity, force):
+    """(ordinate spec data type, length exp, force exp, units label)."""
+    if force:
+        return 13, 0, 1, "N"
+    return TIME_DATA_TYPE[quantity], 1, 0, MOTION_LABEL[quantity]
+
+
+def check_time_uff(result):
+    """Refuses (ValueError) a recording whose time axis a UFF record 7 cannot carry exactly."""
+    rec = result.recording
+    if rec is None:
+        raise ValueError("time-history output needs a [time] case")
+    dt = 1.0 / rec.fs
+    if not _fits_e13(dt):
+        raise ValueError(f"time.sample_rate_hz: 1/f_s = {dt!r} s needs more than the 6 significant digits "
+                         "of a UFF record 7 (E13.5); use a rate whose period fits, e.g. 256, 400, 500, 800, "
+                         "1000, 1280, 1600, 2560, 3200, 6400, 12800 or 25600 Hz")
+
+
+def write_time_uff(result, path, layout="per-hit", binary=False, node_dataset="auto"):
+    """The time histories of a recording: UFF 164, 2420 (when needed), 15/2411 as
+    write_uff, then one 58 (function type 1, real double, even abscissa from 0 s with
+    step 1/f_s) per record of `time_records`. ASCII (%20.11e: the ADC's samples exactly)
+    or binary 58b (little-endian float64, our own writer)."""
+    import pyuff
+    check_time_uff(result)
+    case, rec = result.case, result.recording
+    dt = 1.0 / rec.fs
+    lay = UffLayout(case)
+    sets = _header_sets(pyuff, case, lay, node_dataset)
+    records = time_records(result, layout)
+    if not binary:
+        for r in records:
+            spec, le, fe, lab = _time_labels(case.quantity, r["force"])
+            x = np.arange(len(r["data"])) * dt
+            sets.append(pyuff.prepare_58(
+                binary=0, func_type=1, ver_num=0, load_case_id=int(r["load_case"]),
+                rsp_ent_name="NONE", rsp_node=r["rsp"][0], rsp_dir=r["rsp"][1], ref_ent_name="NONE",
+                ref_node=r["ref"][0], ref_dir=r["ref"][1], ord_data_type=4, num_pts=len(r["data"]),
+                abscissa_spacing=1, abscissa_min=0.0, abscissa_inc=dt, z_axis_value=0.0,
+                abscissa_spec_data_type=17, abscissa_len_unit_exp=0, abscissa_force_unit_exp=0,
+                abscissa_temp_unit_exp=0, abscissa_axis_units_lab="s",
+                ordinate_spec_data_type=spec, ordinate_len_unit_exp=le, ordinate_force_unit_exp=fe,
+                ordinate_temp_unit_exp=0, ordinate_axis_units_lab=lab,
+                orddenom_spec_data_type=0, orddenom_len_unit_exp=0, orddenom_force_unit_exp=0,
+                orddenom_temp_unit_exp=0, orddenom_axis_units_lab="NONE",
+                z_axis_spec_data_type=0, z_axis_len_unit_exp=0, z_axis_force_unit_exp=0,
+                z_axis_temp_unit_exp=0, z_axis_axis_units_lab="NONE",
+                data=r["data"], x=x, id2="NONE", id3="NONE", id1=r["id1"], id4=r["id4"], id5=r["id5"]))
+
+    def w(tmp):
+        os.remove(tmp)  # pyuff appends to an existing file
+        pyuff.UFF(tmp).write_sets(sets, mode="add", force_double=True)
+        if binary:
+            with open(tmp, "ab") as fh:
+                for r in records:
+                    fh.write(_dataset_58b_time(r, case.quantity, dt))
+    _atomic(path, w)
+
+
+def _dataset_58b_time(r, quantity, dt):
+    """One binary 58b of real float64 (type 4) time data, little-endian."""
+    n = len(r["data"])
+    payload = np.asarray(r["data"], "<f8").tobytes()
+    spec, le, fe, lab = _time_labels(quantity, r["force"])
+    line = lambda sp, l_, f_, u: "%10i%5i%5i%5i %-20s %-20s\n" % (sp, l_, f_, 0, "NONE", u)
+    text = ("%6i\n%6ib%6i%6i%12i%12i%6i%6i%12i%12i\n" % (-1, 58, 1, 2, 11, len(payload), 0, 0, 0, 0)
+            + "".join("%-80s\n" % x for x in (r["id1"], "NONE", "NONE", r["id4"], r["id5"]))
+            + "%5i%10i%5i%10i %10s%10i%4i %10s%10i%4i\n" % (1, 1, 0, int(r["load_case"]), "NONE", r["rsp"][0],
+                                                             r["rsp"][1], "NONE", r["ref"][0], r["ref"][1])
+            + "%10i%10i%10i%13.5e%13.5e%13.5e\n" % (4, n, 1, 0.0, dt, 0.0)
+            + line(17, 0, 0, "s") + line(spec, le, fe, lab) + line(0, 0, 0, "NONE") + line(0, 0, 0, "NONE"))
     return text.encode("ascii") + payload + b"%6i\n" % -1
