@@ -705,7 +705,22 @@ def test_examples_generate():
     ex = os.path.join(HERE, "examples")
     for name in sorted(os.listdir(ex)):
         case = rbref.load(os.path.join(ex, name))
+        if case.recording:
+            # recorded examples: shortened records and gaps (the full ones take seconds each)
+            case.time.update(record_s=min(case.time["record_s"], 1.0 if case.time["impacts"] < 50 else 0.05),
+                             gap_s=0.05)
+            case.window_tau = min(case.window_tau, 0.25)
         r = rbref.generate(case)
+        if case.recording:
+            hits = [h for e in r.truth["recording"]["excitations"] for h in e["hits"]]
+            n_double = sum(1 for h in hits if h["double"])
+            n_clip = sum(1 for h in hits if h["clipped"])
+            want = {"tc2-impact-clipped.toml": (0, 2), "tc2-impact-double.toml": (1, 0),
+                    "tc2-impact-time.toml": (0, 0), "tc2-impact-short.toml": (0, 0)}.get(name)
+            if want:
+                assert (n_double, n_clip) == want, (name, n_double, n_clip)
+            if name == "hits-study.toml":
+                assert len(hits) == 300 and 60 < n_double < 120 and n_clip == 9, (n_double, n_clip)
         s = r.truth["setups"][0]
         assert len(s["modes"]) + s["free_directions"] == 6, name
         assert np.all(np.isfinite(r.frf)), name
@@ -889,6 +904,225 @@ def test_bad_input_is_named():
         assert "cord(s) [0]" in str(e) and "slack" in str(e), e
     else:
         raise AssertionError("accepted a cord at the point of going slack")
+
+
+# --- recorded impact tests (recording.py) ---------------------------------------------
+def _recording_case(**time):
+    d = base_case().data
+    d["quantity"] = "accelerance"
+    d["frequency"] = {"start_hz": 0.0, "stop_hz": 20.0, "lines": 10}
+    d["window"] = {"tau_s": 0.5, "force_post_s": 0.01}
+    d["time"] = {"sample_rate_hz": 256.0, "record_s": 4.0, "pulse_s": 0.02, "impacts": 4, "pretrigger_s": 0.1,
+                 "subsample_onset": True, "anti_alias_order": 6, "anti_alias_cutoff_hz": 80.0}
+    d["time"].update(time)
+    return Case(d, "<t>")
+
+
+def test_recording_h1_equals_analytic_frf_to_the_aliasing_bound():
+    """One noise-free hit, no ADC, onset between samples, pretrigger, exponential window
+    (τ = 1 s) from the trigger on force and response, 32 s record. With the 8th-order
+    anti-alias filter (80 Hz, f_s = 256 Hz): H1 equals the exact prediction for sampled
+    signals, Σ_m H G_m / Σ_m G_m with G_m = H_aa(s_m) F(s_m) e^{−i2πm u} (s_m = i2π(f + m f_s)
+    + 1/τ, u the onset's fraction of a sample, |m| ≤ 400) to 1e-12, and the pole-shifted
+    analytic FRF H(iω + 1/τ) within the aliasing bound (max|H_m| + |H_0|) Σ_{m≠0}|G_m| /
+    (|G_0| − Σ_{m≠0}|G_m|) line by line (the record's truncation e^{−31.9} adds nothing
+    visible). Without the filter (receptance, where H F ~ m⁻⁴): the same prediction to 1e-7."""
+    from rbref.dynamics import evaluate
+    from rbref.recording import butterworth
+    for aa in (True, False):
+        d = base_case().data
+        d["quantity"] = "accelerance" if aa else "receptance"
+        d["frequency"] = {"start_hz": 0.0, "stop_hz": 20.0, "lines": 10}
+        d["window"] = {"tau_s": 1.0}
+        tp, fs = 0.02, 256.0
+        d["time"] = {"sample_rate_hz": fs, "record_s": 32.0, "pulse_s": tp, "impacts": 1,
+                     "pretrigger_s": 0.1, "subsample_onset": True}
+        if aa:
+            d["time"].update(anti_alias_order=8, anti_alias_cutoff_hz=80.0)
+        case = Case(d, "<t>")
+        r = rbref.generate(case)
+        u = np.array([e["hits"][0]["onset_s"] * fs - r.truth["recording"]["pretrigger_samples"]
+                      for e in r.truth["recording"]["excitations"]])[:, None, None, None]   # per excitation
+        assert np.all((0 < u) & (u < 1))
+        assert all(e["hits"][0]["trigger_sample"] == 26 + 1 for e in r.truth["recording"]["excitations"])
+        pick = np.arange(1, len(r.frequency_hz), 16 if aa else 64)
+        f = r.frequency_hz[pick]
+        terms = Terms(case)
+        om = np.pi / tp
+        fp, fc = butterworth(8, 80.0)
+
+        def g(s, m):
+            out = om * (1 + np.exp(-s * tp)) / (s * s + om * om) * np.exp(-2j * np.pi * m * u)
+            return out * (fc[:, None, None] / (s[None] - fp[:, None, None])).sum(axis=0) if aa else out
+
+        k = 2 if aa else 0
+        m = np.arange(-400, 401)[:, None]
+        s = 2j * np.pi * (f[None, :] + m * fs) + 1.0
+        gm = g(s, m)                                     # (e, 1, m, l)
+        hm = np.stack([evaluate(*pe[:4], pe[4], s.ravel())[0] * s.ravel() ** k for pe in terms.per_exc])
+        hm = hm.reshape(3, 9, *s.shape)
+        pred = (hm * gm).sum(axis=2) / gm.sum(axis=2)
+        got = r.frf[:, :, pick]
+        if not aa:
+            # H F ~ m⁻⁴ numerator; the denominator's sum needs many more terms (F ~ m⁻²)
+            mm = np.arange(-100000, 100001)[:, None]
+            sm = 2j * np.pi * (f[None, :] + mm * fs) + 1.0
+            fm = om * (1 + np.exp(-sm * tp)) / (sm * sm + om * om)
+            den = np.array([(fm * np.exp(-2j * np.pi * mm * ue)).sum(axis=0) for ue in u.ravel()])
+            pred = (hm * gm).sum(axis=2) / den[:, None, :]
+            assert rel(got, pred) < 1e-7, rel(got, pred)
+            continue
+        assert rel(got, pred) < 1e-12, rel(got, pred)
+        exact = terms.frf(f)
+        side = np.abs(np.delete(gm, 400, axis=2)).sum(axis=2)
+        bound = (np.abs(hm).max(axis=2) + np.abs(exact)) * side / (np.abs(gm[:, :, 400]) - side)
+        err = np.abs(got - exact)
+        assert np.all(err <= bound), (err / bound).max()
+        assert rel(got, exact) < 1e-5, rel(got, exact)
+
+
+def _read_uff(path):
+    import pyuff
+    return [s for s in pyuff.UFF(path).read_sets() if s["type"] == 58]
+
+
+def test_recording_uff_layouts_round_trip():
+    """Per-hit (ASCII) and throughput (binary) UFF 58 type-1 files read back with pyuff:
+    function type 1, hit number in load_case_id (0 for throughput), force records with
+    ordinate type 13 at the force's DOF for response and reference, channels with type 12
+    (acceleration) and the force's DOF as reference, t from 0 with step 1/f_s, every sample
+    exactly the recording's (16-bit ADC codes × a 1-2-5 step survive %20.11e); the
+    throughput stream is the per-hit segments one after another; the numpy H1 recomputed
+    from the file's samples with the truth's windows equals the written one to 1e-13."""
+    from rbref.writers import UffLayout
+    case = _recording_case(adc_bits=16, response_noise=1e-4, force_noise=0.01,
+                           double=[{"excitation": "f2", "hits": [3], "delay_s": 0.05, "ratio": 0.3}])
+    r = rbref.generate(case)
+    rec, tr = r.recording, r.truth["recording"]
+    lay = UffLayout(case)
+    with tempfile.TemporaryDirectory() as d:
+        rbref.write_time_uff(r, os.path.join(d, "ph.uff"), layout="per-hit")
+        rbref.write_time_uff(r, os.path.join(d, "tp.uff"), layout="throughput", binary=True)
+        rbref.write_npz(r, os.path.join(d, "h1.npz"))
+        ph, tp = _read_uff(os.path.join(d, "ph.uff")), _read_uff(os.path.join(d, "tp.uff"))
+        z = np.load(os.path.join(d, "h1.npz"))
+        assert len(ph) == 3 * 4 * 10 and len(tp) == 3 * 10
+        i = 0
+        for ei, e in enumerate(case.excitations):
+            rn, rd = lay.dof[("ex", e["id"])]
+            for h in range(1, 5):
+                for ci in [-1] + list(range(9)):
+                    s = ph[i]
+                    i += 1
+                    assert s["func_type"] == 1 and s["load_case_id"] == h
+                    assert (s["ref_node"], s["ref_dir"]) == (rn, rd)
+                    assert s["abscissa_spacing"] == 1 and s["abscissa_inc"] == 1 / 256.0 and s["x"][0] == 0
+                    assert s["abscissa_spec_data_type"] == 17
+                    if ci < 0:
+                        assert s["ordinate_spec_data_type"] == 13 and (s["rsp_node"], s["rsp_dir"]) == (rn, rd)
+                        assert s["ordinate_axis_units_lab"].strip() == "N"
+                        assert np.array_equal(s["data"], rec.force[ei][h - 1, :rec.n_record])
+                    else:
+                        c = case.channels[ci]
+                        assert s["ordinate_spec_data_type"] == 12
+                        assert (s["rsp_node"], s["rsp_dir"]) == lay.dof[("ch", c["id"])]
+                        assert f"ch={c['id']}" in s["id5"] and f"hit={h}" in s["id5"]
+                        assert np.array_equal(s["data"], rec.response[ei][h - 1, ci, :rec.n_record])
+            for ci in [-1] + list(range(9)):
+                s = tp[ei * 10 + ci + 1]
+                assert s["func_type"] == 1 and s["load_case_id"] == 0 and len(s["data"]) == tr["throughput_samples"]
+                want = rec.force[ei].ravel() if ci < 0 else rec.response[ei][:, ci, :].ravel()
+                assert np.array_equal(s["data"], want)
+        # H1 from the per-hit file's samples with the truth's windows
+        n, fs = tr["record_samples"], tr["sample_rate_hz"]
+        idx = np.arange(n)
+        bins = z["fft_bins"]
+        for ei, e in enumerate(tr["excitations"]):
+            sff, sfy = 0, 0
+            for hit in e["hits"]:
+                if not hit["accepted"]:
+                    continue
+                n0 = hit["windows"]["exponential_start_sample"]
+                w = np.where(idx >= n0, np.exp(-(idx - n0) / (fs * tr["window"]["tau_s"])), 1.0)
+                a, b = hit["windows"]["force_rectangle"]
+                recs = ph[ei * 40 + (hit["hit"] - 1) * 10: ei * 40 + hit["hit"] * 10]
+                ff = np.fft.rfft(recs[0]["data"] * w * ((idx >= a) & (idx <= b)))[bins]
+                yy = np.fft.rfft(np.array([x["data"] for x in recs[1:]]) * w, axis=1)[:, bins]
+                sff = sff + np.abs(ff) ** 2
+                sfy = sfy + np.conj(ff) * yy
+            assert rel(sfy / sff, z["frf"][ei]) < 1e-13
+        assert tr["hits_used"]["f2"] == [1, 2, 4] and z["hits_used"][1].tolist() == [True, True, False, True]
+
+
+def test_recording_clipping_and_double_hit_truth():
+    """Forced clipping: the clipped channel's samples at the range (−2^15 q or (2^15 − 1) q)
+    are exactly the truth's count, non-zero on the listed hits only, none elsewhere; the clip
+    channel's clean peak is 1.8 × its range on them. A double hit (no noise, no ADC, no
+    filter): the force minus the first half-sine is the second, ratio × A, starting where
+    the truth says."""
+    case = _recording_case(adc_bits=16, impacts=5, response_noise=1e-4, force_noise=0.01,
+                           clip=[{"excitation": "f1", "channel": "2x", "hits": [2, 4], "peak_over_range": 1.8}])
+    r = rbref.generate(case)
+    tr = r.truth["recording"]
+    ci = [c["id"] for c in case.channels].index("2x")
+    for ei, e in enumerate(tr["excitations"]):
+        rng_ = e["adc_ranges"]
+        for h, hit in enumerate(e["hits"]):
+            y = r.recording.response[ei][h, :, :tr["record_samples"]]
+            f = r.recording.force[ei][h, :tr["record_samples"]]
+            q = np.array(rng_["step_response"])[:, None]
+            top = np.array(rng_["response"])[:, None]
+            at = np.count_nonzero((y == -top) | (y == top - q), axis=1)
+            assert at.tolist() == hit["clipped_samples"]["response"]
+            assert hit["clipped_samples"]["force"] == np.count_nonzero((f == -rng_["force"]) | (f == rng_["force"] - rng_["step_force"]))
+            forced = e["id"] == "f1" and h + 1 in (2, 4)
+            assert hit["clipped"] == forced and (at[ci] >= 2) == forced and at.sum() == at[ci] * forced
+            if forced:
+                assert abs(hit["clean_peak_response"][ci] / rng_["response"][ci] - 1.8) < 1e-12
+    assert tr["hits_used"]["f1"] == [1, 3, 5]
+    case = _recording_case(anti_alias_order=0, impacts=2,
+                           double=[{"excitation": "f3", "hits": [2], "delay_s": 0.0123, "ratio": 0.37}])
+    r = rbref.generate(case)
+    tr = r.truth["recording"]
+    hit = tr["excitations"][2]["hits"][1]
+    d, fs = hit["double"], tr["sample_rate_hz"]
+    assert d["delay_s"] == 0.0123 and d["ratio"] == 0.37
+    t = np.arange(tr["record_samples"]) / fs
+    f = r.recording.force[2][1, :tr["record_samples"]]
+    first = hit["amplitude_n"] * np.where((t >= hit["onset_s"]) & (t <= hit["onset_s"] + 0.02),
+                                          np.sin(np.pi * (t - hit["onset_s"]) / 0.02), 0.0)
+    second = f - first
+    on = np.nonzero(np.abs(second) > 1e-9)[0]
+    assert on[0] == d["second_onset_sample"] and abs(d["second_onset_s"] - hit["onset_s"] - 0.0123) < 1e-15
+    want = 0.37 * hit["amplitude_n"] * np.sin(np.pi * (t[on] - d["second_onset_s"]) / 0.02)
+    assert np.abs(second[on] - want).max() < 1e-9 * hit["amplitude_n"]
+    assert tr["excitations"][2]["hits"][1]["reasons"] == ["double"] and tr["hits_used"]["f3"] == [1]
+
+
+def test_recording_random_double_hits_and_cli():
+    """Random double hits at probability 0.3 over 60 hits: between 8 and 30 of them, each
+    delay in [0.5, 20] ms and ratio in [5, 50] %; the CLI writes a throughput UFF and the
+    truth; a rate whose period does not fit E13.5 is refused with no file written."""
+    case = _recording_case(impacts=20, record_s=0.5, pretrigger_s=0.01, pulse_s=0.002, sample_rate_hz=2560.0,
+                           anti_alias_cutoff_hz=1000.0, double_probability=0.3, adc_bits=24)
+    r = rbref.generate(case)
+    dbl = [h["double"] for e in r.truth["recording"]["excitations"] for h in e["hits"] if h["double"]]
+    assert 8 <= len(dbl) <= 30, len(dbl)
+    assert all(0.0005 <= x["delay_s"] <= 0.02 and 0.05 <= x["ratio"] <= 0.5 for x in dbl)
+    ex = os.path.join(HERE, "examples", "tc2-impact-double.toml")
+    with tempfile.TemporaryDirectory() as d:
+        args = [sys.executable, os.path.join(HERE, "rbref.py"), ex, "--time-layout", "throughput", "--binary",
+                "--set", "time.record_s=2.0", "--set", "window.tau_s=0.5", "--quiet"]
+        st = subprocess.run(args + ["-o", f"{d}/tp.uff", "--truth", f"{d}/t.json"], capture_output=True, text=True)
+        assert st.returncode == 0, st.stderr
+        tr = json.load(open(f"{d}/t.json"))["recording"]
+        assert any(h["double"] for e in tr["excitations"] for h in e["hits"])
+        st = subprocess.run(args + ["--set", "time.sample_rate_hz=512", "-o", f"{d}/x.uff", "-o", f"{d}/x.npz"],
+                            capture_output=True, text=True)
+        assert st.returncode == 1 and "time.sample_rate_hz" in st.stderr and not os.path.exists(f"{d}/x.npz"), st.stderr
+        st = subprocess.run(args + ["--set", "time.clip=[{\"excitation\":\"force1\",\"channel\":\"9z\",\"hits\":[1],"
+                                    "\"peak_over_range\":2}]", "-o", f"{d}/y.uff"], capture_output=True, text=True)
+        assert st.returncode == 1 and "time.clip[0].channel: no such channel '9z'" in st.stderr, st.stderr
 
 
 def main():
