@@ -166,7 +166,8 @@ FIELDS = {
     "time": {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise", "response_noise",
              "clip_response", "amplitude_n", "amplitude_jitter", "pretrigger_s", "gap_s",
              "subsample_onset", "adc_bits", "adc_headroom", "clip", "double", "double_probability",
-             "double_delay_s", "double_ratio", "reject", "anti_alias_order", "anti_alias_cutoff_hz"},
+             "double_delay_s", "double_ratio", "reject", "anti_alias_order", "anti_alias_cutoff_hz",
+             "clip_probability", "clip_peak_over_range"},
 }
 RECORDING_TIME_FIELDS = FIELDS["time"] - {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise",
                                           "response_noise", "clip_response", "amplitude_n",
@@ -611,7 +612,13 @@ class Case:
         tm["double_probability"] = ck.num(t, "double_probability", p, 0.0, lo=0.0)
         if tm["double_probability"] > 1:
             ck.fail(f"{p}.double_probability", f"must be ≤ 1, got {tm['double_probability']}")
-        for key, dflt in (("double_delay_s", [0.0005, 0.02]), ("double_ratio", [0.05, 0.5])):
+        tm["clip_probability"] = ck.num(t, "clip_probability", p, 0.0, lo=0.0)
+        if tm["clip_probability"] > 1:
+            ck.fail(f"{p}.clip_probability", f"must be ≤ 1, got {tm['clip_probability']}")
+        if tm["clip_probability"] > 0 and not tm["adc_bits"]:
+            ck.fail(f"{p}.clip_probability", "forced clipping needs an ADC (time.adc_bits = 16 or 24)")
+        for key, dflt in (("double_delay_s", [0.0005, 0.02]), ("double_ratio", [0.05, 0.5]),
+                          ("clip_peak_over_range", [1.0, 2.0])):
             a = ck.arr(t, key, p, (2,), dflt)
             if not (0 < a[0] <= a[1]):
                 ck.fail(f"{p}.{key}", f"must be [low, high] with 0 < low ≤ high, got {a.tolist()}")

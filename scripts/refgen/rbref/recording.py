@@ -34,10 +34,20 @@ What it models, per excitation (one measurement run):
     channel's range from the other hits (autorange as above) and scales the listed hits'
     amplitude so the channel's clean peak is peak_over_range × R on them (the tester hit
     harder); the other channels autorange over all hits, so they do not clip.
-Random numbers: numpy.random.default_rng(seed); per excitation, first per hit in order
-five draws (amplitude normal, onset u, double-hit probability, delay, ratio — drawn
-whatever the options, so one option does not move the others' draws), then per hit the
-force noise (S) and the response noise (n_ch, S).
+  - random forced peaks (clip_probability p, clip_peak_over_range [lo, hi]): a hit not
+    forced by `clip` is, with probability p, forced on a channel drawn uniformly among
+    the force and the responses, at a peak over range uniform in [lo, hi] (lo < 1 gives
+    near misses on that channel). A channel with forced hits (from `clip` or at random)
+    takes its range from the hits forced nowhere; a channel without forced hits
+    autoranges over all hits, so it never clips. A hit forced on one channel (hit harder)
+    can therefore also clip another channel that has forced hits of its own: the truth
+    counts what is in the data, always (`clipped_samples`), and names the channel the hit
+    was forced on (`forced_clip_channel`).
+Random numbers: numpy.random.default_rng(seed); per excitation, uniform draws (hits, 8)
+then the amplitudes' standard normals (hits) replacing column 0; per hit the columns are
+(amplitude, onset u, double-hit probability, delay, ratio, clip probability, clip channel,
+clip peak) — drawn whatever the options, so one option does not move the others' draws;
+then per hit the force noise (S) and the response noise (n_ch, S).
 
 H1 (numpy, from the samples as written): per accepted hit, F = rfft(f·w_f), Y = rfft(y·w),
 H1 = Σ F̄Y/Σ|F|², γ² = |Σ F̄Y|²/(Σ|F|² Σ|Y|²), on the bins k f_s/N in [start_hz, stop_hz].
@@ -251,11 +261,11 @@ def record(case, terms):
     truth_ex = []
     for ei, (poles, a, b, p, extra) in enumerate(terms.per_exc):
         eid = ex_ids[ei]
-        draws = rng.random((nh, 5))
+        draws = rng.random((nh, 8))
         draws[:, 0] = rng.standard_normal(nh)  # amplitudes from their own normal draws
         hits = []
         for h in range(nh):
-            z, u, pd, dd, dr = draws[h]
+            z, u, pd, dd, dr = draws[h, :5]
             amp = tm["amplitude_n"] * (1.0 + tm["amplitude_jitter"] * z)
             onset = pre + (u if tm["subsample_onset"] else 0.0)     # samples
             double = None
@@ -289,21 +299,32 @@ def record(case, terms):
         upeak_y = np.abs(y_unit[:, :, :n]).max(axis=2)              # (nh, n_ch)
         amps = np.array([hit["amp"] for hit in hits])
         steps = {}
-        forced = {}
+        forced = {}          # hit index → (channel index, −1 = force; peak over range)
         for i, c in clips.get(eid, []):
             ci = -1 if c["channel"] == "force" else ch_ids.index(c["channel"])
-            others = [h for h in range(nh) if h + 1 not in c["hits"]]
-            up = upeak_f if ci < 0 else upeak_y[:, ci]
-            if ci in steps:
-                raise ValueError(f"time.clip[{i}]: a second entry for channel {c['channel']} of {eid}")
-            m, e = adc_step(max(amps[h] * up[h] for h in others), bits, tm["adc_headroom"])
-            steps[ci] = (m, e)
-            big = 2.0 ** (bits - 1) * step_value(m, e) * c["peak_over_range"]
             for h in c["hits"]:
                 if h - 1 in forced:
                     raise ValueError(f"time.clip[{i}].hits: hit {h} of {eid} is already forced to clip")
-                forced[h - 1] = c["channel"]
-                amps[h - 1] = big / up[h - 1]
+                forced[h - 1] = (ci, c["peak_over_range"])
+        if tm["clip_probability"] > 0 and bits:
+            lo_c, hi_c = tm["clip_peak_over_range"]
+            for h in range(nh):
+                if h not in forced and draws[h, 5] < tm["clip_probability"]:
+                    ci = min(int(draws[h, 6] * (n_ch + 1)), n_ch) - 1
+                    forced[h] = (ci, lo_c + (hi_c - lo_c) * draws[h, 7])
+        # A channel with forced hits: its range from the hits forced nowhere (amplitudes as
+        # drawn); then the forced hits' amplitudes from that range. Channels without forced
+        # hits autorange below over all hits (final amplitudes) and so never clip; a hit
+        # forced on one channel can clip another channel that has forced hits of its own.
+        free = [h for h in range(nh) if h not in forced]
+        if forced and not free:
+            raise ValueError(f"time: every hit of {eid} is forced to clip: none is left to set the ranges")
+        for ci in sorted({ci for ci, _ in forced.values()}):
+            up = upeak_f if ci < 0 else upeak_y[:, ci]
+            steps[ci] = adc_step(max(amps[h] * up[h] for h in free), bits, tm["adc_headroom"])
+        for h, (ci, por) in sorted(forced.items()):
+            up = upeak_f if ci < 0 else upeak_y[:, ci]
+            amps[h] = 2.0 ** (bits - 1) * step_value(*steps[ci]) * por / up[h]
         peak_f = amps * upeak_f
         peak_y = amps[:, None] * upeak_y
         if bits:
@@ -373,7 +394,9 @@ def record(case, terms):
                 "clean_peak_force_n": float(peak_f[h]),
                 "clean_peak_response": [float(x) for x in peak_y[h]],
                 "double": d,
-                "forced_clip_channel": forced.get(h),
+                "forced_clip_channel": (("force" if forced[h][0] < 0 else ch_ids[forced[h][0]])
+                                        if h in forced else None),
+                "forced_peak_over_range": float(forced[h][1]) if h in forced else None,
                 "clipped_samples": {"force": cf, "response": cy},
                 "over_range_samples": {"force": int(over_f[h]), "response": [int(x) for x in over_y[h]]},
                 "clipped": clipped,
