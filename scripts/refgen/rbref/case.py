@@ -167,7 +167,7 @@ FIELDS = {
              "clip_response", "amplitude_n", "amplitude_jitter", "pretrigger_s", "gap_s",
              "subsample_onset", "adc_bits", "adc_headroom", "clip", "double", "double_probability",
              "double_delay_s", "double_ratio", "reject", "anti_alias_order", "anti_alias_cutoff_hz",
-             "clip_probability", "clip_peak_over_range"},
+             "clip_probability", "clip_peak_over_range", "carry_over"},
 }
 RECORDING_TIME_FIELDS = FIELDS["time"] - {"sample_rate_hz", "record_s", "pulse_s", "impacts", "force_noise",
                                           "response_noise", "clip_response", "amplitude_n",
@@ -594,7 +594,7 @@ class Case:
         tm = self.time
         tm["pretrigger_s"] = ck.num(t, "pretrigger_s", p, 0.0, lo=0.0)
         tm["gap_s"] = ck.num(t, "gap_s", p, lo=0.0) if "gap_s" in t else None
-        for key in ("subsample_onset",):
+        for key in ("subsample_onset", "carry_over"):
             tm[key] = t.get(key, False)
             if not isinstance(tm[key], bool):
                 ck.fail(f"{p}.{key}", f"must be true or false, got {tm[key]!r}")

@@ -8,7 +8,11 @@ What it models, per excitation (one measurement run):
     to rest): the segment holds that hit's response only, continued through the gap, and
     the next segment starts again from rest, so the stream has a step where the previous
     tail is cut (at the start of the next pretrigger; it is the tail's size at t = N + G).
-    The per-hit layout and the throughput layout therefore carry the very same samples.
+    With carry_over = true the run is instead the exact superposition of all its hits:
+    each segment also holds the tails of the hits before it (carried as modal
+    coefficients K e^{λ(t − t_seg)} from segment to segment), as a real continuous
+    recording would; the records then start with the previous hits' residual motion.
+    Either way the per-hit layout and the throughput layout carry the very same samples.
   - the first pulse starts pretrigger_s (rounded to whole samples, P) after the record's
     start, plus u/f_s with u uniform in [0, 1) when subsample_onset = true (else u = 0):
     onset o = P + u samples; the trigger sample is ⌈o⌉ (the first sample at or after the
@@ -90,10 +94,11 @@ class Grid:
         self.lam, self.fs, self.n = lam, fs, length
         self.et = np.exp((np.arange(length) / fs)[:, None] * lam[None, :])   # E transposed: row slices contiguous
 
-    def conv(self, resk, o, tp):
+    def conv(self, resk, o, tp, carry=None):
         """Re Σ_r resk[c, r] ∫ e^{λ_r(t − u)} sin(Ω(u − t_on)) du over the pulse's support
         (the closed forms of timedomain._pole_response), on the grid; zero before the
-        onset o (samples). (n_ch, L)."""
+        onset o (samples). (n_ch, L). With `carry` (a list), appends K (n_ch, n_poles),
+        the continuation past the grid: sample L + m gets Re Σ_r K[c, r] E[r, m]."""
         lam, fs = self.lam, self.fs
         om = np.pi / tp
         den = lam * lam + om * om
@@ -115,7 +120,16 @@ class Grid:
             # einsum without BLAS: small products, and the same bits whatever the BLAS threads
             out[:, m1:] = (np.einsum("lr,cr->cl", self.et[:self.n - m1], a)
                            + np.einsum("lr,cr->cl", self.et[m1 - n1:self.n - n1], b)).real
+        if carry is not None:
+            if m1 >= self.n:
+                raise ValueError("time: a pulse runs past the segment's end")
+            carry.append(resk * (om / den * (np.exp(lam * (self.n - o_end) / fs)
+                                             + np.exp(lam * (self.n - o) / fs)))[None, :])
         return out
+
+    def tail(self, k):
+        """Re Σ_r K[c, r] E[r, m] over the grid (m < L): a carried continuation."""
+        return np.einsum("lr,cr->cl", self.et, k).real
 
 
 def _pulse_deriv(t, tp, deriv):
@@ -123,7 +137,7 @@ def _pulse_deriv(t, tp, deriv):
     return np.where(t >= 0, tp_pulse(np.where(t >= 0, t, 0.0), tp, deriv), 0.0)
 
 
-def unit_response(terms_e, k, grid, o, tp, aa=None, grid_f=None):
+def unit_response(terms_e, k, grid, o, tp, aa=None, grid_f=None, carry=None):
     """Response (n_ch, L) of one excitation's terms (poles, a, b, p, extra) to a unit
     half-sine with onset o (samples). Without a filter: Σ_r ρ_r λ_r^k conv_λr plus the
     direct terms of s^k/(s − λ) and the free P/s² term (as timedomain.responses). With
@@ -131,13 +145,18 @@ def unit_response(terms_e, k, grid, o, tp, aa=None, grid_f=None):
     ρ_r λ_r^k H_aa(λ_r) at the structure's poles and c_j H(p_j) at the filter's (H(p_j)
     with its direct and free terms; exact when H_aa H is strictly proper with simple
     poles: for accelerance, and for any quantity without free directions), each
-    convolved with the pulse in closed form."""
+    convolved with the pulse in closed form. `carry` (a dict of lists "g", "f"): the
+    continuations past the grid (Grid.conv) of the structure's and the filter's poles; the
+    direct terms vanish after the pulse, and free directions (whose terms do not) are
+    refused by the caller for k < 2."""
     poles, a, b, p, extra = terms_e
+    cg = carry["g"] if carry is not None else None
+    cf = carry["f"] if carry is not None else None
     lam = np.concatenate([poles, np.array([m for m, _ in extra], complex)])
     res = np.concatenate([a * b[:, 0][None, :]] + [r for _, r in extra], axis=1) if extra \
         else a * b[:, 0][None, :]
     if aa is None:
-        y = grid.conv(res * (lam ** k)[None, :], o, tp)
+        y = grid.conv(res * (lam ** k)[None, :], o, tp, cg)
         t = (np.arange(grid.n) - o) / grid.fs
         free = p[:, 0]
         if k == 0:
@@ -154,7 +173,7 @@ def unit_response(terms_e, k, grid, o, tp, aa=None, grid_f=None):
     fp, fc = aa
     haa = (fc[None, :] / (lam[:, None] - fp[None, :])).sum(axis=1)
     hp = evaluate(poles, a, b, p, extra, fp)[0] * fp[None, :] ** k          # (n_ch, n_f)
-    return grid.conv(res * (lam ** k * haa)[None, :], o, tp) + grid_f.conv(hp * fc[None, :], o, tp)
+    return grid.conv(res * (lam ** k * haa)[None, :], o, tp, cg) + grid_f.conv(hp * fc[None, :], o, tp, cf)
 
 
 def _pulse(t, tp):
@@ -242,6 +261,11 @@ def record(case, terms):
     lo_d, hi_d = tm["double_delay_s"]
     lo_r, hi_r = tm["double_ratio"]
     t_seg = np.arange(seg) / fs
+    carry_over = tm["carry_over"]
+    k_free = [pe[3] for pe in terms.per_exc] + [pg for _, pg in terms.gravity_exc]
+    if carry_over and (k < 2 or terms.gravity_exc) and any(np.any(x != 0) for x in k_free):
+        raise ValueError("time.carry_over: free directions carry a growing term from hit to hit: "
+                         "modelled for accelerance without sensor_gravity only")
     aa = None
     if tm["anti_alias_order"]:
         if tm["anti_alias_cutoff_hz"] >= fs / 2:
@@ -284,17 +308,26 @@ def record(case, terms):
         grid_f = Grid(aa[0], fs, seg) if aa is not None else None
         f_unit = np.zeros((nh, seg))
         y_unit = np.zeros((nh, n_ch, seg))
+        carries = []      # per hit: (K_structure, K_filter, K_force) of unit amplitude, or None
         for h, hit in enumerate(hits):
+            kg = kf = kff = 0.0
             for o, r in hit["pulses"]:
+                cr = {"g": [], "f": []} if carry_over else None
+                fl = [] if carry_over else None
                 if aa is None:
                     f_unit[h] += r * _pulse(t_seg - o / fs, tp)
                 else:
-                    f_unit[h] += r * grid_f.conv(aa[1][None, :], o, tp)[0]
-                y = unit_response((poles, a, b, p, extra), k, grid, o, tp, aa, grid_f)
+                    f_unit[h] += r * grid_f.conv(aa[1][None, :], o, tp, fl)[0]
+                y = unit_response((poles, a, b, p, extra), k, grid, o, tp, aa, grid_f, cr)
                 if terms.gravity_exc:
                     ag, pg = terms.gravity_exc[ei]
-                    y = y + unit_response((poles, ag, b, pg, []), 0, grid, o, tp, aa, grid_f)
+                    y = y + unit_response((poles, ag, b, pg, []), 0, grid, o, tp, aa, grid_f, cr)
                 y_unit[h] += r * y
+                if carry_over:
+                    kg = kg + r * sum(cr["g"])
+                    kf = kf + r * sum(cr["f"]) if cr["f"] else kf
+                    kff = kff + r * fl[0] if fl else kff
+            carries.append((kg, kf, kff))
         upeak_f = np.abs(f_unit[:, :n]).max(axis=1)                 # (nh,) over the record
         upeak_y = np.abs(y_unit[:, :, :n]).max(axis=2)              # (nh, n_ch)
         amps = np.array([hit["amp"] for hit in hits])
@@ -325,8 +358,31 @@ def record(case, terms):
         for h, (ci, por) in sorted(forced.items()):
             up = upeak_f if ci < 0 else upeak_y[:, ci]
             amps[h] = 2.0 ** (bits - 1) * step_value(*steps[ci]) * por / up[h]
-        peak_f = amps * upeak_f
-        peak_y = amps[:, None] * upeak_y
+        if carry_over:
+            # the continuous run: each segment also holds the tails of the hits before it
+            y_unit *= amps[:, None, None]
+            f_unit *= amps[:, None]
+            cg = cf = cff = 0.0
+            for h in range(nh):
+                if h:
+                    if np.ndim(cg):
+                        y_unit[h] += grid.tail(cg)
+                    if np.ndim(cf):
+                        y_unit[h] += grid_f.tail(cf)
+                    if np.ndim(cff):
+                        f_unit[h] += grid_f.tail(cff)[0]
+                kg, kf, kff = carries[h]
+                cg = (cg * np.exp(grid.lam * seg / fs)[None, :] if np.ndim(cg) else 0.0) + amps[h] * kg
+                if aa is not None:
+                    cf = (cf * np.exp(grid_f.lam * seg / fs)[None, :] if np.ndim(cf) else 0.0) + amps[h] * kf
+                    cff = (cff * np.exp(grid_f.lam * seg / fs)[None, :] if np.ndim(cff) else 0.0) + amps[h] * kff
+            peak_f = np.abs(f_unit[:, :n]).max(axis=1)
+            peak_y = np.abs(y_unit[:, :, :n]).max(axis=2)
+            amps_signal = np.ones(nh)
+        else:
+            peak_f = amps * upeak_f
+            peak_y = amps[:, None] * upeak_y
+            amps_signal = amps
         if bits:
             for ci in [-1] + list(range(n_ch)):
                 if ci not in steps:
@@ -339,8 +395,8 @@ def record(case, terms):
         over_f = np.zeros(nh, int)
         over_y = np.zeros((nh, n_ch), int)
         for h in range(nh):
-            f = amps[h] * f_unit[h] + tm["force_noise"] * rng.standard_normal(seg)
-            y = amps[h] * y_unit[h]
+            f = amps_signal[h] * f_unit[h] + tm["force_noise"] * rng.standard_normal(seg)
+            y = amps_signal[h] * y_unit[h]
             if tm["clip_response"] > 0:
                 y = np.clip(y, -tm["clip_response"], tm["clip_response"])
             y = y + tm["response_noise"] * rng.standard_normal((n_ch, seg))
@@ -482,6 +538,7 @@ def truth_record(case, rec, used):
         "impacts": tm["impacts"],
         "pulse_s": tm["pulse_s"],
         "subsample_onset": tm["subsample_onset"],
+        "carry_over": tm["carry_over"],
         "adc_bits": rec.bits,
         "adc_headroom": tm["adc_headroom"] if rec.bits else None,
         "anti_alias_filter": ({"type": "butterworth", "order": tm["anti_alias_order"],
