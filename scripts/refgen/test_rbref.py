@@ -1161,6 +1161,29 @@ def test_recording_carry_over_is_the_superposition():
         assert np.all(r.recording.response[0][1, :, :5] != 0)
 
 
+def test_timehist_fixture_is_current():
+    """fixtures/timehist/small.* are what the generator writes today: the per-hit file's
+    samples exactly, the throughput 58b file's too, the truth's hits, and the numpy H1
+    to 1e-12 (FFT rounding may differ between numpy versions)."""
+    d = os.path.join(REPO, "fixtures", "timehist")
+    r = rbref.generate(rbref.load(os.path.join(d, "small.toml")))
+    rec, n = r.recording, r.recording.n_record
+    ph = _read_uff(os.path.join(d, "small-per-hit.uff"))
+    tp = _read_uff(os.path.join(d, "small-throughput-58b.uff"))
+    i = 0
+    for ei in range(2):
+        for h in range(3):
+            for ci in range(-1, 3):
+                want = rec.force[ei][h, :n] if ci < 0 else rec.response[ei][h, ci, :n]
+                assert np.array_equal(ph[i]["data"], want), (ei, h, ci)
+                i += 1
+        assert np.array_equal(tp[ei * 4]["data"], rec.force[ei].ravel())
+    truth = json.load(open(os.path.join(d, "small-truth.json")))["recording"]
+    assert truth["excitations"] == json.loads(json.dumps(r.truth["recording"]["excitations"]))
+    h1 = json.load(open(os.path.join(d, "small-h1.json")))
+    assert rel(np.array(h1["re"]) + 1j * np.array(h1["im"]), r.frf) < 1e-12
+
+
 def main():
     tests = [(k, v) for k, v in sorted(globals().items()) if k.startswith("test_") and callable(v)]
     failed = 0
