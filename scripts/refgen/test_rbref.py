@@ -1163,8 +1163,9 @@ def test_recording_carry_over_is_the_superposition():
 
 def test_timehist_fixture_is_current():
     """fixtures/timehist/small.* are what the generator writes today: the per-hit file's
-    samples exactly, the throughput 58b file's too, the truth's hits, and the numpy H1
-    to 1e-12 (FFT rounding may differ between numpy versions)."""
+    samples exactly, the throughput 58b file's too, the truth's triggers, clipped samples,
+    ranges and windows, and the numpy H1 to 1e-12 (FFT rounding may differ between numpy
+    versions)."""
     d = os.path.join(REPO, "fixtures", "timehist")
     r = rbref.generate(rbref.load(os.path.join(d, "small.toml")))
     rec, n = r.recording, r.recording.n_record
@@ -1179,7 +1180,11 @@ def test_timehist_fixture_is_current():
                 i += 1
         assert np.array_equal(tp[ei * 4]["data"], rec.force[ei].ravel())
     truth = json.load(open(os.path.join(d, "small-truth.json")))["recording"]
-    assert truth["excitations"] == json.loads(json.dumps(r.truth["recording"]["excitations"]))
+    keys = ("hit", "trigger_sample", "pulse_end_sample", "clipped_samples", "accepted", "reasons", "windows",
+            "forced_clip_channel")
+    pick = lambda ex: [[{k: h[k] for k in keys} for h in e["hits"]] for e in ex]   # noqa: E731
+    assert pick(truth["excitations"]) == pick(r.truth["recording"]["excitations"])
+    assert [e["adc_ranges"] for e in truth["excitations"]] == [e["adc_ranges"] for e in r.truth["recording"]["excitations"]]
     h1 = json.load(open(os.path.join(d, "small-h1.json")))
     assert rel(np.array(h1["re"]) + 1j * np.array(h1["im"]), r.frf) < 1e-12
 
