@@ -68,7 +68,6 @@ import math
 import numpy as np
 
 from .case import QUANTITY_ORDER
-from .timedomain import responses
 
 GRID = (1, 2, 5)
 
