@@ -21,10 +21,13 @@ What it models, per excitation (one measurement run):
     a double hit adds a second half-sine ratio·A_i, delay_s after the first (its pulse may
     overlap the first when delay_s < pulse_s);
   - responses by exact modal superposition (the closed forms of timedomain.responses,
-    shifted to each pulse's onset, zero before it);
-  - NO anti-alias filter: force and response are sampled as they are, and alias alike, so
-    H1 carries a relative error of about Σ_m≥1 |F(m f_s ± f)|/|F(f)| ≈ (2 f_s T_p)⁻²·4ζ(2)
-    (the bound the tests check): choose f_s·T_p ≫ 1 (f_s T_p = 25.6 → 1e-3);
+    shifted to each pulse's onset, zero before it; Grid, unit_response);
+  - optional anti-alias filter (anti_alias_order n, anti_alias_cutoff_hz): a Butterworth
+    low-pass applied in closed form to force and responses alike (unit_response: the
+    residues of H_aa·H at the structure's and the filter's poles, each convolved with the
+    pulse exactly), so the only error of H1 against the FRF is the aliasing the filter
+    leaves, Σ_m≠0 |H_aa F|(f + m f_s)/|H_aa F|(f) (the bound the tests check). Without
+    it the samples alias as they are, ≈ 4ζ(2)(2 f_s T_p)⁻² relative: choose f_s·T_p ≫ 1;
   - analogue clipping at ±clip_response (as in the time route), then white noise
     (force_noise N, response_noise in the quantity's unit) on every sample of the stream;
   - ADC (adc_bits = 16 or 24; 0 = none, the samples stay float64): per excitation and
@@ -34,10 +37,9 @@ What it models, per excitation (one measurement run):
     code·q computed as (code·m)/10^(−e), the float64 nearest the exact decimal, which has
     at most 8 significant digits: the UFF ASCII form (%20.11e) and binary both carry it
     exactly. A sample at −2^(b−1)·q or (2^(b−1) − 1)·q is "at the range" (clipped).
-  - forced clipping: `clip = [{excitation, channel, hits, peak_over_range}]` sets that
-    channel's range from the other hits (autorange as above) and scales the listed hits'
-    amplitude so the channel's clean peak is peak_over_range × R on them (the tester hit
-    harder); the other channels autorange over all hits, so they do not clip.
+  - forced clipping: `clip = [{excitation, channel, hits, peak_over_range}]` scales the
+    listed hits' amplitude so the channel's clean peak is peak_over_range × R on them (the
+    tester hit harder), R from the hits forced nowhere (autorange as above);
   - random forced peaks (clip_probability p, clip_peak_over_range [lo, hi]): a hit not
     forced by `clip` is, with probability p, forced on a channel drawn uniformly among
     the force and the responses, at a peak over range uniform in [lo, hi] (lo < 1 gives
