@@ -95,5 +95,5 @@ pub mod resonance;
 
 pub use check::{check, CheckOptions, CheckOutcome, Progress};
 pub use error::CheckError;
-pub use noise::RecordingNoise;
+pub use noise::{GivenLineVariance, RecordingNoise};
 pub use report::ModelCheckReport;

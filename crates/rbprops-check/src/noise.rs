@@ -138,6 +138,48 @@ impl RecordingNoise {
     }
 }
 
+/// Each value's noise variance given by the FRF estimator (`frf-est`, or coherence and a
+/// declared number of averages): the check weighs every value by it instead of estimating
+/// the noise from the FRFs, and treats the estimator's window as known.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenLineVariance {
+    /// σ² = E|ε|² per value (layout `[exc][ch][line]`, FRF units²), already calibrated
+    /// for χ² (`E|ε|²/σ² = 1` with σ² itself estimated); NaN or 0: left out.
+    pub sigma2: Vec<f64>,
+    /// τ (s) of the exponential window the FRFs were estimated with, whose correlation
+    /// between neighbouring lines' noise ([`crate::correlation`]) the check then weighs;
+    /// `None`: lines independent (a rectangular response window).
+    pub window_time_constant_s: Option<f64>,
+    /// Relative standard error of the σ² scale as a whole (χ²/ν inherits it 1:1).
+    pub variance_scale_se: f64,
+    /// Where it came from, for the report's method text.
+    pub source: String,
+}
+
+impl GivenLineVariance {
+    /// The per-channel summary the report shows: the median of σ/|Y| over each channel's
+    /// values as the relative part, no floor.
+    pub fn summary(&self, y: &[c64], n_ch: usize, n_lines: usize) -> RecordingNoise {
+        let mut per: Vec<Vec<f64>> = vec![Vec::new(); n_ch];
+        for (i, (&s2, v)) in self.sigma2.iter().zip(y).enumerate() {
+            if s2 > 0.0 && v.norm() > 0.0 {
+                per[(i / n_lines) % n_ch].push(s2.sqrt() / v.norm());
+            }
+        }
+        let relative = per
+            .iter_mut()
+            .map(|v| if v.is_empty() { 0.0 } else { median(v) })
+            .collect();
+        RecordingNoise {
+            relative,
+            floor: vec![0.0; n_ch],
+            source: self.source.clone(),
+            variance_scale_se: self.variance_scale_se,
+            precision: DataPrecision::DOUBLE,
+        }
+    }
+}
+
 /// Result of the estimate: the model and the per-value σ (layout `[exc][ch][line]`).
 #[derive(Debug, Clone)]
 pub struct NoiseFloor {

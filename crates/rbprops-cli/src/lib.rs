@@ -19,6 +19,7 @@ pub mod report;
 pub mod stages;
 pub mod summary;
 pub mod table;
+pub mod variance;
 pub mod warnings;
 
 /// The MCAP magic bytes, to recognise a stream on stdin.

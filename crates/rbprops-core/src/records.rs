@@ -253,6 +253,95 @@ pub struct ProcessingRecord {
     /// default (`none`: relative weights `1/|H|`, no measured quality).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub line_weighting: Option<LineWeightingRecord>,
+    /// How `frf-est` made the FRFs from time histories (absent: FRFs read as given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frf_estimation: Option<FrfEstimationRecord>,
+}
+
+/// What the FRF estimator did (`frf-est`, docs/conventions.md §FRF estimation): the
+/// estimator, sampling and record, windows, averages per excitation, the correlation its
+/// windows put between neighbouring lines' noise, and every hit with its verdict.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FrfEstimationRecord {
+    /// `H1`, `H2` or `Hv`.
+    pub estimator: String,
+    /// Sampling rate of the time histories (Hz).
+    pub sample_rate_hz: f64,
+    /// Samples per record (the DFT length N; the line spacing is `sample_rate_hz / N`).
+    pub record_samples: usize,
+    /// Time from the record's start to the trigger (s).
+    pub pretrigger_s: f64,
+    /// Force window: rectangular from `start_s` to `end_s` after the trigger, with cosine
+    /// tapers of `taper_s` at both ends; absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_window: Option<ForceWindowRecord>,
+    /// The exponential window's τ (s), starting at the trigger, on the response and on
+    /// the force when `exponential_on_force`; absent: none (the same τ is in
+    /// [`ProcessingRecord::exponential_window_s`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exponential_window_s: Option<f64>,
+    /// The exponential window is applied to the force as well (so `H_w(ω) = H(iω + 1/τ)`).
+    pub exponential_on_force: bool,
+    /// Averages (accepted hits) and rejected hits per excitation.
+    pub averages: Vec<ExcitationAveragesRecord>,
+    /// `γ_m = E[ε_k ε̄_{k−m}] / E|ε|²` for m = 0, 1, … (γ₀ = 1), `[re, im]`: the noise
+    /// correlation between lines m apart that the response window implies.
+    pub line_correlation: Vec<[f64; 2]>,
+    /// How each line's variance (topic `/rbprops/frf_variance`) was obtained.
+    pub variance_method: String,
+    /// Every hit, accepted or not.
+    pub hits: Vec<HitRecord>,
+}
+
+/// The force window of [`FrfEstimationRecord`] (times relative to the trigger).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ForceWindowRecord {
+    /// Start (s, negative: before the trigger).
+    pub start_s: f64,
+    /// End (s).
+    pub end_s: f64,
+    /// Cosine taper at each end (s).
+    pub taper_s: f64,
+}
+
+/// Averages of one excitation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ExcitationAveragesRecord {
+    /// Excitation id.
+    pub excitation: String,
+    /// Hits averaged (n_d).
+    pub accepted: usize,
+    /// Hits rejected.
+    pub rejected: usize,
+    /// Median relative standard error of the FRF lines in the fitted band (σ/|H|).
+    pub relative_standard_error: f64,
+    /// Accepted hits needed in all to halve it (4 n_d when it falls as 1/√n_d).
+    pub hits_to_halve: usize,
+}
+
+/// One hit as the estimator judged it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct HitRecord {
+    /// Excitation id.
+    pub excitation: String,
+    /// Hit number within the excitation (1-based, file order).
+    pub hit: usize,
+    /// Averaged into the FRFs.
+    pub accepted: bool,
+    /// Why it was rejected (empty when accepted).
+    pub reasons: Vec<String>,
+    /// Trigger time from the start of its record (s).
+    pub trigger_s: f64,
+    /// Peak force (N).
+    pub peak_force_n: f64,
+    /// Clipped samples per channel (the force first, then the responses in file order).
+    pub clipped_samples: Vec<usize>,
+    /// Delay of a second contact after the first (s), if one was found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub double_hit_delay_s: Option<f64>,
+    /// Peak of the second contact over the first's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub double_hit_ratio: Option<f64>,
 }
 
 /// A measured-quality weighting of the FRF lines in `modal-fit` (`--weight coherence`):

@@ -47,6 +47,9 @@ pub mod topics {
     pub const MODEL_CHECK: &str = "/rbprops/model_check";
     /// Ordinary coherence γ² per FRF line, from the measurement (UFF import).
     pub const COHERENCE: &str = "/rbprops/coherence";
+    /// Each FRF line's noise variance `σ² = E|ε|²` from the estimator
+    /// ([`crate::wire::FrfVarianceMsg`], one message per excitation that has any).
+    pub const FRF_VARIANCE: &str = "/rbprops/frf_variance";
 }
 
 /// Errors of the format layer. Each names the file and, where known, the record.

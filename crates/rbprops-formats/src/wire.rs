@@ -220,6 +220,25 @@ pub struct CoherenceMsg {
     pub values_f64le: String,
 }
 
+/// The noise variance of every FRF line of one excitation, `σ² = E|Ĥ − H|²` in FRF
+/// units squared (topic `/rbprops/frf_variance`), as the estimator knows it (H1 over
+/// `n_d` averages: `|Ĥ|²(1 − γ²)/((n_d − 1)γ²)`, smoothed over neighbouring lines; see
+/// docs/conventions.md). Stages use it instead of estimating the noise from the FRFs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct FrfVarianceMsg {
+    /// Id of the excitation whose FRFs these variances belong to.
+    pub excitation: String,
+    /// Channels with a variance, in the FRF set's channel order.
+    pub channels: Vec<String>,
+    /// Degrees of freedom of each variance (real χ² degrees: 2(n_d − 1) per line times
+    /// the lines pooled); `f64::INFINITY` written as 0 when the variance is exact.
+    pub degrees_of_freedom: f64,
+    /// Base64 of little-endian IEEE-754 f64, laid out `[channel][line][σ², 0]` on the
+    /// FRF set's frequency axis (the FRF layout, imaginary parts zero).
+    #[schemars(extend("contentEncoding" = "base64"))]
+    pub values_f64le: String,
+}
+
 /// Base64 of little-endian f64 `[re, im]` pairs, the layout of [`FrfMsg::values_f64le`]; exact bit for bit.
 pub fn encode_values(values: &[c64]) -> String {
     let mut bytes = Vec::with_capacity(values.len() * 16);

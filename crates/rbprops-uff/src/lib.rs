@@ -105,6 +105,7 @@ pub mod fortran;
 pub mod inventory;
 pub mod model;
 pub mod read;
+pub mod timehist;
 pub mod units;
 pub mod write;
 

@@ -42,6 +42,8 @@ use verdict::*;
 pub struct CheckOptions {
     /// Noise model from side information (repeats, coherence); `None`: from the data.
     pub noise: Option<RecordingNoise>,
+    /// Each value's variance from the FRF estimator; takes precedence over `noise`.
+    pub line_variance: Option<noise::GivenLineVariance>,
     /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
     pub alpha: f64,
     /// Safety cap on the number of selection steps (each accepts one effect); the
@@ -102,6 +104,7 @@ impl Default for CheckOptions {
     fn default() -> Self {
         CheckOptions {
             noise: None,
+            line_variance: None,
             alpha: 0.01,
             max_effects: 10,
             refit_top: 3,
@@ -155,7 +158,7 @@ pub fn check(
 ) -> Result<CheckOutcome, CheckError> {
     options.progress.say(|| "estimating the noise floor".into());
     let first = check_with(spec, geometry, frf, options, None, None)?;
-    if options.noise.is_some() {
+    if options.noise.is_some() || options.line_variance.is_some() {
         return Ok(first);
     }
     // Second pass: the noise re-estimated from the residual of the first pass's final
@@ -306,7 +309,9 @@ fn restate_in_residual_noise(o: &mut CheckOutcome, nf: noise::NoiseFloor) {
 /// The methods text of the report that does not depend on the data, stated with the
 /// options and thresholds this run used.
 fn method_text(options: &CheckOptions) -> Vec<String> {
-    let noise = if options.noise.is_some() {
+    let noise = if let Some(lv) = &options.line_variance {
+        format!("each value's σ² given by the FRF estimator ({}), with its window's line-to-line correlation known", lv.source)
+    } else if options.noise.is_some() {
         "per-channel σ² = a²|H|² + b², given (side information: repeats or coherence)".to_string()
     } else {
         format!(
@@ -373,12 +378,43 @@ fn weights(
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
     // Stage 0: noise floor, with the precision floor of the data's storage format.
-    let source = (noise_override.is_some(), options.noise.is_some());
+    let given_lines = options
+        .line_variance
+        .as_ref()
+        .filter(|_| noise_override.is_none());
+    let source = (
+        noise_override.is_some(),
+        options.noise.is_some() || given_lines.is_some(),
+    );
     let mut rerun_correlation = None;
     let (noise_model, sigma) = match (noise_override, &options.noise) {
         (Some((model, sigma, correlation)), _) => {
             rerun_correlation = Some(correlation);
             (model, sigma)
+        }
+        (None, _) if given_lines.is_some() => {
+            let lv = given_lines.unwrap();
+            if lv.sigma2.len() != y.len() {
+                return Err(CheckError::Noise(format!(
+                    "given line variances: {} values, the recording {}",
+                    lv.sigma2.len(),
+                    y.len()
+                )));
+            }
+            let mut m = lv.summary(y, nch, nl);
+            m.precision = DataPrecision::detect(y);
+            // The window's correlation is known: no detection, its inflation below.
+            rerun_correlation = Some(None);
+            let s = lv
+                .sigma2
+                .iter()
+                .zip(y)
+                .map(|(&s2, v)| match s2 > 0.0 {
+                    true => (s2 + noise::precision_variance(&m.precision, *v, v.norm())).sqrt(),
+                    false => 0.0,
+                })
+                .collect();
+            (m, s)
         }
         (None, Some(m)) => {
             if m.relative.len() != nch || m.floor.len() != nch {
@@ -432,7 +468,14 @@ fn weights(
         None => correlated_noise(y, y, &noise_model, &sigma, nex * nch, nl)
             .map(|c| c.with_window_decay(window_decay(spec), line_spacing(frf))),
     };
-    let inflation = found.as_ref().and_then(|d| d.inflation());
+    let inflation = match given_lines {
+        Some(lv) => lv.window_time_constant_s.map(|tau| {
+            crate::correlation::Inflation::exponential(
+                std::f64::consts::PI * tau * line_spacing(frf),
+            )
+        }),
+        None => found.as_ref().and_then(|d| d.inflation()),
+    };
     if let Some(d) = &found {
         let w = d.describe(line_spacing(frf));
         // Said at once: without a calibrated weighting the selection can run long.

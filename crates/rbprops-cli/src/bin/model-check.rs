@@ -91,7 +91,7 @@ fn main() -> std::process::ExitCode {
             },
             (None, None) => bail!("give the nominal campaign spec (TOML) or --example NAME"),
         };
-        let spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
+        let mut spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
             anyhow::anyhow!(
                 "{source}: {e}{}",
                 rbprops_cli::init_spec::placeholder_hint(&text)
@@ -108,7 +108,11 @@ fn main() -> std::process::ExitCode {
             .require_geometry_and_frf()
             .with_context(|| input.name.clone())?;
         let frf = frf.clone();
+        let (line_variance, estimator_notes) =
+            rbprops_cli::variance::for_model_check(&rec, &mut spec)
+                .with_context(|| input.name.clone())?;
         let mut opts = CheckOptions {
+            line_variance: line_variance.filter(|_| args.noise_relative.is_none()),
             alpha: args.alpha,
             max_effects: args.max_effects,
             weighed_mass_kg: args.weighed_mass,
@@ -133,6 +137,7 @@ fn main() -> std::process::ExitCode {
             .map_err(|e| rbprops_cli::init_spec::mismatch_hint(e, &input.name))
             .with_context(|| format!("{} against {source}", input.name))?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
+        warnings.extend("model-check", &estimator_notes);
         warnings.extend("model-check", &out.report.warnings);
         warnings.print(args.checks.verbose);
         if let Some(p) = &args.improved_spec {

@@ -1,0 +1,226 @@
+//! The line-variance topic (`/rbprops/frf_variance`): each FRF line's noise variance as
+//! the estimator knows it. Written by `frf-est` (H1 over its accepted hits) and by the UFF
+//! import when an export carries coherence and the number of averages is declared; read
+//! by `modal-fit` (line weights), `rb-solve` (the bootstrap's noise) and `model-check`
+//! (its noise model), each of which says in its method text that it used it.
+
+use anyhow::{bail, Result};
+use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_formats::wire::{decode_values, encode_values, FrfVarianceMsg};
+use rbprops_formats::{topics, RunRecord};
+
+/// Lines pooled on each side of a line (docs/conventions.md, FRF estimation): 9 lines in
+/// all, 72 real degrees of freedom from five hits, over 3 % of a mode's half-power band at
+/// the suspension frequencies only when the band holds fewer than ~2 lines.
+pub const POOL_HALF_WIDTH: usize = 4;
+
+/// σ² per FRF value, the FRF layout `[excitation][channel][line]`; NaN where unknown.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineVarianceSet {
+    /// σ² = E|ε|² (FRF units squared).
+    pub sigma2: Vec<f64>,
+    /// Real χ² degrees of freedom of each σ² (the smallest over the excitations).
+    pub degrees_of_freedom: f64,
+}
+
+impl LineVarianceSet {
+    /// σ² scaled so that `E[|ε|²/σ̂²] = 1`: a variance estimated with `d` real degrees of
+    /// freedom is a scaled χ²_d/d, independent of the error, and `E[d/χ²_d] = d/(d − 2)`.
+    /// What a χ² test needs (otherwise χ²/ν is read high by d/(d − 2)).
+    pub fn calibrated_for_chi2(&self) -> Vec<f64> {
+        let d = self.degrees_of_freedom;
+        let f = if d > 2.0 { d / (d - 2.0) } else { f64::NAN };
+        self.sigma2.iter().map(|v| v * f).collect()
+    }
+}
+
+/// The variance of every line of an H1 estimate from its coherence and the number of
+/// averages per excitation (`rbprops_core::h1_line_variance`, pooled over
+/// ±[`POOL_HALF_WIDTH`] lines). `coherence[e][c]` is γ² per line or `None` (variance
+/// unknown: NaN). Errors when an excitation has a coherence and fewer than 2 averages.
+pub fn from_coherence(
+    frf: &FrfSet,
+    coherence: &[Vec<Option<Vec<f64>>>],
+    n_averages: &[usize],
+    geometry: &Geometry,
+) -> Result<LineVarianceSet> {
+    let n = frf.n_lines();
+    let mut sigma2 = vec![f64::NAN; frf.values.len()];
+    let mut dof = f64::INFINITY;
+    for (e, row) in coherence.iter().enumerate() {
+        let n_d = n_averages[e];
+        if row.iter().any(|c| c.is_some()) && n_d < 2 {
+            bail!(
+                "excitation '{}': {n_d} average(s): a coherence from fewer than 2 averages is 1 identically and says nothing of the noise",
+                geometry.excitations[e].id
+            );
+        }
+        for (c, g) in row.iter().enumerate() {
+            let Some(g) = g else { continue };
+            let at = (e * frf.n_channels + c) * n;
+            let raw: Vec<f64> = (0..n)
+                .map(|l| {
+                    rbprops_core::h1_line_variance(frf.values[at + l], g[l], n_d)
+                        .unwrap_or(f64::NAN)
+                })
+                .collect();
+            let pooled = rbprops_core::pool_line_variance(&raw, POOL_HALF_WIDTH);
+            sigma2[at..at + n].copy_from_slice(&pooled);
+            dof = dof.min(2.0 * (n_d - 1) as f64 * (2 * POOL_HALF_WIDTH + 1) as f64);
+        }
+    }
+    Ok(LineVarianceSet {
+        sigma2,
+        degrees_of_freedom: dof,
+    })
+}
+
+/// Stores a variance set as the topic (channels with any finite value).
+pub fn set(rec: &mut RunRecord, geometry: &Geometry, frf: &FrfSet, v: &LineVarianceSet) {
+    let n = frf.n_lines();
+    let mut msgs = Vec::new();
+    for (e, x) in geometry.excitations.iter().enumerate() {
+        let mut channels = Vec::new();
+        let mut values: Vec<c64> = Vec::new();
+        for (c, ch) in geometry.channels.iter().enumerate() {
+            let at = (e * frf.n_channels + c) * n;
+            let s = &v.sigma2[at..at + n];
+            if s.iter().any(|x| x.is_finite()) {
+                channels.push(ch.id.clone());
+                values.extend(s.iter().map(|&x| c64::new(x, 0.0)));
+            }
+        }
+        if !channels.is_empty() {
+            msgs.push(FrfVarianceMsg {
+                excitation: x.id.clone(),
+                channels,
+                degrees_of_freedom: v.degrees_of_freedom,
+                values_f64le: encode_values(&values),
+            });
+        }
+    }
+    rec.set(topics::FRF_VARIANCE, &msgs);
+}
+
+/// The topic on the record's FRF layout; `None` when the record has none. Errors name the
+/// excitation or channel that does not fit the geometry, and a variance that is negative.
+pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
+    let msgs: Vec<FrfVarianceMsg> = rec.get(topics::FRF_VARIANCE)?;
+    if msgs.is_empty() {
+        return Ok(None);
+    }
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let n = frf.n_lines();
+    let mut sigma2 = vec![f64::NAN; frf.values.len()];
+    let mut dof = f64::INFINITY;
+    let at = |m: &FrfVarianceMsg| {
+        format!(
+            "{} topic, excitation '{}'",
+            topics::FRF_VARIANCE,
+            m.excitation
+        )
+    };
+    for m in &msgs {
+        let Some(e) = geometry
+            .excitations
+            .iter()
+            .position(|x| x.id == m.excitation)
+        else {
+            bail!("{}: not in the geometry", at(m));
+        };
+        if !(m.degrees_of_freedom > 2.0) {
+            bail!(
+                "{}: degrees_of_freedom {} (must exceed 2 for a variance a χ² can use)",
+                at(m),
+                m.degrees_of_freedom
+            );
+        }
+        dof = dof.min(m.degrees_of_freedom);
+        let values = decode_values(&m.values_f64le, n * m.channels.len())
+            .map_err(|err| anyhow::anyhow!("{}: {err}", at(m)))?;
+        for (k, id) in m.channels.iter().enumerate() {
+            let Some(c) = geometry.channels.iter().position(|x| &x.id == id) else {
+                bail!("{}: channel '{id}' is not in the geometry", at(m));
+            };
+            for l in 0..n {
+                let v = values[k * n + l].re;
+                if v < 0.0 || v.is_infinite() {
+                    bail!(
+                        "{}, channel '{id}', line {l}: variance {v} (must be ≥ 0 and finite, or NaN for unknown)",
+                        at(m)
+                    );
+                }
+                sigma2[(e * frf.n_channels + c) * n + l] = v;
+            }
+        }
+    }
+    Ok(Some(LineVarianceSet {
+        sigma2,
+        degrees_of_freedom: dof,
+    }))
+}
+
+/// What `model-check` takes from the FRF estimator: the line variances (calibrated for
+/// χ², with the window's correlation) and the processing it did, which the nominal spec
+/// gets as known effects (`exponential_window` at its τ, `record_truncation` at the
+/// record's length after the trigger) so that the check does not look for them. Returns
+/// the variance (if the record has the topic) and notes saying what was taken.
+pub fn for_model_check(
+    rec: &RunRecord,
+    spec: &mut rbprops_sim::CampaignSpec,
+) -> Result<(Option<rbprops_check::GivenLineVariance>, Vec<String>)> {
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    let mut notes = Vec::new();
+    let estimation = processing.frf_estimation.as_ref();
+    if let Some(est) = estimation {
+        let record_s = est.record_samples as f64 / est.sample_rate_hz - est.pretrigger_s;
+        let mut known = vec![rbprops_sim::spec::EffectSpec {
+            id: "record_truncation".into(),
+            parameters: toml::Table::from_iter([("record_length_s".to_string(), record_s.into())]),
+        }];
+        if let Some(tau) = est.exponential_window_s {
+            if !est.exponential_on_force {
+                bail!("the FRFs were estimated with an exponential window on the response only: the model check models a window on force and response (estimate them again with the window on both)");
+            }
+            known.push(rbprops_sim::spec::EffectSpec {
+                id: "exponential_window".into(),
+                parameters: toml::Table::from_iter([("time_constant_s".to_string(), tau.into())]),
+            });
+        }
+        for k in known {
+            if let Some(old) = spec.effects.iter().position(|e| e.id == k.id) {
+                notes.push(format!(
+                    "the spec's {} is replaced by the estimator's processing",
+                    k.id
+                ));
+                spec.effects.remove(old);
+            }
+            notes.push(format!(
+                "known from the FRF estimator: {} {}",
+                k.id,
+                toml::Value::Table(k.parameters.clone())
+            ));
+            spec.effects.push(k);
+        }
+    }
+    let Some(v) = get(rec)? else {
+        return Ok((None, notes));
+    };
+    let used = v.sigma2.iter().filter(|x| **x > 0.0).count().max(1);
+    let pool = (2 * POOL_HALF_WIDTH + 1) as f64;
+    let given = rbprops_check::GivenLineVariance {
+        sigma2: v.calibrated_for_chi2().iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect(),
+        window_time_constant_s: estimation.and_then(|e| e.exponential_window_s),
+        // Each pool's σ² has d degrees (relative SE √(2/d)); the scale of all of them
+        // averages over the independent pools.
+        variance_scale_se: (2.0 / v.degrees_of_freedom * pool / used as f64).sqrt(),
+        source: format!(
+            "{}: H1 line variance |Ĥ|²(1 − γ²)/((n_d − 1)γ²) pooled over {} lines, {:.0} degrees of freedom, scaled by d/(d − 2)",
+            topics::FRF_VARIANCE,
+            2 * POOL_HALF_WIDTH + 1,
+            v.degrees_of_freedom
+        ),
+    };
+    Ok((Some(given), notes))
+}
