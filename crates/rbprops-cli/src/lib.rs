@@ -243,7 +243,19 @@ pub fn read_uff_campaign(
     let name = p.display().to_string();
     let bytes = std::fs::read(p).with_context(|| name.clone())?;
     let data = rbprops_uff::parse(&bytes, &name)?;
-    let mut digest_input = bytes.clone();
+    let (campaign, side) = uff_campaign_of(&data, opts)?;
+    let mut digest_input = bytes;
+    digest_input.extend_from_slice(&side);
+    Ok((campaign, rbprops_formats::sha256_hex(&digest_input)))
+}
+
+/// The campaign of parsed UFF datasets with the geometry and channel map `opts` name
+/// (read here), and the bytes of those side files (for the input's digest).
+pub fn uff_campaign_of(
+    data: &rbprops_uff::UffFile,
+    opts: &UffInputOptions,
+) -> Result<(rbprops_uff::UffCampaign, Vec<u8>)> {
+    let mut digest_input = Vec::new();
     let map = match &opts.channels {
         Some(m) => {
             let text = std::fs::read_to_string(m).with_context(|| m.display().to_string())?;
@@ -257,7 +269,7 @@ pub fn read_uff_campaign(
     };
     let campaign = match &opts.geometry {
         None => rbprops_uff::read_campaign(
-            &data,
+            data,
             &rbprops_uff::ReadOptions {
                 geometry: rbprops_uff::GeometrySource::InFile,
                 channels: map.as_ref(),
@@ -267,7 +279,7 @@ pub fn read_uff_campaign(
             let gbytes = std::fs::read(g).with_context(|| g.display().to_string())?;
             digest_input.extend_from_slice(&gbytes);
             let geo = rbprops_uff::parse(&gbytes, &g.display().to_string())?;
-            rbprops_uff::read_with_geometry(&data, &geo, map.as_ref())?
+            rbprops_uff::read_with_geometry(data, &geo, map.as_ref())?
         }
         Some(g) => {
             // A campaign spec: its points (ids = node numbers) in SI, global axes.
@@ -279,7 +291,7 @@ pub fn read_uff_campaign(
                 .geometry()
                 .map_err(|e| anyhow::anyhow!("{}: {e}", g.display()))?;
             rbprops_uff::read_campaign(
-                &data,
+                data,
                 &rbprops_uff::ReadOptions {
                     geometry: rbprops_uff::GeometrySource::Points(&geometry.points),
                     channels: map.as_ref(),
@@ -287,7 +299,7 @@ pub fn read_uff_campaign(
             )?
         }
     };
-    Ok((campaign, rbprops_formats::sha256_hex(&digest_input)))
+    Ok((campaign, digest_input))
 }
 
 /// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry, FRFs and,

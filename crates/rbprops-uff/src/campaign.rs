@@ -503,6 +503,8 @@ pub struct UffCampaign {
     pub frf: FrfSet,
     /// `None` when the file holds no coherence that matches an FRF.
     pub coherence: Option<CoherenceSet>,
+    /// The dataset each FRF came from, `[excitation][channel]` (the FRF layout).
+    pub frf_locations: Vec<DatasetLocation>,
     /// What was read differently from what the file says, or skipped (one line each;
     /// the same message for several datasets is given once with a count).
     pub warnings: Vec<String>,
@@ -806,7 +808,7 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
     }
     let coherence = match_coherence(data, &dofs, &frfs, &frequency_hz, &mut warnings);
     let geometry = frfs.geometry(&table, geometry_name.is_some(), &mut warnings)?;
-    let frf = frfs.into_frf_set(quantity, frequency_hz)?;
+    let (frf, frf_locations) = frfs.into_frf_set(quantity, frequency_hz)?;
     geometry
         .validate()
         .map_err(|e| campaign_error(file, format!("geometry: {e}")))?;
@@ -822,6 +824,7 @@ pub fn read_campaign(data: &UffFile, opts: &ReadOptions) -> Result<UffCampaign, 
         geometry,
         frf,
         coherence: (coherence.count() > 0).then_some(coherence),
+        frf_locations,
         warnings,
     })
 }
@@ -1291,21 +1294,23 @@ impl<'a> FrfCollector<'a> {
         mut self,
         quantity: Quantity,
         frequency_hz: Vec<f64>,
-    ) -> Result<FrfSet, UffError> {
+    ) -> Result<(FrfSet, Vec<DatasetLocation>), UffError> {
         let (ne, nc) = (self.excitations.len(), self.channels.len());
         let mut frf = FrfSet::zeros(quantity, frequency_hz, ne, nc);
+        let mut locations = Vec::with_capacity(ne * nc);
         for (ei, e) in self.excitations.iter().enumerate() {
             for (ci, c) in self.channels.iter().enumerate() {
-                let Some((values, _)) = self.cells.remove(&(ei, ci)) else {
+                let Some((values, at)) = self.cells.remove(&(ei, ci)) else {
                     return Err(campaign_error(self.file, format!(
                         "no FRF for channel '{}' (node {} direction {}) and excitation '{}' (node {} direction {}, set-up {}): every excitation needs every channel",
                         c.id, c.node, c.direction, e.id, e.node, e.direction, e.setup
                     )));
                 };
                 frf.frf_mut(ei, ci).copy_from_slice(&values);
+                locations.push(at);
             }
         }
-        Ok(frf)
+        Ok((frf, locations))
     }
 }
 
