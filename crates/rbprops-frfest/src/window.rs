@@ -1,0 +1,222 @@
+//! Force and response windows, the automatic exponential time constant, and the
+//! line-to-line correlation a window gives the noise.
+//!
+//! # Force window
+//!
+//! [`ForceWindow`] is 1 on `[a, b)` with `a = trigger − pre_s f_s` and
+//! `b = pulse_end + post_s f_s` (both clamped to the record; `pulse_end` from
+//! [`crate::HitReport`]), 0 elsewhere, and optionally a cosine (half-Hann) taper of
+//! `m = taper_s f_s` samples *outside* the flat part, so the pulse is never touched:
+//! `w[a − j] = w[b − 1 + j] = ½(1 + cos(π j/m))` for `j = 1..m`. The pretrigger `pre_s`
+//! must cover the pulse's rise before the trigger sample.
+//!
+//! # Exponential window
+//!
+//! [`ResponseWindow::Exponential`] is `w[n] = e^{−(n − n₀)/(τ f_s)}` over the **whole**
+//! record, `n₀` the trigger sample: 1 at the trigger, slightly above 1 on the pretrigger.
+//! That choice makes the window exact: with `q = e^{−1/(τ f_s)}`, `w[n] = q^{n−n₀}` and
+//! for a response `y = h ∗ f` (linear convolution, system at rest at the record's start)
+//! `w·y = (q^m h[m]) ∗ (w·f)`, so applying the window to **force and response** (the
+//! default of [`HitWindows`]) turns the estimated FRF into that of the damped impulse
+//! response `e^{−t/τ} h(t)`: `H_w(iω) = H(iω + 1/τ)` — every pole moves by `−1/τ`, the
+//! residues unchanged (docs/conventions.md §9). A window that were 1 before the trigger
+//! would break the identity by the (small) pretrigger part.
+//!
+//! # Automatic τ
+//!
+//! [`auto_tau`]: the response's peak envelope `P = max |x[n]|` for `n ≥ n₀`, its end
+//! envelope `E = max |x[n]|` over the last 5 % of the record (at least 16 samples), and
+//! `T = (N − 1 − n₀)/f_s`. The window is chosen so the windowed response's end envelope is
+//! 1 % of its peak, `E e^{−T/τ} = 0.01 P`:
+//!
+//! ```text
+//!   τ = T / ln(E/(0.01 P))          when E > 0.01 P, else no window (None).
+//! ```
+//!
+//! (The peak is near the trigger, where the window is ≈ 1.)
+//!
+//! # Line correlation
+//!
+//! White noise `e[n]` (variance s²) times a window `w` has the DFT `ε_k = Σ w e e^{−2πikn/N}`
+//! with `E[ε_k ε̄_{k−m}] = s² Σ_n w²[n] e^{−2πimn/N}`, so
+//!
+//! ```text
+//!   γ_m = E[ε_k ε̄_{k−m}] / E|ε_k|² = Σ_n w²[n] e^{−2πimn/N} / Σ_n w²[n]
+//! ```
+//!
+//! exactly, for every k (the normalised DFT of w²) — [`line_correlation`]. For the
+//! exponential window from `n₀ = 0`, `w² = qⁿ` with `q = e^{−2/(τ f_s)}` and the geometric
+//! sum gives `γ_m = (1 − q)/(1 − q e^{−2πim/N})` ([`exponential_line_correlation`]), the form
+//! the model check uses (rbprops-check `correlation.rs`). For H1 from impacts the FRF noise
+//! `Σ X̄... /S_ff` is the response noise's DFT over a smooth `F`, so its line correlation is
+//! that of the response window.
+
+use crate::c64;
+
+/// The force window (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceWindow {
+    /// Time kept before the trigger (s).
+    pub pre_s: f64,
+    /// Time kept after the pulse's end (s).
+    pub post_s: f64,
+    /// Cosine taper length outside the flat part (s); 0 for a plain rectangle.
+    pub taper_s: f64,
+}
+
+impl ForceWindow {
+    /// The window's values over a record of `out.len()` samples.
+    pub fn fill(&self, fs: f64, trigger: usize, pulse_end: usize, out: &mut [f64]) {
+        let n = out.len() as isize;
+        let a = (trigger as isize - (self.pre_s * fs).round() as isize).clamp(0, n);
+        let b = (pulse_end as isize + (self.post_s * fs).round() as isize).clamp(a, n);
+        let m = (self.taper_s * fs).round().max(0.0) as isize;
+        for (i, w) in out.iter_mut().enumerate() {
+            let i = i as isize;
+            *w = if i >= a && i < b {
+                1.0
+            } else if m > 0 && i < a && a - i <= m {
+                0.5 * (1.0 + (std::f64::consts::PI * (a - i) as f64 / m as f64).cos())
+            } else if m > 0 && i >= b && i - b < m {
+                0.5 * (1.0 + (std::f64::consts::PI * (i - b + 1) as f64 / m as f64).cos())
+            } else {
+                0.0
+            };
+        }
+    }
+
+    /// The window's values over `n` samples.
+    pub fn values(&self, n: usize, fs: f64, trigger: usize, pulse_end: usize) -> Vec<f64> {
+        let mut w = vec![0.0; n];
+        self.fill(fs, trigger, pulse_end, &mut w);
+        w
+    }
+}
+
+/// The response window (module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ResponseWindow {
+    /// Rectangular over the record.
+    None,
+    /// `e^{−(n − n₀)/(τ f_s)}` from the trigger `n₀`, over the whole record.
+    Exponential {
+        /// Time constant τ (s).
+        tau_s: f64,
+    },
+}
+
+impl ResponseWindow {
+    /// The window's values over a record of `out.len()` samples, trigger at `trigger`.
+    pub fn fill(&self, fs: f64, trigger: usize, out: &mut [f64]) {
+        match *self {
+            ResponseWindow::None => out.fill(1.0),
+            ResponseWindow::Exponential { tau_s } => {
+                let r = 1.0 / (tau_s * fs);
+                for (i, w) in out.iter_mut().enumerate() {
+                    *w = (-(i as f64 - trigger as f64) * r).exp();
+                }
+            }
+        }
+    }
+
+    /// The window's values over `n` samples.
+    pub fn values(&self, n: usize, fs: f64, trigger: usize) -> Vec<f64> {
+        let mut w = vec![0.0; n];
+        self.fill(fs, trigger, &mut w);
+        w
+    }
+
+    /// The decay rate `1/τ` (1/s) the window adds to every pole, 0 for none.
+    pub fn decay_per_s(&self) -> f64 {
+        match *self {
+            ResponseWindow::None => 0.0,
+            ResponseWindow::Exponential { tau_s } => 1.0 / tau_s,
+        }
+    }
+}
+
+/// The sample values of one hit's windows: `force = force window × exponential` (when
+/// the exponential applies to the force, the default) and `response = exponential`.
+/// Reused from hit to hit without allocating ([`HitWindows::set`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HitWindows {
+    /// The force channel's window.
+    pub force: Vec<f64>,
+    /// The response channels' window.
+    pub response: Vec<f64>,
+}
+
+impl HitWindows {
+    /// Windows over `n` samples, all ones.
+    pub fn new(n: usize) -> Self {
+        HitWindows {
+            force: vec![1.0; n],
+            response: vec![1.0; n],
+        }
+    }
+
+    /// Sets the windows of a hit: `force_window` (None: rectangular over the record) times,
+    /// if `exponential_on_force`, the response window.
+    pub fn set(
+        &mut self,
+        fs: f64,
+        trigger: usize,
+        pulse_end: usize,
+        force_window: Option<&ForceWindow>,
+        response_window: &ResponseWindow,
+        exponential_on_force: bool,
+    ) {
+        response_window.fill(fs, trigger, &mut self.response);
+        match force_window {
+            Some(fw) => fw.fill(fs, trigger, pulse_end, &mut self.force),
+            None => self.force.fill(1.0),
+        }
+        if exponential_on_force {
+            for (f, r) in self.force.iter_mut().zip(&self.response) {
+                *f *= r;
+            }
+        }
+    }
+}
+
+/// τ of the automatic exponential window (module docs), or None when the response has
+/// decayed to 1 % of its peak by the record's end already (or is empty or zero).
+pub fn auto_tau(response: &[f64], fs: f64, trigger: usize) -> Option<f64> {
+    let n = response.len();
+    if trigger + 2 >= n {
+        return None;
+    }
+    let peak = response[trigger..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let tail = (n / 20).max(16).min(n - trigger);
+    let end = response[n - tail..]
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let t = (n - 1 - trigger) as f64 / fs;
+    (peak > 0.0 && end > 0.01 * peak).then(|| t / (end / (0.01 * peak)).ln())
+}
+
+/// `γ_m` for `m = 0..=max_lag` of a window's values (module docs): the normalised DFT of
+/// `w²`, computed directly (`O(N · max_lag)`), the phase reduced mod N exactly.
+pub fn line_correlation(window: &[f64], max_lag: usize) -> Vec<c64> {
+    let n = window.len();
+    let total: f64 = window.iter().map(|w| w * w).sum();
+    (0..=max_lag)
+        .map(|m| {
+            let mut s = c64::new(0.0, 0.0);
+            for (i, w) in window.iter().enumerate() {
+                let phase = ((m as u128 * i as u128) % n as u128) as f64;
+                let a = -std::f64::consts::TAU * phase / n as f64;
+                s += c64::from_polar(w * w, a);
+            }
+            s / total
+        })
+        .collect()
+}
+
+/// The exponential window's closed form `γ_m = (1 − q)/(1 − q e^{−2πim/N})`,
+/// `q = e^{−2/(τ f_s)}` (module docs), for a record of `n` samples.
+pub fn exponential_line_correlation(tau_s: f64, fs: f64, n: usize, m: usize) -> c64 {
+    let q = (-2.0 / (tau_s * fs)).exp();
+    let e = c64::from_polar(q, -std::f64::consts::TAU * (m % n) as f64 / n as f64);
+    c64::new(1.0 - q, 0.0) / (c64::new(1.0, 0.0) - e)
+}
