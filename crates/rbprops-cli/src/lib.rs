@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 pub mod campaign;
 pub mod coherence;
+pub mod frf_est;
 pub mod html;
 pub mod init_spec;
 pub mod plots;

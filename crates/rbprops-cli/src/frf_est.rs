@@ -1,0 +1,696 @@
+//! `frf-est`: FRFs from impact time histories (UFF 58, function type 1), with each hit
+//! checked, each line's variance and the processing recorded for the stages after it.
+//! The numerics are `rbprops-frfest`'s; this module sorts the records
+//! (`rbprops_uff::timehist`), runs the chain per excitation and builds the run record
+//! through the same UFF mapping an FRF export takes (units, DOFs, set-ups).
+
+use anyhow::{bail, Context, Result};
+use rbprops_core::records::{
+    ExcitationAveragesRecord, ForceWindowRecord, FrfEstimationRecord, HitRecord, ProcessingRecord,
+    PROCESSING_TOPIC,
+};
+use rbprops_core::{c64, FrfSet};
+use rbprops_formats::RunRecord;
+use rbprops_frfest::{
+    ConditioningOptions, Estimator, ForceWindow, HitCheckOptions, HitReport, HitWindows,
+    RejectReason, ResponseWindow, SpectralSums, TriggerLevel, TriggerOptions,
+};
+use rbprops_uff::timehist::{self, EstimatedFrfs, HitLayout, TimeHistoryIndex};
+use rbprops_uff::UffFile;
+
+/// Lines pooled on each side for each line's variance (only the noise power is pooled;
+/// the line's own force spectrum divides it: `rbprops_frfest::smoothed_variance`).
+pub const POOL_HALF_WIDTH: usize = crate::variance::POOL_HALF_WIDTH;
+
+/// Retriggers within this time of a hit are not counted when the hit spacing sets the
+/// record length of throughput records (double hits come 0.5–20 ms after the first).
+const HIT_SPACING_HOLDOFF_S: f64 = 0.25;
+
+/// The response window asked for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum WindowChoice {
+    /// Rectangular (none).
+    None,
+    /// Exponential with this τ (s), from the trigger.
+    Exponential(f64),
+    /// Exponential with the τ that brings the slowest-decaying response to about 1 % of
+    /// its peak at the record's end (`rbprops_frfest::auto_tau`, the smallest over every
+    /// accepted hit and channel); none when every response has decayed already.
+    Auto,
+}
+
+/// Options of [`estimate_uff`]; `Default` gives the documented defaults.
+#[derive(Debug, Clone)]
+pub struct EstimationOptions {
+    /// H1 (default), H2 or Hv.
+    pub estimator: Estimator,
+    /// Trigger level on |force| (default 10 % of the record's largest).
+    pub trigger: TriggerLevel,
+    /// Throughput records: time kept before each trigger (s; default 0.05 of the record).
+    pub pretrigger_s: Option<f64>,
+    /// Throughput records: the hit record's length (s; default: the shortest spacing of
+    /// consecutive triggers).
+    pub record_s: Option<f64>,
+    /// Force window: time kept before the trigger and after the pulse's end (s), taper (s).
+    pub force_window: Option<ForceWindow>,
+    /// The response window.
+    pub response_window: WindowChoice,
+    /// The exponential window on the force as well (so `H_w(ω) = H(iω + 1/τ)`).
+    pub exponential_on_force: bool,
+    /// The force channel's ADC range (± file units), if known; else flat tops are looked for.
+    pub force_range: Option<f64>,
+    /// The response channels' ADC range (± file units), if known.
+    pub response_range: Option<f64>,
+    /// Fewest accepted hits per excitation (≥ 2: a variance needs two).
+    pub min_hits: usize,
+    /// The band kept (Hz); default from the force spectrum (module docs of [`band_lines`]).
+    pub band_hz: Option<(f64, f64)>,
+    /// Average rejected hits anyway (their reasons stay in the table).
+    pub keep_rejected: bool,
+    /// Force DOFs `(node, direction)` named by the user.
+    pub force_dofs: Vec<(i64, i64)>,
+}
+
+impl Default for EstimationOptions {
+    fn default() -> Self {
+        EstimationOptions {
+            estimator: Estimator::H1,
+            trigger: TriggerLevel::FractionOfMax(0.1),
+            pretrigger_s: None,
+            record_s: None,
+            force_window: Some(ForceWindow {
+                pre_s: 0.01,
+                post_s: 0.05,
+                taper_s: 0.0,
+            }),
+            response_window: WindowChoice::Auto,
+            exponential_on_force: true,
+            force_range: None,
+            response_range: None,
+            min_hits: 2,
+            band_hz: None,
+            keep_rejected: false,
+            force_dofs: Vec::new(),
+        }
+    }
+}
+
+/// One hit's records and what the checks found.
+struct Hit {
+    number: usize,
+    force: Vec<f64>,
+    responses: Vec<Vec<f64>>,
+    report: HitReport,
+}
+
+impl Hit {
+    fn accepted(&self, keep_rejected: bool) -> bool {
+        keep_rejected || self.report.accepted()
+    }
+}
+
+/// The outcome of [`estimate_uff`].
+pub struct Estimated {
+    /// The run: geometry, FRFs, coherence, line variances, processing.
+    pub record: RunRecord,
+    /// One line for stderr.
+    pub summary: String,
+    /// Notes from the UFF mapping and the estimation.
+    pub warnings: Vec<String>,
+    /// Bytes of the side files read (geometry, channel map), for the input's digest.
+    pub side_digest: Vec<u8>,
+}
+
+/// FRFs from the time histories of a parsed universal file (module docs).
+pub fn estimate_uff(
+    data: &UffFile,
+    uff_opts: &crate::UffInputOptions,
+    opts: &EstimationOptions,
+) -> Result<Estimated> {
+    if opts.min_hits < 2 {
+        bail!(
+            "--min-hits {}: at least 2 hits are needed for a variance",
+            opts.min_hits
+        );
+    }
+    let index = timehist::index_time_histories(
+        data,
+        &timehist::TimeOptions {
+            force_dofs: opts.force_dofs.clone(),
+        },
+    )?;
+    let fs = index.sample_rate_hz;
+    let (n, pre) = record_samples(data, &index, opts)?;
+    let hits: Vec<Vec<Hit>> = index
+        .excitations
+        .iter()
+        .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
+        .collect::<Result<_>>()?;
+    let names: Vec<String> = index
+        .excitations
+        .iter()
+        .map(|e| format!("{}:{}", e.force_dof.0, dir_name(e.force_dof.1)))
+        .collect();
+    for (hs, name) in hits.iter().zip(&names) {
+        let ok = hs.iter().filter(|h| h.accepted(opts.keep_rejected)).count();
+        if ok < opts.min_hits {
+            bail!(
+                "{}: excitation {name}: {ok} of {} hits accepted, {} needed: {}",
+                data.file_name,
+                hs.len(),
+                opts.min_hits,
+                rejections(hs)
+            );
+        }
+    }
+    let tau = match opts.response_window {
+        WindowChoice::None => None,
+        WindowChoice::Exponential(t) => Some(t),
+        WindowChoice::Auto => auto_tau(&hits, fs, opts.keep_rejected),
+    };
+    let response_window = tau.map_or(ResponseWindow::None, |tau_s| ResponseWindow::Exponential {
+        tau_s,
+    });
+    let sums: Vec<SpectralSums> = hits
+        .iter()
+        .map(|hs| average(hs, fs, n, opts, &response_window))
+        .collect::<Result<_>>()?;
+    let band = band_lines(&sums, opts.band_hz, fs)?;
+    let gamma = line_correlation(tau, fs, n);
+    let mut estimates = Vec::new();
+    let mut variances = Vec::new();
+    let mut dof = f64::INFINITY;
+    let mut averages = Vec::new();
+    for ((s, hs), name) in sums.iter().zip(&hits).zip(&names) {
+        let est = s
+            .estimate(
+                opts.estimator,
+                Some(band.clone()),
+                &ConditioningOptions::default(),
+            )
+            .with_context(|| format!("{}: excitation {name}", data.file_name))?;
+        let pooled = rbprops_frfest::smoothed_variance(&est, POOL_HALF_WIDTH, Some(&gamma));
+        let q = rbprops_frfest::quality(&est);
+        averages.push(ExcitationAveragesRecord {
+            excitation: name.clone(),
+            accepted: est.n_averages,
+            rejected: hs.len() - est.n_averages,
+            relative_standard_error: q.map_or(f64::NAN, |q| q.relative_se),
+            hits_to_halve: 4 * est.n_averages,
+        });
+        if let Some(p) = &pooled {
+            dof = p.dof.iter().fold(dof, |m, &d| m.min(d));
+        }
+        variances.push(pooled.map(|p| p.variance));
+        estimates.push(EstimatedFrfs {
+            frf: (0..est.n_resp).map(|o| est.frf(o, 0).to_vec()).collect(),
+            coherence: Some(
+                (0..est.n_resp)
+                    .map(|o| est.coherence_of(o).to_vec())
+                    .collect(),
+            ),
+        });
+    }
+    let step = fs / n as f64;
+    let synthetic = timehist::frf_file(data, &index, &estimates, band.start as f64 * step, step);
+    let (campaign, side_digest) = crate::uff_campaign_of(&synthetic, uff_opts)?;
+    let mut record = RunRecord::default();
+    record.set_geometry(&campaign.geometry);
+    if let Some(coh) = &campaign.coherence {
+        crate::coherence::set(&mut record, &campaign.geometry, coh);
+    }
+    let sigma2 = variance_in_si(data, &index, &estimates, &variances, &campaign)?;
+    // The campaign's excitation ids (tags, set-ups) replace the force DOFs in the tables.
+    let names = campaign_ids(data, &index, &campaign);
+    for (a, id) in averages.iter_mut().zip(&names) {
+        a.excitation = id.clone();
+    }
+    if dof.is_finite() {
+        crate::variance::set(
+            &mut record,
+            &campaign.geometry,
+            &campaign.frf,
+            &crate::variance::LineVarianceSet {
+                sigma2,
+                degrees_of_freedom: dof,
+            },
+        );
+    }
+    let hit_table = hit_records(&hits, &names, fs, opts.keep_rejected);
+    let pretrigger_s = hits
+        .iter()
+        .flatten()
+        .map(|h| h.report.trigger as f64 / fs)
+        .fold(f64::INFINITY, f64::min);
+    let processing = ProcessingRecord {
+        exponential_window_s: tau,
+        line_weighting: None,
+        frf_estimation: Some(FrfEstimationRecord {
+            estimator: format!("{:?}", opts.estimator),
+            sample_rate_hz: fs,
+            record_samples: n,
+            pretrigger_s,
+            force_window: opts.force_window.map(|w| ForceWindowRecord {
+                start_s: -w.pre_s,
+                end_s: w.post_s,
+                taper_s: w.taper_s,
+            }),
+            exponential_window_s: tau,
+            exponential_on_force: opts.exponential_on_force,
+            averages: averages.clone(),
+            line_correlation: gamma.iter().map(|g| [g.re, g.im]).collect(),
+            variance_method: format!(
+                "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
+                opts.estimator, dof
+            ),
+            hits: hit_table,
+        }),
+    };
+    record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
+    let summary = summary_line(&hits, &averages, tau, opts, &campaign.frf);
+    record.frf = Some(campaign.frf);
+    Ok(Estimated {
+        record,
+        summary,
+        warnings: campaign.warnings,
+        side_digest,
+    })
+}
+
+/// The campaign's id of each excitation of the index (through the dataset of its first
+/// response's FRF).
+fn campaign_ids(
+    data: &UffFile,
+    index: &TimeHistoryIndex,
+    campaign: &rbprops_uff::UffCampaign,
+) -> Vec<String> {
+    let nch = campaign.frf.n_channels;
+    index
+        .excitations
+        .iter()
+        .map(|ex| {
+            let template = match &ex.layout {
+                HitLayout::PerHit(h) => &h[0],
+                HitLayout::Throughput(h) => h,
+            };
+            let at = &data.datasets[template.responses[0]].location;
+            campaign
+                .frf_locations
+                .iter()
+                .position(|l| l == at)
+                .map(|cell| campaign.geometry.excitations[cell / nch].id.clone())
+                .unwrap_or_else(|| format!("{}:{}", ex.force_dof.0, dir_name(ex.force_dof.1)))
+        })
+        .collect()
+}
+
+fn dir_name(d: i64) -> String {
+    match d {
+        1 => "+X".into(),
+        -1 => "-X".into(),
+        2 => "+Y".into(),
+        -2 => "-Y".into(),
+        3 => "+Z".into(),
+        -3 => "-Z".into(),
+        d => d.to_string(),
+    }
+}
+
+/// Samples per hit record and the pretrigger (s): the file's records in the per-hit
+/// layout; for throughput records the options, or the shortest spacing of consecutive
+/// triggers on any excitation and 5 % of it (less when the first trigger comes earlier).
+fn record_samples(
+    data: &UffFile,
+    index: &TimeHistoryIndex,
+    opts: &EstimationOptions,
+) -> Result<(usize, f64)> {
+    let fs = index.sample_rate_hz;
+    let per_hit = index
+        .excitations
+        .iter()
+        .all(|e| matches!(e.layout, HitLayout::PerHit(_)));
+    if per_hit {
+        return Ok((index.record_samples, 0.0));
+    }
+    let mut spacing = usize::MAX;
+    let mut first = usize::MAX;
+    for e in &index.excitations {
+        let HitLayout::Throughput(h) = &e.layout else {
+            continue;
+        };
+        let force = timehist::samples(data, h.force);
+        let t = rbprops_frfest::find_hits(
+            &force,
+            fs,
+            &TriggerOptions {
+                level: opts.trigger,
+                pretrigger_s: 0.0,
+                record_len_samples: 1,
+                holdoff_s: Some(HIT_SPACING_HOLDOFF_S),
+            },
+        );
+        first = first.min(t.first().map_or(usize::MAX, |t| t.index));
+        for w in t.windows(2) {
+            spacing = spacing.min(w[1].index - w[0].index);
+        }
+    }
+    if let Some(t) = opts.record_s {
+        spacing = (t * fs).round() as usize;
+        if !(t.is_finite() && spacing >= 16 && spacing <= index.record_samples) {
+            bail!(
+                "--record-s {t}: must give between 16 samples and the throughput record's {:.6} s",
+                index.record_samples as f64 / fs
+            );
+        }
+    }
+    let pre = opts
+        .pretrigger_s
+        .unwrap_or_else(|| (0.05 * spacing as f64).min(first as f64).floor() / fs);
+    if spacing == usize::MAX {
+        bail!(
+            "{}: fewer than two hits in every throughput record: give the hit record's length with --record-s",
+            data.file_name
+        );
+    }
+    Ok((spacing, pre))
+}
+
+/// The hits of one excitation, each checked.
+fn excitation_hits(
+    data: &UffFile,
+    ex: &timehist::ExcitationRecords,
+    fs: f64,
+    (n, pre): (usize, f64),
+    opts: &EstimationOptions,
+) -> Result<Vec<Hit>> {
+    let check = HitCheckOptions {
+        trigger: opts.trigger,
+        force_range: opts.force_range,
+        response_ranges: vec![opts.response_range; ex.responses.len()],
+        ..Default::default()
+    };
+    let inspect = |number: usize, force: Vec<f64>, responses: Vec<Vec<f64>>| {
+        let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_slice()).collect();
+        let report = rbprops_frfest::inspect_hit(&force, &refs, fs, &check);
+        Hit {
+            number,
+            force,
+            responses,
+            report,
+        }
+    };
+    match &ex.layout {
+        HitLayout::PerHit(hits) => Ok(hits
+            .iter()
+            .map(|h| {
+                let responses = h
+                    .responses
+                    .iter()
+                    .map(|&i| timehist::samples(data, i))
+                    .collect();
+                inspect(h.hit, timehist::samples(data, h.force), responses)
+            })
+            .collect()),
+        HitLayout::Throughput(h) => {
+            let force = timehist::samples(data, h.force);
+            let responses: Vec<Vec<f64>> = h
+                .responses
+                .iter()
+                .map(|&i| timehist::samples(data, i))
+                .collect();
+            let triggers = rbprops_frfest::find_hits(
+                &force,
+                fs,
+                &TriggerOptions {
+                    level: opts.trigger,
+                    pretrigger_s: pre,
+                    record_len_samples: n,
+                    holdoff_s: None,
+                },
+            );
+            Ok(triggers
+                .iter()
+                .enumerate()
+                .map(|(k, t)| match t.range(n) {
+                    Some(r) => inspect(
+                        k + 1,
+                        force[r.clone()].to_vec(),
+                        responses.iter().map(|x| x[r.clone()].to_vec()).collect(),
+                    ),
+                    None => {
+                        let mut hit =
+                            inspect(k + 1, vec![0.0; n], vec![vec![0.0; n]; responses.len()]);
+                        hit.report.reasons = vec![RejectReason::AtRecordEdge];
+                        hit
+                    }
+                })
+                .collect())
+        }
+    }
+}
+
+/// The automatic τ: the smallest over every accepted hit and response channel.
+fn auto_tau(hits: &[Vec<Hit>], fs: f64, keep_rejected: bool) -> Option<f64> {
+    hits.iter()
+        .flatten()
+        .filter(|h| h.accepted(keep_rejected))
+        .flat_map(|h| {
+            h.responses
+                .iter()
+                .filter_map(move |r| rbprops_frfest::auto_tau(r, fs, h.report.trigger))
+        })
+        .reduce(f64::min)
+}
+
+/// The spectral sums of one excitation's accepted hits, windowed.
+fn average(
+    hits: &[Hit],
+    fs: f64,
+    n: usize,
+    opts: &EstimationOptions,
+    response_window: &ResponseWindow,
+) -> Result<SpectralSums> {
+    let n_resp = hits[0].responses.len();
+    let mut sums = SpectralSums::new(n, fs, 1, n_resp)?;
+    let mut w = HitWindows::new(n);
+    for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
+        w.set(
+            fs,
+            h.report.trigger,
+            h.report.pulse_end,
+            opts.force_window.as_ref(),
+            response_window,
+            opts.exponential_on_force,
+        );
+        let refs: Vec<&[f64]> = h.responses.iter().map(|r| r.as_slice()).collect();
+        sums.add_windowed_hit(&[&h.force], &refs, Some(&w.force), Some(&w.response))?;
+    }
+    Ok(sums)
+}
+
+/// The lines kept, common to every excitation: `--band`, or from line 1 (0 Hz left out:
+/// no rigid-body information an accelerance can carry) to the first line where the mean
+/// force autospectrum has fallen 20 dB below its largest value (a hammer's useful band),
+/// at most 0.4 f_s (an anti-alias filter's pass band).
+pub fn band_lines(
+    sums: &[SpectralSums],
+    band_hz: Option<(f64, f64)>,
+    fs: f64,
+) -> Result<std::ops::Range<usize>> {
+    let df = sums[0].line_spacing_hz();
+    let lines = sums[0].lines();
+    if let Some((lo, hi)) = band_hz {
+        let a = (lo / df).ceil().max(0.0) as usize;
+        let b = ((hi / df).floor() as usize + 1).min(lines);
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) || b <= a + 8 {
+            bail!(
+                "--band {lo}:{hi}: must hold more than 8 lines of the {df} Hz spacing within 0–{} Hz",
+                (lines - 1) as f64 * df
+            );
+        }
+        return Ok(a..b);
+    }
+    let top = ((0.4 * fs / df).floor() as usize).min(lines - 1);
+    let mut end = top + 1;
+    for s in sums {
+        let g: Vec<f64> = (0..=top).map(|k| s.sff(k, 0, 0).re).collect();
+        let peak = g.iter().fold(0.0f64, |m, &v| m.max(v));
+        if let Some(k) = g.iter().position(|&v| v < 0.01 * peak) {
+            end = end.min(k);
+        }
+    }
+    if end <= 9 {
+        bail!("the force spectrum falls 20 dB below its peak within {} lines: a band cannot be chosen; give --band", end);
+    }
+    Ok(1..end)
+}
+
+/// γ_m (m = 0..=2L) of the exponential window (`rbprops_frfest::exponential_line_correlation`),
+/// or independent lines without one.
+fn line_correlation(tau: Option<f64>, fs: f64, n: usize) -> Vec<c64> {
+    (0..=2 * POOL_HALF_WIDTH)
+        .map(|m| match tau {
+            Some(t) => rbprops_frfest::exponential_line_correlation(t, fs, n, m),
+            None => c64::new(if m == 0 { 1.0 } else { 0.0 }, 0.0),
+        })
+        .collect()
+}
+
+/// The pooled variances (file units) on the campaign's FRF layout in SI: each FRF's SI
+/// scale is read off its values (`|H_SI|/|H_file|` at its largest line: the UFF mapping
+/// multiplies each record by one real factor), squared.
+fn variance_in_si(
+    data: &UffFile,
+    index: &TimeHistoryIndex,
+    estimates: &[EstimatedFrfs],
+    variances: &[Option<Vec<f64>>],
+    campaign: &rbprops_uff::UffCampaign,
+) -> Result<Vec<f64>> {
+    let frf = &campaign.frf;
+    let nl = frf.n_lines();
+    let mut sigma2 = vec![f64::NAN; frf.values.len()];
+    for (cell, at) in campaign.frf_locations.iter().enumerate() {
+        let found = index.excitations.iter().enumerate().find_map(|(e, ex)| {
+            let template = match &ex.layout {
+                HitLayout::PerHit(h) => &h[0],
+                HitLayout::Throughput(h) => h,
+            };
+            template
+                .responses
+                .iter()
+                .position(|&i| data.datasets[i].location == *at)
+                .map(|k| (e, k))
+        });
+        let Some((e, k)) = found else {
+            bail!(
+                "{}: {at}: estimated FRF without its time record",
+                data.file_name
+            );
+        };
+        let Some(v) = &variances[e] else { continue };
+        let file = &estimates[e].frf[k];
+        let si = &frf.values[cell * nl..(cell + 1) * nl];
+        let j = (0..nl)
+            .max_by(|&a, &b| file[a].norm().total_cmp(&file[b].norm()))
+            .unwrap_or(0);
+        let scale = if file[j].norm() > 0.0 {
+            si[j].norm() / file[j].norm()
+        } else {
+            0.0
+        };
+        for l in 0..nl {
+            sigma2[cell * nl + l] = v[k * nl + l] * scale * scale;
+        }
+    }
+    Ok(sigma2)
+}
+
+fn reason_text(r: &RejectReason) -> String {
+    match r {
+        RejectReason::DoubleHit { delay_s, ratio } => format!(
+            "double hit ({:.1} ms later, {:.0} %)",
+            1e3 * delay_s,
+            100.0 * ratio
+        ),
+        RejectReason::Overload { channel, samples } => format!(
+            "overload: {samples} samples at the range on {}",
+            match channel {
+                rbprops_frfest::Channel::Force => "the force".to_string(),
+                rbprops_frfest::Channel::Response(i) => format!("response {}", i + 1),
+            }
+        ),
+        RejectReason::AtRecordEdge => "at the record's edge".into(),
+        RejectReason::TooWeak { peak, min } => format!("too weak (peak {peak:.3e} < {min:.3e})"),
+        RejectReason::NotFinite { .. } => "a non-finite sample".into(),
+        RejectReason::LengthMismatch { .. } => "records of different lengths".into(),
+    }
+}
+
+fn rejections(hits: &[Hit]) -> String {
+    let v: Vec<String> = hits
+        .iter()
+        .filter(|h| !h.report.accepted())
+        .map(|h| {
+            format!(
+                "hit {}: {}",
+                h.number,
+                h.report
+                    .reasons
+                    .iter()
+                    .map(reason_text)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+        .collect();
+    if v.is_empty() {
+        "none rejected".into()
+    } else {
+        v.join("; ")
+    }
+}
+
+fn hit_records(
+    hits: &[Vec<Hit>],
+    names: &[String],
+    fs: f64,
+    keep_rejected: bool,
+) -> Vec<HitRecord> {
+    let mut out = Vec::new();
+    for (hs, name) in hits.iter().zip(names) {
+        for h in hs {
+            out.push(HitRecord {
+                excitation: name.clone(),
+                hit: h.number,
+                accepted: h.accepted(keep_rejected),
+                reasons: h.report.reasons.iter().map(reason_text).collect(),
+                trigger_s: h.report.trigger as f64 / fs,
+                peak_force_n: h.report.peak_force,
+                clipped_samples: h.report.clipped.clone(),
+                double_hit_delay_s: h.report.double_hit.map(|d| d.delay_s),
+                double_hit_ratio: h.report.double_hit.map(|d| d.ratio),
+            });
+        }
+    }
+    out
+}
+
+fn summary_line(
+    hits: &[Vec<Hit>],
+    averages: &[ExcitationAveragesRecord],
+    tau: Option<f64>,
+    opts: &EstimationOptions,
+    frf: &FrfSet,
+) -> String {
+    let total: usize = hits.iter().map(|h| h.len()).sum();
+    let used: usize = averages.iter().map(|a| a.accepted).sum();
+    let worst = averages
+        .iter()
+        .map(|a| a.relative_standard_error)
+        .fold(0.0f64, f64::max);
+    let rejected: Vec<String> = hits
+        .iter()
+        .zip(averages)
+        .filter(|(h, _)| h.iter().any(|h| !h.report.accepted()))
+        .map(|(h, a)| format!("{} {}", a.excitation, rejections(h)))
+        .collect();
+    format!(
+        "frf-est: {:?} over {used} of {total} hits in {} excitation(s){}; window {}; {} lines {:.4}–{:.4} Hz; relative standard error up to {:.2} % (4× the hits to halve it){}",
+        opts.estimator,
+        averages.len(),
+        if opts.keep_rejected { " (rejected hits kept)" } else { "" },
+        match tau {
+            Some(t) => format!("exponential τ = {t:.4} s"),
+            None => "none".into(),
+        },
+        frf.n_lines(),
+        frf.frequency_hz.first().copied().unwrap_or(0.0),
+        frf.frequency_hz.last().copied().unwrap_or(0.0),
+        100.0 * worst,
+        if rejected.is_empty() {
+            String::new()
+        } else {
+            format!("; rejected: {}", rejected.join("; "))
+        }
+    )
+}
