@@ -449,17 +449,27 @@ fn excitation_hits(
     }
 }
 
-/// The automatic τ: the smallest over every accepted hit and response channel.
+/// The automatic τ: the window itself falls to 1 % by the record's end (τ = T/ln 100,
+/// T from the earliest trigger), or faster where a response has not decayed to 1 % of its
+/// peak by then (`rbprops_frfest::auto_tau`, the smallest over every accepted hit and
+/// channel). Why not "none" when the responses have decayed to 1 % of their peak: an
+/// accelerance's peak is the impact's direct response, far above the slow rigid modes'
+/// ringing, and the ringing left at the end leaks. Measured on Test Case II through the
+/// independent generator (32 s records, five hits): no window 1.6 % mass error, τ = 20 s
+/// 0.08 %, τ = 8 s 0.04 %, τ = 4 s 0.01 % (`modal-fit` removes the window's damping).
 fn auto_tau(hits: &[Vec<Hit>], fs: f64, keep_rejected: bool) -> Option<f64> {
-    hits.iter()
-        .flatten()
-        .filter(|h| h.accepted(keep_rejected))
+    let accepted = || hits.iter().flatten().filter(|h| h.accepted(keep_rejected));
+    let n = accepted().next()?.force.len();
+    let t0 = accepted().map(|h| h.report.trigger).min()?;
+    let record = (n - 1).saturating_sub(t0) as f64 / fs;
+    accepted()
         .flat_map(|h| {
             h.responses
                 .iter()
                 .filter_map(move |r| rbprops_frfest::auto_tau(r, fs, h.report.trigger))
         })
-        .reduce(f64::min)
+        .fold(Some(record / 100f64.ln()), |m, t| m.map(|m| m.min(t)))
+        .filter(|t| *t > 0.0)
 }
 
 /// The spectral sums of one excitation's accepted hits, windowed.
@@ -500,7 +510,9 @@ pub fn band_lines(
     let df = sums[0].line_spacing_hz();
     let lines = sums[0].lines();
     if let Some((lo, hi)) = band_hz {
-        let a = (lo / df).ceil().max(0.0) as usize;
+        // 0 Hz never: no rigid-body information an accelerance carries, and a mean
+        // (offset) in the records puts anything there.
+        let a = (lo / df).ceil().max(1.0) as usize;
         let b = ((hi / df).floor() as usize + 1).min(lines);
         if !(lo.is_finite() && hi.is_finite() && lo < hi) || b <= a + 8 {
             bail!(
