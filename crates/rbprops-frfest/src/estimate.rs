@@ -347,13 +347,16 @@ impl SpectralSums {
                         .eigenvalues
                         .iter()
                         .enumerate()
-                        .fold((0, f64::INFINITY), |(i0, m), (i, v)| {
-                            if *v < m {
-                                (i, *v)
-                            } else {
-                                (i0, m)
-                            }
-                        })
+                        .fold(
+                            (0, f64::INFINITY),
+                            |(i0, m), (i, v)| {
+                                if *v < m {
+                                    (i, *v)
+                                } else {
+                                    (i0, m)
+                                }
+                            },
+                        )
                         .0;
                     let vx = eig.eigenvectors[(nr, imin)];
                     for r in 0..nr {

@@ -110,7 +110,9 @@ pub struct Trigger {
 impl Trigger {
     /// The hit's record `start..start + len` when it lies inside the throughput record.
     pub fn range(&self, record_len: usize) -> Option<std::ops::Range<usize>> {
-        self.at_edge.is_none().then(|| self.start..self.start + record_len)
+        self.at_edge
+            .is_none()
+            .then(|| self.start..self.start + record_len)
     }
 }
 
@@ -568,7 +570,8 @@ fn count_flat_tops(x: &[f64]) -> usize {
             let run = i - start;
             let enter = start.checked_sub(1).map(|j| (x[j] - top).abs());
             let leave = (i < n).then(|| (x[i] - top).abs());
-            let steep = enter.is_some_and(|d| d > 2.0 * step) || leave.is_some_and(|d| d > 2.0 * step);
+            let steep =
+                enter.is_some_and(|d| d > 2.0 * step) || leave.is_some_and(|d| d > 2.0 * step);
             if run >= 2 && steep {
                 total += run;
             }

@@ -186,7 +186,9 @@ pub fn auto_tau(response: &[f64], fs: f64, trigger: usize) -> Option<f64> {
     if trigger + 2 >= n {
         return None;
     }
-    let peak = response[trigger..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let peak = response[trigger..]
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
     let tail = (n / 20).max(16).min(n - trigger);
     let end = response[n - tail..]
         .iter()

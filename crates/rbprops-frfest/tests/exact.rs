@@ -92,7 +92,8 @@ fn noise_free_sdof_h1_is_the_dft_ratio_and_h1_h2_hv_agree() {
 
 /// The H1 with a force window (taper) and the exponential window on force and response
 /// equals an independent computation: the windows written here from their definitions,
-/// naive DFT sums, 1e-12 relative.
+/// naive DFT sums: 1e-12 relative to the FRF's largest value (line by line the ratio's
+/// rounding grows where the windowed pulse's spectrum is small).
 #[test]
 fn windowed_h1_equals_a_direct_computation() {
     let (n, fs) = (400, 2000.0);
@@ -106,25 +107,28 @@ fn windowed_h1_equals_a_direct_computation() {
     let rw = ResponseWindow::Exponential { tau_s: tau };
     let mut sums = SpectralSums::new(n, fs, 1, 2).unwrap();
     let mut win = HitWindows::new(n);
-    let (mut sxf, mut sff) = (vec![[c64::new(0.0, 0.0); 2]; n / 2 + 1], vec![0.0; n / 2 + 1]);
+    let (mut sxf, mut sff) = (
+        vec![[c64::new(0.0, 0.0); 2]; n / 2 + 1],
+        vec![0.0; n / 2 + 1],
+    );
     for d in 0..4 {
         let mut f = half_sine(n, fs, 0.02 + 0.001 * d as f64, 0.003, 100.0 + d as f64);
         for (v, e) in f.iter_mut().zip(normals(3, d, n, 0.05)) {
             *v += e;
         }
         let y0 = linear(&h, &f);
-        let y1: Vec<f64> = y0.iter().zip(normals(4, d, n, 1e-6)).map(|(a, b)| 2.0 * a + b).collect();
+        let y1: Vec<f64> = y0
+            .iter()
+            .zip(normals(4, d, n, 1e-6))
+            .map(|(a, b)| 2.0 * a + b)
+            .collect();
         let rep = inspect_hit(&f, &[&y0, &y1], fs, &HitCheckOptions::default());
         assert!(rep.accepted(), "{rep:?}");
         win.set(fs, rep.trigger, rep.pulse_end, Some(&fw), &rw, true);
         sums.add_windowed_hit(&[&f], &[&y0, &y1], Some(&win.force), Some(&win.response))
             .unwrap();
         // Independent windows.
-        let (a, b, m) = (
-            rep.trigger as i64 - 8,
-            rep.pulse_end as i64 + 6,
-            4i64,
-        );
+        let (a, b, m) = (rep.trigger as i64 - 8, rep.pulse_end as i64 + 6, 4i64);
         let wf: Vec<f64> = (0..n as i64)
             .map(|i| {
                 let rect = if i >= a && i < b {
@@ -160,9 +164,10 @@ fn windowed_h1_equals_a_direct_computation() {
     }
     let est = sums.h1(None, &ConditioningOptions::default()).unwrap();
     let mut worst = 0.0f64;
-    for k in 0..=n / 2 {
-        for o in 0..2 {
-            worst = worst.max(rel_err(est.h(o, 0, k), sxf[k][o] / sff[k]));
+    for o in 0..2 {
+        let top = est.frf(o, 0).iter().fold(0.0f64, |m, h| m.max(h.norm()));
+        for k in 0..=n / 2 {
+            worst = worst.max((est.h(o, 0, k) - sxf[k][o] / sff[k]).norm() / top);
         }
     }
     assert!(worst < 1e-12, "{worst}");
@@ -183,10 +188,20 @@ fn exponential_window_shifts_the_poles_exactly() {
         let f = half_sine(n, fs, 0.05, 0.004 + 0.001 * d as f64, 50.0);
         let y = linear(&h, &f);
         let rep = inspect_hit(&f, &[&y], fs, &HitCheckOptions::default());
-        win.set(fs, rep.trigger, rep.pulse_end, None, &ResponseWindow::Exponential { tau_s: tau }, true);
-        sums.add_windowed_hit(&[&f], &[&y], Some(&win.force), Some(&win.response)).unwrap();
+        win.set(
+            fs,
+            rep.trigger,
+            rep.pulse_end,
+            None,
+            &ResponseWindow::Exponential { tau_s: tau },
+            true,
+        );
+        sums.add_windowed_hit(&[&f], &[&y], Some(&win.force), Some(&win.response))
+            .unwrap();
     }
-    let est = sums.h1(Some(1..200), &ConditioningOptions::default()).unwrap();
+    let est = sums
+        .h1(Some(1..200), &ConditioningOptions::default())
+        .unwrap();
     let mut worst = 0.0f64;
     for (j, k) in (1..200).enumerate() {
         worst = worst.max(rel_err(est.h(0, 0, j), dft(&hw, k)));
@@ -249,7 +264,10 @@ fn mimo_h1_recovers_a_two_input_system_and_coherent_inputs_fail() {
     let f0 = normals(1, 0, n, 1.0);
     let f1 = normals(1, 1, n, 1.0);
     one.add_hit(&[&f0, &f1], &[&f0]).unwrap();
-    assert!(matches!(one.h1(None, &c), Err(FrfError::IllConditioned { .. })));
+    assert!(matches!(
+        one.h1(None, &c),
+        Err(FrfError::IllConditioned { .. })
+    ));
 }
 
 /// One run of the variance Monte Carlo: sums of |Ĥ−H|² and σ̂² (raw and smoothed).
@@ -273,8 +291,12 @@ fn variance_run(window: Option<f64>, seeds: u64, n_d: u64) -> (f64, f64, f64) {
                 None => ResponseWindow::None,
             };
             win.set(fs, 8, 10, None, &rw, true);
-            noisy.add_windowed_hit(&[&f], &[&yn], Some(&win.force), Some(&win.response)).unwrap();
-            clean.add_windowed_hit(&[&f], &[&y], Some(&win.force), Some(&win.response)).unwrap();
+            noisy
+                .add_windowed_hit(&[&f], &[&yn], Some(&win.force), Some(&win.response))
+                .unwrap();
+            clean
+                .add_windowed_hit(&[&f], &[&y], Some(&win.force), Some(&win.response))
+                .unwrap();
         }
         let est = noisy.h1(Some(band.clone()), &c).unwrap();
         let truth = clean.h1(Some(band.clone()), &c).unwrap();
@@ -379,11 +401,15 @@ fn auto_tau_reaches_one_percent() {
         })
         .collect();
     let tau = auto_tau(&x, fs, 0).unwrap();
-    let end_env = x[n - 60..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let end_env = x[n - n / 20..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!((end_env * (-t_end / tau).exp() / (0.01 * peak) - 1.0).abs() < 1e-9);
     assert!((tau / (t_end / 10f64.ln()) - 1.0).abs() < 0.05, "{tau}");
-    let y: Vec<f64> = x.iter().enumerate().map(|(i, v)| v * (-(i as f64) / 100.0).exp()).collect();
+    let y: Vec<f64> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v * (-(i as f64) / 100.0).exp())
+        .collect();
     assert!(auto_tau(&y, fs, 0).is_none());
 }
 
@@ -396,7 +422,11 @@ fn quantity_conversion_round_trip() {
     let mut s = SpectralSums::new(n, fs, 1, 1).unwrap();
     for d in 0..3 {
         let f = normals(5, d, n, 1.0);
-        let y: Vec<f64> = circular(&h, &f).iter().zip(normals(6, d, n, 1e-5)).map(|(a, b)| a + b).collect();
+        let y: Vec<f64> = circular(&h, &f)
+            .iter()
+            .zip(normals(6, d, n, 1e-5))
+            .map(|(a, b)| a + b)
+            .collect();
         s.add_hit(&[&f], &[&y]).unwrap();
     }
     let est = s.h1(None, &ConditioningOptions::default()).unwrap();
@@ -410,7 +440,10 @@ fn quantity_conversion_round_trip() {
         assert!(rel_err(acc.h(0, 0, k), -w * w * est.h(0, 0, k)) < 1e-14);
         assert!(rel_err(back.h(0, 0, j), est.h(0, 0, k)) < 1e-13);
         assert!(back.h(0, 0, j).is_finite());
-        let (va, ve) = (acc.variance_of(0, 0).unwrap()[k], est.variance_of(0, 0).unwrap()[k]);
+        let (va, ve) = (
+            acc.variance_of(0, 0).unwrap()[k],
+            est.variance_of(0, 0).unwrap()[k],
+        );
         assert!((va / (ve * w.powi(4)) - 1.0).abs() < 1e-13);
     }
     let q = quality(&est).unwrap();
@@ -427,11 +460,19 @@ fn deterministic() {
         let mut s = SpectralSums::new(n, fs, 1, 1).unwrap();
         for d in 0..3 {
             let f = normals(5, d, n, 1.0);
-            let y: Vec<f64> = circular(&h, &f).iter().zip(normals(6, d, n, 1e-3)).map(|(a, b)| a + b).collect();
+            let y: Vec<f64> = circular(&h, &f)
+                .iter()
+                .zip(normals(6, d, n, 1e-3))
+                .map(|(a, b)| a + b)
+                .collect();
             s.add_hit(&[&f], &[&y]).unwrap();
         }
         s.h1(None, &ConditioningOptions::default()).unwrap()
     };
     let (a, b) = (run(), run());
-    assert!(a.h.iter().zip(&b.h).all(|(x, y)| x.re.to_bits() == y.re.to_bits() && x.im.to_bits() == y.im.to_bits()));
+    assert!(a
+        .h
+        .iter()
+        .zip(&b.h)
+        .all(|(x, y)| x.re.to_bits() == y.re.to_bits() && x.im.to_bits() == y.im.to_bits()));
 }
