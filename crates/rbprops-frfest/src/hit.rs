@@ -33,8 +33,11 @@
 //! (0.05 N against a threshold of 6 N at 200 N and the default 3 %), so the false-alarm
 //! rate on clean single pulses is nil; the limit is a second contact that overlaps the
 //! first so early that their sum has no valley (a shoulder): for half-sines of duration
-//! `T` at delay `d` this happens when `d` is a small fraction of `T` and the ratio is low;
-//! see the crate tests for the measured recall.
+//! `T` at delay `d` there is no valley when `d < T/2` (the sum falls monotonically after
+//! its peak). Measured (tests/hits.rs, 1 000 double and 1 000 single hits, 0.2–5 ms
+//! half-sines, 0.05 N noise on 150–250 N, 16/24-bit): recall 100 % (902/902) where the
+//! second contact leaves a valley, 94.5 % overall (the rest are such shoulders), no
+//! false alarm (0/1 000). A shape test for shoulders (one- vs two-pulse fit) is not done.
 //!
 //! # Overload
 //!

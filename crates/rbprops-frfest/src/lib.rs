@@ -30,6 +30,8 @@
 //! bit-identical output.
 
 #![warn(missing_docs)]
+// `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must be refused too.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod estimate;
 pub mod hit;
