@@ -197,6 +197,14 @@ pub fn estimate_uff(
             rejected: hs.len() - est.n_averages,
             relative_standard_error: q.map_or(f64::NAN, |q| q.relative_se),
             hits_to_halve: 4 * est.n_averages,
+            force_noise_relative_error: force_noise_error(
+                s,
+                hs,
+                band.clone(),
+                fs,
+                opts,
+                &response_window,
+            ),
         });
         if let Some(p) = &pooled {
             dof = p.dof.iter().fold(dof, |m, &d| m.min(d));
@@ -496,6 +504,46 @@ fn average(
         sums.add_windowed_hit(&[&h.force], &refs, Some(&w.force), Some(&w.response))?;
     }
     Ok(sums)
+}
+
+/// RMS over `band` of `√(σ_m² Σw_f²/S_ff,k)`: the relative error the force channel's
+/// noise (σ_m from each accepted hit's pretrigger, white) puts into H1 at line k, the
+/// mean of `Σw_f²` over the hits (records.rs, `force_noise_relative_error`).
+fn force_noise_error(
+    sums: &SpectralSums,
+    hits: &[Hit],
+    band: std::ops::Range<usize>,
+    fs: f64,
+    opts: &EstimationOptions,
+    response_window: &ResponseWindow,
+) -> f64 {
+    let n = sums.record_len();
+    let mut w = HitWindows::new(n);
+    let (mut noise_energy, mut count) = (0.0, 0.0);
+    for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
+        w.set(
+            fs,
+            h.report.trigger,
+            h.report.pulse_end,
+            opts.force_window.as_ref(),
+            response_window,
+            opts.exponential_on_force,
+        );
+        let energy: f64 = w.force.iter().map(|x| x * x).sum();
+        noise_energy += h.report.noise_rms * h.report.noise_rms * energy;
+        count += 1.0;
+    }
+    if count == 0.0 || band.is_empty() {
+        return 0.0;
+    }
+    // Σ_d |F_d|² σ_m² Σw² / S_ff² = σ_m² Σw² / S_ff with the hits' mean noise energy.
+    let per_hit = noise_energy / count;
+    let mean: f64 = band
+        .clone()
+        .map(|k| per_hit / sums.sff(k, 0, 0).re)
+        .sum::<f64>()
+        / band.len() as f64;
+    mean.sqrt()
 }
 
 /// The lines kept, common to every excitation: `--band`, or from line 1 (0 Hz left out:

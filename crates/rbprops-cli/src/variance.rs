@@ -160,12 +160,50 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     }))
 }
 
+/// Multiple of the estimator's force-noise error (`force_noise_relative_error`, an RMS
+/// per excitation) under which an effect's whole change to the FRFs is not claimed: the
+/// error is Gaussian, so 4 of its standard deviations are reached by chance in fewer than
+/// 1 in 10⁴ lines, and a gain or delay fitted to it over a band averages below that.
+pub const FORCE_NOISE_MARGIN: f64 = 4.0;
+
+/// What `model-check` takes from the FRF estimator (see [`for_model_check`]).
+#[derive(Debug, Default)]
+pub struct EstimatorKnowledge {
+    /// The line variances, calibrated for χ², with the window's correlation.
+    pub line_variance: Option<rbprops_check::GivenLineVariance>,
+    /// [`FORCE_NOISE_MARGIN`] × the largest force-noise error over the excitations.
+    pub resolution: Option<f64>,
+    /// What was taken, for the notes.
+    pub notes: Vec<String>,
+}
+
 /// What `model-check` takes from the FRF estimator: the line variances (calibrated for
-/// χ², with the window's correlation) and the processing it did, which the nominal spec
-/// gets as known effects (`exponential_window` at its τ, `record_truncation` at the
-/// record's length after the trigger) so that the check does not look for them. Returns
-/// the variance (if the record has the topic) and notes saying what was taken.
+/// χ², with the window's correlation), the size of the common error its force noise
+/// makes, and the processing it did, which the nominal spec gets as known effects
+/// (`exponential_window` at its τ, `record_truncation` at the record's length after the
+/// trigger) so that the check does not look for them.
 pub fn for_model_check(
+    rec: &RunRecord,
+    spec: &mut rbprops_sim::CampaignSpec,
+) -> Result<EstimatorKnowledge> {
+    let (line_variance, notes) = variance_for_check(rec, spec)?;
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    let resolution = processing.frf_estimation.as_ref().map(|e| {
+        FORCE_NOISE_MARGIN
+            * e.averages
+                .iter()
+                .map(|a| a.force_noise_relative_error)
+                .fold(0.0, f64::max)
+    });
+    Ok(EstimatorKnowledge {
+        line_variance,
+        resolution,
+        notes,
+    })
+}
+
+fn variance_for_check(
     rec: &RunRecord,
     spec: &mut rbprops_sim::CampaignSpec,
 ) -> Result<(Option<rbprops_check::GivenLineVariance>, Vec<String>)> {

@@ -317,6 +317,13 @@ pub struct ExcitationAveragesRecord {
     pub relative_standard_error: f64,
     /// Accepted hits needed in all to halve it (4 n_d when it falls as 1/√n_d).
     pub hits_to_halve: usize,
+    /// RMS over the band of the relative error the force channel's noise puts into every
+    /// FRF of this excitation alike: `√(σ_m² Σw_f² / S_ff)` per line, σ_m the force's
+    /// pretrigger noise, w_f its window. Common to the channels and smooth over the lines
+    /// (the force window is short), it looks like a small gain and delay of the
+    /// excitation, which is why the model check does not claim effects below it.
+    #[serde(default)]
+    pub force_noise_relative_error: f64,
 }
 
 /// One hit as the estimator judged it.

@@ -200,9 +200,13 @@ impl<'p, 'a> Selection<'p, 'a> {
                 "fitted FRF change {practical:.2} × the precision floor (RMS), needs ≥ {PRACTICAL_MARGIN}"
             ));
         }
-        if !(relative >= RESOLUTION) {
+        let resolution = options
+            .estimator_resolution
+            .map_or(RESOLUTION, |r| r.max(RESOLUTION));
+        if !(relative >= resolution) {
             why.push(format!(
-                "fitted FRF change {relative:.1e} relative (largest over the FRFs), needs ≥ {RESOLUTION:.0e}: below what a calibration resolves"
+                "fitted FRF change {relative:.1e} relative (largest over the FRFs), needs ≥ {resolution:.1e}: below what a calibration resolves{}",
+                if resolution > RESOLUTION { " or the FRF estimator's force noise allows" } else { "" }
             ));
         }
         // Held-out check (A2), only where the other evidence holds (it is cheap,

@@ -44,6 +44,10 @@ pub struct CheckOptions {
     pub noise: Option<RecordingNoise>,
     /// Each value's variance from the FRF estimator; takes precedence over `noise`.
     pub line_variance: Option<noise::GivenLineVariance>,
+    /// The smallest relative FRF change an effect must make (largest over the FRFs) when
+    /// the FRF estimator says its force-channel noise makes a common error of this size
+    /// (a multiple of it); at least [`RESOLUTION`] whatever is given.
+    pub estimator_resolution: Option<f64>,
     /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
     pub alpha: f64,
     /// Safety cap on the number of selection steps (each accepts one effect); the
@@ -105,6 +109,7 @@ impl Default for CheckOptions {
         CheckOptions {
             noise: None,
             line_variance: None,
+            estimator_resolution: None,
             alpha: 0.01,
             max_effects: 10,
             refit_top: 3,
@@ -362,6 +367,8 @@ struct Weights {
     sigma_precision: Vec<f64>,
     used: Vec<usize>,
     correlation: Option<LineCorrelation>,
+    /// How the line correlation is weighed (found in the data, or the estimator's window).
+    inflation: Option<crate::correlation::Inflation>,
 }
 
 /// Stage 0: the noise floor (given, overridden by the second pass, or estimated from
@@ -519,6 +526,7 @@ fn weights(
         sigma_precision,
         used,
         correlation: found,
+        inflation,
     })
 }
 
@@ -648,6 +656,7 @@ fn check_with(
         sigma_precision,
         used,
         correlation,
+        inflation,
     } = weights(
         spec,
         frf,
@@ -750,7 +759,7 @@ fn check_with(
         theta_nom: &theta_nom,
         chi2_nominal,
         free_base,
-        inflation: correlation.as_ref().and_then(|c| c.inflation()),
+        inflation,
     };
     let (report, improved_spec, prior, final_pred, base_pred) =
         fin.report(sel, warnings, method)?;

@@ -108,11 +108,14 @@ fn main() -> std::process::ExitCode {
             .require_geometry_and_frf()
             .with_context(|| input.name.clone())?;
         let frf = frf.clone();
-        let (line_variance, estimator_notes) =
-            rbprops_cli::variance::for_model_check(&rec, &mut spec)
-                .with_context(|| input.name.clone())?;
+        let known = rbprops_cli::variance::for_model_check(&rec, &mut spec)
+            .with_context(|| input.name.clone())?;
+        let estimator_notes = known.notes;
         let mut opts = CheckOptions {
-            line_variance: line_variance.filter(|_| args.noise_relative.is_none()),
+            line_variance: known
+                .line_variance
+                .filter(|_| args.noise_relative.is_none()),
+            estimator_resolution: known.resolution,
             alpha: args.alpha,
             max_effects: args.max_effects,
             weighed_mass_kg: args.weighed_mass,
