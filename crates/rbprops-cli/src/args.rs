@@ -11,7 +11,7 @@ fn number(s: &str) -> Result<f64, String> {
         .parse()
         .map_err(|_| format!("'{s}' is not a number"))?;
     if !v.is_finite() {
-        return Err(format!("{v} is not a finite number"));
+        return Err(format!("'{s}' is not a finite number"));
     }
     Ok(v)
 }
@@ -19,7 +19,7 @@ fn number(s: &str) -> Result<f64, String> {
 fn in_range(s: &str, lo: f64, hi: f64, unit: &str) -> Result<f64, String> {
     let v = number(s)?;
     if !(lo..=hi).contains(&v) {
-        return Err(format!("{v} is outside [{lo:e}, {hi:e}]{unit}"));
+        return Err(format!("{} is outside [{lo:e}, {hi:e}]{unit}", s.trim()));
     }
     Ok(v)
 }
@@ -44,7 +44,7 @@ pub fn mass_kg(s: &str) -> Result<f64, String> {
 pub fn alpha(s: &str) -> Result<f64, String> {
     let v = number(s)?;
     if !(v > 0.0 && v <= 0.5) {
-        return Err(format!("{v} is outside 0 < α ≤ 0.5"));
+        return Err(format!("{} is outside 0 < α ≤ 0.5", s.trim()));
     }
     Ok(v)
 }
@@ -58,7 +58,7 @@ pub fn fraction(s: &str) -> Result<f64, String> {
 pub fn non_negative(s: &str) -> Result<f64, String> {
     let v = number(s)?;
     if v < 0.0 {
-        return Err(format!("{v} is negative (need ≥ 0)"));
+        return Err(format!("{} is negative (need ≥ 0)", s.trim()));
     }
     Ok(v)
 }
@@ -67,7 +67,7 @@ pub fn non_negative(s: &str) -> Result<f64, String> {
 pub fn seconds(s: &str) -> Result<f64, String> {
     let v = number(s)?;
     if !(v > 0.0 && v <= 1e6) {
-        return Err(format!("{v} is outside 0 < τ ≤ 1e6 s"));
+        return Err(format!("{} is outside 0 < τ ≤ 1e6 s", s.trim()));
     }
     Ok(v)
 }

@@ -519,18 +519,32 @@ fn size_bombs_are_refused_with_bounded_memory() {
     chunk_bomb[at + 9 + 16..at + 9 + 24].copy_from_slice(&(3u64 << 30).to_le_bytes());
     std::fs::write(d.join("chunk-bomb.mcap"), &chunk_bomb).unwrap();
     let before = snapshot(d);
-    for (tool, args) in [
-        ("rbprops", vec!["convert", "bomb.mcap", "-o", "out.mcap"]),
-        ("rbprops", vec!["convert", "bomb.mcap", "-o", "out"]),
-        ("modal-fit", vec!["bomb.mcap", "-o", "out.mcap"]),
+    for (tool, args, why) in [
+        (
+            "rbprops",
+            vec!["convert", "bomb.mcap", "-o", "out.mcap"],
+            "base64",
+        ),
+        (
+            "rbprops",
+            vec!["convert", "bomb.mcap", "-o", "out"],
+            "base64",
+        ),
+        ("modal-fit", vec!["bomb.mcap", "-o", "out.mcap"], "base64"),
         (
             "rbprops",
             vec!["convert", "chunk-bomb.mcap", "-o", "out.mcap"],
+            "uncompressed size",
         ),
-        ("modal-fit", vec!["chunk-bomb.mcap", "-o", "out.mcap"]),
+        (
+            "modal-fit",
+            vec!["chunk-bomb.mcap", "-o", "out.mcap"],
+            "uncompressed size",
+        ),
     ] {
         let (o, rss) = run_measured(d, tool, &args);
-        o.error(1, &[args[args.len() - 3]]);
+        o.error(1, &[args[args.len() - 3], why]);
+        eprintln!("{tool} {args:?}: peak RSS {rss} kB");
         assert!(rss < MAX_RSS_KB, "{tool} {args:?}: peak RSS {rss} kB");
     }
     assert_eq!(snapshot(d), before);
