@@ -86,18 +86,21 @@ fn read_props(p: &PathBuf) -> Result<PropertiesRecord> {
     })
 }
 
-fn origin(s: &str) -> OriginChoice {
+fn origin(s: &str) -> Result<OriginChoice> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() == 3 {
         if let (Ok(x), Ok(y), Ok(z)) = (
-            parts[0].trim().parse(),
-            parts[1].trim().parse(),
-            parts[2].trim().parse(),
+            parts[0].trim().parse::<f64>(),
+            parts[1].trim().parse::<f64>(),
+            parts[2].trim().parse::<f64>(),
         ) {
-            return OriginChoice::Point([x, y, z]);
+            if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+                bail!("--origin {s}: coordinates must be finite (x,y,z in metres)");
+            }
+            return Ok(OriginChoice::Point([x, y, z]));
         }
     }
-    OriginChoice::Channel(s.to_string())
+    Ok(OriginChoice::Channel(s.to_string()))
 }
 
 fn main() -> std::process::ExitCode {
@@ -118,7 +121,7 @@ fn main() -> std::process::ExitCode {
                 .collect();
         }
         if let Some(o) = &args.origin {
-            opts.origin = origin(o);
+            opts.origin = origin(o)?;
         }
         if let Some(p) = &args.reference {
             opts.reference = Some(read_props(p)?);

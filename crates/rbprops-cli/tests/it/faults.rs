@@ -414,7 +414,9 @@ fn sigterm_and_sigint_remove_the_temporary_files() {
 
 // ---------------------------------------------------------------- size bombs
 
-/// Runs `tool` and returns its outcome and peak resident set (kB) from `wait4`.
+/// Runs `tool` and returns its outcome and peak resident set (kB) from `wait4` (which
+/// reaps the child itself, hence the lint's exception).
+#[allow(clippy::zombie_processes)]
 fn run_measured(dir: &Path, tool: &str, args: &[&str]) -> (Out, i64) {
     let err = dir.join("stderr.txt");
     let child = Command::new(exe(tool))
@@ -654,6 +656,12 @@ fn arguments_that_contradict_the_data_are_errors() {
         ],
     )
     .error(1, &["--mass-line-band", "the data span"]);
+    run_in(
+        d,
+        "rb-solve",
+        &["sel.mcap", "--origin", "nan,0,0", "--format", "json"],
+    )
+    .error(1, &["--origin", "finite"]);
     assert_eq!(snapshot(d), before);
 }
 
