@@ -128,7 +128,7 @@ pub struct CampaignOptions {
 impl CampaignConfig {
     /// Reads a campaign file.
     pub fn read(path: &Path) -> Result<CampaignConfig> {
-        let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+        let text = crate::read_text(path)?;
         toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
     }
 
@@ -173,8 +173,7 @@ impl CampaignConfig {
         }
         let load = |p: &Path| -> Result<Nominal> {
             let path = base.join(p);
-            let text =
-                std::fs::read_to_string(&path).with_context(|| path.display().to_string())?;
+            let text = crate::read_text(&path)?;
             let spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
                 anyhow!(
                     "{}: nominal spec: {e}{}",
@@ -399,7 +398,7 @@ pub fn run_item(
     let mut read_warnings = Vec::new();
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+            let text = crate::read_text(p)?;
             let (rec, _) = crate::stages::simulate(&text, &p.display().to_string(), None)?;
             let sha = rbprops_formats::sha256_hex(&rbprops_formats::mcap_file::write(&rec)?);
             (rec, sha)
