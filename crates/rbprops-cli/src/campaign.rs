@@ -157,9 +157,7 @@ impl CampaignConfig {
             o.fit.method = m.parse().map_err(|e| anyhow!("{source}: method: {e}"))?;
         }
         if let Some(n) = self.modes {
-            if n == 0 {
-                bail!("{source}: modes = 0: need at least one mode");
-            }
+            crate::args::modes(&n.to_string()).map_err(|e| anyhow!("{source}: modes: {e}"))?;
             o.fit.n_modes = Some(n);
         }
         o.fit
