@@ -128,7 +128,7 @@ pub struct CampaignOptions {
 impl CampaignConfig {
     /// Reads a campaign file.
     pub fn read(path: &Path) -> Result<CampaignConfig> {
-        let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+        let text = crate::read_text(path)?;
         toml::from_str(&text).map_err(|e| anyhow!("{}: {e}", path.display()))
     }
 
@@ -157,9 +157,7 @@ impl CampaignConfig {
             o.fit.method = m.parse().map_err(|e| anyhow!("{source}: method: {e}"))?;
         }
         if let Some(n) = self.modes {
-            if n == 0 {
-                bail!("{source}: modes = 0: need at least one mode");
-            }
+            crate::args::modes(&n.to_string()).map_err(|e| anyhow!("{source}: modes: {e}"))?;
             o.fit.n_modes = Some(n);
         }
         o.fit
@@ -173,8 +171,7 @@ impl CampaignConfig {
         }
         let load = |p: &Path| -> Result<Nominal> {
             let path = base.join(p);
-            let text =
-                std::fs::read_to_string(&path).with_context(|| path.display().to_string())?;
+            let text = crate::read_text(&path)?;
             let spec = CampaignSpec::from_toml_str(&text).map_err(|e| {
                 anyhow!(
                     "{}: nominal spec: {e}{}",
@@ -399,7 +396,7 @@ pub fn run_item(
     let mut read_warnings = Vec::new();
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
-            let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+            let text = crate::read_text(p)?;
             let (rec, _) = crate::stages::simulate(&text, &p.display().to_string(), None)?;
             let sha = rbprops_formats::sha256_hex(&rbprops_formats::mcap_file::write(&rec)?);
             (rec, sha)

@@ -10,6 +10,7 @@ use rbprops_formats::{mcap_file, RunRecord};
 use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
+pub mod args;
 pub mod campaign;
 pub mod coherence;
 pub mod frf_est;
@@ -20,8 +21,39 @@ pub mod report;
 pub mod stages;
 pub mod summary;
 pub mod table;
+pub mod validate;
 pub mod variance;
 pub mod warnings;
+
+/// `eprintln!` that never panics: a failed write to stderr (closed, full device) is
+/// ignored, so the program still ends with its own status.
+#[macro_export]
+macro_rules! say {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
+/// Writes `text` to stdout, returning the error (a full device, a closed pipe) instead of
+/// panicking as `print!` does.
+pub fn out(text: &str) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    o.write_all(text.as_bytes()).context("writing stdout")?;
+    o.flush().context("writing stdout")
+}
+
+/// Reads a whole input file once (a FIFO or `<(zcat …)` works), recording it as an input
+/// of the run so that no output is written over it.
+pub fn read_file(p: &Path) -> Result<Vec<u8>> {
+    rbprops_formats::atomic::register_input(p);
+    std::fs::read(p).with_context(|| p.display().to_string())
+}
+
+/// [`read_file`] as UTF-8 text.
+pub fn read_text(p: &Path) -> Result<String> {
+    String::from_utf8(read_file(p)?).map_err(|_| anyhow::anyhow!("{}: not UTF-8 text", p.display()))
+}
 
 /// The MCAP magic bytes, to recognise a stream on stdin.
 const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
@@ -86,17 +118,23 @@ pub struct StageIo {
     /// Output: FILE.mcap or a CSV directory; default MCAP on stdout.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Replace an output path that is not a previous rbprops output (a non-empty
+    /// directory that is not a CSV run, a file of another kind). Never an input.
+    #[arg(long)]
+    pub force: bool,
 }
 
 impl StageIo {
     /// Reads the input of the stage `tool` ([`read_stage_input`]) with the options of a
     /// UFF input.
     pub fn read(&self, tool: &str, uff: &UffInputOptions) -> Result<Input> {
+        rbprops_formats::atomic::set_force(self.force);
         read_stage_input(tool, self.input.as_deref(), &self.checks, uff)
     }
 
     /// Writes the stage's run record to the output ([`write_output`]).
     pub fn write(&self, rec: &RunRecord) -> Result<()> {
+        rbprops_formats::atomic::set_force(self.force);
         write_output(rec, self.output.as_deref())
     }
 }
@@ -158,9 +196,8 @@ pub fn read_stage_input_quiet(
         None => read_stdin()?,
         Some(p) => {
             let name = p.display().to_string();
-            if campaign::is_uff(p) {
-                uff_input(tool, p, checks, uff)?
-            } else if p.is_dir() {
+            rbprops_formats::atomic::register_input(p);
+            if p.is_dir() {
                 let check = rbprops_formats::digest::check_csv(p)?;
                 let notes = digest_verdict(tool, &name, check, checks)?;
                 Input {
@@ -171,10 +208,24 @@ pub fn read_stage_input_quiet(
                     warnings: Vec::new(),
                 }
             } else {
-                let bytes = std::fs::read(p).with_context(|| name.clone())?;
-                let (record, notes) = match rbprops_formats::Format::from_path(p)? {
-                    rbprops_formats::Format::Mcap => mcap_file::read_checked(&bytes, &name)?,
-                    rbprops_formats::Format::CsvDir => (rbprops_formats::read_path(p)?, Vec::new()),
+                // Read once (a FIFO or `<(zcat …)` cannot be opened twice); the format
+                // from the bytes first, then the name.
+                let bytes = read_file(p)?;
+                if !bytes.starts_with(MCAP_MAGIC) && (campaign::is_uff(p) || looks_like_uff(&bytes))
+                {
+                    return finish(tool, uff_input(tool, p, bytes, checks, uff)?, checks);
+                }
+                let (record, notes) = if bytes.starts_with(MCAP_MAGIC) {
+                    mcap_file::read_checked(&bytes, &name)?
+                } else if bytes.is_empty() {
+                    bail!("{name}: empty file")
+                } else {
+                    match rbprops_formats::Format::from_path(p)? {
+                        rbprops_formats::Format::Mcap => mcap_file::read_checked(&bytes, &name)?,
+                        rbprops_formats::Format::CsvDir => bail!(
+                            "{name}: neither MCAP nor UFF, and not a directory (a CSV run is a directory)"
+                        ),
+                    }
                 };
                 Input {
                     record,
@@ -186,12 +237,25 @@ pub fn read_stage_input_quiet(
             }
         }
     };
+    finish(tool, input, checks)
+}
+
+fn finish(tool: &str, input: Input, checks: &InputChecks) -> Result<Input> {
     if checks.verbose {
         for n in &input.notes {
-            eprintln!("{tool}: note: {}: {n}", input.name);
+            say!("{tool}: note: {}: {n}", input.name);
         }
     }
     Ok(input)
+}
+
+/// A universal file begins with a `-1` delimiter line.
+fn looks_like_uff(bytes: &[u8]) -> bool {
+    let head = &bytes[..bytes.len().min(256)];
+    String::from_utf8_lossy(head)
+        .lines()
+        .find(|l| !l.trim().is_empty())
+        .is_some_and(|l| l.trim() == "-1")
 }
 
 /// What a content-digest check means for the run: an error on a mismatch (a warning with
@@ -218,7 +282,7 @@ fn digest_verdict(
                 &found[..found.len().min(12)]
             );
             if checks.ignore_digest {
-                eprintln!("{tool}: warning: {what}; proceeding (--ignore-digest)");
+                say!("{tool}: warning: {what}; proceeding (--ignore-digest)");
                 Ok(Vec::new())
             } else {
                 bail!("{what} (if you edited it on purpose, rerun with --ignore-digest)")
@@ -230,7 +294,7 @@ fn digest_verdict(
 /// Reads and parses a universal file.
 pub fn parse_uff(p: &Path) -> Result<rbprops_uff::UffFile> {
     let name = p.display().to_string();
-    let bytes = std::fs::read(p).with_context(|| name.clone())?;
+    let bytes = read_file(p)?;
     Ok(rbprops_uff::parse(&bytes, &name)?)
 }
 
@@ -241,8 +305,16 @@ pub fn read_uff_campaign(
     p: &Path,
     opts: &UffInputOptions,
 ) -> Result<(rbprops_uff::UffCampaign, String)> {
+    read_uff_campaign_bytes(p, read_file(p)?, opts)
+}
+
+/// [`read_uff_campaign`] of bytes already read from `p`.
+pub fn read_uff_campaign_bytes(
+    p: &Path,
+    bytes: Vec<u8>,
+    opts: &UffInputOptions,
+) -> Result<(rbprops_uff::UffCampaign, String)> {
     let name = p.display().to_string();
-    let bytes = std::fs::read(p).with_context(|| name.clone())?;
     let data = rbprops_uff::parse(&bytes, &name)?;
     let (campaign, side) = uff_campaign_of(&data, opts)?;
     let mut digest_input = bytes;
@@ -259,7 +331,7 @@ pub fn uff_campaign_of(
     let mut digest_input = Vec::new();
     let map = match &opts.channels {
         Some(m) => {
-            let text = std::fs::read_to_string(m).with_context(|| m.display().to_string())?;
+            let text = read_text(m)?;
             digest_input.extend_from_slice(text.as_bytes());
             Some(
                 rbprops_uff::ChannelMap::parse(&text, &m.display().to_string())
@@ -277,14 +349,14 @@ pub fn uff_campaign_of(
             },
         )?,
         Some(g) if campaign::is_uff(g) => {
-            let gbytes = std::fs::read(g).with_context(|| g.display().to_string())?;
+            let gbytes = read_file(g)?;
             digest_input.extend_from_slice(&gbytes);
             let geo = rbprops_uff::parse(&gbytes, &g.display().to_string())?;
             rbprops_uff::read_with_geometry(data, &geo, map.as_ref())?
         }
         Some(g) => {
             // A campaign spec: its points (ids = node numbers) in SI, global axes.
-            let text = std::fs::read_to_string(g).with_context(|| g.display().to_string())?;
+            let text = read_text(g)?;
             digest_input.extend_from_slice(text.as_bytes());
             let spec = rbprops_sim::CampaignSpec::from_toml_str(&text)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", g.display()))?;
@@ -306,16 +378,21 @@ pub fn uff_campaign_of(
 /// A UFF file (datasets 58/58b with 15/2411 nodes) as a run record: geometry, FRFs and,
 /// when the file has them, the coherence topic. Warnings go to stderr.
 /// A digest written into the file by rbprops is checked first.
-fn uff_input(tool: &str, p: &Path, checks: &InputChecks, opts: &UffInputOptions) -> Result<Input> {
+fn uff_input(
+    tool: &str,
+    p: &Path,
+    bytes: Vec<u8>,
+    checks: &InputChecks,
+    opts: &UffInputOptions,
+) -> Result<Input> {
     let name = p.display().to_string();
-    let bytes = std::fs::read(p).with_context(|| name.clone())?;
     let notes = digest_verdict(
         tool,
         &name,
         rbprops_formats::digest::check_uff(&bytes),
         checks,
     )?;
-    let (c, sha256) = read_uff_campaign(p, opts)?;
+    let (c, sha256) = read_uff_campaign_bytes(p, bytes, opts)?;
     let mut record = RunRecord::default();
     record.set_geometry(&c.geometry);
     if let Some(coh) = &c.coherence {
@@ -387,6 +464,14 @@ fn read_stdin() -> Result<Input> {
 /// Writes a run to a path (format from the path, atomically) or as MCAP to stdout.
 /// Refuses to write binary MCAP to a terminal.
 pub fn write_output(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
+    let res = write_output_inner(rec, path);
+    if res.is_err() {
+        rbprops_formats::atomic::remove_temporaries();
+    }
+    res
+}
+
+fn write_output_inner(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
     match path {
         Some(p) if p.as_os_str() != "-" => {
             let ext = p
@@ -454,12 +539,64 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitC
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    match body() {
+    #[cfg(unix)]
+    signals::install();
+    let res = body();
+    rbprops_formats::atomic::remove_temporaries();
+    match res {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) if is_broken_pipe(&e) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("{tool}: error: {e:#}");
+            say!("{tool}: error: {e:#}");
             std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// SIGINT, SIGTERM and SIGHUP: the temporary files of the output being written are
+/// removed, then the process exits with 128 + the signal number (the shell's convention).
+///
+/// The signals are blocked in every thread (set before any thread starts, so the worker
+/// threads inherit the mask) and taken by one thread with `sigwait`: the clean-up runs as
+/// ordinary code, not in an asynchronous signal handler.
+#[cfg(unix)]
+mod signals {
+    const SIGNALS: [libc::c_int; 3] = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+
+    fn set() -> libc::sigset_t {
+        // SAFETY: sigemptyset/sigaddset initialise and fill a local set.
+        unsafe {
+            let mut s: libc::sigset_t = std::mem::zeroed();
+            libc::sigemptyset(&mut s);
+            for sig in SIGNALS {
+                libc::sigaddset(&mut s, sig);
+            }
+            s
+        }
+    }
+
+    pub fn install() {
+        let s = set();
+        // SAFETY: blocks the signals in the calling (main) thread, before other threads.
+        let rc = unsafe { libc::pthread_sigmask(libc::SIG_BLOCK, &s, std::ptr::null_mut()) };
+        if rc != 0 {
+            return;
+        }
+        let spawned = std::thread::Builder::new()
+            .name("signals".into())
+            .spawn(move || loop {
+                let mut sig: libc::c_int = 0;
+                // SAFETY: waits for one of the blocked signals of `s`.
+                if unsafe { libc::sigwait(&s, &mut sig) } != 0 {
+                    continue;
+                }
+                rbprops_formats::atomic::remove_temporaries();
+                // SAFETY: ends the process at once with the conventional status.
+                unsafe { libc::_exit(128 + sig) };
+            });
+        if spawned.is_err() {
+            // SAFETY: restores the mask: without the thread the default actions apply.
+            unsafe { libc::pthread_sigmask(libc::SIG_UNBLOCK, &s, std::ptr::null_mut()) };
         }
     }
 }
@@ -498,12 +635,15 @@ pub fn parse_band(s: &str) -> Result<(f64, f64)> {
 /// Prints warnings on stderr, prefixed by the tool name.
 pub fn warn_all<'a>(tool: &str, warnings: impl IntoIterator<Item = &'a String>) {
     for w in warnings {
-        eprintln!("{tool}: warning: {w}");
+        say!("{tool}: warning: {w}");
     }
 }
 
 /// Writes a text file (a plot, a report) atomically, creating its directory.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    if path.as_os_str() == "-" {
+        return out(text);
+    }
     Ok(rbprops_formats::atomic::write_file(path, text.as_bytes())?)
 }
 

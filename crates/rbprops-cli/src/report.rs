@@ -195,7 +195,7 @@ pub fn read_figures(dir: &Path) -> Result<Vec<(String, String)>> {
         let p = e?.path();
         if p.is_file() && p.extension().is_some_and(|x| x == "svg") {
             let name = p.file_name().unwrap().to_string_lossy().into_owned();
-            let text = std::fs::read_to_string(&p).with_context(|| p.display().to_string())?;
+            let text = crate::read_text(&p)?;
             figs.push((name, text));
         }
     }
@@ -255,7 +255,7 @@ pub fn load(input: &Path, title: &str) -> Result<crate::html::ReportData> {
         ..Default::default()
     };
     let read_rows = |p: &Path| -> Result<Vec<SummaryRow>> {
-        let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+        let text = crate::read_text(p)?;
         crate::summary::from_csv(&text).with_context(|| p.display().to_string())
     };
     if input.is_file() && input.extension().is_some_and(|e| e == "csv") {

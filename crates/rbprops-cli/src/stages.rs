@@ -62,6 +62,9 @@ pub fn modal_fit_windowed(
         .transpose()
         .context("exponential window")?;
     let (geometry, frf) = rec.require_geometry_and_frf()?;
+    if let Some(b) = opts.band_hz {
+        crate::args::check_band("--band", b, &frf.frequency_hz)?;
+    }
     let out = match window {
         None => rbprops_modal::fit_campaign(&geometry, frf, opts)?,
         Some(w) => {
@@ -70,6 +73,24 @@ pub fn modal_fit_windowed(
             out
         }
     };
+    if out.record.modes.is_empty() && !out.record.excitations.is_empty() {
+        let why: Vec<String> = out
+            .record
+            .excitations
+            .iter()
+            .filter_map(|e| e.warnings.first().map(|w| format!("{}: {w}", e.excitation)))
+            .take(3)
+            .collect();
+        anyhow::bail!(
+            "no mode identified in any of the {} excitations{}",
+            out.record.excitations.len(),
+            if why.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", why.join("; "))
+            }
+        );
+    }
     rec.push_provenance(crate::provenance("modal-fit", input_sha256))?;
     rec.set(topics::MODAL_FIT, std::slice::from_ref(&out.record));
     Ok(out)
@@ -85,6 +106,7 @@ pub fn ni_select(
     let modal: ModalFitRecord = rec
         .get_one(topics::MODAL_FIT)?
         .context("no modal_fit topic (run modal-fit first)")?;
+    crate::validate::modal_fit(&modal, geometry.channels.len())?;
     let out = rbprops_ni::select_modes(&geometry, frf, &modal, opts)?;
     rec.push_provenance(crate::provenance("ni-select", input_sha256))?;
     rec.set(topics::SELECTION, std::slice::from_ref(&out.record));
@@ -158,13 +180,18 @@ pub fn rb_solve_with(
     let selection: SelectionRecord = rec
         .get_one(topics::SELECTION)?
         .context("no selection topic (run ni-select first)")?;
+    crate::validate::modal_fit(&modal, geometry.channels.len())?;
+    crate::validate::selection(&selection, &modal)?;
+    if let Some(b) = opts.mass_line.band_hz {
+        crate::args::check_band("--mass-line-band", b, &frf.frequency_hz)?;
+    }
     let mut opts = opts.clone();
     if opts.reference.is_none() && use_truth {
         opts.reference = rec
             .get_one::<TruthRecord>(topics::TRUTH)?
             .map(|t| t.properties);
     }
-    let (out, boot) = match uncertainty {
+    let (mut out, boot) = match uncertainty {
         Uncertainty::Linearised => (
             rbprops_inertia::solve(&geometry, &modal, &selection, Some(&frf), &opts)?,
             None,
@@ -173,6 +200,25 @@ pub fn rb_solve_with(
             rbprops_uq::solve_with_bootstrap(&geometry, &modal, &selection, &frf, &opts, b)?
         }
     };
+    // A reference with a zero mass, centre of mass or inertia has no relative error:
+    // omitted (with a warning), never written as a JSON null where a number belongs.
+    let mut undefined = false;
+    for e in &mut out.estimates {
+        if let Some(r) = &e.errors {
+            if ![r.mass, r.com, r.inertia, r.sum]
+                .iter()
+                .all(|x| x.is_finite())
+            {
+                e.errors = None;
+                undefined = true;
+            }
+        }
+    }
+    if undefined {
+        out.warnings.push(
+            "the reference's mass, centre of mass (about the origin) or inertia is zero: relative errors are undefined and omitted".into(),
+        );
+    }
     rec.push_provenance(crate::provenance("rb-solve", input_sha256))?;
     rec.set::<InertiaEstimate>(topics::ESTIMATES, &out.estimates);
     Ok((out, boot))

@@ -283,7 +283,7 @@ impl Collector {
     /// Prints [`Collector::lines`] on stderr.
     pub fn print(&self, verbose: bool) {
         for l in self.lines(verbose) {
-            eprintln!("{l}");
+            crate::say!("{l}");
         }
     }
 }

@@ -327,6 +327,21 @@ fn read_frf(dir: &Path, g: &rbprops_core::Geometry) -> Result<FrfSet, FormatErro
     let name = path.display().to_string();
     let mut r = csv::Reader::from_path(&path).map_err(|e| io(&path, e))?;
     let (ne, nc) = (g.excitations.len(), g.channels.len());
+    // Each (excitation, channel) needs rows of at least 10 bytes: a geometry declaring more
+    // cells than the file can hold is refused before anything is allocated for them.
+    let size = std::fs::metadata(&path).map_err(|e| io(&path, e))?.len();
+    match ne.checked_mul(nc) {
+        Some(cells) if (cells as u64).saturating_mul(10) <= size => {}
+        _ => {
+            return Err(FormatError::record(
+                &name,
+                "FRF set",
+                format!(
+                    "the geometry declares {ne} excitations × {nc} channels, more than the {size} bytes of frf.csv can hold"
+                ),
+            ))
+        }
+    }
     let mut axis: Vec<f64> = Vec::new();
     let mut values: Vec<Vec<c64>> = vec![Vec::new(); ne * nc];
     let mut freqs: Vec<Vec<f64>> = vec![Vec::new(); ne * nc];

@@ -502,6 +502,10 @@ enum Seg {
     Index(usize),
 }
 
+/// Largest gap a column's position may leave in a list (a huge position in a header
+/// must not allocate a huge list).
+const MAX_INDEX_GAP: usize = 64;
+
 fn set_path(root: &mut Value, path: &[Seg], v: Value) -> Result<(), String> {
     let Some((first, rest)) = path.split_first() else {
         *root = v;
@@ -515,6 +519,12 @@ fn set_path(root: &mut Value, path: &[Seg], v: Value) -> Result<(), String> {
             let a = root
                 .as_array_mut()
                 .ok_or_else(|| format!("'{i}' indexes a non-array"))?;
+            if *i > a.len() + MAX_INDEX_GAP {
+                return Err(format!(
+                    "position {i} leaves a gap after {} items (positions come in order)",
+                    a.len()
+                ));
+            }
             if a.len() <= *i {
                 a.resize(i + 1, Value::Null);
             }

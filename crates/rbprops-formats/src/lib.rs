@@ -310,10 +310,15 @@ pub fn read_path(path: &Path) -> Result<RunRecord, FormatError> {
 /// Writes a run to a path atomically (temp file/dir, then rename).
 pub fn write_path(rec: &RunRecord, path: &Path) -> Result<(), FormatError> {
     match Format::from_path(path)? {
-        Format::Mcap => {
-            let bytes = mcap_file::write(rec)?;
-            atomic::write_file(path, &bytes)
-        }
+        Format::Mcap => atomic::write_file(path, &mcap_file::write(rec)?),
+        // A device or FIFO (`-o /dev/null`) cannot hold a directory: it gets the stream.
+        Format::CsvDir if is_stream(path) => atomic::write_file(path, &mcap_file::write(rec)?),
         Format::CsvDir => csv_dir::write(rec, path),
     }
+}
+
+/// True when `path` is a character device or a FIFO (written straight through, as MCAP).
+pub fn is_stream(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    std::fs::metadata(path).is_ok_and(|m| m.file_type().is_char_device() || m.file_type().is_fifo())
 }

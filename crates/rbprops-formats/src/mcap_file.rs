@@ -257,12 +257,6 @@ fn assemble_frf(
         .map_err(|e| FormatError::other(file, e))?
         .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
     wire::check_ids_match(&axis, &g, file)?;
-    let mut frf = FrfSet::zeros(
-        axis.quantity,
-        axis.frequency_hz.clone(),
-        axis.excitations.len(),
-        axis.channels.len(),
-    );
     if msgs.len() != axis.excitations.len() {
         return Err(FormatError::record(
             file,
@@ -274,7 +268,37 @@ fn assemble_frf(
             ),
         ));
     }
-    let n = frf.n_channels * frf.n_lines();
+    // The declared size (channels × lines per excitation) is checked against the base64
+    // text actually present before the set is allocated: a small file declaring a huge
+    // set is an error, not an allocation failure.
+    let n = axis
+        .channels
+        .len()
+        .checked_mul(axis.frequency_hz.len())
+        .filter(|n| n.checked_mul(16 * axis.excitations.len().max(1)).is_some());
+    for (k, m) in msgs.iter().enumerate() {
+        let want = n.map(|n| (n * 16).div_ceil(3) * 4);
+        if want != Some(m.values_f64le.len()) {
+            return Err(FormatError::record(
+                file,
+                format!("{} message {k}", topics::FRF),
+                format!(
+                    "{} base64 characters of values, but {} channels × {} lines need {}",
+                    m.values_f64le.len(),
+                    axis.channels.len(),
+                    axis.frequency_hz.len(),
+                    want.map_or("more than addressable".into(), |w| w.to_string())
+                ),
+            ));
+        }
+    }
+    let n = n.unwrap_or(0);
+    let mut frf = FrfSet::zeros(
+        axis.quantity,
+        axis.frequency_hz.clone(),
+        axis.excitations.len(),
+        axis.channels.len(),
+    );
     for (k, m) in msgs.iter().enumerate() {
         if m.excitation != axis.excitations[k] {
             return Err(FormatError::record(
@@ -302,8 +326,15 @@ fn assemble_frf(
 
 /// Largest decompressed chunk accepted (a corrupt size field must not exhaust memory).
 const MAX_CHUNK_BYTES: u64 = 1 << 32;
+/// Largest ratio of a chunk's declared uncompressed size to its record's length (plus
+/// [`CHUNK_SLACK`]): rbprops' own chunks compress JSON and base64 values about 2–20×, so
+/// a declared size far beyond that is a corrupt or hostile field, refused before the
+/// reader allocates it.
+const MAX_CHUNK_RATIO: u64 = 256;
+/// Uncompressed bytes any chunk may declare whatever its compressed length.
+const CHUNK_SLACK: u64 = 8 << 20;
 
-const MAGIC: &[u8] = b"\x89MCAP0\r\n";
+pub(crate) const MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 /// Opcodes of the MCAP records the integrity check looks at.
 mod op {
@@ -462,7 +493,10 @@ fn layout(bytes: &[u8]) -> Result<Layout, String> {
         }
         if op == op::CHUNK {
             let unc = u64_at(body + 16).ok_or_else(|| format!("chunk at byte {pos}: truncated"))?;
-            if unc > MAX_CHUNK_BYTES {
+            let compressed = len.saturating_sub(40);
+            if unc > MAX_CHUNK_BYTES
+                || unc > CHUNK_SLACK + compressed.saturating_mul(MAX_CHUNK_RATIO)
+            {
                 return Err(format!(
                     "chunk at byte {pos}: uncompressed size {unc} is implausible"
                 ));

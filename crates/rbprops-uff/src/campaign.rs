@@ -1296,18 +1296,26 @@ impl<'a> FrfCollector<'a> {
         frequency_hz: Vec<f64>,
     ) -> Result<(FrfSet, Vec<DatasetLocation>), UffError> {
         let (ne, nc) = (self.excitations.len(), self.channels.len());
-        let mut frf = FrfSet::zeros(quantity, frequency_hz, ne, nc);
-        let mut locations = Vec::with_capacity(ne * nc);
+        // Every cell is checked before the set is allocated: a few datasets naming many
+        // excitations and channels must not allocate excitations × channels × lines.
         for (ei, e) in self.excitations.iter().enumerate() {
             for (ci, c) in self.channels.iter().enumerate() {
-                let Some((values, at)) = self.cells.remove(&(ei, ci)) else {
+                if !self.cells.contains_key(&(ei, ci)) {
                     return Err(campaign_error(self.file, format!(
                         "no FRF for channel '{}' (node {} direction {}) and excitation '{}' (node {} direction {}, set-up {}): every excitation needs every channel",
                         c.id, c.node, c.direction, e.id, e.node, e.direction, e.setup
                     )));
-                };
-                frf.frf_mut(ei, ci).copy_from_slice(&values);
-                locations.push(at);
+                }
+            }
+        }
+        let mut frf = FrfSet::zeros(quantity, frequency_hz, ne, nc);
+        let mut locations = Vec::with_capacity(ne * nc);
+        for ei in 0..ne {
+            for ci in 0..nc {
+                if let Some((values, at)) = self.cells.remove(&(ei, ci)) {
+                    frf.frf_mut(ei, ci).copy_from_slice(&values);
+                    locations.push(at);
+                }
             }
         }
         Ok((frf, locations))

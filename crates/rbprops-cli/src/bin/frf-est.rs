@@ -84,14 +84,18 @@ struct Args {
     /// List every note on stderr (default: one summary line).
     #[arg(short, long)]
     verbose: bool,
+    /// Write over an output path that is not a previous output of ours (never an input).
+    #[arg(long)]
+    force: bool,
 }
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("frf-est", || {
         let args = Args::parse();
+        rbprops_formats::atomic::set_force(args.force);
         let opts = options(&args)?;
         let name = args.input.display().to_string();
-        let bytes = std::fs::read(&args.input).with_context(|| name.clone())?;
+        let bytes = rbprops_cli::read_file(&args.input)?;
         let data = rbprops_uff::parse(&bytes, &name)?;
         if !rbprops_uff::timehist::has_time_histories(&data) {
             bail!(
@@ -110,7 +114,7 @@ fn main() -> std::process::ExitCode {
         let mut notes = rbprops_cli::warnings::Collector::default();
         notes.extend("frf-est", &est.warnings);
         notes.print(args.verbose);
-        eprintln!("{}", est.summary);
+        rbprops_cli::say!("{}", est.summary);
         if let Some(dir) = &args.plot {
             let (geometry, frf) = rec.require_geometry_and_frf()?;
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::frf_magnitudes(&geometry, frf)?)?;

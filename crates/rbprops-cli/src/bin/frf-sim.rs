@@ -1,6 +1,6 @@
 //! `frf-sim`: synthetic FRFs of a softly suspended rigid body, from a campaign spec.
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use clap::Parser;
 use std::path::PathBuf;
 
@@ -32,22 +32,24 @@ struct Args {
     /// List every note on stderr (default: one summary line).
     #[arg(short, long)]
     verbose: bool,
+    /// Replace an output path that is not a previous rbprops output (never an input).
+    #[arg(long)]
+    force: bool,
 }
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("frf-sim", || {
         let args = Args::parse();
+        rbprops_formats::atomic::set_force(args.force);
         if args.list_examples {
+            let mut names = String::new();
             for n in rbprops_sim::example_names() {
-                println!("{n}");
+                names += &format!("{n}\n");
             }
-            return Ok(());
+            return rbprops_cli::out(&names);
         }
         let (text, source) = match (&args.spec, &args.example) {
-            (Some(p), _) => (
-                std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
-                p.display().to_string(),
-            ),
+            (Some(p), _) => (rbprops_cli::read_text(p)?, p.display().to_string()),
             (None, Some(name)) => {
                 let Some(t) = rbprops_sim::example(name) else {
                     bail!(
@@ -62,8 +64,7 @@ fn main() -> std::process::ExitCode {
             }
         };
         if args.print_spec {
-            print!("{text}");
-            return Ok(());
+            return rbprops_cli::out(&text);
         }
         let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
         let mut notes = rbprops_cli::warnings::Collector::default();

@@ -47,13 +47,13 @@ struct Args {
     #[arg(long, value_enum, default_value = "lscf")]
     method: MethodArg,
     /// Band FMIN:FMAX in Hz (default: the whole axis).
-    #[arg(long)]
-    band: Option<String>,
+    #[arg(long, value_parser = rbprops_cli::args::band)]
+    band: Option<(f64, f64)>,
     /// Number of modes in the band (default: from the stabilisation diagram).
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::modes)]
     modes: Option<usize>,
     /// Highest model order of the stabilisation diagram.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::model_order)]
     max_order: Option<usize>,
     #[arg(long, value_enum, default_value = "excitation")]
     poles: PolesArg,
@@ -70,14 +70,14 @@ struct Args {
     no_residuals: bool,
     /// Time constant τ (s) of an exponential window e^{−t/τ} on the responses: the poles are
     /// corrected for its damping (overrides the recording's processing topic).
-    #[arg(long, value_name = "TAU")]
+    #[arg(long, value_name = "TAU", value_parser = rbprops_cli::args::seconds)]
     exp_window: Option<f64>,
     /// Write stabilisation diagrams and measured-vs-synthesised FRF overlays here.
     #[arg(long)]
     plot: Option<PathBuf>,
     /// In the --plot overlays, shade the lines whose measured coherence γ² is below this
     /// (when the recording has coherence).
-    #[arg(long, value_name = "GAMMA2", default_value_t = rbprops_cli::plots::LOW_COHERENCE)]
+    #[arg(long, value_name = "GAMMA2", value_parser = rbprops_cli::args::fraction, default_value_t = rbprops_cli::plots::LOW_COHERENCE)]
     low_coherence: f64,
 }
 
@@ -103,9 +103,7 @@ fn main() -> std::process::ExitCode {
             auto_poly_reference: args.auto_poly,
             ..Default::default()
         };
-        if let Some(b) = &args.band {
-            opts.band_hz = Some(rbprops_cli::parse_band(b)?);
-        }
+        opts.band_hz = args.band;
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }

@@ -51,37 +51,39 @@ struct Args {
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Weighed mass (kg): fixes the mass, which makes a global gain error observable.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::mass_kg)]
     weighed_mass: Option<f64>,
     /// Known sensor mass: `POINT=KG` (repeatable) or `KG` for every sensor point.
     #[arg(long)]
     sensor_mass: Vec<String>,
     /// Known noise, relative part (fraction of |H|), instead of estimating it.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::non_negative)]
     noise_relative: Option<f64>,
     /// Known noise, absolute floor (FRF units).
-    #[arg(long, requires = "noise_relative")]
+    #[arg(long, requires = "noise_relative", value_parser = rbprops_cli::args::non_negative)]
     noise_floor: Option<f64>,
-    /// Family-wise false-positive rate per selection step.
-    #[arg(long, default_value_t = 0.01)]
+    /// Family-wise false-positive rate per selection step (0 < α ≤ 0.5).
+    #[arg(long, default_value_t = 0.01, value_parser = rbprops_cli::args::alpha)]
     alpha: f64,
     /// Safety cap on the selection steps (one effect each); the selection ends when
     /// nothing significant is left, and reaching the cap is reported.
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, value_parser = rbprops_cli::args::steps)]
     max_effects: usize,
     /// Screen only these effect ids (comma-separated).
     #[arg(long, value_delimiter = ',')]
     only: Vec<String>,
+    /// Replace an output path that is not a previous rbprops output (never an input).
+    #[arg(long)]
+    force: bool,
 }
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("model-check", || {
         let args = Args::parse();
+        rbprops_formats::atomic::set_force(args.force);
+        rbprops_cli::args::check_effect_ids(&args.only)?;
         let (text, source) = match (&args.spec, &args.example) {
-            (Some(p), _) => (
-                std::fs::read_to_string(p).with_context(|| p.display().to_string())?,
-                p.display().to_string(),
-            ),
+            (Some(p), _) => (rbprops_cli::read_text(p)?, p.display().to_string()),
             (None, Some(name)) => match rbprops_sim::example(name) {
                 Some(t) => (t.to_string(), format!("example '{name}'")),
                 None => bail!(
@@ -126,7 +128,7 @@ fn main() -> std::process::ExitCode {
         if args.checks.verbose || std::io::stderr().is_terminal() {
             let t0 = std::time::Instant::now();
             opts.progress = Progress::new(move |line| {
-                eprintln!("model-check [{:6.1} s] {line}", t0.elapsed().as_secs_f64())
+                rbprops_cli::say!("model-check [{:6.1} s] {line}", t0.elapsed().as_secs_f64())
             });
         }
         if let Some(a) = args.noise_relative {
@@ -167,8 +169,10 @@ fn main() -> std::process::ExitCode {
             },
         );
         match format {
-            OutFormat::Text => print!("{}", summary(&out)),
-            OutFormat::Json => println!("{}", serde_json::to_string_pretty(&out.report)?),
+            OutFormat::Text => rbprops_cli::out(&summary(&out))?,
+            OutFormat::Json => {
+                rbprops_cli::out(&format!("{}\n", serde_json::to_string_pretty(&out.report)?))?
+            }
             OutFormat::Mcap => rbprops_cli::write_output(&rec, None)?,
         }
         Ok(())

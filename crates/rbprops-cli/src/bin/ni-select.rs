@@ -3,7 +3,6 @@
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
 use rbprops_ni::{Criterion, ManualSet, SelectOptions};
-use std::io::Write;
 use std::path::PathBuf;
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -33,7 +32,7 @@ struct Args {
     #[arg(long)]
     force_mixed_setups: bool,
     /// Least MAC for two estimates to be the same mode.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::fraction)]
     mac_threshold: Option<f64>,
     /// Print the per-excitation summary ("F0x excites mostly modes 1, 4, 6") on stderr.
     #[arg(long)]
@@ -45,7 +44,7 @@ struct Args {
 
 fn manual(s: &str) -> Result<ManualSet> {
     if let Some(path) = s.strip_prefix('@') {
-        let text = std::fs::read_to_string(path).with_context(|| path.to_string())?;
+        let text = rbprops_cli::read_text(std::path::Path::new(path))?;
         let r = if path.ends_with(".csv") {
             ManualSet::from_csv(&text)
         } else {
@@ -98,17 +97,15 @@ fn main() -> std::process::ExitCode {
         }
         warnings.print(args.io.checks.verbose);
         if args.summary {
-            let mut err = std::io::stderr().lock();
             for s in &out.excitation_summaries {
-                writeln!(
-                    err,
+                rbprops_cli::say!(
                     "{} (set-up {}): excites modes {:?}, mostly {:?}; not {:?}",
                     s.excitation,
                     s.setup,
                     s.modes_excited,
                     s.modes_mostly_excited,
                     s.modes_not_excited
-                )?;
+                );
             }
         }
         if let Some(dir) = &args.plot {

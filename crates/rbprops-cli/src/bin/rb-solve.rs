@@ -50,24 +50,24 @@ struct Args {
     #[arg(long)]
     no_reference: bool,
     /// Known mass (kg), imposed as side information.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::mass_kg)]
     known_mass: Option<f64>,
     /// Nominal properties (JSON like --reference): regularise only what the data leave undetermined.
     #[arg(long)]
     nominal: Option<PathBuf>,
     /// Mass-line band FMIN:FMAX in Hz (default: automatic).
-    #[arg(long)]
-    mass_line_band: Option<String>,
+    #[arg(long, value_parser = rbprops_cli::args::band)]
+    mass_line_band: Option<(f64, f64)>,
     /// How the modal estimators' standard errors are obtained (the mass line always
     /// propagates its own). The FRF-level bootstrap is the calibrated one (see rbprops-uq
     /// and docs/results.md); linearised propagation is faster but under-covers J.
     #[arg(long, value_enum, default_value = "bootstrap")]
     uncertainty: UncertaintyChoice,
     /// Bootstrap replicates (with --uncertainty bootstrap; the seed is --seed).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = rbprops_cli::args::replicates)]
     bootstrap: usize,
     /// Monte Carlo draws for the linearised uncertainty (0 = linearised propagation).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = rbprops_cli::args::draws)]
     monte_carlo: usize,
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -77,7 +77,7 @@ struct Args {
 }
 
 fn read_props(p: &PathBuf) -> Result<PropertiesRecord> {
-    let text = std::fs::read_to_string(p).with_context(|| p.display().to_string())?;
+    let text = rbprops_cli::read_text(p)?;
     serde_json::from_str(&text).with_context(|| {
         format!(
             "{}: expected JSON {{mass_kg, com_m, inertia_cm_kg_m2}}",
@@ -86,18 +86,21 @@ fn read_props(p: &PathBuf) -> Result<PropertiesRecord> {
     })
 }
 
-fn origin(s: &str) -> OriginChoice {
+fn origin(s: &str) -> Result<OriginChoice> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() == 3 {
         if let (Ok(x), Ok(y), Ok(z)) = (
-            parts[0].trim().parse(),
-            parts[1].trim().parse(),
-            parts[2].trim().parse(),
+            parts[0].trim().parse::<f64>(),
+            parts[1].trim().parse::<f64>(),
+            parts[2].trim().parse::<f64>(),
         ) {
-            return OriginChoice::Point([x, y, z]);
+            if !(x.is_finite() && y.is_finite() && z.is_finite()) {
+                bail!("--origin {s}: coordinates must be finite (x,y,z in metres)");
+            }
+            return Ok(OriginChoice::Point([x, y, z]));
         }
     }
-    OriginChoice::Channel(s.to_string())
+    Ok(OriginChoice::Channel(s.to_string()))
 }
 
 fn main() -> std::process::ExitCode {
@@ -118,7 +121,7 @@ fn main() -> std::process::ExitCode {
                 .collect();
         }
         if let Some(o) = &args.origin {
-            opts.origin = origin(o);
+            opts.origin = origin(o)?;
         }
         if let Some(p) = &args.reference {
             opts.reference = Some(read_props(p)?);
@@ -127,9 +130,7 @@ fn main() -> std::process::ExitCode {
         if let Some(p) = &args.nominal {
             opts.side_information.nominal = Some(read_props(p)?);
         }
-        if let Some(b) = &args.mass_line_band {
-            opts.mass_line.band_hz = Some(rbprops_cli::parse_band(b)?);
-        }
+        opts.mass_line.band_hz = args.mass_line_band;
         opts.monte_carlo_samples = args.monte_carlo;
         opts.seed = args.seed;
         let uncertainty = match args.uncertainty {
@@ -170,11 +171,11 @@ fn main() -> std::process::ExitCode {
             rbprops_cli::write_output(&rec, Some(p))?;
         }
         match format {
-            OutFormat::Table => print!("{}", rbprops_cli::table::estimates(&out.estimates)),
-            OutFormat::Json => println!(
-                "{}",
+            OutFormat::Table => rbprops_cli::out(&rbprops_cli::table::estimates(&out.estimates))?,
+            OutFormat::Json => rbprops_cli::out(&format!(
+                "{}\n",
                 serde_json::to_string_pretty::<Vec<InertiaEstimate>>(&out.estimates)?
-            ),
+            ))?,
             OutFormat::Mcap => rbprops_cli::write_output(&rec, None)?,
         }
         Ok(())

@@ -10,6 +10,10 @@ use std::path::PathBuf;
 struct Args {
     #[command(subcommand)]
     command: Command,
+    /// Replace an output path that is not a previous rbprops output (a non-empty
+    /// directory that is not a CSV run, a file of another kind). Never an input.
+    #[arg(long, global = true)]
+    force: bool,
 }
 
 #[derive(Subcommand)]
@@ -106,7 +110,15 @@ enum Command {
 }
 
 fn main() -> std::process::ExitCode {
-    rbprops_cli::run("rbprops", || match Args::parse().command {
+    rbprops_cli::run("rbprops", || {
+        let args = Args::parse();
+        rbprops_formats::atomic::set_force(args.force);
+        command(args.command)
+    })
+}
+
+fn command(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Convert {
             input,
             output,
@@ -122,7 +134,7 @@ fn main() -> std::process::ExitCode {
                     rbprops_cli::write_text(t, &rbprops_uff::channel_map_template(&uff))?;
                 }
                 if list {
-                    println!("{}", rbprops_uff::inventory(&uff));
+                    rbprops_cli::out(&format!("{}\n", rbprops_uff::inventory(&uff)))?;
                 }
                 return Ok(());
             }
@@ -167,14 +179,14 @@ fn main() -> std::process::ExitCode {
             let res = rbprops_cli::campaign::run_all(&items, &dir, &opts, runs.as_deref(), &pb);
             pb.finish_and_clear();
             for l in res.warnings.lines(verbose) {
-                eprintln!("rbprops campaign: {l}");
+                rbprops_cli::say!("rbprops campaign: {l}");
             }
             let csv = rbprops_cli::summary::to_csv(&res.rows)?;
             match &output {
                 Some(p) => rbprops_cli::write_text(p, &csv)?,
-                None => print!("{csv}"),
+                None => rbprops_cli::out(&csv)?,
             }
-            eprintln!(
+            rbprops_cli::say!(
                 "rbprops: campaign: {} items, {} rows, {} failed{}",
                 items.len(),
                 res.rows.len(),
@@ -208,10 +220,7 @@ fn main() -> std::process::ExitCode {
             let text = rbprops_cli::init_spec::spec_text(&geometry, frf, &inp.name, &name)?;
             match &output {
                 Some(p) => rbprops_cli::write_text(p, &text),
-                None => {
-                    print!("{text}");
-                    Ok(())
-                }
+                None => rbprops_cli::out(&text),
             }
         }
         Command::Summary {
@@ -233,8 +242,7 @@ fn main() -> std::process::ExitCode {
                         .with_context(|| r.display().to_string())?,
                 );
             }
-            print!("{}", rbprops_cli::summary::to_csv(&rows)?);
-            Ok(())
+            rbprops_cli::out(&rbprops_cli::summary::to_csv(&rows)?)
         }
         Command::Report {
             summaries,
@@ -251,8 +259,7 @@ fn main() -> std::process::ExitCode {
                 };
                 let mut data = rbprops_cli::report::load(input, &title)?;
                 for f in &figure {
-                    let svg =
-                        std::fs::read_to_string(f).with_context(|| f.display().to_string())?;
+                    let svg = rbprops_cli::read_text(f)?;
                     let name = f
                         .file_name()
                         .map(|n| n.to_string_lossy().into_owned())
@@ -278,5 +285,5 @@ fn main() -> std::process::ExitCode {
             };
             rbprops_cli::report::write(&dir, &md, &title, &rows, &figure)
         }
-    })
+    }
 }

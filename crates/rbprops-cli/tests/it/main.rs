@@ -5,6 +5,7 @@ mod campaign;
 mod coherence_weight;
 mod common;
 mod exp_window;
+mod faults;
 mod frf_est;
 mod frf_sim;
 mod golden;
