@@ -262,18 +262,18 @@ pub(super) fn unexplained(
     screening: &[ScreenEntry],
     chi2_nu: f64,
 ) -> Unexplained {
-    let mut groups: Vec<(&str, &crate::locate::ResidualTotal)> = map
+    // The groups' labels name their kind ("sensor 3", "excitation force1", "band …").
+    let mut groups: Vec<&crate::locate::ResidualTotal> = map
         .per_sensor
         .iter()
-        .map(|g| ("sensor", g))
-        .chain(map.per_excitation.iter().map(|g| ("excitation", g)))
-        .chain(map.per_band.iter().map(|g| ("band", g)))
-        .filter(|(_, g)| g.z > GROUP_Z)
+        .chain(&map.per_excitation)
+        .chain(&map.per_band)
+        .filter(|g| g.z > GROUP_Z)
         .collect();
-    groups.sort_by(|a, b| b.1.z.total_cmp(&a.1.z));
+    groups.sort_by(|a, b| b.z.total_cmp(&a.z));
     let groups: Vec<String> = groups
         .iter()
-        .map(|(kind, g)| format!("{kind} {} (χ²/n {:.2}, z {:.1})", g.group, g.chi2_nu, g.z))
+        .map(|g| format!("{} (χ²/n {:.2}, z {:.1})", g.group, g.chi2_nu, g.z))
         .collect();
     let (mut chi2, mut non_rigid, mut quad) = (0.0, 0.0, 0.0);
     for c in &map.cells {

@@ -425,7 +425,8 @@ pub fn axial_spring(k: &Mat3, up: &Vec3) -> Option<(Vec3, f64)> {
 /// 60° of `up` becomes a cord from its attachment along its axis, of length `length(j)`
 /// (j its index among the cords), its tension `T` from the static balance of the body
 /// (mass matrix `mass`) in the spec's pose and its unstretched length `ℓ − T/k`; the
-/// other springs stay springs. The balance is the elastic solution `T = K_d Aᵀ w` of
+/// other springs stay springs. A gravity direction `up` other than the spec's turns the
+/// cords with it (the body rests tilted from the spec's drawing). The balance is the elastic solution `T = K_d Aᵀ w` of
 /// `A T = W` (A the cords' unit wrenches, W the weight's, K_d their stiffnesses): the
 /// small rigid displacement `w` that loads them, least squares where the spec's pose is
 /// not quite an equilibrium (the hanging equilibrium then moves the body there). `None`
@@ -441,14 +442,22 @@ pub fn splayed_spring_cords(
     if !spec.setups[i].cords.is_empty() {
         return None;
     }
+    // The springs are classified against the spec's vertical; a gravity direction `up`
+    // tilted from it is the body resting tilted from the spec's drawing, so the cords,
+    // anchored in space, turn with it in the body's axes (rotation from the spec's up to
+    // `up`).
+    let spec_up = spec.up_vector();
+    let turn = nalgebra::Rotation3::rotation_between(&spec_up, up)
+        .map(|r| r.into_inner())
+        .unwrap_or_else(Mat3::identity);
     let mut cords: Vec<(Vec3, Vec3, f64)> = Vec::new();
     let mut springs = Vec::new();
     let mut splayed = false;
     for s in spec.plain_springs(i) {
-        match axial_spring(&s.stiffness, up) {
-            Some((e, k)) if e.dot(up) > 0.5 => {
-                splayed |= e.dot(up) < SPLAY_MIN_RAD.cos();
-                cords.push((s.at, e, k));
+        match axial_spring(&s.stiffness, &spec_up) {
+            Some((e, k)) if e.dot(&spec_up) > 0.5 => {
+                splayed |= e.dot(&spec_up) < SPLAY_MIN_RAD.cos();
+                cords.push((s.at, turn * e, k));
             }
             _ => springs.push(s),
         }
