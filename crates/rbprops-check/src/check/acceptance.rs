@@ -178,7 +178,11 @@ impl<'p, 'a> Selection<'p, 'a> {
         // would reject (a 30° misorientation, an elastic mode below the suspension
         // modes) is not that physics, whatever its statistics; it is a catalogue effect
         // bent to fill a residual it does not explain.
-        for q in p.plausibility(&f.theta, c, &phi).iter().filter(|q| !holds(q)) {
+        for q in p
+            .plausibility(&f.theta, c, &phi)
+            .iter()
+            .filter(|q| !holds(q))
+        {
             why.push(implausible_text(q));
         }
         // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).

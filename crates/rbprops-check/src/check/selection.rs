@@ -522,7 +522,12 @@ impl<'p, 'a> Selection<'p, 'a> {
                         .map(|(_, a)| a.clone())
                         .collect();
                     let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
-                    p.fit("final re-test", &theta_wo, &without, self.options.max_iterations)
+                    p.fit(
+                        "final re-test",
+                        &theta_wo,
+                        &without,
+                        self.options.max_iterations,
+                    )
                 })
                 .collect();
             // (index, ΔBIC of keeping it, why it fails)
@@ -577,7 +582,12 @@ impl<'p, 'a> Selection<'p, 'a> {
                 .map(|(_, a)| a.clone())
                 .collect();
             let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
-            self.cur = p.fit("final re-test", &theta_wo, &without, self.options.max_iterations)?;
+            self.cur = p.fit(
+                "final re-test",
+                &theta_wo,
+                &without,
+                self.options.max_iterations,
+            )?;
             self.excluded.push(self.active[k].c);
             self.accepted.remove(k);
             self.active = without;

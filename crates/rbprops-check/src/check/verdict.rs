@@ -286,7 +286,10 @@ pub(super) fn unexplained(
     for e in screening {
         if let Some(i) = e.decision.find(IMPLAUSIBLE) {
             let text = format!("{}: {}", e.id, e.decision[i + IMPLAUSIBLE.len()..].trim());
-            if !implausible.iter().any(|t| t.starts_with(&format!("{}:", e.id))) {
+            if !implausible
+                .iter()
+                .any(|t| t.starts_with(&format!("{}:", e.id)))
+            {
                 implausible.push(text);
             }
         }
@@ -294,7 +297,12 @@ pub(super) fn unexplained(
     let place = if groups.is_empty() {
         "spread over the channels, excitations and bands (no group stands out)".to_string()
     } else {
-        groups.iter().take(4).cloned().collect::<Vec<_>>().join(", ")
+        groups
+            .iter()
+            .take(4)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     let summary = format!(
         "not explained by a catalogue effect with plausible values: χ²/ν {chi2_nu:.3} remains, in {place}; {:.0} % of it not rigid-body motion of the sensors, {:.0} % in quadrature with the model{}",
@@ -398,8 +406,8 @@ impl<'p, 'a> Finish<'p, 'a> {
         let chi2_nu_after = kappa * cur.chi2 / nu_after;
         let noise_floor_reached =
             at_noise_floor(chi2_nu_after, band, &noise_model, &residuals_after.flagged);
-        let unexplained =
-            (!noise_floor_reached).then(|| unexplained(&residuals_after, &screening, chi2_nu_after));
+        let unexplained = (!noise_floor_reached)
+            .then(|| unexplained(&residuals_after, &screening, chi2_nu_after));
         let mut report = ModelCheckReport {
             campaign: self.spec.name.clone(),
             verdict: String::new(),

@@ -55,7 +55,11 @@ fn null_study_100_replicates() {
         println!("  {c}");
     }
     assert!(clean >= 95, "false claims in {} of 100", 100 - clean);
-    assert!(at_floor >= 95, "not at the noise floor in {} of 100", 100 - at_floor);
+    assert!(
+        at_floor >= 95,
+        "not at the noise floor in {} of 100",
+        100 - at_floor
+    );
 }
 
 /// Test Case II, 3 excitations × 9 channels × 1000 lines, concealed gravity stiffness,
@@ -84,7 +88,11 @@ fn test_case_2_timing() {
     );
     let named: Vec<&str> = r.accepted.iter().map(|a| a.id.as_str()).collect();
     assert_eq!(named, ["gravity_stiffness"], "{}", r.verdict);
-    assert!(r.ambiguous.is_empty() && r.noise_floor_reached, "{}", r.verdict);
+    assert!(
+        r.ambiguous.is_empty() && r.noise_floor_reached,
+        "{}",
+        r.verdict
+    );
     if !cfg!(debug_assertions) {
         assert!(dt < 30.0, "{dt} s");
     }

@@ -546,13 +546,17 @@ fn per_spring_zeros(spec: &CampaignSpec) -> toml::Value {
 /// This module's effects in the physics catalogue ([`super::registry`]).
 /// Plausible: loss factors of at most 0.3 per spring. Metal springs and bungee cords lose
 /// a few percent per cycle (η 0.01–0.1), the most dissipative rubber mounts about 0.2–0.3.
-fn plausible_hysteretic(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_hysteretic(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: HystereticDamping = super::params(entry)?;
-    Ok(e
-        .loss_factors
+    Ok(e.loss_factors
         .iter()
         .enumerate()
-        .map(|(i, eta)| super::Plausible::new(format!("spring {i}: loss factor"), "1", *eta, [0.0, 0.3]))
+        .map(|(i, eta)| {
+            super::Plausible::new(format!("spring {i}: loss factor"), "1", *eta, [0.0, 0.3])
+        })
         .collect())
 }
 

@@ -146,7 +146,10 @@ impl Effect for ElasticMode {
 /// ratio of at most 10 %. A rigid-body test is set up so that the body's own modes lie above
 /// its suspension modes; a metal structure's modes are damped 0.1–5 %, a 10 % mode is a
 /// mount's, not the body's.
-fn plausible_elastic_mode(entry: &crate::spec::EffectSpec, spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_elastic_mode(
+    entry: &crate::spec::EffectSpec,
+    spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: ElasticMode = super::params(entry)?;
     let top = highest_rigid_mode_hz(spec);
     Ok(vec![
@@ -162,7 +165,10 @@ fn highest_rigid_mode_hz(spec: &CampaignSpec) -> f64 {
     let Some(ch) = nalgebra::Cholesky::new(m) else {
         return 0.0;
     };
-    let l_inv = ch.l().try_inverse().unwrap_or_else(rbprops_core::Mat6::zeros);
+    let l_inv = ch
+        .l()
+        .try_inverse()
+        .unwrap_or_else(rbprops_core::Mat6::zeros);
     (0..spec.setups.len())
         .map(|i| {
             let k = spec.setup_stiffness(i);

@@ -179,7 +179,10 @@ impl Effect for GlobalGain {
 /// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
 /// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
 /// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
-fn plausible_channel_gain(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_channel_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: ChannelGain = super::params(entry)?;
     Ok(gains_pct("channel", &e.gains))
 }
@@ -187,7 +190,10 @@ fn plausible_channel_gain(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec)
 /// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
 /// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
 /// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
-fn plausible_excitation_gain(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_excitation_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: ExcitationGain = super::params(entry)?;
     Ok(gains_pct("excitation", &e.gains))
 }
@@ -195,18 +201,29 @@ fn plausible_excitation_gain(entry: &crate::spec::EffectSpec, _spec: &CampaignSp
 /// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
 /// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
 /// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
-fn plausible_global_gain(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_global_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: GlobalGain = super::params(entry)?;
     Ok(vec![gain_pct("all FRFs".into(), e.gain)])
 }
 
 /// A gain as a percent deviation from 1 with the range of [`plausible_channel_gain`].
 fn gain_pct(what: String, g: f64) -> super::Plausible {
-    super::Plausible::new(format!("{what}: gain"), "%", 100.0 * (g - 1.0), [-20.0, 25.0])
+    super::Plausible::new(
+        format!("{what}: gain"),
+        "%",
+        100.0 * (g - 1.0),
+        [-20.0, 25.0],
+    )
 }
 
 fn gains_pct(what: &str, gains: &BTreeMap<String, f64>) -> Vec<super::Plausible> {
-    gains.iter().map(|(k, g)| gain_pct(format!("{what} {k}"), *g)).collect()
+    gains
+        .iter()
+        .map(|(k, g)| gain_pct(format!("{what} {k}"), *g))
+        .collect()
 }
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[

@@ -690,10 +690,12 @@ fn parse_gravity_stiffness(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Eff
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
 /// Plausible: cords 5 cm to 10 m long (a laboratory's ceiling).
-fn plausible_gravity(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_gravity(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: GravityStiffness = super::params(entry)?;
-    Ok(e
-        .cord_length_m
+    Ok(e.cord_length_m
         .iter()
         .chain(&e.unstretched_length_m)
         .enumerate()

@@ -226,15 +226,25 @@ impl Effect for AddedMass {
 /// This module's effects in the physics catalogue ([`super::registry`]).
 /// Plausible: 0–200 g per sensor with its cable and mounting (triaxial accelerometers
 /// weigh 1–50 g, a mounting block and cable a few tens more).
-fn plausible_sensor_mass(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_sensor_mass(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: SensorMass = super::params(entry)?;
     let mut v: Vec<super::Plausible> = e
         .masses_kg
         .iter()
-        .map(|(k, m)| super::Plausible::new(format!("sensor {k}: mass"), "g", 1e3 * m, [0.0, 200.0]))
+        .map(|(k, m)| {
+            super::Plausible::new(format!("sensor {k}: mass"), "g", 1e3 * m, [0.0, 200.0])
+        })
         .collect();
     if let Some(m) = e.mass_kg {
-        v.push(super::Plausible::new("every sensor: mass", "g", 1e3 * m, [0.0, 200.0]));
+        v.push(super::Plausible::new(
+            "every sensor: mass",
+            "g",
+            1e3 * m,
+            [0.0, 200.0],
+        ));
     }
     Ok(v)
 }
@@ -244,7 +254,10 @@ fn plausible_sensor_mass(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) 
 /// volume, well under 1 % of a metal body's mass; a flat face moving normal to itself
 /// entrains about ρ_air times the cube of its size, a few times more; 5 % also covers
 /// light hollow bodies in air.
-fn plausible_added_mass(entry: &crate::spec::EffectSpec, spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_added_mass(
+    entry: &crate::spec::EffectSpec,
+    spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: AddedMass = super::params(entry)?;
     let a = rbprops_core::Mat3::from_fn(|i, j| e.translational_kg[i][j]);
     let largest = a.symmetric_eigenvalues().abs().max();

@@ -303,7 +303,9 @@ pub(crate) fn angles_deg(
 ) -> Vec<Plausible> {
     map.iter()
         .map(|(k, v)| {
-            let a = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().to_degrees();
+            let a = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+                .sqrt()
+                .to_degrees();
             Plausible::new(format!("{what} {k}: angle"), "deg", a, [0.0, max_deg])
         })
         .collect()

@@ -381,12 +381,21 @@ const STINGER_NEUTRAL: super::NeutralForm = super::NeutralForm::Table(|_, g| {
 /// This module's effects in the physics catalogue ([`super::registry`]).
 /// Plausible: the suspension's stiffness drifting by at most 30 % between runs (rubber
 /// stiffens by a few percent per 10 K; cords creep by a few percent).
-fn plausible_drift(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_drift(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: SuspensionDrift = super::params(entry)?;
-    Ok(e
-        .stiffness_factors
+    Ok(e.stiffness_factors
         .iter()
-        .map(|(k, f)| super::Plausible::new(format!("excitation {k}: stiffness"), "%", 100.0 * (f - 1.0), [-30.0, 30.0]))
+        .map(|(k, f)| {
+            super::Plausible::new(
+                format!("excitation {k}: stiffness"),
+                "%",
+                100.0 * (f - 1.0),
+                [-30.0, 30.0],
+            )
+        })
         .collect())
 }
 

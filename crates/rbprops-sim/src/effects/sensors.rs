@@ -274,28 +274,49 @@ impl Effect for ChannelDelay {
 /// This module's effects in the physics catalogue ([`super::registry`]).
 /// Plausible: AC-coupling corners of at most 5 Hz (IEPE accelerometers and AC-coupled
 /// inputs have corners of 0.1–3 Hz).
-fn plausible_highpass(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_highpass(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: TransducerHighpass = super::params(entry)?;
     let mut v: Vec<super::Plausible> = e
         .time_constants_s
         .iter()
-        .map(|(k, t)| super::Plausible::new(format!("sensor {k}: corner"), "Hz", 1.0 / (std::f64::consts::TAU * t), [0.0, 5.0]))
+        .map(|(k, t)| {
+            super::Plausible::new(
+                format!("sensor {k}: corner"),
+                "Hz",
+                1.0 / (std::f64::consts::TAU * t),
+                [0.0, 5.0],
+            )
+        })
         .collect();
     if let Some(t) = e.time_constant_s {
-        v.push(super::Plausible::new("every sensor: corner", "Hz", 1.0 / (std::f64::consts::TAU * t), [0.0, 5.0]));
+        v.push(super::Plausible::new(
+            "every sensor: corner",
+            "Hz",
+            1.0 / (std::f64::consts::TAU * t),
+            [0.0, 5.0],
+        ));
     }
     Ok(v)
 }
 
 /// Plausible: delays of at most 10 ms either way (sampling skew and anti-alias filter
 /// group delays are a few samples, well under a millisecond to a few).
-fn plausible_delay(entry: &crate::spec::EffectSpec, _spec: &CampaignSpec) -> Result<Vec<super::Plausible>, String> {
+fn plausible_delay(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
     let e: ChannelDelay = super::params(entry)?;
-    Ok(e
-        .channels_s
+    Ok(e.channels_s
         .iter()
         .map(|(k, d)| (format!("channel {k}: delay"), d))
-        .chain(e.excitations_s.iter().map(|(k, d)| (format!("excitation {k}: delay"), d)))
+        .chain(
+            e.excitations_s
+                .iter()
+                .map(|(k, d)| (format!("excitation {k}: delay"), d)),
+        )
         .map(|(q, d)| super::Plausible::new(q, "ms", 1e3 * d, [-10.0, 10.0]))
         .collect())
 }
