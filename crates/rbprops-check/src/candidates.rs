@@ -186,8 +186,24 @@ const SPRING_TURN: &str = "spring_turn_fraction";
 fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
     spec.setups
         .iter()
-        .any(|s| s.cords.is_empty() && !s.springs.is_empty())
+        .enumerate()
+        .any(|(i, s)| s.cords.is_empty() && !s.springs.is_empty() && !splayed_springs(spec, i))
         && free_direction_note(spec, g).is_none()
+}
+
+/// Set-up `i`'s springs are splayed cords written as axial springs (rbprops-sim's
+/// [`rbprops_sim::effects::gravity::splayed_spring_cords`]): the gravity candidate hangs
+/// the body on them as on cords.
+fn splayed_springs(spec: &CampaignSpec, i: usize) -> bool {
+    rbprops_sim::effects::gravity::splayed_spring_cords(
+        spec,
+        i,
+        &spec.properties().mass_matrix().0,
+        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
+        &spec.up_vector(),
+        |_| 1.0,
+    )
+    .is_some()
 }
 
 /// Name of the residual flexibility's frequency parameter q = (f_top/f_e)².
@@ -414,8 +430,33 @@ fn gravity_stiffness(
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
         return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
     }
+    if let Some((cords, springs)) = rbprops_sim::effects::gravity::splayed_spring_cords(
+        ctx.spec,
+        ctx.setup_index,
+        &model.mass,
+        STANDARD_GRAVITY,
+        &z,
+        |_| 1.0,
+    ) {
+        // Splayed cords written as axial springs: hung like the set-up's cords above,
+        // at 1 m (φ₁ scales the tension part to the fitted length).
+        let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
+            &model.mass,
+            &cords,
+            &springs,
+            STANDARD_GRAVITY,
+            &z,
+        )
+        .map_err(|e| format!("set-up '{}': {e}", ctx.spec.setups[ctx.setup_index].id))?;
+        let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
+        let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
+        return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
+    }
+    // Springs with no stiffness along the vertical (side springs) hold no weight: they
+    // are not cords and add no pendulum stiffness.
     let cords = |len: f64| -> Vec<Cord> {
-        ctx.spec
+        let all: Vec<Cord> = ctx
+            .spec
             .springs(ctx.setup_index)
             .iter()
             .map(|s| Cord {
@@ -423,6 +464,10 @@ fn gravity_stiffness(
                 length: len,
                 axial_stiffness: (z.transpose() * s.stiffness * z)[0],
             })
+            .collect();
+        let kmax = all.iter().map(|c| c.axial_stiffness).fold(0.0, f64::max);
+        all.into_iter()
+            .filter(|c| c.axial_stiffness > 1e-9 * kmax)
             .collect()
     };
     let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;

@@ -63,6 +63,41 @@ pub struct AcceptedEffect {
     /// an effect is claimed only above `check::PRACTICAL_MARGIN`.
     #[serde(default)]
     pub change_over_precision_floor: f64,
+    /// The effect's physical quantities as a tester reads them (degrees, millimetres,
+    /// percent, grams), each beside the range a tester finds plausible (docs/physics.md,
+    /// "Plausible values"); an effect is claimed only inside them.
+    #[serde(default)]
+    pub plausible: Vec<PlausibleValue>,
+}
+
+/// A physical quantity of a fitted effect and the range a tester would find plausible.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct PlausibleValue {
+    /// What it is, with the item it belongs to (`sensor 2: angle`).
+    pub quantity: String,
+    /// Its unit (`deg`, `mm`, `%`, `g`, `Hz`).
+    pub unit: String,
+    /// The fitted value in that unit.
+    pub value: f64,
+    /// The plausible range `[lower, upper]` in that unit.
+    pub range: [f64; 2],
+}
+
+/// What the catalogue does not explain: the residual left above the noise floor once no
+/// catalogue effect with plausible values explains more (docs/physics.md, M7).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
+pub struct Unexplained {
+    /// One sentence: where the remaining residual sits and its signature.
+    pub summary: String,
+    /// Sensor points, excitations and bands whose residual stands out (z > 5), strongest first.
+    pub groups: Vec<String>,
+    /// Fraction of the remaining χ² that is not rigid-body motion of the sensors.
+    pub non_rigid_fraction: f64,
+    /// Fraction of the remaining χ² in quadrature with the model FRF.
+    pub quadrature_fraction: f64,
+    /// Candidates that would have reduced the residual but only with values outside
+    /// their plausible range, with the value that failed.
+    pub implausible: Vec<String>,
 }
 
 /// Held-out (cross-validation) evidence for an effect (docs/physics.md, M1–M8, A2).
@@ -219,6 +254,10 @@ pub struct ModelCheckReport {
     /// Effects that could not be separated from each other.
     #[schemars(description = "")]
     pub ambiguous: Vec<AmbiguousFamily>,
+    /// The residual the catalogue does not explain with plausible values, where it sits
+    /// (`None` at the noise floor).
+    #[serde(default)]
+    pub unexplained: Option<Unexplained>,
     /// Effects the free parameters absorb completely.
     #[schemars(description = "")]
     pub not_observable: Vec<NotObservable>,

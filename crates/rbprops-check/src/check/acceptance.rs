@@ -174,6 +174,17 @@ impl<'p, 'a> Selection<'p, 'a> {
                 why.push(format!("{} pinned at its bound {v:.4}", pi.name));
             }
         }
+        // Plausibility (docs/physics.md, "Plausible values"): a fitted value a tester
+        // would reject (a 30° misorientation, an elastic mode below the suspension
+        // modes) is not that physics, whatever its statistics; it is a catalogue effect
+        // bent to fill a residual it does not explain.
+        for q in p
+            .plausibility(&f.theta, c, &phi)
+            .iter()
+            .filter(|q| !holds(q))
+        {
+            why.push(implausible_text(q));
+        }
         // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).
         let nu = n_real - (self.free_base + active_dims(&self.active) + d) as f64;
         let wald = wald_statistic(&f, nu, k0, alpha, &kept, &cand.neutral);
@@ -272,6 +283,27 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
     }
 }
+
+/// The value lies in its plausible range (a NaN does not).
+pub(super) fn holds(q: &PlausibleValue) -> bool {
+    q.value >= q.range[0] && q.value <= q.range[1]
+}
+
+/// "implausible: <quantity> <value> <unit> outside [lo, hi]": the failed test's text, a
+/// prefix the report's unexplained section collects.
+pub(super) fn implausible_text(q: &PlausibleValue) -> String {
+    format!(
+        "{IMPLAUSIBLE} {} {} {} outside [{}, {}]",
+        q.quantity,
+        sig(q.value, 3),
+        q.unit,
+        sig(q.range[0], 3),
+        sig(q.range[1], 3)
+    )
+}
+
+/// The prefix of a failed plausibility test.
+pub(super) const IMPLAUSIBLE: &str = "implausible:";
 
 /// Wald statistic of the effect's fitted coordinates `alpha` (they start at `k0` in θ)
 /// against neutral, with the pseudo-inverse of their covariance over its identifiable

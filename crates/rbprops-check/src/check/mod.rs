@@ -737,11 +737,20 @@ fn check_with(
     // acceptance tests (with the residual at the noise floor no candidate is
     // significant); `max_effects` is only a safety cap, and hitting it is reported.
     let mut capped = options.max_effects > 0;
-    for step in 1..=options.max_effects {
-        if !sel.step(step)? {
+    // Forward steps until nothing more is accepted, then the final re-test of every
+    // accepted effect given the others; when it drops one, the forward selection
+    // resumes from the smaller model (a dropped effect is not screened again, so this
+    // ends). Steps are counted over both, under the same cap.
+    let mut step = 0;
+    while step < options.max_effects {
+        step += 1;
+        if !sel.step(step)? && !sel.final_retest(step)? {
             capped = false;
             break;
         }
+    }
+    if capped {
+        sel.final_retest(step)?;
     }
     warnings.append(&mut sel.warnings);
     if capped {

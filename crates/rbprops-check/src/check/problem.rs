@@ -108,6 +108,30 @@ impl<'a> Problem<'a> {
         self.baseline.len()
     }
 
+    /// The physical quantities of candidate `c` at φ `phi` as a tester reads them, each
+    /// with its plausible range (the effect's descriptor in rbprops-sim's registry, on
+    /// its catalogue entry in the spec of the baseline parameters `theta`); empty when the
+    /// effect has no ranges or no catalogue entry.
+    pub(super) fn plausibility(&self, theta: &[f64], c: usize, phi: &[f64]) -> Vec<PlausibleValue> {
+        let spec = self.baseline.apply(&theta[..self.n_base()]);
+        let Ok(e) = self.cands[c].effect.with_values(phi) else {
+            return Vec::new();
+        };
+        crate::candidates::catalogue_entry(e.as_ref(), &spec)
+            .and_then(|entry| rbprops_sim::effects::plausibility(&entry, &spec))
+            .map(|v| {
+                v.into_iter()
+                    .map(|q| PlausibleValue {
+                        quantity: q.quantity,
+                        unit: q.unit,
+                        value: q.value,
+                        range: q.range,
+                    })
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
     pub(super) fn build(
         &self,
         theta: &[f64],

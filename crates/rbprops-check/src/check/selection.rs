@@ -498,6 +498,104 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
     }
 
+    /// The final re-test (docs/physics.md, M6b), once nothing more is accepted: every
+    /// accepted effect is tested again given all the others, with the acceptance's own
+    /// likelihood-ratio and ΔBIC tests on the refit without it, and its fitted values
+    /// against their plausible ranges. The weakest that fails leaves (an effect whose
+    /// evidence collapsed once a better one entered, or one bent to implausible values
+    /// to stand in for what the others now explain), the model is refitted without it,
+    /// and the rest is tested again. A dropped effect is not screened again (its place
+    /// in the model was taken). `Ok(true)` when an effect was dropped: the forward
+    /// selection then resumes from the smaller model.
+    pub(super) fn final_retest(&mut self, step: usize) -> Result<bool, CheckError> {
+        let p = self.p;
+        let mut dropped_any = false;
+        while !self.active.is_empty() {
+            let fits: Vec<Result<Fit, CheckError>> = (0..self.active.len())
+                .into_par_iter()
+                .map(|k| {
+                    let without: Vec<Act> = self
+                        .active
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, _)| *i != k)
+                        .map(|(_, a)| a.clone())
+                        .collect();
+                    let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
+                    p.fit(
+                        "final re-test",
+                        &theta_wo,
+                        &without,
+                        self.options.max_iterations,
+                    )
+                })
+                .collect();
+            // (index, ΔBIC of keeping it, why it fails)
+            let mut failing: Vec<(usize, f64, String)> = Vec::new();
+            let mut offset = p.n_base();
+            for (k, f_wo) in fits.into_iter().enumerate() {
+                let a = &self.active[k];
+                let d = a.dim();
+                let phi = a.phi(&p.cands[a.c].neutral, &self.cur.theta[offset..offset + d]);
+                offset += d;
+                let f_wo = f_wo?;
+                let dchi2 = f_wo.chi2 - self.cur.chi2;
+                let dbic = dchi2 - d as f64 * self.ln_n;
+                let thr = self.accepted[k].threshold;
+                let mut why = Vec::new();
+                if !(dchi2 > thr) {
+                    why.push(format!("LR {dchi2:.1} ≤ {thr:.1}"));
+                }
+                if !(dbic > self.options.min_delta_bic) {
+                    why.push(format!("ΔBIC {dbic:.1} ≤ {}", self.options.min_delta_bic));
+                }
+                for q in p.plausibility(&self.cur.theta, a.c, &phi) {
+                    if !holds(&q) {
+                        why.push(implausible_text(&q));
+                    }
+                }
+                if !why.is_empty() {
+                    failing.push((k, dbic, why.join("; ")));
+                }
+            }
+            let Some((k, _, why)) = failing
+                .into_iter()
+                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            else {
+                break;
+            };
+            let id = p.cands[self.active[k].c].id.clone();
+            self.options
+                .progress
+                .say(|| format!("final re-test: {id} no longer needed given the others ({why})"));
+            set_decision(
+                &mut self.screening,
+                step,
+                &id,
+                format!("dropped in the final re-test given all the others: {why}"),
+            );
+            let without: Vec<Act> = self
+                .active
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, a)| a.clone())
+                .collect();
+            let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
+            self.cur = p.fit(
+                "final re-test",
+                &theta_wo,
+                &without,
+                self.options.max_iterations,
+            )?;
+            self.excluded.push(self.active[k].c);
+            self.accepted.remove(k);
+            self.active = without;
+            dropped_any = true;
+        }
+        Ok(dropped_any)
+    }
+
     /// Backward check: drop an earlier effect whose removal no longer costs significance.
     fn backward(&mut self, step: usize) -> Result<(), CheckError> {
         if self.active.len() <= 1 {

@@ -205,6 +205,8 @@ pub fn verdict(r: &ModelCheckReport) -> String {
     }
     let floor = if r.noise_floor_reached {
         "noise floor reached".to_string()
+    } else if let Some(u) = &r.unexplained {
+        u.summary.clone()
     } else {
         let cells: Vec<String> = r.residuals_after.flagged.iter().take(3).cloned().collect();
         if cells.is_empty() {
@@ -245,6 +247,83 @@ pub fn verdict(r: &ModelCheckReport) -> String {
         }
     }
     parts.join("; ")
+}
+
+/// Groups of the residual map (sensor points, excitations, bands) whose z exceeds this
+/// are named as where the unexplained residual sits: the flagging level of the map's
+/// cells ([`crate::locate`]), a 3e-7 one-sided tail for a group at the noise floor.
+const GROUP_Z: f64 = 5.0;
+
+/// The unexplained section: where the residual of the final model sits (the groups of
+/// the map above [`GROUP_Z`], strongest first, and its flagged cells), its rigid and
+/// quadrature fractions, and the candidates the selection rejected as implausible.
+pub(super) fn unexplained(
+    map: &crate::locate::ResidualMap,
+    screening: &[ScreenEntry],
+    chi2_nu: f64,
+) -> Unexplained {
+    // The groups' labels name their kind ("sensor 3", "excitation force1", "band …").
+    let mut groups: Vec<&crate::locate::ResidualTotal> = map
+        .per_sensor
+        .iter()
+        .chain(&map.per_excitation)
+        .chain(&map.per_band)
+        .filter(|g| g.z > GROUP_Z)
+        .collect();
+    groups.sort_by(|a, b| b.z.total_cmp(&a.z));
+    let groups: Vec<String> = groups
+        .iter()
+        .map(|g| format!("{} (χ²/n {:.2}, z {:.1})", g.group, g.chi2_nu, g.z))
+        .collect();
+    let (mut chi2, mut non_rigid, mut quad) = (0.0, 0.0, 0.0);
+    for c in &map.cells {
+        chi2 += c.chi2;
+        non_rigid += c.chi2_non_rigid;
+        quad += c.chi2_quadrature;
+    }
+    let frac = |x: f64| if chi2 > 0.0 { x / chi2 } else { 0.0 };
+    let mut implausible: Vec<String> = Vec::new();
+    for e in screening {
+        if let Some(i) = e.decision.find(IMPLAUSIBLE) {
+            let text = format!("{}: {}", e.id, e.decision[i + IMPLAUSIBLE.len()..].trim());
+            if !implausible
+                .iter()
+                .any(|t| t.starts_with(&format!("{}:", e.id)))
+            {
+                implausible.push(text);
+            }
+        }
+    }
+    let place = if groups.is_empty() {
+        "spread over the channels, excitations and bands (no group stands out)".to_string()
+    } else {
+        groups
+            .iter()
+            .take(4)
+            .cloned()
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let summary = format!(
+        "not explained by a catalogue effect with plausible values: χ²/ν {chi2_nu:.3} remains, in {place}; {:.0} % of it not rigid-body motion of the sensors, {:.0} % in quadrature with the model{}",
+        100.0 * frac(non_rigid),
+        100.0 * frac(quad),
+        if implausible.is_empty() {
+            String::new()
+        } else {
+            format!(
+                "; fitted only with implausible values: {}",
+                implausible.join("; ")
+            )
+        }
+    );
+    Unexplained {
+        summary,
+        groups,
+        non_rigid_fraction: frac(non_rigid),
+        quadrature_fraction: frac(quad),
+        implausible,
+    }
 }
 
 /// What the end of a pass needs besides the selection's state.
@@ -327,11 +406,14 @@ impl<'p, 'a> Finish<'p, 'a> {
         let chi2_nu_after = kappa * cur.chi2 / nu_after;
         let noise_floor_reached =
             at_noise_floor(chi2_nu_after, band, &noise_model, &residuals_after.flagged);
+        let unexplained = (!noise_floor_reached)
+            .then(|| unexplained(&residuals_after, &screening, chi2_nu_after));
         let mut report = ModelCheckReport {
             campaign: self.spec.name.clone(),
             verdict: String::new(),
             accepted,
             ambiguous,
+            unexplained,
             not_observable,
             chi2_nu_nominal: kappa * self.chi2_nominal / n_real,
             chi2_nu_before: kappa * base.chi2 / nu_base,
@@ -495,6 +577,7 @@ impl<'p, 'a> Finish<'p, 'a> {
                 held_out: ev.held_out.clone(),
                 held_out_excitations: ev.held_out_exc.clone(),
                 change_over_precision_floor: ev.practical,
+                plausible: p.plausibility(theta, a.c, &phi),
             });
         }
         Ok((accepted, improved_effects, final_effects))

@@ -82,13 +82,30 @@ fn assert_found(r: &ModelCheckReport, ids: &[&str], truth: &RigidBodyProperties)
     assert!(ea < eb, "inertia error did not shrink: {eb:.3e} → {ea:.3e}");
 }
 
-/// Named, and the final fit at the noise floor.
+/// Named, nothing else (every accepted effect expected, every ambiguous family one of
+/// an expected effect's), and the final fit at the noise floor.
 fn assert_named(r: &ModelCheckReport, ids: &[&str]) {
     let got = accepted_ids(r);
     for id in ids {
         assert!(
             got.iter().any(|g| g == id),
             "{id} not named; verdict: {}",
+            r.verdict
+        );
+    }
+    for a in &r.accepted {
+        assert!(
+            ids.contains(&a.id.as_str()),
+            "false claim '{}' beside {ids:?}; verdict: {}",
+            a.id,
+            r.verdict
+        );
+    }
+    for f in &r.ambiguous {
+        assert!(
+            f.ids.iter().any(|i| ids.contains(&i.as_str())),
+            "ambiguous family {:?} holds none of {ids:?}; verdict: {}",
+            f.ids,
             r.verdict
         );
     }

@@ -793,5 +793,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: true,
         example: include_str!("../../../../fixtures/specs/effects/cord_mass.toml"),
+        plausible: None,
     },
 ];

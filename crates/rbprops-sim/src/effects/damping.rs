@@ -544,6 +544,22 @@ fn per_spring_zeros(spec: &CampaignSpec) -> toml::Value {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: loss factors of at most 0.3 per spring. Metal springs and bungee cords lose
+/// a few percent per cycle (η 0.01–0.1), the most dissipative rubber mounts about 0.2–0.3.
+fn plausible_hysteretic(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: HystereticDamping = super::params(entry)?;
+    Ok(e.loss_factors
+        .iter()
+        .enumerate()
+        .map(|(i, eta)| {
+            super::Plausible::new(format!("spring {i}: loss factor"), "1", *eta, [0.0, 0.3])
+        })
+        .collect())
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "nonproportional_damping",
@@ -555,6 +571,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Table(|_, _| super::table([("modal_coupling", toml::Value::Array(vec![0.0.into(); MODAL_COUPLINGS]))])),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/nonproportional_damping.toml"),
+        plausible: None,
     },
     super::EffectDescriptor {
         id: "hysteretic_damping",
@@ -566,5 +583,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Table(|spec, _| super::table([("loss_factors", per_spring_zeros(spec))])),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/hysteretic_damping.toml"),
+        plausible: Some(plausible_hysteretic),
     },
 ];

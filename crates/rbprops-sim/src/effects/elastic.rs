@@ -142,6 +142,43 @@ impl Effect for ElasticMode {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: above the nominal model's highest rigid-body (suspension) mode, with a damping
+/// ratio of at most 10 %. A rigid-body test is set up so that the body's own modes lie above
+/// its suspension modes; a metal structure's modes are damped 0.1–5 %, a 10 % mode is a
+/// mount's, not the body's.
+fn plausible_elastic_mode(
+    entry: &crate::spec::EffectSpec,
+    spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ElasticMode = super::params(entry)?;
+    let top = highest_rigid_mode_hz(spec);
+    Ok(vec![
+        super::Plausible::new("frequency", "Hz", e.frequency_hz, [top, f64::INFINITY]),
+        super::Plausible::new("damping ratio", "%", 100.0 * e.damping_ratio, [0.0, 10.0]),
+    ])
+}
+
+/// The highest undamped rigid-body frequency (Hz) of the nominal model over its set-ups
+/// (mass matrix and suspension stiffness of the spec; 0 with no set-up).
+fn highest_rigid_mode_hz(spec: &CampaignSpec) -> f64 {
+    let m = spec.properties().mass_matrix().0;
+    let Some(ch) = nalgebra::Cholesky::new(m) else {
+        return 0.0;
+    };
+    let l_inv = ch
+        .l()
+        .try_inverse()
+        .unwrap_or_else(rbprops_core::Mat6::zeros);
+    (0..spec.setups.len())
+        .map(|i| {
+            let k = spec.setup_stiffness(i);
+            let a = l_inv * k * l_inv.transpose();
+            let w2 = ((a + a.transpose()) / 2.0).symmetric_eigenvalues().max();
+            w2.max(0.0).sqrt() / std::f64::consts::TAU
+        })
+        .fold(0.0, f64::max)
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "elastic_mode",
@@ -153,5 +190,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/elastic_mode.toml"),
+        plausible: Some(plausible_elastic_mode),
     },
 ];

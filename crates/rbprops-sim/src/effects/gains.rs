@@ -176,6 +176,56 @@ impl Effect for GlobalGain {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
+/// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
+/// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
+fn plausible_channel_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ChannelGain = super::params(entry)?;
+    Ok(gains_pct("channel", &e.gains))
+}
+
+/// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
+/// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
+/// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
+fn plausible_excitation_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ExcitationGain = super::params(entry)?;
+    Ok(gains_pct("excitation", &e.gains))
+}
+
+/// Plausible: a gain between 0.8 and 1.25 (−20 % … +25 %, symmetric in log). Calibration
+/// sheets hold sensitivities to a few percent, a temperature or cable effect a few more; a
+/// wrong sensitivity typed in is usually a factor (×2, ×10, a unit) that a tester sees.
+fn plausible_global_gain(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: GlobalGain = super::params(entry)?;
+    Ok(vec![gain_pct("all FRFs".into(), e.gain)])
+}
+
+/// A gain as a percent deviation from 1 with the range of [`plausible_channel_gain`].
+fn gain_pct(what: String, g: f64) -> super::Plausible {
+    super::Plausible::new(
+        format!("{what}: gain"),
+        "%",
+        100.0 * (g - 1.0),
+        [-20.0, 25.0],
+    )
+}
+
+fn gains_pct(what: &str, gains: &BTreeMap<String, f64>) -> Vec<super::Plausible> {
+    gains
+        .iter()
+        .map(|(k, g)| gain_pct(format!("{what} {k}"), *g))
+        .collect()
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "channel_gain",
@@ -189,6 +239,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_gain.toml"),
+        plausible: Some(plausible_channel_gain),
     },
     super::EffectDescriptor {
         id: "excitation_gain",
@@ -203,6 +254,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/excitation_gain.toml"),
+        plausible: Some(plausible_excitation_gain),
     },
     super::EffectDescriptor {
         id: "global_gain",
@@ -214,5 +266,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Table(|_, _| super::table([("gain", 1.0.into())])),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/global_gain.toml"),
+        plausible: Some(plausible_global_gain),
     },
 ];

@@ -400,6 +400,104 @@ pub fn hanging_equilibrium(
     })
 }
 
+/// Smallest tilt from `up` (rad) at which an axial spring is read as a splayed cord
+/// ([`splayed_spring_cords`]): 1°, well above the rounding of a direction written to
+/// four decimals and below any splay a tester builds on purpose.
+pub const SPLAY_MIN_RAD: f64 = 0.0175;
+
+/// A spring's axis and axial stiffness when it is axial (a cord or a coil spring written
+/// as `k e eᵀ`): its other two stiffnesses below 1e-6 of the largest. The axis points
+/// up (`e · up ≥ 0`).
+pub fn axial_spring(k: &Mat3, up: &Vec3) -> Option<(Vec3, f64)> {
+    let eig = ((k + k.transpose()) / 2.0).symmetric_eigen();
+    let i = eig.eigenvalues.imax();
+    let kmax = eig.eigenvalues[i];
+    if !(kmax > 0.0) || (0..3).any(|j| j != i && eig.eigenvalues[j].abs() > 1e-6 * kmax) {
+        return None;
+    }
+    let e: Vec3 = eig.eigenvectors.column(i).into_owned().normalize();
+    Some((if e.dot(up) < 0.0 { -e } else { e }, kmax))
+}
+
+/// Set-up `i`'s springs read as splayed cords, when its springs are written as the
+/// cords' axial springs (`k e eᵀ` along each cord, as testers write a suspension) and
+/// at least one leans more than [`SPLAY_MIN_RAD`] from `up`: every axial spring within
+/// 60° of `up` becomes a cord from its attachment along its axis, of length `length(j)`
+/// (j its index among the cords), its tension `T` from the static balance of the body
+/// (mass matrix `mass`) in the spec's pose and its unstretched length `ℓ − T/k`; the
+/// other springs stay springs. A gravity direction `up` other than the spec's turns the
+/// cords with it (the body rests tilted from the spec's drawing). The balance is the elastic solution `T = K_d Aᵀ w` of
+/// `A T = W` (A the cords' unit wrenches, W the weight's, K_d their stiffnesses): the
+/// small rigid displacement `w` that loads them, least squares where the spec's pose is
+/// not quite an equilibrium (the hanging equilibrium then moves the body there). `None`
+/// when the set-up has cords of its own, no such spring, or a cord would be slack.
+pub fn splayed_spring_cords(
+    spec: &CampaignSpec,
+    i: usize,
+    mass: &Mat6,
+    g: f64,
+    up: &Vec3,
+    length: impl Fn(usize) -> f64,
+) -> Option<(Vec<AnchoredCord>, Vec<crate::suspension::Spring>)> {
+    if !spec.setups[i].cords.is_empty() {
+        return None;
+    }
+    // The springs are classified against the spec's vertical; a gravity direction `up`
+    // tilted from it is the body resting tilted from the spec's drawing, so the cords,
+    // anchored in space, turn with it in the body's axes (rotation from the spec's up to
+    // `up`).
+    let spec_up = spec.up_vector();
+    let turn = nalgebra::Rotation3::rotation_between(&spec_up, up)
+        .map(|r| r.into_inner())
+        .unwrap_or_else(Mat3::identity);
+    let mut cords: Vec<(Vec3, Vec3, f64)> = Vec::new();
+    let mut springs = Vec::new();
+    let mut splayed = false;
+    for s in spec.plain_springs(i) {
+        match axial_spring(&s.stiffness, &spec_up) {
+            Some((e, k)) if e.dot(&spec_up) > 0.5 => {
+                splayed |= e.dot(&spec_up) < SPLAY_MIN_RAD.cos();
+                cords.push((s.at, turn * e, k));
+            }
+            _ => springs.push(s),
+        }
+    }
+    if !splayed {
+        return None;
+    }
+    let mm = MassMatrix6(*mass);
+    let (m, c) = (mm.mass(), mm.com());
+    let wrench = |f: &Vec3, a: &Vec3| -> Vec6 { rigid_transform(a).transpose() * f };
+    let a = nalgebra::DMatrix::from_fn(6, cords.len(), |r, j| wrench(&cords[j].1, &cords[j].0)[r]);
+    let kd = nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+        cords.len(),
+        cords.iter().map(|x| x.2),
+    ));
+    let w_load = wrench(&(m * g * up), &c);
+    let b = nalgebra::DVector::from_column_slice(w_load.as_slice());
+    let akat = &a * &kd * a.transpose();
+    let tol = 1e-12 * akat.norm();
+    let w = akat.svd(true, true).solve(&b, tol).ok()?;
+    let t = &kd * a.transpose() * w;
+    if t.iter().any(|ti| !(*ti > 0.0)) {
+        return None;
+    }
+    let anchored = cords
+        .iter()
+        .enumerate()
+        .map(|(j, (at, e, k))| {
+            let l = length(j);
+            AnchoredCord {
+                at: *at,
+                anchor: at + e * l,
+                axial_stiffness: *k,
+                unstretched_length: l - t[j] / k,
+            }
+        })
+        .collect();
+    Some((anchored, springs))
+}
+
 impl GravityStiffness {
     fn up(&self) -> Vec3 {
         Vec3::from(self.up)
@@ -538,6 +636,22 @@ impl Effect for GravityStiffness {
             model.stiffness = (model.stiffness + model.stiffness.transpose()) / 2.0;
             return Ok(());
         }
+        let lengths = self.lengths(ctx.spec.springs(ctx.setup_index).len());
+        if let Some((cords, springs)) = splayed_spring_cords(
+            ctx.spec,
+            ctx.setup_index,
+            &model.mass,
+            self.g_m_per_s2,
+            &up,
+            |j| lengths.get(j).copied().unwrap_or(lengths[0]),
+        ) {
+            // Splayed cords written as axial springs: the body hangs on them.
+            let eq = hanging_equilibrium(&model.mass, &cords, &springs, self.g_m_per_s2, &up)
+                .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
+            model.stiffness += eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
+            model.stiffness = (model.stiffness + model.stiffness.transpose()) / 2.0;
+            return Ok(());
+        }
         let springs = ctx.spec.springs(ctx.setup_index);
         let cords: Vec<Cord> = springs
             .iter()
@@ -548,9 +662,15 @@ impl Effect for GravityStiffness {
                 axial_stiffness: (up.transpose() * s.stiffness * up)[0],
             })
             .collect();
-        if let Some(i) = cords.iter().position(|c| !(c.axial_stiffness > 0.0)) {
+        // Springs with no stiffness along `up` (side springs) hold no weight: not cords.
+        let kmax = cords.iter().map(|c| c.axial_stiffness).fold(0.0, f64::max);
+        let cords: Vec<Cord> = cords
+            .into_iter()
+            .filter(|c| c.axial_stiffness > 1e-9 * kmax)
+            .collect();
+        if cords.is_empty() {
             return Err(format!(
-                "set-up '{}': spring {i} has no stiffness along `up`, so it cannot be a cord",
+                "set-up '{}': no spring has stiffness along `up`, so none can be a cord",
                 model.setup
             ));
         }
@@ -569,16 +689,31 @@ fn parse_gravity_stiffness(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Eff
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: cords 5 cm to 10 m long (a laboratory's ceiling).
+fn plausible_gravity(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: GravityStiffness = super::params(entry)?;
+    Ok(e.cord_length_m
+        .iter()
+        .chain(&e.unstretched_length_m)
+        .enumerate()
+        .map(|(i, l)| super::Plausible::new(format!("cord {i}: length"), "m", *l, [0.05, 10.0]))
+        .collect())
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "gravity_stiffness",
         rank: 0,
         title: "gravity (pendulum) stiffness of the suspension",
         reveal: "a second suspension length, or the measured cord geometry",
-        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m`, or the set-up's cords hanging at their static equilibrium",
+        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs leaning from `up`, as splayed cords are written: cords along their axes, tensions from the static balance), or the set-up's cords hanging at their static equilibrium",
         parse: parse_gravity_stiffness,
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: true,
         example: include_str!("../../../../fixtures/specs/effects/gravity_stiffness.toml"),
+        plausible: Some(plausible_gravity),
     },
 ];

@@ -224,6 +224,52 @@ impl Effect for AddedMass {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: 0–200 g per sensor with its cable and mounting (triaxial accelerometers
+/// weigh 1–50 g, a mounting block and cable a few tens more).
+fn plausible_sensor_mass(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: SensorMass = super::params(entry)?;
+    let mut v: Vec<super::Plausible> = e
+        .masses_kg
+        .iter()
+        .map(|(k, m)| {
+            super::Plausible::new(format!("sensor {k}: mass"), "g", 1e3 * m, [0.0, 200.0])
+        })
+        .collect();
+    if let Some(m) = e.mass_kg {
+        v.push(super::Plausible::new(
+            "every sensor: mass",
+            "g",
+            1e3 * m,
+            [0.0, 200.0],
+        ));
+    }
+    Ok(v)
+}
+
+/// Plausible: a translational added mass (largest eigenvalue of its 3×3 part) of at most
+/// 5 % of the body's mass. Air entrained by a compact body is about ρ_air times its
+/// volume, well under 1 % of a metal body's mass; a flat face moving normal to itself
+/// entrains about ρ_air times the cube of its size, a few times more; 5 % also covers
+/// light hollow bodies in air.
+fn plausible_added_mass(
+    entry: &crate::spec::EffectSpec,
+    spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: AddedMass = super::params(entry)?;
+    let a = rbprops_core::Mat3::from_fn(|i, j| e.translational_kg[i][j]);
+    let largest = a.symmetric_eigenvalues().abs().max();
+    let m = spec.body.mass_kg;
+    Ok(vec![super::Plausible::new(
+        "translational added mass (largest eigenvalue)",
+        "g",
+        1e3 * largest,
+        [0.0, 1e3 * 0.05 * m],
+    )])
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "sensor_mass",
@@ -237,6 +283,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
+        plausible: Some(plausible_sensor_mass),
     },
     super::EffectDescriptor {
         id: "added_mass",
@@ -248,5 +295,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/added_mass.toml"),
+        plausible: Some(plausible_added_mass),
     },
 ];

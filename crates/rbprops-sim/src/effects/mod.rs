@@ -247,6 +247,82 @@ pub struct EffectDescriptor {
     /// Its example campaign (`fixtures/specs/effects/<id>.toml`: test-case-2 with this
     /// effect alone and 1 % noise).
     pub example: &'static str,
+    /// What a tester would judge physically plausible for it, as the quantities a tester
+    /// reads (degrees of misorientation, millimetres of position, percent of gain, grams
+    /// of mass), each with its range (docs/physics.md, "Plausible values"): a model check
+    /// does not claim the effect with a fitted value outside. `None`: every value the
+    /// effect accepts is plausible.
+    pub plausible: Option<fn(&EffectSpec, &CampaignSpec) -> Result<Vec<Plausible>, String>>,
+}
+
+/// One physical quantity of a fitted effect and the range a tester would find plausible
+/// ([`EffectDescriptor::plausible`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plausible {
+    /// What it is, with the item it belongs to (`sensor 2: angle`).
+    pub quantity: String,
+    /// Its unit as a tester reads it (`deg`, `mm`, `%`, `g`, `Hz`).
+    pub unit: String,
+    /// The fitted value in that unit.
+    pub value: f64,
+    /// The plausible range `[lower, upper]`, same unit.
+    pub range: [f64; 2],
+}
+
+impl Plausible {
+    /// A quantity `value` in `unit` with its plausible `range`.
+    pub fn new(quantity: impl Into<String>, unit: &str, value: f64, range: [f64; 2]) -> Self {
+        Plausible {
+            quantity: quantity.into(),
+            unit: unit.into(),
+            value,
+            range,
+        }
+    }
+    /// The value lies in its range (a NaN does not).
+    pub fn holds(&self) -> bool {
+        self.value >= self.range[0] && self.value <= self.range[1]
+    }
+}
+
+/// The plausibility of an effect given as a catalogue entry (its descriptor's
+/// [`EffectDescriptor::plausible`]); empty when the effect has no ranges or is unknown.
+pub fn plausibility(entry: &EffectSpec, spec: &CampaignSpec) -> Result<Vec<Plausible>, String> {
+    match descriptor(&entry.id).and_then(|d| d.plausible) {
+        Some(f) => f(entry, spec),
+        None => Ok(Vec::new()),
+    }
+}
+
+/// The angle (degrees) of each rotation vector of a per-item map, as plausibility items
+/// `"<what> <id>: angle"` with the range `[0, max_deg]`.
+pub(crate) fn angles_deg(
+    what: &str,
+    map: &std::collections::BTreeMap<String, [f64; 3]>,
+    max_deg: f64,
+) -> Vec<Plausible> {
+    map.iter()
+        .map(|(k, v)| {
+            let a = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+                .sqrt()
+                .to_degrees();
+            Plausible::new(format!("{what} {k}: angle"), "deg", a, [0.0, max_deg])
+        })
+        .collect()
+}
+
+/// The length (mm) of each offset of a per-item map, with the range `[0, max_mm]`.
+pub(crate) fn offsets_mm(
+    what: &str,
+    map: &std::collections::BTreeMap<String, [f64; 3]>,
+    max_mm: f64,
+) -> Vec<Plausible> {
+    map.iter()
+        .map(|(k, v)| {
+            let d = 1e3 * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            Plausible::new(format!("{what} {k}: offset"), "mm", d, [0.0, max_mm])
+        })
+        .collect()
 }
 
 impl std::fmt::Debug for EffectDescriptor {

@@ -379,6 +379,26 @@ const STINGER_NEUTRAL: super::NeutralForm = super::NeutralForm::Table(|_, g| {
 });
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: the suspension's stiffness drifting by at most 30 % between runs (rubber
+/// stiffens by a few percent per 10 K; cords creep by a few percent).
+fn plausible_drift(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: SuspensionDrift = super::params(entry)?;
+    Ok(e.stiffness_factors
+        .iter()
+        .map(|(k, f)| {
+            super::Plausible::new(
+                format!("excitation {k}: stiffness"),
+                "%",
+                100.0 * (f - 1.0),
+                [-30.0, 30.0],
+            )
+        })
+        .collect())
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "suspension_coupling",
@@ -393,6 +413,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         ])),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_coupling.toml"),
+        plausible: None,
     },
     super::EffectDescriptor {
         id: "suspension_drift",
@@ -406,6 +427,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
+        plausible: Some(plausible_drift),
     },
     super::EffectDescriptor {
         id: "stinger_stiffness",
@@ -417,6 +439,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: STINGER_NEUTRAL,
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_stiffness.toml"),
+        plausible: None,
     },
     super::EffectDescriptor {
         id: "stinger_axial_stiffness",
@@ -430,5 +453,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_axial_stiffness.toml"),
+        plausible: None,
     },
 ];

@@ -94,6 +94,16 @@ impl Effect for SensorMisorientation {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: each sensor turned by at most 10°. A triaxial accelerometer glued or screwed
+/// to a face by hand is aligned to a few degrees; 10° is visible by eye on the set-up.
+fn plausible_misorientation(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: SensorMisorientation = super::params(entry)?;
+    Ok(super::angles_deg("sensor", &e.rotations_rad, 10.0))
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescriptor {
     id: "sensor_misorientation",
     rank: 5,
@@ -106,4 +116,5 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescri
     }),
     follows_spec_up: false,
     example: include_str!("../../../../fixtures/specs/effects/sensor_misorientation.toml"),
+    plausible: Some(plausible_misorientation),
 }];

@@ -265,6 +265,57 @@ impl Effect for ForceGaugeMass {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: each sensor at most 25 mm from where the spec puts it. Positions measured
+/// with a rule or from a drawing are good to a few millimetres; 25 mm is about the size of
+/// the sensor itself, a misplacement a tester would see.
+fn plausible_sensor_position(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: SensorPosition = super::params(entry)?;
+    Ok(super::offsets_mm("sensor", &e.offsets_m, 25.0))
+}
+
+/// Plausible: each force at most 15° off its nominal direction. Hammer blows by hand
+/// scatter by 5–10°, a stinger is aligned to a few degrees.
+fn plausible_force_direction(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ForceDirection = super::params(entry)?;
+    Ok(super::angles_deg("excitation", &e.rotations_rad, 15.0))
+}
+
+/// Plausible: each force point at most 25 mm from the spec's (a hammer tip hits within a
+/// few millimetres of a marked point; 25 mm is beyond any marked point).
+fn plausible_force_location(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ForceLocation = super::params(entry)?;
+    Ok(super::offsets_mm("excitation", &e.offsets_m, 25.0))
+}
+
+/// Plausible: 0–200 g under each force gauge (a force gauge's structure side with its stud
+/// and mounting plate weighs 5–100 g, an impedance head up to about 150 g).
+fn plausible_force_gauge_mass(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ForceGaugeMass = super::params(entry)?;
+    Ok(e.masses_kg
+        .iter()
+        .map(|(k, m)| {
+            super::Plausible::new(
+                format!("excitation {k}: gauge mass"),
+                "g",
+                1e3 * m,
+                [0.0, 200.0],
+            )
+        })
+        .collect())
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "sensor_position",
@@ -278,6 +329,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_position.toml"),
+        plausible: Some(plausible_sensor_position),
     },
     super::EffectDescriptor {
         id: "force_direction",
@@ -291,6 +343,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_direction.toml"),
+        plausible: Some(plausible_force_direction),
     },
     super::EffectDescriptor {
         id: "force_location",
@@ -304,6 +357,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_location.toml"),
+        plausible: Some(plausible_force_location),
     },
     super::EffectDescriptor {
         id: "force_gauge_mass",
@@ -317,5 +371,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/force_gauge_mass.toml"),
+        plausible: Some(plausible_force_gauge_mass),
     },
 ];

@@ -159,6 +159,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Table(|_, _| super::table([("decay_per_s", 0.0.into())])),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/exponential_window.toml"),
+        plausible: None,
     },
     super::EffectDescriptor {
         id: "record_truncation",
@@ -170,5 +171,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/record_truncation.toml"),
+        plausible: None,
     },
 ];

@@ -272,6 +272,55 @@ impl Effect for ChannelDelay {
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
+/// Plausible: AC-coupling corners of at most 5 Hz (IEPE accelerometers and AC-coupled
+/// inputs have corners of 0.1–3 Hz).
+fn plausible_highpass(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: TransducerHighpass = super::params(entry)?;
+    let mut v: Vec<super::Plausible> = e
+        .time_constants_s
+        .iter()
+        .map(|(k, t)| {
+            super::Plausible::new(
+                format!("sensor {k}: corner"),
+                "Hz",
+                1.0 / (std::f64::consts::TAU * t),
+                [0.0, 5.0],
+            )
+        })
+        .collect();
+    if let Some(t) = e.time_constant_s {
+        v.push(super::Plausible::new(
+            "every sensor: corner",
+            "Hz",
+            1.0 / (std::f64::consts::TAU * t),
+            [0.0, 5.0],
+        ));
+    }
+    Ok(v)
+}
+
+/// Plausible: delays of at most 10 ms either way (sampling skew and anti-alias filter
+/// group delays are a few samples, well under a millisecond to a few).
+fn plausible_delay(
+    entry: &crate::spec::EffectSpec,
+    _spec: &CampaignSpec,
+) -> Result<Vec<super::Plausible>, String> {
+    let e: ChannelDelay = super::params(entry)?;
+    Ok(e.channels_s
+        .iter()
+        .map(|(k, d)| (format!("channel {k}: delay"), d))
+        .chain(
+            e.excitations_s
+                .iter()
+                .map(|(k, d)| (format!("excitation {k}: delay"), d)),
+        )
+        .map(|(q, d)| super::Plausible::new(q, "ms", 1e3 * d, [-10.0, 10.0]))
+        .collect())
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: "transducer_highpass",
@@ -283,6 +332,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/transducer_highpass.toml"),
+        plausible: Some(plausible_highpass),
     },
     super::EffectDescriptor {
         id: "sensor_tilt_gravity",
@@ -300,6 +350,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: true,
         example: include_str!("../../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
+        plausible: None,
     },
     super::EffectDescriptor {
         id: "channel_delay",
@@ -315,5 +366,6 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         }),
         follows_spec_up: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_delay.toml"),
+        plausible: Some(plausible_delay),
     },
 ];

@@ -185,3 +185,41 @@ fn effect_examples_follow_the_registry() {
     expect.extend(registry().iter().map(|d| d.id));
     assert_eq!(ids, expect);
 }
+
+/// Every effect's example campaign (a real test's magnitudes) lies inside the effect's
+/// plausible ranges, and values a tester would reject fall outside them.
+#[test]
+fn effect_examples_are_plausible_and_gross_values_are_not() {
+    for d in registry() {
+        let spec = rbprops_sim::CampaignSpec::from_toml_str(d.example).unwrap();
+        for e in spec.effects.iter().filter(|e| e.id == d.id) {
+            for q in rbprops_sim::effects::plausibility(e, &spec).unwrap() {
+                assert!(q.holds(), "{}: example's {q:?} outside its range", d.id);
+            }
+        }
+    }
+    let spec = rbprops_sim::CampaignSpec::from_toml_str(
+        registry()
+            .iter()
+            .find(|d| d.id == "sensor_misorientation")
+            .unwrap()
+            .example,
+    )
+    .unwrap();
+    let entry = |id: &str, toml: &str| rbprops_sim::spec::EffectSpec {
+        id: id.into(),
+        parameters: toml::from_str(toml).unwrap(),
+    };
+    for (id, toml) in [
+        ("sensor_misorientation", "rotations_rad = { \"2\" = [0.3, 0.0, 0.0] }"),
+        ("channel_gain", "gains = { 1x = 0.5 }"),
+        ("force_gauge_mass", "masses_kg = { force1 = 0.5 }"),
+        (
+            "elastic_mode",
+            "frequency_hz = 0.5\ndamping_ratio = 0.02\nchannels = { 1x = 0.1 }\nexcitations = { force1 = 0.1 }",
+        ),
+    ] {
+        let q = rbprops_sim::effects::plausibility(&entry(id, toml), &spec).unwrap();
+        assert!(q.iter().any(|q| !q.holds()), "{id}: {q:?}");
+    }
+}
