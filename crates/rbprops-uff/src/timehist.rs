@@ -159,7 +159,7 @@ pub fn index_time_histories(
     if forces.is_empty() {
         return Err(campaign_error(
             uff,
-            "no force channel among the time histories: none has record 9 data type 13 (excitation force) or 9 (reaction force) or a force units label; name it with --force NODE:DIR".into(),
+            "no force channel among the time histories: none has record 9 data type 13 (excitation force) or 9 (reaction force) or a force units label; name it with frf-est --force-dof NODE:DIR".into(),
         ));
     }
     let mut excitations: Vec<(ExcitationRecords, Vec<usize>, Vec<Vec<usize>>)> = Vec::new();

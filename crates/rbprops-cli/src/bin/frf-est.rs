@@ -34,7 +34,7 @@ struct Args {
     uff: rbprops_cli::UffArgs,
     /// The force channel's DOF, NODE:DIR (e.g. 201:-X or 201:-1), when record 9 does not
     /// say which records are forces (repeatable).
-    #[arg(long = "force", value_name = "NODE:DIR")]
+    #[arg(long = "force-dof", value_name = "NODE:DIR")]
     force_dofs: Vec<String>,
     #[arg(long, value_enum, default_value = "h1")]
     estimator: EstimatorArg,
@@ -228,11 +228,11 @@ fn options(a: &Args) -> Result<EstimationOptions> {
 fn parse_dof(s: &str) -> Result<(i64, i64)> {
     let (node, dir) = s
         .split_once(':')
-        .with_context(|| format!("--force '{s}': NODE:DIR, e.g. 201:-X"))?;
+        .with_context(|| format!("--force-dof '{s}': NODE:DIR, e.g. 201:-X"))?;
     let node: i64 = node
         .trim()
         .parse()
-        .with_context(|| format!("--force '{s}': node '{node}' is not an integer"))?;
+        .with_context(|| format!("--force-dof '{s}': node '{node}' is not an integer"))?;
     let d = dir.trim().to_ascii_uppercase();
     let (sign, axis) = match d.strip_prefix('-') {
         Some(rest) => (-1, rest.to_string()),
@@ -242,7 +242,7 @@ fn parse_dof(s: &str) -> Result<(i64, i64)> {
         "X" | "1" => 1,
         "Y" | "2" => 2,
         "Z" | "3" => 3,
-        _ => bail!("--force '{s}': direction '{dir}' is not ±X, ±Y, ±Z or ±1..±3"),
+        _ => bail!("--force-dof '{s}': direction '{dir}' is not ±X, ±Y, ±Z or ±1..±3"),
     };
     Ok((node, sign * a))
 }
