@@ -179,7 +179,7 @@ pub fn estimate_uff(
     let gamma = line_correlation(tau, fs, n);
     let mut estimates = Vec::new();
     let mut variances = Vec::new();
-    let mut dof = f64::INFINITY;
+    let mut dof = Vec::new();
     let mut averages = Vec::new();
     for ((s, hs), name) in sums.iter().zip(&hits).zip(&names) {
         let est = s
@@ -206,9 +206,9 @@ pub fn estimate_uff(
                 &response_window,
             ),
         });
-        if let Some(p) = &pooled {
-            dof = p.dof.iter().fold(dof, |m, &d| m.min(d));
-        }
+        dof.push(pooled.as_ref().map_or(f64::INFINITY, |p| {
+            p.dof.iter().fold(f64::INFINITY, |m, &d| m.min(d))
+        }));
         variances.push(pooled.map(|p| p.variance));
         estimates.push(EstimatedFrfs {
             frf: (0..est.n_resp).map(|o| est.frf(o, 0).to_vec()).collect(),
@@ -233,14 +233,27 @@ pub fn estimate_uff(
     for (a, id) in averages.iter_mut().zip(&names) {
         a.excitation = id.clone();
     }
-    if dof.is_finite() {
+    // The degrees of freedom in the campaign's excitation order.
+    let mut campaign_dof = vec![f64::INFINITY; campaign.geometry.excitations.len()];
+    for (e, id) in names.iter().enumerate() {
+        if let Some(ce) = campaign
+            .geometry
+            .excitations
+            .iter()
+            .position(|x| &x.id == id)
+        {
+            campaign_dof[ce] = dof[e];
+        }
+    }
+    let min_dof = dof.iter().fold(f64::INFINITY, |m: f64, &d| m.min(d));
+    if min_dof.is_finite() {
         crate::variance::set(
             &mut record,
             &campaign.geometry,
             &campaign.frf,
             &crate::variance::LineVarianceSet {
                 sigma2,
-                degrees_of_freedom: dof,
+                degrees_of_freedom: campaign_dof,
             },
         );
     }
@@ -269,7 +282,7 @@ pub fn estimate_uff(
             line_correlation: gamma.iter().map(|g| [g.re, g.im]).collect(),
             variance_method: format!(
                 "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
-                opts.estimator, dof
+                opts.estimator, min_dof
             ),
             hits: hit_table,
         }),
@@ -297,10 +310,7 @@ fn campaign_ids(
         .excitations
         .iter()
         .map(|ex| {
-            let template = match &ex.layout {
-                HitLayout::PerHit(h) => &h[0],
-                HitLayout::Throughput(h) => h,
-            };
+            let template = ex.template();
             let at = &data.datasets[template.responses[0]].location;
             campaign
                 .frf_locations
@@ -611,10 +621,7 @@ fn variance_in_si(
     let mut sigma2 = vec![f64::NAN; frf.values.len()];
     for (cell, at) in campaign.frf_locations.iter().enumerate() {
         let found = index.excitations.iter().enumerate().find_map(|(e, ex)| {
-            let template = match &ex.layout {
-                HitLayout::PerHit(h) => &h[0],
-                HitLayout::Throughput(h) => h,
-            };
+            let template = ex.template();
             template
                 .responses
                 .iter()

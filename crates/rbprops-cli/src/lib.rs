@@ -392,7 +392,30 @@ fn uff_input(
         rbprops_formats::digest::check_uff(&bytes),
         checks,
     )?;
-    let (c, sha256) = read_uff_campaign_bytes(p, bytes, opts)?;
+    let data = rbprops_uff::parse(&bytes, &name)?;
+    if is_time_history_export(&data) {
+        // Time histories without FRFs: estimated as `frf-est` does by default, so every
+        // stage (and the campaign) takes an analyser's time-data export directly.
+        let est = frf_est::estimate_uff(&data, opts, &frf_est::EstimationOptions::default())?;
+        let mut digest_input = bytes;
+        digest_input.extend_from_slice(&est.side_digest);
+        let mut warnings = est.warnings;
+        warnings.push(format!(
+            "FRFs estimated from the time histories ({})",
+            est.summary
+        ));
+        return Ok(Input {
+            record: est.record,
+            sha256: rbprops_formats::sha256_hex(&digest_input),
+            name,
+            notes,
+            warnings,
+        });
+    }
+    let (c, side) = uff_campaign_of(&data, opts)?;
+    let mut digest_input = bytes;
+    digest_input.extend_from_slice(&side);
+    let sha256 = rbprops_formats::sha256_hex(&digest_input);
     let mut record = RunRecord::default();
     record.set_geometry(&c.geometry);
     if let Some(coh) = &c.coherence {
@@ -406,6 +429,16 @@ fn uff_input(
         notes,
         warnings: c.warnings,
     })
+}
+
+/// A universal file holding time histories (dataset 58, function type 1) and no FRF
+/// (function type 4).
+pub fn is_time_history_export(data: &rbprops_uff::UffFile) -> bool {
+    rbprops_uff::timehist::has_time_histories(data)
+        && !data
+            .datasets
+            .iter()
+            .any(|d| matches!(&d.record, rbprops_uff::Record::Function(f) if f.function_type == 4))
 }
 
 /// Writes the geometry and FRFs of a run as UFF: datasets 164, 2411 and 58 (ASCII, complex

@@ -65,6 +65,17 @@ pub struct ExcitationRecords {
     pub layout: HitLayout,
 }
 
+impl ExcitationRecords {
+    /// The records of the first hit (per-hit layout) or the throughput records: the
+    /// datasets whose DOFs, units and ID lines the estimated FRFs take.
+    pub fn template(&self) -> &HitDatasets {
+        match &self.layout {
+            HitLayout::PerHit(h) => &h[0],
+            HitLayout::Throughput(h) => h,
+        }
+    }
+}
+
 /// Time histories of a file sorted for FRF estimation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TimeHistoryIndex {
@@ -434,10 +445,7 @@ pub fn frf_file(
         .cloned()
         .collect();
     for (ex, est) in index.excitations.iter().zip(estimates) {
-        let template = match &ex.layout {
-            HitLayout::PerHit(h) => &h[0],
-            HitLayout::Throughput(h) => h,
-        };
+        let template = ex.template();
         let force = function(uff, template.force);
         for (k, &ri) in template.responses.iter().enumerate() {
             let resp = function(uff, ri);
