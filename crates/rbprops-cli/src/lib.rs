@@ -396,7 +396,13 @@ fn uff_input(
     if is_time_history_export(&data) {
         // Time histories without FRFs: estimated as `frf-est` does by default, so every
         // stage (and the campaign) takes an analyser's time-data export directly.
-        let est = frf_est::estimate_uff(&data, opts, &frf_est::EstimationOptions::default())?;
+        let est = frf_est::estimate_uff(&data, opts, &frf_est::EstimationOptions::default())
+            .map_err(|e| {
+                anyhow::anyhow!(
+                    "{name}: no FRF datasets (dataset 58 with function type 4), and its time histories could not be made into FRFs ({e:#}; see frf-est --help). It holds:\n{}",
+                    rbprops_uff::inventory(&data)
+                )
+            })?;
         let mut digest_input = bytes;
         digest_input.extend_from_slice(&est.side_digest);
         let mut warnings = est.warnings;
