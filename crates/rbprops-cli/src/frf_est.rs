@@ -127,12 +127,6 @@ pub fn estimate_uff(
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
 ) -> Result<Estimated> {
-    if opts.min_hits < 2 {
-        bail!(
-            "--min-hits {}: at least 2 hits are needed for a variance",
-            opts.min_hits
-        );
-    }
     let index = timehist::index_time_histories(
         data,
         &timehist::TimeOptions {
@@ -140,29 +134,7 @@ pub fn estimate_uff(
         },
     )?;
     let fs = index.sample_rate_hz;
-    let (n, pre) = record_samples(data, &index, opts)?;
-    let hits: Vec<Vec<Hit>> = index
-        .excitations
-        .iter()
-        .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
-        .collect::<Result<_>>()?;
-    let names: Vec<String> = index
-        .excitations
-        .iter()
-        .map(|e| format!("{}:{}", e.force_dof.0, dir_name(e.force_dof.1)))
-        .collect();
-    for (hs, name) in hits.iter().zip(&names) {
-        let ok = hs.iter().filter(|h| h.accepted(opts.keep_rejected)).count();
-        if ok < opts.min_hits {
-            bail!(
-                "{}: excitation {name}: {ok} of {} hits accepted, {} needed: {}",
-                data.file_name,
-                hs.len(),
-                opts.min_hits,
-                rejections(hs)
-            );
-        }
-    }
+    let (hits, n) = checked_hits(data, &index, opts)?;
     let tau = match opts.response_window {
         WindowChoice::None => None,
         WindowChoice::Exponential(t) => Some(t),
@@ -177,48 +149,29 @@ pub fn estimate_uff(
         .collect::<Result<_>>()?;
     let band = band_lines(&sums, opts.band_hz, fs)?;
     let gamma = line_correlation(tau, fs, n);
-    let mut estimates = Vec::new();
-    let mut variances = Vec::new();
-    let mut dof = Vec::new();
-    let mut averages = Vec::new();
-    for ((s, hs), name) in sums.iter().zip(&hits).zip(&names) {
-        let est = s
-            .estimate(
-                opts.estimator,
-                Some(band.clone()),
-                &ConditioningOptions::default(),
-            )
-            .with_context(|| format!("{}: excitation {name}", data.file_name))?;
-        let pooled = rbprops_frfest::smoothed_variance(&est, POOL_HALF_WIDTH, Some(&gamma));
-        let q = rbprops_frfest::quality(&est);
-        averages.push(ExcitationAveragesRecord {
-            excitation: name.clone(),
-            accepted: est.n_averages,
-            rejected: hs.len() - est.n_averages,
-            relative_standard_error: q.map_or(f64::NAN, |q| q.relative_se),
-            hits_to_halve: 4 * est.n_averages,
-            force_noise_relative_error: force_noise_error(
-                s,
-                hs,
-                band.clone(),
+    let per_excitation: Vec<ExcitationEstimate> = sums
+        .iter()
+        .zip(&hits)
+        .zip(&index.excitations)
+        .map(|((s, hs), ex)| {
+            let chain = Chain {
+                band: band.clone(),
+                gamma: &gamma,
                 fs,
                 opts,
-                &response_window,
-            ),
-        });
-        dof.push(pooled.as_ref().map_or(f64::INFINITY, |p| {
-            p.dof.iter().fold(f64::INFINITY, |m, &d| m.min(d))
-        }));
-        variances.push(pooled.map(|p| p.variance));
-        estimates.push(EstimatedFrfs {
-            frf: (0..est.n_resp).map(|o| est.frf(o, 0).to_vec()).collect(),
-            coherence: Some(
-                (0..est.n_resp)
-                    .map(|o| est.coherence_of(o).to_vec())
-                    .collect(),
-            ),
-        });
-    }
+                response_window: &response_window,
+            };
+            estimate_excitation(s, hs, &chain).with_context(|| {
+                format!(
+                    "{}: excitation {}:{}",
+                    data.file_name,
+                    ex.force_dof.0,
+                    dir_name(ex.force_dof.1)
+                )
+            })
+        })
+        .collect::<Result<_>>()?;
+    let estimates: Vec<EstimatedFrfs> = per_excitation.iter().map(|e| e.frfs.clone()).collect();
     let step = fs / n as f64;
     let synthetic = timehist::frf_file(data, &index, &estimates, band.start as f64 * step, step);
     let (campaign, side_digest) = crate::uff_campaign_of(&synthetic, uff_opts)?;
@@ -227,42 +180,25 @@ pub fn estimate_uff(
     if let Some(coh) = &campaign.coherence {
         crate::coherence::set(&mut record, &campaign.geometry, coh);
     }
-    let sigma2 = variance_in_si(data, &index, &estimates, &variances, &campaign)?;
     // The campaign's excitation ids (tags, set-ups) replace the force DOFs in the tables.
     let names = campaign_ids(data, &index, &campaign);
+    let variances: Vec<Option<Vec<f64>>> =
+        per_excitation.iter().map(|e| e.variance.clone()).collect();
+    let sigma2 = variance_in_si(data, &index, &estimates, &variances, &campaign)?;
+    let dof: Vec<f64> = per_excitation.iter().map(|e| e.dof).collect();
+    let min_dof = dof.iter().fold(f64::INFINITY, |m: f64, &d| m.min(d));
+    if min_dof.is_finite() {
+        let set = crate::variance::LineVarianceSet {
+            sigma2,
+            degrees_of_freedom: in_campaign_order(&dof, &names, &campaign.geometry),
+        };
+        crate::variance::set(&mut record, &campaign.geometry, &campaign.frf, &set);
+    }
+    let mut averages: Vec<ExcitationAveragesRecord> =
+        per_excitation.into_iter().map(|e| e.averages).collect();
     for (a, id) in averages.iter_mut().zip(&names) {
         a.excitation = id.clone();
     }
-    // The degrees of freedom in the campaign's excitation order.
-    let mut campaign_dof = vec![f64::INFINITY; campaign.geometry.excitations.len()];
-    for (e, id) in names.iter().enumerate() {
-        if let Some(ce) = campaign
-            .geometry
-            .excitations
-            .iter()
-            .position(|x| &x.id == id)
-        {
-            campaign_dof[ce] = dof[e];
-        }
-    }
-    let min_dof = dof.iter().fold(f64::INFINITY, |m: f64, &d| m.min(d));
-    if min_dof.is_finite() {
-        crate::variance::set(
-            &mut record,
-            &campaign.geometry,
-            &campaign.frf,
-            &crate::variance::LineVarianceSet {
-                sigma2,
-                degrees_of_freedom: campaign_dof,
-            },
-        );
-    }
-    let hit_table = hit_records(&hits, &names, fs, opts.keep_rejected);
-    let pretrigger_s = hits
-        .iter()
-        .flatten()
-        .map(|h| h.report.trigger as f64 / fs)
-        .fold(f64::INFINITY, f64::min);
     let processing = ProcessingRecord {
         exponential_window_s: tau,
         line_weighting: None,
@@ -270,7 +206,7 @@ pub fn estimate_uff(
             estimator: format!("{:?}", opts.estimator),
             sample_rate_hz: fs,
             record_samples: n,
-            pretrigger_s,
+            pretrigger_s: pretrigger_s(&hits, fs, opts.keep_rejected),
             force_window: opts.force_window.map(|w| ForceWindowRecord {
                 start_s: -w.pre_s,
                 end_s: w.post_s,
@@ -284,7 +220,7 @@ pub fn estimate_uff(
                 "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
                 opts.estimator, min_dof
             ),
-            hits: hit_table,
+            hits: hit_records(&hits, &names, fs, opts.keep_rejected),
         }),
     };
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
@@ -296,6 +232,123 @@ pub fn estimate_uff(
         warnings: campaign.warnings,
         side_digest,
     })
+}
+
+/// Every excitation's hits, checked, and the record length; an excitation with fewer
+/// than `min_hits` accepted is an error listing its rejections.
+fn checked_hits(
+    data: &UffFile,
+    index: &TimeHistoryIndex,
+    opts: &EstimationOptions,
+) -> Result<(Vec<Vec<Hit>>, usize)> {
+    if opts.min_hits < 2 {
+        bail!(
+            "--min-hits {}: at least 2 hits are needed for a variance",
+            opts.min_hits
+        );
+    }
+    let fs = index.sample_rate_hz;
+    let (n, pre) = record_samples(data, index, opts)?;
+    let hits: Vec<Vec<Hit>> = index
+        .excitations
+        .iter()
+        .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
+        .collect::<Result<_>>()?;
+    for (hs, ex) in hits.iter().zip(&index.excitations) {
+        let ok = hs.iter().filter(|h| h.accepted(opts.keep_rejected)).count();
+        if ok < opts.min_hits {
+            bail!(
+                "{}: excitation {}:{}: {ok} of {} hits accepted, {} needed: {}",
+                data.file_name,
+                ex.force_dof.0,
+                dir_name(ex.force_dof.1),
+                hs.len(),
+                opts.min_hits,
+                rejections(hs)
+            );
+        }
+    }
+    Ok((hits, n))
+}
+
+/// What the estimate of every excitation shares: the band, the window's line
+/// correlation, the sampling, the options.
+struct Chain<'a> {
+    band: std::ops::Range<usize>,
+    gamma: &'a [c64],
+    fs: f64,
+    opts: &'a EstimationOptions,
+    response_window: &'a ResponseWindow,
+}
+
+/// One excitation's FRFs (file units), pooled variances, their degrees of freedom and
+/// its row of the averages table.
+struct ExcitationEstimate {
+    frfs: EstimatedFrfs,
+    variance: Option<Vec<f64>>,
+    dof: f64,
+    averages: ExcitationAveragesRecord,
+}
+
+fn estimate_excitation(s: &SpectralSums, hs: &[Hit], c: &Chain) -> Result<ExcitationEstimate> {
+    let est = s.estimate(
+        c.opts.estimator,
+        Some(c.band.clone()),
+        &ConditioningOptions::default(),
+    )?;
+    let pooled = rbprops_frfest::smoothed_variance(&est, POOL_HALF_WIDTH, Some(c.gamma));
+    let q = rbprops_frfest::quality(&est);
+    let averages = ExcitationAveragesRecord {
+        excitation: String::new(),
+        accepted: est.n_averages,
+        rejected: hs.len() - est.n_averages,
+        relative_standard_error: q.map_or(f64::NAN, |q| q.relative_se),
+        hits_to_halve: 4 * est.n_averages,
+        force_noise_relative_error: force_noise_error(
+            s,
+            hs,
+            c.band.clone(),
+            c.fs,
+            c.opts,
+            c.response_window,
+        ),
+    };
+    let dof = pooled.as_ref().map_or(f64::INFINITY, |p| {
+        p.dof.iter().fold(f64::INFINITY, |m, &d| m.min(d))
+    });
+    Ok(ExcitationEstimate {
+        frfs: EstimatedFrfs {
+            frf: (0..est.n_resp).map(|o| est.frf(o, 0).to_vec()).collect(),
+            coherence: Some(
+                (0..est.n_resp)
+                    .map(|o| est.coherence_of(o).to_vec())
+                    .collect(),
+            ),
+        },
+        variance: pooled.map(|p| p.variance),
+        dof,
+        averages,
+    })
+}
+
+/// Per-excitation values (index order, named `names`) in the geometry's excitation order.
+fn in_campaign_order(values: &[f64], names: &[String], g: &rbprops_core::Geometry) -> Vec<f64> {
+    let mut out = vec![f64::INFINITY; g.excitations.len()];
+    for (v, id) in values.iter().zip(names) {
+        if let Some(ce) = g.excitations.iter().position(|x| &x.id == id) {
+            out[ce] = *v;
+        }
+    }
+    out
+}
+
+/// The pretrigger (s): the earliest trigger of an averaged hit.
+fn pretrigger_s(hits: &[Vec<Hit>], fs: f64, keep_rejected: bool) -> f64 {
+    hits.iter()
+        .flatten()
+        .filter(|h| h.accepted(keep_rejected))
+        .map(|h| h.report.trigger as f64 / fs)
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// The campaign's id of each excitation of the index (through the dataset of its first
