@@ -143,13 +143,14 @@ pub fn estimate_uff(
     let response_window = tau.map_or(ResponseWindow::None, |tau_s| ResponseWindow::Exponential {
         tau_s,
     });
-    let sums: Vec<SpectralSums> = hits
+    let averaged: Vec<Averaged> = hits
         .iter()
         .map(|hs| average(hs, fs, n, opts, &response_window))
         .collect::<Result<_>>()?;
+    let sums: Vec<&SpectralSums> = averaged.iter().map(|a| &a.sums).collect();
     let band = band_lines(&sums, opts.band_hz, fs)?;
     let gamma = line_correlation(tau, fs, n);
-    let per_excitation: Vec<ExcitationEstimate> = sums
+    let per_excitation: Vec<ExcitationEstimate> = averaged
         .iter()
         .zip(&hits)
         .zip(&index.excitations)
@@ -157,9 +158,7 @@ pub fn estimate_uff(
             let chain = Chain {
                 band: band.clone(),
                 gamma: &gamma,
-                fs,
                 opts,
-                response_window: &response_window,
             };
             estimate_excitation(s, hs, &chain).with_context(|| {
                 format!(
@@ -276,9 +275,7 @@ fn checked_hits(
 struct Chain<'a> {
     band: std::ops::Range<usize>,
     gamma: &'a [c64],
-    fs: f64,
     opts: &'a EstimationOptions,
-    response_window: &'a ResponseWindow,
 }
 
 /// One excitation's FRFs (file units), pooled variances, their degrees of freedom and
@@ -290,8 +287,8 @@ struct ExcitationEstimate {
     averages: ExcitationAveragesRecord,
 }
 
-fn estimate_excitation(s: &SpectralSums, hs: &[Hit], c: &Chain) -> Result<ExcitationEstimate> {
-    let est = s.estimate(
+fn estimate_excitation(a: &Averaged, hs: &[Hit], c: &Chain) -> Result<ExcitationEstimate> {
+    let est = a.sums.estimate(
         c.opts.estimator,
         Some(c.band.clone()),
         &ConditioningOptions::default(),
@@ -304,14 +301,7 @@ fn estimate_excitation(s: &SpectralSums, hs: &[Hit], c: &Chain) -> Result<Excita
         rejected: hs.len() - est.n_averages,
         relative_standard_error: q.map_or(f64::NAN, |q| q.relative_se),
         hits_to_halve: 4 * est.n_averages,
-        force_noise_relative_error: force_noise_error(
-            s,
-            hs,
-            c.band.clone(),
-            c.fs,
-            c.opts,
-            c.response_window,
-        ),
+        force_noise_relative_error: force_noise_error(a, c.band.clone()),
     };
     let dof = pooled.as_ref().map_or(f64::INFINITY, |p| {
         p.dof.iter().fold(f64::INFINITY, |m, &d| m.min(d))
@@ -543,17 +533,25 @@ fn auto_tau(hits: &[Vec<Hit>], fs: f64, keep_rejected: bool) -> Option<f64> {
         .filter(|t| *t > 0.0)
 }
 
-/// The spectral sums of one excitation's accepted hits, windowed.
+/// One excitation's accepted hits averaged: the spectral sums of the windowed records and
+/// the mean over the hits of `σ_m² Σw_f²`, the force noise's energy through its window
+/// (σ_m from each hit's pretrigger).
+struct Averaged {
+    sums: SpectralSums,
+    force_noise_energy: f64,
+}
+
 fn average(
     hits: &[Hit],
     fs: f64,
     n: usize,
     opts: &EstimationOptions,
     response_window: &ResponseWindow,
-) -> Result<SpectralSums> {
+) -> Result<Averaged> {
     let n_resp = hits[0].responses.len();
     let mut sums = SpectralSums::new(n, fs, 1, n_resp)?;
     let mut w = HitWindows::new(n);
+    let mut energy = 0.0;
     for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
         w.set(
             fs,
@@ -565,45 +563,25 @@ fn average(
         );
         let refs: Vec<&[f64]> = h.responses.iter().map(|r| r.as_slice()).collect();
         sums.add_windowed_hit(&[&h.force], &refs, Some(&w.force), Some(&w.response))?;
+        energy += h.report.noise_rms.powi(2) * w.force.iter().map(|x| x * x).sum::<f64>();
     }
-    Ok(sums)
+    let force_noise_energy = energy / sums.count().max(1) as f64;
+    Ok(Averaged {
+        sums,
+        force_noise_energy,
+    })
 }
 
 /// RMS over `band` of `√(σ_m² Σw_f²/S_ff,k)`: the relative error the force channel's
-/// noise (σ_m from each accepted hit's pretrigger, white) puts into H1 at line k, the
-/// mean of `Σw_f²` over the hits (records.rs, `force_noise_relative_error`).
-fn force_noise_error(
-    sums: &SpectralSums,
-    hits: &[Hit],
-    band: std::ops::Range<usize>,
-    fs: f64,
-    opts: &EstimationOptions,
-    response_window: &ResponseWindow,
-) -> f64 {
-    let n = sums.record_len();
-    let mut w = HitWindows::new(n);
-    let (mut noise_energy, mut count) = (0.0, 0.0);
-    for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
-        w.set(
-            fs,
-            h.report.trigger,
-            h.report.pulse_end,
-            opts.force_window.as_ref(),
-            response_window,
-            opts.exponential_on_force,
-        );
-        let energy: f64 = w.force.iter().map(|x| x * x).sum();
-        noise_energy += h.report.noise_rms * h.report.noise_rms * energy;
-        count += 1.0;
-    }
-    if count == 0.0 || band.is_empty() {
+/// noise puts into H1 at line k (`Σ_d |F_d|² σ_m² Σw² / S_ff²` with the hits' mean noise
+/// energy; records.rs, `force_noise_relative_error`).
+fn force_noise_error(a: &Averaged, band: std::ops::Range<usize>) -> f64 {
+    if band.is_empty() {
         return 0.0;
     }
-    // Σ_d |F_d|² σ_m² Σw² / S_ff² = σ_m² Σw² / S_ff with the hits' mean noise energy.
-    let per_hit = noise_energy / count;
     let mean: f64 = band
         .clone()
-        .map(|k| per_hit / sums.sff(k, 0, 0).re)
+        .map(|k| a.force_noise_energy / a.sums.sff(k, 0, 0).re)
         .sum::<f64>()
         / band.len() as f64;
     mean.sqrt()
@@ -614,7 +592,7 @@ fn force_noise_error(
 /// force autospectrum has fallen 20 dB below its largest value (a hammer's useful band),
 /// at most 0.4 f_s (an anti-alias filter's pass band).
 pub fn band_lines(
-    sums: &[SpectralSums],
+    sums: &[&SpectralSums],
     band_hz: Option<(f64, f64)>,
     fs: f64,
 ) -> Result<std::ops::Range<usize>> {

@@ -102,6 +102,22 @@ fn h1_equals_the_generators_numpy_h1_with_the_same_windows() {
     );
 }
 
+/// `frf-est INPUT ARGS -o out`, which must succeed.
+fn estimate_to(input: &str, args: &[String], out: &Path) {
+    let st = frf_est()
+        .arg(input)
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{input}: {}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+}
+
 fn processing(mcap: &Path) -> ProcessingRecord {
     let rec = rbprops_formats::read_path(mcap).unwrap();
     rec.get_one(PROCESSING_TOPIC)
@@ -132,18 +148,7 @@ fn rejected_hits_are_the_truths_in_both_layouts() {
         ),
     ] {
         let out = dir.path().join(format!("{file}.mcap"));
-        let st = frf_est()
-            .arg(fixture(file))
-            .args(&extra)
-            .arg("-o")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            st.status.success(),
-            "{file}: {}",
-            String::from_utf8_lossy(&st.stderr)
-        );
+        estimate_to(&fixture(file), &extra, &out);
         let p = processing(&out);
         let est = p.frf_estimation.expect("frf_estimation");
         for (e, ex) in truth["recording"]["excitations"]
@@ -188,17 +193,7 @@ fn rejected_hits_are_the_truths_in_both_layouts() {
 fn variance_topic_and_processing_are_written() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("run.mcap");
-    let st = frf_est()
-        .arg(fixture("small-per-hit.uff"))
-        .arg("-o")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    estimate_to(&fixture("small-per-hit.uff"), &[], &out);
     let rec = rbprops_formats::read_path(&out).unwrap();
     let v = rbprops_cli::variance::get(&rec)
         .unwrap()
@@ -268,17 +263,7 @@ fn bad_input_is_a_clear_error_and_no_output() {
 fn stages_take_time_history_exports_directly() {
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("est.mcap"), dir.path().join("conv.mcap"));
-    let st = frf_est()
-        .arg(fixture("small-per-hit.uff"))
-        .arg("-o")
-        .arg(&a)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    estimate_to(&fixture("small-per-hit.uff"), &[], &a);
     let st = super::common::rbprops()
         .args(["convert", &fixture("small-per-hit.uff"), "-o"])
         .arg(&b)
