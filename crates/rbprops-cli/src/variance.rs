@@ -1,17 +1,16 @@
 //! The line-variance topic (`/rbprops/frf_variance`): each FRF line's noise variance as
-//! the estimator knows it. Written by `frf-est` (H1 over its accepted hits) and by the UFF
-//! import when an export carries coherence and the number of averages is declared; read
-//! by `modal-fit` (line weights), `rb-solve` (the bootstrap's noise) and `model-check`
-//! (its noise model), each of which says in its method text that it used it.
+//! the estimator knows it. Written by `frf-est` (H1 over its accepted hits); read by
+//! `model-check` as its noise model (its method text says so). `modal-fit` and `rb-solve`
+//! do not read it yet (`modal-fit --weight coherence` uses the coherence `frf-est` writes).
 
 use anyhow::{bail, Result};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_formats::wire::{decode_values, encode_values, FrfVarianceMsg};
 use rbprops_formats::{topics, RunRecord};
 
-/// Lines pooled on each side of a line (docs/conventions.md, FRF estimation): 9 lines in
-/// all, 72 real degrees of freedom from five hits, over 3 % of a mode's half-power band at
-/// the suspension frequencies only when the band holds fewer than ~2 lines.
+/// Lines whose noise power is pooled on each side of a line (docs/conventions.md, FRF
+/// estimation): 9 in all, 72 real degrees of freedom from five hits on independent lines,
+/// fewer under an exponential window (the topic carries the number).
 pub const POOL_HALF_WIDTH: usize = 4;
 
 /// σ² per FRF value, the FRF layout `[excitation][channel][line]`; NaN where unknown.
@@ -57,47 +56,6 @@ impl LineVarianceSet {
             .iter()
             .fold(f64::INFINITY, |m, &d| m.min(d))
     }
-}
-
-/// The variance of every line of an H1 estimate from its coherence and the number of
-/// averages per excitation (`rbprops_core::h1_line_variance`, pooled over
-/// ±[`POOL_HALF_WIDTH`] lines). `coherence[e][c]` is γ² per line or `None` (variance
-/// unknown: NaN). Errors when an excitation has a coherence and fewer than 2 averages.
-pub fn from_coherence(
-    frf: &FrfSet,
-    coherence: &[Vec<Option<Vec<f64>>>],
-    n_averages: &[usize],
-    geometry: &Geometry,
-) -> Result<LineVarianceSet> {
-    let n = frf.n_lines();
-    let mut sigma2 = vec![f64::NAN; frf.values.len()];
-    let mut dof = vec![f64::INFINITY; frf.n_excitations];
-    for (e, row) in coherence.iter().enumerate() {
-        let n_d = n_averages[e];
-        if row.iter().any(|c| c.is_some()) && n_d < 2 {
-            bail!(
-                "excitation '{}': {n_d} average(s): a coherence from fewer than 2 averages is 1 identically and says nothing of the noise",
-                geometry.excitations[e].id
-            );
-        }
-        for (c, g) in row.iter().enumerate() {
-            let Some(g) = g else { continue };
-            let at = (e * frf.n_channels + c) * n;
-            let raw: Vec<f64> = (0..n)
-                .map(|l| {
-                    rbprops_core::h1_line_variance(frf.values[at + l], g[l], n_d)
-                        .unwrap_or(f64::NAN)
-                })
-                .collect();
-            let pooled = rbprops_core::pool_line_variance(&raw, POOL_HALF_WIDTH);
-            sigma2[at..at + n].copy_from_slice(&pooled);
-            dof[e] = 2.0 * (n_d - 1) as f64 * (2 * POOL_HALF_WIDTH + 1) as f64;
-        }
-    }
-    Ok(LineVarianceSet {
-        sigma2,
-        degrees_of_freedom: dof,
-    })
 }
 
 /// Stores a variance set as the topic (channels with any finite value).

@@ -38,7 +38,7 @@ pub use geometry::{
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
-pub use noise::{h1_line_variance, pool_line_variance, CoherenceNoise, NoiseModel, NormalStream};
+pub use noise::{CoherenceNoise, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
 pub use properties::InertiaProperties;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};

@@ -141,59 +141,6 @@ impl CoherenceNoise {
     }
 }
 
-/// The noise variance of one H1 line, `σ² = E|Ĥ₁ − H|²`, from its measured coherence `γ²`
-/// and the `n_d` averages it was made of:
-///
-/// ```text
-///   σ̂² = R / ((n_d − 1) S_ff) = |Ĥ₁|² (1 − γ²) / ((n_d − 1) γ²)
-/// ```
-///
-/// with the sums over averages `S_ff = Σ|F|²`, `S_xf = Σ F̄X`, `S_xx = Σ|X|²`, the residual
-/// power `R = S_xx − |S_xf|²/S_ff = S_xx(1 − γ²)` and `|Ĥ₁|² S_ff = γ² S_xx`. Why `n_d − 1`:
-/// with noise `N` on the response only, `Ĥ₁ − H = Σ F̄N / S_ff` has variance `σ_N²/S_ff`
-/// for the hits' forces as they were, and `R` is the noise power left after projecting
-/// out the force, `E R = (n_d − 1) σ_N²` (it has `2(n_d − 1)` real degrees of freedom and
-/// is independent of `Ĥ₁ − H`). This is the unbiased form of the textbook
-/// `(1 − γ²)/(n_d γ²)` (Bendat & Piersol), which with the coherence estimated from the
-/// same `n_d` averages reads the variance low by `(n_d − 1)/n_d`. `None` for `n_d < 2`
-/// (γ² = 1 identically: no variance can be read) or a coherence that is not in (0, 1].
-pub fn h1_line_variance(h: c64, gamma2: f64, n_averages: usize) -> Option<f64> {
-    if n_averages < 2 || !(gamma2 > 0.0 && gamma2 <= 1.0) {
-        return None;
-    }
-    Some(h.norm_sqr() * (1.0 - gamma2) / ((n_averages - 1) as f64 * gamma2))
-}
-
-/// Per-line variances pooled over the `2 half_width + 1` lines around each (fewer at the
-/// ends): the mean of the neighbours' σ². H1's variance `σ_N²/S_ff` follows the noise
-/// spectrum and the force spectrum, both smooth over a few lines for an impact (a pulse
-/// of a few ms has a flat spectrum over tens of Hz), while a single line's estimate has
-/// only `2(n_d − 1)` degrees of freedom (8 for five hits: ±50 % scatter). Pooling over
-/// `w` lines gives about `2(n_d − 1) w` (less where a window correlates the lines).
-/// Non-finite entries are left out of the means; a line with none gets NaN.
-pub fn pool_line_variance(sigma2: &[f64], half_width: usize) -> Vec<f64> {
-    let n = sigma2.len();
-    // Prefix sums of the finite values and of their count: O(n) whatever the width.
-    let mut sum = vec![0.0; n + 1];
-    let mut count = vec![0usize; n + 1];
-    for (i, &v) in sigma2.iter().enumerate() {
-        let ok = v.is_finite();
-        sum[i + 1] = sum[i] + if ok { v } else { 0.0 };
-        count[i + 1] = count[i] + usize::from(ok);
-    }
-    (0..n)
-        .map(|i| {
-            let (a, b) = (i.saturating_sub(half_width), (i + half_width + 1).min(n));
-            let k = count[b] - count[a];
-            if k == 0 {
-                f64::NAN
-            } else {
-                (sum[b] - sum[a]) / k as f64
-            }
-        })
-        .collect()
-}
-
 /// The seeded source of standard normal deviates (module docs).
 #[derive(Debug, Clone)]
 pub struct NormalStream {
@@ -256,63 +203,6 @@ pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// σ̂² = |Ĥ|²(1 − γ²)/((n_d − 1)γ²) from sums over averages equals the residual form
-    /// R/((n_d − 1) S_ff) exactly (up to rounding), and is calibrated: over many draws of
-    /// response noise E|Ĥ₁ − H|²/σ̂² → (2(n_d−1))/(2(n_d−1) − 2) (σ̂² is a scaled χ² with
-    /// 2(n_d − 1) degrees, independent of the error), while E σ̂² → E|Ĥ₁ − H|².
-    ///
-    /// Tolerance: 40 000 draws; the ratio |Ĥ−H|²/σ_true² is exponential (sd 1) and σ̂²/σ²
-    /// has sd √(1/(n_d−1)) = 0.5: the means have standard errors 0.005 and 0.0025; the
-    /// bound 0.03 is six of the larger.
-    #[test]
-    fn h1_line_variance_is_unbiased() {
-        let n_d = 5;
-        let h = c64::new(0.3, -1.2);
-        let sigma_n = 0.7;
-        let mut normals = NormalStream::new(3, 1);
-        let forces: Vec<c64> = (0..n_d)
-            .map(|i| c64::from_polar(1.0 + 0.2 * i as f64, 0.7 * i as f64))
-            .collect();
-        let s_ff: f64 = forces.iter().map(|f| f.norm_sqr()).sum();
-        let true_var = sigma_n * sigma_n / s_ff;
-        let (mut err, mut est) = (0.0, 0.0);
-        let draws = 40_000;
-        for _ in 0..draws {
-            let (mut sxf, mut sxx) = (c64::new(0.0, 0.0), 0.0);
-            for f in &forces {
-                let x = h * f + normals.circular(sigma_n);
-                sxf += f.conj() * x;
-                sxx += x.norm_sqr();
-            }
-            let h1 = sxf / s_ff;
-            let g2 = sxf.norm_sqr() / (s_ff * sxx);
-            let v = h1_line_variance(h1, g2, n_d).unwrap();
-            let r = sxx - sxf.norm_sqr() / s_ff;
-            assert!((v - r / ((n_d - 1) as f64 * s_ff)).abs() <= 1e-9 * v);
-            err += (h1 - h).norm_sqr() / true_var;
-            est += v / true_var;
-        }
-        let d = draws as f64;
-        assert!((err / d - 1.0).abs() < 0.03, "E|e|²/σ² = {}", err / d);
-        assert!((est / d - 1.0).abs() < 0.03, "E σ̂²/σ² = {}", est / d);
-        assert_eq!(h1_line_variance(h, 1.0, 1), None);
-        assert_eq!(h1_line_variance(h, 0.0, 5), None);
-        assert_eq!(h1_line_variance(h, f64::NAN, 5), None);
-    }
-
-    #[test]
-    fn pooled_variance_is_the_window_mean() {
-        let v = [1.0, 2.0, f64::NAN, 4.0, 8.0];
-        let p = pool_line_variance(&v, 1);
-        assert_eq!(p[0], 1.5);
-        assert_eq!(p[1], 1.5);
-        assert_eq!(p[2], 3.0);
-        assert_eq!(p[3], 6.0);
-        assert_eq!(p[4], 6.0);
-        assert_eq!(pool_line_variance(&v, 0)[3], 4.0);
-        assert!(pool_line_variance(&[f64::NAN], 3)[0].is_nan());
-    }
 
     #[test]
     fn std_dev_is_exact_at_the_ends() {
