@@ -150,7 +150,7 @@
 #[path = "bench_recording.rs"]
 mod bench_recording;
 
-use bench_recording::{nominal, recording, CASES};
+use bench_recording::{nominal, nominal_for, recording, CASES};
 use rbprops_check::{check, prof, CheckOptions, Progress};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -209,7 +209,6 @@ fn main() {
         }
         i += 1;
     }
-    let spec = nominal();
     println!(
         "model-check speed: {} rayon threads{}",
         rayon::current_num_threads(),
@@ -220,11 +219,13 @@ fn main() {
         }
     );
     let mut times = Vec::new();
+    let mut failures = Vec::new();
     for (stem, concealed) in CASES {
         if only.as_deref().is_some_and(|o| o != stem) {
             continue;
         }
         let (geometry, frf) = recording(stem);
+        let spec = nominal_for(stem);
         for _ in 0..repeat {
             prof::reset();
             let c0 = cpu_seconds();
@@ -255,9 +256,19 @@ fn main() {
                 .copied()
                 .filter(|c| !named.iter().any(|n| n.contains(c)))
                 .collect();
+            let extra: Vec<&String> = named
+                .iter()
+                .filter(|n| !concealed.iter().any(|c| n.contains(c)))
+                .collect();
+            if !missed.is_empty() || !extra.is_empty() || !r.noise_floor_reached {
+                failures.push(format!(
+                    "{stem}: missed {missed:?}, false {extra:?}, floor reached {}",
+                    r.noise_floor_reached
+                ));
+            }
             println!("\n== {stem}: {dt:.2} s wall, {cpu:.2} CPU s");
             println!("  concealed {concealed:?}");
-            println!("  named     {named:?}; missed {missed:?}");
+            println!("  named     {named:?}; missed {missed:?}; false {extra:?}");
             println!(
                 "  χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}), floor reached: {}",
                 r.chi2_nu_before,
@@ -307,7 +318,25 @@ fn main() {
             worst
         );
     }
-    model_evaluation_anatomy(&spec);
+    if let Some(kb) = peak_rss_kib() {
+        println!("peak RSS of the process: {:.0} MiB", kb as f64 / 1024.0);
+    }
+    model_evaluation_anatomy(&nominal());
+    if !failures.is_empty() {
+        eprintln!("check_speed: {} case(s) named a wrong set or missed the floor:", failures.len());
+        for f in &failures {
+            eprintln!("  {f}");
+        }
+        std::process::exit(1);
+    }
+}
+
+/// The process's peak resident set (VmHWM, Linux): run one `--case` per process to read
+/// a case's own peak.
+fn peak_rss_kib() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// One model evaluation of the nominal spec on the bench axis as the check makes it

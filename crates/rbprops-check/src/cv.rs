@@ -84,6 +84,7 @@ pub struct HeldOut {
 /// a least-squares fit with residual `r` (two rows per used value: real, imaginary) and
 /// Jacobian `j`, in noise units.
 pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize) -> HeldOut {
+    let _t = crate::prof::span(crate::prof::HELD_OUT);
     let p = j.ncols();
     // Column scaling (the parameters have very different units).
     let norms: Vec<f64> = (0..p).map(|c| j.column(c).norm()).collect();

@@ -7,7 +7,7 @@
 //! evaluations it makes.
 
 /// Names of the phases, by index.
-pub const PHASES: [&str; 7] = [
+pub const PHASES: [&str; 12] = [
     "model evaluations (predict)",
     "finite-difference Jacobians",
     "LM fit: baseline",
@@ -15,6 +15,11 @@ pub const PHASES: [&str; 7] = [
     "LM fit: other (backward, gauges)",
     "LM linear algebra (normal equations, steps)",
     "noise model (estimate, re-estimate)",
+    "screening: current span and chord solver",
+    "screening: score tests",
+    "screening: profiles (grid)",
+    "screening: in-band resonance",
+    "held-out residuals",
 ];
 
 /// Phase indices (see [`PHASES`]).
@@ -31,6 +36,16 @@ pub const FIT_OTHER: usize = 4;
 pub const LM_ALGEBRA: usize = 5;
 /// The noise model (estimate and re-estimate).
 pub const NOISE: usize = 6;
+/// The screening's span of the current model and its chord solver.
+pub const SCREEN_SPAN: usize = 7;
+/// The screening's score tests.
+pub const SCREEN_SCORE: usize = 8;
+/// The screening's profiles over a grid.
+pub const SCREEN_PROFILE: usize = 9;
+/// The screening's in-band resonance search.
+pub const SCREEN_RESONANCE: usize = 10;
+/// Held-out residuals (cross-validation).
+pub const HELD_OUT: usize = 11;
 
 #[cfg(feature = "phase-timing")]
 mod imp {

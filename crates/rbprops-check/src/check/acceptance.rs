@@ -45,6 +45,13 @@ pub(super) fn fit_covariance(fit: &Fit, nu: f64) -> DMatrix<f64> {
     lm::covariance(&fit.jacobian) * s
 }
 
+/// The current model as every refit of a step is weighed against it.
+pub(super) struct RefitBaseline {
+    cur_pred: Vec<c64>,
+    cv_without: crate::cv::HeldOut,
+    loeo_without: crate::cv::HeldOut,
+}
+
 /// The evidence for one refitted candidate, and its decision: accepted if `why` is
 /// empty. Kept for the accepted effects (with `inertia_change` filled) for the report
 /// and the backward check.
@@ -80,6 +87,29 @@ impl Evidence {
 }
 
 impl<'p, 'a> Selection<'p, 'a> {
+    /// What every refit of a step is weighed against: the current model's prediction
+    /// and its held-out residuals (frequency blocks, excitations).
+    pub(super) fn refit_baseline(&self) -> Result<RefitBaseline, CheckError> {
+        let (p, cur) = (self.p, &self.cur);
+        let cur_pred = p.model(&cur.theta, &self.active)?;
+        let held_out = |folds: &[usize], n: usize| {
+            crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, folds, n)
+        };
+        Ok(RefitBaseline {
+            cv_without: if self.options.cross_validation {
+                held_out(&self.folds, crate::cv::FOLDS)
+            } else {
+                Default::default()
+            },
+            loeo_without: if self.loeo {
+                held_out(&self.exc_folds, self.n_excitations)
+            } else {
+                Default::default()
+            },
+            cur_pred,
+        })
+    }
+
     /// The evidence of every successful refit, sorted by ΔBIC (best first); the
     /// screening table gets each refit's Δχ² and ΔBIC, failures become warnings.
     pub(super) fn evaluate_all(
@@ -87,29 +117,11 @@ impl<'p, 'a> Selection<'p, 'a> {
         step: usize,
         refit: &[(usize, Score, f64)],
         fits: Vec<(usize, Result<Fit, CheckError>, Vec<usize>)>,
+        base: &RefitBaseline,
     ) -> Result<Vec<Evidence>, CheckError> {
-        let (p, cur) = (self.p, &self.cur);
-        let cur_pred = p.model(&cur.theta, &self.active)?;
-        let cv_without = if self.options.cross_validation {
-            crate::cv::held_out_residuals(
-                &cur.residual,
-                &cur.jacobian,
-                &self.folds,
-                crate::cv::FOLDS,
-            )
-        } else {
-            Default::default()
-        };
-        let loeo_without = if self.loeo {
-            crate::cv::held_out_residuals(
-                &cur.residual,
-                &cur.jacobian,
-                &self.exc_folds,
-                self.n_excitations,
-            )
-        } else {
-            Default::default()
-        };
+        let p = self.p;
+        let (cur_pred, cv_without, loeo_without) =
+            (&base.cur_pred, &base.cv_without, &base.loeo_without);
         let mut evals: Vec<Evidence> = Vec::new();
         for (c, f, kept) in fits {
             let s = &refit.iter().find(|x| x.0 == c).expect("refitted").1;
@@ -121,7 +133,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                     continue;
                 }
             };
-            let e = self.evaluate(c, s.n_tests, f, kept, &cur_pred, &cv_without, &loeo_without);
+            let e = self.evaluate(c, s.n_tests, f, kept, cur_pred, cv_without, loeo_without);
             for entry in self.screening.iter_mut().rev() {
                 if entry.step == step && entry.id == p.cands[c].id {
                     entry.refit_delta_chi2 = Some(e.dchi2);
@@ -316,7 +328,17 @@ fn wald_statistic(
     kept: &[usize],
     neutral: &[f64],
 ) -> f64 {
-    let cov = fit_covariance(f, nu);
+    wald_in(&fit_covariance(f, nu), k0, alpha, kept, neutral)
+}
+
+/// [`wald_statistic`] with the fit's covariance `cov` given (θ's whole covariance).
+pub(super) fn wald_in(
+    cov: &DMatrix<f64>,
+    k0: usize,
+    alpha: &[f64],
+    kept: &[usize],
+    neutral: &[f64],
+) -> f64 {
     // In α coordinates (identifiable directions only).
     let np = kept.len();
     let cphi = cov.view((k0, k0), (np, np)).into_owned();
