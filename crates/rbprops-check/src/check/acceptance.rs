@@ -212,25 +212,46 @@ impl<'p, 'a> Selection<'p, 'a> {
             kept: kept.clone(),
             gauge: Vec::new(),
         });
-        let (practical, relative) = p.model(&f.theta, &act).map_or((0.0, 0.0), |m| {
-            (
-                p.change_over_floor(&m, cur_pred, self.sigma_precision),
-                p.largest_relative_change(&m, cur_pred),
-            )
-        });
+        // The resolution rule weighs the effect's own change: the fitted model against
+        // the same parameters with the effect at neutral. (Against the current model, the
+        // refit's re-adjustment of everything else would count as the effect's.)
+        let mut theta_neutral = f.theta.clone();
+        for (t, &j) in theta_neutral[k0..].iter_mut().zip(&kept) {
+            *t = cand.neutral[j];
+        }
+        let (practical, relative, relative_exc) =
+            p.model(&f.theta, &act).map_or((0.0, 0.0, 0.0), |m| {
+                let own = p.model(&theta_neutral, &act).map_or((0.0, 0.0), |m0| {
+                    (
+                        p.largest_relative_change(&m, &m0),
+                        p.largest_relative_change_by_excitation(&m, &m0),
+                    )
+                });
+                (
+                    p.change_over_floor(&m, cur_pred, self.sigma_precision),
+                    own.0,
+                    own.1,
+                )
+            });
         if !(practical >= PRACTICAL_MARGIN) {
             why.push(format!(
                 "fitted FRF change {practical:.2} × the precision floor (RMS), needs ≥ {PRACTICAL_MARGIN}"
             ));
         }
-        let resolution = options
-            .estimator_resolution
-            .map_or(RESOLUTION, |r| r.max(RESOLUTION));
-        if !(relative >= resolution) {
+        if !(relative >= RESOLUTION) {
             why.push(format!(
-                "fitted FRF change {relative:.1e} relative (largest over the FRFs), needs ≥ {resolution:.1e}: below what a calibration resolves{}",
-                if resolution > RESOLUTION { " or the FRF estimator's force noise allows" } else { "" }
+                "fitted FRF change {relative:.1e} relative (largest over the FRFs), needs ≥ {RESOLUTION:.0e}: below what a calibration resolves"
             ));
+        }
+        // The FRF estimator's force noise multiplies all of an excitation's FRFs by a
+        // common smooth error: an effect must change some excitation's FRFs, taken
+        // together, by more than a multiple of it.
+        if let Some(r) = options.estimator_resolution.filter(|&r| r > 0.0) {
+            if !(relative_exc >= r) {
+                why.push(format!(
+                    "fitted change {relative_exc:.1e} relative to an excitation's FRFs (largest over the excitations), needs ≥ {r:.1e}: within what the FRF estimator's force noise allows"
+                ));
+            }
         }
         // Held-out check (A2), only where the other evidence holds (it is cheap,
         // but its verdict matters only then).

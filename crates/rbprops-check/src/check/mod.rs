@@ -44,9 +44,11 @@ pub struct CheckOptions {
     pub noise: Option<RecordingNoise>,
     /// Each value's variance from the FRF estimator; takes precedence over `noise`.
     pub line_variance: Option<noise::GivenLineVariance>,
-    /// The smallest relative FRF change an effect must make (largest over the FRFs) when
-    /// the FRF estimator says its force-channel noise makes a common error of this size
-    /// (a multiple of it); at least [`RESOLUTION`] whatever is given.
+    /// The smallest relative change an effect must make to some excitation's FRFs taken
+    /// together (its own change: the fit with the effect against the same fit with the
+    /// effect at neutral) when the FRF estimator says its force-channel noise makes a
+    /// common error of this size on every channel of an excitation (a multiple of it).
+    /// Besides [`RESOLUTION`], which applies per FRF whatever is given.
     pub estimator_resolution: Option<f64>,
     /// Family-wise false-positive rate per selection step (Bonferroni over candidates).
     pub alpha: f64,

@@ -285,6 +285,25 @@ impl<'a> Problem<'a> {
             .fold(0.0, f64::max)
     }
 
+    /// The largest over the excitations of ‖Ŷ₁ − Ŷ₀‖/‖Ŷ₀‖ over all that excitation's
+    /// values used: the relative change a prediction makes to some excitation's FRFs
+    /// taken together, the scale of the FRF estimator's force-noise error (which
+    /// multiplies every channel of an excitation alike).
+    pub(super) fn largest_relative_change_by_excitation(&self, m1: &[c64], m0: &[c64]) -> f64 {
+        let block = self.layout.channel_map.len() * self.layout.n_lines();
+        let mut by_exc = vec![(0.0, 0.0); self.y.len() / block.max(1)];
+        for &i in &self.used {
+            let e = &mut by_exc[i / block];
+            e.0 += (m1[i] - m0[i]).norm_sqr();
+            e.1 += m0[i].norm_sqr();
+        }
+        by_exc
+            .iter()
+            .filter(|(_, d)| *d > 0.0)
+            .map(|(n, d)| (n / d).sqrt())
+            .fold(0.0, f64::max)
+    }
+
     /// RMS over the values used of |Ŷ₁ − Ŷ₀|/σ_p: the change between two predictions in
     /// units of the precision floor `sigma_precision` (values with σ_p = 0, exact zeros
     /// of a model with no rounding to speak of, are left out).
