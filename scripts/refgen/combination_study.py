@@ -1,0 +1,235 @@
+#!/usr/bin/env python3
+"""Randomised study of `model-check` on combinations of effects (issue 37).
+
+Each recording is Test Case II on its springs, made by the independent generator
+(`rbref`, not rbprops-sim) with 0–6 effects drawn at random from the pool below, each with
+a random magnitude inside the range a tester would find plausible (docs/physics.md), 1 %
+relative noise, single precision, 400 lines; it is checked against the nominal spec
+(`fixtures/specs/test-case-2.toml`) with default options. Scored per recording: the
+concealed effects named (an ambiguous family counts when it holds the concealed id),
+the false claims (anything else named; a family with no concealed member counts once),
+χ²/ν inside the noise band, and the check's wall time.
+
+The seeds were fixed before the first run: 5001–5200 (one recording each; the number of
+effects, which effects and their sizes all follow from the seed).
+
+    python3 scripts/refgen/combination_study.py --seeds 5001:5200 \\
+        --bin target/release --out combos.json
+
+Prints one JSON line per recording and a summary table by number of effects (markdown).
+Not yet in the study: cord suspensions written as springs, and impact tests through
+`frf-est` (half the recordings, in the issue's design).
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.abspath(os.path.join(HERE, "..", ".."))
+SPEC = os.path.join(ROOT, "fixtures", "specs", "test-case-2.toml")
+SENSORS = ["1", "2", "3"]
+FORCES = ["force1", "force2", "force3"]
+
+
+def _sign(rng):
+    return 1.0 if rng.random() < 0.5 else -1.0
+
+
+def _rotation(rng, lo_deg, hi_deg):
+    axis = rng.standard_normal(3)
+    axis /= np.linalg.norm(axis)
+    return list(np.radians(rng.uniform(lo_deg, hi_deg)) * axis)
+
+
+def _offset(rng, lo_mm, hi_mm):
+    d = rng.standard_normal(3)
+    d /= np.linalg.norm(d)
+    return list(1e-3 * rng.uniform(lo_mm, hi_mm) * d)
+
+
+# Each draw returns (check id, generator settings as (dotted path, value) pairs, extra
+# case tables). Magnitudes: plausible and well above what 1 % noise hides.
+def channel_gain(rng):
+    s, axis = rng.choice(SENSORS), int(rng.integers(3))
+    g = [1.0, 1.0, 1.0]
+    g[axis] = 1.0 + _sign(rng) * rng.uniform(0.02, 0.06)
+    return "channel_gain", [(f"sensor.{s}.gains", g)], {}
+
+
+def sensor_misorientation(rng):
+    s = rng.choice(SENSORS)
+    return "sensor_misorientation", [(f"sensor.{s}.misorientation_rad", _rotation(rng, 2, 4))], {}
+
+
+def sensor_position(rng):
+    s = rng.choice(SENSORS)
+    return "sensor_position", [(f"sensor.{s}.position_error_m", _offset(rng, 4, 8))], {}
+
+
+def force_direction(rng):
+    f = rng.choice(FORCES)
+    return "force_direction", [(f"excitation.{f}.direction_error_rad", _rotation(rng, 3, 6))], {}
+
+
+def force_location(rng):
+    f = rng.choice(FORCES)
+    return "force_location", [(f"excitation.{f}.position_error_m", _offset(rng, 8, 15))], {}
+
+
+def force_gauge_mass(rng):
+    f = rng.choice(FORCES)
+    return "force_gauge_mass", [(f"excitation.{f}.gauge_mass_kg", rng.uniform(0.04, 0.1))], {}
+
+
+def excitation_gain(rng):
+    f = rng.choice(FORCES)
+    g = 1.0 + _sign(rng) * rng.uniform(0.02, 0.05)
+    return "excitation_gain", [(f"excitation.{f}.force_gauge_gain", g)], {}
+
+
+def exponential_window(rng):
+    return "exponential_window", [("window.tau_s", rng.uniform(4.0, 10.0))], {}
+
+
+def elastic_mode(rng):
+    f = rng.uniform(8.0, 11.5)
+    chans = {f"{s}{a}": float(_sign(rng) * rng.uniform(0.1, 0.25))
+             for s in SENSORS for a in "xyz" if rng.random() < 0.4}
+    if not chans:
+        chans = {"1x": 0.2}
+    excs = {e: float(_sign(rng) * rng.uniform(0.1, 0.2)) for e in FORCES if rng.random() < 0.7}
+    if not excs:
+        excs = {"force1": 0.15}
+    return "elastic_mode", [], {"elastic_mode": [dict(frequency_hz=f, damping_ratio=0.02,
+                                                     at_channels=chans, at_excitations=excs)]}
+
+
+def dashpots(rng):
+    pts = [[0.02, -0.13, 0.17], [0.34, -0.13, 0.17], [0.02, 0.20, 0.17], [0.34, 0.20, 0.17]]
+    dps = []
+    for p in pts:
+        a = rng.uniform(-1, 1, (3, 3))
+        c = a @ a.T + np.diag(rng.uniform(1.0, 3.0, 3))
+        c[2, 2] += rng.uniform(3.0, 9.0)
+        dps.append(dict(at_m=p, damping_matrix_n_s_per_m=c.tolist()))
+    return "nonproportional_damping", [("damping.model", "none")], {
+        "setup": [dict(id="A", dashpot=dps)]}
+
+
+POOL = [channel_gain, sensor_misorientation, sensor_position, force_direction, force_location,
+        force_gauge_mass, excitation_gain, exponential_window, elastic_mode, dashpots]
+
+
+def draw(seed):
+    """The concealed effects of recording `seed`: ids, --set pairs, extra case tables."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(0, 7))
+    picks = rng.choice(len(POOL), size=n, replace=False)
+    ids, sets, extra = [], [], {}
+    for k in sorted(picks):
+        cid, s, x = POOL[k](rng)
+        ids.append(cid)
+        sets += s
+        for key, val in x.items():
+            extra.setdefault(key, []).extend(val)
+    return ids, sets, extra
+
+
+def case_file(tmp, seed, extra):
+    """The recording's case as JSON (rbref merges its tables with the spec's by id)."""
+    data = dict(spec=SPEC, name=f"combo-{seed}", gravity_m_s2=0.0, seed=seed,
+                frequency=dict(lines=400), noise=dict(relative=0.01, floor=0.0),
+                output=dict(precision="float32"))
+    data.update(extra)
+    path = os.path.join(tmp, f"combo-{seed}.json")
+    with open(path, "w") as f:
+        json.dump(data, f)
+    return path
+
+
+def run(cmd):
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd[:3])}…: exit {r.returncode}: {r.stderr.strip()[-1500:]}")
+    return r.stdout
+
+
+def one(seed, bindir, tmp):
+    ids, sets, extra = draw(seed)
+    case = case_file(tmp, seed, extra)
+    uff = os.path.join(tmp, f"combo-{seed}.uff")
+    cmd = [sys.executable, os.path.join(HERE, "rbref.py"), case, "--binary", "-o", uff, "--quiet"]
+    for k, v in sets:
+        cmd += ["--set", f"{k}={json.dumps(v)}"]
+    run(cmd)
+    t0 = time.monotonic()
+    out = json.loads(run([os.path.join(bindir, "model-check"), SPEC, "-i", uff, "--format", "json"]))
+    dt = time.monotonic() - t0
+    os.remove(uff)
+    named, false = [], []
+    hit = set()
+    for a in out.get("accepted", []):
+        named.append(a["id"])
+        (hit.add(a["id"]) if a["id"] in ids else false.append(a["id"]))
+    for fam in out.get("ambiguous", []) or []:
+        members = fam.get("ids", [])
+        named.append("{" + "|".join(members) + "}")
+        inside = [m for m in members if m in ids]
+        if inside:
+            hit.update(inside)
+        elif not any(m in named for m in members):
+            false.append("{" + "|".join(members) + "}")
+    lo, hi = out["noise_band"]
+    chi = out["chi2_nu_after"]
+    return dict(seed=seed, concealed=ids, named=named, found=sorted(hit),
+                missed=[i for i in ids if i not in hit], false=false, chi2_nu=chi,
+                band=[lo, hi], in_band=lo <= chi <= hi, floor=out.get("noise_floor_reached"),
+                check_s=round(dt, 2))
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", default="5001:5200", help="A:B inclusive")
+    ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release"),
+                    help="directory holding model-check")
+    ap.add_argument("--out", help="JSON file of every result")
+    a = ap.parse_args()
+    s0, s1 = (int(x) for x in a.seeds.split(":"))
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(s0, s1 + 1):
+            try:
+                r = one(seed, a.bin, tmp)
+            except RuntimeError as e:
+                r = dict(seed=seed, concealed=draw(seed)[0], error=str(e))
+            results.append(r)
+            print(json.dumps(r), flush=True)
+            if a.out:
+                with open(a.out, "w") as f:
+                    json.dump(results, f, indent=1)
+    print("\n| effects | recordings | named | false claims (per recording) | χ²/ν in band | median s | worst s |")
+    print("|---|---|---|---|---|---|---|")
+    for n in range(7):
+        rs = [r for r in results if len(r["concealed"]) == n and "error" not in r]
+        if not rs:
+            continue
+        conc = sum(len(r["concealed"]) for r in rs)
+        found = sum(len(r["found"]) for r in rs)
+        false = sum(len(r["false"]) for r in rs)
+        ts = sorted(r["check_s"] for r in rs)
+        print(f"| {n} | {len(rs)} | {f'{found}/{conc} ({100 * found / conc:.0f} %)' if conc else '—'} | "
+              f"{false} ({false / len(rs):.2f}) | {sum(r['in_band'] for r in rs)} | "
+              f"{ts[len(ts) // 2]:.1f} | {ts[-1]:.1f} |")
+    errors = [r for r in results if "error" in r]
+    if errors:
+        print(f"\n{len(errors)} recording(s) failed: " + "; ".join(f"{r['seed']}: {r['error'][:200]}" for r in errors))
+
+
+if __name__ == "__main__":
+    main()
