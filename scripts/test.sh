@@ -31,7 +31,13 @@ if "$PY" -c "import numpy, pyuff" 2>/dev/null; then
   # With the frf-sim just built, they also compare the two simulators (Test Case II,
   # gravity stiffness and 19 effect fixtures).
   FRF_SIM="${CARGO_TARGET_DIR:-target}/debug/frf-sim"
-  if [ -x "$FRF_SIM" ]; then export RBPROPS_FRF_SIM="$FRF_SIM"; fi
+  if [ -x "$FRF_SIM" ]; then
+    export RBPROPS_FRF_SIM="$FRF_SIM"
+  elif [ -n "${RBPROPS_REQUIRE_PYTHON:-}" ]; then
+    # CI requires every cross-check it can run: the simulator comparisons need frf-sim.
+    echo "error: $FRF_SIM not built: the generator's comparisons with frf-sim cannot run" >&2
+    exit 1
+  fi
   "$PY" scripts/refgen/test_rbref.py
 elif [ -n "${RBPROPS_REQUIRE_PYTHON:-}" ]; then
   echo "error: $PY lacks numpy/pyuff, needed by scripts/refgen/test_rbref.py" >&2
