@@ -4,9 +4,10 @@
 Usage:
     python3 scripts/check_uff_with_pyuff.py <file.uff> <expected.json>
 
-<expected.json> is written by the rbprops-uff test `writes_files_for_the_pyuff_check`
-(next to the .uff, under fixtures/uff/written/) straight from the campaign that was
-written, not from the file. Checked with pyuff:
+<expected.json> is committed beside the .uff; the rbprops-uff test
+`writer_gives_the_committed_files_for_the_pyuff_check` checks that our writer still gives
+both byte for byte (RBPROPS_BLESS=1 rewrites them, straight from the campaign that was
+written, not from the file). Checked with pyuff:
   - node labels and coordinates (dataset 2411 or 15),
   - for every FRF (dataset 58/58b, in writing order): response/reference node, the
     global response/reference direction (± axis of the node's displacement coordinate

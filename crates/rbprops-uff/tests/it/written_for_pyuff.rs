@@ -1,7 +1,10 @@
-//! Writes files with our writer for the independent check
-//! `scripts/check_uff_with_pyuff.py <file.uff> <expected.json>` (run by CI after the
-//! tests). The expected JSON comes from the campaign, not from the file.
-//! Output: fixtures/uff/written/rbprops_{ascii,binary}.{uff,json} (deterministic bytes).
+//! Our writer against the committed files the independent check reads
+//! (`scripts/check_uff_with_pyuff.py <file.uff> <expected.json>`, run by rbprops-cli's
+//! `pyuff_reads_what_we_write`): fixtures/uff/written/rbprops_{ascii,binary}.{uff,json}.
+//! The test compares the bytes it writes with them and writes nothing into the source
+//! tree (another test binary feeds the same files to pyuff), unless `RBPROPS_BLESS=1`
+//! asks it to rewrite them after an intended change of the writer. The expected JSON
+//! comes from the campaign, not from the file.
 
 use crate::common::{campaign, even_axis, Spec};
 use nalgebra::Rotation3;
@@ -11,7 +14,7 @@ use serde_json::json;
 use std::path::PathBuf;
 
 #[test]
-fn writes_files_for_the_pyuff_check() {
+fn writer_gives_the_committed_files_for_the_pyuff_check() {
     let spec = Spec {
         point_ids: vec!["1".into(), "2".into(), "3".into(), "4".into()],
         misoriented: false,
@@ -53,7 +56,10 @@ fn writes_files_for_the_pyuff_check() {
         .map(|p| (p.id.clone(), json!(dir(p.position))))
         .collect();
     let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/uff/written");
-    std::fs::create_dir_all(&out).unwrap();
+    let bless = std::env::var_os("RBPROPS_BLESS").is_some();
+    if bless {
+        std::fs::create_dir_all(&out).unwrap();
+    }
     for (name, binary, rel) in [
         ("rbprops_ascii", false, 5e-13),
         ("rbprops_binary", true, 0.0),
@@ -82,11 +88,24 @@ fn writes_files_for_the_pyuff_check() {
             "value_rel_tol": rel,
             "frfs": frfs,
         });
-        std::fs::write(out.join(format!("{name}.uff")), &bytes).unwrap();
-        std::fs::write(
-            out.join(format!("{name}.json")),
-            serde_json::to_string_pretty(&expected).unwrap() + "\n",
-        )
-        .unwrap();
+        let json_text = serde_json::to_string_pretty(&expected).unwrap() + "\n";
+        for (file, written) in [
+            (format!("{name}.uff"), bytes.as_slice()),
+            (format!("{name}.json"), json_text.as_bytes()),
+        ] {
+            let path = out.join(&file);
+            if bless {
+                std::fs::write(&path, written).unwrap();
+                continue;
+            }
+            let committed = std::fs::read(&path).unwrap_or_else(|e| {
+                panic!("{}: {e} (RBPROPS_BLESS=1 writes it)", path.display())
+            });
+            assert!(
+                committed == written,
+                "{}: the writer's bytes differ from the committed file (RBPROPS_BLESS=1 rewrites it after an intended change)",
+                path.display()
+            );
+        }
     }
 }
