@@ -10,15 +10,18 @@ concealed effects named (an ambiguous family counts when it holds the concealed 
 the false claims (anything else named; a family with no concealed member counts once),
 χ²/ν inside the noise band, and the check's wall time.
 
-The seeds were fixed before the first run: 5001–5200 (one recording each; the number of
-effects, which effects and their sizes all follow from the seed).
+The seeds were fixed before the first run: 5001–5200 on the springs (one recording each;
+the number of effects, which effects and their sizes all follow from the seed), and
+6001–6100 with `--suspension cords` (vertical or splayed cords under gravity, drawn from
+the seed as well, given to the check as axial springs k n nᵀ along each cord, without
+gravity, as testers write them: `gravity_stiffness` is then concealed too).
 
     python3 scripts/refgen/combination_study.py --seeds 5001:5200 \\
         --bin target/release --out combos.json
 
 Prints one JSON line per recording and a summary table by number of effects (markdown).
-Not yet in the study: cord suspensions written as springs, and impact tests through
-`frf-est` (half the recordings, in the issue's design).
+Not yet in the study: impact tests through `frf-est` (half the recordings, in the
+issue's design).
 """
 import argparse
 import json
@@ -51,6 +54,35 @@ def _offset(rng, lo_mm, hi_mm):
     d = rng.standard_normal(3)
     d /= np.linalg.norm(d)
     return list(1e-3 * rng.uniform(lo_mm, hi_mm) * d)
+
+
+CORD_AT = [[0.02, -0.13, 0.17], [0.34, -0.13, 0.17], [0.02, 0.20, 0.17], [0.34, 0.20, 0.17]]
+VERTICAL = dict(anchor=[[a[0], a[1], 1.2] for a in CORD_AT], length=[1.0] * 4, k=[1400.0] * 4)
+SPLAYED = dict(anchor=[[-0.13, -0.28, 1.2], [0.49, -0.28, 1.2], [-0.13, 0.35, 1.2], [0.49, 0.35, 1.2]],
+               length=[1.0, 1.05, 1.0, 0.98], k=[1400.0, 1300.0, 1500.0, 1400.0])
+
+
+def cord_setup(cords):
+    """The generator's set-up A hung on `cords` (its springs removed)."""
+    return dict(id="A", spring=[], cord=[
+        dict(at_m=at, anchor_m=an, length_m=l, stiffness_n_per_m=k)
+        for at, an, l, k in zip(CORD_AT, cords["anchor"], cords["length"], cords["k"])])
+
+
+def nominal_with_axial_springs(cords, path):
+    """Test Case II's spec with the cords written as axial springs k n nᵀ (no gravity)."""
+    text = open(SPEC).read()
+    a, b = text.index("[[setup.spring]]"), text.index("[[sensor]]")
+    blocks = []
+    for at, an, k in zip(CORD_AT, cords["anchor"], cords["k"]):
+        n = np.array(an) - np.array(at)
+        n /= np.linalg.norm(n)
+        m = (k * np.outer(n, n)).tolist()
+        rows = ", ".join("[" + ", ".join(repr(float(x)) for x in r) + "]" for r in m)
+        blocks.append(f"[[setup.spring]]\nat_m = {at}\nstiffness_matrix_n_per_m = [{rows}]\n")
+    with open(path, "w") as f:
+        f.write(text[:a] + "\n".join(blocks) + "\n" + text[b:])
+    return path
 
 
 # Each draw returns (check id, generator settings as (dotted path, value) pairs, extra
@@ -126,8 +158,10 @@ POOL = [channel_gain, sensor_misorientation, sensor_position, force_direction, f
         force_gauge_mass, excitation_gain, exponential_window, elastic_mode, dashpots]
 
 
-def draw(seed):
-    """The concealed effects of recording `seed`: ids, --set pairs, extra case tables."""
+def draw(seed, suspension="springs"):
+    """The concealed effects of recording `seed`: ids, --set pairs, extra case tables
+    (with `suspension="cords"`, the cords drawn from the seed's own stream and
+    `gravity_stiffness` among the ids)."""
     rng = np.random.default_rng(seed)
     n = int(rng.integers(0, 7))
     picks = rng.choice(len(POOL), size=n, replace=False)
@@ -138,12 +172,22 @@ def draw(seed):
         sets += s
         for key, val in x.items():
             extra.setdefault(key, []).extend(val)
+    if suspension == "cords":
+        cords = VERTICAL if np.random.default_rng(seed + 10_000).random() < 0.5 else SPLAYED
+        setup = cord_setup(cords)
+        for s in extra.pop("setup", []):
+            setup["dashpot"] = s.get("dashpot", [])
+        extra["setup"] = [setup]
+        extra["cords"] = cords
+        ids = ["gravity_stiffness"] + ids
     return ids, sets, extra
 
 
 def case_file(tmp, seed, extra):
     """The recording's case as JSON (rbref merges its tables with the spec's by id)."""
-    data = dict(spec=SPEC, name=f"combo-{seed}", gravity_m_s2=0.0, seed=seed,
+    extra = dict(extra)
+    cords = extra.pop("cords", None)
+    data = dict(spec=SPEC, name=f"combo-{seed}", gravity_m_s2=9.80665 if cords else 0.0, seed=seed,
                 frequency=dict(lines=400), noise=dict(relative=0.01, floor=0.0),
                 output=dict(precision="float32"))
     data.update(extra)
@@ -160,16 +204,19 @@ def run(cmd):
     return r.stdout
 
 
-def one(seed, bindir, tmp):
-    ids, sets, extra = draw(seed)
+def one(seed, bindir, tmp, suspension):
+    ids, sets, extra = draw(seed, suspension)
     case = case_file(tmp, seed, extra)
+    spec = SPEC
+    if "cords" in extra:
+        spec = nominal_with_axial_springs(extra["cords"], os.path.join(tmp, f"nominal-{seed}.toml"))
     uff = os.path.join(tmp, f"combo-{seed}.uff")
     cmd = [sys.executable, os.path.join(HERE, "rbref.py"), case, "--binary", "-o", uff, "--quiet"]
     for k, v in sets:
         cmd += ["--set", f"{k}={json.dumps(v)}"]
     run(cmd)
     t0 = time.monotonic()
-    out = json.loads(run([os.path.join(bindir, "model-check"), SPEC, "-i", uff, "--format", "json"]))
+    out = json.loads(run([os.path.join(bindir, "model-check"), spec, "-i", uff, "--format", "json"]))
     dt = time.monotonic() - t0
     os.remove(uff)
     named, false = [], []
@@ -199,15 +246,16 @@ def main():
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release"),
                     help="directory holding model-check")
     ap.add_argument("--out", help="JSON file of every result")
+    ap.add_argument("--suspension", choices=["springs", "cords"], default="springs")
     a = ap.parse_args()
     s0, s1 = (int(x) for x in a.seeds.split(":"))
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(s0, s1 + 1):
             try:
-                r = one(seed, a.bin, tmp)
+                r = one(seed, a.bin, tmp, a.suspension)
             except RuntimeError as e:
-                r = dict(seed=seed, concealed=draw(seed)[0], error=str(e))
+                r = dict(seed=seed, concealed=draw(seed, a.suspension)[0], error=str(e))
             results.append(r)
             print(json.dumps(r), flush=True)
             if a.out:
