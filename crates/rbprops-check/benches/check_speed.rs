@@ -323,7 +323,10 @@ fn main() {
     }
     model_evaluation_anatomy(&nominal());
     if !failures.is_empty() {
-        eprintln!("check_speed: {} case(s) named a wrong set or missed the floor:", failures.len());
+        eprintln!(
+            "check_speed: {} case(s) named a wrong set or missed the floor:",
+            failures.len()
+        );
         for f in &failures {
             eprintln!("  {f}");
         }

@@ -320,7 +320,12 @@ impl<'p, 'a> Selection<'p, 'a> {
         let mut evals: Vec<Evidence> = Vec::new();
         let mut refitted: Vec<(usize, Score, f64)> = Vec::new();
         loop {
-            if let Some(best) = evals.iter().filter(|e| e.ok()).map(|e| e.dbic).reduce(f64::max) {
+            if let Some(best) = evals
+                .iter()
+                .filter(|e| e.ok())
+                .map(|e| e.dbic)
+                .reduce(f64::max)
+            {
                 let (keep, skip): (Vec<_>, Vec<_>) =
                     rest.into_iter().partition(|x| self.could_win(x, best));
                 rest = keep;
@@ -611,10 +616,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         let a = &self.active[k];
         let k0 = p.n_base() + active_dims(&self.active[..k]);
         let phi = a.phi(&p.cands[a.c].neutral, &self.cur.theta[k0..k0 + a.dim()]);
-        let plausible = p
-            .plausibility(&self.cur.theta, a.c, &phi)
-            .iter()
-            .all(holds);
+        let plausible = p.plausibility(&self.cur.theta, a.c, &phi).iter().all(holds);
         let must_cost = self.accepted[k]
             .threshold
             .max(self.options.min_delta_bic + a.dim() as f64 * self.ln_n);
