@@ -1525,6 +1525,7 @@ pub fn fit_campaign(
         excitations: Vec::new(),
         modes: Vec::new(),
         window_correction: None,
+        diagnostics: Vec::new(),
     };
     let mut diagnostics = Vec::new();
     for (e, r) in results.into_iter().enumerate() {
