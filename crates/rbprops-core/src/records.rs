@@ -317,6 +317,13 @@ impl DiagnosticSubject {
                 t.push_str(&format!(" ({} Hz)", f.join(", ")));
             }
             parts.push(t);
+        } else if !self.frequencies_hz.is_empty() {
+            let f: Vec<String> = self
+                .frequencies_hz
+                .iter()
+                .map(|f| format!("{f:.4}"))
+                .collect();
+            parts.push(format!("at {} Hz", f.join(", ")));
         }
         if let Some(c) = &self.channel {
             parts.push(format!("channel {c}"));
