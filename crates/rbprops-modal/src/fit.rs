@@ -1640,7 +1640,11 @@ mod multiplicity_tests {
                 typed += texts.len();
             }
             // A reported multiplicity is evidence for the poly-reference fit.
-            if fits.iter().any(|f| !f.multiplicity.is_empty()) {
+            if fits.iter().any(|f| {
+                f.multiplicity
+                    .iter()
+                    .any(|m| m.kind != Multiplicity::SplitPair)
+            }) {
                 assert!(
                     crate::evidence::evidence(&fits).is_some(),
                     "{apart} apart, noise {noise}"
