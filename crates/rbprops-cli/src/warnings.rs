@@ -390,4 +390,55 @@ mod tests {
         );
         assert!(Collector::default().lines(false).is_empty());
     }
+
+    /// modal-fit's typed diagnostics are classified by severity and explained by kind,
+    /// whatever their text says: a note whose text holds an answer-changing phrase stays a
+    /// note, a warning whose text holds none is printed; the summary names the notes' kinds.
+    #[test]
+    fn typed_diagnostics_are_classified_by_kind_not_text() {
+        use rbprops_core::records::DiagnosticSubject;
+        let d = |kind, severity, message: &str| Diagnostic {
+            stage: "modal-fit".into(),
+            kind,
+            severity,
+            subject: DiagnosticSubject {
+                setup: Some("A".into()),
+                ..Default::default()
+            },
+            message: message.into(),
+            advice: String::new(),
+        };
+        let note = StageWarning::from_diagnostic(&d(
+            DiagnosticKind::RepeatedRoot,
+            Severity::Note,
+            "the old fit failed and is missing; cannot be separated",
+        ));
+        assert_eq!(note.class(), Class::Note);
+        assert_eq!(note.explanation(), DiagnosticKind::RepeatedRoot.sentence());
+        let warning = StageWarning::from_diagnostic(&d(
+            DiagnosticKind::FitErrorAboveNoise,
+            Severity::Warning,
+            "median fit error 1.1",
+        ));
+        assert_eq!(warning.class(), Class::ChangesAnswer);
+        assert_eq!(
+            warning.explanation(),
+            DiagnosticKind::FitErrorAboveNoise.sentence()
+        );
+        let mut c = Collector::default();
+        c.add(note);
+        c.add(StageWarning::from_diagnostic(&d(
+            DiagnosticKind::FitChoice,
+            Severity::Note,
+            "poly-reference fit kept",
+        )));
+        c.add(warning);
+        assert_eq!(
+            c.lines(false),
+            vec![
+                "modal-fit: warning: set-up A: median fit error 1.1".to_string(),
+                "modal-fit: 2 notes (repeated root, fit choice) on how the answer was reached (1 warning above); run with -v to list them".to_string(),
+            ]
+        );
+    }
 }
