@@ -79,7 +79,9 @@ pub(crate) fn median_fit_error(f: &ExcitationFit) -> f64 {
 }
 
 fn near(ps: &[Pole], p: &Pole, bw: f64) -> usize {
-    ps.iter().filter(|q| q.distance_in_bandwidths(p) < bw).count()
+    ps.iter()
+        .filter(|q| q.distance_in_bandwidths(p) < bw)
+        .count()
 }
 
 /// Close pairs of fit `a` that fit `b` merged: for each pair (`i`, `j`) of `a` closer than
@@ -505,8 +507,7 @@ pub(crate) fn campaign_diagnostics(
                 .filter(|&&e| {
                     let h = frf.frf(e, c);
                     frf.frequency_hz.iter().zip(h).all(|(f, z)| {
-                        z.norm_sqr() == 0.0
-                            || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
+                        z.norm_sqr() == 0.0 || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
                     })
                 })
                 .map(|&e| geometry.excitations[e].id.clone())
@@ -524,7 +525,10 @@ pub(crate) fn campaign_diagnostics(
                 ));
             }
         }
-        let ok: Vec<&ExcitationFit> = members.iter().filter_map(|&e| fits[e].as_ref().ok()).collect();
+        let ok: Vec<&ExcitationFit> = members
+            .iter()
+            .filter_map(|&e| fits[e].as_ref().ok())
+            .collect();
         if ok.is_empty() {
             continue;
         }
@@ -568,7 +572,9 @@ pub(crate) fn campaign_diagnostics(
                             DiagnosticKind::CloseModes,
                             Severity::Note,
                             subject,
-                            format!("{d:.2} half-bandwidths apart, separated by the poly-reference fit"),
+                            format!(
+                                "{d:.2} half-bandwidths apart, separated by the poly-reference fit"
+                            ),
                             "",
                         ));
                     }
@@ -584,7 +590,11 @@ pub(crate) fn campaign_diagnostics(
             .filter(|&k| errs[k] > 0.1 || (errs[k] > ERROR_FLOOR && errs[k] > ERROR_RATIO * best))
             .collect();
         if !bad.is_empty() {
-            let worst = bad.iter().copied().max_by(|&a, &b| errs[a].total_cmp(&errs[b])).unwrap();
+            let worst = bad
+                .iter()
+                .copied()
+                .max_by(|&a, &b| errs[a].total_cmp(&errs[b]))
+                .unwrap();
             out.push(diag(
                 DiagnosticKind::FitErrorAboveNoise,
                 Severity::Warning,
@@ -623,7 +633,10 @@ pub(crate) fn campaign_diagnostics(
         }
         // The pole search's adjustments, counted once (listed in the records' warnings).
         let n: usize = ok.iter().map(|f| f.record.warnings.len()).sum::<usize>()
-            + ok.iter().flat_map(|f| &f.modes).map(|m| m.warnings.len()).sum::<usize>();
+            + ok.iter()
+                .flat_map(|f| &f.modes)
+                .map(|m| m.warnings.len())
+                .sum::<usize>();
         if n > 0 {
             out.push(diag(
                 DiagnosticKind::PoleSearch,
@@ -747,7 +760,10 @@ fn single_reference_pairs(
             .flat_map(|b| merged_pairs(pa, &all[b]))
             .collect::<Vec<_>>()
         {
-            if seen.iter().any(|s| s.distance_in_bandwidths(&pa[i]) < NEAR_BANDWIDTHS) {
+            if seen
+                .iter()
+                .any(|s| s.distance_in_bandwidths(&pa[i]) < NEAR_BANDWIDTHS)
+            {
                 continue;
             }
             seen.push(pa[i]);

@@ -506,7 +506,11 @@ fn close_pairs_every_mode_in_every_excitation_on_generator_recordings() {
         .arg(dir.path().join("cm-{seed}.json"))
         .args(["--binary", "--quiet"]);
     let out = cmd.output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     for s in 1..=2 {
         let rec = dir.path().join(format!("cm-{s}.uff"));
         let t = read_truth(&dir.path().join(format!("cm-{s}.json")));
@@ -574,7 +578,11 @@ fn close_pairs_every_mode_in_every_excitation_with_fifty_excitations() {
     let spec = fifty_excitations(include_str!("../../../../fixtures/specs/close-modes.toml"));
     let (rec, _) = stages::simulate(&spec, "close-modes-50", None).unwrap();
     let truth: rbprops_core::records::TruthRecord = rec.get_one(topics::TRUTH).unwrap().unwrap();
-    let f: Vec<f64> = truth.setups[0].modes.iter().map(|m| m.frequency_hz).collect();
+    let f: Vec<f64> = truth.setups[0]
+        .modes
+        .iter()
+        .map(|m| m.frequency_hz)
+        .collect();
     let (geometry, frf) = rec.require_geometry_and_frf().unwrap();
     assert_eq!(geometry.excitations.len(), 50);
     every_mode_in_every_excitation(&geometry, frf, &f, false, "50 excitations");
