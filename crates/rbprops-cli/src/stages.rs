@@ -70,6 +70,19 @@ pub fn modal_fit_windowed(
         Some(w) => {
             let mut out = rbprops_modal::fit_campaign(&geometry, &w.prefilter(frf), opts)?;
             w.correct_modal_fit(&mut out.record, source)?;
+            out.record
+                .diagnostics
+                .push(rbprops_core::records::Diagnostic {
+                    stage: "modal-fit".into(),
+                    kind: rbprops_core::records::DiagnosticKind::WindowCorrection,
+                    severity: rbprops_core::records::Severity::Note,
+                    subject: Default::default(),
+                    message: format!(
+                        "poles corrected for the exponential window τ = {} s ({source})",
+                        w.time_constant_s
+                    ),
+                    advice: String::new(),
+                });
             out
         }
     };

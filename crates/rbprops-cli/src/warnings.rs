@@ -11,6 +11,7 @@
 //! poles were estimated on, a rotation of complex residues) is a note on how the answer
 //! was reached: counted, listed with `-v`.
 
+use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
 use rbprops_formats::{topics, RunRecord};
 
 /// How much a warning matters.
@@ -31,6 +32,8 @@ pub struct StageWarning {
     pub text: String,
     /// How much it matters.
     pub class: Class,
+    /// The kind of a typed diagnostic (`None`: a text warning, classified by [`explain`]).
+    pub kind: Option<DiagnosticKind>,
 }
 
 impl StageWarning {
@@ -41,6 +44,21 @@ impl StageWarning {
             stage: stage.into(),
             class: classify(&text),
             text,
+            kind: None,
+        }
+    }
+
+    /// A typed diagnostic: classified by its severity (a note is a [`Class::Note`], a
+    /// warning or a changed answer is printed), explained by its kind, never by its text.
+    pub fn from_diagnostic(d: &Diagnostic) -> Self {
+        StageWarning {
+            stage: d.stage.clone(),
+            text: d.line(),
+            class: match d.severity {
+                Severity::Note => Class::Note,
+                Severity::Warning | Severity::ChangesAnswer => Class::ChangesAnswer,
+            },
+            kind: Some(d.kind),
         }
     }
 
@@ -59,7 +77,10 @@ impl StageWarning {
 
     /// One sentence on what the warning means for the result.
     pub fn explanation(&self) -> &'static str {
-        explain(&self.text).1
+        match self.kind {
+            Some(k) => k.sentence(),
+            None => explain(&self.text).1,
+        }
     }
 }
 
@@ -183,11 +204,18 @@ pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<StageWarning>> {
     use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
     let mut out = Collector::default();
     if let Some(m) = rec.get_one::<ModalFitRecord>(topics::MODAL_FIT)? {
-        for e in &m.excitations {
-            out.extend("modal-fit", &e.warnings);
-        }
-        for mode in &m.modes {
-            out.extend("modal-fit", &mode.warnings);
+        if m.diagnostics.is_empty() {
+            // Written before modal-fit's diagnostics were typed: its texts, classified.
+            for e in &m.excitations {
+                out.extend("modal-fit", &e.warnings);
+            }
+            for mode in &m.modes {
+                out.extend("modal-fit", &mode.warnings);
+            }
+        } else {
+            for d in &m.diagnostics {
+                out.add(StageWarning::from_diagnostic(d));
+            }
         }
     }
     if let Some(s) = rec.get_one::<SelectionRecord>(topics::SELECTION)? {
@@ -261,10 +289,24 @@ impl Collector {
             let hidden = of.len() - shown.len();
             if hidden > 0 {
                 // Only notes are ever hidden: say so, so that a clean run does not read as
-                // one with warnings.
+                // one with warnings. Typed notes are named by kind.
+                let mut kinds: Vec<String> = Vec::new();
+                for w in of.iter().filter(|w| !verbose && w.class() == Class::Note) {
+                    if let Some(k) = w.kind {
+                        let k = k.as_str().replace('_', " ");
+                        if !kinds.contains(&k) {
+                            kinds.push(k);
+                        }
+                    }
+                }
                 lines.push(format!(
-                    "{s}: {hidden} note{} on how the answer was reached{}; run with -v to list them",
+                    "{s}: {hidden} note{}{} on how the answer was reached{}; run with -v to list them",
                     if hidden == 1 { "" } else { "s" },
+                    if kinds.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" ({})", kinds.join(", "))
+                    },
                     if shown.is_empty() {
                         String::new()
                     } else {
@@ -347,5 +389,56 @@ mod tests {
             "rb-solve: warning: Φ0 is poorly conditioned (cond = 1e9)"
         );
         assert!(Collector::default().lines(false).is_empty());
+    }
+
+    /// modal-fit's typed diagnostics are classified by severity and explained by kind,
+    /// whatever their text says: a note whose text holds an answer-changing phrase stays a
+    /// note, a warning whose text holds none is printed; the summary names the notes' kinds.
+    #[test]
+    fn typed_diagnostics_are_classified_by_kind_not_text() {
+        use rbprops_core::records::DiagnosticSubject;
+        let d = |kind, severity, message: &str| Diagnostic {
+            stage: "modal-fit".into(),
+            kind,
+            severity,
+            subject: DiagnosticSubject {
+                setup: Some("A".into()),
+                ..Default::default()
+            },
+            message: message.into(),
+            advice: String::new(),
+        };
+        let note = StageWarning::from_diagnostic(&d(
+            DiagnosticKind::RepeatedRoot,
+            Severity::Note,
+            "the old fit failed and is missing; cannot be separated",
+        ));
+        assert_eq!(note.class(), Class::Note);
+        assert_eq!(note.explanation(), DiagnosticKind::RepeatedRoot.sentence());
+        let warning = StageWarning::from_diagnostic(&d(
+            DiagnosticKind::FitErrorAboveNoise,
+            Severity::Warning,
+            "median fit error 1.1",
+        ));
+        assert_eq!(warning.class(), Class::ChangesAnswer);
+        assert_eq!(
+            warning.explanation(),
+            DiagnosticKind::FitErrorAboveNoise.sentence()
+        );
+        let mut c = Collector::default();
+        c.add(note);
+        c.add(StageWarning::from_diagnostic(&d(
+            DiagnosticKind::FitChoice,
+            Severity::Note,
+            "poly-reference fit kept",
+        )));
+        c.add(warning);
+        assert_eq!(
+            c.lines(false),
+            vec![
+                "modal-fit: warning: set-up A: median fit error 1.1".to_string(),
+                "modal-fit: 2 notes (repeated root, fit choice) on how the answer was reached (1 warning above); run with -v to list them".to_string(),
+            ]
+        );
     }
 }

@@ -310,3 +310,71 @@ mod tests {
         assert!(SelectionCriterion::Ni != "manual");
     }
 }
+
+named_values! {
+    /// How much a [`crate::records::Diagnostic`] matters to the numbers a stage returns.
+    Severity ("severity") {
+        /// How the answer was reached (a correctly handled condition): counted, listed on
+        /// request.
+        Note => "note",
+        /// The answer may be wrong or incomplete because of it (a dropped or merged mode,
+        /// a fit far above the noise): always shown.
+        Warning => "warning",
+        /// The answer is different, incomplete or missing because of it (a failed
+        /// excitation, a dead channel): always shown.
+        ChangesAnswer => "changes_answer",
+    }
+}
+
+named_values! {
+    /// What a [`crate::records::Diagnostic`] is about: one closed set for every stage, each
+    /// with one sentence for a test engineer ([`DiagnosticKind::sentence`]).
+    DiagnosticKind ("diagnostic kind") {
+        /// Two or more modes of a set-up share one frequency (or lie closer than a fit can
+        /// separate them): one repeated root.
+        RepeatedRoot => "repeated_root",
+        /// Two modes closer than two half-power half-bandwidths, resolved.
+        CloseModes => "close_modes",
+        /// Which fit of a set-up was kept (per-excitation or poly-reference) and why.
+        FitChoice => "fit_choice",
+        /// One excitation's fit merged modes that another fit of the set-up separates.
+        MergedModes => "merged_modes",
+        /// A fit lost a mode another fit of the same data found.
+        DroppedMode => "dropped_mode",
+        /// An excitation's fit error is far above the noise its set-up fits to.
+        FitErrorAboveNoise => "fit_error_above_noise",
+        /// The misfit is what an exponential window on the responses, not declared to the
+        /// fit, would leave.
+        UndeclaredWindow => "undeclared_window",
+        /// An excitation could not be fitted.
+        ExcitationFailed => "excitation_failed",
+        /// A channel is identically zero.
+        DeadChannel => "dead_channel",
+        /// Modes an excitation barely drives.
+        WeakModes => "weak_modes",
+        /// The pole search adjusted the model (orders, sub-bands, model-order tests).
+        PoleSearch => "pole_search",
+        /// The poles were corrected for a declared exponential window.
+        WindowCorrection => "window_correction",
+    }
+}
+
+impl DiagnosticKind {
+    /// One sentence on what the kind means for the result, for a test engineer.
+    pub fn sentence(self) -> &'static str {
+        match self {
+            DiagnosticKind::RepeatedRoot => "Two modes share one frequency (a repeated or nearly repeated root): only a fit over all excitations together (poly-reference) can separate their shapes.",
+            DiagnosticKind::CloseModes => "Two modes lie within two half-power bandwidths of each other; they were resolved, but their shapes are more sensitive to noise than well-separated ones.",
+            DiagnosticKind::FitChoice => "Both the per-excitation and the poly-reference fit were tried on this set-up; the one that explains the data better, without losing a mode, was kept.",
+            DiagnosticKind::MergedModes => "One excitation's fit took two modes for one: its frequency, damping and shape of that mode are a blend and should not be used.",
+            DiagnosticKind::DroppedMode => "A fit missed a mode that another fit of the same data found: a result built on it lacks that mode.",
+            DiagnosticKind::FitErrorAboveNoise => "The fitted model does not explain this excitation's FRFs down to the noise: a mode is missing or merged, or the data hold something the model cannot represent.",
+            DiagnosticKind::UndeclaredWindow => "The misfit has the shape an exponential window on the responses leaves: declare the window (--exp-window or the processing record) so that the damping is corrected.",
+            DiagnosticKind::ExcitationFailed => "This excitation could not be fitted; the result is computed without it.",
+            DiagnosticKind::DeadChannel => "A channel carried no signal and was left out of the computation.",
+            DiagnosticKind::WeakModes => "An excitation barely drives these modes; another excitation's estimate of them is preferred.",
+            DiagnosticKind::PoleSearch => "The pole search adjusted the model (a spurious pole dropped, a close pair split, the band narrowed to where the modes are); the reported modes already reflect it.",
+            DiagnosticKind::WindowCorrection => "The poles were corrected for the declared exponential window; the frequencies and damping ratios are the physical ones.",
+        }
+    }
+}

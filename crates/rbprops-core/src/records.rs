@@ -5,7 +5,9 @@
 //! Field names carry their units. Complex numbers are `[re, im]` pairs.
 
 use crate::c64;
-pub use crate::methods::{EstimateMethod, FitMethod, SelectionCriterion, UncertaintyMethod};
+pub use crate::methods::{
+    DiagnosticKind, EstimateMethod, FitMethod, SelectionCriterion, Severity, UncertaintyMethod,
+};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -229,6 +231,127 @@ pub struct ModalFitRecord {
     /// FRFs must put the window back).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub window_correction: Option<WindowCorrectionRecord>,
+    /// What the fit noticed, typed: one diagnostic per fact (a repeated root is one
+    /// diagnostic naming its modes and every excitation where it shows). Absent in
+    /// records written before diagnostics were typed (the `warnings` strings remain).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+/// One fact a stage noticed while computing, typed: what it is about (`kind`), how much it
+/// matters (`severity`), whom it concerns (`subject`), a message with the numbers and what
+/// to do about it. One fact is one diagnostic, however many excitations or modes it
+/// concerns.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct Diagnostic {
+    /// The stage that raised it (`modal-fit`, …).
+    pub stage: String,
+    /// What it is about; [`DiagnosticKind::sentence`] explains it.
+    #[schemars(with = "String")]
+    pub kind: DiagnosticKind,
+    /// How much it matters.
+    #[schemars(with = "String")]
+    pub severity: Severity,
+    /// Whom it concerns.
+    pub subject: DiagnosticSubject,
+    /// The fact, with its numbers (one sentence, no subject prefix needed).
+    pub message: String,
+    /// What to do about it (empty when nothing is to be done).
+    #[serde(default)]
+    pub advice: String,
+}
+
+/// Whom a [`Diagnostic`] concerns: any of a set-up, excitations, modes (with their
+/// frequencies), a channel, a sensor, a hit. Empty fields: not specific to one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
+pub struct DiagnosticSubject {
+    /// Suspension set-up.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setup: Option<String>,
+    /// Excitation ids.
+    #[serde(default)]
+    pub excitations: Vec<String>,
+    /// 1-based mode numbers within the set-up's kept fit.
+    #[serde(default)]
+    pub modes: Vec<usize>,
+    /// The modes' natural frequencies (Hz), as `modes`.
+    #[serde(default)]
+    pub frequencies_hz: Vec<f64>,
+    /// Response channel id.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub channel: Option<String>,
+    /// Sensor (point) id.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<String>,
+    /// Hit number (1-based) within its excitation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hit: Option<usize>,
+}
+
+impl DiagnosticSubject {
+    /// The subject in words: `set-up A, excitations fx, fy, modes 5 and 6 (0.5030, 0.5045 Hz)`.
+    pub fn describe(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(s) = &self.setup {
+            parts.push(format!("set-up {s}"));
+        }
+        match self.excitations.len() {
+            0 => {}
+            1 => parts.push(format!("excitation {}", self.excitations[0])),
+            _ => parts.push(format!("excitations {}", self.excitations.join(", "))),
+        }
+        if !self.modes.is_empty() {
+            let n: Vec<String> = self.modes.iter().map(|m| m.to_string()).collect();
+            let mut t = if n.len() == 1 {
+                format!("mode {}", n[0])
+            } else {
+                let (last, rest) = n.split_last().unwrap();
+                format!("modes {} and {last}", rest.join(", "))
+            };
+            if self.frequencies_hz.len() == self.modes.len() {
+                let f: Vec<String> = self
+                    .frequencies_hz
+                    .iter()
+                    .map(|f| format!("{f:.4}"))
+                    .collect();
+                t.push_str(&format!(" ({} Hz)", f.join(", ")));
+            }
+            parts.push(t);
+        } else if !self.frequencies_hz.is_empty() {
+            let f: Vec<String> = self
+                .frequencies_hz
+                .iter()
+                .map(|f| format!("{f:.4}"))
+                .collect();
+            parts.push(format!("at {} Hz", f.join(", ")));
+        }
+        if let Some(c) = &self.channel {
+            parts.push(format!("channel {c}"));
+        }
+        if let Some(s) = &self.sensor {
+            parts.push(format!("sensor {s}"));
+        }
+        if let Some(h) = self.hit {
+            parts.push(format!("hit {h}"));
+        }
+        parts.join(", ")
+    }
+}
+
+impl Diagnostic {
+    /// The diagnostic as one line: `subject: message (advice)`.
+    pub fn line(&self) -> String {
+        let subject = self.subject.describe();
+        let mut t = if subject.is_empty() {
+            self.message.clone()
+        } else {
+            format!("{subject}: {}", self.message)
+        };
+        if !self.advice.is_empty() {
+            t.push_str(&format!("; {}", self.advice));
+        }
+        t
+    }
 }
 
 /// The exponential-window correction `modal-fit` applied (see
@@ -627,4 +750,57 @@ pub struct ErrorsRecord {
     /// The sum of the three.
     #[schemars(description = "")]
     pub sum: f64,
+}
+
+#[cfg(test)]
+mod diagnostic_tests {
+    use super::*;
+
+    /// A `modal_fit` message written before diagnostics were typed still reads (no
+    /// `diagnostics` field: none), and an empty list is not written.
+    #[test]
+    fn old_modal_fit_records_still_read() {
+        let old = r#"{"residue_convention":"x","excitations":[],"modes":[]}"#;
+        let r: ModalFitRecord = serde_json::from_str(old).unwrap();
+        assert!(r.diagnostics.is_empty());
+        assert_eq!(serde_json::to_string(&r).unwrap(), old);
+    }
+
+    /// Every kind has its own sentence, and the kinds and severities serialise as their
+    /// snake_case names.
+    #[test]
+    fn every_kind_has_its_own_sentence() {
+        let mut seen = std::collections::HashSet::new();
+        for k in DiagnosticKind::ALL {
+            let s = k.sentence();
+            assert!(s.len() > 40 && s.ends_with('.'), "{k}: {s}");
+            assert!(seen.insert(s), "{k} shares its sentence");
+            assert_eq!(
+                serde_json::to_string(k).unwrap(),
+                format!("\"{}\"", k.as_str())
+            );
+        }
+        assert_eq!(
+            serde_json::to_string(&Severity::ChangesAnswer).unwrap(),
+            "\"changes_answer\""
+        );
+        let d = Diagnostic {
+            stage: "modal-fit".into(),
+            kind: DiagnosticKind::RepeatedRoot,
+            severity: Severity::Note,
+            subject: DiagnosticSubject {
+                setup: Some("A".into()),
+                excitations: vec!["fx".into(), "fy".into(), "fz".into()],
+                modes: vec![1, 2],
+                frequencies_hz: vec![0.50301, 0.50453],
+                ..Default::default()
+            },
+            message: "separated by the poly-reference fit".into(),
+            advice: String::new(),
+        };
+        assert_eq!(
+            d.line(),
+            "set-up A, excitations fx, fy, fz, modes 1 and 2 (0.5030, 0.5045 Hz): separated by the poly-reference fit"
+        );
+    }
 }

@@ -1353,41 +1353,20 @@ fn single_reference_fits(
         .collect()
 }
 
-/// Why the single-reference fits of a set-up (`fits`) call for a poly-reference fit, if
-/// they do: they disagree on the number of modes, or a pole shows multiplicity (a pair
-/// that could not be separated, was split by the model-order test, or made the residue
-/// basis singular). The multiplicity is read from the fits' typed
-/// [`MultiplicityWarning`]s, never from warning texts (an excitation id may say anything).
-fn poly_reference_reason(fits: &[&ExcitationFit]) -> Option<String> {
-    mode_count_disagreement(fits).or_else(|| {
-        fits.iter()
-            .find_map(|f| f.multiplicity.first())
-            .map(|w| format!("a pole shows multiplicity ({})", w.text))
-    })
-}
-
-/// The first reason of [`poly_reference_reason`]: the fits of a set-up disagree on the
-/// number of modes.
-fn mode_count_disagreement(fits: &[&ExcitationFit]) -> Option<String> {
-    let counts = fits.iter().map(|f| f.modes.len());
-    let (lo, hi) = (counts.clone().min().unwrap_or(0), counts.max().unwrap_or(0));
-    (lo != hi)
-        .then(|| format!("the per-excitation fits disagree on the number of modes ({lo} to {hi})"))
-}
-
-/// The automatic switch of [`FitOptions::auto_poly_reference`]: every set-up of two or
-/// more excitations whose single-reference fits disagree (see [`poly_reference_reason`])
-/// is refitted with [`Method::Plscf`]; its records replace the single-reference ones
-/// and carry the reason. When the poly-reference fit fails, the single-reference
-/// records stay, with a warning.
-fn switch_to_poly_reference(
+/// The automatic choice of [`FitOptions::auto_poly_reference`], by evidence (see
+/// [`crate::evidence`]): every set-up of two or more excitations whose per-excitation
+/// fits show a repeated or near-repeated root, disagree on the number of modes near one
+/// frequency, or fit one excitation far worse than the others is also fitted with
+/// [`Method::Plscf`]; its records replace the per-excitation ones when it loses no mode
+/// and explains every excitation as well. Returns what was decided per set-up.
+fn choose_by_evidence(
     geometry: &Geometry,
     frf: &FrfSet,
     setups: &[String],
     opts: &FitOptions,
     results: &mut [Result<ExcitationFit, ModalError>],
-) {
-    let todo: Vec<(Vec<usize>, String)> = setups
+) -> Vec<crate::evidence::SetupChoice> {
+    let todo: Vec<(Vec<usize>, crate::evidence::Evidence)> = setups
         .iter()
         .filter_map(|s| {
             let members: Vec<usize> = (0..geometry.excitations.len())
@@ -1400,11 +1379,11 @@ fn switch_to_poly_reference(
                 .iter()
                 .filter_map(|&e| results[e].as_ref().ok())
                 .collect();
-            poly_reference_reason(&fits).map(|why| (members, why))
+            crate::evidence::evidence(&fits).map(|why| (members, why))
         })
         .collect();
     if todo.is_empty() {
-        return;
+        return Vec::new();
     }
     let popts = FitOptions {
         method: Method::Plscf,
@@ -1414,29 +1393,50 @@ fn switch_to_poly_reference(
         .par_iter()
         .map(|(m, _)| crate::poly::fit_setup(geometry, frf, m, &popts))
         .collect();
-    for ((members, why), refit) in todo.into_iter().zip(refits) {
-        let setup = &geometry.excitations[members[0]].setup;
-        match refit {
+    let mut choices = Vec::new();
+    for ((members, evidence), refit) in todo.into_iter().zip(refits) {
+        let setup = geometry.excitations[members[0]].setup.clone();
+        let excitations: Vec<String> = members
+            .iter()
+            .map(|&e| geometry.excitations[e].id.clone())
+            .collect();
+        let comparison = match refit {
+            Err(err) => Err(err.to_string()),
             Ok(fits) => {
-                for (&e, mut fit) in members.iter().zip(fits) {
-                    fit.record.warnings.insert(
-                        0,
-                        format!("set-up {setup}: poly-reference fit (plscf) used instead of the {} fits: {why}", opts.method.name()),
-                    );
-                    results[e] = Ok(fit);
-                }
-            }
-            Err(err) => {
-                for &e in &members {
-                    if let Ok(fit) = &mut results[e] {
-                        fit.record.warnings.push(format!(
-                            "set-up {setup}: {why}, but the poly-reference fit failed ({err}); the single-reference fits are kept"
-                        ));
+                // Compared only when every per-excitation fit succeeded (a failed one has
+                // nothing to lose); then the poly-reference fit is kept.
+                let single: Vec<&ExcitationFit> = members
+                    .iter()
+                    .filter_map(|&e| results[e].as_ref().ok())
+                    .collect();
+                let c = if single.len() == members.len() {
+                    crate::evidence::compare(&single, &fits)
+                } else {
+                    crate::evidence::Comparison {
+                        poly_lost_hz: Vec::new(),
+                        single_lacks: Vec::new(),
+                        poly_worse: Vec::new(),
+                        error_ratio: (f64::NAN, f64::NAN),
+                    }
+                };
+                if c.keep_poly() {
+                    // Said once, in the set-up's `fit_choice` diagnostic.
+                    for (&e, fit) in members.iter().zip(fits) {
+                        results[e] = Ok(fit);
                     }
                 }
+                Ok(c)
             }
-        }
+        };
+        choices.push(crate::evidence::SetupChoice {
+            setup,
+            excitations,
+            evidence,
+            comparison,
+            single_method: opts.method.name(),
+        });
     }
+    choices
 }
 
 /// Every set-up fitted by the poly-reference method (set-ups in parallel); the results
@@ -1508,6 +1508,7 @@ pub fn fit_campaign(
             .map(|s| (s.clone(), setup_poles(geometry, frf, s, opts)))
             .collect(),
     };
+    let mut choices = Vec::new();
     let results: Vec<Result<ExcitationFit, ModalError>> = if opts.method == Method::Plscf {
         poly_reference_fits(geometry, frf, &setups, opts)
     } else {
@@ -1516,15 +1517,18 @@ pub fn fit_campaign(
             && opts.poles == PoleMode::PerExcitation
             && matches!(opts.method, Method::Lscf | Method::Lsce)
         {
-            switch_to_poly_reference(geometry, frf, &setups, opts, &mut r);
+            choices = choose_by_evidence(geometry, frf, &setups, opts, &mut r);
         }
         r
     };
+    let diagnostics_typed =
+        crate::evidence::campaign_diagnostics(geometry, frf, &results, &choices, &setups, opts);
     let mut record = ModalFitRecord {
         residue_convention: RESIDUE_CONVENTION.into(),
         excitations: Vec::new(),
         modes: Vec::new(),
         window_correction: None,
+        diagnostics: diagnostics_typed,
     };
     let mut diagnostics = Vec::new();
     for (e, r) in results.into_iter().enumerate() {
@@ -1602,14 +1606,6 @@ mod multiplicity_tests {
             || w.contains("not all identifiable")
     }
 
-    fn reason_by_text(fits: &[&ExcitationFit]) -> Option<String> {
-        mode_count_disagreement(fits).or_else(|| {
-            fits.iter()
-                .find_map(|f| f.record.warnings.iter().find(|w| by_text(w)))
-                .map(|w| format!("a pole shows multiplicity ({w})"))
-        })
-    }
-
     /// Test-case campaigns with the second mode moved next to the first: every
     /// multiplicity warning is typed (the typed list is exactly the warnings the text
     /// rule picks, in order) and the switch's decision and reason are those of the text
@@ -1643,11 +1639,17 @@ mod multiplicity_tests {
                 assert_eq!(texts, picked, "{apart} apart, noise {noise}");
                 typed += texts.len();
             }
-            assert_eq!(
-                poly_reference_reason(&fits),
-                reason_by_text(&fits),
-                "{apart} apart, noise {noise}"
-            );
+            // A reported multiplicity is evidence for the poly-reference fit.
+            if fits.iter().any(|f| {
+                f.multiplicity
+                    .iter()
+                    .any(|m| m.kind != Multiplicity::SplitPair)
+            }) {
+                assert!(
+                    crate::evidence::evidence(&fits).is_some(),
+                    "{apart} apart, noise {noise}"
+                );
+            }
         }
         assert!(typed > 0, "no fit reported a multiplicity");
     }
@@ -1663,28 +1665,29 @@ mod multiplicity_tests {
         let n = fits.iter().map(|f| f.modes.len()).min().unwrap();
         for f in &mut fits {
             f.modes.truncate(n);
+            f.diagnostics.poles_rad_s.truncate(n);
             f.multiplicity.clear();
             f.record.warnings.retain(|w| !by_text(w));
         }
-        assert_eq!(
-            poly_reference_reason(&fits.iter().collect::<Vec<_>>()),
-            None
-        );
+        let reason = |fits: &[ExcitationFit]| {
+            crate::evidence::evidence(&fits.iter().collect::<Vec<_>>()).map(|e| e.reason)
+        };
+        assert_eq!(reason(&fits), None);
         fits[0].record.warnings.push(
             "excitation 'not all identifiable': pole refinement did not converge in 40 iterations"
                 .into(),
         );
-        assert_eq!(
-            poly_reference_reason(&fits.iter().collect::<Vec<_>>()),
-            None
-        );
+        assert_eq!(reason(&fits), None);
         fits[1].multiplicity.push(MultiplicityWarning {
             kind: Multiplicity::RepeatedRoot,
             text: "excitation 'F1': modes 1 and 2 cannot be separated".into(),
         });
+        let id = fits[1].record.excitation.clone();
         assert_eq!(
-            poly_reference_reason(&fits.iter().collect::<Vec<_>>()).as_deref(),
-            Some("a pole shows multiplicity (excitation 'F1': modes 1 and 2 cannot be separated)")
+            reason(&fits),
+            Some(format!(
+                "the per-excitation fits of {id} report two poles they cannot separate"
+            ))
         );
     }
 }

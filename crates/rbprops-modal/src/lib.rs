@@ -30,6 +30,7 @@
 pub mod band;
 pub(crate) mod circle;
 pub mod error;
+pub mod evidence;
 mod fit;
 pub(crate) mod linalg;
 pub(crate) mod lsce;

@@ -200,10 +200,12 @@ pub struct FitOptions {
     /// they are 0.6 MB per excitation, 0.6 GB for a 1,000-excitation campaign, and
     /// nothing else reads them (the fit error per channel is in the record).
     pub keep_synthesised: bool,
-    /// Single-reference methods: refit a set-up of two or more excitations with
-    /// [`Method::Plscf`] when its per-excitation fits disagree on the number of modes
-    /// or a pole shows multiplicity (a merged, split or inseparable pair); the records
-    /// say so in their warnings.
+    /// Single-reference methods with per-excitation poles (default on): also fit a set-up
+    /// of two or more excitations with [`Method::Plscf`] when its per-excitation fits show
+    /// a repeated or near-repeated root, disagree on the number of modes near one
+    /// frequency or fit one excitation far worse than the others, and keep the
+    /// poly-reference fit when it loses no mode and explains every excitation as well
+    /// ([`crate::evidence`]); one `fit_choice` diagnostic says which was kept and why.
     pub auto_poly_reference: bool,
     /// Weight the lines by the measured coherence (`crate::weighting`) in the LSCF pole
     /// estimate, the pole refinement and the LSFD residues; `None` (default): the
@@ -228,11 +230,9 @@ impl Default for FitOptions {
             weak_below_db: 20.0,
             circle_min_separation: 3.0,
             keep_synthesised: false,
-            // Off by default for now: on a wide baseband (the noisy tests' 0–50 Hz) the
-            // per-excitation fits legitimately disagree on weakly excited modes, and the
-            // poly-reference fit there is not yet as complete as the single-reference
-            // one (no pole refinement, no lower-quarter safety sweeps).
-            auto_poly_reference: false,
+            // On: the poly-reference fit is only tried on evidence and only kept when it
+            // loses no mode and explains every excitation as well (`crate::evidence`).
+            auto_poly_reference: true,
             coherence_weighting: None,
             search: PoleSearchParams::default(),
         }

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 
 #[derive(Clone, Copy, ValueEnum)]
 enum MethodArg {
-    /// Least-squares complex frequency domain poles + LSFD residues, per excitation (default).
+    /// Least-squares complex frequency domain poles + LSFD residues, per excitation only.
+    /// Without --method: these fits, and the poly-reference fit of a set-up when they show
+    /// a repeated or near-repeated root (kept when it loses no mode and fits as well).
     Lscf,
     /// Poly-reference LSCF (PolyMAX): one fit over every excitation of a set-up, with
     /// participation factors; separates repeated and nearly repeated roots.
@@ -44,8 +46,10 @@ struct Args {
     io: rbprops_cli::StageIo,
     #[command(flatten)]
     uff: rbprops_cli::UffArgs,
-    #[arg(long, value_enum, default_value = "lscf")]
-    method: MethodArg,
+    /// Force one method (default: per-excitation lscf fits, and the poly-reference fit of
+    /// a set-up kept instead when the evidence calls for it and it fits better).
+    #[arg(long, value_enum)]
+    method: Option<MethodArg>,
     /// Band FMIN:FMAX in Hz (default: the whole axis).
     #[arg(long, value_parser = rbprops_cli::args::band)]
     band: Option<(f64, f64)>,
@@ -60,9 +64,8 @@ struct Args {
     /// Line weights of the least-squares fits.
     #[arg(long, value_enum, default_value = "none")]
     weight: WeightArg,
-    /// Single-reference methods: refit a set-up with the poly-reference fit (plscf), with a
-    /// note, when its excitations' fits disagree on the number of modes or a pole shows
-    /// multiplicity (a merged, split or inseparable pair).
+    /// With --method lscf or lsce: still choose the poly-reference fit by evidence, as the
+    /// default does.
     #[arg(long)]
     auto_poly: bool,
     /// Leave out the lower/upper residual terms of the residue fit.
@@ -88,10 +91,10 @@ fn main() -> std::process::ExitCode {
         let mut rec = input.record;
         let mut opts = FitOptions {
             method: match args.method {
-                MethodArg::Lscf => Method::Lscf,
-                MethodArg::Plscf => Method::Plscf,
-                MethodArg::Lsce => Method::Lsce,
-                MethodArg::Circle => Method::Circle,
+                None | Some(MethodArg::Lscf) => Method::Lscf,
+                Some(MethodArg::Plscf) => Method::Plscf,
+                Some(MethodArg::Lsce) => Method::Lsce,
+                Some(MethodArg::Circle) => Method::Circle,
             },
             poles: match args.poles {
                 PolesArg::Excitation => PoleMode::PerExcitation,
@@ -100,7 +103,7 @@ fn main() -> std::process::ExitCode {
             n_modes: args.modes,
             residual_terms: !args.no_residuals,
             keep_synthesised: args.plot.is_some(),
-            auto_poly_reference: args.auto_poly,
+            auto_poly_reference: args.method.is_none() || args.auto_poly,
             ..Default::default()
         };
         opts.band_hz = args.band;
@@ -116,24 +119,35 @@ fn main() -> std::process::ExitCode {
             args.exp_window,
             &input.sha256,
         )?;
+        // One line per fact: the typed diagnostics (grouped by set-up, one per repeated
+        // root however many excitations show it); with -v also every note of the records.
+        let verbose = args.io.checks.verbose;
         let mut warnings = rbprops_cli::warnings::Collector::default();
-        for e in &out.record.excitations {
-            for w in &e.warnings {
-                warnings.push("modal-fit", format!("excitation {}: {w}", e.excitation));
+        for d in &out.record.diagnostics {
+            warnings.add(rbprops_cli::warnings::StageWarning::from_diagnostic(d));
+        }
+        if verbose {
+            for e in &out.record.excitations {
+                for w in &e.warnings {
+                    warnings.add(rbprops_cli::warnings::StageWarning::note(
+                        "modal-fit",
+                        format!("excitation {}: {w}", e.excitation),
+                    ));
+                }
+            }
+            for m in &out.record.modes {
+                for w in &m.warnings {
+                    warnings.add(rbprops_cli::warnings::StageWarning::note(
+                        "modal-fit",
+                        format!(
+                            "excitation {} mode {} ({:.4} Hz): {w}",
+                            m.excitation, m.mode, m.frequency_hz
+                        ),
+                    ));
+                }
             }
         }
-        for m in &out.record.modes {
-            for w in &m.warnings {
-                warnings.push(
-                    "modal-fit",
-                    format!(
-                        "excitation {} mode {} ({:.4} Hz): {w}",
-                        m.excitation, m.mode, m.frequency_hz
-                    ),
-                );
-            }
-        }
-        warnings.print(args.io.checks.verbose);
+        warnings.print(verbose);
         if let Some(dir) = &args.plot {
             let (geometry, frf) = rec.require_geometry_and_frf()?;
             let coherence = rbprops_cli::coherence::get(&rec)?;

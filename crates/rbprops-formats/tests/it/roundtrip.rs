@@ -1,7 +1,10 @@
 //! MCAP ↔ CSV round trips (bit-exact), error reporting, and no-panic fuzzing of readers.
 
 use proptest::prelude::*;
-use rbprops_core::records::{ModalFitRecord, ModeEstimate, PropertiesRecord, StageProvenance};
+use rbprops_core::records::{
+    Diagnostic, DiagnosticKind, DiagnosticSubject, ModalFitRecord, ModeEstimate, PropertiesRecord,
+    Severity, StageProvenance,
+};
 use rbprops_core::{
     c64, Channel, Excitation, FrfSet, Geometry, Point, Quantity, SuspensionSetup, Vec3,
 };
@@ -125,6 +128,34 @@ fn record() -> RunRecord {
                 },
             ],
             window_correction: None,
+            diagnostics: vec![
+                Diagnostic {
+                    stage: "modal-fit".into(),
+                    kind: DiagnosticKind::RepeatedRoot,
+                    severity: Severity::Note,
+                    subject: DiagnosticSubject {
+                        setup: Some("A".into()),
+                        excitations: vec!["fx".into(), "fy".into()],
+                        modes: vec![5, 6],
+                        frequencies_hz: vec![0.503008305530331, 0.5045284481387717],
+                        ..Default::default()
+                    },
+                    message: "one root, \"quoted\", separated".into(),
+                    advice: String::new(),
+                },
+                Diagnostic {
+                    stage: "modal-fit".into(),
+                    kind: DiagnosticKind::DeadChannel,
+                    severity: Severity::ChangesAnswer,
+                    subject: DiagnosticSubject {
+                        channel: Some("3x".into()),
+                        hit: Some(2),
+                        ..Default::default()
+                    },
+                    message: "zero".into(),
+                    advice: "check the cable".into(),
+                },
+            ],
         }],
     );
     rec
