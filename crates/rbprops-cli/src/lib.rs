@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 pub mod args;
 pub mod campaign;
+pub mod channel_table;
 pub mod coherence;
 pub mod frf_est;
 pub mod html;

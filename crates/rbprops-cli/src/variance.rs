@@ -4,8 +4,8 @@
 //! do not read it yet (`modal-fit --weight coherence` uses the coherence `frf-est` writes).
 
 use anyhow::{bail, Result};
-use rbprops_core::{c64, FrfSet, Geometry};
-use rbprops_formats::wire::{decode_values, encode_values, FrfVarianceMsg};
+use rbprops_core::{FrfSet, Geometry};
+use rbprops_formats::wire::FrfVarianceMsg;
 use rbprops_formats::{topics, RunRecord};
 
 /// Lines whose noise power is pooled on each side of a line (docs/conventions.md, FRF
@@ -58,30 +58,23 @@ impl LineVarianceSet {
     }
 }
 
-/// Stores a variance set as the topic (channels with any finite value).
+/// Stores a variance set as the topic (channels with any finite value;
+/// `crate::channel_table`).
 pub fn set(rec: &mut RunRecord, geometry: &Geometry, frf: &FrfSet, v: &LineVarianceSet) {
     let n = frf.n_lines();
-    let mut msgs = Vec::new();
-    for (e, x) in geometry.excitations.iter().enumerate() {
-        let mut channels = Vec::new();
-        let mut values: Vec<c64> = Vec::new();
-        for (c, ch) in geometry.channels.iter().enumerate() {
-            let at = (e * frf.n_channels + c) * n;
-            let s = &v.sigma2[at..at + n];
-            if s.iter().any(|x| x.is_finite()) {
-                channels.push(ch.id.clone());
-                values.extend(s.iter().map(|&x| c64::new(x, 0.0)));
-            }
-        }
-        if !channels.is_empty() {
-            msgs.push(FrfVarianceMsg {
-                excitation: x.id.clone(),
-                channels,
-                degrees_of_freedom: v.degrees_of_freedom[e],
-                values_f64le: encode_values(&values),
-            });
-        }
-    }
+    let msgs: Vec<FrfVarianceMsg> = crate::channel_table::encode(geometry, |e, c| {
+        let at = (e * frf.n_channels + c) * n;
+        let s = &v.sigma2[at..at + n];
+        s.iter().any(|x| x.is_finite()).then_some(s)
+    })
+    .into_iter()
+    .map(|r| FrfVarianceMsg {
+        degrees_of_freedom: v.degrees_of_freedom[r.index],
+        excitation: r.excitation,
+        channels: r.channels,
+        values_f64le: r.values_f64le,
+    })
+    .collect();
     rec.set(topics::FRF_VARIANCE, &msgs);
 }
 
@@ -96,41 +89,30 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     let n = frf.n_lines();
     let mut sigma2 = vec![f64::NAN; frf.values.len()];
     let mut dof = vec![f64::INFINITY; frf.n_excitations];
-    let at = |m: &FrfVarianceMsg| {
-        format!(
-            "{} topic, excitation '{}'",
-            topics::FRF_VARIANCE,
-            m.excitation
-        )
-    };
     for m in &msgs {
-        let Some(e) = geometry
-            .excitations
-            .iter()
-            .position(|x| x.id == m.excitation)
-        else {
-            bail!("{}: not in the geometry", at(m));
-        };
+        let what = format!("{} topic", topics::FRF_VARIANCE);
+        let at = format!("{what}, excitation '{}'", m.excitation);
+        let (e, channels) = crate::channel_table::decode(
+            &geometry,
+            n,
+            &what,
+            &m.excitation,
+            &m.channels,
+            &m.values_f64le,
+        )?;
         if !(m.degrees_of_freedom > 2.0) {
             bail!(
-                "{}: degrees_of_freedom {} (must exceed 2 for a variance a χ² can use)",
-                at(m),
+                "{at}: degrees_of_freedom {} (must exceed 2 for a variance a χ² can use)",
                 m.degrees_of_freedom
             );
         }
         dof[e] = m.degrees_of_freedom;
-        let values = decode_values(&m.values_f64le, n * m.channels.len())
-            .map_err(|err| anyhow::anyhow!("{}: {err}", at(m)))?;
-        for (k, id) in m.channels.iter().enumerate() {
-            let Some(c) = geometry.channels.iter().position(|x| &x.id == id) else {
-                bail!("{}: channel '{id}' is not in the geometry", at(m));
-            };
-            for l in 0..n {
-                let v = values[k * n + l].re;
+        for (c, values) in channels {
+            let id = &geometry.channels[c].id;
+            for (l, &v) in values.iter().enumerate() {
                 if v < 0.0 || v.is_infinite() {
                     bail!(
-                        "{}, channel '{id}', line {l}: variance {v} (must be ≥ 0 and finite, or NaN for unknown)",
-                        at(m)
+                        "{at}, channel '{id}', line {l}: variance {v} (must be ≥ 0 and finite, or NaN for unknown)"
                     );
                 }
                 sigma2[(e * frf.n_channels + c) * n + l] = v;
