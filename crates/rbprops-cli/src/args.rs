@@ -165,6 +165,12 @@ pub fn dof(s: &str) -> Result<(i64, i64), String> {
     Ok((node, sign * a))
 }
 
+/// The number of averages behind an FRF export: 3..=1000000 (fewer leave no degrees of
+/// freedom for the variance).
+pub fn averages(s: &str) -> Result<usize, String> {
+    count(s, 3, 1_000_000)
+}
+
 /// Number of modes in a band: 1..=100.
 pub fn modes(s: &str) -> Result<usize, String> {
     count(s, 1, 100)

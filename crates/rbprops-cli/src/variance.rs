@@ -125,6 +125,66 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     }))
 }
 
+/// The line variances of an FRF export from its coherence topic and the number of
+/// averages `n_d` the export declares (`--averages`):
+/// `σ² = |Ĥ|²(1 − γ²)/(n_d γ²)` per line (Bendat & Piersol; `Var|Ĥ| ≈ (1 − γ²)/(2 n_d γ²) |H|²`
+/// in each of the real and imaginary parts, `rbprops_frfest::coherence_line_variance`),
+/// with `2(n_d − 1)` real degrees of freedom (the line's own averages, not pooled);
+/// NaN (unknown) on the channels without coherence. Errors, naming `source`, when the
+/// record has no coherence, already has line variances (from `frf-est`), or `n_d < 3`
+/// (fewer leave no degrees of freedom for a χ²).
+pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Result<LineVarianceSet> {
+    if n_averages < 3 {
+        bail!("--averages {n_averages}: at least 3 averages for a variance a χ² can use");
+    }
+    if rec.topic(topics::FRF_VARIANCE).is_some() {
+        bail!(
+            "{source}: --averages, but the run already has the estimator's line variances ({}, from frf-est)",
+            topics::FRF_VARIANCE
+        );
+    }
+    let Some(grid) = crate::coherence::get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?
+    else {
+        bail!(
+            "{source}: --averages, but the recording holds no coherence (a UFF export needs coherence datasets, function type 6, beside its FRFs)"
+        );
+    };
+    let (_, frf) = rec.require_geometry_and_frf()?;
+    let n = frf.n_lines();
+    let mut sigma2 = vec![f64::NAN; frf.values.len()];
+    for (e, row) in grid.iter().enumerate() {
+        for (c, coh) in row.iter().enumerate() {
+            let Some(coh) = coh else { continue };
+            let at = (e * frf.n_channels + c) * n;
+            for l in 0..n {
+                sigma2[at + l] = rbprops_frfest::coherence_line_variance(
+                    frf.values[at + l].norm_sqr(),
+                    coh[l],
+                    n_averages,
+                );
+            }
+        }
+    }
+    Ok(LineVarianceSet {
+        sigma2,
+        degrees_of_freedom: vec![2.0 * (n_averages as f64 - 1.0); frf.n_excitations],
+    })
+}
+
+/// `--averages N` on a stage reading an FRF export with coherence: the line variances
+/// [`from_coherence`] written to the record's variance topic, so that the model check
+/// uses them as it uses `frf-est`'s. Nothing without `--averages`.
+pub fn declare_averages(rec: &mut RunRecord, n_averages: Option<usize>, source: &str) -> Result<()> {
+    let Some(n) = n_averages else {
+        return Ok(());
+    };
+    let v = from_coherence(rec, n, source)?;
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let frf = frf.clone();
+    set(rec, &geometry, &frf, &v);
+    Ok(())
+}
+
 /// Multiple of the estimator's force-noise error (`force_noise_relative_error`, an RMS
 /// per excitation) under which an effect's whole change to the FRFs is not claimed: the
 /// error is Gaussian, so 4 of its standard deviations are reached by chance in fewer than
@@ -211,7 +271,12 @@ fn variance_for_check(
         return Ok((None, notes));
     };
     let used = v.sigma2.iter().filter(|x| **x > 0.0).count().max(1);
-    let pool = (2 * POOL_HALF_WIDTH + 1) as f64;
+    // frf-est pools each variance over 2L + 1 lines; an export's are the lines' own.
+    let pool = if estimation.is_some() {
+        (2 * POOL_HALF_WIDTH + 1) as f64
+    } else {
+        1.0
+    };
     let given = rbprops_check::GivenLineVariance {
         sigma2: v.calibrated_for_chi2().iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect(),
         window_time_constant_s: estimation.and_then(|e| e.exponential_window_s),
@@ -220,12 +285,20 @@ fn variance_for_check(
         variance_scale_se: (2.0 / v.min_degrees_of_freedom() * pool / used as f64)
             .sqrt()
             .hypot(v.correction_se()),
-        source: format!(
-            "{}: H1 line variance |Ĥ|²(1 − γ²)/((n_d − 1)γ²) pooled over {} lines, at least {:.0} degrees of freedom d, scaled by 1 + 2/d",
-            topics::FRF_VARIANCE,
-            2 * POOL_HALF_WIDTH + 1,
-            v.min_degrees_of_freedom()
-        ),
+        source: if estimation.is_some() {
+            format!(
+                "{}: H1 line variance |Ĥ|²(1 − γ²)/((n_d − 1)γ²) pooled over {} lines, at least {:.0} degrees of freedom d, scaled by 1 + 2/d",
+                topics::FRF_VARIANCE,
+                2 * POOL_HALF_WIDTH + 1,
+                v.min_degrees_of_freedom()
+            )
+        } else {
+            format!(
+                "{}: line variance |Ĥ|²(1 − γ²)/(n_d γ²) from the export's coherence and its declared averages (Bendat & Piersol), {:.0} degrees of freedom d, scaled by 1 + 2/d",
+                topics::FRF_VARIANCE,
+                v.min_degrees_of_freedom()
+            )
+        },
     };
     Ok((Some(given), notes))
 }

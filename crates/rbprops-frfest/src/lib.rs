@@ -39,7 +39,7 @@ pub mod spectra;
 pub mod window;
 
 pub use estimate::{
-    convert_quantity, quality, smoothed_variance, ConditioningOptions, Estimator, FrfEstimate,
+    coherence_line_variance, convert_quantity, quality, smoothed_variance, ConditioningOptions, Estimator, FrfEstimate,
     Quality, Quantity, SmoothedVariance,
 };
 pub use hit::{

@@ -26,7 +26,9 @@ enum EstimatorArg {
 #[derive(Parser)]
 #[command(name = "frf-est", version, about)]
 struct Args {
-    /// The time histories: a universal file (.uff/.unv/.58/.58b).
+    /// The time histories: a universal file (.uff/.unv/.58/.58b), an MCAP file with the
+    /// /rbprops/time_history topic, or a CSV directory (records.csv, channels.csv and one
+    /// file per record; docs/formats.md).
     input: PathBuf,
     /// Output: FILE.mcap, FILE.uff, or a directory for CSV; default MCAP on stdout.
     #[arg(short, long)]
@@ -96,8 +98,7 @@ fn main() -> std::process::ExitCode {
         rbprops_formats::atomic::set_force(args.force);
         let opts = options(&args);
         let name = args.input.display().to_string();
-        let bytes = rbprops_cli::read_file(&args.input)?;
-        let data = rbprops_uff::parse(&bytes, &name)?;
+        let (data, bytes) = rbprops_cli::read_time_histories(&args.input)?;
         if !rbprops_uff::timehist::has_time_histories(&data) {
             bail!(
                 "{name}: no time histories (dataset 58 with function type 1). It holds:\n{}",

@@ -44,6 +44,8 @@ struct Args {
     io: rbprops_cli::StageIo,
     #[command(flatten)]
     uff: rbprops_cli::UffArgs,
+    #[command(flatten)]
+    averages: rbprops_cli::AveragesArg,
     #[arg(long, value_enum, default_value = "lscf")]
     method: MethodArg,
     /// Band FMIN:FMAX in Hz (default: the whole axis).
@@ -86,6 +88,7 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         let input = args.io.read("modal-fit", &args.uff.options())?;
         let mut rec = input.record;
+        rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let mut opts = FitOptions {
             method: match args.method {
                 MethodArg::Lscf => Method::Lscf,
