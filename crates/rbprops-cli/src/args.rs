@@ -265,7 +265,10 @@ mod tests {
         assert_eq!(trigger_fraction("0.1"), Ok(0.1));
         assert!(force_window("0.01").is_err() && force_window("-1:2").is_err());
         assert_eq!(force_window("none"), Ok(ForceWindowSpan(None)));
-        assert_eq!(force_window("0.01:0.05"), Ok(ForceWindowSpan(Some((0.01, 0.05)))));
+        assert_eq!(
+            force_window("0.01:0.05"),
+            Ok(ForceWindowSpan(Some((0.01, 0.05))))
+        );
         assert_eq!(dof("201:-X"), Ok((201, -1)));
         assert_eq!(dof("7:+3"), Ok((7, 3)));
         assert!(dof("7:W").is_err() && dof("x:1").is_err());

@@ -62,11 +62,7 @@ pub fn decode(
     values_f64le: &str,
 ) -> Result<(usize, Vec<(usize, Vec<f64>)>)> {
     let at = format!("{what}, excitation '{excitation}'");
-    let Some(e) = geometry
-        .excitations
-        .iter()
-        .position(|x| x.id == excitation)
-    else {
+    let Some(e) = geometry.excitations.iter().position(|x| x.id == excitation) else {
         bail!("{at}: not in the geometry");
     };
     let values = decode_values(values_f64le, n_lines * channels.len())
@@ -112,8 +108,15 @@ mod tests {
         let rows = encode(&g, |e, c| table[e][c].as_deref());
         assert_eq!(rows.len(), g.excitations.len());
         for r in &rows {
-            let (e, channels) =
-                decode(&g, n, "test topic", &r.excitation, &r.channels, &r.values_f64le).unwrap();
+            let (e, channels) = decode(
+                &g,
+                n,
+                "test topic",
+                &r.excitation,
+                &r.channels,
+                &r.values_f64le,
+            )
+            .unwrap();
             assert_eq!(e, r.index);
             assert_eq!(channels.len(), table[e].iter().flatten().count());
             for (c, v) in channels {
@@ -122,15 +125,30 @@ mod tests {
         }
         // The layout: `[channel][line][value, 0]`.
         let first = table[0].iter().flatten().next().unwrap();
-        let raw = rbprops_formats::wire::decode_values(&rows[0].values_f64le, n * rows[0].channels.len()).unwrap();
-        assert!(raw[..n].iter().zip(first).all(|(v, x)| v.re == *x && v.im == 0.0));
+        let raw =
+            rbprops_formats::wire::decode_values(&rows[0].values_f64le, n * rows[0].channels.len())
+                .unwrap();
+        assert!(raw[..n]
+            .iter()
+            .zip(first)
+            .all(|(v, x)| v.re == *x && v.im == 0.0));
         let e = decode(&g, n, "test topic", "nowhere", &[], "")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("test topic, excitation 'nowhere': not in the geometry"), "{e}");
-        let e = decode(&g, n + 1, "test topic", &rows[0].excitation, &rows[0].channels, &rows[0].values_f64le)
-            .unwrap_err()
-            .to_string();
+        assert!(
+            e.contains("test topic, excitation 'nowhere': not in the geometry"),
+            "{e}"
+        );
+        let e = decode(
+            &g,
+            n + 1,
+            "test topic",
+            &rows[0].excitation,
+            &rows[0].channels,
+            &rows[0].values_f64le,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("bytes of values"), "{e}");
     }
 }

@@ -11,16 +11,15 @@ pub type CoherenceGrid = Vec<Vec<Option<Vec<f64>>>>;
 
 /// Stores a matched coherence set as the coherence topic (`crate::channel_table`).
 pub fn set(rec: &mut RunRecord, geometry: &Geometry, coh: &rbprops_uff::CoherenceSet) {
-    let msgs: Vec<CoherenceMsg> = crate::channel_table::encode(geometry, |e, c| {
-        coh.values.get(e)?.get(c)?.as_deref()
-    })
-    .into_iter()
-    .map(|r| CoherenceMsg {
-        excitation: r.excitation,
-        channels: r.channels,
-        values_f64le: r.values_f64le,
-    })
-    .collect();
+    let msgs: Vec<CoherenceMsg> =
+        crate::channel_table::encode(geometry, |e, c| coh.values.get(e)?.get(c)?.as_deref())
+            .into_iter()
+            .map(|r| CoherenceMsg {
+                excitation: r.excitation,
+                channels: r.channels,
+                values_f64le: r.values_f64le,
+            })
+            .collect();
     rec.set(topics::COHERENCE, &msgs);
 }
 

@@ -344,7 +344,11 @@ fn hit_table(h: &mut String, hits: &[rbprops_core::records::HitRecord]) -> Resul
     }
     h.push_str("</tr>\n");
     for hit in hits {
-        h.push_str(if hit.accepted { "<tr>" } else { "<tr class=\"rejected\">" });
+        h.push_str(if hit.accepted {
+            "<tr>"
+        } else {
+            "<tr class=\"rejected\">"
+        });
         for (k, cell) in crate::report::hit_cells(hit).iter().enumerate() {
             let class = if k < 4 { " class=\"t\"" } else { "" };
             write!(h, "<td{class}>{}</td>", escape(cell))?;

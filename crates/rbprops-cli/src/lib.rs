@@ -314,8 +314,7 @@ pub fn parse_uff(p: &Path) -> Result<rbprops_uff::UffFile> {
 /// Whether `p` names time histories in a format besides UFF: a directory holding
 /// `records.csv` (the CSV layout) or an MCAP file.
 pub fn is_time_history_recording(p: &Path) -> bool {
-    p.join("records.csv").is_file()
-        || p.extension().and_then(|e| e.to_str()) == Some("mcap")
+    p.join("records.csv").is_file() || p.extension().and_then(|e| e.to_str()) == Some("mcap")
 }
 
 /// The time histories at `p` as datasets 58 of function type 1 (one reader per format,

@@ -247,10 +247,14 @@ pub fn hit_cells(h: &rbprops_core::records::HitRecord) -> [String; 8] {
 
 /// `frf-est`'s hit verdicts in a run (the processing topic's `frf_estimation.hits`);
 /// empty when its FRFs were not estimated from time histories.
-pub fn hits_of(record: &rbprops_formats::RunRecord) -> Result<Vec<rbprops_core::records::HitRecord>> {
+pub fn hits_of(
+    record: &rbprops_formats::RunRecord,
+) -> Result<Vec<rbprops_core::records::HitRecord>> {
     use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
     let p: Option<ProcessingRecord> = record.get_one(PROCESSING_TOPIC)?;
-    Ok(p.and_then(|p| p.frf_estimation).map(|e| e.hits).unwrap_or_default())
+    Ok(p.and_then(|p| p.frf_estimation)
+        .map(|e| e.hits)
+        .unwrap_or_default())
 }
 
 /// The per-hit tables of runs in Markdown, one per run with hits, under `## Hits`.
@@ -385,7 +389,11 @@ pub fn load(input: &Path, title: &str) -> Result<crate::html::ReportData> {
         d.rows = crate::summary::rows(&rec, &label, "ni", "geometry")?;
         d.runs.push(run_section(&label, &rec, None)?);
     }
-    if d.rows.is_empty() && d.runs.iter().all(|r| r.estimates.is_empty() && r.hits.is_empty()) {
+    if d.rows.is_empty()
+        && d.runs
+            .iter()
+            .all(|r| r.estimates.is_empty() && r.hits.is_empty())
+    {
         bail!("{name}: no estimates or hit verdicts to report (run frf-est, rb-solve or rbprops campaign first)");
     }
     Ok(d)

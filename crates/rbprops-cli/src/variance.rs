@@ -174,7 +174,11 @@ pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Resul
 /// `--averages N` on a stage reading an FRF export with coherence: the line variances
 /// [`from_coherence`] written to the record's variance topic, so that the model check
 /// uses them as it uses `frf-est`'s. Nothing without `--averages`.
-pub fn declare_averages(rec: &mut RunRecord, n_averages: Option<usize>, source: &str) -> Result<()> {
+pub fn declare_averages(
+    rec: &mut RunRecord,
+    n_averages: Option<usize>,
+    source: &str,
+) -> Result<()> {
     let Some(n) = n_averages else {
         return Ok(());
     };
@@ -278,7 +282,11 @@ fn variance_for_check(
         1.0
     };
     let given = rbprops_check::GivenLineVariance {
-        sigma2: v.calibrated_for_chi2().iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect(),
+        sigma2: v
+            .calibrated_for_chi2()
+            .iter()
+            .map(|x| if x.is_finite() { *x } else { 0.0 })
+            .collect(),
         window_time_constant_s: estimation.and_then(|e| e.exponential_window_s),
         // Each pool's σ² has d degrees (relative SE √(2/d)); the scale of all of them
         // averages over the independent pools.

@@ -669,7 +669,10 @@ mod coherence_variance_tests {
     /// The formula at a few exact points, and the clamps.
     #[test]
     fn coherence_variance_is_bendat_and_piersol() {
-        assert_eq!(coherence_line_variance(4.0, 0.5, 8), 4.0 * 0.5 / (8.0 * 0.5));
+        assert_eq!(
+            coherence_line_variance(4.0, 0.5, 8),
+            4.0 * 0.5 / (8.0 * 0.5)
+        );
         assert_eq!(coherence_line_variance(1.0, 0.8, 5), 0.2 / (5.0 * 0.8));
         assert_eq!(
             coherence_line_variance(1.0, 1.0, 5),

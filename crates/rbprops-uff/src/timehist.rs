@@ -125,8 +125,7 @@ fn campaign_error(uff: &UffFile, problem: String) -> UffError {
 
 /// Is this record's ordinate a force (module docs), or at one of `force_dofs`?
 pub fn is_force_record(f: &Function, force_dofs: &[(i64, i64)]) -> bool {
-    if force_dofs.contains(&(f.response_node, f.response_direction))
-    {
+    if force_dofs.contains(&(f.response_node, f.response_direction)) {
         return true;
     }
     match f.numerator.data_type {

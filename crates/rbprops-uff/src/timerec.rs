@@ -15,8 +15,7 @@
 
 use crate::error::{DatasetLocation, UffError};
 use crate::model::{
-    AxisInfo, Dataset, Function, Node, NodeFormat, NodeSet, OrdinateType, Record, UffFile,
-    Units,
+    AxisInfo, Dataset, Function, Node, NodeFormat, NodeSet, OrdinateType, Record, UffFile, Units,
 };
 use crate::timehist::{self, HitLayout, TimeHistoryIndex};
 use rbprops_core::c64;
@@ -556,9 +555,9 @@ impl TimeRecording {
                     continue;
                 }
                 seen.push(c.id.clone());
-                let p = c.position_m.map_or(",,".to_string(), |p| {
-                    format!("{},{},{}", p[0], p[1], p[2])
-                });
+                let p = c
+                    .position_m
+                    .map_or(",,".to_string(), |p| format!("{},{},{}", p[0], p[1], p[2]));
                 channels.push_str(&format!(
                     "{},{},{},{},{},{},{p}\n",
                     csv_cell(&c.id),
@@ -580,7 +579,11 @@ impl TimeRecording {
                     csv_cell(&ex.id),
                     csv_cell(&ex.setup),
                     csv_cell(&ex.setup_description),
-                    if ex.throughput { String::new() } else { r.hit.to_string() }
+                    if ex.throughput {
+                        String::new()
+                    } else {
+                        r.hit.to_string()
+                    }
                 ));
                 let mut text = String::from("time_s");
                 for c in &ex.channels {
@@ -618,7 +621,13 @@ fn csv_cell(s: &str) -> String {
 
 fn file_safe(s: &str) -> String {
     s.chars()
-        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
         .collect()
 }
 
@@ -676,7 +685,9 @@ pub fn from_messages(file: &str, msgs: &[TimeHistoryMsg]) -> Result<TimeRecordin
                 };
                 let samples =
                     decode_samples(&r.samples, single, channels.len(), msg.record_samples)
-                        .map_err(|e| at(format!("{rsource}: {e} (a truncated or corrupted record)")))?;
+                        .map_err(|e| {
+                            at(format!("{rsource}: {e} (a truncated or corrupted record)"))
+                        })?;
                 Ok(TimeRecord {
                     hit: r.hit,
                     samples,
@@ -730,12 +741,21 @@ fn table(file: &str, name: &str, text: &str) -> Result<Table, UffError> {
 }
 
 impl Table {
-    fn column(&self, file: &str, name: &str, col: &str, required: bool) -> Result<Option<usize>, UffError> {
+    fn column(
+        &self,
+        file: &str,
+        name: &str,
+        col: &str,
+        required: bool,
+    ) -> Result<Option<usize>, UffError> {
         match self.header.iter().position(|h| h == col) {
             Some(i) => Ok(Some(i)),
             None if required => Err(err(
                 file,
-                format!("{name}: no column '{col}' (header: {})", self.header.join(",")),
+                format!(
+                    "{name}: no column '{col}' (header: {})",
+                    self.header.join(",")
+                ),
             )),
             None => Ok(None),
         }
@@ -777,7 +797,9 @@ pub fn from_csv(
         let cell = |i: Option<usize>| i.map_or("", |i| row[i].trim());
         let id = cell(Some(ci)).to_string();
         if id.is_empty() || channels.iter().any(|c| c.id == id) {
-            return Err(at(format!("channel '{id}': ids must be given and distinct")));
+            return Err(at(format!(
+                "channel '{id}': ids must be given and distinct"
+            )));
         }
         let node: i64 = cell(Some(ni))
             .parse()
@@ -853,7 +875,9 @@ pub fn from_csv(
         let mut cols = Vec::new();
         for h in &t.header[1..] {
             let Some(c) = channels.iter().find(|c| &c.id == h) else {
-                return Err(fat(format!("column '{h}' is not a channel of channels.csv")));
+                return Err(fat(format!(
+                    "column '{h}' is not a channel of channels.csv"
+                )));
             };
             cols.push(c.clone());
         }
@@ -862,7 +886,10 @@ pub fn from_csv(
         for (l, r) in &t.rows {
             let num = |k: usize| -> Result<f64, UffError> {
                 let v: f64 = r[k].trim().parse().map_err(|_| {
-                    fat(format!("line {l}, column '{}': '{}' is not a number", t.header[k], r[k]))
+                    fat(format!(
+                        "line {l}, column '{}': '{}' is not a number",
+                        t.header[k], r[k]
+                    ))
                 })?;
                 if !v.is_finite() {
                     return Err(fat(format!(
@@ -914,7 +941,9 @@ pub fn from_csv(
                     )));
                 }
                 if e.throughput != throughput {
-                    return Err(at("a throughput record beside per-hit records of the same excitation".into()));
+                    return Err(at(
+                        "a throughput record beside per-hit records of the same excitation".into(),
+                    ));
                 }
                 e.records.push(record);
             }
@@ -986,7 +1015,12 @@ pub fn from_uff(uff: &UffFile, index: &TimeHistoryIndex) -> Result<TimeRecording
                 f.numerator.units_label.trim().to_string()
             },
             position_m: si
-                .then(|| positions.iter().find(|(n, _)| *n == f.response_node).map(|p| p.1))
+                .then(|| {
+                    positions
+                        .iter()
+                        .find(|(n, _)| *n == f.response_node)
+                        .map(|p| p.1)
+                })
                 .flatten(),
         })
     };

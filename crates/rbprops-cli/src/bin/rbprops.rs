@@ -151,11 +151,7 @@ fn command(command: Command) -> anyhow::Result<()> {
                 &checks,
                 &uff.options(),
             )?;
-            rbprops_cli::variance::declare_averages(
-                &mut inp.record,
-                averages.averages,
-                &inp.name,
-            )?;
+            rbprops_cli::variance::declare_averages(&mut inp.record, averages.averages, &inp.name)?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {

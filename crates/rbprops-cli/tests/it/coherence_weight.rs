@@ -241,7 +241,9 @@ fn averages_give_the_line_variance_from_coherence() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let rec = rbprops_formats::read_path(&out).unwrap();
-    let v = rbprops_cli::variance::get(&rec).unwrap().expect("variance topic");
+    let v = rbprops_cli::variance::get(&rec)
+        .unwrap()
+        .expect("variance topic");
     let (geometry, frf) = rec.require_geometry_and_frf().unwrap();
     let n = frf.n_lines();
     let want: Vec<Vec<f64>> = serde_json::from_value(truth["line_variance"].clone()).unwrap();

@@ -374,9 +374,13 @@ fn the_same_recording_in_uff_mcap_and_csv_gives_the_same_output() {
         }
         let mut outputs = Vec::new();
         let mut lists = Vec::new();
-        for (k, input) in [fixture(file), mcap.display().to_string(), csv.display().to_string()]
-            .iter()
-            .enumerate()
+        for (k, input) in [
+            fixture(file),
+            mcap.display().to_string(),
+            csv.display().to_string(),
+        ]
+        .iter()
+        .enumerate()
         {
             let out = dir.path().join(format!("{file}-out-{k}.mcap"));
             estimate_to(input, &extra, &out);
@@ -385,7 +389,11 @@ fn the_same_recording_in_uff_mcap_and_csv_gives_the_same_output() {
                 .args(["convert", input, "--list"])
                 .output()
                 .unwrap();
-            assert!(list.status.success(), "{input}: {}", String::from_utf8_lossy(&list.stderr));
+            assert!(
+                list.status.success(),
+                "{input}: {}",
+                String::from_utf8_lossy(&list.stderr)
+            );
             let text = String::from_utf8(list.stdout).unwrap();
             let th = text
                 .lines()
@@ -393,7 +401,10 @@ fn the_same_recording_in_uff_mcap_and_csv_gives_the_same_output() {
                 .collect::<Vec<_>>()
                 .join("\n");
             assert!(th.contains("sampled at 128 Hz"), "{input}: {text}");
-            assert!(th.contains("2 excitation(s)") && th.contains("3 response channel(s)"), "{input}: {text}");
+            assert!(
+                th.contains("2 excitation(s)") && th.contains("3 response channel(s)"),
+                "{input}: {text}"
+            );
             lists.push(th);
         }
         for (k, what) in [(1, "MCAP"), (2, "CSV")] {
@@ -432,7 +443,11 @@ fn report_shows_the_hit_table() {
             .arg(out)
             .output()
             .unwrap();
-        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
     }
     let md = std::fs::read_to_string(&md).unwrap();
     let html = std::fs::read_to_string(&html).unwrap();
@@ -455,12 +470,17 @@ fn report_shows_the_hit_table() {
                 .unwrap_or_else(|| panic!("{id} hit {h} missing: {rows:?}"));
             let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
             let accepted = th["accepted"].as_bool().unwrap();
-            assert_eq!(cells[2], if accepted { "accepted" } else { "rejected" }, "{row}");
-            assert!(html.contains(&format!("<td class=\"t\">{id}</td><td class=\"t\">{h}</td>")));
+            assert_eq!(
+                cells[2],
+                if accepted { "accepted" } else { "rejected" },
+                "{row}"
+            );
+            assert!(html.contains(&format!(
+                "<td class=\"t\">{id}</td><td class=\"t\">{h}</td>"
+            )));
             if th["clipped"].as_bool().unwrap() {
                 assert!(cells[3].contains("overload"), "{row}");
-                let clipped: Vec<usize> =
-                    cells[5].split(' ').map(|c| c.parse().unwrap()).collect();
+                let clipped: Vec<usize> = cells[5].split(' ').map(|c| c.parse().unwrap()).collect();
                 let want = &th["clipped_samples"];
                 assert_eq!(clipped[0] as u64, want["force"].as_u64().unwrap(), "{row}");
                 for (k, c) in want["response"].as_array().unwrap().iter().enumerate() {
@@ -475,8 +495,14 @@ fn report_shows_the_hit_table() {
                 let want_ratio = 100.0 * d["ratio"].as_f64().unwrap();
                 // The detector measures the second contact on the sampled force: one
                 // sample (7.8 ms at 128 Hz) of delay, and its peak within a few percent.
-                assert!((delay - want_delay).abs() <= 1e3 / 128.0 + 0.1, "{row}: {want_delay} ms");
-                assert!((ratio - want_ratio).abs() <= 0.2 * want_ratio, "{row}: {want_ratio} %");
+                assert!(
+                    (delay - want_delay).abs() <= 1e3 / 128.0 + 0.1,
+                    "{row}: {want_delay} ms"
+                );
+                assert!(
+                    (ratio - want_ratio).abs() <= 0.2 * want_ratio,
+                    "{row}: {want_ratio} %"
+                );
             } else {
                 assert_eq!(cells[6], "–", "{row}");
             }
@@ -515,7 +541,9 @@ fn edited_uff(k: usize, edit: impl FnOnce(&mut Vec<String>)) -> String {
         .filter(|&i| lines[i].trim_end() == "    58" && i > 0 && lines[i - 1].trim() == "-1")
         .collect();
     let start = starts[k];
-    let end = (start..lines.len()).find(|&i| lines[i].trim() == "-1").unwrap();
+    let end = (start..lines.len())
+        .find(|&i| lines[i].trim() == "-1")
+        .unwrap();
     let mut block: Vec<String> = lines[start..end].to_vec();
     edit(&mut block);
     let mut out: Vec<String> = lines[..start].to_vec();
@@ -543,13 +571,20 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
             "        12    0    1    0 NONE                 NONE",
         );
     std::fs::write(&uff, text).unwrap();
-    cases.push((uff.display().to_string(), vec!["no-force.uff", "no force channel"]));
+    cases.push((
+        uff.display().to_string(),
+        vec!["no-force.uff", "no force channel"],
+    ));
     let mut msgs = rec.to_messages(false);
     msgs[1].channels[0].quantity = "acceleration".into();
     write_mcap(&d.join("no-force.mcap"), &msgs);
     cases.push((
         d.join("no-force.mcap").display().to_string(),
-        vec!["no-force.mcap", "message 2", "no recognisable force channel"],
+        vec![
+            "no-force.mcap",
+            "message 2",
+            "no recognisable force channel",
+        ],
     ));
     let mut files = rec.to_csv();
     files[0].1 = files[0].1.replace(",force,N,", ",acceleration,m/s^2,");
@@ -598,16 +633,15 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
     ));
     let mut files = rec.to_csv();
     let f = files.iter_mut().find(|f| f.0 == "force1-hit2.csv").unwrap();
-    f.1 = f
-        .1
-        .lines()
-        .enumerate()
-        .map(|(k, l)| match (k, l.split_once(',')) {
-            (0, _) | (_, None) => l.to_string(),
-            (_, Some((_, rest))) => format!("{},{rest}", (k - 1) as f64 / 100.0),
-        })
-        .collect::<Vec<_>>()
-        .join("\n");
+    f.1 =
+        f.1.lines()
+            .enumerate()
+            .map(|(k, l)| match (k, l.split_once(',')) {
+                (0, _) | (_, None) => l.to_string(),
+                (_, Some((_, rest))) => format!("{},{rest}", (k - 1) as f64 / 100.0),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
     write_csv(&d.join("rate-csv"), &files);
     cases.push((
         d.join("rate-csv").display().to_string(),
@@ -620,7 +654,12 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
     write_csv(&d.join("uneven-csv"), &files);
     cases.push((
         d.join("uneven-csv").display().to_string(),
-        vec!["uneven-csv", "force1-hit1.csv", "line 12", "non-uniform time column"],
+        vec![
+            "uneven-csv",
+            "force1-hit1.csv",
+            "line 12",
+            "non-uniform time column",
+        ],
     ));
     // A truncated or corrupted record: UFF cut short, MCAP samples cut short, a CSV cell
     // that is not a number.
@@ -634,7 +673,12 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
     write_mcap(&d.join("cut.mcap"), &msgs);
     cases.push((
         d.join("cut.mcap").display().to_string(),
-        vec!["cut.mcap", "message 1", "hit 3", "truncated or corrupted record"],
+        vec![
+            "cut.mcap",
+            "message 1",
+            "hit 3",
+            "truncated or corrupted record",
+        ],
     ));
     let mut files = rec.to_csv();
     let f = files.iter_mut().find(|f| f.0 == "force2-hit1.csv").unwrap();
@@ -659,11 +703,22 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
     // sample 1153, would cross the end): rejected with that reason, in the hit table.
     let st = frf_est()
         .arg(fixture("small-throughput-58b.uff"))
-        .args(["--record-s", "4.5", "--pretrigger", "0.125", "--keep-rejected", "-o"])
+        .args([
+            "--record-s",
+            "4.5",
+            "--pretrigger",
+            "0.125",
+            "--keep-rejected",
+            "-o",
+        ])
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let est = processing(&out).frf_estimation.unwrap();
     let edge: Vec<_> = est
         .hits

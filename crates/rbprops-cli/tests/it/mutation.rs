@@ -392,12 +392,11 @@ impl Inputs {
         }
         ok(bin("rbprops").args(["convert", "sim.mcap", "-o", "sim.uff"]));
         // The time-history fixture (fixtures/timehist) as the MCAP time-history topic.
-        let uff_path = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../fixtures/timehist/small-per-hit.uff");
-        let uff = rbprops_uff::parse(&std::fs::read(uff_path).unwrap(), "small-per-hit.uff")
-            .unwrap();
-        let index =
-            rbprops_uff::timehist::index_time_histories(&uff, &Default::default()).unwrap();
+        let uff_path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/timehist/small-per-hit.uff");
+        let uff =
+            rbprops_uff::parse(&std::fs::read(uff_path).unwrap(), "small-per-hit.uff").unwrap();
+        let index = rbprops_uff::timehist::index_time_histories(&uff, &Default::default()).unwrap();
         let mut th = RunRecord::default();
         th.set(
             rbprops_formats::topics::TIME_HISTORY,
@@ -405,8 +404,11 @@ impl Inputs {
                 .unwrap()
                 .to_messages(true),
         );
-        std::fs::write(d.join("th.mcap"), rbprops_formats::mcap_file::write(&th).unwrap())
-            .unwrap();
+        std::fs::write(
+            d.join("th.mcap"),
+            rbprops_formats::mcap_file::write(&th).unwrap(),
+        )
+        .unwrap();
         Inputs { dir }
     }
 
