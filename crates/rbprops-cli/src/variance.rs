@@ -156,12 +156,12 @@ pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Resul
         for (c, coh) in row.iter().enumerate() {
             let Some(coh) = coh else { continue };
             let at = (e * frf.n_channels + c) * n;
-            for l in 0..n {
-                sigma2[at + l] = rbprops_frfest::coherence_line_variance(
-                    frf.values[at + l].norm_sqr(),
-                    coh[l],
-                    n_averages,
-                );
+            for ((s, h), &g) in sigma2[at..at + n]
+                .iter_mut()
+                .zip(&frf.values[at..at + n])
+                .zip(coh)
+            {
+                *s = rbprops_frfest::coherence_line_variance(h.norm_sqr(), g, n_averages);
             }
         }
     }

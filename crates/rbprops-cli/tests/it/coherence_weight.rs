@@ -255,9 +255,8 @@ fn averages_give_the_line_variance_from_coherence() {
             .iter()
             .position(|&(x, y)| (p.x - x).abs() < 1e-9 && (p.y - y).abs() < 1e-9)
             .unwrap();
-        for l in 0..n {
-            let got = v.sigma2[c * n + l];
-            worst = worst.max((got - want[k][l]).abs() / want[k][l]);
+        for (got, want) in v.sigma2[c * n..(c + 1) * n].iter().zip(&want[k]) {
+            worst = worst.max((got - want).abs() / want);
         }
     }
     assert!(worst < 1e-12, "largest relative difference {worst:e}");
