@@ -131,7 +131,24 @@ def main():
     with open(out + ".json", "w") as fh:
         json.dump({"frequency_hz": F_HZ.tolist(), "damping_ratio": ZETA.tolist(),
                    "modal_constants": A.tolist(), "coherence": g2.tolist(),
-                   "n_averages": N_AVG}, fh)
+                   "n_averages": N_AVG, "line_variance": line_variance(out + ".uff")}, fh)
+
+
+def line_variance(path):
+    """Each line's H1 variance from the FRF and coherence as written (read back with
+    pyuff): sigma^2 = E|H1 - H|^2 = |H1|^2 (1 - g2)/(n_d g2), twice Bendat & Piersol's
+    Var|H| = (1 - g2)/(2 n_d g2) |H|^2 (real and imaginary parts alike); g2 clamped to
+    [1e-6, 1 - 1e-6] as rbprops does. Per response node (+z), in RESP order."""
+    sets = pyuff.UFF(path).read_sets()
+    frf = {s["rsp_node"]: np.asarray(s["data"]) for s in sets
+           if s.get("type") == 58 and s["func_type"] == 4}
+    coh = {s["rsp_node"]: np.real(np.asarray(s["data"])) for s in sets
+           if s.get("type") == 58 and s["func_type"] == 6}
+    out = []
+    for node, _ in RESP:
+        g = np.clip(coh[node], 1e-6, 1 - 1e-6)
+        out.append(((1 - g) / (N_AVG * g) * np.abs(frf[node]) ** 2).tolist())
+    return out
 
 
 if __name__ == "__main__":

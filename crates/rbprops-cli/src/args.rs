@@ -72,6 +72,105 @@ pub fn seconds(s: &str) -> Result<f64, String> {
     Ok(v)
 }
 
+/// A duration in s: (0, 1e6] (a record length, a pretrigger).
+pub fn duration(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if !(v > 0.0 && v <= 1e6) {
+        return Err(format!("{} is outside 0 < t ≤ 1e6 s", s.trim()));
+    }
+    Ok(v)
+}
+
+/// A positive finite number (an ADC range).
+pub fn positive(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if v <= 0.0 {
+        return Err(format!("{} is not positive (need > 0)", s.trim()));
+    }
+    Ok(v)
+}
+
+/// A trigger level as a fraction of the largest |force|: 0 < level < 1.
+pub fn trigger_fraction(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if !(v > 0.0 && v < 1.0) {
+        return Err(format!(
+            "{} is outside 0 < level < 1 (a fraction of the largest |force|)",
+            s.trim()
+        ));
+    }
+    Ok(v)
+}
+
+/// Fewest accepted hits per excitation: 2..=100000 (a variance needs two).
+pub fn min_hits(s: &str) -> Result<usize, String> {
+    count(s, 2, 100_000)
+}
+
+/// The response window of `frf-est`: `auto`, `none`, or τ in seconds ([`seconds`]).
+pub fn response_window(s: &str) -> Result<crate::frf_est::WindowChoice, String> {
+    use crate::frf_est::WindowChoice;
+    match s.trim() {
+        "auto" => Ok(WindowChoice::Auto),
+        "none" => Ok(WindowChoice::None),
+        t => seconds(t)
+            .map(WindowChoice::Exponential)
+            .map_err(|e| format!("{e} (or auto, none)")),
+    }
+}
+
+/// A force window `PRE:POST` (s before the trigger, s after the pulse's end), or none.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ForceWindowSpan(pub Option<(f64, f64)>);
+
+/// A force window `PRE:POST` in s, each ≥ 0 and finite, or `none`.
+pub fn force_window(s: &str) -> Result<ForceWindowSpan, String> {
+    if s.trim() == "none" {
+        return Ok(ForceWindowSpan(None));
+    }
+    let (pre, post) = s
+        .split_once(':')
+        .ok_or_else(|| format!("'{s}' is not PRE:POST in seconds, or none"))?;
+    Ok(ForceWindowSpan(Some((
+        non_negative(pre)?,
+        non_negative(post)?,
+    ))))
+}
+
+/// A DOF `NODE:DIR`, DIR one of ±X/±Y/±Z or ±1..±3: `(node, ±1..±3)`.
+pub fn dof(s: &str) -> Result<(i64, i64), String> {
+    let (node, dir) = s
+        .split_once(':')
+        .ok_or_else(|| format!("'{s}' is not NODE:DIR, e.g. 201:-X"))?;
+    let node: i64 = node
+        .trim()
+        .parse()
+        .map_err(|_| format!("node '{}' is not an integer", node.trim()))?;
+    let d = dir.trim().to_ascii_uppercase();
+    let (sign, axis) = match d.strip_prefix('-') {
+        Some(rest) => (-1, rest),
+        None => (1, d.trim_start_matches('+')),
+    };
+    let a = match axis {
+        "X" | "1" => 1,
+        "Y" | "2" => 2,
+        "Z" | "3" => 3,
+        _ => {
+            return Err(format!(
+                "direction '{}' is not ±X, ±Y, ±Z or ±1..±3",
+                dir.trim()
+            ))
+        }
+    };
+    Ok((node, sign * a))
+}
+
+/// The number of averages behind an FRF export: 3..=1000000 (fewer leave no degrees of
+/// freedom for the variance).
+pub fn averages(s: &str) -> Result<usize, String> {
+    count(s, 3, 1_000_000)
+}
+
 /// Number of modes in a band: 1..=100.
 pub fn modes(s: &str) -> Result<usize, String> {
     count(s, 1, 100)
@@ -162,6 +261,19 @@ mod tests {
         assert!(draws("1").is_err());
         assert_eq!(draws("0"), Ok(0));
         assert!(band("2:1").is_err());
+        assert!(trigger_fraction("1").is_err() && trigger_fraction("0").is_err());
+        assert_eq!(trigger_fraction("0.1"), Ok(0.1));
+        assert!(force_window("0.01").is_err() && force_window("-1:2").is_err());
+        assert_eq!(force_window("none"), Ok(ForceWindowSpan(None)));
+        assert_eq!(
+            force_window("0.01:0.05"),
+            Ok(ForceWindowSpan(Some((0.01, 0.05))))
+        );
+        assert_eq!(dof("201:-X"), Ok((201, -1)));
+        assert_eq!(dof("7:+3"), Ok((7, 3)));
+        assert!(dof("7:W").is_err() && dof("x:1").is_err());
+        assert!(response_window("-3").is_err());
+        assert!(min_hits("1").is_err());
     }
 
     #[test]

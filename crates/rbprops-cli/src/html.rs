@@ -21,6 +21,8 @@ pub struct RunSection {
     pub check: Option<rbprops_check::ModelCheckReport>,
     /// Every stage's warnings, classified.
     pub warnings: Vec<StageWarning>,
+    /// `frf-est`'s verdict on every hit (the processing topic's `frf_estimation.hits`).
+    pub hits: Vec<rbprops_core::records::HitRecord>,
     /// (file name, SVG document), in the order they are shown.
     pub figures: Vec<(String, String)>,
 }
@@ -77,7 +79,7 @@ pub fn inline_svg(name: &str, svg: &str) -> Result<String> {
 const STYLE: &str = "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:1.5em auto;max-width:1400px;padding:0 1em;color:#222}\
 h1{font-size:1.6em}h2{font-size:1.3em;border-bottom:1px solid #ccc;margin-top:2em}h3{font-size:1.1em}\
 table{border-collapse:collapse;font-size:.85em;margin:.5em 0}th,td{border:1px solid #ccc;padding:.2em .5em;text-align:right}\
-th{background:#f2f2f2}td.t,th.t{text-align:left}\
+th{background:#f2f2f2}td.t,th.t{text-align:left}tr.rejected td{background:#fdecea}\
 figure{margin:1em 0;overflow-x:auto}figure svg{max-width:100%;height:auto}figcaption{font-size:.8em;color:#555}\
 .verdict{padding:.4em .8em;border-left:4px solid #888;background:#f7f7f7}.ok{border-color:#2a7}.bad{border-color:#c33}\
 .changes{color:#b00}.note{color:#555}p.expl{margin:.1em 0 .6em 1.5em;font-size:.85em;color:#444}";
@@ -329,6 +331,34 @@ fn figure(h: &mut String, name: &str, svg: &str) -> Result<()> {
     Ok(())
 }
 
+/// `frf-est`'s per-hit table ([`crate::report::HIT_TABLE_HEADER`] and
+/// [`crate::report::hit_cells`]).
+fn hit_table(h: &mut String, hits: &[rbprops_core::records::HitRecord]) -> Result<()> {
+    if hits.is_empty() {
+        return Ok(());
+    }
+    h.push_str("<h3>Hits (frf-est)</h3>\n<table>\n<tr>");
+    for (k, name) in crate::report::HIT_TABLE_HEADER.iter().enumerate() {
+        let class = if k < 4 { " class=\"t\"" } else { "" };
+        write!(h, "<th{class}>{}</th>", escape(name))?;
+    }
+    h.push_str("</tr>\n");
+    for hit in hits {
+        h.push_str(if hit.accepted {
+            "<tr>"
+        } else {
+            "<tr class=\"rejected\">"
+        });
+        for (k, cell) in crate::report::hit_cells(hit).iter().enumerate() {
+            let class = if k < 4 { " class=\"t\"" } else { "" };
+            write!(h, "<td{class}>{}</td>", escape(cell))?;
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
+    Ok(())
+}
+
 fn run_section(h: &mut String, r: &RunSection, several: bool) -> Result<()> {
     write!(
         h,
@@ -343,6 +373,7 @@ fn run_section(h: &mut String, r: &RunSection, several: bool) -> Result<()> {
     if let Some(c) = &r.check {
         verdict(h, c)?;
     }
+    hit_table(h, &r.hits)?;
     warnings(h, &r.warnings)?;
     if !r.figures.is_empty() {
         h.push_str("<h3>Figures</h3>\n");

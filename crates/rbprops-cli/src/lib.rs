@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 
 pub mod args;
 pub mod campaign;
+pub mod channel_table;
 pub mod coherence;
 pub mod frf_est;
 pub mod html;
@@ -105,6 +106,18 @@ impl UffArgs {
             channels: self.channels.clone(),
         }
     }
+}
+
+/// `--averages N` of the stages that read FRF exports with coherence (docs/formats.md,
+/// Coherence): the number of averages the FRFs were estimated over, so that each line's
+/// variance follows from its coherence ([`variance::from_coherence`]).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct AveragesArg {
+    /// FRF export with coherence (UFF function type 6): the number of averages behind
+    /// the FRFs; each line's variance |H|²(1 − γ²)/(n γ²) then goes to the line-variance
+    /// topic, which model-check uses as its noise model.
+    #[arg(long, value_name = "N", value_parser = crate::args::averages)]
+    pub averages: Option<usize>,
 }
 
 /// The run a pipeline stage reads and the run it writes (flattened into its arguments).
@@ -296,6 +309,47 @@ pub fn parse_uff(p: &Path) -> Result<rbprops_uff::UffFile> {
     let name = p.display().to_string();
     let bytes = read_file(p)?;
     Ok(rbprops_uff::parse(&bytes, &name)?)
+}
+
+/// Whether `p` names time histories in a format besides UFF: a directory holding
+/// `records.csv` (the CSV layout) or an MCAP file.
+pub fn is_time_history_recording(p: &Path) -> bool {
+    p.join("records.csv").is_file() || p.extension().and_then(|e| e.to_str()) == Some("mcap")
+}
+
+/// The time histories at `p` as datasets 58 of function type 1 (one reader per format,
+/// `rbprops_uff::timerec`): a universal file, an MCAP file with the
+/// `/rbprops/time_history` topic, or a CSV directory (`records.csv`, `channels.csv` and
+/// the record files); and the bytes read, for the input's digest.
+pub fn read_time_histories(p: &Path) -> Result<(rbprops_uff::UffFile, Vec<u8>)> {
+    let name = p.display().to_string();
+    if p.is_dir() {
+        let mut digest = Vec::new();
+        let rec = rbprops_uff::timerec::from_csv(&name, |f| {
+            let text = std::fs::read_to_string(p.join(f)).map_err(|e| e.to_string())?;
+            digest.extend_from_slice(f.as_bytes());
+            digest.push(0);
+            digest.extend_from_slice(text.as_bytes());
+            Ok(text)
+        })?;
+        return Ok((rec.to_uff()?, digest));
+    }
+    let bytes = read_file(p)?;
+    if p.extension().and_then(|e| e.to_str()) == Some("mcap") {
+        let (rec, _) = rbprops_formats::mcap_file::read_checked(&bytes, &name)?;
+        let msgs: Vec<rbprops_formats::wire::TimeHistoryMsg> =
+            rec.get(rbprops_formats::topics::TIME_HISTORY)?;
+        if msgs.is_empty() {
+            bail!(
+                "{name}: no time histories (no {} topic)",
+                rbprops_formats::topics::TIME_HISTORY
+            );
+        }
+        let th = rbprops_uff::timerec::from_messages(&name, &msgs)?;
+        return Ok((th.to_uff()?, bytes));
+    }
+    let data = rbprops_uff::parse(&bytes, &name)?;
+    Ok((data, bytes))
 }
 
 /// A UFF data file read into a campaign, with the geometry file and channel map of

@@ -77,13 +77,14 @@ pub fn error_figures(rows: &[SummaryRow]) -> Result<Vec<(String, String)>> {
 }
 
 /// Writes the Markdown report `md_name` (e.g. `report.md`), `summary.csv` and the error
-/// figures into `dir`.
+/// figures into `dir`, with `frf-est`'s per-hit table of each run in `hits`.
 pub fn write(
     dir: &Path,
     md_name: &str,
     title: &str,
     rows: &[SummaryRow],
     extra_figures: &[PathBuf],
+    hits: &[(String, Vec<rbprops_core::records::HitRecord>)],
 ) -> Result<()> {
     let figs = error_figures(rows)?;
     crate::write_plots(dir, &figs)?;
@@ -127,6 +128,7 @@ pub fn write(
             )?;
         }
     }
+    md.push_str(&hit_tables_markdown(hits));
     writeln!(md, "\n## Figures\n")?;
     for (name, _) in &figs {
         writeln!(md, "![{name}]({name})\n")?;
@@ -207,6 +209,75 @@ pub fn read_figures(dir: &Path) -> Result<Vec<(String, String)>> {
     Ok(figs)
 }
 
+/// Columns of the per-hit table of `frf-est`'s processing (Markdown and HTML).
+pub const HIT_TABLE_HEADER: [&str; 8] = [
+    "excitation",
+    "hit",
+    "verdict",
+    "reasons",
+    "peak force [N]",
+    "clipped samples per channel (force first)",
+    "double-hit delay [ms]",
+    "double-hit ratio",
+];
+
+/// The cells of one hit's row under [`HIT_TABLE_HEADER`]; "–" where nothing was found.
+pub fn hit_cells(h: &rbprops_core::records::HitRecord) -> [String; 8] {
+    [
+        h.excitation.clone(),
+        h.hit.to_string(),
+        if h.accepted { "accepted" } else { "rejected" }.into(),
+        if h.reasons.is_empty() {
+            "–".into()
+        } else {
+            h.reasons.join("; ")
+        },
+        format!("{:.4}", h.peak_force_n),
+        h.clipped_samples
+            .iter()
+            .map(|c| c.to_string())
+            .collect::<Vec<_>>()
+            .join(" "),
+        h.double_hit_delay_s
+            .map_or("–".into(), |d| format!("{:.1}", 1e3 * d)),
+        h.double_hit_ratio
+            .map_or("–".into(), |r| format!("{:.1} %", 100.0 * r)),
+    ]
+}
+
+/// `frf-est`'s hit verdicts in a run (the processing topic's `frf_estimation.hits`);
+/// empty when its FRFs were not estimated from time histories.
+pub fn hits_of(
+    record: &rbprops_formats::RunRecord,
+) -> Result<Vec<rbprops_core::records::HitRecord>> {
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let p: Option<ProcessingRecord> = record.get_one(PROCESSING_TOPIC)?;
+    Ok(p.and_then(|p| p.frf_estimation)
+        .map(|e| e.hits)
+        .unwrap_or_default())
+}
+
+/// The per-hit tables of runs in Markdown, one per run with hits, under `## Hits`.
+pub fn hit_tables_markdown(runs: &[(String, Vec<rbprops_core::records::HitRecord>)]) -> String {
+    let mut md = String::new();
+    let runs: Vec<_> = runs.iter().filter(|(_, h)| !h.is_empty()).collect();
+    if runs.is_empty() {
+        return md;
+    }
+    md.push_str("\n## Hits (frf-est)\n");
+    let cell = |s: &str| s.replace('|', "\\|");
+    for (label, hits) in runs {
+        md.push_str(&format!("\n### {}\n\n", cell(label)));
+        md.push_str(&format!("| {} |\n", HIT_TABLE_HEADER.join(" | ")));
+        md.push_str(&format!("|{}\n", "---|".repeat(HIT_TABLE_HEADER.len())));
+        for h in hits {
+            let cells: Vec<String> = hit_cells(h).iter().map(|c| cell(c)).collect();
+            md.push_str(&format!("| {} |\n", cells.join(" | ")));
+        }
+    }
+    md
+}
+
 /// One run's section from its record (estimates, model check report, warnings) and the
 /// figures in `figures_dir`.
 pub fn run_section(
@@ -232,6 +303,7 @@ pub fn run_section(
         estimates: record.get(topics::ESTIMATES)?,
         check,
         warnings,
+        hits: hits_of(record)?,
         figures: match figures_dir {
             Some(d) => read_figures(d)?,
             None => Vec::new(),
@@ -317,8 +389,12 @@ pub fn load(input: &Path, title: &str) -> Result<crate::html::ReportData> {
         d.rows = crate::summary::rows(&rec, &label, "ni", "geometry")?;
         d.runs.push(run_section(&label, &rec, None)?);
     }
-    if d.rows.is_empty() && d.runs.iter().all(|r| r.estimates.is_empty()) {
-        bail!("{name}: no estimates to report (run rb-solve or rbprops campaign first)");
+    if d.rows.is_empty()
+        && d.runs
+            .iter()
+            .all(|r| r.estimates.is_empty() && r.hits.is_empty())
+    {
+        bail!("{name}: no estimates or hit verdicts to report (run frf-est, rb-solve or rbprops campaign first)");
     }
     Ok(d)
 }

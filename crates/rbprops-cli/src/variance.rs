@@ -4,8 +4,8 @@
 //! do not read it yet (`modal-fit --weight coherence` uses the coherence `frf-est` writes).
 
 use anyhow::{bail, Result};
-use rbprops_core::{c64, FrfSet, Geometry};
-use rbprops_formats::wire::{decode_values, encode_values, FrfVarianceMsg};
+use rbprops_core::{FrfSet, Geometry};
+use rbprops_formats::wire::FrfVarianceMsg;
 use rbprops_formats::{topics, RunRecord};
 
 /// Lines whose noise power is pooled on each side of a line (docs/conventions.md, FRF
@@ -58,30 +58,23 @@ impl LineVarianceSet {
     }
 }
 
-/// Stores a variance set as the topic (channels with any finite value).
+/// Stores a variance set as the topic (channels with any finite value;
+/// `crate::channel_table`).
 pub fn set(rec: &mut RunRecord, geometry: &Geometry, frf: &FrfSet, v: &LineVarianceSet) {
     let n = frf.n_lines();
-    let mut msgs = Vec::new();
-    for (e, x) in geometry.excitations.iter().enumerate() {
-        let mut channels = Vec::new();
-        let mut values: Vec<c64> = Vec::new();
-        for (c, ch) in geometry.channels.iter().enumerate() {
-            let at = (e * frf.n_channels + c) * n;
-            let s = &v.sigma2[at..at + n];
-            if s.iter().any(|x| x.is_finite()) {
-                channels.push(ch.id.clone());
-                values.extend(s.iter().map(|&x| c64::new(x, 0.0)));
-            }
-        }
-        if !channels.is_empty() {
-            msgs.push(FrfVarianceMsg {
-                excitation: x.id.clone(),
-                channels,
-                degrees_of_freedom: v.degrees_of_freedom[e],
-                values_f64le: encode_values(&values),
-            });
-        }
-    }
+    let msgs: Vec<FrfVarianceMsg> = crate::channel_table::encode(geometry, |e, c| {
+        let at = (e * frf.n_channels + c) * n;
+        let s = &v.sigma2[at..at + n];
+        s.iter().any(|x| x.is_finite()).then_some(s)
+    })
+    .into_iter()
+    .map(|r| FrfVarianceMsg {
+        degrees_of_freedom: v.degrees_of_freedom[r.index],
+        excitation: r.excitation,
+        channels: r.channels,
+        values_f64le: r.values_f64le,
+    })
+    .collect();
     rec.set(topics::FRF_VARIANCE, &msgs);
 }
 
@@ -96,41 +89,30 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     let n = frf.n_lines();
     let mut sigma2 = vec![f64::NAN; frf.values.len()];
     let mut dof = vec![f64::INFINITY; frf.n_excitations];
-    let at = |m: &FrfVarianceMsg| {
-        format!(
-            "{} topic, excitation '{}'",
-            topics::FRF_VARIANCE,
-            m.excitation
-        )
-    };
     for m in &msgs {
-        let Some(e) = geometry
-            .excitations
-            .iter()
-            .position(|x| x.id == m.excitation)
-        else {
-            bail!("{}: not in the geometry", at(m));
-        };
+        let what = format!("{} topic", topics::FRF_VARIANCE);
+        let at = format!("{what}, excitation '{}'", m.excitation);
+        let (e, channels) = crate::channel_table::decode(
+            &geometry,
+            n,
+            &what,
+            &m.excitation,
+            &m.channels,
+            &m.values_f64le,
+        )?;
         if !(m.degrees_of_freedom > 2.0) {
             bail!(
-                "{}: degrees_of_freedom {} (must exceed 2 for a variance a χ² can use)",
-                at(m),
+                "{at}: degrees_of_freedom {} (must exceed 2 for a variance a χ² can use)",
                 m.degrees_of_freedom
             );
         }
         dof[e] = m.degrees_of_freedom;
-        let values = decode_values(&m.values_f64le, n * m.channels.len())
-            .map_err(|err| anyhow::anyhow!("{}: {err}", at(m)))?;
-        for (k, id) in m.channels.iter().enumerate() {
-            let Some(c) = geometry.channels.iter().position(|x| &x.id == id) else {
-                bail!("{}: channel '{id}' is not in the geometry", at(m));
-            };
-            for l in 0..n {
-                let v = values[k * n + l].re;
+        for (c, values) in channels {
+            let id = &geometry.channels[c].id;
+            for (l, &v) in values.iter().enumerate() {
                 if v < 0.0 || v.is_infinite() {
                     bail!(
-                        "{}, channel '{id}', line {l}: variance {v} (must be ≥ 0 and finite, or NaN for unknown)",
-                        at(m)
+                        "{at}, channel '{id}', line {l}: variance {v} (must be ≥ 0 and finite, or NaN for unknown)"
                     );
                 }
                 sigma2[(e * frf.n_channels + c) * n + l] = v;
@@ -141,6 +123,70 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
         sigma2,
         degrees_of_freedom: dof,
     }))
+}
+
+/// The line variances of an FRF export from its coherence topic and the number of
+/// averages `n_d` the export declares (`--averages`):
+/// `σ² = |Ĥ|²(1 − γ²)/(n_d γ²)` per line (Bendat & Piersol; `Var|Ĥ| ≈ (1 − γ²)/(2 n_d γ²) |H|²`
+/// in each of the real and imaginary parts, `rbprops_frfest::coherence_line_variance`),
+/// with `2(n_d − 1)` real degrees of freedom (the line's own averages, not pooled);
+/// NaN (unknown) on the channels without coherence. Errors, naming `source`, when the
+/// record has no coherence, already has line variances (from `frf-est`), or `n_d < 3`
+/// (fewer leave no degrees of freedom for a χ²).
+pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Result<LineVarianceSet> {
+    if n_averages < 3 {
+        bail!("--averages {n_averages}: at least 3 averages for a variance a χ² can use");
+    }
+    if rec.topic(topics::FRF_VARIANCE).is_some() {
+        bail!(
+            "{source}: --averages, but the run already has the estimator's line variances ({}, from frf-est)",
+            topics::FRF_VARIANCE
+        );
+    }
+    let Some(grid) = crate::coherence::get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?
+    else {
+        bail!(
+            "{source}: --averages, but the recording holds no coherence (a UFF export needs coherence datasets, function type 6, beside its FRFs)"
+        );
+    };
+    let (_, frf) = rec.require_geometry_and_frf()?;
+    let n = frf.n_lines();
+    let mut sigma2 = vec![f64::NAN; frf.values.len()];
+    for (e, row) in grid.iter().enumerate() {
+        for (c, coh) in row.iter().enumerate() {
+            let Some(coh) = coh else { continue };
+            let at = (e * frf.n_channels + c) * n;
+            for ((s, h), &g) in sigma2[at..at + n]
+                .iter_mut()
+                .zip(&frf.values[at..at + n])
+                .zip(coh)
+            {
+                *s = rbprops_frfest::coherence_line_variance(h.norm_sqr(), g, n_averages);
+            }
+        }
+    }
+    Ok(LineVarianceSet {
+        sigma2,
+        degrees_of_freedom: vec![2.0 * (n_averages as f64 - 1.0); frf.n_excitations],
+    })
+}
+
+/// `--averages N` on a stage reading an FRF export with coherence: the line variances
+/// [`from_coherence`] written to the record's variance topic, so that the model check
+/// uses them as it uses `frf-est`'s. Nothing without `--averages`.
+pub fn declare_averages(
+    rec: &mut RunRecord,
+    n_averages: Option<usize>,
+    source: &str,
+) -> Result<()> {
+    let Some(n) = n_averages else {
+        return Ok(());
+    };
+    let v = from_coherence(rec, n, source)?;
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let frf = frf.clone();
+    set(rec, &geometry, &frf, &v);
+    Ok(())
 }
 
 /// Multiple of the estimator's force-noise error (`force_noise_relative_error`, an RMS
@@ -229,21 +275,38 @@ fn variance_for_check(
         return Ok((None, notes));
     };
     let used = v.sigma2.iter().filter(|x| **x > 0.0).count().max(1);
-    let pool = (2 * POOL_HALF_WIDTH + 1) as f64;
+    // frf-est pools each variance over 2L + 1 lines; an export's are the lines' own.
+    let pool = if estimation.is_some() {
+        (2 * POOL_HALF_WIDTH + 1) as f64
+    } else {
+        1.0
+    };
     let given = rbprops_check::GivenLineVariance {
-        sigma2: v.calibrated_for_chi2().iter().map(|x| if x.is_finite() { *x } else { 0.0 }).collect(),
+        sigma2: v
+            .calibrated_for_chi2()
+            .iter()
+            .map(|x| if x.is_finite() { *x } else { 0.0 })
+            .collect(),
         window_time_constant_s: estimation.and_then(|e| e.exponential_window_s),
         // Each pool's σ² has d degrees (relative SE √(2/d)); the scale of all of them
         // averages over the independent pools.
         variance_scale_se: (2.0 / v.min_degrees_of_freedom() * pool / used as f64)
             .sqrt()
             .hypot(v.correction_se()),
-        source: format!(
-            "{}: H1 line variance |Ĥ|²(1 − γ²)/((n_d − 1)γ²) pooled over {} lines, at least {:.0} degrees of freedom d, scaled by 1 + 2/d",
-            topics::FRF_VARIANCE,
-            2 * POOL_HALF_WIDTH + 1,
-            v.min_degrees_of_freedom()
-        ),
+        source: if estimation.is_some() {
+            format!(
+                "{}: H1 line variance |Ĥ|²(1 − γ²)/((n_d − 1)γ²) pooled over {} lines, at least {:.0} degrees of freedom d, scaled by 1 + 2/d",
+                topics::FRF_VARIANCE,
+                2 * POOL_HALF_WIDTH + 1,
+                v.min_degrees_of_freedom()
+            )
+        } else {
+            format!(
+                "{}: line variance |Ĥ|²(1 − γ²)/(n_d γ²) from the export's coherence and its declared averages (Bendat & Piersol), {:.0} degrees of freedom d, scaled by 1 + 2/d",
+                topics::FRF_VARIANCE,
+                v.min_degrees_of_freedom()
+            )
+        },
     };
     Ok((Some(given), notes))
 }

@@ -50,6 +50,9 @@ pub mod topics {
     /// Each FRF line's noise variance `σ² = E|ε|²` from the estimator
     /// ([`crate::wire::FrfVarianceMsg`], one message per excitation that has any).
     pub const FRF_VARIANCE: &str = "/rbprops/frf_variance";
+    /// Recorded time histories, the input of `frf-est` ([`crate::wire::TimeHistoryMsg`],
+    /// one message per excitation). Read by `frf-est`, not passed on.
+    pub const TIME_HISTORY: &str = "/rbprops/time_history";
 }
 
 /// Errors of the format layer. Each names the file and, where known, the record.

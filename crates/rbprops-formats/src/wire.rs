@@ -239,6 +239,124 @@ pub struct FrfVarianceMsg {
     pub values_f64le: String,
 }
 
+/// The recorded time histories of one excitation (topic `/rbprops/time_history`, one
+/// message per excitation; docs/formats.md, Time histories): the force channel and the
+/// response channels, the sampling, and the records — one per hit, or one continuous
+/// (throughput) record holding every hit, which `frf-est` finds by trigger.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TimeHistoryMsg {
+    /// Id of the excitation (the FRFs' excitation id).
+    pub excitation: String,
+    /// Id of its suspension set-up ("" for the default set-up).
+    #[serde(default)]
+    pub setup: String,
+    /// Free text describing the set-up.
+    #[serde(default)]
+    pub setup_description: String,
+    /// Sampling rate (Hz) of every channel.
+    pub sample_rate_hz: f64,
+    /// Samples per record per channel.
+    pub record_samples: usize,
+    /// `hits`: one record per hit; `throughput`: one continuous record with every hit.
+    pub layout: String,
+    /// `f32le` or `f64le`: how [`TimeRecordMsg::samples`] stores each sample.
+    pub sample_format: String,
+    /// The channels, the force first, then the responses; the samples of each record
+    /// are in this order.
+    pub channels: Vec<TimeChannelMsg>,
+    /// The records, in hit order.
+    pub records: Vec<TimeRecordMsg>,
+}
+
+/// One channel of a [`TimeHistoryMsg`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TimeChannelMsg {
+    /// Channel id (a response's FRF channel id; the force's is informative).
+    pub id: String,
+    /// Id of the measurement point ("" to name it by its node).
+    #[serde(default)]
+    pub point: String,
+    /// Node number of the point.
+    pub node: i64,
+    /// Direction at the node: ±1..±3 (±X, ±Y, ±Z of the node's frame).
+    pub direction: i64,
+    /// `force` (the first channel only), `acceleration`, `velocity` or `displacement`.
+    pub quantity: String,
+    /// Units label of the samples (`N`, `m/s^2`, `g`, `mm`, …; "" for SI).
+    #[serde(default)]
+    pub unit: String,
+    /// The node's position (m, geometry frame); absent when the geometry comes from
+    /// elsewhere (`--geometry`).
+    #[serde(default)]
+    pub position_m: Option<[f64; 3]>,
+}
+
+/// One record of a [`TimeHistoryMsg`]: every channel's samples.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct TimeRecordMsg {
+    /// Hit number (1-based; 0 for a throughput record).
+    pub hit: usize,
+    /// Base64 of little-endian IEEE-754 samples (f32 or f64 as the message's
+    /// `sample_format`), laid out `[channel][sample]` in the message's channel order.
+    #[schemars(extend("contentEncoding" = "base64"))]
+    pub samples: String,
+}
+
+/// Little-endian samples `[channel][sample]` as base64, `f32le` (rounded to single
+/// precision) or `f64le`, the layout of [`TimeRecordMsg::samples`].
+pub fn encode_samples(channels: &[Vec<f64>], single: bool) -> String {
+    let mut bytes = Vec::new();
+    for c in channels {
+        for &x in c {
+            if single {
+                bytes.extend_from_slice(&(x as f32).to_le_bytes());
+            } else {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+    }
+    base64::engine::general_purpose::STANDARD.encode(bytes)
+}
+
+/// Inverse of [`encode_samples`]: `n_channels × n_samples` samples, else an error saying
+/// how many bytes came.
+pub fn decode_samples(
+    s: &str,
+    single: bool,
+    n_channels: usize,
+    n_samples: usize,
+) -> Result<Vec<Vec<f64>>, String> {
+    let bytes = base64::engine::general_purpose::STANDARD
+        .decode(s)
+        .map_err(|e| format!("samples are not valid base64: {e}"))?;
+    let width = if single { 4 } else { 8 };
+    let expect = n_channels
+        .checked_mul(n_samples)
+        .and_then(|v| v.checked_mul(width))
+        .ok_or_else(|| "the declared size overflows".to_string())?;
+    if bytes.len() != expect {
+        return Err(format!(
+            "{} bytes of samples, expected {expect} ({n_channels} channels × {n_samples} samples × {width} bytes)",
+            bytes.len()
+        ));
+    }
+    Ok(bytes
+        .chunks_exact(width * n_samples.max(1))
+        .take(n_channels)
+        .map(|c| {
+            c.chunks_exact(width)
+                .map(|b| {
+                    if single {
+                        f32::from_le_bytes(b.try_into().expect("4 bytes")) as f64
+                    } else {
+                        f64::from_le_bytes(b.try_into().expect("8 bytes"))
+                    }
+                })
+                .collect()
+        })
+        .collect())
+}
+
 /// Base64 of little-endian f64 `[re, im]` pairs, the layout of [`FrfMsg::values_f64le`]; exact bit for bit.
 pub fn encode_values(values: &[c64]) -> String {
     let mut bytes = Vec::with_capacity(values.len() * 16);

@@ -631,3 +631,54 @@ pub fn convert_quantity(est: &FrfEstimate, measured: Quantity, wanted: Quantity)
         variance: est.variance.as_ref().map(|v| remap(v, groups, true)),
     }
 }
+
+/// Coherences closer than this to 0 or 1 are taken at it by [`coherence_line_variance`]: a
+/// coherence written in single precision reads 1 on a clean line, and γ² = 0 would make
+/// the variance infinite (`rbprops_core::CoherenceNoise::SINGLE_PRECISION_FLOOR`).
+pub const COHERENCE_FLOOR: f64 = 1e-6;
+
+/// The noise variance of an H1 FRF line known only by its value, its ordinary coherence
+/// `γ²` and the number of averages `n_d` (an analyser's export; Bendat & Piersol, *Random
+/// Data*, the random error of |Ĥ| and of the phase with noise on the response):
+///
+/// ```text
+///   Var|Ĥ| ≈ (1 − γ²)/(2 n_d γ²) |H|²,   Var[arg Ĥ] ≈ (1 − γ²)/(2 n_d γ²)  (rad²)
+/// ```
+///
+/// so each of the real and imaginary parts carries `(1 − γ²)/(2 n_d γ²) |H|²` and the
+/// complex error, the variance the line-variance topic holds (docs/conventions.md §8), is
+///
+/// ```text
+///   σ² = E|Ĥ − H|² ≈ (1 − γ²)/(n_d γ²) |Ĥ|²,
+/// ```
+///
+/// `γ²` clamped to `[COHERENCE_FLOOR, 1 − COHERENCE_FLOOR]`. NaN when `|Ĥ|²` or `γ²` is
+/// not finite.
+pub fn coherence_line_variance(h_abs2: f64, gamma2: f64, n_averages: usize) -> f64 {
+    if !(h_abs2.is_finite() && gamma2.is_finite()) || n_averages == 0 {
+        return f64::NAN;
+    }
+    let g = gamma2.clamp(COHERENCE_FLOOR, 1.0 - COHERENCE_FLOOR);
+    (1.0 - g) / (n_averages as f64 * g) * h_abs2
+}
+
+#[cfg(test)]
+mod coherence_variance_tests {
+    use super::*;
+
+    /// The formula at a few exact points, and the clamps.
+    #[test]
+    fn coherence_variance_is_bendat_and_piersol() {
+        assert_eq!(
+            coherence_line_variance(4.0, 0.5, 8),
+            4.0 * 0.5 / (8.0 * 0.5)
+        );
+        assert_eq!(coherence_line_variance(1.0, 0.8, 5), 0.2 / (5.0 * 0.8));
+        assert_eq!(
+            coherence_line_variance(1.0, 1.0, 5),
+            COHERENCE_FLOOR / (5.0 * (1.0 - COHERENCE_FLOOR))
+        );
+        assert!(coherence_line_variance(1.0, 0.0, 5).is_finite());
+        assert!(coherence_line_variance(f64::NAN, 0.5, 5).is_nan());
+    }
+}

@@ -39,8 +39,8 @@ pub mod spectra;
 pub mod window;
 
 pub use estimate::{
-    convert_quantity, quality, smoothed_variance, ConditioningOptions, Estimator, FrfEstimate,
-    Quality, Quantity, SmoothedVariance,
+    coherence_line_variance, convert_quantity, quality, smoothed_variance, ConditioningOptions,
+    Estimator, FrfEstimate, Quality, Quantity, SmoothedVariance,
 };
 pub use hit::{
     find_hits, inspect_hit, Channel, DoubleHit, Edge, HitCheckOptions, HitReport, RejectReason,

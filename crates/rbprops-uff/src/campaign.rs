@@ -179,16 +179,16 @@ impl<'a> Frames<'a> {
 
 /// Tags our writer puts in the ID lines (see the crate docs).
 #[derive(Default)]
-struct Tags {
-    setup: Option<String>,
-    setup_description: String,
-    channel: Option<String>,
-    channel_point: Option<String>,
-    excitation: Option<String>,
-    excitation_point: Option<String>,
+pub(crate) struct Tags {
+    pub(crate) setup: Option<String>,
+    pub(crate) setup_description: String,
+    pub(crate) channel: Option<String>,
+    pub(crate) channel_point: Option<String>,
+    pub(crate) excitation: Option<String>,
+    pub(crate) excitation_point: Option<String>,
 }
 
-fn read_tags(f: &Function) -> Tags {
+pub(crate) fn read_tags(f: &Function) -> Tags {
     let mut t = Tags::default();
     let id4 = f.id_lines[3].trim();
     if let Some(rest) = id4.strip_prefix("setup=") {

@@ -205,6 +205,9 @@ pub fn inventory(uff: &UffFile) -> String {
             let _ = writeln!(out, "units: dataset 164 {u}");
         }
     }
+    if let Some(t) = crate::timehist::describe(uff) {
+        let _ = writeln!(out, "{t}");
+    }
     out.trim_end().to_string()
 }
 

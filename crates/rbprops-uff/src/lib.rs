@@ -106,6 +106,7 @@ pub mod inventory;
 pub mod model;
 pub mod read;
 pub mod timehist;
+pub mod timerec;
 pub mod units;
 pub mod write;
 

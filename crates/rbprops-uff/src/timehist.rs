@@ -123,12 +123,9 @@ fn campaign_error(uff: &UffFile, problem: String) -> UffError {
     }
 }
 
-/// Is this record's ordinate a force (module docs)?
-fn is_force(f: &Function, opts: &TimeOptions) -> bool {
-    if opts
-        .force_dofs
-        .contains(&(f.response_node, f.response_direction))
-    {
+/// Is this record's ordinate a force (module docs), or at one of `force_dofs`?
+pub fn is_force_record(f: &Function, force_dofs: &[(i64, i64)]) -> bool {
+    if force_dofs.contains(&(f.response_node, f.response_direction)) {
         return true;
     }
     match f.numerator.data_type {
@@ -165,7 +162,7 @@ pub fn index_time_histories(
     let forces: Vec<usize> = records
         .iter()
         .copied()
-        .filter(|&i| is_force(function(uff, i), opts))
+        .filter(|&i| is_force_record(function(uff, i), &opts.force_dofs))
         .collect();
     if forces.is_empty() {
         return Err(campaign_error(
@@ -414,6 +411,73 @@ fn layout(
     } else {
         Ok(HitLayout::Throughput(hits.remove(0)))
     }
+}
+
+/// What a file's time histories are, in a few lines (`rbprops convert --list`): the
+/// sampling rate, samples and length of a record, the layout, and per excitation its force
+/// DOF and unit, its response DOFs with their units and its number of hits (per-hit
+/// records) or records (throughput); `None` without time histories, the reason when they
+/// cannot be sorted.
+pub fn describe(uff: &UffFile) -> Option<String> {
+    if !has_time_histories(uff) {
+        return None;
+    }
+    let index = match index_time_histories(uff, &TimeOptions::default()) {
+        Ok(i) => i,
+        Err(e) => return Some(format!("time histories: cannot be sorted into hits: {e}")),
+    };
+    let dof = |(n, d): (i64, i64)| {
+        let axis = ["X", "Y", "Z"].get((d.unsigned_abs() as usize).wrapping_sub(1));
+        match axis {
+            Some(a) => format!("{n}:{}{a}", if d < 0 { "-" } else { "+" }),
+            None => format!("{n}:{d}"),
+        }
+    };
+    let unit = |i: usize| {
+        let l = &function(uff, i).numerator.units_label;
+        if crate::units::is_unset(l) {
+            "(no label)".to_string()
+        } else {
+            l.trim().to_string()
+        }
+    };
+    let mut out = format!(
+        "time histories: {} excitation(s), sampled at {} Hz, {} samples per record ({} s), {}",
+        index.excitations.len(),
+        index.sample_rate_hz,
+        index.record_samples,
+        index.record_samples as f64 / index.sample_rate_hz,
+        if index
+            .excitations
+            .iter()
+            .all(|e| matches!(e.layout, HitLayout::PerHit(_)))
+        {
+            "one record per hit and channel"
+        } else {
+            "continuous throughput records (hits found by trigger)"
+        }
+    );
+    for ex in &index.excitations {
+        let t = ex.template();
+        let count = match &ex.layout {
+            HitLayout::PerHit(h) => format!("{} hits", h.len()),
+            HitLayout::Throughput(_) => "1 throughput record".into(),
+        };
+        let responses: Vec<String> = ex
+            .responses
+            .iter()
+            .zip(&t.responses)
+            .map(|(&d, &i)| format!("{} {}", dof(d), unit(i)))
+            .collect();
+        out.push_str(&format!(
+            "\n  force {} {}: {count}; {} response channel(s): {}",
+            dof(ex.force_dof),
+            unit(t.force),
+            responses.len(),
+            responses.join(", ")
+        ));
+    }
+    Some(out)
 }
 
 /// One excitation's estimated FRFs and coherences, in its response order.

@@ -1,8 +1,9 @@
 //! `frf-est`: FRFs from impact time histories, the head of the pipeline for real tests
 //! (the numerics are in `rbprops-frfest`, the orchestration in `rbprops_cli::frf_est`).
 
-use anyhow::{bail, Context, Result};
+use anyhow::bail;
 use clap::{Parser, ValueEnum};
+use rbprops_cli::args::ForceWindowSpan;
 use rbprops_cli::frf_est::{EstimationOptions, WindowChoice};
 use rbprops_frfest::{Estimator, ForceWindow, TriggerLevel};
 use std::path::PathBuf;
@@ -25,7 +26,9 @@ enum EstimatorArg {
 #[derive(Parser)]
 #[command(name = "frf-est", version, about)]
 struct Args {
-    /// The time histories: a universal file (.uff/.unv/.58/.58b).
+    /// The time histories: a universal file (.uff/.unv/.58/.58b), an MCAP file with the
+    /// /rbprops/time_history topic, or a CSV directory (records.csv, channels.csv and one
+    /// file per record; docs/formats.md).
     input: PathBuf,
     /// Output: FILE.mcap, FILE.uff, or a directory for CSV; default MCAP on stdout.
     #[arg(short, long)]
@@ -34,47 +37,47 @@ struct Args {
     uff: rbprops_cli::UffArgs,
     /// The force channel's DOF, NODE:DIR (e.g. 201:-X or 201:-1), when record 9 does not
     /// say which records are forces (repeatable).
-    #[arg(long = "force-dof", value_name = "NODE:DIR")]
-    force_dofs: Vec<String>,
+    #[arg(long = "force-dof", value_name = "NODE:DIR", value_parser = rbprops_cli::args::dof)]
+    force_dofs: Vec<(i64, i64)>,
     #[arg(long, value_enum, default_value = "h1")]
     estimator: EstimatorArg,
     /// Response window: `auto` (exponential decaying the slowest response to about 1 % at
     /// the record's end, or none if it has decayed), `none`, or τ in seconds.
-    #[arg(long, default_value = "auto")]
-    window: String,
+    #[arg(long, default_value = "auto", value_parser = rbprops_cli::args::response_window)]
+    window: WindowChoice,
     /// Apply the exponential window to the response only (default: force too, so the
     /// FRF is the transfer function at s = iω + 1/τ).
     #[arg(long)]
     window_response_only: bool,
     /// Force window PRE:POST (s before the trigger, s after the pulse's end), or `none`.
-    #[arg(long, default_value = "0.01:0.05")]
-    force_window: String,
+    #[arg(long, default_value = "0.01:0.05", value_parser = rbprops_cli::args::force_window)]
+    force_window: ForceWindowSpan,
     /// Cosine taper outside the force window (s).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, value_parser = rbprops_cli::args::non_negative)]
     taper: f64,
     /// Trigger level as a fraction of the record's largest |force| (0–1).
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, value_parser = rbprops_cli::args::trigger_fraction)]
     trigger: f64,
     /// Throughput records: time kept before each trigger (s; default 5 % of the record).
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::duration)]
     pretrigger: Option<f64>,
     /// Throughput records: each hit's record length (s; default the shortest spacing of
     /// consecutive hits).
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::duration)]
     record_s: Option<f64>,
     /// The force channel's ADC range (± in the file's unit); default: flat tops are looked for.
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::positive)]
     force_range: Option<f64>,
     /// The response channels' ADC range (± in the file's unit).
-    #[arg(long)]
+    #[arg(long, value_parser = rbprops_cli::args::positive)]
     response_range: Option<f64>,
-    /// Fewest accepted hits per excitation.
-    #[arg(long, default_value_t = 2)]
+    /// Fewest accepted hits per excitation (at least 2: a variance needs two).
+    #[arg(long, default_value_t = 2, value_parser = rbprops_cli::args::min_hits)]
     min_hits: usize,
     /// Band FMIN:FMAX (Hz) of the FRFs written (default: up to where the force spectrum
     /// has fallen 20 dB, at most 0.4 × the sampling rate; 0 Hz left out).
-    #[arg(long)]
-    band: Option<String>,
+    #[arg(long, value_parser = rbprops_cli::args::band)]
+    band: Option<(f64, f64)>,
     /// Average rejected hits as well (their reasons stay in the hit table).
     #[arg(long)]
     keep_rejected: bool,
@@ -93,10 +96,9 @@ fn main() -> std::process::ExitCode {
     rbprops_cli::run("frf-est", || {
         let args = Args::parse();
         rbprops_formats::atomic::set_force(args.force);
-        let opts = options(&args)?;
+        let opts = options(&args);
         let name = args.input.display().to_string();
-        let bytes = rbprops_cli::read_file(&args.input)?;
-        let data = rbprops_uff::parse(&bytes, &name)?;
+        let (data, bytes) = rbprops_cli::read_time_histories(&args.input)?;
         if !rbprops_uff::timehist::has_time_histories(&data) {
             bail!(
                 "{name}: no time histories (dataset 58 with function type 1). It holds:\n{}",
@@ -123,126 +125,28 @@ fn main() -> std::process::ExitCode {
     })
 }
 
-fn options(a: &Args) -> Result<EstimationOptions> {
-    let positive = |v: f64, what: &str| -> Result<f64> {
-        if v.is_finite() && v > 0.0 {
-            Ok(v)
-        } else {
-            bail!("{what} {v}: must be a positive number")
-        }
-    };
-    let response_window = match a.window.as_str() {
-        "auto" => WindowChoice::Auto,
-        "none" => WindowChoice::None,
-        t => WindowChoice::Exponential(positive(
-            t.parse()
-                .with_context(|| format!("--window '{t}': auto, none or τ in seconds"))?,
-            "--window",
-        )?),
-    };
-    let force_window = match a.force_window.as_str() {
-        "none" => None,
-        s => {
-            let (pre, post) = s
-                .split_once(':')
-                .with_context(|| format!("--force-window '{s}': PRE:POST in seconds, or none"))?;
-            let parse = |x: &str| -> Result<f64> {
-                let v: f64 = x
-                    .trim()
-                    .parse()
-                    .with_context(|| format!("--force-window '{s}': '{x}' is not a number"))?;
-                if !(v.is_finite() && v >= 0.0) {
-                    bail!("--force-window '{s}': times must be ≥ 0");
-                }
-                Ok(v)
-            };
-            Some(ForceWindow {
-                pre_s: parse(pre)?,
-                post_s: parse(post)?,
-                taper_s: a.taper,
-            })
-        }
-    };
-    if !(a.taper.is_finite() && a.taper >= 0.0) {
-        bail!("--taper {}: must be ≥ 0 s", a.taper);
-    }
-    if !(a.trigger > 0.0 && a.trigger < 1.0) {
-        bail!(
-            "--trigger {}: a fraction of the largest |force| in (0, 1)",
-            a.trigger
-        );
-    }
-    let band_hz = match &a.band {
-        None => None,
-        Some(b) => {
-            let (lo, hi) = b
-                .split_once(':')
-                .with_context(|| format!("--band '{b}': FMIN:FMAX in Hz"))?;
-            let lo: f64 = lo
-                .trim()
-                .parse()
-                .with_context(|| format!("--band '{b}': FMIN"))?;
-            let hi: f64 = hi
-                .trim()
-                .parse()
-                .with_context(|| format!("--band '{b}': FMAX"))?;
-            Some((lo, hi))
-        }
-    };
-    let force_dofs = a
-        .force_dofs
-        .iter()
-        .map(|s| parse_dof(s))
-        .collect::<Result<_>>()?;
-    Ok(EstimationOptions {
+fn options(a: &Args) -> EstimationOptions {
+    EstimationOptions {
         estimator: match a.estimator {
             EstimatorArg::H1 => Estimator::H1,
             EstimatorArg::H2 => Estimator::H2,
             EstimatorArg::Hv => Estimator::Hv,
         },
         trigger: TriggerLevel::FractionOfMax(a.trigger),
-        pretrigger_s: a
-            .pretrigger
-            .map(|v| positive(v, "--pretrigger"))
-            .transpose()?,
-        record_s: a.record_s.map(|v| positive(v, "--record-s")).transpose()?,
-        force_window,
-        response_window,
+        pretrigger_s: a.pretrigger,
+        record_s: a.record_s,
+        force_window: a.force_window.0.map(|(pre_s, post_s)| ForceWindow {
+            pre_s,
+            post_s,
+            taper_s: a.taper,
+        }),
+        response_window: a.window,
         exponential_on_force: !a.window_response_only,
-        force_range: a
-            .force_range
-            .map(|v| positive(v, "--force-range"))
-            .transpose()?,
-        response_range: a
-            .response_range
-            .map(|v| positive(v, "--response-range"))
-            .transpose()?,
+        force_range: a.force_range,
+        response_range: a.response_range,
         min_hits: a.min_hits,
-        band_hz,
+        band_hz: a.band,
         keep_rejected: a.keep_rejected,
-        force_dofs,
-    })
-}
-
-/// `NODE:DIR` with DIR one of ±1..±3 or ±X/±Y/±Z.
-fn parse_dof(s: &str) -> Result<(i64, i64)> {
-    let (node, dir) = s
-        .split_once(':')
-        .with_context(|| format!("--force-dof '{s}': NODE:DIR, e.g. 201:-X"))?;
-    let node: i64 = node
-        .trim()
-        .parse()
-        .with_context(|| format!("--force-dof '{s}': node '{node}' is not an integer"))?;
-    let d = dir.trim().to_ascii_uppercase();
-    let (sign, axis) = match d.strip_prefix('-') {
-        Some(rest) => (-1, rest.to_string()),
-        None => (1, d.trim_start_matches('+').to_string()),
-    };
-    let a = match axis.as_str() {
-        "X" | "1" => 1,
-        "Y" | "2" => 2,
-        "Z" | "3" => 3,
-        _ => bail!("--force-dof '{s}': direction '{dir}' is not ±X, ±Y, ±Z or ±1..±3"),
-    };
-    Ok((node, sign * a))
+        force_dofs: a.force_dofs.clone(),
+    }
 }

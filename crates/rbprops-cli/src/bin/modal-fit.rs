@@ -46,6 +46,8 @@ struct Args {
     io: rbprops_cli::StageIo,
     #[command(flatten)]
     uff: rbprops_cli::UffArgs,
+    #[command(flatten)]
+    averages: rbprops_cli::AveragesArg,
     /// Force one method (default: per-excitation lscf fits, and the poly-reference fit of
     /// a set-up kept instead when the evidence calls for it and it fits better).
     #[arg(long, value_enum)]
@@ -89,6 +91,7 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         let input = args.io.read("modal-fit", &args.uff.options())?;
         let mut rec = input.record;
+        rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let mut opts = FitOptions {
             method: match args.method {
                 None | Some(MethodArg::Lscf) => Method::Lscf,

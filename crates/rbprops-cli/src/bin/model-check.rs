@@ -44,6 +44,8 @@ struct Args {
     output: Option<PathBuf>,
     #[command(flatten)]
     uff: rbprops_cli::UffArgs,
+    #[command(flatten)]
+    averages: rbprops_cli::AveragesArg,
     /// Write the improved campaign spec (fitted parameters, accepted effects) here.
     #[arg(long)]
     improved_spec: Option<PathBuf>,
@@ -106,6 +108,7 @@ fn main() -> std::process::ExitCode {
             &args.uff.options(),
         )?;
         let mut rec = input.record;
+        rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let (geometry, frf) = rec
             .require_geometry_and_frf()
             .with_context(|| input.name.clone())?;

@@ -30,6 +30,8 @@ enum Command {
         list: bool,
         #[command(flatten)]
         uff: rbprops_cli::UffArgs,
+        #[command(flatten)]
+        averages: rbprops_cli::AveragesArg,
         /// UFF input: write a channel map template (one row per dataset 58, known DOFs
         /// filled in) to this file instead of converting.
         #[arg(long, requires = "input")]
@@ -124,12 +126,17 @@ fn command(command: Command) -> anyhow::Result<()> {
             output,
             list,
             uff,
+            averages,
             channel_template,
             checks,
         } => {
             if list || channel_template.is_some() {
                 let path = input.as_deref().expect("clap requires the input");
-                let uff = rbprops_cli::parse_uff(path)?;
+                let uff = if rbprops_cli::is_time_history_recording(path) {
+                    rbprops_cli::read_time_histories(path)?.0
+                } else {
+                    rbprops_cli::parse_uff(path)?
+                };
                 if let Some(t) = &channel_template {
                     rbprops_cli::write_text(t, &rbprops_uff::channel_map_template(&uff))?;
                 }
@@ -138,12 +145,13 @@ fn command(command: Command) -> anyhow::Result<()> {
                 }
                 return Ok(());
             }
-            let inp = rbprops_cli::read_stage_input(
+            let mut inp = rbprops_cli::read_stage_input(
                 "rbprops convert",
                 input.as_deref(),
                 &checks,
                 &uff.options(),
             )?;
+            rbprops_cli::variance::declare_averages(&mut inp.record, averages.averages, &inp.name)?;
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {
@@ -269,8 +277,11 @@ fn command(command: Command) -> anyhow::Result<()> {
                 return rbprops_cli::report::write_html(&output, &data);
             }
             let mut rows = Vec::new();
+            let mut hits = Vec::new();
             for s in &summaries {
-                rows.extend(rbprops_cli::report::load(s, &title)?.rows);
+                let data = rbprops_cli::report::load(s, &title)?;
+                rows.extend(data.rows);
+                hits.extend(data.runs.into_iter().map(|r| (r.label, r.hits)));
             }
             let (dir, md) = if ext.as_deref() == Some("md") {
                 (
@@ -283,7 +294,7 @@ fn command(command: Command) -> anyhow::Result<()> {
             } else {
                 (output.clone(), "report.md".to_string())
             };
-            rbprops_cli::report::write(&dir, &md, &title, &rows, &figure)
+            rbprops_cli::report::write(&dir, &md, &title, &rows, &figure, &hits)
         }
     }
 }

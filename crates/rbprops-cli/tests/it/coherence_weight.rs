@@ -218,3 +218,65 @@ fn weight_coherence_without_coherence_is_refused() {
     );
     assert!(!out.exists());
 }
+
+/// `--averages 8` on an H1 export with coherence (`rbprops convert`, as on `modal-fit` and
+/// `model-check`): the line-variance topic holds |H|²(1 − γ²)/(n_d γ²) per line, equal to
+/// the script's numpy computation from the file as pyuff reads it back (1e-12 relative:
+/// the same doubles, two implementations of one formula), 2(n_d − 1) degrees of freedom,
+/// and the model check's noise-model text names it.
+#[test]
+fn averages_give_the_line_variance_from_coherence() {
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (uff, truth) = export(&py, dir.path(), "floor", 3);
+    let out = dir.path().join("run.mcap");
+    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(&uff)
+        .args(["--averages", "8", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let rec = rbprops_formats::read_path(&out).unwrap();
+    let v = rbprops_cli::variance::get(&rec)
+        .unwrap()
+        .expect("variance topic");
+    let (geometry, frf) = rec.require_geometry_and_frf().unwrap();
+    let n = frf.n_lines();
+    let want: Vec<Vec<f64>> = serde_json::from_value(truth["line_variance"].clone()).unwrap();
+    let nodes = [(0.0, 0.0), (0.3, 0.0), (0.3, 0.2), (0.0, 0.2)];
+    let mut worst = 0.0f64;
+    for (c, ch) in geometry.channels.iter().enumerate() {
+        let p = ch.position;
+        let k = nodes
+            .iter()
+            .position(|&(x, y)| (p.x - x).abs() < 1e-9 && (p.y - y).abs() < 1e-9)
+            .unwrap();
+        for (got, want) in v.sigma2[c * n..(c + 1) * n].iter().zip(&want[k]) {
+            worst = worst.max((got - want).abs() / want);
+        }
+    }
+    assert!(worst < 1e-12, "largest relative difference {worst:e}");
+    assert_eq!(v.degrees_of_freedom, vec![14.0]);
+    // Without coherence, or fewer than 3 averages: errors.
+    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(&uff)
+        .args(["--averages", "2", "-o"])
+        .arg(dir.path().join("x.mcap"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(&out)
+        .args(["--averages", "8", "-o"])
+        .arg(dir.path().join("y.mcap"))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already has"));
+}

@@ -222,10 +222,6 @@ fn bad_input_is_a_clear_error_and_no_output() {
         (vec![frf_only.clone()], "no time histories"),
         (vec![fixture("missing.uff")], "missing.uff"),
         (
-            vec![fixture("small-per-hit.uff"), "--window=-3".into()],
-            "--window",
-        ),
-        (
             vec![
                 fixture("small-per-hit.uff"),
                 "--min-hits".into(),
@@ -253,6 +249,30 @@ fn bad_input_is_a_clear_error_and_no_output() {
             err.contains("error:") && err.contains(what),
             "{args:?}: {err}"
         );
+        assert!(!out.exists(), "{args:?}: output written");
+    }
+    // Nonsense option values are command-line errors (exit 2) naming the option.
+    for args in [
+        &["--window=-3"][..],
+        &["--trigger", "1"],
+        &["--taper=-0.1"],
+        &["--band", "2:1"],
+        &["--force-window", "0.01"],
+        &["--force-dof", "201:W"],
+        &["--min-hits", "1"],
+        &["--record-s", "0"],
+    ] {
+        let st = frf_est()
+            .arg(fixture("small-per-hit.uff"))
+            .args(args)
+            .arg("-o")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert_eq!(st.status.code(), Some(2), "{args:?}: {err}");
+        let flag = args[0].split('=').next().unwrap();
+        assert!(err.contains(flag), "{args:?}: {err}");
         assert!(!out.exists(), "{args:?}: output written");
     }
 }
@@ -284,4 +304,427 @@ fn stages_take_time_history_exports_directly() {
         rbprops_cli::variance::get(&rb).unwrap()
     );
     assert_eq!(processing(&a), processing(&b));
+}
+
+/// The run `frf-est` wrote to `out`, without its provenance (the input's path and digest),
+/// as MCAP bytes.
+fn without_provenance(out: &Path) -> (Vec<u8>, rbprops_formats::RunRecord) {
+    let mut rec = rbprops_formats::read_path(out).unwrap();
+    rec.topics
+        .retain(|t| t.name != rbprops_formats::topics::PROVENANCE);
+    (rbprops_formats::mcap_file::write(&rec).unwrap(), rec)
+}
+
+/// The first difference of two runs, for the failure message.
+fn first_difference(a: &rbprops_formats::RunRecord, b: &rbprops_formats::RunRecord) -> String {
+    if a.frf != b.frf {
+        return "the FRFs".into();
+    }
+    for (x, y) in a.topics.iter().zip(&b.topics) {
+        if x != y {
+            for (m, n) in x.messages.iter().zip(&y.messages) {
+                if m != n {
+                    return format!("topic {}: {m}\n vs {n}", x.name);
+                }
+            }
+            return format!("topic {} (messages or schema)", x.name);
+        }
+    }
+    format!("{} vs {} topics", a.topics.len(), b.topics.len())
+}
+
+/// The same recording as UFF (per-hit ASCII and throughput 58b), as the MCAP time-history
+/// topic (f64 samples) and as a CSV directory gives byte-identical `frf-est` output, its
+/// provenance aside; `rbprops convert --list` describes the time histories of each the
+/// same way.
+#[test]
+fn the_same_recording_in_uff_mcap_and_csv_gives_the_same_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = json("small-truth.json");
+    let n_record = truth["recording"]["record_samples"].as_u64().unwrap();
+    let fs = truth["recording"]["sample_rate_hz"].as_f64().unwrap();
+    let pre = truth["recording"]["pretrigger_samples"].as_u64().unwrap() as f64 / fs;
+    for (file, extra) in [
+        ("small-per-hit.uff", vec![]),
+        (
+            "small-throughput-58b.uff",
+            vec![
+                "--record-s".to_string(),
+                format!("{}", n_record as f64 / fs),
+                "--pretrigger".into(),
+                format!("{pre}"),
+            ],
+        ),
+    ] {
+        let bytes = std::fs::read(fixture(file)).unwrap();
+        let uff = rbprops_uff::parse(&bytes, file).unwrap();
+        let index = timehist::index_time_histories(&uff, &Default::default()).unwrap();
+        let recording = rbprops_uff::timerec::from_uff(&uff, &index).unwrap();
+        let mcap = dir.path().join(format!("{file}.mcap"));
+        let mut run = rbprops_formats::RunRecord::default();
+        run.set(
+            rbprops_formats::topics::TIME_HISTORY,
+            &recording.to_messages(false),
+        );
+        std::fs::write(&mcap, rbprops_formats::mcap_file::write(&run).unwrap()).unwrap();
+        let csv = dir.path().join(format!("{file}-csv"));
+        std::fs::create_dir(&csv).unwrap();
+        for (name, text) in recording.to_csv() {
+            std::fs::write(csv.join(name), text).unwrap();
+        }
+        let mut outputs = Vec::new();
+        let mut lists = Vec::new();
+        for (k, input) in [
+            fixture(file),
+            mcap.display().to_string(),
+            csv.display().to_string(),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let out = dir.path().join(format!("{file}-out-{k}.mcap"));
+            estimate_to(input, &extra, &out);
+            outputs.push(without_provenance(&out));
+            let list = super::common::rbprops()
+                .args(["convert", input, "--list"])
+                .output()
+                .unwrap();
+            assert!(
+                list.status.success(),
+                "{input}: {}",
+                String::from_utf8_lossy(&list.stderr)
+            );
+            let text = String::from_utf8(list.stdout).unwrap();
+            let th = text
+                .lines()
+                .skip_while(|l| !l.starts_with("time histories:"))
+                .collect::<Vec<_>>()
+                .join("\n");
+            assert!(th.contains("sampled at 128 Hz"), "{input}: {text}");
+            assert!(
+                th.contains("2 excitation(s)") && th.contains("3 response channel(s)"),
+                "{input}: {text}"
+            );
+            lists.push(th);
+        }
+        for (k, what) in [(1, "MCAP"), (2, "CSV")] {
+            assert!(
+                outputs[0].0 == outputs[k].0,
+                "{file}: UFF and {what} outputs differ: {}",
+                first_difference(&outputs[0].1, &outputs[k].1)
+            );
+        }
+        assert_eq!(lists[0], lists[1], "{file}");
+        assert_eq!(lists[0], lists[2], "{file}");
+        if file == "small-per-hit.uff" {
+            assert!(lists[0].contains("3 hits"), "{}", lists[0]);
+        }
+    }
+}
+
+/// `rbprops report` shows `frf-est`'s per-hit table, in HTML and Markdown: one row per
+/// hit of the recording, accepted or rejected as the generator's truth says, the clipped
+/// hit with its overload reason and clipped samples on the clipped channel, the double
+/// hit with its delay and ratio (the truth's second contact).
+#[test]
+fn report_shows_the_hit_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    std::fs::create_dir(&run).unwrap();
+    estimate_to(&fixture("small-per-hit.uff"), &[], &run.join("run.mcap"));
+    let truth = json("small-truth.json");
+    let html = dir.path().join("report.html");
+    let md = dir.path().join("report.md");
+    for out in [&html, &md] {
+        let st = super::common::rbprops()
+            .arg("report")
+            .arg(&run)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+    }
+    let md = std::fs::read_to_string(&md).unwrap();
+    let html = std::fs::read_to_string(&html).unwrap();
+    assert!(md.contains("## Hits (frf-est)"), "{md}");
+    assert!(html.contains("<h3>Hits (frf-est)</h3>"));
+    let rows: Vec<&str> = md
+        .lines()
+        .skip_while(|l| !l.starts_with("## Hits"))
+        .filter(|l| l.starts_with("| force"))
+        .collect();
+    let mut n = 0;
+    for ex in truth["recording"]["excitations"].as_array().unwrap() {
+        let id = ex["id"].as_str().unwrap();
+        for th in ex["hits"].as_array().unwrap() {
+            n += 1;
+            let h = th["hit"].as_u64().unwrap();
+            let row = rows
+                .iter()
+                .find(|r| r.starts_with(&format!("| {id} | {h} |")))
+                .unwrap_or_else(|| panic!("{id} hit {h} missing: {rows:?}"));
+            let cells: Vec<&str> = row.trim_matches('|').split(" | ").map(str::trim).collect();
+            let accepted = th["accepted"].as_bool().unwrap();
+            assert_eq!(
+                cells[2],
+                if accepted { "accepted" } else { "rejected" },
+                "{row}"
+            );
+            assert!(html.contains(&format!(
+                "<td class=\"t\">{id}</td><td class=\"t\">{h}</td>"
+            )));
+            if th["clipped"].as_bool().unwrap() {
+                assert!(cells[3].contains("overload"), "{row}");
+                let clipped: Vec<usize> = cells[5].split(' ').map(|c| c.parse().unwrap()).collect();
+                let want = &th["clipped_samples"];
+                assert_eq!(clipped[0] as u64, want["force"].as_u64().unwrap(), "{row}");
+                for (k, c) in want["response"].as_array().unwrap().iter().enumerate() {
+                    assert_eq!(clipped[k + 1] as u64, c.as_u64().unwrap(), "{row}");
+                }
+            }
+            if let Some(d) = th["double"].as_object() {
+                assert!(cells[3].contains("double hit"), "{row}");
+                let delay: f64 = cells[6].parse().unwrap();
+                let ratio: f64 = cells[7].trim_end_matches(" %").parse().unwrap();
+                let want_delay = 1e3 * d["delay_s"].as_f64().unwrap();
+                let want_ratio = 100.0 * d["ratio"].as_f64().unwrap();
+                // The detector measures the second contact on the sampled force: one
+                // sample (7.8 ms at 128 Hz) of delay, and its peak within a few percent.
+                assert!(
+                    (delay - want_delay).abs() <= 1e3 / 128.0 + 0.1,
+                    "{row}: {want_delay} ms"
+                );
+                assert!(
+                    (ratio - want_ratio).abs() <= 0.2 * want_ratio,
+                    "{row}: {want_ratio} %"
+                );
+            } else {
+                assert_eq!(cells[6], "–", "{row}");
+            }
+        }
+    }
+    assert_eq!(rows.len(), n, "{rows:?}");
+}
+
+/// The per-hit fixture as the recording model (to write it as MCAP or CSV).
+fn recording(file: &str) -> rbprops_uff::timerec::TimeRecording {
+    let bytes = std::fs::read(fixture(file)).unwrap();
+    let uff = rbprops_uff::parse(&bytes, file).unwrap();
+    let index = timehist::index_time_histories(&uff, &Default::default()).unwrap();
+    rbprops_uff::timerec::from_uff(&uff, &index).unwrap()
+}
+
+fn write_mcap(path: &Path, msgs: &[rbprops_formats::wire::TimeHistoryMsg]) {
+    let mut run = rbprops_formats::RunRecord::default();
+    run.set(rbprops_formats::topics::TIME_HISTORY, msgs);
+    std::fs::write(path, rbprops_formats::mcap_file::write(&run).unwrap()).unwrap();
+}
+
+fn write_csv(dir: &Path, files: &[(String, String)]) {
+    std::fs::create_dir_all(dir).unwrap();
+    for (name, text) in files {
+        std::fs::write(dir.join(name), text).unwrap();
+    }
+}
+
+/// The per-hit UFF fixture's text with `edit` applied to the lines of its `k`-th dataset
+/// 58 (0-based; the line after `    58`, its record 7, is `lines[7]`).
+fn edited_uff(k: usize, edit: impl FnOnce(&mut Vec<String>)) -> String {
+    let text = std::fs::read_to_string(fixture("small-per-hit.uff")).unwrap();
+    let lines: Vec<String> = text.lines().map(String::from).collect();
+    let starts: Vec<usize> = (0..lines.len())
+        .filter(|&i| lines[i].trim_end() == "    58" && i > 0 && lines[i - 1].trim() == "-1")
+        .collect();
+    let start = starts[k];
+    let end = (start..lines.len())
+        .find(|&i| lines[i].trim() == "-1")
+        .unwrap();
+    let mut block: Vec<String> = lines[start..end].to_vec();
+    edit(&mut block);
+    let mut out: Vec<String> = lines[..start].to_vec();
+    out.extend(block);
+    out.extend(lines[end..].iter().cloned());
+    out.join("\n") + "\n"
+}
+
+/// Bad time histories in every format: each a clear error (exit 1, `error:`, the file,
+/// the record and the problem, no output), or a rejected hit with its reason.
+#[test]
+fn bad_time_histories_are_named_errors_or_rejected_hits() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let out = d.join("out.mcap");
+    let rec = recording("small-per-hit.uff");
+    let mut cases: Vec<(String, Vec<&str>)> = Vec::new();
+    // No recognisable force channel: UFF (record 9 says acceleration, no force label),
+    // MCAP (the first channel is not a force), CSV (likewise).
+    let uff = d.join("no-force.uff");
+    let text = std::fs::read_to_string(fixture("small-per-hit.uff"))
+        .unwrap()
+        .replace(
+            "        13    0    1    0 NONE                 N   ",
+            "        12    0    1    0 NONE                 NONE",
+        );
+    std::fs::write(&uff, text).unwrap();
+    cases.push((
+        uff.display().to_string(),
+        vec!["no-force.uff", "no force channel"],
+    ));
+    let mut msgs = rec.to_messages(false);
+    msgs[1].channels[0].quantity = "acceleration".into();
+    write_mcap(&d.join("no-force.mcap"), &msgs);
+    cases.push((
+        d.join("no-force.mcap").display().to_string(),
+        vec![
+            "no-force.mcap",
+            "message 2",
+            "no recognisable force channel",
+        ],
+    ));
+    let mut files = rec.to_csv();
+    files[0].1 = files[0].1.replace(",force,N,", ",acceleration,m/s^2,");
+    write_csv(&d.join("no-force-csv"), &files);
+    cases.push((
+        d.join("no-force-csv").display().to_string(),
+        vec!["no-force-csv", "no recognisable force channel"],
+    ));
+    // Channels of different length: UFF (a response record one sample short), MCAP (a
+    // record declared shorter than its samples: a corrupted block), CSV (a row missing).
+    let uff = d.join("short.uff");
+    std::fs::write(
+        &uff,
+        edited_uff(1, |b| {
+            b[7] = b[7].replacen("       256", "       255", 1);
+            let last = b.len() - 1;
+            let l = b[last].clone();
+            b[last] = l[..l.len() - 20].to_string();
+        }),
+    )
+    .unwrap();
+    cases.push((
+        uff.display().to_string(),
+        vec!["short.uff", "dataset #4", "255 samples", "one length"],
+    ));
+    let mut files = rec.to_csv();
+    let f = files.iter_mut().find(|f| f.0 == "force2-hit3.csv").unwrap();
+    let mut lines: Vec<&str> = f.1.lines().collect();
+    lines.pop();
+    f.1 = lines.join("\n") + "\n";
+    write_csv(&d.join("short-csv"), &files);
+    cases.push((
+        d.join("short-csv").display().to_string(),
+        vec!["short-csv", "force2-hit3.csv", "255 samples", "one length"],
+    ));
+    // Different sampling: UFF (one record's increment), CSV (one file's time column).
+    let uff = d.join("rate.uff");
+    std::fs::write(
+        &uff,
+        edited_uff(2, |b| b[7] = b[7].replace("7.81250e-03", "7.81300e-03")),
+    )
+    .unwrap();
+    cases.push((
+        uff.display().to_string(),
+        vec!["rate.uff", "dataset #5", "one sampling rate"],
+    ));
+    let mut files = rec.to_csv();
+    let f = files.iter_mut().find(|f| f.0 == "force1-hit2.csv").unwrap();
+    f.1 =
+        f.1.lines()
+            .enumerate()
+            .map(|(k, l)| match (k, l.split_once(',')) {
+                (0, _) | (_, None) => l.to_string(),
+                (_, Some((_, rest))) => format!("{},{rest}", (k - 1) as f64 / 100.0),
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+    write_csv(&d.join("rate-csv"), &files);
+    cases.push((
+        d.join("rate-csv").display().to_string(),
+        vec!["rate-csv", "force1-hit2.csv", "one sampling rate"],
+    ));
+    // A non-uniform time column (CSV: one time stamp moved by a third of a step).
+    let mut files = rec.to_csv();
+    let f = files.iter_mut().find(|f| f.0 == "force1-hit1.csv").unwrap();
+    f.1 = f.1.replacen("\n0.078125,", "\n0.08,", 1);
+    write_csv(&d.join("uneven-csv"), &files);
+    cases.push((
+        d.join("uneven-csv").display().to_string(),
+        vec![
+            "uneven-csv",
+            "force1-hit1.csv",
+            "line 12",
+            "non-uniform time column",
+        ],
+    ));
+    // A truncated or corrupted record: UFF cut short, MCAP samples cut short, a CSV cell
+    // that is not a number.
+    let uff = d.join("cut.uff");
+    let bytes = std::fs::read(fixture("small-per-hit.uff")).unwrap();
+    std::fs::write(&uff, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    cases.push((uff.display().to_string(), vec!["cut.uff"]));
+    let mut msgs = rec.to_messages(true);
+    let s = &mut msgs[0].records[2].samples;
+    s.truncate(s.len() - 8);
+    write_mcap(&d.join("cut.mcap"), &msgs);
+    cases.push((
+        d.join("cut.mcap").display().to_string(),
+        vec![
+            "cut.mcap",
+            "message 1",
+            "hit 3",
+            "truncated or corrupted record",
+        ],
+    ));
+    let mut files = rec.to_csv();
+    let f = files.iter_mut().find(|f| f.0 == "force2-hit1.csv").unwrap();
+    f.1 = f.1.replacen("\n0.0078125,", "\n0.0078125,x", 1);
+    write_csv(&d.join("cell-csv"), &files);
+    cases.push((
+        d.join("cell-csv").display().to_string(),
+        vec!["cell-csv", "force2-hit1.csv", "line 3", "is not a number"],
+    ));
+    for (input, want) in &cases {
+        let st = frf_est().arg(input).arg("-o").arg(&out).output().unwrap();
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert_eq!(st.status.code(), Some(1), "{input}: {err}");
+        assert!(err.contains("error:"), "{input}: {err}");
+        for w in want {
+            assert!(err.contains(w), "{input}: '{w}' not in {err}");
+        }
+        assert!(!out.exists(), "{input}: output written");
+    }
+    // A hit at the record's edge (throughput records of 1728 samples, hits cut 4.5 s =
+    // 576 samples long from 0.125 s before each trigger: the third hit's record, from
+    // sample 1153, would cross the end): rejected with that reason, in the hit table.
+    let st = frf_est()
+        .arg(fixture("small-throughput-58b.uff"))
+        .args([
+            "--record-s",
+            "4.5",
+            "--pretrigger",
+            "0.125",
+            "--keep-rejected",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let est = processing(&out).frf_estimation.unwrap();
+    let edge: Vec<_> = est
+        .hits
+        .iter()
+        .filter(|h| h.reasons.iter().any(|r| r == "at the record's edge"))
+        .collect();
+    assert!(!edge.is_empty(), "{:?}", est.hits);
+    assert!(edge.iter().all(|h| h.hit == 3), "{edge:?}");
 }

@@ -156,6 +156,15 @@ fn stages(spec: &Path) -> Vec<Stage> {
             pairings: ALL_PAIRINGS,
             cases: 40,
         },
+        // Time histories: the MCAP time-history topic (CRC-protected; frf-est reads files).
+        Stage {
+            label: "frf-est",
+            exe: env!("CARGO_BIN_EXE_frf-est"),
+            args: vec![],
+            input_flag: None,
+            pairings: &[("mcap", Feed::File)],
+            cases: 40,
+        },
         // model-check takes seconds per clean run: fewer cases, from files only.
         Stage {
             label: "model-check",
@@ -382,11 +391,32 @@ impl Inputs {
             ok(bin("rbprops").args(["convert", &format!("{run}.mcap"), "-o", run]));
         }
         ok(bin("rbprops").args(["convert", "sim.mcap", "-o", "sim.uff"]));
+        // The time-history fixture (fixtures/timehist) as the MCAP time-history topic.
+        let uff_path =
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/timehist/small-per-hit.uff");
+        let uff =
+            rbprops_uff::parse(&std::fs::read(uff_path).unwrap(), "small-per-hit.uff").unwrap();
+        let index = rbprops_uff::timehist::index_time_histories(&uff, &Default::default()).unwrap();
+        let mut th = RunRecord::default();
+        th.set(
+            rbprops_formats::topics::TIME_HISTORY,
+            &rbprops_uff::timerec::from_uff(&uff, &index)
+                .unwrap()
+                .to_messages(true),
+        );
+        std::fs::write(
+            d.join("th.mcap"),
+            rbprops_formats::mcap_file::write(&th).unwrap(),
+        )
+        .unwrap();
         Inputs { dir }
     }
 
     /// The input of `stage` in `format` (`mcap`, `csv`, `uff`), if that pairing exists.
     fn input(&self, stage: &str, format: &str) -> Option<PathBuf> {
+        if stage == "frf-est" {
+            return (format == "mcap").then(|| self.dir.path().join("th.mcap"));
+        }
         let run = match stage {
             "modal-fit" | "rbprops convert" | "model-check" => "sim",
             "ni-select" => "fit",
