@@ -474,6 +474,29 @@ pub fn run_item(
     Ok((rows, warnings.items))
 }
 
+/// What one item gave: its summary rows and its warnings (texts prefixed by its label).
+#[derive(Debug, Clone)]
+pub struct ItemOutcome {
+    /// The item's summary rows (one row with method `error` when its pipeline failed).
+    pub rows: Vec<SummaryRow>,
+    /// The item's warnings, each text prefixed by the item's label.
+    pub warnings: Vec<crate::warnings::StageWarning>,
+}
+
+impl ItemOutcome {
+    /// True when the item's pipeline failed (one row with method `error`).
+    pub fn failed(&self) -> bool {
+        self.rows.len() == 1 && self.rows[0].method == "error"
+    }
+
+    /// True when the item's model check failed (its verdict starts with `error:`).
+    pub fn check_failed(&self) -> bool {
+        self.rows
+            .first()
+            .is_some_and(|r| r.check_verdict.starts_with("error:"))
+    }
+}
+
 /// The outcome of a campaign: rows in item order and the failures counted.
 pub struct CampaignResult {
     /// One summary row per estimate of every item.
@@ -486,26 +509,49 @@ pub struct CampaignResult {
     pub checks_failed: usize,
 }
 
+impl CampaignResult {
+    /// The campaign's outcome from its items' outcomes, in item order.
+    pub fn from_outcomes(outcomes: Vec<ItemOutcome>) -> CampaignResult {
+        let mut warnings = crate::warnings::Collector::default();
+        for w in outcomes.iter().flat_map(|o| &o.warnings) {
+            warnings.add(w.clone());
+        }
+        let failed = outcomes.iter().filter(|o| o.failed()).count();
+        let checks_failed = outcomes.iter().filter(|o| o.check_failed()).count();
+        CampaignResult {
+            rows: outcomes.into_iter().flat_map(|o| o.rows).collect(),
+            warnings,
+            failed,
+            checks_failed,
+        }
+    }
+}
+
+/// The label of an item: its path relative to the campaign directory `root`, with `/`
+/// separators (the summary's `campaign` column and the key of the nominal globs).
+pub fn label(item: &Item, root: &Path) -> String {
+    item.path()
+        .strip_prefix(root)
+        .unwrap_or(item.path())
+        .to_string_lossy()
+        .replace(std::path::MAIN_SEPARATOR, "/")
+}
+
 /// Runs every item in parallel (with `runs`, each item's record and figures are written
-/// under it: see [`run_item`]). Failed items become one row with method `error` and the
-/// message in `warnings`, so the table still accounts for every input. Rows come out in
-/// item order whatever the thread count.
-pub fn run_all(
+/// under it: see [`run_item`]). A failed item becomes one row with method `error` and the
+/// message in its `warnings` column, so the table still accounts for every input.
+/// Outcomes come out in item order whatever the thread count.
+pub fn run_items(
     items: &[Item],
     root: &Path,
     opts: &CampaignOptions,
     runs: Option<&Path>,
     progress: &indicatif::ProgressBar,
-) -> CampaignResult {
-    let results: Vec<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> = items
+) -> Vec<ItemOutcome> {
+    items
         .par_iter()
         .map(|item| {
-            let rel = item
-                .path()
-                .strip_prefix(root)
-                .unwrap_or(item.path())
-                .to_string_lossy()
-                .replace(std::path::MAIN_SEPARATOR, "/");
+            let rel = label(item, root);
             let (rows, mut warnings) = run_item(item, &rel, opts, runs).unwrap_or_else(|e| {
                 let row = SummaryRow {
                     campaign: rel.clone(),
@@ -521,31 +567,20 @@ pub fn run_all(
                 w.text = format!("{rel}: {}", w.text);
             }
             progress.inc(1);
-            (rows, warnings)
+            ItemOutcome { rows, warnings }
         })
-        .collect();
-    let mut warnings = crate::warnings::Collector::default();
-    for w in results.iter().flat_map(|(_, w)| w) {
-        warnings.add(w.clone());
-    }
-    let results: Vec<Vec<SummaryRow>> = results.into_iter().map(|(r, _)| r).collect();
-    let failed = results
-        .iter()
-        .filter(|r| r.len() == 1 && r[0].method == "error")
-        .count();
-    let checks_failed = results
-        .iter()
-        .filter(|r| {
-            r.first()
-                .is_some_and(|r| r.check_verdict.starts_with("error:"))
-        })
-        .count();
-    CampaignResult {
-        rows: results.into_iter().flatten().collect(),
-        warnings,
-        failed,
-        checks_failed,
-    }
+        .collect()
+}
+
+/// Runs every item ([`run_items`]) and gathers the outcomes in item order.
+pub fn run_all(
+    items: &[Item],
+    root: &Path,
+    opts: &CampaignOptions,
+    runs: Option<&Path>,
+    progress: &indicatif::ProgressBar,
+) -> CampaignResult {
+    CampaignResult::from_outcomes(run_items(items, root, opts, runs, progress))
 }
 
 #[cfg(test)]

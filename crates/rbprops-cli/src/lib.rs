@@ -18,6 +18,7 @@ pub mod html;
 pub mod init_spec;
 pub mod plots;
 pub mod report;
+pub mod shard;
 pub mod stages;
 pub mod summary;
 pub mod table;
@@ -538,12 +539,29 @@ fn write_output_inner(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
     }
 }
 
+/// The command line recorded in provenance instead of the process's own (see
+/// [`set_provenance_args`]).
+static PROVENANCE_ARGS: std::sync::Mutex<Option<Vec<String>>> = std::sync::Mutex::new(None);
+
+/// Records `args` as the command line in the provenance of every stage this process runs
+/// from now on. `rbprops campaign` records the campaign's command line without its output
+/// options (`-o`, `--runs`, `--shard`, `-v`), so that an item's run does not depend on
+/// where the outputs went or which shard ran it.
+pub fn set_provenance_args(args: Vec<String>) {
+    *PROVENANCE_ARGS.lock().unwrap_or_else(|p| p.into_inner()) = Some(args);
+}
+
 /// Provenance of this run of `tool`.
 pub fn provenance(tool: &str, input_sha256: &str) -> StageProvenance {
+    let args = PROVENANCE_ARGS
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .clone()
+        .unwrap_or_else(|| std::env::args().skip(1).collect());
     StageProvenance {
         tool: tool.into(),
         version: env!("CARGO_PKG_VERSION").into(),
-        args: std::env::args().skip(1).collect(),
+        args,
         input_sha256: input_sha256.into(),
     }
 }

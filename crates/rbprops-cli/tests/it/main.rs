@@ -2,6 +2,7 @@
 //! one module per topic, shared fixtures in `common`.
 
 mod campaign;
+mod campaign_shards;
 mod coherence_weight;
 mod common;
 mod exp_window;
