@@ -63,6 +63,12 @@ impl Item {
 /// # "rig-a/*.uff" = "rig-a.toml"
 /// # "rig-b/*.uff" = "rig-b.toml"
 /// geometry = "geometry.unv"      # node coordinates in a separate UFF file
+///
+/// [frf_est]                      # time-history exports: frf-est's options (see FrfEstConfig)
+/// estimator = "h1"               # h1, h2 or hv
+/// window = "auto"                # response window: "auto", "none" or τ in s
+/// force_window = [0.01, 0.05]    # s before the trigger, s after the pulse; or "none"
+/// min_hits = 3
 /// ```
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +91,189 @@ pub struct CampaignConfig {
     /// A UFF file with the nodes (15/2411) and coordinate systems (2420/18) of recordings
     /// that carry only datasets 58.
     pub geometry: Option<PathBuf>,
+    /// How time-history exports are made into FRFs (`frf-est`'s options).
+    pub frf_est: Option<FrfEstConfig>,
+}
+
+/// The `[frf_est]` table: `frf-est`'s options for the campaign's time-history exports
+/// (UFF 58 function type 1), under the names of its command line. Every key is optional;
+/// an absent key keeps frf-est's default ([`crate::frf_est::EstimationOptions`]).
+///
+/// ```toml
+/// [frf_est]
+/// estimator = "h1"               # h1 (default), h2 or hv
+/// window = "auto"                # response window: "auto" (default), "none" or τ in s
+/// window_response_only = false   # the exponential window on the response only
+/// force_window = [0.01, 0.05]    # s before the trigger, s after the pulse's end; or "none"
+/// taper_s = 0.0                  # cosine taper outside the force window (s)
+/// trigger = 0.1                  # trigger level, fraction of the largest |force|
+/// pretrigger_s = 0.1             # throughput records: time kept before each trigger
+/// record_s = 2.0                 # throughput records: each hit's record length
+/// force_range = 250.0            # the force channel's ADC range (± file units)
+/// response_range = 50.0          # the response channels' ADC range
+/// min_hits = 2                   # fewest accepted hits per excitation (≥ 2)
+/// band_hz = [0.5, 12.5]          # band of the FRFs written
+/// keep_rejected = false          # average rejected hits as well
+/// force_dof = ["201:-X"]         # force channels' DOFs, NODE:DIR
+/// ```
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrfEstConfig {
+    /// `h1`, `h2` or `hv`.
+    pub estimator: Option<String>,
+    /// The response window: `auto`, `none` or τ (s).
+    pub window: Option<TimeOrName>,
+    /// The exponential window on the response only (default: force too).
+    pub window_response_only: Option<bool>,
+    /// The force window `[pre_s, post_s]`, or `none`.
+    pub force_window: Option<PairOrName>,
+    /// Cosine taper outside the force window (s).
+    pub taper_s: Option<f64>,
+    /// Trigger level as a fraction of the record's largest |force|, in (0, 1).
+    pub trigger: Option<f64>,
+    /// Throughput records: time kept before each trigger (s).
+    pub pretrigger_s: Option<f64>,
+    /// Throughput records: each hit's record length (s).
+    pub record_s: Option<f64>,
+    /// The force channel's ADC range (± file units).
+    pub force_range: Option<f64>,
+    /// The response channels' ADC range (± file units).
+    pub response_range: Option<f64>,
+    /// Fewest accepted hits per excitation.
+    pub min_hits: Option<usize>,
+    /// Band `[low, high]` (Hz) of the FRFs written.
+    pub band_hz: Option<[f64; 2]>,
+    /// Average rejected hits as well.
+    pub keep_rejected: Option<bool>,
+    /// The force channels' DOFs, `NODE:DIR` (DIR ±X, ±Y, ±Z or ±1..±3).
+    pub force_dof: Option<Vec<String>>,
+}
+
+/// A time in seconds, or a word (`auto`, `none`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum TimeOrName {
+    /// Seconds.
+    Seconds(f64),
+    /// A word.
+    Name(String),
+}
+
+/// Two times in seconds, or a word (`none`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum PairOrName {
+    /// Seconds.
+    Seconds([f64; 2]),
+    /// A word.
+    Name(String),
+}
+
+impl FrfEstConfig {
+    /// The estimation options, checked; `source` names the campaign file in errors.
+    pub fn options(&self, source: &str) -> Result<crate::frf_est::EstimationOptions> {
+        use crate::frf_est::WindowChoice;
+        let at = |key: &str| format!("{source}: [frf_est] {key}");
+        let positive = |v: Option<f64>, key: &str| -> Result<Option<f64>> {
+            match v {
+                Some(x) if !(x.is_finite() && x > 0.0) => {
+                    bail!("{} = {x}: must be a positive number", at(key))
+                }
+                v => Ok(v),
+            }
+        };
+        let mut o = crate::frf_est::EstimationOptions::default();
+        if let Some(e) = &self.estimator {
+            o.estimator = match e.to_ascii_lowercase().as_str() {
+                "h1" => rbprops_frfest::Estimator::H1,
+                "h2" => rbprops_frfest::Estimator::H2,
+                "hv" => rbprops_frfest::Estimator::Hv,
+                _ => bail!("{} = \"{e}\": h1, h2 or hv", at("estimator")),
+            };
+        }
+        match &self.window {
+            None => {}
+            Some(TimeOrName::Name(w)) if w == "auto" => o.response_window = WindowChoice::Auto,
+            Some(TimeOrName::Name(w)) if w == "none" => o.response_window = WindowChoice::None,
+            Some(TimeOrName::Name(w)) => {
+                bail!("{} = \"{w}\": \"auto\", \"none\" or τ in seconds", at("window"))
+            }
+            Some(TimeOrName::Seconds(t)) => {
+                positive(Some(*t), "window")?;
+                o.response_window = WindowChoice::Exponential(*t);
+            }
+        }
+        if let Some(r) = self.window_response_only {
+            o.exponential_on_force = !r;
+        }
+        let taper = self.taper_s.unwrap_or(0.0);
+        if !(taper.is_finite() && taper >= 0.0) {
+            bail!("{} = {taper}: must be ≥ 0 s", at("taper_s"));
+        }
+        match &self.force_window {
+            None => {}
+            Some(PairOrName::Name(w)) if w == "none" => o.force_window = None,
+            Some(PairOrName::Name(w)) => {
+                bail!("{} = \"{w}\": [PRE, POST] in seconds, or \"none\"", at("force_window"))
+            }
+            Some(PairOrName::Seconds([pre, post])) => {
+                if !(pre.is_finite() && post.is_finite() && *pre >= 0.0 && *post >= 0.0) {
+                    bail!("{} = [{pre}, {post}]: times must be ≥ 0", at("force_window"));
+                }
+                o.force_window = Some(rbprops_frfest::ForceWindow {
+                    pre_s: *pre,
+                    post_s: *post,
+                    taper_s: 0.0,
+                });
+            }
+        }
+        if let Some(w) = &mut o.force_window {
+            w.taper_s = taper;
+        } else if self.taper_s.is_some() {
+            bail!("{}: there is no force window to taper (force_window = \"none\")", at("taper_s"));
+        }
+        if let Some(t) = self.trigger {
+            if !(t > 0.0 && t < 1.0) {
+                bail!("{} = {t}: a fraction of the largest |force| in (0, 1)", at("trigger"));
+            }
+            o.trigger = rbprops_frfest::TriggerLevel::FractionOfMax(t);
+        }
+        o.pretrigger_s = positive(self.pretrigger_s, "pretrigger_s")?;
+        o.record_s = positive(self.record_s, "record_s")?;
+        o.force_range = positive(self.force_range, "force_range")?;
+        o.response_range = positive(self.response_range, "response_range")?;
+        if let Some(n) = self.min_hits {
+            if n < 2 {
+                bail!("{} = {n}: at least 2 hits are needed for a variance", at("min_hits"));
+            }
+            o.min_hits = n;
+        }
+        if let Some([a, b]) = self.band_hz {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                bail!("{} = [{a}, {b}]: need 0 ≤ FMIN < FMAX", at("band_hz"));
+            }
+            o.band_hz = Some((a, b));
+        }
+        if let Some(k) = self.keep_rejected {
+            o.keep_rejected = k;
+        }
+        for d in self.force_dof.iter().flatten() {
+            let parsed = d.split_once(':').and_then(|(node, dir)| {
+                Some((
+                    node.trim().parse::<i64>().ok()?,
+                    rbprops_uff::dof::parse_direction(dir)?,
+                ))
+            });
+            match parsed {
+                Some(dof) => o.force_dofs.push(dof),
+                None => bail!(
+                    "{} = \"{d}\": NODE:DIR with DIR ±X, ±Y, ±Z or ±1..±3 (e.g. \"201:-X\")",
+                    at("force_dof")
+                ),
+            }
+        }
+        Ok(o)
+    }
 }
 
 /// `nominal = "spec.toml"` or a table `glob = "spec.toml"`.
@@ -121,6 +310,8 @@ pub struct CampaignOptions {
     pub check: rbprops_check::CheckOptions,
     /// UFF file with the nodes and coordinate systems of recordings that carry only datasets 58.
     pub geometry: Option<PathBuf>,
+    /// How time-history exports are made into FRFs (`[frf_est]`; frf-est's defaults without).
+    pub estimation: crate::frf_est::EstimationOptions,
     /// Files the options name (excluded from the items).
     pub named_files: Vec<PathBuf>,
 }
@@ -211,6 +402,9 @@ impl CampaignConfig {
             }
             o.named_files.push(g.clone());
             o.geometry = Some(g);
+        }
+        if let Some(f) = &self.frf_est {
+            o.estimation = f.options(source)?;
         }
         Ok(o)
     }
@@ -406,6 +600,7 @@ pub fn run_item(
             let uff = crate::UffInputOptions {
                 geometry: opts.geometry.clone().filter(|_| is_uff(p)),
                 channels: None,
+                estimation: opts.estimation.clone(),
             };
             let checks = crate::InputChecks::default();
             let inp = crate::read_stage_input_quiet("read", Some(p), &checks, &uff)?;

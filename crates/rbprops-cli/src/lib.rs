@@ -83,6 +83,9 @@ pub struct UffInputOptions {
     pub geometry: Option<PathBuf>,
     /// `--channels`: the channel map (CSV).
     pub channels: Option<PathBuf>,
+    /// How time histories are made into FRFs (frf-est's defaults unless a campaign file's
+    /// `[frf_est]` table says otherwise).
+    pub estimation: frf_est::EstimationOptions,
 }
 
 /// The `--geometry`/`--channels` options of the stages that read UFF inputs.
@@ -104,6 +107,7 @@ impl UffArgs {
         UffInputOptions {
             geometry: self.geometry.clone(),
             channels: self.channels.clone(),
+            ..Default::default()
         }
     }
 }
@@ -395,9 +399,10 @@ fn uff_input(
     )?;
     let data = rbprops_uff::parse(&bytes, &name)?;
     if is_time_history_export(&data) {
-        // Time histories without FRFs: estimated as `frf-est` does by default, so every
-        // stage (and the campaign) takes an analyser's time-data export directly.
-        let est = frf_est::estimate_uff(&data, opts, &frf_est::EstimationOptions::default())
+        // Time histories without FRFs: estimated as `frf-est` does (by default, or with a
+        // campaign file's `[frf_est]` options), so every stage (and the campaign) takes an
+        // analyser's time-data export directly.
+        let est = frf_est::estimate_uff(&data, opts, &opts.estimation)
             .map_err(|e| {
                 anyhow::anyhow!(
                     "{name}: no FRF datasets (dataset 58 with function type 4), and its time histories could not be made into FRFs ({e:#}; see frf-est --help). It holds:\n{}",

@@ -131,6 +131,7 @@ pub fn options_description(opts: &CampaignOptions) -> Result<Vec<String>> {
         format!("uncertainty: {:?}", opts.uncertainty),
         format!("window_time_constant_s: {:?}", opts.window_time_constant_s),
         format!("check: {:?}", opts.check),
+        format!("frf_est: {:?}", opts.estimation),
     ];
     for (glob, n) in &opts.nominal {
         lines.push(format!(
