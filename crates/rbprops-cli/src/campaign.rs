@@ -196,7 +196,10 @@ impl FrfEstConfig {
             Some(TimeOrName::Name(w)) if w == "auto" => o.response_window = WindowChoice::Auto,
             Some(TimeOrName::Name(w)) if w == "none" => o.response_window = WindowChoice::None,
             Some(TimeOrName::Name(w)) => {
-                bail!("{} = \"{w}\": \"auto\", \"none\" or τ in seconds", at("window"))
+                bail!(
+                    "{} = \"{w}\": \"auto\", \"none\" or τ in seconds",
+                    at("window")
+                )
             }
             Some(TimeOrName::Seconds(t)) => {
                 positive(Some(*t), "window")?;
@@ -214,11 +217,17 @@ impl FrfEstConfig {
             None => {}
             Some(PairOrName::Name(w)) if w == "none" => o.force_window = None,
             Some(PairOrName::Name(w)) => {
-                bail!("{} = \"{w}\": [PRE, POST] in seconds, or \"none\"", at("force_window"))
+                bail!(
+                    "{} = \"{w}\": [PRE, POST] in seconds, or \"none\"",
+                    at("force_window")
+                )
             }
             Some(PairOrName::Seconds([pre, post])) => {
                 if !(pre.is_finite() && post.is_finite() && *pre >= 0.0 && *post >= 0.0) {
-                    bail!("{} = [{pre}, {post}]: times must be ≥ 0", at("force_window"));
+                    bail!(
+                        "{} = [{pre}, {post}]: times must be ≥ 0",
+                        at("force_window")
+                    );
                 }
                 o.force_window = Some(rbprops_frfest::ForceWindow {
                     pre_s: *pre,
@@ -230,11 +239,17 @@ impl FrfEstConfig {
         if let Some(w) = &mut o.force_window {
             w.taper_s = taper;
         } else if self.taper_s.is_some() {
-            bail!("{}: there is no force window to taper (force_window = \"none\")", at("taper_s"));
+            bail!(
+                "{}: there is no force window to taper (force_window = \"none\")",
+                at("taper_s")
+            );
         }
         if let Some(t) = self.trigger {
             if !(t > 0.0 && t < 1.0) {
-                bail!("{} = {t}: a fraction of the largest |force| in (0, 1)", at("trigger"));
+                bail!(
+                    "{} = {t}: a fraction of the largest |force| in (0, 1)",
+                    at("trigger")
+                );
             }
             o.trigger = rbprops_frfest::TriggerLevel::FractionOfMax(t);
         }
@@ -244,7 +259,10 @@ impl FrfEstConfig {
         o.response_range = positive(self.response_range, "response_range")?;
         if let Some(n) = self.min_hits {
             if n < 2 {
-                bail!("{} = {n}: at least 2 hits are needed for a variance", at("min_hits"));
+                bail!(
+                    "{} = {n}: at least 2 hits are needed for a variance",
+                    at("min_hits")
+                );
             }
             o.min_hits = n;
         }

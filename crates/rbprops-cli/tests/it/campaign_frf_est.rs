@@ -53,7 +53,11 @@ fn processing(rec: &rbprops_formats::RunRecord) -> serde_json::Value {
 
 /// The FRFs (every value, bit for bit) and the processing record (windows, hits,
 /// averages) of two runs are the same.
-fn assert_same_estimate(a: &rbprops_formats::RunRecord, b: &rbprops_formats::RunRecord, what: &str) {
+fn assert_same_estimate(
+    a: &rbprops_formats::RunRecord,
+    b: &rbprops_formats::RunRecord,
+    what: &str,
+) {
     let (fa, fb) = (a.frf.as_ref().unwrap(), b.frf.as_ref().unwrap());
     assert_eq!(fa.frequency_hz, fb.frequency_hz, "{what}: axis");
     assert!(fa == fb, "{what}: FRFs differ");
@@ -94,10 +98,15 @@ fn frf_est_table_gives_what_frf_est_gives_with_those_options() {
         // The options matter: frf-est's defaults give another estimate.
         let defaults = campaign_read(d, &uff, "");
         assert!(
-            defaults.frf != from_campaign.frf || processing(&defaults) != processing(&from_campaign),
+            defaults.frf != from_campaign.frf
+                || processing(&defaults) != processing(&from_campaign),
             "{file}: the [frf_est] options changed nothing"
         );
-        assert_same_estimate(&defaults, &frf_est(d, &uff, &[]), &format!("{file}, defaults"));
+        assert_same_estimate(
+            &defaults,
+            &frf_est(d, &uff, &[]),
+            &format!("{file}, defaults"),
+        );
     }
 }
 
@@ -126,27 +135,54 @@ fn campaign_applies_its_frf_est_table_and_refuses_bad_values() {
     // the estimate (each excitation has one rejected hit of three: a double hit, a clip);
     // with the rejected hits kept, three are averaged and it fails at the geometry again.
     let (_, table, _) = run("");
-    assert!(table.contains("cannot resolve all six rigid-body motions"), "{table}");
+    assert!(
+        table.contains("cannot resolve all six rigid-body motions"),
+        "{table}"
+    );
     let (good, table, _) = run("[frf_est]\nmin_hits = 3\n");
     assert!(!good);
     assert!(table.contains("2 of 3 hits accepted, 3 needed"), "{table}");
     let (_, table, _) = run("[frf_est]\nmin_hits = 3\nkeep_rejected = true\n");
-    assert!(table.contains("cannot resolve all six rigid-body motions"), "{table}");
+    assert!(
+        table.contains("cannot resolve all six rigid-body motions"),
+        "{table}"
+    );
 
     for (toml, expect) in [
         ("[frf_est]\nmin_hits = 1\n", "[frf_est] min_hits = 1"),
-        ("[frf_est]\nwindow = \"exp\"\n", "[frf_est] window = \"exp\""),
+        (
+            "[frf_est]\nwindow = \"exp\"\n",
+            "[frf_est] window = \"exp\"",
+        ),
         ("[frf_est]\nwindow = -2.0\n", "[frf_est] window = -2"),
-        ("[frf_est]\nestimator = \"h3\"\n", "[frf_est] estimator = \"h3\""),
+        (
+            "[frf_est]\nestimator = \"h3\"\n",
+            "[frf_est] estimator = \"h3\"",
+        ),
         ("[frf_est]\ntrigger = 1.5\n", "[frf_est] trigger = 1.5"),
-        ("[frf_est]\nband_hz = [5.0, 1.0]\n", "[frf_est] band_hz = [5, 1]"),
-        ("[frf_est]\nforce_window = [-0.1, 0.05]\n", "[frf_est] force_window"),
-        ("[frf_est]\nforce_window = \"none\"\ntaper_s = 0.01\n", "no force window to taper"),
-        ("[frf_est]\nforce_dof = [\"201\"]\n", "[frf_est] force_dof = \"201\""),
+        (
+            "[frf_est]\nband_hz = [5.0, 1.0]\n",
+            "[frf_est] band_hz = [5, 1]",
+        ),
+        (
+            "[frf_est]\nforce_window = [-0.1, 0.05]\n",
+            "[frf_est] force_window",
+        ),
+        (
+            "[frf_est]\nforce_window = \"none\"\ntaper_s = 0.01\n",
+            "no force window to taper",
+        ),
+        (
+            "[frf_est]\nforce_dof = [\"201\"]\n",
+            "[frf_est] force_dof = \"201\"",
+        ),
         ("[frf_est]\nrecord = 2.0\n", "unknown field `record`"),
     ] {
         let (good, table, err) = run(toml);
         assert!(!good && table.is_empty(), "{toml}: {table}");
-        assert!(err.contains("campaign.toml") && err.contains(expect), "{toml}: {err}");
+        assert!(
+            err.contains("campaign.toml") && err.contains(expect),
+            "{toml}: {err}"
+        );
     }
 }
