@@ -63,6 +63,12 @@ impl Item {
 /// # "rig-a/*.uff" = "rig-a.toml"
 /// # "rig-b/*.uff" = "rig-b.toml"
 /// geometry = "geometry.unv"      # node coordinates in a separate UFF file
+///
+/// [frf_est]                      # time-history exports: frf-est's options (see FrfEstConfig)
+/// estimator = "h1"               # h1, h2 or hv
+/// window = "auto"                # response window: "auto", "none" or τ in s
+/// force_window = [0.01, 0.05]    # s before the trigger, s after the pulse; or "none"
+/// min_hits = 3
 /// ```
 #[derive(Debug, Clone, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +91,207 @@ pub struct CampaignConfig {
     /// A UFF file with the nodes (15/2411) and coordinate systems (2420/18) of recordings
     /// that carry only datasets 58.
     pub geometry: Option<PathBuf>,
+    /// How time-history exports are made into FRFs (`frf-est`'s options).
+    pub frf_est: Option<FrfEstConfig>,
+}
+
+/// The `[frf_est]` table: `frf-est`'s options for the campaign's time-history exports
+/// (UFF 58 function type 1), under the names of its command line. Every key is optional;
+/// an absent key keeps frf-est's default ([`crate::frf_est::EstimationOptions`]).
+///
+/// ```toml
+/// [frf_est]
+/// estimator = "h1"               # h1 (default), h2 or hv
+/// window = "auto"                # response window: "auto" (default), "none" or τ in s
+/// window_response_only = false   # the exponential window on the response only
+/// force_window = [0.01, 0.05]    # s before the trigger, s after the pulse's end; or "none"
+/// taper_s = 0.0                  # cosine taper outside the force window (s)
+/// trigger = 0.1                  # trigger level, fraction of the largest |force|
+/// pretrigger_s = 0.1             # throughput records: time kept before each trigger
+/// record_s = 2.0                 # throughput records: each hit's record length
+/// force_range = 250.0            # the force channel's ADC range (± file units)
+/// response_range = 50.0          # the response channels' ADC range
+/// min_hits = 2                   # fewest accepted hits per excitation (≥ 2)
+/// band_hz = [0.5, 12.5]          # band of the FRFs written
+/// keep_rejected = false          # average rejected hits as well
+/// force_dof = ["201:-X"]         # force channels' DOFs, NODE:DIR
+/// ```
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrfEstConfig {
+    /// `h1`, `h2` or `hv`.
+    pub estimator: Option<String>,
+    /// The response window: `auto`, `none` or τ (s).
+    pub window: Option<TimeOrName>,
+    /// The exponential window on the response only (default: force too).
+    pub window_response_only: Option<bool>,
+    /// The force window `[pre_s, post_s]`, or `none`.
+    pub force_window: Option<PairOrName>,
+    /// Cosine taper outside the force window (s).
+    pub taper_s: Option<f64>,
+    /// Trigger level as a fraction of the record's largest |force|, in (0, 1).
+    pub trigger: Option<f64>,
+    /// Throughput records: time kept before each trigger (s).
+    pub pretrigger_s: Option<f64>,
+    /// Throughput records: each hit's record length (s).
+    pub record_s: Option<f64>,
+    /// The force channel's ADC range (± file units).
+    pub force_range: Option<f64>,
+    /// The response channels' ADC range (± file units).
+    pub response_range: Option<f64>,
+    /// Fewest accepted hits per excitation.
+    pub min_hits: Option<usize>,
+    /// Band `[low, high]` (Hz) of the FRFs written.
+    pub band_hz: Option<[f64; 2]>,
+    /// Average rejected hits as well.
+    pub keep_rejected: Option<bool>,
+    /// The force channels' DOFs, `NODE:DIR` (DIR ±X, ±Y, ±Z or ±1..±3).
+    pub force_dof: Option<Vec<String>>,
+}
+
+/// A time in seconds, or a word (`auto`, `none`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum TimeOrName {
+    /// Seconds.
+    Seconds(f64),
+    /// A word.
+    Name(String),
+}
+
+/// Two times in seconds, or a word (`none`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+pub enum PairOrName {
+    /// Seconds.
+    Seconds([f64; 2]),
+    /// A word.
+    Name(String),
+}
+
+impl FrfEstConfig {
+    /// The estimation options, checked; `source` names the campaign file in errors.
+    pub fn options(&self, source: &str) -> Result<crate::frf_est::EstimationOptions> {
+        use crate::frf_est::WindowChoice;
+        let at = |key: &str| format!("{source}: [frf_est] {key}");
+        let positive = |v: Option<f64>, key: &str| -> Result<Option<f64>> {
+            match v {
+                Some(x) if !(x.is_finite() && x > 0.0) => {
+                    bail!("{} = {x}: must be a positive number", at(key))
+                }
+                v => Ok(v),
+            }
+        };
+        let mut o = crate::frf_est::EstimationOptions::default();
+        if let Some(e) = &self.estimator {
+            o.estimator = match e.to_ascii_lowercase().as_str() {
+                "h1" => rbprops_frfest::Estimator::H1,
+                "h2" => rbprops_frfest::Estimator::H2,
+                "hv" => rbprops_frfest::Estimator::Hv,
+                _ => bail!("{} = \"{e}\": h1, h2 or hv", at("estimator")),
+            };
+        }
+        match &self.window {
+            None => {}
+            Some(TimeOrName::Name(w)) if w == "auto" => o.response_window = WindowChoice::Auto,
+            Some(TimeOrName::Name(w)) if w == "none" => o.response_window = WindowChoice::None,
+            Some(TimeOrName::Name(w)) => {
+                bail!(
+                    "{} = \"{w}\": \"auto\", \"none\" or τ in seconds",
+                    at("window")
+                )
+            }
+            Some(TimeOrName::Seconds(t)) => {
+                positive(Some(*t), "window")?;
+                o.response_window = WindowChoice::Exponential(*t);
+            }
+        }
+        if let Some(r) = self.window_response_only {
+            o.exponential_on_force = !r;
+        }
+        let taper = self.taper_s.unwrap_or(0.0);
+        if !(taper.is_finite() && taper >= 0.0) {
+            bail!("{} = {taper}: must be ≥ 0 s", at("taper_s"));
+        }
+        match &self.force_window {
+            None => {}
+            Some(PairOrName::Name(w)) if w == "none" => o.force_window = None,
+            Some(PairOrName::Name(w)) => {
+                bail!(
+                    "{} = \"{w}\": [PRE, POST] in seconds, or \"none\"",
+                    at("force_window")
+                )
+            }
+            Some(PairOrName::Seconds([pre, post])) => {
+                if !(pre.is_finite() && post.is_finite() && *pre >= 0.0 && *post >= 0.0) {
+                    bail!(
+                        "{} = [{pre}, {post}]: times must be ≥ 0",
+                        at("force_window")
+                    );
+                }
+                o.force_window = Some(rbprops_frfest::ForceWindow {
+                    pre_s: *pre,
+                    post_s: *post,
+                    taper_s: 0.0,
+                });
+            }
+        }
+        if let Some(w) = &mut o.force_window {
+            w.taper_s = taper;
+        } else if self.taper_s.is_some() {
+            bail!(
+                "{}: there is no force window to taper (force_window = \"none\")",
+                at("taper_s")
+            );
+        }
+        if let Some(t) = self.trigger {
+            if !(t > 0.0 && t < 1.0) {
+                bail!(
+                    "{} = {t}: a fraction of the largest |force| in (0, 1)",
+                    at("trigger")
+                );
+            }
+            o.trigger = rbprops_frfest::TriggerLevel::FractionOfMax(t);
+        }
+        o.pretrigger_s = positive(self.pretrigger_s, "pretrigger_s")?;
+        o.record_s = positive(self.record_s, "record_s")?;
+        o.force_range = positive(self.force_range, "force_range")?;
+        o.response_range = positive(self.response_range, "response_range")?;
+        if let Some(n) = self.min_hits {
+            if n < 2 {
+                bail!(
+                    "{} = {n}: at least 2 hits are needed for a variance",
+                    at("min_hits")
+                );
+            }
+            o.min_hits = n;
+        }
+        if let Some([a, b]) = self.band_hz {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                bail!("{} = [{a}, {b}]: need 0 ≤ FMIN < FMAX", at("band_hz"));
+            }
+            o.band_hz = Some((a, b));
+        }
+        if let Some(k) = self.keep_rejected {
+            o.keep_rejected = k;
+        }
+        for d in self.force_dof.iter().flatten() {
+            let parsed = d.split_once(':').and_then(|(node, dir)| {
+                Some((
+                    node.trim().parse::<i64>().ok()?,
+                    rbprops_uff::dof::parse_direction(dir)?,
+                ))
+            });
+            match parsed {
+                Some(dof) => o.force_dofs.push(dof),
+                None => bail!(
+                    "{} = \"{d}\": NODE:DIR with DIR ±X, ±Y, ±Z or ±1..±3 (e.g. \"201:-X\")",
+                    at("force_dof")
+                ),
+            }
+        }
+        Ok(o)
+    }
 }
 
 /// `nominal = "spec.toml"` or a table `glob = "spec.toml"`.
@@ -121,6 +328,8 @@ pub struct CampaignOptions {
     pub check: rbprops_check::CheckOptions,
     /// UFF file with the nodes and coordinate systems of recordings that carry only datasets 58.
     pub geometry: Option<PathBuf>,
+    /// How time-history exports are made into FRFs (`[frf_est]`; frf-est's defaults without).
+    pub estimation: crate::frf_est::EstimationOptions,
     /// Files the options name (excluded from the items).
     pub named_files: Vec<PathBuf>,
 }
@@ -211,6 +420,9 @@ impl CampaignConfig {
             }
             o.named_files.push(g.clone());
             o.geometry = Some(g);
+        }
+        if let Some(f) = &self.frf_est {
+            o.estimation = f.options(source)?;
         }
         Ok(o)
     }
@@ -406,6 +618,7 @@ pub fn run_item(
             let uff = crate::UffInputOptions {
                 geometry: opts.geometry.clone().filter(|_| is_uff(p)),
                 channels: None,
+                estimation: opts.estimation.clone(),
             };
             let checks = crate::InputChecks::default();
             let inp = crate::read_stage_input_quiet("read", Some(p), &checks, &uff)?;
@@ -474,6 +687,29 @@ pub fn run_item(
     Ok((rows, warnings.items))
 }
 
+/// What one item gave: its summary rows and its warnings (texts prefixed by its label).
+#[derive(Debug, Clone)]
+pub struct ItemOutcome {
+    /// The item's summary rows (one row with method `error` when its pipeline failed).
+    pub rows: Vec<SummaryRow>,
+    /// The item's warnings, each text prefixed by the item's label.
+    pub warnings: Vec<crate::warnings::StageWarning>,
+}
+
+impl ItemOutcome {
+    /// True when the item's pipeline failed (one row with method `error`).
+    pub fn failed(&self) -> bool {
+        self.rows.len() == 1 && self.rows[0].method == "error"
+    }
+
+    /// True when the item's model check failed (its verdict starts with `error:`).
+    pub fn check_failed(&self) -> bool {
+        self.rows
+            .first()
+            .is_some_and(|r| r.check_verdict.starts_with("error:"))
+    }
+}
+
 /// The outcome of a campaign: rows in item order and the failures counted.
 pub struct CampaignResult {
     /// One summary row per estimate of every item.
@@ -486,26 +722,49 @@ pub struct CampaignResult {
     pub checks_failed: usize,
 }
 
+impl CampaignResult {
+    /// The campaign's outcome from its items' outcomes, in item order.
+    pub fn from_outcomes(outcomes: Vec<ItemOutcome>) -> CampaignResult {
+        let mut warnings = crate::warnings::Collector::default();
+        for w in outcomes.iter().flat_map(|o| &o.warnings) {
+            warnings.add(w.clone());
+        }
+        let failed = outcomes.iter().filter(|o| o.failed()).count();
+        let checks_failed = outcomes.iter().filter(|o| o.check_failed()).count();
+        CampaignResult {
+            rows: outcomes.into_iter().flat_map(|o| o.rows).collect(),
+            warnings,
+            failed,
+            checks_failed,
+        }
+    }
+}
+
+/// The label of an item: its path relative to the campaign directory `root`, with `/`
+/// separators (the summary's `campaign` column and the key of the nominal globs).
+pub fn label(item: &Item, root: &Path) -> String {
+    item.path()
+        .strip_prefix(root)
+        .unwrap_or(item.path())
+        .to_string_lossy()
+        .replace(std::path::MAIN_SEPARATOR, "/")
+}
+
 /// Runs every item in parallel (with `runs`, each item's record and figures are written
-/// under it: see [`run_item`]). Failed items become one row with method `error` and the
-/// message in `warnings`, so the table still accounts for every input. Rows come out in
-/// item order whatever the thread count.
-pub fn run_all(
+/// under it: see [`run_item`]). A failed item becomes one row with method `error` and the
+/// message in its `warnings` column, so the table still accounts for every input.
+/// Outcomes come out in item order whatever the thread count.
+pub fn run_items(
     items: &[Item],
     root: &Path,
     opts: &CampaignOptions,
     runs: Option<&Path>,
     progress: &indicatif::ProgressBar,
-) -> CampaignResult {
-    let results: Vec<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> = items
+) -> Vec<ItemOutcome> {
+    items
         .par_iter()
         .map(|item| {
-            let rel = item
-                .path()
-                .strip_prefix(root)
-                .unwrap_or(item.path())
-                .to_string_lossy()
-                .replace(std::path::MAIN_SEPARATOR, "/");
+            let rel = label(item, root);
             let (rows, mut warnings) = run_item(item, &rel, opts, runs).unwrap_or_else(|e| {
                 let row = SummaryRow {
                     campaign: rel.clone(),
@@ -521,31 +780,20 @@ pub fn run_all(
                 w.text = format!("{rel}: {}", w.text);
             }
             progress.inc(1);
-            (rows, warnings)
+            ItemOutcome { rows, warnings }
         })
-        .collect();
-    let mut warnings = crate::warnings::Collector::default();
-    for w in results.iter().flat_map(|(_, w)| w) {
-        warnings.add(w.clone());
-    }
-    let results: Vec<Vec<SummaryRow>> = results.into_iter().map(|(r, _)| r).collect();
-    let failed = results
-        .iter()
-        .filter(|r| r.len() == 1 && r[0].method == "error")
-        .count();
-    let checks_failed = results
-        .iter()
-        .filter(|r| {
-            r.first()
-                .is_some_and(|r| r.check_verdict.starts_with("error:"))
-        })
-        .count();
-    CampaignResult {
-        rows: results.into_iter().flatten().collect(),
-        warnings,
-        failed,
-        checks_failed,
-    }
+        .collect()
+}
+
+/// Runs every item ([`run_items`]) and gathers the outcomes in item order.
+pub fn run_all(
+    items: &[Item],
+    root: &Path,
+    opts: &CampaignOptions,
+    runs: Option<&Path>,
+    progress: &indicatif::ProgressBar,
+) -> CampaignResult {
+    CampaignResult::from_outcomes(run_items(items, root, opts, runs, progress))
 }
 
 #[cfg(test)]

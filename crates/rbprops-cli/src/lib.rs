@@ -19,6 +19,7 @@ pub mod html;
 pub mod init_spec;
 pub mod plots;
 pub mod report;
+pub mod shard;
 pub mod stages;
 pub mod summary;
 pub mod table;
@@ -83,6 +84,9 @@ pub struct UffInputOptions {
     pub geometry: Option<PathBuf>,
     /// `--channels`: the channel map (CSV).
     pub channels: Option<PathBuf>,
+    /// How time histories are made into FRFs (frf-est's defaults unless a campaign file's
+    /// `[frf_est]` table says otherwise).
+    pub estimation: frf_est::EstimationOptions,
 }
 
 /// The `--geometry`/`--channels` options of the stages that read UFF inputs.
@@ -104,6 +108,7 @@ impl UffArgs {
         UffInputOptions {
             geometry: self.geometry.clone(),
             channels: self.channels.clone(),
+            ..Default::default()
         }
     }
 }
@@ -448,9 +453,10 @@ fn uff_input(
     )?;
     let data = rbprops_uff::parse(&bytes, &name)?;
     if is_time_history_export(&data) {
-        // Time histories without FRFs: estimated as `frf-est` does by default, so every
-        // stage (and the campaign) takes an analyser's time-data export directly.
-        let est = frf_est::estimate_uff(&data, opts, &frf_est::EstimationOptions::default())
+        // Time histories without FRFs: estimated as `frf-est` does (by default, or with a
+        // campaign file's `[frf_est]` options), so every stage (and the campaign) takes an
+        // analyser's time-data export directly.
+        let est = frf_est::estimate_uff(&data, opts, &opts.estimation)
             .map_err(|e| {
                 anyhow::anyhow!(
                     "{name}: no FRF datasets (dataset 58 with function type 4), and its time histories could not be made into FRFs ({e:#}; see frf-est --help). It holds:\n{}",
@@ -592,12 +598,29 @@ fn write_output_inner(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
     }
 }
 
+/// The command line recorded in provenance instead of the process's own (see
+/// [`set_provenance_args`]).
+static PROVENANCE_ARGS: std::sync::Mutex<Option<Vec<String>>> = std::sync::Mutex::new(None);
+
+/// Records `args` as the command line in the provenance of every stage this process runs
+/// from now on. `rbprops campaign` records the campaign's command line without its output
+/// options (`-o`, `--runs`, `--shard`, `-v`), so that an item's run does not depend on
+/// where the outputs went or which shard ran it.
+pub fn set_provenance_args(args: Vec<String>) {
+    *PROVENANCE_ARGS.lock().unwrap_or_else(|p| p.into_inner()) = Some(args);
+}
+
 /// Provenance of this run of `tool`.
 pub fn provenance(tool: &str, input_sha256: &str) -> StageProvenance {
+    let args = PROVENANCE_ARGS
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .clone()
+        .unwrap_or_else(|| std::env::args().skip(1).collect());
     StageProvenance {
         tool: tool.into(),
         version: env!("CARGO_PKG_VERSION").into(),
-        args: std::env::args().skip(1).collect(),
+        args,
         input_sha256: input_sha256.into(),
     }
 }

@@ -15,7 +15,10 @@ use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
 use rbprops_formats::{topics, RunRecord};
 
 /// How much a warning matters.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
 pub enum Class {
     /// The result is different, incomplete or unreliable because of it: always printed.
     ChangesAnswer,
@@ -24,7 +27,7 @@ pub enum Class {
 }
 
 /// One warning of one stage.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct StageWarning {
     /// The stage that raised it (`modal-fit`, `ni-select`, `rb-solve`, `model-check`, …).
     pub stage: String,

@@ -10,8 +10,9 @@
 //! - a regular file is replaced only by a file of its own kind: an MCAP file
 //!   by MCAP, a UFF file by UFF, a text output (SVG, HTML, CSV, TOML, Markdown) by text of
 //!   the same kind;
-//! - a directory is replaced (CSV run) only when it is empty or an rbprops CSV run (it
-//!   holds `manifest.csv`); a file is never written over a directory;
+//! - a directory is replaced (CSV run) only when it is empty, an rbprops CSV run (it
+//!   holds `manifest.csv`) or a campaign shard or merge (it holds [`CAMPAIGN_MANIFEST`]);
+//!   a file is never written over a directory;
 //! - an input of this run (same device and inode, or a directory holding one) is never
 //!   written over, not even with `--force`;
 //! - anything else (another kind of file, a non-empty directory that is not a run, a block
@@ -177,9 +178,14 @@ fn head(path: &Path) -> std::io::Result<Vec<u8>> {
     Ok(buf)
 }
 
-/// True when `dir` is an rbprops CSV run (it holds `manifest.csv`) or empty.
+/// The file that marks a directory as the output of `rbprops campaign --shard` or
+/// `rbprops campaign merge` (so that a re-run may replace it).
+pub const CAMPAIGN_MANIFEST: &str = "rbprops-campaign.json";
+
+/// True when `dir` is an rbprops CSV run (it holds `manifest.csv`), a campaign shard or
+/// merge (it holds [`CAMPAIGN_MANIFEST`]) or empty.
 fn is_run_dir(dir: &Path) -> std::io::Result<bool> {
-    if dir.join(crate::csv_dir::MANIFEST).is_file() {
+    if dir.join(crate::csv_dir::MANIFEST).is_file() || dir.join(CAMPAIGN_MANIFEST).is_file() {
         return Ok(true);
     }
     Ok(std::fs::read_dir(dir)?.next().is_none())

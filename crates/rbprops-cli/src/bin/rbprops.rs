@@ -44,11 +44,22 @@ enum Command {
     /// model check when the campaign file names a nominal spec), in parallel, and write one
     /// summary table (CSV; stdout unless -o). Options come from DIR/campaign.toml or
     /// --config FILE (band_hz, method, modes, uncertainty, window_time_constant_s, nominal,
-    /// geometry).
+    /// geometry). Split over machines: `--shard K/N -o SHARD` on each, then
+    /// `rbprops campaign merge SHARD... -o OUT`.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
     Campaign {
-        dir: PathBuf,
+        #[command(subcommand)]
+        action: Option<CampaignAction>,
+        #[arg(required = true)]
+        dir: Option<PathBuf>,
+        /// The summary table (CSV; default stdout). With --shard: the shard's directory.
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Run only shard K of N: the items i (0-based, in summary order) with
+        /// i mod N = K − 1. Writes the directory -o SHARD (summary.csv, the manifest the
+        /// merge reads, and with `--runs SHARD/runs` the items' runs).
+        #[arg(long, value_name = "K/N", requires = "output")]
+        shard: Option<rbprops_cli::shard::Shard>,
         /// Campaign file (TOML; default DIR/campaign.toml when it exists).
         #[arg(long)]
         config: Option<PathBuf>,
@@ -111,6 +122,25 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum CampaignAction {
+    /// Merge the directories of `rbprops campaign DIR --shard K/N -o SHARD` (every K of one
+    /// N, once each) into OUT: summary.csv and runs/ byte for byte as one machine writes
+    /// them (`rbprops campaign DIR -o OUT/summary.csv [--runs OUT/runs]`), for
+    /// `rbprops report OUT`. Warnings, counts and exit status as the single run's.
+    Merge {
+        /// The shards' directories.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
+        /// Output directory (summary.csv, runs/).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// List every item's warnings.
+        #[arg(short, long)]
+        verbose: bool,
+    },
+}
+
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rbprops", || {
         let args = Args::parse();
@@ -155,13 +185,47 @@ fn command(command: Command) -> anyhow::Result<()> {
             rbprops_cli::write_output(&inp.record, output.as_deref())
         }
         Command::Campaign {
+            action:
+                Some(CampaignAction::Merge {
+                    shards,
+                    output,
+                    verbose,
+                }),
+            ..
+        } => {
+            let m = rbprops_cli::shard::merge(&shards, &output)?;
+            for l in m.warnings.lines(verbose) {
+                rbprops_cli::say!("rbprops campaign: {l}");
+            }
+            finish_campaign(
+                &format!("merged {} shards", shards.len()),
+                m.campaign.items.len(),
+                m.rows,
+                m.failed,
+                m.checks_failed,
+                m.campaign.model_check,
+            )
+        }
+        Command::Campaign {
+            action: None,
             dir,
             output,
+            shard,
             config,
             uncertainty,
             runs,
             verbose,
         } => {
+            let dir = dir.expect("clap requires DIR without a subcommand");
+            // The items' provenance: the campaign's command line without its outputs.
+            let mut recorded = vec!["campaign".to_string(), dir.display().to_string()];
+            if let Some(c) = &config {
+                recorded.extend(["--config".into(), c.display().to_string()]);
+            }
+            if let Some(u) = uncertainty.and_then(|u| clap::ValueEnum::to_possible_value(&u)) {
+                recorded.extend(["--uncertainty".into(), u.get_name().to_string()]);
+            }
+            rbprops_cli::set_provenance_args(recorded);
             let config = config.or_else(|| {
                 let p = dir.join(rbprops_cli::campaign::CONFIG_FILE);
                 p.exists().then_some(p)
@@ -176,6 +240,9 @@ fn command(command: Command) -> anyhow::Result<()> {
             };
             let mut opts = cfg.resolve(&base, &source, uncertainty)?;
             opts.named_files.extend(config.clone());
+            if let (Some(_), Some(out)) = (shard, &output) {
+                rbprops_cli::shard::check_shard_paths(&dir, out, runs.as_deref())?;
+            }
             let items = rbprops_cli::campaign::discover(&dir, &opts.named_files)?;
             if items.is_empty() {
                 bail!(
@@ -184,36 +251,45 @@ fn command(command: Command) -> anyhow::Result<()> {
                 );
             }
             let pb = rbprops_cli::progress(items.len() as u64, "campaign");
-            let res = rbprops_cli::campaign::run_all(&items, &dir, &opts, runs.as_deref(), &pb);
+            let (res, what, n_items) = match (shard, &output) {
+                (Some(shard), Some(out)) => {
+                    let id = rbprops_cli::shard::CampaignIdentity::new(
+                        &dir,
+                        &items,
+                        &opts,
+                        runs.is_some(),
+                    )?;
+                    let res =
+                        rbprops_cli::shard::run_shard(shard, &dir, &items, &opts, id, out, &pb)?;
+                    (
+                        res,
+                        format!("shard {shard} of {} items", items.len()),
+                        shard.indices(items.len()).len(),
+                    )
+                }
+                _ => {
+                    let res =
+                        rbprops_cli::campaign::run_all(&items, &dir, &opts, runs.as_deref(), &pb);
+                    let csv = rbprops_cli::summary::to_csv(&res.rows)?;
+                    match &output {
+                        Some(p) => rbprops_cli::write_text(p, &csv)?,
+                        None => rbprops_cli::out(&csv)?,
+                    }
+                    (res, "campaign".to_string(), items.len())
+                }
+            };
             pb.finish_and_clear();
             for l in res.warnings.lines(verbose) {
                 rbprops_cli::say!("rbprops campaign: {l}");
             }
-            let csv = rbprops_cli::summary::to_csv(&res.rows)?;
-            match &output {
-                Some(p) => rbprops_cli::write_text(p, &csv)?,
-                None => rbprops_cli::out(&csv)?,
-            }
-            rbprops_cli::say!(
-                "rbprops: campaign: {} items, {} rows, {} failed{}",
-                items.len(),
+            finish_campaign(
+                &what,
+                n_items,
                 res.rows.len(),
                 res.failed,
-                if opts.nominal.is_empty() {
-                    String::new()
-                } else {
-                    format!(", {} model checks failed", res.checks_failed)
-                }
-            );
-            if res.failed > 0 || res.checks_failed > 0 {
-                bail!(
-                    "{} of {} items failed, {} model checks failed (rows with method 'error' or a check_verdict 'error: …' say why)",
-                    res.failed,
-                    items.len(),
-                    res.checks_failed
-                );
-            }
-            Ok(())
+                res.checks_failed,
+                !opts.nominal.is_empty(),
+            )
         }
         Command::InitSpec { recording, output } => {
             let inp = rbprops_cli::read_input(Some(&recording))?;
@@ -297,4 +373,30 @@ fn command(command: Command) -> anyhow::Result<()> {
             rbprops_cli::report::write(&dir, &md, &title, &rows, &figure, &hits)
         }
     }
+}
+
+/// The campaign's last stderr line, and its failure when items or checks failed (after
+/// the output was written: the table says why).
+fn finish_campaign(
+    what: &str,
+    items: usize,
+    rows: usize,
+    failed: usize,
+    checks_failed: usize,
+    model_check: bool,
+) -> anyhow::Result<()> {
+    rbprops_cli::say!(
+        "rbprops: {what}: {items} items, {rows} rows, {failed} failed{}",
+        if model_check {
+            format!(", {checks_failed} model checks failed")
+        } else {
+            String::new()
+        }
+    );
+    if failed > 0 || checks_failed > 0 {
+        bail!(
+            "{failed} of {items} items failed, {checks_failed} model checks failed (rows with method 'error' or a check_verdict 'error: …' say why)"
+        );
+    }
+    Ok(())
 }

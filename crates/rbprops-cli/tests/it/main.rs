@@ -2,6 +2,8 @@
 //! one module per topic, shared fixtures in `common`.
 
 mod campaign;
+mod campaign_frf_est;
+mod campaign_shards;
 mod coherence_weight;
 mod common;
 mod exp_window;
