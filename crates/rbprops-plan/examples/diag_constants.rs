@@ -1,0 +1,99 @@
+//! Diagnostic: predicted vs Monte Carlo spread of each excitation's real modal constants.
+use rayon::prelude::*;
+use rbprops_core::real_modal_constants;
+use rbprops_plan::{excitation_covariance, Layout, PlanModel};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let seeds: u64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(50);
+    let mut spec =
+        rbprops_sim::CampaignSpec::from_toml_str(rbprops_sim::example("test-case-2").unwrap()).unwrap();
+    spec.noise.relative = 0.01;
+    let model = PlanModel::from_spec(&spec).unwrap();
+    let layout = Layout::from_spec(&spec, &model).unwrap();
+    let rows = layout.rows();
+    let nc = rows.len();
+    let modes = &model.setups[0].modes;
+    let runs: Vec<Vec<Vec<Option<Vec<f64>>>>> = (0..seeds)
+        .into_par_iter()
+        .map(|seed| {
+            let mut s = spec.clone();
+            s.seed = seed;
+            let sim = rbprops_sim::simulate(&s).unwrap();
+            let fit = rbprops_modal::fit_campaign(&sim.geometry, &sim.frf, &Default::default()).unwrap();
+            layout
+                .hits
+                .iter()
+                .map(|h| {
+                    modes
+                        .iter()
+                        .map(|m| {
+                            fit.record
+                                .modes
+                                .iter()
+                                .filter(|e| e.excitation == h.id)
+                                .min_by(|a, b| {
+                                    (a.frequency_hz - m.frequency_hz)
+                                        .abs()
+                                        .total_cmp(&(b.frequency_hz - m.frequency_hz).abs())
+                                })
+                                .filter(|e| (e.frequency_hz / m.frequency_hz - 1.0).abs() < 0.02)
+                                .map(|e| real_modal_constants(&e.residues).0)
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    println!("pipeline selection seed 0: {:?}", selection_of(&spec));
+    let cache = rbprops_plan::JacobianCache::default();
+    let ev = rbprops_plan::evaluate(&model, &layout, rbprops_plan::Estimator::ToivolaNuutila);
+    println!("plan selection: {:?}", ev.setups[0].1.as_ref().unwrap().selected_hits);
+    let _ = cache;
+    println!("pipeline selection seed 0: {:?}", selection_of(&spec));
+    let ev = rbprops_plan::evaluate(&model, &layout, rbprops_plan::Estimator::ToivolaNuutila);
+    println!("plan selection: {:?}", ev.setups[0].1.as_ref().unwrap().selected_hits);
+    for (k, h) in layout.hits.iter().enumerate() {
+        let ec = excitation_covariance(&model, &model.setups[0], &rows, &h.column());
+        for r in 0..modes.len() {
+            let ok: Vec<&Vec<f64>> = runs.iter().filter_map(|run| run[k][r].as_ref()).collect();
+            if ok.len() < 3 {
+                println!("{} mode {}: found in {} runs", h.id, r + 1, ok.len());
+                continue;
+            }
+            let n = ok.len() as f64;
+            let mut ratios = Vec::new();
+            let mut line = String::new();
+            for i in 0..nc {
+                let sign = if ok[0][i] * ec.constants[r][i] < 0.0 { -1.0 } else { 1.0 };
+                let mean = ok.iter().map(|v| sign * v[i]).sum::<f64>() / n;
+                let sd = (ok.iter().map(|v| (sign * v[i] - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                let pred = ec.cov[(r * nc + i, r * nc + i)].sqrt();
+                ratios.push(pred / sd);
+                line += &format!(" {:.2}", pred / sd);
+                let _ = mean;
+            }
+            // Mode scale: projection of constants on the true vector.
+            let a = &ec.constants[r];
+            let an: f64 = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let proj: Vec<f64> = ok.iter().map(|v| {
+                let sign = if v.iter().zip(a).map(|(x, y)| x * y).sum::<f64>() < 0.0 { -1.0 } else { 1.0 };
+                sign * v.iter().zip(a).map(|(x, y)| x * y).sum::<f64>() / an
+            }).collect();
+            let pm = proj.iter().sum::<f64>() / n;
+            let psd = (proj.iter().map(|p| (p - pm).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+            let u: Vec<f64> = a.iter().map(|x| x / an).collect();
+            let mut pv = 0.0;
+            for i in 0..nc { for j in 0..nc { pv += u[i] * u[j] * ec.cov[(r * nc + i, r * nc + j)]; } }
+            println!("{} mode {} ({} runs, ni {:.2e}) scale pred/MC {:.2} (rel MC {:.2e}) per channel:{}", h.id, r + 1, ok.len(), ec.ni[r], pv.sqrt() / psd, psd / an, line);
+        }
+    }
+}
+
+#[allow(dead_code)]
+pub fn selection_of(spec: &rbprops_sim::CampaignSpec) -> Vec<(usize, String, usize)> {
+    let sim = rbprops_sim::simulate(spec).unwrap();
+    let fit = rbprops_modal::fit_campaign(&sim.geometry, &sim.frf, &Default::default()).unwrap();
+    let sel = rbprops_ni::select_modes(&sim.geometry, &sim.frf, &fit.record, &Default::default()).unwrap();
+    sel.record.selected.iter().map(|s| (s.mode, s.excitation.clone(), s.excitation_mode)).collect()
+}
