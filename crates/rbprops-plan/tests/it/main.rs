@@ -1,0 +1,4 @@
+//! Integration tests of rbprops-plan.
+
+mod pipeline_mc;
+mod plan;
