@@ -46,6 +46,31 @@ fn main() {
         })
         .collect();
     println!("pipeline selection seed 0: {:?}", selection_of(&spec));
+    {
+        let masses: Vec<(f64, f64)> = (0..seeds).into_par_iter().map(|seed| {
+            let mut s = spec.clone();
+            s.seed = seed;
+            let sim = rbprops_sim::simulate(&s).unwrap();
+            let fit = rbprops_modal::fit_campaign(&sim.geometry, &sim.frf, &Default::default()).unwrap();
+            let sel = rbprops_ni::select_modes(&sim.geometry, &sim.frf, &fit.record, &Default::default()).unwrap();
+            let opts = rbprops_inertia::SolveOptions { estimators: vec![rbprops_inertia::Estimator::ToivolaNuutila], rigid_body_check: false, ..Default::default() };
+            let out = rbprops_inertia::solve(&sim.geometry, &fit.record, &sel.record, None, &opts).unwrap();
+            let m_pipe = out.estimates[0].mass_kg;
+            // Own chain from the selected constants.
+            let frame = rbprops_inertia::RigidFrame::new(&sim.geometry, rbprops_core::Vec3::zeros()).unwrap();
+            let mut phis = Vec::new();
+            for sm in &sel.record.selected {
+                let k = frame.excitation_index(&sm.excitation).unwrap();
+                let me = fit.record.modes.iter().find(|e| e.excitation == sm.excitation && e.mode == sm.excitation_mode).unwrap();
+                phis.push(frame.shape(k, &me.residues).unwrap().phi0);
+            }
+            let p = rbprops_plan::estimate::properties_of_shapes(rbprops_plan::Estimator::ToivolaNuutila, &phis).unwrap();
+            (m_pipe, p[0])
+        }).collect();
+        let n = masses.len() as f64;
+        let sd = |f: &dyn Fn(&(f64, f64)) -> f64| { let m = masses.iter().map(|x| f(x)).sum::<f64>() / n; (masses.iter().map(|x| (f(x) - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() };
+        println!("mass std: pipeline {:.4e}, own chain on the same constants {:.4e}, max |diff| {:.3e}", sd(&|x| x.0), sd(&|x| x.1), masses.iter().map(|x| (x.0 - x.1).abs()).fold(0.0, f64::max));
+    }
     let cache = rbprops_plan::JacobianCache::default();
     let ev = rbprops_plan::evaluate(&model, &layout, rbprops_plan::Estimator::ToivolaNuutila);
     println!("plan selection: {:?}", ev.setups[0].1.as_ref().unwrap().selected_hits);

@@ -90,6 +90,31 @@ impl PlanModel {
         })
     }
 
+    /// A coarser model for the selection's search: the lines within ±10 half-power
+    /// half-bandwidths of every mode of every set-up (2 per half-bandwidth) and a 64-line
+    /// skeleton. It ranks layouts as the full model does at a fraction of the cost; the
+    /// planned layout's reported prediction always uses the full model.
+    pub fn search_model(&self) -> PlanModel {
+        let band = rbprops_modal::band::BandData {
+            quantity: self.quantity,
+            frequency_hz: self.omega.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect(),
+            omega: self.omega.clone(),
+            channels: Vec::new(),
+            first_line: 0,
+            line_quality: None,
+        };
+        let poles: Vec<rbprops_modal::Pole> = self
+            .setups
+            .iter()
+            .flat_map(|s| s.modes.iter())
+            .map(|m| rbprops_modal::Pole::from_modal(m.frequency_hz, m.damping_ratio))
+            .collect();
+        let keep = band.focus_indices(&poles, 10.0, 2.0, 64);
+        let mut m = self.clone();
+        m.omega = keep.iter().map(|&k| self.omega[k]).collect();
+        m
+    }
+
     /// Index of a set-up by id.
     pub fn setup_index(&self, id: &str) -> Option<usize> {
         self.setups.iter().position(|s| s.id == id)

@@ -7,6 +7,9 @@
 //! - **A**: `tr C_n`, the sum of the relative variances;
 //! - **worst**: `max_k √(C_n)_kk`, the worst property's relative standard deviation.
 //!
+//! The search runs on [`PlanModel::search_model`] (the lines near the modes); the
+//! planned layout is then predicted on the full model.
+//!
 //! Selection (one set-up): the first sensors maximise `det SᵀS` (rotations scaled by the
 //! body's radius of gyration; a rigid motion seen from every side), hits are added
 //! greedily (while a layout is still unobservable, the one that best covers the
@@ -98,7 +101,7 @@ impl Default for PlanOptions {
             estimator: Estimator::ToivolaNuutila,
             keep_sensors: Vec::new(),
             min_spacing_m: 0.0,
-            max_rounds: 3,
+            max_rounds: 2,
         }
     }
 }
@@ -558,8 +561,9 @@ pub fn plan(
             opts.sensors
         )));
     }
+    let search = model.search_model();
     let planner = Planner {
-        model,
+        model: &search,
         cands,
         opts,
         setup,
