@@ -3,6 +3,8 @@ use rayon::prelude::*;
 use rbprops_core::real_modal_constants;
 use rbprops_plan::{excitation_covariance, Layout, PlanModel};
 
+static ONLY: std::sync::Mutex<Vec<[f64; 6]>> = std::sync::Mutex::new(Vec::new());
+
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let seeds: u64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(50);
@@ -64,16 +66,63 @@ fn main() {
                 let me = fit.record.modes.iter().find(|e| e.excitation == sm.excitation && e.mode == sm.excitation_mode).unwrap();
                 phis.push(frame.shape(k, &me.residues).unwrap().phi0);
             }
+            // Mass with one mode's shape replaced by the truth (sign matched), per mode.
+            let truth: Vec<_> = modes.iter().map(|m| m.shape).collect();
+            let mut only = [0.0; 6];
+            for r in 0..6 {
+                let mut ph = truth.clone();
+                let s = if ph[r].dot(&phis[r]) < 0.0 { -1.0 } else { 1.0 };
+                ph[r] = phis[r] * s;
+                only[r] = rbprops_plan::estimate::properties_of_shapes(rbprops_plan::Estimator::ToivolaNuutila, &ph).unwrap()[0];
+            }
+            ONLY.lock().unwrap().push(only);
             let p = rbprops_plan::estimate::properties_of_shapes(rbprops_plan::Estimator::ToivolaNuutila, &phis).unwrap();
             (m_pipe, p[0])
         }).collect();
         let n = masses.len() as f64;
         let sd = |f: &dyn Fn(&(f64, f64)) -> f64| { let m = masses.iter().map(|x| f(x)).sum::<f64>() / n; (masses.iter().map(|x| (f(x) - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() };
+        let only = ONLY.lock().unwrap();
+        for r in 0..6 {
+            let v: Vec<f64> = only.iter().map(|o| o[r]).collect();
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            let sd = (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() as f64 - 1.0)).sqrt();
+            println!("MC mass std from mode {} alone: {:.3e}", r + 1, sd);
+        }
         println!("mass std: pipeline {:.4e}, own chain on the same constants {:.4e}, max |diff| {:.3e}", sd(&|x| x.0), sd(&|x| x.1), masses.iter().map(|x| (x.0 - x.1).abs()).fold(0.0, f64::max));
     }
     let cache = rbprops_plan::JacobianCache::default();
     let ev = rbprops_plan::evaluate(&model, &layout, rbprops_plan::Estimator::ToivolaNuutila);
     println!("plan selection: {:?}", ev.setups[0].1.as_ref().unwrap().selected_hits);
+    {
+        // Predicted mass std from each mode alone (its selected hit's constants).
+        let sel = ev.setups[0].1.as_ref().unwrap().selected_hits.clone();
+        for r in 0..6 {
+            let k = sel[r].unwrap();
+            let mut l2 = layout.clone();
+            l2.hits = vec![layout.hits[k].clone()];
+            let ec = excitation_covariance(&model, &model.setups[0], &rows, &layout.hits[k].column());
+            // a_r → φ_r → m via finite differences of the chain
+            let truth: Vec<_> = modes.iter().map(|m| m.shape).collect();
+            let f = layout.hits[k].column();
+            let g = { let mut g = nalgebra::Matrix6::<f64>::zeros(); for rw in &rows { g += rw.transpose() * rw; } g.try_inverse().unwrap() };
+            let m_of = |a: &[f64]| {
+                let mut sta = rbprops_core::Vec6::zeros();
+                for (i, rw) in rows.iter().enumerate() { sta += rw.transpose() * a[i]; }
+                let q = g * sta;
+                let phi = q / f.dot(&q).sqrt();
+                let mut ph = truth.clone();
+                let s = if ph[r].dot(&phi) < 0.0 { -1.0 } else { 1.0 };
+                ph[r] = phi * s;
+                rbprops_plan::estimate::properties_of_shapes(rbprops_plan::Estimator::ToivolaNuutila, &ph).unwrap()[0]
+            };
+            let a0 = ec.constants[r].clone();
+            let mut grad = vec![0.0; nc];
+            for i in 0..nc { let h = 1e-7 * a0.iter().fold(0.0f64, |x, y| x.max(y.abs())); let mut ap = a0.clone(); let mut am = a0.clone(); ap[i] += h; am[i] -= h; grad[i] = (m_of(&ap) - m_of(&am)) / (2.0 * h); }
+            let mut v = 0.0;
+            for i in 0..nc { for j in 0..nc { v += grad[i] * grad[j] * ec.cov[(r * nc + i, r * nc + j)]; } }
+            println!("predicted mass std from mode {} alone: {:.3e}", r + 1, v.sqrt());
+        }
+    }
     let _ = cache;
     println!("pipeline selection seed 0: {:?}", selection_of(&spec));
     let ev = rbprops_plan::evaluate(&model, &layout, rbprops_plan::Estimator::ToivolaNuutila);
