@@ -46,7 +46,10 @@ pub fn read_candidates(path: &Path, setup: usize) -> Result<Candidates> {
         let num = |i: usize| -> Result<f64> {
             let s = rec.get(i).unwrap_or("");
             let v: f64 = s.parse().with_context(|| {
-                format!("{name}: line {line}: column '{}' = '{s}' is not a number", want[i])
+                format!(
+                    "{name}: line {line}: column '{}' = '{s}' is not a number",
+                    want[i]
+                )
             })?;
             if !v.is_finite() {
                 bail!("{name}: line {line}: column '{}' is not finite", want[i]);
@@ -245,7 +248,13 @@ fn plan_report(
         let _ = writeln!(
             t,
             "  hit    {:<10} at ({:.4}, {:.4}, {:.4}) m along ({:.3}, {:.3}, {:.3})",
-            h.id, h.position.x, h.position.y, h.position.z, h.direction.x, h.direction.y, h.direction.z
+            h.id,
+            h.position.x,
+            h.position.y,
+            h.position.z,
+            h.direction.x,
+            h.direction.y,
+            h.direction.z
         );
     }
     let before_std = before.and_then(|b| b.as_ref().ok()).map(|p| p.std());
@@ -340,11 +349,19 @@ pub fn planned_spec(
             point: None,
         })
         .collect();
-    s.description = format!("{} (sensors and hits planned by rbprops plan)", spec.description);
+    s.description = format!(
+        "{} (sensors and hits planned by rbprops plan)",
+        spec.description
+    );
     s
 }
 
-fn evaluate_cmd(model: &PlanModel, layout: &Layout, cands: &Candidates, a: &PlanArgs) -> Result<()> {
+fn evaluate_cmd(
+    model: &PlanModel,
+    layout: &Layout,
+    cands: &Candidates,
+    a: &PlanArgs,
+) -> Result<()> {
     let ev = evaluate(model, layout, a.estimator);
     let mut t = String::new();
     let mut setups = Vec::new();
@@ -353,7 +370,9 @@ fn evaluate_cmd(model: &PlanModel, layout: &Layout, cands: &Candidates, a: &Plan
         match p {
             Err(u) => {
                 let _ = writeln!(t, "set-up '{id}': unobservable: {}", u.reason);
-                setups.push(serde_json::json!({"setup": id, "observable": false, "reason": u.reason}));
+                setups.push(
+                    serde_json::json!({"setup": id, "observable": false, "reason": u.reason}),
+                );
             }
             Ok(p) => {
                 let std = p.std();

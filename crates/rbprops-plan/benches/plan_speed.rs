@@ -12,7 +12,10 @@ fn main() {
     .expect("spec");
     spec.noise.relative = 0.01;
     let model = PlanModel::from_spec(&spec).expect("model");
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/test-case-2-candidates.csv");
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/test-case-2-candidates.csv"
+    );
     let text = std::fs::read_to_string(path).expect("candidates");
     let mut c = Candidates::default();
     for line in text.lines().skip(1) {

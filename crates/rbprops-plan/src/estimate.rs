@@ -26,8 +26,8 @@
 
 use crate::fitcov::ExcitationCovariance;
 use crate::model::{Hit, PlanModel};
-use nalgebra::{DMatrix, SMatrix};
 use nalgebra::RowVector6;
+use nalgebra::{DMatrix, SMatrix};
 use rbprops_core::Vec6;
 use rbprops_inertia::{bretl_conti, describe_null_space, property_vector, toivola_nuutila};
 
@@ -166,7 +166,10 @@ pub fn check_sensors(rows: &[RowVector6<f64>], length: f64) -> Result<(), Unobse
         .eigenvalues
         .iter()
         .enumerate()
-        .fold((0, f64::INFINITY), |a, (k, &l)| if l < a.1 { (k, l) } else { a });
+        .fold(
+            (0, f64::INFINITY),
+            |a, (k, &l)| if l < a.1 { (k, l) } else { a },
+        );
     let lmax = eig.eigenvalues.amax();
     if !(lmin > UNSEEN * lmax) {
         let mut v: Vec6 = eig.eigenvectors.column(kmin).into_owned();
@@ -229,20 +232,22 @@ pub fn predict_setup(
         .collect();
     let mask: u64 = used.iter().map(|&r| 1u64 << r).sum();
     let phi_true: Vec<Vec6> = used.iter().map(|&r| modes[r].shape).collect();
-    let jac = jacobians.get(est, setup, mask, &phi_true).map_err(|why| Unobservable {
-        reason: if missing.is_empty() {
-            why
-        } else {
-            format!(
-                "no hit excites {} ({}): {why}",
-                missing.join(", "),
-                match est {
-                    Estimator::BretlConti => "Bretl–Conti needs all six modes",
-                    Estimator::ToivolaNuutila => "Toivola–Nuutila with the other modes",
-                }
-            )
-        },
-    })?;
+    let jac = jacobians
+        .get(est, setup, mask, &phi_true)
+        .map_err(|why| Unobservable {
+            reason: if missing.is_empty() {
+                why
+            } else {
+                format!(
+                    "no hit excites {} ({}): {why}",
+                    missing.join(", "),
+                    match est {
+                        Estimator::BretlConti => "Bretl–Conti needs all six modes",
+                        Estimator::ToivolaNuutila => "Toivola–Nuutila with the other modes",
+                    }
+                )
+            },
+        })?;
     // (SᵀS)⁻¹Sᵀ
     let mut g = nalgebra::Matrix6::<f64>::zeros();
     for r in rows {
@@ -259,8 +264,8 @@ pub fn predict_setup(
         let c = cols[k].dot(&modes[r].shape);
         let q = modes[r].shape * c;
         let s = c * c;
-        let proj = (nalgebra::Matrix6::<f64>::identity() - q * cols[k].transpose() / (2.0 * s))
-            / s.sqrt();
+        let proj =
+            (nalgebra::Matrix6::<f64>::identity() - q * cols[k].transpose() / (2.0 * s)) / s.sqrt();
         let m = proj * g_inv;
         let mut d = DMatrix::<f64>::zeros(6, nc);
         for (i, row) in rows.iter().enumerate() {

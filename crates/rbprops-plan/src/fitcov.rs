@@ -307,11 +307,7 @@ pub fn excitation_covariance(
     }
     // Symmetrise (rounding).
     let cov = (&cov + cov.transpose()) * 0.5;
-    ExcitationCovariance {
-        constants,
-        cov,
-        ni,
-    }
+    ExcitationCovariance { constants, cov, ni }
 }
 
 /// Real-stacked weighted design matrix: line k gives rows `2k` (real parts) and `2k + 1`

@@ -2,9 +2,9 @@
 //! measured quantity and noise model, and the layout (sensors and hits) being judged.
 
 use crate::PlanError;
+use nalgebra::RowVector6;
 use rbprops_core::modal::RigidMode;
 use rbprops_core::noise::NoiseModel;
-use nalgebra::RowVector6;
 use rbprops_core::{rigid_transform, Quantity, Vec3, Vec6};
 use rbprops_sim::CampaignSpec;
 
@@ -97,7 +97,11 @@ impl PlanModel {
     pub fn search_model(&self) -> PlanModel {
         let band = rbprops_modal::band::BandData {
             quantity: self.quantity,
-            frequency_hz: self.omega.iter().map(|w| w / (2.0 * std::f64::consts::PI)).collect(),
+            frequency_hz: self
+                .omega
+                .iter()
+                .map(|w| w / (2.0 * std::f64::consts::PI))
+                .collect(),
             omega: self.omega.clone(),
             channels: Vec::new(),
             first_line: 0,

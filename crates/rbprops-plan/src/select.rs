@@ -23,8 +23,8 @@ use crate::estimate::{predict_setup, Estimator, JacobianCache, SetupPrediction, 
 use crate::fitcov::{excitation_covariance, ExcitationCovariance};
 use crate::model::{Hit, Layout, PlanModel, Sensor};
 use crate::PlanError;
-use rayon::prelude::*;
 use nalgebra::RowVector6;
+use rayon::prelude::*;
 
 /// The optimality criterion (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -114,7 +114,11 @@ pub struct Evaluation {
 }
 
 /// Per-hit covariances of a layout, computed in parallel, in hit order.
-fn hit_data(model: &PlanModel, rows: &[RowVector6<f64>], hits: &[Hit]) -> Vec<ExcitationCovariance> {
+fn hit_data(
+    model: &PlanModel,
+    rows: &[RowVector6<f64>],
+    hits: &[Hit],
+) -> Vec<ExcitationCovariance> {
     hits.par_iter()
         .map(|h| excitation_covariance(model, &model.setups[h.setup], rows, &h.column()))
         .collect()
@@ -400,7 +404,12 @@ impl Planner<'_> {
             .map(|k| {
                 let h = &self.cands.hits[k];
                 (h.setup == self.setup).then(|| {
-                    excitation_covariance(self.model, &self.model.setups[h.setup], &rows, &h.column())
+                    excitation_covariance(
+                        self.model,
+                        &self.model.setups[h.setup],
+                        &rows,
+                        &h.column(),
+                    )
                 })
             })
             .collect();

@@ -35,9 +35,12 @@ pub fn one_run(spec: &CampaignSpec, seed: u64, method: EstimateMethod) -> Option
     let mut spec = spec.clone();
     spec.seed = seed;
     let sim = rbprops_sim::simulate(&spec).ok()?;
-    let fit =
-        rbprops_modal::fit_campaign(&sim.geometry, &sim.frf, &rbprops_modal::FitOptions::default())
-            .ok()?;
+    let fit = rbprops_modal::fit_campaign(
+        &sim.geometry,
+        &sim.frf,
+        &rbprops_modal::FitOptions::default(),
+    )
+    .ok()?;
     let sel = rbprops_ni::select_modes(
         &sim.geometry,
         &sim.frf,

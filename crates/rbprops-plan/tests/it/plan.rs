@@ -24,7 +24,12 @@ fn estimators_recover_the_truth_from_the_true_shapes() {
         let p = properties_of_shapes(est, &phi).unwrap();
         for k in 0..10 {
             let tol = 1e-9 * model.scales[k];
-            assert!((p[k] - model.truth[k]).abs() < tol, "{est:?} {k}: {} vs {}", p[k], model.truth[k]);
+            assert!(
+                (p[k] - model.truth[k]).abs() < tol,
+                "{est:?} {k}: {} vs {}",
+                p[k],
+                model.truth[k]
+            );
         }
     }
 }
@@ -58,7 +63,10 @@ fn sensors_on_one_line_are_named_unobservable() {
     let ev = evaluate(&model, &layout, Estimator::ToivolaNuutila);
     let why = ev.setups[0].1.as_ref().unwrap_err().reason.clone();
     assert!(why.contains("rotation about the axis"), "{why}");
-    assert!(why.contains("(1.000, 0.000, 0.000)") || why.contains("(-1.000, 0.000, 0.000)"), "{why}");
+    assert!(
+        why.contains("(1.000, 0.000, 0.000)") || why.contains("(-1.000, 0.000, 0.000)"),
+        "{why}"
+    );
 }
 
 #[test]
@@ -75,8 +83,18 @@ fn a_mode_no_hit_excites_is_named_for_bretl_conti() {
     let d = t.cross(&Vec3::new(0.3, 0.5, 0.8)).normalize();
     let d2 = t.cross(&d).normalize();
     layout.hits = vec![
-        Hit { id: "a".into(), position: Vec3::zeros(), direction: d, setup: 0 },
-        Hit { id: "b".into(), position: Vec3::zeros(), direction: d2, setup: 0 },
+        Hit {
+            id: "a".into(),
+            position: Vec3::zeros(),
+            direction: d,
+            setup: 0,
+        },
+        Hit {
+            id: "b".into(),
+            position: Vec3::zeros(),
+            direction: d2,
+            setup: 0,
+        },
     ];
     let ev = evaluate(&model, &layout, Estimator::BretlConti);
     let why = ev.setups[0].1.as_ref().unwrap_err().reason.clone();
@@ -95,7 +113,12 @@ fn grid_candidates(model: &PlanModel) -> Candidates {
                 for axis in 0..3 {
                     let mut d = Vec3::zeros();
                     d[axis] = 1.0;
-                    c.hits.push(Hit { id: format!("p{k}"), position: p, direction: d, setup: 0 });
+                    c.hits.push(Hit {
+                        id: format!("p{k}"),
+                        position: p,
+                        direction: d,
+                        setup: 0,
+                    });
                 }
                 k += 1;
             }
@@ -109,14 +132,21 @@ fn planning_is_deterministic_and_beats_the_input_layout() {
     let spec = test_case_2(0.01);
     let model = PlanModel::from_spec(&spec).unwrap();
     let cands = grid_candidates(&model);
-    let opts = PlanOptions { sensors: 3, hits: 3, max_rounds: 1, ..Default::default() };
+    let opts = PlanOptions {
+        sensors: 3,
+        hits: 3,
+        max_rounds: 1,
+        ..Default::default()
+    };
     let a = plan(&model, &cands, 0, &opts).unwrap();
     let b = plan(&model, &cands, 0, &opts).unwrap();
     assert_eq!((a.sensors.clone(), a.hits.clone()), (b.sensors, b.hits));
     assert_eq!(a.value.to_bits(), b.value.to_bits());
     let input = Layout::from_spec(&spec, &model).unwrap();
     let ev = evaluate(&model, &input, Estimator::ToivolaNuutila);
-    let before = opts.criterion.value(&model, ev.setups[0].1.as_ref().unwrap());
+    let before = opts
+        .criterion
+        .value(&model, ev.setups[0].1.as_ref().unwrap());
     assert!(a.value < before, "plan {} vs input {before}", a.value);
 }
 
@@ -132,10 +162,48 @@ fn prediction_matches_the_pipeline_monte_carlo() {
     let layout = Layout::from_spec(&spec, &model).unwrap();
     let ev = evaluate(&model, &layout, Estimator::ToivolaNuutila);
     let pred = ev.setups[0].1.as_ref().unwrap().std();
-    let (mc, _, failed) = crate::pipeline_mc::pipeline_spread(&spec, 200, EstimateMethod::ToivolaNuutila);
+    let (mc, _, failed) =
+        crate::pipeline_mc::pipeline_spread(&spec, 200, EstimateMethod::ToivolaNuutila);
     assert!(failed < 10, "{failed} runs failed");
     for k in [1, 2, 4, 5, 6, 7, 8, 9] {
         let r = pred[k] / mc[k];
-        assert!((0.8..=1.2).contains(&r), "property {k}: predicted/MC = {r:.3}");
+        assert!(
+            (0.8..=1.2).contains(&r),
+            "property {k}: predicted/MC = {r:.3}"
+        );
+    }
+}
+
+fn data_spec(name: &str) -> CampaignSpec {
+    let path = format!("{}/tests/data/{name}", env!("CARGO_MANIFEST_DIR"));
+    CampaignSpec::from_toml_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Every property within ±20 % of the pipeline's spread over 200 seeds. Measured
+/// (release), predicted/MC for Toivola–Nuutila: plate 0.89–1.01; the planned Test Case II
+/// layout 0.97–1.14.
+#[test]
+#[ignore = "Monte Carlo of 2 × 200 pipeline runs: ~40 s in release, minutes in a debug build"]
+fn prediction_matches_the_pipeline_on_the_plate_and_the_planned_layout() {
+    for name in ["plate.toml", "test-case-2-planned-3x3.toml"] {
+        let spec = data_spec(name);
+        let model = PlanModel::from_spec(&spec).unwrap();
+        let layout = Layout::from_spec(&spec, &model).unwrap();
+        for (est, method) in [
+            (Estimator::ToivolaNuutila, EstimateMethod::ToivolaNuutila),
+            (Estimator::BretlConti, EstimateMethod::BretlConti),
+        ] {
+            let ev = evaluate(&model, &layout, est);
+            let pred = ev.setups[0].1.as_ref().unwrap().std();
+            let (mc, _, failed) = crate::pipeline_mc::pipeline_spread(&spec, 200, method);
+            assert!(failed < 10, "{name}: {failed} runs failed");
+            for k in 0..10 {
+                let r = pred[k] / mc[k];
+                assert!(
+                    (0.8..=1.2).contains(&r),
+                    "{name} {est:?} property {k}: predicted/MC = {r:.3}"
+                );
+            }
+        }
     }
 }
