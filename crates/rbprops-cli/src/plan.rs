@@ -73,7 +73,7 @@ pub fn read_candidates(path: &Path, setup: usize) -> Result<Candidates> {
         }
         if hit {
             let d = Vec3::new(num(5)?, num(6)?, num(7)?);
-            if !(d.norm() > 0.0) {
+            if d.norm() == 0.0 {
                 bail!("{name}: line {line}: hit direction is zero");
             }
             c.hits.push(Hit {

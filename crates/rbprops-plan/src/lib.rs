@@ -19,7 +19,8 @@
 //!
 //! No I/O: specs come in parsed, results go out as data.
 
-#![allow(clippy::needless_range_loop)] // index loops mirror the equations
+// Index loops mirror the equations; `!(x > y)` deliberately rejects NaN too.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 #![warn(missing_docs)]
 
 pub mod estimate;

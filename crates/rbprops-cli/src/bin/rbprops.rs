@@ -291,7 +291,7 @@ fn command(command: Command) -> anyhow::Result<()> {
                 "table" => false,
                 other => bail!("--format '{other}': expected table or json"),
             };
-            if !(min_spacing >= 0.0) {
+            if min_spacing.is_nan() || min_spacing < 0.0 {
                 bail!("--min-spacing must be a distance ≥ 0");
             }
             rbprops_cli::plan::run(&rbprops_cli::plan::PlanArgs {
