@@ -134,7 +134,9 @@ pub fn describe_rigid_motion(v: &Vec6) -> String {
     let u = v.fixed_rows::<3>(0).into_owned();
     let t = v.fixed_rows::<3>(3).into_owned();
     if t.norm() > 1e-6 * u.norm().max(1e-300) && t.norm() > 0.0 {
-        let axis = t / t.norm();
+        // The axis' sense is arbitrary: largest component positive.
+        let k = t.iamax();
+        let axis = t / t.norm() * t[k].signum();
         let point = t.cross(&u) / t.norm_squared();
         format!(
             "a rotation about the axis through ({:.4}, {:.4}, {:.4}) m along ({:.3}, {:.3}, {:.3}) (null vector of SᵀS: u = ({:.3}, {:.3}, {:.3}), θ = ({:.3}, {:.3}, {:.3}))",
