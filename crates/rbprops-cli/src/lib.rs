@@ -17,6 +17,7 @@ pub mod coherence;
 pub mod frf_est;
 pub mod html;
 pub mod init_spec;
+pub mod plan;
 pub mod plots;
 pub mod report;
 pub mod shard;

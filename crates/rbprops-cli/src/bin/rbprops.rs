@@ -87,6 +87,46 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// Plan a test: the sensors and hits that best determine the ten properties
+    /// (predicted by linear propagation of the spec's FRF noise through modal-fit,
+    /// ni-select and rb-solve), written as a spec ready for frf-sim; with --evaluate, the
+    /// predicted 95 % intervals of the spec's own layout, its weakest property and the
+    /// sensor or hit that would help it most.
+    Plan {
+        /// Campaign spec (body, suspension, damping, noise, band; its sensors and hits are
+        /// the input layout).
+        spec: PathBuf,
+        /// Candidates CSV `id,x_m,y_m,z_m,role,dx,dy,dz` (role sensor|hit|both; a hit's
+        /// allowed force direction, one row per direction). Default: the spec's points,
+        /// hits along ±x, ±y, ±z.
+        #[arg(long)]
+        candidates: Option<PathBuf>,
+        /// Triaxial sensors to place.
+        #[arg(long, default_value_t = 4)]
+        sensors: usize,
+        /// Hits to place.
+        #[arg(long, default_value_t = 6)]
+        hits: usize,
+        /// Criterion: d (ln det of the relative covariance), a (its trace) or worst (the
+        /// largest relative standard deviation).
+        #[arg(long, default_value = "d")]
+        criterion: String,
+        /// Estimator whose spread is planned for: tn (Toivola–Nuutila) or bc (Bretl–Conti).
+        #[arg(long, default_value = "tn")]
+        estimator: String,
+        /// Least distance between two sensors (m).
+        #[arg(long, default_value_t = 0.0)]
+        min_spacing: f64,
+        /// Judge the spec's own layout instead of planning one.
+        #[arg(long)]
+        evaluate: bool,
+        /// Output format of the intervals: table or json.
+        #[arg(long, default_value = "table")]
+        format: String,
+        /// Planned spec (default: stdout, the table then goes to stderr).
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
     /// Summary rows (the campaign table's columns) of finished runs.
     Summary {
         /// Runs holding an estimates topic (MCAP or CSV directories).
@@ -306,6 +346,50 @@ fn command(command: Command) -> anyhow::Result<()> {
                 Some(p) => rbprops_cli::write_text(p, &text),
                 None => rbprops_cli::out(&text),
             }
+        }
+        Command::Plan {
+            spec,
+            candidates,
+            sensors,
+            hits,
+            criterion,
+            estimator,
+            min_spacing,
+            evaluate,
+            format,
+            output,
+        } => {
+            let criterion = match criterion.to_ascii_lowercase().as_str() {
+                "d" => rbprops_plan::Criterion::D,
+                "a" => rbprops_plan::Criterion::A,
+                "worst" => rbprops_plan::Criterion::Worst,
+                other => bail!("--criterion '{other}': expected d, a or worst"),
+            };
+            let estimator = match estimator.to_ascii_lowercase().as_str() {
+                "tn" | "toivola_nuutila" => rbprops_plan::Estimator::ToivolaNuutila,
+                "bc" | "bretl_conti" => rbprops_plan::Estimator::BretlConti,
+                other => bail!("--estimator '{other}': expected tn or bc"),
+            };
+            let json = match format.as_str() {
+                "json" => true,
+                "table" => false,
+                other => bail!("--format '{other}': expected table or json"),
+            };
+            if min_spacing.is_nan() || min_spacing < 0.0 {
+                bail!("--min-spacing must be a distance ≥ 0");
+            }
+            rbprops_cli::plan::run(&rbprops_cli::plan::PlanArgs {
+                spec: &spec,
+                candidates: candidates.as_deref(),
+                sensors,
+                hits,
+                criterion,
+                estimator,
+                output: output.as_deref(),
+                evaluate,
+                json,
+                min_spacing_m: min_spacing,
+            })
         }
         Command::Summary {
             runs,
