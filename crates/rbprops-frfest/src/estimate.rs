@@ -666,18 +666,20 @@ pub fn coherence_line_variance(h_abs2: f64, gamma2: f64, n_averages: usize) -> f
 mod coherence_variance_tests {
     use super::*;
 
-    /// The formula at a few exact points, and the clamps.
+    /// The formula at a few points worked by hand (to a few units of rounding), and the
+    /// clamps.
     #[test]
     fn coherence_variance_is_bendat_and_piersol() {
-        assert_eq!(
-            coherence_line_variance(4.0, 0.5, 8),
-            4.0 * 0.5 / (8.0 * 0.5)
-        );
-        assert_eq!(coherence_line_variance(1.0, 0.8, 5), 0.2 / (5.0 * 0.8));
-        assert_eq!(
-            coherence_line_variance(1.0, 1.0, 5),
-            COHERENCE_FLOOR / (5.0 * (1.0 - COHERENCE_FLOOR))
-        );
+        let close = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * b.abs();
+        // |H|² = 4, γ² = 0.5, n = 8: 4 × 0.5/(8 × 0.5) = 0.5.
+        assert!(close(coherence_line_variance(4.0, 0.5, 8), 0.5));
+        // |H|² = 1, γ² = 0.8, n = 5: 0.2/4 = 0.05.
+        assert!(close(coherence_line_variance(1.0, 0.8, 5), 0.05));
+        // γ² = 1 is taken at g = 1 − 1e-6: (1 − g)/(5 g) (1 − g is 1e-6 only to 1e-10,
+        // the rounding of g).
+        let g = 1.0 - COHERENCE_FLOOR;
+        assert!(close(coherence_line_variance(1.0, 1.0, 5), (1.0 - g) / (5.0 * g)));
+        assert!(((1.0 - g) / (5.0 * g) / (1e-6 / 5.0) - 1.0).abs() < 1e-5);
         assert!(coherence_line_variance(1.0, 0.0, 5).is_finite());
         assert!(coherence_line_variance(f64::NAN, 0.5, 5).is_nan());
     }

@@ -1,5 +1,9 @@
 //! Diagnostic: predicted vs Monte Carlo spread of each excitation's real modal constants.
-#![allow(clippy::needless_range_loop, clippy::redundant_closure, clippy::type_complexity)] // a diagnostic: index loops mirror the formulas
+#![allow(
+    clippy::needless_range_loop,
+    clippy::redundant_closure,
+    clippy::type_complexity
+)] // a diagnostic: index loops mirror the formulas
 use rayon::prelude::*;
 use rbprops_core::real_modal_constants;
 use rbprops_plan::{excitation_covariance, Layout, PlanModel};

@@ -13,6 +13,7 @@ mod frf_sim;
 mod golden;
 mod mass_line;
 mod mutation;
+mod plan;
 mod refgen_pipeline;
 mod report_html;
 mod uff_campaign;
