@@ -10,8 +10,9 @@
 //!   at least one (a pair merged in one excitation) — a mode missing from an excitation
 //!   altogether (weakly excited) is not evidence;
 //! - two poles of two excitations within [`NEAR_BANDWIDTHS`] of each other that differ by
-//!   more than [`DISTINCT_SIGMAS`] combined standard errors (and 1e-6 relative): each
-//!   excitation drives a different member of a near-repeated pair;
+//!   more than [`DISTINCT_SIGMAS`] combined standard errors (and 1e-6 relative), neither
+//!   of them a mode its excitation barely drives: each excitation drives a different
+//!   member of a near-repeated pair;
 //! - an excitation whose fit error (median over its channels) is more than
 //!   [`ERROR_RATIO`] times the set-up's lowest and above [`ERROR_FLOOR`]: its model misses
 //!   something the others do not.
@@ -176,6 +177,13 @@ pub fn evidence(fits: &[&ExcitationFit]) -> Option<Evidence> {
             for (i, p) in all[a].iter().enumerate() {
                 for (j, q) in all[b].iter().enumerate() {
                     if p.distance_in_bandwidths(q) >= NEAR_BANDWIDTHS {
+                        continue;
+                    }
+                    // A mode an excitation barely drives has a pole its data hardly
+                    // determine (its standard error understates it): not evidence.
+                    if fits[a].modes.get(i).is_none_or(|m| m.weak)
+                        || fits[b].modes.get(j).is_none_or(|m| m.weak)
+                    {
                         continue;
                     }
                     let (fp, fq) = (p.frequency_hz(), q.frequency_hz());
