@@ -271,18 +271,7 @@ impl<'a> Problem<'a> {
     /// The largest over the FRFs of ‖Ŷ₁ − Ŷ₀‖/‖Ŷ₀‖ over each FRF's values used: the
     /// relative change a prediction makes to some FRF (see `RESOLUTION`).
     pub(super) fn largest_relative_change(&self, m1: &[c64], m0: &[c64]) -> f64 {
-        let nl = self.layout.n_lines();
-        let mut by_frf = vec![(0.0, 0.0); self.y.len() / nl];
-        for &i in &self.used {
-            let e = &mut by_frf[i / nl];
-            e.0 += (m1[i] - m0[i]).norm_sqr();
-            e.1 += m0[i].norm_sqr();
-        }
-        by_frf
-            .iter()
-            .filter(|(_, d)| *d > 0.0)
-            .map(|(n, d)| (n / d).sqrt())
-            .fold(0.0, f64::max)
+        self.largest_relative_change_in_blocks(m1, m0, self.layout.n_lines())
     }
 
     /// The largest over the excitations of ‖Ŷ₁ − Ŷ₀‖/‖Ŷ₀‖ over all that excitation's
@@ -291,13 +280,20 @@ impl<'a> Problem<'a> {
     /// multiplies every channel of an excitation alike).
     pub(super) fn largest_relative_change_by_excitation(&self, m1: &[c64], m0: &[c64]) -> f64 {
         let block = self.layout.channel_map.len() * self.layout.n_lines();
-        let mut by_exc = vec![(0.0, 0.0); self.y.len() / block.max(1)];
+        self.largest_relative_change_in_blocks(m1, m0, block)
+    }
+
+    /// The largest over consecutive blocks of `block` values (an FRF, an excitation) of
+    /// ‖Ŷ₁ − Ŷ₀‖/‖Ŷ₀‖ over the block's values used.
+    fn largest_relative_change_in_blocks(&self, m1: &[c64], m0: &[c64], block: usize) -> f64 {
+        let block = block.max(1);
+        let mut by_block = vec![(0.0, 0.0); self.y.len().div_ceil(block)];
         for &i in &self.used {
-            let e = &mut by_exc[i / block];
+            let e = &mut by_block[i / block];
             e.0 += (m1[i] - m0[i]).norm_sqr();
             e.1 += m0[i].norm_sqr();
         }
-        by_exc
+        by_block
             .iter()
             .filter(|(_, d)| *d > 0.0)
             .map(|(n, d)| (n / d).sqrt())
