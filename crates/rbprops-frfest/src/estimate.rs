@@ -678,7 +678,10 @@ mod coherence_variance_tests {
         // γ² = 1 is taken at g = 1 − 1e-6: (1 − g)/(5 g) (1 − g is 1e-6 only to 1e-10,
         // the rounding of g).
         let g = 1.0 - COHERENCE_FLOOR;
-        assert!(close(coherence_line_variance(1.0, 1.0, 5), (1.0 - g) / (5.0 * g)));
+        assert!(close(
+            coherence_line_variance(1.0, 1.0, 5),
+            (1.0 - g) / (5.0 * g)
+        ));
         assert!(((1.0 - g) / (5.0 * g) / (1e-6 / 5.0) - 1.0).abs() < 1e-5);
         assert!(coherence_line_variance(1.0, 0.0, 5).is_finite());
         assert!(coherence_line_variance(f64::NAN, 0.5, 5).is_nan());

@@ -98,9 +98,8 @@ fn writer_gives_the_committed_files_for_the_pyuff_check() {
                 std::fs::write(&path, written).unwrap();
                 continue;
             }
-            let committed = std::fs::read(&path).unwrap_or_else(|e| {
-                panic!("{}: {e} (RBPROPS_BLESS=1 writes it)", path.display())
-            });
+            let committed = std::fs::read(&path)
+                .unwrap_or_else(|e| panic!("{}: {e} (RBPROPS_BLESS=1 writes it)", path.display()));
             assert!(
                 committed == written,
                 "{}: the writer's bytes differ from the committed file (RBPROPS_BLESS=1 rewrites it after an intended change)",
