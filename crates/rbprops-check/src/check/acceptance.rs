@@ -5,11 +5,23 @@
 //! the precision floor, held-out frequency blocks and held-out excitations; then the
 //! distinctness of the best from its rivals.
 
-use super::*;
+use super::gauges::last_effect_phi;
+use super::problem::{active_dims, Act};
+use super::screening::Score;
+use super::selection::Selection;
+use super::verdict::sig;
+use super::CheckOptions;
+use crate::error::CheckError;
+use crate::lm;
+use crate::lm::Fit;
+use crate::report::{HeldOutCheck, PlausibleValue, RelativeChange};
+use nalgebra::DMatrix;
+use rbprops_core::c64;
+use rbprops_core::stats::chi2_isf;
 
 /// How far above the precision floor an effect's fitted change to the FRFs must be, as
 /// the RMS over all values of |ΔŶ|/σ_p (σ_p: the quantisation of the stored values and
-/// the computation floor of double precision, [`noise::precision_sigma`]).
+/// the computation floor of double precision, [`crate::noise::precision_sigma`]).
 ///
 /// Why: the statistical tests treat every residual as noise, which rounding is not. Two
 /// correct double-precision computations of the same physics differ by their rounding

@@ -1,4 +1,9 @@
-use super::*;
+use super::problem::{project_out, span_basis, Act, Problem};
+use super::screening::ABSORBED;
+use crate::lm;
+use crate::lm::Fit;
+use nalgebra::{DMatrix, DVector};
+
 /// The coordinates held at neutral to fix the exact gauges `null` (rows of `vt`), one
 /// per gauge, by pivoted elimination. Among the coordinates that can serve as pivot
 /// (|v_j| ≥ ½ max), the one whose neutral value puts the gauge shift at the median of

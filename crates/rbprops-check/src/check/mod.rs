@@ -4,18 +4,19 @@
 //! Follows docs/physics.md (M1–M8), with the deviations listed in
 //! the report's `method` field.
 
-use crate::candidates::{candidates, local_effect, Candidate, Screening};
+use crate::candidates::{candidates, local_effect};
 use crate::correlation::LineCorrelation;
 use crate::error::CheckError;
-use crate::lm::{self, Bounds, Fit};
-use crate::locate::{bands, residual_map};
+use crate::lm;
 use crate::noise::{self, RecordingNoise};
-use crate::params::{inertia_quantities, theta_to_inertia, Baseline, ParamKind, INERTIA_NAMES};
-use crate::predict::{predict, Layout};
-use crate::report::*;
-use nalgebra::{DMatrix, DVector};
-use rayon::prelude::*;
-use rbprops_core::stats::chi2_isf;
+use crate::params::Baseline;
+use crate::predict::Layout;
+use crate::report::ModelCheckReport;
+use acceptance::LOEO_MAX_CHI2_NU;
+use problem::{Prior, Problem};
+use selection::{Selection, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
+use verdict::{at_noise_floor, Finish, Finished};
+
 use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
 use rbprops_sim::effects::Effect;
 use rbprops_sim::CampaignSpec;
@@ -29,13 +30,6 @@ mod verdict;
 
 pub use acceptance::{PRACTICAL_MARGIN, RESOLUTION};
 pub use verdict::{noise_band, verdict, MIN_BAND_UPPER};
-
-use acceptance::*;
-use gauges::*;
-use problem::*;
-use screening::*;
-use selection::*;
-use verdict::*;
 
 /// Options of [`check`]. `Default` gives the documented defaults.
 #[derive(Debug, Clone)]
@@ -618,7 +612,7 @@ fn fixed_effects(
         .map(|e| rbprops_sim::effects::parse_effect_in(e, spec).map_err(CheckError::Model))
         .collect::<Result<_, _>>()?;
     if !options.sensor_masses_kg.is_empty() {
-        let (pids, _) = point_ids(&layout.spec_geometry);
+        let pids = point_ids(&layout.spec_geometry);
         let mut vals = vec![0.0; pids.len()];
         for (pid, m) in &options.sensor_masses_kg {
             let k = pids.iter().position(|p| p == pid).ok_or_else(|| {
@@ -772,8 +766,13 @@ fn check_with(
         free_base,
         inflation,
     };
-    let (report, improved_spec, prior, final_pred, base_pred) =
-        fin.report(sel, warnings, method)?;
+    let Finished {
+        report,
+        improved_spec,
+        prior,
+        final_pred,
+        base_pred,
+    } = fin.report(sel, warnings, method)?;
     Ok(CheckOutcome {
         prior,
         report,
@@ -788,14 +787,15 @@ fn check_with(
     })
 }
 
-fn point_ids(g: &Geometry) -> (Vec<String>, ()) {
+/// The sensor points' ids, in the order their first channel appears.
+fn point_ids(g: &Geometry) -> Vec<String> {
     let mut ids: Vec<String> = Vec::new();
     for c in &g.channels {
         if !ids.contains(&c.point) {
             ids.push(c.point.clone());
         }
     }
-    (ids, ())
+    ids
 }
 
 fn effect_spec(
@@ -807,7 +807,7 @@ fn effect_spec(
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::{at_noise_floor, method_text, CheckOptions, RecordingNoise};
 
     /// The floor rule shared by the report and the restatement in the residual's noise:
     /// below the band counts only for a precision-only noise, never past its top or with a

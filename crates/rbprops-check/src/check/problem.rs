@@ -1,5 +1,15 @@
-use super::*;
-use rbprops_sim::effects::Reach;
+use crate::candidates::Candidate;
+use crate::error::CheckError;
+use crate::lm;
+use crate::lm::{Bounds, Fit};
+use crate::params::Baseline;
+use crate::predict::{predict, Layout};
+use crate::report::PlausibleValue;
+use nalgebra::DMatrix;
+use rbprops_core::c64;
+use rbprops_sim::effects::{Effect, Reach};
+use rbprops_sim::CampaignSpec;
+
 /// A pass's final model: the nominal model's parameters θ and each accepted effect's φ.
 /// The noise rerun of [`check`] refits every effect the first pass accepted from here
 /// as well: under the re-estimated noise the baseline may drift to stand in for the

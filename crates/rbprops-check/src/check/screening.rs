@@ -1,4 +1,13 @@
-use super::*;
+use super::gauges::gauge_pivots;
+use super::problem::{project_out, span_basis, Act, Problem};
+use crate::error::CheckError;
+use crate::lm;
+use crate::lm::Fit;
+use crate::params::ParamKind;
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use rbprops_core::c64;
+
 /// Score-test quantities of one candidate at the current model.
 #[derive(Clone)]
 pub(super) struct Score {
@@ -672,7 +681,7 @@ pub(super) fn rigid_mass_gauge(n_residuals: usize) -> Score {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::{most_promising, PROFILE_REFINED};
 
     /// Per start, the evaluated points with the smallest predicted χ², the first of equal
     /// ones, at most `PROFILE_REFINED`; points not evaluated are never chosen.

@@ -3,7 +3,24 @@
 //! strongest, accepts at most one (see [`super::acceptance`]) and drops earlier effects
 //! that no longer pay for themselves.
 
-use super::*;
+use super::acceptance::{
+    distinct_family, fit_covariance, holds, implausible_text, wald_in, Evidence,
+};
+use super::gauges::reopen_dropped;
+use super::problem::{active_dims, drop_params, span_basis, Act, Prior, Problem};
+use super::screening::{
+    grid_candidate, resonance_candidate, rigid_mass_gauge, score_candidate, AtModel, Chord, Score,
+};
+use super::verdict::{inertia_change, inertia_report};
+use super::CheckOptions;
+use crate::candidates::{Candidate, Screening};
+use crate::error::CheckError;
+use crate::lm;
+use crate::lm::Fit;
+use crate::report::{AmbiguousFamily, NotObservable, ScreenEntry};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use rbprops_core::stats::chi2_isf;
 
 /// Candidates refitted together in one round of a step (fixed: decisions must not
 /// depend on the thread count).

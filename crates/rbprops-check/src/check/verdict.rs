@@ -2,7 +2,27 @@
 //! before and after, corrected parameters, accepted effects with standard errors), the
 //! improved spec, the localisation maps, the noise-band verdict and the short text.
 
-use super::*;
+use super::acceptance::{fit_covariance, Evidence, IMPLAUSIBLE};
+use super::gauges::centre_gauges;
+use super::problem::{active_dims, Act, Prior, Problem};
+use super::selection::Selection;
+use super::{effect_spec, point_ids, CheckOptions};
+use crate::candidates::local_effect;
+use crate::error::CheckError;
+use crate::lm::Fit;
+use crate::locate::{bands, residual_map};
+use crate::params::{inertia_quantities, theta_to_inertia, ParamKind, INERTIA_NAMES};
+use crate::predict::Layout;
+use crate::report::{
+    AcceptedEffect, AmbiguousFamily, CorrectedParameter, FittedParameter, InertiaEstimateReport,
+    RelativeChange, ScreenEntry, Unexplained,
+};
+use crate::{ModelCheckReport, RecordingNoise};
+use nalgebra::DMatrix;
+use rbprops_core::c64;
+use rbprops_sim::effects::Effect;
+use rbprops_sim::CampaignSpec;
+
 pub(super) fn inertia_report(
     label: &str,
     theta: &[f64],
@@ -341,9 +361,18 @@ pub(super) struct Finish<'p, 'a> {
     pub(super) inflation: Option<crate::correlation::Inflation>,
 }
 
-/// The report, the improved spec, the final model (the second pass's prior), and the
-/// final and baseline predictions.
-type Finished = (ModelCheckReport, CampaignSpec, Prior, Vec<c64>, Vec<c64>);
+/// What [`Finish::report`] ends with.
+pub(super) struct Finished {
+    pub(super) report: ModelCheckReport,
+    /// The nominal spec with the fitted parameters and the accepted effects.
+    pub(super) improved_spec: CampaignSpec,
+    /// The final model: the second pass's prior.
+    pub(super) prior: Prior,
+    /// The final model's prediction, in the layout's order.
+    pub(super) final_pred: Vec<c64>,
+    /// The baseline fit's prediction (nominal physics).
+    pub(super) base_pred: Vec<c64>,
+}
 
 impl<'p, 'a> Finish<'p, 'a> {
     /// Final numbers, with the accepted effects' gauges centred, and the report.
@@ -440,7 +469,13 @@ impl<'p, 'a> Finish<'p, 'a> {
             base: cur.theta[..nb].to_vec(),
             effects: final_effects,
         };
-        Ok((report, improved_spec, prior, final_pred, base_pred))
+        Ok(Finished {
+            report,
+            improved_spec,
+            prior,
+            final_pred,
+            base_pred,
+        })
     }
 
     /// Corrected parameters of the nominal model: from the final fit `th` (covariance
@@ -596,7 +631,7 @@ impl<'p, 'a> Finish<'p, 'a> {
         drop(fx);
         improved_spec.effects.extend(improved_effects);
         if !options.sensor_masses_kg.is_empty() {
-            let (pids, _) = point_ids(&p.layout.spec_geometry);
+            let pids = point_ids(&p.layout.spec_geometry);
             let mut vals = vec![0.0; pids.len()];
             for (pid, m) in &options.sensor_masses_kg {
                 if let Some(k) = pids.iter().position(|p| p == pid) {
