@@ -119,11 +119,22 @@ def functions(text):
         yield m.group(1), start, end - start + 1
 
 
+def without_comments(text):
+    """Line comments and doc comments removed (a `//` inside a string literal is kept)."""
+    out = []
+    for line in text.split("\n"):
+        i = line.find("//")
+        while i >= 0 and line[:i].count('"') % 2 == 1:
+            i = line.find("//", i + 2)
+        out.append(line if i < 0 else line[:i])
+    return "\n".join(out)
+
+
 def effect_ids():
     ids = set()
     for path, text in rust_sources():
         if "rbprops-sim/src/effects/" in path:
-            ids.update(re.findall(r'\bid:\s*"(\w+)"', text))
+            ids.update(re.findall(r'const ID: &\'static str = "(\w+)"', text))
     return sorted(ids)
 
 
@@ -131,10 +142,11 @@ def main():
     report = "--report" in sys.argv
     breaches = []
     sources = {p: strip_test_modules(t) for p, t in rust_sources()}
+    code = {p: without_comments(t) for p, t in sources.items()}
     # 1. effect ids
     where = defaultdict(list)
     for eid in effect_ids():
-        for path, text in sources.items():
+        for path, text in code.items():
             if re.search(r'"%s"' % re.escape(eid), text):
                 where[eid].append(path)
     for eid, paths in sorted(where.items()):

@@ -17,6 +17,7 @@ use crate::predict::Layout;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use rbprops_core::c64;
+use rbprops_sim::effects::elastic::ElasticMode;
 use rbprops_sim::effects::{BuildContext, Effect, ParamInfo, Reach};
 use rbprops_sim::model::{DynamicModel, ExtraMode};
 use rbprops_sim::CampaignSpec;
@@ -106,7 +107,7 @@ impl InBandResonance {
 
 impl Effect for InBandResonance {
     fn id(&self) -> &'static str {
-        "elastic_mode"
+        ElasticMode::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let mut v = vec![

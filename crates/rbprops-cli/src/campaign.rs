@@ -10,6 +10,7 @@
 use crate::summary::{self, SummaryRow};
 use anyhow::{anyhow, bail, Context, Result};
 use rayon::prelude::*;
+use rbprops_sim::effects::processing::ExponentialWindow;
 use rbprops_sim::CampaignSpec;
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -557,11 +558,11 @@ pub fn model_check(
 ) -> Result<(CheckColumns, rbprops_check::CheckOutcome)> {
     let mut spec = nominal.spec.clone();
     if let Some(sigma) = window_time_constant_s.map(|tau| 1.0 / tau) {
-        if !spec.effects.iter().any(|e| e.id == "exponential_window") {
+        if !spec.effects.iter().any(|e| e.id == ExponentialWindow::ID) {
             let mut parameters = toml::Table::new();
             parameters.insert("decay_per_s".into(), sigma.into());
             spec.effects.push(rbprops_sim::spec::EffectSpec {
-                id: "exponential_window".into(),
+                id: ExponentialWindow::ID.into(),
                 parameters,
             });
         }

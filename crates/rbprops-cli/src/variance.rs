@@ -7,6 +7,8 @@ use anyhow::{bail, Result};
 use rbprops_core::{FrfSet, Geometry};
 use rbprops_formats::wire::FrfVarianceMsg;
 use rbprops_formats::{topics, RunRecord};
+use rbprops_sim::effects::processing::ExponentialWindow;
+use rbprops_sim::effects::processing::RecordTruncation;
 
 /// Lines whose noise power is pooled on each side of a line (docs/conventions.md, FRF
 /// estimation): 9 in all, 72 real degrees of freedom from five hits on independent lines,
@@ -243,7 +245,7 @@ fn variance_for_check(
     if let Some(est) = estimation {
         let record_s = est.record_samples as f64 / est.sample_rate_hz - est.pretrigger_s;
         let mut known = vec![rbprops_sim::spec::EffectSpec {
-            id: "record_truncation".into(),
+            id: RecordTruncation::ID.into(),
             parameters: toml::Table::from_iter([("record_length_s".to_string(), record_s.into())]),
         }];
         if let Some(tau) = est.exponential_window_s {
@@ -251,7 +253,7 @@ fn variance_for_check(
                 bail!("the FRFs were estimated with an exponential window on the response only: the model check models a window on force and response (estimate them again with the window on both)");
             }
             known.push(rbprops_sim::spec::EffectSpec {
-                id: "exponential_window".into(),
+                id: ExponentialWindow::ID.into(),
                 parameters: toml::Table::from_iter([("time_constant_s".to_string(), tau.into())]),
             });
         }

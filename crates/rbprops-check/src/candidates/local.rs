@@ -1,14 +1,7 @@
 //! The catalogue effects the check screens through its own local implementation
 //! (of rbprops-sim's [`Effect`] trait).
 //!
-//! Local effects (equations; all neutral at 0):
-//! - `channel_gain` (E10): channel i reads (1+ε_i)·H_i.
-//! - `excitation_gain` (E12 sensitivity): excitation e's FRFs scaled by (1+δ_e).
-//! - `global_gain` (E10 global): every FRF scaled by (1+κ). Absorbed by the free mass.
-//! - `sensor_misorientation` (E8): the channels at a point sense along R(ψ) s, with
-//!   `R(ψ) = exp([ψ]×)` (Rodrigues), three angles per sensor point.
-//! - `sensor_mass` (E7): point mass m_p at each sensor point, M += m_p T(p)ᵀT(p).
-//!   Absorbed by the free inertia.
+//! Local forms (equations; all neutral at 0):
 //! - `gravity_stiffness` (E1): rbprops-sim's cord geometric stiffness (every spring read
 //!   as a vertical cord of length ℓ) reparametrised so that "absent" is a point of the
 //!   parameter space: `K(φ) = φ₁·lateral(ℓ = 1) + φ₂·load term`, φ₁ = 1/ℓ (1/m), φ₂ the
@@ -16,10 +9,6 @@
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //!   Two tilts of the vertical and φ₅, the fraction by which springs (rather than cords)
 //!   turn with the sagged body, complete it (see `gravity_stiffness`).
-//! - `nonproportional_damping` (E5): dashpots at the spring points,
-//!   C += Σ_i T(a_i)ᵀ diag(c_x, c_y, c_z) T(a_i), per set-up. Only a recording-side
-//!   helper ([`local_effect`]): the candidate screened is the catalogue's general
-//!   viscous damping (`modal_coupling`, see `neutral_entry` and docs/physics.md, E5).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
@@ -29,53 +18,33 @@
 //!   just above the band, whose damping shows where the rigid part of an FRF nearly
 //!   cancels and the mode's tail dominates. (The catalogue's `elastic_mode` is bilinear
 //!   in its shapes, with no usable neutral point.)
-//! - `force_direction` (E12): excitation e pushes along normalise(d + β₁u₁ + β₂u₂),
-//!   u₁, u₂ ⟂ d.
+//!
+//! Every other catalogue effect is screened in the catalogue's own form, from the neutral
+//! table its descriptor gives.
 
 use super::gravity::{free_direction_note, gravity_profile, gravity_stiffness, springs_can_sag};
 use super::{describe, Candidate, Screening};
-use rbprops_core::geometry::cross_matrix;
-use rbprops_core::{rigid_transform, Geometry, Mat3, Vec3};
-use rbprops_sim::effects::{BuildContext, Effect, OutputBlock, ParamInfo, Reach};
+use rbprops_sim::effects::gravity::GravityStiffness;
+
+use rbprops_core::{Geometry, Vec3};
+use rbprops_sim::effects::{BuildContext, Effect, ParamInfo, Reach};
 use rbprops_sim::model::DynamicModel;
 use rbprops_sim::CampaignSpec;
 
+/// The two local forms (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) enum Kind {
-    ChannelGain,
-    ExcitationGain,
-    GlobalGain,
-    SensorMisorientation,
-    SensorMass,
     GravityStiffness,
-    MountDashpots,
-    ForceDirection,
     ResidualFlexibility,
 }
 
-pub(super) const ALL: [Kind; 9] = [
-    Kind::ResidualFlexibility,
-    Kind::GravityStiffness,
-    Kind::SensorMisorientation,
-    Kind::ChannelGain,
-    Kind::ExcitationGain,
-    Kind::ForceDirection,
-    Kind::MountDashpots,
-    Kind::SensorMass,
-    Kind::GlobalGain,
-];
+/// The local forms in the order they are offered (the check's determinism depends on it).
+pub(super) const ALL: [Kind; 2] = [Kind::ResidualFlexibility, Kind::GravityStiffness];
 
 impl Kind {
     pub(super) fn id(self) -> &'static str {
         match self {
-            Kind::ChannelGain => "channel_gain",
-            Kind::ExcitationGain => "excitation_gain",
-            Kind::GlobalGain => "global_gain",
-            Kind::SensorMisorientation => "sensor_misorientation",
-            Kind::SensorMass => "sensor_mass",
-            Kind::GravityStiffness => "gravity_stiffness",
-            Kind::MountDashpots => "nonproportional_damping",
-            Kind::ForceDirection => "force_direction",
+            Kind::GravityStiffness => GravityStiffness::ID,
             Kind::ResidualFlexibility => "residual_flexibility",
         }
     }
@@ -94,16 +63,12 @@ pub(super) const RESIDUAL_FLEXIBILITY_TEXT: (&str, &str) = (
     "data closer to the first elastic mode, or its measured frequency",
 );
 
-/// A locally implemented catalogue effect (see the module docs for the equations).
+/// A local screening form of a catalogue effect (see the module docs for the equations).
 #[derive(Debug, Clone)]
 pub struct LocalEffect {
     kind: Kind,
     names: Vec<String>,
     values: Vec<f64>,
-    /// Channel index → point index (sensor groups), for misorientation.
-    groups: Vec<Vec<usize>>,
-    /// Point positions (sensor points), for sensor_mass.
-    points: Vec<Vec3>,
     /// Top of the band (Hz): the residual flexibility's modes sit at f_top/√q.
     band_top_hz: f64,
 }
@@ -121,43 +86,9 @@ const RESIDUAL_MODE_Q_NEUTRAL: f64 = 1.0 / 16.0;
 /// Name of the residual flexibility's modal damping ratio (neutral 0).
 const RESIDUAL_MODE_DAMPING: &str = "mode_damping_ratio";
 
-fn sensor_groups(g: &Geometry) -> (Vec<String>, Vec<Vec<usize>>, Vec<Vec3>) {
-    let mut ids: Vec<String> = Vec::new();
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    let mut pos = Vec::new();
-    for (i, c) in g.channels.iter().enumerate() {
-        match ids.iter().position(|p| *p == c.point) {
-            Some(k) => groups[k].push(i),
-            None => {
-                ids.push(c.point.clone());
-                groups.push(vec![i]);
-                pos.push(c.position);
-            }
-        }
-    }
-    (ids, groups, pos)
-}
-
 impl LocalEffect {
     fn neutral(kind: Kind, spec: &CampaignSpec, g: &Geometry) -> LocalEffect {
-        let (pids, groups, points) = sensor_groups(g);
         let names: Vec<String> = match kind {
-            Kind::ChannelGain => g
-                .channels
-                .iter()
-                .map(|c| format!("{}.gain_error", c.id))
-                .collect(),
-            Kind::ExcitationGain => g
-                .excitations
-                .iter()
-                .map(|e| format!("{}.gain_error", e.id))
-                .collect(),
-            Kind::GlobalGain => vec!["gain_error".into()],
-            Kind::SensorMisorientation => pids
-                .iter()
-                .flat_map(|p| ["rx", "ry", "rz"].map(|a| format!("{p}.{a}_rad")))
-                .collect(),
-            Kind::SensorMass => pids.iter().map(|p| format!("{p}.mass_kg")).collect(),
             Kind::GravityStiffness => {
                 let mut v: Vec<String> = vec![
                     "inverse_cord_length_per_m".into(),
@@ -170,11 +101,6 @@ impl LocalEffect {
                 }
                 v
             }
-            Kind::MountDashpots => spec
-                .setups
-                .iter()
-                .flat_map(|s| ["x", "y", "z"].map(|a| format!("{}.dashpot_{a}_n_s_per_m", s.id)))
-                .collect(),
             Kind::ResidualFlexibility => g
                 .excitations
                 .iter()
@@ -185,11 +111,6 @@ impl LocalEffect {
                 })
                 .chain([RESIDUAL_MODE_Q, RESIDUAL_MODE_DAMPING].map(String::from))
                 .collect(),
-            Kind::ForceDirection => g
-                .excitations
-                .iter()
-                .flat_map(|e| ["tilt1", "tilt2"].map(|a| format!("{}.{a}_rad", e.id)))
-                .collect(),
         };
         let mut values = vec![0.0; names.len()];
         if kind == Kind::ResidualFlexibility {
@@ -199,24 +120,17 @@ impl LocalEffect {
             kind,
             values,
             names,
-            groups,
-            points,
             band_top_hz: spec.frequency.stop_hz,
         }
     }
 
     fn info(&self, i: usize) -> ParamInfo {
         let (unit, lo, hi, pl) = match self.kind {
-            Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => {
-                ("1", -0.5, 0.5, (-0.05, 0.05))
-            }
-            Kind::SensorMisorientation | Kind::ForceDirection => ("rad", -0.5, 0.5, (-0.1, 0.1)),
             Kind::ResidualFlexibility if i + 1 == self.values.len() => ("1", 0.0, 0.5, (0.0, 0.05)),
             Kind::ResidualFlexibility if i + 2 == self.values.len() => {
                 ("1", 1e-4, 0.95, (0.0, 0.5))
             }
             Kind::ResidualFlexibility => ("m/N", f64::NEG_INFINITY, f64::INFINITY, (-1e-4, 1e-4)),
-            Kind::SensorMass => ("kg", 0.0, f64::INFINITY, (0.0, 0.5)),
             Kind::GravityStiffness if i == 0 => ("1/m", 0.0, 100.0, (0.2, 10.0)),
             Kind::GravityStiffness if i == 1 => ("1", 0.0, 3.0, (0.5, 1.5)),
             // 0: the springs' stiffness stays along the spec's axes (cords); 1: it turns
@@ -224,7 +138,6 @@ impl LocalEffect {
             // that neither end is pinned.
             Kind::GravityStiffness if i == 4 => ("1", -2.0, 3.0, (-0.5, 1.5)),
             Kind::GravityStiffness => ("rad", -0.5, 0.5, (-0.1, 0.1)),
-            Kind::MountDashpots => ("N s/m", 0.0, f64::INFINITY, (0.0, 100.0)),
         };
         ParamInfo {
             name: self.names[i].clone(),
@@ -239,48 +152,17 @@ impl LocalEffect {
         let m = spec.body.mass_kg;
         (0..self.values.len())
             .map(|i| match self.kind {
-                Kind::ChannelGain | Kind::ExcitationGain | Kind::GlobalGain => 0.01,
-                Kind::SensorMisorientation | Kind::ForceDirection => 0.01,
                 Kind::ResidualFlexibility if i + 1 == self.values.len() => 0.001,
                 Kind::ResidualFlexibility if i + 2 == self.values.len() => 0.01,
                 Kind::ResidualFlexibility => {
                     let w = std::f64::consts::TAU * spec.frequency.stop_hz.max(1e-3);
                     1e-3 / (m * w * w)
                 }
-                Kind::SensorMass => 0.01 * m,
-                Kind::GravityStiffness => {
-                    if i < 2 || i == 4 {
-                        1.0
-                    } else {
-                        0.01
-                    }
-                }
-                Kind::MountDashpots => {
-                    // 1 % critical damping of the stiffest spring of the set-up, roughly.
-                    let k = spec
-                        .setups
-                        .iter()
-                        .flat_map(|s| s.springs.iter())
-                        .map(|s| {
-                            s.stiffness_n_per_m
-                                .map(|k| k[0].max(k[1]).max(k[2]))
-                                .unwrap_or(100.0)
-                        })
-                        .fold(1.0, f64::max);
-                    0.02 * (k * m).sqrt()
-                }
+                Kind::GravityStiffness if i < 2 || i == 4 => 1.0,
+                Kind::GravityStiffness => 0.01,
             })
             .collect()
     }
-}
-
-fn rodrigues(psi: &Vec3) -> Mat3 {
-    let t = psi.norm();
-    let k = cross_matrix(psi);
-    if t < 1e-12 {
-        return Mat3::identity() + k;
-    }
-    Mat3::identity() + k * (t.sin() / t) + k * k * ((1.0 - t.cos()) / (t * t))
 }
 
 /// The unit direction `d` tilted by the angles (a, b) about two axes perpendicular to
@@ -335,27 +217,6 @@ impl Effect for LocalEffect {
     }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         match self.kind {
-            Kind::SensorMisorientation => {
-                for (k, chans) in self.groups.iter().enumerate() {
-                    let psi = Vec3::new(
-                        self.values[3 * k],
-                        self.values[3 * k + 1],
-                        self.values[3 * k + 2],
-                    );
-                    let r = rodrigues(&psi);
-                    for &c in chans {
-                        let ch = &ctx.geometry.channels[c];
-                        model.outputs[c] =
-                            (r * ch.direction).transpose() * rigid_transform(&ch.position);
-                    }
-                }
-            }
-            Kind::SensorMass => {
-                for (p, m) in self.points.iter().zip(&self.values) {
-                    let t = rigid_transform(p);
-                    model.mass += (t.transpose() * t) * *m;
-                }
-            }
             Kind::GravityStiffness => {
                 model.stiffness += gravity_stiffness(ctx, model, &self.values)?;
                 model.stiffness = (model.stiffness + model.stiffness.transpose()) * 0.5;
@@ -384,49 +245,16 @@ impl Effect for LocalEffect {
                     });
                 }
             }
-            Kind::ForceDirection => {
-                for inp in &mut model.inputs {
-                    let e = &ctx.geometry.excitations[inp.excitation];
-                    let d2 = tilted_direction(
-                        &e.direction,
-                        self.values[2 * inp.excitation],
-                        self.values[2 * inp.excitation + 1],
-                    );
-                    inp.column = rigid_transform(&e.position).transpose() * d2;
-                }
-            }
-            _ => {}
         }
         Ok(())
     }
-    fn modify_damping(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        if self.kind == Kind::MountDashpots {
-            let c = Mat3::from_diagonal(&Vec3::new(
-                self.values[3 * ctx.setup_index],
-                self.values[3 * ctx.setup_index + 1],
-                self.values[3 * ctx.setup_index + 2],
-            ));
-            for s in ctx.spec.springs(ctx.setup_index) {
-                let t = rigid_transform(&s.at);
-                model.damping += t.transpose() * c * t;
-            }
-        }
-        Ok(())
-    }
-    /// A channel's gain reaches that channel's FRFs, an excitation's its own
-    /// (`transform_output`), a sensor's misorientation its channels' (their output rows),
-    /// a residual flexibility `R_ce` the FRF of c and e (the `at_channels[c]` of the
-    /// mode driven by e alone); everything else reaches any FRF.
+    /// A residual flexibility `R_ce` reaches the FRF of c and e (the `at_channels[c]` of
+    /// the mode driven by e alone); everything else reaches any FRF.
     fn parameter_reach(&self, g: &Geometry) -> Vec<Reach> {
         let n = self.values.len();
         let (n_ch, n_ex) = (g.channels.len(), g.excitations.len());
         (0..n)
             .map(|i| match self.kind {
-                Kind::ChannelGain if n == n_ch => Reach::Channels(vec![i]),
-                Kind::SensorMisorientation if n == 3 * self.groups.len() => {
-                    Reach::Channels(self.groups[i / 3].clone())
-                }
-                Kind::ExcitationGain if n == n_ex => Reach::Excitation(i),
                 Kind::ResidualFlexibility if n == n_ch * n_ex + 2 && i < n - 2 => Reach::Cell {
                     channel: i % n_ch,
                     excitation: i / n_ch,
@@ -435,31 +263,11 @@ impl Effect for LocalEffect {
             })
             .collect()
     }
-    fn transform_output(&self, block: &mut OutputBlock) {
-        let nl = block.frequency_hz.len();
-        match self.kind {
-            Kind::ChannelGain => {
-                for (c, v) in block.values.chunks_exact_mut(nl).enumerate() {
-                    let g = 1.0 + self.values[c];
-                    v.iter_mut().for_each(|x| *x *= g);
-                }
-            }
-            Kind::ExcitationGain => {
-                let g = 1.0 + self.values[block.excitation];
-                block.values.iter_mut().for_each(|x| *x *= g);
-            }
-            Kind::GlobalGain => {
-                let g = 1.0 + self.values[0];
-                block.values.iter_mut().for_each(|x| *x *= g);
-            }
-            _ => {}
-        }
-    }
 }
 
-/// The local effects ([`ALL`], in order) not in the spec and not already offered by the
-/// catalogue. The sensor mass is screened by its rigid-mass gauge, gravity stiffness by a
-/// cord-length profile when the nominal model has free directions, the others by a score.
+/// The local forms ([`ALL`], in order) not in the spec and not already offered by the
+/// catalogue. Gravity stiffness is screened by a cord-length profile when the nominal
+/// model has free directions, the others by a score.
 pub(super) fn local_candidates(
     spec: &CampaignSpec,
     geometry: &Geometry,
@@ -498,9 +306,7 @@ pub(super) fn local_candidates(
                 "rbprops-check (local)"
             },
             reveal: k.reveal(),
-            screening: if k == Kind::SensorMass {
-                Screening::RigidMassGauge
-            } else if k == Kind::GravityStiffness && has_free {
+            screening: if k == Kind::GravityStiffness && has_free {
                 gravity_profile(spec, n_params)
             } else {
                 Screening::Score

@@ -6,6 +6,11 @@
 //! implements itself), `gravity`, `reciprocal` (catalogue effects through another
 //! parametrisation), `non_rigid` (`added_mass`), and `lag` (the residual's delay scan).
 
+use rbprops_sim::effects::elastic::ElasticMode;
+use rbprops_sim::effects::gravity::GravityStiffness;
+use rbprops_sim::effects::mass::AddedMass;
+use rbprops_sim::effects::processing::RecordTruncation;
+use rbprops_sim::effects::sensors::TransducerHighpass;
 mod gravity;
 mod lag;
 mod local;
@@ -121,17 +126,17 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     let in_spec: Vec<&str> = spec.effects.iter().map(|e| e.id.as_str()).collect();
     catalogue_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
     local_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
-    if reparametrised("transducer_highpass") && !in_spec.contains(&"transducer_highpass") {
+    if reparametrised(TransducerHighpass::ID) && !in_spec.contains(&TransducerHighpass::ID) {
         out.push(transducer_highpass_candidate(geometry));
     }
-    if !in_spec.contains(&"record_truncation") {
+    if !in_spec.contains(&RecordTruncation::ID) {
         out.push(record_truncation_candidate(spec));
     }
     out.extend(cord_mass_candidate(spec, &in_spec, &mut notes));
-    if !in_spec.contains(&"added_mass") {
+    if !in_spec.contains(&AddedMass::ID) {
         out.push(added_mass_candidate());
     }
-    if !in_spec.contains(&"elastic_mode") && !spec.channels().is_empty() {
+    if !in_spec.contains(&ElasticMode::ID) && !spec.channels().is_empty() {
         out.push(elastic_mode_candidate(spec));
     }
     let further: Vec<Candidate> = out
@@ -147,7 +152,7 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
 /// modes (a pole with its residues, in or above the band) and out-of-band terms (one
 /// pole per excitation with a general residue matrix). Several modes just above the band
 /// with different shapes are not one residual flexibility: each needs its own pole.
-const REPEATABLE: [&str; 2] = ["elastic_mode", "residual_flexibility"];
+const REPEATABLE: [&str; 2] = [ElasticMode::ID, "residual_flexibility"];
 
 /// Further instances of each repeatable candidate beyond the first. They open one at a
 /// time ([`Candidate::follows`]); a recording that uses the last one is told so.
@@ -239,10 +244,10 @@ fn catalogue_candidates(
 /// An elastic mode in the band, in its in-band form (one pole, a residue per channel and
 /// excitation), screened by the resonance search.
 fn elastic_mode_candidate(spec: &CampaignSpec) -> Candidate {
-    let (title, reveal) = describe("elastic_mode");
+    let (title, reveal) = describe(ElasticMode::ID);
     let e = crate::resonance::InBandResonance::neutral(spec);
     Candidate {
-        id: "elastic_mode".into(),
+        id: ElasticMode::ID.into(),
         title: title.into(),
         neutral: e.values(),
         scales: e.scales(),
@@ -269,7 +274,7 @@ pub fn catalogue_entry(
             e.id()
         ));
     }
-    if e.id() == "record_truncation"
+    if e.id() == RecordTruncation::ID
         && e.parameters()
             .first()
             .is_some_and(|p| p.name == "inverse_record_length_per_s")
@@ -285,7 +290,7 @@ pub fn catalogue_entry(
             parameters: t,
         });
     }
-    let parameters = if e.id() == "gravity_stiffness"
+    let parameters = if e.id() == GravityStiffness::ID
         && e.parameters()
             .first()
             .is_some_and(|p| p.name == "inverse_cord_length_per_m")

@@ -5,16 +5,17 @@
 //!   reported inertia, which is then that of the body with it.
 
 use super::{describe, Candidate, Screening};
+use rbprops_sim::effects::mass::AddedMass;
 use rbprops_sim::effects::{BuildContext, Effect, ParamInfo};
 use rbprops_sim::model::DynamicModel;
 
 /// The added mass's non-rigid part (its rigid part is absorbed by the free inertia),
 /// screened by a score.
 pub(super) fn added_mass_candidate() -> Candidate {
-    let (title, reveal) = describe("added_mass");
+    let (title, reveal) = describe(AddedMass::ID);
     let e = NonRigidMass { values: [0.0; 11] };
     Candidate {
-        id: "added_mass".into(),
+        id: AddedMass::ID.into(),
         title: title.into(),
         neutral: e.values(),
         scales: [vec![0.05; 5], vec![0.01; 6]].concat(),
@@ -54,7 +55,7 @@ impl NonRigidMass {
 
 impl Effect for NonRigidMass {
     fn id(&self) -> &'static str {
-        "added_mass"
+        AddedMass::ID
     }
     fn order(&self) -> u8 {
         0

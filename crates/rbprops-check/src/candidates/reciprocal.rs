@@ -13,6 +13,9 @@
 
 use super::{describe, Candidate, Screening};
 use rbprops_core::Geometry;
+use rbprops_sim::effects::cords::CordMass;
+use rbprops_sim::effects::processing::RecordTruncation;
+use rbprops_sim::effects::sensors::TransducerHighpass;
 use rbprops_sim::effects::{BuildContext, Effect, OutputBlock, ParamInfo};
 use rbprops_sim::model::DynamicModel;
 use rbprops_sim::CampaignSpec;
@@ -77,7 +80,7 @@ fn highpass_build(sensors: Vec<(String, Vec<String>)>) -> Build {
         let mut t = toml::Table::new();
         t.insert("time_constants_s".into(), per_channel.into());
         rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
-            id: "transducer_highpass".into(),
+            id: TransducerHighpass::ID.into(),
             parameters: t,
         })
         .map(Some)
@@ -95,7 +98,7 @@ fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
     let mut t = toml::Table::new();
     t.insert("record_length_s".into(), (1.0 / v[0]).into());
     rbprops_sim::effects::parse_effect(&rbprops_sim::spec::EffectSpec {
-        id: "record_truncation".into(),
+        id: RecordTruncation::ID.into(),
         parameters: t,
     })
     .map(Some)
@@ -115,7 +118,7 @@ fn cord_entry(mu: f64, l: f64, up: Option<[f64; 3]>) -> rbprops_sim::spec::Effec
     );
     t.insert("cord_length_m".into(), toml::Value::Array(vec![l.into()]));
     rbprops_sim::spec::EffectSpec {
-        id: "cord_mass".into(),
+        id: CordMass::ID.into(),
         parameters: t,
     }
 }
@@ -258,7 +261,7 @@ impl Effect for Reciprocal {
 /// The transducer high-pass reparametrised by inverse time constants (one per sensor), so
 /// that its neutral value, no high-pass, is 0 rather than an infinite time constant.
 pub(super) fn transducer_highpass_candidate(geometry: &Geometry) -> Candidate {
-    let (title, reveal) = describe("transducer_highpass");
+    let (title, reveal) = describe(TransducerHighpass::ID);
     let groups = sensors(geometry);
     let infos: Vec<ParamInfo> = groups
         .iter()
@@ -272,10 +275,10 @@ pub(super) fn transducer_highpass_candidate(geometry: &Geometry) -> Candidate {
         .collect();
     let n = infos.len();
     Candidate {
-        id: "transducer_highpass".into(),
+        id: TransducerHighpass::ID.into(),
         title: title.into(),
         effect: Box::new(Reciprocal {
-            id: "transducer_highpass",
+            id: TransducerHighpass::ID,
             infos,
             values: vec![0.0; n],
             inner: None,
@@ -293,7 +296,7 @@ pub(super) fn transducer_highpass_candidate(geometry: &Geometry) -> Candidate {
 /// Record truncation reparametrised by the inverse record length (neutral: 0, an endless
 /// record) and screened by a profile over the record lengths zero padding can give.
 pub(super) fn record_truncation_candidate(spec: &CampaignSpec) -> Candidate {
-    let (title, reveal) = describe("record_truncation");
+    let (title, reveal) = describe(RecordTruncation::ID);
     // The record length is 1/Δf of the recording's lines, or a fraction of it
     // when the records were zero-padded: T = 1/(kΔf), k = 1..8. The leakage
     // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so a
@@ -308,10 +311,10 @@ pub(super) fn record_truncation_candidate(spec: &CampaignSpec) -> Candidate {
     };
     let grid: Vec<Vec<f64>> = (1..=8).map(|k| vec![k as f64 * df]).collect();
     Candidate {
-        id: "record_truncation".into(),
+        id: RecordTruncation::ID.into(),
         title: title.into(),
         effect: Box::new(Reciprocal {
-            id: "record_truncation",
+            id: RecordTruncation::ID,
             infos: vec![ParamInfo {
                 name: "inverse_record_length_per_s".into(),
                 unit: "1/s",
@@ -344,26 +347,26 @@ pub(super) fn cord_mass_candidate(
     notes: &mut Vec<String>,
 ) -> Option<Candidate> {
     let has_springs = spec.setups.iter().any(|s| !s.springs.is_empty());
-    let cord_profile = if in_spec.contains(&"cord_mass") || !has_springs {
+    let cord_profile = if in_spec.contains(&CordMass::ID) || !has_springs {
         Vec::new()
     } else {
         mean_cord_tension(spec)
             .map(|t| cord_grid(t, spec.frequency.start_hz, spec.frequency.stop_hz))
             .unwrap_or_default()
     };
-    if !in_spec.contains(&"cord_mass") && has_springs && cord_profile.is_empty() {
+    if !in_spec.contains(&CordMass::ID) && has_springs && cord_profile.is_empty() {
         notes.push("cord_mass is not screened: the springs hold no cord tension, or no cord of plausible length and mass has a string mode below 1.2× the band's top".into());
     }
     if cord_profile.is_empty() {
         return None;
     }
-    let (title, reveal) = describe("cord_mass");
+    let (title, reveal) = describe(CordMass::ID);
     let grid = cord_profile;
     Some(Candidate {
-        id: "cord_mass".into(),
+        id: CordMass::ID.into(),
         title: title.into(),
         effect: Box::new(Reciprocal {
-            id: "cord_mass",
+            id: CordMass::ID,
             infos: vec![
                 ParamInfo {
                     name: "mass_per_length_kg_per_m".into(),

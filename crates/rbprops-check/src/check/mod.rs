@@ -4,7 +4,7 @@
 //! Follows docs/physics.md (M1–M8), with the deviations listed in
 //! the report's `method` field.
 
-use crate::candidates::{candidates, local_effect};
+use crate::candidates::candidates;
 use crate::correlation::LineCorrelation;
 use crate::error::CheckError;
 use crate::lm;
@@ -14,6 +14,8 @@ use crate::predict::Layout;
 use crate::report::ModelCheckReport;
 use acceptance::LOEO_MAX_CHI2_NU;
 use problem::{Prior, Problem};
+use rbprops_sim::effects::mass::SensorMass;
+use rbprops_sim::effects::processing::ExponentialWindow;
 use selection::{Selection, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
 use verdict::{at_noise_floor, Finish, Finished};
 
@@ -557,7 +559,10 @@ fn correlated_noise(
 /// The decay rate of the exponential window in `spec`'s effects (nominal, or accepted
 /// by a check), if any: its `decay_per_s`, or 1/`time_constant_s`.
 fn window_decay(spec: &CampaignSpec) -> Option<f64> {
-    let e = spec.effects.iter().find(|e| e.id == "exponential_window")?;
+    let e = spec
+        .effects
+        .iter()
+        .find(|e| e.id == ExponentialWindow::ID)?;
     let number = |k: &str| {
         e.parameters
             .get(k)
@@ -612,18 +617,7 @@ fn fixed_effects(
         .map(|e| rbprops_sim::effects::parse_effect_in(e, spec).map_err(CheckError::Model))
         .collect::<Result<_, _>>()?;
     if !options.sensor_masses_kg.is_empty() {
-        let pids = point_ids(&layout.spec_geometry);
-        let mut vals = vec![0.0; pids.len()];
-        for (pid, m) in &options.sensor_masses_kg {
-            let k = pids.iter().position(|p| p == pid).ok_or_else(|| {
-                CheckError::Mismatch(format!(
-                    "sensor mass given for unknown point '{pid}' (points: {})",
-                    pids.join(", ")
-                ))
-            })?;
-            vals[k] = *m;
-        }
-        fixed_effects.push(local_effect("sensor_mass", spec, &vals).map_err(CheckError::Model)?);
+        fixed_effects.push(Box::new(known_sensor_masses(options, layout)?));
     }
     Ok(fixed_effects)
 }
@@ -676,7 +670,7 @@ fn check_with(
         });
     }
     if !options.sensor_masses_kg.is_empty() {
-        cands.retain(|c| c.id != "sensor_mass");
+        cands.retain(|c| c.id != SensorMass::ID);
     }
     let p = Problem {
         baseline: Baseline::new(spec),
@@ -784,6 +778,29 @@ fn check_with(
         sigma,
         layout,
         correlation,
+    })
+}
+
+/// The sensor masses the user gave (`CheckOptions::sensor_masses_kg`) as the catalogue's
+/// sensor-mass effect, a known correction of the model: an unknown point is an error.
+fn known_sensor_masses(
+    options: &CheckOptions,
+    layout: &Layout,
+) -> Result<rbprops_sim::effects::mass::SensorMass, CheckError> {
+    let pids = point_ids(&layout.spec_geometry);
+    let mut masses_kg = std::collections::BTreeMap::new();
+    for (pid, m) in &options.sensor_masses_kg {
+        if !pids.contains(pid) {
+            return Err(CheckError::Mismatch(format!(
+                "sensor mass given for unknown point '{pid}' (points: {})",
+                pids.join(", ")
+            )));
+        }
+        masses_kg.insert(pid.clone(), *m);
+    }
+    Ok(rbprops_sim::effects::mass::SensorMass {
+        mass_kg: None,
+        masses_kg,
     })
 }
 

@@ -6,8 +6,7 @@ use super::acceptance::{fit_covariance, Evidence, IMPLAUSIBLE};
 use super::gauges::centre_gauges;
 use super::problem::{active_dims, Act, Prior, Problem};
 use super::selection::Selection;
-use super::{effect_spec, point_ids, CheckOptions};
-use crate::candidates::local_effect;
+use super::{effect_spec, known_sensor_masses, CheckOptions};
 use crate::error::CheckError;
 use crate::lm::Fit;
 use crate::locate::{bands, residual_map};
@@ -20,6 +19,8 @@ use crate::report::{
 use crate::{ModelCheckReport, RecordingNoise};
 use nalgebra::DMatrix;
 use rbprops_core::c64;
+use rbprops_sim::effects::gains::GlobalGain;
+use rbprops_sim::effects::mass::SensorMass;
 use rbprops_sim::effects::Effect;
 use rbprops_sim::CampaignSpec;
 
@@ -259,7 +260,7 @@ pub fn verdict(r: &ModelCheckReport) -> String {
         ));
     }
     for n in &r.not_observable {
-        if n.id == "global_gain" || n.id == "sensor_mass" {
+        if n.id == GlobalGain::ID || n.id == SensorMass::ID {
             parts.push(format!(
                 "cannot be seen: {} ({}; would need {})",
                 n.title, n.reason, n.would_reveal
@@ -631,15 +632,8 @@ impl<'p, 'a> Finish<'p, 'a> {
         drop(fx);
         improved_spec.effects.extend(improved_effects);
         if !options.sensor_masses_kg.is_empty() {
-            let pids = point_ids(&p.layout.spec_geometry);
-            let mut vals = vec![0.0; pids.len()];
-            for (pid, m) in &options.sensor_masses_kg {
-                if let Some(k) = pids.iter().position(|p| p == pid) {
-                    vals[k] = *m;
-                }
-            }
-            let e = local_effect("sensor_mass", spec, &vals).map_err(CheckError::Model)?;
-            improved_spec.effects.push(effect_spec(e.as_ref(), spec)?);
+            let e = known_sensor_masses(options, p.layout)?;
+            improved_spec.effects.push(effect_spec(&e, spec)?);
         }
         for e in &improved_spec.effects {
             if rbprops_sim::effects::parse_effect(e).is_err() {

@@ -13,18 +13,9 @@ fn explore() {
     let mut truth = nom.clone();
     truth.body.mass_kg *= 1.02;
     let effects: Vec<(&str, Vec<f64>)> = match eff.as_str() {
+        // The check's local gravity form (φ = 1/ℓ, load factor, tilts, spring turn); the
+        // other effects through the catalogue (`s…` below).
         "gravity" => vec![("gravity_stiffness", vec![1.0, 1.0, 0.0, 0.0, 0.0])],
-        "gain" => vec![(
-            "channel_gain",
-            vec![0.0, 0.03, 0.0, 0.0, 0.0, -0.02, 0.0, 0.0, 0.0],
-        )],
-        "misor" => vec![(
-            "sensor_misorientation",
-            vec![0.0, 0.0, 0.0, 0.03, -0.02, 0.04, 0.0, 0.0, 0.0],
-        )],
-        "dash" => vec![("nonproportional_damping", vec![5.0, 5.0, 20.0])],
-        "smass" => vec![("sensor_mass", vec![0.1, 0.1, 0.1])],
-        "global" => vec![("global_gain", vec![0.03])],
         _ => vec![],
     };
     let sim_eff: Vec<&str> = match eff.as_str() {

@@ -679,9 +679,14 @@ impl CordMass {
     }
 }
 
+impl CordMass {
+    /// The catalogue id (the spec's `id = "cord_mass"`).
+    pub const ID: &'static str = "cord_mass";
+}
+
 impl Effect for CordMass {
     fn id(&self) -> &'static str {
-        "cord_mass"
+        Self::ID
     }
     /// After every other structure effect: the reduction must see the final M and K.
     fn order(&self) -> u8 {
@@ -784,7 +789,7 @@ fn parse_cord_mass(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Effect>, St
 /// This module's effects in the physics catalogue ([`super::registry`]).
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "cord_mass",
+        id: CordMass::ID,
         rank: 17,
         title: "mass and string / surge modes of the suspension cords",
         reveal: "the cords' mass and length, or a suspension with lighter or shorter cords",

@@ -197,9 +197,14 @@ fn per_spring_lists_fit(
     Ok(())
 }
 
+impl NonproportionalDamping {
+    /// The catalogue id (the spec's `id = "nonproportional_damping"`).
+    pub const ID: &'static str = "nonproportional_damping";
+}
+
 impl Effect for NonproportionalDamping {
     fn id(&self) -> &'static str {
-        "nonproportional_damping"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let info = |name: String| super::positive_info(name, "N s/m", (0.0, 20.0));
@@ -331,9 +336,14 @@ pub struct HystereticDamping {
     pub loss_factors: Vec<f64>,
 }
 
+impl HystereticDamping {
+    /// The catalogue id (the spec's `id = "hysteretic_damping"`).
+    pub const ID: &'static str = "hysteretic_damping";
+}
+
 impl Effect for HystereticDamping {
     fn id(&self) -> &'static str {
-        "hysteretic_damping"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         (0..self.loss_factors.len())
@@ -562,7 +572,7 @@ fn plausible_hysteretic(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "nonproportional_damping",
+        id: NonproportionalDamping::ID,
         rank: 7,
         title: "non-proportional damping at the suspension",
         reveal: "a second record length or window (separates processing damping)",
@@ -574,7 +584,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: None,
     },
     super::EffectDescriptor {
-        id: "hysteretic_damping",
+        id: HystereticDamping::ID,
         rank: 22,
         title: "hysteretic (loss-factor) damping of the mounts (rubber, bungee)",
         reveal: "data well below the suspension modes (a loss constant in frequency, where a dashpot's vanishes), or the mounts' measured loss factors",

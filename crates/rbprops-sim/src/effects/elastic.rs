@@ -36,9 +36,14 @@ pub struct ElasticMode {
     pub excitations: BTreeMap<String, f64>,
 }
 
+impl ElasticMode {
+    /// The catalogue id (the spec's `id = "elastic_mode"`).
+    pub const ID: &'static str = "elastic_mode";
+}
+
 impl Effect for ElasticMode {
     fn id(&self) -> &'static str {
-        "elastic_mode"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let shape = |name: String| super::unbounded_info(name, "1/sqrt(kg)", (-0.5, 0.5));
@@ -181,7 +186,7 @@ fn highest_rigid_mode_hz(spec: &CampaignSpec) -> f64 {
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "elastic_mode",
+        id: ElasticMode::ID,
         rank: 6,
         title: "elastic mode (a resonance the rigid-body model lacks, in or above the band)",
         reveal: "more sensors or a roving hammer to map its shape, or a band that stops below it",

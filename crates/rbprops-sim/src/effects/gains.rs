@@ -40,9 +40,14 @@ pub struct ChannelGain {
     pub gains: BTreeMap<String, f64>,
 }
 
+impl ChannelGain {
+    /// The catalogue id (the spec's `id = "channel_gain"`).
+    pub const ID: &'static str = "channel_gain";
+}
+
 impl Effect for ChannelGain {
     fn id(&self) -> &'static str {
-        "channel_gain"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
@@ -90,9 +95,14 @@ pub struct ExcitationGain {
     pub gains: BTreeMap<String, f64>,
 }
 
+impl ExcitationGain {
+    /// The catalogue id (the spec's `id = "excitation_gain"`).
+    pub const ID: &'static str = "excitation_gain";
+}
+
 impl Effect for ExcitationGain {
     fn id(&self) -> &'static str {
-        "excitation_gain"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         super::map_info("gains", &self.gains, "1", GAIN_PLAUSIBLE)
@@ -142,9 +152,14 @@ pub struct GlobalGain {
     pub gain: f64,
 }
 
+impl GlobalGain {
+    /// The catalogue id (the spec's `id = "global_gain"`).
+    pub const ID: &'static str = "global_gain";
+}
+
 impl Effect for GlobalGain {
     fn id(&self) -> &'static str {
-        "global_gain"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         vec![super::positive_info("gain".into(), "1", GAIN_PLAUSIBLE)]
@@ -228,7 +243,7 @@ fn gains_pct(what: &str, gains: &BTreeMap<String, f64>) -> Vec<super::Plausible>
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "channel_gain",
+        id: ChannelGain::ID,
         rank: 2,
         title: "per-channel calibration error",
         reveal: "a back-to-back calibration of the channels",
@@ -242,7 +257,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_channel_gain),
     },
     super::EffectDescriptor {
-        id: "excitation_gain",
+        id: ExcitationGain::ID,
         rank: 3,
         title: "force-gauge sensitivity error per excitation",
         reveal: "a hammer calibration against a known mass",
@@ -257,7 +272,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_excitation_gain),
     },
     super::EffectDescriptor {
-        id: "global_gain",
+        id: GlobalGain::ID,
         rank: 4,
         title: "global calibration error",
         reveal: "a weighed mass (--weighed-mass) or a calibration against a known mass",

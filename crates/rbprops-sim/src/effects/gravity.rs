@@ -541,9 +541,14 @@ fn per_item(v: &[f64], n: usize) -> Vec<f64> {
     }
 }
 
+impl GravityStiffness {
+    /// The catalogue id (the spec's `id = "gravity_stiffness"`).
+    pub const ID: &'static str = "gravity_stiffness";
+}
+
 impl Effect for GravityStiffness {
     fn id(&self) -> &'static str {
-        "gravity_stiffness"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let mut p = super::list_info("cord_length_m", "m", self.cord_length_m.len(), (0.2, 3.0));
@@ -705,7 +710,7 @@ fn plausible_gravity(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "gravity_stiffness",
+        id: GravityStiffness::ID,
         rank: 0,
         title: "gravity (pendulum) stiffness of the suspension",
         reveal: "a second suspension length, or the measured cord geometry",

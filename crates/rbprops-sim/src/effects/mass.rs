@@ -46,9 +46,14 @@ impl SensorMass {
     }
 }
 
+impl SensorMass {
+    /// The catalogue id (the spec's `id = "sensor_mass"`).
+    pub const ID: &'static str = "sensor_mass";
+}
+
 impl Effect for SensorMass {
     fn id(&self) -> &'static str {
-        "sensor_mass"
+        Self::ID
     }
     fn order(&self) -> u8 {
         0
@@ -133,9 +138,14 @@ impl AddedMass {
     }
 }
 
+impl AddedMass {
+    /// The catalogue id (the spec's `id = "added_mass"`).
+    pub const ID: &'static str = "added_mass";
+}
+
 impl Effect for AddedMass {
     fn id(&self) -> &'static str {
-        "added_mass"
+        Self::ID
     }
     fn order(&self) -> u8 {
         0
@@ -272,7 +282,7 @@ fn plausible_added_mass(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "sensor_mass",
+        id: SensorMass::ID,
         rank: 1,
         title: "sensor mass",
         reveal: "known sensor masses (--sensor-mass) or a run with the sensors moved",
@@ -286,7 +296,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_sensor_mass),
     },
     super::EffectDescriptor {
-        id: "added_mass",
+        id: AddedMass::ID,
         rank: 20,
         title: "added mass without a rigid body's structure (air on large faces, fluid, a loose part)",
         reveal: "a test in a lighter fluid or vacuum, or the article's face areas (potential-flow added mass ≈ (8/3)ρR³ per face)",

@@ -78,9 +78,14 @@ fn zero3() -> [f64; 3] {
     [0.0; 3]
 }
 
+impl SuspensionCoupling {
+    /// The catalogue id (the spec's `id = "suspension_coupling"`).
+    pub const ID: &'static str = "suspension_coupling";
+}
+
 impl Effect for SuspensionCoupling {
     fn id(&self) -> &'static str {
-        "suspension_coupling"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let rotational = ["x", "y", "z"].map(|a| {
@@ -148,9 +153,14 @@ pub struct SuspensionDrift {
     pub stiffness_factors: BTreeMap<String, f64>,
 }
 
+impl SuspensionDrift {
+    /// The catalogue id (the spec's `id = "suspension_drift"`).
+    pub const ID: &'static str = "suspension_drift";
+}
+
 impl Effect for SuspensionDrift {
     fn id(&self) -> &'static str {
-        "suspension_drift"
+        Self::ID
     }
     /// After the effects that build the stiffness it scales.
     fn order(&self) -> u8 {
@@ -228,9 +238,14 @@ impl StingerStiffness {
     }
 }
 
+impl StingerStiffness {
+    /// The catalogue id (the spec's `id = "stinger_stiffness"`).
+    pub const ID: &'static str = "stinger_stiffness";
+}
+
 impl Effect for StingerStiffness {
     fn id(&self) -> &'static str {
-        "stinger_stiffness"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let mut v = super::map_info(
@@ -318,9 +333,14 @@ impl StingerAxialStiffness {
     }
 }
 
+impl StingerAxialStiffness {
+    /// The catalogue id (the spec's `id = "stinger_axial_stiffness"`).
+    pub const ID: &'static str = "stinger_axial_stiffness";
+}
+
 impl Effect for StingerAxialStiffness {
     fn id(&self) -> &'static str {
-        "stinger_axial_stiffness"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         super::map_info("axial_n_per_m", &self.axial_n_per_m, "N/m", (0.0, 5000.0))
@@ -401,7 +421,7 @@ fn plausible_drift(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "suspension_coupling",
+        id: SuspensionCoupling::ID,
         rank: 16,
         title: "suspension rotational / lateral coupling stiffness",
         reveal: "a second suspension length, or the mount's measured stiffness",
@@ -416,7 +436,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: None,
     },
     super::EffectDescriptor {
-        id: "suspension_drift",
+        id: SuspensionDrift::ID,
         rank: 19,
         title: "suspension drift between runs (creep, temperature)",
         reveal: "repeated runs of one excitation, or the suspension modes measured before and after each run",
@@ -430,7 +450,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_drift),
     },
     super::EffectDescriptor {
-        id: "stinger_stiffness",
+        id: StingerStiffness::ID,
         rank: 21,
         title: "lateral stiffness of a shaker stinger (present only while that shaker drives)",
         reveal: "a run of that excitation by hammer, or the stinger's lateral stiffness (12EI/L³)",
@@ -442,7 +462,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: None,
     },
     super::EffectDescriptor {
-        id: "stinger_axial_stiffness",
+        id: StingerAxialStiffness::ID,
         rank: 23,
         title: "axial stiffness of a shaker's armature suspension, felt through the stinger (present only while that shaker drives)",
         reveal: "a force gauge at the stinger's tip (it measures the spring's force), or a run of that excitation by hammer",

@@ -33,9 +33,14 @@ pub fn rotation(psi: &Vec3) -> Mat3 {
     nalgebra::Rotation3::new(*psi).into_inner()
 }
 
+impl SensorMisorientation {
+    /// The catalogue id (the spec's `id = "sensor_misorientation"`).
+    pub const ID: &'static str = "sensor_misorientation";
+}
+
 impl Effect for SensorMisorientation {
     fn id(&self) -> &'static str {
-        "sensor_misorientation"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         SENSOR_ROTATIONS.info(&self.rotations_rad)
@@ -105,7 +110,7 @@ fn plausible_misorientation(
 }
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescriptor {
-    id: "sensor_misorientation",
+    id: SensorMisorientation::ID,
     rank: 5,
     title: "sensor misorientation",
     reveal: "a rotation check of each triaxial sensor",

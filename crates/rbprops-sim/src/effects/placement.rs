@@ -61,9 +61,14 @@ pub struct SensorPosition {
     pub offsets_m: BTreeMap<String, [f64; 3]>,
 }
 
+impl SensorPosition {
+    /// The catalogue id (the spec's `id = "sensor_position"`).
+    pub const ID: &'static str = "sensor_position";
+}
+
 impl Effect for SensorPosition {
     fn id(&self) -> &'static str {
-        "sensor_position"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         SENSOR_OFFSETS.info(&self.offsets_m)
@@ -113,9 +118,14 @@ pub struct ForceDirection {
     pub rotations_rad: BTreeMap<String, [f64; 3]>,
 }
 
+impl ForceDirection {
+    /// The catalogue id (the spec's `id = "force_direction"`).
+    pub const ID: &'static str = "force_direction";
+}
+
 impl Effect for ForceDirection {
     fn id(&self) -> &'static str {
-        "force_direction"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         FORCE_ROTATIONS.info(&self.rotations_rad)
@@ -167,9 +177,14 @@ pub struct ForceLocation {
     pub offsets_m: BTreeMap<String, [f64; 3]>,
 }
 
+impl ForceLocation {
+    /// The catalogue id (the spec's `id = "force_location"`).
+    pub const ID: &'static str = "force_location";
+}
+
 impl Effect for ForceLocation {
     fn id(&self) -> &'static str {
-        "force_location"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         FORCE_OFFSETS.info(&self.offsets_m)
@@ -219,9 +234,14 @@ pub struct ForceGaugeMass {
     pub masses_kg: BTreeMap<String, f64>,
 }
 
+impl ForceGaugeMass {
+    /// The catalogue id (the spec's `id = "force_gauge_mass"`).
+    pub const ID: &'static str = "force_gauge_mass";
+}
+
 impl Effect for ForceGaugeMass {
     fn id(&self) -> &'static str {
-        "force_gauge_mass"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         super::map_info("masses_kg", &self.masses_kg, "kg", (0.0, 0.02))
@@ -318,7 +338,7 @@ fn plausible_force_gauge_mass(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "sensor_position",
+        id: SensorPosition::ID,
         rank: 10,
         title: "sensor position error",
         reveal: "a measured sensor layout (or a second sensor layout)",
@@ -332,7 +352,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_sensor_position),
     },
     super::EffectDescriptor {
-        id: "force_direction",
+        id: ForceDirection::ID,
         rank: 11,
         title: "force direction error",
         reveal: "more excitations than six, or a force direction check",
@@ -346,7 +366,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_force_direction),
     },
     super::EffectDescriptor {
-        id: "force_location",
+        id: ForceLocation::ID,
         rank: 12,
         title: "force location error",
         reveal: "marked impact points, or more excitations than six",
@@ -360,7 +380,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_force_location),
     },
     super::EffectDescriptor {
-        id: "force_gauge_mass",
+        id: ForceGaugeMass::ID,
         rank: 13,
         title: "mass below the force gauge",
         reveal: "a known mass calibration of the hammer or shaker",

@@ -44,9 +44,14 @@ impl ExponentialWindow {
     }
 }
 
+impl ExponentialWindow {
+    /// The catalogue id (the spec's `id = "exponential_window"`).
+    pub const ID: &'static str = "exponential_window";
+}
+
 impl Effect for ExponentialWindow {
     fn id(&self) -> &'static str {
-        "exponential_window"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         vec![if self.time_constant_s.is_some() {
@@ -101,9 +106,14 @@ pub struct RecordTruncation {
     pub record_length_s: f64,
 }
 
+impl RecordTruncation {
+    /// The catalogue id (the spec's `id = "record_truncation"`).
+    pub const ID: &'static str = "record_truncation";
+}
+
 impl Effect for RecordTruncation {
     fn id(&self) -> &'static str {
-        "record_truncation"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         vec![super::positive_info(
@@ -150,7 +160,7 @@ impl Effect for RecordTruncation {
 /// This module's effects in the physics catalogue ([`super::registry`]).
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "exponential_window",
+        id: ExponentialWindow::ID,
         rank: 8,
         title: "exponential window (processing damping)",
         reveal: "the window used, or a second record length / window",
@@ -162,7 +172,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: None,
     },
     super::EffectDescriptor {
-        id: "record_truncation",
+        id: RecordTruncation::ID,
         rank: 9,
         title: "record truncation (leakage)",
         reveal: "the record length, or a longer record",

@@ -50,9 +50,14 @@ impl TransducerHighpass {
     }
 }
 
+impl TransducerHighpass {
+    /// The catalogue id (the spec's `id = "transducer_highpass"`).
+    pub const ID: &'static str = "transducer_highpass";
+}
+
 impl Effect for TransducerHighpass {
     fn id(&self) -> &'static str {
-        "transducer_highpass"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         super::common_and_map_info(
@@ -126,9 +131,14 @@ pub struct SensorTiltGravity {
     pub up: [f64; 3],
 }
 
+impl SensorTiltGravity {
+    /// The catalogue id (the spec's `id = "sensor_tilt_gravity"`).
+    pub const ID: &'static str = "sensor_tilt_gravity";
+}
+
 impl Effect for SensorTiltGravity {
     fn id(&self) -> &'static str {
-        "sensor_tilt_gravity"
+        Self::ID
     }
     fn order(&self) -> u8 {
         2
@@ -197,9 +207,14 @@ pub struct ChannelDelay {
 /// line spacing a rigid-body test uses).
 const MAX_DELAY_S: f64 = 1.0;
 
+impl ChannelDelay {
+    /// The catalogue id (the spec's `id = "channel_delay"`).
+    pub const ID: &'static str = "channel_delay";
+}
+
 impl Effect for ChannelDelay {
     fn id(&self) -> &'static str {
-        "channel_delay"
+        Self::ID
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         let info = |name: String| super::symmetric_info(name, "s", MAX_DELAY_S, 1e-3);
@@ -323,7 +338,7 @@ fn plausible_delay(
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
-        id: "transducer_highpass",
+        id: TransducerHighpass::ID,
         rank: 14,
         title: "transducer / acquisition high-pass",
         reveal: "the channels' time constants, or data below the suspension modes",
@@ -335,7 +350,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_highpass),
     },
     super::EffectDescriptor {
-        id: "sensor_tilt_gravity",
+        id: SensorTiltGravity::ID,
         rank: 15,
         title: "gravity seen by tilting accelerometers",
         reveal: "data well below the suspension modes, or a rotation sensor",
@@ -353,7 +368,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: None,
     },
     super::EffectDescriptor {
-        id: "channel_delay",
+        id: ChannelDelay::ID,
         rank: 18,
         title: "acquisition delay per channel (ADC skew, filter group delay)",
         reveal: "a loop-back calibration of each channel's delay against the force channel",
