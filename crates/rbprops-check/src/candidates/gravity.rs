@@ -18,15 +18,15 @@ pub(super) fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
     spec.setups
         .iter()
         .enumerate()
-        .any(|(i, s)| s.cords.is_empty() && !s.springs.is_empty() && !splayed_springs(spec, i))
+        .any(|(i, s)| s.cords.is_empty() && !s.springs.is_empty() && !axial_springs_hang(spec, i))
         && free_direction_note(spec, g).is_none()
 }
 
-/// Set-up `i`'s springs are splayed cords written as axial springs (rbprops-sim's
-/// [`rbprops_sim::effects::gravity::splayed_spring_cords`]): the gravity candidate hangs
+/// Set-up `i`'s springs are cords written as axial springs (rbprops-sim's
+/// [`rbprops_sim::effects::gravity::axial_spring_cords`]): the gravity candidate hangs
 /// the body on them as on cords.
-fn splayed_springs(spec: &CampaignSpec, i: usize) -> bool {
-    rbprops_sim::effects::gravity::splayed_spring_cords(
+fn axial_springs_hang(spec: &CampaignSpec, i: usize) -> bool {
+    rbprops_sim::effects::gravity::axial_spring_cords(
         spec,
         i,
         &spec.properties().mass_matrix().0,
@@ -76,7 +76,7 @@ pub(super) fn gravity_stiffness(
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
         return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
     }
-    if let Some((cords, springs)) = rbprops_sim::effects::gravity::splayed_spring_cords(
+    if let Some((cords, springs)) = rbprops_sim::effects::gravity::axial_spring_cords(
         ctx.spec,
         ctx.setup_index,
         &model.mass,
@@ -84,8 +84,9 @@ pub(super) fn gravity_stiffness(
         &z,
         |_| 1.0,
     ) {
-        // Splayed cords written as axial springs: hung like the set-up's cords above,
-        // at 1 m (φ₁ scales the tension part to the fitted length).
+        // Cords written as axial springs (vertical or splayed): hung like the set-up's
+        // cords above, at 1 m (φ₁ scales the tension part to the fitted length), their
+        // axes turned with the tilted vertical (φ₃, φ₄).
         let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
             &model.mass,
             &cords,

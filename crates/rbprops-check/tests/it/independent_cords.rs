@@ -198,10 +198,35 @@ fn mean_hanging_length(cords: &[CordSpec], truth: &serde_json::Value) -> f64 {
         / cords.len() as f64
 }
 
+/// The nominal as testers write a cord suspension: each cord its axial spring `k e eᵀ`
+/// along the cord at its attachment (e toward the anchor), no cords, no gravity.
+fn as_axial_springs(cords: &[CordSpec]) -> Vec<rbprops_sim::spec::SpringSpec> {
+    cords
+        .iter()
+        .map(|c| {
+            let d: Vec<f64> = (0..3).map(|i| c.anchor_m[i] - c.at_m[i]).collect();
+            let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let e: Vec<f64> = d.iter().map(|x| x / n).collect();
+            let k = c.axial_stiffness_n_per_m;
+            rbprops_sim::spec::SpringSpec {
+                at_m: c.at_m,
+                stiffness_n_per_m: None,
+                stiffness_matrix_n_per_m: Some(std::array::from_fn(|i| {
+                    std::array::from_fn(|j| k * e[i] * e[j])
+                })),
+            }
+        })
+        .collect()
+}
+
 /// Cords with gravity against the nominal cords without it (which leave three
 /// directions free), mass 2 % off in the nominal: the check names `gravity_stiffness`,
-/// fits the mean hanging length, and the refit reaches the noise band.
-fn cords_case(splayed: bool) {
+/// fits the mean hanging length, and the refit reaches the noise band. With
+/// `as_springs` the nominal gives the cords as their axial springs ([`as_axial_springs`]),
+/// as testers write them: the body, whose centre of mass is not under the cords'
+/// centroid, hangs tilted, so the springs' axes lean in the body's axes; the gravity
+/// effect's tilted vertical turns them (docs/physics.md, E1).
+fn cords_case(splayed: bool, as_springs: bool) {
     let Some(py) = python(NUMPY_PYUFF) else {
         return;
     };
@@ -214,6 +239,10 @@ fn cords_case(splayed: bool) {
     let (g, frf, truth) = refgen(&py, &format!("c{splayed}"), &case, &truth_spec);
     let mut nominal = truth_spec.clone();
     nominal.body.mass_kg *= 1.02;
+    if as_springs {
+        nominal.setups[0].springs = as_axial_springs(&truth_spec.setups[0].cords);
+        nominal.setups[0].cords.clear();
+    }
     let t0 = std::time::Instant::now();
     let opts = CheckOptions {
         progress: rbprops_check::Progress::new(|s| eprintln!("  check: {s}")),
@@ -294,12 +323,33 @@ fn cords_case(splayed: bool) {
 // the only effect named in both.
 #[test]
 fn parallel_cords_with_gravity_are_named_and_fitted() {
-    cords_case(false);
+    cords_case(false, false);
+}
+
+/// Vertical cords written as vertical axial springs: before they were read as cords
+/// hanging in the drawn pose, the body's tilt at equilibrium (its axial stiffness turned
+/// by a few mrad) was taken up by false `force_direction` and `sensor_misorientation`
+/// (χ²/ν 2.1 on the reference generator's study seed 6015).
+#[test]
+fn parallel_cords_written_as_springs_are_named_and_fitted() {
+    cords_case(false, true);
+}
+
+/// Open (issue #37): splayed cords of unequal unstretched lengths written as springs. The
+/// gravity effect hangs the body on cords of one length along the springs' axes, with
+/// tensions from the balance in the drawn pose; the truth's cords end in one ceiling
+/// plane and their unequal lengths move the body. Measured: `gravity_stiffness` then
+/// `sensor_misorientation`, `force_direction`, `elastic_mode` and a position family
+/// claimed falsely, χ²/ν 303 084 → 257, 150 s (release).
+#[test]
+#[ignore = "open: splayed cords written as springs fill the unmodelled lengths with false effects (#37)"]
+fn splayed_cords_written_as_springs_are_named_and_fitted() {
+    cords_case(true, true);
 }
 
 #[test]
 fn splayed_cords_with_gravity_are_named_and_fitted() {
-    cords_case(true);
+    cords_case(true, false);
 }
 
 /// Free–free null: no suspension in the recording nor in the nominal model (six

@@ -400,11 +400,6 @@ pub fn hanging_equilibrium(
     })
 }
 
-/// Smallest tilt from `up` (rad) at which an axial spring is read as a splayed cord
-/// ([`splayed_spring_cords`]): 1°, well above the rounding of a direction written to
-/// four decimals and below any splay a tester builds on purpose.
-pub const SPLAY_MIN_RAD: f64 = 0.0175;
-
 /// A spring's axis and axial stiffness when it is axial (a cord or a coil spring written
 /// as `k e eᵀ`): its other two stiffnesses below 1e-6 of the largest. The axis points
 /// up (`e · up ≥ 0`).
@@ -419,19 +414,22 @@ pub fn axial_spring(k: &Mat3, up: &Vec3) -> Option<(Vec3, f64)> {
     Some((if e.dot(up) < 0.0 { -e } else { e }, kmax))
 }
 
-/// Set-up `i`'s springs read as splayed cords, when its springs are written as the
-/// cords' axial springs (`k e eᵀ` along each cord, as testers write a suspension) and
-/// at least one leans more than [`SPLAY_MIN_RAD`] from `up`: every axial spring within
-/// 60° of `up` becomes a cord from its attachment along its axis, of length `length(j)`
-/// (j its index among the cords), its tension `T` from the static balance of the body
-/// (mass matrix `mass`) in the spec's pose and its unstretched length `ℓ − T/k`; the
-/// other springs stay springs. A gravity direction `up` other than the spec's turns the
-/// cords with it (the body rests tilted from the spec's drawing). The balance is the elastic solution `T = K_d Aᵀ w` of
-/// `A T = W` (A the cords' unit wrenches, W the weight's, K_d their stiffnesses): the
-/// small rigid displacement `w` that loads them, least squares where the spec's pose is
-/// not quite an equilibrium (the hanging equilibrium then moves the body there). `None`
-/// when the set-up has cords of its own, no such spring, or a cord would be slack.
-pub fn splayed_spring_cords(
+/// Set-up `i`'s springs read as cords, when they are written as the cords' axial springs
+/// (`k e eᵀ` along each cord, vertical or splayed, as testers write a suspension): every
+/// axial spring within 60° of `up` becomes a cord from its attachment along its axis, of
+/// length `length(j)` (j its index among the cords), its tension `T` from the static
+/// balance of the body (mass matrix `mass`) in the spec's pose and its unstretched length
+/// `ℓ − T/k`; the other springs stay springs. A gravity direction `up` other than the
+/// spec's turns the cords with it: the body rests tilted from the spec's drawing (a centre
+/// of mass off the cords' centroid stretches them unequally), so the cords, vertical in
+/// the room, lean in the body's axes and their axial stiffness turns with them, coupling
+/// bounce and sway (`Rᵀ k R − k`, of order ψ·k). The balance is the elastic solution
+/// `T = K_d Aᵀ w` of `A T = W` (A the cords' unit wrenches, W the weight's, K_d their
+/// stiffnesses): the small rigid displacement `w` that loads them, least squares where
+/// the spec's pose is not quite an equilibrium (the hanging equilibrium then moves the
+/// body there). `None` when the set-up has cords of its own, no axial spring, or a cord
+/// would be slack.
+pub fn axial_spring_cords(
     spec: &CampaignSpec,
     i: usize,
     mass: &Mat6,
@@ -452,17 +450,15 @@ pub fn splayed_spring_cords(
         .unwrap_or_else(Mat3::identity);
     let mut cords: Vec<(Vec3, Vec3, f64)> = Vec::new();
     let mut springs = Vec::new();
-    let mut splayed = false;
     for s in spec.plain_springs(i) {
         match axial_spring(&s.stiffness, &spec_up) {
             Some((e, k)) if e.dot(&spec_up) > 0.5 => {
-                splayed |= e.dot(&spec_up) < SPLAY_MIN_RAD.cos();
                 cords.push((s.at, turn * e, k));
             }
             _ => springs.push(s),
         }
     }
-    if !splayed {
+    if cords.is_empty() {
         return None;
     }
     let mm = MassMatrix6(*mass);
@@ -642,7 +638,7 @@ impl Effect for GravityStiffness {
             return Ok(());
         }
         let lengths = self.lengths(ctx.spec.springs(ctx.setup_index).len());
-        if let Some((cords, springs)) = splayed_spring_cords(
+        if let Some((cords, springs)) = axial_spring_cords(
             ctx.spec,
             ctx.setup_index,
             &model.mass,
@@ -650,7 +646,7 @@ impl Effect for GravityStiffness {
             &up,
             |j| lengths.get(j).copied().unwrap_or(lengths[0]),
         ) {
-            // Splayed cords written as axial springs: the body hangs on them.
+            // Cords written as axial springs: the body hangs on them.
             let eq = hanging_equilibrium(&model.mass, &cords, &springs, self.g_m_per_s2, &up)
                 .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
             model.stiffness += eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
@@ -714,7 +710,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         rank: 0,
         title: "gravity (pendulum) stiffness of the suspension",
         reveal: "a second suspension length, or the measured cord geometry",
-        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs leaning from `up`, as splayed cords are written: cords along their axes, tensions from the static balance), or the set-up's cords hanging at their static equilibrium",
+        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance), or the set-up's cords hanging at their static equilibrium",
         parse: parse_gravity_stiffness,
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: true,
