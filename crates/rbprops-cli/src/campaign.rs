@@ -604,7 +604,7 @@ pub fn run_item(
     rel: &str,
     opts: &CampaignOptions,
     runs: Option<&Path>,
-) -> Result<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> {
+) -> Result<(Vec<SummaryRow>, Vec<crate::warnings::Diagnostic>)> {
     let mut read_warnings = Vec::new();
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
@@ -680,20 +680,20 @@ pub fn run_item(
         rbprops_formats::write_path(&rec, &dir.join(RUN_FILE))?;
     }
     let mut warnings = crate::warnings::Collector::default();
-    warnings.extend("read", &read_warnings);
-    for w in crate::warnings::from_record(&rec)? {
-        warnings.add(w);
+    for d in read_warnings {
+        warnings.add_from("read", d);
     }
+    warnings.extend(crate::warnings::from_record(&rec)?);
     Ok((rows, warnings.items))
 }
 
-/// What one item gave: its summary rows and its warnings (texts prefixed by its label).
+/// What one item gave: its summary rows and its diagnostics (subject: its label).
 #[derive(Debug, Clone)]
 pub struct ItemOutcome {
     /// The item's summary rows (one row with method `error` when its pipeline failed).
     pub rows: Vec<SummaryRow>,
-    /// The item's warnings, each text prefixed by the item's label.
-    pub warnings: Vec<crate::warnings::StageWarning>,
+    /// The item's diagnostics, each naming the item's label as its recording.
+    pub warnings: Vec<crate::warnings::Diagnostic>,
 }
 
 impl ItemOutcome {
@@ -714,7 +714,7 @@ impl ItemOutcome {
 pub struct CampaignResult {
     /// One summary row per estimate of every item.
     pub rows: Vec<SummaryRow>,
-    /// Every item's warnings, each text prefixed by the item's label, in item order.
+    /// Every item's diagnostics, each naming the item's label as its recording, in item order.
     pub warnings: crate::warnings::Collector,
     /// Items whose pipeline failed (one row with method `error`).
     pub failed: usize,
@@ -776,8 +776,8 @@ pub fn run_items(
                 };
                 (vec![row], Vec::new())
             });
-            for w in &mut warnings {
-                w.text = format!("{rel}: {}", w.text);
+            for d in &mut warnings {
+                d.subject.recording = Some(rel.clone());
             }
             progress.inc(1);
             ItemOutcome { rows, warnings }

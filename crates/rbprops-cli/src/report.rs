@@ -292,8 +292,11 @@ pub fn run_section(
     let check = record
         .get_one(topics::MODEL_CHECK)
         .unwrap_or_else(|e| {
-            warnings.push(crate::warnings::StageWarning::new(
+            warnings.push(crate::warnings::Diagnostic::new(
                 "report",
+                crate::warnings::DiagnosticKind::Text,
+                crate::warnings::Severity::Warning,
+                Default::default(),
                 format!("the model check's report could not be read ({e:#}); its verdict is in the summary table"),
             ));
             None

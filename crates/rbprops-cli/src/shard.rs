@@ -21,7 +21,7 @@
 //! shard's `summary.csv` against its manifest).
 
 use crate::campaign::{self, CampaignOptions, Item, ItemOutcome};
-use crate::warnings::{Collector, StageWarning};
+use crate::warnings::{Collector, Diagnostic};
 use anyhow::{anyhow, bail, Context, Result};
 use rbprops_formats::atomic::CAMPAIGN_MANIFEST;
 use rbprops_formats::FormatError;
@@ -161,8 +161,8 @@ pub struct ItemRecord {
     pub failed: bool,
     /// True when its model check failed.
     pub check_failed: bool,
-    /// Its warnings, texts prefixed by its label.
-    pub warnings: Vec<StageWarning>,
+    /// Its diagnostics, each naming its label as the recording.
+    pub warnings: Vec<Diagnostic>,
 }
 
 /// The manifest of a shard's (or a merged campaign's) directory.

@@ -52,7 +52,8 @@ pub struct SummaryRow {
     pub err_sum: Option<f64>,
     /// Mode numbers used, space separated.
     pub modes: String,
-    /// The estimate's warnings, joined by ` | `.
+    /// The estimate's diagnostics that may change the answer (not its notes), each as
+    /// one line, joined by ` | `.
     pub warnings: String,
     /// Model check against the nominal spec (campaigns with `nominal`; empty otherwise):
     /// the effects it names (accepted ids, ambiguous families as `a/b`).
@@ -110,7 +111,13 @@ impl SummaryRow {
                 .map(|m| m.to_string())
                 .collect::<Vec<_>>()
                 .join(" "),
-            warnings: e.warnings.join(" | "),
+            warnings: e
+                .diagnostics
+                .iter()
+                .filter(|d| crate::warnings::shown_by_default(d))
+                .map(|d| d.line())
+                .collect::<Vec<_>>()
+                .join(" | "),
             ..Default::default()
         }
     }

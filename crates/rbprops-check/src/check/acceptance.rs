@@ -128,8 +128,11 @@ impl<'p, 'a> Selection<'p, 'a> {
             let f = match f {
                 Ok(f) => f,
                 Err(e) => {
-                    self.warnings
-                        .push(format!("refit of '{}' failed: {e}", p.cands[c].id));
+                    self.warnings.push(diagnostic(
+                        DiagnosticKind::CheckRefitFailed,
+                        Severity::Warning,
+                        format!("refit of '{}' failed: {e}", p.cands[c].id),
+                    ));
                     continue;
                 }
             };

@@ -15,6 +15,7 @@ use crate::predict::{predict, Layout};
 use crate::report::*;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
 use rbprops_core::stats::chi2_isf;
 use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
 use rbprops_sim::effects::Effect;
@@ -382,7 +383,7 @@ fn weights(
     options: &CheckOptions,
     noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
     method: &mut Vec<String>,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
 ) -> Result<Weights, CheckError> {
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
@@ -466,9 +467,9 @@ fn weights(
         }
     }
     if n_dc > 0 {
-        warnings.push(format!(
+        warnings.push(diagnostic(DiagnosticKind::NoNoiseInformation, Severity::Note, format!(
             "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
-        ));
+        )));
     }
     let mut noise_model = noise_model;
     // The second pass takes the correlation the first found in its residual.
@@ -489,7 +490,15 @@ fn weights(
         let w = d.describe(line_spacing(frf));
         // Said at once: without a calibrated weighting the selection can run long.
         options.progress.say(|| format!("warning: {w}"));
-        warnings.push(w);
+        // Handled when the window is declared (its τ weighs the lines): a note; read from
+        // the data alone it is what an undeclared window leaves: a warning.
+        let declared = given_lines.is_some_and(|lv| lv.window_time_constant_s.is_some());
+        let severity = if declared {
+            Severity::Note
+        } else {
+            Severity::Warning
+        };
+        warnings.push(diagnostic(DiagnosticKind::CorrelatedNoise, severity, w));
     }
     if let Some(inf) = &inflation {
         // From the data σ² is read low by L and smooth signatures vary κ times more; a
@@ -520,7 +529,7 @@ fn weights(
     let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
     let n_excluded = y.len() - used.len() - n_dc;
     if n_excluded > 0 {
-        warnings.push(format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out"));
+        warnings.push(diagnostic(DiagnosticKind::NoNoiseInformation, Severity::Note, format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out")));
     }
     Ok(Weights {
         noise_model,
@@ -668,13 +677,16 @@ fn check_with(
         &mut warnings,
     )?;
     let fixed_effects = fixed_effects(spec, &layout, options)?;
-    warnings.extend(crate::candidates::free_direction_note(
-        spec,
-        &layout.spec_geometry,
-    ));
+    warnings.extend(
+        crate::candidates::free_direction_note(spec, &layout.spec_geometry)
+            .map(|t| diagnostic(DiagnosticKind::CheckBlindSpot, Severity::Note, t)),
+    );
     let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
     method.extend(notes);
-    warnings.extend(crate::candidates::vertical_axis_doubt(spec));
+    warnings.extend(
+        crate::candidates::vertical_axis_doubt(spec)
+            .map(|t| diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, t)),
+    );
     if let Some(only) = &options.only {
         // A further instance goes with its first (`elastic_mode` keeps `elastic_mode_2`).
         cands.retain(|c| {
@@ -718,9 +730,13 @@ fn check_with(
     });
     let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
     if !base.converged {
-        warnings.push(format!(
-            "baseline fit stopped after {} iterations without converging",
-            base.iterations
+        warnings.push(diagnostic(
+            DiagnosticKind::CheckRefitFailed,
+            Severity::Warning,
+            format!(
+                "baseline fit stopped after {} iterations without converging",
+                base.iterations
+            ),
         ));
     }
     let free_base = p.n_base() - usize::from(options.weighed_mass_kg.is_some());
@@ -756,10 +772,10 @@ fn check_with(
     }
     warnings.append(&mut sel.warnings);
     if capped {
-        warnings.push(format!(
+        warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
             "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",
             options.max_effects
-        ));
+        )));
     }
     let fin = Finish {
         spec,

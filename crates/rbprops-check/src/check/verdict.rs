@@ -350,7 +350,7 @@ impl<'p, 'a> Finish<'p, 'a> {
     pub(super) fn report(
         self,
         sel: Selection,
-        mut warnings: Vec<String>,
+        mut warnings: Vec<Diagnostic>,
         method: Vec<String>,
     ) -> Result<Finished, CheckError> {
         let (p, base) = (self.p, &self.base);
@@ -433,7 +433,7 @@ impl<'p, 'a> Finish<'p, 'a> {
             residuals_before,
             residuals_after,
             method,
-            warnings,
+            diagnostics: warnings,
         };
         report.verdict = verdict(&report);
         let prior = Prior {
@@ -515,7 +515,7 @@ impl<'p, 'a> Finish<'p, 'a> {
         ambiguous: &[AmbiguousFamily],
         theta: &[f64],
         cov_final: &DMatrix<f64>,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Diagnostic>,
     ) -> Result<
         (
             Vec<AcceptedEffect>,
@@ -554,9 +554,10 @@ impl<'p, 'a> Finish<'p, 'a> {
             let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
             match effect_spec(eff.as_ref(), self.spec) {
                 Ok(e) => improved_effects.push(e),
-                Err(e) => warnings.push(format!(
-                    "'{}' is not written to the improved spec: {e}",
-                    cand.id
+                Err(e) => warnings.push(diagnostic(
+                    DiagnosticKind::CheckProcedure,
+                    Severity::Note,
+                    format!("'{}' is not written to the improved spec: {e}", cand.id),
                 )),
             }
             offset += d;
@@ -589,7 +590,7 @@ impl<'p, 'a> Finish<'p, 'a> {
         &self,
         theta: &[f64],
         improved_effects: Vec<rbprops_sim::spec::EffectSpec>,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Diagnostic>,
     ) -> Result<CampaignSpec, CheckError> {
         let (p, spec, options) = (self.p, self.spec, self.options);
         let (mut improved_spec, fx) = p.build(theta, &[])?;
@@ -608,10 +609,10 @@ impl<'p, 'a> Finish<'p, 'a> {
         }
         for e in &improved_spec.effects {
             if rbprops_sim::effects::parse_effect(e).is_err() {
-                warnings.push(format!(
+                warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
                     "the improved spec switches on '{}', which this rbprops-sim version does not know yet: frf-sim will reject it until the catalogue has it",
                     e.id
-                ));
+                )));
             }
         }
         Ok(improved_spec)
