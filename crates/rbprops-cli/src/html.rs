@@ -99,6 +99,7 @@ pub fn html(d: &ReportData) -> Result<String> {
     if !d.rows.is_empty() {
         summary_table(&mut h, &d.rows)?;
     }
+    unseen(&mut h, &d.runs)?;
     for (name, svg) in &d.figures {
         figure(&mut h, name, svg)?;
     }
@@ -107,6 +108,45 @@ pub fn html(d: &ReportData) -> Result<String> {
     }
     h += "</body>\n</html>\n";
     Ok(h)
+}
+
+/// What the model checks cannot see (an effect the free parameters absorb), said once for
+/// the whole report with the recordings it concerns, not in every row.
+fn unseen(h: &mut String, runs: &[RunSection]) -> Result<()> {
+    let mut seen: Vec<(&rbprops_check::report::NotObservable, Vec<&str>)> = Vec::new();
+    for r in runs {
+        for n in r.check.iter().flat_map(|c| &c.not_observable) {
+            match seen
+                .iter_mut()
+                .find(|(m, _)| m.id == n.id && m.reason == n.reason)
+            {
+                Some((_, labels)) => labels.push(&r.label),
+                None => seen.push((n, vec![&r.label])),
+            }
+        }
+    }
+    if seen.is_empty() {
+        return Ok(());
+    }
+    h.push_str("<h3>What these tests cannot see</h3>\n<ul>\n");
+    for (n, labels) in seen {
+        let which = if labels.len() == runs.len() {
+            "every recording".to_string()
+        } else {
+            labels.join(", ")
+        };
+        write!(
+            h,
+            "<li><b>{}</b> [{}]: {}; would need {} ({})</li>\n",
+            escape(&n.title),
+            escape(&n.id),
+            escape(&n.reason),
+            escape(&n.would_reveal),
+            escape(&which)
+        )?;
+    }
+    h.push_str("</ul>\n");
+    Ok(())
 }
 
 fn summary_table(h: &mut String, rows: &[SummaryRow]) -> Result<()> {
@@ -154,7 +194,13 @@ fn summary_table(h: &mut String, rows: &[SummaryRow]) -> Result<()> {
                 "<td class=\"t\">{}</td><td>{}</td><td class=\"t\">{}</td>",
                 escape(&r.check_effects),
                 escape(&chi),
-                escape(&r.check_verdict)
+                // The short label; the full verdict is in the recording's section (an
+                // older summary without labels shows the verdict).
+                escape(if r.check_label.is_empty() {
+                    &r.check_verdict
+                } else {
+                    &r.check_label
+                })
             )?;
         }
         h.push_str("</tr>\n");

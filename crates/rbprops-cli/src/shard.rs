@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// The `format` of a shard's manifest.
-pub const SHARD_FORMAT: &str = "rbprops campaign shard 1";
+pub const SHARD_FORMAT: &str = "rbprops campaign shard 2";
 /// The `format` of a merged campaign's manifest.
 pub const MERGED_FORMAT: &str = "rbprops campaign merge 1";
 /// The summary table in a shard's or merged campaign's directory.

@@ -75,6 +75,10 @@ pub struct SummaryRow {
     /// The model check's one-line verdict (or `error: …`).
     #[serde(default)]
     pub check_verdict: String,
+    /// The verdict as a short label (`clean, at the noise floor`, `channel_gain …`;
+    /// `check failed`): what a table shows ([`crate::campaign::check_label`]).
+    #[serde(default)]
+    pub check_label: String,
 }
 
 impl SummaryRow {
@@ -125,12 +129,13 @@ impl SummaryRow {
     /// Fills the model check's columns.
     pub fn set_check(&mut self, c: &crate::campaign::CheckColumns) {
         self.check_effects = c.effects.clone();
-        let failed = c.verdict.starts_with("error:");
+        let failed = c.label == crate::campaign::CHECK_FAILED;
         self.check_chi2_nu_nominal = (!failed).then_some(c.chi2_nu_nominal);
         self.check_chi2_nu_before = (!failed).then_some(c.chi2_nu_before);
         self.check_chi2_nu_after = (!failed).then_some(c.chi2_nu_after);
         self.check_noise_floor_reached = (!failed).then_some(c.noise_floor_reached);
         self.check_verdict = c.verdict.clone();
+        self.check_label = c.label.clone();
     }
 
     /// The numeric columns with their names (for tolerance checks).

@@ -918,6 +918,34 @@ mod diagnostic_tests {
         assert_eq!(empty, r#"{"selected":[],"missing":[]}"#);
     }
 
+    /// The table of kinds in docs/formats.md (section "Diagnostics") is every kind's
+    /// sentence, as written here: this pins each kind's text for the reader and the
+    /// report. `RBPROPS_BLESS=1` rewrites the table (review the diff).
+    #[test]
+    fn formats_md_lists_every_kind_with_its_sentence() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/formats.md");
+        let doc = std::fs::read_to_string(path).unwrap();
+        let (begin, end) = (
+            "<!-- diagnostic kinds: begin -->\n",
+            "<!-- diagnostic kinds: end -->",
+        );
+        let i = doc.find(begin).expect("the begin marker") + begin.len();
+        let j = doc.find(end).expect("the end marker");
+        let mut table = String::from("| kind | what it means for the result |\n|---|---|\n");
+        for k in DiagnosticKind::ALL {
+            table.push_str(&format!("| `{}` | {} |\n", k.as_str(), k.sentence()));
+        }
+        if std::env::var_os("RBPROPS_BLESS").is_some() {
+            std::fs::write(path, format!("{}{table}{}", &doc[..i], &doc[j..])).unwrap();
+            return;
+        }
+        assert_eq!(
+            doc[i..j],
+            table,
+            "docs/formats.md's table of diagnostic kinds (RBPROPS_BLESS=1 rewrites it)"
+        );
+    }
+
     /// Every kind has its own sentence, and the kinds and severities serialise as their
     /// snake_case names.
     #[test]

@@ -160,6 +160,18 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
     assert_eq!(html.matches("<h3>Model check</h3>").count(), 6);
     assert_eq!(html.matches("<h3>Warnings</h3>").count(), 6);
     assert!(html.contains("channel_gain"), "run-06's verdict");
+    // The summary table gives each check's verdict as a short label (the full text is in
+    // each recording's section); what a test cannot see is said once, not per row.
+    let table = &html[html.find("<h2>Summary</h2>").unwrap()..];
+    let table = &table[..table.find("</table>").unwrap()];
+    assert!(!table.contains("cannot be seen"), "{table}");
+    assert!(table.contains("clean, "), "{table}");
+    let gain_rows = table
+        .lines()
+        .filter(|l| l.contains("run-06") && l.contains("channel_gain"))
+        .count();
+    assert!(gain_rows >= 1, "{table}");
+    assert!(html.matches("What these tests cannot see").count() <= 1);
     // Every figure each run directory holds is on the page, and the model check's
     // figures are among them (worst channels only where a cell was flagged).
     let mut n_files = 0;
