@@ -419,10 +419,6 @@ named_values! {
         InputConversion => "input_conversion",
         /// How FRFs were estimated from time histories.
         FrfEstimation => "frf_estimation",
-        /// A campaign item could not be run.
-        ItemFailed => "item_failed",
-        /// The input's bytes do not match the digest written with it.
-        DigestMismatch => "digest_mismatch",
         /// Lines the modal model does not explain, kept out of the bootstrap's noise.
         UnmodelledLines => "unmodelled_lines",
         /// Relative errors against the reference are undefined (a zero reference value).
@@ -484,8 +480,6 @@ impl DiagnosticKind {
             DiagnosticKind::CheckProcedure => "How the model check read the data (the lines, statistics and candidates it used); the verdict already reflects it.",
             DiagnosticKind::InputConversion => "The input reader's note on how the export was converted (units, node and channel mapping, skipped datasets).",
             DiagnosticKind::FrfEstimation => "The FRFs were estimated from the time histories as stated (averages, windows, rejected hits).",
-            DiagnosticKind::ItemFailed => "This campaign item could not be run; its row holds the error and no estimate.",
-            DiagnosticKind::DigestMismatch => "The input was edited after it was written: the results may not be those of the original data.",
             DiagnosticKind::UnmodelledLines => "Some lines hold structure the modal model does not explain (an elastic mode above the band, a residual term): the bootstrap keeps the measured values there rather than resample them as noise.",
             DiagnosticKind::ReferenceErrors => "The reference values given cannot measure a relative error (a zero mass, centre of mass or inertia): the error columns are left empty.",
             DiagnosticKind::Simulation => "The simulator's note on what it simulated (the effects switched on, the noise drawn); the data are as the spec asks.",

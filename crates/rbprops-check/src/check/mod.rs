@@ -490,15 +490,18 @@ fn weights(
         let w = d.describe(line_spacing(frf));
         // Said at once: without a calibrated weighting the selection can run long.
         options.progress.say(|| format!("warning: {w}"));
-        // Handled when the window is declared (its τ weighs the lines): a note; read from
-        // the data alone it is what an undeclared window leaves: a warning.
-        let declared = given_lines.is_some_and(|lv| lv.window_time_constant_s.is_some());
-        let severity = if declared {
-            Severity::Note
-        } else {
-            Severity::Warning
+        // Handled when the window is declared (in the model or the line variances: its τ
+        // weighs the lines): a note. Undeclared, an exponential window's correlation
+        // that fits is a window nobody declared (the message states its τ), and one that
+        // does not fit leaves the check uncalibrated: warnings.
+        let declared = d.known_c.is_some()
+            || given_lines.is_some_and(|lv| lv.window_time_constant_s.is_some());
+        let (kind, severity) = match (declared, d.inflation().is_some()) {
+            (true, _) => (DiagnosticKind::CorrelatedNoise, Severity::Note),
+            (false, true) => (DiagnosticKind::UndeclaredWindow, Severity::Warning),
+            (false, false) => (DiagnosticKind::CorrelatedNoise, Severity::Warning),
         };
-        warnings.push(diagnostic(DiagnosticKind::CorrelatedNoise, severity, w));
+        warnings.push(diagnostic(kind, severity, w));
     }
     if let Some(inf) = &inflation {
         // From the data σ² is read low by L and smooth signatures vary κ times more; a

@@ -460,9 +460,11 @@ fn impact_testing_with_an_exponential_window_names_the_window_and_the_record() {
         r.verdict
     );
     assert!(
-        r.diagnostics
-            .iter()
-            .any(|d| d.kind == rbprops_core::records::DiagnosticKind::CorrelatedNoise),
+        r.diagnostics.iter().any(|d| matches!(
+            d.kind,
+            rbprops_core::records::DiagnosticKind::CorrelatedNoise
+                | rbprops_core::records::DiagnosticKind::UndeclaredWindow
+        )),
         "{:?}",
         r.diagnostics
     );
