@@ -3,6 +3,7 @@
 
 use crate::locate::ResidualMap;
 use crate::noise::RecordingNoise;
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use serde::{Deserialize, Serialize};
 
 /// A fitted parameter with its standard error.
@@ -309,7 +310,25 @@ pub struct ModelCheckReport {
     pub residuals_after: ResidualMap,
     /// Statistical settings and caveats.
     pub method: Vec<String>,
-    /// Notes on the check, human-readable.
-    #[schemars(description = "")]
-    pub warnings: Vec<String>,
+    /// What the check noticed, typed, one diagnostic per fact. Reports written before
+    /// diagnostics were typed hold `warnings` (strings): they read as
+    /// [`DiagnosticKind::Text`].
+    #[serde(
+        default,
+        alias = "warnings",
+        deserialize_with = "rbprops_core::records::diagnostics_or_texts",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+/// A diagnostic of `model-check`.
+pub(crate) fn diagnostic(kind: DiagnosticKind, severity: Severity, message: String) -> Diagnostic {
+    Diagnostic::new(
+        "model-check",
+        kind,
+        severity,
+        DiagnosticSubject::run(),
+        message,
+    )
 }

@@ -544,6 +544,53 @@ pub struct CheckColumns {
     pub noise_floor_reached: bool,
     /// The check's verdict in words (`error: …` when it failed).
     pub verdict: String,
+    /// The verdict as a short label for tables ([`check_label`]; [`CHECK_FAILED`] when
+    /// the check failed).
+    pub label: String,
+}
+
+/// The label of a model check that could not run.
+pub const CHECK_FAILED: &str = "check failed";
+
+/// A model check's verdict as a short label for a table row: `clean, at the noise floor`,
+/// or each effect found with its largest fitted quantity (`channel_gain channel 103y:
+/// gain +6.0 %`), ambiguous families as `one of a/b`, and whether the residual then
+/// reaches the noise. The full verdict (with what the test cannot see) is in the
+/// recording's section.
+pub fn check_label(r: &rbprops_check::ModelCheckReport) -> String {
+    let floor = if r.noise_floor_reached {
+        "at the noise floor"
+    } else {
+        "above the noise floor"
+    };
+    if r.accepted.is_empty() && r.ambiguous.is_empty() {
+        return format!("clean, {floor}");
+    }
+    let mut parts: Vec<String> = r
+        .accepted
+        .iter()
+        .map(|a| {
+            // The quantity furthest from zero relative to its plausible range.
+            let rel = |v: f64, range: [f64; 2]| {
+                v.abs() / (range[1] - range[0]).abs().max(f64::MIN_POSITIVE)
+            };
+            let top = a
+                .plausible
+                .iter()
+                .max_by(|x, y| rel(x.value, x.range).total_cmp(&rel(y.value, y.range)));
+            match top {
+                Some(p) => format!("{} {} {:+.3} {}", a.id, p.quantity, p.value, p.unit),
+                None => a.id.clone(),
+            }
+        })
+        .collect();
+    parts.extend(
+        r.ambiguous
+            .iter()
+            .map(|f| format!("one of {}", f.ids.join("/"))),
+    );
+    parts.push(floor.to_string());
+    parts.join("; ")
 }
 
 /// The model check of a recording against its nominal spec (with the campaign's known
@@ -580,6 +627,7 @@ pub fn model_check(
         chi2_nu_after: r.chi2_nu_after,
         noise_floor_reached: r.noise_floor_reached,
         verdict: r.verdict.clone(),
+        label: check_label(r),
     };
     Ok((columns, out))
 }
@@ -605,7 +653,7 @@ pub fn run_item(
     rel: &str,
     opts: &CampaignOptions,
     runs: Option<&Path>,
-) -> Result<(Vec<SummaryRow>, Vec<crate::warnings::StageWarning>)> {
+) -> Result<(Vec<SummaryRow>, Vec<crate::warnings::Diagnostic>)> {
     let mut read_warnings = Vec::new();
     let (mut rec, sha) = match item {
         Item::Spec(p) => {
@@ -660,6 +708,7 @@ pub fn run_item(
             }
             Err(e) => CheckColumns {
                 verdict: format!("error: {e:#}"),
+                label: CHECK_FAILED.into(),
                 ..Default::default()
             },
         };
@@ -681,20 +730,20 @@ pub fn run_item(
         rbprops_formats::write_path(&rec, &dir.join(RUN_FILE))?;
     }
     let mut warnings = crate::warnings::Collector::default();
-    warnings.extend("read", &read_warnings);
-    for w in crate::warnings::from_record(&rec)? {
-        warnings.add(w);
+    for d in read_warnings {
+        warnings.add_from("read", d);
     }
+    warnings.extend(crate::warnings::from_record(&rec)?);
     Ok((rows, warnings.items))
 }
 
-/// What one item gave: its summary rows and its warnings (texts prefixed by its label).
+/// What one item gave: its summary rows and its diagnostics (subject: its label).
 #[derive(Debug, Clone)]
 pub struct ItemOutcome {
     /// The item's summary rows (one row with method `error` when its pipeline failed).
     pub rows: Vec<SummaryRow>,
-    /// The item's warnings, each text prefixed by the item's label.
-    pub warnings: Vec<crate::warnings::StageWarning>,
+    /// The item's diagnostics, each naming the item's label as its recording.
+    pub warnings: Vec<crate::warnings::Diagnostic>,
 }
 
 impl ItemOutcome {
@@ -703,11 +752,11 @@ impl ItemOutcome {
         self.rows.len() == 1 && self.rows[0].method == "error"
     }
 
-    /// True when the item's model check failed (its verdict starts with `error:`).
+    /// True when the item's model check failed.
     pub fn check_failed(&self) -> bool {
         self.rows
             .first()
-            .is_some_and(|r| r.check_verdict.starts_with("error:"))
+            .is_some_and(|r| r.check_label == CHECK_FAILED)
     }
 }
 
@@ -715,7 +764,7 @@ impl ItemOutcome {
 pub struct CampaignResult {
     /// One summary row per estimate of every item.
     pub rows: Vec<SummaryRow>,
-    /// Every item's warnings, each text prefixed by the item's label, in item order.
+    /// Every item's diagnostics, each naming the item's label as its recording, in item order.
     pub warnings: crate::warnings::Collector,
     /// Items whose pipeline failed (one row with method `error`).
     pub failed: usize,
@@ -777,8 +826,8 @@ pub fn run_items(
                 };
                 (vec![row], Vec::new())
             });
-            for w in &mut warnings {
-                w.text = format!("{rel}: {}", w.text);
+            for d in &mut warnings {
+                d.subject.recording = Some(rel.clone());
             }
             progress.inc(1);
             ItemOutcome { rows, warnings }

@@ -5,7 +5,7 @@
 //! ([`ReportData`], see `report::load`) and returns the page as a `String`.
 
 use crate::summary::SummaryRow;
-use crate::warnings::{Class, StageWarning};
+use crate::warnings::{grouped_by_kind, severity_label, shown_by_default, Diagnostic};
 use anyhow::{bail, Result};
 use rbprops_core::records::InertiaEstimate;
 use std::fmt::Write;
@@ -19,8 +19,8 @@ pub struct RunSection {
     pub estimates: Vec<InertiaEstimate>,
     /// Its model check, when one ran.
     pub check: Option<rbprops_check::ModelCheckReport>,
-    /// Every stage's warnings, classified.
-    pub warnings: Vec<StageWarning>,
+    /// Every stage's diagnostics.
+    pub warnings: Vec<Diagnostic>,
     /// `frf-est`'s verdict on every hit (the processing topic's `frf_estimation.hits`).
     pub hits: Vec<rbprops_core::records::HitRecord>,
     /// (file name, SVG document), in the order they are shown.
@@ -99,6 +99,7 @@ pub fn html(d: &ReportData) -> Result<String> {
     if !d.rows.is_empty() {
         summary_table(&mut h, &d.rows)?;
     }
+    unseen(&mut h, &d.runs)?;
     for (name, svg) in &d.figures {
         figure(&mut h, name, svg)?;
     }
@@ -107,6 +108,45 @@ pub fn html(d: &ReportData) -> Result<String> {
     }
     h += "</body>\n</html>\n";
     Ok(h)
+}
+
+/// What the model checks cannot see (an effect the free parameters absorb), said once for
+/// the whole report with the recordings it concerns, not in every row.
+fn unseen(h: &mut String, runs: &[RunSection]) -> Result<()> {
+    let mut seen: Vec<(&rbprops_check::report::NotObservable, Vec<&str>)> = Vec::new();
+    for r in runs {
+        for n in r.check.iter().flat_map(|c| &c.not_observable) {
+            match seen
+                .iter_mut()
+                .find(|(m, _)| m.id == n.id && m.reason == n.reason)
+            {
+                Some((_, labels)) => labels.push(&r.label),
+                None => seen.push((n, vec![&r.label])),
+            }
+        }
+    }
+    if seen.is_empty() {
+        return Ok(());
+    }
+    h.push_str("<h3>What these tests cannot see</h3>\n<ul>\n");
+    for (n, labels) in seen {
+        let which = if labels.len() == runs.len() {
+            "every recording".to_string()
+        } else {
+            labels.join(", ")
+        };
+        write!(
+            h,
+            "<li><b>{}</b> [{}]: {}; would need {} ({})</li>\n",
+            escape(&n.title),
+            escape(&n.id),
+            escape(&n.reason),
+            escape(&n.would_reveal),
+            escape(&which)
+        )?;
+    }
+    h.push_str("</ul>\n");
+    Ok(())
 }
 
 fn summary_table(h: &mut String, rows: &[SummaryRow]) -> Result<()> {
@@ -154,7 +194,13 @@ fn summary_table(h: &mut String, rows: &[SummaryRow]) -> Result<()> {
                 "<td class=\"t\">{}</td><td>{}</td><td class=\"t\">{}</td>",
                 escape(&r.check_effects),
                 escape(&chi),
-                escape(&r.check_verdict)
+                // The short label; the full verdict is in the recording's section (an
+                // older summary without labels shows the verdict).
+                escape(if r.check_label.is_empty() {
+                    &r.check_verdict
+                } else {
+                    &r.check_label
+                })
             )?;
         }
         h.push_str("</tr>\n");
@@ -278,7 +324,10 @@ fn verdict(h: &mut String, c: &rbprops_check::ModelCheckReport) -> Result<()> {
     Ok(())
 }
 
-fn warnings(h: &mut String, list: &[StageWarning]) -> Result<()> {
+/// The diagnostics, by stage and within a stage by kind: each kind's sentence once, then
+/// its diagnostics (severity, subject, message), the ones that may change the answer
+/// marked.
+fn warnings(h: &mut String, list: &[Diagnostic]) -> Result<()> {
     if list.is_empty() {
         h.push_str("<h3>Warnings</h3>\n<p>None.</p>\n");
         return Ok(());
@@ -291,32 +340,43 @@ fn warnings(h: &mut String, list: &[StageWarning]) -> Result<()> {
         }
     }
     for s in stages {
-        let of: Vec<&StageWarning> = list.iter().filter(|w| w.stage == s).collect();
-        let changes = of
-            .iter()
-            .filter(|w| w.class() == Class::ChangesAnswer)
-            .count();
+        let of = grouped_by_kind(list.iter().filter(|w| w.stage == s));
+        let notes = of.iter().filter(|d| !shown_by_default(d)).count();
+        let (n_w, n_n) = (of.len() - notes, notes);
         write!(
             h,
-            "<h4>{} ({} warning{}, {} changing the answer)</h4>\n<ul>\n",
+            "<h4>{} ({n_w} warning{}, {n_n} note{})</h4>\n<ul>\n",
             escape(s),
-            of.len(),
-            if of.len() == 1 { "" } else { "s" },
-            changes
+            if n_w == 1 { "" } else { "s" },
+            if n_n == 1 { "" } else { "s" },
         )?;
-        for w in of {
-            let (cls, tag) = match w.class() {
-                Class::ChangesAnswer => ("changes", "changes the answer"),
-                Class::Note => ("note", "note"),
+        let mut kind = None;
+        for d in of {
+            if kind != Some(d.kind) {
+                if kind.is_some() {
+                    h.push_str("</ul></li>\n");
+                }
+                kind = Some(d.kind);
+                write!(
+                    h,
+                    "<li class=\"kind\"><b>{}</b><p class=\"expl\">{}</p><ul>\n",
+                    escape(&d.kind.as_str().replace('_', " ")),
+                    escape(d.kind.sentence())
+                )?;
+            }
+            let cls = if shown_by_default(d) {
+                "changes"
+            } else {
+                "note"
             };
             write!(
                 h,
-                "<li><span class=\"{cls}\">[{tag}]</span> {}<p class=\"expl\">{}</p></li>\n",
-                escape(&w.text),
-                escape(w.explanation())
+                "<li><span class=\"{cls}\">[{}]</span> {}</li>\n",
+                severity_label(d.severity),
+                escape(&d.line())
             )?;
         }
-        h.push_str("</ul>\n");
+        h.push_str("</ul></li>\n</ul>\n");
     }
     Ok(())
 }
@@ -405,8 +465,11 @@ mod tests {
             title: "<b>campaign</b>".into(),
             runs: vec![RunSection {
                 label: "run & <1>".into(),
-                warnings: vec![StageWarning::new(
+                warnings: vec![Diagnostic::new(
                     "rb-solve",
+                    crate::warnings::DiagnosticKind::IllConditioned,
+                    crate::warnings::Severity::Warning,
+                    Default::default(),
                     "Φ0 is poorly conditioned (cond = <1e9>)",
                 )],
                 figures: vec![("f.svg".into(), svg.into())],

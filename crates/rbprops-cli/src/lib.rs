@@ -71,9 +71,9 @@ pub struct Input {
     pub name: String,
     /// What the integrity check could not verify (printed under `-v`).
     pub notes: Vec<String>,
-    /// What the reader noticed in the input (a UFF export's oddities), classified and
-    /// printed by [`read_stage_input`]; kept here by [`read_stage_input_quiet`].
-    pub warnings: Vec<String>,
+    /// What the reader noticed in the input (a UFF export's oddities, how FRFs were
+    /// estimated), printed by [`read_stage_input`]; kept here by [`read_stage_input_quiet`].
+    pub warnings: Vec<warnings::Diagnostic>,
 }
 
 /// How a UFF input is read: a separate geometry file (`--geometry`: UFF with datasets
@@ -194,7 +194,9 @@ pub fn read_stage_input(
 ) -> Result<Input> {
     let input = read_stage_input_quiet(tool, path, checks, uff)?;
     let mut w = warnings::Collector::default();
-    w.extend(tool, &input.warnings);
+    for d in &input.warnings {
+        w.add_from(tool, d.clone());
+    }
     w.print(checks.verbose);
     Ok(input)
 }
@@ -466,10 +468,12 @@ fn uff_input(
             })?;
         let mut digest_input = bytes;
         digest_input.extend_from_slice(&est.side_digest);
-        let mut warnings = est.warnings;
-        warnings.push(format!(
-            "FRFs estimated from the time histories ({})",
-            est.summary
+        let mut warnings = input_notes(&est.warnings);
+        warnings.push(warnings::note_of(
+            "",
+            warnings::DiagnosticKind::FrfEstimation,
+            Default::default(),
+            &format!("FRFs estimated from the time histories ({})", est.summary),
         ));
         return Ok(Input {
             record: est.record,
@@ -494,8 +498,24 @@ fn uff_input(
         sha256,
         name,
         notes,
-        warnings: c.warnings,
+        warnings: input_notes(&c.warnings),
     })
+}
+
+/// The UFF reader's notes, typed by their source (the stage is the reading tool's,
+/// filled in when printed).
+pub fn input_notes(texts: &[String]) -> Vec<warnings::Diagnostic> {
+    texts
+        .iter()
+        .map(|t| {
+            warnings::note_of(
+                "",
+                warnings::DiagnosticKind::InputConversion,
+                Default::default(),
+                t,
+            )
+        })
+        .collect()
 }
 
 /// A universal file holding time histories (dataset 58, function type 1) and no FRF
@@ -747,13 +767,6 @@ pub fn parse_band(s: &str) -> Result<(f64, f64)> {
         bail!("band '{s}': need 0 ≤ FMIN < FMAX");
     }
     Ok((a, b))
-}
-
-/// Prints warnings on stderr, prefixed by the tool name.
-pub fn warn_all<'a>(tool: &str, warnings: impl IntoIterator<Item = &'a String>) {
-    for w in warnings {
-        say!("{tool}: warning: {w}");
-    }
 }
 
 /// Writes a text file (a plot, a report) atomically, creating its directory.

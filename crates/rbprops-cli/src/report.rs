@@ -292,8 +292,11 @@ pub fn run_section(
     let check = record
         .get_one(topics::MODEL_CHECK)
         .unwrap_or_else(|e| {
-            warnings.push(crate::warnings::StageWarning::new(
+            warnings.push(crate::warnings::Diagnostic::new(
                 "report",
+                crate::warnings::DiagnosticKind::Text,
+                crate::warnings::Severity::Warning,
+                Default::default(),
                 format!("the model check's report could not be read ({e:#}); its verdict is in the summary table"),
             ));
             None
@@ -419,7 +422,7 @@ pub fn campaign_figures(rows: &[SummaryRow]) -> Result<Vec<(String, String)>> {
             let sel: Vec<&&SummaryRow> = ok.iter().filter(|r| r.method == *m).collect();
             let x = sel
                 .iter()
-                .map(|r| 1.0 + labels.iter().position(|l| *l == r.campaign).unwrap() as f64)
+                .map(|r| labels.iter().position(|l| *l == r.campaign).unwrap() as f64)
                 .collect();
             ScatterSeries::new(*m, x, sel.iter().map(|r| r.mass_kg).collect())
                 .with_errors(sel.iter().map(|r| 1.96 * r.mass_std_kg).collect())
@@ -427,7 +430,8 @@ pub fn campaign_figures(rows: &[SummaryRow]) -> Result<Vec<(String, String)>> {
         .collect();
     let plot = ScatterPlot {
         title: "Mass per recording (95 % noise intervals)".into(),
-        x_label: format!("recording (1 = {}, in table order)", labels[0]),
+        x_label: "recording (in table order)".into(),
+        x_categories: labels.iter().map(|l| l.to_string()).collect(),
         y_label: "m [kg]".into(),
         series,
         ..Default::default()

@@ -21,7 +21,7 @@
 //! shard's `summary.csv` against its manifest).
 
 use crate::campaign::{self, CampaignOptions, Item, ItemOutcome};
-use crate::warnings::{Collector, StageWarning};
+use crate::warnings::{Collector, Diagnostic};
 use anyhow::{anyhow, bail, Context, Result};
 use rbprops_formats::atomic::CAMPAIGN_MANIFEST;
 use rbprops_formats::FormatError;
@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 /// The `format` of a shard's manifest.
-pub const SHARD_FORMAT: &str = "rbprops campaign shard 1";
+pub const SHARD_FORMAT: &str = "rbprops campaign shard 2";
 /// The `format` of a merged campaign's manifest.
 pub const MERGED_FORMAT: &str = "rbprops campaign merge 1";
 /// The summary table in a shard's or merged campaign's directory.
@@ -161,8 +161,8 @@ pub struct ItemRecord {
     pub failed: bool,
     /// True when its model check failed.
     pub check_failed: bool,
-    /// Its warnings, texts prefixed by its label.
-    pub warnings: Vec<StageWarning>,
+    /// Its diagnostics, each naming its label as the recording.
+    pub warnings: Vec<Diagnostic>,
 }
 
 /// The manifest of a shard's (or a merged campaign's) directory.

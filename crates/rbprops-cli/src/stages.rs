@@ -228,9 +228,13 @@ pub fn rb_solve_with(
         }
     }
     if undefined {
-        out.warnings.push(
-            "the reference's mass, centre of mass (about the origin) or inertia is zero: relative errors are undefined and omitted".into(),
-        );
+        out.diagnostics.push(rbprops_core::records::Diagnostic::new(
+            "rb-solve",
+            rbprops_core::records::DiagnosticKind::ReferenceErrors,
+            rbprops_core::records::Severity::Note,
+            Default::default(),
+            "the reference's mass, centre of mass (about the origin) or inertia is zero: relative errors are undefined and omitted",
+        ));
     }
     rec.push_provenance(crate::provenance("rb-solve", input_sha256))?;
     rec.set::<InertiaEstimate>(topics::ESTIMATES, &out.estimates);

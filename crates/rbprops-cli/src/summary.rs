@@ -52,7 +52,8 @@ pub struct SummaryRow {
     pub err_sum: Option<f64>,
     /// Mode numbers used, space separated.
     pub modes: String,
-    /// The estimate's warnings, joined by ` | `.
+    /// The estimate's diagnostics that may change the answer (not its notes), each as
+    /// one line, joined by ` | `.
     pub warnings: String,
     /// Model check against the nominal spec (campaigns with `nominal`; empty otherwise):
     /// the effects it names (accepted ids, ambiguous families as `a/b`).
@@ -74,6 +75,10 @@ pub struct SummaryRow {
     /// The model check's one-line verdict (or `error: …`).
     #[serde(default)]
     pub check_verdict: String,
+    /// The verdict as a short label (`clean, at the noise floor`, `channel_gain …`;
+    /// `check failed`): what a table shows ([`crate::campaign::check_label`]).
+    #[serde(default)]
+    pub check_label: String,
 }
 
 impl SummaryRow {
@@ -110,7 +115,13 @@ impl SummaryRow {
                 .map(|m| m.to_string())
                 .collect::<Vec<_>>()
                 .join(" "),
-            warnings: e.warnings.join(" | "),
+            warnings: e
+                .diagnostics
+                .iter()
+                .filter(|d| crate::warnings::shown_by_default(d))
+                .map(|d| d.line())
+                .collect::<Vec<_>>()
+                .join(" | "),
             ..Default::default()
         }
     }
@@ -118,12 +129,13 @@ impl SummaryRow {
     /// Fills the model check's columns.
     pub fn set_check(&mut self, c: &crate::campaign::CheckColumns) {
         self.check_effects = c.effects.clone();
-        let failed = c.verdict.starts_with("error:");
+        let failed = c.label == crate::campaign::CHECK_FAILED;
         self.check_chi2_nu_nominal = (!failed).then_some(c.chi2_nu_nominal);
         self.check_chi2_nu_before = (!failed).then_some(c.chi2_nu_before);
         self.check_chi2_nu_after = (!failed).then_some(c.chi2_nu_after);
         self.check_noise_floor_reached = (!failed).then_some(c.noise_floor_reached);
         self.check_verdict = c.verdict.clone();
+        self.check_label = c.label.clone();
     }
 
     /// The numeric columns with their names (for tolerance checks).

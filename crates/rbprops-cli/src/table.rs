@@ -102,8 +102,17 @@ pub fn estimates(list: &[InertiaEstimate]) -> String {
                 iv(y.inertia_cm_95_kg_m2[2][2], 1.0, 6)
             );
         }
-        for w in &e.warnings {
-            let _ = writeln!(s, "  warning: {w}");
+        for d in e
+            .diagnostics
+            .iter()
+            .filter(|d| crate::warnings::shown_by_default(d))
+        {
+            let _ = writeln!(
+                s,
+                "  {}: {}",
+                crate::warnings::severity_label(d.severity),
+                d.line()
+            );
         }
     }
     s

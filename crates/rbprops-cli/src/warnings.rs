@@ -1,326 +1,168 @@
-//! The warning collector every stage uses: warnings are gathered per stage, classified,
-//! explained in one sentence, and printed on stderr as one summary line per stage plus
-//! the warnings that change the answer (all of them with `-v`). The HTML report groups
-//! the same warnings by stage with the same explanations.
+//! The diagnostics every stage emits, gathered per stage and printed on stderr: the ones
+//! that matter to the answer (severity [`Severity::Warning`] or
+//! [`Severity::ChangesAnswer`]) always, one line each; the notes (correctly handled
+//! conditions) as one summary line per stage naming their kinds, listed with `-v`. The
+//! HTML report groups the same diagnostics by stage and kind, each kind with its own
+//! sentence ([`DiagnosticKind::sentence`]).
 //!
-//! A warning *changes the answer* when the numbers a stage returns would be different
-//! (or missing) without the condition it reports: a rigid-body mode missing or rejected,
-//! rigid-body data inconsistent with the geometry, an ill-conditioned solve, a
-//! non-physical inertia tensor, a failed uncertainty computation, a dead channel, a
-//! digest mismatch. Everything else (a pole dropped by the order test, the band the
-//! poles were estimated on, a rotation of complex residues) is a note on how the answer
-//! was reached: counted, listed with `-v`.
+//! Nothing here reads a diagnostic's text: how much it matters is its severity, what it
+//! means is its kind, both set where the stage raised it. Messages of files written
+//! before diagnostics were typed read as [`DiagnosticKind::Text`] (shown, as their weight
+//! is not known).
 
-use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
+pub use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_formats::{topics, RunRecord};
 
-/// How much a warning matters.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum Class {
-    /// The result is different, incomplete or unreliable because of it: always printed.
-    ChangesAnswer,
-    /// How the result was reached: counted, listed with `-v`.
-    Note,
+/// Whether a diagnostic is printed without `-v`: whatever may change the answer.
+pub fn shown_by_default(d: &Diagnostic) -> bool {
+    d.severity != Severity::Note
 }
 
-/// One warning of one stage.
-#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct StageWarning {
-    /// The stage that raised it (`modal-fit`, `ni-select`, `rb-solve`, `model-check`, …).
-    pub stage: String,
-    /// The warning's text as the stage wrote it.
-    pub text: String,
-    /// How much it matters.
-    pub class: Class,
-    /// The kind of a typed diagnostic (`None`: a text warning, classified by [`explain`]).
-    pub kind: Option<DiagnosticKind>,
-}
-
-impl StageWarning {
-    /// A warning, classified by its text ([`classify`]).
-    pub fn new(stage: &str, text: impl Into<String>) -> Self {
-        let text = text.into();
-        StageWarning {
-            stage: stage.into(),
-            class: classify(&text),
-            text,
-            kind: None,
-        }
-    }
-
-    /// A typed diagnostic: classified by its severity (a note is a [`Class::Note`], a
-    /// warning or a changed answer is printed), explained by its kind, never by its text.
-    pub fn from_diagnostic(d: &Diagnostic) -> Self {
-        StageWarning {
-            stage: d.stage.clone(),
-            text: d.line(),
-            class: match d.severity {
-                Severity::Note => Class::Note,
-                Severity::Warning | Severity::ChangesAnswer => Class::ChangesAnswer,
-            },
-            kind: Some(d.kind),
-        }
-    }
-
-    /// A note whatever its text says (e.g. `frf-sim`'s notes on the simulation).
-    pub fn note(stage: &str, text: impl Into<String>) -> Self {
-        StageWarning {
-            class: Class::Note,
-            ..StageWarning::new(stage, text)
-        }
-    }
-
-    /// How much it matters ([`Class::ChangesAnswer`] or [`Class::Note`]).
-    pub fn class(&self) -> Class {
-        self.class
-    }
-
-    /// One sentence on what the warning means for the result.
-    pub fn explanation(&self) -> &'static str {
-        match self.kind {
-            Some(k) => k.sentence(),
-            None => explain(&self.text).1,
-        }
+/// The word a printed line carries for a severity.
+pub fn severity_label(s: Severity) -> &'static str {
+    match s {
+        Severity::Note => "note",
+        Severity::Warning => "warning",
+        Severity::ChangesAnswer => "changes the answer",
     }
 }
 
-/// Phrases that mark a warning as changing the answer, with the sentence that explains
-/// it to a test engineer. Matched case-insensitively, first match wins.
-const RULES: &[(&[&str], Class, &str)] = &[
-    (
-        &["correlated from line to line"],
-        Class::ChangesAnswer,
-        "The FRFs' noise is shared by neighbouring lines (a window on the time histories, as in impact testing): the model check weighs it conservatively when it is an exponential window's, and otherwise its claims are not calibrated.",
-    ),
-    (
-        &["is missing", "of the six rigid-body modes", "no identified modes", "not excited above the noise"],
-        Class::ChangesAnswer,
-        "A rigid-body mode was not found, so the estimate rests on fewer modes than the method needs and some properties may be unobservable.",
-    ),
-    (
-        &["candidate modes for six rigid-body modes"],
-        Class::Note,
-        "More candidate modes than rigid-body modes were found; the one with the least evidence (a spurious or weakly excited pole) was set aside and the six kept.",
-    ),
-    (
-        &["rejected"],
-        Class::ChangesAnswer,
-        "A mode or band was refused as not rigid-body-like; the estimate is computed without it.",
-    ),
-    (
-        &["rigid-body consistent", "inconsistent", "suspect"],
-        Class::ChangesAnswer,
-        "The identified modes do not move as one rigid body on the given geometry: a sensor position, direction or calibration is probably wrong.",
-    ),
-    (
-        &["physically", "non-physical", "not positive", "triangle inequality"],
-        Class::ChangesAnswer,
-        "The inertia tensor violates a physical bound (a negative mass or moment, or the triangle inequality): do not use these numbers.",
-    ),
-    (
-        &["poorly conditioned", "nearly singular", "singular information", "not all identifiable", "cannot be separated"],
-        Class::ChangesAnswer,
-        "The equations are ill-conditioned: small errors in the data move the result a lot, so its uncertainty is larger than the noise alone suggests.",
-    ),
-    (
-        &["identically zero", "the mode is left out", "dead channel"],
-        Class::ChangesAnswer,
-        "A channel or mode carried no usable data and was left out of the computation.",
-    ),
-    (
-        &["failed", "standard errors are zero", "taken as zero", "too small"],
-        Class::ChangesAnswer,
-        "An uncertainty computation failed in part: the reported intervals may be too narrow.",
-    ),
-    (
-        &["does not match the digest", "was changed after writing"],
-        Class::ChangesAnswer,
-        "The input was edited after it was written: the results may not be those of the original data.",
-    ),
-    (
-        &["0 hz line"],
-        Class::Note,
-        "The 0 Hz line carries no dynamic information (and is zero under AC coupling); it is left out of the fit.",
-    ),
-    (
-        &["model-order test", "residual test", "refinement", "computational"],
-        Class::Note,
-        "The pole selection adjusted the model order (a spurious pole dropped, a close pair split, a weak mode added); the reported modes already reflect it.",
-    ),
-    (
-        &["poles estimated on", "shapes on the whole band", "residues on the whole band"],
-        Class::Note,
-        "The poles were fitted on the part of the band that holds the modes; shapes and residues use the whole band.",
-    ),
-    (
-        &["complex residues", "rotated"],
-        Class::Note,
-        "Complex modal constants were rotated onto the real line, as the rigid-body equations need real mode shapes.",
-    ),
-    (
-        &["away from rigid-body motion"],
-        Class::Note,
-        "A mode shape deviates from exact rigid motion by the amount stated; small values are the noise of the fit.",
-    ),
-    (
-        &["repeated root", "one root of multiplicity"],
-        Class::Note,
-        "Two modes share one frequency; their shapes were separated by reciprocity.",
-    ),
-    (
-        &["mass-line", "mass line"],
-        Class::Note,
-        "The mass line's band and its truncation bias, as used for the mass estimate.",
-    ),
-    (
-        &["weak"],
-        Class::Note,
-        "An excitation barely drives this mode; another excitation's estimate of it is preferred.",
-    ),
-];
-
-const GENERIC: &str =
-    "A condition the stage noticed while computing; the numbers were produced regardless.";
-
-/// The class and one-sentence explanation of a warning text.
-pub fn explain(text: &str) -> (Class, &'static str) {
-    let t = text.to_lowercase();
-    RULES
-        .iter()
-        .find(|(phrases, _, _)| phrases.iter().any(|p| t.contains(p)))
-        .map(|(_, c, e)| (*c, *e))
-        .unwrap_or((Class::Note, GENERIC))
+/// A note of `stage` whose only source is one kind of text (the simulator's notes, the
+/// UFF reader's, a modal fit's per-excitation details): typed by where it comes from.
+pub fn note_of(
+    stage: &str,
+    kind: DiagnosticKind,
+    subject: DiagnosticSubject,
+    text: &str,
+) -> Diagnostic {
+    Diagnostic::new(stage, kind, Severity::Note, subject, text)
 }
 
-/// The class of a warning text (see the module documentation).
-pub fn classify(text: &str) -> Class {
-    explain(text).0
-}
-
-/// Every warning a run record carries, in pipeline order: modal-fit (per excitation and
-/// per mode), ni-select, rb-solve (per estimate), model-check. Duplicates within a stage
-/// (the same text on several estimates) are kept once.
-pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<StageWarning>> {
+/// Every diagnostic a run record carries, in pipeline order: modal-fit, ni-select, rb-solve
+/// (per estimate), model-check. The same diagnostic on several estimates is kept once.
+/// Records written before diagnostics were typed give their strings as
+/// [`DiagnosticKind::Text`], stage filled in.
+pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<Diagnostic>> {
     use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord};
     let mut out = Collector::default();
     if let Some(m) = rec.get_one::<ModalFitRecord>(topics::MODAL_FIT)? {
         if m.diagnostics.is_empty() {
-            // Written before modal-fit's diagnostics were typed: its texts, classified.
-            for e in &m.excitations {
-                out.extend("modal-fit", &e.warnings);
-            }
-            for mode in &m.modes {
-                out.extend("modal-fit", &mode.warnings);
+            // Written before modal-fit's diagnostics were typed: its texts.
+            let texts = m.excitations.iter().flat_map(|e| &e.warnings);
+            for t in texts.chain(m.modes.iter().flat_map(|m| &m.warnings)) {
+                out.add_from("modal-fit", Diagnostic::from_text(t.clone()));
             }
         } else {
-            for d in &m.diagnostics {
-                out.add(StageWarning::from_diagnostic(d));
-            }
+            out.extend(m.diagnostics.iter().cloned());
         }
     }
     if let Some(s) = rec.get_one::<SelectionRecord>(topics::SELECTION)? {
-        out.extend("ni-select", &s.warnings);
+        for d in s.diagnostics {
+            out.add_from("ni-select", d);
+        }
     }
     for e in rec.get::<InertiaEstimate>(topics::ESTIMATES)? {
-        out.extend("rb-solve", &e.warnings);
+        for d in e.diagnostics {
+            out.add_from("rb-solve", d);
+        }
     }
     // Read as plain JSON: a report with a non-finite statistic (written as null) does
-    // not decode as `ModelCheckReport`, and its warnings must still be listed.
+    // not decode as `ModelCheckReport`, and its diagnostics must still be listed.
     if let Some(c) = rec.get_one::<serde_json::Value>(topics::MODEL_CHECK)? {
-        for w in c["warnings"].as_array().into_iter().flatten() {
-            if let Some(t) = w.as_str() {
-                out.push("model-check", t);
+        let list = c.get("diagnostics").or_else(|| c.get("warnings"));
+        if let Some(list) = list {
+            let ds = rbprops_core::records::diagnostics_or_texts(list)
+                .map_err(|e| anyhow::anyhow!("{}: diagnostics: {e}", topics::MODEL_CHECK))?;
+            for d in ds {
+                out.add_from("model-check", d);
             }
         }
     }
     Ok(out.items)
 }
 
-/// Warnings gathered in order, each text once per stage.
+/// Diagnostics gathered in order, each once.
 #[derive(Debug, Clone, Default)]
 pub struct Collector {
-    /// The warnings, in the order they were added.
-    pub items: Vec<StageWarning>,
+    /// The diagnostics, in the order they were added.
+    pub items: Vec<Diagnostic>,
 }
 
 impl Collector {
-    /// Adds a warning of `stage`, classified by its text.
-    pub fn push(&mut self, stage: &str, text: impl Into<String>) {
-        self.add(StageWarning::new(stage, text));
-    }
-
-    /// Adds a warning unless the same text of the same stage is there already.
-    pub fn add(&mut self, w: StageWarning) {
-        if !self.items.contains(&w) {
-            self.items.push(w);
+    /// Adds a diagnostic unless the same one is there already.
+    pub fn add(&mut self, d: Diagnostic) {
+        if !self.items.contains(&d) {
+            self.items.push(d);
         }
     }
 
-    /// Adds every text of `stage`, each once.
-    pub fn extend<'a>(&mut self, stage: &str, texts: impl IntoIterator<Item = &'a String>) {
-        for t in texts {
-            self.push(stage, t.clone());
+    /// Adds a diagnostic read from `stage`'s record: an older file's text has no stage.
+    pub fn add_from(&mut self, stage: &str, mut d: Diagnostic) {
+        if d.stage.is_empty() {
+            d.stage = stage.into();
+        }
+        self.add(d);
+    }
+
+    /// Adds every diagnostic, each once.
+    pub fn extend(&mut self, ds: impl IntoIterator<Item = Diagnostic>) {
+        for d in ds {
+            self.add(d);
         }
     }
 
-    /// The stderr lines: with `verbose`, every warning; otherwise the warnings that
-    /// change the answer and, per stage with warnings, one summary line.
-    pub fn lines(&self, verbose: bool) -> Vec<String> {
+    /// The stages in order of first appearance.
+    fn stages(&self) -> Vec<&str> {
         let mut stages: Vec<&str> = Vec::new();
-        for w in &self.items {
-            if !stages.contains(&w.stage.as_str()) {
-                stages.push(&w.stage);
+        for d in &self.items {
+            if !stages.contains(&d.stage.as_str()) {
+                stages.push(&d.stage);
             }
         }
+        stages
+    }
+
+    /// The stderr lines, stage by stage, grouped by kind (kinds in order of first
+    /// appearance): with `verbose`, every diagnostic; otherwise the ones that may change
+    /// the answer and, per stage with notes, one summary line naming their kinds.
+    pub fn lines(&self, verbose: bool) -> Vec<String> {
         let mut lines = Vec::new();
-        for s in stages {
-            let of: Vec<&StageWarning> = self.items.iter().filter(|w| w.stage == s).collect();
-            let shown: Vec<&&StageWarning> = of
+        for s in self.stages() {
+            let of: Vec<&Diagnostic> = grouped_by_kind(self.items.iter().filter(|d| d.stage == s));
+            let shown: Vec<&&Diagnostic> = of
                 .iter()
-                .filter(|w| verbose || w.class() == Class::ChangesAnswer)
+                .filter(|d| verbose || shown_by_default(d))
                 .collect();
-            for w in &shown {
-                let kind = match w.class {
-                    Class::ChangesAnswer => "warning",
-                    Class::Note => "note",
-                };
-                lines.push(format!("{s}: {kind}: {}", w.text));
+            for d in &shown {
+                lines.push(format!("{s}: {}: {}", severity_label(d.severity), d.line()));
             }
-            let hidden = of.len() - shown.len();
-            if hidden > 0 {
-                // Only notes are ever hidden: say so, so that a clean run does not read as
-                // one with warnings. Typed notes are named by kind.
-                let mut kinds: Vec<String> = Vec::new();
-                for w in of.iter().filter(|w| !verbose && w.class() == Class::Note) {
-                    if let Some(k) = w.kind {
-                        let k = k.as_str().replace('_', " ");
-                        if !kinds.contains(&k) {
-                            kinds.push(k);
-                        }
-                    }
+            let hidden: Vec<&&Diagnostic> = of
+                .iter()
+                .filter(|d| !verbose && !shown_by_default(d))
+                .collect();
+            if hidden.is_empty() {
+                continue;
+            }
+            // Only notes are ever hidden: say so, so that a clean run does not read as one
+            // with warnings; named by kind.
+            let mut kinds: Vec<String> = Vec::new();
+            for d in &hidden {
+                let k = d.kind.as_str().replace('_', " ");
+                if !kinds.contains(&k) {
+                    kinds.push(k);
                 }
-                lines.push(format!(
-                    "{s}: {hidden} note{}{} on how the answer was reached{}; run with -v to list them",
-                    if hidden == 1 { "" } else { "s" },
-                    if kinds.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({})", kinds.join(", "))
-                    },
-                    if shown.is_empty() {
-                        String::new()
-                    } else {
-                        format!(
-                            " ({} warning{} above)",
-                            shown.len(),
-                            if shown.len() == 1 { "" } else { "s" }
-                        )
-                    }
-                ));
             }
+            let n = hidden.len();
+            lines.push(format!(
+                "{s}: {n} note{} ({}) on how the answer was reached{}; run with -v to list them",
+                if n == 1 { "" } else { "s" },
+                kinds.join(", "),
+                match shown.len() {
+                    0 => String::new(),
+                    1 => " (1 warning above)".into(),
+                    k => format!(" ({k} warnings above)"),
+                }
+            ));
         }
         lines
     }
@@ -333,115 +175,131 @@ impl Collector {
     }
 }
 
+/// The diagnostics ordered by kind (kinds in order of first appearance), each kind's in
+/// their original order.
+pub fn grouped_by_kind<'a>(ds: impl IntoIterator<Item = &'a Diagnostic>) -> Vec<&'a Diagnostic> {
+    let ds: Vec<&Diagnostic> = ds.into_iter().collect();
+    let mut kinds: Vec<DiagnosticKind> = Vec::new();
+    for d in &ds {
+        if !kinds.contains(&d.kind) {
+            kinds.push(d.kind);
+        }
+    }
+    kinds
+        .into_iter()
+        .flat_map(|k| ds.iter().copied().filter(move |d| d.kind == k))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    #[test]
-    fn classes_follow_the_definition() {
-        for t in [
-            "set-up 'a' mode 3 (1.2345 Hz) is missing: no excitation drives it",
-            "set-up 'a': only 5 of the six rigid-body modes were identified by any excitation",
-            "set-up 'a': rejected the mode at 9.0000 Hz: elastic; its evidence: x",
-            "Φ0 is poorly conditioned (cond = 1.0e9): the estimate is sensitive to shape errors",
-            "uncertainty propagation failed (x); standard errors are reported as zero",
-            "the noise is correlated from line to line (lag-1 excess 0.59 of the local polynomial residual, 51 SE over 7396 windows), as a window on the time histories makes it: an exponential window's correlation fits it",
-        ] {
-            assert_eq!(classify(t), Class::ChangesAnswer, "{t}");
-        }
-        for t in [
-            "excitation 'f1': pole at 3.1000 Hz dropped by the backward model-order test (it x, below the χ² threshold 3.0)",
-            "m1: complex residues (rotated by 0.010 rad onto the real line)",
-            "the 0 Hz line is left out (27 values): a high-pass (AC coupling) makes it 0",
-            "set-up 'A': rejected the mode at 3.1818 Hz: 7 candidate modes for six rigid-body modes; this one has the least evidence",
-            "something nobody anticipated",
-        ] {
-            assert_eq!(classify(t), Class::Note, "{t}");
-        }
+    fn d(stage: &str, kind: DiagnosticKind, severity: Severity, message: &str) -> Diagnostic {
+        Diagnostic::new(
+            stage,
+            kind,
+            severity,
+            DiagnosticSubject::setup("A"),
+            message,
+        )
     }
 
+    /// Without -v: the warnings, then one summary line per stage naming its notes' kinds;
+    /// a repeated diagnostic once; with -v every one, grouped by kind.
     #[test]
-    fn default_output_is_one_line_per_stage_plus_the_answer_changing_ones() {
+    fn default_output_is_one_line_per_stage_plus_the_warnings() {
         let mut c = Collector::default();
-        c.push(
+        let pole = d(
             "modal-fit",
-            "excitation 'a': pole at 1.0 Hz dropped by the backward model-order test",
+            DiagnosticKind::PoleSearch,
+            Severity::Note,
+            "pole dropped",
         );
-        c.push(
+        c.add(pole.clone());
+        c.add(d(
             "modal-fit",
-            "excitation 'b': pole at 2.0 Hz dropped by the backward model-order test",
-        );
-        c.push(
+            DiagnosticKind::WeakModes,
+            Severity::Note,
+            "weak",
+        ));
+        c.add(pole);
+        c.add(d(
             "modal-fit",
-            "excitation 'b': pole at 2.0 Hz dropped by the backward model-order test",
-        );
-        c.push("rb-solve", "Φ0 is poorly conditioned (cond = 1e9)");
+            DiagnosticKind::PoleSearch,
+            Severity::Note,
+            "band",
+        ));
+        c.add(d(
+            "rb-solve",
+            DiagnosticKind::IllConditioned,
+            Severity::Warning,
+            "Φ0 is poorly conditioned (cond = 1e9)",
+        ));
+        c.add(d(
+            "rb-solve",
+            DiagnosticKind::ModeLeftOut,
+            Severity::ChangesAnswer,
+            "mode 3 left out",
+        ));
         assert_eq!(
             c.lines(false),
             vec![
-                "modal-fit: 2 notes on how the answer was reached; run with -v to list them"
-                    .to_string(),
-                "rb-solve: warning: Φ0 is poorly conditioned (cond = 1e9)".to_string(),
+                "modal-fit: 3 notes (pole search, weak modes) on how the answer was reached; run with -v to list them",
+                "rb-solve: warning: set-up A: Φ0 is poorly conditioned (cond = 1e9)",
+                "rb-solve: changes the answer: set-up A: mode 3 left out",
             ]
         );
-        let all = c.lines(true);
-        assert_eq!(all.len(), 3);
-        assert_eq!(all.iter().filter(|l| l.contains(": note: ")).count(), 2);
         assert_eq!(
-            all[2],
-            "rb-solve: warning: Φ0 is poorly conditioned (cond = 1e9)"
+            c.lines(true)[..3],
+            [
+                "modal-fit: note: set-up A: pole dropped",
+                "modal-fit: note: set-up A: band",
+                "modal-fit: note: set-up A: weak",
+            ]
         );
         assert!(Collector::default().lines(false).is_empty());
     }
 
-    /// modal-fit's typed diagnostics are classified by severity and explained by kind,
-    /// whatever their text says: a note whose text holds an answer-changing phrase stays a
-    /// note, a warning whose text holds none is printed; the summary names the notes' kinds.
+    /// How much a diagnostic matters is its severity, whatever its text says: a note whose
+    /// text holds alarming words stays a note, a warning whose text holds none is printed.
     #[test]
-    fn typed_diagnostics_are_classified_by_kind_not_text() {
-        use rbprops_core::records::DiagnosticSubject;
-        let d = |kind, severity, message: &str| Diagnostic {
-            stage: "modal-fit".into(),
-            kind,
-            severity,
-            subject: DiagnosticSubject {
-                setup: Some("A".into()),
-                ..Default::default()
-            },
-            message: message.into(),
-            advice: String::new(),
-        };
-        let note = StageWarning::from_diagnostic(&d(
+    fn diagnostics_are_classified_by_severity_not_text() {
+        let mut c = Collector::default();
+        c.add(d(
+            "modal-fit",
             DiagnosticKind::RepeatedRoot,
             Severity::Note,
-            "the old fit failed and is missing; cannot be separated",
+            "the old fit failed and is missing; cannot be separated; inconsistent",
         ));
-        assert_eq!(note.class(), Class::Note);
-        assert_eq!(note.explanation(), DiagnosticKind::RepeatedRoot.sentence());
-        let warning = StageWarning::from_diagnostic(&d(
+        c.add(d(
+            "modal-fit",
             DiagnosticKind::FitErrorAboveNoise,
             Severity::Warning,
             "median fit error 1.1",
         ));
-        assert_eq!(warning.class(), Class::ChangesAnswer);
-        assert_eq!(
-            warning.explanation(),
-            DiagnosticKind::FitErrorAboveNoise.sentence()
-        );
-        let mut c = Collector::default();
-        c.add(note);
-        c.add(StageWarning::from_diagnostic(&d(
-            DiagnosticKind::FitChoice,
-            Severity::Note,
-            "poly-reference fit kept",
-        )));
-        c.add(warning);
         assert_eq!(
             c.lines(false),
             vec![
-                "modal-fit: warning: set-up A: median fit error 1.1".to_string(),
-                "modal-fit: 2 notes (repeated root, fit choice) on how the answer was reached (1 warning above); run with -v to list them".to_string(),
+                "modal-fit: warning: set-up A: median fit error 1.1",
+                "modal-fit: 1 note (repeated root) on how the answer was reached (1 warning above); run with -v to list them",
             ]
         );
+    }
+
+    /// An older record's strings read as shown `text` diagnostics of their stage.
+    #[test]
+    fn old_records_read_as_text_diagnostics() {
+        use rbprops_core::records::SelectionRecord;
+        let mut rec = RunRecord::default();
+        let sel: SelectionRecord =
+            serde_json::from_str(r#"{"selected":[],"missing":[],"warnings":["w1","w1","w2"]}"#)
+                .unwrap();
+        rec.set(topics::SELECTION, &[sel]);
+        let ds = from_record(&rec).unwrap();
+        assert_eq!(ds.len(), 2);
+        assert!(ds.iter().all(|d| d.stage == "ni-select"
+            && d.kind == DiagnosticKind::Text
+            && shown_by_default(d)));
     }
 }

@@ -356,6 +356,80 @@ named_values! {
         PoleSearch => "pole_search",
         /// The poles were corrected for a declared exponential window.
         WindowCorrection => "window_correction",
+        /// A set-up's modal record holds no modes at all.
+        NoModes => "no_modes",
+        /// A rigid-body mode is missing: no excitation identifies or excites it usably.
+        ModeMissing => "mode_missing",
+        /// More candidate modes than a rigid body has; the least supported were set aside.
+        ExtraModes => "extra_modes",
+        /// One physical mode fitted as several poles (one shape, two frequencies); merged.
+        DuplicatePoles => "duplicate_poles",
+        /// A candidate mode or estimate was refused (a copy of another mode's shape, the
+        /// least evidence among too many, a worse duplicate).
+        ModeRejected => "mode_rejected",
+        /// The evidence does not clearly decide between a kept and a rejected mode.
+        UndecidedModes => "undecided_modes",
+        /// A kept mode is supported only by weak or unexcited estimates.
+        SpuriousMode => "spurious_mode",
+        /// Set-ups forced together by the user.
+        SetupsForced => "setups_forced",
+        /// The manual selection left a mode out or chose an unreliable estimate.
+        ManualSelection => "manual_selection",
+        /// The selection criteria disagree on which excitation to take for a mode.
+        CriteriaDisagree => "criteria_disagree",
+        /// A normalised-indicator peak where no mode was identified.
+        UnmatchedPeak => "unmatched_peak",
+        /// A mode shape deviates from rigid-body motion by more than the threshold.
+        ShapeNotRigid => "shape_not_rigid",
+        /// Complex residues rotated onto the real line.
+        ComplexResidues => "complex_residues",
+        /// A selected mode could not be used and was left out of the estimate.
+        ModeLeftOut => "mode_left_out",
+        /// The modes do not move as one rigid body on the given geometry.
+        RigidBodyInconsistent => "rigid_body_inconsistent",
+        /// The inertia tensor violates a physical bound.
+        PhysicallyInconsistent => "physically_inconsistent",
+        /// The nearest physically consistent version of an estimate was added.
+        ProjectedEstimate => "projected_estimate",
+        /// The equations of an estimator are ill-conditioned or rank deficient.
+        IllConditioned => "ill_conditioned",
+        /// The geometry's channels alone do not resolve the six rigid motions as required.
+        GeometryObservability => "geometry_observability",
+        /// Side information (nominal values, constraints) the estimator used.
+        SideInformation => "side_information",
+        /// An estimator could not produce an estimate.
+        EstimatorFailed => "estimator_failed",
+        /// A standard error could not be computed in full: the intervals may be too narrow.
+        UncertaintyIncomplete => "uncertainty_incomplete",
+        /// The mount stiffness could not be computed.
+        MountStiffness => "mount_stiffness",
+        /// The mass line's band and its truncation bias.
+        MassLineBand => "mass_line_band",
+        /// The noise is correlated from line to line.
+        CorrelatedNoise => "correlated_noise",
+        /// Values without noise information left out of the model check.
+        NoNoiseInformation => "no_noise_information",
+        /// What the model check cannot see from these data (a free direction, an axis).
+        CheckBlindSpot => "check_blind_spot",
+        /// A refit or a candidate of the model check failed.
+        CheckRefitFailed => "check_refit_failed",
+        /// A choice the model check made on how to read the data.
+        CheckProcedure => "check_procedure",
+        /// The reader's note on converting an input (a UFF export's oddities).
+        InputConversion => "input_conversion",
+        /// How FRFs were estimated from time histories.
+        FrfEstimation => "frf_estimation",
+        /// Lines the modal model does not explain, kept out of the bootstrap's noise.
+        UnmodelledLines => "unmodelled_lines",
+        /// Relative errors against the reference are undefined (a zero reference value).
+        ReferenceErrors => "reference_errors",
+        /// A note of the simulator on what it simulated.
+        Simulation => "simulation",
+        /// A detail of one excitation's fit as the fit recorded it (model order, band).
+        FitDetail => "fit_detail",
+        /// A message written before diagnostics were typed (an older file): its
+        /// severity is not known.
+        Text => "text",
     }
 }
 
@@ -375,6 +449,42 @@ impl DiagnosticKind {
             DiagnosticKind::WeakModes => "An excitation barely drives these modes; another excitation's estimate of them is preferred.",
             DiagnosticKind::PoleSearch => "The pole search adjusted the model (a spurious pole dropped, a close pair split, the band narrowed to where the modes are); the reported modes already reflect it.",
             DiagnosticKind::WindowCorrection => "The poles were corrected for the declared exponential window; the frequencies and damping ratios are the physical ones.",
+            DiagnosticKind::NoModes => "The modal fit found no modes in this set-up, so nothing could be selected from it.",
+            DiagnosticKind::ModeMissing => "A rigid-body mode was not found, so the estimate rests on fewer modes than the method needs and some properties may be unobservable.",
+            DiagnosticKind::ExtraModes => "The modal record holds more distinct modes than a rigid body has (split poles, leakage, noise or elastic modes); the best supported six were kept.",
+            DiagnosticKind::DuplicatePoles => "Two poles at different frequencies have one shape: one physical mode fitted twice, merged into one.",
+            DiagnosticKind::ModeRejected => "A candidate was refused (a copy of another mode's shape, or the least evidence among too many); the estimate is computed without it.",
+            DiagnosticKind::UndecidedModes => "The evidence barely prefers the kept mode over a rejected one: check both, the answer depends on the choice.",
+            DiagnosticKind::SpuriousMode => "A kept mode rests only on weak or unexcited estimates: it may be spurious, and the estimate built on it with it.",
+            DiagnosticKind::SetupsForced => "Modes of different suspension set-ups were matched as if they were one suspension's, as requested.",
+            DiagnosticKind::ManualSelection => "The manual selection left a mode out or took an estimate the selection criteria find unreliable.",
+            DiagnosticKind::CriteriaDisagree => "The selection criteria would take different excitations for this mode; the chosen criterion's pick was used.",
+            DiagnosticKind::UnmatchedPeak => "The normalised mode indicator peaks where no mode was identified: a mode may be missing from the modal fit.",
+            DiagnosticKind::ShapeNotRigid => "A mode shape deviates from exact rigid-body motion by the amount stated; small values are the noise of the fit, large ones a sensor or an elastic mode.",
+            DiagnosticKind::ComplexResidues => "Complex modal constants were rotated onto the real line, as the rigid-body equations need real mode shapes.",
+            DiagnosticKind::ModeLeftOut => "A selected mode carried no usable data for the estimator and was left out of the computation.",
+            DiagnosticKind::RigidBodyInconsistent => "The identified modes do not move as one rigid body on the given geometry: a sensor position, direction or calibration is probably wrong.",
+            DiagnosticKind::PhysicallyInconsistent => "The inertia tensor violates a physical bound (a negative mass or moment, or the triangle inequality): do not use these numbers.",
+            DiagnosticKind::ProjectedEstimate => "A physically consistent version of an inconsistent estimate was added next to it: same mass, centre of mass and axes, moments projected onto the physical cone.",
+            DiagnosticKind::IllConditioned => "The equations are ill-conditioned: small errors in the data move the result a lot, so its uncertainty is larger than the noise alone suggests.",
+            DiagnosticKind::GeometryObservability => "The sensor layout falls short of a geometric requirement for observing rigid motion, but its channels still resolve all six motions.",
+            DiagnosticKind::SideInformation => "The estimator used the side information given (nominal values or constraints); the estimate depends on it.",
+            DiagnosticKind::EstimatorFailed => "An estimator could not produce an estimate; the others' results are reported.",
+            DiagnosticKind::UncertaintyIncomplete => "An uncertainty computation failed in part: the reported intervals may be too narrow.",
+            DiagnosticKind::MountStiffness => "The suspension's mount stiffness could not be computed from these modes; the inertia estimate does not need it.",
+            DiagnosticKind::MassLineBand => "The mass line's band and its truncation bias, as used for the mass estimate.",
+            DiagnosticKind::CorrelatedNoise => "The FRFs' noise is shared by neighbouring lines (a window on the time histories, as in impact testing): the model check weighs it conservatively when it is an exponential window's, and otherwise its claims are not calibrated.",
+            DiagnosticKind::NoNoiseInformation => "Values without a noise level (such as an accelerance's 0 Hz line) carry no statistical weight and were left out of the model check.",
+            DiagnosticKind::CheckBlindSpot => "The model check cannot tell this effect from the data of this test; a different test (another suspension or excitation) would be needed to see it.",
+            DiagnosticKind::CheckRefitFailed => "A refit of the model check did not converge; its candidate effect is not assessed.",
+            DiagnosticKind::CheckProcedure => "How the model check read the data (the lines, statistics and candidates it used); the verdict already reflects it.",
+            DiagnosticKind::InputConversion => "The input reader's note on how the export was converted (units, node and channel mapping, skipped datasets).",
+            DiagnosticKind::FrfEstimation => "The FRFs were estimated from the time histories as stated (averages, windows, rejected hits).",
+            DiagnosticKind::UnmodelledLines => "Some lines hold structure the modal model does not explain (an elastic mode above the band, a residual term): the bootstrap keeps the measured values there rather than resample them as noise.",
+            DiagnosticKind::ReferenceErrors => "The reference values given cannot measure a relative error (a zero mass, centre of mass or inertia): the error columns are left empty.",
+            DiagnosticKind::Simulation => "The simulator's note on what it simulated (the effects switched on, the noise drawn); the data are as the spec asks.",
+            DiagnosticKind::FitDetail => "A detail of one excitation's fit (model order, band, pole selection) as the fit recorded it; the reported modes already reflect it.",
+            DiagnosticKind::Text => "A message written by an earlier version, before diagnostics were typed; its weight is not known, read it in full.",
         }
     }
 }

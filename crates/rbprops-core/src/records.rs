@@ -265,6 +265,9 @@ pub struct Diagnostic {
 /// frequencies), a channel, a sensor, a hit. Empty fields: not specific to one.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct DiagnosticSubject {
+    /// The recording (a campaign item's label), when gathered over a campaign.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<String>,
     /// Suspension set-up.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub setup: Option<String>,
@@ -292,6 +295,9 @@ impl DiagnosticSubject {
     /// The subject in words: `set-up A, excitations fx, fy, modes 5 and 6 (0.5030, 0.5045 Hz)`.
     pub fn describe(&self) -> String {
         let mut parts = Vec::new();
+        if let Some(r) = &self.recording {
+            parts.push(r.clone());
+        }
         if let Some(s) = &self.setup {
             parts.push(format!("set-up {s}"));
         }
@@ -338,7 +344,90 @@ impl DiagnosticSubject {
     }
 }
 
+impl DiagnosticSubject {
+    /// Concerning one set-up.
+    pub fn setup(setup: impl Into<String>) -> Self {
+        DiagnosticSubject {
+            setup: Some(setup.into()),
+            ..Default::default()
+        }
+    }
+
+    /// Concerning nothing in particular (the whole run).
+    pub fn run() -> Self {
+        DiagnosticSubject::default()
+    }
+
+    /// … and one excitation.
+    pub fn excitation(mut self, excitation: impl Into<String>) -> Self {
+        self.excitations.push(excitation.into());
+        self
+    }
+
+    /// … and one mode (1-based within its set-up) at its frequency.
+    pub fn mode(mut self, mode: usize, frequency_hz: f64) -> Self {
+        self.modes.push(mode);
+        self.frequencies_hz.push(frequency_hz);
+        self
+    }
+
+    /// … and one mode whose frequency is not at hand.
+    pub fn mode_number(mut self, mode: usize) -> Self {
+        self.modes.push(mode);
+        self
+    }
+
+    /// … and frequencies (Hz) with no mode numbers (candidate modes, peaks).
+    pub fn at_hz(mut self, frequencies_hz: &[f64]) -> Self {
+        self.frequencies_hz.extend_from_slice(frequencies_hz);
+        self
+    }
+
+    /// … and one channel.
+    pub fn channel(mut self, channel: impl Into<String>) -> Self {
+        self.channel = Some(channel.into());
+        self
+    }
+}
+
 impl Diagnostic {
+    /// A diagnostic with no advice.
+    pub fn new(
+        stage: &str,
+        kind: DiagnosticKind,
+        severity: Severity,
+        subject: DiagnosticSubject,
+        message: impl Into<String>,
+    ) -> Self {
+        Diagnostic {
+            stage: stage.into(),
+            kind,
+            severity,
+            subject,
+            message: message.into(),
+            advice: String::new(),
+        }
+    }
+
+    /// The same with what to do about it.
+    pub fn advise(mut self, advice: impl Into<String>) -> Self {
+        self.advice = advice.into();
+        self
+    }
+
+    /// A message of a file written before diagnostics were typed: kind
+    /// [`DiagnosticKind::Text`], severity unknown and so shown ([`Severity::Warning`]),
+    /// stage unknown until the reader fills it in (empty).
+    pub fn from_text(text: impl Into<String>) -> Self {
+        Diagnostic::new(
+            "",
+            DiagnosticKind::Text,
+            Severity::Warning,
+            DiagnosticSubject::run(),
+            text,
+        )
+    }
+
     /// The diagnostic as one line: `subject: message (advice)`.
     pub fn line(&self) -> String {
         let subject = self.subject.describe();
@@ -352,6 +441,27 @@ impl Diagnostic {
         }
         t
     }
+}
+
+/// Reads a list of diagnostics, or the list of strings an older file holds in its place
+/// (each a [`Diagnostic::from_text`]).
+pub fn diagnostics_or_texts<'de, D>(d: D) -> Result<Vec<Diagnostic>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum Item {
+        Typed(Diagnostic),
+        Text(String),
+    }
+    Ok(Vec::<Item>::deserialize(d)?
+        .into_iter()
+        .map(|i| match i {
+            Item::Typed(d) => d,
+            Item::Text(t) => Diagnostic::from_text(t),
+        })
+        .collect())
 }
 
 /// The exponential-window correction `modal-fit` applied (see
@@ -551,9 +661,15 @@ pub struct SelectionRecord {
     /// Modes no excitation excites usably.
     #[schemars(description = "")]
     pub missing: Vec<MissingMode>,
-    /// Notes on the selection, human-readable.
-    #[schemars(description = "")]
-    pub warnings: Vec<String>,
+    /// What the selection noticed, typed, one diagnostic per fact. Records written before
+    /// diagnostics were typed hold `warnings` (strings): they read as [`DiagnosticKind::Text`].
+    #[serde(
+        default,
+        alias = "warnings",
+        deserialize_with = "diagnostics_or_texts",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub diagnostics: Vec<Diagnostic>,
 }
 
 /// One estimator's result (output of `rb-solve`); the JSON interface of `--format json`.
@@ -617,9 +733,15 @@ pub struct InertiaEstimate {
     /// True when the tensor is positive definite and obeys the triangle inequalities.
     #[schemars(description = "")]
     pub physically_consistent: bool,
-    /// Notes on the estimate, human-readable.
-    #[schemars(description = "")]
-    pub warnings: Vec<String>,
+    /// What the estimator noticed, typed, one diagnostic per fact. Records written before
+    /// diagnostics were typed hold `warnings` (strings): they read as [`DiagnosticKind::Text`].
+    #[serde(
+        default,
+        alias = "warnings",
+        deserialize_with = "diagnostics_or_texts",
+        skip_serializing_if = "Vec::is_empty"
+    )]
+    pub diagnostics: Vec<Diagnostic>,
     /// Whether the modes the estimate used are rigid-body consistent with the geometry
     /// (sensor rows and force columns) within their noise; see `rigid_body_check`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -764,6 +886,64 @@ mod diagnostic_tests {
         let r: ModalFitRecord = serde_json::from_str(old).unwrap();
         assert!(r.diagnostics.is_empty());
         assert_eq!(serde_json::to_string(&r).unwrap(), old);
+    }
+
+    /// A selection or an estimate written before diagnostics were typed still reads: its
+    /// strings become [`DiagnosticKind::Text`] diagnostics, shown as warnings; a typed
+    /// list round-trips.
+    #[test]
+    fn old_string_warnings_still_read() {
+        let old = r#"{"selected":[],"missing":[],"warnings":["set-up 'A': something"]}"#;
+        let r: SelectionRecord = serde_json::from_str(old).unwrap();
+        assert_eq!(
+            r.diagnostics,
+            vec![Diagnostic::from_text("set-up 'A': something")]
+        );
+        assert_eq!(r.diagnostics[0].kind, DiagnosticKind::Text);
+        assert_eq!(r.diagnostics[0].severity, Severity::Warning);
+        let new = SelectionRecord {
+            diagnostics: vec![Diagnostic::new(
+                "ni-select",
+                DiagnosticKind::ModeMissing,
+                Severity::ChangesAnswer,
+                DiagnosticSubject::setup("A").mode(3, 1.25),
+                "not excited",
+            )],
+            ..Default::default()
+        };
+        let json = serde_json::to_string(&new).unwrap();
+        assert!(json.contains("\"diagnostics\":[{"), "{json}");
+        assert_eq!(serde_json::from_str::<SelectionRecord>(&json).unwrap(), new);
+        let empty = serde_json::to_string(&SelectionRecord::default()).unwrap();
+        assert_eq!(empty, r#"{"selected":[],"missing":[]}"#);
+    }
+
+    /// The table of kinds in docs/formats.md (section "Diagnostics") is every kind's
+    /// sentence, as written here: this pins each kind's text for the reader and the
+    /// report. `RBPROPS_BLESS=1` rewrites the table (review the diff).
+    #[test]
+    fn formats_md_lists_every_kind_with_its_sentence() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/formats.md");
+        let doc = std::fs::read_to_string(path).unwrap();
+        let (begin, end) = (
+            "<!-- diagnostic kinds: begin -->\n",
+            "<!-- diagnostic kinds: end -->",
+        );
+        let i = doc.find(begin).expect("the begin marker") + begin.len();
+        let j = doc.find(end).expect("the end marker");
+        let mut table = String::from("| kind | what it means for the result |\n|---|---|\n");
+        for k in DiagnosticKind::ALL {
+            table.push_str(&format!("| `{}` | {} |\n", k.as_str(), k.sentence()));
+        }
+        if std::env::var_os("RBPROPS_BLESS").is_some() {
+            std::fs::write(path, format!("{}{table}{}", &doc[..i], &doc[j..])).unwrap();
+            return;
+        }
+        assert_eq!(
+            doc[i..j],
+            table,
+            "docs/formats.md's table of diagnostic kinds (RBPROPS_BLESS=1 rewrites it)"
+        );
     }
 
     /// Every kind has its own sentence, and the kinds and severities serialise as their

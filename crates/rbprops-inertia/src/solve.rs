@@ -11,6 +11,7 @@ use crate::shapes::{
     resolve_origin, rigid_shapes, OriginChoice, RigidFrame, RigidShape, ShapeDiagnostics,
 };
 use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{
     ErrorsRecord, EstimateMethod, InertiaEstimate, ModalFitRecord, PropertiesRecord,
     RigidBodyCheckRecord, SelectedMode, SelectionRecord, SystematicIntervalRecord,
@@ -124,8 +125,9 @@ pub struct SolveOutput {
     pub shapes: Vec<ShapeDiagnostics>,
     /// The mass-line band actually used.
     pub mass_line_band: Option<MassLineBand>,
-    /// Notes on the whole solve, human-readable.
-    pub warnings: Vec<String>,
+    /// What the solve noticed, typed, one diagnostic per fact (the estimates carry
+    /// their own).
+    pub diagnostics: Vec<Diagnostic>,
 }
 
 /// Largest relative standard error of the mass for a mass-line estimate to be reported.
@@ -152,15 +154,23 @@ pub fn solve(
     let frame = RigidFrame::new(geometry, origin)?;
     let mut warnings = Vec::new();
     if let Err(e) = geometry.check_rigid_observability() {
-        warnings.push(format!(
-            "geometry: {e}; the channel set still resolves six rigid motions (cond(SᵀS) = {:.3e})",
-            frame.basis.condition
+        // The channels still resolve the six motions: a note.
+        warnings.push(diagnostic(
+            DiagnosticKind::GeometryObservability,
+            Severity::Note,
+            DiagnosticSubject::run(),
+            format!(
+                "geometry: {e}; the channel set still resolves six rigid motions (cond(SᵀS) = {:.3e})",
+                frame.basis.condition
+            ),
         ));
     }
     for m in &selection.missing {
-        warnings.push(format!(
-            "set-up '{}' mode {} ({:.4} Hz) is missing: {}",
-            m.setup, m.mode, m.frequency_hz, m.reason
+        warnings.push(diagnostic(
+            DiagnosticKind::ModeMissing,
+            Severity::ChangesAnswer,
+            DiagnosticSubject::setup(&m.setup).mode(m.mode, m.frequency_hz),
+            format!("is missing: {}", m.reason),
         ));
     }
     let propagation = if opts.monte_carlo_samples > 0 {
@@ -191,7 +201,12 @@ pub fn solve(
             .collect();
         let (shapes, errors) = rigid_shapes(&frame, modal, &sel);
         for e in errors {
-            warnings.push(format!("{e}; the mode is left out"));
+            warnings.push(diagnostic(
+                DiagnosticKind::ModeLeftOut,
+                Severity::ChangesAnswer,
+                DiagnosticSubject::setup(*setup),
+                format!("{e}; the mode is left out"),
+            ));
         }
         shape_warnings(&shapes, &mut warnings);
         all_shapes.extend(shapes.iter().map(|s| s.diagnostics(&frame)));
@@ -200,7 +215,12 @@ pub fn solve(
             let obs = matched_observations(&frame, modal, &used);
             let check = rigid_body_check(&frame, geometry, &obs);
             if let Some(w) = check.as_ref().and_then(|c| rigid_check::warning(setup, c)) {
-                warnings.push(w);
+                warnings.push(diagnostic(
+                    DiagnosticKind::RigidBodyInconsistent,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(*setup),
+                    w,
+                ));
             }
             (obs, check)
         } else {
@@ -231,9 +251,10 @@ pub fn solve(
         }
     }
     let mut band = None;
+    let mut mass_line_failure = None;
     if opts.estimators.contains(&Estimator::MassLine) {
         match frf {
-            None => failures.push("mass_line: no FRFs were given".into()),
+            None => mass_line_failure = Some("mass_line: no FRFs were given".into()),
             Some(frf) => {
                 match mass_line_estimate(
                     &frame,
@@ -249,50 +270,91 @@ pub fn solve(
                         band = Some(b);
                         estimates.extend(parts.finish(&origin, opts.reference.as_ref())?);
                     }
-                    Err(e) => failures.push(e.to_string()),
+                    // Kept apart: the mass line is a cross-check of the modal
+                    // estimates, and it refuses a band too short or too noisy.
+                    Err(e) => mass_line_failure = Some(e.to_string()),
                 }
             }
         }
     }
     if estimates.is_empty() {
+        failures.extend(mass_line_failure);
         if failures.is_empty() {
             failures.push("no modes were selected and no estimator was requested".into());
         }
         return Err(InertiaError::NoEstimate(failures));
     }
-    warnings.extend(failures);
+    // The other estimators' results stand: a modal estimator's failure is a warning (a
+    // set-up's estimate is missing); the mass line's refusal, with the modal estimates
+    // there, a note (it is their cross-check, and refuses rather than mislead).
+    let failed = |f, severity| {
+        diagnostic(
+            DiagnosticKind::EstimatorFailed,
+            severity,
+            DiagnosticSubject::run(),
+            f,
+        )
+    };
+    warnings.extend(failures.into_iter().map(|f| failed(f, Severity::Warning)));
+    warnings.extend(mass_line_failure.map(|f| failed(f, Severity::Note)));
     Ok(SolveOutput {
         estimates,
         shapes: all_shapes,
         mass_line_band: band,
-        warnings,
+        diagnostics: warnings,
     })
 }
 
-fn shape_warnings(shapes: &[RigidShape], warnings: &mut Vec<String>) {
+/// Notes on the shapes used: each handled as stated, so notes; whether the shapes move as
+/// one rigid body within their noise is the rigid-body check's calibrated warning.
+fn shape_warnings(shapes: &[RigidShape], warnings: &mut Vec<Diagnostic>) {
     for s in shapes {
-        let id = format!(
-            "set-up '{}' mode {} (excitation '{}')",
-            s.selected.setup, s.selected.mode, s.selected.excitation
-        );
+        let id = || {
+            DiagnosticSubject::setup(&s.selected.setup)
+                .excitation(&s.selected.excitation)
+                .mode(s.selected.mode, s.selected.frequency_hz)
+        };
         if s.core.relative_residual > SHAPE_RESIDUAL_WARNING {
-            warnings.push(format!(
-                "{id}: the shape is {:.1} % away from rigid-body motion (‖A − Sq‖/‖A‖)",
-                100.0 * s.core.relative_residual
+            warnings.push(diagnostic(
+                DiagnosticKind::ShapeNotRigid,
+                Severity::Note,
+                id(),
+                format!(
+                    "the shape is {:.1} % away from rigid-body motion (‖A − Sq‖/‖A‖)",
+                    100.0 * s.core.relative_residual
+                ),
             ));
         }
         if s.core.complexity_angle_rad.abs() > COMPLEXITY_WARNING_RAD {
-            warnings.push(format!(
-                "{id}: complex residues (rotated by {:.3} rad onto the real line)",
-                s.core.complexity_angle_rad
+            warnings.push(diagnostic(
+                DiagnosticKind::ComplexResidues,
+                Severity::Note,
+                id(),
+                format!(
+                    "complex residues (rotated by {:.3} rad onto the real line)",
+                    s.core.complexity_angle_rad
+                ),
             ));
         }
         if s.estimate.weak {
-            warnings.push(format!(
-                "{id}: the modal fit marked this mode as weakly excited"
+            warnings.push(diagnostic(
+                DiagnosticKind::WeakModes,
+                Severity::Note,
+                id(),
+                "the modal fit marked this mode as weakly excited",
             ));
         }
     }
+}
+
+/// A diagnostic of `rb-solve`.
+fn diagnostic(
+    kind: DiagnosticKind,
+    severity: Severity,
+    subject: DiagnosticSubject,
+    message: impl Into<String>,
+) -> Diagnostic {
+    Diagnostic::new("rb-solve", kind, severity, subject, message)
 }
 
 /// Side information as constraints about the working origin.
@@ -361,11 +423,18 @@ impl SideConstraints {
         })
     }
 
-    fn label(&self) -> Option<String> {
+    /// The side information used, as a warning: the estimate rests on it, not only on
+    /// the measurement.
+    fn label(&self, setup: Option<&str>) -> Option<Diagnostic> {
         (!self.labels.is_empty()).then(|| {
-            format!(
-                "SIDE INFORMATION (not from the measurement): {}",
-                self.labels.join("; ")
+            diagnostic(
+                DiagnosticKind::SideInformation,
+                Severity::Warning,
+                setup.map_or_else(DiagnosticSubject::run, DiagnosticSubject::setup),
+                format!(
+                    "SIDE INFORMATION (not from the measurement): {}",
+                    self.labels.join("; ")
+                ),
             )
         })
     }
@@ -383,7 +452,7 @@ struct EstimateParts {
     residual: f64,
     modes_used: Vec<usize>,
     excitations_used: Vec<String>,
-    warnings: Vec<String>,
+    warnings: Vec<Diagnostic>,
     check: Option<RigidBodyCheckRecord>,
     /// Jackknife systematic standard errors and how they were obtained.
     systematic: Option<([f64; N_PROPS], String)>,
@@ -419,15 +488,21 @@ impl EstimateParts {
         let violations = props.consistency_violations();
         let mut est = self.package(&props, origin, reference, self.warnings.clone());
         est.physically_consistent = violations.is_empty();
-        est.warnings.extend(violations.iter().cloned());
+        est.diagnostics.extend(violations.iter().map(|v| {
+            self.diagnostic_of(
+                DiagnosticKind::PhysicallyInconsistent,
+                Severity::ChangesAnswer,
+                v.clone(),
+            )
+        }));
         let mut out = vec![est];
         if !violations.is_empty() && props.mass > 0.0 {
             let fixed = nearest_consistent(&props);
             let mut w = self.warnings.clone();
-            w.push(format!(
+            w.push(self.diagnostic_of(DiagnosticKind::ProjectedEstimate, Severity::Note, format!(
                 "nearest physically consistent version of the {} estimate: same mass, CoM and principal axes, principal moments projected onto the triangle-inequality cone; standard errors are those of the unprojected estimate",
                 self.method
-            ));
+            )));
             let mut p = self.package(&fixed, origin, reference, w);
             p.method = self.method.projected();
             p.physically_consistent = fixed.consistency_violations().is_empty();
@@ -436,12 +511,27 @@ impl EstimateParts {
         Ok(out)
     }
 
+    /// A diagnostic about this estimate (its set-up the subject).
+    fn diagnostic_of(
+        &self,
+        kind: DiagnosticKind,
+        severity: Severity,
+        message: String,
+    ) -> Diagnostic {
+        diagnostic(
+            kind,
+            severity,
+            DiagnosticSubject::setup(&self.setup),
+            message,
+        )
+    }
+
     fn package(
         &self,
         props: &RigidBodyProperties,
         origin: &Vec3,
         reference: Option<&PropertiesRecord>,
-        warnings: Vec<String>,
+        warnings: Vec<Diagnostic>,
     ) -> InertiaEstimate {
         let rec = PropertiesRecord::from_properties(props);
         let std = InertiaProperties::from_vector(&self.std.unwrap_or([0.0; N_PROPS]));
@@ -482,7 +572,7 @@ impl EstimateParts {
             excitations_used: self.excitations_used.clone(),
             errors,
             physically_consistent: true,
-            warnings,
+            diagnostics: warnings,
             rigid_body_consistent: self.check.as_ref().map(|c| c.rigid_body_consistent),
             rigid_body_check: self.check.clone(),
             systematic: self.systematic.as_ref().map(|(s, how)| {
@@ -514,7 +604,7 @@ fn distinct(ids: impl Iterator<Item = String>) -> Vec<String> {
 }
 
 /// Flattened `[re, im]` residues of the shapes and their standard deviations.
-fn residue_inputs(shapes: &[RigidShape], warnings: &mut Vec<String>) -> (Vec<f64>, Vec<f64>) {
+fn residue_inputs(shapes: &[RigidShape], warnings: &mut Vec<Diagnostic>) -> (Vec<f64>, Vec<f64>) {
     let mut x = Vec::new();
     let mut s = Vec::new();
     for sh in shapes {
@@ -522,13 +612,17 @@ fn residue_inputs(shapes: &[RigidShape], warnings: &mut Vec<String>) -> (Vec<f64
         let ok = est.residue_std.len() == est.residues.len()
             && est.residue_std.iter().all(|v| v.is_finite() && *v >= 0.0);
         if !ok {
-            warnings.push(format!(
-                "mode {} (excitation '{}'): {} residue standard errors for {} residues (or invalid values); its uncertainty is taken as zero",
-                sh.selected.mode,
-                sh.selected.excitation,
+            warnings.push(diagnostic(
+                DiagnosticKind::UncertaintyIncomplete,
+                Severity::Warning,
+                DiagnosticSubject::setup(&sh.selected.setup)
+                    .excitation(&sh.selected.excitation)
+                    .mode_number(sh.selected.mode),
+                format!(
+                "{} residue standard errors for {} residues (or invalid values); its uncertainty is taken as zero",
                 est.residue_std.len(),
                 est.residues.len()
-            ));
+            )));
         }
         for (i, z) in est.residues.iter().enumerate() {
             let si = if ok { est.residue_std[i] } else { 0.0 };
@@ -571,20 +665,30 @@ fn uncertainty<F>(
     x: &[f64],
     sigma: &[f64],
     how: Propagation,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
 ) -> (Option<[f64; N_PROPS]>, UncertaintyMethod)
 where
     F: Fn(&[f64]) -> Result<[f64; N_PROPS], InertiaError> + Sync,
 {
     if sigma.iter().all(|s| *s == 0.0) {
-        warnings.push("no input standard errors: the reported standard errors are zero".into());
+        warnings.push(diagnostic(
+            DiagnosticKind::UncertaintyIncomplete,
+            Severity::Warning,
+            DiagnosticSubject::run(),
+            "no input standard errors: the reported standard errors are zero",
+        ));
         return (None, UncertaintyMethod::None);
     }
     match propagate(f, x, sigma, how) {
         Ok(s) => (Some(s), how.record_name()),
         Err(e) => {
-            warnings.push(format!(
-                "uncertainty propagation failed ({e}); standard errors are reported as zero"
+            warnings.push(diagnostic(
+                DiagnosticKind::UncertaintyIncomplete,
+                Severity::Warning,
+                DiagnosticSubject::run(),
+                format!(
+                    "uncertainty propagation failed ({e}); standard errors are reported as zero"
+                ),
             ));
             (None, UncertaintyMethod::None)
         }
@@ -607,15 +711,20 @@ fn modal_estimate(
         Estimator::BretlConti => {
             let bc = bretl_conti(&phi0)?;
             if bc.condition > 1e4 {
-                warnings.push(format!(
-                    "Φ0 is poorly conditioned (cond = {:.3e}): the estimate is sensitive to shape errors",
-                    bc.condition
+                warnings.push(diagnostic(
+                    DiagnosticKind::IllConditioned,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(setup),
+                    format!(
+                        "Φ0 is poorly conditioned (cond = {:.3e}): the estimate is sensitive to shape errors",
+                        bc.condition
+                    ),
                 ));
             }
             (bc.mass_matrix, bc.residual)
         }
         Estimator::ToivolaNuutila => {
-            if let Some(l) = side.label() {
+            if let Some(l) = side.label(Some(setup)) {
                 warnings.push(l);
             }
             let tn = toivola_nuutila(&phi0, &side.constraints, None)?;
@@ -628,14 +737,24 @@ fn modal_estimate(
                         description,
                     });
                 }
-                warnings.push(format!(
-                    "rank {} of 10: {description}; the nominal values fix it",
-                    tn.rank
+                warnings.push(diagnostic(
+                    DiagnosticKind::IllConditioned,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(setup),
+                    format!(
+                        "rank {} of 10: {description}; the nominal values fix it",
+                        tn.rank
+                    ),
                 ));
             } else if tn.condition > 1e6 {
-                warnings.push(format!(
-                    "the orthogonality equations are poorly conditioned (cond = {:.3e})",
-                    tn.condition
+                warnings.push(diagnostic(
+                    DiagnosticKind::IllConditioned,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(setup),
+                    format!(
+                        "the orthogonality equations are poorly conditioned (cond = {:.3e})",
+                        tn.condition
+                    ),
                 ));
             }
             let tn = toivola_nuutila(&phi0, &side.constraints, side.nominal.as_ref())?;
@@ -647,7 +766,12 @@ fn modal_estimate(
         match mount_stiffness(&phi0, &omegas) {
             Ok(k) => Some(k),
             Err(e) => {
-                warnings.push(format!("mount stiffness: {e}"));
+                warnings.push(diagnostic(
+                    DiagnosticKind::MountStiffness,
+                    Severity::Note,
+                    DiagnosticSubject::setup(setup),
+                    format!("mount stiffness: {e}"),
+                ));
                 None
             }
         }
@@ -726,22 +850,29 @@ fn mass_line_estimate(
     )?;
     let excitations: Vec<usize> = (0..frf.n_excitations).collect();
     let mut warnings = Vec::new();
-    if let Some(l) = side.label() {
+    if let Some(l) = side.label(None) {
         warnings.push(l);
     }
-    warnings.push(format!(
-        "mass-line band {:.4}–{:.4} Hz ({} lines, {})",
-        band.lo_hz,
-        band.hi_hz,
-        band.n_lines,
-        if band.automatic {
-            match band.first_elastic_hz {
-                Some(fe) => format!("automatic; first elastic resonance near {fe:.4} Hz"),
-                None => "automatic; no elastic resonance found below the top of the data".into(),
+    warnings.push(diagnostic(
+        DiagnosticKind::MassLineBand,
+        Severity::Note,
+        DiagnosticSubject::run(),
+        format!(
+            "mass-line band {:.4}–{:.4} Hz ({} lines, {})",
+            band.lo_hz,
+            band.hi_hz,
+            band.n_lines,
+            if band.automatic {
+                match band.first_elastic_hz {
+                    Some(fe) => format!("automatic; first elastic resonance near {fe:.4} Hz"),
+                    None => {
+                        "automatic; no elastic resonance found below the top of the data".into()
+                    }
+                }
+            } else {
+                "given".into()
             }
-        } else {
-            "given".into()
-        }
+        ),
     ));
     let sol = mass_line(frame, &excitations, &ml.values, &side.constraints, None)?;
     if sol.estimate.rank < N_PARAMS && side.nominal.is_none() {
@@ -761,10 +892,14 @@ fn mass_line_estimate(
     )?;
     for (k, r) in sol.rigid_residual.iter().enumerate() {
         if *r > SHAPE_RESIDUAL_WARNING {
-            warnings.push(format!(
-                "excitation '{}': the mass line is {:.1} % away from rigid-body motion",
-                frame.excitation_ids[k],
-                100.0 * r
+            warnings.push(diagnostic(
+                DiagnosticKind::ShapeNotRigid,
+                Severity::Note,
+                DiagnosticSubject::run().excitation(&frame.excitation_ids[k]),
+                format!(
+                    "the mass line is {:.1} % away from rigid-body motion",
+                    100.0 * r
+                ),
             ));
         }
     }
@@ -816,9 +951,14 @@ fn mass_line_estimate(
             .ok()
         });
         if shifted.is_none() {
-            warnings.push(format!(
-                "mass-line truncation bias not estimated (no usable band from {:.4} Hz); the standard errors are noise only",
-                hi_band.lo_hz
+            warnings.push(diagnostic(
+                DiagnosticKind::UncertaintyIncomplete,
+                Severity::Warning,
+                DiagnosticSubject::run(),
+                format!(
+                    "mass-line truncation bias not estimated (no usable band from {:.4} Hz); the standard errors are noise only",
+                    hi_band.lo_hz
+                ),
             ));
         }
         if let (Some(s2), Some(sd)) = (shifted, std.as_mut()) {
@@ -831,11 +971,16 @@ fn mass_line_estimate(
             for k in 0..N_PROPS {
                 sd[k] = sd[k].hypot((a[k] - b[k]) / frac);
             }
-            warnings.push(format!(
-                "mass-line truncation bias estimated from a band starting at {:.4} Hz instead: m changes by {:.3e} kg, i.e. a bias of about {:.3e} kg at this band; added to the standard errors",
-                hi_band.lo_hz,
-                b[0] - a[0],
-                (a[0] - b[0]) / frac
+            warnings.push(diagnostic(
+                DiagnosticKind::MassLineBand,
+                Severity::Note,
+                DiagnosticSubject::run(),
+                format!(
+                    "mass-line truncation bias estimated from a band starting at {:.4} Hz instead: m changes by {:.3e} kg, i.e. a bias of about {:.3e} kg at this band; added to the standard errors",
+                    hi_band.lo_hz,
+                    b[0] - a[0],
+                    (a[0] - b[0]) / frac
+                ),
             ));
         }
     }

@@ -23,7 +23,9 @@
 //! pole has `|α|` near 1 rad or more); `r = ‖A − Sq‖/‖A‖` the rigid-body residual (paper
 //! Eq. 5) with `r0` = 0.1. A mode seen cleanly by one excitation has support ≈ 1, by three ≈ 3.
 
+use crate::diagnostic;
 use crate::matching::{mac, reference_member, Candidate, MatchTolerances};
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::Mat6;
 
 /// A rigid body has six rigid-body modes.
@@ -80,7 +82,7 @@ pub(crate) struct Consolidation {
     /// Kept groups, ascending in reference frequency; one estimate per excitation.
     pub groups: Vec<Vec<usize>>,
     pub rejected: Vec<Rejection>,
-    pub warnings: Vec<String>,
+    pub diagnostics: Vec<Diagnostic>,
 }
 
 /// Support of a group: `Σ Q` over its reliable members.
@@ -178,9 +180,15 @@ pub(crate) fn consolidate(
             reference_frequency(&groups[g], cands),
             reference_frequency(&groups[h], cands),
         );
-        out.warnings.push(format!(
-            "set-up '{setup}': the modes matched at {fg:.4} and {fh:.4} Hz have the same shape \
-             (MAC {m:.3}): one physical mode fitted as several poles; merged"
+        // Correctly handled (one mode kept, its estimates pooled): a note.
+        out.diagnostics.push(diagnostic(
+            DiagnosticKind::DuplicatePoles,
+            Severity::Note,
+            DiagnosticSubject::setup(setup).at_hz(&[fg, fh]),
+            format!(
+                "the modes matched at {fg:.4} and {fh:.4} Hz have the same shape (MAC {m:.3}): \
+                 one physical mode fitted as several poles; merged"
+            ),
         ));
         let moved = groups.remove(h);
         groups[g].extend(moved);
@@ -215,9 +223,11 @@ pub(crate) fn consolidate(
                         ev[win].quality,
                         ev[lose].quality
                     );
-                    out.warnings.push(format!(
-                        "set-up '{setup}': rejected {}: {reason}",
-                        ev[lose].label
+                    out.diagnostics.push(diagnostic(
+                        DiagnosticKind::ModeRejected,
+                        Severity::Note,
+                        DiagnosticSubject::setup(setup).at_hz(&[f]),
+                        format!("rejected {}: {reason}", ev[lose].label),
                     ));
                     out.rejected.push(Rejection {
                         candidate: lose,
@@ -301,13 +311,21 @@ pub(crate) fn consolidate(
         let best_rejected = alive[n_out - 1];
         let s_rej = support(&groups[best_rejected], cands, ev);
         if s_rej > 0.0 && s_rej >= UNDECIDED_SUPPORT_RATIO * s_kept {
-            out.warnings.push(format!(
-                "set-up '{setup}': the evidence does not clearly decide between the mode at \
-                 {:.4} Hz ({}) and the rejected one at {:.4} Hz ({}); check both",
+            let (fk, fr) = (
                 reference_frequency(&groups[weakest_kept], cands),
-                describe(&groups[weakest_kept], cands, ev),
                 reference_frequency(&groups[best_rejected], cands),
-                describe(&groups[best_rejected], cands, ev)
+            );
+            // The answer may hinge on this choice: a warning.
+            out.diagnostics.push(diagnostic(
+                DiagnosticKind::UndecidedModes,
+                Severity::Warning,
+                DiagnosticSubject::setup(setup).at_hz(&[fk, fr]),
+                format!(
+                    "the evidence does not clearly decide between the mode at {fk:.4} Hz ({}) \
+                     and the rejected one at {fr:.4} Hz ({}); check both",
+                    describe(&groups[weakest_kept], cands, ev),
+                    describe(&groups[best_rejected], cands, ev)
+                ),
             ));
         }
     }
@@ -320,11 +338,16 @@ pub(crate) fn consolidate(
         .collect();
     for g in &kept {
         if support(g, cands, ev) == 0.0 {
-            out.warnings.push(format!(
-                "set-up '{setup}': the mode at {:.4} Hz is supported only by weak or \
-                 unexcited estimates ({}): it may be spurious",
-                reference_frequency(g, cands),
-                describe(g, cands, ev)
+            let f = reference_frequency(g, cands);
+            out.diagnostics.push(diagnostic(
+                DiagnosticKind::SpuriousMode,
+                Severity::Warning,
+                DiagnosticSubject::setup(setup).at_hz(&[f]),
+                format!(
+                    "the mode at {f:.4} Hz is supported only by weak or unexcited estimates \
+                     ({}): it may be spurious",
+                    describe(g, cands, ev)
+                ),
             ));
         }
     }
@@ -342,9 +365,15 @@ fn reject_group(
     why: String,
 ) {
     let f = reference_frequency(group, cands);
-    out.warnings.push(format!(
-        "set-up '{setup}': rejected the mode at {f:.4} Hz: {why}; its evidence: {}",
-        describe(group, cands, ev)
+    // A leakage copy or the least supported of too many: correctly set aside, a note.
+    out.diagnostics.push(diagnostic(
+        DiagnosticKind::ModeRejected,
+        Severity::Note,
+        DiagnosticSubject::setup(setup).at_hz(&[f]),
+        format!(
+            "rejected the mode at {f:.4} Hz: {why}; its evidence: {}",
+            describe(group, cands, ev)
+        ),
     ));
     for &i in group {
         out.rejected.push(Rejection {

@@ -40,3 +40,13 @@ pub use select::{
     select_modes, Criterion, ExcitationCurves, ExcitationSummary, IndicatorCurves, ModeExcitation,
     ModeGroup, NiPeak, RejectedEstimate, SelectOptions, SelectionOutput, StrengthMatrix,
 };
+
+/// A diagnostic of `ni-select` (module docs of [`rbprops_core::records::Diagnostic`]).
+pub(crate) fn diagnostic(
+    kind: rbprops_core::records::DiagnosticKind,
+    severity: rbprops_core::records::Severity,
+    subject: rbprops_core::records::DiagnosticSubject,
+    message: impl Into<String>,
+) -> rbprops_core::records::Diagnostic {
+    rbprops_core::records::Diagnostic::new("ni-select", kind, severity, subject, message)
+}

@@ -8,7 +8,8 @@ use crate::indicators::{
 use crate::manual::ManualSet;
 use crate::matching::{mac, match_candidates, reference_member, Candidate, MatchTolerances};
 use crate::peaks::find_peaks;
-use crate::NiError;
+use crate::{diagnostic, NiError};
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{
     MissingMode, ModalFitRecord, SelectedMode, SelectionCriterion, SelectionRecord,
 };
@@ -486,9 +487,11 @@ pub fn select_modes(
                     setup: pool.label.clone(),
                 });
             }
-            warnings.push(format!(
-                "set-up '{}': no identified modes, nothing selected",
-                pool.label
+            warnings.push(diagnostic(
+                DiagnosticKind::NoModes,
+                Severity::ChangesAnswer,
+                DiagnosticSubject::setup(&pool.label),
+                "no identified modes, nothing selected",
             ));
             continue;
         }
@@ -508,7 +511,7 @@ pub fn select_modes(
         })?;
         out.record.selected.extend(result.selected);
         out.record.missing.extend(result.missing);
-        warnings.extend(result.warnings);
+        warnings.extend(result.diagnostics);
         out.excitation_summaries.extend(result.summaries);
         out.matches.extend(result.groups);
         out.strength_db.push(result.matrix);
@@ -524,7 +527,7 @@ pub fn select_modes(
                 .join(", "),
         });
     }
-    out.record.warnings = warnings;
+    out.record.diagnostics = warnings;
     Ok(out)
 }
 
@@ -548,7 +551,7 @@ impl RigidReduction<'_> {
         modal: &ModalFitRecord,
         estimate_excitations: &[usize],
         min_snr: f64,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Diagnostic>,
     ) -> Result<Vec<Member>, NiError> {
         let mut members = Vec::new();
         for (i, est) in modal.modes.iter().enumerate() {
@@ -578,11 +581,16 @@ impl RigidReduction<'_> {
                 })
             };
             if fit.relative_residual > RIGID_RESIDUAL_WARNING {
-                warnings.push(format!(
-                    "excitation '{}' mode {}: its shape is {:.0}% away from rigid-body motion",
-                    est.excitation,
-                    est.mode,
-                    100.0 * fit.relative_residual
+                warnings.push(diagnostic(
+                    DiagnosticKind::ShapeNotRigid,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(&est.setup)
+                        .excitation(&est.excitation)
+                        .mode(est.mode, est.frequency_hz),
+                    format!(
+                        "its shape is {:.0}% away from rigid-body motion",
+                        100.0 * fit.relative_residual
+                    ),
                 ));
             }
             members.push(Member {
@@ -676,7 +684,7 @@ fn validate_estimates(
 fn plan_pools(
     geometry: &Geometry,
     opts: &SelectOptions,
-) -> Result<(Vec<Pool>, Vec<String>), NiError> {
+) -> Result<(Vec<Pool>, Vec<Diagnostic>), NiError> {
     let mut warnings = Vec::new();
     let known = || {
         geometry
@@ -752,9 +760,14 @@ fn plan_pools(
     };
     let pools = if opts.force_mixed_setups && scope.len() > 1 {
         let label = scope.join("+");
-        warnings.push(format!(
-            "set-ups {} were forced together: their modes are matched as one suspension's",
-            scope.join(", ")
+        warnings.push(diagnostic(
+            DiagnosticKind::SetupsForced,
+            Severity::Note,
+            DiagnosticSubject::setup(&label),
+            format!(
+                "set-ups {} were forced together: their modes are matched as one suspension's",
+                scope.join(", ")
+            ),
         ));
         vec![Pool {
             label,
@@ -799,7 +812,7 @@ struct PoolResult {
     rejected: Vec<RejectedEstimate>,
     selected: Vec<SelectedMode>,
     missing: Vec<MissingMode>,
-    warnings: Vec<String>,
+    diagnostics: Vec<Diagnostic>,
     summaries: Vec<ExcitationSummary>,
     groups: Vec<ModeGroup>,
     matrix: StrengthMatrix,
@@ -883,7 +896,7 @@ struct CriterionChoices {
 struct PoolChoices {
     selected: Vec<SelectedMode>,
     missing: Vec<MissingMode>,
-    warnings: Vec<String>,
+    warnings: Vec<Diagnostic>,
     disagreements: Vec<String>,
 }
 
@@ -932,7 +945,7 @@ fn process_pool(p: &PoolInputs) -> Result<PoolResult, NiError> {
         rejected: modes.rejected,
         selected: choices.selected,
         missing: choices.missing,
-        warnings,
+        diagnostics: warnings,
         summaries,
         groups: mode_groups,
         matrix,
@@ -944,7 +957,7 @@ fn process_pool(p: &PoolInputs) -> Result<PoolResult, NiError> {
 /// are matched across excitations by frequency and MAC ([`match_candidates`]) and
 /// consolidated into at most six rigid-body modes ([`consolidate`]). Warns when more than
 /// six or fewer than six modes come out.
-fn physical_modes(p: &PoolInputs, warnings: &mut Vec<String>) -> PhysicalModes {
+fn physical_modes(p: &PoolInputs, warnings: &mut Vec<Diagnostic>) -> PhysicalModes {
     let cands: Vec<Candidate> = p
         .members
         .iter()
@@ -979,13 +992,18 @@ fn physical_modes(p: &PoolInputs, warnings: &mut Vec<String>) -> PhysicalModes {
     let consolidated = consolidate(matched, &cands, &evidence, p.gram, p.tol, &p.pool.label);
     let n_modes = consolidated.groups.len();
     if n_matched > RIGID_BODY_MODES {
-        warnings.push(format!(
-            "set-up '{}': {n_matched} distinct modes matched, more than the six rigid-body modes \
-             (split, leakage, noise or elastic poles in the modal record); {n_modes} kept",
-            p.pool.label
+        // The surplus is set aside by evidence (each rejection its own note): a note.
+        warnings.push(diagnostic(
+            DiagnosticKind::ExtraModes,
+            Severity::Note,
+            DiagnosticSubject::setup(&p.pool.label),
+            format!(
+                "{n_matched} distinct modes matched, more than the six rigid-body modes \
+                 (split, leakage, noise or elastic poles in the modal record); {n_modes} kept"
+            ),
         ));
     }
-    warnings.extend(consolidated.warnings);
+    warnings.extend(consolidated.diagnostics);
     let rejected = consolidated
         .rejected
         .iter()
@@ -1002,9 +1020,11 @@ fn physical_modes(p: &PoolInputs, warnings: &mut Vec<String>) -> PhysicalModes {
         })
         .collect();
     if n_modes < RIGID_BODY_MODES {
-        warnings.push(format!(
-            "set-up '{}': only {n_modes} of the six rigid-body modes were identified by any excitation",
-            p.pool.label
+        warnings.push(diagnostic(
+            DiagnosticKind::ModeMissing,
+            Severity::ChangesAnswer,
+            DiagnosticSubject::setup(&p.pool.label),
+            format!("only {n_modes} of the six rigid-body modes were identified by any excitation"),
         ));
     }
     PhysicalModes {
@@ -1246,8 +1266,11 @@ fn choose(
         ),
     };
     match (&manual_choice, chosen) {
-        (Some(None), _) => out.warnings.push(format!(
-            "set-up '{label}' mode {mode} ({f_r:.4} Hz) is not in the manual set: not selected"
+        (Some(None), _) => out.warnings.push(diagnostic(
+            DiagnosticKind::ManualSelection,
+            Severity::ChangesAnswer,
+            DiagnosticSubject::setup(label).mode(mode, f_r),
+            "not in the manual set: not selected",
         )),
         (Some(Some(ex)), _) if !table.iter().any(|m| &m.excitation == ex) => {
             return Err(NiError::Manual(format!(
@@ -1297,9 +1320,16 @@ fn choose(
                 .find(|m| m.excitation == ex)
                 .expect("checked above");
             if !row.eligible {
-                out.warnings.push(format!(
-                    "set-up '{label}' mode {mode}: the manual choice '{ex}' is not reliable ({})",
-                    row.reason.as_deref().unwrap_or("")
+                out.warnings.push(diagnostic(
+                    DiagnosticKind::ManualSelection,
+                    Severity::Warning,
+                    DiagnosticSubject::setup(label)
+                        .excitation(&ex)
+                        .mode(mode, f_r),
+                    format!(
+                        "the manual choice '{ex}' is not reliable ({})",
+                        row.reason.as_deref().unwrap_or("")
+                    ),
                 ));
             }
             let manual = criterion == SelectionCriterion::Manual;
@@ -1381,7 +1411,7 @@ fn excitation_summaries(
     p: &PoolInputs,
     per_excitation: Vec<Vec<ModeExcitation>>,
     mode_groups: &[ModeGroup],
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
 ) -> Vec<ExcitationSummary> {
     let opts = p.opts;
     let mut summaries = Vec::with_capacity(p.pool.excitations.len());
@@ -1403,9 +1433,16 @@ fn excitation_summaries(
             })
             .collect();
         for pk in peaks.iter().filter(|pk| pk.mode.is_none()) {
-            warnings.push(format!(
-                "NI of '{}' peaks at {:.4} Hz ({:.1} dB) where no mode was identified",
-                c.excitation, pk.frequency_hz, pk.level_db
+            warnings.push(diagnostic(
+                DiagnosticKind::UnmatchedPeak,
+                Severity::Warning,
+                DiagnosticSubject::setup(&p.pool.label)
+                    .excitation(&c.excitation)
+                    .at_hz(&[pk.frequency_hz]),
+                format!(
+                    "the NI peaks at {:.4} Hz ({:.1} dB) where no mode was identified",
+                    pk.frequency_hz, pk.level_db
+                ),
             ));
         }
         let excited: Vec<&ModeExcitation> = slot.iter().filter(|m| m.eligible).collect();

@@ -77,6 +77,10 @@ pub struct ScatterPlot {
     pub legend: LegendPosition,
     /// Canvas size.
     pub size: PlotSize,
+    /// When not empty, the x axis is categorical: a point's x is the 0-based index of its
+    /// category, drawn at the category's centre and labelled with its name (recordings of
+    /// a campaign, not a numeric axis).
+    pub x_categories: Vec<String>,
 }
 
 /// Render a scatter plot: one filled `<circle>` per plottable point in the
@@ -95,6 +99,7 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
             what: "series list",
         });
     }
+    let categorical = !p.x_categories.is_empty();
     // Per point: plot-space centre and (low, high) y ends of the error bar.
     type Point = ((f64, f64), Option<(f64, f64)>);
     let mut pts: Vec<Vec<Point>> = Vec::new();
@@ -114,7 +119,13 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
         }
         let mut v = Vec::new();
         for i in 0..s.x.len() {
-            match (p.x_scale.transform(s.x[i]), p.y_scale.transform(s.y[i])) {
+            let x = if categorical {
+                // Category i occupies [i, i + 1] (AxisSpec::categorical).
+                (s.x[i] >= 0.0 && s.x[i] < p.x_categories.len() as f64).then(|| s.x[i] + 0.5)
+            } else {
+                p.x_scale.transform(s.x[i])
+            };
+            match (x, p.y_scale.transform(s.y[i])) {
                 (Some(tx), Some(ty)) => {
                     let bar = s
                         .y_errors
@@ -151,7 +162,11 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
         xe = (lo, hi);
         ye = (lo, hi);
     }
-    let x = AxisSpec::resolve(&plot, "x", p.x_scale, Some(xe), p.x_range, Fit::Nice)?;
+    let x = if categorical {
+        AxisSpec::categorical(p.x_categories.clone())
+    } else {
+        AxisSpec::resolve(&plot, "x", p.x_scale, Some(xe), p.x_range, Fit::Nice)?
+    };
     let y = AxisSpec::resolve(&plot, "y", p.y_scale, Some(ye), p.y_range, Fit::Nice)?;
 
     render_svg(&plot, p.size, |root| {

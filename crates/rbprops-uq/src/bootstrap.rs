@@ -8,6 +8,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{
     EstimateMethod, InertiaEstimate, ModalFitRecord, SelectionRecord, UncertaintyMethod,
 };
@@ -108,8 +109,8 @@ pub struct BootstrapOutput {
     pub replicates: usize,
     /// The pole mode used (given or inferred).
     pub pole_mode: PoleMode,
-    /// Notes on the bootstrap, human-readable.
-    pub warnings: Vec<String>,
+    /// What the bootstrap noticed, typed (stage `rb-solve`).
+    pub diagnostics: Vec<Diagnostic>,
 }
 
 /// The property vector of an estimate ([`InertiaProperties::to_vector`]).
@@ -207,7 +208,9 @@ pub fn bootstrap(
         }
     }
     if estimates.is_empty() {
-        return Err(UqError::Nothing(warnings));
+        return Err(UqError::Nothing(
+            warnings.iter().map(Diagnostic::line).collect(),
+        ));
     }
     Ok(BootstrapOutput {
         estimates,
@@ -221,7 +224,7 @@ pub fn bootstrap(
             .collect(),
         replicates: opts.replicates,
         pole_mode: model.pole_mode,
-        warnings,
+        diagnostics: warnings,
     })
 }
 
@@ -394,11 +397,17 @@ fn target_vector(t: &Target, out: &SolveOutput) -> Result<[f64; N_PROPS], String
         .iter()
         .find(|e| e.method == t.method && e.setup == t.setup)
         .ok_or_else(|| {
-            let why: Vec<&str> = out
-                .warnings
+            // What kept the estimator from an estimate: its failure or modes left out.
+            let why: Vec<String> = out
+                .diagnostics
                 .iter()
-                .filter(|w| w.contains(t.method.as_str()) || w.contains("left out"))
-                .map(String::as_str)
+                .filter(|d| {
+                    matches!(
+                        d.kind,
+                        DiagnosticKind::EstimatorFailed | DiagnosticKind::ModeLeftOut
+                    )
+                })
+                .map(Diagnostic::line)
                 .collect();
             format!("{} gave no estimate ({})", t.method, why.join("; "))
         })?;
@@ -418,7 +427,7 @@ fn target_vector(t: &Target, out: &SolveOutput) -> Result<[f64; N_PROPS], String
 
 /// Warnings on FRF lines the modal model misses: they are not resampled as noise, so the
 /// replicates keep the measured values there.
-fn misfit_warnings(model: &FittedModel, geometry: &Geometry) -> Vec<String> {
+fn misfit_warnings(model: &FittedModel, geometry: &Geometry) -> Vec<Diagnostic> {
     let mut warnings = Vec::new();
     for e in &model.excitations {
         let n: usize = e.misfit_lines.iter().sum();
@@ -426,9 +435,16 @@ fn misfit_warnings(model: &FittedModel, geometry: &Geometry) -> Vec<String> {
             let worst = (0..e.misfit_lines.len())
                 .max_by_key(|&c| e.misfit_lines[c])
                 .unwrap_or(0);
-            warnings.push(format!(
-                "bootstrap: excitation '{}': the modal model misses structure on {n} channel-lines (most on channel '{}': {} lines); they are not counted as noise and every replicate keeps the measured values there",
-                e.id, geometry.channels[worst].id, e.misfit_lines[worst]
+            // Handled (the lines are kept out of the noise model): a note.
+            warnings.push(Diagnostic::new(
+                "rb-solve",
+                DiagnosticKind::UnmodelledLines,
+                Severity::Note,
+                DiagnosticSubject::run().excitation(&e.id),
+                format!(
+                    "bootstrap: the modal model misses structure on {n} channel-lines (most on channel '{}': {} lines); they are not counted as noise and every replicate keeps the measured values there",
+                    geometry.channels[worst].id, e.misfit_lines[worst]
+                ),
             ));
         }
     }
@@ -443,7 +459,7 @@ fn target_statistics(
     t_idx: usize,
     results: &[ReplicateResult],
     opts: &BootstrapOptions,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
 ) -> Option<BootstrapEstimate> {
     let mut samples = Vec::new();
     let mut reasons: Vec<String> = Vec::new();
@@ -465,18 +481,24 @@ fn target_statistics(
     }
     let id = format!("{} (set-up '{}')", t.method, t.setup);
     if samples.len() < 2 {
-        warnings.push(format!(
-            "bootstrap of {id}: {failed} of {} replicates failed ({}); its standard errors are left as they were",
-            opts.replicates,
-            reasons.join("; ")
+        warnings.push(uncertainty_incomplete(
+            &t.setup,
+            format!(
+                "bootstrap of {id}: {failed} of {} replicates failed ({}); its standard errors are left as they were",
+                opts.replicates,
+                reasons.join("; ")
+            ),
         ));
         return None;
     }
     if failed as f64 > opts.failure_warning_fraction * opts.replicates as f64 {
-        warnings.push(format!(
-            "bootstrap of {id}: {failed} of {} replicates failed ({}); the standard errors come from the others and may be too small",
-            opts.replicates,
-            reasons.join("; ")
+        warnings.push(uncertainty_incomplete(
+            &t.setup,
+            format!(
+                "bootstrap of {id}: {failed} of {} replicates failed ({}); the standard errors come from the others and may be too small",
+                opts.replicates,
+                reasons.join("; ")
+            ),
         ));
     }
     Some(statistics(t, samples, failed, reasons))
@@ -551,11 +573,14 @@ pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize
         e.uncertainty_method = UncertaintyMethod::Bootstrap;
         e.update_systematic_interval();
         if b.failed > 0 {
-            e.warnings.push(format!(
-                "bootstrap: {} of {} replicates failed; standard errors from the other {}",
-                b.failed,
-                b.failed + b.samples.len(),
-                b.samples.len()
+            e.diagnostics.push(uncertainty_incomplete(
+                &e.setup,
+                format!(
+                    "bootstrap: {} of {} replicates failed; standard errors from the other {}",
+                    b.failed,
+                    b.failed + b.samples.len(),
+                    b.samples.len()
+                ),
             ));
         }
         n += 1;
@@ -587,19 +612,39 @@ pub fn solve_with_bootstrap(
     ) {
         Ok(boot) => {
             apply(&mut out.estimates, &boot);
-            out.warnings.extend(boot.warnings.iter().cloned());
+            out.diagnostics.extend(boot.diagnostics.iter().cloned());
             Ok((out, Some(boot)))
         }
         Err(e) => {
-            out.warnings.push(format!(
-                "bootstrap: {e}; the modal estimates keep their {} standard errors",
-                if solve_opts.monte_carlo_samples > 0 {
-                    "Monte Carlo"
-                } else {
-                    "linearised"
-                }
+            out.diagnostics.push(uncertainty_incomplete(
+                "",
+                format!(
+                    "bootstrap: {e}; the modal estimates keep their {} standard errors",
+                    if solve_opts.monte_carlo_samples > 0 {
+                        "Monte Carlo"
+                    } else {
+                        "linearised"
+                    }
+                ),
             ));
             Ok((out, None))
         }
     }
+}
+
+/// A warning that bootstrap standard errors are incomplete: replicates failed, or the
+/// bootstrap did not run (`setup` empty: not one set-up's).
+fn uncertainty_incomplete(setup: &str, message: String) -> Diagnostic {
+    let subject = if setup.is_empty() {
+        DiagnosticSubject::run()
+    } else {
+        DiagnosticSubject::setup(setup)
+    };
+    Diagnostic::new(
+        "rb-solve",
+        DiagnosticKind::UncertaintyIncomplete,
+        Severity::Warning,
+        subject,
+        message,
+    )
 }

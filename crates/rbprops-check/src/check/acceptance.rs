@@ -14,9 +14,10 @@ use super::CheckOptions;
 use crate::error::CheckError;
 use crate::lm;
 use crate::lm::Fit;
-use crate::report::{HeldOutCheck, PlausibleValue, RelativeChange};
+use crate::report::{diagnostic, HeldOutCheck, PlausibleValue, RelativeChange};
 use nalgebra::DMatrix;
 use rbprops_core::c64;
+use rbprops_core::records::{DiagnosticKind, Severity};
 use rbprops_core::stats::chi2_isf;
 
 /// How far above the precision floor an effect's fitted change to the FRFs must be, as
@@ -140,8 +141,11 @@ impl<'p, 'a> Selection<'p, 'a> {
             let f = match f {
                 Ok(f) => f,
                 Err(e) => {
-                    self.warnings
-                        .push(format!("refit of '{}' failed: {e}", p.cands[c].id));
+                    self.warnings.push(diagnostic(
+                        DiagnosticKind::CheckRefitFailed,
+                        Severity::Warning,
+                        format!("refit of '{}' failed: {e}", p.cands[c].id),
+                    ));
                     continue;
                 }
             };

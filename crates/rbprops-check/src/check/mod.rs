@@ -11,17 +11,17 @@ use crate::lm;
 use crate::noise::{self, RecordingNoise};
 use crate::params::Baseline;
 use crate::predict::Layout;
-use crate::report::ModelCheckReport;
+use crate::report::{diagnostic, ModelCheckReport};
 use acceptance::LOEO_MAX_CHI2_NU;
 use problem::{Prior, Problem};
+use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
+use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
 use rbprops_sim::effects::mass::SensorMass;
 use rbprops_sim::effects::processing::ExponentialWindow;
-use selection::{Selection, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
-use verdict::{at_noise_floor, Finish, Finished};
-
-use rbprops_core::{c64, DataPrecision, FrfSet, Geometry};
 use rbprops_sim::effects::Effect;
 use rbprops_sim::CampaignSpec;
+use selection::{Selection, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
+use verdict::{at_noise_floor, Finish, Finished};
 
 mod acceptance;
 mod gauges;
@@ -378,7 +378,7 @@ fn weights(
     options: &CheckOptions,
     noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
     method: &mut Vec<String>,
-    warnings: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
 ) -> Result<Weights, CheckError> {
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
@@ -462,9 +462,9 @@ fn weights(
         }
     }
     if n_dc > 0 {
-        warnings.push(format!(
+        warnings.push(diagnostic(DiagnosticKind::NoNoiseInformation, Severity::Note, format!(
             "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
-        ));
+        )));
     }
     let mut noise_model = noise_model;
     // The second pass takes the correlation the first found in its residual.
@@ -485,7 +485,18 @@ fn weights(
         let w = d.describe(line_spacing(frf));
         // Said at once: without a calibrated weighting the selection can run long.
         options.progress.say(|| format!("warning: {w}"));
-        warnings.push(w);
+        // Handled when the window is declared (in the model or the line variances: its τ
+        // weighs the lines): a note. Undeclared, an exponential window's correlation
+        // that fits is a window nobody declared (the message states its τ), and one that
+        // does not fit leaves the check uncalibrated: warnings.
+        let declared = d.known_c.is_some()
+            || given_lines.is_some_and(|lv| lv.window_time_constant_s.is_some());
+        let (kind, severity) = match (declared, d.inflation().is_some()) {
+            (true, _) => (DiagnosticKind::CorrelatedNoise, Severity::Note),
+            (false, true) => (DiagnosticKind::UndeclaredWindow, Severity::Warning),
+            (false, false) => (DiagnosticKind::CorrelatedNoise, Severity::Warning),
+        };
+        warnings.push(diagnostic(kind, severity, w));
     }
     if let Some(inf) = &inflation {
         // From the data σ² is read low by L and smooth signatures vary κ times more; a
@@ -516,7 +527,7 @@ fn weights(
     let used: Vec<usize> = (0..y.len()).filter(|&i| sigma[i] > 0.0).collect();
     let n_excluded = y.len() - used.len() - n_dc;
     if n_excluded > 0 {
-        warnings.push(format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out"));
+        warnings.push(diagnostic(DiagnosticKind::NoNoiseInformation, Severity::Note, format!("{n_excluded} values carry no noise information (σ = 0, e.g. accelerance at 0 Hz) and are left out")));
     }
     Ok(Weights {
         noise_model,
@@ -656,13 +667,16 @@ fn check_with(
         &mut warnings,
     )?;
     let fixed_effects = fixed_effects(spec, &layout, options)?;
-    warnings.extend(crate::candidates::free_direction_note(
-        spec,
-        &layout.spec_geometry,
-    ));
+    warnings.extend(
+        crate::candidates::free_direction_note(spec, &layout.spec_geometry)
+            .map(|t| diagnostic(DiagnosticKind::CheckBlindSpot, Severity::Note, t)),
+    );
     let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
     method.extend(notes);
-    warnings.extend(crate::candidates::vertical_axis_doubt(spec));
+    warnings.extend(
+        crate::candidates::vertical_axis_doubt(spec)
+            .map(|t| diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, t)),
+    );
     if let Some(only) = &options.only {
         // A further instance goes with its first (`elastic_mode` keeps `elastic_mode_2`).
         cands.retain(|c| {
@@ -706,9 +720,13 @@ fn check_with(
     });
     let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
     if !base.converged {
-        warnings.push(format!(
-            "baseline fit stopped after {} iterations without converging",
-            base.iterations
+        warnings.push(diagnostic(
+            DiagnosticKind::CheckRefitFailed,
+            Severity::Warning,
+            format!(
+                "baseline fit stopped after {} iterations without converging",
+                base.iterations
+            ),
         ));
     }
     let free_base = p.n_base() - usize::from(options.weighed_mass_kg.is_some());
@@ -744,10 +762,10 @@ fn check_with(
     }
     warnings.append(&mut sel.warnings);
     if capped {
-        warnings.push(format!(
+        warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
             "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",
             options.max_effects
-        ));
+        )));
     }
     let fin = Finish {
         spec,

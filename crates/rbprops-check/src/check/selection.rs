@@ -17,9 +17,11 @@ use crate::candidates::{Candidate, Screening};
 use crate::error::CheckError;
 use crate::lm;
 use crate::lm::Fit;
+use crate::report::diagnostic;
 use crate::report::{AmbiguousFamily, NotObservable, ScreenEntry};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
+use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
 use rbprops_core::stats::chi2_isf;
 
 /// Candidates refitted together in one round of a step (fixed: decisions must not
@@ -62,7 +64,7 @@ pub(super) struct Selection<'p, 'a> {
     pub(super) ambiguous: Vec<AmbiguousFamily>,
     /// The evidence of each active effect, in the order of `active`.
     pub(super) accepted: Vec<Evidence>,
-    pub(super) warnings: Vec<String>,
+    pub(super) warnings: Vec<Diagnostic>,
     /// Candidates no longer screened (not observable, failed, or in an ambiguous family).
     excluded: Vec<usize>,
     pub(super) folds: Vec<usize>,
@@ -226,8 +228,11 @@ impl<'p, 'a> Selection<'p, 'a> {
             let cand = &p.cands[c];
             match s {
                 Err(e) => {
-                    self.warnings
-                        .push(format!("candidate '{}' cannot be evaluated: {e}", cand.id));
+                    self.warnings.push(diagnostic(
+                        DiagnosticKind::CheckRefitFailed,
+                        Severity::Warning,
+                        format!("candidate '{}' cannot be evaluated: {e}", cand.id),
+                    ));
                     self.excluded.push(c);
                 }
                 Ok(s) if s.rank == 0 => {
@@ -617,11 +622,11 @@ impl<'p, 'a> Selection<'p, 'a> {
         self.accepted.push(evidence);
         let cand = &p.cands[best.c];
         if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
-            self.warnings.push(format!(
+            self.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
                 "'{}' is the last term of its kind the check offers: the recording may hold more {} terms than it could fit",
                 cand.id,
                 cand.effect.id()
-            ));
+            )));
         }
     }
 

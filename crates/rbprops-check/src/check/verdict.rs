@@ -13,12 +13,13 @@ use crate::locate::{bands, residual_map};
 use crate::params::{inertia_quantities, theta_to_inertia, ParamKind, INERTIA_NAMES};
 use crate::predict::Layout;
 use crate::report::{
-    AcceptedEffect, AmbiguousFamily, CorrectedParameter, FittedParameter, InertiaEstimateReport,
-    RelativeChange, ScreenEntry, Unexplained,
+    diagnostic, AcceptedEffect, AmbiguousFamily, CorrectedParameter, FittedParameter,
+    InertiaEstimateReport, RelativeChange, ScreenEntry, Unexplained,
 };
 use crate::{ModelCheckReport, RecordingNoise};
 use nalgebra::DMatrix;
 use rbprops_core::c64;
+use rbprops_core::records::{Diagnostic, DiagnosticKind, Severity};
 use rbprops_sim::effects::gains::GlobalGain;
 use rbprops_sim::effects::mass::SensorMass;
 use rbprops_sim::effects::Effect;
@@ -380,7 +381,7 @@ impl<'p, 'a> Finish<'p, 'a> {
     pub(super) fn report(
         self,
         sel: Selection,
-        mut warnings: Vec<String>,
+        mut warnings: Vec<Diagnostic>,
         method: Vec<String>,
     ) -> Result<Finished, CheckError> {
         let (p, base) = (self.p, &self.base);
@@ -463,7 +464,7 @@ impl<'p, 'a> Finish<'p, 'a> {
             residuals_before,
             residuals_after,
             method,
-            warnings,
+            diagnostics: warnings,
         };
         report.verdict = verdict(&report);
         let prior = Prior {
@@ -551,7 +552,7 @@ impl<'p, 'a> Finish<'p, 'a> {
         ambiguous: &[AmbiguousFamily],
         theta: &[f64],
         cov_final: &DMatrix<f64>,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Diagnostic>,
     ) -> Result<
         (
             Vec<AcceptedEffect>,
@@ -590,9 +591,10 @@ impl<'p, 'a> Finish<'p, 'a> {
             let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
             match effect_spec(eff.as_ref(), self.spec) {
                 Ok(e) => improved_effects.push(e),
-                Err(e) => warnings.push(format!(
-                    "'{}' is not written to the improved spec: {e}",
-                    cand.id
+                Err(e) => warnings.push(diagnostic(
+                    DiagnosticKind::CheckProcedure,
+                    Severity::Note,
+                    format!("'{}' is not written to the improved spec: {e}", cand.id),
                 )),
             }
             offset += d;
@@ -625,7 +627,7 @@ impl<'p, 'a> Finish<'p, 'a> {
         &self,
         theta: &[f64],
         improved_effects: Vec<rbprops_sim::spec::EffectSpec>,
-        warnings: &mut Vec<String>,
+        warnings: &mut Vec<Diagnostic>,
     ) -> Result<CampaignSpec, CheckError> {
         let (p, spec, options) = (self.p, self.spec, self.options);
         let (mut improved_spec, fx) = p.build(theta, &[])?;
@@ -637,10 +639,10 @@ impl<'p, 'a> Finish<'p, 'a> {
         }
         for e in &improved_spec.effects {
             if rbprops_sim::effects::parse_effect(e).is_err() {
-                warnings.push(format!(
+                warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
                     "the improved spec switches on '{}', which this rbprops-sim version does not know yet: frf-sim will reject it until the catalogue has it",
                     e.id
-                ));
+                )));
             }
         }
         Ok(improved_spec)

@@ -73,7 +73,7 @@ fn explore() {
         "mass {} {} {}",
         r.inertia_nominal.mass_kg, r.inertia_before.mass_kg, r.inertia_after.mass_kg
     );
-    println!("warnings {:?}", r.warnings);
+    println!("warnings {:?}", r.diagnostics);
 }
 
 #[test]

@@ -259,7 +259,7 @@ fn cords_case(splayed: bool, as_springs: bool) {
         r.noise_band[0],
         r.noise_band[1],
         t0.elapsed().as_secs_f64(),
-        r.warnings
+        r.diagnostics
     );
     for e in &r.screening {
         eprintln!(
@@ -268,9 +268,11 @@ fn cords_case(splayed: bool, as_springs: bool) {
         );
     }
     assert!(
-        r.warnings.iter().any(|w| w.contains("free")),
+        r.diagnostics.iter().any(|d| d.kind
+            == rbprops_core::records::DiagnosticKind::CheckBlindSpot
+            && d.message.contains("free")),
         "the nominal's free directions are reported: {:?}",
-        r.warnings
+        r.diagnostics
     );
     let grav = r
         .accepted
@@ -375,7 +377,7 @@ fn free_free_null_is_silent() {
         r.chi2_nu_after,
         r.noise_band[0],
         r.noise_band[1],
-        r.warnings
+        r.diagnostics
     );
     assert!(r.accepted.is_empty() && r.ambiguous.is_empty());
     crate::common::assert_chi2_in_band("null", &r);

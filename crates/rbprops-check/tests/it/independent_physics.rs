@@ -460,11 +460,13 @@ fn impact_testing_with_an_exponential_window_names_the_window_and_the_record() {
         r.verdict
     );
     assert!(
-        r.warnings
-            .iter()
-            .any(|w| w.contains("correlated from line to line")),
+        r.diagnostics.iter().any(|d| matches!(
+            d.kind,
+            rbprops_core::records::DiagnosticKind::CorrelatedNoise
+                | rbprops_core::records::DiagnosticKind::UndeclaredWindow
+        )),
         "{:?}",
-        r.warnings
+        r.diagnostics
     );
     crate::common::assert_chi2_in_band("impact testing", &r);
     // The decay rate to 0.1 % (the record's sampling leaves a few standard errors,

@@ -114,7 +114,9 @@ fn main() -> std::process::ExitCode {
             &rbprops_formats::sha256_hex(&digest),
         ))?;
         let mut notes = rbprops_cli::warnings::Collector::default();
-        notes.extend("frf-est", &est.warnings);
+        for d in rbprops_cli::input_notes(&est.warnings) {
+            notes.add_from("frf-est", d);
+        }
         notes.print(args.verbose);
         rbprops_cli::say!("{}", est.summary);
         if let Some(dir) = &args.plot {

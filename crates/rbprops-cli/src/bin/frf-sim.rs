@@ -69,9 +69,11 @@ fn main() -> std::process::ExitCode {
         let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
         let mut notes = rbprops_cli::warnings::Collector::default();
         for note in &sim.notes {
-            notes.add(rbprops_cli::warnings::StageWarning::note(
+            notes.add(rbprops_cli::warnings::note_of(
                 "frf-sim",
-                note.clone(),
+                rbprops_cli::warnings::DiagnosticKind::Simulation,
+                Default::default(),
+                note,
             ));
         }
         notes.print(args.verbose);

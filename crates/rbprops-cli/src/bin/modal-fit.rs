@@ -125,27 +125,32 @@ fn main() -> std::process::ExitCode {
         // One line per fact: the typed diagnostics (grouped by set-up, one per repeated
         // root however many excitations show it); with -v also every note of the records.
         let verbose = args.io.checks.verbose;
+        use rbprops_cli::warnings::{note_of, DiagnosticKind, DiagnosticSubject};
         let mut warnings = rbprops_cli::warnings::Collector::default();
-        for d in &out.record.diagnostics {
-            warnings.add(rbprops_cli::warnings::StageWarning::from_diagnostic(d));
-        }
+        warnings.extend(out.record.diagnostics.iter().cloned());
         if verbose {
+            // The per-excitation details the record keeps with each fit and mode.
             for e in &out.record.excitations {
+                let subject = DiagnosticSubject::setup(&e.setup).excitation(&e.excitation);
                 for w in &e.warnings {
-                    warnings.add(rbprops_cli::warnings::StageWarning::note(
+                    warnings.add(note_of(
                         "modal-fit",
-                        format!("excitation {}: {w}", e.excitation),
+                        DiagnosticKind::FitDetail,
+                        subject.clone(),
+                        w,
                     ));
                 }
             }
             for m in &out.record.modes {
+                let subject = DiagnosticSubject::setup(&m.setup)
+                    .excitation(&m.excitation)
+                    .mode(m.mode, m.frequency_hz);
                 for w in &m.warnings {
-                    warnings.add(rbprops_cli::warnings::StageWarning::note(
+                    warnings.add(note_of(
                         "modal-fit",
-                        format!(
-                            "excitation {} mode {} ({:.4} Hz): {w}",
-                            m.excitation, m.mode, m.frequency_hz
-                        ),
+                        DiagnosticKind::FitDetail,
+                        subject.clone(),
+                        w,
                     ));
                 }
             }

@@ -145,8 +145,15 @@ fn main() -> std::process::ExitCode {
             .map_err(|e| rbprops_cli::init_spec::mismatch_hint(e, &input.name))
             .with_context(|| format!("{} against {source}", input.name))?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
-        warnings.extend("model-check", &estimator_notes);
-        warnings.extend("model-check", &out.report.warnings);
+        for n in &estimator_notes {
+            warnings.add(rbprops_cli::warnings::note_of(
+                "model-check",
+                rbprops_cli::warnings::DiagnosticKind::CheckProcedure,
+                Default::default(),
+                n,
+            ));
+        }
+        warnings.extend(out.report.diagnostics.iter().cloned());
         warnings.print(args.checks.verbose);
         if let Some(p) = &args.improved_spec {
             let mut s = out.improved_spec.clone();

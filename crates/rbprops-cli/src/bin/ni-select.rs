@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, ValueEnum};
+use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_ni::{Criterion, ManualSet, SelectOptions};
 use std::path::PathBuf;
 
@@ -79,20 +80,22 @@ fn main() -> std::process::ExitCode {
         let out = rbprops_cli::stages::ni_select(&mut rec, &opts, &input.sha256)
             .with_context(|| input.name.clone())?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
-        warnings.extend("ni-select", &out.record.warnings);
+        warnings.extend(out.record.diagnostics.iter().cloned());
         for m in &out.record.missing {
-            warnings.push(
+            warnings.add(Diagnostic::new(
                 "ni-select",
-                format!(
-                    "set-up {} mode {} ({:.4} Hz) not excited above the noise by {:?}: {}",
-                    m.setup, m.mode, m.frequency_hz, m.tried, m.reason
-                ),
-            );
+                DiagnosticKind::ModeMissing,
+                Severity::ChangesAnswer,
+                DiagnosticSubject::setup(&m.setup).mode(m.mode, m.frequency_hz),
+                format!("not excited above the noise by {:?}: {}", m.tried, m.reason),
+            ));
         }
         for d in &out.criterion_disagreements {
-            warnings.add(rbprops_cli::warnings::StageWarning::note(
+            warnings.add(rbprops_cli::warnings::note_of(
                 "ni-select",
-                d.clone(),
+                DiagnosticKind::CriteriaDisagree,
+                Default::default(),
+                d,
             ));
         }
         warnings.print(args.io.checks.verbose);

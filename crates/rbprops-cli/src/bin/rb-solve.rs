@@ -152,7 +152,10 @@ fn main() -> std::process::ExitCode {
         )
         .with_context(|| input.name.clone())?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
-        warnings.extend("rb-solve", &out.warnings);
+        warnings.extend(out.diagnostics.iter().cloned());
+        for e in &out.estimates {
+            warnings.extend(e.diagnostics.iter().cloned());
+        }
         warnings.print(args.io.checks.verbose);
         if out.estimates.is_empty() {
             bail!("no estimator produced an estimate (see the warnings above)");

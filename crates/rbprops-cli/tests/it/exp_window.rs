@@ -149,8 +149,8 @@ fn estimates(mut rec: RunRecord, window: Option<f64>) -> Vec<InertiaEstimate> {
     let have: Vec<&str> = out.estimates.iter().map(|e| e.method.as_str()).collect();
     assert!(
         have.contains(&"bretl_conti") && have.contains(&"toivola_nuutila"),
-        "window {window:?}: estimates {have:?}; warnings {:?}",
-        out.warnings
+        "window {window:?}: estimates {have:?}; diagnostics {:?}",
+        out.diagnostics
     );
     out.estimates
 }

@@ -116,7 +116,7 @@ fn pipeline(rec: &Path, fit: &FitOptions, window_s: Option<f64>) -> Run {
         );
     }
     let so = stages::ni_select(&mut r, &Default::default(), "test").unwrap();
-    warnings.extend(so.record.warnings.iter().cloned());
+    warnings.extend(so.record.diagnostics.iter().map(Diagnostic::line));
     for w in &warnings {
         eprintln!("  warning: {w}");
     }
@@ -134,7 +134,7 @@ fn pipeline(rec: &Path, fit: &FitOptions, window_s: Option<f64>) -> Run {
         ..Default::default()
     };
     let out = stages::rb_solve(&mut r, &opts, false, "test").unwrap();
-    warnings.extend(out.warnings.iter().cloned());
+    warnings.extend(out.diagnostics.iter().map(Diagnostic::line));
     let selection = r.get_one(topics::SELECTION).unwrap().unwrap();
     Run {
         selection,

@@ -4,6 +4,7 @@
 //! headless Chromium, where every figure renders with a non-empty box.
 
 use crate::common::rbprops;
+use rbprops_core::records::DiagnosticKind;
 use rbprops_testkit::{chromium, ok, python, repo_root};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -54,12 +55,22 @@ fn campaign(py: &str, dir: &Path, n: usize) -> PathBuf {
     out
 }
 
+/// What the browser shows of the page: the number of top-level `<svg>` elements, of those
+/// with a non-empty box, and every diagnostic kind's heading with the sentence rendered
+/// under it (visible text, one pair per kind group).
+struct Rendered {
+    svgs: usize,
+    rendered: usize,
+    kinds: Vec<(String, String)>,
+}
+
 /// Opens `page` in headless Chromium with a script appended (to a copy: the report itself
 /// runs no script) that counts the `<svg>` elements and those whose bounding box is
-/// non-empty, and returns the two counts it wrote into the DOM.
-fn rendered_svgs(chrome: &Path, page: &Path) -> (usize, usize) {
+/// non-empty, and reads each diagnostic kind's heading and sentence as rendered, and
+/// returns what it wrote into the DOM.
+fn rendered(chrome: &Path, page: &Path) -> Rendered {
     let html = std::fs::read_to_string(page).unwrap();
-    let probe = "<script>window.addEventListener('load',()=>{const s=[...document.querySelectorAll('body svg')].filter(e=>!e.parentElement.closest('svg'));const n=s.filter(e=>{const r=e.getBoundingClientRect();return r.width>1&&r.height>1;}).length;const p=document.createElement('pre');p.id='rbprops-probe';p.textContent='svgs='+s.length+' rendered='+n;document.body.appendChild(p);});</script>";
+    let probe = "<script>window.addEventListener('load',()=>{const s=[...document.querySelectorAll('body svg')].filter(e=>!e.parentElement.closest('svg'));const n=s.filter(e=>{const r=e.getBoundingClientRect();return r.width>1&&r.height>1;}).length;const k=[...document.querySelectorAll('li.kind')].map(e=>e.querySelector('b').innerText+'|'+e.querySelector('p.expl').innerText);const p=document.createElement('pre');p.id='rbprops-probe';p.textContent='svgs='+s.length+' rendered='+n+'\\n'+k.join('\\n');document.body.appendChild(p);});</script>";
     let probe_page = page.with_file_name("probe.html");
     std::fs::write(
         &probe_page,
@@ -85,7 +96,7 @@ fn rendered_svgs(chrome: &Path, page: &Path) -> (usize, usize) {
         .output()
         .unwrap();
     let dom = String::from_utf8_lossy(&out.stdout);
-    let line = dom
+    let text = dom
         .split("id=\"rbprops-probe\">")
         .nth(1)
         .and_then(|s| s.split('<').next())
@@ -96,13 +107,25 @@ fn rendered_svgs(chrome: &Path, page: &Path) -> (usize, usize) {
                 String::from_utf8_lossy(&out.stderr)
             )
         });
+    let mut lines = text.lines();
+    let line = lines.next().unwrap_or_default();
     let num = |key: &str| -> usize {
         line.split_whitespace()
             .find_map(|w| w.strip_prefix(key))
             .and_then(|v| v.parse().ok())
             .unwrap_or_else(|| panic!("probe line '{line}'"))
     };
-    (num("svgs="), num("rendered="))
+    // The page is HTML-escaped in the DOM dump: the sentences hold no markup characters
+    // but apostrophes, which Chromium writes as they are.
+    let kinds = lines
+        .filter_map(|l| l.split_once('|'))
+        .map(|(k, s)| (k.trim().to_string(), s.trim().replace("&amp;", "&")))
+        .collect();
+    Rendered {
+        svgs: num("svgs="),
+        rendered: num("rendered="),
+        kinds,
+    }
 }
 
 #[test]
@@ -137,6 +160,18 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
     assert_eq!(html.matches("<h3>Model check</h3>").count(), 6);
     assert_eq!(html.matches("<h3>Warnings</h3>").count(), 6);
     assert!(html.contains("channel_gain"), "run-06's verdict");
+    // The summary table gives each check's verdict as a short label (the full text is in
+    // each recording's section); what a test cannot see is said once, not per row.
+    let table = &html[html.find("<h2>Summary</h2>").unwrap()..];
+    let table = &table[..table.find("</table>").unwrap()];
+    assert!(!table.contains("cannot be seen"), "{table}");
+    assert!(table.contains("clean, "), "{table}");
+    let gain_rows = table
+        .lines()
+        .filter(|l| l.contains("run-06") && l.contains("channel_gain"))
+        .count();
+    assert!(gain_rows >= 1, "{table}");
+    assert!(html.matches("What these tests cannot see").count() <= 1);
     // Every figure each run directory holds is on the page, and the model check's
     // figures are among them (worst channels only where a cell was flagged).
     let mut n_files = 0;
@@ -204,11 +239,30 @@ fn campaign_report_is_one_page_with_every_figure_rendered() {
             .unwrap()
             >= 6
     );
-    // The page in a browser: every figure has a non-empty box.
+    // Diagnostics are grouped by kind, each kind with its own sentence; no generic one.
+    assert!(!html.contains("A condition the stage noticed while computing"));
+    assert!(
+        html.contains("<li class=\"kind\">"),
+        "no diagnostic kind on the page"
+    );
+    // The page in a browser: every figure has a non-empty box, and every kind group shows
+    // the sentence written for that kind.
     let Some(chrome) = chromium() else { return };
-    let (svgs, rendered) = rendered_svgs(&chrome, &page);
-    assert_eq!(svgs, n_svg, "top-level <svg> elements seen by the browser");
-    assert_eq!(rendered, svgs, "figures with an empty box");
+    let r = rendered(&chrome, &page);
+    assert_eq!(
+        r.svgs, n_svg,
+        "top-level <svg> elements seen by the browser"
+    );
+    assert_eq!(r.rendered, r.svgs, "figures with an empty box");
+    assert_eq!(
+        r.kinds.len(),
+        html.matches("<li class=\"kind\">").count(),
+        "kind groups seen by the browser"
+    );
+    for (name, sentence) in &r.kinds {
+        let kind: DiagnosticKind = name.replace(' ', "_").parse().unwrap();
+        assert_eq!(sentence, kind.sentence(), "the sentence shown for {name}");
+    }
 }
 
 #[test]

@@ -27,9 +27,12 @@ fn inconsistent_inertia_is_flagged_and_a_projected_estimate_offered() {
     let (raw, proj) = (&out.estimates[0], &out.estimates[1]);
     assert!(!raw.physically_consistent);
     assert!(
-        raw.warnings.iter().any(|w| w.contains("triangle")),
+        raw.diagnostics.iter().any(|d| d.kind
+            == rbprops_core::records::DiagnosticKind::PhysicallyInconsistent
+            && d.severity == rbprops_core::records::Severity::ChangesAnswer
+            && d.message.contains("triangle")),
         "{:?}",
-        raw.warnings
+        raw.diagnostics
     );
     assert!((raw.mass_kg - fake.mass).abs() < 1e-9 * fake.mass);
     assert_eq!(proj.method, "toivola_nuutila_projected");
@@ -71,7 +74,7 @@ fn results_do_not_depend_on_the_thread_count() {
     for mc in [0, 64] {
         let a = run(1, mc);
         let b = run(2, mc);
-        assert_eq!(a.estimates.len(), 3, "{:?}", a.warnings);
+        assert_eq!(a.estimates.len(), 3, "{:?}", a.diagnostics);
         assert_eq!(a.estimates, b.estimates, "monte carlo samples {mc}");
     }
 }

@@ -109,9 +109,12 @@ fn mass_line_interval_includes_the_rigid_tail_truncation_bias() {
     let e = &out.estimates[0];
     assert_eq!(e.method, "mass_line");
     assert!(
-        e.warnings.iter().any(|w| w.contains("truncation bias")),
+        e.diagnostics.iter().any(
+            |d| d.kind == rbprops_core::records::DiagnosticKind::MassLineBand
+                && d.message.contains("truncation bias")
+        ),
         "{:?}",
-        e.warnings
+        e.diagnostics
     );
     let z_m = (e.mass_kg - truth.mass) / e.mass_std_kg;
     println!("mass {} ± {} (z {z_m:.2})", e.mass_kg, e.mass_std_kg);

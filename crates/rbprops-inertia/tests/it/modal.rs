@@ -1,5 +1,6 @@
 //! Bretl–Conti and Toivola–Nuutila on exact and noisy modes of a fixture.
 use crate::common::*;
+use rbprops_core::records::DiagnosticKind;
 use rbprops_core::records::InertiaEstimate;
 use rbprops_core::{c64, MassMatrix6, RigidBodyProperties, Vec3};
 use rbprops_inertia::*;
@@ -65,7 +66,7 @@ fn exact_modes_recover_all_properties_from_any_origin() {
             ),
         )
         .unwrap();
-        assert_eq!(out.estimates.len(), 2, "{:?}", out.warnings);
+        assert_eq!(out.estimates.len(), 2, "{:?}", out.diagnostics);
         assert_eq!(out.shapes.len(), 6);
         for e in &out.estimates {
             let (m, c, j) = rel_err(e, &truth);
@@ -203,11 +204,13 @@ fn five_modes_toivola_nuutila_works_where_bretl_conti_refuses() {
             "skip {skip}: {m:e} {c:e} {j:e}"
         );
         assert!(
-            out.warnings
+            out.diagnostics
                 .iter()
-                .any(|w| w.contains("bretl_conti") && w.contains("six")),
+                .any(|d| d.kind == DiagnosticKind::EstimatorFailed
+                    && d.message.contains("bretl_conti")
+                    && d.message.contains("six")),
             "{:?}",
-            out.warnings
+            out.diagnostics
         );
     }
 }
@@ -278,9 +281,9 @@ fn four_modes_need_labelled_side_information() {
     let (m, c, j) = rel_err(e, &truth);
     assert!(m < 1e-9 && c < 1e-9 && j < 1e-9, "{m:e} {c:e} {j:e}");
     assert!(
-        e.warnings[0].starts_with("SIDE INFORMATION"),
+        e.diagnostics[0].kind == DiagnosticKind::SideInformation,
         "{:?}",
-        e.warnings
+        e.diagnostics
     );
     // Nominal values fix only the unidentifiable combination: a nominal 5 % off everywhere
     // still leaves every orthogonality equation satisfied.
@@ -299,8 +302,11 @@ fn four_modes_need_labelled_side_information() {
         (e.mass_kg - truth.mass).abs() < 1e-9 * truth.mass,
         "mass is identifiable"
     );
-    assert!(e.warnings[0].starts_with("SIDE INFORMATION"));
-    assert!(e.warnings.iter().any(|w| w.contains("rank 9")));
+    assert_eq!(e.diagnostics[0].kind, DiagnosticKind::SideInformation);
+    assert!(e
+        .diagnostics
+        .iter()
+        .any(|d| d.kind == DiagnosticKind::IllConditioned && d.message.contains("rank 9")));
 }
 
 #[test]
@@ -359,11 +365,13 @@ fn bad_inputs_give_named_errors_never_nan() {
     }
     let out = solve(&g, &flipped, &sel6, None, &both).unwrap();
     assert!(
-        out.warnings
+        out.diagnostics
             .iter()
-            .any(|w| w.contains("mode 4") && w.contains("fᵀq") && w.contains("left out")),
+            .any(|d| d.kind == DiagnosticKind::ModeLeftOut
+                && d.message.contains("mode 4")
+                && d.message.contains("fᵀq")),
         "{:?}",
-        out.warnings
+        out.diagnostics
     );
     assert_eq!(
         out.estimates.len(),

@@ -124,10 +124,10 @@ fn run(class: Class, seed: u64) -> Outcome {
     let check = est.rigid_body_check.as_ref().expect("the check ran");
     let warned = !check.rigid_body_consistent;
     let warning = out
-        .warnings
+        .diagnostics
         .iter()
-        .find(|w| w.contains("not rigid-body consistent"))
-        .cloned()
+        .find(|d| d.kind == rbprops_core::records::DiagnosticKind::RigidBodyInconsistent)
+        .map(|d| d.message.clone())
         .unwrap_or_default();
     assert_eq!(warned, !warning.is_empty());
     let named_right = warned && right.iter().any(|id| warning.contains(&format!("'{id}'")));
@@ -173,9 +173,9 @@ fn exact_modes_are_consistent_with_zero_systematic_spread() {
         assert!(s.mass_std_kg < 1e-9 * truth.mass, "{}", s.mass_std_kg);
     }
     assert!(!out
-        .warnings
+        .diagnostics
         .iter()
-        .any(|w| w.contains("rigid-body consistent")));
+        .any(|d| d.kind == rbprops_core::records::DiagnosticKind::RigidBodyInconsistent));
 }
 
 /// A few seeds per class: every class meets "covered or named" in each of them, noise

@@ -455,11 +455,10 @@ fn a_mode_no_excitation_excites_above_the_noise_is_reported_missing() {
     // The rest is still selected for downstream stages.
     let modes: Vec<usize> = out.record.selected.iter().map(|s| s.mode).collect();
     assert_eq!(modes, [1, 3, 4]);
-    assert!(out
-        .record
-        .warnings
-        .iter()
-        .any(|w| w.contains("only 4 of the six")));
+    assert!(out.record.diagnostics.iter().any(|d| d.kind
+        == rbprops_core::records::DiagnosticKind::ModeMissing
+        && d.severity == rbprops_core::records::Severity::ChangesAnswer
+        && d.message.contains("only 4 of the six")));
 }
 
 #[test]
@@ -621,9 +620,9 @@ fn manual_sets_are_followed_and_mixed_setups_refused() {
     assert!(forced.record.selected.iter().all(|s| s.setup == "A+B"));
     assert!(forced
         .record
-        .warnings
+        .diagnostics
         .iter()
-        .any(|w| w.contains("forced together")));
+        .any(|d| d.kind == rbprops_core::records::DiagnosticKind::SetupsForced));
 
     // Unknown excitation and a manual set outside the requested set-up.
     let bad = rbprops_ni::parse_manual_set("1:F9").unwrap();

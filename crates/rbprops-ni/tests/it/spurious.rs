@@ -4,6 +4,7 @@
 use crate::common::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use rbprops_core::records::{DiagnosticKind, Severity};
 use rbprops_core::records::{ModalFitRecord, ModeEstimate};
 use rbprops_core::{c64, RigidBasis, Vec6};
 use rbprops_ni::{select_modes, SelectOptions, SelectionOutput};
@@ -123,7 +124,7 @@ fn split_pole_with_a_third_spurious_pole_gives_one_mode() {
         let got = picks(&m, &out, "A");
         let mut want = expected.clone();
         want[5].1 = "F0x".into();
-        assert_eq!(got, want, "seed {seed}: {:#?}", out.record.warnings);
+        assert_eq!(got, want, "seed {seed}: {:#?}", out.record.diagnostics);
         assert_eq!(out.matches.iter().filter(|g| g.setup == "A").count(), 6);
         // Two of the three poles rejected, each with its reason.
         let rej: Vec<_> = out
@@ -138,9 +139,11 @@ fn split_pole_with_a_third_spurious_pole_gives_one_mode() {
         }
         assert!(out
             .record
-            .warnings
+            .diagnostics
             .iter()
-            .any(|w| w.contains("same shape") && w.contains("merged")));
+            .any(|d| d.kind == DiagnosticKind::DuplicatePoles
+                && d.severity == Severity::Note
+                && d.message.contains("merged")));
         // The kept pole is the best of the three (confidence 0.3) and gives way to F0x.
         let g6 = out
             .matches
@@ -230,9 +233,9 @@ fn a_pole_with_a_neighbours_shape_is_rejected_as_leakage() {
         );
         assert!(out
             .record
-            .warnings
+            .diagnostics
             .iter()
-            .any(|w| w.contains("rejected the mode at") && w.contains("leakage")));
+            .any(|d| d.kind == DiagnosticKind::ModeRejected && d.message.contains("leakage")));
     }
 }
 
@@ -328,18 +331,24 @@ fn seven_supported_looking_groups_one_non_rigid() {
         }
         let w = out
             .record
-            .warnings
+            .diagnostics
             .iter()
-            .find(|w| w.contains(&format!("rejected the mode at {f_el:.4} Hz")))
-            .expect("a warning names the rejected mode");
-        assert!(w.contains("rigid residual 30.0%"), "{w}");
+            .find(|d| {
+                d.kind == DiagnosticKind::ModeRejected
+                    && d.subject
+                        .frequencies_hz
+                        .first()
+                        .is_some_and(|f| (f - f_el).abs() < 1e-12)
+            })
+            .expect("a diagnostic names the rejected mode");
+        assert!(w.message.contains("rigid residual 30.0%"), "{w:?}");
         assert!(
             !out.record
-                .warnings
+                .diagnostics
                 .iter()
-                .any(|w| w.contains("does not clearly decide")),
+                .any(|d| d.kind == DiagnosticKind::UndecidedModes),
             "seed {seed}: {:#?}",
-            out.record.warnings
+            out.record.diagnostics
         );
     }
 }
@@ -365,11 +374,13 @@ fn undecidable_case_is_reported() {
     assert_eq!(picks(&m, &out, "B").len(), 6);
     assert!(
         out.record
-            .warnings
+            .diagnostics
             .iter()
-            .any(|w| w.contains("does not clearly decide")),
+            .any(|d| d.kind == DiagnosticKind::UndecidedModes
+                && d.severity == Severity::Warning
+                && d.message.contains("does not clearly decide")),
         "{:#?}",
-        out.record.warnings
+        out.record.diagnostics
     );
 }
 

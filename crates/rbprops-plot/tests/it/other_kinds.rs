@@ -376,3 +376,31 @@ fn scatter_points_error_bars_identity() {
         }
     ));
 }
+
+/// A categorical x axis (a campaign's recordings): one labelled category per name, the
+/// points at their category's centre, evenly spaced, whatever numbers the names hold.
+#[test]
+fn scatter_on_categories() {
+    let names = ["run-01.uff", "run-02.uff", "run-10.uff"];
+    let p = ScatterPlot {
+        title: "mass per recording".into(),
+        x_label: "recording".into(),
+        y_label: "m [kg]".into(),
+        series: vec![
+            ScatterSeries::new("a", vec![0.0, 1.0, 2.0], vec![1.0, 1.1, 0.9]).with_color(C[0]),
+        ],
+        x_categories: names.iter().map(|s| s.to_string()).collect(),
+        ..Default::default()
+    };
+    let els = parse(&scatter_plot(&p).unwrap());
+    assert_has_texts(&els, &names);
+    let cx: Vec<f64> = with_attr(&els, "circle", "fill", &C[0].hex())
+        .iter()
+        .map(|c| c.num("cx"))
+        .collect();
+    assert_eq!(cx.len(), 3);
+    let (d1, d2) = (cx[1] - cx[0], cx[2] - cx[1]);
+    assert!(d1 > 10.0 && (d1 - d2).abs() <= 1.0, "{cx:?}");
+    // No numeric tick labels on x: the only labels there are the names.
+    assert!(!texts(&els).iter().any(|t| t == "0.5" || t == "1.5"));
+}
