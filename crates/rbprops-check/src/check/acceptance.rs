@@ -103,19 +103,19 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// What every refit of a step is weighed against: the current model's prediction
     /// and its held-out residuals (frequency blocks, excitations).
     pub(super) fn refit_baseline(&self) -> Result<RefitBaseline, CheckError> {
-        let (p, cur) = (self.p, &self.cur);
-        let cur_pred = p.model(&cur.theta, &self.active)?;
+        let (p, cur) = (self.p, &self.model.cur);
+        let cur_pred = p.model(&cur.theta, &self.model.active)?;
         let held_out = |folds: &[usize], n: usize| {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, folds, n)
         };
         Ok(RefitBaseline {
             cv_without: if self.options.cross_validation {
-                held_out(&self.folds, crate::cv::FOLDS)
+                held_out(&self.held_out.folds, crate::cv::FOLDS)
             } else {
                 Default::default()
             },
-            loeo_without: if self.loeo {
-                held_out(&self.exc_folds, self.n_excitations)
+            loeo_without: if self.held_out.loeo {
+                held_out(&self.held_out.exc_folds, self.held_out.n_excitations)
             } else {
                 Default::default()
             },
@@ -141,7 +141,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             let f = match f {
                 Ok(f) => f,
                 Err(e) => {
-                    self.warnings.push(diagnostic(
+                    self.findings.warnings.push(diagnostic(
                         DiagnosticKind::CheckRefitFailed,
                         Severity::Warning,
                         format!("refit of '{}' failed: {e}", p.cands[c].id),
@@ -150,7 +150,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 }
             };
             let e = self.evaluate(c, s.n_tests, f, kept, cur_pred, cv_without, loeo_without);
-            for entry in self.screening.iter_mut().rev() {
+            for entry in self.findings.screening.iter_mut().rev() {
                 if entry.step == step && entry.id == p.cands[c].id {
                     entry.refit_delta_chi2 = Some(e.dchi2);
                     entry.refit_delta_bic = Some(e.dbic);
@@ -177,13 +177,16 @@ impl<'p, 'a> Selection<'p, 'a> {
         cv_without: &crate::cv::HeldOut,
         loeo_without: &crate::cv::HeldOut,
     ) -> Evidence {
-        let (p, cur, options) = (self.p, &self.cur, self.options);
+        let (p, cur, options) = (self.p, &self.model.cur, self.options);
         let cand = &p.cands[c];
         let n_real = p.n_real();
         let dchi2 = cur.chi2 - f.chi2;
         let d = kept.len();
-        let dbic = dchi2 - d as f64 * self.ln_n;
-        let thr = chi2_isf(options.alpha / (self.n_cand * n_tests as f64), d as f64);
+        let dbic = dchi2 - d as f64 * self.charges.ln_n;
+        let thr = chi2_isf(
+            options.alpha / (self.charges.n_cand * n_tests as f64),
+            d as f64,
+        );
         let (k0, phi) = last_effect_phi(p, &f.theta, c, &kept);
         let alpha = &f.theta[k0..];
         let infos = cand.effect.parameters();
@@ -214,7 +217,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             why.push(implausible_text(q));
         }
         // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).
-        let nu = n_real - (self.free_base + active_dims(&self.active) + d) as f64;
+        let nu = n_real - (self.charges.free_base + active_dims(&self.model.active) + d) as f64;
         let wald = wald_statistic(&f, nu, k0, alpha, &kept, &cand.neutral);
         let wthr = rbprops_core::stats::chi2_quantile(options.wald_level, d.max(1) as f64);
         if !(wald > wthr) {
@@ -222,7 +225,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         // Practical significance: the fitted change to the FRFs against the
         // precision floor (see `PRACTICAL_MARGIN`).
-        let mut act = self.active.clone();
+        let mut act = self.model.active.clone();
         act.push(Act {
             c,
             kept: kept.clone(),
@@ -244,7 +247,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                     )
                 });
                 (
-                    p.change_over_floor(&m, cur_pred, self.sigma_precision),
+                    p.change_over_floor(&m, cur_pred, self.start.sigma_precision),
                     own.0,
                     own.1,
                 )
@@ -275,10 +278,10 @@ impl<'p, 'a> Selection<'p, 'a> {
             let with = crate::cv::held_out_residuals(
                 &f.residual,
                 &f.jacobian,
-                &self.folds,
+                &self.held_out.folds,
                 crate::cv::FOLDS,
             );
-            let h = crate::cv::compare(cv_without, &with, &self.folds, crate::cv::FOLDS);
+            let h = crate::cv::compare(cv_without, &with, &self.held_out.folds, crate::cv::FOLDS);
             if !h.passed {
                 why.push(format!(
                     "held-out χ² decrease {:.1} ± {:.1} in {}/{} folds (needs > 2 SE and ≥ 80 %)",
@@ -297,11 +300,19 @@ impl<'p, 'a> Selection<'p, 'a> {
         // on the hanging probe of scripts/model_check_probe.py). Over-fitting is the
         // danger near the noise floor, where the check applies.
         let chi2_nu_with = f.chi2 / nu.max(1.0);
-        let nex = self.n_excitations;
-        let held_out_exc = if self.loeo && why.is_empty() && chi2_nu_with < LOEO_MAX_CHI2_NU {
-            let with =
-                crate::cv::held_out_residuals(&f.residual, &f.jacobian, &self.exc_folds, nex);
-            let h = crate::cv::compare_excitations(loeo_without, &with, &self.exc_folds, nex);
+        let nex = self.held_out.n_excitations;
+        let held_out_exc = if self.held_out.loeo
+            && why.is_empty()
+            && chi2_nu_with < LOEO_MAX_CHI2_NU
+        {
+            let with = crate::cv::held_out_residuals(
+                &f.residual,
+                &f.jacobian,
+                &self.held_out.exc_folds,
+                nex,
+            );
+            let h =
+                crate::cv::compare_excitations(loeo_without, &with, &self.held_out.exc_folds, nex);
             if !h.passed {
                 why.push(format!(
                     "a held-out excitation gets worse (held-out χ² change / SE per excitation: {})",

@@ -20,7 +20,7 @@ use rbprops_sim::effects::mass::SensorMass;
 use rbprops_sim::effects::processing::ExponentialWindow;
 use rbprops_sim::effects::Effect;
 use rbprops_sim::CampaignSpec;
-use selection::{Selection, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
+use selection::{Selection, Start, REFIT_ROUND, SCORE_REACH, WALD_DECISIVE};
 use verdict::{at_noise_floor, Finish, Finished};
 
 mod acceptance;
@@ -734,9 +734,11 @@ fn check_with(
     let mut sel = Selection::new(
         &p,
         options,
-        prior,
-        &theta_nom,
-        &sigma_precision,
+        Start {
+            prior,
+            theta_nom: &theta_nom,
+            sigma_precision: &sigma_precision,
+        },
         base.clone(),
         (nex, nch, nl),
         free_base,
@@ -760,7 +762,7 @@ fn check_with(
     if capped {
         sel.final_retest(step)?;
     }
-    warnings.append(&mut sel.warnings);
+    warnings.append(&mut sel.findings.warnings);
     if capped {
         warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
             "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",

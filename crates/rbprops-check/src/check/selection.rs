@@ -46,45 +46,77 @@ pub(super) const SCORE_REACH: f64 = 2.0;
 /// parametrisation seen on the fixtures.
 pub(super) const WALD_DECISIVE: f64 = 100.0;
 
-/// The state of the selection between steps: the current model (the accepted effects
-/// and their joint fit) and what the report says about every candidate so far.
-pub(super) struct Selection<'p, 'a> {
-    pub(super) p: &'p Problem<'a>,
-    pub(super) options: &'p CheckOptions,
-    /// The first pass's final model (the second pass of [`check`]).
+/// Where a selection starts from: the first pass's final model and the yardsticks
+/// that stay fixed while effects enter and leave.
+pub(super) struct Start<'p> {
+    /// The first pass's final model (the second pass of [`super::check`]).
     pub(super) prior: Option<&'p Prior>,
     /// The nominal spec's parameters (the refit's second start while nothing is accepted).
     pub(super) theta_nom: &'p [f64],
     /// σ of the precision floor alone (the yardstick of practical significance).
     pub(super) sigma_precision: &'p [f64],
+}
+
+/// The current model: the accepted effects and their joint fit.
+pub(super) struct Model {
     pub(super) active: Vec<Act>,
     pub(super) cur: Fit,
+    /// The evidence of each active effect, in the order of `active`.
+    pub(super) accepted: Vec<Evidence>,
+}
+
+/// What the report says about the candidates so far.
+#[derive(Default)]
+pub(super) struct Findings {
     pub(super) screening: Vec<ScreenEntry>,
     pub(super) not_observable: Vec<NotObservable>,
     pub(super) ambiguous: Vec<AmbiguousFamily>,
-    /// The evidence of each active effect, in the order of `active`.
-    pub(super) accepted: Vec<Evidence>,
     pub(super) warnings: Vec<Diagnostic>,
     /// Candidates no longer screened (not observable, failed, or in an ambiguous family).
-    excluded: Vec<usize>,
+    pub(super) excluded: Vec<usize>,
+}
+
+/// The held-out checks' partition of the values (docs/physics.md, M6).
+pub(super) struct HeldOutPlan {
+    /// Frequency-block fold of each used value.
     pub(super) folds: Vec<usize>,
+    /// Excitation of each used value.
     pub(super) exc_folds: Vec<usize>,
     /// Leave-one-excitation-out applies (cross-validation on, ≥ 3 excitations).
     pub(super) loeo: bool,
     pub(super) n_excitations: usize,
+}
+
+/// What the tests charge an effect: the Bonferroni count, the BIC's ln n and the
+/// baseline's free parameters.
+pub(super) struct Charges {
+    /// Candidates counted by Bonferroni (first instances only).
     pub(super) n_cand: f64,
+    /// ln of the number of real values (BIC).
     pub(super) ln_n: f64,
+    /// Free parameters of the baseline (weighed mass: one fewer).
     pub(super) free_base: usize,
 }
 
+/// The state of the selection between steps: the current model (the accepted effects
+/// and their joint fit) and what the report says about every candidate so far.
+pub(super) struct Selection<'p, 'a> {
+    pub(super) p: &'p Problem<'a>,
+    pub(super) options: &'p CheckOptions,
+    pub(super) start: Start<'p>,
+    pub(super) model: Model,
+    pub(super) findings: Findings,
+    pub(super) held_out: HeldOutPlan,
+    pub(super) charges: Charges,
+}
+
 impl<'p, 'a> Selection<'p, 'a> {
-    #[allow(clippy::too_many_arguments)]
+    /// A selection from the baseline fit `base` of a recording of `(excitations,
+    /// channels, lines)`.
     pub(super) fn new(
         p: &'p Problem<'a>,
         options: &'p CheckOptions,
-        prior: Option<&'p Prior>,
-        theta_nom: &'p [f64],
-        sigma_precision: &'p [f64],
+        start: Start<'p>,
         base: Fit,
         (nex, nch, nl): (usize, usize, usize),
         free_base: usize,
@@ -92,38 +124,40 @@ impl<'p, 'a> Selection<'p, 'a> {
         Selection {
             p,
             options,
-            prior,
-            theta_nom,
-            sigma_precision,
-            active: Vec::new(),
-            cur: base,
-            screening: Vec::new(),
-            not_observable: Vec::new(),
-            ambiguous: Vec::new(),
-            accepted: Vec::new(),
-            warnings: Vec::new(),
-            excluded: Vec::new(),
-            folds: crate::cv::folds_of(&p.used, nl, crate::cv::FOLDS),
-            exc_folds: crate::cv::excitation_folds_of(&p.used, nch * nl),
-            loeo: options.cross_validation && nex >= 3,
-            n_excitations: nex,
-            // Further instances of a repeatable effect are the same hypothesis tested
-            // again once the one before is in the model: not counted as candidates.
-            n_cand: p.n_first_instances().max(1) as f64,
-            ln_n: p.n_real().ln(),
-            free_base,
+            start,
+            model: Model {
+                active: Vec::new(),
+                cur: base,
+                accepted: Vec::new(),
+            },
+            findings: Findings::default(),
+            held_out: HeldOutPlan {
+                folds: crate::cv::folds_of(&p.used, nl, crate::cv::FOLDS),
+                exc_folds: crate::cv::excitation_folds_of(&p.used, nch * nl),
+                loeo: options.cross_validation && nex >= 3,
+                n_excitations: nex,
+            },
+            charges: Charges {
+                // Further instances of a repeatable effect are the same hypothesis
+                // tested again once the one before is in the model: not counted as
+                // candidates.
+                n_cand: p.n_first_instances().max(1) as f64,
+                ln_n: p.n_real().ln(),
+                free_base,
+            },
         }
     }
 
     /// Candidate `c` was accepted in the first pass (refitted whatever its screening).
     pub(super) fn in_prior(&self, c: usize) -> bool {
-        self.prior
+        self.start
+            .prior
             .is_some_and(|pr| pr.phi(&self.p.cands[c].id).is_some())
     }
 
     /// Candidate `c` is neither in the model nor excluded from screening.
     fn waiting(&self, c: usize) -> bool {
-        !self.active.iter().any(|a| a.c == c) && !self.excluded.contains(&c)
+        !self.model.active.iter().any(|a| a.c == c) && !self.findings.excluded.contains(&c)
     }
 
     /// A further instance of a repeatable effect opens once the instance it follows has
@@ -142,7 +176,8 @@ impl<'p, 'a> Selection<'p, 'a> {
 
     /// χ²/ν of the current model.
     pub(super) fn chi2_nu(&self) -> f64 {
-        self.cur.chi2 / (self.p.n_real() - (self.free_base + active_dims(&self.active)) as f64)
+        self.model.cur.chi2
+            / (self.p.n_real() - (self.charges.free_base + active_dims(&self.model.active)) as f64)
     }
 
     /// One selection step: screen, refit, accept at most one effect, backward check.
@@ -157,7 +192,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         let Some(best_i) = evals.iter().position(|e| e.ok()) else {
             for e in &evals {
                 set_decision(
-                    &mut self.screening,
+                    &mut self.findings.screening,
                     step,
                     &self.p.cands[e.c].id,
                     format!("rejected: {}", e.why()),
@@ -174,7 +209,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// the significant ones (candidate, score, gain = score − rank·ln n), with the
     /// screening table and the not-observable list updated.
     fn screen(&mut self, step: usize) -> Vec<(usize, Score, f64)> {
-        let (p, cur, active) = (self.p, &self.cur, &self.active);
+        let (p, cur, active) = (self.p, &self.model.cur, &self.model.active);
         let span_timer = crate::prof::span(crate::prof::SCREEN_SPAN);
         let (q0, _) = span_basis(&cur.jacobian, 1e-10);
         let chord = Chord::new(&cur.jacobian);
@@ -228,16 +263,16 @@ impl<'p, 'a> Selection<'p, 'a> {
             let cand = &p.cands[c];
             match s {
                 Err(e) => {
-                    self.warnings.push(diagnostic(
+                    self.findings.warnings.push(diagnostic(
                         DiagnosticKind::CheckRefitFailed,
                         Severity::Warning,
                         format!("candidate '{}' cannot be evaluated: {e}", cand.id),
                     ));
-                    self.excluded.push(c);
+                    self.findings.excluded.push(c);
                 }
                 Ok(s) if s.rank == 0 => {
-                    self.not_observable.push(not_observable(cand, &s));
-                    self.screening.push(ScreenEntry {
+                    self.findings.not_observable.push(not_observable(cand, &s));
+                    self.findings.screening.push(ScreenEntry {
                         step,
                         id: cand.id.clone(),
                         rank: 0,
@@ -248,15 +283,15 @@ impl<'p, 'a> Selection<'p, 'a> {
                         refit_delta_bic: None,
                         decision: "not observable (absorbed)".into(),
                     });
-                    self.excluded.push(c);
+                    self.findings.excluded.push(c);
                 }
                 Ok(s) => {
                     let thr = chi2_isf(
-                        self.options.alpha / (self.n_cand * s.n_tests as f64),
+                        self.options.alpha / (self.charges.n_cand * s.n_tests as f64),
                         s.rank as f64,
                     );
                     let in_prior = self.in_prior(c);
-                    self.screening.push(ScreenEntry {
+                    self.findings.screening.push(ScreenEntry {
                         step,
                         id: cand.id.clone(),
                         rank: s.rank,
@@ -274,7 +309,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                         },
                     });
                     if s.score > thr || in_prior {
-                        let gain = s.score - s.rank as f64 * self.ln_n;
+                        let gain = s.score - s.rank as f64 * self.charges.ln_n;
                         significant.push((c, s, gain));
                     }
                 }
@@ -353,10 +388,10 @@ impl<'p, 'a> Selection<'p, 'a> {
                 rest = keep;
                 for (c, s, _) in skip {
                     let factor = self.reach(&s);
-                    let reach = factor * s.score - s.rank as f64 * self.ln_n;
+                    let reach = factor * s.score - s.rank as f64 * self.charges.ln_n;
                     let margin = self.options.min_delta_bic;
                     set_decision(
-                        &mut self.screening,
+                        &mut self.findings.screening,
                         step,
                         &self.p.cands[c].id,
                         format!(
@@ -418,7 +453,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn could_win(&self, x: &(usize, Score, f64), best: f64) -> bool {
         let (c, s, _) = x;
         self.in_prior(*c)
-            || self.reach(s) * s.score - s.rank as f64 * self.ln_n
+            || self.reach(s) * s.score - s.rank as f64 * self.charges.ln_n
                 >= best - self.options.min_delta_bic
     }
 
@@ -450,8 +485,15 @@ impl<'p, 'a> Selection<'p, 'a> {
                 }
                 match fit {
                     Ok((f, kept)) => {
-                        let (f, kept) =
-                            reopen_dropped(self.p, f, &self.active, c, &kept, &stage, iterations);
+                        let (f, kept) = reopen_dropped(
+                            self.p,
+                            f,
+                            &self.model.active,
+                            c,
+                            &kept,
+                            &stage,
+                            iterations,
+                        );
                         (c, Ok(f), kept)
                     }
                     Err(e) => (c, Err(e), s.kept.clone()),
@@ -462,8 +504,8 @@ impl<'p, 'a> Selection<'p, 'a> {
 
     /// The refit's start θ, its active set and its iteration budget.
     fn refit_start(&self, c: usize, s: &Score) -> (Vec<f64>, Vec<Act>, usize) {
-        let (p, cur) = (self.p, &self.cur);
-        let mut act = self.active.clone();
+        let (p, cur) = (self.p, &self.model.cur);
+        let mut act = self.model.active.clone();
         act.push(Act {
             c,
             kept: s.kept.clone(),
@@ -525,13 +567,17 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// that model at all (on exact data 1e11 times its χ²).
     fn restarts(&self, c: usize, s: &Score, act: &[Act]) -> Vec<(Vec<f64>, Vec<usize>)> {
         let mut restarts = Vec::new();
-        if self.active.is_empty() {
-            let mut tn = self.theta_nom.to_vec();
+        if self.model.active.is_empty() {
+            let mut tn = self.start.theta_nom.to_vec();
             tn.extend_from_slice(&s.start);
             restarts.push((tn, s.kept.clone()));
         }
         let id = &self.p.cands[c].id;
-        if let Some((pr, phi)) = self.prior.and_then(|pr| pr.phi(id).map(|phi| (pr, phi))) {
+        if let Some((pr, phi)) = self
+            .start
+            .prior
+            .and_then(|pr| pr.phi(id).map(|phi| (pr, phi)))
+        {
             let neutral = &self.p.cands[c].neutral;
             let kept: Vec<usize> = (0..neutral.len())
                 .filter(|&j| s.kept.contains(&j) || phi[j] != neutral[j])
@@ -539,7 +585,10 @@ impl<'p, 'a> Selection<'p, 'a> {
             let mut act = act.to_vec();
             act.last_mut().expect("the refitted effect").kept = kept.clone();
             // The prior has φ for `c`, so `start` takes it, not the fallback start.
-            restarts.push((pr.start(self.p, &act, &self.cur.theta, &s.start), kept));
+            restarts.push((
+                pr.start(self.p, &act, &self.model.cur.theta, &s.start),
+                kept,
+            ));
         }
         restarts
     }
@@ -578,13 +627,17 @@ impl<'p, 'a> Selection<'p, 'a> {
             } else {
                 format!("rejected: {}", e.why())
             };
-            set_decision(&mut self.screening, step, &p.cands[e.c].id, d);
+            set_decision(&mut self.findings.screening, step, &p.cands[e.c].id, d);
         }
-        let before_inertia = inertia_report("", &self.cur.theta, &fit_covariance(&self.cur, 1.0));
+        let before_inertia = inertia_report(
+            "",
+            &self.model.cur.theta,
+            &fit_covariance(&self.model.cur, 1.0),
+        );
         let after_inertia = inertia_report("", &best.fit.theta, &fit_covariance(&best.fit, 1.0));
         let change = inertia_change(&before_inertia, &after_inertia);
         if family.len() > 1 {
-            self.ambiguous.push(AmbiguousFamily {
+            self.findings.ambiguous.push(AmbiguousFamily {
                 ids: family.iter().map(|&c| p.cands[c].id.clone()).collect(),
                 delta_bic: family_bic,
                 canonical_correlation: corr_max,
@@ -594,7 +647,8 @@ impl<'p, 'a> Selection<'p, 'a> {
                     .collect::<Vec<_>>()
                     .join("; "),
             });
-            self.excluded
+            self.findings
+                .excluded
                 .extend(family.iter().filter(|&&c| c != best.c));
         }
         let best_score = score_of(best.c);
@@ -613,16 +667,16 @@ impl<'p, 'a> Selection<'p, 'a> {
             .filter(|g| reopened.iter().map(|&j| g[j] * g[j]).sum::<f64>() < 0.5)
             .cloned()
             .collect();
-        self.active.push(Act {
+        self.model.active.push(Act {
             c: best.c,
             kept,
             gauge,
         });
-        self.cur = evidence.fit.clone();
-        self.accepted.push(evidence);
+        self.model.cur = evidence.fit.clone();
+        self.model.accepted.push(evidence);
         let cand = &p.cands[best.c];
         if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
-            self.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
+            self.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
                 "'{}' is the last term of its kind the check offers: the recording may hold more {} terms than it could fit",
                 cand.id,
                 cand.effect.id()
@@ -635,13 +689,19 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// must cost (the larger of its likelihood-ratio threshold and the ΔBIC margin).
     fn decisively_in(&self, k: usize, cov: &DMatrix<f64>) -> bool {
         let p = self.p;
-        let a = &self.active[k];
-        let k0 = p.n_base() + active_dims(&self.active[..k]);
-        let phi = a.phi(&p.cands[a.c].neutral, &self.cur.theta[k0..k0 + a.dim()]);
-        let plausible = p.plausibility(&self.cur.theta, a.c, &phi).iter().all(holds);
-        let must_cost = self.accepted[k]
+        let a = &self.model.active[k];
+        let k0 = p.n_base() + active_dims(&self.model.active[..k]);
+        let phi = a.phi(
+            &p.cands[a.c].neutral,
+            &self.model.cur.theta[k0..k0 + a.dim()],
+        );
+        let plausible = p
+            .plausibility(&self.model.cur.theta, a.c, &phi)
+            .iter()
+            .all(holds);
+        let must_cost = self.model.accepted[k]
             .threshold
-            .max(self.options.min_delta_bic + a.dim() as f64 * self.ln_n);
+            .max(self.options.min_delta_bic + a.dim() as f64 * self.charges.ln_n);
         plausible && self.active_wald(k, cov) >= WALD_DECISIVE * must_cost
     }
 
@@ -657,25 +717,26 @@ impl<'p, 'a> Selection<'p, 'a> {
     pub(super) fn final_retest(&mut self, step: usize) -> Result<bool, CheckError> {
         let p = self.p;
         let mut dropped_any = false;
-        while !self.active.is_empty() {
+        while !self.model.active.is_empty() {
             let cov = self.current_covariance();
-            let decisive: Vec<bool> = (0..self.active.len())
+            let decisive: Vec<bool> = (0..self.model.active.len())
                 .map(|k| self.decisively_in(k, &cov))
                 .collect();
-            let fits: Vec<Option<Result<Fit, CheckError>>> = (0..self.active.len())
+            let fits: Vec<Option<Result<Fit, CheckError>>> = (0..self.model.active.len())
                 .into_par_iter()
                 .map(|k| {
                     if decisive[k] {
                         return None;
                     }
                     let without: Vec<Act> = self
+                        .model
                         .active
                         .iter()
                         .enumerate()
                         .filter(|(i, _)| *i != k)
                         .map(|(_, a)| a.clone())
                         .collect();
-                    let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
+                    let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
                     Some(p.fit(
                         "final re-test",
                         &theta_wo,
@@ -688,17 +749,20 @@ impl<'p, 'a> Selection<'p, 'a> {
             let mut failing: Vec<(usize, f64, String)> = Vec::new();
             let mut offset = p.n_base();
             for (k, f_wo) in fits.into_iter().enumerate() {
-                let a = &self.active[k];
+                let a = &self.model.active[k];
                 let d = a.dim();
-                let phi = a.phi(&p.cands[a.c].neutral, &self.cur.theta[offset..offset + d]);
+                let phi = a.phi(
+                    &p.cands[a.c].neutral,
+                    &self.model.cur.theta[offset..offset + d],
+                );
                 offset += d;
                 let Some(f_wo) = f_wo else {
                     continue;
                 };
                 let f_wo = f_wo?;
-                let dchi2 = f_wo.chi2 - self.cur.chi2;
-                let dbic = dchi2 - d as f64 * self.ln_n;
-                let thr = self.accepted[k].threshold;
+                let dchi2 = f_wo.chi2 - self.model.cur.chi2;
+                let dbic = dchi2 - d as f64 * self.charges.ln_n;
+                let thr = self.model.accepted[k].threshold;
                 let mut why = Vec::new();
                 if !(dchi2 > thr) {
                     why.push(format!("LR {dchi2:.1} ≤ {thr:.1}"));
@@ -706,7 +770,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 if !(dbic > self.options.min_delta_bic) {
                     why.push(format!("ΔBIC {dbic:.1} ≤ {}", self.options.min_delta_bic));
                 }
-                for q in p.plausibility(&self.cur.theta, a.c, &phi) {
+                for q in p.plausibility(&self.model.cur.theta, a.c, &phi) {
                     if !holds(&q) {
                         why.push(implausible_text(&q));
                     }
@@ -721,33 +785,34 @@ impl<'p, 'a> Selection<'p, 'a> {
             else {
                 break;
             };
-            let id = p.cands[self.active[k].c].id.clone();
+            let id = p.cands[self.model.active[k].c].id.clone();
             self.options
                 .progress
                 .say(|| format!("final re-test: {id} no longer needed given the others ({why})"));
             set_decision(
-                &mut self.screening,
+                &mut self.findings.screening,
                 step,
                 &id,
                 format!("dropped in the final re-test given all the others: {why}"),
             );
             let without: Vec<Act> = self
+                .model
                 .active
                 .iter()
                 .enumerate()
                 .filter(|(i, _)| *i != k)
                 .map(|(_, a)| a.clone())
                 .collect();
-            let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
-            self.cur = p.fit(
+            let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
+            self.model.cur = p.fit(
                 "final re-test",
                 &theta_wo,
                 &without,
                 self.options.max_iterations,
             )?;
-            self.excluded.push(self.active[k].c);
-            self.accepted.remove(k);
-            self.active = without;
+            self.findings.excluded.push(self.model.active[k].c);
+            self.model.accepted.remove(k);
+            self.model.active = without;
             dropped_any = true;
         }
         Ok(dropped_any)
@@ -757,39 +822,43 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// An effect whose Wald statistic in the current model is [`WALD_DECISIVE`] times
     /// what its removal would have to cost is kept without the refit.
     fn backward(&mut self, step: usize) -> Result<(), CheckError> {
-        if self.active.len() <= 1 {
+        if self.model.active.len() <= 1 {
             return Ok(());
         }
         let p = self.p;
         let mut k = 0;
         let mut cov = None;
-        while k + 1 < self.active.len() {
-            let (d, thr) = (self.accepted[k].rank, self.accepted[k].threshold);
-            let must_cost = thr.max(d as f64 * self.ln_n);
+        while k + 1 < self.model.active.len() {
+            let (d, thr) = (
+                self.model.accepted[k].rank,
+                self.model.accepted[k].threshold,
+            );
+            let must_cost = thr.max(d as f64 * self.charges.ln_n);
             let cov = cov.get_or_insert_with(|| self.current_covariance());
             if self.active_wald(k, cov) >= WALD_DECISIVE * must_cost {
                 k += 1;
                 continue;
             }
             let without: Vec<Act> = self
+                .model
                 .active
                 .iter()
                 .enumerate()
                 .filter(|(i, _)| *i != k)
                 .map(|(_, a)| a.clone())
                 .collect();
-            let theta_wo = drop_params(p, &self.cur.theta, &self.active, k);
+            let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
             let f_wo = p.fit("backward", &theta_wo, &without, self.options.max_iterations)?;
-            if f_wo.chi2 - self.cur.chi2 < must_cost {
+            if f_wo.chi2 - self.model.cur.chi2 < must_cost {
                 set_decision(
-                    &mut self.screening,
+                    &mut self.findings.screening,
                     step,
-                    &p.cands[self.active[k].c].id,
+                    &p.cands[self.model.active[k].c].id,
                     "dropped in the backward check".into(),
                 );
-                self.accepted.remove(k);
-                self.active = without;
-                self.cur = f_wo;
+                self.model.accepted.remove(k);
+                self.model.active = without;
+                self.model.cur = f_wo;
                 *cov = self.current_covariance();
             } else {
                 k += 1;
@@ -800,16 +869,17 @@ impl<'p, 'a> Selection<'p, 'a> {
 
     /// The current fit's covariance (scaled by χ²/ν when above 1).
     fn current_covariance(&self) -> DMatrix<f64> {
-        let nu = self.p.n_real() - (self.free_base + active_dims(&self.active)) as f64;
-        fit_covariance(&self.cur, nu)
+        let nu =
+            self.p.n_real() - (self.charges.free_base + active_dims(&self.model.active)) as f64;
+        fit_covariance(&self.model.cur, nu)
     }
 
     /// The Wald statistic of active effect `k`'s fitted coordinates against neutral, in
     /// the current model with covariance `cov`.
     fn active_wald(&self, k: usize, cov: &DMatrix<f64>) -> f64 {
-        let k0 = self.p.n_base() + active_dims(&self.active[..k]);
-        let a = &self.active[k];
-        let alpha = &self.cur.theta[k0..k0 + a.dim()];
+        let k0 = self.p.n_base() + active_dims(&self.model.active[..k]);
+        let a = &self.model.active[k];
+        let alpha = &self.model.cur.theta[k0..k0 + a.dim()];
         wald_in(cov, k0, alpha, &a.kept, &self.p.cands[a.c].neutral)
     }
 }

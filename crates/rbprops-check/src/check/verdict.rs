@@ -5,7 +5,7 @@
 use super::acceptance::{fit_covariance, Evidence, IMPLAUSIBLE};
 use super::gauges::centre_gauges;
 use super::problem::{active_dims, Act, Prior, Problem};
-use super::selection::Selection;
+use super::selection::{Findings, Model, Selection};
 use super::{effect_spec, known_sensor_masses, CheckOptions};
 use crate::error::CheckError;
 use crate::lm::Fit;
@@ -390,15 +390,17 @@ impl<'p, 'a> Finish<'p, 'a> {
         let n_real = p.n_real();
         let nu_base = n_real - self.free_base as f64;
         let base_pred = p.model(&base.theta, &[])?;
-        let Selection {
+        let Model {
             mut active,
             cur,
+            accepted: evidence,
+        } = sel.model;
+        let Findings {
             screening,
             not_observable,
             ambiguous,
-            accepted: evidence,
             ..
-        } = sel;
+        } = sel.findings;
         let cur = centre_gauges(p, cur, &mut active, self.options.max_iterations);
         let free_final = self.free_base + active_dims(&active);
         let nu_after = n_real - free_final as f64;
