@@ -4,7 +4,7 @@
 //! Follows docs/physics.md (M1–M8), with the deviations listed in
 //! the report's `method` field.
 
-use crate::candidates::candidates;
+use crate::candidates::{candidates, Candidate};
 use crate::correlation::LineCorrelation;
 use crate::error::CheckError;
 use crate::lm;
@@ -369,28 +369,20 @@ struct Weights {
     inflation: Option<crate::correlation::Inflation>,
 }
 
-/// Stage 0: the noise floor (given, overridden by the second pass, or estimated from
-/// the data), with the precision floor of the data's storage format; the 0 Hz line and
-/// values without noise information are left out.
-fn weights(
-    spec: &CampaignSpec,
+/// The noise model and each value's σ (Stage 0), from the first source there is: the
+/// second pass's `noise_override`, the estimator's given line variances, a given noise
+/// model, or the recording itself; with the line correlation the second pass takes
+/// from the first (`Some(None)`: known, not to be detected), `None` when it is to be
+/// detected.
+#[allow(clippy::type_complexity)]
+fn noise_and_sigma(
     frf: &FrfSet,
     options: &CheckOptions,
     noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
-    method: &mut Vec<String>,
-    warnings: &mut Vec<Diagnostic>,
-) -> Result<Weights, CheckError> {
+    given_lines: Option<&noise::GivenLineVariance>,
+) -> Result<(RecordingNoise, Vec<f64>, Option<Option<LineCorrelation>>), CheckError> {
     let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let y = &frf.values;
-    // Stage 0: noise floor, with the precision floor of the data's storage format.
-    let given_lines = options
-        .line_variance
-        .as_ref()
-        .filter(|_| noise_override.is_none());
-    let source = (
-        noise_override.is_some(),
-        options.noise.is_some() || given_lines.is_some(),
-    );
     let mut rerun_correlation = None;
     let (noise_model, sigma) = match (noise_override, &options.noise) {
         (Some((model, sigma, correlation)), _) => {
@@ -439,18 +431,16 @@ fn weights(
             (nf.model, nf.sigma)
         }
     };
-    method.push(format!(
-        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the computation floor of double precision ({:.0e}·|H|)²; an exact recording (no fitted noise) whose χ²/ν is below the band is within that floor, and counts as at the floor",
-        noise_model.precision.describe(),
-        noise::COMPUTATION_FLOOR
-    ));
-    // The yardstick of practical significance: σ with no noise but the precision floor.
-    let sigma_precision = noise::precision_sigma(&noise_model.precision, y, y, nl);
-    // The 0 Hz line is left out: an AC-coupled channel reads 0 there whatever its time
-    // constant and a DC-coupled one its static value, so a high-pass candidate's model
-    // jumps at 1/τ = 0 on that line (no derivative, no path for the fit) while the line
-    // next to it carries the same static information.
-    let mut sigma = sigma;
+    Ok((noise_model, sigma, rerun_correlation))
+}
+
+/// Leaves the 0 Hz line out (σ = 0) and returns how many values that removed. An
+/// AC-coupled channel reads 0 there whatever its time constant and a DC-coupled one its
+/// static value, so a high-pass candidate's model jumps at 1/τ = 0 on that line (no
+/// derivative, no path for the fit) while the line next to it carries the same static
+/// information.
+fn leave_out_dc(frf: &FrfSet, sigma: &mut [f64]) -> usize {
+    let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
     let dc: Vec<usize> = (0..nl).filter(|&l| frf.frequency_hz[l] == 0.0).collect();
     let mut n_dc = 0;
     for &l in &dc {
@@ -461,6 +451,42 @@ fn weights(
             }
         }
     }
+    n_dc
+}
+
+/// Stage 0: the noise floor (given, overridden by the second pass, or estimated from
+/// the data), with the precision floor of the data's storage format; the 0 Hz line and
+/// values without noise information are left out.
+fn weights(
+    spec: &CampaignSpec,
+    frf: &FrfSet,
+    options: &CheckOptions,
+    noise_override: Option<(RecordingNoise, Vec<f64>, Option<LineCorrelation>)>,
+    method: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
+) -> Result<Weights, CheckError> {
+    let (nex, nch, nl) = (frf.n_excitations, frf.n_channels, frf.n_lines());
+    let y = &frf.values;
+    // Stage 0: noise floor, with the precision floor of the data's storage format.
+    let given_lines = options
+        .line_variance
+        .as_ref()
+        .filter(|_| noise_override.is_none());
+    let source = (
+        noise_override.is_some(),
+        options.noise.is_some() || given_lines.is_some(),
+    );
+    let (noise_model, sigma, rerun_correlation) =
+        noise_and_sigma(frf, options, noise_override, given_lines)?;
+    method.push(format!(
+        "precision floor: values stored in {} (detected from the values), each σ² includes its quantisation variance (step²/12 per part) and the computation floor of double precision ({:.0e}·|H|)²; an exact recording (no fitted noise) whose χ²/ν is below the band is within that floor, and counts as at the floor",
+        noise_model.precision.describe(),
+        noise::COMPUTATION_FLOOR
+    ));
+    // The yardstick of practical significance: σ with no noise but the precision floor.
+    let sigma_precision = noise::precision_sigma(&noise_model.precision, y, y, nl);
+    let mut sigma = sigma;
+    let n_dc = leave_out_dc(frf, &mut sigma);
     if n_dc > 0 {
         warnings.push(diagnostic(DiagnosticKind::NoNoiseInformation, Severity::Note, format!(
             "the 0 Hz line is left out ({n_dc} values): a high-pass (AC coupling) makes it 0 whatever its time constant, so it cannot be fitted continuously; the next line carries the same static information"
@@ -667,25 +693,7 @@ fn check_with(
         &mut warnings,
     )?;
     let fixed_effects = fixed_effects(spec, &layout, options)?;
-    warnings.extend(
-        crate::candidates::free_direction_note(spec, &layout.spec_geometry)
-            .map(|t| diagnostic(DiagnosticKind::CheckBlindSpot, Severity::Note, t)),
-    );
-    let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
-    method.extend(notes);
-    warnings.extend(
-        crate::candidates::vertical_axis_doubt(spec)
-            .map(|t| diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, t)),
-    );
-    if let Some(only) = &options.only {
-        // A further instance goes with its first (`elastic_mode` keeps `elastic_mode_2`).
-        cands.retain(|c| {
-            only.contains(&c.id) || (c.follows.is_some() && only.iter().any(|o| o == c.effect.id()))
-        });
-    }
-    if !options.sensor_masses_kg.is_empty() {
-        cands.retain(|c| c.id != SensorMass::ID);
-    }
+    let cands = screened_candidates(spec, &layout, options, &mut method, &mut warnings);
     let p = Problem {
         baseline: Baseline::new(spec),
         layout: &layout,
@@ -706,11 +714,6 @@ fn check_with(
     let r_nom = p.residual(&theta_nom, &[])?;
     let chi2_nominal = lm::chi2(&r_nom);
     let nominal_pred = p.model(&theta_nom, &[])?;
-    // Stage 1: baseline fit. Start from the nominal, with the weighed mass if given.
-    let mut theta0 = theta_nom.clone();
-    if let Some(m) = options.weighed_mass_kg {
-        theta0[0] = m.ln();
-    }
     options.progress.say(|| {
         format!(
             "{} candidates; χ²/ν of the nominal model {:.3}; fitting its parameters",
@@ -718,17 +721,7 @@ fn check_with(
             chi2_nominal / n_real
         )
     });
-    let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
-    if !base.converged {
-        warnings.push(diagnostic(
-            DiagnosticKind::CheckRefitFailed,
-            Severity::Warning,
-            format!(
-                "baseline fit stopped after {} iterations without converging",
-                base.iterations
-            ),
-        ));
-    }
+    let base = baseline_fit(&p, &theta_nom, options, &mut warnings)?;
     let free_base = p.n_base() - usize::from(options.weighed_mass_kg.is_some());
     // Stages 3–4: forward selection with backward checks.
     let mut sel = Selection::new(
@@ -743,32 +736,8 @@ fn check_with(
         (nex, nch, nl),
         free_base,
     );
-    // The selection ends when nothing significant is left or nothing passes the
-    // acceptance tests (with the residual at the noise floor no candidate is
-    // significant); `max_effects` is only a safety cap, and hitting it is reported.
-    let mut capped = options.max_effects > 0;
-    // Forward steps until nothing more is accepted, then the final re-test of every
-    // accepted effect given the others; when it drops one, the forward selection
-    // resumes from the smaller model (a dropped effect is not screened again, so this
-    // ends). Steps are counted over both, under the same cap.
-    let mut step = 0;
-    while step < options.max_effects {
-        step += 1;
-        if !sel.step(step)? && !sel.final_retest(step)? {
-            capped = false;
-            break;
-        }
-    }
-    if capped {
-        sel.final_retest(step)?;
-    }
+    run_selection(&mut sel, options.max_effects)?;
     warnings.append(&mut sel.findings.warnings);
-    if capped {
-        warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
-            "the selection stopped at its cap of {} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing",
-            options.max_effects
-        )));
-    }
     let fin = Finish {
         spec,
         options,
@@ -799,6 +768,91 @@ fn check_with(
         layout,
         correlation,
     })
+}
+
+/// Stage 1: the baseline fit (the nominal physics, its parameters free), started from
+/// the nominal with the weighed mass if given; one that does not converge is a warning.
+fn baseline_fit(
+    p: &Problem,
+    theta_nom: &[f64],
+    options: &CheckOptions,
+    warnings: &mut Vec<Diagnostic>,
+) -> Result<lm::Fit, CheckError> {
+    let mut theta0 = theta_nom.to_vec();
+    if let Some(m) = options.weighed_mass_kg {
+        theta0[0] = m.ln();
+    }
+    let base = p.fit("baseline", &theta0, &[], options.max_iterations)?;
+    if !base.converged {
+        warnings.push(diagnostic(
+            DiagnosticKind::CheckRefitFailed,
+            Severity::Warning,
+            format!(
+                "baseline fit stopped after {} iterations without converging",
+                base.iterations
+            ),
+        ));
+    }
+    Ok(base)
+}
+
+/// The candidates this check screens: the catalogue's and the local forms, less those
+/// `options` leave out (`only`; the sensor mass when the masses are given); the notes on
+/// effects not screened go to `method`, the spec's blind spots and doubts to `warnings`.
+fn screened_candidates(
+    spec: &CampaignSpec,
+    layout: &Layout,
+    options: &CheckOptions,
+    method: &mut Vec<String>,
+    warnings: &mut Vec<Diagnostic>,
+) -> Vec<Candidate> {
+    warnings.extend(
+        crate::candidates::free_direction_note(spec, &layout.spec_geometry)
+            .map(|t| diagnostic(DiagnosticKind::CheckBlindSpot, Severity::Note, t)),
+    );
+    let (mut cands, notes) = candidates(spec, &layout.spec_geometry);
+    method.extend(notes);
+    warnings.extend(
+        crate::candidates::vertical_axis_doubt(spec)
+            .map(|t| diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, t)),
+    );
+    if let Some(only) = &options.only {
+        // A further instance goes with its first (`elastic_mode` keeps `elastic_mode_2`).
+        cands.retain(|c| {
+            only.contains(&c.id) || (c.follows.is_some() && only.iter().any(|o| o == c.effect.id()))
+        });
+    }
+    if !options.sensor_masses_kg.is_empty() {
+        cands.retain(|c| c.id != SensorMass::ID);
+    }
+    cands
+}
+
+/// Stages 3–4: forward steps until nothing more is accepted, then the final re-test of
+/// every accepted effect given the others; when it drops one, the forward selection
+/// resumes from the smaller model (a dropped effect is not screened again, so this
+/// ends). Steps are counted over both, under `max_effects`.
+///
+/// The selection ends when nothing significant is left or nothing passes the acceptance
+/// tests (with the residual at the noise floor no candidate is significant);
+/// `max_effects` is only a safety cap, and hitting it is reported.
+fn run_selection(sel: &mut Selection, max_effects: usize) -> Result<(), CheckError> {
+    let mut capped = max_effects > 0;
+    let mut step = 0;
+    while step < max_effects {
+        step += 1;
+        if !sel.step(step)? && !sel.final_retest(step)? {
+            capped = false;
+            break;
+        }
+    }
+    if capped {
+        sel.final_retest(step)?;
+        sel.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
+            "the selection stopped at its cap of {max_effects} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing"
+        )));
+    }
+    Ok(())
 }
 
 /// The sensor masses the user gave (`CheckOptions::sensor_masses_kg`) as the catalogue's
