@@ -223,19 +223,54 @@ impl<'p, 'a> Selection<'p, 'a> {
         if !(wald > wthr) {
             why.push(format!("Wald {wald:.1} ≤ {wthr:.1}"));
         }
+        let practical = self.practical_tests(c, &f, k0, &kept, cur_pred, &mut why);
+        let (held_out, held_out_exc) =
+            self.held_out_tests(&f, nu, cv_without, loeo_without, &mut why);
+        Evidence {
+            c,
+            fit: f,
+            kept,
+            dchi2,
+            dbic,
+            rank: d,
+            threshold: thr,
+            why,
+            held_out,
+            held_out_exc,
+            practical,
+            inertia_change: Vec::new(),
+        }
+    }
+
+    /// Practical significance (A5): the fitted change to the FRFs against the precision
+    /// floor ([`PRACTICAL_MARGIN`]), the effect's own relative change against
+    /// [`RESOLUTION`] and, when the FRF estimator says so, per excitation against its
+    /// force-noise resolution; each failure goes to `why`. Returns the change over the
+    /// floor (RMS).
+    fn practical_tests(
+        &self,
+        c: usize,
+        f: &Fit,
+        k0: usize,
+        kept: &[usize],
+        cur_pred: &[c64],
+        why: &mut Vec<String>,
+    ) -> f64 {
+        let (p, options) = (self.p, self.options);
+        let cand = &p.cands[c];
         // Practical significance: the fitted change to the FRFs against the
         // precision floor (see `PRACTICAL_MARGIN`).
         let mut act = self.model.active.clone();
         act.push(Act {
             c,
-            kept: kept.clone(),
+            kept: kept.to_vec(),
             gauge: Vec::new(),
         });
         // The resolution rule weighs the effect's own change: the fitted model against
         // the same parameters with the effect at neutral. (Against the current model, the
         // refit's re-adjustment of everything else would count as the effect's.)
         let mut theta_neutral = f.theta.clone();
-        for (t, &j) in theta_neutral[k0..].iter_mut().zip(&kept) {
+        for (t, &j) in theta_neutral[k0..].iter_mut().zip(kept) {
             *t = cand.neutral[j];
         }
         let (practical, relative, relative_exc) =
@@ -272,6 +307,21 @@ impl<'p, 'a> Selection<'p, 'a> {
                 ));
             }
         }
+        practical
+    }
+
+    /// The held-out checks (A2): frequency blocks, then left-out excitations once the
+    /// fit is near-adequate, each only while the other evidence holds (`why` empty);
+    /// failures go to `why`.
+    fn held_out_tests(
+        &self,
+        f: &Fit,
+        nu: f64,
+        cv_without: &crate::cv::HeldOut,
+        loeo_without: &crate::cv::HeldOut,
+        why: &mut Vec<String>,
+    ) -> (Option<HeldOutCheck>, Option<HeldOutCheck>) {
+        let options = self.options;
         // Held-out check (A2), only where the other evidence holds (it is cheap,
         // but its verdict matters only then).
         let held_out = if options.cross_validation && why.is_empty() {
@@ -327,20 +377,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         } else {
             None
         };
-        Evidence {
-            c,
-            fit: f,
-            kept,
-            dchi2,
-            dbic,
-            rank: d,
-            threshold: thr,
-            why,
-            held_out,
-            held_out_exc,
-            practical,
-            inertia_change: Vec::new(),
-        }
+        (held_out, held_out_exc)
     }
 }
 
