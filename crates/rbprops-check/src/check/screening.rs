@@ -256,34 +256,7 @@ pub(super) fn profile_candidate(
             })
             .collect()
     };
-    // Every point at each start; a large grid (the cords' string-mode frequencies, 2 %
-    // apart) first at every other point, then the skipped neighbours of the most
-    // promising ones. A point left out counts as not evaluated.
-    let coarse = grid.len() > PROFILE_COARSE_ABOVE;
-    let mut first: Vec<Option<(f64, f64)>> = vec![None; points.len()];
-    let probed: Vec<usize> = (0..points.len())
-        .filter(|&i| !coarse || points[i].0.is_multiple_of(2))
-        .collect();
-    for (i, f) in probed.iter().zip(probe_all(&probed)) {
-        first[*i] = f;
-    }
-    if coarse {
-        let mut fill: Vec<usize> = most_promising(&first, &points, n_starts)
-            .into_iter()
-            .flat_map(|i| {
-                let (g, k) = points[i];
-                [g.wrapping_sub(1), g + 1]
-                    .into_iter()
-                    .filter(|&h| h < grid.len() && h % 2 == 1)
-                    .map(move |h| h * n_starts + k)
-            })
-            .collect();
-        fill.sort_unstable();
-        fill.dedup();
-        for (i, f) in fill.iter().zip(probe_all(&fill)) {
-            first[*i] = f;
-        }
-    }
+    let first = probe_profile(&points, grid.len(), n_starts, &probe_all);
     // Only the points the first step promises most, per start, are chord-refined (the
     // model evaluations of a profile were mostly those steps, and a profile of the
     // cords' string modes has hundreds of points): the others keep their one-point gain.
@@ -325,29 +298,8 @@ pub(super) fn profile_candidate(
             Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
-    let mut best: Option<ProfilePoint> = None;
-    for point in refined.into_iter().flatten() {
-        if best.as_ref().is_none_or(|b| point.0 > b.0) {
-            best = Some(point);
-        }
-    }
-    let Some((gain, i, refined)) = best else {
-        return Err(CheckError::Model(format!(
-            "'{}': no point of its screening profile could be evaluated",
-            cand.id
-        )));
-    };
-    // A best point that was not refined: its residual again (the same evaluation).
-    let (theta_best, rg) = match refined {
-        Some(refined) => refined,
-        None => {
-            let t = theta_at(points[i]);
-            let rg = eval(&t).ok_or_else(|| {
-                CheckError::Model(format!("'{}': its best profile point failed", cand.id))
-            })?;
-            (t[..nb].to_vec(), rg)
-        }
-    };
+    let (gain, i, theta_best, rg) =
+        best_profile_point(refined, &cand.id, &|i| theta_at(points[i]), &eval, nb)?;
     // Signature direction at the best point (for the distinctness check).
     let sig = perp(&(&r0 - &rg));
     Ok(profile_score(
@@ -358,6 +310,79 @@ pub(super) fn profile_candidate(
         n_tests,
         theta_best,
     ))
+}
+
+/// The first step at every point of a profile (`points`: grid point and start), by
+/// `probe_all`: a large grid (the cords' string-mode frequencies, 2 % apart) first at
+/// every other point, then the skipped neighbours of the most promising ones. A point
+/// left out counts as not evaluated (`None`).
+fn probe_profile(
+    points: &[(usize, usize)],
+    grid_len: usize,
+    n_starts: usize,
+    probe_all: &dyn Fn(&[usize]) -> Vec<Option<(f64, f64)>>,
+) -> Vec<Option<(f64, f64)>> {
+    let coarse = grid_len > PROFILE_COARSE_ABOVE;
+    let mut first: Vec<Option<(f64, f64)>> = vec![None; points.len()];
+    let probed: Vec<usize> = (0..points.len())
+        .filter(|&i| !coarse || points[i].0.is_multiple_of(2))
+        .collect();
+    for (i, f) in probed.iter().zip(probe_all(&probed)) {
+        first[*i] = f;
+    }
+    if coarse {
+        let mut fill: Vec<usize> = most_promising(&first, points, n_starts)
+            .into_iter()
+            .flat_map(|i| {
+                let (g, k) = points[i];
+                [g.wrapping_sub(1), g + 1]
+                    .into_iter()
+                    .filter(|&h| h < grid_len && h % 2 == 1)
+                    .map(move |h| h * n_starts + k)
+            })
+            .collect();
+        fill.sort_unstable();
+        fill.dedup();
+        for (i, f) in fill.iter().zip(probe_all(&fill)) {
+            first[*i] = f;
+        }
+    }
+    first
+}
+
+/// The profile's best point, in the order of the points (the first of equal gains, as
+/// a loop over them takes it): its gain, index, base parameters (the first `nb`) and
+/// residual; a best point that was not refined is evaluated again (the same
+/// evaluation) at its parameters `theta_of(i)`.
+fn best_profile_point(
+    refined: Vec<Option<ProfilePoint>>,
+    id: &str,
+    theta_of: &dyn Fn(usize) -> Vec<f64>,
+    eval: &dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>>,
+    nb: usize,
+) -> Result<(f64, usize, Vec<f64>, nalgebra::DVector<f64>), CheckError> {
+    let mut best: Option<ProfilePoint> = None;
+    for point in refined.into_iter().flatten() {
+        if best.as_ref().is_none_or(|b| point.0 > b.0) {
+            best = Some(point);
+        }
+    }
+    let Some((gain, i, refined)) = best else {
+        return Err(CheckError::Model(format!(
+            "'{id}': no point of its screening profile could be evaluated"
+        )));
+    };
+    let (theta_best, rg) = match refined {
+        Some(refined) => refined,
+        None => {
+            let t = theta_of(i);
+            let rg = eval(&t).ok_or_else(|| {
+                CheckError::Model(format!("'{id}': its best profile point failed"))
+            })?;
+            (t[..nb].to_vec(), rg)
+        }
+    };
+    Ok((gain, i, theta_best, rg))
 }
 
 /// Up to four chord (fixed-Jacobian Gauss–Newton) steps from `t` with residual `rg`,
