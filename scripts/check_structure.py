@@ -16,6 +16,9 @@ import re
 import sys
 from collections import defaultdict
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from long_functions import functions, strip_code, test_module_spans  # noqa: E402
+
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 MAX_FILE_LINES = 1200
 MAX_FN_LINES = 120
@@ -34,89 +37,15 @@ def rust_sources():
                 yield os.path.relpath(path, ROOT), open(path, encoding="utf-8").read()
 
 
-def strip_test_modules(text):
-    """The text without `#[cfg(test)] mod … { … }` blocks (brace-matched)."""
-    out, i = [], 0
-    pat = re.compile(r"#\[cfg\(test\)\]\s*(pub(\([^)]*\))?\s+)?mod\s+\w+\s*\{")
-    while True:
-        m = pat.search(text, i)
-        if not m:
-            out.append(text[i:])
-            return "".join(out)
-        out.append(text[i : m.start()])
-        depth, j = 1, m.end()
-        while depth and j < len(text):
-            depth += {"{": 1, "}": -1}.get(text[j], 0)
-            j += 1
-        out.append("\n" * text[m.start() : j].count("\n"))
-        i = j
-
-
-def code_only(text):
-    """Comments and string/char literals blanked (line structure kept), for brace counting."""
-    res, i, n = [], 0, len(text)
-    while i < n:
-        c = text[i]
-        if text.startswith("//", i):
-            j = text.find("\n", i)
-            j = n if j < 0 else j
-            res.append(" " * (j - i))
-            i = j
-        elif text.startswith("/*", i):
-            j = text.find("*/", i + 2)
-            j = n if j < 0 else j + 2
-            res.append(re.sub(r"[^\n]", " ", text[i:j]))
-            i = j
-        elif c == "r" and re.match(r'r#*"', text[i:i + 10]) and (i == 0 or not (text[i - 1].isalnum() or text[i - 1] == "_")):
-            hashes = re.match(r'r(#*)"', text[i:]).group(1)
-            end = text.find('"' + hashes, i + 2 + len(hashes))
-            j = n if end < 0 else end + 1 + len(hashes)
-            res.append(re.sub(r"[^\n]", " ", text[i:j]))
-            i = j
-        elif c == '"':
-            j = i + 1
-            while j < n and text[j] != '"':
-                j += 2 if text[j] == "\\" else 1
-            res.append(re.sub(r"[^\n]", " ", text[i:j + 1]))
-            i = j + 1
-        elif c == "'" and re.match(r"'(\\.|[^\\'])'", text[i:i + 4]) or c == "'" and text.startswith("'\\u{", i):
-            j = text.find("'", i + 2) + 1
-            res.append(" " * (j - i))
-            i = j
-        else:
-            res.append(c)
-            i += 1
-    return "".join(res)
-
-
-def functions(text):
-    """(name, first line, line count) of every fn with a body."""
-    code = code_only(text)
-    for m in re.finditer(r"\bfn\s+(\w+)", code):
-        j = m.end()
-        # the body's opening brace: the first `{` at generic depth 0 before any `;`
-        depth = 0
-        while j < len(code):
-            ch = code[j]
-            if ch in "(<[":
-                depth += 1
-            elif ch in ")>]":
-                depth -= 1 if not (ch == ">" and code[j - 1] == "-") else 0
-            elif ch == ";" and depth <= 0:
-                j = -1
-                break
-            elif ch == "{" and depth <= 0:
-                break
-            j += 1
-        if j < 0 or j >= len(code):
-            continue
-        k, d = j + 1, 1
-        while d and k < len(code):
-            d += {"{": 1, "}": -1}.get(code[k], 0)
-            k += 1
-        start = code.count("\n", 0, m.start()) + 1
-        end = code.count("\n", 0, k) + 1
-        yield m.group(1), start, end - start + 1
+def without_tests(text):
+    """The text with its `#[cfg(test)]` items blanked (line structure kept), found as
+    scripts/long_functions.py finds them."""
+    out = list(text)
+    for a, b in test_module_spans(strip_code(text)):
+        for i in range(a, b + 1):
+            if out[i] != "\n":
+                out[i] = " "
+    return "".join(out)
 
 
 def without_comments(text):
@@ -141,7 +70,7 @@ def effect_ids():
 def main():
     report = "--report" in sys.argv
     breaches = []
-    sources = {p: strip_test_modules(t) for p, t in rust_sources()}
+    sources = {p: without_tests(t) for p, t in rust_sources()}
     code = {p: without_comments(t) for p, t in sources.items()}
     # 1. effect ids
     where = defaultdict(list)
@@ -164,7 +93,7 @@ def main():
         sizes.append((n, path))
         if n > MAX_FILE_LINES and path not in FILE_EXCEPTIONS:
             breaches.append(f"{path}: {n} lines (> {MAX_FILE_LINES})")
-        for name, start, length in functions(text):
+        for name, start, length in functions(os.path.join(ROOT, path)):
             key = f"{path}::{name}"
             if length > MAX_FN_LINES and key not in FN_EXCEPTIONS:
                 breaches.append(f"{path}:{start}: fn {name} is {length} lines (> {MAX_FN_LINES})")
