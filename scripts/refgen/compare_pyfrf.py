@@ -45,7 +45,7 @@ def confusion(name, truth, flag):
     fp, tn = int(np.sum(~truth & flag)), int(np.sum(~truth & ~flag))
     rec = tp / (tp + fn) if tp + fn else float("nan")
     fa = fp / (fp + tn) if fp + tn else float("nan")
-    print(f"  {name:<9} truth+ flagged {tp:5d} missed {fn:5d} | truth- flagged {fp:5d} passed {tn:5d}"
+    print(f"  {name:<16} truth+ flagged {tp:5d} missed {fn:5d} | truth- flagged {fp:5d} passed {tn:5d}"
           f" | recall {rec:.3f} false alarms {fa:.3f}")
 
 
@@ -56,20 +56,27 @@ def read_csv(path):
 
 
 def run_frf_est(binary, uff, out, extra):
-    """Runs frf-est on `uff` into the CSV directory `out`; returns (wall s, peak RSS bytes)."""
+    """Runs frf-est on `uff` into `out` (CSV directory or .mcap); returns (wall s, peak RSS
+    bytes, its summary line)."""
     import os
     import shutil
     import subprocess
-    shutil.rmtree(out, ignore_errors=True)
-    t0 = time.perf_counter()
-    p = subprocess.Popen([binary, uff, "-o", out, *extra], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t0
-    err = p.stderr.read().decode()
-    p.returncode = os.waitstatus_to_exitcode(status)
-    if p.returncode != 0:
-        sys.exit(f"frf-est failed ({p.returncode}): {err}")
-    return wall, usage.ru_maxrss * 1024, err.strip()
+    import tempfile
+    if os.path.isdir(out):
+        shutil.rmtree(out)
+    # Peak RSS through /usr/bin/time: a child forked from this (large) Python process
+    # would inherit its high-water mark across exec, so ru_maxrss here would not be
+    # frf-est's own.
+    with tempfile.NamedTemporaryFile("r", suffix=".txt") as rss_file:
+        t0 = time.perf_counter()
+        p = subprocess.run(["/usr/bin/time", "-f", "%M", "-o", rss_file.name, binary, uff, "-o", out, *extra],
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        wall = time.perf_counter() - t0
+        err = p.stderr.decode()
+        if p.returncode != 0:
+            sys.exit(f"frf-est failed ({p.returncode}): {err}")
+        rss_kb = int(rss_file.read().split()[-1])
+    return wall, rss_kb * 1024, err.strip()
 
 
 def frf_est_tables(out):
@@ -85,45 +92,49 @@ def frf_est_tables(out):
     reasons = {}
     for r in read_csv(f"{out}/processing_frf_estimation_hits_reasons.csv"):
         reasons.setdefault((r["excitation"], int(r["hit"])), []).append(r["value"])
-    windows = {}
-    try:
-        for r in read_csv(f"{out}/processing_frf_estimation_hits_force_window_s.csv"):
-            windows.setdefault((r["excitation"], int(r["hit"])), []).append(float(r["value"]))
-    except FileNotFoundError:
-        pass
     table = {}
     for h in hits:
         key = (h["excitation"], int(h["hit"]))
+        window = None
+        if h.get("force_window_s.0"):
+            window = [float(h["force_window_s.0"]), float(h["force_window_s.1"])]
         table.setdefault(h["excitation"], []).append(dict(
             hit=key[1], accepted=h["accepted"] == "true", trigger_s=float(h["trigger_s"]),
-            reasons=reasons.get(key, []), force_window_s=windows.get(key)))
+            reasons=reasons.get(key, []), force_window_s=window))
     return frf, table, (float(tau) if tau else None), proc["frf_estimation.exponential_on_force"] == "true"
 
 
-def side_by_side(a, tr, sets, t_read):
-    """frf-est against pyFRF on one file (module docs, --frf-est)."""
+def side_by_side(a, uff, tr):
+    """frf-est against pyFRF on one file (module docs, --frf-est): prints the H1
+    comparison, the times and the peak RSS; returns the detector flags
+    {what: (truth, frf-est, pyFRF)} and the worst H1 difference."""
+    import os
     import pyuff
     import pyFRF
     fs, n = tr["sample_rate_hz"], tr["record_samples"]
     n_ch = len(tr["channels"])
     n_hits = tr["impacts"]
     per_exc = 1 + n_ch
-    out = a.out or (a.uff + ".frf-est")
+    out = os.path.splitext(uff)[0] + "-frf-est"
     extra = ["--keep-rejected"] if a.keep_rejected else []
-    runs = [run_frf_est(a.frf_est, a.uff, out, extra) for _ in range(a.repeat)]
+    # Timed runs write MCAP (the pipeline's format); one more writes CSV to read back.
+    mcap = out + ".mcap"
+    runs = [run_frf_est(a.frf_est, uff, mcap, extra + ["--force"]) for _ in range(a.repeat)]
     wall = min(r[0] for r in runs)
     rss = max(r[1] for r in runs)
+    run_frf_est(a.frf_est, uff, out, extra)
     frf, table, tau, exp_on_force = frf_est_tables(out)
     idx = np.arange(n)
     ids = [e["id"] for e in tr["excitations"]]
-    print(f"{a.uff}: {len(sets)} records, {len(ids)} excitations × {n_hits} hits, {n} samples at {fs:g} Hz")
-    print(f"frf-est: {runs[-1][2]}")
+    sets = []
+    h1_lines = []
     # pyFRF over frf-est's accepted hits with frf-est's windows applied beforehand.
-    t_py = []
+    t_py, t_reads = [], []
     worst = 0.0
     for rep in range(a.repeat):
         t0 = time.perf_counter()
-        sets = [s for s in pyuff.UFF(a.uff).read_sets() if s["type"] == 58]
+        sets = [s for s in pyuff.UFF(uff).read_sets() if s["type"] == 58]
+        t_reads.append(time.perf_counter() - t0)
         h1s = {}
         for ei, eid in enumerate(ids):
             block = sets[ei * n_hits * per_exc:(ei + 1) * n_hits * per_exc]
@@ -161,7 +172,8 @@ def side_by_side(a, tr, sets, t_read):
             line_worst = max(line_worst, np.max(np.abs(h - ref) / np.abs(ref)))
         worst = max(worst, d_max)
         used = [h["hit"] for h in table[eid] if h["accepted"] or a.keep_rejected]
-        print(f"  H1 {eid}: hits {used}: max |frf-est − pyFRF| / max|H| = {d_max:.2e}, worst line {line_worst:.2e}")
+        h1_lines.append(f"  H1 {eid}: hits {used}: max |frf-est − pyFRF| / max|H| = {d_max:.2e}, "
+                        f"worst line {line_worst:.2e}")
     # Detectors against the truth, all hits.
     det = pyFRF.FRF(int(fs), exc_type="f", resp_type="d", window="none", fft_len=n)
     truth = {"double": [], "overload": []}
@@ -185,29 +197,48 @@ def side_by_side(a, tr, sets, t_read):
             ours["overload"].append(any(x.startswith("overload") for x in r))
             theirs["double"].append(bool(dbl[k]))
             theirs["overload"].append(bool(ovl[k]))
-    print("detectors vs the truth (all hits):")
-    for what in ("double", "overload"):
-        confusion(f"{what} frf-est", truth[what], ours[what])
-        confusion(f"{what} pyFRF", truth[what], theirs[what])
     f32 = len(sets) * n * 4
-    print(f"wall time UFF → FRFs, best of {a.repeat}: frf-est {wall:.3f} s, pyuff + pyFRF {min(t_py):.3f} s "
-          f"(pyuff reading alone {t_read:.3f} s): {min(t_py) / wall:.1f}× ")
-    print(f"frf-est peak RSS {rss / 1e6:.1f} MB = {rss / f32:.2f}× the recording's {len(sets) * n:,} samples "
+    print(f"{uff}: {len(sets)} records, {len(ids)} excitations × {n_hits} hits, {n} samples at {fs:g} Hz")
+    print(f"  frf-est: {runs[-1][2]}")
+    for line in h1_lines:
+        print(line)
+    print(f"  wall time UFF → FRFs, best of {a.repeat}: frf-est {wall:.3f} s, pyuff + pyFRF {min(t_py):.3f} s "
+          f"(pyuff reading alone {min(t_reads):.3f} s): pyFRF's time / frf-est's = {min(t_py) / wall:.1f}")
+    print(f"  frf-est peak RSS {rss / 1e6:.1f} MB = {rss / f32:.2f}× the recording's {len(sets) * n:,} samples "
           f"as float32 ({f32 / 1e6:.1f} MB)")
-    return worst
+    return {w: (truth[w], ours[w], theirs[w]) for w in truth}, worst
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("uff", help="per-hit time-history UFF written by rbref.py --time-layout per-hit")
-    ap.add_argument("--truth", required=True, help="its truth JSON (--truth)")
+    ap.add_argument("uff", nargs="+",
+                    help="per-hit time-history UFF written by rbref.py --time-layout per-hit (several with --frf-est)")
+    ap.add_argument("--truth", required=True, nargs="+", help="its truth JSON (--truth), one per UFF")
     ap.add_argument("--h1", help="its numpy H1 (.npz output); without it only the detectors run")
     ap.add_argument("--frf-est", help="the frf-est binary: put it side by side with pyFRF (module docs)")
     ap.add_argument("--keep-rejected", action="store_true",
                     help="frf-est --keep-rejected (a detection study whose excitations have too few clean hits)")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs of each (best taken)")
-    ap.add_argument("--out", help="frf-est's CSV output directory (default UFF.frf-est)")
     a = ap.parse_args(argv)
+    if len(a.uff) != len(a.truth):
+        sys.exit("error: give one --truth per UFF file")
+    if a.frf_est:
+        flags = {}
+        worst = 0.0
+        for uff, truth in zip(a.uff, a.truth):
+            f, w = side_by_side(a, uff, json.load(open(truth))["recording"])
+            worst = max(worst, w)
+            for what, cols in f.items():
+                acc = flags.setdefault(what, ([], [], []))
+                for k in range(3):
+                    acc[k].extend(cols[k])
+        print(f"H1: worst max |frf-est − pyFRF| / max|H| over the files {worst:.2e}")
+        print(f"detectors vs the truth, all {len(flags['double'][0])} hits of the {len(a.uff)} files:")
+        for what in ("double", "overload"):
+            confusion(f"{what} frf-est", flags[what][0], flags[what][1])
+            confusion(f"{what} pyFRF", flags[what][0], flags[what][2])
+        return 0
+    a.uff, a.truth = a.uff[0], a.truth[0]
     import pyuff
     import pyFRF
 
@@ -225,9 +256,6 @@ def main(argv=None):
         sys.exit(f"error: {a.uff}: not a time-history file (function type 1)")
     per_exc = 1 + n_ch
     n_hits = tr["impacts"]
-    if a.frf_est:
-        side_by_side(a, tr, sets, t_read)
-        return 0
     if len(sets) != len(tr["excitations"]) * n_hits * per_exc:
         sys.exit(f"error: {a.uff}: {len(sets)} records, expected {len(tr['excitations'])} × {n_hits} × {per_exc} "
                  "(a per-hit layout)")
