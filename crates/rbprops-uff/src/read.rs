@@ -188,15 +188,37 @@ pub fn parse_reader(
                     parse_int(column(&header, 31, 12)),
                 );
                 if let (true, (Ok(n_ascii), Ok(n_bytes))) = (binary, counts) {
+                    let mut ascii = Vec::new();
                     for _ in 0..n_ascii.clamp(0, 1000) {
-                        if line(&mut reader, &mut chunk)?.is_none() {
-                            break;
+                        match line(&mut reader, &mut chunk)? {
+                            Some(r) => ascii.push(r),
+                            None => break,
                         }
                     }
-                    let want = u64::try_from(n_bytes).unwrap_or(0);
+                    // When the announced count and the count record 7 implies differ
+                    // (pyuff writes a third or half of the true count for complex data),
+                    // `parse` tries both, looking past the data for the delimiter (which
+                    // may follow the data on the same line): the rest of the file is
+                    // read and parsed as `parse` would. Time histories are real and
+                    // announce their true count, so they still stream.
+                    let lines: Vec<Line> = ascii
+                        .iter()
+                        .map(|r| Line {
+                            bytes: &chunk[r.clone()],
+                            number: 0,
+                        })
+                        .collect();
+                    let implied = (parse_int(column(&header, 0, 6)) == Ok(58))
+                        .then(|| expected_58b_bytes(&lines))
+                        .flatten();
+                    let n_bytes = usize::try_from(n_bytes).unwrap_or(0);
                     let by_ref: &mut dyn std::io::BufRead = &mut reader;
-                    std::io::Read::read_to_end(&mut std::io::Read::take(by_ref, want), &mut chunk)
-                        .map_err(io)?;
+                    if implied.is_some_and(|e| e != n_bytes) {
+                        std::io::Read::read_to_end(by_ref, &mut chunk).map_err(io)?;
+                    } else {
+                        let mut data = std::io::Read::take(by_ref, n_bytes as u64);
+                        std::io::Read::read_to_end(&mut data, &mut chunk).map_err(io)?;
+                    }
                 }
                 // To the closing delimiter (after binary data: its line end, and the
                 // rest of the data if the announced count was short, see `parse`).
