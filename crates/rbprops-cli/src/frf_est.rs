@@ -17,6 +17,7 @@ use rbprops_frfest::{
 };
 use rbprops_uff::timehist::{self, EstimatedFrfs, HitLayout, TimeHistoryIndex};
 use rbprops_uff::UffFile;
+use std::borrow::Cow;
 
 /// Lines pooled on each side for each line's variance (only the noise power is pooled;
 /// the line's own force spectrum divides it: `rbprops_frfest::smoothed_variance`).
@@ -95,15 +96,17 @@ impl Default for EstimationOptions {
     }
 }
 
-/// One hit's records and what the checks found.
-struct Hit {
+/// One hit's records and what the checks found. The samples are borrowed from the
+/// parsed file (a per-hit record, or a hit's stretch of a throughput record): a hit is
+/// never copied, so the recording is held once (its samples as f64).
+struct Hit<'a> {
     number: usize,
-    force: Vec<f64>,
-    responses: Vec<Vec<f64>>,
+    force: Cow<'a, [f64]>,
+    responses: Vec<Cow<'a, [f64]>>,
     report: HitReport,
 }
 
-impl Hit {
+impl Hit<'_> {
     fn accepted(&self, keep_rejected: bool) -> bool {
         keep_rejected || self.report.accepted()
     }
@@ -219,7 +222,7 @@ pub fn estimate_uff(
                 "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
                 opts.estimator, min_dof
             ),
-            hits: hit_records(&hits, &names, fs, opts.keep_rejected),
+            hits: hit_records(&hits, &names, fs, opts),
         }),
     };
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
@@ -235,11 +238,11 @@ pub fn estimate_uff(
 
 /// Every excitation's hits, checked, and the record length; an excitation with fewer
 /// than `min_hits` accepted is an error listing its rejections.
-fn checked_hits(
-    data: &UffFile,
+fn checked_hits<'a>(
+    data: &'a UffFile,
     index: &TimeHistoryIndex,
     opts: &EstimationOptions,
-) -> Result<(Vec<Vec<Hit>>, usize)> {
+) -> Result<(Vec<Vec<Hit<'a>>>, usize)> {
     if opts.min_hits < 2 {
         bail!(
             "--min-hits {}: at least 2 hits are needed for a variance",
@@ -248,7 +251,7 @@ fn checked_hits(
     }
     let fs = index.sample_rate_hz;
     let (n, pre) = record_samples(data, index, opts)?;
-    let hits: Vec<Vec<Hit>> = index
+    let hits: Vec<Vec<Hit<'a>>> = index
         .excitations
         .iter()
         .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
@@ -437,21 +440,21 @@ fn record_samples(
 }
 
 /// The hits of one excitation, each checked.
-fn excitation_hits(
-    data: &UffFile,
+fn excitation_hits<'a>(
+    data: &'a UffFile,
     ex: &timehist::ExcitationRecords,
     fs: f64,
     (n, pre): (usize, f64),
     opts: &EstimationOptions,
-) -> Result<Vec<Hit>> {
+) -> Result<Vec<Hit<'a>>> {
     let check = HitCheckOptions {
         trigger: opts.trigger,
         force_range: opts.force_range,
         response_ranges: vec![opts.response_range; ex.responses.len()],
         ..Default::default()
     };
-    let inspect = |number: usize, force: Vec<f64>, responses: Vec<Vec<f64>>| {
-        let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_slice()).collect();
+    let inspect = |number: usize, force: Cow<'a, [f64]>, responses: Vec<Cow<'a, [f64]>>| {
+        let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_ref()).collect();
         let report = rbprops_frfest::inspect_hit(&force, &refs, fs, &check);
         Hit {
             number,
@@ -467,20 +470,24 @@ fn excitation_hits(
                 let responses = h
                     .responses
                     .iter()
-                    .map(|&i| timehist::samples(data, i))
+                    .map(|&i| Cow::Borrowed(timehist::samples(data, i)))
                     .collect();
-                inspect(h.hit, timehist::samples(data, h.force), responses)
+                inspect(
+                    h.hit,
+                    Cow::Borrowed(timehist::samples(data, h.force)),
+                    responses,
+                )
             })
             .collect()),
         HitLayout::Throughput(h) => {
-            let force = timehist::samples(data, h.force);
-            let responses: Vec<Vec<f64>> = h
+            let force: &'a [f64] = timehist::samples(data, h.force);
+            let responses: Vec<&'a [f64]> = h
                 .responses
                 .iter()
                 .map(|&i| timehist::samples(data, i))
                 .collect();
             let triggers = rbprops_frfest::find_hits(
-                &force,
+                force,
                 fs,
                 &TriggerOptions {
                     level: opts.trigger,
@@ -495,12 +502,19 @@ fn excitation_hits(
                 .map(|(k, t)| match t.range(n) {
                     Some(r) => inspect(
                         k + 1,
-                        force[r.clone()].to_vec(),
-                        responses.iter().map(|x| x[r.clone()].to_vec()).collect(),
+                        Cow::Borrowed(&force[r.clone()]),
+                        responses
+                            .iter()
+                            .map(|x| Cow::Borrowed(&x[r.clone()]))
+                            .collect(),
                     ),
                     None => {
-                        let mut hit =
-                            inspect(k + 1, vec![0.0; n], vec![vec![0.0; n]; responses.len()]);
+                        let zeros = || Cow::Owned(vec![0.0; n]);
+                        let mut hit = inspect(
+                            k + 1,
+                            zeros(),
+                            (0..responses.len()).map(|_| zeros()).collect(),
+                        );
                         hit.report.reasons = vec![RejectReason::AtRecordEdge];
                         hit
                     }
@@ -561,8 +575,13 @@ fn average(
             response_window,
             opts.exponential_on_force,
         );
-        let refs: Vec<&[f64]> = h.responses.iter().map(|r| r.as_slice()).collect();
-        sums.add_windowed_hit(&[&h.force], &refs, Some(&w.force), Some(&w.response))?;
+        let refs: Vec<&[f64]> = h.responses.iter().map(|r| r.as_ref()).collect();
+        sums.add_windowed_hit(
+            &[h.force.as_ref()],
+            &refs,
+            Some(&w.force),
+            Some(&w.response),
+        )?;
         energy += h.report.noise_rms.powi(2) * w.force.iter().map(|x| x * x).sum::<f64>();
     }
     let force_noise_energy = energy / sums.count().max(1) as f64;
@@ -732,18 +751,24 @@ fn hit_records(
     hits: &[Vec<Hit>],
     names: &[String],
     fs: f64,
-    keep_rejected: bool,
+    opts: &EstimationOptions,
 ) -> Vec<HitRecord> {
     let mut out = Vec::new();
     for (hs, name) in hits.iter().zip(names) {
         for h in hs {
+            let n = h.force.len();
+            let window = opts.force_window.map(|w| {
+                let (a, b) = w.flat_part(fs, h.report.trigger, h.report.pulse_end, n);
+                [a as f64 / fs, b as f64 / fs]
+            });
             out.push(HitRecord {
                 excitation: name.clone(),
                 hit: h.number,
-                accepted: h.accepted(keep_rejected),
+                accepted: h.accepted(opts.keep_rejected),
                 reasons: h.report.reasons.iter().map(reason_text).collect(),
                 trigger_s: h.report.trigger as f64 / fs,
                 peak_force_n: h.report.peak_force,
+                force_window_s: window,
                 clipped_samples: h.report.clipped.clone(),
                 double_hit_delay_s: h.report.double_hit.map(|d| d.delay_s),
                 double_hit_ratio: h.report.double_hit.map(|d| d.ratio),

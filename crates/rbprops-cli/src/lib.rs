@@ -328,23 +328,27 @@ pub fn is_time_history_recording(p: &Path) -> bool {
 /// The time histories at `p` as datasets 58 of function type 1 (one reader per format,
 /// `rbprops_uff::timerec`): a universal file, an MCAP file with the
 /// `/rbprops/time_history` topic, or a CSV directory (`records.csv`, `channels.csv` and
-/// the record files); and the bytes read, for the input's digest.
-pub fn read_time_histories(p: &Path) -> Result<(rbprops_uff::UffFile, Vec<u8>)> {
+/// the record files); and the digest of the bytes read (for provenance).
+pub fn read_time_histories(
+    p: &Path,
+) -> Result<(rbprops_uff::UffFile, rbprops_formats::Sha256Stream)> {
     let name = p.display().to_string();
+    let mut digest = rbprops_formats::Sha256Stream::default();
     if p.is_dir() {
-        let mut digest = Vec::new();
         let rec = rbprops_uff::timerec::from_csv(&name, |f| {
             let text = std::fs::read_to_string(p.join(f)).map_err(|e| e.to_string())?;
-            digest.extend_from_slice(f.as_bytes());
-            digest.push(0);
-            digest.extend_from_slice(text.as_bytes());
+            digest.update(f.as_bytes());
+            digest.update(&[0]);
+            digest.update(text.as_bytes());
             Ok(text)
         })?;
         return Ok((rec.to_uff()?, digest));
     }
-    let bytes = read_file(p)?;
     if p.extension().and_then(|e| e.to_str()) == Some("mcap") {
+        let bytes = read_file(p)?;
+        digest.update(&bytes);
         let (rec, _) = rbprops_formats::mcap_file::read_checked(&bytes, &name)?;
+        drop(bytes);
         let msgs: Vec<rbprops_formats::wire::TimeHistoryMsg> =
             rec.get(rbprops_formats::topics::TIME_HISTORY)?;
         if msgs.is_empty() {
@@ -354,10 +358,15 @@ pub fn read_time_histories(p: &Path) -> Result<(rbprops_uff::UffFile, Vec<u8>)> 
             );
         }
         let th = rbprops_uff::timerec::from_messages(&name, &msgs)?;
-        return Ok((th.to_uff()?, bytes));
+        return Ok((th.to_uff()?, digest));
     }
-    let data = rbprops_uff::parse(&bytes, &name)?;
-    Ok((data, bytes))
+    // A universal file is parsed as it is read, one dataset at a time: its bytes are never
+    // all in memory beside the samples (peak memory about the samples as f64).
+    rbprops_formats::atomic::register_input(p);
+    let file = std::fs::File::open(p).with_context(|| name.clone())?;
+    let data =
+        rbprops_uff::parse_reader(std::io::BufReader::new(file), &name, |b| digest.update(b))?;
+    Ok((data, digest))
 }
 
 /// A UFF data file read into a campaign, with the geometry file and channel map of

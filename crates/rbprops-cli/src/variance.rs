@@ -1,7 +1,8 @@
 //! The line-variance topic (`/rbprops/frf_variance`): each FRF line's noise variance as
 //! the estimator knows it. Written by `frf-est` (H1 over its accepted hits); read by
-//! `model-check` as its noise model (its method text says so). `modal-fit` and `rb-solve`
-//! do not read it yet (`modal-fit --weight coherence` uses the coherence `frf-est` writes).
+//! `model-check` as its noise model (its method text says so) and by `modal-fit`, which
+//! weights its least squares by it ([`weight_fit`]; `--weight none` for the default
+//! relative weights).
 
 use anyhow::{bail, Result};
 use rbprops_core::{FrfSet, Geometry};
@@ -189,6 +190,68 @@ pub fn declare_averages(
     let frf = frf.clone();
     set(rec, &geometry, &frf, &v);
     Ok(())
+}
+
+/// Floor of the relative variance σ²/|H|² when weighting by the line variances: a
+/// relative standard error of 1e-6, far below any measurement's (H1 from five hammer
+/// hits reads 1e-4 to 1e-2) and above f64 rounding; exact data (σ² = 0) sit on it
+/// everywhere, which gives uniform factors and the default fit.
+pub const RELATIVE_VARIANCE_FLOOR: f64 = 1e-12;
+
+/// Weights `modal-fit`'s least squares by the run's line variances (the topic; `frf-est`
+/// output, or an export's coherence with `--averages`): `1/σ²` through the relative
+/// variance `σ²/|H|²` of every line and channel (`rbprops_modal::CoherenceWeighting::
+/// from_variance`), and says so in the processing topic's `line_weighting`. Returns
+/// false, changing nothing, when the run has no line variances.
+pub fn weight_fit(
+    rec: &mut RunRecord,
+    opts: &mut rbprops_modal::FitOptions,
+    source: &str,
+) -> Result<bool> {
+    use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
+    let Some(v) = get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))? else {
+        return Ok(false);
+    };
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let n = frf.n_lines();
+    let per_channel = |f: &dyn Fn(usize, usize) -> Vec<f64>| -> Vec<Vec<Option<Vec<f64>>>> {
+        (0..frf.n_excitations)
+            .map(|e| (0..frf.n_channels).map(|c| Some(f(e, c))).collect())
+            .collect()
+    };
+    let sigma2 = per_channel(&|e, c| {
+        let at = (e * frf.n_channels + c) * n;
+        v.sigma2[at..at + n].to_vec()
+    });
+    let values: Vec<Vec<Vec<rbprops_core::c64>>> = (0..frf.n_excitations)
+        .map(|e| {
+            (0..frf.n_channels)
+                .map(|c| frf.frf(e, c).to_vec())
+                .collect()
+        })
+        .collect();
+    let floor = RELATIVE_VARIANCE_FLOOR;
+    let weighting = rbprops_modal::CoherenceWeighting::from_variance(sigma2, &values, floor)
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "{source}: {} topic: {}",
+                topics::FRF_VARIANCE,
+                crate::coherence::name_ids(&e, &geometry)
+            )
+        })?;
+    let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    processing.line_weighting = Some(LineWeightingRecord {
+        weight: "variance".into(),
+        method: format!(
+            "least squares weighted by 1/σ², σ² the estimator's variance of every line and channel ({}): its relative variance σ²/|H|² (floored at {floor:e}) averaged over each excitation's channels per line (one weight per line), times 1/|H|² per channel in the pole estimate",
+            topics::FRF_VARIANCE
+        ),
+        one_minus_coherence_floor: floor,
+        unweighted_excitations: weighting.unweighted_excitations(),
+    });
+    rec.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
+    opts.coherence_weighting = Some(std::sync::Arc::new(weighting));
+    Ok(true)
 }
 
 /// Multiple of the estimator's force-noise error (`force_noise_relative_error`, an RMS

@@ -574,6 +574,12 @@ pub struct HitRecord {
     pub trigger_s: f64,
     /// Peak force (N).
     pub peak_force_n: f64,
+    /// The force window's flat part `[start, end)` (s from the start of the hit's record,
+    /// a multiple of the sampling interval), when a force window was applied: with the
+    /// trigger and the exponential window's τ, what another estimator needs to apply the
+    /// same windows.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_window_s: Option<[f64; 2]>,
     /// Clipped samples per channel (the force first, then the responses in file order).
     pub clipped_samples: Vec<usize>,
     /// Delay of a second contact after the first (s), if one was found.
@@ -590,9 +596,15 @@ pub struct HitRecord {
 /// `rbprops_core::CoherenceNoise`), with `1 − γ²` floored at `one_minus_coherence_floor`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct LineWeightingRecord {
-    /// `coherence`.
+    /// `coherence`, or `variance` (the estimator's line variances, topic
+    /// `/rbprops/frf_variance`: relative variance σ²/|H|² in place of (1 − γ²)/γ², the
+    /// same floor).
     pub weight: String,
-    /// Floor of `1 − γ²` (the precision the coherence is trusted to).
+    /// How the weights were made, in words (the method text).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub method: String,
+    /// Floor of `1 − γ²` (the precision the coherence is trusted to), or with `variance`
+    /// of the relative variance σ²/|H|².
     pub one_minus_coherence_floor: f64,
     /// Excitations with no coherence in the recording, fitted with the default weights.
     #[serde(default)]

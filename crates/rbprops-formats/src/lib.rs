@@ -290,9 +290,27 @@ impl Format {
 
 /// SHA-256 of some bytes, hex.
 pub fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    let d = sha2::Sha256::digest(bytes);
-    d.iter().map(|b| format!("{b:02x}")).collect()
+    let mut h = Sha256Stream::default();
+    h.update(bytes);
+    h.hex()
+}
+
+/// SHA-256 fed piece by piece (a large input read as it streams): the same digest as
+/// [`sha256_hex`] of the pieces joined.
+#[derive(Clone, Default)]
+pub struct Sha256Stream(sha2::Sha256);
+
+impl Sha256Stream {
+    /// Feeds the next bytes.
+    pub fn update(&mut self, bytes: &[u8]) {
+        sha2::Digest::update(&mut self.0, bytes);
+    }
+
+    /// The digest of everything fed, hex.
+    pub fn hex(self) -> String {
+        let d = sha2::Digest::finalize(self.0);
+        d.iter().map(|b| format!("{b:02x}")).collect()
+    }
 }
 
 /// Reads a run from a path (MCAP file or CSV directory).

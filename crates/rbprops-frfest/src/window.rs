@@ -67,9 +67,8 @@ pub struct ForceWindow {
 impl ForceWindow {
     /// The window's values over a record of `out.len()` samples.
     pub fn fill(&self, fs: f64, trigger: usize, pulse_end: usize, out: &mut [f64]) {
-        let n = out.len() as isize;
-        let a = (trigger as isize - (self.pre_s * fs).round() as isize).clamp(0, n);
-        let b = (pulse_end as isize + (self.post_s * fs).round() as isize).clamp(a, n);
+        let (a, b) = self.flat_part(fs, trigger, pulse_end, out.len());
+        let (a, b) = (a as isize, b as isize);
         let m = (self.taper_s * fs).round().max(0.0) as isize;
         for (i, w) in out.iter_mut().enumerate() {
             let i = i as isize;
@@ -83,6 +82,15 @@ impl ForceWindow {
                 0.0
             };
         }
+    }
+
+    /// The samples `[a, b)` where the window is 1 in a record of `n` samples (module docs):
+    /// `a = trigger − pre_s f_s`, `b = pulse_end + post_s f_s`, both clamped to the record.
+    pub fn flat_part(&self, fs: f64, trigger: usize, pulse_end: usize, n: usize) -> (usize, usize) {
+        let n = n as isize;
+        let a = (trigger as isize - (self.pre_s * fs).round() as isize).clamp(0, n);
+        let b = (pulse_end as isize + (self.post_s * fs).round() as isize).clamp(a, n);
+        (a as usize, b as usize)
     }
 
     /// The window's values over `n` samples.

@@ -1,4 +1,7 @@
-//! Line weights from the measured coherence (`modal-fit --weight coherence`).
+//! Line weights from the measured coherence (`modal-fit --weight coherence`) or from the
+//! estimator's line variances (`modal-fit --weight variance`, the default when the input
+//! carries the `frf_variance` topic: `frf-est` output, or an export's coherence with
+//! `--averages N`).
 //!
 //! The default fits weight each line by `1/|H|` (relative errors: the maximum-likelihood
 //! weight for noise proportional to |H|). A measured ordinary coherence `γ²` says how
@@ -15,8 +18,15 @@
 //!   q_k = 1/√( mean_c (1 − γ²_ck)/γ²_ck ),    1 − γ² floored (CoherenceNoise::floor)
 //! ```
 //!
-//! multiplies the default weights of line `k`. One factor per line, shared by the
-//! channels (the mean of the channels' relative variances): the residue fit's basis is
+//! multiplies the default weights of line `k`. With the estimator's variances σ²_ck (H1
+//! over the hits, `frf-est`) the relative variance is known directly, `r_ck = σ²_ck/|H_ck|²`
+//! ([`CoherenceWeighting::from_variance`]), and `q_k = 1/√(mean_c r_ck)`: the same
+//! weights, where `(1 − γ²)/(n_d γ²)` was an estimate of `r`. Least squares weighted by
+//! `1/σ²` (the inverse noise variance, the maximum-likelihood weight for independent
+//! Gaussian errors); per channel through `1/|H_ck|` (LSCF), per line through `q_k`.
+//!
+//! One factor per line, shared by the channels (the mean of the channels' relative
+//! variances): the residue fit's basis is
 //! shared by every channel (one factorisation for all), and the pole estimate uses the
 //! same factor so that the poles and the residues minimise the same weighted error.
 //! A line where any channel has `γ² ≤ 0` has no linear relation to the force there and
@@ -25,12 +35,14 @@
 
 use rbprops_core::CoherenceNoise;
 
-/// Measured coherence per excitation and channel on the FRF set's axis, and the
-/// per-line factors it gives (module docs).
+/// Each line's relative variance per excitation and channel on the FRF set's axis, from
+/// the measured coherence or from the estimator's line variances, and the per-line
+/// factors it gives (module docs).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CoherenceWeighting {
-    /// `γ²[excitation][channel][line]`; `None` where the recording has none.
-    coherence: Vec<Vec<Option<Vec<f64>>>>,
+    /// The relative variance up to a constant, `r = (1 − γ²)/γ²` or `σ²/|H|²`, floored,
+    /// `[excitation][channel][line]`; `None` where the recording has none.
+    ratio: Vec<Vec<Option<Vec<f64>>>>,
     noise: CoherenceNoise,
 }
 
@@ -77,15 +89,80 @@ impl CoherenceWeighting {
                 }
             }
         }
-        let w = CoherenceWeighting {
-            coherence,
+        let noise = CoherenceNoise::new(floor);
+        let ratio = coherence
+            .into_iter()
+            .map(|row| {
+                row.into_iter()
+                    .map(|g| g.map(|g| g.iter().map(|&g| noise.variance_ratio(g)).collect()))
+                    .collect()
+            })
+            .collect();
+        CoherenceWeighting { ratio, noise }.checked()
+    }
+
+    /// Weights from the estimator's own line variances (the `frf_variance` topic):
+    /// `r = σ²/|H|²` per excitation, channel and line, floored at `floor` like `1 − γ²`
+    /// (exact data, σ² = 0, give uniform factors: the default fit). `sigma2` and `frf`
+    /// are `[excitation][channel]` on the FRF axis; a channel whose σ² is NaN on every
+    /// line is unknown (`None`); a NaN, or σ² > 0 where |H| = 0, drops the line (r = ∞).
+    /// Errors name the excitation, channel and line of a negative or infinite variance.
+    pub fn from_variance(
+        sigma2: Vec<Vec<Option<Vec<f64>>>>,
+        frf: &[Vec<Vec<rbprops_core::c64>>],
+        floor: f64,
+    ) -> Result<Self, String> {
+        if !(floor > 0.0 && floor < 1.0) {
+            return Err(format!("variance floor {floor} must lie in (0, 1)"));
+        }
+        let mut ratio = Vec::with_capacity(sigma2.len());
+        for (e, row) in sigma2.into_iter().enumerate() {
+            let mut out = Vec::with_capacity(row.len());
+            for (c, v) in row.into_iter().enumerate() {
+                let Some(v) = v.filter(|v| v.iter().any(|x| !x.is_nan())) else {
+                    out.push(None);
+                    continue;
+                };
+                let h = &frf[e][c];
+                if h.len() != v.len() {
+                    return Err(format!(
+                        "excitation {e}, channel {c}: {} variance lines, the FRF axis has {}",
+                        v.len(),
+                        h.len()
+                    ));
+                }
+                let mut r = Vec::with_capacity(v.len());
+                for (k, (&s2, z)) in v.iter().zip(h).enumerate() {
+                    if s2 < 0.0 || s2.is_infinite() {
+                        return Err(format!(
+                            "excitation {e}, channel {c}, line {k}: variance {s2} is not a value ≥ 0"
+                        ));
+                    }
+                    r.push(match s2 {
+                        _ if s2.is_nan() => f64::INFINITY,
+                        0.0 => floor,
+                        _ => (s2 / z.norm_sqr()).max(floor),
+                    });
+                }
+                out.push(Some(r));
+            }
+            ratio.push(out);
+        }
+        CoherenceWeighting {
+            ratio,
             noise: CoherenceNoise::new(floor),
-        };
-        for e in 0..w.coherence.len() {
+        }
+        .checked()
+    }
+
+    /// Refuses an excitation whose factor is 0 on every line.
+    fn checked(self) -> Result<Self, String> {
+        let w = self;
+        for e in 0..w.ratio.len() {
             if let Some(q) = w.line_factors(&[e]) {
                 if q.iter().all(|&x| x == 0.0) {
                     return Err(format!(
-                        "excitation {e}: coherence is 0 on every line (no line to fit)"
+                        "excitation {e}: the weight is 0 on every line (coherence 0, or no finite variance, everywhere): no line to fit"
                     ));
                 }
             }
@@ -100,7 +177,7 @@ impl CoherenceWeighting {
 
     /// Number of excitations with no coherence on any channel (fitted unweighted).
     pub fn unweighted_excitations(&self) -> usize {
-        self.coherence
+        self.ratio
             .iter()
             .filter(|row| row.iter().all(|g| g.is_none()))
             .count()
@@ -112,18 +189,14 @@ impl CoherenceWeighting {
     pub fn line_factors(&self, excitations: &[usize]) -> Option<Vec<f64>> {
         let rows: Vec<&Vec<f64>> = excitations
             .iter()
-            .filter_map(|&e| self.coherence.get(e))
+            .filter_map(|&e| self.ratio.get(e))
             .flat_map(|row| row.iter().flatten())
             .collect();
         let n = rows.first()?.len();
         let mut q: Vec<f64> = (0..n)
             .map(|k| {
-                let mean = rows
-                    .iter()
-                    .map(|g| self.noise.variance_ratio(g[k]))
-                    .sum::<f64>()
-                    / rows.len() as f64;
-                // 1/√∞ = 0: a line with γ² ≤ 0 on some channel drops out.
+                let mean = rows.iter().map(|r| r[k]).sum::<f64>() / rows.len() as f64;
+                // 1/√∞ = 0: a line with γ² ≤ 0 (or no variance) on some channel drops out.
                 1.0 / mean.sqrt()
             })
             .collect();

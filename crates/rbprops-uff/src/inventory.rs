@@ -223,14 +223,15 @@ fn ordinate_units_text(f: &Function) -> String {
 }
 
 fn axis_text(f: &Function) -> String {
-    let (a, b) = (
-        f.abscissa.first().copied().unwrap_or(0.0),
-        f.abscissa.last().copied().unwrap_or(0.0),
-    );
+    let (a, b) = if f.is_empty() {
+        (0.0, 0.0)
+    } else {
+        (f.abscissa_at(0), f.abscissa_at(f.len() - 1))
+    };
     format!(
         "{} {} lines {}…{} {} ({} spacing)",
         abscissa_kind(f.abscissa_axis.data_type),
-        f.abscissa.len(),
+        f.len(),
         a,
         b,
         label_or(&f.abscissa_axis.units_label),

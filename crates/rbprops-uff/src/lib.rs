@@ -118,5 +118,5 @@ pub use dof::{channel_map_template, ChannelMap};
 pub use error::{DatasetLocation, UffError};
 pub use inventory::inventory;
 pub use model::*;
-pub use read::parse;
+pub use read::{parse, parse_reader};
 pub use write::{from_campaign, WriteOptions};

@@ -286,8 +286,74 @@ pub struct Function {
     pub z_axis: AxisInfo,
     /// `Some` for 58b.
     pub binary: Option<BinaryLayout>,
-    /// Abscissa values (computed as `min + k·increment` for even spacing).
+    /// Abscissa values (computed as `min + k·increment` for even spacing); empty for a
+    /// time history held in [`Function::samples`].
     pub abscissa: Vec<f64>,
-    /// Ordinate values; real data have zero imaginary parts.
+    /// Ordinate values; real data have zero imaginary parts. Empty for a time history
+    /// held in [`Function::samples`].
     pub ordinate: Vec<c64>,
+    /// An evenly sampled real time history (function type 1): its samples, with
+    /// `abscissa` and `ordinate` left empty — a third of the memory (a recording holds
+    /// millions of samples, an FRF thousands of lines). Empty for every other function.
+    pub samples: Vec<f64>,
+}
+
+impl Function {
+    /// Is this an evenly sampled real time history, stored in [`Function::samples`]?
+    pub fn is_sampled_time_history(
+        function_type: i64,
+        ordinate_type: OrdinateType,
+        even: bool,
+    ) -> bool {
+        function_type == 1 && even && !ordinate_type.is_complex()
+    }
+
+    /// The function without its data (abscissa, ordinate and samples empty): a header to
+    /// build another function from without copying a record's samples.
+    pub fn header(&self) -> Function {
+        Function {
+            id_lines: self.id_lines.clone(),
+            function_type: self.function_type,
+            function_id: self.function_id,
+            version: self.version,
+            load_case: self.load_case,
+            response_entity: self.response_entity.clone(),
+            response_node: self.response_node,
+            response_direction: self.response_direction,
+            reference_entity: self.reference_entity.clone(),
+            reference_node: self.reference_node,
+            reference_direction: self.reference_direction,
+            ordinate_type: self.ordinate_type,
+            even: self.even,
+            abscissa_min: self.abscissa_min,
+            abscissa_increment: self.abscissa_increment,
+            z_value: self.z_value,
+            abscissa_axis: self.abscissa_axis.clone(),
+            numerator: self.numerator.clone(),
+            denominator: self.denominator.clone(),
+            z_axis: self.z_axis.clone(),
+            binary: self.binary,
+            abscissa: Vec::new(),
+            ordinate: Vec::new(),
+            samples: Vec::new(),
+        }
+    }
+
+    /// Number of points (samples or abscissa values).
+    pub fn len(&self) -> usize {
+        self.ordinate.len().max(self.samples.len())
+    }
+
+    /// True when the function holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The abscissa of point `k` (computed for even spacing).
+    pub fn abscissa_at(&self, k: usize) -> f64 {
+        match self.abscissa.get(k) {
+            Some(&x) => x,
+            None => self.abscissa_min + k as f64 * self.abscissa_increment,
+        }
+    }
 }

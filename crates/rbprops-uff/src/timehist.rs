@@ -103,8 +103,8 @@ pub fn function(uff: &UffFile, i: usize) -> &Function {
 }
 
 /// The real samples of a time record (its ordinate's real parts).
-pub fn samples(uff: &UffFile, i: usize) -> Vec<f64> {
-    function(uff, i).ordinate.iter().map(|v| v.re).collect()
+pub fn samples(uff: &UffFile, i: usize) -> &[f64] {
+    &function(uff, i).samples
 }
 
 fn field_error(uff: &UffFile, at: &DatasetLocation, field: &str, problem: String) -> UffError {
@@ -283,6 +283,14 @@ fn sampling(uff: &UffFile, records: &[usize]) -> Result<(f64, usize), UffError> 
                 "uneven abscissa: time histories must be evenly sampled".into(),
             ));
         }
+        if f.ordinate_type.is_complex() {
+            return Err(field_error(
+                uff,
+                at,
+                "record 7 field 1 (ordinate data type)",
+                format!("{:?}: time histories must be real", f.ordinate_type),
+            ));
+        }
         if !(f.abscissa_increment.is_finite() && f.abscissa_increment > 0.0) {
             return Err(field_error(
                 uff,
@@ -304,20 +312,20 @@ fn sampling(uff: &UffFile, records: &[usize]) -> Result<(f64, usize), UffError> 
                 ),
             ));
         }
-        if f.ordinate.len() != first.ordinate.len() {
+        if f.len() != first.len() {
             return Err(field_error(
                 uff,
                 at,
                 "record 7 field 2 (number of values)",
                 format!(
                     "{} samples, dataset #{} has {}: every record must have one length",
-                    f.ordinate.len(),
+                    f.len(),
                     uff.datasets[records[0]].location.index,
-                    first.ordinate.len()
+                    first.len()
                 ),
             ));
         }
-        if let Some(k) = f.ordinate.iter().position(|v| !v.re.is_finite()) {
+        if let Some(k) = f.samples.iter().position(|v| !v.is_finite()) {
             return Err(field_error(
                 uff,
                 at,
@@ -326,15 +334,15 @@ fn sampling(uff: &UffFile, records: &[usize]) -> Result<(f64, usize), UffError> 
             ));
         }
     }
-    if first.ordinate.len() < 16 {
+    if first.len() < 16 {
         return Err(field_error(
             uff,
             &uff.datasets[records[0]].location,
             "record 7 field 2 (number of values)",
-            format!("{} samples: too short a record", first.ordinate.len()),
+            format!("{} samples: too short a record", first.len()),
         ));
     }
-    Ok((first.abscissa_increment, first.ordinate.len()))
+    Ok((first.abscissa_increment, first.len()))
 }
 
 /// The hits of one excitation from its force records and its response records per DOF.
@@ -537,7 +545,7 @@ pub fn frf_file(
                 binary: None,
                 abscissa: (0..n).map(|l| first_hz + l as f64 * step_hz).collect(),
                 ordinate: est.frf[k].clone(),
-                ..resp.clone()
+                ..resp.header()
             };
             let coherence = est.coherence.as_ref().map(|coh| {
                 let mut c = f.clone();

@@ -18,7 +18,6 @@ use crate::model::{
     AxisInfo, Dataset, Function, Node, NodeFormat, NodeSet, OrdinateType, Record, UffFile, Units,
 };
 use crate::timehist::{self, HitLayout, TimeHistoryIndex};
-use rbprops_core::c64;
 use rbprops_formats::wire::{
     decode_samples, encode_samples, TimeChannelMsg, TimeHistoryMsg, TimeRecordMsg,
 };
@@ -484,8 +483,9 @@ impl TimeRecording {
                             ..Default::default()
                         },
                         binary: None,
-                        abscissa: (0..s.len()).map(|i| i as f64 * dt).collect(),
-                        ordinate: s.iter().map(|&x| c64::new(x, 0.0)).collect(),
+                        abscissa: Vec::new(),
+                        ordinate: Vec::new(),
+                        samples: s.clone(),
                     };
                     datasets.push(Dataset {
                         location: DatasetLocation {
@@ -1047,7 +1047,7 @@ pub fn from_uff(uff: &UffFile, index: &TimeHistoryIndex) -> Result<TimeRecording
                 hit: h.hit,
                 samples: std::iter::once(h.force)
                     .chain(h.responses.iter().copied())
-                    .map(|i| timehist::samples(uff, i))
+                    .map(|i| timehist::samples(uff, i).to_vec())
                     .collect(),
                 source: format!("{}", uff.datasets[h.force].location),
             })

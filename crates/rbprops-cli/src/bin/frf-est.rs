@@ -98,7 +98,7 @@ fn main() -> std::process::ExitCode {
         rbprops_formats::atomic::set_force(args.force);
         let opts = options(&args);
         let name = args.input.display().to_string();
-        let (data, bytes) = rbprops_cli::read_time_histories(&args.input)?;
+        let (data, mut digest) = rbprops_cli::read_time_histories(&args.input)?;
         if !rbprops_uff::timehist::has_time_histories(&data) {
             bail!(
                 "{name}: no time histories (dataset 58 with function type 1). It holds:\n{}",
@@ -106,13 +106,9 @@ fn main() -> std::process::ExitCode {
             );
         }
         let est = rbprops_cli::frf_est::estimate_uff(&data, &args.uff.options(), &opts)?;
-        let mut digest = bytes;
-        digest.extend_from_slice(&est.side_digest);
+        digest.update(&est.side_digest);
         let mut rec = est.record;
-        rec.push_provenance(rbprops_cli::provenance(
-            "frf-est",
-            &rbprops_formats::sha256_hex(&digest),
-        ))?;
+        rec.push_provenance(rbprops_cli::provenance("frf-est", &digest.hex()))?;
         let mut notes = rbprops_cli::warnings::Collector::default();
         for d in rbprops_cli::input_notes(&est.warnings) {
             notes.add_from("frf-est", d);

@@ -1,5 +1,6 @@
 //! `modal-fit`: modal identification of every excitation (SIMO), in parallel.
 
+use anyhow::bail;
 use clap::{Parser, ValueEnum};
 use rbprops_modal::{FitOptions, Method, PoleMode};
 use std::path::PathBuf;
@@ -22,11 +23,15 @@ enum MethodArg {
 
 #[derive(Clone, Copy, ValueEnum, PartialEq)]
 enum WeightArg {
-    /// Relative weights 1/|H| on every line (default).
+    /// Relative weights 1/|H| on every line (the default without line variances).
     None,
     /// 1/|H| times √(γ²/(1 − γ²)) from the recording's coherence: a line's weight is
     /// 1/σ with the H1 noise σ²/|H|² ≈ (1 − γ²)/(n_d γ²) (lscf and lsce).
     Coherence,
+    /// 1/σ from the estimator's line variances (topic /rbprops/frf_variance: frf-est
+    /// output, or an export's coherence with --averages); the default when the input
+    /// carries them (lscf and lsce).
+    Variance,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -63,9 +68,10 @@ struct Args {
     max_order: Option<usize>,
     #[arg(long, value_enum, default_value = "excitation")]
     poles: PolesArg,
-    /// Line weights of the least-squares fits.
-    #[arg(long, value_enum, default_value = "none")]
-    weight: WeightArg,
+    /// Line weights of the least-squares fits (default: variance when the input carries
+    /// line variances and the method is lscf or lsce, else none).
+    #[arg(long, value_enum)]
+    weight: Option<WeightArg>,
     /// With --method lscf or lsce: still choose the poly-reference fit by evidence, as the
     /// default does.
     #[arg(long)]
@@ -113,8 +119,23 @@ fn main() -> std::process::ExitCode {
         if let Some(o) = args.max_order {
             opts.max_order = o;
         }
-        if args.weight == WeightArg::Coherence {
-            rbprops_cli::coherence::weight_fit(&mut rec, &mut opts, &input.name)?;
+        let weights_allowed = matches!(opts.method, Method::Lscf | Method::Lsce);
+        match args.weight {
+            Some(WeightArg::Coherence) => {
+                rbprops_cli::coherence::weight_fit(&mut rec, &mut opts, &input.name)?
+            }
+            Some(WeightArg::Variance) => {
+                if !rbprops_cli::variance::weight_fit(&mut rec, &mut opts, &input.name)? {
+                    bail!(
+                        "{}: --weight variance, but the run has no line variances (frf-est output, or an export's coherence with --averages N)",
+                        input.name
+                    );
+                }
+            }
+            None if weights_allowed => {
+                rbprops_cli::variance::weight_fit(&mut rec, &mut opts, &input.name)?;
+            }
+            Some(WeightArg::None) | None => {}
         }
         let out = rbprops_cli::stages::modal_fit_windowed(
             &mut rec,

@@ -74,13 +74,12 @@ fn h1_equals_the_generators_numpy_h1_with_the_same_windows() {
                 .map(|i| if i >= a && i <= b { w[i] } else { 0.0 })
                 .collect();
             let force = timehist::samples(&uff, hit.force);
-            let resp: Vec<Vec<f64>> = hit
+            let refs: Vec<&[f64]> = hit
                 .responses
                 .iter()
                 .map(|&i| timehist::samples(&uff, i))
                 .collect();
-            let refs: Vec<&[f64]> = resp.iter().map(|r| r.as_slice()).collect();
-            sums.add_windowed_hit(&[&force], &refs, Some(&wf), Some(&w))
+            sums.add_windowed_hit(&[force], &refs, Some(&wf), Some(&w))
                 .unwrap();
         }
         let est = sums.h1(Some(0..n_lines), &Default::default()).unwrap();
@@ -659,6 +658,34 @@ fn bad_time_histories_are_named_errors_or_rejected_hits() {
             "force1-hit1.csv",
             "line 12",
             "non-uniform time column",
+        ],
+    ));
+    // A non-uniform abscissa in a UFF: record 7 field 3 = 0 (uneven), the data as (time,
+    // value) pairs, one instant a third of a step late.
+    let uff = d.join("uneven.uff");
+    std::fs::write(
+        &uff,
+        edited_uff(0, |b| {
+            b[7] = b[7].replacen("       256         1  ", "       256         0  ", 1);
+            let values: Vec<String> = b[12..]
+                .iter()
+                .flat_map(|l| l.split_whitespace().map(String::from).collect::<Vec<_>>())
+                .collect();
+            b.truncate(12);
+            for (k, v) in values.iter().enumerate() {
+                let late = if k == 10 { 1.0 / 3.0 } else { 0.0 };
+                b.push(format!("{:.12e} {v}", (k as f64 + late) * 7.8125e-3));
+            }
+        }),
+    )
+    .unwrap();
+    cases.push((
+        uff.display().to_string(),
+        vec![
+            "uneven.uff",
+            "dataset #3",
+            "record 7 field 3",
+            "uneven abscissa",
         ],
     ));
     // A truncated or corrupted record: UFF cut short, MCAP samples cut short, a CSV cell

@@ -7,4 +7,5 @@ mod exports;
 mod mapping;
 mod pyuff_fixtures;
 mod roundtrip;
+mod streaming;
 mod written_for_pyuff;
