@@ -447,6 +447,7 @@ fn run_section(h: &mut String, r: &RunSection, several: bool) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::warnings::DiagnosticKind;
 
     #[test]
     fn text_is_escaped_and_figures_inlined() {
@@ -467,7 +468,7 @@ mod tests {
                 label: "run & <1>".into(),
                 warnings: vec![Diagnostic::new(
                     "rb-solve",
-                    crate::warnings::DiagnosticKind::IllConditioned,
+                    DiagnosticKind::IllConditioned,
                     crate::warnings::Severity::Warning,
                     Default::default(),
                     "Φ0 is poorly conditioned (cond = <1e9>)",
@@ -481,7 +482,8 @@ mod tests {
         assert!(page.contains("<h1>&lt;b&gt;campaign&lt;/b&gt;</h1>"));
         assert!(page.contains("run &amp; &lt;1&gt;"));
         assert!(page.contains("(cond = &lt;1e9&gt;)"));
-        assert!(page.contains("[changes the answer]"));
+        assert!(page.contains("[warning]"));
+        assert!(page.contains(DiagnosticKind::IllConditioned.sentence()));
         assert_eq!(page.matches("<svg").count(), 1);
         assert!(!page.contains("<script"));
         assert!(!page.contains("<?xml"));

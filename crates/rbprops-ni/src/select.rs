@@ -581,9 +581,11 @@ impl RigidReduction<'_> {
                 })
             };
             if fit.relative_residual > RIGID_RESIDUAL_WARNING {
+                // One excitation's estimate: the selection weighs its evidence, and the
+                // rigid-body check is the calibrated alarm on what is used: a note.
                 warnings.push(diagnostic(
                     DiagnosticKind::ShapeNotRigid,
-                    Severity::Warning,
+                    Severity::Note,
                     DiagnosticSubject::setup(&est.setup)
                         .excitation(&est.excitation)
                         .mode(est.mode, est.frequency_hz),
