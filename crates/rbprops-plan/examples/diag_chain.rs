@@ -174,21 +174,38 @@ fn main() {
         }
         b
     });
-    println!("prop   pipeline MC   linear chain MC   pred    pred/pipe  lin/pipe");
+    println!("prop   pipeline MC  linear chain MC   pred    pred/pipe  lin/pipe  robust/pipe  worst seed (σ)");
     for k in 0..10 {
         let pm: f64 = ok.iter().map(|x| x.1[k]).sum::<f64>() / m;
         let ps = (ok.iter().map(|x| (x.1[k] - pm).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
         let gk = jac.row(k);
         let lin = (gk * &cov_mc * gk.transpose())[0].sqrt();
         let pr = (gk * &sigma * gk.transpose())[0].sqrt();
+        // Robust spread (1.4826 × median absolute deviation) and the largest excursion:
+        // heavy tails (a few seeds fitted far off) show as robust/pipe well below 1.
+        let mut v: Vec<f64> = ok.iter().map(|x| x.1[k]).collect();
+        v.sort_by(f64::total_cmp);
+        let med = v[v.len() / 2];
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let robust = 1.4826 * dev[dev.len() / 2];
+        let worst = ok
+            .iter()
+            .enumerate()
+            .max_by(|a, b| (a.1 .1[k] - pm).abs().total_cmp(&(b.1 .1[k] - pm).abs()))
+            .map(|(s, x)| (s, (x.1[k] - pm) / pr))
+            .unwrap();
         println!(
-            "{:4} {:12.4e} {:12.4e} {:12.4e} {:8.3} {:8.3}",
+            "{:4} {:12.4e} {:12.4e} {:12.4e} {:8.3} {:8.3} {:8.3}   {} ({:+.1})",
             PROPERTY_NAMES[k],
             ps,
             lin,
             pr,
             pr / ps,
-            lin / ps
+            lin / ps,
+            robust / ps,
+            worst.0,
+            worst.1
         );
     }
     println!(
