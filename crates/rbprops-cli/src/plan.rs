@@ -277,6 +277,9 @@ fn plan_report(
             gain
         );
     }
+    if let Some(l) = &planned.limit {
+        let _ = writeln!(t, "limit: {l}");
+    }
     let worst = |s: &[f64; 10]| (0..10).map(|k| s[k] / model.scales[k]).fold(0.0, f64::max);
     let input_json = match before {
         Some(Ok(p)) => {
@@ -302,6 +305,7 @@ fn plan_report(
         "sensors": layout.sensors.iter().map(|s| serde_json::json!({"id": s.id, "at_m": [s.position.x, s.position.y, s.position.z]})).collect::<Vec<_>>(),
         "hits": layout.hits.iter().map(|h| serde_json::json!({"id": h.id, "at_m": [h.position.x, h.position.y, h.position.z], "direction": [h.direction.x, h.direction.y, h.direction.z]})).collect::<Vec<_>>(),
         "properties": property_rows(model, planned),
+        "limit": planned.limit,
         "input_layout": input_json,
     });
     (json, t)
@@ -428,6 +432,9 @@ fn evaluate_cmd(
                         )
                     }
                 });
+                if let Some(l) = &p.limit {
+                    let _ = writeln!(t, "limit: {l}");
+                }
                 let _ = writeln!(
                     t,
                     "weakest: {} (relative std {:.2e})",
@@ -446,6 +453,7 @@ fn evaluate_cmd(
                     "observable": true,
                     "properties": property_rows(model, p),
                     "weakest": PROPERTY_NAMES[weakest],
+                    "limit": p.limit,
                     "suggestion": suggestion.map(|s| s.1),
                 }));
             }

@@ -36,6 +36,19 @@ fn main() {
     let pred = ev.setups[0].1.as_ref().expect("observable");
     let sel: Vec<usize> = pred.selected_hits.iter().map(|s| s.unwrap()).collect();
     println!("plan selection (hit per mode): {sel:?}");
+    let freqs: Vec<String> = modes
+        .iter()
+        .map(|m| format!("{:.4}", m.frequency_hz))
+        .collect();
+    if let Some((r, t, d)) = model.closest_modes(0) {
+        println!(
+            "modes {} Hz, damping {:.4}; closest: modes {} and {}, {d:.2} half-bandwidths",
+            freqs.join(" "),
+            modes[0].damping_ratio,
+            r + 1,
+            t + 1
+        );
+    }
     let data: Vec<_> = layout
         .hits
         .iter()

@@ -189,7 +189,18 @@ pub fn excitation_covariance(
     let pole_list: Vec<Pole> = poles.iter().map(|p| Pole(*p)).collect();
     let focus = band.focus_indices(&pole_list, FOCUS.0, FOCUS.1, FOCUS.2);
     let nf = focus.len();
-    let hf: Vec<Vec<c64>> = h
+    // The fit weighs lines and scales channels by the *measured* FRFs, whose expected
+    // power is |H|² + σ² (not |H|²): where the noise floor dominates (near 0 Hz in
+    // mobility, between modes of a weak channel) the noiseless |H| would give those
+    // lines weights the pipeline never uses. A real magnitude stands for each line.
+    let level: Vec<Vec<c64>> = (0..nc)
+        .map(|i| {
+            (0..nl)
+                .map(|l| c64::new((h[i][l].norm_sqr() + var(i, l)).sqrt(), 0.0))
+                .collect()
+        })
+        .collect();
+    let hf: Vec<Vec<c64>> = level
         .iter()
         .map(|c| focus.iter().map(|&l| c[l]).collect())
         .collect();
@@ -238,8 +249,7 @@ pub fn excitation_covariance(
     let cov_lambda = &s_inv * m_mat * &s_inv;
 
     // ---- step 2: residues on every line for the poles.
-    let all: Vec<Vec<c64>> = h.clone();
-    let wb = rbprops_modal::lsfd::line_weights(&all);
+    let wb = rbprops_modal::lsfd::line_weights(&level);
     let xb = stacked(nl, np, basis, |l| wb[l]);
     let g = pinv_sym(&(xb.transpose() * &xb)) * xb.transpose();
     let mut c_a = DMatrix::<f64>::zeros(nm, np);
