@@ -10,6 +10,9 @@ seeds=${1:-200}
 out=${2:-$(mktemp -d)}
 venv=${SDYNPY_VENV:-/tmp/venv-sdynpy}
 here=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$out"
+# SDynPy imports Qt and matplotlib; no display here.
+export QT_QPA_PLATFORM=offscreen MPLBACKEND=Agg
 standin=()
 if [ ! -x "$venv/bin/python" ] || ! "$venv/bin/python" -c "import sdynpy" 2>/dev/null; then
     py=$(ls -d "$(pyenv root 2>/dev/null || echo ~/.pyenv)"/versions/3.12.*/bin/python 2>/dev/null | tail -1)
@@ -28,6 +31,4 @@ if [ ${#standin[@]} -gt 0 ]; then
     # The stand-in needs only numpy: the project's venv (docs: /tmp/venv) or the system's.
     python=$( [ -x /tmp/venv/bin/python ] && echo /tmp/venv/bin/python || echo python3 )
 fi
-# SDynPy imports Qt and matplotlib; no display here.
-export QT_QPA_PLATFORM=offscreen MPLBACKEND=Agg
 exec "$python" "$here/compare_sdynpy_efi.py" --seeds "$seeds" --out "$out" "${standin[@]}"
