@@ -564,7 +564,7 @@ pub fn layout_figures(
         }
         for (k, h) in layout.hits.iter().enumerate() {
             let label = if k == 0 {
-                "hits (arrow: the blow, ending at the point; ×: along the line of sight)"
+                "hits (arrow: the blow; ×: along the view)"
             } else {
                 ""
             };
@@ -609,7 +609,7 @@ pub fn layout_figures(
             x_range: Some((mid(a) - half, mid(a) + half)),
             y_range: Some((mid(b) - half, mid(b) + half)),
             size: PlotSize {
-                width: 1040,
+                width: 860,
                 height: 600,
             },
             ..Default::default()
