@@ -5,7 +5,7 @@
 //! against predicted).
 //!
 //! `cargo run --release -p rbprops-plan --example diag_chain -- SPEC|EXAMPLE SEEDS [NOISE] [PROP]`
-#![allow(clippy::needless_range_loop)] // index loops mirror the formulas
+#![allow(clippy::needless_range_loop, clippy::type_complexity)] // a diagnostic: index loops mirror the formulas
 
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;

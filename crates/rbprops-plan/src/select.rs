@@ -454,6 +454,8 @@ impl Planner<'_> {
     /// per hit and a trial layout only sums its channels' terms ([`combine`]). The pass
     /// compares layouts under the same weights; [`Planner::choose_hits`] re-scores the
     /// result with its own.
+    // The closure is called once and then handed to exchange_pass (clippy sees only the call).
+    #[allow(clippy::redundant_closure_call)]
     fn exchange_sensors(&self, sensors: &mut [usize], hits: &[usize], current: &mut Score) -> bool {
         let setup = &self.model.setups[self.setup];
         let start_rows = self.rows(sensors);

@@ -167,7 +167,7 @@ fn data_spec(name: &str) -> CampaignSpec {
 /// Test Case II 0.92–1.11, planned 0.96–1.15, plate 0.92–1.00, bar 0.92–1.06
 /// (docs/results.md).
 #[test]
-#[ignore = "Monte Carlo of 8 × 200 pipeline runs: ~3 min in release, far longer in a debug build"]
+#[ignore = "Monte Carlo of 8 × 200 pipeline runs: 6 min in release on a loaded 2-core machine, far longer in a debug build"]
 fn prediction_matches_the_pipeline_monte_carlo() {
     let mut cases = vec![("test-case-2 (1 %)".to_string(), test_case_2(0.01))];
     for name in ["test-case-2-planned-3x3.toml", "plate.toml", "bar.toml"] {
