@@ -144,6 +144,8 @@ pub struct PlanArgs<'a> {
     pub json: bool,
     /// Least sensor spacing (m).
     pub min_spacing_m: f64,
+    /// Directory of the layout figures ([`layout_figures`]).
+    pub plot: Option<&'a Path>,
 }
 
 /// Runs `rbprops plan`.
@@ -160,6 +162,10 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         None => spec_candidates(&input, setup),
     };
     if a.evaluate {
+        if let Some(dir) = a.plot {
+            let figs = layout_figures(&cands, &input, &format!("{name}: the spec's layout"))?;
+            crate::write_plots(dir, &figs)?;
+        }
         return evaluate_cmd(&model, &input, &cands, a);
     }
     if model.setups.len() > 1 {
@@ -188,6 +194,10 @@ pub fn run(a: &PlanArgs) -> Result<()> {
     // The written spec must be one frf-sim reads.
     CampaignSpec::from_toml_str(&planned_text)
         .map_err(|e| anyhow::anyhow!("the planned spec does not validate: {e}"))?;
+    if let Some(dir) = a.plot {
+        let figs = layout_figures(&cands, &out.layout, "planned layout")?;
+        crate::write_plots(dir, &figs)?;
+    }
     if let Some(p) = a.output {
         crate::write_text(p, &planned_text)?;
     }
@@ -277,6 +287,9 @@ fn plan_report(
             gain
         );
     }
+    if let Some(l) = &planned.limit {
+        let _ = writeln!(t, "limit: {l}");
+    }
     let worst = |s: &[f64; 10]| (0..10).map(|k| s[k] / model.scales[k]).fold(0.0, f64::max);
     let input_json = match before {
         Some(Ok(p)) => {
@@ -302,6 +315,7 @@ fn plan_report(
         "sensors": layout.sensors.iter().map(|s| serde_json::json!({"id": s.id, "at_m": [s.position.x, s.position.y, s.position.z]})).collect::<Vec<_>>(),
         "hits": layout.hits.iter().map(|h| serde_json::json!({"id": h.id, "at_m": [h.position.x, h.position.y, h.position.z], "direction": [h.direction.x, h.direction.y, h.direction.z]})).collect::<Vec<_>>(),
         "properties": property_rows(model, planned),
+        "limit": planned.limit,
         "input_layout": input_json,
     });
     (json, t)
@@ -428,6 +442,9 @@ fn evaluate_cmd(
                         )
                     }
                 });
+                if let Some(l) = &p.limit {
+                    let _ = writeln!(t, "limit: {l}");
+                }
                 let _ = writeln!(
                     t,
                     "weakest: {} (relative std {:.2e})",
@@ -446,6 +463,7 @@ fn evaluate_cmd(
                     "observable": true,
                     "properties": property_rows(model, p),
                     "weakest": PROPERTY_NAMES[weakest],
+                    "limit": p.limit,
                     "suggestion": suggestion.map(|s| s.1),
                 }));
             }
@@ -457,4 +475,146 @@ fn evaluate_cmd(
     } else {
         crate::out(&t)
     }
+}
+
+/// The layout figures of `--plot DIR`: the candidate points, the chosen sensors (squares)
+/// and hits (arrows ending at the point of impact, along the blow), inside the bounding
+/// box of the candidates (the plan knows the body only through them), in three views:
+/// `plan-layout-xy.svg` (from +z), `-xz` (from −y) and `-yz` (from +x). A hit along the
+/// line of sight is drawn as a cross.
+pub fn layout_figures(
+    cands: &Candidates,
+    layout: &Layout,
+    title: &str,
+) -> Result<Vec<(String, String)>> {
+    use rbprops_plot::{line_plot, LinePlot, LineStyle, PlotSize, Rgb, Series};
+    let points: Vec<Vec3> = cands
+        .sensors
+        .iter()
+        .map(|s| s.position)
+        .chain(cands.hits.iter().map(|h| h.position))
+        .chain(layout.sensors.iter().map(|s| s.position))
+        .chain(layout.hits.iter().map(|h| h.position))
+        .collect();
+    if points.is_empty() {
+        bail!("no point to draw");
+    }
+    let lo = points.iter().fold(points[0], |a, p| a.inf(p));
+    let hi = points.iter().fold(points[0], |a, p| a.sup(p));
+    let span = (hi - lo).max().max(1e-3);
+    let (tick, arrow) = (0.012 * span, 0.15 * span);
+    let (grey, sensor_c, hit_c) = (Rgb::GREY, Rgb::palette(0), Rgb::palette(3));
+    let mut figures = Vec::new();
+    for (name, (a, b), view) in [
+        ("xy", (0, 1), "top view, from +z"),
+        ("xz", (0, 2), "front view, from −y"),
+        ("yz", (1, 2), "side view, from +x"),
+    ] {
+        let axes = ["x", "y", "z"];
+        let mut series: Vec<Series> = Vec::new();
+        let mut push = |label: &str, x: Vec<f64>, y: Vec<f64>, color: Rgb, style: LineStyle| {
+            series.push(Series::new(label, x, y).with_color(color).with_style(style));
+        };
+        // The candidates' bounding box.
+        push(
+            "bounding box of the candidates",
+            vec![lo[a], hi[a], hi[a], lo[a], lo[a]],
+            vec![lo[b], lo[b], hi[b], hi[b], lo[b]],
+            grey,
+            LineStyle::Dotted,
+        );
+        // Candidate points as small plus signs (one polyline each, the stroke retraced).
+        let mut seen: Vec<(f64, f64)> = Vec::new();
+        for p in cands
+            .sensors
+            .iter()
+            .map(|s| s.position)
+            .chain(cands.hits.iter().map(|h| h.position))
+        {
+            let (x, y) = (p[a], p[b]);
+            if seen
+                .iter()
+                .any(|q| (q.0 - x).abs() + (q.1 - y).abs() < 1e-9)
+            {
+                continue;
+            }
+            let label = if seen.is_empty() {
+                "candidate points"
+            } else {
+                ""
+            };
+            seen.push((x, y));
+            push(
+                label,
+                vec![x - tick, x + tick, x, x, x],
+                vec![y, y, y, y + tick, y - tick],
+                grey,
+                LineStyle::Solid,
+            );
+        }
+        for (k, s) in layout.sensors.iter().enumerate() {
+            let (x, y, d) = (s.position[a], s.position[b], 2.0 * tick);
+            push(
+                if k == 0 { "sensors (triaxial)" } else { "" },
+                vec![x - d, x + d, x + d, x - d, x - d],
+                vec![y - d, y - d, y + d, y + d, y - d],
+                sensor_c,
+                LineStyle::Solid,
+            );
+        }
+        for (k, h) in layout.hits.iter().enumerate() {
+            let label = if k == 0 {
+                "hits (arrow: the blow; ×: along the view)"
+            } else {
+                ""
+            };
+            let (x, y) = (h.position[a], h.position[b]);
+            let (dx, dy) = (h.direction[a], h.direction[b]);
+            let n = dx.hypot(dy);
+            if n < 0.2 {
+                // Along the line of sight: a cross.
+                let d = 2.0 * tick;
+                push(
+                    label,
+                    vec![x - d, x + d, x, x - d, x + d],
+                    vec![y - d, y + d, y, y + d, y - d],
+                    hit_c,
+                    LineStyle::Solid,
+                );
+                continue;
+            }
+            let (ux, uy) = (dx / n, dy / n);
+            let len = arrow * n;
+            // Shaft from the approach to the point, then the head's two barbs.
+            let head = 3.0 * tick;
+            let (c, s) = (0.9_f64, 0.45_f64);
+            let (b1x, b1y) = (-(ux * c - uy * s), -(uy * c + ux * s));
+            let (b2x, b2y) = (-(ux * c + uy * s), -(uy * c - ux * s));
+            push(
+                label,
+                vec![x - len * ux, x, x + head * b1x, x, x + head * b2x],
+                vec![y - len * uy, y, y + head * b1y, y, y + head * b2y],
+                hit_c,
+                LineStyle::Solid,
+            );
+        }
+        let pad = 0.2 * span;
+        let mid = |k: usize| 0.5 * (lo[k] + hi[k]);
+        let half = 0.5 * span + pad;
+        let svg = line_plot(&LinePlot {
+            title: format!("{title}: {view}"),
+            x_label: format!("{} [m]", axes[a]),
+            y_label: format!("{} [m]", axes[b]),
+            series,
+            x_range: Some((mid(a) - half, mid(a) + half)),
+            y_range: Some((mid(b) - half, mid(b) + half)),
+            size: PlotSize {
+                width: 860,
+                height: 600,
+            },
+            ..Default::default()
+        })?;
+        figures.push((format!("plan-layout-{name}.svg"), svg));
+    }
+    Ok(figures)
 }

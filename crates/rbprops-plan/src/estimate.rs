@@ -112,6 +112,32 @@ pub struct SetupPrediction {
     pub selected_hits: Vec<Option<usize>>,
     /// Covariance of the ten properties (docs/conventions.md §3 order).
     pub cov: SMatrix<f64, 10, 10>,
+    /// Why the prediction may not describe the pipeline on this set-up, when it may not
+    /// ([`prediction_limit`]).
+    pub limit: Option<String>,
+}
+
+/// When the plan's model of the fit does not hold for a set-up: two of its modes closer
+/// than `modal-fit`'s "near one frequency" (`rbprops_modal::evidence::NEAR_BANDWIDTHS`
+/// half-power half-bandwidths) with two or more hits. Such pairs make the pipeline refit
+/// the set-up with the poly-reference estimator, which takes each mode shape from every
+/// excitation at once, while the plan linearises the per-excitation fit and the Norm
+/// Indicator's single excitation per mode. On the `close-modes` example (0.75
+/// half-bandwidths, every seed refitted poly-reference) the prediction overstates the
+/// spread 3–13×.
+pub fn prediction_limit(model: &PlanModel, setup: usize, n_hits: usize) -> Option<String> {
+    let (r, t, d) = model.closest_modes(setup)?;
+    let near = rbprops_modal::evidence::NEAR_BANDWIDTHS;
+    (n_hits >= 2 && d < near).then(|| {
+        let m = &model.setups[setup].modes;
+        format!(
+            "modes {} ({:.4} Hz) and {} ({:.4} Hz) are {d:.2} half-bandwidths apart (below {near}): modal-fit will refit this set-up with the poly-reference estimator, which the plan does not model; the predicted spreads overstate the pipeline's, several-fold",
+            r + 1,
+            m[r].frequency_hz,
+            t + 1,
+            m[t].frequency_hz
+        )
+    })
 }
 
 impl SetupPrediction {
@@ -308,6 +334,7 @@ pub fn predict_setup(
         setup,
         selected_hits: selected,
         cov,
+        limit: prediction_limit(model, setup, hits.len()),
     })
 }
 

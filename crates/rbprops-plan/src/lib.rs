@@ -29,7 +29,9 @@ pub mod model;
 pub mod select;
 
 pub use estimate::{Estimator, JacobianCache, SetupPrediction, Unobservable};
-pub use fitcov::{excitation_covariance, ExcitationCovariance};
+pub use fitcov::{
+    combine, excitation_covariance, ChannelTerms, ExcitationBasis, ExcitationCovariance,
+};
 pub use model::{property_scales, Hit, Layout, PlanModel, Sensor, SetupModes};
 pub use select::{
     evaluate, plan, Candidates, Criterion, Evaluation, PlanOptions, PlanOutcome, Suggestion,

@@ -119,6 +119,27 @@ impl PlanModel {
         m
     }
 
+    /// The two closest modes of set-up `setup` and their distance in half-power
+    /// half-bandwidths (`rbprops_modal::Pole::distance_in_bandwidths`, the measure
+    /// `modal-fit`'s evidence for a poly-reference fit uses).
+    pub fn closest_modes(&self, setup: usize) -> Option<(usize, usize, f64)> {
+        let poles: Vec<rbprops_modal::Pole> = self.setups[setup]
+            .modes
+            .iter()
+            .map(|m| rbprops_modal::Pole::from_modal(m.frequency_hz, m.damping_ratio))
+            .collect();
+        let mut best: Option<(usize, usize, f64)> = None;
+        for r in 0..poles.len() {
+            for t in r + 1..poles.len() {
+                let d = poles[r].distance_in_bandwidths(&poles[t]);
+                if best.is_none_or(|b| d < b.2) {
+                    best = Some((r, t, d));
+                }
+            }
+        }
+        best
+    }
+
     /// Index of a set-up by id.
     pub fn setup_index(&self, id: &str) -> Option<usize> {
         self.setups.iter().position(|s| s.id == id)

@@ -20,7 +20,9 @@
 //! not depend on the thread count.
 
 use crate::estimate::{predict_setup, Estimator, JacobianCache, SetupPrediction, Unobservable};
-use crate::fitcov::{excitation_covariance, ExcitationCovariance};
+use crate::fitcov::{
+    combine, excitation_covariance, ChannelTerms, ExcitationBasis, ExcitationCovariance,
+};
 use crate::model::{Hit, Layout, PlanModel, Sensor};
 use crate::PlanError;
 use nalgebra::RowVector6;
@@ -436,82 +438,109 @@ impl Planner<'_> {
             }
         }
         let mut current = self.score(&rows, &hits, &data(&hits)).0;
-        loop {
-            let mut improved = false;
-            for j in 0..hits.len() {
-                let scores: Vec<Option<Score>> = setup_hits
-                    .par_iter()
-                    .map(|&c| {
-                        if hits.contains(&c) {
-                            return None;
-                        }
-                        let mut h = hits.clone();
-                        h[j] = c;
-                        Some(self.score(&rows, &h, &data(&h)).0)
-                    })
-                    .collect();
-                if let Some((c, s)) = pick(&setup_hits, &scores) {
-                    if s.better_than(&current) && relative_gain(&s, &current) {
-                        hits[j] = c;
-                        current = s;
-                        improved = true;
-                    }
-                }
-            }
-            if !improved {
-                break;
-            }
-        }
+        while exchange_pass(
+            &mut hits,
+            &setup_hits,
+            |_, _, _| true,
+            |h| self.score(&rows, h, &data(h)).0,
+            &mut current,
+        ) {}
         (hits, current)
     }
 
-    /// Sensor exchanges for fixed hits.
+    /// Sensor exchanges for fixed hits. The fit's line weights couple the channels of a
+    /// hit; within one pass they are held at the pass's starting layout, so that every
+    /// candidate channel's share of the linearisation ([`ChannelTerms`]) is computed once
+    /// per hit and a trial layout only sums its channels' terms ([`combine`]). The pass
+    /// compares layouts under the same weights; [`Planner::choose_hits`] re-scores the
+    /// result with its own.
+    // The closure is called once and then handed to exchange_pass (clippy sees only the call).
+    #[allow(clippy::redundant_closure_call)]
     fn exchange_sensors(&self, sensors: &mut [usize], hits: &[usize], current: &mut Score) -> bool {
-        let mut any = false;
-        let hs: Vec<Hit> = hits.iter().map(|&k| self.cands.hits[k].clone()).collect();
-        for j in 0..sensors.len() {
-            if self.opts.keep_sensors.contains(&sensors[j]) {
-                continue;
-            }
-            let others: Vec<usize> = (0..sensors.len())
-                .filter(|&i| i != j)
-                .map(|i| sensors[i])
-                .collect();
-            let cand: Vec<usize> = (0..self.cands.sensors.len()).collect();
-            let scores: Vec<Option<Score>> = cand
-                .par_iter()
-                .map(|&c| {
-                    if !self.spaced(&others, c) || sensors.contains(&c) {
-                        return None;
-                    }
-                    let mut s = sensors.to_vec();
-                    s[j] = c;
-                    let rows = self.rows(&s);
-                    let d: Vec<ExcitationCovariance> = hs
-                        .iter()
-                        .map(|h| {
-                            excitation_covariance(
-                                self.model,
-                                &self.model.setups[h.setup],
-                                &rows,
-                                &h.column(),
-                            )
-                        })
-                        .collect();
-                    let dr: Vec<&ExcitationCovariance> = d.iter().collect();
-                    Some(self.score(&rows, hits, &dr).0)
+        let setup = &self.model.setups[self.setup];
+        let start_rows = self.rows(sensors);
+        let bases: Vec<ExcitationBasis> = hits
+            .iter()
+            .map(|&k| {
+                ExcitationBasis::new(self.model, setup, &self.cands.hits[k].column(), &start_rows)
+            })
+            .collect();
+        // terms[c][hit] = the three channels of candidate sensor c.
+        let terms: Vec<Vec<Vec<ChannelTerms>>> = (0..self.cands.sensors.len())
+            .into_par_iter()
+            .map(|c| {
+                let rows = self.cands.sensors[c].rows();
+                bases
+                    .iter()
+                    .map(|b| rows.iter().map(|r| b.channel(r)).collect())
+                    .collect()
+            })
+            .collect();
+        let score_of = |s: &[usize]| -> Score {
+            let data: Vec<ExcitationCovariance> = (0..hits.len())
+                .map(|h| {
+                    let t: Vec<&ChannelTerms> =
+                        s.iter().flat_map(|&c| terms[c][h].iter()).collect();
+                    combine(&t)
                 })
                 .collect();
-            if let Some((c, s)) = pick(&cand, &scores) {
-                if s.better_than(current) && relative_gain(&s, current) {
-                    sensors[j] = c;
-                    *current = s;
-                    any = true;
+            let d: Vec<&ExcitationCovariance> = data.iter().collect();
+            self.score(&self.rows(s), hits, &d).0
+        };
+        *current = score_of(sensors);
+        let pool: Vec<usize> = (0..self.cands.sensors.len()).collect();
+        let keep = &self.opts.keep_sensors;
+        exchange_pass(
+            sensors,
+            &pool,
+            |chosen, j, c| {
+                let others: Vec<usize> = (0..chosen.len())
+                    .filter(|&i| i != j)
+                    .map(|i| chosen[i])
+                    .collect();
+                !keep.contains(&chosen[j]) && self.spaced(&others, c)
+            },
+            score_of,
+            current,
+        )
+    }
+}
+
+/// One exchange pass: each slot `j` in turn takes the candidate of `pool` (not already
+/// chosen) whose layout scores best, when that improves on `current` by more than
+/// rounding. `allowed(chosen, j, c)` vetoes putting candidate `c` in slot `j` (a sensor
+/// that must stay, spacing).
+/// Trials are scored in parallel and reduced in pool order (ties keep the earlier), so
+/// the pass does not depend on the thread count. Returns whether anything changed.
+fn exchange_pass(
+    chosen: &mut [usize],
+    pool: &[usize],
+    allowed: impl Fn(&[usize], usize, usize) -> bool + Sync,
+    score: impl Fn(&[usize]) -> Score + Sync,
+    current: &mut Score,
+) -> bool {
+    let mut any = false;
+    for j in 0..chosen.len() {
+        let scores: Vec<Option<Score>> = pool
+            .par_iter()
+            .map(|&c| {
+                if chosen.contains(&c) || !allowed(chosen, j, c) {
+                    return None;
                 }
+                let mut trial = chosen.to_vec();
+                trial[j] = c;
+                Some(score(&trial))
+            })
+            .collect();
+        if let Some((c, s)) = pick(pool, &scores) {
+            if s.better_than(current) && relative_gain(&s, current) {
+                chosen[j] = c;
+                *current = s;
+                any = true;
             }
         }
-        any
     }
+    any
 }
 
 /// An exchange must improve the criterion by more than rounding (1e-9 relative), so the

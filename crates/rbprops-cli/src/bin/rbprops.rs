@@ -126,6 +126,10 @@ enum Command {
         /// Planned spec (default: stdout, the table then goes to stderr).
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Write the layout in three views (SVG: body box, candidates, sensors, hits with
+        /// their directions) into this directory.
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// Summary rows (the campaign table's columns) of finished runs.
     Summary {
@@ -358,6 +362,7 @@ fn command(command: Command) -> anyhow::Result<()> {
             evaluate,
             format,
             output,
+            plot,
         } => {
             let criterion = match criterion.to_ascii_lowercase().as_str() {
                 "d" => rbprops_plan::Criterion::D,
@@ -389,6 +394,7 @@ fn command(command: Command) -> anyhow::Result<()> {
                 evaluate,
                 json,
                 min_spacing_m: min_spacing,
+                plot: plot.as_deref(),
             })
         }
         Command::Summary {

@@ -1,5 +1,6 @@
-//! `rbprops plan`: the planned spec is one frf-sim reads, --evaluate --format json gives
-//! every property's predicted standard deviation, bad candidates stop with an error and
+//! `rbprops plan`: the planned spec is one frf-sim reads, --plot writes the three views,
+//! --evaluate --format json gives every property's predicted standard deviation, bad
+//! candidates stop with an error and
 //! no output.
 
 use crate::common::rbprops;
@@ -44,9 +45,16 @@ fn plan_writes_a_spec_frf_sim_reads_and_evaluate_reports_json() {
         .arg(&cands)
         .args(["--sensors", "3", "--hits", "3", "-o"])
         .arg(&out)
+        .arg("--plot")
+        .arg(dir.path().join("figs"))
         .output()
         .unwrap();
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    for view in ["xy", "xz", "yz"] {
+        let svg = std::fs::read_to_string(dir.path().join(format!("figs/plan-layout-{view}.svg")))
+            .unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("sensors (triaxial)"));
+    }
     let table = String::from_utf8(r.stdout).unwrap();
     assert!(table.contains("worst relative std"), "{table}");
     let planned = std::fs::read_to_string(&out).unwrap();
@@ -66,6 +74,7 @@ fn plan_writes_a_spec_frf_sim_reads_and_evaluate_reports_json() {
     assert_eq!(props.len(), 10);
     assert!(props.iter().all(|p| p["std"].as_f64().unwrap() > 0.0));
     assert!(j["setups"][0]["weakest"].is_string());
+    assert!(j["setups"][0]["limit"].is_null());
 }
 
 #[test]
