@@ -210,7 +210,16 @@ pub fn rb_solve_with(
             None,
         ),
         Uncertainty::Bootstrap(b) => {
-            rbprops_uq::solve_with_bootstrap(&geometry, &modal, &selection, &frf, &opts, b)?
+            let given = crate::variance::for_bootstrap(rec)?;
+            rbprops_uq::solve_with_bootstrap(
+                &geometry,
+                &modal,
+                &selection,
+                &frf,
+                &opts,
+                b,
+                given.as_ref(),
+            )?
         }
     };
     // A reference with a zero mass, centre of mass or inertia has no relative error:
