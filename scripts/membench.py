@@ -16,6 +16,7 @@ The bound of the issue: peak RSS ≤ 2 × the largest excitation's data + 50 MB,
 one excitation being channels × lines complex f64 values (16 bytes each).
 
 usage: scripts/membench.py [--bin target/release] [--work DIR] [--quick] [--markdown]
+                           [--max-excitations N] [--max-lines N]
 """
 import argparse
 import re
@@ -85,11 +86,15 @@ def main() -> None:
     ap.add_argument("--work", type=Path)
     ap.add_argument("--quick", action="store_true", help="the two smallest of each sweep")
     ap.add_argument("--markdown", action="store_true")
+    ap.add_argument("--max-excitations", type=int, default=192)
+    ap.add_argument("--max-lines", type=int, default=102401)
     a = ap.parse_args()
     exc = [3, 12, 48, 192]
     lines = [1601, 6401, 25601, 102401]
     if a.quick:
         exc, lines = exc[:2], lines[:2]
+    exc = [e for e in exc if e <= a.max_excitations]
+    lines = [n for n in lines if n <= a.max_lines]
     cases = [(e, 1601) for e in exc] + [(3, n) for n in lines if n != 1601]
     work = a.work or Path(tempfile.mkdtemp(prefix="membench."))
     rows = []
