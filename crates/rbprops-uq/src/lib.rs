@@ -80,8 +80,9 @@
 //! drives to 0); 3.5 s per run with B = 100 (35 ms per replicate) on a shared 2-core
 //! machine.
 //!
-//! At 102,401 lines × 3 excitations `rb-solve` with the bootstrap took 47 s on every line;
-//! on the grid it takes about 3× its time without the bootstrap (docs/results.md).
+//! At 102,401 lines × 3 excitations `rb-solve` with the bootstrap took 47–199 s on every
+//! line; on the grid it takes 3.6× the CPU time of the process without the bootstrap
+//! (docs/results.md, "rb-solve's bootstrap at scale").
 //!
 //! No I/O: data in, data (or typed errors) out.
 
