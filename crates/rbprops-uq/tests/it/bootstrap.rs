@@ -292,14 +292,9 @@ fn line_variances_scale_the_standard_errors() {
     let four = model_line_variance(&c, 4.0);
     let (a, b) = (run(None), run(Some(&four)));
     for (x, y) in a.estimates.iter().zip(&b.estimates) {
-        for k in 0..N_PROPS {
+        for (k, name) in PROPERTY_NAMES.iter().enumerate() {
             let r = y.std[k] / x.std[k];
-            assert!(
-                (r - 2.0).abs() < 0.1,
-                "{} {}: ratio {r}",
-                x.method,
-                PROPERTY_NAMES[k]
-            );
+            assert!((r - 2.0).abs() < 0.1, "{} {name}: ratio {r}", x.method);
         }
     }
 }
