@@ -6,7 +6,11 @@
 //! `bias/σ` = mean error over the seeds / RMS reported σ, `sd/σ` = spread of the estimates
 //! over the seeds / RMS reported σ (1 when the reported σ is right).
 //!
-//! cargo run --release -p rbprops-cli --example calibration -- [N=50] [example=demo] [B=100]
+//! cargo run --release -p rbprops-cli --example calibration -- [N=50] [example=demo] [B=100] [LINES]
+//!
+//! `LINES` sets the campaign's number of lines (its `lines = …`; at 102,401 lines the
+//! bootstrap draws on every q-th line, `rbprops_uq::decimation`); `LINES full` draws on
+//! every line for comparison.
 
 use rbprops_cli::stages::{self, Uncertainty};
 use rbprops_core::records::{InertiaEstimate, TruthRecord};
@@ -39,14 +43,27 @@ fn main() -> anyhow::Result<()> {
     let n: u64 = args.first().map(|s| s.parse()).transpose()?.unwrap_or(50);
     let example = args.get(1).cloned().unwrap_or_else(|| "demo".into());
     let b: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(100);
-    let spec = rbprops_sim::example(&example)
-        .ok_or_else(|| anyhow::anyhow!("unknown example {example}"))?;
+    let mut spec = rbprops_sim::example(&example)
+        .ok_or_else(|| anyhow::anyhow!("unknown example {example}"))?
+        .to_string();
+    if let Some(lines) = args.get(3) {
+        let lines: usize = lines.parse()?;
+        let edited = spec.replace("lines = 1601", &format!("lines = {lines}"));
+        anyhow::ensure!(
+            edited != spec || lines == 1601,
+            "{example} has no `lines = 1601`"
+        );
+        spec = edited;
+    }
+    let decimate = args.get(4).map(String::as_str) != Some("full");
+    let spec = spec.as_str();
     let opts = SolveOptions {
         estimators: vec![Estimator::BretlConti, Estimator::ToivolaNuutila],
         ..Default::default()
     };
     let boot_opts = BootstrapOptions {
         replicates: b,
+        decimate,
         ..Default::default()
     };
     let mut tally = vec![Tally::default(); 2];
@@ -109,7 +126,11 @@ fn main() -> anyhow::Result<()> {
         }
     }
     println!(
-        "{example}: {n} seeds, B = {b} replicates, {:.1} s in all, bootstrap {:.3} s per run ({:.2} ms per replicate)",
+        "{example} ({}): {n} seeds, B = {b} replicates, {:.1} s in all, bootstrap {:.3} s per run ({:.2} ms per replicate)",
+        args.get(3).map_or("1601 lines".to_string(), |l| format!(
+            "{l} lines{}",
+            if decimate { "" } else { ", every line" }
+        )),
         t0.elapsed().as_secs_f64(),
         t_boot / n as f64,
         1e3 * t_boot / (n as f64 * b as f64)

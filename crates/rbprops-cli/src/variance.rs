@@ -1,8 +1,8 @@
 //! The line-variance topic (`/rbprops/frf_variance`): each FRF line's noise variance as
 //! the estimator knows it. Written by `frf-est` (H1 over its accepted hits); read by
-//! `model-check` as its noise model (its method text says so) and by `modal-fit`, which
-//! weights its least squares by it ([`weight_fit`]; `--weight none` for the default
-//! relative weights).
+//! `model-check` as its noise model, by `rb-solve`'s bootstrap as the noise of its
+//! replicates (their method texts say so), and by `modal-fit`, which weights its least
+//! squares by it ([`weight_fit`]; `--weight none` for the default relative weights).
 
 use anyhow::{bail, Result};
 use rbprops_core::{FrfSet, Geometry};
@@ -252,6 +252,54 @@ pub fn weight_fit(
     rec.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
     opts.coherence_weighting = Some(std::sync::Arc::new(weighting));
     Ok(true)
+}
+
+/// The line variances for `rb-solve`'s bootstrap (`rbprops_uq::LineVariance`); `None`
+/// when the record has none. Under `frf-est`'s exponential window neighbouring lines' noise
+/// is correlated (`γ_m`, docs/conventions.md "FRF estimation"): a replicate draws
+/// independent lines, so each line's variance is scaled by `Σ_{|m|≤2L} Re γ_m`
+/// (`L` = [`POOL_HALF_WIDTH`]), which gives the sums over lines the estimators make the
+/// noise of the correlated lines while the FRF is smooth over that many lines.
+pub fn for_bootstrap(rec: &RunRecord) -> Result<Option<rbprops_uq::LineVariance>> {
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let Some(v) = get(rec)? else {
+        return Ok(None);
+    };
+    let processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    let estimation = processing.frf_estimation.as_ref();
+    let correlation_factor = match estimation.and_then(|e| e.exponential_window_s.map(|t| (e, t))) {
+        Some((e, tau)) => {
+            1.0 + 2.0
+                * (1..=2 * POOL_HALF_WIDTH)
+                    .map(|m| {
+                        rbprops_frfest::exponential_line_correlation(
+                            tau,
+                            e.sample_rate_hz,
+                            e.record_samples,
+                            m,
+                        )
+                        .re
+                    })
+                    .sum::<f64>()
+        }
+        None => 1.0,
+    };
+    let source = match estimation {
+        Some(_) => format!(
+            "{}, frf-est's H1 variance, at least {:.0} degrees of freedom",
+            topics::FRF_VARIANCE,
+            v.min_degrees_of_freedom()
+        ),
+        None => format!(
+            "{}, from the export's coherence and declared averages",
+            topics::FRF_VARIANCE
+        ),
+    };
+    Ok(Some(rbprops_uq::LineVariance {
+        sigma2: v.sigma2,
+        correlation_factor,
+        source,
+    }))
 }
 
 /// Multiple of the estimator's force-noise error (`force_noise_relative_error`, an RMS

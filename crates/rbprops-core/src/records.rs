@@ -734,6 +734,10 @@ pub struct InertiaEstimate {
     // Also `bootstrap` ([`UncertaintyMethod`]); plain comment, the schema stays as published.
     #[schemars(with = "String")]
     pub uncertainty_method: UncertaintyMethod,
+    /// How the standard errors were obtained, in words, where `uncertainty_method` does not
+    /// say it all (the bootstrap: what its replicates' noise was drawn from, on which lines).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty_source: Option<String>,
     /// Mode numbers (per set-up) the estimator used.
     #[schemars(description = "")]
     pub modes_used: Vec<usize>,

@@ -568,6 +568,7 @@ impl EstimateParts {
                 .map(|k| std::array::from_fn(|r| std::array::from_fn(|c| k[(r, c)]))),
             residual: self.residual,
             uncertainty_method: self.uncertainty_method,
+            uncertainty_source: None,
             modes_used: self.modes_used.clone(),
             excitations_used: self.excitations_used.clone(),
             errors,

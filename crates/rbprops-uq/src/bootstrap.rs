@@ -2,7 +2,7 @@
 //! [`InertiaEstimate`] records.
 
 use crate::error::UqError;
-use crate::model::FittedModel;
+use crate::model::{Draws, FittedModel, LineVariance};
 use crate::reidentify::{full_refit, refine_group, MatchTolerances, Reidentify, ReplicateModes};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -40,6 +40,10 @@ pub struct BootstrapOptions {
     pub tolerances: MatchTolerances,
     /// Warn when more than this fraction of the replicates fail (default 0.05).
     pub failure_warning_fraction: f64,
+    /// Draw and refit the replicates on every q-th line of the fit's band (default true;
+    /// `rbprops_uq::decimation`, docs/results.md): the same spread at a q-th of the cost.
+    /// Only with [`Reidentify::Refine`] (a full refit takes every line).
+    pub decimate: bool,
 }
 
 impl Default for BootstrapOptions {
@@ -52,6 +56,7 @@ impl Default for BootstrapOptions {
             pole_mode: None,
             tolerances: MatchTolerances::default(),
             failure_warning_fraction: 0.05,
+            decimate: true,
         }
     }
 }
@@ -111,6 +116,11 @@ pub struct BootstrapOutput {
     pub pole_mode: PoleMode,
     /// What the bootstrap noticed, typed (stage `rb-solve`).
     pub diagnostics: Vec<Diagnostic>,
+    /// Lines of the fit's band per line the replicates were drawn and refitted on (the
+    /// largest over the excitations; 1: every line).
+    pub decimation: usize,
+    /// What the replicates' noise was drawn from, for the estimates' method text.
+    pub noise_source: String,
 }
 
 /// The property vector of an estimate ([`InertiaProperties::to_vector`]).
@@ -138,7 +148,9 @@ fn replicate_rng(seed: u64, b: usize) -> ChaCha8Rng {
 /// Toivola–Nuutila) in `original` (the output of `rbprops_inertia::solve` on the
 /// measured data with `solve_opts`); see the crate documentation for the procedure.
 /// Mass-line and `_projected` estimates are not bootstrapped themselves (the latter get
-/// their base estimate's errors in [`apply`]).
+/// their base estimate's errors in [`apply`]). With `line_variance` (the FRF estimator's
+/// variance of each line), the replicates' noise is drawn from it on every channel it
+/// covers, instead of from the noise model fitted to the residuals.
 #[allow(clippy::too_many_arguments)]
 pub fn bootstrap(
     geometry: &Geometry,
@@ -148,12 +160,28 @@ pub fn bootstrap(
     solve_opts: &SolveOptions,
     original: &[InertiaEstimate],
     opts: &BootstrapOptions,
+    line_variance: Option<&LineVariance>,
 ) -> Result<BootstrapOutput, UqError> {
     if opts.replicates < 2 {
         return Err(UqError::Options(format!(
             "{} replicates: at least 2 are needed for a standard deviation",
             opts.replicates
         )));
+    }
+    if let Some(v) = line_variance {
+        if v.sigma2.len() != frf.values.len() {
+            return Err(UqError::Options(format!(
+                "{} line variances for {} FRF values",
+                v.sigma2.len(),
+                frf.values.len()
+            )));
+        }
+        if !(v.correlation_factor >= 1.0 && v.correlation_factor.is_finite()) {
+            return Err(UqError::Options(format!(
+                "line-variance correlation factor {} (must be finite and ≥ 1)",
+                v.correlation_factor
+            )));
+        }
     }
     let targets = modal_targets(original)?;
     // A record whose poles were corrected for an exponential window describes the physical
@@ -175,6 +203,12 @@ pub fn bootstrap(
         selection,
         opts.residual_terms,
         opts.pole_mode,
+        &Draws {
+            line_variance,
+            window: windowed.as_ref().map(|(w, _)| w),
+            // A full refit runs the modal fit on the whole FRF set: every line.
+            decimate: opts.decimate && opts.reidentify == Reidentify::Refine,
+        },
     )?;
     let replication = Replication {
         geometry,
@@ -225,7 +259,62 @@ pub fn bootstrap(
         replicates: opts.replicates,
         pole_mode: model.pole_mode,
         diagnostics: warnings,
+        decimation: model
+            .excitations
+            .iter()
+            .map(|e| e.decimation)
+            .max()
+            .unwrap_or(1),
+        noise_source: noise_source(&model, line_variance),
     })
+}
+
+/// What the replicates' noise was drawn from, in words: the estimator's line variances,
+/// the fit's residuals, or each on the channels it covered.
+fn noise_source(model: &FittedModel, line_variance: Option<&LineVariance>) -> String {
+    let flags: Vec<bool> = model
+        .excitations
+        .iter()
+        .flat_map(|e| e.given_variance.iter().copied())
+        .collect();
+    let residuals =
+        "a noise model σ² = a²|S|² + b² per channel fitted to the modal fit's residuals";
+    let given = |v: &LineVariance| {
+        if v.correlation_factor > 1.0 {
+            format!(
+                "the FRF estimator's line variances ({}) times {:.3} for the window's line-to-line correlation",
+                v.source, v.correlation_factor
+            )
+        } else {
+            format!("the FRF estimator's line variances ({})", v.source)
+        }
+    };
+    match line_variance {
+        Some(v) if flags.iter().all(|f| *f) => given(v),
+        Some(v) if flags.iter().any(|f| *f) => format!(
+            "{} on {} of {} channels, elsewhere {residuals}",
+            given(v),
+            flags.iter().filter(|f| **f).count(),
+            flags.len()
+        ),
+        _ => residuals.to_string(),
+    }
+}
+
+/// The estimates' method text of a bootstrap: replicates, lines, noise source.
+pub fn method_text(boot: &BootstrapOutput) -> String {
+    let lines = if boot.decimation > 1 {
+        format!(
+            "drawn and refitted on every {}th line of the fit's band (each with the noise of its {} lines)",
+            boot.decimation, boot.decimation
+        )
+    } else {
+        "drawn and refitted on every line of the fit's band".to_string()
+    };
+    format!(
+        "FRF-level parametric bootstrap: {} replicates {lines}, noise from {}",
+        boot.replicates, boot.noise_source
+    )
 }
 
 /// One replicate's outcome: an error that sank the whole replicate (its re-identification
@@ -571,6 +660,7 @@ pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize
         };
         InertiaProperties::from_vector(&b.std).set_standard_errors_of(e);
         e.uncertainty_method = UncertaintyMethod::Bootstrap;
+        e.uncertainty_source = Some(method_text(boot));
         e.update_systematic_interval();
         if b.failed > 0 {
             e.diagnostics.push(uncertainty_incomplete(
@@ -599,6 +689,7 @@ pub fn solve_with_bootstrap(
     frf: &FrfSet,
     solve_opts: &SolveOptions,
     opts: &BootstrapOptions,
+    line_variance: Option<&LineVariance>,
 ) -> Result<(SolveOutput, Option<BootstrapOutput>), UqError> {
     let mut out = solve(geometry, modal, selection, Some(frf), solve_opts)?;
     match bootstrap(
@@ -609,6 +700,7 @@ pub fn solve_with_bootstrap(
         solve_opts,
         &out.estimates,
         opts,
+        line_variance,
     ) {
         Ok(boot) => {
             apply(&mut out.estimates, &boot);

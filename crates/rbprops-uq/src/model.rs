@@ -4,6 +4,7 @@
 use crate::error::UqError;
 use crate::noise::fit_channel;
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use rbprops_core::noise::{standard_normal_pair, NoiseModel};
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
 use rbprops_core::{c64, FrfSet, Geometry};
@@ -37,26 +38,147 @@ pub struct ExcitationModel {
     pub noise: Vec<NoiseModel>,
     /// Per channel, the number of misfit lines.
     pub misfit_lines: Vec<usize>,
+    /// The replicates' grid (see [`FittedModel::prepare_draws`]): every `decimation`-th
+    /// line of the band, the middle of each run of `decimation` lines, with the centre's
+    /// values there as its channels.
+    pub draw_band: BandData,
+    /// Per channel and grid line: the standard deviation of each of the real and imaginary
+    /// parts of a replicate's noise.
+    pub draw_sd: Vec<Vec<f64>>,
+    /// Lines of the band per line of the replicates' grid.
+    pub decimation: usize,
+    /// Per channel: its noise comes from the given line variances (not the residuals).
+    pub given_variance: Vec<bool>,
 }
 
 impl ExcitationModel {
-    /// Synthesised FRFs plus one noise draw, `[channel][line]`, drawn channel by channel
-    /// and line by line from `rng` (so a replicate's data depend only on its seed).
+    /// The centre plus one noise draw on the replicates' grid, `[channel][grid line]`,
+    /// drawn channel by channel and line by line from `rng` (so a replicate's data depend
+    /// only on its seed).
     pub fn draw(&self, rng: &mut ChaCha8Rng) -> Vec<Vec<c64>> {
-        self.centre
+        self.draw_band
+            .channels
             .iter()
-            .zip(&self.noise)
-            .map(|(s, nz)| {
+            .zip(&self.draw_sd)
+            .map(|(s, sd)| {
                 s.iter()
-                    .map(|z| {
+                    .zip(sd)
+                    .map(|(z, sd)| {
                         let (n1, n2) = standard_normal_pair(rng);
-                        let sd = (nz.variance(*z) / 2.0).sqrt();
                         z + c64::new(sd * n1, sd * n2)
                     })
                     .collect()
             })
             .collect()
     }
+
+    /// Fills the replicates' grid and noise ([`FittedModel::prepare_draws`]): `sigma2(c, l)`
+    /// is the given variance of channel c at band line l, if known.
+    fn prepare_draws(&mut self, q: usize, given: Option<&dyn Fn(usize, usize) -> Option<f64>>) {
+        let n = self.band.n_lines();
+        let q = q.max(1);
+        let runs: Vec<(usize, usize)> = (0..n)
+            .step_by(q)
+            .map(|start| (start, (start + q).min(n)))
+            .collect();
+        let grid: Vec<usize> = runs.iter().map(|(a, b)| a + (b - a) / 2).collect();
+        let n_channels = self.centre.len();
+        let mut draw_sd = Vec::with_capacity(n_channels);
+        let mut given_variance = Vec::with_capacity(n_channels);
+        for c in 0..n_channels {
+            let known: Option<Vec<f64>> = given.and_then(|g| (0..n).map(|l| g(c, l)).collect());
+            given_variance.push(known.is_some());
+            let variance = |l: usize| match &known {
+                Some(v) => v[l],
+                None => self.noise[c].variance(self.centre[c][l]),
+            };
+            // One grid line stands for its run of q lines: the estimators' normal equations
+            // are sums over lines, and a sum over every q-th line of noise with variance
+            // (mean σ² of the run)/q has the mean and covariance of the sum over all lines
+            // while the FRF and the line weights are smooth over the run (docs/results.md).
+            draw_sd.push(
+                runs.iter()
+                    .map(|&(a, b)| {
+                        let mean = (a..b).map(variance).sum::<f64>() / (b - a) as f64;
+                        (mean / q as f64 / 2.0).sqrt()
+                    })
+                    .collect(),
+            );
+        }
+        let pick = |v: &[f64]| -> Vec<f64> { grid.iter().map(|&l| v[l]).collect() };
+        self.draw_band = BandData {
+            quantity: self.band.quantity,
+            frequency_hz: pick(&self.band.frequency_hz),
+            omega: pick(&self.band.omega),
+            channels: self
+                .centre
+                .iter()
+                .map(|h| grid.iter().map(|&l| h[l]).collect())
+                .collect(),
+            first_line: self.band.first_line,
+            line_quality: self.band.line_quality.as_deref().map(pick),
+        };
+        self.draw_sd = draw_sd;
+        self.decimation = q;
+        self.given_variance = given_variance;
+    }
+}
+
+/// Fewest lines per half-power half-bandwidth `ζω_n` of the narrowest mode that the
+/// replicates' grid keeps. A sum over lines of a function that varies on the scale of a
+/// half-bandwidth (a Lorentzian) is reproduced by every q-th line to about `e^{−2πk}`
+/// with k lines per half-bandwidth (the trapezoidal rule on an analytic function): 2 leave
+/// about 4·10⁻⁶, and the refinement works on such a grid as it does on the 1,601-line demo
+/// (about 2 lines per half-bandwidth of its first mode), where the bootstrap is calibrated.
+pub const MIN_LINES_PER_HALF_BANDWIDTH: f64 = 2.0;
+
+/// Fewest lines of the replicates' grid, whatever the poles.
+pub const MIN_GRID_LINES: usize = 400;
+
+/// Lines of the band per line of the replicates' grid for these poles: as many as keep
+/// [`MIN_LINES_PER_HALF_BANDWIDTH`] and [`MIN_GRID_LINES`] (1: every line).
+pub fn decimation(poles: &[Pole], band: &BandData) -> usize {
+    let n = band.n_lines();
+    if n < 2 * MIN_GRID_LINES {
+        return 1;
+    }
+    let df = (band.frequency_hz[n - 1] - band.frequency_hz[0]) / (n - 1) as f64;
+    let half_bandwidth_hz = poles
+        .iter()
+        .map(|p| -p.0.re / std::f64::consts::TAU)
+        .fold(f64::INFINITY, f64::min);
+    if !(df > 0.0 && half_bandwidth_hz > 0.0 && half_bandwidth_hz.is_finite()) {
+        return 1;
+    }
+    let q = (half_bandwidth_hz / df / MIN_LINES_PER_HALF_BANDWIDTH).floor();
+    (q.min((n / MIN_GRID_LINES) as f64).max(1.0)) as usize
+}
+
+/// What the replicates are drawn from and on which lines ([`FittedModel::new`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Draws<'a> {
+    /// The FRF estimator's line variances, if known (else the residuals' noise model).
+    pub line_variance: Option<&'a LineVariance>,
+    /// The exponential window the FRFs were prefiltered for (the variances take its factor).
+    pub window: Option<&'a rbprops_core::ExponentialWindow>,
+    /// Draw on every q-th line ([`decimation`]) instead of every line.
+    pub decimate: bool,
+}
+
+/// The FRF estimator's variance of every FRF line (`frf-est`'s line-variance topic, or an
+/// export's coherence and averages), which the bootstrap draws from instead of the
+/// residuals of the fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineVariance {
+    /// `σ² = E|ε|²` of every FRF value, the FRF set's layout `[excitation][channel][line]`;
+    /// NaN where unknown (such a channel's noise comes from the residuals).
+    pub sigma2: Vec<f64>,
+    /// `Σ_m Re γ_m` over the lags a window correlates the noise of neighbouring lines by
+    /// (`γ_m`, docs/conventions.md "FRF estimation"): the noise of a run of lines has this
+    /// times the sum of their variances. 1 for independent lines.
+    pub correlation_factor: f64,
+    /// Where the variances come from, for the method text.
+    pub source: String,
 }
 
 /// The models of the excitations a bootstrap has to refit, grouped by shared poles.
@@ -99,6 +221,7 @@ impl FittedModel {
         selection: &SelectionRecord,
         residual_terms: bool,
         pole_mode: Option<PoleMode>,
+        draws: &Draws,
     ) -> Result<Self, UqError> {
         if frf.n_excitations != geometry.excitations.len()
             || frf.n_channels != geometry.channels.len()
@@ -168,9 +291,14 @@ impl FittedModel {
         let mut groups = Vec::new();
         for g in &groups_ids {
             let mut idx = Vec::new();
-            for id in g {
+            // The excitations' models in parallel, in group order.
+            let models: Vec<ExcitationModel> = g
+                .par_iter()
+                .map(|id| excitation_model(geometry, frf, modal, id, residual_terms))
+                .collect::<Result<_, _>>()?;
+            for m in models {
                 idx.push(excitations.len());
-                excitations.push(excitation_model(geometry, frf, modal, id, residual_terms)?);
+                excitations.push(m);
             }
             let first = &excitations[idx[0]];
             for &i in &idx[1..] {
@@ -194,7 +322,58 @@ impl FittedModel {
             residuals_enabled: residual_terms,
         };
         model.fit_noise();
+        model.prepare_draws(frf, draws);
         Ok(model)
+    }
+
+    /// The replicates' grid and noise of every excitation ([`Draws`]): with `decimate`, every q-th line
+    /// of the band ([`decimation`] of the group's poles) with the noise of its run of q
+    /// lines, else every line. A channel whose every band line has a finite variance in
+    /// `given` (and `window`: the exponential window the FRFs were prefiltered for, whose
+    /// factor `|(iω/(iω + σ))^k|²` the variances take too) draws from it times its
+    /// correlation factor; the others from the noise model of the residuals.
+    fn prepare_draws(&mut self, frf: &FrfSet, draws: &Draws) {
+        let Draws {
+            line_variance: given,
+            window,
+            decimate,
+        } = *draws;
+        let nl = frf.n_lines();
+        let nc = frf.n_channels;
+        let k = frf.quantity.order();
+        let prefilter = |f: f64| match window {
+            Some(w) if k != 0 => {
+                let w2 = (std::f64::consts::TAU * f).powi(2);
+                (w2 / (w2 + w.decay_per_s().powi(2))).powi(k)
+            }
+            _ => 1.0,
+        };
+        for g in &self.groups {
+            let first = &self.excitations[g[0]];
+            let q = if decimate {
+                decimation(&first.poles, &first.band)
+            } else {
+                1
+            };
+            for &i in g {
+                let e = &mut self.excitations[i];
+                let (ex, first_line) = (e.excitation, e.band.first_line);
+                let freqs = e.band.frequency_hz.clone();
+                let lookup = given.map(|v| {
+                    move |c: usize, l: usize| -> Option<f64> {
+                        let s = v.sigma2[(ex * nc + c) * nl + first_line + l];
+                        s.is_finite()
+                            .then(|| s * v.correlation_factor * prefilter(freqs[l]))
+                    }
+                });
+                e.prepare_draws(
+                    q,
+                    lookup
+                        .as_ref()
+                        .map(|f| f as &dyn Fn(usize, usize) -> Option<f64>),
+                );
+            }
+        }
     }
 
     /// Noise model per excitation and channel (see [`crate::noise`]). The modal fit's
@@ -210,11 +389,13 @@ impl FittedModel {
                 let p = 2.0 * nm
                     + (res.upper as usize + res.lower as usize) as f64
                     + 2.0 * nm / live.max(1) as f64;
+                // Channel by channel in parallel, collected in channel order (each fit
+                // depends only on its channel: the same for any thread count).
                 let fits: Vec<_> = e
                     .band
                     .channels
-                    .iter()
-                    .zip(&e.synthesised)
+                    .par_iter()
+                    .zip(e.synthesised.par_iter())
                     .map(|(h, s)| fit_channel(h, s, p))
                     .collect();
                 e.centre = fits
@@ -313,10 +494,22 @@ fn excitation_model(
         live,
         mode_numbers: modes.iter().map(|m| m.mode).collect(),
         poles,
-        centre: synthesised.clone(),
+        // Filled by the noise fit (the synthesis with the misfit lines measured).
+        centre: Vec::new(),
         synthesised,
         noise: Vec::new(),
         misfit_lines: Vec::new(),
+        draw_band: BandData {
+            frequency_hz: Vec::new(),
+            omega: Vec::new(),
+            channels: Vec::new(),
+            line_quality: None,
+            quantity: band.quantity,
+            first_line: band.first_line,
+        },
+        draw_sd: Vec::new(),
+        decimation: 1,
+        given_variance: Vec::new(),
         band,
     })
 }

@@ -65,7 +65,8 @@ fn band_with(band: &BandData, data: &[Vec<c64>]) -> BandData {
 }
 
 /// Re-identifies one group of [`FittedModel::groups`] by [`Reidentify::Refine`].
-/// `data[i]` is the replicate's band data of `model.excitations[i]`.
+/// `data[i]` is the replicate's data of `model.excitations[i]` on its replicates' grid
+/// (`ExcitationModel::draw_band`).
 pub fn refine_group(
     model: &FittedModel,
     group: &[usize],
@@ -76,7 +77,7 @@ pub fn refine_group(
     let first = &model.excitations[group[0]];
     let bands: Vec<BandData> = group
         .iter()
-        .map(|&i| band_with(&model.excitations[i].band, &data[i]))
+        .map(|&i| band_with(&model.excitations[i].draw_band, &data[i]))
         .collect();
     let chans: Vec<Vec<c64>> = group
         .iter()

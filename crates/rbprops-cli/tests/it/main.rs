@@ -1,6 +1,7 @@
 //! The integration tests of rbprops-cli, one binary (`cargo nextest run -p rbprops-cli --test it`):
 //! one module per topic, shared fixtures in `common`.
 
+mod bootstrap_variance;
 mod campaign;
 mod campaign_frf_est;
 mod campaign_shards;

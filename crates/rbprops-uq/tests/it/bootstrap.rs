@@ -14,6 +14,7 @@ fn run(c: &common::Case, opts: &BootstrapOptions) -> BootstrapOutput {
         &c.solve_opts,
         &out.estimates,
         opts,
+        None,
     )
     .unwrap()
 }
@@ -126,6 +127,7 @@ fn apply_fills_the_records() {
             replicates: 8,
             ..Default::default()
         },
+        None,
     )
     .unwrap();
     let boot = boot.unwrap();
@@ -142,5 +144,203 @@ fn apply_fills_the_records() {
         assert_eq!(e.products_of_inertia_std_kg_m2.yz, b.std[9]);
         assert!(b.std.iter().all(|s| s.is_finite() && *s > 0.0));
         assert_eq!(estimate_vector(e), b.estimate);
+    }
+}
+
+/// The line variances of `c` that the residuals' noise model gives every line of the fitted
+/// band, times `scale`, on the FRF layout (NaN off the band).
+fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
+    let model = FittedModel::new(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        true,
+        None,
+        &Draws::default(),
+    )
+    .unwrap();
+    let (nc, nl) = (c.frf.n_channels, c.frf.n_lines());
+    let mut sigma2 = vec![f64::NAN; c.frf.values.len()];
+    for e in &model.excitations {
+        for (ch, nz) in e.noise.iter().enumerate() {
+            for (l, z) in e.centre[ch].iter().enumerate() {
+                sigma2[(e.excitation * nc + ch) * nl + e.band.first_line + l] =
+                    scale * nz.variance(*z);
+            }
+        }
+    }
+    LineVariance {
+        sigma2,
+        correlation_factor: 1.0,
+        source: "test".into(),
+    }
+}
+
+/// Given line variances replace the residuals' noise model: each line's draw has
+/// `√(σ² κ/2)` per part exactly, a channel with an unknown (NaN) line falls back to the
+/// noise model, and the method text says which was used.
+#[test]
+fn line_variances_set_the_draws() {
+    let c = common::case("demo", 8, None);
+    let mut given = model_line_variance(&c, 1.0);
+    given.sigma2.iter_mut().for_each(|s| {
+        if s.is_finite() {
+            *s = 3e-6
+        }
+    });
+    given.correlation_factor = 2.5;
+    // One unknown line on channel 4 of the first fitted excitation.
+    let plain = FittedModel::new(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        true,
+        None,
+        &Draws::default(),
+    )
+    .unwrap();
+    let e0 = &plain.excitations[0];
+    let (nc, nl) = (c.frf.n_channels, c.frf.n_lines());
+    given.sigma2[(e0.excitation * nc + 4) * nl + e0.band.first_line + 10] = f64::NAN;
+    let model = FittedModel::new(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        true,
+        None,
+        &Draws {
+            line_variance: Some(&given),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let want = (3e-6 * 2.5 / 2.0f64).sqrt();
+    for (i, e) in model.excitations.iter().enumerate() {
+        assert_eq!(e.decimation, 1);
+        for ch in 0..nc {
+            let fallback = i == 0 && ch == 4;
+            assert_eq!(e.given_variance[ch], !fallback);
+            if fallback {
+                assert_eq!(e.draw_sd[ch], plain.excitations[0].draw_sd[ch]);
+            } else {
+                assert!(e.draw_sd[ch].iter().all(|&s| s == want));
+            }
+        }
+    }
+    let opts = BootstrapOptions {
+        replicates: 4,
+        ..Default::default()
+    };
+    let out =
+        rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
+    let run = |v: Option<&LineVariance>| {
+        bootstrap(
+            &c.geometry,
+            &c.frf,
+            &c.modal,
+            &c.selection,
+            &c.solve_opts,
+            &out.estimates,
+            &opts,
+            v,
+        )
+        .unwrap()
+    };
+    let with = method_text(&run(Some(&given)));
+    assert!(
+        with.contains("the FRF estimator's line variances (test) times 2.500")
+            && with.contains(&format!("on {} of {} channels", 3 * nc - 1, 3 * nc))
+            && with.contains("elsewhere a noise model"),
+        "{with}"
+    );
+    let without = method_text(&run(None));
+    assert!(
+        without.contains("fitted to the modal fit's residuals")
+            && !without.contains("line variances"),
+        "{without}"
+    );
+}
+
+/// Line variances 4× the residuals' noise model double the bootstrap's standard errors:
+/// the replicates draw the same normals (same seed) scaled by 2, so at 1 % noise the ratio
+/// is 2 up to the estimators' curvature (≪ 5 %).
+#[test]
+fn line_variances_scale_the_standard_errors() {
+    let c = common::case("demo", 9, None);
+    let opts = BootstrapOptions {
+        replicates: 16,
+        ..Default::default()
+    };
+    let out =
+        rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
+    let run = |v: Option<&LineVariance>| {
+        bootstrap(
+            &c.geometry,
+            &c.frf,
+            &c.modal,
+            &c.selection,
+            &c.solve_opts,
+            &out.estimates,
+            &opts,
+            v,
+        )
+        .unwrap()
+    };
+    let four = model_line_variance(&c, 4.0);
+    let (a, b) = (run(None), run(Some(&four)));
+    for (x, y) in a.estimates.iter().zip(&b.estimates) {
+        for (k, name) in PROPERTY_NAMES.iter().enumerate() {
+            let r = y.std[k] / x.std[k];
+            assert!((r - 2.0).abs() < 0.1, "{} {name}: ratio {r}", x.method);
+        }
+    }
+}
+
+/// On a fine frequency grid (12,801 lines: about 17 per half-bandwidth of the first mode)
+/// replicates drawn and refitted on every q-th line, each with the noise of its q lines,
+/// spread as replicates on every line. With B = 60 each, the ratio of two standard
+/// deviations has a relative sd of about 1/√60 ≈ 13 % per property; the median over the
+/// ten properties lies within ±25 % (drawing every q-th line with the lines' own variance,
+/// not a q-th of it, would read √q ≈ 2.8).
+#[test]
+fn decimated_replicates_spread_as_every_line() {
+    let mut spec = rbprops_sim::CampaignSpec::from_toml_str(
+        &rbprops_sim::example("demo")
+            .unwrap()
+            .replace("lines = 1601", "lines = 12801"),
+    )
+    .unwrap();
+    spec.seed = 11;
+    let c = common::case_from_spec(spec);
+    let out =
+        rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
+    let run = |decimate: bool| {
+        bootstrap(
+            &c.geometry,
+            &c.frf,
+            &c.modal,
+            &c.selection,
+            &c.solve_opts,
+            &out.estimates,
+            &BootstrapOptions {
+                replicates: 60,
+                decimate,
+                ..Default::default()
+            },
+            None,
+        )
+        .unwrap()
+    };
+    let (dec, full) = (run(true), run(false));
+    assert!(dec.decimation >= 4, "q = {}", dec.decimation);
+    assert_eq!(full.decimation, 1);
+    for (x, y) in dec.estimates.iter().zip(&full.estimates) {
+        let mut r: Vec<f64> = (0..N_PROPS).map(|k| x.std[k] / y.std[k]).collect();
+        r.sort_by(f64::total_cmp);
+        let median = 0.5 * (r[4] + r[5]);
+        assert!((0.8..1.25).contains(&median), "{}: ratios {r:?}", x.method);
     }
 }

@@ -22,6 +22,11 @@ pub fn case(example: &str, seed: u64, relative_noise: Option<f64>) -> Case {
     if let Some(r) = relative_noise {
         spec.noise.relative = r;
     }
+    case_from_spec(spec)
+}
+
+/// A campaign spec through the pipeline.
+pub fn case_from_spec(spec: rbprops_sim::CampaignSpec) -> Case {
     let sim = rbprops_sim::simulate(&spec).unwrap();
     let modal = rbprops_modal::fit_campaign(&sim.geometry, &sim.frf, &Default::default())
         .unwrap()
