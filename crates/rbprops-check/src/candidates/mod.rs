@@ -78,9 +78,6 @@ pub enum Screening {
     /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile
     /// over (ω, ζ) of the linear residue fit to the residual proposes its points.
     Resonance,
-    /// Point masses rigidly attached to the body: an exact gauge of the free inertia
-    /// unless the total mass is pinned by a weighed mass, then a score test.
-    RigidMassGauge,
 }
 
 /// Human title and "what would reveal or separate it" for a catalogue id (from

@@ -683,27 +683,6 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
     })
 }
 
-/// Point masses rigidly attached to the body (`sensor_mass`) change only its mass, centre
-/// of mass and inertia tensor, so with those free they are an exact gauge: not
-/// observable, whatever the numerical rank at the current point says. (That rank can be
-/// > 0 where the pseudo-inertia parametrisation is at the edge of physical consistency
-/// and loses a direction; the masses then trade against the body's own and the fit
-/// drifts along the gauge, as on the hanging probe of scripts/model_check_probe.py.)
-/// With a weighed mass the total mass is pinned and the numerical screen applies.
-pub(super) fn rigid_mass_gauge(n_residuals: usize) -> Score {
-    Score {
-        rank: 0,
-        score: 0.0,
-        basis: DMatrix::zeros(n_residuals, 0),
-        kept: Vec::new(),
-        start: Vec::new(),
-        gauge: Vec::new(),
-        absorbed_by: vec![("inertia (10 free parameters)".to_string(), 1.0)],
-        n_tests: 1,
-        theta_start: None,
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::{most_promising, PROFILE_REFINED};

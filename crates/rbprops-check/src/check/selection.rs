@@ -9,7 +9,7 @@ use super::acceptance::{
 use super::gauges::reopen_dropped;
 use super::problem::{active_dims, drop_params, span_basis, Act, Prior, Problem};
 use super::screening::{
-    grid_candidate, resonance_candidate, rigid_mass_gauge, score_candidate, AtModel, Chord, Score,
+    grid_candidate, resonance_candidate, score_candidate, AtModel, Chord, Score,
 };
 use super::verdict::{inertia_change, inertia_report};
 use super::CheckOptions;
@@ -217,7 +217,6 @@ impl<'p, 'a> Selection<'p, 'a> {
         let todo: Vec<usize> = (0..p.cands.len())
             .filter(|&c| self.waiting(c) && self.opened(c))
             .collect();
-        let r0_len = cur.residual.len();
         let at = AtModel {
             p,
             cur,
@@ -238,10 +237,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             .par_iter()
             .map(|&c| {
                 let s = match &p.cands[c].screening {
-                    Screening::RigidMassGauge if p.fixed_mass.is_none() => {
-                        Ok(rigid_mass_gauge(r0_len))
-                    }
-                    Screening::Score | Screening::RigidMassGauge => {
+                    Screening::Score => {
                         let _t = crate::prof::span(crate::prof::SCREEN_SCORE);
                         score_candidate(at, c)
                     }
