@@ -6,7 +6,7 @@
 //! distinctness of the best from its rivals.
 
 use super::gauges::last_effect_phi;
-use super::problem::{active_dims, Act};
+use super::problem::{active_dims, span_basis, Act};
 use super::screening::Score;
 use super::selection::Selection;
 use super::verdict::sig;
@@ -161,6 +161,26 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic).then(a.c.cmp(&b.c)));
         Ok(evals)
+    }
+
+    /// [`Selection::evaluate`] against a step's refit baseline.
+    pub(super) fn evaluate_against(
+        &self,
+        c: usize,
+        n_tests: usize,
+        f: Fit,
+        kept: Vec<usize>,
+        base: &RefitBaseline,
+    ) -> Evidence {
+        self.evaluate(
+            c,
+            n_tests,
+            f,
+            kept,
+            &base.cur_pred,
+            &base.cv_without,
+            &base.loeo_without,
+        )
     }
 
     /// The evidence for candidate `c` refitted to `f` with coordinates `kept`, its
@@ -402,9 +422,16 @@ pub(super) fn implausible_text(q: &PlausibleValue) -> String {
 /// The prefix of a failed plausibility test.
 pub(super) const IMPLAUSIBLE: &str = "implausible:";
 
-/// Wald statistic of the effect's fitted coordinates `alpha` (they start at `k0` in θ)
-/// against neutral, with the pseudo-inverse of their covariance over its identifiable
-/// part (eigenvalues above 1e-10 of the largest).
+/// Wald statistic (docs/physics.md, M6e) of the effect's fitted coordinates `alpha` (they start at `k0` in θ)
+/// against neutral: `W = ‖(I − P_B) J_φ δ‖² / s`, with `δ = α − α₀`, `J_φ` the effect's
+/// Jacobian columns, `P_B` the projector onto the span of every other column and
+/// `s = max(1, χ²/ν)`. It equals `δᵀ C_φφ⁻¹ δ` with `C = s (JᵀJ)⁻¹` when the problem is
+/// regular (the Schur complement of `JᵀJ` is `J_φᵀ (I − P_B) J_φ`), and stays right when
+/// one of the effect's directions is nearly a gauge of the others (a force's location
+/// along its own line once its direction is rotated): that direction adds almost nothing
+/// to `W`, where a pseudo-inverse of `C_φφ` thresholded against its largest eigenvalue
+/// (the near-gauge's, 10¹⁰ times the rest) dropped every identified direction too and
+/// returned 0.
 fn wald_statistic(
     f: &Fit,
     nu: f64,
@@ -413,7 +440,27 @@ fn wald_statistic(
     kept: &[usize],
     neutral: &[f64],
 ) -> f64 {
-    wald_in(&fit_covariance(f, nu), k0, alpha, kept, neutral)
+    let s = (f.chi2 / nu).max(1.0);
+    projected_wald(&f.jacobian, k0, alpha, kept, neutral) / s
+}
+
+/// `‖(I − P_B) J_φ δ‖²` of [`wald_statistic`] (unscaled).
+fn projected_wald(
+    j: &DMatrix<f64>,
+    k0: usize,
+    alpha: &[f64],
+    kept: &[usize],
+    neutral: &[f64],
+) -> f64 {
+    let np = kept.len();
+    let others: Vec<usize> = (0..j.ncols()).filter(|&k| k < k0 || k >= k0 + np).collect();
+    let jb = j.select_columns(&others);
+    let delta =
+        nalgebra::DVector::from_iterator(np, alpha.iter().zip(kept).map(|(a, &i)| a - neutral[i]));
+    let change = j.columns(k0, np) * delta;
+    let (q, _) = span_basis(&jb, 1e-10);
+    let unexplained = &change - &q * (q.transpose() * &change);
+    unexplained.norm_squared()
 }
 
 /// [`wald_statistic`] with the fit's covariance `cov` given (θ's whole covariance).
@@ -473,4 +520,52 @@ pub(super) fn distinct_family<'b>(
         }
     }
     (family, family_bic, corr_max)
+}
+
+#[cfg(test)]
+mod wald_tests {
+    use super::projected_wald;
+    use nalgebra::{DMatrix, DVector};
+
+    /// Deterministic pseudo-random columns (a fixed LCG: no test dependency on a RNG crate).
+    fn columns(rows: usize, cols: usize, seed: u64) -> DMatrix<f64> {
+        let mut state = seed;
+        DMatrix::from_fn(rows, cols, |_, _| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        })
+    }
+
+    /// On a regular problem the projected form is the textbook `δᵀ C_φφ⁻¹ δ` with
+    /// `C = (JᵀJ)⁻¹`.
+    #[test]
+    fn projected_wald_is_the_covariance_form_when_regular() {
+        let j = columns(200, 6, 7);
+        let (k0, alpha, neutral) = (4, [0.3, -0.2], [0.0, 0.1]);
+        let w = projected_wald(&j, k0, &alpha, &[0, 1], &neutral);
+        let c = (j.transpose() * &j).try_inverse().expect("regular");
+        let cff = c.view((k0, k0), (2, 2)).into_owned();
+        let d = DVector::from_vec(vec![0.3, -0.3]);
+        let expected = (d.transpose() * cff.try_inverse().expect("regular") * &d)[(0, 0)];
+        assert!((w - expected).abs() < 1e-9 * expected, "{w} vs {expected}");
+    }
+
+    /// One of the effect's directions a near-gauge of a base column (1e-9 apart): the
+    /// statistic is that of the identified direction alone, not 0.
+    #[test]
+    fn a_near_gauge_direction_does_not_hide_the_identified_one() {
+        let base = columns(200, 3, 11);
+        let other = columns(200, 1, 13);
+        let wobble = columns(200, 1, 17);
+        let mut j = DMatrix::zeros(200, 5);
+        j.columns_mut(0, 3).copy_from(&base);
+        j.set_column(3, &(base.column(0) + wobble.column(0) * 1e-9));
+        j.set_column(4, &other.column(0));
+        let w = projected_wald(&j, 3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]);
+        let alone = projected_wald(&j.select_columns(&[0, 1, 2, 4]), 3, &[1.0], &[0], &[0.0]);
+        assert!(alone > 1.0);
+        assert!((w - alone).abs() < 1e-6 * alone, "{w} vs {alone}");
+    }
 }

@@ -25,6 +25,7 @@ use verdict::{at_noise_floor, Finish, Finished};
 
 mod acceptance;
 mod gauges;
+mod items;
 mod problem;
 mod screening;
 mod selection;

@@ -1,4 +1,4 @@
-use super::gauges::gauge_pivots;
+use super::gauges::{gauge_pivots, REOPEN_SIGNATURE};
 use super::problem::{project_out, span_basis, Act, Problem};
 use crate::error::CheckError;
 use crate::lm;
@@ -491,6 +491,34 @@ pub(super) const NO_SIGNATURE: f64 = 1e-6;
 /// at first order and stay free in the refit, where the non-linear model can use them.
 pub(super) const GAUGE: f64 = 1e-7;
 
+/// `norms` (the candidate's Jacobian column norms) with 0 for each coordinate that
+/// cannot move the residual by [`REOPEN_SIGNATURE`] noise units anywhere in half its
+/// plausible range once the current model's parameters compensate: the data cannot
+/// resolve it, so it is dropped from the refit as a gauge is (the refit frees it where
+/// a fitted point makes it identifiable, [`super::gauges::reopen_dropped`]).
+/// Normalised, such a column would count as a full direction: a force's location along
+/// its own line, once a fitted force direction has turned that line by a milliradian,
+/// then slides to its hard bound of a metre and stalls the fit of everything coupled
+/// with it.
+fn unresolvable_as_gauges(at: AtModel, c: usize, jc: &DMatrix<f64>, norms: Vec<f64>) -> Vec<f64> {
+    let infos = at.p.cands[c].effect.parameters();
+    let jp = project_out(jc, at.q0);
+    norms
+        .into_iter()
+        .enumerate()
+        .map(|(k, n)| {
+            let half_range = infos.get(k).map_or(f64::INFINITY, |i| {
+                0.5 * (i.plausible.1 - i.plausible.0).abs()
+            });
+            if n > 0.0 && jp.column(k).norm() * half_range < REOPEN_SIGNATURE {
+                0.0
+            } else {
+                n
+            }
+        })
+        .collect()
+}
+
 pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError> {
     let AtModel {
         p, cur, active, q0, ..
@@ -522,6 +550,7 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
             }
         })
         .collect();
+    let norms = unresolvable_as_gauges(at, c, &jc, norms);
     let mut jcs = jc.clone();
     for k in 0..jcs.ncols() {
         if norms[k] > 0.0 {

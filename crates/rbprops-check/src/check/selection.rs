@@ -412,6 +412,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             });
             let fits = self.refit(&round);
             let round_evals = self.evaluate_all(step, &round, fits, &base)?;
+            let round_evals = self.retry_plausible_items(step, &round, round_evals, &base)?;
             for e in &round_evals {
                 self.options.progress.say(|| {
                     format!(

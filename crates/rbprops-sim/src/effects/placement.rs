@@ -306,14 +306,40 @@ fn plausible_force_direction(
     Ok(super::angles_deg("excitation", &e.rotations_rad, 15.0))
 }
 
-/// Plausible: each force point at most 25 mm from the spec's (a hammer tip hits within a
-/// few millimetres of a marked point; 25 mm is beyond any marked point).
+/// Plausible: each force's line of action at most 25 mm from the spec's point (a hammer
+/// tip hits within a few millimetres of a marked point; 25 mm is beyond any marked
+/// point). Measured across the force's nominal direction: on a rigid body a force moved
+/// along its own line has the same moment (eq. 1's input column `[n; r × n]`), so that
+/// component is not seen, and a fit free to slide along it says nothing about where the
+/// hammer hit.
 fn plausible_force_location(
     entry: &crate::spec::EffectSpec,
-    _spec: &CampaignSpec,
+    spec: &CampaignSpec,
 ) -> Result<Vec<super::Plausible>, String> {
     let e: ForceLocation = super::params(entry)?;
-    Ok(super::offsets_mm("excitation", &e.offsets_m, 25.0))
+    e.offsets_m
+        .iter()
+        .map(|(k, d)| {
+            let x = spec
+                .excitations
+                .iter()
+                .find(|x| x.id == *k)
+                .ok_or_else(|| format!("force_location: no excitation '{k}' in the spec"))?;
+            let across = across_line(Vec3::from(*d), Vec3::from(x.direction));
+            Ok(super::Plausible::new(
+                format!("excitation {k}: offset across the force line"),
+                "mm",
+                1e3 * across,
+                [0.0, 25.0],
+            ))
+        })
+        .collect()
+}
+
+/// The length of `d`'s component across the line along `n` (`n` need not be a unit).
+fn across_line(d: Vec3, n: Vec3) -> f64 {
+    let n = n.normalize();
+    (d - n * d.dot(&n)).norm()
 }
 
 /// Plausible: 0–200 g under each force gauge (a force gauge's structure side with its stud
@@ -394,3 +420,32 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         plausible: Some(plausible_force_gauge_mass),
     },
 ];
+
+#[cfg(test)]
+mod tests {
+    use crate::spec::EffectSpec;
+
+    fn offset_entry(ex: &str, d: [f64; 3]) -> EffectSpec {
+        let text = format!("id = \"force_location\"\n[offsets_m]\n{ex} = {d:?}\n");
+        toml::from_str(&text).expect("entry")
+    }
+
+    /// Test Case II's force3 acts along −z at (0.05, 0.16, 0.17): a hit 50 mm along the
+    /// line has the nominal moment and is plausible; 30 mm across it is not.
+    #[test]
+    fn a_force_location_is_judged_across_its_line_of_action() {
+        let text = crate::examples::example("test-case-2").expect("example");
+        let spec = crate::CampaignSpec::from_toml_str(text).expect("spec");
+        let judge = |d| {
+            let v = crate::effects::plausibility(&offset_entry("force3", d), &spec).expect("ok");
+            assert_eq!(v.len(), 1);
+            (v[0].value, v[0].holds())
+        };
+        let (along, ok) = judge([0.0, 0.0, 0.05]);
+        assert!(along.abs() < 1e-12 && ok, "{along}");
+        let (across, ok) = judge([0.018, -0.024, 0.05]);
+        assert!((across - 30.0).abs() < 1e-9 && !ok, "{across}");
+        let (tilted, ok) = judge([0.011, 0.0, -0.049]);
+        assert!((tilted - 11.0).abs() < 1e-9 && ok, "{tilted}");
+    }
+}

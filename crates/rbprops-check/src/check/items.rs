@@ -1,0 +1,188 @@
+//! Implausible items of a refit set back to neutral (docs/physics.md, M6d).
+//!
+//! An effect of several items (a position error per sensor, a force direction per
+//! excitation) is refitted with every item free. When other effects are still missing,
+//! the items the recording does not need can take implausible values to stand in for
+//! them (force1 moved by 243 mm, force2 by 755 mm, while the truth is force3 by 11 mm),
+//! and the whole effect fails its plausibility test: the true item is then never
+//! accepted and other, false effects fill its place. The effect's own items are
+//! physically independent, so the refit is repeated with the implausible items held at
+//! their neutral values; the plausible items' evidence is then tested with the usual
+//! likelihood-ratio, ΔBIC, held-out and plausibility tests.
+
+use super::acceptance::{holds, Evidence, RefitBaseline};
+use super::problem::Act;
+use super::screening::Score;
+use super::selection::{set_decision, Selection};
+use crate::error::CheckError;
+use rayon::prelude::*;
+use rbprops_sim::effects::Reach;
+
+/// The items of candidate `c`'s coordinates `kept`: coordinates of one reach (a sensor's
+/// channels, one excitation) form one item, in order of first appearance. `None` when
+/// the effect declares no narrower reach than the whole recording.
+fn items(reach: &[Reach], kept: &[usize]) -> Option<Vec<Vec<usize>>> {
+    let mut keys: Vec<&Reach> = Vec::new();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for &j in kept {
+        let r = reach.get(j)?;
+        if *r == Reach::Any {
+            return None;
+        }
+        match keys.iter().position(|k| *k == r) {
+            Some(i) => groups[i].push(j),
+            None => {
+                keys.push(r);
+                groups.push(vec![j]);
+            }
+        }
+    }
+    Some(groups)
+}
+
+impl<'p, 'a> Selection<'p, 'a> {
+    /// The coordinates of `e`'s refit that belong to plausible items, when `e` failed
+    /// on plausibility and some of its items, each judged alone (the others at neutral),
+    /// are plausible while others are not; `None` otherwise.
+    fn plausible_items(&self, e: &Evidence) -> Option<Vec<usize>> {
+        let p = self.p;
+        if e.ok()
+            || !e
+                .why
+                .iter()
+                .any(|w| w.starts_with(super::acceptance::IMPLAUSIBLE))
+        {
+            return None;
+        }
+        let cand = &p.cands[e.c];
+        let reach = cand.effect.parameter_reach(&p.layout.spec_geometry);
+        let groups = items(&reach, &e.kept)?;
+        if groups.len() < 2 {
+            return None;
+        }
+        let values = &e.fit.theta[e.fit.theta.len() - e.kept.len()..];
+        let value_of = |j: usize| values[e.kept.iter().position(|&k| k == j).expect("kept")];
+        let mut keep: Vec<usize> = Vec::new();
+        for g in &groups {
+            let mut phi = cand.neutral.clone();
+            g.iter().for_each(|&j| phi[j] = value_of(j));
+            if p.plausibility(&e.fit.theta, e.c, &phi).iter().all(holds) {
+                keep.extend(g);
+            }
+        }
+        keep.sort_unstable();
+        (!keep.is_empty() && keep.len() < e.kept.len()).then_some(keep)
+    }
+
+    /// Each of `evals` that failed on implausible items only where other items are
+    /// plausible, refitted with those items at neutral and evaluated again; the new
+    /// evidence replaces the old when it passes every test.
+    pub(super) fn retry_plausible_items(
+        &mut self,
+        step: usize,
+        round: &[(usize, Score, f64)],
+        evals: Vec<Evidence>,
+        base: &RefitBaseline,
+    ) -> Result<Vec<Evidence>, CheckError> {
+        let retries: Vec<(usize, Vec<usize>)> = evals
+            .iter()
+            .enumerate()
+            .filter_map(|(i, e)| self.plausible_items(e).map(|k| (i, k)))
+            .collect();
+        if retries.is_empty() {
+            return Ok(evals);
+        }
+        let fits: Vec<_> = retries
+            .par_iter()
+            .map(|(i, keep)| {
+                let e = &evals[*i];
+                let n0 = e.fit.theta.len() - e.kept.len();
+                let mut t0 = self.model.cur.theta.clone();
+                let start = &e.fit.theta[n0..];
+                t0.extend(
+                    keep.iter()
+                        .map(|j| start[e.kept.iter().position(|k| k == j).expect("kept")]),
+                );
+                let mut act = self.model.active.clone();
+                act.push(Act {
+                    c: e.c,
+                    kept: keep.clone(),
+                    gauge: Vec::new(),
+                });
+                let stage = format!("refit {} (plausible items)", self.p.cands[e.c].id);
+                (
+                    e.c,
+                    self.p.fit(&stage, &t0, &act, self.options.max_iterations),
+                    keep.clone(),
+                )
+            })
+            .collect();
+        let mut evals = evals;
+        for (c, fit, keep) in fits {
+            // A retry that fails to converge leaves the original evidence standing.
+            let Ok(fit) = fit else { continue };
+            let n_tests = round.iter().find(|x| x.0 == c).expect("refitted").1.n_tests;
+            let e = self.evaluate_against(c, n_tests, fit, keep, base);
+            let id = &self.p.cands[c].id;
+            self.options.progress.say(|| {
+                format!(
+                    "step {step}: {id} refitted with its implausible items at neutral: Δχ² {:.1}, ΔBIC {:.1}{}",
+                    e.dchi2,
+                    e.dbic,
+                    if e.ok() { String::new() } else { format!("; fails: {}", e.why()) }
+                )
+            });
+            if e.ok() {
+                set_decision(
+                    &mut self.findings.screening,
+                    step,
+                    id,
+                    "refitted with its implausible items at neutral".into(),
+                );
+                if let Some(entry) = self
+                    .findings
+                    .screening
+                    .iter_mut()
+                    .rev()
+                    .find(|x| x.step == step && x.id == *id)
+                {
+                    entry.refit_delta_chi2 = Some(e.dchi2);
+                    entry.refit_delta_bic = Some(e.dbic);
+                }
+                let i = evals.iter().position(|x| x.c == c).expect("refitted");
+                evals[i] = e;
+            }
+        }
+        evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic).then(a.c.cmp(&b.c)));
+        Ok(evals)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::items;
+    use rbprops_sim::effects::Reach;
+
+    #[test]
+    fn coordinates_of_one_reach_form_one_item() {
+        let reach = vec![
+            Reach::Excitation(0),
+            Reach::Excitation(0),
+            Reach::Excitation(1),
+            Reach::Excitation(1),
+            Reach::Excitation(0),
+        ];
+        assert_eq!(
+            items(&reach, &[0, 1, 2, 3, 4]),
+            Some(vec![vec![0, 1, 4], vec![2, 3]])
+        );
+        assert_eq!(items(&reach, &[2, 3]), Some(vec![vec![2, 3]]));
+    }
+
+    #[test]
+    fn an_effect_reaching_everything_has_no_items() {
+        let reach = vec![Reach::Channels(vec![0, 1]), Reach::Any];
+        assert_eq!(items(&reach, &[0, 1]), None);
+        assert_eq!(items(&reach, &[0]), Some(vec![vec![0]]));
+    }
+}
