@@ -340,7 +340,6 @@ fn table_of(
         })
         .collect();
     let mut own_key = own_key_columns(&text_rows, &own_header, key_in.len());
-    let mut header = header;
     let mut text_rows = text_rows;
     if text_rows.len() > 1 && own_key.is_empty() {
         // No columns tell the rows apart: number them (1-based) in a column `row`.

@@ -164,7 +164,7 @@ pub fn parse_reader(
         let line = |reader: &mut dyn std::io::BufRead, chunk: &mut Vec<u8>| {
             let start = chunk.len();
             let k = reader.read_until(b'\n', chunk).map_err(io)?;
-            Ok::<_, UffError>((k > 0).then(|| start..chunk.len()))
+            Ok::<_, UffError>((k > 0).then_some(start..chunk.len()))
         };
         // Up to the opening delimiter; anything else but blank lines is for the parser
         // to name.
@@ -323,7 +323,7 @@ fn binary_dataset<'a>(
     lines: &mut Vec<Line<'a>>,
 ) -> Result<(BinaryLayout, &'a [u8]), UffError> {
     let field = |start, width, name: &str| {
-        parse_int(column(&htext, start, width))
+        parse_int(column(htext, start, width))
             .map_err(|e| ctx.err(format!("binary header {name}"), e))
     };
     let order = field(7, 6, "field 3 (byte ordering)")?;
@@ -372,7 +372,7 @@ fn binary_dataset<'a>(
     // dataset's own record 7 is tried before giving up.
     let mut candidates = vec![n];
     if number == 58 {
-        if let Some(e) = expected_58b_bytes(&lines).filter(|&e| e != n) {
+        if let Some(e) = expected_58b_bytes(lines).filter(|&e| e != n) {
             candidates.push(e);
         }
     }
