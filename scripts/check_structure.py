@@ -6,7 +6,8 @@
    effect that owns it.
 2. No `use super::*` in the model check's stage modules (`crates/rbprops-check/src/check`).
 3. No source file over 1,200 lines and no function over 120 lines outside tests,
-   except the exceptions listed below, each with its reason.
+   except the exceptions listed below, each with its reason (printed on every run; an
+   exception that no longer matches anything over the limits is a breach).
 
 Exit status 1 and one line per breach when a rule is broken; `--report` prints the
 measurements (longest files and functions, where each id appears) whatever the outcome.
@@ -23,9 +24,31 @@ ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
 MAX_FILE_LINES = 1200
 MAX_FN_LINES = 120
 
-# path (relative to the root) → reason. Keep this list short and every reason true.
-FILE_EXCEPTIONS = {}
-FN_EXCEPTIONS = {}
+# path (relative to the root) → reason, and "path::function" → reason. Keep these lists
+# short and every reason true: the script prints each exception it applies, and an
+# exception that no longer matches a breach is itself a breach (prune it).
+OTHER_OWNER = "being split in issue #39 by another owner"
+FILE_EXCEPTIONS = {
+    "crates/rbprops-modal/src/fit.rs": OTHER_OWNER,
+}
+FN_EXCEPTIONS = {
+    "crates/rbprops-check/src/locate.rs::residual_map": OTHER_OWNER,
+    "crates/rbprops-check/src/lm.rs::fit_grouped": OTHER_OWNER,
+    "crates/rbprops-check/src/check/screening.rs::profile_candidate": OTHER_OWNER,
+    "crates/rbprops-check/src/check/screening.rs::score_candidate": OTHER_OWNER,
+    "crates/rbprops-uff/src/timehist.rs::index_time_histories": OTHER_OWNER,
+    "crates/rbprops-uff/src/timerec.rs::check": OTHER_OWNER,
+    "crates/rbprops-uff/src/timerec.rs::to_uff": OTHER_OWNER,
+    "crates/rbprops-uff/src/timerec.rs::from_csv": OTHER_OWNER,
+    "crates/rbprops-cli/src/campaign.rs::options": OTHER_OWNER,
+    "crates/rbprops-modal/src/lsfd.rs::refine": OTHER_OWNER,
+    "crates/rbprops-modal/src/fit.rs::estimate_poles_from": OTHER_OWNER,
+    "crates/rbprops-modal/src/evidence.rs::campaign_diagnostics": OTHER_OWNER,
+    "crates/rbprops-modal/src/evidence.rs::single_reference_pairs": OTHER_OWNER,
+    "crates/rbprops-modal/src/poly.rs::fit_setup": OTHER_OWNER,
+    "crates/rbprops-modal/src/linalg/eigen.rs::hessenberg_qr": OTHER_OWNER,
+    "crates/rbprops-frfest/src/hit.rs::inspect_hit": OTHER_OWNER,
+}
 
 
 def rust_sources():
@@ -88,15 +111,31 @@ def main():
             breaches.append(f"{path}: `use super::*`")
     # 3. sizes
     sizes = []
+    excused = []
+    used = set()
     for path, text in sources.items():
         n = text.count("\n") + 1
         sizes.append((n, path))
-        if n > MAX_FILE_LINES and path not in FILE_EXCEPTIONS:
-            breaches.append(f"{path}: {n} lines (> {MAX_FILE_LINES})")
+        if n > MAX_FILE_LINES:
+            if path in FILE_EXCEPTIONS:
+                used.add(path)
+                excused.append(f"{path}: {n} lines: {FILE_EXCEPTIONS[path]}")
+            else:
+                breaches.append(f"{path}: {n} lines (> {MAX_FILE_LINES})")
         for name, start, length in functions(os.path.join(ROOT, path)):
             key = f"{path}::{name}"
-            if length > MAX_FN_LINES and key not in FN_EXCEPTIONS:
+            if length <= MAX_FN_LINES:
+                continue
+            if key in FN_EXCEPTIONS:
+                used.add(key)
+                excused.append(f"{path}:{start}: fn {name} is {length} lines: {FN_EXCEPTIONS[key]}")
+            else:
                 breaches.append(f"{path}:{start}: fn {name} is {length} lines (> {MAX_FN_LINES})")
+    for key in sorted(set(FILE_EXCEPTIONS) | set(FN_EXCEPTIONS)):
+        if key not in used:
+            breaches.append(f"exception {key!r} matches nothing over the limits: remove it")
+    for e in excused:
+        print(f"structure exception: {e}", file=sys.stderr)
     if report:
         for eid, paths in sorted(where.items()):
             print(f"{eid}: {', '.join(sorted(paths))}")
@@ -104,7 +143,7 @@ def main():
             print(f"{n:6d} {path}")
     for b in breaches:
         print(f"structure: {b}", file=sys.stderr)
-    print(f"{len(breaches)} breach(es) of the code-structure rules", file=sys.stderr)
+    print(f"{len(breaches)} breach(es) of the code-structure rules, {len(excused)} named exception(s)", file=sys.stderr)
     return 1 if breaches else 0
 
 

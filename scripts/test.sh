@@ -38,6 +38,10 @@ if "$PY" -c "import numpy, pyuff" 2>/dev/null; then
     echo "error: $FRF_SIM not built: the generator's comparisons with frf-sim cannot run" >&2
     exit 1
   fi
+  if [ -n "${RBPROPS_REQUIRE_PYTHON:-}" ]; then
+    # And each comparison fails, rather than skips, if the binary goes missing.
+    export RBPROPS_REQUIRE_FRF_SIM=1
+  fi
   "$PY" scripts/refgen/test_rbref.py
 elif [ -n "${RBPROPS_REQUIRE_PYTHON:-}" ]; then
   echo "error: $PY lacks numpy/pyuff, needed by scripts/refgen/test_rbref.py" >&2

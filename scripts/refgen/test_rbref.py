@@ -577,13 +577,26 @@ def frf_sim_frfs(exe, args, case, r):
     return h
 
 
+def frf_sim():
+    """The frf-sim binary RBPROPS_FRF_SIM names, or None (after a note) when it names none.
+    With RBPROPS_REQUIRE_FRF_SIM=1 (CI, through scripts/test.sh) a missing binary fails
+    the comparison instead: CI never passes by skipping it."""
+    exe = os.environ.get("RBPROPS_FRF_SIM")
+    if exe and os.access(exe, os.X_OK):
+        return exe
+    why = f"RBPROPS_FRF_SIM={exe!r} is not an executable" if exe else "RBPROPS_FRF_SIM is not set"
+    if os.environ.get("RBPROPS_REQUIRE_FRF_SIM"):
+        raise AssertionError(f"RBPROPS_REQUIRE_FRF_SIM=1 but {why}: the comparison with frf-sim cannot run")
+    print(f"     (skipped: {why}; set it to a frf-sim binary)")
+    return None
+
+
 def test_agrees_with_frf_sim_when_available():
     """With RBPROPS_FRF_SIM naming a frf-sim binary: Test Case II through both simulators
     (different formulations) agrees to 1e-10 of the largest value (measured 6e-12)
     (skipped otherwise)."""
-    exe = os.environ.get("RBPROPS_FRF_SIM")
+    exe = frf_sim()
     if not exe:
-        print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
         return
     case = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml"))
     r = rbref.generate(case)
@@ -597,9 +610,8 @@ def test_gravity_stiffness_agrees_with_frf_sim_when_available():
     cord's unstretched length ℓ − T_i/k (T_i the effect's elastic load share) the
     equilibrium is the reference pose and both linearise the same potential; they agree to
     1e-9 of the largest value (measured 1e-10). Skipped without RBPROPS_FRF_SIM."""
-    exe = os.environ.get("RBPROPS_FRF_SIM")
+    exe = frf_sim()
     if not exe:
-        print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
         return
     spec = open(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).read()
     spec = spec.replace("stiffness_n_per_m = [150.0, 220.0, 2500.0]", "stiffness_n_per_m = [0.0, 0.0, 1400.0]")
@@ -677,9 +689,8 @@ def test_effects_agree_with_frf_sim_when_available():
     and mount coupling), on Test Case II without noise:
     the two simulators agree to 1e-9 of the largest value. Skipped without RBPROPS_FRF_SIM."""
     import copy
-    exe = os.environ.get("RBPROPS_FRF_SIM")
+    exe = frf_sim()
     if not exe:
-        print("     (skipped: set RBPROPS_FRF_SIM to a frf-sim binary)")
         return
     base = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).data
     worst = {}

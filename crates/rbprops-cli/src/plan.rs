@@ -488,11 +488,7 @@ pub fn layout_figures(
     title: &str,
 ) -> Result<Vec<(String, String)>> {
     use rbprops_plot::{line_plot, LinePlot, LineStyle, PlotSize, Rgb, Series};
-    let points: Vec<Vec3> = cands
-        .sensors
-        .iter()
-        .map(|s| s.position)
-        .chain(cands.hits.iter().map(|h| h.position))
+    let points: Vec<Vec3> = candidate_positions(cands)
         .chain(layout.sensors.iter().map(|s| s.position))
         .chain(layout.hits.iter().map(|h| h.position))
         .collect();
@@ -502,102 +498,28 @@ pub fn layout_figures(
     let lo = points.iter().fold(points[0], |a, p| a.inf(p));
     let hi = points.iter().fold(points[0], |a, p| a.sup(p));
     let span = (hi - lo).max().max(1e-3);
-    let (tick, arrow) = (0.012 * span, 0.15 * span);
-    let (grey, sensor_c, hit_c) = (Rgb::GREY, Rgb::palette(0), Rgb::palette(3));
     let mut figures = Vec::new();
     for (name, (a, b), view) in [
         ("xy", (0, 1), "top view, from +z"),
         ("xz", (0, 2), "front view, from −y"),
         ("yz", (1, 2), "side view, from +x"),
     ] {
-        let axes = ["x", "y", "z"];
-        let mut series: Vec<Series> = Vec::new();
-        let mut push = |label: &str, x: Vec<f64>, y: Vec<f64>, color: Rgb, style: LineStyle| {
-            series.push(Series::new(label, x, y).with_color(color).with_style(style));
+        let v = View {
+            a,
+            b,
+            tick: 0.012 * span,
         };
-        // The candidates' bounding box.
-        push(
+        let axes = ["x", "y", "z"];
+        let mut series = vec![Series::new(
             "bounding box of the candidates",
             vec![lo[a], hi[a], hi[a], lo[a], lo[a]],
             vec![lo[b], lo[b], hi[b], hi[b], lo[b]],
-            grey,
-            LineStyle::Dotted,
-        );
-        // Candidate points as small plus signs (one polyline each, the stroke retraced).
-        let mut seen: Vec<(f64, f64)> = Vec::new();
-        for p in cands
-            .sensors
-            .iter()
-            .map(|s| s.position)
-            .chain(cands.hits.iter().map(|h| h.position))
-        {
-            let (x, y) = (p[a], p[b]);
-            if seen
-                .iter()
-                .any(|q| (q.0 - x).abs() + (q.1 - y).abs() < 1e-9)
-            {
-                continue;
-            }
-            let label = if seen.is_empty() {
-                "candidate points"
-            } else {
-                ""
-            };
-            seen.push((x, y));
-            push(
-                label,
-                vec![x - tick, x + tick, x, x, x],
-                vec![y, y, y, y + tick, y - tick],
-                grey,
-                LineStyle::Solid,
-            );
-        }
-        for (k, s) in layout.sensors.iter().enumerate() {
-            let (x, y, d) = (s.position[a], s.position[b], 2.0 * tick);
-            push(
-                if k == 0 { "sensors (triaxial)" } else { "" },
-                vec![x - d, x + d, x + d, x - d, x - d],
-                vec![y - d, y - d, y + d, y + d, y - d],
-                sensor_c,
-                LineStyle::Solid,
-            );
-        }
-        for (k, h) in layout.hits.iter().enumerate() {
-            let label = if k == 0 {
-                "hits (arrow: the blow; ×: along the view)"
-            } else {
-                ""
-            };
-            let (x, y) = (h.position[a], h.position[b]);
-            let (dx, dy) = (h.direction[a], h.direction[b]);
-            let n = dx.hypot(dy);
-            if n < 0.2 {
-                // Along the line of sight: a cross.
-                let d = 2.0 * tick;
-                push(
-                    label,
-                    vec![x - d, x + d, x, x - d, x + d],
-                    vec![y - d, y + d, y, y + d, y - d],
-                    hit_c,
-                    LineStyle::Solid,
-                );
-                continue;
-            }
-            let (ux, uy) = (dx / n, dy / n);
-            let len = arrow * n;
-            // Shaft from the approach to the point, then the head's two barbs.
-            let head = 3.0 * tick;
-            let (c, s) = (0.9_f64, 0.45_f64);
-            let (b1x, b1y) = (-(ux * c - uy * s), -(uy * c + ux * s));
-            let (b2x, b2y) = (-(ux * c + uy * s), -(uy * c - ux * s));
-            push(
-                label,
-                vec![x - len * ux, x, x + head * b1x, x, x + head * b2x],
-                vec![y - len * uy, y, y + head * b1y, y, y + head * b2y],
-                hit_c,
-                LineStyle::Solid,
-            );
-        }
+        )
+        .with_color(Rgb::GREY)
+        .with_style(LineStyle::Dotted)];
+        series.extend(candidate_marks(&v, cands));
+        series.extend(sensor_squares(&v, layout));
+        series.extend(hit_arrows(&v, layout, 0.15 * span));
         let pad = 0.2 * span;
         let mid = |k: usize| 0.5 * (lo[k] + hi[k]);
         let half = 0.5 * span + pad;
@@ -617,4 +539,117 @@ pub fn layout_figures(
         figures.push((format!("plan-layout-{name}.svg"), svg));
     }
     Ok(figures)
+}
+
+/// One view of the layout: the two coordinates drawn (0 x, 1 y, 2 z) and the glyph unit.
+struct View {
+    a: usize,
+    b: usize,
+    tick: f64,
+}
+
+fn candidate_positions(cands: &Candidates) -> impl Iterator<Item = Vec3> + '_ {
+    cands
+        .sensors
+        .iter()
+        .map(|s| s.position)
+        .chain(cands.hits.iter().map(|h| h.position))
+}
+
+/// A glyph of the layout: one polyline, labelled in the legend when `label` is not empty.
+fn glyph(label: &str, x: Vec<f64>, y: Vec<f64>, color: rbprops_plot::Rgb) -> rbprops_plot::Series {
+    rbprops_plot::Series::new(label, x, y)
+        .with_color(color)
+        .with_style(rbprops_plot::LineStyle::Solid)
+}
+
+/// Candidate points as small plus signs (one polyline each, the stroke retraced), each
+/// projected position once.
+fn candidate_marks(v: &View, cands: &Candidates) -> Vec<rbprops_plot::Series> {
+    let tick = v.tick;
+    let mut seen: Vec<(f64, f64)> = Vec::new();
+    let mut out = Vec::new();
+    for p in candidate_positions(cands) {
+        let (x, y) = (p[v.a], p[v.b]);
+        if seen
+            .iter()
+            .any(|q| (q.0 - x).abs() + (q.1 - y).abs() < 1e-9)
+        {
+            continue;
+        }
+        let label = if seen.is_empty() {
+            "candidate points"
+        } else {
+            ""
+        };
+        seen.push((x, y));
+        out.push(glyph(
+            label,
+            vec![x - tick, x + tick, x, x, x],
+            vec![y, y, y, y + tick, y - tick],
+            rbprops_plot::Rgb::GREY,
+        ));
+    }
+    out
+}
+
+/// The chosen sensors as squares.
+fn sensor_squares(v: &View, layout: &Layout) -> Vec<rbprops_plot::Series> {
+    let d = 2.0 * v.tick;
+    layout
+        .sensors
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let (x, y) = (s.position[v.a], s.position[v.b]);
+            glyph(
+                if k == 0 { "sensors (triaxial)" } else { "" },
+                vec![x - d, x + d, x + d, x - d, x - d],
+                vec![y - d, y - d, y + d, y + d, y - d],
+                rbprops_plot::Rgb::palette(0),
+            )
+        })
+        .collect()
+}
+
+/// The chosen hits as arrows ending at the point of impact, `arrow` long for a blow in
+/// the view's plane; a blow along the line of sight as a cross.
+fn hit_arrows(v: &View, layout: &Layout, arrow: f64) -> Vec<rbprops_plot::Series> {
+    let (tick, color) = (v.tick, rbprops_plot::Rgb::palette(3));
+    let mut out = Vec::new();
+    for (k, h) in layout.hits.iter().enumerate() {
+        let label = if k == 0 {
+            "hits (arrow: the blow; ×: along the view)"
+        } else {
+            ""
+        };
+        let (x, y) = (h.position[v.a], h.position[v.b]);
+        let (dx, dy) = (h.direction[v.a], h.direction[v.b]);
+        let n = dx.hypot(dy);
+        if n < 0.2 {
+            // Along the line of sight: a cross.
+            let d = 2.0 * tick;
+            out.push(glyph(
+                label,
+                vec![x - d, x + d, x, x - d, x + d],
+                vec![y - d, y + d, y, y + d, y - d],
+                color,
+            ));
+            continue;
+        }
+        let (ux, uy) = (dx / n, dy / n);
+        let len = arrow * n;
+        // Shaft from the approach to the point, then the head's two barbs.
+        let head = 3.0 * tick;
+        let (c, s) = (0.9_f64, 0.45_f64);
+        let (b1x, b1y) = (-(ux * c - uy * s), -(uy * c + ux * s));
+        let (b2x, b2y) = (-(ux * c + uy * s), -(uy * c - ux * s));
+        out.push(glyph(
+            label,
+            vec![x - len * ux, x, x + head * b1x, x, x + head * b2x],
+            vec![y - len * uy, y, y + head * b1y, y, y + head * b2y],
+            color,
+        ));
+    }
+    out
 }

@@ -301,36 +301,7 @@ fn table_of(
     (indexed, re_im): (bool, bool),
     out: &mut Vec<Table>,
 ) {
-    let mut built: Vec<RowOut> = Vec::new();
-    // Position within the parent's list: items come grouped by parent (unique keys).
-    let mut position = 0usize;
-    for (i, (kv, v)) in rows.iter().enumerate() {
-        let mut r = RowOut {
-            cells: Vec::new(),
-            lists: Vec::new(),
-        };
-        if i > 0 && rows[i - 1].0 == *kv {
-            position += 1;
-        } else {
-            position = 0;
-        }
-        if indexed {
-            r.cells.push((INDEX.into(), position.to_string()));
-        }
-        match v {
-            Value::Object(o) if !o.is_empty() => flatten_value("", v, item, false, false, &mut r),
-            _ if indexed => {
-                let named = item.fixed_len().and_then(|n| position_names(n, re_im));
-                if named.is_some() && v.is_array() {
-                    flatten_value("", v, item, re_im, true, &mut r)
-                } else {
-                    flatten_value(VALUE, v, item, re_im, true, &mut r)
-                }
-            }
-            _ => flatten_value(VALUE, v, item, false, true, &mut r),
-        }
-        built.push(r);
-    }
+    let built = flatten_rows(&rows, item, indexed, re_im);
     // Columns: inherited key, then every column in first-appearance order.
     let mut own_header: Vec<String> = Vec::new();
     for r in &built {
@@ -368,33 +339,7 @@ fn table_of(
             row
         })
         .collect();
-    // Own key: the fewest leading text/integer columns that tell the rows apart (with
-    // the inherited key); none for a single row or when no prefix does.
-    let mut own_key: Vec<usize> = Vec::new();
-    if text_rows.len() > 1 {
-        let candidates: Vec<usize> = own_header
-            .iter()
-            .enumerate()
-            .filter(|(j, h)| {
-                !h.ends_with(COUNT_SUFFIX)
-                    && text_rows.iter().all(|r| is_key_cell(&r[key_in.len() + j]))
-            })
-            .map(|(j, _)| key_in.len() + j)
-            .collect();
-        for n in 1..=candidates.len() {
-            let cols = &candidates[..n];
-            let mut seen = std::collections::HashSet::new();
-            if text_rows.iter().all(|r| {
-                let mut k: Vec<&str> = r[..key_in.len()].iter().map(String::as_str).collect();
-                k.extend(cols.iter().map(|&c| r[c].as_str()));
-                seen.insert(k)
-            }) {
-                own_key = cols.to_vec();
-                break;
-            }
-        }
-    }
-    let mut header = header;
+    let mut own_key = own_key_columns(&text_rows, &own_header, key_in.len());
     let mut text_rows = text_rows;
     if text_rows.len() > 1 && own_key.is_empty() {
         // No columns tell the rows apart: number them (1-based) in a column `row`.
@@ -415,15 +360,7 @@ fn table_of(
         header: header.clone(),
         rows: text_rows.clone(),
     });
-    // Children, in first-appearance order of their fields.
-    let mut fields: Vec<(String, Schema, Schema)> = Vec::new();
-    for r in &built {
-        for (f, _, is, ls) in &r.lists {
-            if !fields.iter().any(|(g, _, _)| g == f) {
-                fields.push((f.clone(), *is, *ls));
-            }
-        }
-    }
+    let fields = list_fields(&built);
     let key_cols: Vec<usize> = out[pos]
         .key
         .iter()
@@ -452,6 +389,93 @@ fn table_of(
             out,
         );
     }
+}
+
+/// Each row flattened into its cells and lists; `indexed` rows (list items that are not
+/// objects) get their position within their parent's list.
+fn flatten_rows<'v, 's>(
+    rows: &[(Vec<String>, &'v Value)],
+    item: Schema<'s>,
+    indexed: bool,
+    re_im: bool,
+) -> Vec<RowOut<'v, 's>> {
+    let mut built: Vec<RowOut> = Vec::new();
+    // Position within the parent's list: items come grouped by parent (unique keys).
+    let mut position = 0usize;
+    for (i, (kv, v)) in rows.iter().enumerate() {
+        let mut r = RowOut {
+            cells: Vec::new(),
+            lists: Vec::new(),
+        };
+        if i > 0 && rows[i - 1].0 == *kv {
+            position += 1;
+        } else {
+            position = 0;
+        }
+        if indexed {
+            r.cells.push((INDEX.into(), position.to_string()));
+        }
+        match v {
+            Value::Object(o) if !o.is_empty() => flatten_value("", v, item, false, false, &mut r),
+            _ if indexed => {
+                let named = item.fixed_len().and_then(|n| position_names(n, re_im));
+                if named.is_some() && v.is_array() {
+                    flatten_value("", v, item, re_im, true, &mut r)
+                } else {
+                    flatten_value(VALUE, v, item, re_im, true, &mut r)
+                }
+            }
+            _ => flatten_value(VALUE, v, item, false, true, &mut r),
+        }
+        built.push(r);
+    }
+    built
+}
+
+/// Own key: the fewest leading text/integer columns that tell the rows apart (with the
+/// `n_inherited` inherited key columns); none for a single row or when no prefix does.
+fn own_key_columns(
+    text_rows: &[Vec<String>],
+    own_header: &[String],
+    n_inherited: usize,
+) -> Vec<usize> {
+    if text_rows.len() <= 1 {
+        return Vec::new();
+    }
+    let candidates: Vec<usize> = own_header
+        .iter()
+        .enumerate()
+        .filter(|(j, h)| {
+            !h.ends_with(COUNT_SUFFIX) && text_rows.iter().all(|r| is_key_cell(&r[n_inherited + j]))
+        })
+        .map(|(j, _)| n_inherited + j)
+        .collect();
+    for n in 1..=candidates.len() {
+        let cols = &candidates[..n];
+        let mut seen = std::collections::HashSet::new();
+        if text_rows.iter().all(|r| {
+            let mut k: Vec<&str> = r[..n_inherited].iter().map(String::as_str).collect();
+            k.extend(cols.iter().map(|&c| r[c].as_str()));
+            seen.insert(k)
+        }) {
+            return cols.to_vec();
+        }
+    }
+    Vec::new()
+}
+
+/// The list fields of the rows (each a child table), in first-appearance order, with the
+/// schemas of the list and of its items.
+fn list_fields<'s>(built: &[RowOut<'_, 's>]) -> Vec<(String, Schema<'s>, Schema<'s>)> {
+    let mut fields: Vec<(String, Schema, Schema)> = Vec::new();
+    for r in built {
+        for (f, _, is, ls) in &r.lists {
+            if !fields.iter().any(|(g, _, _)| g == f) {
+                fields.push((f.clone(), *is, *ls));
+            }
+        }
+    }
+    fields
 }
 
 /// A cell that can serve as a key: non-empty text or an integer.
@@ -585,21 +609,60 @@ fn read_table(
             .ok_or_else(|| format!("{name}: key column '{k}' missing"))
     };
     let key_cols: Vec<usize> = t.key.iter().map(|k| col(k)).collect::<Result<_, _>>()?;
-    let inherited: Vec<usize> = key_cols[..t.inherited.min(key_cols.len())].to_vec();
     let children: Vec<&Table> = all
         .iter()
         .filter(|c| c.parent.as_ref().is_some_and(|(p, _)| p == name))
         .collect();
-    let count_cols: Vec<String> = children
-        .iter()
-        .map(|c| format!("{}{COUNT_SUFFIX}", c.parent.as_ref().unwrap().1))
-        .collect();
+    let reader = TableReader {
+        name,
+        t,
+        item,
+        indexed,
+        re_im,
+        inherited: key_cols[..t.inherited.min(key_cols.len())].to_vec(),
+        count_cols: children
+            .iter()
+            .map(|c| format!("{}{COUNT_SUFFIX}", c.parent.as_ref().unwrap().1))
+            .collect(),
+        children: &children,
+    };
     let mut out = Read {
         values: Vec::with_capacity(t.rows.len()),
         keys: Vec::with_capacity(t.rows.len()),
         index: Vec::with_capacity(t.rows.len()),
     };
     for (r, row) in t.rows.iter().enumerate() {
+        let (v, index) = reader.row_value(r, row)?;
+        out.keys
+            .push(key_cols.iter().map(|&c| row[c].clone()).collect());
+        out.index.push(index);
+        out.values.push(v);
+    }
+    for child in &children {
+        reader.attach_child(child, all, &mut out)?;
+    }
+    Ok(out)
+}
+
+/// One table being read: where its inherited key, its children's counts and its items'
+/// schema are.
+struct TableReader<'a, 's> {
+    name: &'a str,
+    t: &'a Table,
+    item: Schema<'s>,
+    indexed: bool,
+    re_im: bool,
+    /// Header positions of the inherited key (the parent's, not this row's own value).
+    inherited: Vec<usize>,
+    children: &'a [&'a Table],
+    /// The item-count column of each child.
+    count_cols: Vec<String>,
+}
+
+impl TableReader<'_, '_> {
+    /// Row `r`'s value (an object, or a list item) and, for a list item, its index.
+    fn row_value(&self, r: usize, row: &[String]) -> Result<(Value, Option<usize>), String> {
+        let (name, t, item) = (self.name, self.t, self.item);
         let at = |e: String| format!("{name}: row {}: {e}", r + 1);
         if row.len() != t.header.len() {
             return Err(at(format!(
@@ -611,20 +674,20 @@ fn read_table(
         let mut v = Value::Null;
         let mut index = None;
         for (j, (h, text)) in t.header.iter().zip(row).enumerate() {
-            if inherited.contains(&j) {
+            if self.inherited.contains(&j) {
                 continue;
             }
-            if indexed && h == INDEX {
+            if self.indexed && h == INDEX {
                 index = Some(
                     text.parse::<usize>()
                         .map_err(|_| at(format!("{INDEX} '{text}' is not a position")))?,
                 );
                 continue;
             }
-            if let Some(c) = count_cols.iter().position(|c| c == h) {
+            if let Some(c) = self.count_cols.iter().position(|c| c == h) {
                 // Keeps the field's place among the fields; the child table fills it.
                 if !text.is_empty() {
-                    let field = &children[c].parent.as_ref().unwrap().1;
+                    let field = &self.children[c].parent.as_ref().unwrap().1;
                     let segs =
                         segments(field, item, false).map_err(|e| at(format!("column {h}: {e}")))?;
                     set_path(&mut v, &segs, Value::Array(Vec::new()))
@@ -632,13 +695,13 @@ fn read_table(
                 }
                 continue;
             }
-            if !indexed && h == ROW && t.key[inherited.len()..].iter().any(|k| k == ROW) {
+            if !self.indexed && h == ROW && t.key[self.inherited.len()..].iter().any(|k| k == ROW) {
                 continue;
             }
             // A list item's `value` column stands for the item itself.
             let path = match h.strip_prefix(VALUE) {
-                Some("") if indexed || !item.types().contains(&"object") => "",
-                Some(rest) if indexed && rest.starts_with('.') => &rest[1..],
+                Some("") if self.indexed || !item.types().contains(&"object") => "",
+                Some(rest) if self.indexed && rest.starts_with('.') => &rest[1..],
                 _ => h.as_str(),
             };
             let cs = if path.is_empty() {
@@ -652,19 +715,20 @@ fn read_table(
             let segs = if path.is_empty() {
                 Vec::new()
             } else {
-                segments(path, item, re_im).map_err(|e| at(format!("column {h}: {e}")))?
+                segments(path, item, self.re_im).map_err(|e| at(format!("column {h}: {e}")))?
             };
             set_path(&mut v, &segs, x).map_err(|e| at(format!("column {h}: {e}")))?;
         }
-        if v.is_null() && !indexed {
+        if v.is_null() && !self.indexed {
             v = Value::Object(Map::new());
         }
-        out.keys
-            .push(key_cols.iter().map(|&c| row[c].clone()).collect());
-        out.index.push(index);
-        out.values.push(v);
+        Ok((v, index))
     }
-    for child in children {
+
+    /// Reads child table `child` and puts its items into the lists of their parent rows
+    /// (matched by the inherited key, in order), then checks each parent's item count.
+    fn attach_child(&self, child: &Table, all: &[Table], out: &mut Read) -> Result<(), String> {
+        let (name, item) = (self.name, self.item);
         let field = &child.parent.as_ref().unwrap().1;
         let list = schema_at(item, field);
         let indexed_child =
@@ -709,37 +773,49 @@ fn read_table(
             }
             slot.push(kid);
         }
-        // Each parent's count must equal the items found for it.
-        if let Some(ci) = t
+        self.check_counts(child, field, &segs, &out.values)
+    }
+
+    /// Each parent's count must equal the items found for it.
+    fn check_counts(
+        &self,
+        child: &Table,
+        field: &str,
+        segs: &[Seg],
+        values: &[Value],
+    ) -> Result<(), String> {
+        let (name, t) = (self.name, self.t);
+        let Some(ci) = t
             .header
             .iter()
             .position(|h| *h == format!("{field}{COUNT_SUFFIX}"))
-        {
-            for (r, (row, v)) in t.rows.iter().zip(&out.values).enumerate() {
-                if row[ci].is_empty() {
-                    continue;
-                }
-                let n: usize = row[ci].parse().map_err(|_| {
-                    format!(
-                        "{name}: row {}: {field}{COUNT_SUFFIX} '{}' is not a count",
-                        r + 1,
-                        row[ci]
-                    )
-                })?;
-                let got = get_path(v, &segs)
-                    .and_then(Value::as_array)
-                    .map_or(0, Vec::len);
-                if got != n {
-                    return Err(format!(
-                        "{name}: row {}: {field}{COUNT_SUFFIX} is {n} but {} has {got} rows for it",
-                        r + 1,
-                        child.name
-                    ));
-                }
+        else {
+            return Ok(());
+        };
+        for (r, (row, v)) in t.rows.iter().zip(values).enumerate() {
+            if row[ci].is_empty() {
+                continue;
+            }
+            let n: usize = row[ci].parse().map_err(|_| {
+                format!(
+                    "{name}: row {}: {field}{COUNT_SUFFIX} '{}' is not a count",
+                    r + 1,
+                    row[ci]
+                )
+            })?;
+            let got = get_path(v, segs)
+                .and_then(Value::as_array)
+                .map_or(0, Vec::len);
+            if got != n {
+                return Err(format!(
+                    "{name}: row {}: {field}{COUNT_SUFFIX} is {n} but {} has {got} rows for it",
+                    r + 1,
+                    child.name
+                ));
             }
         }
+        Ok(())
     }
-    Ok(out)
 }
 
 fn cell_schema<'a>(item: Schema<'a>, path: &str) -> Schema<'a> {

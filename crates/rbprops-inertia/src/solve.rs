@@ -1,9 +1,11 @@
 //! The `rb-solve` stage: selected modes (and optionally FRFs) in, [`InertiaEstimate`]s out.
 
+mod mass_line_estimate;
+
 use crate::consistency::nearest_consistent;
 use crate::error::InertiaError;
 use crate::lsq::LinearConstraint;
-use crate::mass_line::{choose_band, mass_line, mass_line_values, MassLineBand, MassLineOptions};
+use crate::mass_line::{MassLineBand, MassLineOptions};
 use crate::modal_estimators::{bretl_conti, describe_null_space, mount_stiffness, toivola_nuutila};
 use crate::params::{params_of, N_PARAMS};
 use crate::rigid_check::{self, matched_observations, rigid_body_check, Observation};
@@ -11,6 +13,7 @@ use crate::shapes::{
     resolve_origin, rigid_shapes, OriginChoice, RigidFrame, RigidShape, ShapeDiagnostics,
 };
 use crate::uncertainty::{propagate, property_vector, Propagation, N_PROPS};
+use mass_line_estimate::mass_line_estimate;
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{
     ErrorsRecord, EstimateMethod, InertiaEstimate, ModalFitRecord, PropertiesRecord,
@@ -152,6 +155,74 @@ pub fn solve(
     geometry.validate()?;
     let origin = resolve_origin(geometry, &opts.origin)?;
     let frame = RigidFrame::new(geometry, origin)?;
+    let mut out = Collected {
+        warnings: input_notes(geometry, &frame, selection),
+        ..Default::default()
+    };
+    let propagation = if opts.monte_carlo_samples > 0 {
+        Propagation::MonteCarlo {
+            samples: opts.monte_carlo_samples,
+            seed: opts.seed,
+        }
+    } else {
+        Propagation::Linearised
+    };
+    let side = SideConstraints::new(&opts.side_information, &origin)?;
+    let run = Solver {
+        geometry,
+        modal,
+        opts,
+        frame: &frame,
+        side: &side,
+        propagation,
+    };
+    let mut setups: Vec<&str> = Vec::new();
+    for s in &selection.selected {
+        if !setups.contains(&s.setup.as_str()) {
+            setups.push(&s.setup);
+        }
+    }
+    for setup in &setups {
+        run.modal_estimates(selection, setup, &mut out)?;
+    }
+    let mut band = None;
+    let mut mass_line_failure = None;
+    if opts.estimators.contains(&Estimator::MassLine) {
+        match frf {
+            None => mass_line_failure = Some("mass_line: no FRFs were given".into()),
+            Some(frf) => {
+                match mass_line_estimate(
+                    &frame,
+                    geometry,
+                    modal,
+                    selection,
+                    frf,
+                    opts,
+                    &side,
+                    propagation,
+                ) {
+                    Ok((parts, b)) => {
+                        band = Some(b);
+                        out.estimates
+                            .extend(parts.finish(&origin, opts.reference.as_ref())?);
+                    }
+                    // Kept apart: the mass line is a cross-check of the modal
+                    // estimates, and it refuses a band too short or too noisy.
+                    Err(e) => mass_line_failure = Some(e.to_string()),
+                }
+            }
+        }
+    }
+    out.finish(band, mass_line_failure)
+}
+
+/// Notes on the inputs: a channel set that resolves the six rigid motions although the
+/// geometry's own observability check fails, and every mode the selection misses.
+fn input_notes(
+    geometry: &Geometry,
+    frame: &RigidFrame,
+    selection: &SelectionRecord,
+) -> Vec<Diagnostic> {
     let mut warnings = Vec::new();
     if let Err(e) = geometry.check_rigid_observability() {
         // The channels still resolve the six motions: a note.
@@ -173,52 +244,67 @@ pub fn solve(
             format!("is missing: {}", m.reason),
         ));
     }
-    let propagation = if opts.monte_carlo_samples > 0 {
-        Propagation::MonteCarlo {
-            samples: opts.monte_carlo_samples,
-            seed: opts.seed,
-        }
-    } else {
-        Propagation::Linearised
-    };
-    let side = SideConstraints::new(&opts.side_information, &origin)?;
-    let mut estimates = Vec::new();
-    let mut failures = Vec::new();
-    let mut all_shapes = Vec::new();
+    warnings
+}
 
-    let mut setups: Vec<&str> = Vec::new();
-    for s in &selection.selected {
-        if !setups.contains(&s.setup.as_str()) {
-            setups.push(&s.setup);
-        }
-    }
-    for setup in &setups {
+/// What every estimator of one solve reads.
+struct Solver<'a> {
+    geometry: &'a Geometry,
+    modal: &'a ModalFitRecord,
+    opts: &'a SolveOptions,
+    frame: &'a RigidFrame,
+    side: &'a SideConstraints,
+    propagation: Propagation,
+}
+
+/// What the solve collects, estimator by estimator.
+#[derive(Default)]
+struct Collected {
+    estimates: Vec<InertiaEstimate>,
+    /// Why an estimator could not run, one line each.
+    failures: Vec<String>,
+    shapes: Vec<ShapeDiagnostics>,
+    warnings: Vec<Diagnostic>,
+}
+
+impl Solver<'_> {
+    /// The modal estimators (Bretl–Conti, Toivola–Nuutila) on one set-up's selected modes:
+    /// their rigid-body shapes (Eq. 5), with the rigid-body check and the systematic
+    /// standard errors when asked.
+    fn modal_estimates(
+        &self,
+        selection: &SelectionRecord,
+        setup: &str,
+        out: &mut Collected,
+    ) -> Result<(), InertiaError> {
+        let (frame, opts) = (self.frame, self.opts);
         let sel: Vec<_> = selection
             .selected
             .iter()
             .filter(|s| s.setup == *setup)
             .cloned()
             .collect();
-        let (shapes, errors) = rigid_shapes(&frame, modal, &sel);
+        let (shapes, errors) = rigid_shapes(frame, self.modal, &sel);
         for e in errors {
-            warnings.push(diagnostic(
+            out.warnings.push(diagnostic(
                 DiagnosticKind::ModeLeftOut,
                 Severity::ChangesAnswer,
-                DiagnosticSubject::setup(*setup),
+                DiagnosticSubject::setup(setup),
                 format!("{e}; the mode is left out"),
             ));
         }
-        shape_warnings(&shapes, &mut warnings);
-        all_shapes.extend(shapes.iter().map(|s| s.diagnostics(&frame)));
+        shape_warnings(&shapes, &mut out.warnings);
+        out.shapes
+            .extend(shapes.iter().map(|s| s.diagnostics(frame)));
         let used: Vec<SelectedMode> = shapes.iter().map(|s| s.selected.clone()).collect();
         let (observations, check) = if opts.rigid_body_check {
-            let obs = matched_observations(&frame, modal, &used);
-            let check = rigid_body_check(&frame, geometry, &obs);
+            let obs = matched_observations(frame, self.modal, &used);
+            let check = rigid_body_check(frame, self.geometry, &obs);
             if let Some(w) = check.as_ref().and_then(|c| rigid_check::warning(setup, c)) {
-                warnings.push(diagnostic(
+                out.warnings.push(diagnostic(
                     DiagnosticKind::RigidBodyInconsistent,
                     Severity::Warning,
-                    DiagnosticSubject::setup(*setup),
+                    DiagnosticSubject::setup(setup),
                     w,
                 ));
             }
@@ -230,79 +316,70 @@ pub fn solve(
             if !opts.estimators.contains(&est) {
                 continue;
             }
-            match modal_estimate(est, &frame, setup, &shapes, &side, propagation) {
+            match modal_estimate(est, frame, setup, &shapes, self.side, self.propagation) {
                 Ok(mut parts) => {
                     if opts.rigid_body_check {
                         parts.check = check.clone();
                         parts.systematic = systematic_std(
                             est,
-                            geometry,
-                            &frame,
-                            modal,
+                            self.geometry,
+                            frame,
+                            self.modal,
                             &used,
                             &observations,
-                            &side,
+                            self.side,
                         );
                     }
-                    estimates.extend(parts.finish(&origin, opts.reference.as_ref())?)
+                    out.estimates
+                        .extend(parts.finish(&frame.origin, opts.reference.as_ref())?)
                 }
-                Err(e) => failures.push(format!("set-up '{setup}': {e}")),
+                Err(e) => out.failures.push(format!("set-up '{setup}': {e}")),
             }
         }
+        Ok(())
     }
-    let mut band = None;
-    let mut mass_line_failure = None;
-    if opts.estimators.contains(&Estimator::MassLine) {
-        match frf {
-            None => mass_line_failure = Some("mass_line: no FRFs were given".into()),
-            Some(frf) => {
-                match mass_line_estimate(
-                    &frame,
-                    geometry,
-                    modal,
-                    selection,
-                    frf,
-                    opts,
-                    &side,
-                    propagation,
-                ) {
-                    Ok((parts, b)) => {
-                        band = Some(b);
-                        estimates.extend(parts.finish(&origin, opts.reference.as_ref())?);
-                    }
-                    // Kept apart: the mass line is a cross-check of the modal
-                    // estimates, and it refuses a band too short or too noisy.
-                    Err(e) => mass_line_failure = Some(e.to_string()),
-                }
+}
+
+impl Collected {
+    /// The output, or [`InertiaError::NoEstimate`] with every cause when nothing came out.
+    fn finish(
+        mut self,
+        band: Option<MassLineBand>,
+        mass_line_failure: Option<String>,
+    ) -> Result<SolveOutput, InertiaError> {
+        if self.estimates.is_empty() {
+            self.failures.extend(mass_line_failure);
+            if self.failures.is_empty() {
+                self.failures
+                    .push("no modes were selected and no estimator was requested".into());
             }
+            return Err(InertiaError::NoEstimate(self.failures));
         }
+        // The other estimators' results stand: a modal estimator's failure is a warning (a
+        // set-up's estimate is missing); the mass line's refusal, with the modal estimates
+        // there, a note (it is their cross-check, and refuses rather than mislead).
+        let failed = |f, severity| {
+            diagnostic(
+                DiagnosticKind::EstimatorFailed,
+                severity,
+                DiagnosticSubject::run(),
+                f,
+            )
+        };
+        self.warnings.extend(
+            self.failures
+                .into_iter()
+                .map(|f| failed(f, Severity::Warning)),
+        );
+        self.warnings
+            .extend(mass_line_failure.map(|f| failed(f, Severity::Note)));
+        Ok(SolveOutput {
+            estimates: self.estimates,
+            shapes: self.shapes,
+            mass_line_band: band,
+            diagnostics: self.warnings,
+        })
     }
-    if estimates.is_empty() {
-        failures.extend(mass_line_failure);
-        if failures.is_empty() {
-            failures.push("no modes were selected and no estimator was requested".into());
-        }
-        return Err(InertiaError::NoEstimate(failures));
-    }
-    // The other estimators' results stand: a modal estimator's failure is a warning (a
-    // set-up's estimate is missing); the mass line's refusal, with the modal estimates
-    // there, a note (it is their cross-check, and refuses rather than mislead).
-    let failed = |f, severity| {
-        diagnostic(
-            DiagnosticKind::EstimatorFailed,
-            severity,
-            DiagnosticSubject::run(),
-            f,
-        )
-    };
-    warnings.extend(failures.into_iter().map(|f| failed(f, Severity::Warning)));
-    warnings.extend(mass_line_failure.map(|f| failed(f, Severity::Note)));
-    Ok(SolveOutput {
-        estimates,
-        shapes: all_shapes,
-        mass_line_band: band,
-        diagnostics: warnings,
-    })
 }
 
 /// Notes on the shapes used: each handled as stated, so notes; whether the shapes move as
@@ -803,220 +880,6 @@ fn modal_estimate(
         check: None,
         systematic: None,
     })
-}
-
-#[allow(clippy::too_many_arguments)]
-fn mass_line_estimate(
-    frame: &RigidFrame,
-    geometry: &Geometry,
-    modal: &ModalFitRecord,
-    selection: &SelectionRecord,
-    frf: &FrfSet,
-    opts: &SolveOptions,
-    side: &SideConstraints,
-    how: Propagation,
-) -> Result<(EstimateParts, MassLineBand), InertiaError> {
-    frf.validate()?;
-    if frf.n_excitations != geometry.excitations.len() || frf.n_channels != geometry.channels.len()
-    {
-        return Err(InertiaError::MassLine(format!(
-            "the FRF set has {} excitations × {} channels, the geometry {} × {}",
-            frf.n_excitations,
-            frf.n_channels,
-            geometry.excitations.len(),
-            geometry.channels.len()
-        )));
-    }
-    let highest_rigid = selection
-        .selected
-        .iter()
-        .map(|s| s.frequency_hz)
-        .chain(selection.missing.iter().map(|m| m.frequency_hz))
-        .fold(f64::NAN, f64::max);
-    let highest_rigid = if highest_rigid.is_finite() {
-        highest_rigid
-    } else {
-        modal
-            .modes
-            .iter()
-            .map(|m| m.frequency_hz)
-            .fold(0.0, f64::max)
-    };
-    let band = choose_band(frf, highest_rigid, &opts.mass_line)?;
-    let ml = mass_line_values(
-        frf,
-        &band,
-        opts.mass_line.rigid_terms,
-        opts.mass_line.flex_terms,
-    )?;
-    let excitations: Vec<usize> = (0..frf.n_excitations).collect();
-    let mut warnings = Vec::new();
-    if let Some(l) = side.label(None) {
-        warnings.push(l);
-    }
-    warnings.push(diagnostic(
-        DiagnosticKind::MassLineBand,
-        Severity::Note,
-        DiagnosticSubject::run(),
-        format!(
-            "mass-line band {:.4}–{:.4} Hz ({} lines, {})",
-            band.lo_hz,
-            band.hi_hz,
-            band.n_lines,
-            if band.automatic {
-                match band.first_elastic_hz {
-                    Some(fe) => format!("automatic; first elastic resonance near {fe:.4} Hz"),
-                    None => {
-                        "automatic; no elastic resonance found below the top of the data".into()
-                    }
-                }
-            } else {
-                "given".into()
-            }
-        ),
-    ));
-    let sol = mass_line(frame, &excitations, &ml.values, &side.constraints, None)?;
-    if sol.estimate.rank < N_PARAMS && side.nominal.is_none() {
-        return Err(InertiaError::Unidentifiable {
-            method: "mass_line",
-            rank: sol.estimate.rank,
-            description: "the excitations' moment arms do not span three independent directions"
-                .into(),
-        });
-    }
-    let sol = mass_line(
-        frame,
-        &excitations,
-        &ml.values,
-        &side.constraints,
-        side.nominal.as_ref(),
-    )?;
-    for (k, r) in sol.rigid_residual.iter().enumerate() {
-        if *r > SHAPE_RESIDUAL_WARNING {
-            warnings.push(diagnostic(
-                DiagnosticKind::ShapeNotRigid,
-                Severity::Note,
-                DiagnosticSubject::run().excitation(&frame.excitation_ids[k]),
-                format!(
-                    "the mass line is {:.1} % away from rigid-body motion",
-                    100.0 * r
-                ),
-            ));
-        }
-    }
-    let nch = frf.n_channels;
-    let x: Vec<f64> = ml.values.iter().flatten().copied().collect();
-    let sigma: Vec<f64> = ml.std.iter().flatten().copied().collect();
-    let origin = frame.origin;
-    let f = |xs: &[f64]| -> Result<[f64; N_PROPS], InertiaError> {
-        let vals: Vec<Vec<f64>> = xs.chunks(nch).map(<[f64]>::to_vec).collect();
-        let s = mass_line(
-            frame,
-            &excitations,
-            &vals,
-            &side.constraints,
-            side.nominal.as_ref(),
-        )?;
-        Ok(property_vector(&properties_about(
-            &s.estimate.mass_matrix,
-            &origin,
-        )))
-    };
-    let (mut std, method) = uncertainty(f, &x, &sigma, how, &mut warnings);
-    // Truncation bias of the rigid-body tail: the rigid modes' 1/ω^{2k} terms beyond the
-    // fitted ones (and the stiffness they stand for) bias `a0` most at the band's low end,
-    // where the band starts only `rigid_factor` × above the highest rigid mode. The same
-    // fit on the band starting 1.5× higher (or at the band's geometric middle when the band
-    // is shorter) has a smaller such bias (the tail falls as
-    // (f_r/f)^{2(R+1)}); the difference estimates it and joins the standard errors.
-    if band.automatic {
-        let hi_band = MassLineBand {
-            lo_hz: (band.lo_hz * 1.5).min((band.lo_hz * band.hi_hz).sqrt()),
-            ..band.clone()
-        };
-        let shifted = mass_line_values(
-            frf,
-            &hi_band,
-            opts.mass_line.rigid_terms,
-            opts.mass_line.flex_terms,
-        )
-        .ok()
-        .and_then(|v| {
-            mass_line(
-                frame,
-                &excitations,
-                &v.values,
-                &side.constraints,
-                side.nominal.as_ref(),
-            )
-            .ok()
-        });
-        if shifted.is_none() {
-            warnings.push(diagnostic(
-                DiagnosticKind::UncertaintyIncomplete,
-                Severity::Warning,
-                DiagnosticSubject::run(),
-                format!(
-                    "mass-line truncation bias not estimated (no usable band from {:.4} Hz); the standard errors are noise only",
-                    hi_band.lo_hz
-                ),
-            ));
-        }
-        if let (Some(s2), Some(sd)) = (shifted, std.as_mut()) {
-            let a = property_vector(&properties_about(&sol.estimate.mass_matrix, &frame.origin));
-            let b = property_vector(&properties_about(&s2.estimate.mass_matrix, &frame.origin));
-            // Richardson: a bias ∝ f_lo^{−2(R+1)} (the first unfitted tail term) changes by
-            // the fraction 1 − (f_lo/f_lo')^{2(R+1)} between the two bands.
-            let p = 2.0 * (opts.mass_line.rigid_terms as f64 + 1.0);
-            let frac = 1.0 - (band.lo_hz / hi_band.lo_hz).powf(p);
-            for k in 0..N_PROPS {
-                sd[k] = sd[k].hypot((a[k] - b[k]) / frac);
-            }
-            warnings.push(diagnostic(
-                DiagnosticKind::MassLineBand,
-                Severity::Note,
-                DiagnosticSubject::run(),
-                format!(
-                    "mass-line truncation bias estimated from a band starting at {:.4} Hz instead: m changes by {:.3e} kg, i.e. a bias of about {:.3e} kg at this band; added to the standard errors",
-                    hi_band.lo_hz,
-                    b[0] - a[0],
-                    (a[0] - b[0]) / frac
-                ),
-            ));
-        }
-    }
-    // A mass line fitted on a band too short or too noisy gives numbers that look like an
-    // estimate (even a negative mass); refuse them instead of reporting them.
-    let m = sol.estimate.mass_matrix.mass();
-    let sd_m = std.map(|s| s[0]).unwrap_or(0.0);
-    if !(m > 0.0) || !sd_m.is_finite() || sd_m > MASS_LINE_MAX_RELATIVE_STD * m {
-        return Err(InertiaError::MassLine(format!(
-            "mass line unreliable on {:.3}–{:.3} Hz: m = {m:.4} ± {:.2e} kg (more than {:.0} % standard error); \
-             the band between the rigid-body and the first elastic modes is too short or too noisy — give one with --mass-line-band",
-            band.lo_hz,
-            band.hi_hz,
-            sd_m,
-            100.0 * MASS_LINE_MAX_RELATIVE_STD
-        )));
-    }
-    let setup = distinct(geometry.excitations.iter().map(|e| e.setup.clone())).join("+");
-    Ok((
-        EstimateParts {
-            method: Estimator::MassLine.method(),
-            setup,
-            mass_matrix: sol.estimate.mass_matrix,
-            std,
-            uncertainty_method: method,
-            mount_stiffness: None,
-            residual: sol.estimate.residual,
-            modes_used: Vec::new(),
-            excitations_used: frame.excitation_ids.clone(),
-            warnings,
-            check: None,
-            systematic: None,
-        },
-        band,
-    ))
 }
 
 /// Property vector of one modal estimator on a set of shapes, no uncertainty.

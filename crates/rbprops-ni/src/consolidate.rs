@@ -143,6 +143,16 @@ fn better(a: usize, b: usize, cands: &[Candidate], ev: &[Evidence]) -> bool {
         .map_or(a < b, |o| o.is_gt() || (o.is_eq() && a < b))
 }
 
+/// What every step of the consolidation reads: the matcher's candidates and their
+/// evidence, the MAC weight, the tolerances and the set-up named in messages.
+struct Step<'a> {
+    cands: &'a [Candidate],
+    ev: &'a [Evidence],
+    w: &'a Mat6,
+    tol: &'a MatchTolerances,
+    setup: &'a str,
+}
+
 /// Consolidates the matcher's groups (see the module docs). `setup` names the set-up in
 /// messages. Deterministic: every choice breaks ties by candidate or group order.
 pub(crate) fn consolidate(
@@ -153,38 +163,62 @@ pub(crate) fn consolidate(
     tol: &MatchTolerances,
     setup: &str,
 ) -> Consolidation {
+    let c = Step {
+        cands,
+        ev,
+        w,
+        tol,
+        setup,
+    };
     let mut out = Consolidation::default();
     let mut groups = groups;
+    merge_same_shape(&c, &mut groups, &mut out);
+    keep_one_estimate_per_excitation(&c, &mut groups, &mut out);
+    let mut rejected_group = reject_leakage_copies(&c, &groups, &mut out);
+    keep_best_supported(&c, &groups, &mut rejected_group, &mut out);
+    let mut kept: Vec<Vec<usize>> = groups
+        .into_iter()
+        .zip(rejected_group)
+        .filter(|(_, r)| !r)
+        .map(|(g, _)| g)
+        .collect();
+    warn_unsupported(&c, &kept, &mut out);
+    kept.sort_by(|a, b| reference_frequency(a, cands).total_cmp(&reference_frequency(b, cands)));
+    out.groups = kept;
+    out
+}
 
-    // (1) Same shape at nearly the same frequency: one physical mode.
+/// Step (1): same shape at nearly the same frequency is one physical mode; the pair of
+/// groups with the highest MAC is merged first, until no pair is left.
+fn merge_same_shape(c: &Step, groups: &mut Vec<Vec<usize>>, out: &mut Consolidation) {
     loop {
         let mut best: Option<(f64, usize, usize)> = None;
         for g in 0..groups.len() {
             for h in g + 1..groups.len() {
                 let (rg, rh) = (
-                    reference_member(&groups[g], cands),
-                    reference_member(&groups[h], cands),
+                    reference_member(&groups[g], c.cands),
+                    reference_member(&groups[h], c.cands),
                 );
-                let df = relative_gap(cands[rh].frequency_hz, cands[rg].frequency_hz);
-                if !(df <= tol.frequency_tolerance) {
+                let df = relative_gap(c.cands[rh].frequency_hz, c.cands[rg].frequency_hz);
+                if !(df <= c.tol.frequency_tolerance) {
                     continue;
                 }
-                let m = mac(&cands[rg].q, &cands[rh].q, w);
-                if m >= tol.mac_threshold && best.is_none_or(|(b, _, _)| m > b) {
+                let m = mac(&c.cands[rg].q, &c.cands[rh].q, c.w);
+                if m >= c.tol.mac_threshold && best.is_none_or(|(b, _, _)| m > b) {
                     best = Some((m, g, h));
                 }
             }
         }
         let Some((m, g, h)) = best else { break };
         let (fg, fh) = (
-            reference_frequency(&groups[g], cands),
-            reference_frequency(&groups[h], cands),
+            reference_frequency(&groups[g], c.cands),
+            reference_frequency(&groups[h], c.cands),
         );
         // Correctly handled (one mode kept, its estimates pooled): a note.
         out.diagnostics.push(diagnostic(
             DiagnosticKind::DuplicatePoles,
             Severity::Note,
-            DiagnosticSubject::setup(setup).at_hz(&[fg, fh]),
+            DiagnosticSubject::setup(c.setup).at_hz(&[fg, fh]),
             format!(
                 "the modes matched at {fg:.4} and {fh:.4} Hz have the same shape (MAC {m:.3}): \
                  one physical mode fitted as several poles; merged"
@@ -194,20 +228,23 @@ pub(crate) fn consolidate(
         groups[g].extend(moved);
         groups[g].sort_unstable();
     }
+}
 
-    // (2) One estimate per excitation and group: the others are parts of a split pole.
-    for group in &mut groups {
-        let f = reference_frequency(group, cands);
+/// Step (2): one estimate per excitation and group; the others are parts of a split pole
+/// (the better one kept, see [`better`]).
+fn keep_one_estimate_per_excitation(c: &Step, groups: &mut [Vec<usize>], out: &mut Consolidation) {
+    for group in groups.iter_mut() {
+        let f = reference_frequency(group, c.cands);
         let mut keep: Vec<usize> = Vec::with_capacity(group.len());
         for &i in group.iter() {
             match keep
                 .iter()
-                .position(|&j| cands[j].excitation == cands[i].excitation)
+                .position(|&j| c.cands[j].excitation == c.cands[i].excitation)
             {
                 None => keep.push(i),
                 Some(p) => {
                     let j = keep[p];
-                    let (win, lose) = if better(i, j, cands, ev) {
+                    let (win, lose) = if better(i, j, c.cands, c.ev) {
                         (i, j)
                     } else {
                         (j, i)
@@ -216,18 +253,18 @@ pub(crate) fn consolidate(
                     let reason = format!(
                         "{} and {} are the same physical mode (MAC {:.3}) from one excitation: \
                              a split pole; kept {} (Q {:.2} against {:.2})",
-                        ev[lose].label,
-                        ev[win].label,
-                        mac(&cands[lose].q, &cands[win].q, w),
-                        ev[win].label,
-                        ev[win].quality,
-                        ev[lose].quality
+                        c.ev[lose].label,
+                        c.ev[win].label,
+                        mac(&c.cands[lose].q, &c.cands[win].q, c.w),
+                        c.ev[win].label,
+                        c.ev[win].quality,
+                        c.ev[lose].quality
                     );
                     out.diagnostics.push(diagnostic(
                         DiagnosticKind::ModeRejected,
                         Severity::Note,
-                        DiagnosticSubject::setup(setup).at_hz(&[f]),
-                        format!("rejected {}: {reason}", ev[lose].label),
+                        DiagnosticSubject::setup(c.setup).at_hz(&[f]),
+                        format!("rejected {}: {reason}", c.ev[lose].label),
                     ));
                     out.rejected.push(Rejection {
                         candidate: lose,
@@ -240,65 +277,78 @@ pub(crate) fn consolidate(
         keep.sort_unstable();
         *group = keep;
     }
+}
 
-    // (3) Two groups with one shape at different frequencies: a rigid body has no two such
-    // modes, the less supported one copies its neighbour's shape (leakage).
+/// Step (3): two groups with one shape at different frequencies. A rigid body has no two
+/// such modes: the less supported one copies its neighbour's shape (leakage) and is
+/// rejected. Returns which groups are rejected.
+fn reject_leakage_copies(c: &Step, groups: &[Vec<usize>], out: &mut Consolidation) -> Vec<bool> {
     let mut rejected_group = vec![false; groups.len()];
     let mut order: Vec<usize> = (0..groups.len()).collect();
     // Most supported first, so that each group is compared with the better ones kept.
     order.sort_by(|&a, &b| {
-        support(&groups[b], cands, ev)
-            .total_cmp(&support(&groups[a], cands, ev))
+        support(&groups[b], c.cands, c.ev)
+            .total_cmp(&support(&groups[a], c.cands, c.ev))
             .then(a.cmp(&b))
     });
     for (pos, &h) in order.iter().enumerate() {
-        let rh = reference_member(&groups[h], cands);
+        let rh = reference_member(&groups[h], c.cands);
         let twin = order[..pos]
             .iter()
             .filter(|&&g| !rejected_group[g])
             .map(|&g| {
-                let rg = reference_member(&groups[g], cands);
-                (g, mac(&cands[rg].q, &cands[rh].q, w))
+                let rg = reference_member(&groups[g], c.cands);
+                (g, mac(&c.cands[rg].q, &c.cands[rh].q, c.w))
             })
-            .filter(|&(_, m)| m >= tol.mac_threshold)
+            .filter(|&(_, m)| m >= c.tol.mac_threshold)
             .max_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((g, m)) = twin {
             rejected_group[h] = true;
             reject_group(
-                &mut out,
+                out,
                 &groups[h],
-                cands,
-                ev,
-                setup,
+                c.cands,
+                c.ev,
+                c.setup,
                 format!(
                     "its shape is that of the mode at {:.4} Hz (MAC {m:.3}, {}): a rigid body \
                      has no two modes of one shape, so it is a copy (leakage) of that mode",
-                    reference_frequency(&groups[g], cands),
-                    describe(&groups[g], cands, ev)
+                    reference_frequency(&groups[g], c.cands),
+                    describe(&groups[g], c.cands, c.ev)
                 ),
             );
         }
     }
 
-    // (4) At most six: keep the best supported.
+    rejected_group
+}
+
+/// Step (4): at most six rigid-body modes; the best supported are kept, and a warning
+/// says when the evidence barely separates the last kept from the first rejected.
+fn keep_best_supported(
+    c: &Step,
+    groups: &[Vec<usize>],
+    rejected_group: &mut [bool],
+    out: &mut Consolidation,
+) {
     let mut alive: Vec<usize> = (0..groups.len()).filter(|&g| !rejected_group[g]).collect();
     if alive.len() > RIGID_BODY_MODES {
         // Ascending support; ties: fewer reliable members, then higher frequency, then
         // later group.
-        let n_rel = |g: usize| groups[g].iter().filter(|&&i| cands[i].reliable).count();
+        let n_rel = |g: usize| groups[g].iter().filter(|&&i| c.cands[i].reliable).count();
         alive.sort_by(|&a, &b| {
-            support(&groups[a], cands, ev)
-                .total_cmp(&support(&groups[b], cands, ev))
+            support(&groups[a], c.cands, c.ev)
+                .total_cmp(&support(&groups[b], c.cands, c.ev))
                 .then(n_rel(a).cmp(&n_rel(b)))
                 .then(b.cmp(&a))
         });
         let n_out = alive.len() - RIGID_BODY_MODES;
         let weakest_kept = alive[n_out];
-        let s_kept = support(&groups[weakest_kept], cands, ev);
+        let s_kept = support(&groups[weakest_kept], c.cands, c.ev);
         let total = alive.len();
         for &g in &alive[..n_out] {
             rejected_group[g] = true;
-            let s = support(&groups[g], cands, ev);
+            let s = support(&groups[g], c.cands, c.ev);
             let mut reason = format!(
                 "{total} candidate modes for six rigid-body modes; this one has the least \
                  evidence of being a rigid-body mode"
@@ -306,54 +356,48 @@ pub(crate) fn consolidate(
             if s == 0.0 {
                 reason.push_str(" (no excitation identifies it reliably)");
             }
-            reject_group(&mut out, &groups[g], cands, ev, setup, reason);
+            reject_group(out, &groups[g], c.cands, c.ev, c.setup, reason);
         }
         let best_rejected = alive[n_out - 1];
-        let s_rej = support(&groups[best_rejected], cands, ev);
+        let s_rej = support(&groups[best_rejected], c.cands, c.ev);
         if s_rej > 0.0 && s_rej >= UNDECIDED_SUPPORT_RATIO * s_kept {
             let (fk, fr) = (
-                reference_frequency(&groups[weakest_kept], cands),
-                reference_frequency(&groups[best_rejected], cands),
+                reference_frequency(&groups[weakest_kept], c.cands),
+                reference_frequency(&groups[best_rejected], c.cands),
             );
             // The answer may hinge on this choice: a warning.
             out.diagnostics.push(diagnostic(
                 DiagnosticKind::UndecidedModes,
                 Severity::Warning,
-                DiagnosticSubject::setup(setup).at_hz(&[fk, fr]),
+                DiagnosticSubject::setup(c.setup).at_hz(&[fk, fr]),
                 format!(
                     "the evidence does not clearly decide between the mode at {fk:.4} Hz ({}) \
                      and the rejected one at {fr:.4} Hz ({}); check both",
-                    describe(&groups[weakest_kept], cands, ev),
-                    describe(&groups[best_rejected], cands, ev)
+                    describe(&groups[weakest_kept], c.cands, c.ev),
+                    describe(&groups[best_rejected], c.cands, c.ev)
                 ),
             ));
         }
     }
+}
 
-    let mut kept: Vec<Vec<usize>> = groups
-        .into_iter()
-        .zip(rejected_group)
-        .filter(|(_, r)| !r)
-        .map(|(g, _)| g)
-        .collect();
-    for g in &kept {
-        if support(g, cands, ev) == 0.0 {
-            let f = reference_frequency(g, cands);
+/// A kept mode supported only by weak or unexcited estimates may be spurious: a warning.
+fn warn_unsupported(c: &Step, kept: &[Vec<usize>], out: &mut Consolidation) {
+    for g in kept {
+        if support(g, c.cands, c.ev) == 0.0 {
+            let f = reference_frequency(g, c.cands);
             out.diagnostics.push(diagnostic(
                 DiagnosticKind::SpuriousMode,
                 Severity::Warning,
-                DiagnosticSubject::setup(setup).at_hz(&[f]),
+                DiagnosticSubject::setup(c.setup).at_hz(&[f]),
                 format!(
                     "the mode at {f:.4} Hz is supported only by weak or unexcited estimates \
                      ({}): it may be spurious",
-                    describe(g, cands, ev)
+                    describe(g, c.cands, c.ev)
                 ),
             ));
         }
     }
-    kept.sort_by(|a, b| reference_frequency(a, cands).total_cmp(&reference_frequency(b, cands)));
-    out.groups = kept;
-    out
 }
 
 fn reject_group(

@@ -2,12 +2,11 @@
 //! e.g. a property estimate per data set (groups) and origin/method (bars).
 
 use plotters::element::{PathElement, Rectangle};
-use plotters::style::ShapeStyle;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, draw_legend, draw_mesh, fill, footnote, legend_width, plot_name, render_err, render_svg,
-    skipped_note, Glyph, Legend, Margins,
+    chart, draw_legend, draw_mesh, error_bar, fill, footnote, legend_width, line_glyph, plot_name,
+    render_err, render_svg, skipped_note, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
 use crate::style::{stroke, LegendPosition, LineStyle, PlotSize, Rgb};
@@ -90,36 +89,7 @@ pub struct BarChart {
 /// no finite value, invalid range.
 pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
     let plot = plot_name(&b.title);
-    if b.groups.is_empty() {
-        return Err(PlotError::Empty {
-            plot,
-            what: "group list",
-        });
-    }
-    if b.series.is_empty() {
-        return Err(PlotError::Empty {
-            plot,
-            what: "series list",
-        });
-    }
-    let ng = b.groups.len();
-    for s in &b.series {
-        let mismatch = |what: &'static str, found: usize| PlotError::LengthMismatch {
-            plot: plot.clone(),
-            series: s.name.clone(),
-            what,
-            expected: ng,
-            found,
-        };
-        if s.values.len() != ng {
-            return Err(mismatch("values", s.values.len()));
-        }
-        if let Some(e) = &s.errors {
-            if e.len() != ng {
-                return Err(mismatch("errors", e.len()));
-            }
-        }
-    }
+    check_bar_shapes(&plot, b)?;
     let skipped = b
         .series
         .iter()
@@ -194,11 +164,6 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
             });
         }
         // Error bars on top of all bars so neighbours never hide them.
-        let whisker = ShapeStyle {
-            color: Rgb::BLACK.rgba(1.0),
-            filled: false,
-            stroke_width: 1,
-        };
         for (i, s) in b.series.iter().enumerate() {
             ch.draw_series(s.values.iter().enumerate().filter_map(|(g, &v)| {
                 let e = error_of(s, g)?;
@@ -206,19 +171,11 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
                     return None;
                 }
                 let (l, r) = bar_span(g, i);
-                let c = 0.5 * (l + r);
-                let cap = 0.2 * (r - l);
-                let (lo, hi) = (clamp(v - e), clamp(v + e));
-                Some(PathElement::new(
-                    vec![
-                        (c - cap, lo),
-                        (c + cap, lo),
-                        (c, lo),
-                        (c, hi),
-                        (c - cap, hi),
-                        (c + cap, hi),
-                    ],
-                    whisker,
+                Some(error_bar(
+                    0.5 * (l + r),
+                    0.2 * (r - l),
+                    clamp(v - e),
+                    clamp(v + e),
                 ))
             }))
             .map_err(render_err(&plot))?;
@@ -235,7 +192,7 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
             )))
             .map_err(render_err(&plot))?
             .label(r.label.clone())
-            .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
+            .legend(line_glyph(style));
         }
         draw_legend(&plot, root, &mut ch, b.legend, &legend)?;
         if let Some(note) = skipped_note(skipped, "non-finite values") {
@@ -243,6 +200,41 @@ pub fn bar_chart(b: &BarChart) -> Result<String, PlotError> {
         }
         Ok(())
     })
+}
+
+/// The series fit the groups: values (and errors, when given) one per group.
+fn check_bar_shapes(plot: &str, b: &BarChart) -> Result<(), PlotError> {
+    if b.groups.is_empty() {
+        return Err(PlotError::Empty {
+            plot: plot.to_string(),
+            what: "group list",
+        });
+    }
+    if b.series.is_empty() {
+        return Err(PlotError::Empty {
+            plot: plot.to_string(),
+            what: "series list",
+        });
+    }
+    let ng = b.groups.len();
+    for s in &b.series {
+        let mismatch = |what: &'static str, found: usize| PlotError::LengthMismatch {
+            plot: plot.to_string(),
+            series: s.name.clone(),
+            what,
+            expected: ng,
+            found,
+        };
+        if s.values.len() != ng {
+            return Err(mismatch("values", s.values.len()));
+        }
+        if let Some(e) = &s.errors {
+            if e.len() != ng {
+                return Err(mismatch("errors", e.len()));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Reference lines: black first, then dark greys, so they never look like a series.

@@ -5,7 +5,7 @@ use plotters::chart::{ChartBuilder, ChartContext};
 use plotters::coord::cartesian::Cartesian2d;
 use plotters::coord::Shift;
 use plotters::drawing::{DrawingArea, IntoDrawingArea};
-use plotters::element::Text;
+use plotters::element::{PathElement, Text};
 use plotters::prelude::SVGBackend;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{Color, IntoFont, RGBAColor, ShapeStyle, TextStyle, WHITE};
@@ -402,6 +402,32 @@ pub(crate) fn text_style(size: u32, c: RGBAColor, pos: Pos) -> TextStyle<'static
         color: c.to_backend_color(),
         pos,
     }
+}
+
+/// An error bar in plot coordinates: the whisker from `lo` to `hi` at `x`, with caps
+/// `cap` to each side (one black `<polyline>`, caps at both ends).
+pub(crate) fn error_bar(x: f64, cap: f64, lo: f64, hi: f64) -> PathElement<(f64, f64)> {
+    let whisker = ShapeStyle {
+        color: crate::style::Rgb::BLACK.rgba(1.0),
+        filled: false,
+        stroke_width: 1,
+    };
+    PathElement::new(
+        vec![
+            (x - cap, lo),
+            (x + cap, lo),
+            (x, lo),
+            (x, hi),
+            (x - cap, hi),
+            (x + cap, hi),
+        ],
+        whisker,
+    )
+}
+
+/// The legend glyph of a line series: a 24-pixel stroke in the series' style.
+pub(crate) fn line_glyph(style: ShapeStyle) -> impl Fn((i32, i32)) -> PathElement<(i32, i32)> {
+    move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style)
 }
 
 /// Solid filled style.

@@ -8,7 +8,7 @@ use plotters::style::{RGBAColor, ShapeStyle};
 use crate::axis::{extent, format_number, AxisSpec, Fit, Scale};
 use crate::canvas::{
     chart, draw_mesh, fill, footnote, plot_name, render_err, render_svg, text_style, title_height,
-    Margins, DESC_SIZE, FONT, LABEL_SIZE,
+    Margins, Root, DESC_SIZE, FONT, LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::style::{PlotSize, Rgb};
@@ -69,34 +69,7 @@ const NAN_CELL: Rgb = Rgb(200, 200, 200);
 pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
     let plot = plot_name(&h.title);
     let (nr, nc) = (h.row_labels.len(), h.column_labels.len());
-    if nr == 0 || nc == 0 {
-        return Err(PlotError::Empty {
-            plot,
-            what: if nr == 0 {
-                "row label list"
-            } else {
-                "column label list"
-            },
-        });
-    }
-    if h.values.len() != nr {
-        return Err(PlotError::LengthMismatch {
-            plot,
-            series: "values".into(),
-            what: "rows",
-            expected: nr,
-            found: h.values.len(),
-        });
-    }
-    if let Some((r, row)) = h.values.iter().enumerate().find(|(_, r)| r.len() != nc) {
-        return Err(PlotError::LengthMismatch {
-            plot,
-            series: format!("row {r} ('{}')", h.row_labels[r]),
-            what: "columns",
-            expected: nc,
-            found: row.len(),
-        });
-    }
+    check_heat_map_shape(&plot, h)?;
     let skipped = h.values.iter().flatten().filter(|v| !v.is_finite()).count();
     let Some(data) = extent(h.values.iter().flatten().copied()) else {
         return Err(PlotError::NoPlottableData { plot, skipped });
@@ -177,16 +150,7 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
         let centred = Pos::new(HPos::Center, VPos::Center);
         let font = cell_font(h.size, nr, nc);
         ch.draw_series(cells.iter().map(|&(r, c, v)| {
-            let (text, ink) = if v.is_finite() {
-                let ink = if colour(v).luminance() < 0.5 {
-                    RGBAColor(255, 255, 255, 1.0)
-                } else {
-                    RGBAColor(0, 0, 0, 1.0)
-                };
-                (format_number(v, Some(h.decimals)), ink)
-            } else {
-                ("n/a".to_string(), RGBAColor(60, 60, 60, 1.0))
-            };
+            let (text, ink) = cell_text(v, colour(v), h.decimals);
             Text::new(
                 text,
                 (c as f64 + 0.5, top(r) - 0.5),
@@ -195,16 +159,6 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
         }))
         .map_err(render_err(&plot))?;
 
-        // Colour bar: 64 bands over the value scale.
-        let unit = AxisSpec::categorical(vec![]);
-        let bar_axis = AxisSpec::resolve(
-            &plot,
-            "value",
-            Scale::Linear,
-            None,
-            Some((scale.lo, scale.hi)),
-            Fit::Tight,
-        )?;
         let bar_margins = Margins {
             left: 0,
             bottom: margins.bottom,
@@ -212,19 +166,13 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
             top: title_height(root, &h.title),
             legend: 0,
         };
-        let mut cb = chart(&plot, &bar, "", &unit, &bar_axis, bar_margins)?;
-        draw_mesh(&plot, &mut cb, &unit, &bar_axis, "", &h.value_label, false)?;
-        const BANDS: usize = 64;
-        let span = scale.hi - scale.lo;
-        cb.draw_series((0..BANDS).map(|k| {
-            let a = scale.lo + span * k as f64 / BANDS as f64;
-            let b = scale.lo + span * (k + 1) as f64 / BANDS as f64;
-            Rectangle::new(
-                [(0.0, a), (1.0, b)],
-                fill(viridis((k as f64 + 0.5) / BANDS as f64).rgba(1.0)),
-            )
-        }))
-        .map_err(render_err(&plot))?;
+        draw_colour_bar(
+            &plot,
+            &bar,
+            bar_margins,
+            (scale.lo, scale.hi),
+            &h.value_label,
+        )?;
         if skipped > 0 {
             let note = match skipped {
                 1 => "1 cell has no finite value (shown as n/a)".to_string(),
@@ -234,6 +182,87 @@ pub fn heat_map(h: &HeatMap) -> Result<String, PlotError> {
         }
         Ok(())
     })
+}
+
+/// One label per row and column, and every row as long as the column labels.
+fn check_heat_map_shape(plot: &str, h: &HeatMap) -> Result<(), PlotError> {
+    let (nr, nc) = (h.row_labels.len(), h.column_labels.len());
+    if nr == 0 || nc == 0 {
+        return Err(PlotError::Empty {
+            plot: plot.to_string(),
+            what: if nr == 0 {
+                "row label list"
+            } else {
+                "column label list"
+            },
+        });
+    }
+    if h.values.len() != nr {
+        return Err(PlotError::LengthMismatch {
+            plot: plot.to_string(),
+            series: "values".into(),
+            what: "rows",
+            expected: nr,
+            found: h.values.len(),
+        });
+    }
+    if let Some((r, row)) = h.values.iter().enumerate().find(|(_, r)| r.len() != nc) {
+        return Err(PlotError::LengthMismatch {
+            plot: plot.to_string(),
+            series: format!("row {r} ('{}')", h.row_labels[r]),
+            what: "columns",
+            expected: nc,
+            found: row.len(),
+        });
+    }
+    Ok(())
+}
+
+/// The colour bar beside the map: 64 bands of the viridis scale over `(lo, hi)`.
+fn draw_colour_bar(
+    plot: &str,
+    area: &Root<'_>,
+    margins: Margins,
+    (lo, hi): (f64, f64),
+    value_label: &str,
+) -> Result<(), PlotError> {
+    let unit = AxisSpec::categorical(vec![]);
+    let bar_axis = AxisSpec::resolve(
+        plot,
+        "value",
+        Scale::Linear,
+        None,
+        Some((lo, hi)),
+        Fit::Tight,
+    )?;
+    let mut cb = chart(plot, area, "", &unit, &bar_axis, margins)?;
+    draw_mesh(plot, &mut cb, &unit, &bar_axis, "", value_label, false)?;
+    const BANDS: usize = 64;
+    let span = hi - lo;
+    cb.draw_series((0..BANDS).map(|k| {
+        let a = lo + span * k as f64 / BANDS as f64;
+        let b = lo + span * (k + 1) as f64 / BANDS as f64;
+        Rectangle::new(
+            [(0.0, a), (1.0, b)],
+            fill(viridis((k as f64 + 0.5) / BANDS as f64).rgba(1.0)),
+        )
+    }))
+    .map_err(render_err(plot))?;
+    Ok(())
+}
+
+/// The value printed in a cell and its ink: white on a dark cell, black on a light one,
+/// grey "n/a" where the value is not finite.
+fn cell_text(v: f64, cell: Rgb, decimals: usize) -> (String, RGBAColor) {
+    if !v.is_finite() {
+        return ("n/a".to_string(), RGBAColor(60, 60, 60, 1.0));
+    }
+    let ink = if cell.luminance() < 0.5 {
+        RGBAColor(255, 255, 255, 1.0)
+    } else {
+        RGBAColor(0, 0, 0, 1.0)
+    };
+    (format_number(v, Some(decimals)), ink)
 }
 
 /// Font size that fits a printed value in a cell.

@@ -2,12 +2,11 @@
 //! true values.
 
 use plotters::element::{Circle, PathElement};
-use plotters::style::ShapeStyle;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, draw_legend, draw_mesh, fill, footnote, legend_width, plot_name, render_err, render_svg,
-    skipped_note, Glyph, Legend, Margins,
+    chart, draw_legend, draw_mesh, error_bar, fill, footnote, legend_width, line_glyph, plot_name,
+    render_err, render_svg, skipped_note, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
 use crate::line::check_series;
@@ -83,33 +82,21 @@ pub struct ScatterPlot {
     pub x_categories: Vec<String>,
 }
 
-/// Render a scatter plot: one filled `<circle>` per plottable point in the
-/// series colour, one black `<polyline>` per error bar, and a dashed grey
-/// identity line if requested (only meaningful for equal scales). Points that
-/// are non-finite (or non-positive on a log/dB axis) are skipped and counted in
-/// the footnote; an error bar whose ends cannot be shown is clipped.
-///
-/// Errors: no series, empty series, length mismatches, no plottable point,
-/// invalid ranges.
-pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
-    let plot = plot_name(&p.title);
-    if p.series.is_empty() {
-        return Err(PlotError::Empty {
-            plot,
-            what: "series list",
-        });
-    }
+/// Per point: plot-space centre and (low, high) y ends of the error bar.
+type Point = ((f64, f64), Option<(f64, f64)>);
+
+/// Each series' plottable points in plot space (a category's centre on a categorical x
+/// axis), and how many were skipped (non-finite, or ≤ 0 on a log/dB axis).
+fn plottable_points(plot: &str, p: &ScatterPlot) -> Result<(Vec<Vec<Point>>, usize), PlotError> {
     let categorical = !p.x_categories.is_empty();
-    // Per point: plot-space centre and (low, high) y ends of the error bar.
-    type Point = ((f64, f64), Option<(f64, f64)>);
     let mut pts: Vec<Vec<Point>> = Vec::new();
     let mut skipped = 0usize;
     for s in &p.series {
-        check_series(&plot, &s.name, s.x.len(), s.y.len())?;
+        check_series(plot, &s.name, s.x.len(), s.y.len())?;
         if let Some(e) = &s.y_errors {
             if e.len() != s.x.len() {
                 return Err(PlotError::LengthMismatch {
-                    plot,
+                    plot: plot.to_string(),
                     series: s.name.clone(),
                     what: "y_errors",
                     expected: s.x.len(),
@@ -145,6 +132,27 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
         }
         pts.push(v);
     }
+    Ok((pts, skipped))
+}
+
+/// Render a scatter plot: one filled `<circle>` per plottable point in the
+/// series colour, one black `<polyline>` per error bar, and a dashed grey
+/// identity line if requested (only meaningful for equal scales). Points that
+/// are non-finite (or non-positive on a log/dB axis) are skipped and counted in
+/// the footnote; an error bar whose ends cannot be shown is clipped.
+///
+/// Errors: no series, empty series, length mismatches, no plottable point,
+/// invalid ranges.
+pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
+    let plot = plot_name(&p.title);
+    if p.series.is_empty() {
+        return Err(PlotError::Empty {
+            plot,
+            what: "series list",
+        });
+    }
+    let categorical = !p.x_categories.is_empty();
+    let (pts, skipped) = plottable_points(&plot, p)?;
     let all = || pts.iter().flatten();
     let xe = extent(all().map(|q| q.0 .0));
     let ye = extent(
@@ -191,30 +199,14 @@ pub fn scatter_plot(p: &ScatterPlot) -> Result<String, PlotError> {
                 )))
                 .map_err(render_err(&plot))?
                 .label("y = x")
-                .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
+                .legend(line_glyph(style));
             }
         }
-        let whisker = ShapeStyle {
-            color: Rgb::BLACK.rgba(1.0),
-            filled: false,
-            stroke_width: 1,
-        };
         for v in &pts {
             ch.draw_series(v.iter().filter(|q| x.contains(q.0 .0)).filter_map(|q| {
                 let (lo, hi) = q.1?;
                 let (lo, hi) = (lo.clamp(y.lo, y.hi), hi.clamp(y.lo, y.hi));
-                let (cx, cap) = (q.0 .0, 0.006 * (x.hi - x.lo));
-                Some(PathElement::new(
-                    vec![
-                        (cx - cap, lo),
-                        (cx + cap, lo),
-                        (cx, lo),
-                        (cx, hi),
-                        (cx - cap, hi),
-                        (cx + cap, hi),
-                    ],
-                    whisker,
-                ))
+                Some(error_bar(q.0 .0, 0.006 * (x.hi - x.lo), lo, hi))
             }))
             .map_err(render_err(&plot))?;
         }

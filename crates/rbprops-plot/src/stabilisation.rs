@@ -6,8 +6,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, plot_name, render_err,
-    render_svg, skipped_note, text_style, Glyph, Legend, Margins, DESC_SIZE, FONT, LABEL_SIZE,
+    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, line_glyph, plot_name,
+    render_err, render_svg, skipped_note, text_style, Glyph, Legend, Margins, DESC_SIZE, FONT,
+    LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::line::{check_series, draw_vertical_markers, VerticalMarker};
@@ -109,6 +110,37 @@ pub struct StabilisationDiagram {
     pub size: PlotSize,
 }
 
+/// The background curve's points (frequency, log10 magnitude; None where not plottable)
+/// and how many poles and curve points are skipped as not finite (or ≤ 0 on the log axis).
+#[allow(clippy::type_complexity)]
+fn background_points(
+    plot: &str,
+    d: &StabilisationDiagram,
+) -> Result<(Vec<Option<(f64, f64)>>, usize), PlotError> {
+    let mut skipped = d
+        .poles
+        .iter()
+        .filter(|p| !p.frequency_hz.is_finite())
+        .count();
+    let mut curve_pts: Vec<Option<(f64, f64)>> = Vec::new();
+    if let Some(bg) = &d.background {
+        check_series(plot, &bg.name, bg.frequency_hz.len(), bg.magnitude.len())?;
+        curve_pts = bg
+            .frequency_hz
+            .iter()
+            .zip(&bg.magnitude)
+            .map(
+                |(&f, &m)| match (f.is_finite(), Scale::Log10.transform(m)) {
+                    (true, Some(lm)) => Some((f, lm)),
+                    _ => None,
+                },
+            )
+            .collect();
+        skipped += curve_pts.iter().filter(|p| p.is_none()).count();
+    }
+    Ok((curve_pts, skipped))
+}
+
 /// Render a stabilisation diagram: x = frequency (Hz), y = model order, one
 /// coloured letter per pole (s/d/f/o, see [`PoleClass`]), selected poles as
 /// dashed vertical lines, and the optional background curve on a log axis at
@@ -124,27 +156,7 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             what: "pole list",
         });
     }
-    let mut skipped = d
-        .poles
-        .iter()
-        .filter(|p| !p.frequency_hz.is_finite())
-        .count();
-    let mut curve_pts: Vec<Option<(f64, f64)>> = Vec::new();
-    if let Some(bg) = &d.background {
-        check_series(&plot, &bg.name, bg.frequency_hz.len(), bg.magnitude.len())?;
-        curve_pts = bg
-            .frequency_hz
-            .iter()
-            .zip(&bg.magnitude)
-            .map(
-                |(&f, &m)| match (f.is_finite(), Scale::Log10.transform(m)) {
-                    (true, Some(lm)) => Some((f, lm)),
-                    _ => None,
-                },
-            )
-            .collect();
-        skipped += curve_pts.iter().filter(|p| p.is_none()).count();
-    }
+    let (curve_pts, mut skipped) = background_points(&plot, d)?;
     let fx = extent(
         d.poles
             .iter()
@@ -206,7 +218,7 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
             ch.draw_secondary_series(pieces.into_iter().map(|p| PathElement::new(p, style)))
                 .map_err(render_err(&plot))?
                 .label(bg.name.clone())
-                .legend(move |(px, py)| PathElement::new(vec![(px, py), (px + 24, py)], style));
+                .legend(line_glyph(style));
         }
         draw_vertical_markers(&plot, &mut ch, &d.selected, &x, &y)?;
         let centred = Pos::new(HPos::Center, VPos::Center);

@@ -361,17 +361,7 @@ pub fn predict(
     let omegas: Vec<f64> = freq.iter().map(|f| std::f64::consts::TAU * f).collect();
     let models = build_models(spec, geometry, effects)?;
     if options.method == SolveMethod::Modal {
-        for sm in &models {
-            let coupling = sm.model.damping_coupling(&sm.modes);
-            if coupling > 1e-9 {
-                return Err(SimError::Setup {
-                    setup: sm.model.setup.clone(),
-                    problem: format!(
-                        "damping is not classical (modal coupling {coupling:.2e}): use the direct solve"
-                    ),
-                });
-            }
-        }
+        check_classical_damping(&models)?;
     }
     let columns = options.method == SolveMethod::Columns;
     let tables = models
@@ -384,7 +374,66 @@ pub fn predict(
             }
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let responses = models
+    let responses = column_responses(&models, &omegas, columns)?;
+    // Which set-up and input serve each excitation.
+    let mut route = vec![(0usize, 0usize); n_ex];
+    for (si, sm) in models.iter().enumerate() {
+        for (ii, inp) in sm.model.inputs.iter().enumerate() {
+            route[inp.excitation] = (si, ii);
+        }
+    }
+    let blocks = ExcitationBlocks {
+        spec,
+        geometry,
+        effects,
+        freq: &freq,
+        omegas: &omegas,
+        factors: omegas
+            .iter()
+            .map(|&w| spec.quantity.from_receptance_factor(w))
+            .collect(),
+        models: &models,
+        tables,
+        responses,
+        route,
+        line_factors: models.iter().map(|_| std::sync::OnceLock::new()).collect(),
+    };
+    let mut frf = FrfSet::zeros(spec.quantity, freq.clone(), n_ex, n_ch);
+    let block = n_ch * nl;
+    if block > 0 {
+        frf.values
+            .par_chunks_mut(block)
+            .enumerate()
+            .map(|(e, values)| blocks.fill(e, values))
+            .collect::<Result<(), SimError>>()?;
+    }
+    Ok((frf, models))
+}
+
+/// The modal solve needs classical damping (modes that decouple it): refused otherwise.
+fn check_classical_damping(models: &[SetupModel]) -> Result<(), SimError> {
+    for sm in models {
+        let coupling = sm.model.damping_coupling(&sm.modes);
+        if coupling > 1e-9 {
+            return Err(SimError::Setup {
+                setup: sm.model.setup.clone(),
+                problem: format!(
+                    "damping is not classical (modal coupling {coupling:.2e}): use the direct solve"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// With the column solve, each set-up's input responses where the columns serve its
+/// observation, at `s = σ + iω` (σ the window's decay rate, 0 without a window).
+fn column_responses(
+    models: &[SetupModel],
+    omegas: &[f64],
+    columns: bool,
+) -> Result<Vec<Option<ColumnResponses>>, SimError> {
+    models
         .iter()
         .map(|sm| {
             let obs = &sm.model.observation;
@@ -398,112 +447,118 @@ pub fn predict(
                 s: (sigma != 0.0).then_some(s),
             }))
         })
-        .collect::<Result<Vec<_>, SimError>>()?;
-    let order = spec.quantity.order();
-    // Which set-up and input serve each excitation.
-    let mut route = vec![(0usize, 0usize); n_ex];
-    for (si, sm) in models.iter().enumerate() {
-        for (ii, inp) in sm.model.inputs.iter().enumerate() {
-            route[inp.excitation] = (si, ii);
+        .collect()
+}
+
+/// What [`predict`] computes each excitation's block of FRFs from.
+struct ExcitationBlocks<'a> {
+    spec: &'a CampaignSpec,
+    geometry: &'a Geometry,
+    effects: &'a [Box<dyn Effect>],
+    freq: &'a [f64],
+    omegas: &'a [f64],
+    /// Receptance to the spec's quantity, per line.
+    factors: Vec<c64>,
+    models: &'a [SetupModel],
+    /// Per set-up: the transfer table when its observation is plain (not the column solve).
+    tables: Vec<Option<TransferTable>>,
+    /// Per set-up: the column solve's input responses.
+    responses: Vec<Option<ColumnResponses>>,
+    /// The set-up and input serving each excitation.
+    route: Vec<(usize, usize)>,
+    /// The extra modes' line factors of each set-up, computed by its first excitation
+    /// that needs them and shared by the others (they do not depend on the excitation).
+    line_factors: Vec<std::sync::OnceLock<ModeLineFactors>>,
+}
+
+impl ExcitationBlocks<'_> {
+    /// Excitation `e`'s FRFs (channel-major, `values`): by the column solve under a
+    /// window, by receptance (table or columns) then effects and the quantity factor, or
+    /// by the observed block.
+    fn fill(&self, e: usize, values: &mut [c64]) -> Result<(), SimError> {
+        let (si, ii) = self.route[e];
+        let sm = &self.models[si];
+        let input = &sm.model.inputs[ii];
+        let mut ob = OutputBlock {
+            geometry: self.geometry,
+            excitation: e,
+            frequency_hz: self.freq,
+            n_channels: self.geometry.channels.len(),
+            values,
+        };
+        if let Some(ColumnResponses { values, s: Some(s) }) = &self.responses[si] {
+            ob.values.copy_from_slice(&values[ii]);
+            self.windowed(sm, s, &mut ob);
+            return Ok(());
+        }
+        let receptance = match (&self.responses[si], &self.tables[si]) {
+            (Some(responses), _) => {
+                ob.values.copy_from_slice(&responses.values[ii]);
+                true
+            }
+            (None, Some(table)) if input.is_plain() => {
+                table.apply(&input.column, ob.values);
+                true
+            }
+            _ => false,
+        };
+        if receptance {
+            let modes_h = self.line_factors[si]
+                .get_or_init(|| ModeLineFactors::at_iw(&sm.model.extra_modes, self.omegas));
+            add_extra_receptances(&sm.model.extra_modes, e, modes_h, ob.values);
+            for eff in self.effects {
+                eff.transform_output(&mut ob);
+            }
+            let nl = self.freq.len();
+            for dst in ob.values.chunks_exact_mut(nl) {
+                for (d, f) in dst.iter_mut().zip(&self.factors) {
+                    *d *= f;
+                }
+            }
+            return Ok(());
+        }
+        crate::observe::observed_block(
+            &sm.model,
+            input,
+            self.omegas,
+            self.spec.quantity,
+            ob.values,
+        )
+        .map_err(|problem| SimError::Setup {
+            setup: sm.model.setup.clone(),
+            problem: format!(
+                "excitation '{}': {problem}",
+                self.geometry.excitations[e].id
+            ),
+        })?;
+        // Output effects are per-line gains, so they commute with the quantity factor.
+        for eff in self.effects {
+            eff.transform_output(&mut ob);
+        }
+        Ok(())
+    }
+
+    /// Under a window: the block holds the transfer functions at `s`; the extra modes
+    /// and the output effects are added there, and `s^k` gives the quantity.
+    fn windowed(&self, sm: &SetupModel, s: &[c64], ob: &mut OutputBlock) {
+        let (si, _) = self.route[ob.excitation];
+        let modes_h =
+            self.line_factors[si].get_or_init(|| ModeLineFactors::at_s(&sm.model.extra_modes, s));
+        add_extra_receptances(&sm.model.extra_modes, ob.excitation, modes_h, ob.values);
+        for eff in self.effects {
+            eff.transform_output(ob);
+        }
+        let order = self.spec.quantity.order();
+        for dst in ob.values.chunks_exact_mut(self.freq.len()) {
+            for (d, s) in dst.iter_mut().zip(s) {
+                *d *= match order {
+                    0 => c64::new(1.0, 0.0),
+                    1 => *s,
+                    _ => s * s,
+                };
+            }
         }
     }
-    let factors: Vec<c64> = omegas
-        .iter()
-        .map(|&w| spec.quantity.from_receptance_factor(w))
-        .collect();
-    // The extra modes' line factors of each set-up, computed by its first excitation
-    // that needs them and shared by the others (they do not depend on the excitation).
-    let line_factors: Vec<std::sync::OnceLock<ModeLineFactors>> =
-        models.iter().map(|_| std::sync::OnceLock::new()).collect();
-    let mut frf = FrfSet::zeros(spec.quantity, freq.clone(), n_ex, n_ch);
-    let block = n_ch * nl;
-    if block > 0 {
-        frf.values
-            .par_chunks_mut(block)
-            .enumerate()
-            .map(|(e, values)| -> Result<(), SimError> {
-                let (si, ii) = route[e];
-                let sm = &models[si];
-                let input = &sm.model.inputs[ii];
-                let mut ob = OutputBlock {
-                    geometry,
-                    excitation: e,
-                    frequency_hz: &freq,
-                    n_channels: n_ch,
-                    values,
-                };
-                if let Some(ColumnResponses { values, s: Some(s) }) = &responses[si] {
-                    // Under a window: the transfer functions at s, `s^k` for the quantity.
-                    ob.values.copy_from_slice(&values[ii]);
-                    let modes_h = line_factors[si]
-                        .get_or_init(|| ModeLineFactors::at_s(&sm.model.extra_modes, s));
-                    add_extra_receptances(&sm.model.extra_modes, e, modes_h, ob.values);
-                    for eff in effects {
-                        eff.transform_output(&mut ob);
-                    }
-                    for dst in ob.values.chunks_exact_mut(nl) {
-                        for (d, s) in dst.iter_mut().zip(s) {
-                            *d *= match order {
-                                0 => c64::new(1.0, 0.0),
-                                1 => *s,
-                                _ => s * s,
-                            };
-                        }
-                    }
-                    return Ok(());
-                }
-                let receptance = match (&responses[si], &tables[si]) {
-                    (Some(responses), _) => {
-                        ob.values.copy_from_slice(&responses.values[ii]);
-                        true
-                    }
-                    (None, Some(table)) if input.is_plain() => {
-                        table.apply(&input.column, ob.values);
-                        true
-                    }
-                    _ => false,
-                };
-                match receptance {
-                    true => {
-                        let modes_h = line_factors[si]
-                            .get_or_init(|| ModeLineFactors::at_iw(&sm.model.extra_modes, &omegas));
-                        add_extra_receptances(&sm.model.extra_modes, e, modes_h, ob.values);
-                        for eff in effects {
-                            eff.transform_output(&mut ob);
-                        }
-                        for dst in ob.values.chunks_exact_mut(nl) {
-                            for (d, f) in dst.iter_mut().zip(&factors) {
-                                *d *= f;
-                            }
-                        }
-                    }
-                    false => {
-                        crate::observe::observed_block(
-                            &sm.model,
-                            input,
-                            &omegas,
-                            spec.quantity,
-                            ob.values,
-                        )
-                        .map_err(|problem| SimError::Setup {
-                            setup: sm.model.setup.clone(),
-                            problem: format!(
-                                "excitation '{}': {problem}",
-                                geometry.excitations[e].id
-                            ),
-                        })?;
-                        // Output effects are per-line gains, so they commute with the
-                        // quantity factor.
-                        for eff in effects {
-                            eff.transform_output(&mut ob);
-                        }
-                    }
-                }
-                Ok(())
-            })
-            .collect::<Result<(), SimError>>()?;
-    }
-    Ok((frf, models))
 }
 
 /// Simulates a campaign: validates the spec, builds each set-up's model, computes the

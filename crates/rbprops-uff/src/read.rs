@@ -164,7 +164,7 @@ pub fn parse_reader(
         let line = |reader: &mut dyn std::io::BufRead, chunk: &mut Vec<u8>| {
             let start = chunk.len();
             let k = reader.read_until(b'\n', chunk).map_err(io)?;
-            Ok::<_, UffError>((k > 0).then(|| start..chunk.len()))
+            Ok::<_, UffError>((k > 0).then_some(start..chunk.len()))
         };
         // Up to the opening delimiter; anything else but blank lines is for the parser
         // to name.
@@ -298,131 +298,164 @@ fn parse_into(
         };
         let binary_flag = htext.as_bytes().get(6).map(|c| c.to_ascii_lowercase()) == Some(b'b');
         let mut lines: Vec<Line> = Vec::new();
-        let mut binary: Option<(BinaryLayout, &[u8])> = None;
-        if binary_flag {
-            let field = |start, width, name: &str| {
-                parse_int(column(&htext, start, width))
-                    .map_err(|e| ctx.err(format!("binary header {name}"), e))
-            };
-            let order = field(7, 6, "field 3 (byte ordering)")?;
-            let fp = field(13, 6, "field 4 (floating-point format)")?;
-            let n_ascii = field(19, 12, "field 5 (number of ASCII lines)")?;
-            let n_bytes = field(31, 12, "field 6 (number of bytes)")?;
-            let little_endian = match order {
-                1 => true,
-                2 => false,
-                o => {
-                    return Err(ctx.err(
-                        "binary header field 3 (byte ordering)",
-                        format!("unknown code {o} (1 little endian, 2 big endian)"),
-                    ))
-                }
-            };
-            if fp != 2 {
-                return Err(ctx.err(
-                    "binary header field 4 (floating-point format)",
-                    format!("code {fp} is not supported (only 2 = IEEE 754)"),
-                ));
-            }
-            if !(0..=1000).contains(&n_ascii) {
-                return Err(ctx.err(
-                    "binary header field 5 (number of ASCII lines)",
-                    format!("{n_ascii} is not a plausible line count"),
-                ));
-            }
-            for k in 0..n_ascii {
-                let l = cur.next().ok_or_else(|| {
-                    ctx.err(
-                        format!("ASCII line {} of {n_ascii}", k + 1),
-                        "file ends inside the dataset header (truncated)",
-                    )
-                })?;
-                lines.push(l);
-            }
-            let n = usize::try_from(n_bytes).map_err(|_| {
-                ctx.err(
-                    "binary header field 6 (number of bytes)",
-                    format!("{n_bytes} is negative"),
-                )
-            })?;
-            // pyuff (2.5) writes half the true byte count for complex 58b data; when the
-            // announced count is not followed by the delimiter, the count implied by the
-            // dataset's own record 7 is tried before giving up.
-            let mut candidates = vec![n];
-            if number == 58 {
-                if let Some(e) = expected_58b_bytes(&lines).filter(|&e| e != n) {
-                    candidates.push(e);
-                }
-            }
-            let mut found = None;
-            for &len in &candidates {
-                let mut probe = cur.clone();
-                let Some(data) = probe.take(len) else {
-                    continue;
-                };
-                // The line end after the data, and a stray extra line end some writers
-                // add, may come before the closing delimiter (at most two blank lines:
-                // anything else means the byte count is wrong).
-                let mut close = probe.next();
-                for _ in 0..2 {
-                    if matches!(close, Some(l) if trim_ascii(l.bytes).is_empty()) {
-                        close = probe.next();
-                    }
-                }
-                if matches!(close, Some(l) if is_delimiter(l.bytes)) {
-                    found = Some((data, probe));
-                    break;
-                }
-            }
-            let Some((data, after)) = found else {
-                return Err(ctx.err(
-                    "binary header field 6 (number of bytes)",
-                    if bytes.len() - cur.pos < n {
-                        format!(
-                            "the header announces {n} bytes but only {} remain (truncated)",
-                            bytes.len() - cur.pos
-                        )
-                    } else {
-                        format!("no closing '    -1' right after the announced {n} bytes of binary data")
-                    },
-                ));
-            };
-            cur = after;
-            binary = Some((BinaryLayout { little_endian }, data));
+        let binary = if binary_flag {
+            Some(binary_dataset(&mut cur, &htext, number, &ctx, &mut lines)?)
         } else {
-            loop {
-                match cur.next() {
-                    Some(l) if is_delimiter(l.bytes) => break,
-                    Some(l) => lines.push(l),
-                    None => {
-                        return Err(ctx.err(
-                            "closing delimiter",
-                            "file ends before the dataset's closing '    -1' (truncated)",
-                        ))
-                    }
-                }
-            }
-        }
-        let record = match number {
-            58 => Record::Function(Box::new(parse_58(&ctx, &lines, binary)?)),
-            15 | 2411 if binary.is_none() => Record::Nodes(parse_nodes(&ctx, number, &lines)?),
-            164 if binary.is_none() => Record::Units(parse_164(&ctx, &lines)?),
-            2420 if binary.is_none() => Record::CoordinateSystems(parse_2420(&ctx, &lines)?),
-            18 if binary.is_none() => Record::CoordinateSystems(parse_18(&ctx, &lines)?),
-            _ => Record::Unknown {
-                number,
-                text: lines
-                    .iter()
-                    .map(|l| free_text(l.bytes))
-                    .collect::<Vec<_>>()
-                    .join("\n"),
-            },
+            ascii_dataset(&mut cur, &ctx, &mut lines)?;
+            None
         };
+        let record = record_of(&ctx, number, &lines, binary)?;
         datasets.push(Dataset {
             location: ctx.at,
             record,
         });
     }
+}
+
+/// A binary dataset (58b) after its header line `htext`: the ASCII header lines (into
+/// `lines`) and the binary data, found by the announced byte count (or, for pyuff's 58b,
+/// the count record 7 implies) followed by the closing delimiter.
+fn binary_dataset<'a>(
+    cur: &mut Cursor<'a>,
+    htext: &str,
+    number: i64,
+    ctx: &Ctx,
+    lines: &mut Vec<Line<'a>>,
+) -> Result<(BinaryLayout, &'a [u8]), UffError> {
+    let field = |start, width, name: &str| {
+        parse_int(column(htext, start, width))
+            .map_err(|e| ctx.err(format!("binary header {name}"), e))
+    };
+    let order = field(7, 6, "field 3 (byte ordering)")?;
+    let fp = field(13, 6, "field 4 (floating-point format)")?;
+    let n_ascii = field(19, 12, "field 5 (number of ASCII lines)")?;
+    let n_bytes = field(31, 12, "field 6 (number of bytes)")?;
+    let little_endian = match order {
+        1 => true,
+        2 => false,
+        o => {
+            return Err(ctx.err(
+                "binary header field 3 (byte ordering)",
+                format!("unknown code {o} (1 little endian, 2 big endian)"),
+            ))
+        }
+    };
+    if fp != 2 {
+        return Err(ctx.err(
+            "binary header field 4 (floating-point format)",
+            format!("code {fp} is not supported (only 2 = IEEE 754)"),
+        ));
+    }
+    if !(0..=1000).contains(&n_ascii) {
+        return Err(ctx.err(
+            "binary header field 5 (number of ASCII lines)",
+            format!("{n_ascii} is not a plausible line count"),
+        ));
+    }
+    for k in 0..n_ascii {
+        let l = cur.next().ok_or_else(|| {
+            ctx.err(
+                format!("ASCII line {} of {n_ascii}", k + 1),
+                "file ends inside the dataset header (truncated)",
+            )
+        })?;
+        lines.push(l);
+    }
+    let n = usize::try_from(n_bytes).map_err(|_| {
+        ctx.err(
+            "binary header field 6 (number of bytes)",
+            format!("{n_bytes} is negative"),
+        )
+    })?;
+    // pyuff (2.5) writes half the true byte count for complex 58b data; when the
+    // announced count is not followed by the delimiter, the count implied by the
+    // dataset's own record 7 is tried before giving up.
+    let mut candidates = vec![n];
+    if number == 58 {
+        if let Some(e) = expected_58b_bytes(lines).filter(|&e| e != n) {
+            candidates.push(e);
+        }
+    }
+    let mut found = None;
+    for &len in &candidates {
+        let mut probe = cur.clone();
+        let Some(data) = probe.take(len) else {
+            continue;
+        };
+        // The line end after the data, and a stray extra line end some writers
+        // add, may come before the closing delimiter (at most two blank lines:
+        // anything else means the byte count is wrong).
+        let mut close = probe.next();
+        for _ in 0..2 {
+            if matches!(close, Some(l) if trim_ascii(l.bytes).is_empty()) {
+                close = probe.next();
+            }
+        }
+        if matches!(close, Some(l) if is_delimiter(l.bytes)) {
+            found = Some((data, probe));
+            break;
+        }
+    }
+    let Some((data, after)) = found else {
+        return Err(ctx.err(
+            "binary header field 6 (number of bytes)",
+            if cur.data.len() - cur.pos < n {
+                format!(
+                    "the header announces {n} bytes but only {} remain (truncated)",
+                    cur.data.len() - cur.pos
+                )
+            } else {
+                format!("no closing '    -1' right after the announced {n} bytes of binary data")
+            },
+        ));
+    };
+    *cur = after;
+    Ok((BinaryLayout { little_endian }, data))
+}
+
+/// An ASCII dataset's lines (into `lines`) up to its closing delimiter.
+fn ascii_dataset<'a>(
+    cur: &mut Cursor<'a>,
+    ctx: &Ctx,
+    lines: &mut Vec<Line<'a>>,
+) -> Result<(), UffError> {
+    loop {
+        match cur.next() {
+            Some(l) if is_delimiter(l.bytes) => return Ok(()),
+            Some(l) => lines.push(l),
+            None => {
+                return Err(ctx.err(
+                    "closing delimiter",
+                    "file ends before the dataset's closing '    -1' (truncated)",
+                ))
+            }
+        }
+    }
+}
+
+/// The record of dataset `number` from its lines (and binary data): functions (58),
+/// nodes (15, 2411), units (164), coordinate systems (2420, 18); any other kept as text.
+fn record_of(
+    ctx: &Ctx,
+    number: i64,
+    lines: &[Line],
+    binary: Option<(BinaryLayout, &[u8])>,
+) -> Result<Record, UffError> {
+    Ok(match number {
+        58 => Record::Function(Box::new(parse_58(ctx, lines, binary)?)),
+        15 | 2411 if binary.is_none() => Record::Nodes(parse_nodes(ctx, number, lines)?),
+        164 if binary.is_none() => Record::Units(parse_164(ctx, lines)?),
+        2420 if binary.is_none() => Record::CoordinateSystems(parse_2420(ctx, lines)?),
+        18 if binary.is_none() => Record::CoordinateSystems(parse_18(ctx, lines)?),
+        _ => Record::Unknown {
+            number,
+            text: lines
+                .iter()
+                .map(|l| free_text(l.bytes))
+                .collect::<Vec<_>>()
+                .join("\n"),
+        },
+    })
 }
 
 /// The byte count a 58b dataset's records 7 implies (None if record 7 is unreadable).
