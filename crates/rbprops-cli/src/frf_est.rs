@@ -5,6 +5,7 @@
 //! through the same UFF mapping an FRF export takes (units, DOFs, set-ups).
 
 use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
 use rbprops_core::records::{
     ExcitationAveragesRecord, ForceWindowRecord, FrfEstimationRecord, HitRecord, ProcessingRecord,
     PROCESSING_TOPIC,
@@ -124,12 +125,49 @@ pub struct Estimated {
     pub side_digest: Vec<u8>,
 }
 
+/// Wall time of each phase of [`estimate_uff_timed`], in order (for the phase bench,
+/// `benches/frfest_phases.rs`).
+#[derive(Debug, Default)]
+pub struct PhaseTimes {
+    /// `(phase, seconds)`.
+    pub phases: Vec<(&'static str, f64)>,
+    last: Option<std::time::Instant>,
+}
+
+impl PhaseTimes {
+    /// Ends the phase running since the last call (or since `start`).
+    pub fn lap(&mut self, phase: &'static str) {
+        let now = std::time::Instant::now();
+        let since = self.last.unwrap_or(now);
+        self.phases.push((phase, (now - since).as_secs_f64()));
+        self.last = Some(now);
+    }
+    /// Starts timing.
+    pub fn start(&mut self) {
+        self.last = Some(std::time::Instant::now());
+    }
+}
+
 /// FRFs from the time histories of a parsed universal file (module docs).
 pub fn estimate_uff(
     data: &UffFile,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
 ) -> Result<Estimated> {
+    estimate_uff_timed(data, uff_opts, opts, &mut PhaseTimes::default())
+}
+
+/// [`estimate_uff`], timing its phases into `times`. The excitations are independent
+/// until the band is chosen: their hit checks, spectral sums and estimates run in
+/// parallel (rayon), each excitation's own arithmetic in a fixed order, so the output is
+/// the same whatever the number of threads.
+pub fn estimate_uff_timed(
+    data: &UffFile,
+    uff_opts: &crate::UffInputOptions,
+    opts: &EstimationOptions,
+    times: &mut PhaseTimes,
+) -> Result<Estimated> {
+    times.start();
     let index = timehist::index_time_histories(
         data,
         &timehist::TimeOptions {
@@ -137,7 +175,9 @@ pub fn estimate_uff(
         },
     )?;
     let fs = index.sample_rate_hz;
+    times.lap("index");
     let (hits, n) = checked_hits(data, &index, opts)?;
+    times.lap("hit checks");
     let tau = match opts.response_window {
         WindowChoice::None => None,
         WindowChoice::Exponential(t) => Some(t),
@@ -146,15 +186,17 @@ pub fn estimate_uff(
     let response_window = tau.map_or(ResponseWindow::None, |tau_s| ResponseWindow::Exponential {
         tau_s,
     });
+    times.lap("window τ");
     let averaged: Vec<Averaged> = hits
-        .iter()
+        .par_iter()
         .map(|hs| average(hs, fs, n, opts, &response_window))
         .collect::<Result<_>>()?;
+    times.lap("windows, FFT, spectral sums");
     let sums: Vec<&SpectralSums> = averaged.iter().map(|a| &a.sums).collect();
     let band = band_lines(&sums, opts.band_hz, fs)?;
     let gamma = line_correlation(tau, fs, n);
     let per_excitation: Vec<ExcitationEstimate> = averaged
-        .iter()
+        .par_iter()
         .zip(&hits)
         .zip(&index.excitations)
         .map(|((s, hs), ex)| {
@@ -173,10 +215,12 @@ pub fn estimate_uff(
             })
         })
         .collect::<Result<_>>()?;
+    times.lap("H1, coherence, variances");
     let estimates: Vec<EstimatedFrfs> = per_excitation.iter().map(|e| e.frfs.clone()).collect();
     let step = fs / n as f64;
     let synthetic = timehist::frf_file(data, &index, &estimates, band.start as f64 * step, step);
     let (campaign, side_digest) = crate::uff_campaign_of(&synthetic, uff_opts)?;
+    times.lap("UFF mapping to SI");
     let mut record = RunRecord::default();
     record.set_geometry(&campaign.geometry);
     if let Some(coh) = &campaign.coherence {
@@ -228,6 +272,7 @@ pub fn estimate_uff(
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
     let summary = summary_line(&hits, &averages, tau, opts, &campaign.frf);
     record.frf = Some(campaign.frf);
+    times.lap("run record");
     Ok(Estimated {
         record,
         summary,
@@ -253,7 +298,7 @@ fn checked_hits<'a>(
     let (n, pre) = record_samples(data, index, opts)?;
     let hits: Vec<Vec<Hit<'a>>> = index
         .excitations
-        .iter()
+        .par_iter()
         .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
         .collect::<Result<_>>()?;
     for (hs, ex) in hits.iter().zip(&index.excitations) {
