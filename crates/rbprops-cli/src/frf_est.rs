@@ -150,7 +150,7 @@ impl PhaseTimes {
 
 /// FRFs from the time histories of a parsed universal file (module docs).
 pub fn estimate_uff(
-    data: &UffFile,
+    data: &mut UffFile,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
 ) -> Result<Estimated> {
@@ -162,7 +162,7 @@ pub fn estimate_uff(
 /// parallel (rayon), each excitation's own arithmetic in a fixed order, so the output is
 /// the same whatever the number of threads.
 pub fn estimate_uff_timed(
-    data: &UffFile,
+    data: &mut UffFile,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
     times: &mut PhaseTimes,
@@ -176,7 +176,7 @@ pub fn estimate_uff_timed(
     )?;
     let fs = index.sample_rate_hz;
     times.lap("index");
-    let (hits, n) = checked_hits(data, &index, opts)?;
+    let (hits, n) = checked_hits(&*data, &index, opts)?;
     times.lap("hit checks");
     let tau = match opts.response_window {
         WindowChoice::None => None,
@@ -192,6 +192,11 @@ pub fn estimate_uff_timed(
         .map(|hs| average(hs, fs, n, opts, &response_window))
         .collect::<Result<_>>()?;
     times.lap("windows, FFT, spectral sums");
+    // The samples are no longer needed: only the hits' reports and the records'
+    // headers are, and the output's buffers should not sit beside the recording.
+    let hits = without_samples(hits);
+    release_samples(data);
+    let data = &*data;
     let sums: Vec<&SpectralSums> = averaged.iter().map(|a| &a.sums).collect();
     let band = band_lines(&sums, opts.band_hz, fs)?;
     let gamma = line_correlation(tau, fs, n);
@@ -215,6 +220,7 @@ pub fn estimate_uff_timed(
             })
         })
         .collect::<Result<_>>()?;
+    drop(averaged);
     times.lap("H1, coherence, variances");
     let estimates: Vec<EstimatedFrfs> = per_excitation.iter().map(|e| e.frfs.clone()).collect();
     let step = fs / n as f64;
@@ -266,7 +272,7 @@ pub fn estimate_uff_timed(
                 "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
                 opts.estimator, min_dof
             ),
-            hits: hit_records(&hits, &names, fs, opts),
+            hits: hit_records(&hits, &names, fs, n, opts),
         }),
     };
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
@@ -569,6 +575,32 @@ fn excitation_hits<'a>(
     }
 }
 
+/// The hits' numbers and reports, their samples let go.
+fn without_samples(hits: Vec<Vec<Hit>>) -> Vec<Vec<Hit<'static>>> {
+    hits.into_iter()
+        .map(|hs| {
+            hs.into_iter()
+                .map(|h| Hit {
+                    number: h.number,
+                    force: Cow::Owned(Vec::new()),
+                    responses: Vec::new(),
+                    report: h.report,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Frees the samples of every time record (their headers stay, for the FRF datasets
+/// made from them).
+fn release_samples(data: &mut UffFile) {
+    for d in &mut data.datasets {
+        if let rbprops_uff::Record::Function(f) = &mut d.record {
+            f.samples = Vec::new();
+        }
+    }
+}
+
 /// The automatic τ: the window itself falls to 1 % by the record's end (τ = T/ln 100,
 /// T from the earliest trigger), or faster where a response has not decayed to 1 % of its
 /// peak by then (`rbprops_frfest::auto_tau`, the smallest over every accepted hit and
@@ -796,12 +828,12 @@ fn hit_records(
     hits: &[Vec<Hit>],
     names: &[String],
     fs: f64,
+    n: usize,
     opts: &EstimationOptions,
 ) -> Vec<HitRecord> {
     let mut out = Vec::new();
     for (hs, name) in hits.iter().zip(names) {
         for h in hs {
-            let n = h.force.len();
             let window = opts.force_window.map(|w| {
                 let (a, b) = w.flat_part(fs, h.report.trigger, h.report.pulse_end, n);
                 [a as f64 / fs, b as f64 / fs]
