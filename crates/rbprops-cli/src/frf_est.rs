@@ -148,7 +148,9 @@ impl PhaseTimes {
     }
 }
 
-/// FRFs from the time histories of a parsed universal file (module docs).
+/// FRFs from the time histories of a parsed universal file (module docs). The time
+/// records' samples are let go once the hits are averaged (`data` keeps every header), so
+/// the output is not built beside the recording.
 pub fn estimate_uff(
     data: &mut UffFile,
     uff_opts: &crate::UffInputOptions,
@@ -251,30 +253,19 @@ pub fn estimate_uff_timed(
     for (a, id) in averages.iter_mut().zip(&names) {
         a.excitation = id.clone();
     }
-    let processing = ProcessingRecord {
-        exponential_window_s: tau,
-        line_weighting: None,
-        frf_estimation: Some(FrfEstimationRecord {
-            estimator: format!("{:?}", opts.estimator),
-            sample_rate_hz: fs,
-            record_samples: n,
-            pretrigger_s: pretrigger_s(&hits, fs, opts.keep_rejected),
-            force_window: opts.force_window.map(|w| ForceWindowRecord {
-                start_s: -w.pre_s,
-                end_s: w.post_s,
-                taper_s: w.taper_s,
-            }),
-            exponential_window_s: tau,
-            exponential_on_force: opts.exponential_on_force,
-            averages: averages.clone(),
-            line_correlation: gamma.iter().map(|g| [g.re, g.im]).collect(),
-            variance_method: format!(
-                "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
-                opts.estimator, min_dof
-            ),
-            hits: hit_records(&hits, &names, fs, n, opts),
-        }),
-    };
+    let processing = processing_record(
+        &hits,
+        &names,
+        &averages,
+        &Processed {
+            fs,
+            n,
+            tau,
+            gamma: &gamma,
+            min_dof,
+        },
+        opts,
+    );
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
     let summary = summary_line(&hits, &averages, tau, opts, &campaign.frf);
     record.frf = Some(campaign.frf);
@@ -285,6 +276,51 @@ pub fn estimate_uff_timed(
         warnings: campaign.warnings,
         side_digest,
     })
+}
+
+/// What the estimate settled that the processing topic records: the sampling, the hit
+/// record's length, τ, the window's line correlation and the fewest degrees of freedom.
+struct Processed<'a> {
+    fs: f64,
+    n: usize,
+    tau: Option<f64>,
+    gamma: &'a [c64],
+    min_dof: f64,
+}
+
+/// The processing topic of an estimate: estimator, sampling, record, windows, averages,
+/// line correlation, the variance's method and every hit's verdict.
+fn processing_record(
+    hits: &[Vec<Hit>],
+    names: &[String],
+    averages: &[ExcitationAveragesRecord],
+    p: &Processed,
+    opts: &EstimationOptions,
+) -> ProcessingRecord {
+    ProcessingRecord {
+        exponential_window_s: p.tau,
+        line_weighting: None,
+        frf_estimation: Some(FrfEstimationRecord {
+            estimator: format!("{:?}", opts.estimator),
+            sample_rate_hz: p.fs,
+            record_samples: p.n,
+            pretrigger_s: pretrigger_s(hits, p.fs, opts.keep_rejected),
+            force_window: opts.force_window.map(|w| ForceWindowRecord {
+                start_s: -w.pre_s,
+                end_s: w.post_s,
+                taper_s: w.taper_s,
+            }),
+            exponential_window_s: p.tau,
+            exponential_on_force: opts.exponential_on_force,
+            averages: averages.to_vec(),
+            line_correlation: p.gamma.iter().map(|g| [g.re, g.im]).collect(),
+            variance_method: format!(
+                "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
+                opts.estimator, p.min_dof
+            ),
+            hits: hit_records(hits, names, p.fs, p.n, opts),
+        }),
+    }
 }
 
 /// Every excitation's hits, checked, and the record length; an excitation with fewer
