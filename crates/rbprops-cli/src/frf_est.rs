@@ -491,7 +491,7 @@ fn record_samples(
         };
         let force = timehist::samples(data, h.force);
         let t = rbprops_frfest::find_hits(
-            &force,
+            force,
             fs,
             &TriggerOptions {
                 level: opts.trigger,

@@ -971,6 +971,9 @@ fn csv_channels(dir: &str, ch_text: &str) -> Result<Vec<TimeChannel>, UffError> 
     Ok(channels)
 }
 
+/// A record file's channels, samples per channel and sampling rate (Hz).
+type RecordFile = (Vec<TimeChannel>, Vec<Vec<f64>>, f64);
+
 /// One record file: `time_s`, the force channel, then the responses (columns named by
 /// `channels`), every value finite, the time evenly spaced. Its channels, samples per
 /// channel and sampling rate (Hz). Errors name the file and line.
@@ -979,7 +982,7 @@ fn csv_record_file(
     name: &str,
     text: &str,
     channels: &[TimeChannel],
-) -> Result<(Vec<TimeChannel>, Vec<Vec<f64>>, f64), UffError> {
+) -> Result<RecordFile, UffError> {
     let t = table(dir, name, text)?;
     let fat = |what: String| err(dir, format!("{name}: {what}"));
     if t.header.first().map(String::as_str) != Some("time_s") || t.header.len() < 3 {
