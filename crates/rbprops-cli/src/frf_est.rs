@@ -5,6 +5,7 @@
 //! through the same UFF mapping an FRF export takes (units, DOFs, set-ups).
 
 use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
 use rbprops_core::records::{
     ExcitationAveragesRecord, ForceWindowRecord, FrfEstimationRecord, HitRecord, ProcessingRecord,
     PROCESSING_TOPIC,
@@ -124,12 +125,51 @@ pub struct Estimated {
     pub side_digest: Vec<u8>,
 }
 
-/// FRFs from the time histories of a parsed universal file (module docs).
+/// Wall time of each phase of [`estimate_uff_timed`], in order (for the phase bench,
+/// `benches/frfest_phases.rs`).
+#[derive(Debug, Default)]
+pub struct PhaseTimes {
+    /// `(phase, seconds)`.
+    pub phases: Vec<(&'static str, f64)>,
+    last: Option<std::time::Instant>,
+}
+
+impl PhaseTimes {
+    /// Ends the phase running since the last call (or since `start`).
+    pub fn lap(&mut self, phase: &'static str) {
+        let now = std::time::Instant::now();
+        let since = self.last.unwrap_or(now);
+        self.phases.push((phase, (now - since).as_secs_f64()));
+        self.last = Some(now);
+    }
+    /// Starts timing.
+    pub fn start(&mut self) {
+        self.last = Some(std::time::Instant::now());
+    }
+}
+
+/// FRFs from the time histories of a parsed universal file (module docs). The time
+/// records' samples are let go once the hits are averaged (`data` keeps every header), so
+/// the output is not built beside the recording.
 pub fn estimate_uff(
-    data: &UffFile,
+    data: &mut UffFile,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
 ) -> Result<Estimated> {
+    estimate_uff_timed(data, uff_opts, opts, &mut PhaseTimes::default())
+}
+
+/// [`estimate_uff`], timing its phases into `times`. The excitations are independent
+/// until the band is chosen: their hit checks, spectral sums and estimates run in
+/// parallel (rayon), each excitation's own arithmetic in a fixed order, so the output is
+/// the same whatever the number of threads.
+pub fn estimate_uff_timed(
+    data: &mut UffFile,
+    uff_opts: &crate::UffInputOptions,
+    opts: &EstimationOptions,
+    times: &mut PhaseTimes,
+) -> Result<Estimated> {
+    times.start();
     let index = timehist::index_time_histories(
         data,
         &timehist::TimeOptions {
@@ -137,7 +177,9 @@ pub fn estimate_uff(
         },
     )?;
     let fs = index.sample_rate_hz;
-    let (hits, n) = checked_hits(data, &index, opts)?;
+    times.lap("index");
+    let (hits, n) = checked_hits(&*data, &index, opts)?;
+    times.lap("hit checks");
     let tau = match opts.response_window {
         WindowChoice::None => None,
         WindowChoice::Exponential(t) => Some(t),
@@ -146,15 +188,22 @@ pub fn estimate_uff(
     let response_window = tau.map_or(ResponseWindow::None, |tau_s| ResponseWindow::Exponential {
         tau_s,
     });
+    times.lap("window τ");
     let averaged: Vec<Averaged> = hits
-        .iter()
+        .par_iter()
         .map(|hs| average(hs, fs, n, opts, &response_window))
         .collect::<Result<_>>()?;
+    times.lap("windows, FFT, spectral sums");
+    // The samples are no longer needed: only the hits' reports and the records'
+    // headers are, and the output's buffers should not sit beside the recording.
+    let hits = without_samples(hits);
+    release_samples(data);
+    let data = &*data;
     let sums: Vec<&SpectralSums> = averaged.iter().map(|a| &a.sums).collect();
     let band = band_lines(&sums, opts.band_hz, fs)?;
     let gamma = line_correlation(tau, fs, n);
     let per_excitation: Vec<ExcitationEstimate> = averaged
-        .iter()
+        .par_iter()
         .zip(&hits)
         .zip(&index.excitations)
         .map(|((s, hs), ex)| {
@@ -173,10 +222,13 @@ pub fn estimate_uff(
             })
         })
         .collect::<Result<_>>()?;
+    drop(averaged);
+    times.lap("H1, coherence, variances");
     let estimates: Vec<EstimatedFrfs> = per_excitation.iter().map(|e| e.frfs.clone()).collect();
     let step = fs / n as f64;
     let synthetic = timehist::frf_file(data, &index, &estimates, band.start as f64 * step, step);
     let (campaign, side_digest) = crate::uff_campaign_of(&synthetic, uff_opts)?;
+    times.lap("UFF mapping to SI");
     let mut record = RunRecord::default();
     record.set_geometry(&campaign.geometry);
     if let Some(coh) = &campaign.coherence {
@@ -201,39 +253,74 @@ pub fn estimate_uff(
     for (a, id) in averages.iter_mut().zip(&names) {
         a.excitation = id.clone();
     }
-    let processing = ProcessingRecord {
-        exponential_window_s: tau,
-        line_weighting: None,
-        frf_estimation: Some(FrfEstimationRecord {
-            estimator: format!("{:?}", opts.estimator),
-            sample_rate_hz: fs,
-            record_samples: n,
-            pretrigger_s: pretrigger_s(&hits, fs, opts.keep_rejected),
-            force_window: opts.force_window.map(|w| ForceWindowRecord {
-                start_s: -w.pre_s,
-                end_s: w.post_s,
-                taper_s: w.taper_s,
-            }),
-            exponential_window_s: tau,
-            exponential_on_force: opts.exponential_on_force,
-            averages: averages.clone(),
-            line_correlation: gamma.iter().map(|g| [g.re, g.im]).collect(),
-            variance_method: format!(
-                "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
-                opts.estimator, min_dof
-            ),
-            hits: hit_records(&hits, &names, fs, opts),
-        }),
-    };
+    let processing = processing_record(
+        &hits,
+        &names,
+        &averages,
+        &Processed {
+            fs,
+            n,
+            tau,
+            gamma: &gamma,
+            min_dof,
+        },
+        opts,
+    );
     record.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
     let summary = summary_line(&hits, &averages, tau, opts, &campaign.frf);
     record.frf = Some(campaign.frf);
+    times.lap("run record");
     Ok(Estimated {
         record,
         summary,
         warnings: campaign.warnings,
         side_digest,
     })
+}
+
+/// What the estimate settled that the processing topic records: the sampling, the hit
+/// record's length, τ, the window's line correlation and the fewest degrees of freedom.
+struct Processed<'a> {
+    fs: f64,
+    n: usize,
+    tau: Option<f64>,
+    gamma: &'a [c64],
+    min_dof: f64,
+}
+
+/// The processing topic of an estimate: estimator, sampling, record, windows, averages,
+/// line correlation, the variance's method and every hit's verdict.
+fn processing_record(
+    hits: &[Vec<Hit>],
+    names: &[String],
+    averages: &[ExcitationAveragesRecord],
+    p: &Processed,
+    opts: &EstimationOptions,
+) -> ProcessingRecord {
+    ProcessingRecord {
+        exponential_window_s: p.tau,
+        line_weighting: None,
+        frf_estimation: Some(FrfEstimationRecord {
+            estimator: format!("{:?}", opts.estimator),
+            sample_rate_hz: p.fs,
+            record_samples: p.n,
+            pretrigger_s: pretrigger_s(hits, p.fs, opts.keep_rejected),
+            force_window: opts.force_window.map(|w| ForceWindowRecord {
+                start_s: -w.pre_s,
+                end_s: w.post_s,
+                taper_s: w.taper_s,
+            }),
+            exponential_window_s: p.tau,
+            exponential_on_force: opts.exponential_on_force,
+            averages: averages.to_vec(),
+            line_correlation: p.gamma.iter().map(|g| [g.re, g.im]).collect(),
+            variance_method: format!(
+                "{:?}: noise power R = S_xx(1 − γ²) pooled over ±{POOL_HALF_WIDTH} lines, over (n_d − 1) S_ff of the line; {:.0} degrees of freedom at least",
+                opts.estimator, p.min_dof
+            ),
+            hits: hit_records(hits, names, p.fs, p.n, opts),
+        }),
+    }
 }
 
 /// Every excitation's hits, checked, and the record length; an excitation with fewer
@@ -253,7 +340,7 @@ fn checked_hits<'a>(
     let (n, pre) = record_samples(data, index, opts)?;
     let hits: Vec<Vec<Hit<'a>>> = index
         .excitations
-        .iter()
+        .par_iter()
         .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
         .collect::<Result<_>>()?;
     for (hs, ex) in hits.iter().zip(&index.excitations) {
@@ -404,7 +491,7 @@ fn record_samples(
         };
         let force = timehist::samples(data, h.force);
         let t = rbprops_frfest::find_hits(
-            &force,
+            force,
             fs,
             &TriggerOptions {
                 level: opts.trigger,
@@ -520,6 +607,32 @@ fn excitation_hits<'a>(
                     }
                 })
                 .collect())
+        }
+    }
+}
+
+/// The hits' numbers and reports, their samples let go.
+fn without_samples(hits: Vec<Vec<Hit>>) -> Vec<Vec<Hit<'static>>> {
+    hits.into_iter()
+        .map(|hs| {
+            hs.into_iter()
+                .map(|h| Hit {
+                    number: h.number,
+                    force: Cow::Owned(Vec::new()),
+                    responses: Vec::new(),
+                    report: h.report,
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Frees the samples of every time record (their headers stay, for the FRF datasets
+/// made from them).
+fn release_samples(data: &mut UffFile) {
+    for d in &mut data.datasets {
+        if let rbprops_uff::Record::Function(f) = &mut d.record {
+            f.samples = Vec::new();
         }
     }
 }
@@ -751,12 +864,12 @@ fn hit_records(
     hits: &[Vec<Hit>],
     names: &[String],
     fs: f64,
+    n: usize,
     opts: &EstimationOptions,
 ) -> Vec<HitRecord> {
     let mut out = Vec::new();
     for (hs, name) in hits.iter().zip(names) {
         for h in hs {
-            let n = h.force.len();
             let window = opts.force_window.map(|w| {
                 let (a, b) = w.flat_part(fs, h.report.trigger, h.report.pulse_end, n);
                 [a as f64 / fs, b as f64 / fs]

@@ -463,16 +463,17 @@ fn uff_input(
         rbprops_formats::digest::check_uff(&bytes),
         checks,
     )?;
-    let data = rbprops_uff::parse(&bytes, &name)?;
+    let mut data = rbprops_uff::parse(&bytes, &name)?;
     if is_time_history_export(&data) {
         // Time histories without FRFs: estimated as `frf-est` does (by default, or with a
         // campaign file's `[frf_est]` options), so every stage (and the campaign) takes an
         // analyser's time-data export directly.
-        let est = frf_est::estimate_uff(&data, opts, &opts.estimation)
+        // What the file holds, for the error, before the estimate lets the samples go.
+        let holds = rbprops_uff::inventory(&data);
+        let est = frf_est::estimate_uff(&mut data, opts, &opts.estimation)
             .map_err(|e| {
                 anyhow::anyhow!(
-                    "{name}: no FRF datasets (dataset 58 with function type 4), and its time histories could not be made into FRFs ({e:#}; see frf-est --help). It holds:\n{}",
-                    rbprops_uff::inventory(&data)
+                    "{name}: no FRF datasets (dataset 58 with function type 4), and its time histories could not be made into FRFs ({e:#}; see frf-est --help). It holds:\n{holds}"
                 )
             })?;
         let mut digest_input = bytes;
@@ -502,12 +503,14 @@ fn uff_input(
         coherence::set(&mut record, &c.geometry, coh);
     }
     record.frf = Some(c.frf);
+    let mut texts = c.warnings;
+    texts.extend(variance::declared_by_export(&mut record, &data, &name)?);
     Ok(Input {
         record,
         sha256,
         name,
         notes,
-        warnings: input_notes(&c.warnings),
+        warnings: input_notes(&texts),
     })
 }
 

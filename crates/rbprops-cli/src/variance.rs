@@ -142,7 +142,7 @@ pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Resul
     }
     if rec.topic(topics::FRF_VARIANCE).is_some() {
         bail!(
-            "{source}: --averages, but the run already has the estimator's line variances ({}, from frf-est)",
+            "{source}: --averages, but the run already has line variances ({}: frf-est's, or from the number of averages the FRF export names in its ID lines)",
             topics::FRF_VARIANCE
         );
     }
@@ -190,6 +190,51 @@ pub fn declare_averages(
     let frf = frf.clone();
     set(rec, &geometry, &frf, &v);
     Ok(())
+}
+
+/// The number of averages an FRF export names in its ID lines (`rbprops_uff::averages`),
+/// used as `--averages` would be ([`declare_averages`]) when the export holds coherence:
+/// the line variances follow from the coherence without the option. Returns the note
+/// saying what was read (or why a named count was not used); nothing when no dataset
+/// names one.
+pub fn declared_by_export(
+    rec: &mut RunRecord,
+    data: &rbprops_uff::UffFile,
+    source: &str,
+) -> Result<Option<String>> {
+    let d = match rbprops_uff::declared_averages(data) {
+        Ok(Some(d)) => d,
+        Ok(None) => return Ok(None),
+        Err(why) => {
+            return Ok(Some(format!(
+                "the number of averages is not read from the export: {why}"
+            )))
+        }
+    };
+    let named = format!(
+        "{} averages named in ID line {} of dataset #{} (line {}) and {} more FRF/coherence dataset(s)",
+        d.count,
+        d.id_line,
+        d.at.index,
+        d.at.line,
+        d.datasets - 1
+    );
+    let coherence = crate::coherence::get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    if coherence.is_none() {
+        return Ok(Some(format!(
+            "{named}: not used (no coherence beside the FRFs, so no line variances)"
+        )));
+    }
+    if d.count < 3 {
+        return Ok(Some(format!(
+            "{named}: not used (fewer than 3 averages leave no degrees of freedom for a χ²)"
+        )));
+    }
+    declare_averages(rec, Some(d.count), source)?;
+    Ok(Some(format!(
+        "line variances from the coherence and the {named} ({})",
+        topics::FRF_VARIANCE
+    )))
 }
 
 /// Floor of the relative variance σ²/|H|² when weighting by the line variances: a

@@ -307,9 +307,83 @@ pub fn inspect_hit(
     opts: &HitCheckOptions,
 ) -> HitReport {
     let n = force.len();
+    let (clipped, mut reasons) = channel_checks(force, responses, opts);
+    if n == 0 || force.iter().any(|v| !v.is_finite()) {
+        if n == 0 {
+            reasons.push(RejectReason::TooWeak {
+                peak: 0.0,
+                min: opts.min_peak,
+            });
+        }
+        return HitReport {
+            trigger: 0,
+            onset: 0,
+            peak_index: 0,
+            pulse_end: n,
+            peak_force: 0.0,
+            polarity: 1.0,
+            baseline: 0.0,
+            noise_rms: 0.0,
+            clipped,
+            double_hit: None,
+            reasons,
+        };
+    }
+    let (baseline, noise, pulse) = baseline_and_pulse(force, opts.end_fraction);
+    let Pulse {
+        polarity,
+        peak_index: p,
+        peak,
+        onset,
+        end,
+    } = pulse;
+    let g = |i: usize| polarity * (force[i] - baseline);
+
+    let min = opts.min_peak.max(opts.min_snr * noise);
+    if !(peak > min) {
+        reasons.push(RejectReason::TooWeak { peak, min });
+    }
+    if onset == 0 || end >= n {
+        reasons.push(RejectReason::AtRecordEdge);
+    }
+    let level = opts.trigger.resolve(peak);
+    let trigger = (onset..=p).find(|&i| g(i) >= level).unwrap_or(p);
+    let double_hit = second_contact(&g, n, p, peak, fs, opts);
+    if let Some(d) = double_hit {
+        reasons.insert(
+            0,
+            RejectReason::DoubleHit {
+                delay_s: d.delay_s,
+                ratio: d.ratio,
+            },
+        );
+    }
+    HitReport {
+        trigger,
+        onset,
+        peak_index: p,
+        pulse_end: end,
+        peak_force: peak,
+        polarity,
+        baseline,
+        noise_rms: noise,
+        clipped,
+        double_hit,
+        reasons,
+    }
+}
+
+/// Overload and finiteness per channel: the clipped samples of each (index 0 the force,
+/// `1 + i` response `i`) and the reasons to reject (length mismatch, a non-finite sample,
+/// at least `min_clipped` samples at the range or on flat tops).
+fn channel_checks(
+    force: &[f64],
+    responses: &[&[f64]],
+    opts: &HitCheckOptions,
+) -> (Vec<usize>, Vec<RejectReason>) {
+    let n = force.len();
     let mut reasons = Vec::new();
     let mut clipped = vec![0usize; 1 + responses.len()];
-    // Overload and finiteness per channel.
     let channels = std::iter::once((Channel::Force, force, opts.force_range)).chain(
         responses.iter().enumerate().map(|(i, r)| {
             (
@@ -339,35 +413,15 @@ pub fn inspect_hit(
             });
         }
     }
-    let empty = HitReport {
-        trigger: 0,
-        onset: 0,
-        peak_index: 0,
-        pulse_end: n,
-        peak_force: 0.0,
-        polarity: 1.0,
-        baseline: 0.0,
-        noise_rms: 0.0,
-        clipped: clipped.clone(),
-        double_hit: None,
-        reasons: Vec::new(),
-    };
-    if n == 0 || force.iter().any(|v| !v.is_finite()) {
-        let mut r = empty;
-        r.reasons = reasons;
-        if n == 0 {
-            r.reasons.push(RejectReason::TooWeak {
-                peak: 0.0,
-                min: opts.min_peak,
-            });
-        }
-        return r;
-    }
+    (clipped, reasons)
+}
 
-    // Baseline and noise: a first pass with b = 0 finds the pulse's onset, then the
-    // pretrigger before it gives b and σ_n.
+/// The pretrigger baseline `b`, its noise `σ_n` and the main pulse: a first pass with
+/// b = 0 (the tail's noise) finds the pulse's onset, then twice the pretrigger before it
+/// gives b and σ_n and the pulse is found again against them.
+fn baseline_and_pulse(force: &[f64], end_fraction: f64) -> (f64, f64, Pulse) {
     let (mut baseline, mut noise) = tail_noise(force);
-    let mut pulse = Pulse::find(force, baseline, noise, opts.end_fraction);
+    let mut pulse = Pulse::find(force, baseline, noise, end_fraction);
     for _ in 0..2 {
         let guard = 2;
         let pre_end = pulse.onset.saturating_sub(guard);
@@ -378,42 +432,65 @@ pub fn inspect_hit(
             baseline = mean;
             noise = var.sqrt();
         }
-        pulse = Pulse::find(force, baseline, noise, opts.end_fraction);
+        pulse = Pulse::find(force, baseline, noise, end_fraction);
     }
-    let Pulse {
-        polarity,
-        peak_index: p,
-        peak,
-        onset,
-        end,
-        ..
-    } = pulse;
-    let g = |i: usize| polarity * (force[i] - baseline);
+    (baseline, noise, pulse)
+}
 
-    let min = opts.min_peak.max(opts.min_snr * noise);
-    if !(peak > min) {
-        reasons.push(RejectReason::TooWeak { peak, min });
-    }
-    if onset == 0 || end >= n {
-        reasons.push(RejectReason::AtRecordEdge);
-    }
-    let level = opts.trigger.resolve(peak);
-    let trigger = (onset..=p).find(|&i| g(i) >= level).unwrap_or(p);
-
-    // Double hit: prominence after and before the main peak.
+/// A second contact of `g` (the force above its baseline, polarity applied; `n` samples,
+/// main peak `peak` at `p`): a later peak rising `min_ratio × peak` above the valley
+/// after the main one, else an earlier one the same way before it, within `max_delay_s`.
+fn second_contact(
+    g: &dyn Fn(usize) -> f64,
+    n: usize,
+    p: usize,
+    peak: f64,
+    fs: f64,
+    opts: &HitCheckOptions,
+) -> Option<DoubleHit> {
     let thr = opts.min_ratio * peak;
-    let last = match opts.max_delay_s {
-        Some(d) => (p + (d * fs).ceil() as usize + 1).min(n),
-        None => n,
+    let reach = opts.max_delay_s.map(|d| (d * fs).ceil() as usize + 1);
+    let last = reach.map_or(n, |r| (p + r).min(n));
+    if let Some((q, top)) = prominent_peak(g, p + 1..last, n, thr, true) {
+        return Some(DoubleHit {
+            delay_s: (q - p) as f64 / fs,
+            ratio: top / peak,
+        });
+    }
+    let first = reach.map_or(0, |r| p.saturating_sub(r));
+    prominent_peak(g, first..p, n, thr, false).map(|(q, top)| DoubleHit {
+        delay_s: (p - q) as f64 / fs,
+        ratio: peak / top,
+    })
+}
+
+/// Walking `span` away from the main peak (forward, or backward when `!forward`), the
+/// first sample `thr` above the lowest value passed (floored at 0), then the top of that
+/// peak: the highest sample until `g` falls back by `thr` (searched to the record's end,
+/// `n`, or its start). `(index, value)` of the top.
+fn prominent_peak(
+    g: &dyn Fn(usize) -> f64,
+    span: std::ops::Range<usize>,
+    n: usize,
+    thr: f64,
+    forward: bool,
+) -> Option<(usize, f64)> {
+    let order: Box<dyn Iterator<Item = usize>> = if forward {
+        Box::new(span)
+    } else {
+        Box::new(span.rev())
     };
-    let mut double_hit = None;
     let mut valley = f64::INFINITY;
-    for i in p + 1..last {
+    for i in order {
         valley = valley.min(g(i));
         if g(i) - valley.max(0.0) >= thr {
-            // The later peak: the highest sample until the force falls back by thr.
+            let onward: Box<dyn Iterator<Item = usize>> = if forward {
+                Box::new(i..n)
+            } else {
+                Box::new((0..=i).rev())
+            };
             let (mut q, mut top) = (i, g(i));
-            for j in i..n {
+            for j in onward {
                 if g(j) > top {
                     q = j;
                     top = g(j);
@@ -422,62 +499,10 @@ pub fn inspect_hit(
                     break;
                 }
             }
-            double_hit = Some(DoubleHit {
-                delay_s: (q - p) as f64 / fs,
-                ratio: top / peak,
-            });
-            break;
+            return Some((q, top));
         }
     }
-    if double_hit.is_none() {
-        let first = match opts.max_delay_s {
-            Some(d) => p.saturating_sub((d * fs).ceil() as usize + 1),
-            None => 0,
-        };
-        let mut valley = f64::INFINITY;
-        for i in (first..p).rev() {
-            valley = valley.min(g(i));
-            if g(i) - valley.max(0.0) >= thr {
-                let (mut q, mut top) = (i, g(i));
-                for j in (0..=i).rev() {
-                    if g(j) > top {
-                        q = j;
-                        top = g(j);
-                    }
-                    if g(j) < top - thr {
-                        break;
-                    }
-                }
-                double_hit = Some(DoubleHit {
-                    delay_s: (p - q) as f64 / fs,
-                    ratio: peak / top,
-                });
-                break;
-            }
-        }
-    }
-    if let Some(d) = double_hit {
-        reasons.insert(
-            0,
-            RejectReason::DoubleHit {
-                delay_s: d.delay_s,
-                ratio: d.ratio,
-            },
-        );
-    }
-    HitReport {
-        trigger,
-        onset,
-        peak_index: p,
-        pulse_end: end,
-        peak_force: peak,
-        polarity,
-        baseline,
-        noise_rms: noise,
-        clipped,
-        double_hit,
-        reasons,
-    }
+    None
 }
 
 /// The main pulse of `f` referred to baseline `b` (module docs).

@@ -98,6 +98,7 @@
 
 #![warn(missing_docs)]
 
+pub mod averages;
 pub mod campaign;
 pub mod dof;
 pub mod error;
@@ -110,6 +111,7 @@ pub mod timerec;
 pub mod units;
 pub mod write;
 
+pub use averages::{declared_averages, DeclaredAverages};
 pub use campaign::{
     dof_name, read_campaign, read_with_geometry, to_campaign, CoherenceSet, GeometrySource,
     ReadOptions, UffCampaign, DEFAULT_SETUP,

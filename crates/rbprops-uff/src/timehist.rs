@@ -170,68 +170,10 @@ pub fn index_time_histories(
             "no force channel among the time histories: none has record 9 data type 13 (excitation force) or 9 (reaction force) or a force units label; name it with frf-est --force-dof NODE:DIR".into(),
         ));
     }
-    let mut excitations: Vec<(ExcitationRecords, Vec<usize>, Vec<Vec<usize>>)> = Vec::new();
-    for &i in &forces {
-        let f = function(uff, i);
-        let dof = (f.response_node, f.response_direction);
-        match excitations.iter_mut().find(|e| e.0.force_dof == dof) {
-            Some(e) => e.1.push(i),
-            None => excitations.push((
-                ExcitationRecords {
-                    force_dof: dof,
-                    responses: Vec::new(),
-                    layout: HitLayout::Throughput(HitDatasets {
-                        hit: 0,
-                        force: i,
-                        responses: Vec::new(),
-                    }),
-                },
-                vec![i],
-                Vec::new(),
-            )),
-        }
-    }
-    // Each response record to its excitation: its reference DOF, or the nearest force.
+    let mut excitations = excitations_of(uff, &forces);
     for &i in records.iter().filter(|i| !forces.contains(i)) {
         let f = function(uff, i);
-        let by_reference = (f.reference_node != 0)
-            .then(|| {
-                excitations
-                    .iter()
-                    .position(|e| e.0.force_dof == (f.reference_node, f.reference_direction))
-            })
-            .flatten();
-        let e = match by_reference {
-            Some(e) => e,
-            None => {
-                let before = forces.iter().rev().find(|&&fi| fi < i);
-                let near = before.or_else(|| forces.iter().find(|&&fi| fi > i));
-                let fdof = near.map(|&fi| {
-                    let g = function(uff, fi);
-                    (g.response_node, g.response_direction)
-                });
-                match fdof.and_then(|d| excitations.iter().position(|e| e.0.force_dof == d)) {
-                    Some(e) if f.reference_node == 0 => e,
-                    _ => {
-                        return Err(field_error(
-                            uff,
-                            &uff.datasets[i].location,
-                            "record 6 fields 9-10 (reference node, direction)",
-                            format!(
-                                "reference {} {} is no force record's DOF (forces: {})",
-                                f.reference_node,
-                                f.reference_direction,
-                                excitations
-                                    .iter()
-                                    .map(|e| format!("{} {}", e.0.force_dof.0, e.0.force_dof.1))
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ),
-                        ))
-                    }
-                }
-            }
-        };
+        let e = excitation_of_response(uff, i, &forces, &excitations)?;
         let dof = (f.response_node, f.response_direction);
         let ex = &mut excitations[e];
         let k = match ex.0.responses.iter().position(|d| *d == dof) {
@@ -267,6 +209,83 @@ pub fn index_time_histories(
         record_samples: n,
         excitations: out,
     })
+}
+
+/// An excitation being gathered: its records, its force records, and its response
+/// records per response DOF (in [`ExcitationRecords::responses`] order).
+type Gathered = (ExcitationRecords, Vec<usize>, Vec<Vec<usize>>);
+
+/// One excitation per force DOF, in the order its force records first appear, with its
+/// force records; responses still empty.
+fn excitations_of(uff: &UffFile, forces: &[usize]) -> Vec<Gathered> {
+    let mut excitations: Vec<Gathered> = Vec::new();
+    for &i in forces {
+        let f = function(uff, i);
+        let dof = (f.response_node, f.response_direction);
+        match excitations.iter_mut().find(|e| e.0.force_dof == dof) {
+            Some(e) => e.1.push(i),
+            None => excitations.push((
+                ExcitationRecords {
+                    force_dof: dof,
+                    responses: Vec::new(),
+                    layout: HitLayout::Throughput(HitDatasets {
+                        hit: 0,
+                        force: i,
+                        responses: Vec::new(),
+                    }),
+                },
+                vec![i],
+                Vec::new(),
+            )),
+        }
+    }
+    excitations
+}
+
+/// The excitation of response record `i`: the one at its reference DOF, or, when the
+/// reference is node 0, the nearest force record before it in the file (after it for
+/// records before the first force). An error names a reference that is no force's DOF.
+fn excitation_of_response(
+    uff: &UffFile,
+    i: usize,
+    forces: &[usize],
+    excitations: &[Gathered],
+) -> Result<usize, UffError> {
+    let f = function(uff, i);
+    let by_reference = (f.reference_node != 0)
+        .then(|| {
+            excitations
+                .iter()
+                .position(|e| e.0.force_dof == (f.reference_node, f.reference_direction))
+        })
+        .flatten();
+    if let Some(e) = by_reference {
+        return Ok(e);
+    }
+    let before = forces.iter().rev().find(|&&fi| fi < i);
+    let near = before.or_else(|| forces.iter().find(|&&fi| fi > i));
+    let fdof = near.map(|&fi| {
+        let g = function(uff, fi);
+        (g.response_node, g.response_direction)
+    });
+    match fdof.and_then(|d| excitations.iter().position(|e| e.0.force_dof == d)) {
+        Some(e) if f.reference_node == 0 => Ok(e),
+        _ => Err(field_error(
+            uff,
+            &uff.datasets[i].location,
+            "record 6 fields 9-10 (reference node, direction)",
+            format!(
+                "reference {} {} is no force record's DOF (forces: {})",
+                f.reference_node,
+                f.reference_direction,
+                excitations
+                    .iter()
+                    .map(|e| format!("{} {}", e.0.force_dof.0, e.0.force_dof.1))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+    }
 }
 
 /// One increment and one length for every record; evenly spaced, non-empty, finite.

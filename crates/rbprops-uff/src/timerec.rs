@@ -153,6 +153,217 @@ fn direction_name(d: i64) -> String {
     }
 }
 
+/// An excitation's channels: the force first (and only there), then at least one
+/// response, each at a node ≥ 1 and a direction ±1..±3, no response DOF twice. Returns
+/// the force channel; errors through `at`.
+fn check_channels<'e>(
+    ex: &'e TimeExcitation,
+    at: &dyn Fn(String) -> UffError,
+) -> Result<&'e TimeChannel, UffError> {
+    let Some(force) = ex.channels.first() else {
+        return Err(at("no channels".into()));
+    };
+    if force.quantity != TimeQuantity::Force {
+        return Err(at(format!(
+            "no recognisable force channel: the first channel '{}' is {} (the force must come first, quantity force)",
+            force.id,
+            force.quantity.name()
+        )));
+    }
+    if ex.channels.len() < 2 {
+        return Err(at("a force channel and no response channel".into()));
+    }
+    let mut dofs: Vec<(i64, i64)> = Vec::new();
+    for (k, c) in ex.channels.iter().enumerate() {
+        if k > 0 && c.quantity == TimeQuantity::Force {
+            return Err(at(format!(
+                "channel '{}' is a second force: one force channel per excitation (its first)",
+                c.id
+            )));
+        }
+        if c.node < 1 || !(1..=3).contains(&c.direction.abs()) {
+            return Err(at(format!(
+                "channel '{}': node {} direction {} (need a node ≥ 1 and a direction ±1..±3)",
+                c.id, c.node, c.direction
+            )));
+        }
+        if k > 0 {
+            if dofs.contains(&(c.node, c.direction)) {
+                return Err(at(format!(
+                    "channel '{}': a second response at node {} {}",
+                    c.id,
+                    c.node,
+                    direction_name(c.direction)
+                )));
+            }
+            dofs.push((c.node, c.direction));
+        }
+    }
+    Ok(force)
+}
+
+/// An excitation's records: distinct hit numbers from 1 (per-hit layout), one sample
+/// vector per declared channel, `n` finite samples each. Errors through `at`.
+fn check_records(
+    ex: &TimeExcitation,
+    n: usize,
+    at: &dyn Fn(String) -> UffError,
+) -> Result<(), UffError> {
+    let mut hits: Vec<usize> = Vec::new();
+    for r in &ex.records {
+        let rat = |what: String| at(format!("{}: {what}", r.source));
+        if !ex.throughput {
+            if r.hit == 0 || hits.contains(&r.hit) {
+                return Err(rat(format!(
+                    "hit {}: hit numbers must be 1, 2, … and distinct",
+                    r.hit
+                )));
+            }
+            hits.push(r.hit);
+        }
+        if r.samples.len() != ex.channels.len() {
+            return Err(rat(format!(
+                "{} channels of samples, {} channels declared",
+                r.samples.len(),
+                ex.channels.len()
+            )));
+        }
+        for (c, s) in ex.channels.iter().zip(&r.samples) {
+            if s.len() != n {
+                return Err(rat(format!(
+                    "channel '{}' has {} samples, the first record {n}: every record and channel must have one length",
+                    c.id,
+                    s.len()
+                )));
+            }
+            if let Some(k) = s.iter().position(|v| !v.is_finite()) {
+                return Err(rat(format!(
+                    "channel '{}', sample {}: {} is not a finite number",
+                    c.id,
+                    k + 1,
+                    s[k]
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One finite position per node over every excitation's channels.
+fn check_positions(file: &str, excitations: &[TimeExcitation]) -> Result<(), UffError> {
+    let mut nodes: Vec<(i64, [f64; 3])> = Vec::new();
+    for c in excitations.iter().flat_map(|e| &e.channels) {
+        if let Some(p) = c.position_m {
+            if p.iter().any(|x| !x.is_finite()) {
+                return Err(err(
+                    file,
+                    format!("channel '{}': position {p:?} is not finite", c.id),
+                ));
+            }
+            match nodes.iter().find(|(n, _)| *n == c.node) {
+                Some((_, q)) if *q != p => {
+                    return Err(err(
+                        file,
+                        format!(
+                            "node {}: two positions, {q:?} and {p:?} (channel '{}')",
+                            c.node, c.id
+                        ),
+                    ))
+                }
+                Some(_) => {}
+                None => nodes.push((c.node, p)),
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Record `k` (channel `c`, samples `s`) of hit `hit` of `ex` as the dataset 58 function
+/// [`TimeRecording::to_uff`] writes (its docs).
+fn time_function(
+    ex: &TimeExcitation,
+    hit: usize,
+    k: usize,
+    c: &TimeChannel,
+    s: &[f64],
+    setup_line: &str,
+) -> Function {
+    let none = || "NONE".to_string();
+    let force = &ex.channels[0];
+    let dt = 1.0 / ex.sample_rate_hz;
+    let mut tags = String::from("rbprops");
+    if k > 0 {
+        for (key, v) in [("ch", &c.id), ("cp", &c.point)] {
+            if !v.is_empty() {
+                tags.push_str(&format!(" {key}={v}"));
+            }
+        }
+    }
+    for (key, v) in [("ex", &ex.id), ("ep", &force.point)] {
+        if !v.is_empty() {
+            tags.push_str(&format!(" {key}={v}"));
+        }
+    }
+    tags.push_str(&format!(" hit={hit}"));
+    let (data_type, length_exp, force_exp) = c.quantity.uff_axis();
+    Function {
+        id_lines: [
+            format!("{} {} hit {hit}", ex.id, c.id).trim().to_string(),
+            none(),
+            none(),
+            setup_line.to_string(),
+            tags,
+        ],
+        function_type: 1,
+        function_id: 0,
+        version: 0,
+        load_case: hit as i64,
+        response_entity: none(),
+        response_node: c.node,
+        response_direction: c.direction,
+        reference_entity: none(),
+        reference_node: force.node,
+        reference_direction: force.direction,
+        ordinate_type: OrdinateType::RealDouble,
+        even: true,
+        abscissa_min: 0.0,
+        abscissa_increment: dt,
+        z_value: 0.0,
+        abscissa_axis: AxisInfo {
+            data_type: 17,
+            label: none(),
+            units_label: "s".into(),
+            ..Default::default()
+        },
+        numerator: AxisInfo {
+            data_type,
+            length_exp,
+            force_exp,
+            temperature_exp: 0,
+            label: none(),
+            units_label: if c.unit.trim().is_empty() {
+                none()
+            } else {
+                c.unit.trim().to_string()
+            },
+        },
+        denominator: AxisInfo {
+            label: none(),
+            units_label: none(),
+            ..Default::default()
+        },
+        z_axis: AxisInfo {
+            label: none(),
+            units_label: none(),
+            ..Default::default()
+        },
+        binary: None,
+        abscissa: Vec::new(),
+        ordinate: Vec::new(),
+        samples: s.to_vec(),
+    }
+}
+
 /// A direction `+x`, `-X`, `x`, `2`, `-3`: ±1..±3.
 pub fn parse_direction(s: &str) -> Option<i64> {
     let t = s.trim().to_ascii_uppercase();
@@ -215,45 +426,7 @@ impl TimeRecording {
                     "one excitation has throughput records and another per-hit records: one layout per recording".into(),
                 ));
             }
-            let Some(force) = ex.channels.first() else {
-                return Err(at("no channels".into()));
-            };
-            if force.quantity != TimeQuantity::Force {
-                return Err(at(format!(
-                    "no recognisable force channel: the first channel '{}' is {} (the force must come first, quantity force)",
-                    force.id,
-                    force.quantity.name()
-                )));
-            }
-            if ex.channels.len() < 2 {
-                return Err(at("a force channel and no response channel".into()));
-            }
-            let mut dofs: Vec<(i64, i64)> = Vec::new();
-            for (k, c) in ex.channels.iter().enumerate() {
-                if k > 0 && c.quantity == TimeQuantity::Force {
-                    return Err(at(format!(
-                        "channel '{}' is a second force: one force channel per excitation (its first)",
-                        c.id
-                    )));
-                }
-                if c.node < 1 || !(1..=3).contains(&c.direction.abs()) {
-                    return Err(at(format!(
-                        "channel '{}': node {} direction {} (need a node ≥ 1 and a direction ±1..±3)",
-                        c.id, c.node, c.direction
-                    )));
-                }
-                if k > 0 {
-                    if dofs.contains(&(c.node, c.direction)) {
-                        return Err(at(format!(
-                            "channel '{}': a second response at node {} {}",
-                            c.id,
-                            c.node,
-                            direction_name(c.direction)
-                        )));
-                    }
-                    dofs.push((c.node, c.direction));
-                }
-            }
+            let force = check_channels(ex, &at)?;
             let fdof = (force.node, force.direction);
             if force_dofs.contains(&fdof) {
                 return Err(at(format!(
@@ -272,43 +445,7 @@ impl TimeRecording {
                     ex.records.len()
                 )));
             }
-            let mut hits: Vec<usize> = Vec::new();
-            for r in &ex.records {
-                let rat = |what: String| at(format!("{}: {what}", r.source));
-                if !ex.throughput {
-                    if r.hit == 0 || hits.contains(&r.hit) {
-                        return Err(rat(format!(
-                            "hit {}: hit numbers must be 1, 2, … and distinct",
-                            r.hit
-                        )));
-                    }
-                    hits.push(r.hit);
-                }
-                if r.samples.len() != ex.channels.len() {
-                    return Err(rat(format!(
-                        "{} channels of samples, {} channels declared",
-                        r.samples.len(),
-                        ex.channels.len()
-                    )));
-                }
-                for (c, s) in ex.channels.iter().zip(&r.samples) {
-                    if s.len() != n {
-                        return Err(rat(format!(
-                            "channel '{}' has {} samples, the first record {n}: every record and channel must have one length",
-                            c.id,
-                            s.len()
-                        )));
-                    }
-                    if let Some(k) = s.iter().position(|v| !v.is_finite()) {
-                        return Err(rat(format!(
-                            "channel '{}', sample {}: {} is not a finite number",
-                            c.id,
-                            k + 1,
-                            s[k]
-                        )));
-                    }
-                }
-            }
+            check_records(ex, n, &at)?;
         }
         if n < 16 {
             return Err(err(
@@ -316,43 +453,12 @@ impl TimeRecording {
                 format!("{n} samples per record: too short a record"),
             ));
         }
-        // One position per node.
-        let mut nodes: Vec<(i64, [f64; 3])> = Vec::new();
-        for c in self.excitations.iter().flat_map(|e| &e.channels) {
-            if let Some(p) = c.position_m {
-                if p.iter().any(|x| !x.is_finite()) {
-                    return Err(err(
-                        file,
-                        format!("channel '{}': position {p:?} is not finite", c.id),
-                    ));
-                }
-                match nodes.iter().find(|(n, _)| *n == c.node) {
-                    Some((_, q)) if *q != p => {
-                        return Err(err(
-                            file,
-                            format!(
-                                "node {}: two positions, {q:?} and {p:?} (channel '{}')",
-                                c.node, c.id
-                            ),
-                        ))
-                    }
-                    Some(_) => {}
-                    None => nodes.push((c.node, p)),
-                }
-            }
-        }
-        Ok(())
+        check_positions(file, &self.excitations)
     }
 
-    /// The recording as the datasets 58 (function type 1) an analyser exports: per
-    /// excitation and record, the force record then the responses, each with its DOF,
-    /// load case = hit number (0 for throughput), data type and units label, and the
-    /// ids in the ID lines as rbprops writes them (`setup=` in line 4, `rbprops ch= cp=
-    /// ex= ep=` in line 5); the nodes with positions as a dataset 15 in the global frame
-    /// (with an SI dataset 164). Checks first ([`Self::check`]).
-    pub fn to_uff(&self) -> Result<UffFile, UffError> {
-        self.check()?;
-        let mut datasets = Vec::new();
+    /// The datasets before the time records: units (164, SI) and, when channels carry
+    /// positions, the nodes (15) in the global frame, sorted by label.
+    fn units_and_nodes(&self) -> Vec<Dataset> {
         let mut nodes: Vec<Node> = Vec::new();
         for c in self.excitations.iter().flat_map(|e| &e.channels) {
             if let Some(p) = c.position_m {
@@ -367,15 +473,11 @@ impl TimeRecording {
                 }
             }
         }
-        let mut count = 0usize;
-        let mut datasets_len_next = || {
-            count += 1;
-            count
-        };
+        let mut datasets = Vec::new();
         nodes.sort_by_key(|n| n.label);
         datasets.push(Dataset {
             location: DatasetLocation {
-                index: datasets_len_next(),
+                index: 1,
                 number: 164,
                 line: 0,
             },
@@ -392,7 +494,7 @@ impl TimeRecording {
         if !nodes.is_empty() {
             datasets.push(Dataset {
                 location: DatasetLocation {
-                    index: datasets_len_next(),
+                    index: 2,
                     number: 15,
                     line: 0,
                 },
@@ -402,10 +504,25 @@ impl TimeRecording {
                 }),
             });
         }
+        datasets
+    }
+
+    /// The recording as the datasets 58 (function type 1) an analyser exports: per
+    /// excitation and record, the force record then the responses, each with its DOF,
+    /// load case = hit number (0 for throughput), data type and units label, and the
+    /// ids in the ID lines as rbprops writes them (`setup=` in line 4, `rbprops ch= cp=
+    /// ex= ep=` in line 5); the nodes with positions as a dataset 15 in the global frame
+    /// (with an SI dataset 164). Checks first ([`Self::check`]).
+    pub fn to_uff(&self) -> Result<UffFile, UffError> {
+        self.check()?;
+        let mut datasets = self.units_and_nodes();
+        let mut count = datasets.len();
+        let mut datasets_len_next = || {
+            count += 1;
+            count
+        };
         let none = || "NONE".to_string();
         for ex in &self.excitations {
-            let force = &ex.channels[0];
-            let dt = 1.0 / ex.sample_rate_hz;
             let setup_line = if ex.setup.is_empty() {
                 none()
             } else {
@@ -416,77 +533,7 @@ impl TimeRecording {
             for r in &ex.records {
                 let hit = if ex.throughput { 0 } else { r.hit };
                 for (k, (c, s)) in ex.channels.iter().zip(&r.samples).enumerate() {
-                    let mut tags = String::from("rbprops");
-                    if k > 0 {
-                        for (key, v) in [("ch", &c.id), ("cp", &c.point)] {
-                            if !v.is_empty() {
-                                tags.push_str(&format!(" {key}={v}"));
-                            }
-                        }
-                    }
-                    for (key, v) in [("ex", &ex.id), ("ep", &force.point)] {
-                        if !v.is_empty() {
-                            tags.push_str(&format!(" {key}={v}"));
-                        }
-                    }
-                    tags.push_str(&format!(" hit={hit}"));
-                    let (data_type, length_exp, force_exp) = c.quantity.uff_axis();
-                    let f = Function {
-                        id_lines: [
-                            format!("{} {} hit {hit}", ex.id, c.id).trim().to_string(),
-                            none(),
-                            none(),
-                            setup_line.clone(),
-                            tags,
-                        ],
-                        function_type: 1,
-                        function_id: 0,
-                        version: 0,
-                        load_case: hit as i64,
-                        response_entity: none(),
-                        response_node: c.node,
-                        response_direction: c.direction,
-                        reference_entity: none(),
-                        reference_node: force.node,
-                        reference_direction: force.direction,
-                        ordinate_type: OrdinateType::RealDouble,
-                        even: true,
-                        abscissa_min: 0.0,
-                        abscissa_increment: dt,
-                        z_value: 0.0,
-                        abscissa_axis: AxisInfo {
-                            data_type: 17,
-                            label: none(),
-                            units_label: "s".into(),
-                            ..Default::default()
-                        },
-                        numerator: AxisInfo {
-                            data_type,
-                            length_exp,
-                            force_exp,
-                            temperature_exp: 0,
-                            label: none(),
-                            units_label: if c.unit.trim().is_empty() {
-                                none()
-                            } else {
-                                c.unit.trim().to_string()
-                            },
-                        },
-                        denominator: AxisInfo {
-                            label: none(),
-                            units_label: none(),
-                            ..Default::default()
-                        },
-                        z_axis: AxisInfo {
-                            label: none(),
-                            units_label: none(),
-                            ..Default::default()
-                        },
-                        binary: None,
-                        abscissa: Vec::new(),
-                        ordinate: Vec::new(),
-                        samples: s.clone(),
-                    };
+                    let f = time_function(ex, hit, k, c, s, &setup_line);
                     datasets.push(Dataset {
                         location: DatasetLocation {
                             index: datasets_len_next(),
@@ -776,7 +823,90 @@ pub fn from_csv(
         read(name).map_err(|e| err(dir, format!("{name}: {e}")))
     };
     let ch_text = load(&mut read, "channels.csv")?;
-    let ch = table(dir, "channels.csv", &ch_text)?;
+    let channels = csv_channels(dir, &ch_text)?;
+    let col = |t: &Table, name: &str, c: &str, req: bool| t.column(dir, name, c, req);
+    let rec_text = load(&mut read, "records.csv")?;
+    let rt = table(dir, "records.csv", &rec_text)?;
+    let (ei, si, sdi, hi, fi) = (
+        col(&rt, "records.csv", "excitation", true)?.unwrap(),
+        col(&rt, "records.csv", "setup", false)?,
+        col(&rt, "records.csv", "setup_description", false)?,
+        col(&rt, "records.csv", "hit", false)?,
+        col(&rt, "records.csv", "file", true)?.unwrap(),
+    );
+    let mut excitations: Vec<TimeExcitation> = Vec::new();
+    for (line, row) in &rt.rows {
+        let at = |what: String| err(dir, format!("records.csv line {line}: {what}"));
+        let cell = |i: Option<usize>| i.map_or("", |i| row[i].trim());
+        let name = cell(Some(fi)).to_string();
+        let hit_cell = cell(hi);
+        let (hit, throughput) = if hit_cell.is_empty() || hit_cell == "0" {
+            (0, true)
+        } else {
+            (
+                hit_cell
+                    .parse::<usize>()
+                    .map_err(|_| at(format!("hit '{hit_cell}' is not a whole number")))?,
+                false,
+            )
+        };
+        let text = load(&mut read, &name)?;
+        let (cols, samples, fs) = csv_record_file(dir, &name, &text, &channels)?;
+        let fat = |what: String| err(dir, format!("{name}: {what}"));
+        let ex_id = cell(Some(ei)).to_string();
+        let record = TimeRecord {
+            hit,
+            samples,
+            source: name.clone(),
+        };
+        match excitations.iter_mut().find(|e| e.id == ex_id) {
+            Some(e) => {
+                if e.channels != cols {
+                    return Err(fat(format!(
+                        "its channels differ from those of the excitation's first record ({})",
+                        e.records[0].source
+                    )));
+                }
+                if (e.sample_rate_hz - fs).abs() > 1e-9 * fs {
+                    return Err(fat(format!(
+                        "sampled at {fs} Hz, {} at {} Hz: every record must share one sampling rate",
+                        e.records[0].source, e.sample_rate_hz
+                    )));
+                }
+                if e.throughput != throughput {
+                    return Err(at(
+                        "a throughput record beside per-hit records of the same excitation".into(),
+                    ));
+                }
+                e.records.push(record);
+            }
+            None => excitations.push(TimeExcitation {
+                id: ex_id,
+                setup: cell(si).to_string(),
+                setup_description: cell(sdi).to_string(),
+                sample_rate_hz: fs,
+                throughput,
+                channels: cols,
+                records: vec![record],
+                source: format!("records.csv line {line}"),
+            }),
+        }
+    }
+    for e in &mut excitations {
+        e.records.sort_by_key(|r| r.hit);
+    }
+    let rec = TimeRecording {
+        file_name: dir.to_string(),
+        excitations,
+    };
+    rec.check()?;
+    Ok(rec)
+}
+
+/// The channels of `channels.csv` (docs/formats.md): distinct ids, node, direction,
+/// quantity, optional point, unit and position. Errors name the line.
+fn csv_channels(dir: &str, ch_text: &str) -> Result<Vec<TimeChannel>, UffError> {
+    let ch = table(dir, "channels.csv", ch_text)?;
     let col = |t: &Table, name: &str, c: &str, req: bool| t.column(dir, name, c, req);
     let (ci, pi, ni, di, qi, ui) = (
         col(&ch, "channels.csv", "channel", true)?.unwrap(),
@@ -838,136 +968,78 @@ pub fn from_csv(
             position_m,
         });
     }
-    let rec_text = load(&mut read, "records.csv")?;
-    let rt = table(dir, "records.csv", &rec_text)?;
-    let (ei, si, sdi, hi, fi) = (
-        col(&rt, "records.csv", "excitation", true)?.unwrap(),
-        col(&rt, "records.csv", "setup", false)?,
-        col(&rt, "records.csv", "setup_description", false)?,
-        col(&rt, "records.csv", "hit", false)?,
-        col(&rt, "records.csv", "file", true)?.unwrap(),
-    );
-    let mut excitations: Vec<TimeExcitation> = Vec::new();
-    for (line, row) in &rt.rows {
-        let at = |what: String| err(dir, format!("records.csv line {line}: {what}"));
-        let cell = |i: Option<usize>| i.map_or("", |i| row[i].trim());
-        let name = cell(Some(fi)).to_string();
-        let hit_cell = cell(hi);
-        let (hit, throughput) = if hit_cell.is_empty() || hit_cell == "0" {
-            (0, true)
-        } else {
-            (
-                hit_cell
-                    .parse::<usize>()
-                    .map_err(|_| at(format!("hit '{hit_cell}' is not a whole number")))?,
-                false,
-            )
-        };
-        let text = load(&mut read, &name)?;
-        let t = table(dir, &name, &text)?;
-        let fat = |what: String| err(dir, format!("{name}: {what}"));
-        if t.header.first().map(String::as_str) != Some("time_s") || t.header.len() < 3 {
+    Ok(channels)
+}
+
+/// A record file's channels, samples per channel and sampling rate (Hz).
+type RecordFile = (Vec<TimeChannel>, Vec<Vec<f64>>, f64);
+
+/// One record file: `time_s`, the force channel, then the responses (columns named by
+/// `channels`), every value finite, the time evenly spaced. Its channels, samples per
+/// channel and sampling rate (Hz). Errors name the file and line.
+fn csv_record_file(
+    dir: &str,
+    name: &str,
+    text: &str,
+    channels: &[TimeChannel],
+) -> Result<RecordFile, UffError> {
+    let t = table(dir, name, text)?;
+    let fat = |what: String| err(dir, format!("{name}: {what}"));
+    if t.header.first().map(String::as_str) != Some("time_s") || t.header.len() < 3 {
+        return Err(fat(format!(
+            "header '{}': time_s, then the force channel, then the responses",
+            t.header.join(",")
+        )));
+    }
+    let mut cols = Vec::new();
+    for h in &t.header[1..] {
+        let Some(c) = channels.iter().find(|c| &c.id == h) else {
             return Err(fat(format!(
-                "header '{}': time_s, then the force channel, then the responses",
-                t.header.join(",")
+                "column '{h}' is not a channel of channels.csv"
+            )));
+        };
+        cols.push(c.clone());
+    }
+    let mut time = Vec::with_capacity(t.rows.len());
+    let mut samples = vec![Vec::with_capacity(t.rows.len()); cols.len()];
+    for (l, r) in &t.rows {
+        let num = |k: usize| -> Result<f64, UffError> {
+            let v: f64 = r[k].trim().parse().map_err(|_| {
+                fat(format!(
+                    "line {l}, column '{}': '{}' is not a number",
+                    t.header[k], r[k]
+                ))
+            })?;
+            if !v.is_finite() {
+                return Err(fat(format!(
+                    "line {l}, column '{}': {v} is not a finite number",
+                    t.header[k]
+                )));
+            }
+            Ok(v)
+        };
+        time.push(num(0)?);
+        for (k, s) in samples.iter_mut().enumerate() {
+            s.push(num(k + 1)?);
+        }
+    }
+    if time.len() < 2 {
+        return Err(fat(format!("{} samples: too short a record", time.len())));
+    }
+    let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
+    if !(dt > 0.0 && dt.is_finite()) {
+        return Err(fat("time_s does not increase".into()));
+    }
+    for (k, w) in time.windows(2).enumerate() {
+        if ((w[1] - w[0]) - dt).abs() > 1e-6 * dt {
+            return Err(fat(format!(
+                "line {}: non-uniform time column ({} s after {} s, the mean step is {dt} s): time histories must be evenly sampled",
+                t.rows[k + 1].0, w[1], w[0]
             )));
         }
-        let mut cols = Vec::new();
-        for h in &t.header[1..] {
-            let Some(c) = channels.iter().find(|c| &c.id == h) else {
-                return Err(fat(format!(
-                    "column '{h}' is not a channel of channels.csv"
-                )));
-            };
-            cols.push(c.clone());
-        }
-        let mut time = Vec::with_capacity(t.rows.len());
-        let mut samples = vec![Vec::with_capacity(t.rows.len()); cols.len()];
-        for (l, r) in &t.rows {
-            let num = |k: usize| -> Result<f64, UffError> {
-                let v: f64 = r[k].trim().parse().map_err(|_| {
-                    fat(format!(
-                        "line {l}, column '{}': '{}' is not a number",
-                        t.header[k], r[k]
-                    ))
-                })?;
-                if !v.is_finite() {
-                    return Err(fat(format!(
-                        "line {l}, column '{}': {v} is not a finite number",
-                        t.header[k]
-                    )));
-                }
-                Ok(v)
-            };
-            time.push(num(0)?);
-            for (k, s) in samples.iter_mut().enumerate() {
-                s.push(num(k + 1)?);
-            }
-        }
-        if time.len() < 2 {
-            return Err(fat(format!("{} samples: too short a record", time.len())));
-        }
-        let dt = (time[time.len() - 1] - time[0]) / (time.len() - 1) as f64;
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(fat("time_s does not increase".into()));
-        }
-        for (k, w) in time.windows(2).enumerate() {
-            if ((w[1] - w[0]) - dt).abs() > 1e-6 * dt {
-                return Err(fat(format!(
-                    "line {}: non-uniform time column ({} s after {} s, the mean step is {dt} s): time histories must be evenly sampled",
-                    t.rows[k + 1].0, w[1], w[0]
-                )));
-            }
-        }
-        let fs = 1.0 / dt;
-        let ex_id = cell(Some(ei)).to_string();
-        let record = TimeRecord {
-            hit,
-            samples,
-            source: name.clone(),
-        };
-        match excitations.iter_mut().find(|e| e.id == ex_id) {
-            Some(e) => {
-                if e.channels != cols {
-                    return Err(fat(format!(
-                        "its channels differ from those of the excitation's first record ({})",
-                        e.records[0].source
-                    )));
-                }
-                if (e.sample_rate_hz - fs).abs() > 1e-9 * fs {
-                    return Err(fat(format!(
-                        "sampled at {fs} Hz, {} at {} Hz: every record must share one sampling rate",
-                        e.records[0].source, e.sample_rate_hz
-                    )));
-                }
-                if e.throughput != throughput {
-                    return Err(at(
-                        "a throughput record beside per-hit records of the same excitation".into(),
-                    ));
-                }
-                e.records.push(record);
-            }
-            None => excitations.push(TimeExcitation {
-                id: ex_id,
-                setup: cell(si).to_string(),
-                setup_description: cell(sdi).to_string(),
-                sample_rate_hz: fs,
-                throughput,
-                channels: cols,
-                records: vec![record],
-                source: format!("records.csv line {line}"),
-            }),
-        }
     }
-    for e in &mut excitations {
-        e.records.sort_by_key(|r| r.hit);
-    }
-    let rec = TimeRecording {
-        file_name: dir.to_string(),
-        excitations,
-    };
-    rec.check()?;
-    Ok(rec)
+    let fs = 1.0 / dt;
+    Ok((cols, samples, fs))
 }
 
 /// The time histories of a universal file in the model (to write them as MCAP or CSV):

@@ -385,3 +385,101 @@ fn averages_give_the_line_variance_from_coherence() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("already has"));
 }
+
+/// `bytes` (a universal file) with the first ID line of every dataset 58/58b replaced by
+/// `text` (padded to the line's 80 columns, so binary byte counts stay right).
+fn with_first_id_line(bytes: &[u8], text: &str) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    let line = format!("{text:<80}");
+    let mut from = 0;
+    while let Some(k) = out[from..]
+        .windows(8)
+        .position(|w| w == b"\n    58b" || w == b"\n    58 ")
+    {
+        let header = from + k + 1;
+        let id1 = header + out[header..].iter().position(|&b| b == b'\n').unwrap() + 1;
+        assert_eq!(&out[id1..id1 + 4], b"NONE", "fixture's ID line 1");
+        out[id1..id1 + 80].copy_from_slice(line.as_bytes());
+        from = id1 + 80;
+    }
+    out
+}
+
+fn convert(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(input)
+        .args(extra)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// An FRF export with coherence whose ID lines name its averages (`Averages: 8`, as
+/// analysers write it): the line variances are exactly those `--averages 8` gives on the
+/// same file without the text, and a note says where the count was read. Two datasets
+/// naming different counts: no variances, a note saying why. Both the export's count and
+/// `--averages`: an error (the count is the export's).
+#[test]
+fn averages_named_in_the_export_give_the_line_variance() {
+    let dir = tempfile::tempdir().unwrap();
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures/uff/exports/mixed_frf_coherence_autospectra.uff");
+    let plain = std::fs::read(&fixture).unwrap();
+    let named = dir.path().join("named.uff");
+    std::fs::write(
+        &named,
+        with_first_id_line(&plain, "H1, Averages: 8, Hanning"),
+    )
+    .unwrap();
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    let o = convert(&named, &a, &["-v"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("8 averages named in ID line 1"), "{err}");
+    let o = convert(&fixture, &b, &["--averages", "8"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let va = rbprops_cli::variance::get(&rbprops_formats::read_path(&a).unwrap())
+        .unwrap()
+        .expect("variance from the export's count");
+    let vb = rbprops_cli::variance::get(&rbprops_formats::read_path(&b).unwrap())
+        .unwrap()
+        .expect("variance from --averages");
+    assert!(va.degrees_of_freedom.iter().all(|&d| d == 14.0));
+    assert_eq!(va.degrees_of_freedom, vb.degrees_of_freedom);
+    assert!(va.sigma2.iter().any(|s| s.is_finite() && *s > 0.0));
+    assert_eq!(
+        va.sigma2.iter().map(|s| s.to_bits()).collect::<Vec<_>>(),
+        vb.sigma2.iter().map(|s| s.to_bits()).collect::<Vec<_>>()
+    );
+    // The export's count and the option together: refused, no output.
+    let c = dir.path().join("c.mcap");
+    let o = convert(&named, &c, &["--averages", "8"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already has line variances"));
+    assert!(!c.exists());
+    // Different counts in two datasets: not read, said so.
+    let mut mixed = with_first_id_line(&plain, "Averages: 8");
+    // The file's second dataset 58 is a coherence (its first an FRF).
+    let first = mixed.windows(11).position(|w| w == b"Averages: 8").unwrap();
+    let second = first
+        + 11
+        + mixed[first + 11..]
+            .windows(11)
+            .position(|w| w == b"Averages: 8")
+            .unwrap();
+    mixed[second..second + 11].copy_from_slice(b"Averages: 9");
+    let mixed_path = dir.path().join("mixed.uff");
+    std::fs::write(&mixed_path, mixed).unwrap();
+    let d = dir.path().join("d.mcap");
+    let o = convert(&mixed_path, &d, &["-v"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("not read from the export") && err.contains("names 8 averages"),
+        "{err}"
+    );
+    let rec = rbprops_formats::read_path(&d).unwrap();
+    assert!(rbprops_cli::variance::get(&rec).unwrap().is_none());
+}
