@@ -36,10 +36,6 @@ FN_EXCEPTIONS = {
     "crates/rbprops-check/src/lm.rs::fit_grouped": OTHER_OWNER,
     "crates/rbprops-check/src/check/screening.rs::profile_candidate": OTHER_OWNER,
     "crates/rbprops-check/src/check/screening.rs::score_candidate": OTHER_OWNER,
-    "crates/rbprops-uff/src/timehist.rs::index_time_histories": OTHER_OWNER,
-    "crates/rbprops-uff/src/timerec.rs::check": OTHER_OWNER,
-    "crates/rbprops-uff/src/timerec.rs::to_uff": OTHER_OWNER,
-    "crates/rbprops-uff/src/timerec.rs::from_csv": OTHER_OWNER,
     "crates/rbprops-cli/src/campaign.rs::options": OTHER_OWNER,
     "crates/rbprops-modal/src/lsfd.rs::refine": OTHER_OWNER,
     "crates/rbprops-modal/src/fit.rs::estimate_poles_from": OTHER_OWNER,
@@ -47,7 +43,6 @@ FN_EXCEPTIONS = {
     "crates/rbprops-modal/src/evidence.rs::single_reference_pairs": OTHER_OWNER,
     "crates/rbprops-modal/src/poly.rs::fit_setup": OTHER_OWNER,
     "crates/rbprops-modal/src/linalg/eigen.rs::hessenberg_qr": OTHER_OWNER,
-    "crates/rbprops-frfest/src/hit.rs::inspect_hit": OTHER_OWNER,
 }
 
 
