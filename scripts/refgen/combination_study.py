@@ -278,7 +278,7 @@ def one(seed, bindir, tmp, suspension, impact=False):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="5001:5200", help="A:B inclusive")
+    ap.add_argument("--seeds", default="5001:5200", help="A:B inclusive, or a list A,B,C")
     ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release"),
                     help="directory holding model-check")
     ap.add_argument("--out", help="JSON file of every result")
@@ -286,10 +286,14 @@ def main():
     ap.add_argument("--impact", action="store_true",
                     help="impact tests through frf-est (seeds 7001-7100)")
     a = ap.parse_args()
-    s0, s1 = (int(x) for x in a.seeds.split(":"))
+    if ":" in a.seeds:
+        s0, s1 = (int(x) for x in a.seeds.split(":"))
+        seeds = range(s0, s1 + 1)
+    else:
+        seeds = [int(x) for x in a.seeds.split(",")]
     results = []
     with tempfile.TemporaryDirectory() as tmp:
-        for seed in range(s0, s1 + 1):
+        for seed in seeds:
             try:
                 r = one(seed, a.bin, tmp, a.suspension, a.impact)
             except RuntimeError as e:
