@@ -12,8 +12,9 @@ pub const CURVE_TOLERANCE_PX: f64 = 0.5;
 ///
 /// - attributes equal to their SVG default are dropped (`opacity="1"`,
 ///   `stroke-width="1"`, a text's `fill="#000000"`, a rectangle's `stroke="none"`), the font family is said once on the
-///   root element, font sizes keep two decimals (0.005 px), label text loses the line
-///   breaks around it (which SVG does not render);
+///   root element, font sizes keep two decimals (0.005 px), a label's shift in `em` is
+///   folded into its `y` (to 0.01 px), label text loses the line breaks around it
+///   (which SVG does not render);
 /// - runs of grid lines with the same style and orientation become one `<path>` (parallel
 ///   lines do not overlap, so a translucent grid composites as before); opaque two-point
 ///   segments of one style (tick marks, axis lines) become one `<path>` at the first
@@ -81,8 +82,13 @@ enum Item {
     },
     /// A `<text>`: attributes (with a leading space) and content.
     Text { attrs: String, content: String },
-    /// Several segments of one style drawn as one `<path>`.
-    Path { attrs: String, d: String },
+    /// Several segments of one style drawn as one `<path>`; `end` is the current point
+    /// of its data `d`.
+    Path {
+        attrs: String,
+        d: String,
+        end: (i64, i64),
+    },
 }
 
 impl Item {
@@ -99,7 +105,7 @@ impl Item {
             Item::Text { attrs, content } => {
                 out.push_str(&format!("<text{attrs}>{content}</text>"))
             }
-            Item::Path { attrs, d } => out.push_str(&format!("<path{attrs} d=\"{d}\"/>")),
+            Item::Path { attrs, d, .. } => out.push_str(&format!("<path{attrs} d=\"{d}\"/>")),
         }
         out.push('\n');
     }
@@ -139,7 +145,7 @@ fn parse(svg: &str) -> Option<Vec<Item>> {
                 a = without(&a, "fill");
             }
             items.push(Item::Text {
-                attrs: round_font_size(&a),
+                attrs: round_font_size(&fold_em_shift(&a)),
                 content: content.join("\n"),
             });
         } else if let Some(rest) = line.strip_prefix("<line") {
@@ -228,14 +234,35 @@ fn round_font_size(attrs: &str) -> String {
     }
 }
 
+/// A shift `dy` in `em` folded into `y` (`0.76em` at 12.9 px is 9.81 px; to 0.01 px).
+fn fold_em_shift(attrs: &str) -> String {
+    let em = attr(attrs, "dy").and_then(|d| d.strip_suffix("em")?.parse::<f64>().ok());
+    let size = attr(attrs, "font-size").and_then(|v| v.parse::<f64>().ok());
+    let y = attr(attrs, "y").and_then(|v| v.parse::<f64>().ok());
+    match (em, size, y) {
+        (Some(em), Some(size), Some(y)) => {
+            let moved = format!("{:.2}", y + em * size);
+            let moved = moved.trim_end_matches('0').trim_end_matches('.');
+            let a = without(attrs, "dy");
+            a.replacen(
+                &format!(" y=\"{}\"", attr(attrs, "y").unwrap()),
+                &format!(" y=\"{moved}\""),
+                1,
+            )
+        }
+        _ => attrs.to_string(),
+    }
+}
+
 /// A segment that may join others of its style in one path: a line or a two-point
-/// polyline, with `true` when it is opaque (no `opacity` left after [`clean`]).
+/// polyline, with `true` when it is opaque (no `opacity` left after [`clean`]). A path
+/// of separate straight segments encloses no area, so it needs no `fill="none"`.
 fn segment(item: &Item) -> Option<(String, [i64; 4], bool)> {
     let (attrs, xy) = match item {
-        Item::Line { attrs, xy } => (format!(" fill=\"none\"{attrs}"), *xy),
+        Item::Line { attrs, xy } => (attrs.clone(), *xy),
         Item::Polyline { attrs, points } if points.len() == 2 => (
             if attrs.contains(" fill=\"none\"") {
-                attrs.clone()
+                without(attrs, "fill")
             } else {
                 return None;
             },
@@ -245,6 +272,15 @@ fn segment(item: &Item) -> Option<(String, [i64; 4], bool)> {
     };
     let opaque = attr(&attrs, "opacity").is_none();
     Some((attrs, xy, opaque))
+}
+
+/// Two numbers of path data: a minus sign separates them, a space otherwise.
+fn pair(a: i64, b: i64) -> String {
+    if b < 0 {
+        format!("{a}{b}")
+    } else {
+        format!("{a} {b}")
+    }
 }
 
 /// Path data of a polyline: the first point, then each step from the previous point
@@ -260,7 +296,7 @@ fn relative_path(points: &[(i64, i64)]) -> String {
         let (cmd, args) = match (dx, dy) {
             (_, 0) => ('h', format!("{dx}")),
             (0, _) => ('v', format!("{dy}")),
-            _ => ('l', format!("{dx}{}{dy}", if dy < 0 { "" } else { " " })),
+            _ => ('l', pair(dx, dy)),
         };
         // A repeated command may be left out; a number then needs a separator unless
         // it starts with its minus sign.
@@ -275,16 +311,31 @@ fn relative_path(points: &[(i64, i64)]) -> String {
     d
 }
 
-/// Path data of one segment, with the short forms for vertical and horizontal ones.
-fn segment_d(xy: [i64; 4]) -> String {
-    let [x1, y1, x2, y2] = xy;
+/// Path data drawing segment `xy` after a path whose current point is `from` (`None`:
+/// the first segment), and the new current point. The move is relative when there is a
+/// current point (`m30 0` to the next grid line); an undashed segment is drawn from its
+/// end nearer the current point (a grid of parallel lines becomes a meander of moves);
+/// vertical and horizontal segments use `V` and `H`.
+fn segment_d(xy: [i64; 4], from: Option<(i64, i64)>, reversible: bool) -> (String, (i64, i64)) {
+    let [mut x1, mut y1, mut x2, mut y2] = xy;
+    let mut d = match from {
+        None => format!("M{x1} {y1}"),
+        Some((cx, cy)) => {
+            let dist = |x: i64, y: i64| (x - cx).abs() + (y - cy).abs();
+            if reversible && dist(x2, y2) < dist(x1, y1) {
+                (x1, y1, x2, y2) = (x2, y2, x1, y1);
+            }
+            format!("m{}", pair(x1 - cx, y1 - cy))
+        }
+    };
     if x1 == x2 {
-        format!("M{x1} {y1}V{y2}")
+        d.push_str(&format!("V{y2}"));
     } else if y1 == y2 {
-        format!("M{x1} {y1}H{x2}")
+        d.push_str(&format!("H{x2}"));
     } else {
-        format!("M{x1} {y1}L{x2} {y2}")
+        d.push_str(&format!("l{}", pair(x2 - x1, y2 - y1)));
     }
+    (d, (x2, y2))
 }
 
 /// Joins segments of one style into paths: translucent ones only while they follow each
@@ -310,22 +361,23 @@ fn merge_segments(items: Vec<Item>) -> Vec<Item> {
         // A segment closes every group but its own: nothing is moved past a drawing
         // of another style.
         open.retain(|g| g.0 == attrs && g.2 == orientation);
+        let reversible = !attrs.contains("stroke-dasharray");
         match open
             .iter()
             .find(|g| g.0 == attrs && g.2 == orientation)
             .map(|g| g.1)
         {
             Some(k) => {
-                if let Item::Path { d, .. } = &mut out[k] {
-                    d.push_str(&segment_d(xy));
+                if let Item::Path { d, end, .. } = &mut out[k] {
+                    let (more, to) = segment_d(xy, Some(*end), reversible);
+                    d.push_str(&more);
+                    *end = to;
                 }
             }
             None => {
                 open.push((attrs.clone(), out.len(), orientation));
-                out.push(Item::Path {
-                    attrs,
-                    d: segment_d(xy),
-                });
+                let (d, end) = segment_d(xy, None, reversible);
+                out.push(Item::Path { attrs, d, end });
             }
         }
     }
@@ -439,12 +491,12 @@ mod tests {
             c,
             "<svg width=\"10\" height=\"10\" viewBox=\"0 0 10 10\" xmlns=\"http://www.w3.org/2000/svg\" font-family=\"sans-serif\">\n\
 <rect x=\"0\" y=\"0\" width=\"10\" height=\"10\" fill=\"#FFFFFF\"/>\n\
-<path fill=\"none\" opacity=\"0.05\" stroke=\"#000000\" d=\"M1 9V0M3 9V0\"/>\n\
-<path fill=\"none\" opacity=\"0.05\" stroke=\"#000000\" d=\"M0 4H9\"/>\n\
-<path fill=\"none\" stroke=\"#000000\" d=\"M1 9V10M3 9V10\"/>\n\
+<path opacity=\"0.05\" stroke=\"#000000\" d=\"M1 9V0m2 0V9\"/>\n\
+<path opacity=\"0.05\" stroke=\"#000000\" d=\"M0 4H9\"/>\n\
+<path stroke=\"#000000\" d=\"M1 9V10m2 0V9\"/>\n\
 <g text-anchor=\"middle\" font-size=\"12.9\">\n\
-<text x=\"1\" y=\"10\" dy=\"0.76em\">1</text>\n\
-<text x=\"3\" y=\"10\" dy=\"0.76em\">2</text>\n\
+<text x=\"1\" y=\"19.81\">1</text>\n\
+<text x=\"3\" y=\"19.81\">2</text>\n\
 </g>\n\
 <path fill=\"none\" stroke=\"#1F77B4\" stroke-width=\"2\" d=\"M0 5h2l1-3\"/>\n\
 </svg>\n"

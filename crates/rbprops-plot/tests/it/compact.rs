@@ -124,7 +124,7 @@ fn a_dense_recording_compacts_under_its_bound_and_keeps_every_peak() {
         .filter(|e| e.name == "path" && e.attr("stroke-width") == Some("2"))
         .map(|e| e.attr("d").unwrap())
         // Curves (one `M`, relative steps), not merged segments (legend samples).
-        .filter(|d| d.matches('M').count() == 1 && !d.contains(['H', 'V', 'L']))
+        .filter(|d| !d.contains(['m', 'H', 'V', 'L']))
         .map(path_points)
         .filter(|p| p.len() > 2)
         .collect();
