@@ -54,6 +54,12 @@ pub const COUNT_SUFFIX: &str = "_count";
 pub struct Schema<'a> {
     root: &'a Value,
     node: &'a Value,
+    /// The value is always there: the message itself, a property its object lists as
+    /// `required` or that has a `default` (in an object that is always there and not
+    /// nullable), a list's item, a fixed array's item when the array is always there.
+    always_there: bool,
+    /// The schema admits `null` (an `anyOf` with a `null` branch, or `null` among the types).
+    nullable: bool,
 }
 
 static ANY: Value = Value::Bool(true);
@@ -61,17 +67,26 @@ static ANY: Value = Value::Bool(true);
 impl<'a> Schema<'a> {
     /// The schema's root node (a `$ref` at the root is followed).
     pub fn new(root: &'a Value) -> Self {
-        Schema { root, node: root }.resolved()
+        Schema {
+            root,
+            node: root,
+            always_there: true,
+            nullable: false,
+        }
+        .resolved()
     }
-    fn at(&self, node: &'a Value) -> Self {
+    fn at(&self, node: &'a Value, always_there: bool) -> Self {
         Schema {
             root: self.root,
             node,
+            always_there,
+            nullable: false,
         }
         .resolved()
     }
     fn resolved(self) -> Self {
         let mut n = self.node;
+        let mut nullable = false;
         for _ in 0..64 {
             if let Some(r) = n.get("$ref").and_then(Value::as_str) {
                 match r
@@ -82,7 +97,7 @@ impl<'a> Schema<'a> {
                         n = d;
                         continue;
                     }
-                    None => return Schema::any_in(self.root),
+                    None => return Schema::any_in(self.root, self.always_there),
                 }
             }
             if let Some(alts) = n
@@ -94,21 +109,34 @@ impl<'a> Schema<'a> {
                     .iter()
                     .filter(|a| a.get("type").and_then(Value::as_str) != Some("null"))
                     .collect();
+                nullable |= real.len() < alts.len();
                 if real.len() == 1 {
                     n = real[0];
                     continue;
                 }
-                return Schema::any_in(self.root);
+                return Schema::any_in(self.root, self.always_there);
             }
             break;
         }
+        let typed_null = match n.get("type") {
+            Some(Value::String(t)) => t == "null",
+            Some(Value::Array(a)) => a.iter().any(|t| t == "null"),
+            _ => false,
+        };
         Schema {
             root: self.root,
             node: n,
+            always_there: self.always_there,
+            nullable: nullable || typed_null,
         }
     }
-    fn any_in(root: &'a Value) -> Self {
-        Schema { root, node: &ANY }
+    fn any_in(root: &'a Value, always_there: bool) -> Self {
+        Schema {
+            root,
+            node: &ANY,
+            always_there,
+            nullable: true,
+        }
     }
     fn types(&self) -> Vec<&'a str> {
         match self.node.get("type") {
@@ -126,16 +154,34 @@ impl<'a> Schema<'a> {
         self.types() == ["array"]
     }
     fn property(&self, name: &str) -> Schema<'a> {
+        let required = self
+            .node
+            .get("required")
+            .and_then(Value::as_array)
+            .is_some_and(|r| r.iter().any(|f| f == name));
         match self.node.get("properties").and_then(|p| p.get(name)) {
-            Some(n) => self.at(n),
-            None => Schema::any_in(self.root),
+            // A field with a default is written whatever its value (schemars leaves the
+            // default out when `skip_serializing_if` would skip it). Inside an optional
+            // or nullable object nothing is always there.
+            Some(n) => self.at(
+                n,
+                (required || n.get("default").is_some()) && self.always_there && !self.nullable,
+            ),
+            None => Schema::any_in(self.root, false),
         }
     }
     fn items(&self) -> Schema<'a> {
         match self.node.get("items") {
-            Some(n) if n.is_object() => self.at(n),
-            _ => Schema::any_in(self.root),
+            // A list's items are rows of their own (there when the row is); a fixed
+            // array's are there when the array is.
+            Some(n) if n.is_object() => self.at(n, self.is_list() || self.always_there),
+            _ => Schema::any_in(self.root, self.is_list() || self.always_there),
         }
+    }
+    /// An empty cell of this field is the empty string: text that is always there and
+    /// cannot be null (so the empty cell cannot mean "absent" instead).
+    fn empty_cell_is_empty_text(&self) -> bool {
+        self.is_text() && self.always_there && !self.nullable
     }
     /// Length of an array the schema fixes (`minItems == maxItems`).
     fn fixed_len(&self) -> Option<usize> {
@@ -171,37 +217,46 @@ fn position_names(len: usize, re_im: bool) -> Option<&'static [&'static str]> {
 const MATRIX3: [&str; 9] = ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"];
 
 /// Text of one scalar cell, given what the schema says the value is.
-fn cell_text(v: &Value, text_field: bool) -> String {
+///
+/// The empty string is an empty cell where the schema says the text is always there and
+/// cannot be null ([`Schema::empty_cell_is_empty_text`]: a set-up's description, an id);
+/// only where an empty cell means "absent" (optional or nullable text) is it written `""`.
+fn cell_text(v: &Value, s: Schema) -> String {
     match v {
-        Value::String(s) if text_field => {
-            if s.is_empty() {
+        Value::String(t) if s.empty_cell_is_empty_text() => t.clone(),
+        Value::String(t) if s.is_text() => {
+            if t.is_empty() {
                 "\"\"".into()
             } else {
-                s.clone()
+                t.clone()
             }
         }
-        Value::String(s) => {
-            if s.is_empty() || s.trim() != s || serde_json::from_str::<Value>(s).is_ok() {
-                serde_json::to_string(s).expect("string serialises")
+        Value::String(t) => {
+            if t.is_empty() || t.trim() != t || serde_json::from_str::<Value>(t).is_ok() {
+                serde_json::to_string(t).expect("string serialises")
             } else {
-                s.clone()
+                t.clone()
             }
         }
         other => other.to_string(),
     }
 }
 
-/// Value of one cell (`None` for an empty cell).
+/// Value of one cell (`None` for an empty cell, unless it is text that is always there).
 fn cell_value(text: &str, s: Schema) -> Option<Value> {
     if text.is_empty() {
-        return None;
+        return s
+            .empty_cell_is_empty_text()
+            .then(|| Value::String(String::new()));
     }
     if s.is_text() {
-        return Some(Value::String(if text == "\"\"" {
-            String::new()
-        } else {
-            text.to_string()
-        }));
+        return Some(Value::String(
+            if text == "\"\"" && !s.empty_cell_is_empty_text() {
+                String::new()
+            } else {
+                text.to_string()
+            },
+        ));
     }
     Some(serde_json::from_str::<Value>(text).unwrap_or_else(|_| Value::String(text.to_string())))
 }
@@ -276,9 +331,7 @@ fn flatten_value<'v, 's>(
         }
         Value::Array(_) => out.cells.push((path.into(), "[]".into())),
         Value::Object(_) => out.cells.push((path.into(), "{}".into())),
-        scalar => out
-            .cells
-            .push((path.into(), cell_text(scalar, s.is_text()))),
+        scalar => out.cells.push((path.into(), cell_text(scalar, s))),
     }
 }
 
@@ -963,6 +1016,55 @@ mod tests {
         bad[0].rows[0][c] = "3".into();
         let e = from_tables("topic", &bad, &s).unwrap_err();
         assert!(e.contains("warnings_count is 3"), "{e}");
+    }
+
+    /// The empty-text rule: an empty cell is the empty string where the text is always
+    /// there and cannot be null, and "absent" everywhere else (where `""` stands for the
+    /// empty string, so both round-trip).
+    #[test]
+    fn empty_text_cells_follow_whether_the_field_is_always_there() {
+        let s = json!({
+            "type": "object",
+            "required": ["id", "label", "names", "part"],
+            "properties": {
+                "id": {"type": "string"},
+                "label": {"type": "string"},
+                "advice": {"type": "string", "default": ""},
+                "optional": {"type": "string"},
+                "nullable": {"type": ["string", "null"]},
+                "names": {"type": "array", "items": {"type": "string"}},
+                "part": {"anyOf": [{"$ref": "#/$defs/Part"}, {"type": "null"}]}
+            },
+            "$defs": {"Part": {"type": "object", "required": ["name"],
+                               "properties": {"name": {"type": "string"}}}}
+        });
+        let msgs = vec![
+            json!({"id": "a", "label": "", "advice": "", "optional": "", "nullable": "", "names": ["", "x"],
+                   "part": {"name": ""}}),
+            json!({"id": "b", "label": "\"\"", "advice": "x", "nullable": null, "names": [], "part": null}),
+        ];
+        let mut tables = Vec::new();
+        to_tables("t", &msgs, &s, &mut tables);
+        let cell = |r: usize, h: &str| {
+            let c = tables[0].header.iter().position(|x| x == h).unwrap();
+            tables[0].rows[r][c].clone()
+        };
+        assert_eq!(cell(0, "label"), "");
+        assert_eq!(cell(0, "advice"), "");
+        assert_eq!(cell(0, "optional"), "\"\"");
+        assert_eq!(cell(0, "nullable"), "\"\"");
+        assert_eq!(cell(1, "nullable"), "");
+        // Inside a nullable object a required field is not always there.
+        assert_eq!(cell(0, "part.name"), "\"\"");
+        assert_eq!(cell(1, "part.name"), "");
+        // Text that is two quote marks stays itself.
+        assert_eq!(cell(1, "label"), "\"\"");
+        assert_eq!(tables[1].rows[0], ["a", "0", ""]);
+        let back = from_tables("t", &tables, &s).unwrap();
+        let mut expect = msgs.clone();
+        expect[1].as_object_mut().unwrap().remove("nullable");
+        expect[1].as_object_mut().unwrap().remove("part");
+        assert_eq!(back, expect);
     }
 
     #[test]

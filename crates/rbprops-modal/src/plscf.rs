@@ -93,9 +93,113 @@ struct Reduced {
     y: Vec<Vec<f64>>,
 }
 
+/// One output's share of the normal equations: `Re t_ef(m)` (`ni × pm·ni`, column
+/// `m·ni + f`) and `Y_o = L_o⁻¹ S_o`, or `None` for a singular `R_o`.
+struct OutputSums {
+    t: Mat<f64>,
+    y: Vec<f64>,
+}
+
+impl OutputSums {
+    /// The sums of output `row` (`h[e][k]`) with weights `w` on the powers `zp[k][m]`.
+    ///
+    /// `T` needs only `Re t_ef(m) = Σ_k w_k Re(conj(h_e) h_f z^m)`, and
+    /// `Re(conj(h_e) h_f z^m) = Re h_e · Re(h_f z^m) + Im h_e · Im(h_f z^m)`: a real
+    /// inner product over the `2·nl` stacked real and imaginary parts of `U = [Re h_e;
+    /// Im h_e]` and `V = [w Re(h_f z^m); w Im(h_f z^m)]`, so all of `T_o` is one product
+    /// `UᵀV` ([`crate::tallmul::at_b`]: a fixed summation order, bit-identical whatever
+    /// the threads) — a quarter of the complex outer products' arithmetic, vectorised.
+    fn new(row: &[&[c64]], w: &[f64], zp: &[Vec<c64>], pm: usize) -> Option<Self> {
+        let (ni, nl) = (row.len(), w.len());
+        let nc = pm * ni;
+        let u = Mat::<f64>::from_fn(2 * nl, ni, |r, e| {
+            let h = row[e][r % nl];
+            if r < nl {
+                h.re
+            } else {
+                h.im
+            }
+        });
+        let mut v = Mat::<f64>::zeros(2 * nl, nc);
+        for m in 0..pm {
+            for f in 0..ni {
+                let c = m * ni + f;
+                for k in 0..nl {
+                    let hz = row[f][k] * zp[k][m] * w[k];
+                    v[(k, c)] = hz.re;
+                    v[(nl + k, c)] = hz.im;
+                }
+            }
+        }
+        let mut t = Mat::<f64>::zeros(ni, nc);
+        crate::tallmul::at_b(u.as_ref(), v.as_ref(), t.as_mut(), 1.0, false);
+        // r(m) = Σ w² cos(mθ); g_e(m) = Σ w² h_e z^m for m in −n..n.
+        let mut r = vec![0.0; pm];
+        let mut gp = vec![c64::new(0.0, 0.0); ni * pm];
+        let mut gn = vec![c64::new(0.0, 0.0); ni * pm];
+        for k in 0..nl {
+            let wk = w[k];
+            if wk == 0.0 {
+                continue;
+            }
+            let z = &zp[k];
+            for m in 0..pm {
+                r[m] += wk * z[m].re;
+            }
+            for e in 0..ni {
+                let hw = row[e][k] * wk;
+                for m in 0..pm {
+                    gp[e * pm + m] += hw * z[m];
+                    gn[e * pm + m] += hw * z[m].conj();
+                }
+            }
+        }
+        // Cholesky of the Toeplitz R_o (pm × pm), row-major lower factor.
+        let mut l = vec![0.0; pm * pm];
+        for i in 0..pm {
+            for j in 0..=i {
+                let mut s = r[i - j];
+                for k in 0..j {
+                    s -= l[i * pm + k] * l[j * pm + k];
+                }
+                if i == j {
+                    if !(s > 0.0) {
+                        return None;
+                    }
+                    l[i * pm + i] = s.sqrt();
+                } else {
+                    l[i * pm + j] = s / l[j * pm + j];
+                }
+            }
+        }
+        // S_o[i, (j,e)] = Re Σ w² conj(z^i)(−z^j h_e) = −Re g_e(j − i).
+        let s_at = |i: usize, j: usize, e: usize| -> f64 {
+            if j >= i {
+                -gp[e * pm + (j - i)].re
+            } else {
+                -gn[e * pm + (i - j)].re
+            }
+        };
+        // Y = L⁻¹ S by forward substitution, column by column.
+        let mut y = vec![0.0; pm * nc];
+        for c in 0..nc {
+            let (j, e) = (c / ni, c % ni);
+            for i in 0..pm {
+                let mut s = s_at(i, j, e);
+                for k in 0..i {
+                    s -= l[i * pm + k] * y[k * nc + c];
+                }
+                y[i * nc + c] = s / l[i * pm + i];
+            }
+        }
+        Some(OutputSums { t, y })
+    }
+}
+
 impl Reduced {
     fn new(data: &PolyData, dt: f64, n_max: usize) -> Option<Self> {
-        let (no, ni, nl) = (data.n_outputs(), data.n_references(), data.omega.len());
+        use rayon::prelude::*;
+        let ni = data.n_references();
         let pm = n_max + 1;
         let w2 = weights(data);
         // z_k^m, m = 0..pm, by direct cos/sin (few lines, exact to rounding).
@@ -113,85 +217,28 @@ impl Reduced {
             })
             .collect();
         let nc = pm * ni;
-        // T: t_ef(m) = Σ_o Σ_k w² conj(h_oe) h_of z^m for m ≥ 0; T[(i,e),(j,f)] =
-        // Re t_ef(j − i), with t_ef(−m) = conj(t_fe(m)).
-        let mut tef = vec![c64::new(0.0, 0.0); ni * ni * pm];
-        let mut y = Vec::with_capacity(no);
-        for o in 0..no {
-            let row = &data.h[o];
-            let w = &w2[o];
-            if w.iter().all(|&x| x == 0.0) {
-                continue;
-            }
-            // r(m) = Σ w² cos(mθ); g_e(m) = Σ w² h_e z^m for m in −n..n.
-            let mut r = vec![0.0; pm];
-            let mut gp = vec![c64::new(0.0, 0.0); ni * pm];
-            let mut gn = vec![c64::new(0.0, 0.0); ni * pm];
-            for k in 0..nl {
-                let wk = w[k];
-                if wk == 0.0 {
-                    continue;
-                }
-                let z = &zp[k];
-                for m in 0..pm {
-                    r[m] += wk * z[m].re;
-                }
-                for e in 0..ni {
-                    let hw = row[e][k] * wk;
-                    for m in 0..pm {
-                        gp[e * pm + m] += hw * z[m];
-                        gn[e * pm + m] += hw * z[m].conj();
-                    }
-                    for f in 0..ni {
-                        let c = row[e][k].conj() * row[f][k] * wk;
-                        for m in 0..pm {
-                            tef[(e * ni + f) * pm + m] += c * z[m];
-                        }
-                    }
-                }
-            }
-            // Cholesky of the Toeplitz R_o (pm × pm), row-major lower factor.
-            let mut l = vec![0.0; pm * pm];
-            for i in 0..pm {
-                for j in 0..=i {
-                    let mut s = r[i - j];
-                    for k in 0..j {
-                        s -= l[i * pm + k] * l[j * pm + k];
-                    }
-                    if i == j {
-                        if !(s > 0.0) {
-                            return None;
-                        }
-                        l[i * pm + i] = s.sqrt();
-                    } else {
-                        l[i * pm + j] = s / l[j * pm + j];
-                    }
-                }
-            }
-            // S_o[i, (j,e)] = Re Σ w² conj(z^i)(−z^j h_e) = −Re g_e(j − i).
-            let s_at = |i: usize, j: usize, e: usize| -> f64 {
-                if j >= i {
-                    -gp[e * pm + (j - i)].re
-                } else {
-                    -gn[e * pm + (i - j)].re
-                }
-            };
-            // Y = L⁻¹ S by forward substitution, column by column.
-            let mut yo = vec![0.0; pm * nc];
-            for c in 0..nc {
-                let (j, e) = (c / ni, c % ni);
-                for i in 0..pm {
-                    let mut s = s_at(i, j, e);
-                    for k in 0..i {
-                        s -= l[i * pm + k] * yo[k * nc + c];
-                    }
-                    yo[i * nc + c] = s / l[i * pm + i];
-                }
-            }
-            y.push(yo);
-        }
-        if y.is_empty() {
+        // Each output's sums are independent (in parallel); they are added in output
+        // order, so the result does not depend on the thread count. An output of zero
+        // weight is left out; a singular R_o makes the whole sweep fail.
+        let per_output: Vec<Option<OutputSums>> = (0..data.n_outputs())
+            .into_par_iter()
+            .filter(|&o| w2[o].iter().any(|&x| x != 0.0))
+            .map(|o| OutputSums::new(&data.h[o], &w2[o], &zp, pm))
+            .collect();
+        if per_output.is_empty() || per_output.iter().any(Option::is_none) {
             return None;
+        }
+        // T: Re t_ef(m) summed over the outputs; T[(i,e),(j,f)] = Re t_ef(j − i), with
+        // Re t_ef(−m) = Re t_fe(m).
+        let mut tef = Mat::<f64>::zeros(ni, nc);
+        let mut y = Vec::with_capacity(per_output.len());
+        for so in per_output.into_iter().flatten() {
+            for c in 0..nc {
+                for e in 0..ni {
+                    tef[(e, c)] += so.t[(e, c)];
+                }
+            }
+            y.push(so.y);
         }
         let mut t = vec![0.0; nc * nc];
         for a in 0..nc {
@@ -199,9 +246,9 @@ impl Reduced {
             for b in 0..nc {
                 let (j, f) = (b / ni, b % ni);
                 t[a * nc + b] = if j >= i {
-                    tef[(e * ni + f) * pm + (j - i)].re
+                    tef[(e, (j - i) * ni + f)]
                 } else {
-                    tef[(f * ni + e) * pm + (i - j)].re
+                    tef[(f, (i - j) * ni + e)]
                 };
             }
         }
@@ -432,8 +479,11 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
     let Some(red) = Reduced::new(data, dt, n_max) else {
         return Vec::new();
     };
-    // Orders whose normal equations or companion matrix are singular are left out.
+    // Orders whose normal equations or companion matrix are singular are left out. The
+    // orders are independent (in parallel, each sequential inside; collected in order).
+    use rayon::prelude::*;
     (1..=n_max)
+        .into_par_iter()
         .filter_map(|n| {
             let m = red.matrix(n);
             let nc = (n + 1) * ni;

@@ -353,6 +353,66 @@ pub(crate) fn clip_polyline(
     pieces
 }
 
+/// The pieces of a polyline to draw on `ch`: [`clip_polyline`], each piece thinned by
+/// [`decimate_to_pixels`] in the chart's own pixel columns.
+pub(crate) fn drawn_pieces(
+    ch: &Chart<'_, '_>,
+    points: &[Option<(f64, f64)>],
+    x: &AxisSpec,
+    y: &AxisSpec,
+) -> Vec<Vec<(f64, f64)>> {
+    clip_polyline(points, x, y)
+        .into_iter()
+        .map(|piece| decimate_to_pixels(piece, |p| ch.backend_coord(&p).0))
+        .collect()
+}
+
+/// Thins a visible polyline to what the pixel grid can show, so that a dense FRF (thousands
+/// of lines in a panel a few hundred pixels wide) does not write thousands of coordinates
+/// that land on the same pixel column.
+///
+/// `column` maps a point to its pixel column (the chart's own mapping). Of each run of
+/// consecutive points in one column only the first, the one of lowest value, the one of
+/// highest value and the last are kept, in their original order: a per-pixel-column
+/// min/max envelope. The drawn line covers the same pixels as the full one — within a
+/// column it still spans from the lowest to the highest point, and it enters and leaves
+/// the column where the full line did — so peaks and notches survive; the extremes are
+/// chosen by value (not by rounded pixel), so the curve's maximum and minimum points are
+/// kept exactly. At most four points per column remain; a curve sparser than the pixels
+/// comes back unchanged.
+pub(crate) fn decimate_to_pixels(
+    piece: Vec<(f64, f64)>,
+    column: impl Fn((f64, f64)) -> i32,
+) -> Vec<(f64, f64)> {
+    let cols: Vec<i32> = piece.iter().map(|&p| column(p)).collect();
+    if cols.windows(2).all(|w| w[0] != w[1]) {
+        return piece;
+    }
+    let mut out = Vec::with_capacity(piece.len().min(4 * cols.len()));
+    let mut start = 0;
+    while start < piece.len() {
+        let mut end = start + 1;
+        while end < piece.len() && cols[end] == cols[start] {
+            end += 1;
+        }
+        let run = start..end;
+        let by_value = |a: &usize, b: &usize| piece[*a].1.total_cmp(&piece[*b].1);
+        let lowest = run.clone().min_by(by_value).unwrap_or(start);
+        let highest = run.clone().max_by(by_value).unwrap_or(start);
+        let mut keep = [start, lowest, highest, end - 1];
+        keep.sort_unstable();
+        let mut last_kept = None;
+        for k in keep {
+            if last_kept != Some(k) {
+                out.push(piece[k]);
+                last_kept = Some(k);
+            }
+        }
+        start = end;
+    }
+    out
+}
+
 fn clip_segment(
     a: (f64, f64),
     b: (f64, f64),
@@ -478,5 +538,38 @@ mod tests {
         // A segment entirely outside disappears.
         let out = [Some((2.0, 2.0)), Some((3.0, 3.0))];
         assert!(clip_polyline(&out, &x, &y).is_empty());
+    }
+
+    #[test]
+    fn decimation_keeps_each_columns_entry_extremes_and_exit() {
+        // Ten points per column, columns 0..3; the column's extremes are interior points.
+        let piece: Vec<(f64, f64)> = (0..30)
+            .map(|i| {
+                (
+                    i as f64 / 10.0,
+                    ((i * 7) % 10) as f64 + (i / 10) as f64 * 0.5,
+                )
+            })
+            .collect();
+        let thin = decimate_to_pixels(piece.clone(), |p| p.0.floor() as i32);
+        for c in 0..3 {
+            let run: Vec<(f64, f64)> = piece[10 * c..10 * c + 10].to_vec();
+            let kept: Vec<(f64, f64)> = thin
+                .iter()
+                .copied()
+                .filter(|p| p.0.floor() as i32 == c as i32)
+                .collect();
+            let lo = run.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+            let hi = run.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+            assert!(kept.len() <= 4, "column {c}: {kept:?}");
+            assert_eq!(kept.first(), run.first(), "column {c} entry");
+            assert_eq!(kept.last(), run.last(), "column {c} exit");
+            assert!(kept.iter().any(|p| p.1 == lo) && kept.iter().any(|p| p.1 == hi));
+            // Kept points are in their original order.
+            assert!(kept.windows(2).all(|w| w[0].0 < w[1].0));
+        }
+        // A curve sparser than the pixels is left alone.
+        let sparse: Vec<(f64, f64)> = (0..5).map(|i| (i as f64, i as f64)).collect();
+        assert_eq!(decimate_to_pixels(sparse.clone(), |p| p.0 as i32), sparse);
     }
 }

@@ -14,6 +14,10 @@
 //! | [`bar_chart`] | [`BarChart`] | property value / relative error per data set and origin or method, ±1.96σ, true value |
 //! | [`scatter_plot`] | [`ScatterPlot`] | estimated vs true with error bars and the identity line |
 //!
+//! [`compact_svg`] rewrites any of these documents in fewer bytes for a page that inlines
+//! many of them (the same picture: grid lines and ticks merged into paths, defaults
+//! dropped, curves thinned to half a pixel).
+//!
 //! All input structs implement `Default`; fill in what you need:
 //!
 //! ```
@@ -47,6 +51,7 @@
 mod axis;
 mod bar;
 mod canvas;
+mod compact;
 mod error;
 mod heatmap;
 mod line;
@@ -57,6 +62,7 @@ mod style;
 
 pub use axis::Scale;
 pub use bar::{bar_chart, BarChart, BarSeries, ReferenceLine};
+pub use compact::{compact_svg, CURVE_TOLERANCE_PX};
 pub use error::PlotError;
 pub use heatmap::{heat_map, viridis, HeatMap};
 pub use line::{line_plot, LinePlot, Series, VerticalMarker};

@@ -6,7 +6,7 @@ use plotters::style::{FontTransform, RGBAColor};
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, plot_name, render_err,
+    chart, draw_legend, draw_mesh, drawn_pieces, footnote, legend_width, plot_name, render_err,
     render_svg, skipped_note, text_style, Chart, Glyph, Legend, Margins,
 };
 use crate::error::PlotError;
@@ -149,7 +149,7 @@ pub fn line_plot(p: &LinePlot) -> Result<String, PlotError> {
             let colour = s.color.unwrap_or_else(|| Rgb::palette(i));
             let style = stroke(colour, s.style, 2);
             legend.push(s.name.clone(), Glyph::Line(style));
-            let pieces = clip_polyline(pts, &x, &y);
+            let pieces = drawn_pieces(&ch, pts, &x, &y);
             ch.draw_series(
                 pieces
                     .into_iter()

@@ -7,7 +7,7 @@ use plotters::style::RGBAColor;
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_mesh, fill, footnote, plot_name, render_err, render_svg,
+    chart, draw_mesh, drawn_pieces, fill, footnote, plot_name, render_err, render_svg,
     skipped_note, text_style, Margins, Root, TITLE_SIZE,
 };
 use crate::error::PlotError;
@@ -303,7 +303,7 @@ fn draw_panel(
     shade(plot, &mut ch, &prep.spans, &prep.x, &prep.y_mag)?;
     for (i, (t, pts)) in panel.traces.iter().zip(&prep.magnitude).enumerate() {
         let style = stroke(t.color.unwrap_or_else(|| Rgb::palette(i)), t.style, 2);
-        let pieces = clip_polyline(pts, &prep.x, &prep.y_mag);
+        let pieces = drawn_pieces(&ch, pts, &prep.x, &prep.y_mag);
         ch.draw_series(pieces.into_iter().map(|q| PathElement::new(q, style)))
             .map_err(render_err(plot))?;
     }
@@ -328,7 +328,7 @@ fn draw_panel(
         // Phase wraps at ±180°: a jump of more than 180° between lines is a wrap, not
         // a change, and is drawn as a break.
         let broken = break_wraps(pts);
-        let pieces = clip_polyline(&broken, &prep.x, &prep.y_phase);
+        let pieces = drawn_pieces(&ch, &broken, &prep.x, &prep.y_phase);
         ch.draw_series(pieces.into_iter().map(|q| PathElement::new(q, style)))
             .map_err(render_err(plot))?;
     }

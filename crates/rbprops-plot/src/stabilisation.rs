@@ -6,9 +6,9 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use crate::axis::{extent, AxisSpec, Fit, Scale};
 use crate::canvas::{
-    chart, clip_polyline, draw_legend, draw_mesh, footnote, legend_width, line_glyph, plot_name,
-    render_err, render_svg, skipped_note, text_style, Glyph, Legend, Margins, DESC_SIZE, FONT,
-    LABEL_SIZE,
+    chart, clip_polyline, decimate_to_pixels, draw_legend, draw_mesh, footnote, legend_width,
+    line_glyph, plot_name, render_err, render_svg, skipped_note, text_style, Glyph, Legend,
+    Margins, DESC_SIZE, FONT, LABEL_SIZE,
 };
 use crate::error::PlotError;
 use crate::line::{check_series, draw_vertical_markers, VerticalMarker};
@@ -214,7 +214,10 @@ pub fn stabilisation_diagram(d: &StabilisationDiagram) -> Result<String, PlotErr
                 .map_err(render_err(&plot))?;
             let style = stroke(Rgb(150, 150, 150), LineStyle::Solid, 1);
             legend.push(bg.name.clone(), Glyph::Line(style));
-            let pieces = clip_polyline(&curve_pts, &x, &y2);
+            let pieces = clip_polyline(&curve_pts, &x, &y2)
+                .into_iter()
+                .map(|piece| decimate_to_pixels(piece, |p| ch.backend_coord(&(p.0, y.lo)).0))
+                .collect::<Vec<_>>();
             ch.draw_secondary_series(pieces.into_iter().map(|p| PathElement::new(p, style)))
                 .map_err(render_err(&plot))?
                 .label(bg.name.clone())

@@ -375,3 +375,42 @@ print("ok", len(tables), "tables")
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// An empty set-up description is an empty CSV cell (not `""` inside CSV quoting, which a
+/// spreadsheet shows as `""`), reads back as the empty string, and a description column
+/// that is missing altogether is still an error naming the field.
+#[test]
+fn empty_text_is_an_empty_cell_and_a_missing_required_field_an_error() {
+    let mut rec = record();
+    let mut g = geometry();
+    g.setups.push(SuspensionSetup {
+        id: "B".into(),
+        description: String::new(),
+    });
+    g.excitations[1].setup = "B".into();
+    rec.set_geometry(&g);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run");
+    csv_dir::write(&rec, &path).unwrap();
+    let setups = path.join("geometry_setups.csv");
+    let text = std::fs::read_to_string(&setups).unwrap();
+    assert_eq!(text, "id,description\nA,springs through the CoM\nB,\n");
+    let back = csv_dir::read(&path).unwrap();
+    assert_eq!(back.topics, rec.topics);
+    assert_eq!(back.geometry().unwrap().unwrap().setups[1].description, "");
+    // No text cell anywhere is a JSON-quoted empty string.
+    for e in std::fs::read_dir(&path).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "csv") {
+            let t = std::fs::read_to_string(&p).unwrap();
+            assert!(!t.contains("\"\"\"\"\"\""), "{}: {t}", p.display());
+        }
+    }
+    // Without the column the required field is absent: an error, not an empty text.
+    std::fs::write(&setups, "id\nA\nB\n").unwrap();
+    let e = csv_dir::read(&path)
+        .and_then(|r| r.geometry().map(|_| ()))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("description"), "{e}");
+}

@@ -2,6 +2,7 @@
 //! one module per topic, shared fixtures in `common`.
 
 mod common;
+mod compact;
 mod layout;
 mod line_plot;
 mod no_fonts;
