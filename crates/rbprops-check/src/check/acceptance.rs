@@ -455,12 +455,18 @@ fn projected_wald(
     let np = kept.len();
     let others: Vec<usize> = (0..j.ncols()).filter(|&k| k < k0 || k >= k0 + np).collect();
     let jb = j.select_columns(&others);
-    let delta =
-        nalgebra::DVector::from_iterator(np, alpha.iter().zip(kept).map(|(a, &i)| a - neutral[i]));
-    let change = j.columns(k0, np) * delta;
+    let change = j.columns(k0, np) * from_neutral(alpha, kept, neutral);
     let (q, _) = span_basis(&jb, 1e-10);
     let unexplained = &change - &q * (q.transpose() * &change);
     unexplained.norm_squared()
+}
+
+/// The fitted coordinates `alpha` (of φ's `kept` entries) less their neutral values.
+fn from_neutral(alpha: &[f64], kept: &[usize], neutral: &[f64]) -> nalgebra::DVector<f64> {
+    nalgebra::DVector::from_iterator(
+        kept.len(),
+        alpha.iter().zip(kept).map(|(a, &j)| a - neutral[j]),
+    )
 }
 
 /// [`wald_statistic`] with the fit's covariance `cov` given (θ's whole covariance).
@@ -474,8 +480,7 @@ pub(super) fn wald_in(
     // In α coordinates (identifiable directions only).
     let np = kept.len();
     let cphi = cov.view((k0, k0), (np, np)).into_owned();
-    let dphi =
-        nalgebra::DVector::from_iterator(np, alpha.iter().zip(kept).map(|(a, &j)| a - neutral[j]));
+    let dphi = from_neutral(alpha, kept, neutral);
     let eig = cphi.symmetric_eigen();
     let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
     let mut wald = 0.0;

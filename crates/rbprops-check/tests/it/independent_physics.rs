@@ -515,15 +515,9 @@ fn six_concealed_effects_are_named_exactly() {
 /// τ = 8 s; 1 % noise, given. Exactly these are named (ambiguity only among them).
 #[test]
 fn dashpots_with_five_more_effects_are_named_exactly() {
-    let Some(py) = python(NUMPY_PYUFF) else {
-        return;
-    };
-    let nom = nominal(400);
-    let (g, frf) = refgen(
-        &py,
-        "tc2-dashpots",
+    dashpots_named_exactly(
+        "dashpots and five more",
         &[
-            &format!("noise.relative={REL}"),
             "sensor.2.misorientation_rad=[0.035,-0.04,0.02]",
             "sensor.3.position_error_m=[0.004,-0.005,0.0]",
             "excitation.force2.direction_error_rad=[0.0,0.03,0.07]",
@@ -531,12 +525,6 @@ fn dashpots_with_five_more_effects_are_named_exactly() {
             "window.tau_s=8.0",
         ],
         37,
-        &nom,
-    );
-    let r = checked_on_data_noise("dashpots and five more", &nom, &g, &frf);
-    assert_exactly(
-        "dashpots and five more",
-        &r,
         &[
             "nonproportional_damping",
             "sensor_misorientation",
@@ -557,27 +545,15 @@ fn dashpots_with_five_more_effects_are_named_exactly() {
 /// effects were named, five false. Exactly the five now.
 #[test]
 fn one_excitation_wrong_four_ways_is_named_exactly() {
-    let Some(py) = python(NUMPY_PYUFF) else {
-        return;
-    };
-    let nom = nominal(400);
-    let (g, frf) = refgen(
-        &py,
-        "tc2-dashpots",
+    dashpots_named_exactly(
+        "force3 four ways",
         &[
-            &format!("noise.relative={REL}"),
             "excitation.force3.direction_error_rad=[0.0565,0.039,-0.0096]",
             "excitation.force3.position_error_m=[0.0112,0.0004,-0.0011]",
             "excitation.force3.gauge_mass_kg=0.078",
             "excitation.force3.force_gauge_gain=0.956",
         ],
         5062,
-        &nom,
-    );
-    let r = checked_on_data_noise("force3 four ways", &nom, &g, &frf);
-    assert_exactly(
-        "force3 four ways",
-        &r,
         &[
             "nonproportional_damping",
             "force_direction",
@@ -596,27 +572,31 @@ fn one_excitation_wrong_four_ways_is_named_exactly() {
 /// centred. Exactly the three.
 #[test]
 fn a_gain_drifted_along_its_gauge_is_not_dropped_as_implausible() {
-    let Some(py) = python(NUMPY_PYUFF) else {
-        return;
-    };
-    let nom = nominal(400);
-    let (g, frf) = refgen(
-        &py,
-        "tc2-dashpots",
+    dashpots_named_exactly(
+        "gain and location",
         &[
-            &format!("noise.relative={REL}"),
             "sensor.1.gains=[1.0,0.9426,1.0]",
             "excitation.force3.position_error_m=[0.0074,-0.0031,0.0056]",
         ],
         5130,
-        &nom,
-    );
-    let r = checked_on_data_noise("gain and location", &nom, &g, &frf);
-    assert_exactly(
-        "gain and location",
-        &r,
         &["nonproportional_damping", "channel_gain", "force_location"],
     );
+}
+
+/// A recording of the generator's dashpot set-up with `sets` at 1 % noise (given), checked:
+/// exactly `expected` named ([`assert_exactly`]).
+fn dashpots_named_exactly(label: &str, sets: &[&str], seed: u64, expected: &[&str]) {
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
+    let nom = nominal(400);
+    let noise = format!("noise.relative={REL}");
+    let sets: Vec<&str> = std::iter::once(noise.as_str())
+        .chain(sets.iter().copied())
+        .collect();
+    let (g, frf) = refgen(&py, "tc2-dashpots", &sets, seed, &nom);
+    let r = checked_on_data_noise(label, &nom, &g, &frf);
+    assert_exactly(label, &r, expected);
 }
 
 /// Exactly `expected` named: each accepted or in an ambiguity family, every accepted
