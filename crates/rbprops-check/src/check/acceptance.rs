@@ -88,6 +88,8 @@ pub(super) struct Evidence {
     pub(super) practical: f64,
     /// The inertia's relative change on acceptance (empty before).
     pub(super) inertia_change: Vec<RelativeChange>,
+    /// Refitted with its implausible items held at neutral (`super::items`).
+    pub(super) items_at_neutral: bool,
 }
 
 impl Evidence {
@@ -259,6 +261,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             held_out_exc,
             practical,
             inertia_change: Vec::new(),
+            items_at_neutral: false,
         }
     }
 

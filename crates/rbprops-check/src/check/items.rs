@@ -13,7 +13,7 @@
 use super::acceptance::{holds, Evidence, RefitBaseline};
 use super::problem::Act;
 use super::screening::Score;
-use super::selection::{set_decision, Selection};
+use super::selection::Selection;
 use crate::error::CheckError;
 use rayon::prelude::*;
 use rbprops_sim::effects::Reach;
@@ -40,6 +40,16 @@ fn items(reach: &[Reach], kept: &[usize]) -> Option<Vec<Vec<usize>>> {
     Some(groups)
 }
 
+/// The fitted value of φ's coordinate `j` in `e`'s refit (one of `e.kept`).
+fn kept_value(e: &Evidence, j: usize) -> f64 {
+    let values = &e.fit.theta[e.fit.theta.len() - e.kept.len()..];
+    values[e
+        .kept
+        .iter()
+        .position(|&k| k == j)
+        .expect("a kept coordinate")]
+}
+
 impl<'p, 'a> Selection<'p, 'a> {
     /// The coordinates of `e`'s refit that belong to plausible items, when `e` failed
     /// on plausibility and some of its items, each judged alone (the others at neutral),
@@ -60,12 +70,10 @@ impl<'p, 'a> Selection<'p, 'a> {
         if groups.len() < 2 {
             return None;
         }
-        let values = &e.fit.theta[e.fit.theta.len() - e.kept.len()..];
-        let value_of = |j: usize| values[e.kept.iter().position(|&k| k == j).expect("kept")];
         let mut keep: Vec<usize> = Vec::new();
         for g in &groups {
             let mut phi = cand.neutral.clone();
-            g.iter().for_each(|&j| phi[j] = value_of(j));
+            g.iter().for_each(|&j| phi[j] = kept_value(e, j));
             if p.plausibility(&e.fit.theta, e.c, &phi).iter().all(holds) {
                 keep.extend(g);
             }
@@ -96,13 +104,8 @@ impl<'p, 'a> Selection<'p, 'a> {
             .par_iter()
             .map(|(i, keep)| {
                 let e = &evals[*i];
-                let n0 = e.fit.theta.len() - e.kept.len();
                 let mut t0 = self.model.cur.theta.clone();
-                let start = &e.fit.theta[n0..];
-                t0.extend(
-                    keep.iter()
-                        .map(|j| start[e.kept.iter().position(|k| k == j).expect("kept")]),
-                );
+                t0.extend(keep.iter().map(|&j| kept_value(e, j)));
                 let mut act = self.model.active.clone();
                 act.push(Act {
                     c: e.c,
@@ -122,7 +125,8 @@ impl<'p, 'a> Selection<'p, 'a> {
             // A retry that fails to converge leaves the original evidence standing.
             let Ok(fit) = fit else { continue };
             let n_tests = round.iter().find(|x| x.0 == c).expect("refitted").1.n_tests;
-            let e = self.evaluate_against(c, n_tests, fit, keep, base);
+            let mut e = self.evaluate_against(c, n_tests, fit, keep, base);
+            e.items_at_neutral = true;
             let id = &self.p.cands[c].id;
             self.options.progress.say(|| {
                 format!(
@@ -133,12 +137,6 @@ impl<'p, 'a> Selection<'p, 'a> {
                 )
             });
             if e.ok() {
-                set_decision(
-                    &mut self.findings.screening,
-                    step,
-                    id,
-                    "refitted with its implausible items at neutral".into(),
-                );
                 if let Some(entry) = self
                     .findings
                     .screening

@@ -29,6 +29,7 @@ mod items;
 mod problem;
 mod screening;
 mod selection;
+mod take_back;
 mod verdict;
 
 pub use acceptance::{PRACTICAL_MARGIN, RESOLUTION};
@@ -693,6 +694,10 @@ fn check_with(
         &mut method,
         &mut warnings,
     )?;
+    let floor = take_back::FloorYardstick {
+        kappa: inflation.as_ref().map_or(1.0, |i| i.kappa),
+        variance_se: noise_model.variance_scale_se,
+    };
     let fixed_effects = fixed_effects(spec, &layout, options)?;
     let cands = screened_candidates(spec, &layout, options, &mut method, &mut warnings);
     let p = Problem {
@@ -737,7 +742,7 @@ fn check_with(
         (nex, nch, nl),
         free_base,
     );
-    run_selection(&mut sel, options.max_effects)?;
+    run_selection(&mut sel, options.max_effects, floor)?;
     warnings.append(&mut sel.findings.warnings);
     let fin = Finish {
         spec,
@@ -837,10 +842,23 @@ fn screened_candidates(
 /// The selection ends when nothing significant is left or nothing passes the acceptance
 /// tests (with the residual at the noise floor no candidate is significant);
 /// `max_effects` is only a safety cap, and hitting it is reported.
-fn run_selection(sel: &mut Selection, max_effects: usize) -> Result<(), CheckError> {
+fn run_selection(
+    sel: &mut Selection,
+    max_effects: usize,
+    floor: take_back::FloorYardstick,
+) -> Result<(), CheckError> {
+    let step = forward(sel, max_effects, 0)?;
+    take_back::take_back(sel, step, floor, |branch, from| {
+        forward(branch, max_effects, from)
+    })
+}
+
+/// The forward steps after step `from`, at most `max_effects` of them; the last step's
+/// number.
+fn forward(sel: &mut Selection, max_effects: usize, from: usize) -> Result<usize, CheckError> {
     let mut capped = max_effects > 0;
-    let mut step = 0;
-    while step < max_effects {
+    let mut step = from;
+    while step < from + max_effects {
         step += 1;
         if !sel.step(step)? && !sel.final_retest(step)? {
             capped = false;
@@ -853,7 +871,7 @@ fn run_selection(sel: &mut Selection, max_effects: usize) -> Result<(), CheckErr
             "the selection stopped at its cap of {max_effects} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing"
         )));
     }
-    Ok(())
+    Ok(step)
 }
 
 /// The sensor masses the user gave (`CheckOptions::sensor_masses_kg`) as the catalogue's

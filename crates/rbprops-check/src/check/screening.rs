@@ -500,9 +500,8 @@ pub(super) const GAUGE: f64 = 1e-7;
 /// its own line, once a fitted force direction has turned that line by a milliradian,
 /// then slides to its hard bound of a metre and stalls the fit of everything coupled
 /// with it.
-fn unresolvable_as_gauges(at: AtModel, c: usize, jc: &DMatrix<f64>, norms: Vec<f64>) -> Vec<f64> {
+fn unresolvable_as_gauges(at: AtModel, c: usize, jp: &DMatrix<f64>, norms: Vec<f64>) -> Vec<f64> {
     let infos = at.p.cands[c].effect.parameters();
-    let jp = project_out(jc, at.q0);
     norms
         .into_iter()
         .enumerate()
@@ -550,16 +549,20 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
             }
         })
         .collect();
-    let norms = unresolvable_as_gauges(at, c, &jc, norms);
-    let mut jcs = jc.clone();
-    for k in 0..jcs.ncols() {
-        if norms[k] > 0.0 {
-            jcs.column_mut(k).scale_mut(1.0 / norms[k]);
-        } else {
-            jcs.column_mut(k).fill(0.0);
+    // One projection serves both the unresolvable test (raw columns) and the score
+    // (normalised ones): a column's projection scales with the column.
+    let mut jt = project_out(&jc, q0);
+    let norms = unresolvable_as_gauges(at, c, &jt, norms);
+    let normalise = |m: &mut DMatrix<f64>| {
+        for (k, &n) in norms.iter().enumerate() {
+            if n > 0.0 {
+                m.column_mut(k).scale_mut(1.0 / n);
+            } else {
+                m.column_mut(k).fill(0.0);
+            }
         }
-    }
-    let jt = project_out(&jcs, q0);
+    };
+    normalise(&mut jt);
     let svd = lm::thin_svd(&jt);
     let u = svd.u.expect("requested");
     let vt = svd.v_t.expect("requested");
@@ -662,6 +665,8 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
     // Which parameter groups absorb the signature (for the not-observable report).
     let mut absorbed_by = Vec::new();
     if keep.is_empty() {
+        let mut jcs = jc.clone();
+        normalise(&mut jcs);
         let groups: [(&str, &dyn Fn(&ParamKind) -> bool); 3] = [
             ("inertia (10 free parameters)", &|k| {
                 matches!(k, ParamKind::Inertia(_))

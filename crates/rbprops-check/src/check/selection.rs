@@ -48,6 +48,7 @@ pub(super) const WALD_DECISIVE: f64 = 100.0;
 
 /// Where a selection starts from: the first pass's final model and the yardsticks
 /// that stay fixed while effects enter and leave.
+#[derive(Clone, Copy)]
 pub(super) struct Start<'p> {
     /// The first pass's final model (the second pass of [`super::check`]).
     pub(super) prior: Option<&'p Prior>,
@@ -58,6 +59,7 @@ pub(super) struct Start<'p> {
 }
 
 /// The current model: the accepted effects and their joint fit.
+#[derive(Clone)]
 pub(super) struct Model {
     pub(super) active: Vec<Act>,
     pub(super) cur: Fit,
@@ -66,7 +68,7 @@ pub(super) struct Model {
 }
 
 /// What the report says about the candidates so far.
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub(super) struct Findings {
     pub(super) screening: Vec<ScreenEntry>,
     pub(super) not_observable: Vec<NotObservable>,
@@ -77,6 +79,7 @@ pub(super) struct Findings {
 }
 
 /// The held-out checks' partition of the values (docs/physics.md, M6).
+#[derive(Clone)]
 pub(super) struct HeldOutPlan {
     /// Frequency-block fold of each used value.
     pub(super) folds: Vec<usize>,
@@ -89,6 +92,7 @@ pub(super) struct HeldOutPlan {
 
 /// What the tests charge an effect: the Bonferroni count, the BIC's ln n and the
 /// baseline's free parameters.
+#[derive(Clone)]
 pub(super) struct Charges {
     /// Candidates counted by Bonferroni (first instances only).
     pub(super) n_cand: f64,
@@ -611,7 +615,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         let (family, family_bic, corr_max) =
             distinct_family(self.options, evals, best, |c| &score_of(c).basis);
         for e in evals {
-            let d = if e.c == best.c {
+            let mut d = if e.c == best.c {
                 if family.len() > 1 {
                     "accepted as member of an ambiguous family".to_string()
                 } else {
@@ -624,6 +628,9 @@ impl<'p, 'a> Selection<'p, 'a> {
             } else {
                 format!("rejected: {}", e.why())
             };
+            if e.items_at_neutral {
+                d.push_str(" (refitted with its implausible items at neutral)");
+            }
             set_decision(&mut self.findings.screening, step, &p.cands[e.c].id, d);
         }
         let before_inertia = inertia_report(
