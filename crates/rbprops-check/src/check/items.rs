@@ -11,7 +11,7 @@
 //! likelihood-ratio, ΔBIC, held-out and plausibility tests.
 
 use super::acceptance::{holds, Evidence, RefitBaseline};
-use super::problem::Act;
+use super::problem::{active_dims, Act};
 use super::screening::Score;
 use super::selection::Selection;
 use crate::error::CheckError;
@@ -40,14 +40,17 @@ fn items(reach: &[Reach], kept: &[usize]) -> Option<Vec<Vec<usize>>> {
     Some(groups)
 }
 
-/// The fitted value of φ's coordinate `j` in `e`'s refit (one of `e.kept`).
-fn kept_value(e: &Evidence, j: usize) -> f64 {
-    let values = &e.fit.theta[e.fit.theta.len() - e.kept.len()..];
-    values[e
-        .kept
+/// The value of φ's coordinate `j` among `values` of the coordinates `kept`.
+fn value_at(kept: &[usize], values: &[f64], j: usize) -> f64 {
+    values[kept
         .iter()
         .position(|&k| k == j)
         .expect("a kept coordinate")]
+}
+
+/// The fitted values of `e`'s kept coordinates (the last entries of its θ).
+fn fitted(e: &Evidence) -> &[f64] {
+    &e.fit.theta[e.fit.theta.len() - e.kept.len()..]
 }
 
 impl<'p, 'a> Selection<'p, 'a> {
@@ -55,7 +58,6 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// on plausibility and some of its items, each judged alone (the others at neutral),
     /// are plausible while others are not; `None` otherwise.
     fn plausible_items(&self, e: &Evidence) -> Option<Vec<usize>> {
-        let p = self.p;
         if e.ok()
             || !e
                 .why
@@ -64,22 +66,36 @@ impl<'p, 'a> Selection<'p, 'a> {
         {
             return None;
         }
-        let cand = &p.cands[e.c];
+        self.plausible_coordinates(&e.fit.theta, e.c, &e.kept, fitted(e))
+    }
+
+    /// The coordinates among `kept` (fitted to `values` in the model at `theta`) of
+    /// candidate `c`'s items that are plausible each judged alone (the others at
+    /// neutral), when some are and others are not; `None` otherwise.
+    pub(super) fn plausible_coordinates(
+        &self,
+        theta: &[f64],
+        c: usize,
+        kept: &[usize],
+        values: &[f64],
+    ) -> Option<Vec<usize>> {
+        let p = self.p;
+        let cand = &p.cands[c];
         let reach = cand.effect.parameter_reach(&p.layout.spec_geometry);
-        let groups = items(&reach, &e.kept)?;
+        let groups = items(&reach, kept)?;
         if groups.len() < 2 {
             return None;
         }
         let mut keep: Vec<usize> = Vec::new();
         for g in &groups {
             let mut phi = cand.neutral.clone();
-            g.iter().for_each(|&j| phi[j] = kept_value(e, j));
-            if p.plausibility(&e.fit.theta, e.c, &phi).iter().all(holds) {
+            g.iter().for_each(|&j| phi[j] = value_at(kept, values, j));
+            if p.plausibility(theta, c, &phi).iter().all(holds) {
                 keep.extend(g);
             }
         }
         keep.sort_unstable();
-        (!keep.is_empty() && keep.len() < e.kept.len()).then_some(keep)
+        (!keep.is_empty() && keep.len() < kept.len()).then_some(keep)
     }
 
     /// Each of `evals` that failed on implausible items only where other items are
@@ -105,7 +121,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             .map(|(i, keep)| {
                 let e = &evals[*i];
                 let mut t0 = self.model.cur.theta.clone();
-                t0.extend(keep.iter().map(|&j| kept_value(e, j)));
+                t0.extend(keep.iter().map(|&j| value_at(&e.kept, fitted(e), j)));
                 let mut act = self.model.active.clone();
                 act.push(Act {
                     c: e.c,
@@ -153,6 +169,65 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         evals.sort_by(|a, b| b.dbic.total_cmp(&a.dbic).then(a.c.cmp(&b.c)));
         Ok(evals)
+    }
+}
+
+impl<'p, 'a> Selection<'p, 'a> {
+    /// Active effect `k`, needed given the others but implausible on some of its items,
+    /// refitted with those items at neutral (the final re-test's counterpart of
+    /// [`Self::retry_plausible_items`]). `Ok(false)` when no item is plausible, all are,
+    /// or the refit fails (the effect is then dropped as before).
+    pub(super) fn narrow_to_plausible_items(
+        &mut self,
+        k: usize,
+        step: usize,
+    ) -> Result<bool, CheckError> {
+        let p = self.p;
+        let theta = &self.model.cur.theta;
+        let k0 = p.n_base() + active_dims(&self.model.active[..k]);
+        let a = &self.model.active[k];
+        let values = &theta[k0..k0 + a.dim()];
+        let Some(keep) = self.plausible_coordinates(theta, a.c, &a.kept, values) else {
+            return Ok(false);
+        };
+        let mut t0 = theta[..k0].to_vec();
+        t0.extend(keep.iter().map(|&j| value_at(&a.kept, values, j)));
+        t0.extend_from_slice(&theta[k0 + a.dim()..]);
+        let mut act = self.model.active.clone();
+        act[k] = Act {
+            c: a.c,
+            kept: keep.clone(),
+            gauge: Vec::new(),
+        };
+        let id = &p.cands[a.c].id;
+        let Ok(fit) = p.fit(
+            &format!("final re-test {id} (plausible items)"),
+            &t0,
+            &act,
+            self.options.max_iterations,
+        ) else {
+            return Ok(false);
+        };
+        self.options
+            .progress
+            .say(|| format!("final re-test: {id} refitted with its implausible items at neutral"));
+        if let Some(e) = self
+            .findings
+            .screening
+            .iter_mut()
+            .rev()
+            .find(|e| e.step <= step && e.id == *id)
+        {
+            e.decision
+                .push_str(" (its implausible items set back to neutral in the final re-test)");
+        }
+        let ev = &mut self.model.accepted[k];
+        ev.rank = keep.len();
+        ev.kept = keep;
+        ev.items_at_neutral = true;
+        self.model.active = act;
+        self.model.cur = fit;
+        Ok(true)
     }
 }
 

@@ -847,25 +847,33 @@ fn run_selection(
     max_effects: usize,
     floor: take_back::FloorYardstick,
 ) -> Result<(), CheckError> {
-    let step = forward(sel, max_effects, 0)?;
-    take_back::take_back(sel, step, floor, |branch, from| {
-        forward(branch, max_effects, from)
+    let step = forward(sel, max_effects, 0, true)?;
+    take_back::take_back(sel, step, floor, |branch, from, steps| {
+        forward(branch, steps.min(max_effects), from, false)
     })
 }
 
-/// The forward steps after step `from`, at most `max_effects` of them; the last step's
-/// number.
-fn forward(sel: &mut Selection, max_effects: usize, from: usize) -> Result<usize, CheckError> {
-    let mut capped = max_effects > 0;
+/// The forward steps after step `from`, at most `max_steps` of them (hitting the cap is
+/// a warning when `warn_at_cap`); the last step's number.
+fn forward(
+    sel: &mut Selection,
+    max_steps: usize,
+    from: usize,
+    warn_at_cap: bool,
+) -> Result<usize, CheckError> {
+    let max_effects = max_steps;
+    let mut capped = max_steps > 0;
     let mut step = from;
-    while step < from + max_effects {
+    while step < from + max_steps {
         step += 1;
         if !sel.step(step)? && !sel.final_retest(step)? {
             capped = false;
             break;
         }
     }
-    if capped {
+    if capped && !warn_at_cap {
+        sel.final_retest(step)?;
+    } else if capped {
         sel.final_retest(step)?;
         sel.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
             "the selection stopped at its cap of {max_effects} effects (max_effects) while candidates were still accepted: raise it to see whether more is missing"

@@ -759,8 +759,8 @@ impl<'p, 'a> Selection<'p, 'a> {
                     ))
                 })
                 .collect();
-            // (index, ΔBIC of keeping it, why it fails)
-            let mut failing: Vec<(usize, f64, String)> = Vec::new();
+            // (index, ΔBIC of keeping it, why it fails, fails on plausibility alone)
+            let mut failing: Vec<(usize, f64, String, bool)> = Vec::new();
             let mut offset = p.n_base();
             for (k, f_wo) in fits.into_iter().enumerate() {
                 let a = &self.model.active[k];
@@ -784,21 +784,27 @@ impl<'p, 'a> Selection<'p, 'a> {
                 if !(dbic > self.options.min_delta_bic) {
                     why.push(format!("ΔBIC {dbic:.1} ≤ {}", self.options.min_delta_bic));
                 }
+                let needed = why.is_empty();
                 for q in p.plausibility(&self.model.cur.theta, a.c, &phi) {
                     if !holds(&q) {
                         why.push(implausible_text(&q));
                     }
                 }
                 if !why.is_empty() {
-                    failing.push((k, dbic, why.join("; ")));
+                    failing.push((k, dbic, why.join("; "), needed));
                 }
             }
-            let Some((k, _, why)) = failing
+            let Some((k, _, why, needed)) = failing
                 .into_iter()
                 .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
             else {
                 break;
             };
+            // Needed but implausible on some items only: those items go back to neutral
+            // and the effect is tested again (M6d, as at its acceptance).
+            if needed && self.narrow_to_plausible_items(k, step)? {
+                continue;
+            }
             let id = p.cands[self.model.active[k].c].id.clone();
             self.options
                 .progress

@@ -17,13 +17,17 @@
 //! band, so a check that reaches the floor costs nothing more.
 
 use super::problem::{active_dims, drop_params};
-use super::selection::{set_decision, Selection};
+use super::selection::Selection;
 use super::verdict::noise_band;
 use crate::error::CheckError;
 
 /// Branches tried at most per check: each costs about the selection's steps after the
 /// effect it takes back.
 pub(super) const TAKE_BACK_TRIES: usize = 3;
+
+/// Forward steps a branch may take beyond those the original took after the effect it
+/// takes back entered.
+const BRANCH_EXTRA_STEPS: usize = 2;
 
 /// How the verdict reads χ²/ν against the noise band (verdict.rs), for the selection's
 /// decision whether it has reached the floor.
@@ -56,7 +60,7 @@ impl<'p, 'a> Selection<'p, 'a> {
 
     /// The selection with active effect `k` taken out, refitted without it and excluded
     /// from screening.
-    fn without(&self, k: usize, step: usize) -> Result<Selection<'p, 'a>, CheckError> {
+    fn without(&self, k: usize) -> Result<Selection<'p, 'a>, CheckError> {
         let p = self.p;
         let mut branch = Selection {
             p,
@@ -78,24 +82,30 @@ impl<'p, 'a> Selection<'p, 'a> {
             self.options.max_iterations,
         )?;
         branch.findings.excluded.push(c);
-        set_decision(
-            &mut branch.findings.screening,
-            step,
-            &p.cands[c].id,
-            "taken back: the selection without it explains more".into(),
-        );
+        if let Some(e) = branch
+            .findings
+            .screening
+            .iter_mut()
+            .rev()
+            .find(|e| e.id == p.cands[c].id)
+        {
+            e.decision = format!(
+                "taken back (was: {}): the selection without it explains more",
+                e.decision
+            );
+        }
         Ok(branch)
     }
 }
 
-/// Stage 4b: branches without one accepted effect each (module doc), `forward` running
-/// each branch to its end from `step`; the first branch whose BIC is lower by the
+/// Stage 4b: branches without one accepted effect each (module doc), `forward(branch,
+/// from, steps)` running each branch from step `from` for at most `steps` steps; the first branch whose BIC is lower by the
 /// acceptance margin replaces the selection.
 pub(super) fn take_back<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
     floor: FloorYardstick,
-    forward: impl Fn(&mut Selection<'p, 'a>, usize) -> Result<usize, CheckError>,
+    forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
 ) -> Result<(), CheckError> {
     let mut tried: Vec<usize> = Vec::new();
     let mut step = step;
@@ -112,8 +122,22 @@ pub(super) fn take_back<'p, 'a>(
         sel.options
             .progress
             .say(|| format!("above the noise band: trying the selection without {id}"));
-        let mut branch = sel.without(k, step)?;
-        let end = forward(&mut branch, step)?;
+        // The branch may take the steps the original took after the effect entered and
+        // BRANCH_EXTRA_STEPS more (one wrong effect standing in for two true ones needs
+        // one); a branch that needs more is not the simple exchange this move is for.
+        let accepted_at = sel
+            .findings
+            .screening
+            .iter()
+            .rev()
+            .find(|e| e.id == id && e.decision.starts_with("accepted"))
+            .map_or(0, |e| e.step);
+        let mut branch = sel.without(k)?;
+        let end = forward(
+            &mut branch,
+            step,
+            step - accepted_at.min(step) + BRANCH_EXTRA_STEPS,
+        )?;
         let gain = sel.bic() - branch.bic();
         sel.options.progress.say(|| {
             format!(
