@@ -76,6 +76,10 @@ pub(super) struct Findings {
     pub(super) warnings: Vec<Diagnostic>,
     /// Candidates no longer screened (not observable, failed, or in an ambiguous family).
     pub(super) excluded: Vec<usize>,
+    /// The last step ended the selection with a candidate that passed every test but
+    /// the held-out excitations: the mark of an accepted effect standing in for others
+    /// (`super::take_back`).
+    pub(super) vetoed_by_held_out_excitation: bool,
 }
 
 /// The held-out checks' partition of the values (docs/physics.md, M6).
@@ -187,6 +191,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// One selection step: screen, refit, accept at most one effect, backward check.
     /// `Ok(false)` when the selection is over (nothing significant, or nothing passes).
     pub(super) fn step(&mut self, step: usize) -> Result<bool, CheckError> {
+        self.findings.vetoed_by_held_out_excitation = false;
         let significant = self.screen(step);
         if significant.is_empty() {
             return Ok(false);
@@ -194,6 +199,9 @@ impl<'p, 'a> Selection<'p, 'a> {
         let planned = self.refit_set(&significant);
         let (evals, refit) = self.refit_in_rounds(step, &planned)?;
         let Some(best_i) = evals.iter().position(|e| e.ok()) else {
+            self.findings.vetoed_by_held_out_excitation = evals
+                .iter()
+                .any(|e| e.held_out_exc.as_ref().is_some_and(|h| !h.passed));
             for e in &evals {
                 set_decision(
                     &mut self.findings.screening,

@@ -14,7 +14,9 @@
 //! screening) runs forward again to its end, and replaces the original when its BIC is
 //! lower by the acceptance margin ΔBIC. Effects are tried from the last accepted back,
 //! at most [`TAKE_BACK_TRIES`] branches, and only while the model is above the noise
-//! band, so a check that reaches the floor costs nothing more.
+//! band and the selection ended on a candidate vetoed by the held-out excitations
+//! alone (the mark of a stand-in), so a check that reaches the floor, or ends on
+//! physics the catalogue does not hold, costs nothing more.
 
 use super::problem::{active_dims, drop_params};
 use super::selection::Selection;
@@ -109,7 +111,10 @@ pub(super) fn take_back<'p, 'a>(
 ) -> Result<(), CheckError> {
     let mut tried: Vec<usize> = Vec::new();
     let mut step = step;
-    while tried.len() < TAKE_BACK_TRIES && floor.above(sel) {
+    while tried.len() < TAKE_BACK_TRIES
+        && sel.findings.vetoed_by_held_out_excitation
+        && floor.above(sel)
+    {
         let Some(k) = (0..sel.model.active.len())
             .rev()
             .find(|&k| !tried.contains(&sel.model.active[k].c))
