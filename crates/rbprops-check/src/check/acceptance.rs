@@ -532,7 +532,7 @@ pub(super) fn distinct_family<'b>(
 
 #[cfg(test)]
 mod wald_tests {
-    use super::projected_wald;
+    use super::{projected_wald, wald_in};
     use nalgebra::{DMatrix, DVector};
 
     /// Deterministic pseudo-random columns (a fixed LCG: no test dependency on a RNG crate).
@@ -575,5 +575,17 @@ mod wald_tests {
         let alone = projected_wald(&j.select_columns(&[0, 1, 2, 4]), 3, &[1.0], &[0], &[0.0]);
         assert!(alone > 1.0);
         assert!((w - alone).abs() < 1e-6 * alone, "{w} vs {alone}");
+        // The covariance form this replaced loses the identified direction here.
+        let old = wald_in(
+            &crate::lm::covariance(&j),
+            3,
+            &[1.0, 1.0],
+            &[0, 1],
+            &[0.0, 0.0],
+        );
+        assert!(
+            old < 0.5 * alone,
+            "the covariance form gave {old} (alone {alone})"
+        );
     }
 }

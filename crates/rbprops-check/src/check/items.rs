@@ -40,6 +40,17 @@ fn items(reach: &[Reach], kept: &[usize]) -> Option<Vec<Vec<usize>>> {
     Some(groups)
 }
 
+/// What the final re-test's narrowing of an effect did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Narrowed {
+    /// Refitted with its implausible items at neutral.
+    Yes,
+    /// No item plausible, all plausible, or the refit failed: dropped as before.
+    No,
+    /// The implausible items are needed by the data: the effect stays whole.
+    NeededWhole,
+}
+
 /// The value of φ's coordinate `j` among `values` of the coordinates `kept`.
 fn value_at(kept: &[usize], values: &[f64], j: usize) -> f64 {
     values[kept
@@ -175,20 +186,22 @@ impl<'p, 'a> Selection<'p, 'a> {
 impl<'p, 'a> Selection<'p, 'a> {
     /// Active effect `k`, needed given the others but implausible on some of its items,
     /// refitted with those items at neutral (the final re-test's counterpart of
-    /// [`Self::retry_plausible_items`]). `Ok(false)` when no item is plausible, all are,
-    /// or the refit fails (the effect is then dropped as before).
+    /// [`Self::retry_plausible_items`]). When that refit costs more than the effect's
+    /// likelihood-ratio threshold, the implausible items are needed by the data: the
+    /// effect stays whole, its values shown against their ranges in the report.
     pub(super) fn narrow_to_plausible_items(
         &mut self,
         k: usize,
         step: usize,
-    ) -> Result<bool, CheckError> {
+        why: &str,
+    ) -> Result<Narrowed, CheckError> {
         let p = self.p;
         let theta = &self.model.cur.theta;
         let k0 = p.n_base() + active_dims(&self.model.active[..k]);
         let a = &self.model.active[k];
         let values = &theta[k0..k0 + a.dim()];
         let Some(keep) = self.plausible_coordinates(theta, a.c, &a.kept, values) else {
-            return Ok(false);
+            return Ok(Narrowed::No);
         };
         let mut t0 = theta[..k0].to_vec();
         t0.extend(keep.iter().map(|&j| value_at(&a.kept, values, j)));
@@ -206,11 +219,21 @@ impl<'p, 'a> Selection<'p, 'a> {
             &act,
             self.options.max_iterations,
         ) else {
-            return Ok(false);
+            return Ok(Narrowed::No);
         };
-        self.options
-            .progress
-            .say(|| format!("final re-test: {id} refitted with its implausible items at neutral"));
+        let cost = fit.chi2 - self.model.cur.chi2;
+        let needed = cost > self.model.accepted[k].threshold;
+        self.options.progress.say(|| {
+            format!(
+                "final re-test: {id} with its implausible items at neutral ({why}): Δχ² {cost:.1}, {}",
+                if needed { "they are needed, kept whole" } else { "set back" }
+            )
+        });
+        let note = if needed {
+            format!(" (kept whole in the final re-test: its implausible items are needed, Δχ² {cost:.1} without them)")
+        } else {
+            " (its implausible items set back to neutral in the final re-test)".to_string()
+        };
         if let Some(e) = self
             .findings
             .screening
@@ -218,8 +241,10 @@ impl<'p, 'a> Selection<'p, 'a> {
             .rev()
             .find(|e| e.step <= step && e.id == *id)
         {
-            e.decision
-                .push_str(" (its implausible items set back to neutral in the final re-test)");
+            e.decision.push_str(&note);
+        }
+        if needed {
+            return Ok(Narrowed::NeededWhole);
         }
         let ev = &mut self.model.accepted[k];
         ev.rank = keep.len();
@@ -227,7 +252,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         ev.items_at_neutral = true;
         self.model.active = act;
         self.model.cur = fit;
-        Ok(true)
+        Ok(Narrowed::Yes)
     }
 }
 

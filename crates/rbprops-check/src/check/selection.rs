@@ -7,6 +7,7 @@ use super::acceptance::{
     distinct_family, fit_covariance, holds, implausible_text, wald_in, Evidence,
 };
 use super::gauges::{centre_gauges, reopen_dropped};
+use super::items::Narrowed;
 use super::problem::{active_dims, drop_params, span_basis, Act, Prior, Problem};
 use super::screening::{
     grid_candidate, resonance_candidate, score_candidate, AtModel, Chord, Score,
@@ -739,6 +740,8 @@ impl<'p, 'a> Selection<'p, 'a> {
             self.options.max_iterations,
         );
         let mut dropped_any = false;
+        // Effects kept whole with implausible items the data need (not tested again).
+        let mut tolerated: Vec<usize> = Vec::new();
         while !self.model.active.is_empty() {
             let cov = self.current_covariance();
             let decisive: Vec<bool> = (0..self.model.active.len())
@@ -798,7 +801,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                         why.push(implausible_text(&q));
                     }
                 }
-                if !why.is_empty() {
+                if !why.is_empty() && !(needed && tolerated.contains(&a.c)) {
                     failing.push((k, dbic, why.join("; "), needed));
                 }
             }
@@ -810,8 +813,18 @@ impl<'p, 'a> Selection<'p, 'a> {
             };
             // Needed but implausible on some items only: those items go back to neutral
             // and the effect is tested again (M6d, as at its acceptance).
-            if needed && self.narrow_to_plausible_items(k, step)? {
-                continue;
+            if needed {
+                match self.narrow_to_plausible_items(k, step, &why)? {
+                    Narrowed::Yes => {
+                        dropped_any = true;
+                        continue;
+                    }
+                    Narrowed::NeededWhole => {
+                        tolerated.push(self.model.active[k].c);
+                        continue;
+                    }
+                    Narrowed::No => {}
+                }
             }
             let id = p.cands[self.model.active[k].c].id.clone();
             self.options
