@@ -12,16 +12,12 @@ use serde::{Deserialize, Serialize};
 
 /// A frequency band of the residual map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[schemars(description = "")]
 pub struct Band {
     /// Its label (`sub-suspension`, `suspension modes`, `mass line`, `upper edge`).
-    #[schemars(description = "")]
     pub name: String,
     /// Lower edge (Hz).
-    #[schemars(description = "")]
     pub from_hz: f64,
     /// Upper edge (Hz).
-    #[schemars(description = "")]
     pub to_hz: f64,
 }
 
@@ -29,28 +25,22 @@ pub struct Band {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ResidualCell {
     /// Excitation id.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Channel id.
-    #[schemars(description = "")]
     pub channel: String,
     /// Band label.
-    #[schemars(description = "")]
     pub band: String,
     /// Number of real residual entries.
     pub n: usize,
     /// `χ²` of the cell's normalised residual (docs/conventions.md §8).
-    #[schemars(description = "")]
     pub chi2: f64,
     /// `z = (χ² − n)/√(2n)`, ≈ N(0, 1) under the noise model.
-    #[schemars(description = "")]
     pub z: f64,
     /// χ² of the part that is not rigid-body motion of the sensors.
     pub chi2_non_rigid: f64,
     /// χ² in phase and in quadrature with the model FRF.
     pub chi2_in_phase: f64,
     /// χ² in quadrature with the model FRF.
-    #[schemars(description = "")]
     pub chi2_quadrature: f64,
 }
 
@@ -58,43 +48,31 @@ pub struct ResidualCell {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ResidualTotal {
     /// Group label (sensor point, excitation or band).
-    #[schemars(description = "")]
     pub group: String,
     /// Number of real residual entries in the group.
-    #[schemars(description = "")]
     pub n: usize,
     /// `χ²/n` over the group.
-    #[schemars(description = "")]
     pub chi2_nu: f64,
     /// `z = (χ² − n)/√(2n)` over the group.
-    #[schemars(description = "")]
     pub z: f64,
     /// Fraction of χ² that is not rigid-body motion of the sensors.
-    #[schemars(description = "")]
     pub non_rigid_fraction: f64,
     /// Fraction of χ² in quadrature with the model FRF.
-    #[schemars(description = "")]
     pub quadrature_fraction: f64,
 }
 
 /// Where the normalised residual sits: by excitation × channel × band, and totals.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[schemars(description = "")]
 pub struct ResidualMap {
     /// The bands used.
-    #[schemars(description = "")]
     pub bands: Vec<Band>,
     /// Every cell.
-    #[schemars(description = "")]
     pub cells: Vec<ResidualCell>,
     /// Totals per sensor point.
-    #[schemars(description = "")]
     pub per_sensor: Vec<ResidualTotal>,
     /// Totals per excitation.
-    #[schemars(description = "")]
     pub per_excitation: Vec<ResidualTotal>,
     /// Totals per band.
-    #[schemars(description = "")]
     pub per_band: Vec<ResidualTotal>,
     /// Cells with z > 5, strongest first: "excitation/channel/band (z)".
     pub flagged: Vec<String>,
