@@ -176,12 +176,9 @@ impl FrfEstConfig {
         let key = Key(source);
         let mut o = crate::frf_est::EstimationOptions::default();
         if let Some(e) = &self.estimator {
-            o.estimator = match e.to_ascii_lowercase().as_str() {
-                "h1" => rbprops_frfest::Estimator::H1,
-                "h2" => rbprops_frfest::Estimator::H2,
-                "hv" => rbprops_frfest::Estimator::Hv,
-                _ => bail!("{} = \"{e}\": h1, h2 or hv", key.at("estimator")),
-            };
+            // The names of `frf-est --estimator`, in any case.
+            o.estimator = clap::ValueEnum::from_str(e, true)
+                .map_err(|_| anyhow::anyhow!("{} = \"{e}\": h1, h2 or hv", key.at("estimator")))?;
         }
         if let Some(w) = self.response_window(key)? {
             o.response_window = w;
