@@ -32,11 +32,8 @@ FILE_EXCEPTIONS = {
     "crates/rbprops-modal/src/fit.rs": NOT_YET,
 }
 FN_EXCEPTIONS = {
-    "crates/rbprops-check/src/locate.rs::residual_map": NOT_YET,
-    "crates/rbprops-check/src/lm.rs::fit_grouped": NOT_YET,
     "crates/rbprops-check/src/check/screening.rs::profile_candidate": NOT_YET,
     "crates/rbprops-check/src/check/screening.rs::score_candidate": NOT_YET,
-    "crates/rbprops-cli/src/campaign.rs::options": NOT_YET,
     "crates/rbprops-modal/src/lsfd.rs::refine": NOT_YET,
     "crates/rbprops-modal/src/fit.rs::estimate_poles_from": NOT_YET,
     "crates/rbprops-modal/src/evidence.rs::campaign_diagnostics": NOT_YET,

@@ -12,16 +12,12 @@ use serde::{Deserialize, Serialize};
 
 /// A frequency band of the residual map.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[schemars(description = "")]
 pub struct Band {
     /// Its label (`sub-suspension`, `suspension modes`, `mass line`, `upper edge`).
-    #[schemars(description = "")]
     pub name: String,
     /// Lower edge (Hz).
-    #[schemars(description = "")]
     pub from_hz: f64,
     /// Upper edge (Hz).
-    #[schemars(description = "")]
     pub to_hz: f64,
 }
 
@@ -29,28 +25,22 @@ pub struct Band {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ResidualCell {
     /// Excitation id.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Channel id.
-    #[schemars(description = "")]
     pub channel: String,
     /// Band label.
-    #[schemars(description = "")]
     pub band: String,
     /// Number of real residual entries.
     pub n: usize,
     /// `χ²` of the cell's normalised residual (docs/conventions.md §8).
-    #[schemars(description = "")]
     pub chi2: f64,
     /// `z = (χ² − n)/√(2n)`, ≈ N(0, 1) under the noise model.
-    #[schemars(description = "")]
     pub z: f64,
     /// χ² of the part that is not rigid-body motion of the sensors.
     pub chi2_non_rigid: f64,
     /// χ² in phase and in quadrature with the model FRF.
     pub chi2_in_phase: f64,
     /// χ² in quadrature with the model FRF.
-    #[schemars(description = "")]
     pub chi2_quadrature: f64,
 }
 
@@ -58,43 +48,31 @@ pub struct ResidualCell {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ResidualTotal {
     /// Group label (sensor point, excitation or band).
-    #[schemars(description = "")]
     pub group: String,
     /// Number of real residual entries in the group.
-    #[schemars(description = "")]
     pub n: usize,
     /// `χ²/n` over the group.
-    #[schemars(description = "")]
     pub chi2_nu: f64,
     /// `z = (χ² − n)/√(2n)` over the group.
-    #[schemars(description = "")]
     pub z: f64,
     /// Fraction of χ² that is not rigid-body motion of the sensors.
-    #[schemars(description = "")]
     pub non_rigid_fraction: f64,
     /// Fraction of χ² in quadrature with the model FRF.
-    #[schemars(description = "")]
     pub quadrature_fraction: f64,
 }
 
 /// Where the normalised residual sits: by excitation × channel × band, and totals.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[schemars(description = "")]
 pub struct ResidualMap {
     /// The bands used.
-    #[schemars(description = "")]
     pub bands: Vec<Band>,
     /// Every cell.
-    #[schemars(description = "")]
     pub cells: Vec<ResidualCell>,
     /// Totals per sensor point.
-    #[schemars(description = "")]
     pub per_sensor: Vec<ResidualTotal>,
     /// Totals per excitation.
-    #[schemars(description = "")]
     pub per_excitation: Vec<ResidualTotal>,
     /// Totals per band.
-    #[schemars(description = "")]
     pub per_band: Vec<ResidualTotal>,
     /// Cells with z > 5, strongest first: "excitation/channel/band (z)".
     pub flagged: Vec<String>,
@@ -138,6 +116,17 @@ fn z(chi2: f64, n: usize) -> f64 {
     }
 }
 
+/// χ² sums of one cell (excitation × channel × band) as the lines are added.
+#[derive(Debug, Clone, Copy, Default)]
+struct CellSums {
+    /// Real residual entries (2 per complex line).
+    n: usize,
+    chi2: f64,
+    non_rigid: f64,
+    in_phase: f64,
+    quadrature: f64,
+}
+
 /// The residual map of data `y` against model `m` with noise σ (all `[exc][ch][line]`).
 pub fn residual_map(
     layout: &Layout,
@@ -146,119 +135,9 @@ pub fn residual_map(
     sigma: &[f64],
     bands: Vec<Band>,
 ) -> ResidualMap {
+    let sums = cell_sums(layout, y, m, sigma, &bands);
+    let cells = cells(layout, &bands, &sums);
     let g = &layout.spec_geometry;
-    let nl = layout.n_lines();
-    let nch = layout.channel_map.len();
-    let nex = layout.excitation_map.len();
-    let band_of = |f: f64| -> usize {
-        bands
-            .iter()
-            .position(|b| f >= b.from_hz && f < b.to_hz)
-            .unwrap_or(bands.len() - 1)
-    };
-    let nb = bands.len();
-    // acc[(e, c, b)] = (n, chi2, nonrigid, inphase, quad)
-    let mut acc = vec![(0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64); nex * nch * nb];
-    let rows: Vec<_> = layout
-        .channel_map
-        .iter()
-        .map(|&sc| g.channels[sc].row())
-        .collect();
-    for e in 0..nex {
-        for l in 0..nl {
-            let b = band_of(layout.frequency_hz[l]);
-            // Weighted residual and rows over the channels with information on this line.
-            let mut idx = Vec::new();
-            let mut rho = Vec::new();
-            for c in 0..nch {
-                let i = (e * nch + c) * nl + l;
-                if sigma[i] > 0.0 {
-                    idx.push(c);
-                    rho.push((y[i] - m[i]) * (std::f64::consts::SQRT_2 / sigma[i]));
-                }
-            }
-            if idx.is_empty() {
-                continue;
-            }
-            let w = nalgebra::DMatrix::from_fn(idx.len(), 6, |r, k| {
-                rows[idx[r]][k] / sigma[(e * nch + idx[r]) * nl + l]
-            });
-            // Projector on the weighted rigid-motion span (rank-revealing via SVD).
-            let svd = w.svd(true, false);
-            let u = svd.u.expect("requested");
-            let smax = svd.singular_values.max();
-            let keep: Vec<usize> = (0..svd.singular_values.len())
-                .filter(|&k| svd.singular_values[k] > 1e-9 * smax)
-                .collect();
-            let mut rigid = vec![c64::new(0.0, 0.0); idx.len()];
-            for &k in &keep {
-                let col = u.column(k);
-                let mut dot = c64::new(0.0, 0.0);
-                for r in 0..idx.len() {
-                    dot += rho[r] * col[r];
-                }
-                for r in 0..idx.len() {
-                    rigid[r] += dot * col[r];
-                }
-            }
-            for (r, &c) in idx.iter().enumerate() {
-                let i = (e * nch + c) * nl + l;
-                let a = &mut acc[(e * nch + c) * nb + b];
-                a.0 += 2;
-                a.1 += rho[r].norm_sqr();
-                a.2 += (rho[r] - rigid[r]).norm_sqr();
-                let ph = if m[i].norm() > 0.0 {
-                    m[i].conj() / m[i].norm()
-                } else {
-                    c64::new(1.0, 0.0)
-                };
-                let rot = rho[r] * ph;
-                a.3 += rot.re * rot.re;
-                a.4 += rot.im * rot.im;
-            }
-        }
-    }
-    let mut cells = Vec::new();
-    let ex_id = |e: usize| g.excitations[layout.excitation_map[e]].id.clone();
-    let ch_id = |c: usize| g.channels[layout.channel_map[c]].id.clone();
-    for e in 0..nex {
-        for c in 0..nch {
-            for (b, band) in bands.iter().enumerate() {
-                let a = acc[(e * nch + c) * nb + b];
-                if a.0 == 0 {
-                    continue;
-                }
-                cells.push(ResidualCell {
-                    excitation: ex_id(e),
-                    channel: ch_id(c),
-                    band: band.name.clone(),
-                    n: a.0,
-                    chi2: a.1,
-                    z: z(a.1, a.0),
-                    chi2_non_rigid: a.2,
-                    chi2_in_phase: a.3,
-                    chi2_quadrature: a.4,
-                });
-            }
-        }
-    }
-    let total = |group: String, sel: &dyn Fn(&ResidualCell) -> bool| -> ResidualTotal {
-        let (mut n, mut c2, mut nr, mut q) = (0usize, 0.0, 0.0, 0.0);
-        for cell in cells.iter().filter(|c| sel(c)) {
-            n += cell.n;
-            c2 += cell.chi2;
-            nr += cell.chi2_non_rigid;
-            q += cell.chi2_quadrature;
-        }
-        ResidualTotal {
-            group,
-            n,
-            chi2_nu: if n > 0 { c2 / n as f64 } else { 0.0 },
-            z: z(c2, n),
-            non_rigid_fraction: if c2 > 0.0 { nr / c2 } else { 0.0 },
-            quadrature_fraction: if c2 > 0.0 { q / c2 } else { 0.0 },
-        }
-    };
     let mut points: Vec<String> = Vec::new();
     for &sc in &layout.channel_map {
         let p = &g.channels[sc].point;
@@ -269,40 +148,30 @@ pub fn residual_map(
     let per_sensor = points
         .iter()
         .map(|p| {
-            let chans: Vec<String> = g
+            let chans: Vec<&str> = g
                 .channels
                 .iter()
                 .filter(|c| &c.point == p)
-                .map(|c| c.id.clone())
+                .map(|c| c.id.as_str())
                 .collect();
-            total(format!("sensor {p}"), &|c: &ResidualCell| {
-                chans.contains(&c.channel)
+            total(format!("sensor {p}"), &cells, |c| {
+                chans.contains(&c.channel.as_str())
             })
         })
         .collect();
-    let per_excitation = (0..nex)
-        .map(|e| {
-            let id = ex_id(e);
-            total(format!("excitation {id}"), &|c: &ResidualCell| {
-                c.excitation == id
-            })
+    let per_excitation = layout
+        .excitation_map
+        .iter()
+        .map(|&se| {
+            let id = &g.excitations[se].id;
+            total(format!("excitation {id}"), &cells, |c| &c.excitation == id)
         })
         .collect();
     let per_band = bands
         .iter()
-        .map(|b| {
-            total(format!("band {}", b.name), &|c: &ResidualCell| {
-                c.band == b.name
-            })
-        })
+        .map(|b| total(format!("band {}", b.name), &cells, |c| c.band == b.name))
         .collect();
-    let mut strong: Vec<&ResidualCell> = cells.iter().filter(|c| c.z > 5.0).collect();
-    strong.sort_by(|a, b| b.z.total_cmp(&a.z));
-    let flagged = strong
-        .iter()
-        .take(20)
-        .map(|c| format!("{}/{}/{} (z {:.1})", c.excitation, c.channel, c.band, c.z))
-        .collect();
+    let flagged = flagged(&cells);
     ResidualMap {
         bands,
         cells,
@@ -311,4 +180,155 @@ pub fn residual_map(
         per_band,
         flagged,
     }
+}
+
+/// The sums of every cell, indexed `[(exc · n_ch + ch) · n_bands + band]`.
+fn cell_sums(
+    layout: &Layout,
+    y: &[c64],
+    m: &[c64],
+    sigma: &[f64],
+    bands: &[Band],
+) -> Vec<CellSums> {
+    let g = &layout.spec_geometry;
+    let nl = layout.n_lines();
+    let nch = layout.channel_map.len();
+    let nex = layout.excitation_map.len();
+    let nb = bands.len();
+    let band_of = |f: f64| -> usize {
+        bands
+            .iter()
+            .position(|b| f >= b.from_hz && f < b.to_hz)
+            .unwrap_or(nb - 1)
+    };
+    let mut sums = vec![CellSums::default(); nex * nch * nb];
+    let rows: Vec<_> = layout
+        .channel_map
+        .iter()
+        .map(|&sc| g.channels[sc].row())
+        .collect();
+    for e in 0..nex {
+        for l in 0..nl {
+            let b = band_of(layout.frequency_hz[l]);
+            // Weighted residual and rows over the channels with information on this line.
+            let at = |c: usize| (e * nch + c) * nl + l;
+            let idx: Vec<usize> = (0..nch).filter(|&c| sigma[at(c)] > 0.0).collect();
+            if idx.is_empty() {
+                continue;
+            }
+            let rho: Vec<c64> = idx
+                .iter()
+                .map(|&c| (y[at(c)] - m[at(c)]) * (std::f64::consts::SQRT_2 / sigma[at(c)]))
+                .collect();
+            let w = nalgebra::DMatrix::from_fn(idx.len(), 6, |r, k| {
+                rows[idx[r]][k] / sigma[at(idx[r])]
+            });
+            let rigid = rigid_part(w, &rho);
+            for (r, &c) in idx.iter().enumerate() {
+                let a = &mut sums[(e * nch + c) * nb + b];
+                a.n += 2;
+                a.chi2 += rho[r].norm_sqr();
+                a.non_rigid += (rho[r] - rigid[r]).norm_sqr();
+                let rot = rho[r] * unit_phase_conj(m[at(c)]);
+                a.in_phase += rot.re * rot.re;
+                a.quadrature += rot.im * rot.im;
+            }
+        }
+    }
+    sums
+}
+
+/// The part of the weighted residual `rho` that is rigid-body motion of the sensors: its
+/// projection on the span of the weighted channel rows `w` (rank-revealing via SVD, so a
+/// direction no channel sees does not count).
+fn rigid_part(w: nalgebra::DMatrix<f64>, rho: &[c64]) -> Vec<c64> {
+    let svd = w.svd(true, false);
+    let u = svd.u.expect("requested");
+    let smax = svd.singular_values.max();
+    let mut rigid = vec![c64::new(0.0, 0.0); rho.len()];
+    for k in (0..svd.singular_values.len()).filter(|&k| svd.singular_values[k] > 1e-9 * smax) {
+        let col = u.column(k);
+        let mut dot = c64::new(0.0, 0.0);
+        for r in 0..rho.len() {
+            dot += rho[r] * col[r];
+        }
+        for r in 0..rho.len() {
+            rigid[r] += dot * col[r];
+        }
+    }
+    rigid
+}
+
+/// `e^{−i arg m}`: turns a residual into the model FRF's phase frame (re in phase, im in
+/// quadrature); 1 where the model is zero.
+fn unit_phase_conj(m: c64) -> c64 {
+    if m.norm() > 0.0 {
+        m.conj() / m.norm()
+    } else {
+        c64::new(1.0, 0.0)
+    }
+}
+
+/// The non-empty cells, excitation by channel by band.
+fn cells(layout: &Layout, bands: &[Band], sums: &[CellSums]) -> Vec<ResidualCell> {
+    let g = &layout.spec_geometry;
+    let nch = layout.channel_map.len();
+    let nb = bands.len();
+    let mut cells = Vec::new();
+    for (e, &se) in layout.excitation_map.iter().enumerate() {
+        for (c, &sc) in layout.channel_map.iter().enumerate() {
+            for (b, band) in bands.iter().enumerate() {
+                let a = sums[(e * nch + c) * nb + b];
+                if a.n == 0 {
+                    continue;
+                }
+                cells.push(ResidualCell {
+                    excitation: g.excitations[se].id.clone(),
+                    channel: g.channels[sc].id.clone(),
+                    band: band.name.clone(),
+                    n: a.n,
+                    chi2: a.chi2,
+                    z: z(a.chi2, a.n),
+                    chi2_non_rigid: a.non_rigid,
+                    chi2_in_phase: a.in_phase,
+                    chi2_quadrature: a.quadrature,
+                });
+            }
+        }
+    }
+    cells
+}
+
+/// Totals over the cells a group selects.
+fn total(
+    group: String,
+    cells: &[ResidualCell],
+    sel: impl Fn(&ResidualCell) -> bool,
+) -> ResidualTotal {
+    let (mut n, mut c2, mut nr, mut q) = (0usize, 0.0, 0.0, 0.0);
+    for cell in cells.iter().filter(|c| sel(c)) {
+        n += cell.n;
+        c2 += cell.chi2;
+        nr += cell.chi2_non_rigid;
+        q += cell.chi2_quadrature;
+    }
+    ResidualTotal {
+        group,
+        n,
+        chi2_nu: if n > 0 { c2 / n as f64 } else { 0.0 },
+        z: z(c2, n),
+        non_rigid_fraction: if c2 > 0.0 { nr / c2 } else { 0.0 },
+        quadrature_fraction: if c2 > 0.0 { q / c2 } else { 0.0 },
+    }
+}
+
+/// The 20 strongest cells with z > 5: "excitation/channel/band (z …)".
+fn flagged(cells: &[ResidualCell]) -> Vec<String> {
+    let mut strong: Vec<&ResidualCell> = cells.iter().filter(|c| c.z > 5.0).collect();
+    strong.sort_by(|a, b| b.z.total_cmp(&a.z));
+    strong
+        .iter()
+        .take(20)
+        .map(|c| format!("{}/{}/{} (z {:.1})", c.excitation, c.channel, c.band, c.z))
+        .collect()
 }

@@ -10,16 +10,12 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct FittedParameter {
     /// Parameter name as the effect declares it.
-    #[schemars(description = "")]
     pub name: String,
     /// Its unit (`m`, `rad`, `1`, …).
-    #[schemars(description = "")]
     pub unit: String,
     /// Fitted value.
-    #[schemars(description = "")]
     pub value: f64,
     /// Standard error of the value (from the fit's information matrix).
-    #[schemars(description = "")]
     pub standard_error: f64,
 }
 
@@ -29,22 +25,18 @@ pub struct AcceptedEffect {
     /// Physics-catalogue id (`gravity_stiffness`, ...).
     pub id: String,
     /// One-line title.
-    #[schemars(description = "")]
     pub title: String,
     /// "rbprops-sim" or "rbprops-check (local)".
     pub source: String,
     /// The effect's fitted parameters.
-    #[schemars(description = "")]
     pub parameters: Vec<FittedParameter>,
     /// χ² decrease when the effect was added, and its degrees of freedom (identifiable rank).
     pub delta_chi2: f64,
     /// Degrees of freedom of `delta_chi2`.
-    #[schemars(description = "")]
     pub dof: usize,
     /// Likelihood-ratio threshold χ²_{d, 1−α/N_candidates}.
     pub lr_threshold: f64,
     /// `ΔBIC` of adding the effect (positive favours it).
-    #[schemars(description = "")]
     pub delta_bic: f64,
     /// Relative change of each inertia quantity caused by adding this effect.
     pub inertia_change: Vec<RelativeChange>,
@@ -105,10 +97,8 @@ pub struct Unexplained {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct HeldOutCheck {
     /// How the values were split into folds (frequency or excitation).
-    #[schemars(description = "")]
     pub scheme: String,
     /// Number of folds.
-    #[schemars(description = "")]
     pub folds: usize,
     /// Decrease of the held-out χ² summed over folds (model without − with the effect).
     pub delta_chi2: f64,
@@ -130,7 +120,6 @@ pub struct HeldOutCheck {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct AmbiguousFamily {
     /// The members' ids.
-    #[schemars(description = "")]
     pub ids: Vec<String>,
     /// ΔBIC of each member relative to the model without it.
     pub delta_bic: Vec<f64>,
@@ -144,10 +133,8 @@ pub struct AmbiguousFamily {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct NotObservable {
     /// Physics-catalogue id.
-    #[schemars(description = "")]
     pub id: String,
     /// One-line title.
-    #[schemars(description = "")]
     pub title: String,
     /// Which free parameters absorb it.
     pub reason: String,
@@ -159,28 +146,22 @@ pub struct NotObservable {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ScreenEntry {
     /// Step of the forward selection (1 = the first effect added).
-    #[schemars(description = "")]
     pub step: usize,
     /// Candidate id.
-    #[schemars(description = "")]
     pub id: String,
     /// Identifiable rank d_c after projecting out the current model's parameters.
     pub rank: usize,
     /// Number of the candidate's parameters.
-    #[schemars(description = "")]
     pub n_parameters: usize,
     /// Score statistic S_c and its threshold.
     pub score: f64,
     /// Threshold of the score statistic at this step.
-    #[schemars(description = "")]
     pub threshold: f64,
     /// χ² decrease of the full refit (when refitted).
     pub refit_delta_chi2: Option<f64>,
     /// ΔBIC of the full refit (when refitted).
-    #[schemars(description = "")]
     pub refit_delta_bic: Option<f64>,
     /// What the step decided for the candidate, in words.
-    #[schemars(description = "")]
     pub decision: String,
 }
 
@@ -188,16 +169,12 @@ pub struct ScreenEntry {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct CorrectedParameter {
     /// Parameter name.
-    #[schemars(description = "")]
     pub name: String,
     /// Value in the nominal spec.
-    #[schemars(description = "")]
     pub nominal: f64,
     /// Value after the final fit.
-    #[schemars(description = "")]
     pub fitted: f64,
     /// Standard error of the fitted value.
-    #[schemars(description = "")]
     pub standard_error: f64,
     /// (fitted − nominal)/standard error.
     pub z: f64,
@@ -209,16 +186,12 @@ pub struct CorrectedParameter {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct InertiaEstimateReport {
     /// Which fit the estimate comes from (`nominal spec`, `baseline fit …`, …).
-    #[schemars(description = "")]
     pub label: String,
     /// Mass `m` (kg).
-    #[schemars(description = "")]
     pub mass_kg: f64,
     /// Centre of mass `c` in the spec's frame (m).
-    #[schemars(description = "")]
     pub com_m: [f64; 3],
     /// Moments `J_xx, J_yy, J_zz` about the CoM, along the spec's axes (kg m²).
-    #[schemars(description = "")]
     pub moments_kg_m2: [f64; 3],
     /// Products J_xy, J_xz, J_yz = ∫xy dm, ... (tensor entries are their negatives).
     pub products_kg_m2: [f64; 3],
@@ -231,10 +204,8 @@ pub struct InertiaEstimateReport {
 
 /// The relative change of one inertia quantity between two fits.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
-#[schemars(description = "")]
 pub struct RelativeChange {
     /// The quantity's name (`mass_kg`, `com_x_m`, …: `InertiaProperties::NAMES`).
-    #[schemars(description = "")]
     pub quantity: String,
     /// (after − before)/|before| (for CoM: change in m divided by the body size).
     pub relative: f64,
@@ -244,23 +215,18 @@ pub struct RelativeChange {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ModelCheckReport {
     /// Campaign name of the spec.
-    #[schemars(description = "")]
     pub campaign: String,
     /// One-paragraph human verdict.
-    #[schemars(description = "")]
     pub verdict: String,
     /// Effects accepted with statistical evidence, in order of acceptance.
-    #[schemars(description = "")]
     pub accepted: Vec<AcceptedEffect>,
     /// Effects that could not be separated from each other.
-    #[schemars(description = "")]
     pub ambiguous: Vec<AmbiguousFamily>,
     /// The residual the catalogue does not explain with plausible values, where it sits
     /// (`None` at the noise floor).
     #[serde(default)]
     pub unexplained: Option<Unexplained>,
     /// Effects the free parameters absorb completely.
-    #[schemars(description = "")]
     pub not_observable: Vec<NotObservable>,
     /// χ²/ν of the nominal spec as given (no parameter fitted).
     pub chi2_nu_nominal: f64,
@@ -269,10 +235,8 @@ pub struct ModelCheckReport {
     /// χ²/ν of the final model (baseline + accepted effects).
     pub chi2_nu_after: f64,
     /// Degrees of freedom ν of `chi2_nu_before` (docs/conventions.md §8, `ν = 2N − p`).
-    #[schemars(description = "")]
     pub nu_before: f64,
     /// Degrees of freedom ν of `chi2_nu_after`.
-    #[schemars(description = "")]
     pub nu_after: f64,
     /// Band in which χ²/ν is consistent with noise: the central 99.73 % interval of
     /// F(ν, 2/se²) (χ²_ν/ν when the noise is given, se = 0), se the relative standard
@@ -282,31 +246,24 @@ pub struct ModelCheckReport {
     /// the precision floor alone) and no residual cell with z > 5.
     pub noise_floor_reached: bool,
     /// The recording's noise model used for the weights.
-    #[schemars(description = "")]
     pub noise: RecordingNoise,
     /// Values used (complex FRF values with noise information).
     pub n_values: usize,
     /// The nominal parameters as the final fit corrects them.
-    #[schemars(description = "")]
     pub corrected_parameters: Vec<CorrectedParameter>,
     /// The nominal spec's inertia, with the standard errors of the baseline fit.
-    #[schemars(description = "")]
     pub inertia_nominal: InertiaEstimateReport,
     /// Baseline fit (nominal physics, fitted parameters).
     pub inertia_before: InertiaEstimateReport,
     /// Final fit (accepted effects included): the FRF-level inertia estimate.
     pub inertia_after: InertiaEstimateReport,
     /// Relative change of each inertia quantity from the baseline to the final fit.
-    #[schemars(description = "")]
     pub inertia_change: Vec<RelativeChange>,
     /// Screening statistics of every candidate at every step.
-    #[schemars(description = "")]
     pub screening: Vec<ScreenEntry>,
     /// Where the residual sits after the baseline fit.
-    #[schemars(description = "")]
     pub residuals_before: ResidualMap,
     /// Where the residual sits after the final fit.
-    #[schemars(description = "")]
     pub residuals_after: ResidualMap,
     /// Statistical settings and caveats.
     pub method: Vec<String>,

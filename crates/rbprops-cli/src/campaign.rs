@@ -173,109 +173,129 @@ pub enum PairOrName {
 impl FrfEstConfig {
     /// The estimation options, checked; `source` names the campaign file in errors.
     pub fn options(&self, source: &str) -> Result<crate::frf_est::EstimationOptions> {
-        use crate::frf_est::WindowChoice;
-        let at = |key: &str| format!("{source}: [frf_est] {key}");
-        let positive = |v: Option<f64>, key: &str| -> Result<Option<f64>> {
-            match v {
-                Some(x) if !(x.is_finite() && x > 0.0) => {
-                    bail!("{} = {x}: must be a positive number", at(key))
-                }
-                v => Ok(v),
-            }
-        };
+        let key = Key(source);
         let mut o = crate::frf_est::EstimationOptions::default();
         if let Some(e) = &self.estimator {
-            o.estimator = match e.to_ascii_lowercase().as_str() {
-                "h1" => rbprops_frfest::Estimator::H1,
-                "h2" => rbprops_frfest::Estimator::H2,
-                "hv" => rbprops_frfest::Estimator::Hv,
-                _ => bail!("{} = \"{e}\": h1, h2 or hv", at("estimator")),
-            };
+            // The names of `frf-est --estimator`, in any case.
+            o.estimator = clap::ValueEnum::from_str(e, true)
+                .map_err(|_| anyhow::anyhow!("{} = \"{e}\": h1, h2 or hv", key.at("estimator")))?;
         }
-        match &self.window {
-            None => {}
-            Some(TimeOrName::Name(w)) if w == "auto" => o.response_window = WindowChoice::Auto,
-            Some(TimeOrName::Name(w)) if w == "none" => o.response_window = WindowChoice::None,
-            Some(TimeOrName::Name(w)) => {
-                bail!(
-                    "{} = \"{w}\": \"auto\", \"none\" or τ in seconds",
-                    at("window")
-                )
-            }
-            Some(TimeOrName::Seconds(t)) => {
-                positive(Some(*t), "window")?;
-                o.response_window = WindowChoice::Exponential(*t);
-            }
+        if let Some(w) = self.response_window(key)? {
+            o.response_window = w;
         }
         if let Some(r) = self.window_response_only {
             o.exponential_on_force = !r;
         }
-        let taper = self.taper_s.unwrap_or(0.0);
-        if !(taper.is_finite() && taper >= 0.0) {
-            bail!("{} = {taper}: must be ≥ 0 s", at("taper_s"));
-        }
-        match &self.force_window {
-            None => {}
-            Some(PairOrName::Name(w)) if w == "none" => o.force_window = None,
-            Some(PairOrName::Name(w)) => {
-                bail!(
-                    "{} = \"{w}\": [PRE, POST] in seconds, or \"none\"",
-                    at("force_window")
-                )
-            }
-            Some(PairOrName::Seconds([pre, post])) => {
-                if !(pre.is_finite() && post.is_finite() && *pre >= 0.0 && *post >= 0.0) {
-                    bail!(
-                        "{} = [{pre}, {post}]: times must be ≥ 0",
-                        at("force_window")
-                    );
-                }
-                o.force_window = Some(rbprops_frfest::ForceWindow {
-                    pre_s: *pre,
-                    post_s: *post,
-                    taper_s: 0.0,
-                });
-            }
-        }
-        if let Some(w) = &mut o.force_window {
-            w.taper_s = taper;
-        } else if self.taper_s.is_some() {
-            bail!(
-                "{}: there is no force window to taper (force_window = \"none\")",
-                at("taper_s")
-            );
-        }
-        if let Some(t) = self.trigger {
-            if !(t > 0.0 && t < 1.0) {
-                bail!(
-                    "{} = {t}: a fraction of the largest |force| in (0, 1)",
-                    at("trigger")
-                );
-            }
-            o.trigger = rbprops_frfest::TriggerLevel::FractionOfMax(t);
-        }
-        o.pretrigger_s = positive(self.pretrigger_s, "pretrigger_s")?;
-        o.record_s = positive(self.record_s, "record_s")?;
-        o.force_range = positive(self.force_range, "force_range")?;
-        o.response_range = positive(self.response_range, "response_range")?;
-        if let Some(n) = self.min_hits {
-            if n < 2 {
-                bail!(
-                    "{} = {n}: at least 2 hits are needed for a variance",
-                    at("min_hits")
-                );
-            }
-            o.min_hits = n;
-        }
+        o.force_window = self.force_window(key, o.force_window)?;
+        self.hit_checks(key, &mut o)?;
         if let Some([a, b]) = self.band_hz {
             if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
-                bail!("{} = [{a}, {b}]: need 0 ≤ FMIN < FMAX", at("band_hz"));
+                bail!("{} = [{a}, {b}]: need 0 ≤ FMIN < FMAX", key.at("band_hz"));
             }
             o.band_hz = Some((a, b));
         }
         if let Some(k) = self.keep_rejected {
             o.keep_rejected = k;
         }
+        o.force_dofs.extend(self.force_dofs(key)?);
+        Ok(o)
+    }
+
+    /// `window`: `auto`, `none` or τ (s); `None` when not given.
+    fn response_window(&self, key: Key) -> Result<Option<crate::frf_est::WindowChoice>> {
+        use crate::frf_est::WindowChoice;
+        Ok(match &self.window {
+            None => None,
+            Some(TimeOrName::Name(w)) if w == "auto" => Some(WindowChoice::Auto),
+            Some(TimeOrName::Name(w)) if w == "none" => Some(WindowChoice::None),
+            Some(TimeOrName::Name(w)) => {
+                bail!(
+                    "{} = \"{w}\": \"auto\", \"none\" or τ in seconds",
+                    key.at("window")
+                )
+            }
+            Some(TimeOrName::Seconds(t)) => {
+                key.positive(Some(*t), "window")?;
+                Some(WindowChoice::Exponential(*t))
+            }
+        })
+    }
+
+    /// `force_window` and its `taper_s`, over the default window `default`.
+    fn force_window(
+        &self,
+        key: Key,
+        default: Option<rbprops_frfest::ForceWindow>,
+    ) -> Result<Option<rbprops_frfest::ForceWindow>> {
+        let taper = self.taper_s.unwrap_or(0.0);
+        if !(taper.is_finite() && taper >= 0.0) {
+            bail!("{} = {taper}: must be ≥ 0 s", key.at("taper_s"));
+        }
+        let mut window = match &self.force_window {
+            None => default,
+            Some(PairOrName::Name(w)) if w == "none" => None,
+            Some(PairOrName::Name(w)) => {
+                bail!(
+                    "{} = \"{w}\": [PRE, POST] in seconds, or \"none\"",
+                    key.at("force_window")
+                )
+            }
+            Some(PairOrName::Seconds([pre, post])) => {
+                if !(pre.is_finite() && post.is_finite() && *pre >= 0.0 && *post >= 0.0) {
+                    bail!(
+                        "{} = [{pre}, {post}]: times must be ≥ 0",
+                        key.at("force_window")
+                    );
+                }
+                Some(rbprops_frfest::ForceWindow {
+                    pre_s: *pre,
+                    post_s: *post,
+                    taper_s: 0.0,
+                })
+            }
+        };
+        if let Some(w) = &mut window {
+            w.taper_s = taper;
+        } else if self.taper_s.is_some() {
+            bail!(
+                "{}: there is no force window to taper (force_window = \"none\")",
+                key.at("taper_s")
+            );
+        }
+        Ok(window)
+    }
+
+    /// How hits are found and judged: trigger, throughput record lengths, ADC ranges and
+    /// the fewest hits.
+    fn hit_checks(&self, key: Key, o: &mut crate::frf_est::EstimationOptions) -> Result<()> {
+        if let Some(t) = self.trigger {
+            if !(t > 0.0 && t < 1.0) {
+                bail!(
+                    "{} = {t}: a fraction of the largest |force| in (0, 1)",
+                    key.at("trigger")
+                );
+            }
+            o.trigger = rbprops_frfest::TriggerLevel::FractionOfMax(t);
+        }
+        o.pretrigger_s = key.positive(self.pretrigger_s, "pretrigger_s")?;
+        o.record_s = key.positive(self.record_s, "record_s")?;
+        o.force_range = key.positive(self.force_range, "force_range")?;
+        o.response_range = key.positive(self.response_range, "response_range")?;
+        if let Some(n) = self.min_hits {
+            if n < 2 {
+                bail!(
+                    "{} = {n}: at least 2 hits are needed for a variance",
+                    key.at("min_hits")
+                );
+            }
+            o.min_hits = n;
+        }
+        Ok(())
+    }
+
+    /// `force_dof`: each `NODE:DIR` parsed.
+    fn force_dofs(&self, key: Key) -> Result<Vec<(i64, i64)>> {
+        let mut dofs = Vec::new();
         for d in self.force_dof.iter().flatten() {
             let parsed = d.split_once(':').and_then(|(node, dir)| {
                 Some((
@@ -284,14 +304,34 @@ impl FrfEstConfig {
                 ))
             });
             match parsed {
-                Some(dof) => o.force_dofs.push(dof),
+                Some(dof) => dofs.push(dof),
                 None => bail!(
                     "{} = \"{d}\": NODE:DIR with DIR ±X, ±Y, ±Z or ±1..±3 (e.g. \"201:-X\")",
-                    at("force_dof")
+                    key.at("force_dof")
                 ),
             }
         }
-        Ok(o)
+        Ok(dofs)
+    }
+}
+
+/// A key of a campaign file's `[frf_est]` table, named in errors as `FILE: [frf_est] KEY`.
+#[derive(Clone, Copy)]
+struct Key<'a>(&'a str);
+
+impl Key<'_> {
+    fn at(self, key: &str) -> String {
+        format!("{}: [frf_est] {key}", self.0)
+    }
+
+    /// A value that must be a positive number when given.
+    fn positive(self, v: Option<f64>, key: &str) -> Result<Option<f64>> {
+        match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                bail!("{} = {x}: must be a positive number", self.at(key))
+            }
+            v => Ok(v),
+        }
     }
 }
 

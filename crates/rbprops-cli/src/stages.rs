@@ -30,7 +30,7 @@ pub fn simulate(
 
 /// `modal-fit` on a record: adds the `modal_fit` topic. When the recording's processing
 /// topic names an exponential window, the fit sees the prefiltered FRFs and its poles are
-/// corrected for the window (`rbprops_core::ExponentialWindow`; the record says so).
+/// corrected for the window (`rbprops_core::WindowCorrection`; the record says so).
 pub fn modal_fit(
     rec: &mut RunRecord,
     opts: &rbprops_modal::FitOptions,
@@ -58,7 +58,7 @@ pub fn modal_fit_windowed(
     };
     let window = processing
         .exponential_window_s
-        .map(rbprops_core::ExponentialWindow::new)
+        .map(rbprops_core::WindowCorrection::new)
         .transpose()
         .context("exponential window")?;
     let (geometry, frf) = rec.require_geometry_and_frf()?;

@@ -30,6 +30,7 @@ pub mod records;
 pub mod rigid;
 pub mod simd;
 pub mod stats;
+pub mod window;
 
 pub use error::CoreError;
 pub use frf::{FrfSet, Quantity};
@@ -37,11 +38,12 @@ pub use geometry::{
     cross_matrix, rigid_transform, Channel, Excitation, Geometry, Point, SuspensionSetup,
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
-pub use modal::{rigid_body_modes, ExponentialWindow, RigidMode};
+pub use modal::{rigid_body_modes, RigidMode};
 pub use noise::{CoherenceNoise, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
 pub use properties::InertiaProperties;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
+pub use window::WindowCorrection;
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.
 #[allow(non_camel_case_types)]

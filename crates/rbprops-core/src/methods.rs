@@ -281,11 +281,11 @@ mod tests {
         let e = serde_json::to_value(schemars::schema_for!(InertiaEstimate)).unwrap();
         plain(
             &e["properties"]["method"],
-            "`bretl_conti`, `toivola_nuutila`, `mass_line`, `model_fit`.",
+            "`bretl_conti`, `toivola_nuutila`, `mass_line`, or one of them with `_projected`\n(the names of [`EstimateMethod`]).",
         );
         plain(
             &e["properties"]["uncertainty_method"],
-            "How the standard errors were obtained (`linearised`, `monte_carlo`, `none`).",
+            "How the standard errors were obtained (`linearised`, `monte_carlo`, `bootstrap`,\n`none`: the names of [`UncertaintyMethod`]).",
         );
         let s = serde_json::to_value(schemars::schema_for!(SelectionRecord)).unwrap();
         plain(
@@ -295,7 +295,7 @@ mod tests {
         let m = serde_json::to_value(schemars::schema_for!(ModalFitRecord)).unwrap();
         plain(
             &m["$defs"]["ExcitationFitRecord"]["properties"]["method"],
-            "`lsce`, `lscf` or `circle`.",
+            "`lsce`, `lscf`, `plscf` or `circle` (the names of [`FitMethod`]).",
         );
     }
 

@@ -28,13 +28,10 @@ pub struct StageProvenance {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct Products {
     /// `J_xy = ∫xy dm` about the centre of mass (kg m²).
-    #[schemars(description = "")]
     pub xy: f64,
     /// `J_xz = ∫xz dm` about the centre of mass (kg m²).
-    #[schemars(description = "")]
     pub xz: f64,
     /// `J_yz = ∫yz dm` about the centre of mass (kg m²).
-    #[schemars(description = "")]
     pub yz: f64,
 }
 
@@ -42,7 +39,6 @@ pub struct Products {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct PropertiesRecord {
     /// Mass `m` (kg).
-    #[schemars(description = "")]
     pub mass_kg: f64,
     /// Centre of mass in the geometry's frame (m).
     pub com_m: [f64; 3],
@@ -83,11 +79,8 @@ pub struct TrueModeRecord {
     /// Natural frequency (Hz). Exactly 0 for a free rigid-body direction (the suspension
     /// gives it no stiffness), whose damping ratio is then 0 and whose shape is one of a
     /// mass-orthonormal basis of the free directions ([`crate::rigid_body_modes`]).
-    // The empty schema description keeps the record's published JSON schema unchanged.
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Viscous damping ratio `ζ` (0 for a free direction).
-    #[schemars(description = "")]
     pub damping_ratio: f64,
     /// Mass-normalised shape `[u_x, u_y, u_z, θ_x, θ_y, θ_z]` about the origin.
     pub shape: [f64; 6],
@@ -97,12 +90,10 @@ pub struct TrueModeRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TrueSetupRecord {
     /// Id of the suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// Mount stiffness about the origin, 6×6 row-major (N/m, N, N m/rad).
     pub stiffness: [[f64; 6]; 6],
     /// Its real modes, ascending frequency.
-    #[schemars(description = "")]
     pub modes: Vec<TrueModeRecord>,
 }
 
@@ -119,24 +110,18 @@ pub struct EffectRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct TruthRecord {
     /// Campaign name from the spec.
-    #[schemars(description = "")]
     pub campaign: String,
     /// The body's true inertia properties.
-    #[schemars(description = "")]
     pub properties: PropertiesRecord,
     /// True modes and mount stiffness per suspension set-up.
-    #[schemars(description = "")]
     pub setups: Vec<TrueSetupRecord>,
     /// Effects of the physics catalogue the simulation switched on.
-    #[schemars(description = "")]
     pub effects: Vec<EffectRecord>,
     /// Seed of the noise stream.
-    #[schemars(description = "")]
     pub seed: u64,
     /// Relative noise level (fraction of |H|) and absolute floor (FRF units).
     pub noise_relative: f64,
     /// Absolute noise floor `b` of `σ² = a²|H|² + b²` (FRF units; docs/conventions.md §8).
-    #[schemars(description = "")]
     pub noise_floor: f64,
 }
 
@@ -149,24 +134,18 @@ pub struct TruthRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ModeEstimate {
     /// Excitation id the fit is of.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// 1-based mode number within this excitation, ascending frequency.
     pub mode: usize,
     /// Natural frequency `f_r` (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Standard error of `frequency_hz` (Hz).
-    #[schemars(description = "")]
     pub frequency_std_hz: f64,
     /// Viscous damping ratio `ζ_r`.
-    #[schemars(description = "")]
     pub damping_ratio: f64,
     /// Standard error of `damping_ratio`.
-    #[schemars(description = "")]
     pub damping_std: f64,
     /// Modal constants per channel (geometry channel order), `[re, im]`, 1/kg.
     #[schemars(with = "Vec<[f64; 2]>")]
@@ -180,7 +159,6 @@ pub struct ModeEstimate {
     /// True when the excitation barely excites this mode: its numbers are unreliable.
     pub weak: bool,
     /// Notes on this mode (a close pair, a weak excitation, …), human-readable.
-    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }
 
@@ -188,28 +166,21 @@ pub struct ModeEstimate {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ExcitationFitRecord {
     /// Excitation id.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
-    /// `lsce`, `lscf` or `circle`.
-    // Also `plscf`: the names are those of [`FitMethod`]. A plain comment, not a doc
-    // comment: the record's JSON schema stays as published.
+    /// `lsce`, `lscf`, `plscf` or `circle` (the names of [`FitMethod`]).
     #[schemars(with = "String")]
     pub method: FitMethod,
     /// Model order chosen (number of modes in the band).
     pub model_order: usize,
     /// Frequency band fitted, `[low, high]` (Hz).
-    #[schemars(description = "")]
     pub band_hz: [f64; 2],
     /// Number of spectral lines in the band.
-    #[schemars(description = "")]
     pub n_lines: usize,
     /// Normalised fit error per channel: ‖H_meas − H_synth‖² / ‖H_meas‖² over the band.
     pub fit_error: Vec<f64>,
     /// Notes on the fit, human-readable.
-    #[schemars(description = "")]
     pub warnings: Vec<String>,
 }
 
@@ -217,13 +188,10 @@ pub struct ExcitationFitRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct ModalFitRecord {
     /// How residues are scaled (the receptance modal-constant form above).
-    #[schemars(description = "")]
     pub residue_convention: String,
     /// One summary per excitation, geometry order.
-    #[schemars(description = "")]
     pub excitations: Vec<ExcitationFitRecord>,
     /// Every identified mode of every excitation.
-    #[schemars(description = "")]
     pub modes: Vec<ModeEstimate>,
     /// Present when the poles were corrected for an exponential window on the responses:
     /// the frequencies and damping ratios are the physical ones, the window's damping
@@ -465,7 +433,7 @@ where
 }
 
 /// The exponential-window correction `modal-fit` applied (see
-/// [`crate::modal::ExponentialWindow`]): every pole moved from `λ − 1/τ` back to `λ`.
+/// [`crate::WindowCorrection`]): every pole moved from `λ − 1/τ` back to `λ`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct WindowCorrectionRecord {
     /// τ of `w(t) = e^{−t/τ}` (s).
@@ -618,15 +586,12 @@ pub const PROCESSING_TOPIC: &str = "/rbprops/processing";
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct SelectedMode {
     /// Suspension set-up the mode belongs to.
-    #[schemars(description = "")]
     pub setup: String,
     /// 1-based physical mode number within the set-up (matched across excitations).
     pub mode: usize,
     /// Natural frequency of the chosen estimate (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Excitation whose shape is used.
-    #[schemars(description = "")]
     pub excitation: String,
     /// The mode number within that excitation's `ModeEstimate`s.
     pub excitation_mode: usize,
@@ -635,7 +600,6 @@ pub struct SelectedMode {
     /// NI margin over the runner-up excitation (dB); NaN-free: 0 when there is none.
     pub margin_db: f64,
     /// The excitation with the next-highest NI, when there is one.
-    #[schemars(description = "")]
     pub runner_up: Option<String>,
     /// Excitation strength `f_kᵀq` (1/kg); ≤ 0 means not excited.
     pub strength: f64,
@@ -648,19 +612,14 @@ pub struct SelectedMode {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct MissingMode {
     /// Suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// 1-based physical mode number within the set-up.
-    #[schemars(description = "")]
     pub mode: usize,
     /// Expected frequency (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Excitations that were considered.
-    #[schemars(description = "")]
     pub tried: Vec<String>,
     /// Why none was usable, human-readable.
-    #[schemars(description = "")]
     pub reason: String,
 }
 
@@ -668,10 +627,8 @@ pub struct MissingMode {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct SelectionRecord {
     /// The modes chosen, one per physical mode.
-    #[schemars(description = "")]
     pub selected: Vec<SelectedMode>,
     /// Modes no excitation excites usably.
-    #[schemars(description = "")]
     pub missing: Vec<MissingMode>,
     /// What the selection noticed, typed, one diagnostic per fact. Records written before
     /// diagnostics were typed hold `warnings` (strings): they read as [`DiagnosticKind::Text`].
@@ -687,51 +644,40 @@ pub struct SelectionRecord {
 /// One estimator's result (output of `rb-solve`); the JSON interface of `--format json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct InertiaEstimate {
-    /// `bretl_conti`, `toivola_nuutila`, `mass_line`, `model_fit`.
-    // The names are those of [`EstimateMethod`] (`model_fit` is not produced; `_projected`
-    // versions are). A plain comment: the record's JSON schema stays as published.
+    /// `bretl_conti`, `toivola_nuutila`, `mass_line`, or one of them with `_projected`
+    /// (the names of [`EstimateMethod`]).
     #[schemars(with = "String")]
     pub method: EstimateMethod,
     /// Suspension set-up of the modes used (or a combination of set-ups).
-    #[schemars(description = "")]
     pub setup: String,
     /// Origin the estimator worked about, geometry frame (m).
     pub origin_m: [f64; 3],
     /// Mass `m` (kg).
-    #[schemars(description = "")]
     pub mass_kg: f64,
     /// Standard error of `mass_kg` (kg).
-    #[schemars(description = "")]
     pub mass_std_kg: f64,
     /// Centre of mass `c` in the geometry's frame (m).
-    #[schemars(description = "")]
     pub com_m: [f64; 3],
     /// Standard errors of `com_m` (m).
-    #[schemars(description = "")]
     pub com_std_m: [f64; 3],
     /// Inertia tensor `J` about the CoM, row-major (kg m²), docs/conventions.md §3.
-    #[schemars(description = "")]
     pub inertia_cm_kg_m2: [[f64; 3]; 3],
     /// Standard errors of `inertia_cm_kg_m2` entry by entry (kg m²).
-    #[schemars(description = "")]
     pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
     /// Products `J_xy, J_xz, J_yz` (kg m²), the negated off-diagonals of the tensor.
-    #[schemars(description = "")]
     pub products_of_inertia_kg_m2: Products,
     /// Standard errors of the products (kg m²), those of the tensor entries.
-    #[schemars(description = "")]
     pub products_of_inertia_std_kg_m2: Products,
     /// Principal moments (ascending) and their axes (columns of the 3×3).
     pub principal_moments_kg_m2: [f64; 3],
     /// Principal axes, unit columns matching `principal_moments_kg_m2`.
-    #[schemars(description = "")]
     pub principal_axes: [[f64; 3]; 3],
     /// Mount stiffness about the origin `K0 = Φ0⁻ᵀΩ²Φ0⁻¹` when six modes exist.
     pub mount_stiffness: Option<[[f64; 6]; 6]>,
     /// Estimator residual (dimensionless, defined per method).
     pub residual: f64,
-    /// How the standard errors were obtained (`linearised`, `monte_carlo`, `none`).
-    // Also `bootstrap` ([`UncertaintyMethod`]); plain comment, the schema stays as published.
+    /// How the standard errors were obtained (`linearised`, `monte_carlo`, `bootstrap`,
+    /// `none`: the names of [`UncertaintyMethod`]).
     #[schemars(with = "String")]
     pub uncertainty_method: UncertaintyMethod,
     /// How the standard errors were obtained, in words, where `uncertainty_method` does not
@@ -739,15 +685,12 @@ pub struct InertiaEstimate {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub uncertainty_source: Option<String>,
     /// Mode numbers (per set-up) the estimator used.
-    #[schemars(description = "")]
     pub modes_used: Vec<usize>,
     /// Excitations whose shapes were used.
-    #[schemars(description = "")]
     pub excitations_used: Vec<String>,
     /// Relative errors vs reference values when given: mass, com, inertia, sum.
     pub errors: Option<ErrorsRecord>,
     /// True when the tensor is positive definite and obeys the triangle inequalities.
-    #[schemars(description = "")]
     pub physically_consistent: bool,
     /// What the estimator noticed, typed, one diagnostic per fact. Records written before
     /// diagnostics were typed hold `warnings` (strings): they read as [`DiagnosticKind::Text`].
@@ -763,7 +706,6 @@ pub struct InertiaEstimate {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rigid_body_consistent: Option<bool>,
     /// The statistics behind `rigid_body_consistent`.
-    #[schemars(description = "")]
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rigid_body_check: Option<RigidBodyCheckRecord>,
     /// Systematic-error interval: leave-one-sensor-out and leave-one-excitation-out
@@ -776,7 +718,6 @@ pub struct InertiaEstimate {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ConsistencyItemRecord {
     /// Id of the channel, sensor (point) or excitation.
-    #[schemars(description = "")]
     pub id: String,
     /// Drop of the noise-weighted residual χ² when this item is left out.
     pub chi2_drop: f64,
@@ -790,7 +731,6 @@ pub struct ConsistencyItemRecord {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct RigidBodyCheckRecord {
     /// True when `statistic ≤ threshold`.
-    #[schemars(description = "")]
     pub rigid_body_consistent: bool,
     /// What `statistic` is.
     pub statistic_definition: String,
@@ -799,26 +739,20 @@ pub struct RigidBodyCheckRecord {
     /// The statistic's upper limit for noise alone.
     pub threshold: f64,
     /// Degrees of freedom of `statistic`.
-    #[schemars(description = "")]
     pub dof: usize,
     /// χ²/dof of the rigid-body transform residuals (paper Eq. 5), per channel noise.
     pub shape_statistic: f64,
     /// Degrees of freedom of `shape_statistic`.
-    #[schemars(description = "")]
     pub shape_dof: usize,
     /// χ²/dof of the modal participations across excitations (force geometry).
     pub participation_statistic: f64,
     /// Degrees of freedom of `participation_statistic`.
-    #[schemars(description = "")]
     pub participation_dof: usize,
     /// Per response channel.
-    #[schemars(description = "")]
     pub channels: Vec<ConsistencyItemRecord>,
     /// Per sensor (all channels at one point).
-    #[schemars(description = "")]
     pub sensors: Vec<ConsistencyItemRecord>,
     /// Per excitation.
-    #[schemars(description = "")]
     pub excitations: Vec<ConsistencyItemRecord>,
 }
 
@@ -829,22 +763,16 @@ pub struct SystematicIntervalRecord {
     /// How the units were left out (`sensor`, `channel`, `excitation` counts).
     pub method: String,
     /// Jackknife standard error of the mass (kg).
-    #[schemars(description = "")]
     pub mass_std_kg: f64,
     /// Jackknife standard errors of the CoM (m).
-    #[schemars(description = "")]
     pub com_std_m: [f64; 3],
     /// Jackknife standard errors of the tensor entries (kg m²).
-    #[schemars(description = "")]
     pub inertia_cm_std_kg_m2: [[f64; 3]; 3],
     /// 95 % interval of the mass (kg).
-    #[schemars(description = "")]
     pub mass_95_kg: [f64; 2],
     /// 95 % interval of each CoM coordinate (m).
-    #[schemars(description = "")]
     pub com_95_m: [[f64; 2]; 3],
     /// 95 % interval of each tensor entry (kg m²).
-    #[schemars(description = "")]
     pub inertia_cm_95_kg_m2: [[[f64; 2]; 3]; 3],
 }
 
@@ -877,16 +805,12 @@ impl InertiaEstimate {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ErrorsRecord {
     /// `|m̂ − m|/|m|`.
-    #[schemars(description = "")]
     pub mass: f64,
     /// `‖ĉ − c‖/‖c‖`.
-    #[schemars(description = "")]
     pub com: f64,
     /// `‖ĵ − j‖/‖j‖` over `{Jxx Jxy Jxz Jyy Jyz Jzz}`.
-    #[schemars(description = "")]
     pub inertia: f64,
     /// The sum of the three.
-    #[schemars(description = "")]
     pub sum: f64,
 }
 

@@ -11,13 +11,10 @@ use serde::{Deserialize, Serialize};
 
 /// A measurement point: where channels and excitations sit.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[schemars(description = "")]
 pub struct PointMsg {
     /// Point id, unique in the geometry.
-    #[schemars(description = "")]
     pub id: String,
     /// Position in the geometry frame (m).
-    #[schemars(description = "")]
     pub position_m: [f64; 3],
 }
 
@@ -25,16 +22,12 @@ pub struct PointMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ChannelMsg {
     /// Channel id, unique in the geometry.
-    #[schemars(description = "")]
     pub id: String,
     /// Id of the point the sensor sits on.
-    #[schemars(description = "")]
     pub point: String,
     /// Sensor position (m).
-    #[schemars(description = "")]
     pub position_m: [f64; 3],
     /// Unit sensing direction in the geometry frame.
-    #[schemars(description = "")]
     pub direction: [f64; 3],
 }
 
@@ -42,31 +35,23 @@ pub struct ChannelMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct ExcitationMsg {
     /// Excitation id, unique in the geometry.
-    #[schemars(description = "")]
     pub id: String,
     /// Id of the point the force acts on.
-    #[schemars(description = "")]
     pub point: String,
     /// Id of the suspension set-up the FRFs were measured in.
-    #[schemars(description = "")]
     pub setup: String,
     /// Point of application (m).
-    #[schemars(description = "")]
     pub position_m: [f64; 3],
     /// Unit force direction in the geometry frame.
-    #[schemars(description = "")]
     pub direction: [f64; 3],
 }
 
 /// A suspension set-up: one way of hanging or supporting the body.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
-#[schemars(description = "")]
 pub struct SetupMsg {
     /// Set-up id, referenced by [`ExcitationMsg::setup`].
-    #[schemars(description = "")]
     pub id: String,
     /// Free text, e.g. "cords at the four top corners".
-    #[schemars(description = "")]
     pub description: String,
 }
 
@@ -74,16 +59,12 @@ pub struct SetupMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct GeometryMsg {
     /// Measurement points.
-    #[schemars(description = "")]
     pub points: Vec<PointMsg>,
     /// Response channels, in FRF order.
-    #[schemars(description = "")]
     pub channels: Vec<ChannelMsg>,
     /// Force inputs, in FRF order.
-    #[schemars(description = "")]
     pub excitations: Vec<ExcitationMsg>,
     /// Suspension set-ups the excitations refer to.
-    #[schemars(description = "")]
     pub setups: Vec<SetupMsg>,
 }
 
@@ -181,7 +162,6 @@ impl GeometryMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FrfAxisMsg {
     /// Receptance, mobility or accelerance (docs/conventions.md).
-    #[schemars(description = "")]
     pub quantity: Quantity,
     /// SI unit of the values (`m/N`, `m/(N s)`, `m/(N s^2)`).
     pub unit: String,
@@ -190,7 +170,6 @@ pub struct FrfAxisMsg {
     /// Channel ids in the order of each message's values.
     pub channels: Vec<String>,
     /// Frequency of every line (Hz), increasing.
-    #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
 }
 
@@ -198,7 +177,6 @@ pub struct FrfAxisMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct FrfMsg {
     /// Id of the excitation these FRFs belong to.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Base64 of little-endian IEEE-754 f64, laid out `[channel][line][re, im]`.
     #[schemars(extend("contentEncoding" = "base64"))]
@@ -210,7 +188,6 @@ pub struct FrfMsg {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
 pub struct CoherenceMsg {
     /// Id of the excitation whose FRFs these coherences belong to.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Channels with a coherence, in the FRF set's channel order.
     pub channels: Vec<String>,

@@ -69,14 +69,21 @@ use crate::{c64, FrfError};
 use nalgebra::DMatrix;
 use std::ops::Range;
 
-/// Which estimator.
+/// Which estimator (`frf-est --estimator`; the help there is the user's view of each).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Estimator {
     /// `S_xf S_ff⁻¹` (module docs).
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "S_xf/S_ff: unbiased by response noise (default; impact tests)")
+    )]
     H1,
     /// `S_xx/S_fx` (SIMO).
+    #[cfg_attr(feature = "clap", value(help = "S_xx/S_fx: unbiased by force noise"))]
     H2,
     /// Total least squares, the smallest eigenvector of `C`.
+    #[cfg_attr(feature = "clap", value(help = "Total least squares between the two"))]
     Hv,
 }
 

@@ -25,14 +25,19 @@ use rbprops_core::{
 };
 use serde::{Deserialize, Serialize};
 
-/// The estimators.
+/// The estimators (`rb-solve --method bretl-conti,toivola-nuutila,mass-line`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Estimator {
+    // `help = None`: `rb-solve --help` lists the names alone, as it always has.
     /// Paper Eq. (2), six modes.
+    #[cfg_attr(feature = "clap", value(help = None))]
     BretlConti,
     /// Paper Eq. (10), four or more modes.
+    #[cfg_attr(feature = "clap", value(help = None))]
     ToivolaNuutila,
     /// Inertia restraint (mass line) from the FRFs, Lee et al. 1999.
+    #[cfg_attr(feature = "clap", value(help = None))]
     MassLine,
 }
 

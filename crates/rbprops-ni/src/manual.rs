@@ -18,10 +18,8 @@ use std::collections::BTreeMap;
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ManualEntry {
     /// 1-based physical mode number within the set-up.
-    #[schemars(description = "")]
     pub mode: usize,
     /// Id of the excitation whose estimate is taken.
-    #[schemars(description = "")]
     pub excitation: String,
 }
 
@@ -29,7 +27,6 @@ pub struct ManualEntry {
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ManualSet {
     /// One entry per mode, by ascending mode.
-    #[schemars(description = "")]
     pub entries: Vec<ManualEntry>,
 }
 

@@ -8,7 +8,10 @@
 //!   in which case a missing tool fails the test, so CI never passes by skipping.
 #![warn(missing_docs)]
 
+pub mod lcg;
 pub mod synthetic;
+
+pub use lcg::Lcg;
 
 use rbprops_core::{
     rigid_body_modes, rigid_transform, Channel, Mat3, Mat6, Point, RigidBodyProperties, RigidMode,

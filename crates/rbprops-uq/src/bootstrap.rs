@@ -187,7 +187,7 @@ pub fn bootstrap(
     // A record whose poles were corrected for an exponential window describes the physical
     // modes, not the measured (windowed) FRFs: resample the prefiltered windowed data with
     // the windowed poles, and correct each replicate's poles as modal-fit did.
-    let windowed = rbprops_core::ExponentialWindow::windowed_modal_fit(modal);
+    let windowed = rbprops_core::WindowCorrection::windowed_modal_fit(modal);
     let prefiltered;
     let (frf, modal) = match &windowed {
         None => (frf, modal),
@@ -366,7 +366,7 @@ struct Replication<'a> {
     modal: &'a ModalFitRecord,
     selection: &'a SelectionRecord,
     model: &'a FittedModel,
-    windowed: &'a Option<(rbprops_core::ExponentialWindow, ModalFitRecord)>,
+    windowed: &'a Option<(rbprops_core::WindowCorrection, ModalFitRecord)>,
     window_source: String,
     solve_opts: SolveOptions,
     /// The selected (excitation, mode) pairs a full refit must find again.
@@ -594,7 +594,7 @@ fn target_statistics(
 }
 
 /// The source named in a replicate's window correction (the original record's).
-fn modal_source(w: &Option<(rbprops_core::ExponentialWindow, ModalFitRecord)>) -> String {
+fn modal_source(w: &Option<(rbprops_core::WindowCorrection, ModalFitRecord)>) -> String {
     match w {
         Some(_) => "bootstrap replicate".into(),
         None => String::new(),

@@ -160,7 +160,7 @@ pub struct Draws<'a> {
     /// The FRF estimator's line variances, if known (else the residuals' noise model).
     pub line_variance: Option<&'a LineVariance>,
     /// The exponential window the FRFs were prefiltered for (the variances take its factor).
-    pub window: Option<&'a rbprops_core::ExponentialWindow>,
+    pub window: Option<&'a rbprops_core::WindowCorrection>,
     /// Draw on every q-th line ([`decimation`]) instead of every line.
     pub decimate: bool,
 }

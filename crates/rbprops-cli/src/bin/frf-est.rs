@@ -2,21 +2,11 @@
 //! (the numerics are in `rbprops-frfest`, the orchestration in `rbprops_cli::frf_est`).
 
 use anyhow::bail;
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use rbprops_cli::args::ForceWindowSpan;
 use rbprops_cli::frf_est::{EstimationOptions, WindowChoice};
 use rbprops_frfest::{Estimator, ForceWindow, TriggerLevel};
 use std::path::PathBuf;
-
-#[derive(Clone, Copy, ValueEnum)]
-enum EstimatorArg {
-    /// S_xf/S_ff: unbiased by response noise (default; impact tests).
-    H1,
-    /// S_xx/S_fx: unbiased by force noise.
-    H2,
-    /// Total least squares between the two.
-    Hv,
-}
 
 /// Estimate FRFs from impact time histories (UFF 58 function type 1: one record per hit
 /// and channel, or continuous throughput records): trigger, double-hit and overload
@@ -40,7 +30,7 @@ struct Args {
     #[arg(long = "force-dof", value_name = "NODE:DIR", value_parser = rbprops_cli::args::dof)]
     force_dofs: Vec<(i64, i64)>,
     #[arg(long, value_enum, default_value = "h1")]
-    estimator: EstimatorArg,
+    estimator: Estimator,
     /// Response window: `auto` (exponential decaying the slowest response to about 1 % at
     /// the record's end, or none if it has decayed), `none`, or τ in seconds.
     #[arg(long, default_value = "auto", value_parser = rbprops_cli::args::response_window)]
@@ -125,11 +115,7 @@ fn main() -> std::process::ExitCode {
 
 fn options(a: &Args) -> EstimationOptions {
     EstimationOptions {
-        estimator: match a.estimator {
-            EstimatorArg::H1 => Estimator::H1,
-            EstimatorArg::H2 => Estimator::H2,
-            EstimatorArg::Hv => Estimator::Hv,
-        },
+        estimator: a.estimator,
         trigger: TriggerLevel::FractionOfMax(a.trigger),
         pretrigger_s: a.pretrigger,
         record_s: a.record_s,

@@ -1,17 +1,10 @@
 //! `ni-select`: Norm Indicator, mode matching across excitations, best-mode sets.
 
 use anyhow::{Context, Result};
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_ni::{Criterion, ManualSet, SelectOptions};
 use std::path::PathBuf;
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Crit {
-    Ni,
-    HybridMif,
-    PrfMif,
-}
 
 /// For every rigid-body mode, choose the excitation that gives its best shape (NI, Eq. 12),
 /// after matching modes across excitations of a set-up by frequency and MAC.
@@ -22,7 +15,7 @@ struct Args {
     io: rbprops_cli::StageIo,
     /// Selection criterion.
     #[arg(long, value_enum, default_value = "ni")]
-    criterion: Crit,
+    criterion: Criterion,
     /// Manual set, e.g. `1:F2,2:F2,3:F3,4:F3,5:F1,6:F1` (mode:excitation), or @FILE (TOML or CSV).
     #[arg(long)]
     set: Option<String>,
@@ -62,11 +55,7 @@ fn main() -> std::process::ExitCode {
         let input = args.io.read("ni-select", &Default::default())?;
         let mut rec = input.record;
         let mut opts = SelectOptions {
-            criterion: match args.criterion {
-                Crit::Ni => Criterion::Ni,
-                Crit::HybridMif => Criterion::HybridMif,
-                Crit::PrfMif => Criterion::PrfMif,
-            },
+            criterion: args.criterion,
             setup: args.setup.clone(),
             force_mixed_setups: args.force_mixed_setups,
             ..Default::default()

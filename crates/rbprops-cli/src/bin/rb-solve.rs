@@ -17,13 +17,6 @@ enum OutFormat {
     Mcap,
 }
 
-#[derive(Clone, Copy, ValueEnum)]
-enum Method {
-    BretlConti,
-    ToivolaNuutila,
-    MassLine,
-}
-
 /// Estimate mass, centre of mass and inertia tensor (Bretl–Conti, Toivola–Nuutila, mass
 /// line) with standard errors, from `modal-fit` + `ni-select` output.
 #[derive(Parser)]
@@ -39,7 +32,7 @@ struct Args {
     format: Option<OutFormat>,
     /// Estimators to run (default: all three).
     #[arg(long, value_enum, value_delimiter = ',')]
-    method: Vec<Method>,
+    method: Vec<Estimator>,
     /// Origin: `x,y,z` in metres, or a channel / measurement-point id (e.g. an accelerometer).
     #[arg(long)]
     origin: Option<String>,
@@ -110,15 +103,7 @@ fn main() -> std::process::ExitCode {
         let mut rec = input.record;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
-            opts.estimators = args
-                .method
-                .iter()
-                .map(|m| match m {
-                    Method::BretlConti => Estimator::BretlConti,
-                    Method::ToivolaNuutila => Estimator::ToivolaNuutila,
-                    Method::MassLine => Estimator::MassLine,
-                })
-                .collect();
+            opts.estimators = args.method.clone();
         }
         if let Some(o) = &args.origin {
             opts.origin = origin(o)?;

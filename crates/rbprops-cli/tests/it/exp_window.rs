@@ -226,7 +226,7 @@ fn correction_is_recorded_and_never_applied_twice() {
         .unwrap();
     let wc = modal.window_correction.clone().unwrap();
     assert_eq!(wc.time_constant_s, 8.0);
-    let w = rbprops_core::ExponentialWindow::new(8.0).unwrap();
+    let w = rbprops_core::WindowCorrection::new(8.0).unwrap();
     assert!(w.correct_modal_fit(&mut modal, "again").is_err());
     // The processing topic now carries the window, so a re-fit without the flag corrects too.
     let p: rbprops_core::records::ProcessingRecord = rec

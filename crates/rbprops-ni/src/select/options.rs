@@ -11,14 +11,20 @@ use serde::{Deserialize, Serialize};
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize, schemars::JsonSchema,
 )]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Criterion {
+    // `help = None`: `ni-select --help` lists the names alone (`ni`, `hybrid-mif`,
+    // `prf-mif`), as it always has.
     /// Highest Norm Indicator at the mode (paper Eq. 12): the most excited mode.
     #[default]
+    #[cfg_attr(feature = "clap", value(help = None))]
     Ni,
     /// Deepest hybrid-MIF dip at the mode: the purest normal-mode response.
+    #[cfg_attr(feature = "clap", value(help = None))]
     HybridMif,
     /// Deepest PRF-MIF dip at the mode.
+    #[cfg_attr(feature = "clap", value(help = None))]
     PrfMif,
 }
 

@@ -8,13 +8,10 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ModeExcitation {
     /// 1-based physical mode number within the set-up.
-    #[schemars(description = "")]
     pub mode: usize,
     /// Natural frequency of the mode's reference estimate (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// The excitation this row is about.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its mode number in `modal-fit`'s output, when it identified this mode.
     pub excitation_mode: Option<usize>,
@@ -25,13 +22,11 @@ pub struct ModeExcitation {
     /// Lowest hybrid MIF / PRF MIF within the same band (0 = pure normal-mode response).
     pub hybrid_mif: f64,
     /// Lowest PRF MIF within the band (0 = pure normal-mode response).
-    #[schemars(description = "")]
     pub prf_mif: f64,
     /// Measured strength `f_kᵀq` (1/kg) of its own estimate, and its standard error
     /// (None without residue standard errors).
     pub strength: Option<f64>,
     /// Standard error of `strength` (1/kg).
-    #[schemars(description = "")]
     pub strength_std: Option<f64>,
     /// `10 log10(f_kᵀq)` (dB re 1/kg) when positive.
     pub strength_db: Option<f64>,
@@ -57,15 +52,12 @@ pub struct ModeExcitation {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ModeGroup {
     /// The suspension set-up the mode belongs to.
-    #[schemars(description = "")]
     pub setup: String,
     /// 1-based, ascending frequency within the set-up.
     pub mode: usize,
     /// Natural frequency of the reference estimate (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Damping ratio of the reference estimate (fraction of critical).
-    #[schemars(description = "")]
     pub damping_ratio: f64,
     /// Excitation whose estimate gives the reference shape.
     pub reference_excitation: String,
@@ -75,10 +67,8 @@ pub struct ModeGroup {
     /// The choice each criterion would make (None: nothing eligible).
     pub choice_ni: Option<String>,
     /// The hybrid MIF's choice (deepest dip).
-    #[schemars(description = "")]
     pub choice_hybrid_mif: Option<String>,
     /// The PRF MIF's choice (deepest dip).
-    #[schemars(description = "")]
     pub choice_prf_mif: Option<String>,
     /// Largest measured strength `f_kᵀq`.
     pub choice_strength: Option<String>,
@@ -88,13 +78,10 @@ pub struct ModeGroup {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct NiPeak {
     /// Frequency of the peak's line (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// NI at the peak (dB).
-    #[schemars(description = "")]
     pub level_db: f64,
     /// Topographic prominence of the peak (dB).
-    #[schemars(description = "")]
     pub prominence_db: f64,
     /// The physical mode it belongs to, if any.
     pub mode: Option<usize>,
@@ -104,10 +91,8 @@ pub struct NiPeak {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ExcitationSummary {
     /// The excitation.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// NI peaks with at least the requested prominence, no more than `min_strength_db`
     /// below the excitation's highest NI.
@@ -126,24 +111,18 @@ pub struct ExcitationSummary {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct ExcitationCurves {
     /// The excitation.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// Norm Indicator per line in dB (paper Eq. 12).
-    #[schemars(description = "")]
     pub ni_db: Vec<f64>,
     /// Hybrid MIF per line (Rades 1994), in [0, 1].
-    #[schemars(description = "")]
     pub hybrid_mif: Vec<f64>,
     /// PRF MIF per line (Rades & Ewins 2000), in [0, 1].
-    #[schemars(description = "")]
     pub prf_mif: Vec<f64>,
     /// Singular values of the principal responses (descending) and how many are kept.
     pub prf_singular_values: Vec<f64>,
     /// Number of principal responses kept.
-    #[schemars(description = "")]
     pub prf_rank: usize,
     /// `20 log10 |PRF_j(ω)|` of the kept principal response functions.
     pub prf_db: Vec<Vec<f64>>,
@@ -153,13 +132,10 @@ pub struct ExcitationCurves {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct IndicatorCurves {
     /// Frequency of every line (Hz), shared by all curves.
-    #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
     /// Receptance, mobility or accelerance: the FRFs the curves come from.
-    #[schemars(description = "")]
     pub quantity: Quantity,
     /// One set of curves per excitation, in geometry order.
-    #[schemars(description = "")]
     pub excitations: Vec<ExcitationCurves>,
 }
 
@@ -167,16 +143,12 @@ pub struct IndicatorCurves {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct StrengthMatrix {
     /// The suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// Physical mode numbers, one per row.
-    #[schemars(description = "")]
     pub modes: Vec<usize>,
     /// Natural frequency of each mode (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: Vec<f64>,
     /// Excitation ids, one per column.
-    #[schemars(description = "")]
     pub excitations: Vec<String>,
     /// `10 log10(f_kᵀq)` of the excitation's own estimate (None: not identified or ≤ 0).
     pub measured_db: Vec<Vec<Option<f64>>>,
@@ -192,12 +164,10 @@ pub struct SelectionOutput {
     /// The selected set with provenance, the missing modes and warnings.
     pub record: SelectionRecord,
     /// NI peaks and excited modes per excitation.
-    #[schemars(description = "")]
     pub excitation_summaries: Vec<ExcitationSummary>,
     /// The matched physical modes, set-up by set-up.
     pub matches: Vec<ModeGroup>,
     /// The indicator curves for plots.
-    #[schemars(description = "")]
     pub curves: IndicatorCurves,
     /// One matrix per processed set-up.
     pub strength_db: Vec<StrengthMatrix>,
@@ -213,19 +183,15 @@ pub struct SelectionOutput {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RejectedEstimate {
     /// The suspension set-up.
-    #[schemars(description = "")]
     pub setup: String,
     /// The excitation whose modal record holds it.
-    #[schemars(description = "")]
     pub excitation: String,
     /// Its mode number in `modal-fit`'s output.
     pub excitation_mode: usize,
     /// Its natural frequency (Hz).
-    #[schemars(description = "")]
     pub frequency_hz: f64,
     /// Frequency of the candidate mode it was matched into.
     pub group_frequency_hz: f64,
     /// Why it was left out.
-    #[schemars(description = "")]
     pub reason: String,
 }

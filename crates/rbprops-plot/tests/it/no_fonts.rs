@@ -1,8 +1,13 @@
 //! The SVG backend must not need any font file: plotters is built without its
-//! `ttf` feature and estimates text extents itself. This test re-runs the
-//! rendering of every plot kind in a child process whose mount namespace hides
-//! all system font directories (Linux, root, `unshare` available; otherwise it
-//! reports that it was skipped).
+//! `ttf` and `ab_glyph` features and estimates text extents itself. Three tests, the
+//! first two able to fail on any machine:
+//! - the resolved `plotters` (Cargo.lock) depends on no font engine (font-kit,
+//!   ttf-parser, ab_glyph): enabling one fails here, whoever does it;
+//! - every plot kind renders in a child process whose font lookup finds nothing: a
+//!   fontconfig file naming one empty directory, and `HOME` / XDG directories empty
+//!   (`fc-list` under that environment, where installed, shows it lists no font);
+//! - the same in a mount namespace that hides the font directories themselves (Linux,
+//!   root and `unshare`; otherwise it reports that it was skipped).
 
 use rbprops_plot::*;
 
@@ -128,4 +133,104 @@ fn renders_with_no_fonts_installed() {
             assert_eq!(render_everything().len(), 5);
         }
     }
+}
+
+/// The `dependencies` of the `[[package]]` named `name` in a Cargo.lock text.
+fn locked_dependencies(lock: &str, name: &str) -> Option<Vec<String>> {
+    let block = lock
+        .split("[[package]]")
+        .find(|b| b.lines().any(|l| l.trim() == format!("name = \"{name}\"")))?;
+    let deps = block.split_once("dependencies = [")?.1.split_once(']')?.0;
+    Some(
+        deps.split(',')
+            .map(|d| d.trim().trim_matches('"'))
+            .filter(|d| !d.is_empty())
+            .map(|d| d.split(' ').next().unwrap_or(d).to_string())
+            .collect(),
+    )
+}
+
+#[test]
+fn plotters_is_built_without_a_font_engine() {
+    let lock_path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../Cargo.lock");
+    let lock = std::fs::read_to_string(&lock_path).expect("the workspace's Cargo.lock");
+    let deps = locked_dependencies(&lock, "plotters").expect("plotters is in Cargo.lock");
+    // The parse is right: the SVG backend is there.
+    assert!(deps.iter().any(|d| d == "plotters-svg"), "{deps:?}");
+    for engine in ["font-kit", "ttf-parser", "ab_glyph"] {
+        assert!(
+            !deps.iter().any(|d| d == engine),
+            "plotters is built with {engine}: its text would need font files ({deps:?})"
+        );
+    }
+    // And the check itself rejects a lock that has one.
+    let with_ttf = "[[package]]\nname = \"plotters\"\ndependencies = [\n \"font-kit\",\n \"plotters-svg\",\n]\n";
+    let d = locked_dependencies(with_ttf, "plotters").unwrap();
+    assert!(d.contains(&"font-kit".to_string()));
+}
+
+const EMPTY_CONFIG_CHILD: &str = "RBPROPS_PLOT_EMPTY_FONT_CONFIG_CHILD";
+
+#[test]
+fn renders_with_an_empty_font_configuration() {
+    if std::env::var_os(EMPTY_CONFIG_CHILD).is_some() {
+        for (svg, title) in render_everything()
+            .iter()
+            .zip(["line", "stab", "heat", "bars", "scatter"])
+        {
+            assert!(svg.starts_with("<svg") && svg.contains(&format!("\n{title}\n")));
+        }
+        return;
+    }
+    let root = std::env::temp_dir().join(format!("rbprops-plot-no-fonts-{}", std::process::id()));
+    let empty = root.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let conf = root.join("fonts.conf");
+    std::fs::write(
+        &conf,
+        format!(
+            "<?xml version=\"1.0\"?>\n<fontconfig><dir>{0}</dir><cachedir>{1}</cachedir></fontconfig>\n",
+            empty.display(),
+            root.join("cache").display()
+        ),
+    )
+    .unwrap();
+    let fontless = |c: &mut std::process::Command| {
+        c.env("FONTCONFIG_FILE", &conf)
+            .env_remove("FONTCONFIG_PATH")
+            .env("HOME", &empty)
+            .env("XDG_DATA_HOME", &empty)
+            .env("XDG_DATA_DIRS", &empty)
+            .env("XDG_CONFIG_HOME", &empty);
+    };
+    // Where fontconfig is installed, show that this environment hides every font.
+    let mut fc = std::process::Command::new("fc-list");
+    fontless(&mut fc);
+    match fc.output() {
+        Ok(o) => assert!(
+            o.stdout.is_empty(),
+            "fc-list still finds fonts: {}",
+            String::from_utf8_lossy(&o.stdout)
+        ),
+        Err(e) => eprintln!("fc-list not available ({e}): the empty configuration is not shown"),
+    }
+    let (_, module) = module_path!().split_once("::").unwrap();
+    let mut child = std::process::Command::new(std::env::current_exe().unwrap());
+    child
+        .args([
+            "--exact",
+            &format!("{module}::renders_with_an_empty_font_configuration"),
+            "--test-threads",
+            "1",
+        ])
+        .env(EMPTY_CONFIG_CHILD, "1");
+    fontless(&mut child);
+    let out = child.output().unwrap();
+    let _ = std::fs::remove_dir_all(&root);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.contains("1 passed"),
+        "rendering with no font found failed:\n{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
