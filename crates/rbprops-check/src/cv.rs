@@ -295,15 +295,10 @@ fn held_out_increase_z(x: f64, se2: f64, with: [f64; 2], without: [f64; 2]) -> f
 mod tests {
     use super::*;
 
-    /// Uniform draws on [−½, ½) from a 64-bit LCG (reproducible, no dependency).
+    /// Uniform draws on [−½, ½) from the test kit's LCG (reproducible).
     fn uniform(seed: u64) -> impl FnMut() -> f64 {
-        let mut s = seed;
-        move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        }
+        let mut g = rbprops_testkit::Lcg::new(seed);
+        move || g.centred()
     }
 
     /// Least-squares fit of 2n rows (real, imaginary per value) with data `row(r)`;

@@ -362,6 +362,16 @@ pub(super) fn active_dims(active: &[Act]) -> usize {
     active.iter().map(Act::dim).sum()
 }
 
+/// The active effects without the `k`-th.
+pub(super) fn without_act(active: &[Act], k: usize) -> Vec<Act> {
+    active
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != k)
+        .map(|(_, a)| a.clone())
+        .collect()
+}
+
 /// θ without the parameters of the k-th active effect.
 pub(super) fn drop_params(p: &Problem, theta: &[f64], active: &[Act], k: usize) -> Vec<f64> {
     let mut out = theta[..p.n_base()].to_vec();

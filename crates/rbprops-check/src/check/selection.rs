@@ -8,7 +8,7 @@ use super::acceptance::{
 };
 use super::gauges::{centre_gauges, reopen_dropped};
 use super::items::Narrowed;
-use super::problem::{active_dims, drop_params, span_basis, Act, Prior, Problem};
+use super::problem::{active_dims, drop_params, span_basis, without_act, Act, Prior, Problem};
 use super::screening::{
     grid_candidate, resonance_candidate, score_candidate, AtModel, Chord, Score,
 };
@@ -742,75 +742,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         let mut dropped_any = false;
         // Effects kept whole with implausible items the data need (not tested again).
         let mut tolerated: Vec<usize> = Vec::new();
-        while !self.model.active.is_empty() {
-            let cov = self.current_covariance();
-            let decisive: Vec<bool> = (0..self.model.active.len())
-                .map(|k| self.decisively_in(k, &cov))
-                .collect();
-            let fits: Vec<Option<Result<Fit, CheckError>>> = (0..self.model.active.len())
-                .into_par_iter()
-                .map(|k| {
-                    if decisive[k] {
-                        return None;
-                    }
-                    let without: Vec<Act> = self
-                        .model
-                        .active
-                        .iter()
-                        .enumerate()
-                        .filter(|(i, _)| *i != k)
-                        .map(|(_, a)| a.clone())
-                        .collect();
-                    let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
-                    Some(p.fit(
-                        "final re-test",
-                        &theta_wo,
-                        &without,
-                        self.options.max_iterations,
-                    ))
-                })
-                .collect();
-            // (index, ΔBIC of keeping it, why it fails, fails on plausibility alone)
-            let mut failing: Vec<(usize, f64, String, bool)> = Vec::new();
-            let mut offset = p.n_base();
-            for (k, f_wo) in fits.into_iter().enumerate() {
-                let a = &self.model.active[k];
-                let d = a.dim();
-                let phi = a.phi(
-                    &p.cands[a.c].neutral,
-                    &self.model.cur.theta[offset..offset + d],
-                );
-                offset += d;
-                let Some(f_wo) = f_wo else {
-                    continue;
-                };
-                let f_wo = f_wo?;
-                let dchi2 = f_wo.chi2 - self.model.cur.chi2;
-                let dbic = dchi2 - d as f64 * self.charges.ln_n;
-                let thr = self.model.accepted[k].threshold;
-                let mut why = Vec::new();
-                if !(dchi2 > thr) {
-                    why.push(format!("LR {dchi2:.1} ≤ {thr:.1}"));
-                }
-                if !(dbic > self.options.min_delta_bic) {
-                    why.push(format!("ΔBIC {dbic:.1} ≤ {}", self.options.min_delta_bic));
-                }
-                let needed = why.is_empty();
-                for q in p.plausibility(&self.model.cur.theta, a.c, &phi) {
-                    if !holds(&q) {
-                        why.push(implausible_text(&q));
-                    }
-                }
-                if !why.is_empty() && !(needed && tolerated.contains(&a.c)) {
-                    failing.push((k, dbic, why.join("; "), needed));
-                }
-            }
-            let Some((k, _, why, needed)) = failing
-                .into_iter()
-                .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
-            else {
-                break;
-            };
+        while let Some(Retest { k, why, needed }) = self.weakest_failing(&tolerated)? {
             // Needed but implausible on some items only: those items go back to neutral
             // and the effect is tested again (M6d, as at its acceptance).
             if needed {
@@ -836,14 +768,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 &id,
                 format!("dropped in the final re-test given all the others: {why}"),
             );
-            let without: Vec<Act> = self
-                .model
-                .active
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| *i != k)
-                .map(|(_, a)| a.clone())
-                .collect();
+            let without = without_act(&self.model.active, k);
             let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
             self.model.cur = p.fit(
                 "final re-test",
@@ -857,6 +782,72 @@ impl<'p, 'a> Selection<'p, 'a> {
             dropped_any = true;
         }
         Ok(dropped_any)
+    }
+
+    /// The final re-test of every active effect not decisively in (nor in `tolerated`
+    /// while still needed): the weakest that fails, by the ΔBIC of keeping it.
+    fn weakest_failing(&self, tolerated: &[usize]) -> Result<Option<Retest>, CheckError> {
+        let p = self.p;
+        if self.model.active.is_empty() {
+            return Ok(None);
+        }
+        let cov = self.current_covariance();
+        let decisive: Vec<bool> = (0..self.model.active.len())
+            .map(|k| self.decisively_in(k, &cov))
+            .collect();
+        let fits: Vec<Option<Result<Fit, CheckError>>> = (0..self.model.active.len())
+            .into_par_iter()
+            .map(|k| {
+                (!decisive[k]).then(|| {
+                    let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
+                    p.fit(
+                        "final re-test",
+                        &theta_wo,
+                        &without_act(&self.model.active, k),
+                        self.options.max_iterations,
+                    )
+                })
+            })
+            .collect();
+        // (ΔBIC of keeping it, the re-test)
+        let mut failing: Vec<(f64, Retest)> = Vec::new();
+        let mut offset = p.n_base();
+        for (k, f_wo) in fits.into_iter().enumerate() {
+            let a = &self.model.active[k];
+            let d = a.dim();
+            let phi = a.phi(
+                &p.cands[a.c].neutral,
+                &self.model.cur.theta[offset..offset + d],
+            );
+            offset += d;
+            let Some(f_wo) = f_wo else {
+                continue;
+            };
+            let dchi2 = f_wo?.chi2 - self.model.cur.chi2;
+            let dbic = dchi2 - d as f64 * self.charges.ln_n;
+            let thr = self.model.accepted[k].threshold;
+            let mut why = Vec::new();
+            if !(dchi2 > thr) {
+                why.push(format!("LR {dchi2:.1} ≤ {thr:.1}"));
+            }
+            if !(dbic > self.options.min_delta_bic) {
+                why.push(format!("ΔBIC {dbic:.1} ≤ {}", self.options.min_delta_bic));
+            }
+            let needed = why.is_empty();
+            for q in p.plausibility(&self.model.cur.theta, a.c, &phi) {
+                if !holds(&q) {
+                    why.push(implausible_text(&q));
+                }
+            }
+            if !why.is_empty() && !(needed && tolerated.contains(&a.c)) {
+                let why = why.join("; ");
+                failing.push((dbic, Retest { k, why, needed }));
+            }
+        }
+        Ok(failing
+            .into_iter()
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.k.cmp(&b.1.k)))
+            .map(|(_, r)| r))
     }
 
     /// Backward check: drop an earlier effect whose removal no longer costs significance.
@@ -880,14 +871,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 k += 1;
                 continue;
             }
-            let without: Vec<Act> = self
-                .model
-                .active
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| *i != k)
-                .map(|(_, a)| a.clone())
-                .collect();
+            let without = without_act(&self.model.active, k);
             let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
             let f_wo = p.fit("backward", &theta_wo, &without, self.options.max_iterations)?;
             if f_wo.chi2 - self.model.cur.chi2 < must_cost {
@@ -923,6 +907,16 @@ impl<'p, 'a> Selection<'p, 'a> {
         let alpha = &self.model.cur.theta[k0..k0 + a.dim()];
         wald_in(cov, k0, alpha, &a.kept, &self.p.cands[a.c].neutral)
     }
+}
+
+/// An active effect that fails the final re-test.
+struct Retest {
+    /// Its index in the model.
+    k: usize,
+    /// The failed tests.
+    why: String,
+    /// Its likelihood-ratio and ΔBIC tests passed: it fails on plausibility alone.
+    needed: bool,
 }
 
 /// The not-observable entry of a candidate screened at rank 0, naming the parameter
