@@ -518,16 +518,53 @@ fn unresolvable_as_gauges(at: AtModel, c: usize, jp: &DMatrix<f64>, norms: Vec<f
         .collect()
 }
 
+/// The score test of candidate `c` at the current model (docs/physics.md, M4): its
+/// Jacobian columns at neutral, normalised and with the current span projected out;
+/// the score is the residual's projection on their detectable directions, and a
+/// Gauss–Newton step on them starts the refit.
 pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError> {
-    let AtModel {
-        p, cur, active, q0, ..
-    } = at;
+    let cand = &at.p.cands[c];
+    let (jc, norms) = candidate_columns(at, c)?;
+    // One projection serves both the unresolvable test (raw columns) and the score
+    // (normalised ones): a column's projection scales with the column.
+    let mut jt = project_out(&jc, at.q0);
+    let norms = unresolvable_as_gauges(at, c, &jt, norms);
+    normalise_columns(&mut jt, &norms);
+    let svd = lm::thin_svd(&jt);
+    let u = svd.u.as_ref().expect("requested");
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > ABSORBED)
+        .collect();
+    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, k| u[(r, keep[k])]);
+    let proj = basis.tr_mul(&nalgebra::DVector::from_column_slice(&at.cur.residual));
+    let (kept, start) = gauss_newton_start(cand, c, &svd, &keep, &proj, &norms);
+    let absorbed_by = if keep.is_empty() {
+        absorbed_by(at, &jc, &norms)
+    } else {
+        Vec::new()
+    };
+    Ok(Score {
+        rank: keep.len(),
+        score: proj.norm_squared(),
+        basis,
+        kept,
+        start,
+        gauge: gauge_directions(&svd, cand.neutral.len(), &norms),
+        absorbed_by,
+        n_tests: 1,
+        theta_start: None,
+    })
+}
+
+/// Candidate `c`'s Jacobian columns at neutral (the current parameters fixed) and their
+/// norms, 0 for a column that is rounding, not a signature.
+fn candidate_columns(at: AtModel, c: usize) -> Result<(DMatrix<f64>, Vec<f64>), CheckError> {
+    let AtModel { p, cur, active, .. } = at;
     let cand = &p.cands[c];
     let mut act = active.to_vec();
     act.push(Act::full(c, cand.neutral.len()));
-    let theta = &cur.theta;
     let f = |phi: &[f64]| {
-        let mut t = theta.clone();
+        let mut t = cur.theta.clone();
         t.extend_from_slice(phi);
         p.residual(&t, &act)
     };
@@ -539,7 +576,7 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
     // direction (the tilt of cords without gravity stiffness, 2e-4 noise units per
     // step where the data are 2e4, gave a rank of 3 for 2 and a wrong start).
     let floor = NO_SIGNATURE * p.data_norm();
-    let norms: Vec<f64> = (0..jc.ncols())
+    let norms = (0..jc.ncols())
         .map(|k| {
             let n = jc.column(k).norm();
             if n * cand.scales[k] < floor {
@@ -549,39 +586,41 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
             }
         })
         .collect();
-    // One projection serves both the unresolvable test (raw columns) and the score
-    // (normalised ones): a column's projection scales with the column.
-    let mut jt = project_out(&jc, q0);
-    let norms = unresolvable_as_gauges(at, c, &jt, norms);
-    let normalise = |m: &mut DMatrix<f64>| {
-        for (k, &n) in norms.iter().enumerate() {
-            if n > 0.0 {
-                m.column_mut(k).scale_mut(1.0 / n);
-            } else {
-                m.column_mut(k).fill(0.0);
-            }
+    Ok((jc, norms))
+}
+
+/// Columns scaled to unit norm; those of norm 0 (no signature) zeroed.
+fn normalise_columns(m: &mut DMatrix<f64>, norms: &[f64]) {
+    for (k, &n) in norms.iter().enumerate() {
+        if n > 0.0 {
+            m.column_mut(k).scale_mut(1.0 / n);
+        } else {
+            m.column_mut(k).fill(0.0);
         }
-    };
-    normalise(&mut jt);
-    let svd = lm::thin_svd(&jt);
-    let u = svd.u.expect("requested");
-    let vt = svd.v_t.expect("requested");
-    let keep: Vec<usize> = (0..svd.singular_values.len())
-        .filter(|&k| svd.singular_values[k] > ABSORBED)
-        .collect();
-    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, k| u[(r, keep[k])]);
-    let r = nalgebra::DVector::from_column_slice(&cur.residual);
-    let proj = basis.tr_mul(&r);
-    let score = proj.norm_squared();
-    // Gauss–Newton step on the candidate's parameters alone (projected problem):
-    // r + J̃ δ ≈ 0 → δ = −V Σ⁻¹ Uᵀ r in normalised coordinates.
+    }
+}
+
+/// The refit's free coordinates and their start: the Gauss–Newton step on the
+/// candidate's parameters alone (projected problem, `r + J̃ δ ≈ 0`, so δ = −V Σ⁻¹ Uᵀ r
+/// in normalised coordinates over the detectable directions `keep`, whose projections
+/// of the residual are `proj`), one coordinate dropped per exact gauge with the step
+/// shifted along the gauges to leave it neutral, then shrunk towards neutral until it
+/// respects the effect's bounds.
+fn gauss_newton_start(
+    cand: &crate::candidates::Candidate,
+    c: usize,
+    svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    keep: &[usize],
+    proj: &nalgebra::DVector<f64>,
+    norms: &[f64],
+) -> (Vec<usize>, Vec<f64>) {
+    let vt = svd.v_t.as_ref().expect("requested");
     let np = cand.neutral.len();
     let sv = |k: usize| svd.singular_values.get(k).copied().unwrap_or(0.0);
     // Null directions (exact gauges) in normalised coordinates; V is complete (np×np)
     // only when rows ≥ columns, which holds (one row per residual entry).
     let null: Vec<usize> = (0..np).filter(|&k| sv(k) <= GAUGE).collect();
-    // Gauss–Newton step in normalised coordinates over the detectable directions,
-    // δ = −Σ_k v_k (u_kᵀ r)/s_k (minimum norm: no gauge component).
+    // Minimum norm: no gauge component.
     let mut delta = vec![0.0; np];
     for (kk, &k) in keep.iter().enumerate() {
         let coef = -proj[kk] / svd.singular_values[k];
@@ -589,7 +628,7 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
             *d += coef * vt[(k, j)];
         }
     }
-    let dropped = gauge_pivots(&null, &vt, &delta);
+    let dropped = gauge_pivots(&null, vt, &delta);
     let kept: Vec<usize> = (0..np).filter(|j| !dropped.contains(j)).collect();
     // Shift δ along the gauges so the dropped coordinates stay neutral (the gauges
     // leave the residual unchanged).
@@ -597,7 +636,7 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
         let g = dropped.len();
         let a = DMatrix::from_fn(g, null.len(), |r, c| vt[(null[c], dropped[r])]);
         let b = nalgebra::DVector::from_iterator(g, dropped.iter().map(|&j| -delta[j]));
-        if let Some(beta) = a.svd(true, true).solve(&b, 1e-12).ok() {
+        if let Ok(beta) = a.svd(true, true).solve(&b, 1e-12) {
             for (c, &k) in null.iter().enumerate() {
                 for (j, d) in delta.iter_mut().enumerate() {
                     *d += beta[c] * vt[(k, j)];
@@ -615,7 +654,6 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
             }
         })
         .collect();
-    // Shrink the start towards neutral until it respects the effect's bounds.
     let infos = cand.effect.parameters();
     let probe = Act {
         c,
@@ -641,7 +679,19 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
         step.iter_mut().for_each(|a| *a *= 0.5);
     }
     let start = at(&step);
-    let gauge: Vec<Vec<f64>> = (0..np)
+    (kept, start)
+}
+
+/// Unit φ-space directions without first-order signature (singular value at most
+/// [`ABSORBED`]), in the effect's own coordinates.
+fn gauge_directions(
+    svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    np: usize,
+    norms: &[f64],
+) -> Vec<Vec<f64>> {
+    let vt = svd.v_t.as_ref().expect("requested");
+    let sv = |k: usize| svd.singular_values.get(k).copied().unwrap_or(0.0);
+    (0..np)
         .filter(|&k| sv(k) <= ABSORBED)
         .map(|k| {
             let v: Vec<f64> = (0..np)
@@ -661,60 +711,52 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
                 .max(f64::MIN_POSITIVE);
             v.iter().map(|x| x / n).collect()
         })
-        .collect();
-    // Which parameter groups absorb the signature (for the not-observable report).
-    let mut absorbed_by = Vec::new();
-    if keep.is_empty() {
-        let mut jcs = jc.clone();
-        normalise(&mut jcs);
-        let groups: [(&str, &dyn Fn(&ParamKind) -> bool); 3] = [
-            ("inertia (10 free parameters)", &|k| {
-                matches!(k, ParamKind::Inertia(_))
-            }),
-            ("suspension stiffness scales", &|k| {
-                matches!(k, ParamKind::StiffnessScale { .. })
-            }),
-            ("damping", &|k| {
-                matches!(
-                    k,
-                    ParamKind::ModalDampingLog(_)
-                        | ParamKind::RayleighAlpha
-                        | ParamKind::RayleighBeta
-                )
-            }),
-        ];
-        for (name, sel) in groups {
-            let cols: Vec<usize> = p
-                .baseline
-                .kinds
-                .iter()
-                .enumerate()
-                .filter(|(_, k)| sel(k))
-                .map(|(i, _)| i)
-                .collect();
-            if cols.is_empty() {
-                continue;
-            }
-            let jg = DMatrix::from_fn(cur.jacobian.nrows(), cols.len(), |r, c| {
-                cur.jacobian[(r, cols[c])]
-            });
-            let (qg, _) = span_basis(&jg, 1e-10);
-            let rest = project_out(&jcs, &qg);
-            let tot = jcs.norm_squared().max(f64::MIN_POSITIVE);
-            absorbed_by.push((name.to_string(), 1.0 - rest.norm_squared() / tot));
+        .collect()
+}
+
+/// For a candidate without detectable direction: the fraction of its (normalised)
+/// signature each parameter group of the baseline explains alone (the not-observable
+/// report).
+fn absorbed_by(at: AtModel, jc: &DMatrix<f64>, norms: &[f64]) -> Vec<(String, f64)> {
+    let (p, cur) = (at.p, at.cur);
+    let mut jcs = jc.clone();
+    normalise_columns(&mut jcs, norms);
+    let groups: [(&str, &dyn Fn(&ParamKind) -> bool); 3] = [
+        ("inertia (10 free parameters)", &|k| {
+            matches!(k, ParamKind::Inertia(_))
+        }),
+        ("suspension stiffness scales", &|k| {
+            matches!(k, ParamKind::StiffnessScale { .. })
+        }),
+        ("damping", &|k| {
+            matches!(
+                k,
+                ParamKind::ModalDampingLog(_) | ParamKind::RayleighAlpha | ParamKind::RayleighBeta
+            )
+        }),
+    ];
+    let mut out = Vec::new();
+    for (name, sel) in groups {
+        let cols: Vec<usize> = p
+            .baseline
+            .kinds
+            .iter()
+            .enumerate()
+            .filter(|(_, k)| sel(k))
+            .map(|(i, _)| i)
+            .collect();
+        if cols.is_empty() {
+            continue;
         }
+        let jg = DMatrix::from_fn(cur.jacobian.nrows(), cols.len(), |r, c| {
+            cur.jacobian[(r, cols[c])]
+        });
+        let (qg, _) = span_basis(&jg, 1e-10);
+        let rest = project_out(&jcs, &qg);
+        let tot = jcs.norm_squared().max(f64::MIN_POSITIVE);
+        out.push((name.to_string(), 1.0 - rest.norm_squared() / tot));
     }
-    Ok(Score {
-        rank: keep.len(),
-        score,
-        basis,
-        kept,
-        start,
-        gauge,
-        absorbed_by,
-        n_tests: 1,
-        theta_start: None,
-    })
+    out
 }
 
 #[cfg(test)]
