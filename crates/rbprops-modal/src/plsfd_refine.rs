@@ -122,17 +122,17 @@ pub fn refine(
         lambda,
         parts: parts.to_vec(),
     };
-    let mut t = trial(&p, &s);
+    let mut t = crate::prof::time(8, || trial(&p, &s));
     let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
     for it in 0..MAX_ITERATIONS {
         iterations = it + 1;
-        let (jtj, g) = normal_equations(&p, &s, &t);
+        let (jtj, g) = crate::prof::time(9, || normal_equations(&p, &s, &t));
         let rhs = Mat::from_fn(p.n_params, 1, |i, _| g[i]);
         // Converged when even the undamped Gauss–Newton step predicts a negligible drop.
-        if let Some(gn) = linalg::solve_square(&jtj, &rhs) {
+        if let Some(gn) = crate::prof::time(10, || linalg::solve_square(&jtj, &rhs)) {
             let predicted: f64 = (0..p.n_params).map(|i| gn[(i, 0)] * g[i]).sum();
             if predicted.is_finite() && predicted >= 0.0 && predicted <= 1e-10 * t.cost {
                 converged = true;
@@ -152,7 +152,7 @@ pub fn refine(
                         0.0
                     }
             });
-            let Some(step) = linalg::solve_square(&lhs, &rhs) else {
+            let Some(step) = crate::prof::time(10, || linalg::solve_square(&lhs, &rhs)) else {
                 mu *= 10.0;
                 continue;
             };
@@ -161,7 +161,7 @@ pub fn refine(
                 mu *= 10.0;
                 continue;
             }
-            let t2 = trial(&p, &cand);
+            let t2 = crate::prof::time(8, || trial(&p, &cand));
             if t2.cost <= t.cost {
                 let rel_step = (0..p.n_roots)
                     .map(|g| (cand.lambda[g] - s.lambda[g]).norm() / (-s.lambda[g].re))
@@ -402,17 +402,15 @@ struct LineProducts {
 /// Each `C_oe` is non-zero on the poles and `e`'s participations only ([`Active`]), and
 /// `Φ̃_e` on the pole columns and `e`'s residual terms: the products are taken on those
 /// (about 24 of 600 parameters with 50 excitations and 6 modes) and scattered. The
-/// projection term `Σ_o (Φ̃ᵀD_o)ᵀ(Φ̃ᵀΦ̃)⁻¹(Φ̃ᵀD_o)` is `YᵀY` with `Y_o = R⁻ᵀ(Φ̃ᵀD_o)`
-/// stacked over the outputs (one Gram product, its lower triangle).
+/// projection term `Σ_o (Φ̃ᵀD_o)ᵀ(Φ̃ᵀΦ̃)⁻¹(Φ̃ᵀD_o)` is `Σ_o Y_oᵀY_o` with
+/// `Y_o = R⁻ᵀ(Φ̃ᵀD_o)` (Gram products, their lower triangles).
 fn normal_equations(p: &Problem, s: &State, t: &Trial) -> (Mat<f64>, Vec<f64>) {
-    let np = p.n_params;
+    use rayon::prelude::*;
     let n2 = 2 * p.bands[0].n_lines();
-    let no = p.b.ncols();
     let basis = t.ls.basis();
-    let ncol = t.ls.ncols();
     let ev = line_vectors(p, &s.poles(&p.roots));
     let prods: Vec<LineProducts> = ev
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(e, em)| LineProducts {
             gram: linalg::gram(em),
@@ -421,33 +419,53 @@ fn normal_equations(p: &Problem, s: &State, t: &Trial) -> (Mat<f64>, Vec<f64>) {
         })
         .collect();
     let acts: Vec<Active> = (0..ev.len()).map(|e| active(p, e)).collect();
+    // The outputs in parallel, added in output order: the same sums for any thread count.
+    let terms: Vec<(Mat<f64>, Vec<f64>)> = (0..p.b.ncols())
+        .into_par_iter()
+        .map(|o| output_terms(p, s, t, o, (&prods, &acts)))
+        .collect();
+    let mut it = terms.into_iter();
+    let (mut jtj, mut g) = it.next().expect("at least one output");
+    for (a, b) in it {
+        jtj += a;
+        g.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+    }
+    (jtj, g)
+}
+
+/// Output `o`'s share of [`normal_equations`]: `D_oᵀD_o − (Φ̃ᵀD_o)ᵀ(Φ̃ᵀΦ̃)⁻¹(Φ̃ᵀD_o)` and
+/// `D_oᵀr_o`, the latter term as `Y_oᵀY_o` with `Y_o = R⁻ᵀ(Φ̃ᵀD_o)`.
+fn output_terms(
+    p: &Problem,
+    s: &State,
+    t: &Trial,
+    o: usize,
+    (prods, acts): (&[LineProducts], &[Active]),
+) -> (Mat<f64>, Vec<f64>) {
+    let np = p.n_params;
+    let basis = t.ls.basis();
     let mut jtj = Mat::<f64>::zeros(np, np);
     let mut g = vec![0.0; np];
-    let mut y = Mat::<f64>::zeros(no * ncol, np);
-    for o in 0..no {
-        let mut m = Mat::<f64>::zeros(ncol, np);
-        for (e, (pr, act)) in prods.iter().zip(&acts).enumerate() {
-            let c = coefficients(p, s, &t.psi, (o, e), act);
-            let cgc = linalg::t_mul(&c, &(&pr.gram * &c));
-            for (i, &pi) in act.cols.iter().enumerate() {
-                for (j, &pj) in act.cols.iter().enumerate() {
-                    jtj[(pi, pj)] += cgc[(i, j)];
-                }
-                for q in 0..c.nrows() {
-                    g[pi] += c[(q, i)] * pr.resid[(q, o)];
-                }
+    let mut m = Mat::<f64>::zeros(t.ls.ncols(), np);
+    for (e, (pr, act)) in prods.iter().zip(acts).enumerate() {
+        let c = coefficients(p, s, &t.psi, (o, e), act);
+        let cgc = linalg::t_mul(&c, &(&pr.gram * &c));
+        for (i, &pi) in act.cols.iter().enumerate() {
+            for (j, &pj) in act.cols.iter().enumerate() {
+                jtj[(pi, pj)] += cgc[(i, j)];
             }
-            let pc = &pr.basis * &c;
-            for (i, &bi) in basis.block_cols(e).iter().enumerate() {
-                for (j, &pj) in act.cols.iter().enumerate() {
-                    m[(bi, pj)] += pc[(i, j)];
-                }
+            for q in 0..c.nrows() {
+                g[pi] += c[(q, i)] * pr.resid[(q, o)];
             }
         }
-        y.as_mut()
-            .subrows_mut(o * ncol, ncol)
-            .copy_from(r_inv_t(&t.ls, &m).as_ref());
+        let pc = &pr.basis * &c;
+        for (i, &bi) in basis.block_cols(e).iter().enumerate() {
+            for (j, &pj) in act.cols.iter().enumerate() {
+                m[(bi, pj)] += pc[(i, j)];
+            }
+        }
     }
+    let y = r_inv_t(&t.ls, &m);
     let mut proj = Mat::<f64>::zeros(np, np);
     linalg::gram_lower_add(&mut proj, y.as_ref());
     linalg::mirror_lower(&mut proj);
