@@ -36,7 +36,6 @@ FN_EXCEPTIONS = {
     "crates/rbprops-check/src/check/screening.rs::profile_candidate": NOT_YET,
     "crates/rbprops-check/src/check/screening.rs::score_candidate": NOT_YET,
     "crates/rbprops-cli/src/campaign.rs::options": NOT_YET,
-    "crates/rbprops-modal/src/linalg/eigen.rs::hessenberg_qr": NOT_YET,
 }
 
 
