@@ -753,8 +753,8 @@ fn normal_equations(d: &Mat<f64>, t: &Trial, jtj: &mut Mat<f64>) -> Vec<f64> {
     let no = t.resid.ncols();
     // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
     let pc = t.n_cols;
-    let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
-    let dd = linalg::gram(&d);
+    let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), d));
+    let dd = linalg::gram(d);
     let mut gd = Mat::<f64>::zeros(np, np);
     for i in 0..np {
         for j in 0..=i {
@@ -774,7 +774,7 @@ fn normal_equations(d: &Mat<f64>, t: &Trial, jtj: &mut Mat<f64>) -> Vec<f64> {
             *x = 0.0;
         }
     }
-    let drm = tmul(&d, &t.resid);
+    let drm = tmul(d, &t.resid);
     let dr: Vec<Vec<f64>> = (0..np)
         .map(|j| (0..no).map(|o| drm[(j, o)]).collect())
         .collect();

@@ -314,7 +314,7 @@ impl SetupLs {
             let mut dx = self.basis.t_mul(&resid);
             cholesky_solve(r, &mut dx);
             self.basis.mul_add(&mut resid, &dx, -1.0);
-            x = x + dx;
+            x += dx;
         }
         let rss = (0..resid.ncols())
             .map(|j| {
