@@ -4,12 +4,13 @@
 //! with the poly-reference method (`Method::Plscf`) and with the default per-excitation
 //! fit (`Method::Lscf`, one pole set per excitation), on 1 and 2 rayon threads.
 //!
-//! `cargo bench -p rbprops-modal --bench plscf_50 [-- repeats]` prints, per method and
+//! `cargo bench -p rbprops-modal --bench plscf_50 [-- repeats] [plscf|lscf]` prints, per method and
 //! thread count, the median wall time per fit and the process CPU time (user + sys,
 //! `getrusage`) per fit — on a machine shared with other work the CPU time is the
 //! steadier figure — and the ratio poly-reference / per-excitation. It also checks that
 //! the poly-reference fit is byte-identical on 1 and 2 threads. With
-//! `--features phase-timing` it prints where the poly-reference time goes (`prof`).
+//! `--features phase-timing` it prints where the poly-reference time goes (`prof`);
+//! with `PLSCF_50_DUMP=prefix` it writes each fit's records to `prefix-<method>-<threads>.txt`.
 
 use rbprops_core::{Quantity, Vec3};
 use rbprops_modal::{fit_campaign, prof, FitOptions, Method, ModalFitOutput};
@@ -87,6 +88,10 @@ fn main() {
         .skip(1)
         .find_map(|s| s.parse().ok())
         .unwrap_or(5);
+    // `plscf` or `lscf` after the repeats: that method alone (no ratio printed).
+    let only = std::env::args()
+        .skip(1)
+        .find(|a| a == "plscf" || a == "lscf");
     let s = workload();
     println!(
         "{} excitations × {} channels × {} lines, median of {repeats} fits:",
@@ -98,7 +103,13 @@ fn main() {
     for (name, method) in [
         ("poly-reference (plscf)", Method::Plscf),
         ("per-excitation (lscf)", Method::Lscf),
-    ] {
+    ]
+    .into_iter()
+    .filter(|(_, m)| match only.as_deref() {
+        Some("plscf") => *m == Method::Plscf,
+        Some(_) => *m == Method::Lscf,
+        None => true,
+    }) {
         let opts = FitOptions {
             method,
             ..Default::default()
@@ -112,13 +123,18 @@ fn main() {
             );
             per_method.push((method, threads, wall, cpu));
             outs.push(format!("{:?}", out.record));
+            // `PLSCF_50_DUMP=prefix`: the records as text, to compare two builds.
+            if let Some(prefix) = std::env::var_os("PLSCF_50_DUMP") {
+                let path = format!("{}-{method:?}-{threads}.txt", prefix.to_string_lossy());
+                std::fs::write(path, outs.last().unwrap()).unwrap();
+            }
         }
         assert!(
             outs[0] == outs[1],
             "{name}: the fit differs between 1 and 2 threads"
         );
     }
-    for threads in [1, 2] {
+    for threads in [1, 2].into_iter().filter(|_| only.is_none()) {
         let get = |m: Method| {
             per_method
                 .iter()

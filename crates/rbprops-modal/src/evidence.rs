@@ -486,57 +486,16 @@ pub(crate) fn campaign_diagnostics(
     setups: &[String],
     opts: &crate::FitOptions,
 ) -> Vec<Diagnostic> {
-    let search = &opts.search;
     let mut out = Vec::new();
     for setup in setups {
         let members: Vec<usize> = (0..geometry.excitations.len())
             .filter(|&e| &geometry.excitations[e].setup == setup)
             .collect();
-        let sub = |excitations: Vec<String>| DiagnosticSubject {
-            setup: Some(setup.clone()),
-            excitations,
-            ..Default::default()
-        };
         if let Some(c) = choices.iter().find(|c| &c.setup == setup) {
             out.extend(c.diagnostics());
         }
-        // Failed excitations.
-        for &e in &members {
-            if let Err(err) = &fits[e] {
-                out.push(diag(
-                    DiagnosticKind::ExcitationFailed,
-                    Severity::ChangesAnswer,
-                    sub(vec![geometry.excitations[e].id.clone()]),
-                    format!("fit failed: {err}"),
-                    "check the band (--band) and that the excitation drives the structure",
-                ));
-            }
-        }
-        // Dead channels: one per channel, naming the excitations.
-        for (c, ch) in geometry.channels.iter().enumerate() {
-            let dead: Vec<String> = members
-                .iter()
-                .filter(|&&e| {
-                    let h = frf.frf(e, c);
-                    frf.frequency_hz.iter().zip(h).all(|(f, z)| {
-                        z.norm_sqr() == 0.0 || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
-                    })
-                })
-                .map(|&e| geometry.excitations[e].id.clone())
-                .collect();
-            if !dead.is_empty() {
-                out.push(diag(
-                    DiagnosticKind::DeadChannel,
-                    Severity::ChangesAnswer,
-                    DiagnosticSubject {
-                        channel: Some(ch.id.clone()),
-                        ..sub(dead)
-                    },
-                    "identically zero in the band: left out of the pole estimate, its residues are 0".into(),
-                    "check the sensor, its cable and the channel map",
-                ));
-            }
-        }
+        failed_excitations(geometry, fits, &members, setup, &mut out);
+        dead_channels(geometry, frf, &members, (setup, opts), &mut out);
         let ok: Vec<&ExcitationFit> = members
             .iter()
             .filter_map(|&e| fits[e].as_ref().ok())
@@ -544,122 +503,216 @@ pub(crate) fn campaign_diagnostics(
         if ok.is_empty() {
             continue;
         }
-        let all_ids: Vec<String> = ok.iter().map(|f| f.record.excitation.clone()).collect();
         let poly = ok
             .iter()
             .all(|f| f.record.method == rbprops_core::records::FitMethod::Plscf);
         if poly {
-            // One pole set for the set-up: its close pairs, once, naming every excitation.
-            let f0 = ok[0];
-            let ps = poles(f0);
-            for i in 0..ps.len() {
-                for j in i + 1..ps.len() {
-                    let d = ps[i].distance_in_bandwidths(&ps[j]);
-                    if d >= search.close_bandwidths {
-                        continue;
-                    }
-                    let subject = DiagnosticSubject {
-                        modes: vec![i + 1, j + 1],
-                        frequencies_hz: vec![ps[i].frequency_hz(), ps[j].frequency_hz()],
-                        ..sub(all_ids.clone())
-                    };
-                    if d < crate::poly::REPEATED_BANDWIDTHS {
-                        out.push(diag(
-                            DiagnosticKind::RepeatedRoot,
-                            Severity::Note,
-                            subject,
-                            "one root of multiplicity 2: its modes are the reciprocal basis of the residue matrix (poly-reference fit)".into(),
-                            "",
-                        ));
-                    } else if d < search.inseparable_bandwidths {
-                        out.push(diag(
-                            DiagnosticKind::RepeatedRoot,
-                            Severity::Note,
-                            subject,
-                            format!("a near-repeated root ({d:.2} half-bandwidths apart: one peak), separated by the poly-reference fit through the participation of every excitation"),
-                            "",
-                        ));
-                    } else {
-                        out.push(diag(
-                            DiagnosticKind::CloseModes,
-                            Severity::Note,
-                            subject,
-                            format!(
-                                "{d:.2} half-bandwidths apart, separated by the poly-reference fit"
-                            ),
-                            "",
-                        ));
-                    }
-                }
-            }
+            poly_reference_pairs(&ok, &opts.search, setup, &mut out);
         } else {
-            single_reference_pairs(&ok, search, setup, &mut out);
+            single_reference_pairs(&ok, &opts.search, setup, &mut out);
         }
-        // Fit errors far above the noise the set-up fits to.
-        let errs: Vec<f64> = ok.iter().map(|f| median_fit_error(f)).collect();
-        let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
-        let bad: Vec<usize> = (0..ok.len())
-            .filter(|&k| errs[k] > 0.1 || (errs[k] > ERROR_FLOOR && errs[k] > ERROR_RATIO * best))
-            .collect();
-        if !bad.is_empty() {
-            let worst = bad
-                .iter()
-                .copied()
-                .max_by(|&a, &b| errs[a].total_cmp(&errs[b]))
-                .unwrap();
+        out.extend(fit_errors_above_noise(&ok, setup));
+        out.extend(weak_modes(&ok, setup));
+        out.extend(pole_search_notes(&ok, setup));
+    }
+    out
+}
+
+/// The subject "set-up `setup`, these excitations".
+fn setup_subject(setup: &str, excitations: Vec<String>) -> DiagnosticSubject {
+    DiagnosticSubject {
+        setup: Some(setup.into()),
+        excitations,
+        ..Default::default()
+    }
+}
+
+/// The ids of the excitations of `ok`, in order.
+fn excitation_ids(ok: &[&ExcitationFit]) -> Vec<String> {
+    ok.iter().map(|f| f.record.excitation.clone()).collect()
+}
+
+/// One [`DiagnosticKind::ExcitationFailed`] per member whose fit failed.
+fn failed_excitations(
+    geometry: &rbprops_core::Geometry,
+    fits: &[Result<ExcitationFit, crate::ModalError>],
+    members: &[usize],
+    setup: &str,
+    out: &mut Vec<Diagnostic>,
+) {
+    for &e in members {
+        if let Err(err) = &fits[e] {
             out.push(diag(
-                DiagnosticKind::FitErrorAboveNoise,
-                Severity::Warning,
-                sub(bad.iter().map(|&k| all_ids[k].clone()).collect()),
-                format!(
-                    "median fit error up to {:.2e} ({}), against {best:.2e} for the set-up's best-fitted excitation",
-                    errs[worst], all_ids[worst]
-                ),
-                "look for a merged or missing mode in these excitations (--plot), an undeclared window (--exp-window) or an elastic mode in the band",
-            ));
-        }
-        // Weakly excited modes, once per set-up.
-        let weak: Vec<(String, f64)> = ok
-            .iter()
-            .flat_map(|f| {
-                f.modes
-                    .iter()
-                    .filter(|m| m.weak)
-                    .map(|m| (m.excitation.clone(), m.frequency_hz))
-            })
-            .collect();
-        if !weak.is_empty() {
-            let mut hz: Vec<f64> = weak.iter().map(|w| w.1).collect();
-            hz.sort_by(f64::total_cmp);
-            hz.dedup_by(|a, b| (*a / *b - 1.0).abs() < 1e-3);
-            out.push(diag(
-                DiagnosticKind::WeakModes,
-                Severity::Note,
-                DiagnosticSubject {
-                    frequencies_hz: hz,
-                    ..sub(dedup(weak.into_iter().map(|w| w.0)))
-                },
-                "barely excited in these excitations (peak NI more than 20 dB below the strongest mode, or residues uncertain); other excitations' estimates are preferred".into(),
-                "",
-            ));
-        }
-        // The pole search's adjustments, counted once (listed in the records' warnings).
-        let n: usize = ok.iter().map(|f| f.record.warnings.len()).sum::<usize>()
-            + ok.iter()
-                .flat_map(|f| &f.modes)
-                .map(|m| m.warnings.len())
-                .sum::<usize>();
-        if n > 0 {
-            out.push(diag(
-                DiagnosticKind::PoleSearch,
-                Severity::Note,
-                sub(all_ids.clone()),
-                format!("{n} notes of the pole search and the records (model-order tests, sub-bands, close pairs); each is in the excitations' and modes' warnings"),
-                "",
+                DiagnosticKind::ExcitationFailed,
+                Severity::ChangesAnswer,
+                setup_subject(setup, vec![geometry.excitations[e].id.clone()]),
+                format!("fit failed: {err}"),
+                "check the band (--band) and that the excitation drives the structure",
             ));
         }
     }
-    out
+}
+
+/// Dead channels: one [`DiagnosticKind::DeadChannel`] per channel identically zero in
+/// the band, naming the excitations where it is.
+fn dead_channels(
+    geometry: &rbprops_core::Geometry,
+    frf: &rbprops_core::FrfSet,
+    members: &[usize],
+    (setup, opts): (&str, &crate::FitOptions),
+    out: &mut Vec<Diagnostic>,
+) {
+    for (c, ch) in geometry.channels.iter().enumerate() {
+        let dead: Vec<String> = members
+            .iter()
+            .filter(|&&e| {
+                let h = frf.frf(e, c);
+                frf.frequency_hz.iter().zip(h).all(|(f, z)| {
+                    z.norm_sqr() == 0.0 || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
+                })
+            })
+            .map(|&e| geometry.excitations[e].id.clone())
+            .collect();
+        if !dead.is_empty() {
+            out.push(diag(
+                DiagnosticKind::DeadChannel,
+                Severity::ChangesAnswer,
+                DiagnosticSubject {
+                    channel: Some(ch.id.clone()),
+                    ..setup_subject(setup, dead)
+                },
+                "identically zero in the band: left out of the pole estimate, its residues are 0"
+                    .into(),
+                "check the sensor, its cable and the channel map",
+            ));
+        }
+    }
+}
+
+/// A poly-reference fit's close pairs (one pole set for the set-up), once each, naming
+/// every excitation: a repeated root (closer than [`crate::poly::REPEATED_BANDWIDTHS`]),
+/// a near-repeated root (closer than `inseparable_bandwidths`) or a close pair, all
+/// notes: the participation vectors separate them.
+fn poly_reference_pairs(
+    ok: &[&ExcitationFit],
+    search: &PoleSearchParams,
+    setup: &str,
+    out: &mut Vec<Diagnostic>,
+) {
+    let all_ids = excitation_ids(ok);
+    let ps = poles(ok[0]);
+    for i in 0..ps.len() {
+        for j in i + 1..ps.len() {
+            let d = ps[i].distance_in_bandwidths(&ps[j]);
+            if d >= search.close_bandwidths {
+                continue;
+            }
+            let subject = DiagnosticSubject {
+                modes: vec![i + 1, j + 1],
+                frequencies_hz: vec![ps[i].frequency_hz(), ps[j].frequency_hz()],
+                ..setup_subject(setup, all_ids.clone())
+            };
+            if d < crate::poly::REPEATED_BANDWIDTHS {
+                out.push(diag(
+                    DiagnosticKind::RepeatedRoot,
+                    Severity::Note,
+                    subject,
+                    "one root of multiplicity 2: its modes are the reciprocal basis of the residue matrix (poly-reference fit)".into(),
+                    "",
+                ));
+            } else if d < search.inseparable_bandwidths {
+                out.push(diag(
+                    DiagnosticKind::RepeatedRoot,
+                    Severity::Note,
+                    subject,
+                    format!("a near-repeated root ({d:.2} half-bandwidths apart: one peak), separated by the poly-reference fit through the participation of every excitation"),
+                    "",
+                ));
+            } else {
+                out.push(diag(
+                    DiagnosticKind::CloseModes,
+                    Severity::Note,
+                    subject,
+                    format!("{d:.2} half-bandwidths apart, separated by the poly-reference fit"),
+                    "",
+                ));
+            }
+        }
+    }
+}
+
+/// Fit errors far above the noise the set-up fits to: one warning naming the
+/// excitations whose median fit error exceeds 0.1, or [`ERROR_RATIO`] × the best
+/// excitation's above [`ERROR_FLOOR`].
+fn fit_errors_above_noise(ok: &[&ExcitationFit], setup: &str) -> Option<Diagnostic> {
+    let all_ids = excitation_ids(ok);
+    let errs: Vec<f64> = ok.iter().map(|f| median_fit_error(f)).collect();
+    let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
+    let bad: Vec<usize> = (0..ok.len())
+        .filter(|&k| errs[k] > 0.1 || (errs[k] > ERROR_FLOOR && errs[k] > ERROR_RATIO * best))
+        .collect();
+    let worst = bad
+        .iter()
+        .copied()
+        .max_by(|&a, &b| errs[a].total_cmp(&errs[b]))?;
+    Some(diag(
+        DiagnosticKind::FitErrorAboveNoise,
+        Severity::Warning,
+        setup_subject(setup, bad.iter().map(|&k| all_ids[k].clone()).collect()),
+        format!(
+            "median fit error up to {:.2e} ({}), against {best:.2e} for the set-up's best-fitted excitation",
+            errs[worst], all_ids[worst]
+        ),
+        "look for a merged or missing mode in these excitations (--plot), an undeclared window (--exp-window) or an elastic mode in the band",
+    ))
+}
+
+/// Weakly excited modes, once per set-up: their frequencies and the excitations.
+fn weak_modes(ok: &[&ExcitationFit], setup: &str) -> Option<Diagnostic> {
+    let weak: Vec<(String, f64)> = ok
+        .iter()
+        .flat_map(|f| {
+            f.modes
+                .iter()
+                .filter(|m| m.weak)
+                .map(|m| (m.excitation.clone(), m.frequency_hz))
+        })
+        .collect();
+    if weak.is_empty() {
+        return None;
+    }
+    let mut hz: Vec<f64> = weak.iter().map(|w| w.1).collect();
+    hz.sort_by(f64::total_cmp);
+    hz.dedup_by(|a, b| (*a / *b - 1.0).abs() < 1e-3);
+    Some(diag(
+        DiagnosticKind::WeakModes,
+        Severity::Note,
+        DiagnosticSubject {
+            frequencies_hz: hz,
+            ..setup_subject(setup, dedup(weak.into_iter().map(|w| w.0)))
+        },
+        "barely excited in these excitations (peak NI more than 20 dB below the strongest mode, or residues uncertain); other excitations' estimates are preferred".into(),
+        "",
+    ))
+}
+
+/// The pole search's adjustments, counted once (each is listed in the records'
+/// warnings).
+fn pole_search_notes(ok: &[&ExcitationFit], setup: &str) -> Option<Diagnostic> {
+    let n: usize = ok.iter().map(|f| f.record.warnings.len()).sum::<usize>()
+        + ok.iter()
+            .flat_map(|f| &f.modes)
+            .map(|m| m.warnings.len())
+            .sum::<usize>();
+    (n > 0).then(|| {
+        diag(
+            DiagnosticKind::PoleSearch,
+            Severity::Note,
+            setup_subject(setup, excitation_ids(ok)),
+            format!("{n} notes of the pole search and the records (model-order tests, sub-bands, close pairs); each is in the excitations' and modes' warnings"),
+            "",
+        )
+    })
 }
 
 /// Close pairs of per-excitation fits, grouped across excitations: one
@@ -674,6 +727,23 @@ fn single_reference_pairs(
     setup: &str,
     out: &mut Vec<Diagnostic>,
 ) {
+    let pairs = close_pairs(ok, search);
+    let groups = group_pairs(&pairs);
+    for g in &groups {
+        out.push(pair_group_diagnostic(g, setup));
+    }
+    // Other multiplicity reports (a singular information matrix or residue basis) with no
+    // close pair to name.
+    if groups.iter().all(|g| !g.iter().any(|p| p.inseparable)) {
+        out.extend(unnamed_multiplicity(ok, setup));
+    }
+    merged_pair_warnings(ok, setup, out);
+}
+
+/// Every fit's pairs of poles closer than `close_bandwidths`, each marked inseparable
+/// when closer than `inseparable_bandwidths` or than twice their combined frequency
+/// standard deviation.
+fn close_pairs(ok: &[&ExcitationFit], search: &PoleSearchParams) -> Vec<Pair> {
     let mut pairs: Vec<Pair> = Vec::new();
     for f in ok {
         let ps = poles(f);
@@ -696,9 +766,14 @@ fn single_reference_pairs(
             }
         }
     }
-    // Group pairs near one frequency.
+    pairs
+}
+
+/// The pairs grouped by frequency: a pair joins the first group whose first pair lies
+/// within [`NEAR_BANDWIDTHS`].
+fn group_pairs(pairs: &[Pair]) -> Vec<Vec<&Pair>> {
     let mut groups: Vec<Vec<&Pair>> = Vec::new();
-    for p in &pairs {
+    for p in pairs {
         match groups
             .iter_mut()
             .find(|g| g[0].pole.distance_in_bandwidths(&p.pole) < NEAR_BANDWIDTHS)
@@ -707,63 +782,65 @@ fn single_reference_pairs(
             None => groups.push(vec![p]),
         }
     }
-    for g in &groups {
-        let inseparable = g.iter().any(|p| p.inseparable);
-        let ex = dedup(g.iter().map(|p| p.excitation.clone()));
-        let lo = g.iter().map(|p| p.f.0).fold(f64::INFINITY, f64::min);
-        let hi = g.iter().map(|p| p.f.1).fold(0.0, f64::max);
-        let dmin = g.iter().map(|p| p.distance).fold(f64::INFINITY, f64::min);
-        let subject = DiagnosticSubject {
-            setup: Some(setup.into()),
-            excitations: ex,
-            frequencies_hz: vec![lo, hi],
-            ..Default::default()
-        };
-        if inseparable {
-            out.push(diag(
-                DiagnosticKind::RepeatedRoot,
-                Severity::Warning,
-                subject,
-                format!("two poles {dmin:.2} half-bandwidths apart that the per-excitation fits cannot separate: their split into two modes is arbitrary"),
-                "fit the set-up with --method plscf (poly-reference), which separates them by their participation",
-            ));
-        } else {
-            out.push(diag(
-                DiagnosticKind::CloseModes,
-                Severity::Note,
-                subject,
-                format!("{dmin:.2} half-bandwidths apart, resolved by the per-excitation fits"),
-                "",
-            ));
-        }
+    groups
+}
+
+/// One group's diagnostic: a repeated-root warning when some fit cannot separate the
+/// pair, else a close-modes note.
+fn pair_group_diagnostic(g: &[&Pair], setup: &str) -> Diagnostic {
+    let inseparable = g.iter().any(|p| p.inseparable);
+    let ex = dedup(g.iter().map(|p| p.excitation.clone()));
+    let lo = g.iter().map(|p| p.f.0).fold(f64::INFINITY, f64::min);
+    let hi = g.iter().map(|p| p.f.1).fold(0.0, f64::max);
+    let dmin = g.iter().map(|p| p.distance).fold(f64::INFINITY, f64::min);
+    let subject = DiagnosticSubject {
+        frequencies_hz: vec![lo, hi],
+        ..setup_subject(setup, ex)
+    };
+    if inseparable {
+        diag(
+            DiagnosticKind::RepeatedRoot,
+            Severity::Warning,
+            subject,
+            format!("two poles {dmin:.2} half-bandwidths apart that the per-excitation fits cannot separate: their split into two modes is arbitrary"),
+            "fit the set-up with --method plscf (poly-reference), which separates them by their participation",
+        )
+    } else {
+        diag(
+            DiagnosticKind::CloseModes,
+            Severity::Note,
+            subject,
+            format!("{dmin:.2} half-bandwidths apart, resolved by the per-excitation fits"),
+            "",
+        )
     }
-    // Other multiplicity reports (a singular information matrix or residue basis) with no
-    // close pair to name.
-    if groups.iter().all(|g| !g.iter().any(|p| p.inseparable)) {
-        let ex: Vec<String> = ok
-            .iter()
-            .filter(|f| {
-                f.multiplicity
-                    .iter()
-                    .any(|m| m.kind != crate::fit::Multiplicity::SplitPair)
-            })
-            .map(|f| f.record.excitation.clone())
-            .collect();
-        if !ex.is_empty() {
-            out.push(diag(
-                DiagnosticKind::RepeatedRoot,
-                Severity::Warning,
-                DiagnosticSubject {
-                    setup: Some(setup.into()),
-                    excitations: ex,
-                    ..Default::default()
-                },
-                "two poles are not separable with these data (singular information matrix or residue basis)".into(),
-                "fit the set-up with --method plscf (poly-reference)",
-            ));
-        }
-    }
-    // Merged pairs: a fit with one pole between two of another fit's.
+}
+
+/// A warning naming the fits that report a multiplicity other than a split pair (a
+/// singular information matrix or residue basis).
+fn unnamed_multiplicity(ok: &[&ExcitationFit], setup: &str) -> Option<Diagnostic> {
+    let ex: Vec<String> = ok
+        .iter()
+        .filter(|f| {
+            f.multiplicity
+                .iter()
+                .any(|m| m.kind != crate::fit::Multiplicity::SplitPair)
+        })
+        .map(|f| f.record.excitation.clone())
+        .collect();
+    (!ex.is_empty()).then(|| {
+        diag(
+            DiagnosticKind::RepeatedRoot,
+            Severity::Warning,
+            setup_subject(setup, ex),
+            "two poles are not separable with these data (singular information matrix or residue basis)".into(),
+            "fit the set-up with --method plscf (poly-reference)",
+        )
+    })
+}
+
+/// Merged pairs: a fit with one pole between two of another fit's, once per frequency.
+fn merged_pair_warnings(ok: &[&ExcitationFit], setup: &str, out: &mut Vec<Diagnostic>) {
     let all: Vec<Vec<Pole>> = ok.iter().map(|f| poles(f)).collect();
     let mut seen: Vec<Pole> = Vec::new();
     for (a, pa) in all.iter().enumerate() {

@@ -625,15 +625,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
     let data = unit_rms(chans);
     let lw = std::sync::Arc::new(band_line_weights(band, &data));
     let bw = stack_data(&data, &lw);
-    let (qre, qim): (Vec<f64>, Vec<f64>) = band
-        .quantity_factor()
-        .iter()
-        .zip(lw.iter())
-        .map(|(q, w)| {
-            let z = q * *w;
-            (z.re, z.im)
-        })
-        .unzip();
+    let (qre, qim) = weighted_quantity_factor(band, &lw);
     let nm = poles.len();
     let np = 2 * nm;
     let mut cur: Vec<Pole> = poles.to_vec();
@@ -654,57 +646,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         // In plain real arithmetic over line arrays (the operations of `recips`, the
         // complex squares and the products by q, written out so that they vectorise).
         derivative_columns(&mut d, &cur, &band.omega, &qre, &qim);
-        // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
-        let pc = t.n_cols;
-        let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &d));
-        let dd = linalg::gram(&d);
-        let mut gd = Mat::<f64>::zeros(np, np);
-        for i in 0..np {
-            for j in 0..=i {
-                let mut v = dd[(i, j)];
-                for l in 0..pc {
-                    v -= y[(l, i)] * y[(l, j)];
-                }
-                gd[(i, j)] = v;
-                gd[(j, i)] = v;
-            }
-        }
-        // JᵀJ and Jᵀr over channels; e-vectors: θ=Re λ_m → (a, b) on (d1, d2),
-        // θ=Im λ_m → (−b, a).
-        let mut g = vec![0.0; np];
-        for v in jtj.col_iter_mut() {
-            for x in v.iter_mut() {
-                *x = 0.0;
-            }
-        }
-        let drm = tmul(&d, &t.resid);
-        let dr: Vec<Vec<f64>> = (0..np)
-            .map(|j| (0..no).map(|o| drm[(j, o)]).collect())
-            .collect();
-        for o in 0..no {
-            let e = |j: usize| -> (usize, f64, f64) {
-                let m = j / 2;
-                let r = t.residues[m][o];
-                if j % 2 == 0 {
-                    (m, r.re, r.im)
-                } else {
-                    (m, -r.im, r.re)
-                }
-            };
-            for j in 0..np {
-                let (mj, x1, x2) = e(j);
-                g[j] += x1 * dr[2 * mj][o] + x2 * dr[2 * mj + 1][o];
-                for k in 0..=j {
-                    let (mk, y1, y2) = e(k);
-                    let v = x1 * (y1 * gd[(2 * mj, 2 * mk)] + y2 * gd[(2 * mj, 2 * mk + 1)])
-                        + x2 * (y1 * gd[(2 * mj + 1, 2 * mk)] + y2 * gd[(2 * mj + 1, 2 * mk + 1)]);
-                    jtj[(j, k)] += v;
-                    if k != j {
-                        jtj[(k, j)] += v;
-                    }
-                }
-            }
-        }
+        let g = normal_equations(&d, &t, &mut jtj);
         // Converged when even the undamped Gauss–Newton step predicts a cost drop below
         // the stall tolerance (see below): saves evaluating a step that cannot matter.
         let gn_rhs = Mat::from_fn(np, 1, |i, _| g[i]);
@@ -778,8 +720,96 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         }
     }
     // Covariance σ²(JᵀJ)⁻¹ (JᵀJ of the last linearisation).
-    let s2 = t.cost / dof;
-    let inv = linalg::solve_square(&jtj, &Mat::identity(np, np));
+    let (covariance, singular) = pole_covariance(&jtj, t.cost / dof, nm);
+    Refined {
+        poles: cur,
+        covariance,
+        singular,
+        iterations,
+        converged,
+        cost: (cost0, t.cost),
+        fit: std::sync::Arc::new(t),
+    }
+}
+
+/// `q(ω)·w` per line as real and imaginary parts (`q` the quantity factor, `w` the
+/// line weights), for the derivative columns.
+fn weighted_quantity_factor(band: &BandData, lw: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    band.quantity_factor()
+        .iter()
+        .zip(lw.iter())
+        .map(|(q, w)| {
+            let z = q * *w;
+            (z.re, z.im)
+        })
+        .unzip()
+}
+
+/// `JᵀJ` (into `jtj`) and `−Jᵀr` of [`refine`] at the trial `t`, from the derivative
+/// vectors `d` (`2N × 2M`): `JᵀJ` over the channels from the projected Gram matrix
+/// `G_D = DᵀP⊥D` and each channel's residues, `Jᵀr` from `Dᵀr_o`.
+fn normal_equations(d: &Mat<f64>, t: &Trial, jtj: &mut Mat<f64>) -> Vec<f64> {
+    let np = d.ncols();
+    let no = t.resid.ncols();
+    // G_D = DᵀD − (QᵀD)ᵀ(QᵀD), QᵀD = R⁻ᵀ Φ̃ᵀD; all products by matrix multiplication.
+    let pc = t.n_cols;
+    let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), d));
+    let dd = linalg::gram(d);
+    let mut gd = Mat::<f64>::zeros(np, np);
+    for i in 0..np {
+        for j in 0..=i {
+            let mut v = dd[(i, j)];
+            for l in 0..pc {
+                v -= y[(l, i)] * y[(l, j)];
+            }
+            gd[(i, j)] = v;
+            gd[(j, i)] = v;
+        }
+    }
+    // JᵀJ and Jᵀr over channels; e-vectors: θ=Re λ_m → (a, b) on (d1, d2),
+    // θ=Im λ_m → (−b, a).
+    let mut g = vec![0.0; np];
+    for v in jtj.col_iter_mut() {
+        for x in v.iter_mut() {
+            *x = 0.0;
+        }
+    }
+    let drm = tmul(d, &t.resid);
+    let dr: Vec<Vec<f64>> = (0..np)
+        .map(|j| (0..no).map(|o| drm[(j, o)]).collect())
+        .collect();
+    for o in 0..no {
+        let e = |j: usize| -> (usize, f64, f64) {
+            let m = j / 2;
+            let r = t.residues[m][o];
+            if j % 2 == 0 {
+                (m, r.re, r.im)
+            } else {
+                (m, -r.im, r.re)
+            }
+        };
+        for j in 0..np {
+            let (mj, x1, x2) = e(j);
+            g[j] += x1 * dr[2 * mj][o] + x2 * dr[2 * mj + 1][o];
+            for k in 0..=j {
+                let (mk, y1, y2) = e(k);
+                let v = x1 * (y1 * gd[(2 * mj, 2 * mk)] + y2 * gd[(2 * mj, 2 * mk + 1)])
+                    + x2 * (y1 * gd[(2 * mj + 1, 2 * mk)] + y2 * gd[(2 * mj + 1, 2 * mk + 1)]);
+                jtj[(j, k)] += v;
+                if k != j {
+                    jtj[(k, j)] += v;
+                }
+            }
+        }
+    }
+    g
+}
+
+/// The poles' covariances `σ²(JᵀJ)⁻¹` (2 × 2 per pole: Re λ, Im λ) with `s2 = σ²`, and
+/// whether `JᵀJ` is singular (then zero covariances).
+fn pole_covariance(jtj: &Mat<f64>, s2: f64, nm: usize) -> (Vec<[[f64; 2]; 2]>, bool) {
+    let np = 2 * nm;
+    let inv = linalg::solve_square(jtj, &Mat::identity(np, np));
     let covariance = (0..nm)
         .map(|m| match &inv {
             Some(ci) => [
@@ -789,15 +819,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
             None => [[0.0; 2]; 2],
         })
         .collect();
-    Refined {
-        poles: cur,
-        covariance,
-        singular: inv.is_none(),
-        iterations,
-        converged,
-        cost: (cost0, t.cost),
-        fit: std::sync::Arc::new(t),
-    }
+    (covariance, inv.is_none())
 }
 
 /// Columns 2m and 2m + 1 of a real-stacked matrix (rows 0..n the real parts, n..2n the

@@ -476,7 +476,7 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
         return Vec::new();
     }
     let dt = std::f64::consts::PI / w_max;
-    let Some(red) = Reduced::new(data, dt, n_max) else {
+    let Some(red) = crate::prof::time(4, || Reduced::new(data, dt, n_max)) else {
         return Vec::new();
     };
     // Orders whose normal equations or companion matrix are singular are left out. The
@@ -485,7 +485,7 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
     (1..=n_max)
         .into_par_iter()
         .filter_map(|n| {
-            let m = red.matrix(n);
+            let m = crate::prof::time(4, || red.matrix(n));
             let nc = (n + 1) * ni;
             let d = n * ni;
             // M11 α = −M12 with α_n = I.
@@ -493,8 +493,8 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
             let rhs: Vec<f64> = (0..d * ni)
                 .map(|i| -m[(i / ni) * nc + d + i % ni])
                 .collect();
-            let alpha = linalg::solve_rows(m11, rhs, d, ni)?;
-            let (poles, shapes) = companion_poles(&alpha, n, ni, dt)?;
+            let alpha = crate::prof::time(11, || linalg::solve_rows(m11, rhs, d, ni))?;
+            let (poles, shapes) = crate::prof::time(5, || companion_poles(&alpha, n, ni, dt))?;
             Some(OrderPoles {
                 order: n,
                 poles,

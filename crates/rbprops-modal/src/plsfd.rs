@@ -15,8 +15,11 @@
 //! vectors give independent columns: a repeated root is separable here, where a
 //! single-reference fit sees one column.
 
+mod setup_basis;
+
+pub(crate) use setup_basis::{SetupBasis, SetupLs};
+
 use crate::band::BandData;
-use crate::linalg::TallLs;
 use crate::lsfd::{line_weights, Residuals};
 use crate::pole::Pole;
 use faer::Mat;
@@ -50,11 +53,11 @@ pub fn fit_shapes(
     let n = bands[0].n_lines();
     let no = bands[0].channels.len();
     let w = line_weights_per_excitation(bands);
-    let mut a = basis(poles, parts, bands, res, &w);
-    let (rows, ncol) = a.shape();
-    let scale = normalise_columns(&mut a);
+    let mut a = SetupBasis::new(poles, parts, bands, res, &w);
+    let (rows, ncol) = (2 * n * ni, a.ncols());
+    let scale = a.normalise_columns();
     let b = stacked_data(bands, &w);
-    let ls = TallLs::new(a);
+    let ls = SetupLs::new(a);
     let (x, resid, rss) = ls.solve_into(b);
     let ginv = ls.inverse_gram();
     let rd = ls.r_diag();
@@ -125,57 +128,6 @@ pub(crate) fn line_weights_per_excitation(bands: &[&BandData]) -> Vec<Vec<f64>> 
     bands.iter().map(|b| line_weights(&b.channels)).collect()
 }
 
-/// The real-stacked, weighted basis of the model above for the poles `poles` with
-/// participation vectors `parts`: rows `[Re; Im]` of excitation `e` at `2N·e`, columns
-/// `(a_r, b_r)` per mode (`ψ_r = a_r + i b_r`), then the residual terms of each
-/// excitation. `w[e]` are the line weights.
-pub(crate) fn basis(
-    poles: &[Pole],
-    parts: &[Vec<c64>],
-    bands: &[&BandData],
-    res: Residuals,
-    w: &[Vec<f64>],
-) -> Mat<f64> {
-    let ni = bands.len();
-    let nm = poles.len();
-    let n = bands[0].n_lines();
-    let q = bands[0].quantity_factor();
-    let omega = &bands[0].omega;
-    let nres = res.upper as usize + res.lower as usize;
-    let ncol = 2 * nm + nres * ni;
-    let rows = 2 * n * ni;
-    let mut a = Mat::<f64>::zeros(rows, ncol);
-    for e in 0..ni {
-        let base = 2 * n * e;
-        for k in 0..n {
-            let qk = q[k] * w[e][k];
-            let s = c64::new(0.0, omega[k]);
-            for (r, p) in poles.iter().enumerate() {
-                let (u, v) = (1.0 / (s - p.0), 1.0 / (s - p.0.conj()));
-                let le = parts[r][e];
-                let c1 = qk * (le * u + le.conj() * v);
-                let c2 = qk * c64::new(0.0, 1.0) * (le * u - le.conj() * v);
-                a[(base + k, 2 * r)] = c1.re;
-                a[(base + n + k, 2 * r)] = c1.im;
-                a[(base + k, 2 * r + 1)] = c2.re;
-                a[(base + n + k, 2 * r + 1)] = c2.im;
-            }
-            let mut j = 2 * nm + nres * e;
-            if res.upper {
-                a[(base + k, j)] = qk.re;
-                a[(base + n + k, j)] = qk.im;
-                j += 1;
-            }
-            if res.lower {
-                let x = qk * (-1.0 / (omega[k] * omega[k]));
-                a[(base + k, j)] = x.re;
-                a[(base + n + k, j)] = x.im;
-            }
-        }
-    }
-    a
-}
-
 /// Scales the columns of `a` to unit norm (the pole columns and the residual terms
 /// differ by orders of magnitude); returns the scales (1 for a zero column).
 pub(crate) fn normalise_columns(a: &mut Mat<f64>) -> Vec<f64> {
@@ -193,7 +145,7 @@ pub(crate) fn normalise_columns(a: &mut Mat<f64>) -> Vec<f64> {
     scale
 }
 
-/// The weighted data real-stacked as the rows of [`basis`], one column per output.
+/// The weighted data real-stacked as the rows of [`SetupBasis`], one column per output.
 pub(crate) fn stacked_data(bands: &[&BandData], w: &[Vec<f64>]) -> Mat<f64> {
     let n = bands[0].n_lines();
     let no = bands[0].channels.len();

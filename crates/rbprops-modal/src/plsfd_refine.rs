@@ -29,10 +29,10 @@
 //! ```
 
 use crate::band::BandData;
-use crate::linalg::{self, TallLs};
+use crate::linalg;
 use crate::lsfd::Residuals;
 use crate::plscf::normalise_phase;
-use crate::plsfd;
+use crate::plsfd::{self, SetupBasis, SetupLs};
 use crate::pole::Pole;
 use faer::Mat;
 use rbprops_core::c64;
@@ -90,7 +90,7 @@ impl State {
 /// The poly-reference LSFD solution at one trial `θ`.
 struct Trial {
     cost: f64,
-    ls: TallLs,
+    ls: SetupLs,
     /// `ψ_ro` per mode and output (of the RMS-scaled data).
     psi: Vec<Vec<c64>>,
     /// Real-stacked residuals, one column per output.
@@ -122,17 +122,17 @@ pub fn refine(
         lambda,
         parts: parts.to_vec(),
     };
-    let mut t = trial(&p, &s);
+    let mut t = crate::prof::time(8, || trial(&p, &s));
     let cost0 = t.cost;
     let mut mu = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
     for it in 0..MAX_ITERATIONS {
         iterations = it + 1;
-        let (jtj, g) = normal_equations(&p, &s, &t);
+        let (jtj, g) = crate::prof::time(9, || normal_equations(&p, &s, &t));
         let rhs = Mat::from_fn(p.n_params, 1, |i, _| g[i]);
         // Converged when even the undamped Gauss–Newton step predicts a negligible drop.
-        if let Some(gn) = linalg::solve_square(&jtj, &rhs) {
+        if let Some(gn) = crate::prof::time(10, || linalg::solve_square(&jtj, &rhs)) {
             let predicted: f64 = (0..p.n_params).map(|i| gn[(i, 0)] * g[i]).sum();
             if predicted.is_finite() && predicted >= 0.0 && predicted <= 1e-10 * t.cost {
                 converged = true;
@@ -152,7 +152,7 @@ pub fn refine(
                         0.0
                     }
             });
-            let Some(step) = linalg::solve_square(&lhs, &rhs) else {
+            let Some(step) = crate::prof::time(10, || linalg::solve_square(&lhs, &rhs)) else {
                 mu *= 10.0;
                 continue;
             };
@@ -161,7 +161,7 @@ pub fn refine(
                 mu *= 10.0;
                 continue;
             }
-            let t2 = trial(&p, &cand);
+            let t2 = crate::prof::time(8, || trial(&p, &cand));
             if t2.cost <= t.cost {
                 let rel_step = (0..p.n_roots)
                     .map(|g| (cand.lambda[g] - s.lambda[g]).norm() / (-s.lambda[g].re))
@@ -251,9 +251,9 @@ fn problem<'a>(
 /// The poly-reference LSFD solution at `s`.
 fn trial(p: &Problem, s: &State) -> Trial {
     let poles = s.poles(&p.roots);
-    let mut a = plsfd::basis(&poles, &s.parts, p.bands, p.res, &p.w);
-    let scale = plsfd::normalise_columns(&mut a);
-    let ls = TallLs::new(a);
+    let mut a = SetupBasis::new(&poles, &s.parts, p.bands, p.res, &p.w);
+    let scale = a.normalise_columns();
+    let ls = SetupLs::new(a);
     let (x, resid, rss) = ls.solve_into(p.b.clone());
     let psi = (0..poles.len())
         .map(|r| {
@@ -332,11 +332,41 @@ fn line_vectors(p: &Problem, poles: &[Pole]) -> Vec<Mat<f64>> {
         .collect()
 }
 
-/// `C_oe` (`4·modes × θ`): `D_o` on excitation `e`'s rows is `E_e C_oe` ([`line_vectors`]).
+/// The parameters excitation `e`'s rows of `D_o` depend on, in order: every root's
+/// pole (`2·roots` columns, the first ones of `θ`), then for each mode whose fixed
+/// participation entry is not `e` its `l_re` (two columns). `slot[r]` is the position
+/// of mode `r`'s `l_re` pair in that list (`None` for the fixed entry).
+struct Active {
+    cols: Vec<usize>,
+    slot: Vec<Option<usize>>,
+}
+
+fn active(p: &Problem, e: usize) -> Active {
+    let mut cols: Vec<usize> = (0..2 * p.n_roots).collect();
+    let slot = (0..p.fixed.len())
+        .map(|r| {
+            (e != p.fixed[r]).then(|| {
+                let c = part_column(p, r, e);
+                cols.extend([c, c + 1]);
+                cols.len() - 2
+            })
+        })
+        .collect();
+    Active { cols, slot }
+}
+
+/// `C_oe` on the parameters of `act` (`4·modes × act.cols`): `D_o` on excitation `e`'s
+/// rows is `E_e C_oe` ([`line_vectors`]); the other columns of `θ` are zero there.
 /// With `R = ψ_ro l_re = a + ib`: `∂/∂Re λ = a d1 + b d2`, `∂/∂Im λ = −b d1 + a d2`;
 /// with `ψ_ro = c + id`: `∂/∂Re l_re = c b1 + d b2`, `∂/∂Im l_re = −d b1 + c b2`.
-fn coefficients(p: &Problem, s: &State, psi: &[Vec<c64>], o: usize, e: usize) -> Mat<f64> {
-    let mut c = Mat::<f64>::zeros(4 * s.parts.len(), p.n_params);
+fn coefficients(
+    p: &Problem,
+    s: &State,
+    psi: &[Vec<c64>],
+    (o, e): (usize, usize),
+    act: &Active,
+) -> Mat<f64> {
+    let mut c = Mat::<f64>::zeros(4 * s.parts.len(), act.cols.len());
     for (r, l) in s.parts.iter().enumerate() {
         let g = p.roots[r];
         let ps = psi[r][o];
@@ -345,8 +375,7 @@ fn coefficients(p: &Problem, s: &State, psi: &[Vec<c64>], o: usize, e: usize) ->
         c[(4 * r + 1, 2 * g)] = rr.im;
         c[(4 * r, 2 * g + 1)] = -rr.im;
         c[(4 * r + 1, 2 * g + 1)] = rr.re;
-        if e != p.fixed[r] {
-            let j = part_column(p, r, e);
+        if let Some(j) = act.slot[r] {
             c[(4 * r + 2, j)] = ps.re;
             c[(4 * r + 3, j)] = ps.im;
             c[(4 * r + 2, j + 1)] = -ps.im;
@@ -356,64 +385,108 @@ fn coefficients(p: &Problem, s: &State, psi: &[Vec<c64>], o: usize, e: usize) ->
     c
 }
 
+/// The small products of excitation `e`'s line vectors `E_e` ([`line_vectors`]):
+/// `E_eᵀE_e`, `Φ̃_eᵀE_e` (the rows of the basis columns non-zero on `e`'s rows) and
+/// `E_eᵀr_oe` for every output.
+struct LineProducts {
+    gram: Mat<f64>,
+    basis: Mat<f64>,
+    resid: Mat<f64>,
+}
+
 /// `JᵀJ` and `−Jᵀr = Σ_o D_oᵀ r_o` at `s` (the trial `t`), from the small products of
 /// the line vectors `E_e` with themselves, with the basis and with the residuals:
 /// `D_oᵀD_o = Σ_e C_oeᵀ(E_eᵀE_e)C_oe`, `Φ̃ᵀD_o = Σ_e (Φ̃_eᵀE_e)C_oe`,
 /// `D_oᵀr_o = Σ_e C_oeᵀ(E_eᵀr_oe)`: O(N·Ni·modes²) per iteration, not O(N·Ni·No·θ²).
+///
+/// Each `C_oe` is non-zero on the poles and `e`'s participations only ([`Active`]), and
+/// `Φ̃_e` on the pole columns and `e`'s residual terms: the products are taken on those
+/// (about 24 of 600 parameters with 50 excitations and 6 modes) and scattered. The
+/// projection term `Σ_o (Φ̃ᵀD_o)ᵀ(Φ̃ᵀΦ̃)⁻¹(Φ̃ᵀD_o)` is `Σ_o Y_oᵀY_o` with
+/// `Y_o = R⁻ᵀ(Φ̃ᵀD_o)` (Gram products, their lower triangles).
 fn normal_equations(p: &Problem, s: &State, t: &Trial) -> (Mat<f64>, Vec<f64>) {
-    let np = p.n_params;
-    let n = p.bands[0].n_lines();
-    let ni = p.bands.len();
-    let no = p.b.ncols();
+    use rayon::prelude::*;
+    let n2 = 2 * p.bands[0].n_lines();
+    let basis = t.ls.basis();
     let ev = line_vectors(p, &s.poles(&p.roots));
-    let ginv = t.ls.inverse_gram();
-    let phi = t.ls.matrix().as_ref();
-    let k = ev[0].ncols();
-    let mut gee = Vec::with_capacity(ni);
-    let mut pe = Vec::with_capacity(ni);
-    let mut fe = Vec::with_capacity(ni);
-    for (e, em) in ev.iter().enumerate() {
-        gee.push(linalg::gram(em));
-        let rows = 2 * n * e..2 * n * (e + 1);
-        let mut pm = Mat::<f64>::zeros(phi.ncols(), k);
-        linalg::t_mul_add(&mut pm, phi.subrows(rows.start, 2 * n), em.as_ref(), 1.0);
-        pe.push(pm);
-        let mut f = Mat::<f64>::zeros(k, no);
-        linalg::t_mul_add(
-            &mut f,
-            em.as_ref(),
-            t.resid.as_ref().subrows(rows.start, 2 * n),
-            1.0,
-        );
-        fe.push(f);
-    }
-    let mut jtj = Mat::<f64>::zeros(np, np);
-    let mut g = vec![0.0; np];
-    for o in 0..no {
-        let mut m = Mat::<f64>::zeros(phi.ncols(), np);
-        for e in 0..ni {
-            let c = coefficients(p, s, &t.psi, o, e);
-            let gc = &gee[e] * &c;
-            let cgc = linalg::t_mul(&c, &gc);
-            for i in 0..np {
-                for j in 0..np {
-                    jtj[(i, j)] += cgc[(i, j)];
-                }
-                for q in 0..k {
-                    g[i] += c[(q, i)] * fe[e][(q, o)];
-                }
-            }
-            m += &pe[e] * &c;
-        }
-        let z = linalg::t_mul(&ginv, &m);
-        let mz = linalg::t_mul(&m, &z);
-        for i in 0..np {
-            for j in 0..np {
-                jtj[(i, j)] -= mz[(i, j)];
-            }
-        }
+    let prods: Vec<LineProducts> = ev
+        .par_iter()
+        .enumerate()
+        .map(|(e, em)| LineProducts {
+            gram: linalg::gram(em),
+            basis: basis.block_t_mul(e, em.as_ref()),
+            resid: linalg::t_mul(em, &t.resid.as_ref().subrows(n2 * e, n2).to_owned()),
+        })
+        .collect();
+    let acts: Vec<Active> = (0..ev.len()).map(|e| active(p, e)).collect();
+    // The outputs in parallel, added in output order: the same sums for any thread count.
+    let terms: Vec<(Mat<f64>, Vec<f64>)> = (0..p.b.ncols())
+        .into_par_iter()
+        .map(|o| output_terms(p, s, t, o, (&prods, &acts)))
+        .collect();
+    let mut it = terms.into_iter();
+    let (mut jtj, mut g) = it.next().expect("at least one output");
+    for (a, b) in it {
+        jtj += a;
+        g.iter_mut().zip(b).for_each(|(x, y)| *x += y);
     }
     (jtj, g)
+}
+
+/// Output `o`'s share of [`normal_equations`]: `D_oᵀD_o − (Φ̃ᵀD_o)ᵀ(Φ̃ᵀΦ̃)⁻¹(Φ̃ᵀD_o)` and
+/// `D_oᵀr_o`, the latter term as `Y_oᵀY_o` with `Y_o = R⁻ᵀ(Φ̃ᵀD_o)`.
+fn output_terms(
+    p: &Problem,
+    s: &State,
+    t: &Trial,
+    o: usize,
+    (prods, acts): (&[LineProducts], &[Active]),
+) -> (Mat<f64>, Vec<f64>) {
+    let np = p.n_params;
+    let basis = t.ls.basis();
+    let mut jtj = Mat::<f64>::zeros(np, np);
+    let mut g = vec![0.0; np];
+    let mut m = Mat::<f64>::zeros(t.ls.ncols(), np);
+    for (e, (pr, act)) in prods.iter().zip(acts).enumerate() {
+        let c = coefficients(p, s, &t.psi, (o, e), act);
+        let cgc = linalg::t_mul(&c, &(&pr.gram * &c));
+        for (i, &pi) in act.cols.iter().enumerate() {
+            for (j, &pj) in act.cols.iter().enumerate() {
+                jtj[(pi, pj)] += cgc[(i, j)];
+            }
+            for q in 0..c.nrows() {
+                g[pi] += c[(q, i)] * pr.resid[(q, o)];
+            }
+        }
+        let pc = &pr.basis * &c;
+        for (i, &bi) in basis.block_cols(e).iter().enumerate() {
+            for (j, &pj) in act.cols.iter().enumerate() {
+                m[(bi, pj)] += pc[(i, j)];
+            }
+        }
+    }
+    let y = r_inv_t(&t.ls, &m);
+    let mut proj = Mat::<f64>::zeros(np, np);
+    linalg::gram_lower_add(&mut proj, y.as_ref());
+    linalg::mirror_lower(&mut proj);
+    (jtj - proj, g)
+}
+
+/// `R⁻ᵀ m` (forward substitution on the transposed triangular factor of `ls`).
+fn r_inv_t(ls: &SetupLs, m: &Mat<f64>) -> Mat<f64> {
+    let pc = ls.ncols();
+    let r = Mat::from_fn(pc, pc, |i, j| ls.r(i, j));
+    let mut y = Mat::<f64>::zeros(pc, m.ncols());
+    for j in 0..m.ncols() {
+        for i in 0..pc {
+            let mut v = m[(i, j)];
+            for l in 0..i {
+                v -= r[(l, i)] * y[(l, j)];
+            }
+            y[(i, j)] = v / r[(i, i)];
+        }
+    }
+    y
 }
 
 #[cfg(test)]

@@ -270,6 +270,11 @@ const MAX_REFINEMENT_BANDWIDTHS: f64 = 1.0;
 
 /// Fits the excitations `members` of one set-up together; one [`ExcitationFit`] per
 /// member, in the order given.
+///
+/// Stages: the pLSCF sweep and selection ([`estimate`]), the joint refinement
+/// ([`refine_poles`]), the poly-reference LSFD ([`plsfd::fit_shapes`]), the reciprocal
+/// basis of each repeated root ([`make_repeated_roots_reciprocal`]), then one record
+/// per excitation ([`excitation_records`]).
 pub(crate) fn fit_setup(
     geometry: &Geometry,
     frf: &FrfSet,
@@ -282,6 +287,63 @@ pub(crate) fn fit_setup(
         .iter()
         .map(|&e| BandData::extract(frf, e, opts.band_hz, &geometry.excitations[e].id))
         .collect::<Result<_, _>>()?;
+    let mut warnings = zero_channel_warnings(geometry, &bands, &name)?;
+    let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;
+    warnings.extend(pp.warnings.iter().cloned());
+    let res = Residuals::for_band(opts.residual_terms, &bands[0]);
+    let band_refs: Vec<&BandData> = bands.iter().collect();
+    // Repeated roots: one pole per group from here on.
+    let groups = repeated_groups(&pp.poles);
+    refine_poles(&mut pp, &groups, &band_refs, res, &name, &mut warnings);
+    let mut sf = crate::prof::time(6, || {
+        plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+    });
+    if !groups.is_empty() {
+        let fit = SetupFit {
+            geometry,
+            members,
+            name: &name,
+        };
+        warnings.extend(make_repeated_roots_reciprocal(&fit, &groups, &sf, &mut pp));
+        sf = crate::prof::time(6, || {
+            plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
+        });
+    }
+    if sf.basis_conditioning < 1e-8 {
+        warnings.push(format!(
+            "{name}: the poly-reference shape basis is nearly singular (conditioning {:.1e}): two poles with the same participation cannot be separated",
+            sf.basis_conditioning
+        ));
+    }
+    let mode_warnings = close_pair_notes(&pp.poles);
+    let fit = SetupFit {
+        geometry,
+        members,
+        name: &name,
+    };
+    Ok(excitation_records(
+        &fit,
+        &bands,
+        (&pp, &sf),
+        (mode_warnings, warnings),
+        opts,
+    ))
+}
+
+/// The set-up being fitted: its geometry, its excitations and its name in messages.
+struct SetupFit<'a> {
+    geometry: &'a Geometry,
+    members: &'a [usize],
+    name: &'a str,
+}
+
+/// A warning per channel identically zero in the band for every excitation (its
+/// residues are 0); an error when every channel is.
+fn zero_channel_warnings(
+    geometry: &Geometry,
+    bands: &[BandData],
+    name: &str,
+) -> Result<Vec<String>, ModalError> {
     let no = bands[0].channels.len();
     let mut warnings = Vec::new();
     for o in 0..no {
@@ -297,64 +359,62 @@ pub(crate) fn fit_setup(
     }
     if warnings.len() == no {
         return Err(ModalError::BadInput {
-            excitation: name,
+            excitation: name.into(),
             reason: "every channel is identically zero in the band".into(),
         });
     }
-    let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;
-    warnings.extend(pp.warnings.iter().cloned());
-    let res = Residuals::for_band(opts.residual_terms, &bands[0]);
-    let band_refs: Vec<&BandData> = bands.iter().collect();
-    // Repeated roots: one pole per group from here on.
-    let groups = repeated_groups(&pp.poles);
-    refine_poles(&mut pp, &groups, &band_refs, res, &name, &mut warnings);
-    let mut sf = crate::prof::time(6, || {
-        plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
-    });
-    // Repeated roots: the split of the group's residue matrix into modes is arbitrary;
-    // choose the reciprocal one (see `reciprocity`) and refit the shapes with it.
-    if !groups.is_empty() {
-        for g in &groups {
-            let psi: Vec<Vec<c64>> = g.iter().map(|&r| sf.shapes[r].clone()).collect();
-            let parts: Vec<Vec<c64>> = g.iter().map(|&r| pp.parts[r].clone()).collect();
-            let freqs: Vec<String> = g
-                .iter()
-                .map(|&r| format!("{:.5}", pp.poles[r].frequency_hz()))
-                .collect();
-            match reciprocity::reciprocal_participation(geometry, members, &psi, &parts) {
-                Ok(l) => {
-                    let mean = g.iter().map(|&r| pp.poles[r].0).sum::<c64>() / g.len() as f64;
-                    for (&r, l) in g.iter().zip(l) {
-                        pp.parts[r] = l;
-                        pp.poles[r] = Pole(mean);
-                    }
-                    warnings.push(format!(
-                        "{name}: poles at {} Hz are one root of multiplicity {} (within {REPEATED_BANDWIDTHS} half-bandwidths); its modes are the reciprocal basis of the residue matrix (participation = shape at the forces)",
-                        freqs.join(", "),
-                        g.len()
-                    ));
+    Ok(warnings)
+}
+
+/// Repeated roots: the split of a group's residue matrix `Σ ψ_r l_rᵀ` into modes is
+/// arbitrary; each group gets the reciprocal split (see [`reciprocity`]: participation
+/// = shape at the forces) and the mean of its poles, for the shapes to be refitted
+/// with. Returns one warning per group (its modes, or why they stay arbitrary).
+fn make_repeated_roots_reciprocal(
+    fit: &SetupFit,
+    groups: &[Vec<usize>],
+    sf: &plsfd::ShapeFit,
+    pp: &mut PolyPoles,
+) -> Vec<String> {
+    let name = fit.name;
+    let mut warnings = Vec::new();
+    for g in groups {
+        let psi: Vec<Vec<c64>> = g.iter().map(|&r| sf.shapes[r].clone()).collect();
+        let parts: Vec<Vec<c64>> = g.iter().map(|&r| pp.parts[r].clone()).collect();
+        let freqs: Vec<String> = g
+            .iter()
+            .map(|&r| format!("{:.5}", pp.poles[r].frequency_hz()))
+            .collect();
+        match reciprocity::reciprocal_participation(fit.geometry, fit.members, &psi, &parts) {
+            Ok(l) => {
+                let mean = g.iter().map(|&r| pp.poles[r].0).sum::<c64>() / g.len() as f64;
+                for (&r, l) in g.iter().zip(l) {
+                    pp.parts[r] = l;
+                    pp.poles[r] = Pole(mean);
                 }
-                Err(why) => warnings.push(format!(
-                    "{name}: poles at {} Hz are one repeated root, but its modes could not be made reciprocal ({why}): their split is arbitrary, use their sum",
-                    freqs.join(", ")
-                )),
+                warnings.push(format!(
+                    "{name}: poles at {} Hz are one root of multiplicity {} (within {REPEATED_BANDWIDTHS} half-bandwidths); its modes are the reciprocal basis of the residue matrix (participation = shape at the forces)",
+                    freqs.join(", "),
+                    g.len()
+                ));
             }
+            Err(why) => warnings.push(format!(
+                "{name}: poles at {} Hz are one repeated root, but its modes could not be made reciprocal ({why}): their split is arbitrary, use their sum",
+                freqs.join(", ")
+            )),
         }
-        sf = crate::prof::time(6, || {
-            plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
-        });
     }
-    if sf.basis_conditioning < 1e-8 {
-        warnings.push(format!(
-            "{name}: the poly-reference shape basis is nearly singular (conditioning {:.1e}): two poles with the same participation cannot be separated",
-            sf.basis_conditioning
-        ));
-    }
-    let nm = pp.poles.len();
+    warnings
+}
+
+/// Per mode, a note for each other mode closer than two half-bandwidths (separated by
+/// their participation vectors, which a single-reference fit cannot do).
+fn close_pair_notes(poles: &[Pole]) -> Vec<Vec<String>> {
+    let nm = poles.len();
     let mut mode_warnings = vec![Vec::new(); nm];
     for i in 0..nm {
         for j in i + 1..nm {
-            let d = pp.poles[i].distance_in_bandwidths(&pp.poles[j]);
+            let d = poles[i].distance_in_bandwidths(&poles[j]);
             if d < 2.0 {
                 let msg = |other: usize| {
                     format!(
@@ -366,10 +426,23 @@ pub(crate) fn fit_setup(
             }
         }
     }
+    mode_warnings
+}
+
+/// One [`ExcitationFit`] per member: shared poles, its residues `ψ_r l_re` as modal
+/// constants `A = 2iω_d R` (standard errors scaled alike) and its fitted FRFs.
+fn excitation_records(
+    fit: &SetupFit,
+    bands: &[BandData],
+    (pp, sf): (&PolyPoles, &plsfd::ShapeFit),
+    (mode_warnings, warnings): (Vec<Vec<String>>, Vec<String>),
+    opts: &FitOptions,
+) -> Vec<ExcitationFit> {
+    let nm = pp.poles.len();
     let diagram = pp.selection.diagram.clone();
-    let mut out = Vec::with_capacity(members.len());
-    for (ei, &e) in members.iter().enumerate() {
-        let ex = &geometry.excitations[e];
+    let mut out = Vec::with_capacity(fit.members.len());
+    for (ei, &e) in fit.members.iter().enumerate() {
+        let ex = &fit.geometry.excitations[e];
         let a: Vec<Vec<c64>> = (0..nm)
             .map(|r| {
                 sf.residues[ei][r]
@@ -401,5 +474,5 @@ pub(crate) fn fit_setup(
         };
         out.push(assemble(ex, &bands[ei], parts, opts, METHOD));
     }
-    Ok(out)
+    out
 }

@@ -219,14 +219,13 @@ const TC: usize = 4;
 /// order.
 #[inline(always)]
 fn update_tile<const MC: usize>(
-    a: MatRef<'_, f64>,
+    ac: &[&[f64]],
     x: MatRef<'_, f64>,
     c: &mut MatMut<'_, f64>,
     j0: usize,
     alpha: f64,
 ) {
-    let (m, p) = (a.nrows(), a.ncols());
-    let ac: Vec<&[f64]> = (0..p).map(|k| &col(a, k)[..m]).collect();
+    let (m, p) = (c.nrows(), ac.len());
     let xs: [Vec<f64>; MC] = std::array::from_fn(|j| (0..p).map(|k| x[(k, j0 + j)]).collect());
     let mut rest = Some(c.rb_mut().subcols_mut(j0, MC));
     let cc: [&mut [f64]; MC] = std::array::from_fn(|_| {
@@ -271,17 +270,17 @@ fn update_tile<const MC: usize>(
 }
 
 rbprops_core::avx_fn! {
-    fn add_a_x_kernel(a: MatRef<'_, f64>, x: MatRef<'_, f64>, c: MatMut<'_, f64>, alpha: f64) -> () {
+    fn add_a_x_kernel(ac: &[&[f64]], x: MatRef<'_, f64>, c: MatMut<'_, f64>, alpha: f64) -> () {
         let mut c = c;
         let q = c.ncols();
         let mut j0 = 0;
         while j0 < q {
             let mc = TC.min(q - j0);
             match mc {
-                4 => update_tile::<4>(a, x, &mut c, j0, alpha),
-                3 => update_tile::<3>(a, x, &mut c, j0, alpha),
-                2 => update_tile::<2>(a, x, &mut c, j0, alpha),
-                _ => update_tile::<1>(a, x, &mut c, j0, alpha),
+                4 => update_tile::<4>(ac, x, &mut c, j0, alpha),
+                3 => update_tile::<3>(ac, x, &mut c, j0, alpha),
+                2 => update_tile::<2>(ac, x, &mut c, j0, alpha),
+                _ => update_tile::<1>(ac, x, &mut c, j0, alpha),
             }
             j0 += mc;
         }
@@ -292,7 +291,20 @@ rbprops_core::avx_fn! {
 pub fn add_a_x(c: MatMut<'_, f64>, a: MatRef<'_, f64>, x: MatRef<'_, f64>, alpha: f64) {
     assert_eq!((a.ncols(), x.ncols()), (x.nrows(), c.ncols()));
     assert_eq!(a.nrows(), c.nrows());
-    add_a_x_kernel(a, x, c, alpha);
+    let m = a.nrows();
+    let ac: Vec<&[f64]> = (0..a.ncols()).map(|k| &col(a, k)[..m]).collect();
+    add_a_x_kernel(&ac, x, c, alpha);
+}
+
+/// [`add_a_x`] with the columns of `a` given as slices (`c` rows long each): a matrix
+/// whose columns live in different places, such as a block of rows of a shared tall
+/// matrix next to the columns of one block (the poly-reference basis,
+/// [`crate::plsfd::SetupBasis`]). The same operations in the same order as [`add_a_x`]
+/// on those columns side by side.
+pub fn add_cols_x(c: MatMut<'_, f64>, ac: &[&[f64]], x: MatRef<'_, f64>, alpha: f64) {
+    assert_eq!((ac.len(), x.ncols()), (x.nrows(), c.ncols()));
+    assert!(ac.iter().all(|a| a.len() == c.nrows()));
+    add_a_x_kernel(ac, x, c, alpha);
 }
 
 #[cfg(test)]

@@ -183,13 +183,6 @@ pub(super) fn profile_candidate(
     let mut act = active.to_vec();
     act.push(Act::full(c, np));
     let r0 = nalgebra::DVector::from_column_slice(&cur.residual);
-    let perp = |r: &nalgebra::DVector<f64>| {
-        if q0.ncols() == 0 {
-            r.clone()
-        } else {
-            r - q0 * q0.tr_mul(r)
-        }
-    };
     let base = r0.norm_squared() - projected_norms(q0, &[&r0])[0];
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
     // the most promising grid points: a few model evaluations, enough when the effect
@@ -199,12 +192,7 @@ pub(super) fn profile_candidate(
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
     };
-    let mut starts = vec![cur.theta.clone()];
-    if from_nominal {
-        let mut t = cur.theta.clone();
-        t[..p.n_base()].copy_from_slice(&p.baseline.initial());
-        starts.push(t);
-    }
+    let starts = profile_starts(p, &cur.theta, from_nominal);
     let points: Vec<(usize, usize)> = (0..grid.len())
         .flat_map(|g| (0..starts.len()).map(move |k| (g, k)))
         .collect();
@@ -218,21 +206,10 @@ pub(super) fn profile_candidate(
     // span `q0` is). From the current fit's parameters that prediction is also the
     // linearised gain (the score-like statistic).
     // The points of `idx` are evaluated in batches of [`PROBE_BATCH`], whose projections
-    // onto q0 are one matrix product (see [`projected_norms`]). The residuals of the
-    // most promising points so far are kept per start (at most `PROFILE_REFINED`, in
-    // the order of [`most_promising`]): the chord refinement starts from them rather
-    // than evaluating them again. The set kept is the same in any order of the batches.
+    // onto q0 are one matrix product (see [`projected_norms`]); the most promising
+    // residuals are kept ([`MostPromising`]).
     let n_starts = starts.len();
-    type Kept = Vec<(f64, usize, nalgebra::DVector<f64>)>;
-    let kept: Vec<std::sync::Mutex<Kept>> = (0..n_starts).map(|_| Default::default()).collect();
-    let keep = |i: usize, predicted: f64, r: &nalgebra::DVector<f64>| {
-        let mut list = kept[points[i].1].lock().expect("no panic while held");
-        let pos = list.partition_point(|(p, j, _)| p.total_cmp(&predicted).then(j.cmp(&i)).is_lt());
-        if pos < PROFILE_REFINED {
-            list.insert(pos, (predicted, i, r.clone()));
-            list.truncate(PROFILE_REFINED);
-        }
-    };
+    let kept = MostPromising::new(n_starts);
     let probe_all = |idx: &[usize]| -> Vec<Option<(f64, f64)>> {
         idx.par_chunks(PROBE_BATCH)
             .flat_map_iter(|batch| {
@@ -249,7 +226,7 @@ pub(super) fn profile_candidate(
                         let r = r.as_ref()?;
                         let n2 = r.norm_squared();
                         let predicted = n2 - projected.next().expect("one per residual");
-                        keep(i, predicted, r);
+                        kept.offer(points[i].1, i, predicted, r);
                         Some((n2, predicted))
                     })
                     .collect::<Vec<_>>()
@@ -264,11 +241,7 @@ pub(super) fn profile_candidate(
     for i in most_promising(&first, &points, n_starts) {
         refine[i] = true;
     }
-    let kept: Vec<(usize, nalgebra::DVector<f64>)> = kept
-        .into_iter()
-        .flat_map(|m| m.into_inner().expect("no panic while held"))
-        .map(|(_, i, r)| (i, r))
-        .collect();
+    let kept = kept.residuals();
     let gain_of = |i: usize, chi: f64| {
         let (_, predicted) = first[i].expect("evaluated");
         let lin = if points[i].1 == 0 {
@@ -301,7 +274,7 @@ pub(super) fn profile_candidate(
     let (gain, i, theta_best, rg) =
         best_profile_point(refined, &cand.id, &|i| theta_at(points[i]), &eval, nb)?;
     // Signature direction at the best point (for the distinctness check).
-    let sig = perp(&(&r0 - &rg));
+    let sig = perp(q0, &(&r0 - &rg));
     Ok(profile_score(
         sig,
         np,
@@ -310,6 +283,62 @@ pub(super) fn profile_candidate(
         n_tests,
         theta_best,
     ))
+}
+
+/// `r` with the span of `q0` (orthonormal columns) removed.
+fn perp(q0: &DMatrix<f64>, r: &nalgebra::DVector<f64>) -> nalgebra::DVector<f64> {
+    if q0.ncols() == 0 {
+        r.clone()
+    } else {
+        r - q0 * q0.tr_mul(r)
+    }
+}
+
+/// The starts of a profile's chord refinement: the current parameters, and with
+/// `from_nominal` the spec's baseline values with the active effects' current ones.
+fn profile_starts(p: &Problem, theta: &[f64], from_nominal: bool) -> Vec<Vec<f64>> {
+    let mut starts = vec![theta.to_vec()];
+    if from_nominal {
+        let mut t = theta.to_vec();
+        t[..p.n_base()].copy_from_slice(&p.baseline.initial());
+        starts.push(t);
+    }
+    starts
+}
+
+/// The residuals of the most promising profile points so far, per start (at most
+/// `PROFILE_REFINED`, smallest predicted χ² first, the first of equal ones), kept so the
+/// chord refinement starts from them rather than evaluating them again. The set kept
+/// is the same in any order of the offers.
+struct MostPromising {
+    per_start: Vec<std::sync::Mutex<Vec<(f64, usize, nalgebra::DVector<f64>)>>>,
+}
+
+impl MostPromising {
+    fn new(n_starts: usize) -> Self {
+        MostPromising {
+            per_start: (0..n_starts).map(|_| Default::default()).collect(),
+        }
+    }
+
+    /// Point `i` at start `start`, with its predicted χ² and its residual `r`.
+    fn offer(&self, start: usize, i: usize, predicted: f64, r: &nalgebra::DVector<f64>) {
+        let mut list = self.per_start[start].lock().expect("no panic while held");
+        let pos = list.partition_point(|(p, j, _)| p.total_cmp(&predicted).then(j.cmp(&i)).is_lt());
+        if pos < PROFILE_REFINED {
+            list.insert(pos, (predicted, i, r.clone()));
+            list.truncate(PROFILE_REFINED);
+        }
+    }
+
+    /// The kept residuals by point index.
+    fn residuals(self) -> Vec<(usize, nalgebra::DVector<f64>)> {
+        self.per_start
+            .into_iter()
+            .flat_map(|m| m.into_inner().expect("no panic while held"))
+            .map(|(_, i, r)| (i, r))
+            .collect()
+    }
 }
 
 /// The first step at every point of a profile (`points`: grid point and start), by

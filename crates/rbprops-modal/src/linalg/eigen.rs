@@ -132,6 +132,11 @@ fn balance(a: &mut [f64], n: usize) {
 /// Francis double-shift QR iteration with deflation on negligible subdiagonals and
 /// exceptional shifts after 10 and 20 stalled iterations. `None` after 30 iterations
 /// on one eigenvalue.
+///
+/// The EISPACK `hqr` scheme (Wilkinson & Reinsch, Handbook II/14), in its steps: the
+/// deflation point ([`deflation_point`]), a 1×1 or 2×2 block's eigenvalues
+/// ([`block_eigenvalues`]), the start of the double-shift bulge
+/// ([`double_shift_start`]) and its chase down the active block ([`chase_bulge`]).
 fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
     let at = |i: usize, j: usize| i * n + j;
     let mut out = vec![c64::new(0.0, 0.0); n];
@@ -145,44 +150,15 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
         let h = hi as usize;
         let mut its = 0;
         loop {
-            // Deflation point: the lowest l with a negligible subdiagonal a[l][l−1].
-            let mut l = h;
-            while l >= 1 {
-                let mut s = a[at(l - 1, l - 1)].abs() + a[at(l, l)].abs();
-                if s == 0.0 {
-                    s = anorm;
-                }
-                if a[at(l, l - 1)].abs() + s == s {
-                    a[at(l, l - 1)] = 0.0;
-                    break;
-                }
-                l -= 1;
+            let l = deflation_point(a, n, h, anorm);
+            if l + 1 >= h {
+                // A 1×1 or 2×2 block split off: its eigenvalues.
+                hi -= block_eigenvalues(a, n, h, l == h, shift_acc, &mut out) as isize;
+                break;
             }
             let mut x = a[at(h, h)];
-            if l == h {
-                out[h] = c64::new(x + shift_acc, 0.0);
-                hi -= 1;
-                break;
-            }
             let mut y = a[at(h - 1, h - 1)];
             let mut w = a[at(h, h - 1)] * a[at(h - 1, h)];
-            if l + 1 == h {
-                // A 2×2 block: a real pair or a complex-conjugate pair.
-                let p = 0.5 * (y - x);
-                let q = p * p + w;
-                let z = q.abs().sqrt();
-                x += shift_acc;
-                if q >= 0.0 {
-                    let z = p + z.copysign(p);
-                    out[h - 1] = c64::new(x + z, 0.0);
-                    out[h] = c64::new(if z != 0.0 { x - w / z } else { x + z }, 0.0);
-                } else {
-                    out[h - 1] = c64::new(x + p, -z);
-                    out[h] = c64::new(x + p, z);
-                }
-                hi -= 2;
-                break;
-            }
             if its == 30 {
                 return None;
             }
@@ -198,107 +174,190 @@ fn hessenberg_qr(a: &mut [f64], n: usize) -> Option<Vec<c64>> {
                 w = -0.4375 * s * s;
             }
             its += 1;
-            // Start of the double-shift bulge: two consecutive small subdiagonals.
-            let mut m = h - 2;
-            let (mut p, mut q, mut r);
-            loop {
-                let z = a[at(m, m)];
-                let rr = x - z;
-                let ss = y - z;
-                p = (rr * ss - w) / a[at(m + 1, m)] + a[at(m, m + 1)];
-                q = a[at(m + 1, m + 1)] - z - rr - ss;
-                r = a[at(m + 2, m + 1)];
-                let s = p.abs() + q.abs() + r.abs();
-                p /= s;
-                q /= s;
-                r /= s;
-                if m == l {
-                    break;
-                }
-                let u = a[at(m, m - 1)].abs() * (q.abs() + r.abs());
-                let v = p.abs() * (a[at(m - 1, m - 1)].abs() + z.abs() + a[at(m + 1, m + 1)].abs());
-                if u + v == v {
-                    break;
-                }
-                m -= 1;
-            }
-            for i in m + 2..=h {
-                a[at(i, i - 2)] = 0.0;
-                if i != m + 2 {
-                    a[at(i, i - 3)] = 0.0;
-                }
-            }
-            // Chase the bulge with 3×3 Householder reflections, rows/columns l..=h.
-            let mut xk = 0.0;
-            for k in m..h {
-                if k != m {
-                    p = a[at(k, k - 1)];
-                    q = a[at(k + 1, k - 1)];
-                    r = if k + 1 != h { a[at(k + 2, k - 1)] } else { 0.0 };
-                    xk = p.abs() + q.abs() + r.abs();
-                    if xk != 0.0 {
-                        p /= xk;
-                        q /= xk;
-                        r /= xk;
-                    }
-                }
-                let s = (p * p + q * q + r * r).sqrt().copysign(p);
-                if s == 0.0 {
-                    continue;
-                }
-                if k == m {
-                    if l != m {
-                        a[at(k, k - 1)] = -a[at(k, k - 1)];
-                    }
-                } else {
-                    a[at(k, k - 1)] = -s * xk;
-                }
-                p += s;
-                let (hx, hy, hz) = (p / s, q / s, r / s);
-                let (q2, r2) = (q / p, r / p);
-                let three = k + 1 != h;
-                // Rows k, k+1 (and k+2), columns k..=h: contiguous slices, so the
-                // update runs without index checks (same operations, same order).
-                let (row0, rest) = a[k * n..].split_at_mut(n);
-                let (row1, rest) = rest.split_at_mut(n);
-                let (x0, x1) = (&mut row0[k..=h], &mut row1[k..=h]);
-                if three {
-                    let x2 = &mut rest[k..=h];
-                    for ((a0, a1), a2) in x0.iter_mut().zip(x1.iter_mut()).zip(x2.iter_mut()) {
-                        let t = *a0 + q2 * *a1 + r2 * *a2;
-                        *a2 -= t * hz;
-                        *a1 -= t * hy;
-                        *a0 -= t * hx;
-                    }
-                } else {
-                    for (a0, a1) in x0.iter_mut().zip(x1.iter_mut()) {
-                        let t = *a0 + q2 * *a1;
-                        *a1 -= t * hy;
-                        *a0 -= t * hx;
-                    }
-                }
-                // Rows l..=min(h, k+3), columns k, k+1 (and k+2).
-                let rows = a[l * n..(h.min(k + 3) + 1) * n].chunks_exact_mut(n);
-                if three {
-                    for row in rows {
-                        let c = &mut row[k..k + 3];
-                        let t = hx * c[0] + hy * c[1] + hz * c[2];
-                        c[2] -= t * r2;
-                        c[1] -= t * q2;
-                        c[0] -= t;
-                    }
-                } else {
-                    for row in rows {
-                        let c = &mut row[k..k + 2];
-                        let t = hx * c[0] + hy * c[1];
-                        c[1] -= t * q2;
-                        c[0] -= t;
-                    }
-                }
-            }
+            let (m, pqr) = double_shift_start(a, n, (l, h), (x, y, w));
+            chase_bulge(a, n, (l, m, h), pqr);
         }
     }
     Some(out)
+}
+
+/// The lowest row `l ≤ h` of the active block whose subdiagonal `a[l][l−1]` is
+/// negligible against its diagonal neighbours (set to zero), or 0.
+#[inline(always)]
+fn deflation_point(a: &mut [f64], n: usize, h: usize, anorm: f64) -> usize {
+    let at = |i: usize, j: usize| i * n + j;
+    let mut l = h;
+    while l >= 1 {
+        let mut s = a[at(l - 1, l - 1)].abs() + a[at(l, l)].abs();
+        if s == 0.0 {
+            s = anorm;
+        }
+        if a[at(l, l - 1)].abs() + s == s {
+            a[at(l, l - 1)] = 0.0;
+            break;
+        }
+        l -= 1;
+    }
+    l
+}
+
+/// The eigenvalues of the block ending at row `h` that split off, plus the accumulated
+/// exceptional shifts: one (`single`, `a[h][h]`) or the two of the trailing 2×2 block
+/// (a real pair or a complex-conjugate pair), written into `out`. Returns how many.
+#[inline(always)]
+fn block_eigenvalues(
+    a: &[f64],
+    n: usize,
+    h: usize,
+    single: bool,
+    shift_acc: f64,
+    out: &mut [c64],
+) -> usize {
+    let at = |i: usize, j: usize| i * n + j;
+    let mut x = a[at(h, h)];
+    if single {
+        out[h] = c64::new(x + shift_acc, 0.0);
+        return 1;
+    }
+    let y = a[at(h - 1, h - 1)];
+    let w = a[at(h, h - 1)] * a[at(h - 1, h)];
+    let p = 0.5 * (y - x);
+    let q = p * p + w;
+    let z = q.abs().sqrt();
+    x += shift_acc;
+    if q >= 0.0 {
+        let z = p + z.copysign(p);
+        out[h - 1] = c64::new(x + z, 0.0);
+        out[h] = c64::new(if z != 0.0 { x - w / z } else { x + z }, 0.0);
+    } else {
+        out[h - 1] = c64::new(x + p, -z);
+        out[h] = c64::new(x + p, z);
+    }
+    2
+}
+
+/// Start of the double-shift bulge for the shifts given by `(x, y, w)` (trailing
+/// diagonal entries and the product of the trailing off-diagonal pair): the highest row
+/// `m ≥ l` where two consecutive subdiagonals are small enough for the bulge to start,
+/// the first column `(p, q, r)` of `(H − σ₁)(H − σ₂)` there (scaled), and the entries
+/// below the bulge cleared.
+#[inline(always)]
+fn double_shift_start(
+    a: &mut [f64],
+    n: usize,
+    (l, h): (usize, usize),
+    (x, y, w): (f64, f64, f64),
+) -> (usize, (f64, f64, f64)) {
+    let at = |i: usize, j: usize| i * n + j;
+    let mut m = h - 2;
+    let (mut p, mut q, mut r);
+    loop {
+        let z = a[at(m, m)];
+        let rr = x - z;
+        let ss = y - z;
+        p = (rr * ss - w) / a[at(m + 1, m)] + a[at(m, m + 1)];
+        q = a[at(m + 1, m + 1)] - z - rr - ss;
+        r = a[at(m + 2, m + 1)];
+        let s = p.abs() + q.abs() + r.abs();
+        p /= s;
+        q /= s;
+        r /= s;
+        if m == l {
+            break;
+        }
+        let u = a[at(m, m - 1)].abs() * (q.abs() + r.abs());
+        let v = p.abs() * (a[at(m - 1, m - 1)].abs() + z.abs() + a[at(m + 1, m + 1)].abs());
+        if u + v == v {
+            break;
+        }
+        m -= 1;
+    }
+    for i in m + 2..=h {
+        a[at(i, i - 2)] = 0.0;
+        if i != m + 2 {
+            a[at(i, i - 3)] = 0.0;
+        }
+    }
+    (m, (p, q, r))
+}
+
+/// Chases the bulge started at row `m` (first reflector from `(p, q, r)`) down the
+/// active block `l..=h` with 3×3 Householder reflections (2×2 at the last row).
+#[inline(always)]
+fn chase_bulge(
+    a: &mut [f64],
+    n: usize,
+    (l, m, h): (usize, usize, usize),
+    (mut p, mut q, mut r): (f64, f64, f64),
+) {
+    let at = |i: usize, j: usize| i * n + j;
+    let mut xk = 0.0;
+    for k in m..h {
+        if k != m {
+            p = a[at(k, k - 1)];
+            q = a[at(k + 1, k - 1)];
+            r = if k + 1 != h { a[at(k + 2, k - 1)] } else { 0.0 };
+            xk = p.abs() + q.abs() + r.abs();
+            if xk != 0.0 {
+                p /= xk;
+                q /= xk;
+                r /= xk;
+            }
+        }
+        let s = (p * p + q * q + r * r).sqrt().copysign(p);
+        if s == 0.0 {
+            continue;
+        }
+        if k == m {
+            if l != m {
+                a[at(k, k - 1)] = -a[at(k, k - 1)];
+            }
+        } else {
+            a[at(k, k - 1)] = -s * xk;
+        }
+        p += s;
+        let (hx, hy, hz) = (p / s, q / s, r / s);
+        let (q2, r2) = (q / p, r / p);
+        let three = k + 1 != h;
+        // Rows k, k+1 (and k+2), columns k..=h: contiguous slices, so the
+        // update runs without index checks (same operations, same order).
+        let (row0, rest) = a[k * n..].split_at_mut(n);
+        let (row1, rest) = rest.split_at_mut(n);
+        let (x0, x1) = (&mut row0[k..=h], &mut row1[k..=h]);
+        if three {
+            let x2 = &mut rest[k..=h];
+            for ((a0, a1), a2) in x0.iter_mut().zip(x1.iter_mut()).zip(x2.iter_mut()) {
+                let t = *a0 + q2 * *a1 + r2 * *a2;
+                *a2 -= t * hz;
+                *a1 -= t * hy;
+                *a0 -= t * hx;
+            }
+        } else {
+            for (a0, a1) in x0.iter_mut().zip(x1.iter_mut()) {
+                let t = *a0 + q2 * *a1;
+                *a1 -= t * hy;
+                *a0 -= t * hx;
+            }
+        }
+        // Rows l..=min(h, k+3), columns k, k+1 (and k+2).
+        let rows = a[l * n..(h.min(k + 3) + 1) * n].chunks_exact_mut(n);
+        if three {
+            for row in rows {
+                let c = &mut row[k..k + 3];
+                let t = hx * c[0] + hy * c[1] + hz * c[2];
+                c[2] -= t * r2;
+                c[1] -= t * q2;
+                c[0] -= t;
+            }
+        } else {
+            for row in rows {
+                let c = &mut row[k..k + 2];
+                let t = hx * c[0] + hy * c[1];
+                c[1] -= t * q2;
+                c[0] -= t;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

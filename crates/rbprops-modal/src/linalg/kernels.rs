@@ -112,7 +112,12 @@ pub fn gram(a: &Mat<f64>) -> Mat<f64> {
 
 /// `g += aᵀ · a` on the lower triangle of `g` only (diagonal included; sequential).
 pub fn gram_lower_add(g: &mut Mat<f64>, a: MatRef<'_, f64>) {
-    crate::tallmul::gram_lower_add(a, g.as_mut());
+    gram_lower_add_into(g.as_mut(), a);
+}
+
+/// [`gram_lower_add`] into a view (a diagonal block of a larger Gram matrix).
+pub fn gram_lower_add_into(g: MatMut<'_, f64>, a: MatRef<'_, f64>) {
+    crate::tallmul::gram_lower_add(a, g);
 }
 
 /// Copies the lower triangle of the square `g` onto its upper one (symmetric `g`).
@@ -127,6 +132,11 @@ pub fn mirror_lower(g: &mut Mat<f64>) {
 /// `dst += alpha · aᵀ · b` (sequential).
 pub fn t_mul_add(dst: &mut Mat<f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64) {
     crate::tallmul::at_b(a, b, dst.as_mut(), alpha, true);
+}
+
+/// `dst += aᵀ · b` into a view (sequential).
+pub fn t_mul_add_into(dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>) {
+    crate::tallmul::at_b(a, b, dst, 1.0, true);
 }
 
 /// `dst += alpha · a · b` into a view, `a` tall (sequential).
