@@ -90,6 +90,8 @@ pub(super) struct Evidence {
     pub(super) inertia_change: Vec<RelativeChange>,
     /// Refitted with its implausible items held at neutral (`super::items`).
     pub(super) items_at_neutral: bool,
+    /// The step that accepted it (0 before).
+    pub(super) accepted_at: usize,
 }
 
 impl Evidence {
@@ -262,6 +264,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             practical,
             inertia_change: Vec::new(),
             items_at_neutral: false,
+            accepted_at: 0,
         }
     }
 

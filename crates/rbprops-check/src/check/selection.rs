@@ -185,8 +185,12 @@ impl<'p, 'a> Selection<'p, 'a> {
 
     /// χ²/ν of the current model.
     pub(super) fn chi2_nu(&self) -> f64 {
-        self.model.cur.chi2
-            / (self.p.n_real() - (self.charges.free_base + active_dims(&self.model.active)) as f64)
+        self.model.cur.chi2 / self.nu()
+    }
+
+    /// Degrees of freedom of the current model's residual.
+    pub(super) fn nu(&self) -> f64 {
+        self.p.n_real() - (self.charges.free_base + active_dims(&self.model.active)) as f64
     }
 
     /// One selection step: screen, refit, accept at most one effect, backward check.
@@ -686,7 +690,10 @@ impl<'p, 'a> Selection<'p, 'a> {
             gauge,
         });
         self.model.cur = evidence.fit.clone();
-        self.model.accepted.push(evidence);
+        self.model.accepted.push(Evidence {
+            accepted_at: step,
+            ..evidence
+        });
         let cand = &p.cands[best.c];
         if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
             self.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(

@@ -20,7 +20,7 @@
 
 use super::problem::{active_dims, drop_params};
 use super::selection::Selection;
-use super::verdict::noise_band;
+use super::verdict::chi2_nu_in_band;
 use crate::error::CheckError;
 
 /// Branches tried at most per check: each costs about the selection's steps after the
@@ -44,17 +44,13 @@ pub(super) struct FloorYardstick {
 impl FloorYardstick {
     /// The current model's κ χ²/ν is above the upper end of its noise band.
     pub(super) fn above(&self, sel: &Selection) -> bool {
-        let nu = sel.nu();
-        self.kappa * sel.model.cur.chi2 / nu > noise_band(nu / self.kappa, self.variance_se)[1]
+        let (chi2_nu, band) =
+            chi2_nu_in_band(sel.model.cur.chi2, sel.nu(), self.kappa, self.variance_se);
+        chi2_nu > band[1]
     }
 }
 
 impl<'p, 'a> Selection<'p, 'a> {
-    /// Degrees of freedom of the current model's residual.
-    pub(super) fn nu(&self) -> f64 {
-        self.p.n_real() - (self.charges.free_base + active_dims(&self.model.active)) as f64
-    }
-
     /// BIC of the current model (up to the constant shared by every model of the data).
     fn bic(&self) -> f64 {
         self.model.cur.chi2 + active_dims(&self.model.active) as f64 * self.charges.ln_n
@@ -101,8 +97,8 @@ impl<'p, 'a> Selection<'p, 'a> {
 }
 
 /// Stage 4b: branches without one accepted effect each (module doc), `forward(branch,
-/// from, steps)` running each branch from step `from` for at most `steps` steps; the first branch whose BIC is lower by the
-/// acceptance margin replaces the selection.
+/// from, steps)` running a branch from step `from` for at most `steps` steps; the
+/// first branch whose BIC is lower by the acceptance margin replaces the selection.
 pub(super) fn take_back<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
@@ -130,13 +126,7 @@ pub(super) fn take_back<'p, 'a>(
         // The branch may take the steps the original took after the effect entered and
         // BRANCH_EXTRA_STEPS more (one wrong effect standing in for two true ones needs
         // one); a branch that needs more is not the simple exchange this move is for.
-        let accepted_at = sel
-            .findings
-            .screening
-            .iter()
-            .rev()
-            .find(|e| e.id == id && e.decision.starts_with("accepted"))
-            .map_or(0, |e| e.step);
+        let accepted_at = sel.model.accepted[k].accepted_at;
         let mut branch = sel.without(k)?;
         let end = forward(
             &mut branch,

@@ -147,6 +147,13 @@ pub fn noise_band(nu: f64, se: f64) -> [f64; 2] {
     [lo, hi.max(MIN_BAND_UPPER)]
 }
 
+/// χ²/ν of a fit with `nu` degrees of freedom as the verdict reads it, κ χ²/ν (κ the
+/// line-correlation inflation), and its noise band for the effective ν/κ and the noise
+/// variance's relative standard error `se`.
+pub(super) fn chi2_nu_in_band(chi2: f64, nu: f64, kappa: f64, se: f64) -> (f64, [f64; 2]) {
+    (kappa * chi2 / nu, noise_band(nu / kappa, se))
+}
+
 /// The floor rule: χ²/ν of the final model inside the noise `band` and no residual cell
 /// flagged. With no fitted noise (a = b = 0 on every channel) σ is the precision floor
 /// alone, and its computation-floor part is a bound on the agreement of two exact
@@ -435,8 +442,8 @@ impl<'p, 'a> Finish<'p, 'a> {
         let residuals_after = residual_map(layout, y, &final_pred, sigma, bnds);
         let noise_model = self.noise_model;
         let kappa = self.inflation.map_or(1.0, |i| i.kappa);
-        let band = noise_band(nu_after / kappa, noise_model.variance_scale_se);
-        let chi2_nu_after = kappa * cur.chi2 / nu_after;
+        let (chi2_nu_after, band) =
+            chi2_nu_in_band(cur.chi2, nu_after, kappa, noise_model.variance_scale_se);
         let noise_floor_reached =
             at_noise_floor(chi2_nu_after, band, &noise_model, &residuals_after.flagged);
         let unexplained = (!noise_floor_reached)
