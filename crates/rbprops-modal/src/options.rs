@@ -1,25 +1,50 @@
 //! Fit options and their defaults.
 
 /// Which estimator provides the poles (and, for `Circle`, the modal parameters).
+/// (Variants in the order `modal-fit --help` lists them.)
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Method {
     /// Least-squares complex frequency-domain estimator (common denominator, real
     /// coefficients, z-domain basis), stabilisation diagram, then pole refinement and
     /// LSFD residues. Works on any frequency axis (uniform or not, baseband or zoom).
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "Least-squares complex frequency domain poles + LSFD residues, per excitation only. Without --method: these fits, and the poly-reference fit of a set-up when they show a repeated or near-repeated root (kept when it loses no mode and fits as well)"
+        )
+    )]
     Lscf,
-    /// Least-squares complex exponential: poles from the impulse responses (inverse DFT
-    /// of the band-limited FRFs), then the same selection, refinement and LSFD as LSCF.
-    /// Needs a uniform axis starting at 0 Hz (no zoom band, no gaps).
-    Lsce,
     /// Poly-reference LSCF (PolyMAX): one matrix-polynomial denominator over every
     /// excitation of a set-up, poles with modal participation vectors, stabilisation
     /// diagram and selection, then poly-reference LSFD for the mode shapes (residues
     /// `ψ_r l_rᵀ`). Separates repeated and nearly repeated roots that single-reference
     /// fits merge. Always per set-up.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            alias = "polymax",
+            help = "Poly-reference LSCF (PolyMAX): one fit over every excitation of a set-up, with participation factors; separates repeated and nearly repeated roots"
+        )
+    )]
     Plscf,
+    /// Least-squares complex exponential: poles from the impulse responses (inverse DFT
+    /// of the band-limited FRFs), then the same selection, refinement and LSFD as LSCF.
+    /// Needs a uniform axis starting at 0 Hz (no zoom band, no gaps).
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            help = "Least-squares complex exponential (time domain; needs a uniform baseband axis)"
+        )
+    )]
+    Lsce,
     /// Kennedy–Pancu circle fit per mode and channel (modes located by LSCF), neighbours'
     /// contributions subtracted iteratively with their own circle-fit models. Only for
     /// modes separated by several half-power bandwidths.
+    #[cfg_attr(
+        feature = "clap",
+        value(help = "Kennedy–Pancu circle fit per mode and channel (well-separated modes only)")
+    )]
     Circle,
 }
 
@@ -58,11 +83,23 @@ impl std::str::FromStr for Method {
 
 /// Whose FRFs the poles are estimated from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum PoleMode {
     /// Each excitation gets its own poles (independent SIMO fits).
+    #[cfg_attr(
+        feature = "clap",
+        value(name = "excitation", help = "Poles estimated per excitation")
+    )]
     PerExcitation,
     /// One pole set per suspension set-up from all its excitations' channels (the
     /// poles are global properties of the set-up); residues still per excitation.
+    #[cfg_attr(
+        feature = "clap",
+        value(
+            name = "setup",
+            help = "One consistent pole set per suspension set-up, from all its excitations"
+        )
+    )]
     PerSetup,
 }
 

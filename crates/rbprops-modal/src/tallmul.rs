@@ -313,13 +313,8 @@ mod tests {
     use faer::Mat;
 
     fn sample(m: usize, n: usize, seed: u64) -> Mat<f64> {
-        let mut s = seed;
-        Mat::from_fn(m, n, |_, _| {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
-        })
+        let mut g = rbprops_testkit::Lcg::new(seed);
+        Mat::from_fn(m, n, |_, _| g.centred())
     }
 
     /// Every tile shape, leftover row count and row-block boundary against the plain

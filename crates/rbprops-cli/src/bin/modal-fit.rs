@@ -5,22 +5,6 @@ use clap::{Parser, ValueEnum};
 use rbprops_modal::{FitOptions, Method, PoleMode};
 use std::path::PathBuf;
 
-#[derive(Clone, Copy, ValueEnum)]
-enum MethodArg {
-    /// Least-squares complex frequency domain poles + LSFD residues, per excitation only.
-    /// Without --method: these fits, and the poly-reference fit of a set-up when they show
-    /// a repeated or near-repeated root (kept when it loses no mode and fits as well).
-    Lscf,
-    /// Poly-reference LSCF (PolyMAX): one fit over every excitation of a set-up, with
-    /// participation factors; separates repeated and nearly repeated roots.
-    #[value(alias = "polymax")]
-    Plscf,
-    /// Least-squares complex exponential (time domain; needs a uniform baseband axis).
-    Lsce,
-    /// Kennedy–Pancu circle fit per mode and channel (well-separated modes only).
-    Circle,
-}
-
 #[derive(Clone, Copy, ValueEnum, PartialEq)]
 enum WeightArg {
     /// Relative weights 1/|H| on every line (the default without line variances).
@@ -32,14 +16,6 @@ enum WeightArg {
     /// output, or an export's coherence with --averages); the default when the input
     /// carries them (lscf and lsce).
     Variance,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum PolesArg {
-    /// Poles estimated per excitation.
-    Excitation,
-    /// One consistent pole set per suspension set-up, from all its excitations.
-    Setup,
 }
 
 /// Identify natural frequencies, damping ratios and residues (modal constants, 1/kg) with
@@ -56,7 +32,7 @@ struct Args {
     /// Force one method (default: per-excitation lscf fits, and the poly-reference fit of
     /// a set-up kept instead when the evidence calls for it and it fits better).
     #[arg(long, value_enum)]
-    method: Option<MethodArg>,
+    method: Option<Method>,
     /// Band FMIN:FMAX in Hz (default: the whole axis).
     #[arg(long, value_parser = rbprops_cli::args::band)]
     band: Option<(f64, f64)>,
@@ -67,7 +43,7 @@ struct Args {
     #[arg(long, value_parser = rbprops_cli::args::model_order)]
     max_order: Option<usize>,
     #[arg(long, value_enum, default_value = "excitation")]
-    poles: PolesArg,
+    poles: PoleMode,
     /// Line weights of the least-squares fits (default: variance when the input carries
     /// line variances and the method is lscf or lsce, else none).
     #[arg(long, value_enum)]
@@ -99,16 +75,8 @@ fn main() -> std::process::ExitCode {
         let mut rec = input.record;
         rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let mut opts = FitOptions {
-            method: match args.method {
-                None | Some(MethodArg::Lscf) => Method::Lscf,
-                Some(MethodArg::Plscf) => Method::Plscf,
-                Some(MethodArg::Lsce) => Method::Lsce,
-                Some(MethodArg::Circle) => Method::Circle,
-            },
-            poles: match args.poles {
-                PolesArg::Excitation => PoleMode::PerExcitation,
-                PolesArg::Setup => PoleMode::PerSetup,
-            },
+            method: args.method.unwrap_or(Method::Lscf),
+            poles: args.poles,
             n_modes: args.modes,
             residual_terms: !args.no_residuals,
             keep_synthesised: args.plot.is_some(),

@@ -402,13 +402,8 @@ mod tests {
     fn polynomial_roots_agree_with_the_general_eigen_solver() {
         // Pseudo-random degree 2..40 polynomials: same spectrum as faer's real EVD of
         // the unbalanced companion matrix (to the conditioning of the roots).
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut g = rbprops_testkit::Lcg::new(12345);
+        let mut rnd = || g.unit() * 2.0 - 1.0;
         for n in 2..=40 {
             let c: Vec<f64> = (0..n).map(|_| rnd()).collect();
             let m = companion(&c);
