@@ -520,6 +520,18 @@ pub(super) const NO_SIGNATURE: f64 = 1e-6;
 /// at first order and stay free in the refit, where the non-linear model can use them.
 pub(super) const GAUGE: f64 = 1e-7;
 
+/// Half of each parameter's plausible range (∞ where the catalogue gives none).
+fn half_ranges(at: AtModel, c: usize, np: usize) -> Vec<f64> {
+    let infos = at.p.cands[c].effect.parameters();
+    (0..np)
+        .map(|k| {
+            infos.get(k).map_or(f64::INFINITY, |i| {
+                0.5 * (i.plausible.1 - i.plausible.0).abs()
+            })
+        })
+        .collect()
+}
+
 /// `norms` (the candidate's Jacobian column norms) with 0 for each coordinate that
 /// cannot move the residual by [`REOPEN_SIGNATURE`] noise units anywhere in half its
 /// plausible range once the current model's parameters compensate: the data cannot
@@ -529,22 +541,87 @@ pub(super) const GAUGE: f64 = 1e-7;
 /// its own line, once a fitted force direction has turned that line by a milliradian,
 /// then slides to its hard bound of a metre and stalls the fit of everything coupled
 /// with it.
-fn unresolvable_as_gauges(at: AtModel, c: usize, jp: &DMatrix<f64>, norms: Vec<f64>) -> Vec<f64> {
-    let infos = at.p.cands[c].effect.parameters();
+fn unresolvable_as_gauges(jp: &DMatrix<f64>, norms: Vec<f64>, half_range: &[f64]) -> Vec<f64> {
     norms
         .into_iter()
         .enumerate()
         .map(|(k, n)| {
-            let half_range = infos.get(k).map_or(f64::INFINITY, |i| {
-                0.5 * (i.plausible.1 - i.plausible.0).abs()
-            });
-            if n > 0.0 && jp.column(k).norm() * half_range < REOPEN_SIGNATURE {
+            if n > 0.0 && jp.column(k).norm() * half_range[k] < REOPEN_SIGNATURE {
                 0.0
             } else {
                 n
             }
         })
         .collect()
+}
+
+/// The thin SVD of the projected candidate columns `jp` normalised by `norms`, after
+/// dropping, one at a time, each coordinate absorbed at first order whose own
+/// signature is unresolvable: its column's distance from the span of the other
+/// coordinates' columns (after the current model's), `d_k = ‖(I − P_{J∖k}) j_k‖`, lies
+/// between the exact-gauge and the absorbed level ([`GAUGE`] < d_k/‖j_k‖ ≤ [`ABSORBED`])
+/// and `d_k` over half the plausible range moves the residual by less than
+/// [`REOPEN_SIGNATURE`] noise units. Whatever such a coordinate does, the others do
+/// within the noise, so the data cannot tell where on that near-gauge the truth lies;
+/// left free, the refit slides along it to a hard bound. The case met: a force's
+/// location along its own line, once a fitted direction of that force (turned by a few
+/// milliradians to stand in for the location) has made it a combination, to one part in
+/// 10⁵, of the perpendicular offsets; it went to its bound of a metre and left the
+/// right two effects at χ²/ν 8 (docs/physics.md, M4). Exact gauges (`d_k/‖j_k‖ ≤ GAUGE`)
+/// are left to [`gauge_pivots`], which keeps one coordinate of each. The smallest own
+/// signature goes first and the rest is judged again without it, so a pair that is
+/// nearly one direction loses one member, not both. `d_k` comes from the SVD of the
+/// normalised columns, `d_k = 1/√(Σᵢ V_ki²/σᵢ²)`.
+fn svd_without_own_gauges(
+    jp: &DMatrix<f64>,
+    norms: &mut [f64],
+    half_range: &[f64],
+) -> nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
+    loop {
+        let mut jt = jp.clone();
+        normalise_columns(&mut jt, norms);
+        let svd = lm::thin_svd(&jt);
+        let Some(k) = weakest_own_signature(&svd, norms, half_range) else {
+            return svd;
+        };
+        norms[k] = 0.0;
+    }
+}
+
+/// The coordinate [`svd_without_own_gauges`] drops next, if any.
+fn weakest_own_signature(
+    svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    norms: &[f64],
+    half_range: &[f64],
+) -> Option<usize> {
+    let sv = &svd.singular_values;
+    if sv.iter().all(|&s| s > ABSORBED || s <= GAUGE) {
+        return None;
+    }
+    let vt = svd.v_t.as_ref().expect("requested");
+    let own = |k: usize| {
+        let inv: f64 = (0..sv.len())
+            .filter(|&i| sv[i] > GAUGE)
+            .map(|i| vt[(i, k)] * vt[(i, k)] / (sv[i] * sv[i]))
+            .sum();
+        let in_exact: f64 = (0..sv.len())
+            .filter(|&i| sv[i] <= GAUGE)
+            .map(|i| vt[(i, k)] * vt[(i, k)])
+            .sum();
+        (inv > 0.0 && in_exact < 0.01).then(|| 1.0 / inv.sqrt())
+    };
+    (0..norms.len())
+        .filter(|&k| norms[k] > 0.0)
+        .filter_map(|k| own(k).map(|d| (k, d)))
+        .filter(|&(k, d)| {
+            d > GAUGE && d <= ABSORBED && d * norms[k] * half_range[k] < REOPEN_SIGNATURE
+        })
+        .min_by(|a, b| {
+            (a.1 * norms[a.0] * half_range[a.0])
+                .total_cmp(&(b.1 * norms[b.0] * half_range[b.0]))
+                .then(a.0.cmp(&b.0))
+        })
+        .map(|(k, _)| k)
 }
 
 /// The score test of candidate `c` at the current model (docs/physics.md, M4): its
@@ -556,10 +633,10 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
     let (jc, norms) = candidate_columns(at, c)?;
     // One projection serves both the unresolvable test (raw columns) and the score
     // (normalised ones): a column's projection scales with the column.
-    let mut jt = project_out(&jc, at.q0);
-    let norms = unresolvable_as_gauges(at, c, &jt, norms);
-    normalise_columns(&mut jt, &norms);
-    let svd = lm::thin_svd(&jt);
+    let jp = project_out(&jc, at.q0);
+    let half_range = half_ranges(at, c, norms.len());
+    let mut norms = unresolvable_as_gauges(&jp, norms, &half_range);
+    let svd = svd_without_own_gauges(&jp, &mut norms, &half_range);
     let u = svd.u.as_ref().expect("requested");
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&k| svd.singular_values[k] > ABSORBED)
