@@ -710,6 +710,49 @@ def test_effects_agree_with_frf_sim_when_available():
     assert not bad, bad
 
 
+def test_effects_at_a_moved_and_turned_driving_point_agree_with_frf_sim():
+    """A force struck off its point and along a turned direction, with a gauge's mass and
+    a stinger at the driving point: on the test article they sit where the force acts,
+    along the direction it acts (our case places them at the true point and direction).
+    The other simulator's effects are listed with the driving-point effects first, so it
+    must compose them in its own order to agree (1e-9 of the largest value). Skipped
+    without RBPROPS_FRF_SIM."""
+    import copy
+    exe = frf_sim()
+    if not exe:
+        return
+    base = rbref.load(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).data
+    text = open(os.path.join(REPO, "fixtures", "specs", "test-case-2.toml")).read()
+    text += """
+[[effect]]
+id = "force_gauge_mass"
+masses_kg = { force2 = 0.09 }
+
+[[effect]]
+id = "stinger_stiffness"
+lateral_n_per_m = { force2 = 60.0 }
+
+[[effect]]
+id = "force_location"
+offsets_m = { force2 = [0.012, -0.02, 0.009] }
+
+[[effect]]
+id = "force_direction"
+rotations_rad = { force2 = [0.06, 0.01, -0.05] }
+"""
+    d = copy.deepcopy(base)
+    next(x for x in d["excitation"] if x["id"] == "force2").update(
+        position_error_m=[0.012, -0.02, 0.009], direction_error_rad=[0.06, 0.01, -0.05],
+        gauge_mass_kg=0.09, stinger_lateral_n_per_m=60.0)
+    with tempfile.TemporaryDirectory() as t:
+        path = os.path.join(t, "driving-point.toml")
+        open(path, "w").write(text)
+        case = Case(d, "driving-point")
+        r = rbref.generate(case)
+        h = frf_sim_frfs(exe, [path], case, r)
+    assert rel(r.frf, h) < 1e-9, rel(r.frf, h)
+
+
 def test_examples_generate():
     """Every example case runs; its truth has six modes (or six free directions), finite
     FRFs, and the properties of its body; the near-repeated pair is 0.3 % apart."""

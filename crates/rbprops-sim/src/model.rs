@@ -5,7 +5,7 @@
 //! that a fitter can rebuild the same model with other effect parameters.
 
 use nalgebra::{Matrix6, RowVector6, Vector6};
-use rbprops_core::{c64, rigid_body_modes, Mat6, RigidMode, Vec6};
+use rbprops_core::{c64, rigid_body_modes, Mat6, RigidMode, Vec3, Vec6};
 
 /// A force input of a set-up's model.
 #[derive(Debug, Clone, PartialEq)]
@@ -14,6 +14,12 @@ pub struct ModelInput {
     pub excitation: usize,
     /// Generalised force column about O, `T(p)ᵀ d` nominally.
     pub column: Vec6,
+    /// Where the force acts (m, about O): the spec's point until `force_location` moves
+    /// it. What sits at the driving point (a gauge's mass, a stinger) sits here.
+    pub point: Vec3,
+    /// The unit direction the force acts along: the spec's until `force_direction`
+    /// turns it.
+    pub direction: Vec3,
     /// Mass attached to the body only while this excitation is measured (e.g. the mass
     /// below a force gauge), about O: the model for this input is `Z(s) + s² M_a`.
     pub attached_mass: Mat6,

@@ -119,6 +119,8 @@ pub fn build_models(
                 .map(|(k, e)| ModelInput {
                     excitation: k,
                     column: e.column(),
+                    point: e.position,
+                    direction: e.direction,
                     attached_mass: Mat6::zeros(),
                     attached_stiffness: Mat6::zeros(),
                 })

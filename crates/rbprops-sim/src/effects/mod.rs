@@ -95,8 +95,9 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn check(&self, _spec: &CampaignSpec) -> Result<(), String> {
         self.check_values()
     }
-    /// Effects apply in ascending order (stable in spec order): masses (0) before
-    /// everything else (1), so that gravity sees the loaded body; gravity in the sensor
+    /// Effects apply in ascending order (stable in spec order): masses and the forces'
+    /// points and directions (0) before everything else (1), so that gravity sees the
+    /// loaded body and a gauge's mass or a stinger sits where its force acts; gravity in the sensor
     /// equation (2) last, so that it sees the final output rows; `cord_mass` (2) reduces
     /// the final M and K and reads the final rows and columns; `suspension_drift` (2)
     /// scales the stiffness built before it.

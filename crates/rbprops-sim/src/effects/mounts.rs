@@ -309,7 +309,7 @@ impl Effect for StingerStiffness {
                 .copied()
                 .unwrap_or(0.0);
             if kl != 0.0 || kr != 0.0 {
-                input.attached_stiffness += Self::matrix(&ex.position, &ex.direction, kl, kr);
+                input.attached_stiffness += Self::matrix(&input.point, &input.direction, kl, kr);
             }
         }
         Ok(())
@@ -372,7 +372,7 @@ impl Effect for StingerAxialStiffness {
             let ex = &ctx.geometry.excitations[input.excitation];
             match self.axial_n_per_m.get(&ex.id) {
                 Some(&k) if k != 0.0 => {
-                    input.attached_stiffness += Self::matrix(&ex.position, &ex.direction, k);
+                    input.attached_stiffness += Self::matrix(&input.point, &input.direction, k);
                 }
                 _ => {}
             }

@@ -4,12 +4,15 @@
 //!   `sᵀT(p + δp) = rᵀ + [0 | −sᵀ[δp]×]` (T is affine in p), with `s` the row's current
 //!   translational part, so gains and misorientations compose.
 //! - `force_direction`: excitation e pushes along `R(β_e) d_e` (β a rotation vector,
-//!   `R = exp([β]×)`) through its nominal point p_e: the column `[f; p×f]` becomes
-//!   `[R f; p × R f]`.
+//!   `R = exp([β]×)`) through its point p (where `force_location` put it): the column
+//!   `[f; p×f]` becomes `[R f; p × R f]`.
 //! - `force_location`: excitation e acts at `p_e + δr_e`: the column's moment part
 //!   gains `δr × f` (a shift along the force changes nothing).
+//!   Both act before the effects at the driving point (order 0), so the two compose
+//!   exactly in either order and a gauge's mass or a stinger sits where the force acts,
+//!   along the direction it acts (as on the test article).
 //! - `force_gauge_mass`: a mass m_b between the force gauge and the structure, moving
-//!   with the driving point p. The gauge measures `f_g`, the structure receives
+//!   with the driving point p (the force's point, moved by `force_location`). The gauge measures `f_g`, the structure receives
 //!   `f_g d − m_b ü(p)`, so `Z(s) q = T(p)ᵀ d f_g − s² m_b T(p)ᵀT(p) q`: for that
 //!   excitation only the model is `Z(s) + s² m_b T(p)ᵀT(p)` (a point mass present while
 //!   it is measured). In terms of the nominal FRFs (Woodbury, tested):
@@ -127,6 +130,10 @@ impl Effect for ForceDirection {
     fn id(&self) -> &'static str {
         Self::ID
     }
+    /// Before the effects at the driving point, which read where the force acts.
+    fn order(&self) -> u8 {
+        0
+    }
     fn parameters(&self) -> Vec<ParamInfo> {
         FORCE_ROTATIONS.info(&self.rotations_rad)
     }
@@ -152,13 +159,15 @@ impl Effect for ForceDirection {
         for input in &mut model.inputs {
             let ex = &ctx.geometry.excitations[input.excitation];
             if let Some(b) = self.rotations_rad.get(&ex.id) {
+                let r = super::orientation::rotation(&Vec3::from(*b));
                 let f = Vec3::new(input.column[0], input.column[1], input.column[2]);
-                let df = super::orientation::rotation(&Vec3::from(*b)) * f - f;
-                let dm = ex.position.cross(&df);
+                let df = r * f - f;
+                let dm = input.point.cross(&df);
                 for i in 0..3 {
                     input.column[i] += df[i];
                     input.column[3 + i] += dm[i];
                 }
+                input.direction = r * input.direction;
             }
         }
         Ok(())
@@ -185,6 +194,10 @@ impl ForceLocation {
 impl Effect for ForceLocation {
     fn id(&self) -> &'static str {
         Self::ID
+    }
+    /// Before the effects at the driving point, which read where the force acts.
+    fn order(&self) -> u8 {
+        0
     }
     fn parameters(&self) -> Vec<ParamInfo> {
         FORCE_OFFSETS.info(&self.offsets_m)
@@ -216,6 +229,7 @@ impl Effect for ForceLocation {
                 for i in 0..3 {
                     input.column[3 + i] += dm[i];
                 }
+                input.point += Vec3::from(*d);
             }
         }
         Ok(())
@@ -272,7 +286,7 @@ impl Effect for ForceGaugeMass {
         for input in &mut model.inputs {
             let ex = &ctx.geometry.excitations[input.excitation];
             if let Some(m) = self.masses_kg.get(&ex.id) {
-                let t = rigid_transform(&ex.position);
+                let t = rigid_transform(&input.point);
                 input.attached_mass += *m * t.transpose() * t;
             }
         }
