@@ -458,6 +458,7 @@ fn projected_wald(
     kept: &[usize],
     neutral: &[f64],
 ) -> f64 {
+    let _t = crate::prof::span(crate::prof::WALD);
     let np = kept.len();
     let others: Vec<usize> = (0..j.ncols()).filter(|&k| k < k0 || k >= k0 + np).collect();
     let jb = j.select_columns(&others);
