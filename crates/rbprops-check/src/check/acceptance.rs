@@ -450,7 +450,27 @@ fn wald_statistic(
     projected_wald(&f.jacobian, k0, alpha, kept, neutral) / s
 }
 
-/// `‖(I − P_B) J_φ δ‖²` of [`wald_statistic`] (unscaled).
+/// Below this, a diagonal entry of R₁₁ (the other columns B, each scaled to unit norm)
+/// relative to its largest marks B as rank-deficient for [`projected_wald`].
+///
+/// Why this value: with unit columns |r_kk| is the distance of B's k-th column from the
+/// span of the ones before it, and B's smallest singular value is at most the smallest
+/// |r_kk|. The SVD path drops B's directions below 1e-10 ([`svd_projected`]); a
+/// threshold 10⁴ times higher sends every B the SVD would find deficient there (short of
+/// a contrived triangular R whose smallest singular value falls 10⁴ below its smallest
+/// diagonal entry), while on a B above 1e-10 both paths project onto the same span.
+const B_RANK_TOL: f64 = 1e-6;
+
+/// `‖(I − P_B) J_φ δ‖²` of [`wald_statistic`] (unscaled; docs/physics.md, M6e).
+///
+/// By a QR of J with the effect's columns last, `J = Q R`, `R = [R₁₁ R₁₂; 0 R₂₂]`: the
+/// span of B is that of Q₁, and `(I − P_B) J_φ = Q₂ R₂₂`, so the statistic is `‖R₂₂ δ‖²`
+/// when B has full column rank ([`B_RANK_TOL`]). Otherwise it is the SVD projection of
+/// `R₁₂ δ; R₂₂ δ` off R's first columns, in Q's coordinates (span B ⊂ span Q and Q has
+/// orthonormal columns, so norms and projections are those of J's). Only R is formed (by
+/// row blocks, [`crate::lm::r_factor`]): the SVD of B it replaces formed B's Q and U, two
+/// more 108 000 × ~50 matrices per refit on the bench.
+/// The columns are scaled to unit norm (δ with them), which leaves the statistic as it is.
 fn projected_wald(
     j: &DMatrix<f64>,
     k0: usize,
@@ -460,11 +480,44 @@ fn projected_wald(
 ) -> f64 {
     let _t = crate::prof::span(crate::prof::WALD);
     let np = kept.len();
-    let others: Vec<usize> = (0..j.ncols()).filter(|&k| k < k0 || k >= k0 + np).collect();
-    let jb = j.select_columns(&others);
-    let change = j.columns(k0, np) * from_neutral(alpha, kept, neutral);
-    let (q, _) = span_basis(&jb, 1e-10);
-    let unexplained = &change - &q * (q.transpose() * &change);
+    let order: Vec<usize> = (0..j.ncols())
+        .filter(|&k| k < k0 || k >= k0 + np)
+        .chain(k0..k0 + np)
+        .collect();
+    let nb = order.len() - np;
+    let delta = from_neutral(alpha, kept, neutral);
+    if np == 0 || j.nrows() < j.ncols() {
+        return svd_projected(
+            &j.select_columns(&order[..nb]),
+            &(j.columns(k0, np) * delta),
+        );
+    }
+    let scale: Vec<f64> = order
+        .iter()
+        .map(|&k| Some(j.column(k).norm()).filter(|&s| s > 0.0).unwrap_or(1.0))
+        .collect();
+    let r = crate::lm::r_factor(j, &order, &scale);
+    let delta = delta.component_mul(&nalgebra::DVector::from_column_slice(&scale[nb..]));
+    if b_full_rank(&r, nb) {
+        (r.view((nb, nb), (np, np)) * delta).norm_squared()
+    } else {
+        svd_projected(&r.columns(0, nb).into_owned(), &(r.columns(nb, np) * delta))
+    }
+}
+
+/// B (R's first `nb` columns) has full column rank: no diagonal entry of R₁₁ below
+/// [`B_RANK_TOL`] times the largest.
+fn b_full_rank(r: &DMatrix<f64>, nb: usize) -> bool {
+    let d: Vec<f64> = (0..nb).map(|k| r[(k, k)].abs()).collect();
+    let largest = d.iter().copied().fold(0.0, f64::max);
+    d.iter().all(|&x| x > B_RANK_TOL * largest)
+}
+
+/// `‖(I − P_B) v‖²` with P_B the projector onto B's columns' span less its directions
+/// below 1e-10 (singular values of B with unit columns, [`span_basis`]).
+fn svd_projected(b: &DMatrix<f64>, v: &nalgebra::DVector<f64>) -> f64 {
+    let (q, _) = span_basis(b, 1e-10);
+    let unexplained = v - &q * (q.transpose() * v);
     unexplained.norm_squared()
 }
 
@@ -536,7 +589,7 @@ pub(super) fn distinct_family<'b>(
 
 #[cfg(test)]
 mod wald_tests {
-    use super::{projected_wald, wald_in};
+    use super::{b_full_rank, projected_wald, svd_projected, wald_in};
     use nalgebra::{DMatrix, DVector};
 
     /// Deterministic pseudo-random columns (the test kit's LCG).
@@ -557,6 +610,52 @@ mod wald_tests {
         let d = DVector::from_vec(vec![0.3, -0.3]);
         let expected = (d.transpose() * cff.try_inverse().expect("regular") * &d)[(0, 0)];
         assert!((w - expected).abs() < 1e-9 * expected, "{w} vs {expected}");
+    }
+
+    /// Whether [`projected_wald`] takes the QR path on `j`'s columns in `order` (B the
+    /// first `nb`).
+    fn takes_qr_path(j: &DMatrix<f64>, order: &[usize], nb: usize) -> bool {
+        let scale: Vec<f64> = order.iter().map(|&k| j.column(k).norm()).collect();
+        b_full_rank(&crate::lm::r_factor(j, order, &scale), nb)
+    }
+
+    /// On a full-rank problem with columns of scales 10⁻³…10⁴ (a Jacobian's units), the
+    /// QR path (‖R₂₂ δ‖²) agrees with the SVD projection of the whole matrix (the form
+    /// it replaced) to 1e-10 relative; the effect's columns sit in the middle of θ.
+    #[test]
+    fn the_qr_path_is_the_svd_projection_on_a_full_rank_problem() {
+        let mut j = columns(300, 9, 23);
+        for k in 0..9 {
+            j.column_mut(k).scale_mut(10f64.powi(k as i32 - 3));
+        }
+        let (k0, kept, alpha, neutral) = (3, [0, 2, 3], [0.4, -1.5, 2.0], [0.1, 0.0, 0.0, 0.5]);
+        let order = [0, 1, 2, 6, 7, 8, 3, 4, 5];
+        assert!(takes_qr_path(&j, &order, 6));
+        let w = projected_wald(&j, k0, &alpha, &kept, &neutral);
+        let delta = DVector::from_vec(vec![0.3, -1.5, 1.5]);
+        let svd = svd_projected(&j.select_columns(&order[..6]), &(j.columns(k0, 3) * delta));
+        assert!(svd > 0.0);
+        assert!((w - svd).abs() < 1e-10 * svd, "QR {w} vs SVD {svd}");
+    }
+
+    /// B rank-deficient (its fourth column the first less twice the second): the
+    /// statistic takes the SVD path and is exactly the squared norm of the part of the
+    /// effect's change orthogonal to B, built in.
+    #[test]
+    fn a_rank_deficient_b_takes_the_svd_path() {
+        let mut j = columns(200, 5, 29);
+        let dependent = j.column(0) - j.column(1) * 2.0;
+        j.set_column(3, &dependent);
+        // The effect's column: a combination of B plus a part orthogonal to B.
+        let q = j.columns(0, 3).into_owned().qr().q();
+        let free = columns(200, 1, 31);
+        let orthogonal = &free - &q * (q.transpose() * &free);
+        let phi = j.columns(0, 3) * DVector::from_vec(vec![1.0, -0.5, 2.0]) + &orthogonal;
+        j.set_column(4, &phi.column(0));
+        assert!(!takes_qr_path(&j, &[0, 1, 2, 3, 4], 4));
+        let w = projected_wald(&j, 4, &[2.0], &[0], &[0.5]);
+        let expected = 1.5 * 1.5 * orthogonal.norm_squared();
+        assert!((w - expected).abs() < 1e-10 * expected, "{w} vs {expected}");
     }
 
     /// One of the effect's directions a near-gauge of a base column (1e-9 apart): the
