@@ -6,7 +6,7 @@
 //! distinctness of the best from its rivals.
 
 use super::gauges::last_effect_phi;
-use super::problem::{active_dims, span_basis, Act};
+use super::problem::{active_dims, project_out, span_basis, Act};
 use super::screening::Score;
 use super::selection::Selection;
 use super::verdict::sig;
@@ -485,7 +485,8 @@ fn projected_wald(
         .chain(k0..k0 + np)
         .collect();
     let nb = order.len() - np;
-    let delta = from_neutral(alpha, kept, neutral);
+    // δ as an np × 1 matrix (the projection takes matrices).
+    let delta = DMatrix::from_iterator(np, 1, from_neutral(alpha, kept, neutral).iter().copied());
     if np == 0 || j.nrows() < j.ncols() {
         return svd_projected(
             &j.select_columns(&order[..nb]),
@@ -497,7 +498,7 @@ fn projected_wald(
         .map(|&k| Some(j.column(k).norm()).filter(|&s| s > 0.0).unwrap_or(1.0))
         .collect();
     let r = crate::lm::r_factor(j, &order, &scale);
-    let delta = delta.component_mul(&nalgebra::DVector::from_column_slice(&scale[nb..]));
+    let delta = delta.component_mul(&DMatrix::from_column_slice(np, 1, &scale[nb..]));
     if b_full_rank(&r, nb) {
         (r.view((nb, nb), (np, np)) * delta).norm_squared()
     } else {
@@ -515,10 +516,8 @@ fn b_full_rank(r: &DMatrix<f64>, nb: usize) -> bool {
 
 /// `‖(I − P_B) v‖²` with P_B the projector onto B's columns' span less its directions
 /// below 1e-10 (singular values of B with unit columns, [`span_basis`]).
-fn svd_projected(b: &DMatrix<f64>, v: &nalgebra::DVector<f64>) -> f64 {
-    let (q, _) = span_basis(b, 1e-10);
-    let unexplained = v - &q * (q.transpose() * v);
-    unexplained.norm_squared()
+fn svd_projected(b: &DMatrix<f64>, v: &DMatrix<f64>) -> f64 {
+    project_out(v, &span_basis(b, 1e-10).0).norm_squared()
 }
 
 /// The fitted coordinates `alpha` (of φ's `kept` entries) less their neutral values.
@@ -632,7 +631,7 @@ mod wald_tests {
         let order = [0, 1, 2, 6, 7, 8, 3, 4, 5];
         assert!(takes_qr_path(&j, &order, 6));
         let w = projected_wald(&j, k0, &alpha, &kept, &neutral);
-        let delta = DVector::from_vec(vec![0.3, -1.5, 1.5]);
+        let delta = DMatrix::from_column_slice(3, 1, &[0.3, -1.5, 1.5]);
         let svd = svd_projected(&j.select_columns(&order[..6]), &(j.columns(k0, 3) * delta));
         assert!(svd > 0.0);
         assert!((w - svd).abs() < 1e-10 * svd, "QR {w} vs SVD {svd}");
