@@ -212,7 +212,6 @@ impl<'p, 'a> Selection<'p, 'a> {
             d as f64,
         );
         let (k0, phi) = last_effect_phi(p, &f.theta, c, &kept);
-        let alpha = &f.theta[k0..];
         let infos = cand.effect.parameters();
         let mut why = Vec::new();
         if !(dchi2 > thr) {
@@ -242,7 +241,11 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).
         let nu = n_real - (self.charges.free_base + active_dims(&self.model.active) + d) as f64;
-        let wald = wald_statistic(&f, nu, k0, alpha, &kept, &cand.neutral);
+        let wald = wald_statistic(
+            &f,
+            nu,
+            &FittedEffect::new(&f.theta, k0, &kept, &cand.neutral),
+        );
         let wthr = rbprops_core::stats::chi2_quantile(options.wald_level, d.max(1) as f64);
         if !(wald > wthr) {
             why.push(format!("Wald {wald:.1} ≤ {wthr:.1}"));
@@ -438,16 +441,9 @@ pub(super) const IMPLAUSIBLE: &str = "implausible:";
 /// to `W`, where a pseudo-inverse of `C_φφ` thresholded against its largest eigenvalue
 /// (the near-gauge's, 10¹⁰ times the rest) dropped every identified direction too and
 /// returned 0.
-fn wald_statistic(
-    f: &Fit,
-    nu: f64,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
+fn wald_statistic(f: &Fit, nu: f64, e: &FittedEffect) -> f64 {
     let s = (f.chi2 / nu).max(1.0);
-    projected_wald(&f.jacobian, k0, alpha, kept, neutral) / s
+    projected_wald(&f.jacobian, e) / s
 }
 
 /// Below this, a diagonal entry of R₁₁ (the other columns B, each scaled to unit norm)
@@ -471,22 +467,16 @@ const B_RANK_TOL: f64 = 1e-6;
 /// row blocks, [`crate::lm::r_factor`]): the SVD of B it replaces formed B's Q and U, two
 /// more 108 000 × ~50 matrices per refit on the bench.
 /// The columns are scaled to unit norm (δ with them), which leaves the statistic as it is.
-fn projected_wald(
-    j: &DMatrix<f64>,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
+fn projected_wald(j: &DMatrix<f64>, e: &FittedEffect) -> f64 {
     let _t = crate::prof::span(crate::prof::WALD);
-    let np = kept.len();
+    let (k0, np) = (e.k0, e.dim());
     let order: Vec<usize> = (0..j.ncols())
         .filter(|&k| k < k0 || k >= k0 + np)
         .chain(k0..k0 + np)
         .collect();
     let nb = order.len() - np;
     // δ as an np × 1 matrix (the projection takes matrices).
-    let delta = DMatrix::from_iterator(np, 1, from_neutral(alpha, kept, neutral).iter().copied());
+    let delta = DMatrix::from_iterator(np, 1, e.from_neutral().iter().copied());
     if np == 0 || j.nrows() < j.ncols() {
         return svd_projected(
             &j.select_columns(&order[..nb]),
@@ -520,26 +510,50 @@ fn svd_projected(b: &DMatrix<f64>, v: &DMatrix<f64>) -> f64 {
     project_out(v, &span_basis(b, 1e-10).0).norm_squared()
 }
 
-/// The fitted coordinates `alpha` (of φ's `kept` entries) less their neutral values.
-fn from_neutral(alpha: &[f64], kept: &[usize], neutral: &[f64]) -> nalgebra::DVector<f64> {
-    nalgebra::DVector::from_iterator(
-        kept.len(),
-        alpha.iter().zip(kept).map(|(a, &j)| a - neutral[j]),
-    )
+/// An effect's fitted coordinates within θ, as its Wald statistic (M6e) reads them: they
+/// start at `k0`, `alpha` are φ's `kept` entries, `neutral` is φ's neutral point. Built
+/// once per effect tested.
+pub(super) struct FittedEffect<'a> {
+    pub(super) k0: usize,
+    pub(super) alpha: &'a [f64],
+    pub(super) kept: &'a [usize],
+    pub(super) neutral: &'a [f64],
+}
+
+impl<'a> FittedEffect<'a> {
+    /// The effect whose coordinates `kept` start at `k0` in `theta`.
+    pub(super) fn new(theta: &'a [f64], k0: usize, kept: &'a [usize], neutral: &'a [f64]) -> Self {
+        Self {
+            k0,
+            alpha: &theta[k0..k0 + kept.len()],
+            kept,
+            neutral,
+        }
+    }
+
+    /// Its number of fitted coordinates.
+    fn dim(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// δ = α − α₀: the fitted coordinates less their neutral values.
+    fn from_neutral(&self) -> nalgebra::DVector<f64> {
+        nalgebra::DVector::from_iterator(
+            self.dim(),
+            self.alpha
+                .iter()
+                .zip(self.kept)
+                .map(|(a, &j)| a - self.neutral[j]),
+        )
+    }
 }
 
 /// [`wald_statistic`] with the fit's covariance `cov` given (θ's whole covariance).
-pub(super) fn wald_in(
-    cov: &DMatrix<f64>,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
+pub(super) fn wald_in(cov: &DMatrix<f64>, e: &FittedEffect) -> f64 {
     // In α coordinates (identifiable directions only).
-    let np = kept.len();
-    let cphi = cov.view((k0, k0), (np, np)).into_owned();
-    let dphi = from_neutral(alpha, kept, neutral);
+    let np = e.dim();
+    let cphi = cov.view((e.k0, e.k0), (np, np)).into_owned();
+    let dphi = e.from_neutral();
     let eig = cphi.symmetric_eigen();
     let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
     let mut wald = 0.0;
@@ -588,8 +602,23 @@ pub(super) fn distinct_family<'b>(
 
 #[cfg(test)]
 mod wald_tests {
-    use super::{b_full_rank, projected_wald, svd_projected, wald_in};
+    use super::{b_full_rank, projected_wald, svd_projected, wald_in, FittedEffect};
     use nalgebra::{DMatrix, DVector};
+
+    /// The effect with coordinates `kept` fitted to `alpha` from `k0`.
+    fn fitted<'a>(
+        k0: usize,
+        alpha: &'a [f64],
+        kept: &'a [usize],
+        neutral: &'a [f64],
+    ) -> FittedEffect<'a> {
+        FittedEffect {
+            k0,
+            alpha,
+            kept,
+            neutral,
+        }
+    }
 
     /// Deterministic pseudo-random columns (the test kit's LCG).
     fn columns(rows: usize, cols: usize, seed: u64) -> DMatrix<f64> {
@@ -603,7 +632,7 @@ mod wald_tests {
     fn projected_wald_is_the_covariance_form_when_regular() {
         let j = columns(200, 6, 7);
         let (k0, alpha, neutral) = (4, [0.3, -0.2], [0.0, 0.1]);
-        let w = projected_wald(&j, k0, &alpha, &[0, 1], &neutral);
+        let w = projected_wald(&j, &fitted(k0, &alpha, &[0, 1], &neutral));
         let c = (j.transpose() * &j).try_inverse().expect("regular");
         let cff = c.view((k0, k0), (2, 2)).into_owned();
         let d = DVector::from_vec(vec![0.3, -0.3]);
@@ -630,7 +659,7 @@ mod wald_tests {
         let (k0, kept, alpha, neutral) = (3, [0, 2, 3], [0.4, -1.5, 2.0], [0.1, 0.0, 0.0, 0.5]);
         let order = [0, 1, 2, 6, 7, 8, 3, 4, 5];
         assert!(takes_qr_path(&j, &order, 6));
-        let w = projected_wald(&j, k0, &alpha, &kept, &neutral);
+        let w = projected_wald(&j, &fitted(k0, &alpha, &kept, &neutral));
         let delta = DMatrix::from_column_slice(3, 1, &[0.3, -1.5, 1.5]);
         let svd = svd_projected(&j.select_columns(&order[..6]), &(j.columns(k0, 3) * delta));
         assert!(svd > 0.0);
@@ -652,7 +681,7 @@ mod wald_tests {
         let phi = j.columns(0, 3) * DVector::from_vec(vec![1.0, -0.5, 2.0]) + &orthogonal;
         j.set_column(4, &phi.column(0));
         assert!(!takes_qr_path(&j, &[0, 1, 2, 3, 4], 4));
-        let w = projected_wald(&j, 4, &[2.0], &[0], &[0.5]);
+        let w = projected_wald(&j, &fitted(4, &[2.0], &[0], &[0.5]));
         let expected = 1.5 * 1.5 * orthogonal.norm_squared();
         assert!((w - expected).abs() < 1e-10 * expected, "{w} vs {expected}");
     }
@@ -668,18 +697,18 @@ mod wald_tests {
         j.columns_mut(0, 3).copy_from(&base);
         j.set_column(3, &(base.column(0) + wobble.column(0) * 1e-9));
         j.set_column(4, &other.column(0));
-        let w = projected_wald(&j, 3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]);
-        let alone = projected_wald(&j.select_columns(&[0, 1, 2, 4]), 3, &[1.0], &[0], &[0.0]);
+        let w = projected_wald(&j, &fitted(3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]));
+        let alone = projected_wald(
+            &j.select_columns(&[0, 1, 2, 4]),
+            &fitted(3, &[1.0], &[0], &[0.0]),
+        );
         assert!(alone > 1.0);
         assert!((w - alone).abs() < 1e-6 * alone, "{w} vs {alone}");
         // The covariance form this replaced is wrong here (5 times too large on these
         // columns; 0 on the recording that showed it, docs/physics.md M6e).
         let old = wald_in(
             &crate::lm::covariance(&j),
-            3,
-            &[1.0, 1.0],
-            &[0, 1],
-            &[0.0, 0.0],
+            &fitted(3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]),
         );
         assert!(
             (old - alone).abs() > 0.5 * alone,

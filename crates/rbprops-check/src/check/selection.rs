@@ -4,7 +4,7 @@
 //! that no longer pay for themselves.
 
 use super::acceptance::{
-    distinct_family, fit_covariance, holds, implausible_text, wald_in, Evidence,
+    distinct_family, fit_covariance, holds, implausible_text, wald_in, Evidence, FittedEffect,
 };
 use super::gauges::{centre_gauges, reopen_dropped};
 use super::items::Narrowed;
@@ -911,8 +911,11 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn active_wald(&self, k: usize, cov: &DMatrix<f64>) -> f64 {
         let k0 = self.p.n_base() + active_dims(&self.model.active[..k]);
         let a = &self.model.active[k];
-        let alpha = &self.model.cur.theta[k0..k0 + a.dim()];
-        wald_in(cov, k0, alpha, &a.kept, &self.p.cands[a.c].neutral)
+        let neutral = &self.p.cands[a.c].neutral;
+        wald_in(
+            cov,
+            &FittedEffect::new(&self.model.cur.theta, k0, &a.kept, neutral),
+        )
     }
 }
 
