@@ -476,7 +476,7 @@ fn projected_wald(j: &DMatrix<f64>, e: &FittedEffect) -> f64 {
         .collect();
     let nb = order.len() - np;
     // δ as an np × 1 matrix (the projection takes matrices).
-    let delta = DMatrix::from_iterator(np, 1, e.from_neutral().iter().copied());
+    let delta = DMatrix::from_iterator(np, 1, e.delta().iter().copied());
     if np == 0 || j.nrows() < j.ncols() {
         return svd_projected(
             &j.select_columns(&order[..nb]),
@@ -537,7 +537,7 @@ impl<'a> FittedEffect<'a> {
     }
 
     /// δ = α − α₀: the fitted coordinates less their neutral values.
-    fn from_neutral(&self) -> nalgebra::DVector<f64> {
+    fn delta(&self) -> nalgebra::DVector<f64> {
         nalgebra::DVector::from_iterator(
             self.dim(),
             self.alpha
@@ -553,7 +553,7 @@ pub(super) fn wald_in(cov: &DMatrix<f64>, e: &FittedEffect) -> f64 {
     // In α coordinates (identifiable directions only).
     let np = e.dim();
     let cphi = cov.view((e.k0, e.k0), (np, np)).into_owned();
-    let dphi = e.from_neutral();
+    let dphi = e.delta();
     let eig = cphi.symmetric_eigen();
     let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
     let mut wald = 0.0;
