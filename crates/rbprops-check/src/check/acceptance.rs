@@ -67,11 +67,12 @@ pub(super) struct RefitBaseline {
 
 /// The evidence for one refitted candidate, and its decision: accepted if `why` is
 /// empty. Kept for the accepted effects (with `inertia_change` filled) for the report
-/// and the backward check.
+/// and the backward check, as [`Accepted`].
 #[derive(Clone)]
-pub(super) struct Evidence {
+pub(super) struct Evidence<F = Fit> {
     pub(super) c: usize,
-    pub(super) fit: Fit,
+    /// The refit (`()` once accepted: see [`Accepted`]).
+    pub(super) fit: F,
     /// The candidate's free coordinates in the refit (after any reopening).
     pub(super) kept: Vec<usize>,
     pub(super) dchi2: f64,
@@ -94,7 +95,52 @@ pub(super) struct Evidence {
     pub(super) accepted_at: usize,
 }
 
+/// An accepted effect's evidence, without its refit: on acceptance the refit becomes the
+/// model's current fit, which moves on with every later step, and a copy kept here would
+/// be stale (an effect narrowed in the final re-test kept its fit from before; nothing
+/// read it) and hold a Jacobian per effect (43 MB each on the bench).
+pub(super) type Accepted = Evidence<()>;
+
 impl Evidence {
+    /// The refit, for the model's current fit, and the evidence accepted at `step`.
+    pub(super) fn accept(self, step: usize) -> (Fit, Accepted) {
+        let Evidence {
+            c,
+            fit,
+            kept,
+            dchi2,
+            dbic,
+            rank,
+            threshold,
+            why,
+            held_out,
+            held_out_exc,
+            practical,
+            inertia_change,
+            items_at_neutral,
+            accepted_at: _,
+        } = self;
+        let accepted = Evidence {
+            c,
+            fit: (),
+            kept,
+            dchi2,
+            dbic,
+            rank,
+            threshold,
+            why,
+            held_out,
+            held_out_exc,
+            practical,
+            inertia_change,
+            items_at_neutral,
+            accepted_at: step,
+        };
+        (fit, accepted)
+    }
+}
+
+impl<F> Evidence<F> {
     pub(super) fn ok(&self) -> bool {
         self.why.is_empty()
     }
