@@ -273,14 +273,9 @@ pub(super) fn profile_candidate(
         .collect();
     let (gain, i, theta_best, rg) =
         best_profile_point(refined, &cand.id, &|i| theta_at(points[i]), &eval, nb)?;
-    // Signature direction at the best point (for the distinctness check).
-    let change = &r0 - &rg;
-    let sig = project_out(
-        &DMatrix::from_column_slice(change.len(), 1, change.as_slice()),
-        q0,
-    );
     Ok(profile_score(
-        sig,
+        q0,
+        &r0 - &rg,
         np,
         gain,
         grid[points[i].0].clone(),
@@ -438,16 +433,21 @@ fn chord_refine(
 }
 
 /// The score of a profiled candidate with `np` parameters from its best point: the
-/// signature `sig` (the residual's change there, the current span projected out) as its
-/// one-column basis, the gain, the grid point as the refit's start.
+/// signature (the residual's `change` there with the current span `q0` projected out) as
+/// its one-column basis, the gain, the grid point as the refit's start.
 fn profile_score(
-    sig: DMatrix<f64>,
+    q0: &DMatrix<f64>,
+    change: nalgebra::DVector<f64>,
     np: usize,
     gain: f64,
     start: Vec<f64>,
     n_tests: usize,
     theta_best: Vec<f64>,
 ) -> Score {
+    let sig = project_out(
+        &DMatrix::from_column_slice(change.len(), 1, change.as_slice()),
+        q0,
+    );
     let n = sig.norm();
     let basis = if n > 0.0 {
         sig / n
