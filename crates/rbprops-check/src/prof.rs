@@ -7,7 +7,7 @@
 //! evaluations it makes.
 
 /// Names of the phases, by index.
-pub const PHASES: [&str; 12] = [
+pub const PHASES: [&str; 13] = [
     "model evaluations (predict)",
     "finite-difference Jacobians",
     "LM fit: baseline",
@@ -20,6 +20,7 @@ pub const PHASES: [&str; 12] = [
     "screening: profiles (grid)",
     "screening: in-band resonance",
     "held-out residuals",
+    "Wald statistic (projected)",
 ];
 
 /// Phase indices (see [`PHASES`]).
@@ -46,6 +47,8 @@ pub const SCREEN_PROFILE: usize = 9;
 pub const SCREEN_RESONANCE: usize = 10;
 /// Held-out residuals (cross-validation).
 pub const HELD_OUT: usize = 11;
+/// The projected Wald statistic of a refitted effect (docs/physics.md, M6e).
+pub const WALD: usize = 12;
 
 #[cfg(feature = "phase-timing")]
 mod imp {

@@ -6,7 +6,7 @@
 //! distinctness of the best from its rivals.
 
 use super::gauges::last_effect_phi;
-use super::problem::{active_dims, span_basis, Act};
+use super::problem::{active_dims, project_out, span_basis, Act};
 use super::screening::Score;
 use super::selection::Selection;
 use super::verdict::sig;
@@ -67,11 +67,12 @@ pub(super) struct RefitBaseline {
 
 /// The evidence for one refitted candidate, and its decision: accepted if `why` is
 /// empty. Kept for the accepted effects (with `inertia_change` filled) for the report
-/// and the backward check.
+/// and the backward check, as [`Accepted`].
 #[derive(Clone)]
-pub(super) struct Evidence {
+pub(super) struct Evidence<F = Fit> {
     pub(super) c: usize,
-    pub(super) fit: Fit,
+    /// The refit (`()` once accepted: see [`Accepted`]).
+    pub(super) fit: F,
     /// The candidate's free coordinates in the refit (after any reopening).
     pub(super) kept: Vec<usize>,
     pub(super) dchi2: f64,
@@ -94,7 +95,52 @@ pub(super) struct Evidence {
     pub(super) accepted_at: usize,
 }
 
+/// An accepted effect's evidence, without its refit: on acceptance the refit becomes the
+/// model's current fit, which moves on with every later step, and a copy kept here would
+/// be stale (an effect narrowed in the final re-test kept its fit from before; nothing
+/// read it) and hold a Jacobian per effect (43 MB each on the bench).
+pub(super) type Accepted = Evidence<()>;
+
 impl Evidence {
+    /// The refit, for the model's current fit, and the evidence accepted at `step`.
+    pub(super) fn accept(self, step: usize) -> (Fit, Accepted) {
+        let Evidence {
+            c,
+            fit,
+            kept,
+            dchi2,
+            dbic,
+            rank,
+            threshold,
+            why,
+            held_out,
+            held_out_exc,
+            practical,
+            inertia_change,
+            items_at_neutral,
+            accepted_at: _,
+        } = self;
+        let accepted = Evidence {
+            c,
+            fit: (),
+            kept,
+            dchi2,
+            dbic,
+            rank,
+            threshold,
+            why,
+            held_out,
+            held_out_exc,
+            practical,
+            inertia_change,
+            items_at_neutral,
+            accepted_at: step,
+        };
+        (fit, accepted)
+    }
+}
+
+impl<F> Evidence<F> {
     pub(super) fn ok(&self) -> bool {
         self.why.is_empty()
     }
@@ -212,7 +258,6 @@ impl<'p, 'a> Selection<'p, 'a> {
             d as f64,
         );
         let (k0, phi) = last_effect_phi(p, &f.theta, c, &kept);
-        let alpha = &f.theta[k0..];
         let infos = cand.effect.parameters();
         let mut why = Vec::new();
         if !(dchi2 > thr) {
@@ -242,7 +287,11 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         // Wald test on the candidate's parameters (pseudo-inverse over its identifiable part).
         let nu = n_real - (self.charges.free_base + active_dims(&self.model.active) + d) as f64;
-        let wald = wald_statistic(&f, nu, k0, alpha, &kept, &cand.neutral);
+        let wald = wald_statistic(
+            &f,
+            nu,
+            &FittedEffect::new(&f.theta, k0, &kept, &cand.neutral),
+        );
         let wthr = rbprops_core::stats::chi2_quantile(options.wald_level, d.max(1) as f64);
         if !(wald > wthr) {
             why.push(format!("Wald {wald:.1} ≤ {wthr:.1}"));
@@ -438,55 +487,119 @@ pub(super) const IMPLAUSIBLE: &str = "implausible:";
 /// to `W`, where a pseudo-inverse of `C_φφ` thresholded against its largest eigenvalue
 /// (the near-gauge's, 10¹⁰ times the rest) dropped every identified direction too and
 /// returned 0.
-fn wald_statistic(
-    f: &Fit,
-    nu: f64,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
+fn wald_statistic(f: &Fit, nu: f64, e: &FittedEffect) -> f64 {
     let s = (f.chi2 / nu).max(1.0);
-    projected_wald(&f.jacobian, k0, alpha, kept, neutral) / s
+    projected_wald(&f.jacobian, e) / s
 }
 
-/// `‖(I − P_B) J_φ δ‖²` of [`wald_statistic`] (unscaled).
-fn projected_wald(
-    j: &DMatrix<f64>,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
-    let np = kept.len();
-    let others: Vec<usize> = (0..j.ncols()).filter(|&k| k < k0 || k >= k0 + np).collect();
-    let jb = j.select_columns(&others);
-    let change = j.columns(k0, np) * from_neutral(alpha, kept, neutral);
-    let (q, _) = span_basis(&jb, 1e-10);
-    let unexplained = &change - &q * (q.transpose() * &change);
-    unexplained.norm_squared()
+/// Below this, a diagonal entry of R₁₁ (the other columns B, each scaled to unit norm)
+/// relative to its largest marks B as rank-deficient for [`projected_wald`].
+///
+/// Why this value: with unit columns |r_kk| is the distance of B's k-th column from the
+/// span of the ones before it, and B's smallest singular value is at most the smallest
+/// |r_kk|. The SVD path drops B's directions below 1e-10 ([`svd_projected`]); a
+/// threshold 10⁴ times higher sends every B the SVD would find deficient there (short of
+/// a contrived triangular R whose smallest singular value falls 10⁴ below its smallest
+/// diagonal entry), while on a B above 1e-10 both paths project onto the same span.
+const B_RANK_TOL: f64 = 1e-6;
+
+/// `‖(I − P_B) J_φ δ‖²` of [`wald_statistic`] (unscaled; docs/physics.md, M6e).
+///
+/// By a QR of J with the effect's columns last, `J = Q R`, `R = [R₁₁ R₁₂; 0 R₂₂]`: the
+/// span of B is that of Q₁, and `(I − P_B) J_φ = Q₂ R₂₂`, so the statistic is `‖R₂₂ δ‖²`
+/// when B has full column rank ([`B_RANK_TOL`]). Otherwise it is the SVD projection of
+/// `R₁₂ δ; R₂₂ δ` off R's first columns, in Q's coordinates (span B ⊂ span Q and Q has
+/// orthonormal columns, so norms and projections are those of J's). Only R is formed (by
+/// row blocks, [`crate::lm::r_factor`]): the SVD of B it replaces formed B's Q and U, two
+/// more 108 000 × ~50 matrices per refit on the bench.
+/// The columns are scaled to unit norm (δ with them), which leaves the statistic as it is.
+fn projected_wald(j: &DMatrix<f64>, e: &FittedEffect) -> f64 {
+    let _t = crate::prof::span(crate::prof::WALD);
+    let (k0, np) = (e.k0, e.dim());
+    let order: Vec<usize> = (0..j.ncols())
+        .filter(|&k| k < k0 || k >= k0 + np)
+        .chain(k0..k0 + np)
+        .collect();
+    let nb = order.len() - np;
+    // δ as an np × 1 matrix (the projection takes matrices).
+    let delta = DMatrix::from_iterator(np, 1, e.delta().iter().copied());
+    if np == 0 || j.nrows() < j.ncols() {
+        return svd_projected(
+            &j.select_columns(&order[..nb]),
+            &(j.columns(k0, np) * delta),
+        );
+    }
+    let scale: Vec<f64> = order
+        .iter()
+        .map(|&k| Some(j.column(k).norm()).filter(|&s| s > 0.0).unwrap_or(1.0))
+        .collect();
+    let r = crate::lm::r_factor(j, &order, &scale);
+    let delta = delta.component_mul(&DMatrix::from_column_slice(np, 1, &scale[nb..]));
+    if b_full_rank(&r, nb) {
+        (r.view((nb, nb), (np, np)) * delta).norm_squared()
+    } else {
+        svd_projected(&r.columns(0, nb).into_owned(), &(r.columns(nb, np) * delta))
+    }
 }
 
-/// The fitted coordinates `alpha` (of φ's `kept` entries) less their neutral values.
-fn from_neutral(alpha: &[f64], kept: &[usize], neutral: &[f64]) -> nalgebra::DVector<f64> {
-    nalgebra::DVector::from_iterator(
-        kept.len(),
-        alpha.iter().zip(kept).map(|(a, &j)| a - neutral[j]),
-    )
+/// B (R's first `nb` columns) has full column rank: no diagonal entry of R₁₁ below
+/// [`B_RANK_TOL`] times the largest.
+fn b_full_rank(r: &DMatrix<f64>, nb: usize) -> bool {
+    let d: Vec<f64> = (0..nb).map(|k| r[(k, k)].abs()).collect();
+    let largest = d.iter().copied().fold(0.0, f64::max);
+    d.iter().all(|&x| x > B_RANK_TOL * largest)
+}
+
+/// `‖(I − P_B) v‖²` with P_B the projector onto B's columns' span less its directions
+/// below 1e-10 (singular values of B with unit columns, [`span_basis`]).
+fn svd_projected(b: &DMatrix<f64>, v: &DMatrix<f64>) -> f64 {
+    project_out(v, &span_basis(b, 1e-10).0).norm_squared()
+}
+
+/// An effect's fitted coordinates within θ, as its Wald statistic (M6e) reads them: they
+/// start at `k0`, `alpha` are φ's `kept` entries, `neutral` is φ's neutral point. Built
+/// once per effect tested.
+pub(super) struct FittedEffect<'a> {
+    pub(super) k0: usize,
+    pub(super) alpha: &'a [f64],
+    pub(super) kept: &'a [usize],
+    pub(super) neutral: &'a [f64],
+}
+
+impl<'a> FittedEffect<'a> {
+    /// The effect whose coordinates `kept` start at `k0` in `theta`.
+    pub(super) fn new(theta: &'a [f64], k0: usize, kept: &'a [usize], neutral: &'a [f64]) -> Self {
+        Self {
+            k0,
+            alpha: &theta[k0..k0 + kept.len()],
+            kept,
+            neutral,
+        }
+    }
+
+    /// Its number of fitted coordinates.
+    fn dim(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// δ = α − α₀: the fitted coordinates less their neutral values.
+    fn delta(&self) -> nalgebra::DVector<f64> {
+        nalgebra::DVector::from_iterator(
+            self.dim(),
+            self.alpha
+                .iter()
+                .zip(self.kept)
+                .map(|(a, &j)| a - self.neutral[j]),
+        )
+    }
 }
 
 /// [`wald_statistic`] with the fit's covariance `cov` given (θ's whole covariance).
-pub(super) fn wald_in(
-    cov: &DMatrix<f64>,
-    k0: usize,
-    alpha: &[f64],
-    kept: &[usize],
-    neutral: &[f64],
-) -> f64 {
+pub(super) fn wald_in(cov: &DMatrix<f64>, e: &FittedEffect) -> f64 {
     // In α coordinates (identifiable directions only).
-    let np = kept.len();
-    let cphi = cov.view((k0, k0), (np, np)).into_owned();
-    let dphi = from_neutral(alpha, kept, neutral);
+    let np = e.dim();
+    let cphi = cov.view((e.k0, e.k0), (np, np)).into_owned();
+    let dphi = e.delta();
     let eig = cphi.symmetric_eigen();
     let emax = eig.eigenvalues.max().max(f64::MIN_POSITIVE);
     let mut wald = 0.0;
@@ -535,8 +648,23 @@ pub(super) fn distinct_family<'b>(
 
 #[cfg(test)]
 mod wald_tests {
-    use super::{projected_wald, wald_in};
+    use super::{b_full_rank, projected_wald, svd_projected, wald_in, FittedEffect};
     use nalgebra::{DMatrix, DVector};
+
+    /// The effect with coordinates `kept` fitted to `alpha` from `k0`.
+    fn fitted<'a>(
+        k0: usize,
+        alpha: &'a [f64],
+        kept: &'a [usize],
+        neutral: &'a [f64],
+    ) -> FittedEffect<'a> {
+        FittedEffect {
+            k0,
+            alpha,
+            kept,
+            neutral,
+        }
+    }
 
     /// Deterministic pseudo-random columns (the test kit's LCG).
     fn columns(rows: usize, cols: usize, seed: u64) -> DMatrix<f64> {
@@ -550,12 +678,58 @@ mod wald_tests {
     fn projected_wald_is_the_covariance_form_when_regular() {
         let j = columns(200, 6, 7);
         let (k0, alpha, neutral) = (4, [0.3, -0.2], [0.0, 0.1]);
-        let w = projected_wald(&j, k0, &alpha, &[0, 1], &neutral);
+        let w = projected_wald(&j, &fitted(k0, &alpha, &[0, 1], &neutral));
         let c = (j.transpose() * &j).try_inverse().expect("regular");
         let cff = c.view((k0, k0), (2, 2)).into_owned();
         let d = DVector::from_vec(vec![0.3, -0.3]);
         let expected = (d.transpose() * cff.try_inverse().expect("regular") * &d)[(0, 0)];
         assert!((w - expected).abs() < 1e-9 * expected, "{w} vs {expected}");
+    }
+
+    /// Whether [`projected_wald`] takes the QR path on `j`'s columns in `order` (B the
+    /// first `nb`).
+    fn takes_qr_path(j: &DMatrix<f64>, order: &[usize], nb: usize) -> bool {
+        let scale: Vec<f64> = order.iter().map(|&k| j.column(k).norm()).collect();
+        b_full_rank(&crate::lm::r_factor(j, order, &scale), nb)
+    }
+
+    /// On a full-rank problem with columns of scales 10⁻³…10⁴ (a Jacobian's units), the
+    /// QR path (‖R₂₂ δ‖²) agrees with the SVD projection of the whole matrix (the form
+    /// it replaced) to 1e-10 relative; the effect's columns sit in the middle of θ.
+    #[test]
+    fn the_qr_path_is_the_svd_projection_on_a_full_rank_problem() {
+        let mut j = columns(300, 9, 23);
+        for k in 0..9 {
+            j.column_mut(k).scale_mut(10f64.powi(k as i32 - 3));
+        }
+        let (k0, kept, alpha, neutral) = (3, [0, 2, 3], [0.4, -1.5, 2.0], [0.1, 0.0, 0.0, 0.5]);
+        let order = [0, 1, 2, 6, 7, 8, 3, 4, 5];
+        assert!(takes_qr_path(&j, &order, 6));
+        let w = projected_wald(&j, &fitted(k0, &alpha, &kept, &neutral));
+        let delta = DMatrix::from_column_slice(3, 1, &[0.3, -1.5, 1.5]);
+        let svd = svd_projected(&j.select_columns(&order[..6]), &(j.columns(k0, 3) * delta));
+        assert!(svd > 0.0);
+        assert!((w - svd).abs() < 1e-10 * svd, "QR {w} vs SVD {svd}");
+    }
+
+    /// B rank-deficient (its fourth column the first less twice the second): the
+    /// statistic takes the SVD path and is exactly the squared norm of the part of the
+    /// effect's change orthogonal to B, built in.
+    #[test]
+    fn a_rank_deficient_b_takes_the_svd_path() {
+        let mut j = columns(200, 5, 29);
+        let dependent = j.column(0) - j.column(1) * 2.0;
+        j.set_column(3, &dependent);
+        // The effect's column: a combination of B plus a part orthogonal to B.
+        let q = j.columns(0, 3).into_owned().qr().q();
+        let free = columns(200, 1, 31);
+        let orthogonal = &free - &q * (q.transpose() * &free);
+        let phi = j.columns(0, 3) * DVector::from_vec(vec![1.0, -0.5, 2.0]) + &orthogonal;
+        j.set_column(4, &phi.column(0));
+        assert!(!takes_qr_path(&j, &[0, 1, 2, 3, 4], 4));
+        let w = projected_wald(&j, &fitted(4, &[2.0], &[0], &[0.5]));
+        let expected = 1.5 * 1.5 * orthogonal.norm_squared();
+        assert!((w - expected).abs() < 1e-10 * expected, "{w} vs {expected}");
     }
 
     /// One of the effect's directions a near-gauge of a base column (1e-9 apart): the
@@ -569,18 +743,18 @@ mod wald_tests {
         j.columns_mut(0, 3).copy_from(&base);
         j.set_column(3, &(base.column(0) + wobble.column(0) * 1e-9));
         j.set_column(4, &other.column(0));
-        let w = projected_wald(&j, 3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]);
-        let alone = projected_wald(&j.select_columns(&[0, 1, 2, 4]), 3, &[1.0], &[0], &[0.0]);
+        let w = projected_wald(&j, &fitted(3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]));
+        let alone = projected_wald(
+            &j.select_columns(&[0, 1, 2, 4]),
+            &fitted(3, &[1.0], &[0], &[0.0]),
+        );
         assert!(alone > 1.0);
         assert!((w - alone).abs() < 1e-6 * alone, "{w} vs {alone}");
         // The covariance form this replaced is wrong here (5 times too large on these
         // columns; 0 on the recording that showed it, docs/physics.md M6e).
         let old = wald_in(
             &crate::lm::covariance(&j),
-            3,
-            &[1.0, 1.0],
-            &[0, 1],
-            &[0.0, 0.0],
+            &fitted(3, &[1.0, 1.0], &[0, 1], &[0.0, 0.0]),
         );
         assert!(
             (old - alone).abs() > 0.5 * alone,

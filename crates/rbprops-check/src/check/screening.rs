@@ -273,25 +273,15 @@ pub(super) fn profile_candidate(
         .collect();
     let (gain, i, theta_best, rg) =
         best_profile_point(refined, &cand.id, &|i| theta_at(points[i]), &eval, nb)?;
-    // Signature direction at the best point (for the distinctness check).
-    let sig = perp(q0, &(&r0 - &rg));
     Ok(profile_score(
-        sig,
+        q0,
+        &r0 - &rg,
         np,
         gain,
         grid[points[i].0].clone(),
         n_tests,
         theta_best,
     ))
-}
-
-/// `r` with the span of `q0` (orthonormal columns) removed.
-fn perp(q0: &DMatrix<f64>, r: &nalgebra::DVector<f64>) -> nalgebra::DVector<f64> {
-    if q0.ncols() == 0 {
-        r.clone()
-    } else {
-        r - q0 * q0.tr_mul(r)
-    }
 }
 
 /// The starts of a profile's chord refinement: the current parameters, and with
@@ -443,21 +433,26 @@ fn chord_refine(
 }
 
 /// The score of a profiled candidate with `np` parameters from its best point: the
-/// signature `sig` (the residual's change there, the current span projected out) as its
-/// one-column basis, the gain, the grid point as the refit's start.
+/// signature (the residual's `change` there with the current span `q0` projected out) as
+/// its one-column basis, the gain, the grid point as the refit's start.
 fn profile_score(
-    sig: nalgebra::DVector<f64>,
+    q0: &DMatrix<f64>,
+    change: nalgebra::DVector<f64>,
     np: usize,
     gain: f64,
     start: Vec<f64>,
     n_tests: usize,
     theta_best: Vec<f64>,
 ) -> Score {
+    let sig = project_out(
+        &DMatrix::from_column_slice(change.len(), 1, change.as_slice()),
+        q0,
+    );
     let n = sig.norm();
     let basis = if n > 0.0 {
-        DMatrix::from_column_slice(sig.len(), 1, (sig / n).as_slice())
+        sig / n
     } else {
-        DMatrix::zeros(sig.len(), 0)
+        DMatrix::zeros(sig.nrows(), 0)
     };
     Score {
         rank: if n > 0.0 { np } else { 0 },

@@ -4,7 +4,8 @@
 //! that no longer pay for themselves.
 
 use super::acceptance::{
-    distinct_family, fit_covariance, holds, implausible_text, wald_in, Evidence,
+    distinct_family, fit_covariance, holds, implausible_text, wald_in, Accepted, Evidence,
+    FittedEffect,
 };
 use super::gauges::{centre_gauges, reopen_dropped};
 use super::items::Narrowed;
@@ -65,7 +66,7 @@ pub(super) struct Model {
     pub(super) active: Vec<Act>,
     pub(super) cur: Fit,
     /// The evidence of each active effect, in the order of `active`.
-    pub(super) accepted: Vec<Evidence>,
+    pub(super) accepted: Vec<Accepted>,
 }
 
 /// What the report says about the candidates so far.
@@ -689,11 +690,9 @@ impl<'p, 'a> Selection<'p, 'a> {
             kept,
             gauge,
         });
-        self.model.cur = evidence.fit.clone();
-        self.model.accepted.push(Evidence {
-            accepted_at: step,
-            ..evidence
-        });
+        let (fit, accepted) = evidence.accept(step);
+        self.model.cur = fit;
+        self.model.accepted.push(accepted);
         let cand = &p.cands[best.c];
         if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
             self.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
@@ -911,8 +910,11 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn active_wald(&self, k: usize, cov: &DMatrix<f64>) -> f64 {
         let k0 = self.p.n_base() + active_dims(&self.model.active[..k]);
         let a = &self.model.active[k];
-        let alpha = &self.model.cur.theta[k0..k0 + a.dim()];
-        wald_in(cov, k0, alpha, &a.kept, &self.p.cands[a.c].neutral)
+        let neutral = &self.p.cands[a.c].neutral;
+        wald_in(
+            cov,
+            &FittedEffect::new(&self.model.cur.theta, k0, &a.kept, neutral),
+        )
     }
 }
 

@@ -2,7 +2,7 @@
 //! before and after, corrected parameters, accepted effects with standard errors), the
 //! improved spec, the localisation maps, the noise-band verdict and the short text.
 
-use super::acceptance::{fit_covariance, Evidence, IMPLAUSIBLE};
+use super::acceptance::{fit_covariance, Accepted, IMPLAUSIBLE};
 use super::gauges::centre_gauges;
 use super::problem::{active_dims, Act, Prior, Problem};
 use super::selection::{Findings, Model, Selection};
@@ -557,7 +557,7 @@ impl<'p, 'a> Finish<'p, 'a> {
     fn accepted_effects(
         &self,
         active: &[Act],
-        evidence: &[Evidence],
+        evidence: &[Accepted],
         ambiguous: &[AmbiguousFamily],
         theta: &[f64],
         cov_final: &DMatrix<f64>,

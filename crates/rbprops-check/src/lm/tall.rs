@@ -74,6 +74,75 @@ pub fn thin_svd(a: &DMatrix<f64>) -> nalgebra::SVD<f64, nalgebra::Dyn, nalgebra:
     svd
 }
 
+/// Rows per block of [`r_factor`]: 2 048 × 60 × 8 bytes ≈ 1 MB, factorised within the L2
+/// cache.
+const R_BLOCK: usize = 2048;
+
+/// The triangular factor R (p × p, upper) of the thin QR of the matrix whose k-th column
+/// is column `cols[k]` of `a` divided by `scale[k]` (n ≥ p rows), without Q: each block
+/// of `R_BLOCK` rows (the last takes the remainder) factorised by Householder (faer), in
+/// parallel, and their stacked R factorised again (TSQR, as [`thin_qr`]).
+///
+/// Why: a statistic that needs only `‖(I − P_B) v‖` for B and v among the columns needs R
+/// alone (docs/physics.md, M6e); forming Q, as [`thin_qr`] and [`thin_svd`] do, costs
+/// more than the factorisation and holds another n × p matrix. The blocks are fixed and
+/// each factorised sequentially: the same R whatever the thread count.
+pub fn r_factor(a: &DMatrix<f64>, cols: &[usize], scale: &[f64]) -> DMatrix<f64> {
+    let (n, p) = (a.nrows(), cols.len());
+    assert!(n >= p && p > 0, "R factor of a {n} × {p} matrix");
+    let block = R_BLOCK.max(p);
+    let nb = (n / block).max(1);
+    let stacked: Vec<faer::Mat<f64>> = (0..nb)
+        .into_par_iter()
+        .map(|i| {
+            let (s, e) = (i * block, if i + 1 == nb { n } else { (i + 1) * block });
+            let mut m = faer::Mat::<f64>::zeros(e - s, p);
+            for (k, (&c, &sc)) in cols.iter().zip(scale).enumerate() {
+                for (dst, src) in m
+                    .col_mut(k)
+                    .iter_mut()
+                    .zip(a.column(c).rows(s, e - s).iter())
+                {
+                    *dst = src / sc;
+                }
+            }
+            householder_r(m)
+        })
+        .collect();
+    let r = if nb == 1 {
+        stacked.into_iter().next().expect("one block")
+    } else {
+        householder_r(faer::Mat::from_fn(nb * p, p, |i, k| {
+            stacked[i / p][(i % p, k)]
+        }))
+    };
+    DMatrix::from_fn(p, p, |i, k| r[(i, k)])
+}
+
+/// The upper triangular R (p × p) of the Householder QR of `m` (rows ≥ p), sequential.
+fn householder_r(mut m: faer::Mat<f64>) -> faer::Mat<f64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::qr::no_pivoting::factor;
+    let (n, p) = m.shape();
+    let bs = factor::recommended_block_size::<f64>(n, p);
+    let mut coeff = faer::Mat::<f64>::zeros(bs, p);
+    let mut buf = MemBuffer::new(factor::qr_in_place_scratch::<f64>(
+        n,
+        p,
+        bs,
+        faer::Par::Seq,
+        Default::default(),
+    ));
+    factor::qr_in_place(
+        m.as_mut(),
+        coeff.as_mut(),
+        faer::Par::Seq,
+        MemStack::new(&mut buf),
+        Default::default(),
+    );
+    faer::Mat::from_fn(p, p, |i, k| if i <= k { m[(i, k)] } else { 0.0 })
+}
+
 /// Rows per block of [`gram`]: a block of a 54 000 × 40 Jacobian's columns (40 × 256 × 8
 /// bytes = 80 kB) stays in cache while every column pair is accumulated over it.
 const GRAM_BLOCK: usize = 256;
@@ -236,6 +305,30 @@ fn adds_nothing(x: u8, y: u8) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `r_factor` over several row blocks (and a remainder) is the R of one Householder QR
+    /// of the selected, scaled columns: rows equal up to their sign, to 1e-12 of R's
+    /// largest entry.
+    #[test]
+    fn r_factor_by_blocks_is_the_r_of_one_qr() {
+        let mut g = rbprops_testkit::Lcg::new(41);
+        let a = DMatrix::from_fn(3 * R_BLOCK + 517, 6, |_, _| g.centred());
+        let (cols, scale) = ([4, 0, 2, 5], [2.0, 0.5, 1.0, 3.0]);
+        let r = r_factor(&a, &cols, &scale);
+        let mut sel = a.select_columns(&cols);
+        for (k, s) in scale.iter().enumerate() {
+            sel.column_mut(k).unscale_mut(*s);
+        }
+        let expected = sel.qr().r();
+        let tol = 1e-12 * expected.amax();
+        for i in 0..4 {
+            let sign = (r[(i, i)] * expected[(i, i)]).signum();
+            for k in 0..4 {
+                let d = (r[(i, k)] - sign * expected[(i, k)]).abs();
+                assert!(d < tol, "R[{i},{k}] {} vs {}", r[(i, k)], expected[(i, k)]);
+            }
+        }
+    }
 
     /// `gram` is nalgebra's `tr_mul` bit for bit: row counts below, at and across the
     /// 8-row unrolling and the block size, values of mixed sign and magnitude (so that
