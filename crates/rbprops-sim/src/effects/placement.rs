@@ -424,7 +424,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         rank: 13,
         title: "mass below the force gauge",
         reveal: "a known mass calibration of the hammer or shaker",
-        docs: "E12: a mass between the force gauge and the structure per excitation, `masses_kg`",
+        docs: "E12: a mass between the force gauge and the structure per excitation, `masses_kg`, at the point where the force acts (moved by `force_location`; the gauge's mass, a stinger's stiffness and a turned direction compose in any order, since the point and direction effects apply first)",
         parse: super::parse_as::<ForceGaugeMass>,
         neutral: super::NeutralForm::Table(|_, g| {
             super::per_excitation_table(g, "masses_kg", 0.0.into())
