@@ -116,6 +116,24 @@ fn summary(label: &str, r: &ModelCheckReport, t: std::time::Duration) {
     );
 }
 
+/// A recording of the generator's springs (`tc2-springs`, 400 lines) at 1 % noise in
+/// float32, as the combination study draws them, with the effects `sets`: the nominal,
+/// its geometry and the FRFs (`None` without Python).
+fn springs_study_recording(sets: &[&str], seed: u64) -> Option<(CampaignSpec, Geometry, FrfSet)> {
+    let py = python(NUMPY_PYUFF)?;
+    let nom = nominal(400);
+    let all: Vec<&str> = [
+        "noise.relative=0.01",
+        "noise.floor=0.0",
+        "output.precision=\"float32\"",
+    ]
+    .into_iter()
+    .chain(sets.iter().copied())
+    .collect();
+    let (g, frf) = refgen(&py, "tc2-springs", &all, seed, &nom);
+    Some((nom, g, frf))
+}
+
 /// The check with its default options (noise estimated from the data), its summary
 /// printed under `label`.
 fn checked_on_data_noise(
@@ -592,20 +610,17 @@ fn a_gain_drifted_along_its_gauge_is_not_dropped_as_implausible() {
 /// end, names both gains and reaches the floor (docs/physics.md, M6f).
 #[test]
 fn a_compensating_effect_is_taken_back() {
-    let Some(py) = python(NUMPY_PYUFF) else {
+    let Some((nom, g, frf)) = springs_study_recording(
+        &[
+            "sensor.1.gains=[1.0,1.0,1.0364596822132786]",
+            "sensor.1.position_error_m=[0.0042032806426207615,-0.005550657367630677,-0.00011539906052715724]",
+            "excitation.force2.position_error_m=[-0.006449965997932599,-0.003929506893910938,0.01272450659395475]",
+            "excitation.force2.force_gauge_gain=1.0381023549326187",
+        ],
+        5157,
+    ) else {
         return;
     };
-    let nom = nominal(400);
-    let sets = [
-        "noise.relative=0.01",
-        "noise.floor=0.0",
-        "output.precision=\"float32\"",
-        "sensor.1.gains=[1.0,1.0,1.0364596822132786]",
-        "sensor.1.position_error_m=[0.0042032806426207615,-0.005550657367630677,-0.00011539906052715724]",
-        "excitation.force2.position_error_m=[-0.006449965997932599,-0.003929506893910938,0.01272450659395475]",
-        "excitation.force2.force_gauge_gain=1.0381023549326187",
-    ];
-    let (g, frf) = refgen(&py, "tc2-springs", &sets, 5157, &nom);
     let r = checked_on_data_noise("taken back", &nom, &g, &frf);
     assert!(
         r.screening
@@ -636,18 +651,15 @@ fn a_compensating_effect_is_taken_back() {
 /// perpendicular offsets agree with the truth within four standard errors.
 #[test]
 fn a_location_along_a_turned_line_does_not_slide() {
-    let Some(py) = python(NUMPY_PYUFF) else {
+    let Some((nom, g, frf)) = springs_study_recording(
+        &[
+            "excitation.force3.direction_error_rad=[-0.00476818922718958,-0.05895724426342728,0.054963746140795106]",
+            "excitation.force2.position_error_m=[-0.013321289068029138,0.0028643851501216214,0.006024770001355892]",
+        ],
+        7022,
+    ) else {
         return;
     };
-    let nom = nominal(400);
-    let sets = [
-        "noise.relative=0.01",
-        "noise.floor=0.0",
-        "output.precision=\"float32\"",
-        "excitation.force3.direction_error_rad=[-0.00476818922718958,-0.05895724426342728,0.054963746140795106]",
-        "excitation.force2.position_error_m=[-0.013321289068029138,0.0028643851501216214,0.006024770001355892]",
-    ];
-    let (g, frf) = refgen(&py, "tc2-springs", &sets, 7022, &nom);
     let r = checked_on_data_noise("turned line", &nom, &g, &frf);
     assert_exactly("turned line", &r, &["force_direction", "force_location"]);
     let loc = r
@@ -683,21 +695,18 @@ fn a_location_along_a_turned_line_does_not_slide() {
 /// exactly the five.
 #[test]
 fn an_implausible_item_is_set_back_and_the_true_one_kept() {
-    let Some(py) = python(NUMPY_PYUFF) else {
+    let Some((nom, g, frf)) = springs_study_recording(
+        &[
+            "sensor.2.gains=[1.0,0.9568199329620188,1.0]",
+            "sensor.2.misorientation_rad=[0.02804056764818388,0.025189319168896808,-0.001366896476993097]",
+            "excitation.force3.direction_error_rad=[-0.05532989004771708,0.03903265256523015,-0.05795203144919502]",
+            "excitation.force1.position_error_m=[0.010029541509679968,-0.004730843108614538,0.0026109522420630182]",
+            "excitation.force2.force_gauge_gain=1.0352772079249173",
+        ],
+        5165,
+    ) else {
         return;
     };
-    let nom = nominal(400);
-    let sets = [
-        "noise.relative=0.01",
-        "noise.floor=0.0",
-        "output.precision=\"float32\"",
-        "sensor.2.gains=[1.0,0.9568199329620188,1.0]",
-        "sensor.2.misorientation_rad=[0.02804056764818388,0.025189319168896808,-0.001366896476993097]",
-        "excitation.force3.direction_error_rad=[-0.05532989004771708,0.03903265256523015,-0.05795203144919502]",
-        "excitation.force1.position_error_m=[0.010029541509679968,-0.004730843108614538,0.0026109522420630182]",
-        "excitation.force2.force_gauge_gain=1.0352772079249173",
-    ];
-    let (g, frf) = refgen(&py, "tc2-springs", &sets, 5165, &nom);
     // The narrowing happens in the first pass; the noise re-estimated from its final
     // residual then reruns the selection, whose report (and screening table) replace
     // the first pass's. Its decision is read from the progress lines.
