@@ -562,7 +562,7 @@ fn unresolvable_as_gauges(jp: &DMatrix<f64>, norms: Vec<f64>, half_range: &[f64]
 /// location along its own line, once a fitted direction of that force (turned by a few
 /// milliradians to stand in for the location) has made it a combination, to one part in
 /// 10⁵, of the perpendicular offsets; it went to its bound of a metre and left the
-/// right two effects at χ²/ν 8 (docs/physics.md, M4). Exact gauges (`d_k/‖j_k‖ ≤ GAUGE`)
+/// right two effects at χ²/ν 8 (docs/physics.md, M5). Exact gauges (`d_k/‖j_k‖ ≤ GAUGE`)
 /// are left to [`gauge_pivots`], which keeps one coordinate of each. The smallest own
 /// signature goes first and the rest is judged again without it, so a pair that is
 /// nearly one direction loses one member, not both. `d_k` comes from the SVD of the
@@ -619,7 +619,7 @@ fn weakest_own_signature(
         .map(|(k, _)| k)
 }
 
-/// The score test of candidate `c` at the current model (docs/physics.md, M4): its
+/// The score test of candidate `c` at the current model (docs/physics.md, M5): its
 /// Jacobian columns at neutral, normalised and with the current span projected out;
 /// the score is the residual's projection on their detectable directions, and a
 /// Gauss–Newton step on them starts the refit.

@@ -646,7 +646,7 @@ fn a_compensating_effect_is_taken_back() {
 /// its own line is then a combination of its perpendicular offsets to one part in 10⁵.
 /// Left free, it slid to its bound of a metre and the right two effects stalled at
 /// χ²/ν 8.2 (band 0.95–1.05), force2's offset 3 mm short. Dropped as a near-gauge
-/// without own signature (docs/physics.md, M4), the fit reaches the floor and force2's
+/// without own signature (docs/physics.md, M5), the fit reaches the floor and force2's
 /// perpendicular offsets agree with the truth within four standard errors.
 #[test]
 fn a_location_along_a_turned_line_does_not_slide() {
@@ -678,7 +678,7 @@ fn a_location_along_a_turned_line_does_not_slide() {
 /// re-test dropped it whole as implausible, force1's true 10 mm with it; a false
 /// `{sensor_position|added_mass}` filled its place. Setting the implausible item back to
 /// neutral (docs/physics.md, M6d) mended that; since force3's location along its turned
-/// line is held as a near-gauge (M4), the location no longer stands in for the direction
+/// line is held as a near-gauge (M5), the location no longer stands in for the direction
 /// at all: exactly the five, force3's offset within four standard errors of none and
 /// force1's of the truth.
 #[test]
