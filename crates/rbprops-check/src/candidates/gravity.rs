@@ -63,30 +63,48 @@ fn axial_springs_hang(spec: &CampaignSpec, i: usize) -> bool {
 /// rest (load term, axial springs turned with the body): `K(φ) = φ₁ L̄ Lat + φ₂ (ΔK − Lat)`,
 /// L̄ the mean hanging length, so φ = (1/L̄, 1, 0, 0) is the hanging body exactly and φ₁
 /// scales every cord's length in proportion (a cord length the data fit).
+///
+/// Cords written as axial springs hang from anchors at ℓ = 1/φ₁ along their axes
+/// ([`CORD_INVERSE_LENGTH`] bounds it), so `φ₁ ℓ Lat` is the cords' own tension part at
+/// the fitted length, and their free lengths `ℓ − T/k + δ` carry the set-up's
+/// cord-length contrasts δ ([`length_changes`] of its slot of `slots` in `contrasts`):
+/// at δ = 0 the body hangs in the drawn pose (the tensions of the elastic balance, and
+/// then ℓ only scales `Lat`, exactly as before); unequal cords move and tilt it to the
+/// equilibrium they make, as splayed cords of unequal lengths do.
 pub(super) fn gravity_stiffness(
     ctx: &BuildContext,
     model: &DynamicModel,
-    phi: &[f64],
+    phi: &GravityPhi,
+    slots: &[ContrastSlot],
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
-    let z = tilted_direction(&ctx.spec.up_vector(), phi[2], phi[3]);
+    let contrasts = phi.contrasts;
+    let z = phi.up(ctx.spec);
+    let phi = [phi.inverse_length, phi.load, 0.0, 0.0, phi.turn];
     if !ctx.spec.setups[ctx.setup_index].cords.is_empty() {
         let eq = hanging(ctx.spec, ctx.setup_index, &model.mass, &z)?;
         let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
         return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
     }
-    if let Some((cords, springs)) = rbprops_sim::effects::gravity::axial_spring_cords(
+    let ell = 1.0 / phi[0].clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
+    if let Some((mut cords, springs)) = rbprops_sim::effects::gravity::axial_spring_cords(
         ctx.spec,
         ctx.setup_index,
         &model.mass,
         STANDARD_GRAVITY,
         &z,
-        |_| 1.0,
+        |_| ell,
     ) {
         // Cords written as axial springs (vertical or splayed): hung like the set-up's
-        // cords above, at 1 m (φ₁ scales the tension part to the fitted length), their
-        // axes turned with the tilted vertical (φ₃, φ₄).
+        // cords above, from anchors at ℓ, their axes turned with the tilted vertical
+        // (φ₃, φ₄), their free lengths changed by the set-up's contrasts.
+        if let Some(slot) = slots.iter().find(|s| s.setup == ctx.setup_index) {
+            let d = length_changes(&contrasts[slot.start..slot.start + slot.cords - 1]);
+            for (c, d) in cords.iter_mut().zip(d) {
+                c.unstretched_length += d;
+            }
+        }
         let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
             &model.mass,
             &cords,
@@ -95,9 +113,8 @@ pub(super) fn gravity_stiffness(
             &z,
         )
         .map_err(|e| format!("set-up '{}': {e}", ctx.spec.setups[ctx.setup_index].id))?;
-        let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
-        return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
+        return Ok(eq.lateral * (phi[0] * ell) + (dk - eq.lateral) * phi[1]);
     }
     // Springs with no stiffness along the vertical (side springs) hold no weight: they
     // are not cords and add no pendulum stiffness.
@@ -120,7 +137,7 @@ pub(super) fn gravity_stiffness(
     let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;
     let (kinf, _) = geometric_stiffness(&model.mass, &cords(1e12), STANDARD_GRAVITY, &z)?;
     let mut load = kinf;
-    let turn = phi.get(4).copied().unwrap_or(0.0);
+    let turn = phi[4];
     if turn != 0.0 {
         // The springs as linear springs to the ground (not cords): at the body's sagged
         // equilibrium their stiffness axes turn with it, `Σ T(a)ᵀ Rᵀk R T(a)`, and their
@@ -134,6 +151,195 @@ pub(super) fn gravity_stiffness(
         }
     }
     Ok((k1 - kinf) * phi[0] + load * phi[1])
+}
+
+/// Names of the gravity candidate's parameters (see [`gravity_stiffness`]).
+pub(super) const INVERSE_LENGTH: &str = "inverse_cord_length_per_m";
+pub(super) const LOAD_FACTOR: &str = "load_term_factor";
+pub(super) const TILTS: [&str; 2] = ["up_tilt1_rad", "up_tilt2_rad"];
+/// φ₅ (see [`gravity_stiffness`]).
+pub(super) const SPRING_TURN: &str = "spring_turn_fraction";
+/// What every cord-length contrast's name holds (`{set-up}.cord_length_contrast{k}_m`).
+pub(super) const CONTRAST: &str = ".cord_length_contrast";
+
+/// The gravity candidate's φ by meaning; absent parameters are 0.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct GravityPhi<'a> {
+    /// φ₁ = 1/ℓ (1/m).
+    pub inverse_length: f64,
+    /// φ₂, the load-term factor.
+    pub load: f64,
+    /// (φ₃, φ₄), the tilts of the vertical (rad).
+    pub tilt: (f64, f64),
+    /// φ₅, the fraction by which springs turn with the sagged body.
+    pub turn: f64,
+    /// The cord-length contrasts of every set-up of cords written as springs, in the
+    /// order of their [`ContrastSlot`]s.
+    pub contrasts: &'a [f64],
+}
+
+impl<'a> GravityPhi<'a> {
+    /// The values `phi` of the parameters `names` (the contrasts last).
+    pub fn from_named(names: &[String], phi: &'a [f64]) -> GravityPhi<'a> {
+        let get = |n: &str| names.iter().position(|x| x == n).map_or(0.0, |i| phi[i]);
+        let start = names
+            .iter()
+            .position(|n| n.contains(CONTRAST))
+            .unwrap_or(names.len());
+        GravityPhi {
+            inverse_length: get(INVERSE_LENGTH),
+            load: get(LOAD_FACTOR),
+            tilt: (get(TILTS[0]), get(TILTS[1])),
+            turn: get(SPRING_TURN),
+            contrasts: &phi[start..],
+        }
+    }
+    /// The spec's vertical tilted by (φ₃, φ₄) ([`tilted_direction`]).
+    pub fn up(&self, spec: &CampaignSpec) -> Vec3 {
+        tilted_direction(&spec.up_vector(), self.tilt.0, self.tilt.1)
+    }
+}
+
+/// The gravity candidate's parameter names for `spec`, and where each set-up's contrasts
+/// sit: φ₁, φ₂; the two tilts unless every set-up that hangs is of cords written as
+/// springs with contrasts (their contrasts move the body to its equilibrium, and a tilt
+/// of the vertical would be nearly the same turn of the body, a gauge the fit slides
+/// along: measured, a tilt pinned at its bound of 0.5 rad); φ₅ where springs
+/// can sag ([`springs_can_sag`]); the contrasts.
+pub(super) fn gravity_names(spec: &CampaignSpec, g: &Geometry) -> (Vec<String>, Vec<ContrastSlot>) {
+    let (slots, contrasts) = contrast_slots(spec, 0);
+    let mut names = vec![INVERSE_LENGTH.to_string(), LOAD_FACTOR.to_string()];
+    let tilted = spec.setups.iter().enumerate().any(|(i, s)| {
+        (!s.springs.is_empty() || !s.cords.is_empty()) && !slots.iter().any(|c| c.setup == i)
+    });
+    if tilted {
+        names.extend(TILTS.map(String::from));
+    }
+    if springs_can_sag(spec, g) {
+        names.push(SPRING_TURN.into());
+    }
+    names.extend(contrasts);
+    (names, slots)
+}
+
+/// The range of φ₁ = 1/ℓ (1/m) over which cords written as axial springs hang from
+/// anchors at ℓ: 5 cm to 10 m (the catalogue's plausible cord lengths); outside it the
+/// anchors stay at its end and φ₁ only scales the tension part, so that φ₁ = 0 (no
+/// gravity stiffness) is still a point of the parameter space.
+pub(super) const CORD_INVERSE_LENGTH: (f64, f64) = (0.1, 20.0);
+
+/// Where a set-up's cord-length contrasts sit in the gravity candidate's φ: set-up
+/// index, first parameter, number of cords (n cords have n − 1 contrasts).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct ContrastSlot {
+    pub setup: usize,
+    pub start: usize,
+    pub cords: usize,
+}
+
+/// The smallest angle between two cords' axes for the cords to count as splayed (rad):
+/// below it their pose is the drawn one turned by the tilts of the vertical, which the
+/// candidate fits without contrasts.
+const MIN_SPLAY_RAD: f64 = 0.01;
+
+/// The contrast slots of the set-ups whose springs are splayed cords written as axial
+/// springs (parallel cords: the tilts of the vertical turn their body, and their one
+/// self-stress pattern, a warp of the free lengths that moves no pose, stood in for
+/// non-proportional damping in the study, ±2.7 cm with two cords nearly slack)
+/// (positions in the contrast parameters, from `start` on), and their names
+/// (`{set-up}.cord_length_contrast{k}_m`).
+pub(super) fn contrast_slots(spec: &CampaignSpec, start: usize) -> (Vec<ContrastSlot>, Vec<String>) {
+    let (mut slots, mut names) = (Vec::new(), Vec::new());
+    let mass = spec.properties().mass_matrix().0;
+    for (i, s) in spec.setups.iter().enumerate() {
+        let Some((cords, _)) = rbprops_sim::effects::gravity::axial_spring_cords(
+            spec,
+            i,
+            &mass,
+            rbprops_sim::effects::gravity::STANDARD_GRAVITY,
+            &spec.up_vector(),
+            |_| 1.0,
+        ) else {
+            continue;
+        };
+        let e0 = cords[0].direction();
+        let splayed = cords
+            .iter()
+            .any(|c| c.direction().angle(&e0) > MIN_SPLAY_RAD);
+        let n = cords.len();
+        if n < 2 || !splayed {
+            continue;
+        }
+        slots.push(ContrastSlot {
+            setup: i,
+            start: start + names.len(),
+            cords: n,
+        });
+        names.extend((1..n).map(|k| format!("{}.cord_length_contrast{k}_m", s.id)));
+    }
+    (slots, names)
+}
+
+/// The free-length changes δ (m) of n cords from their n − 1 contrasts `c`, in the
+/// orthonormal zero-sum (Helmert) basis: contrast k sets cords 0..k against cord k,
+/// `b_k = (1, …, 1, −k, 0, …)/√(k(k+1))`. Zero-sum, because a common change of every
+/// free length is the cord length ℓ's (for vertical cords exactly: the body only hangs
+/// lower), which φ₁ fits.
+pub(super) fn length_changes(c: &[f64]) -> Vec<f64> {
+    let n = c.len() + 1;
+    let mut d = vec![0.0; n];
+    for (k, ck) in (1..n).zip(c) {
+        let norm = ((k * (k + 1)) as f64).sqrt();
+        for dj in d.iter_mut().take(k) {
+            *dj += ck / norm;
+        }
+        d[k] -= ck * k as f64 / norm;
+    }
+    d
+}
+
+/// The free lengths (m) of the fitted gravity effect `phi` for the
+/// catalogue, where the spec has one set-up of cords written as axial springs and its
+/// fitted contrasts are not all zero: `ℓ − T/k + δ` per cord (tensions of the nominal
+/// body along the fitted vertical), with that set-up's index. `None` otherwise (several
+/// such set-ups: the catalogue's one list cannot hold them; the report has the values).
+pub(super) fn axial_free_lengths(
+    spec: &CampaignSpec,
+    phi: &GravityPhi,
+) -> Result<Option<(usize, Vec<f64>)>, String> {
+    let contrasts = phi.contrasts;
+    let (slots, _) = contrast_slots(spec, 0);
+    let [slot] = slots.as_slice() else {
+        return Ok(None);
+    };
+    if contrasts.iter().all(|c| *c == 0.0) {
+        return Ok(None);
+    }
+    let z = phi.up(spec);
+    let ell = 1.0 / phi.inverse_length.clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
+    let (cords, _) = rbprops_sim::effects::gravity::axial_spring_cords(
+        spec,
+        slot.setup,
+        &spec.properties().mass_matrix().0,
+        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
+        &z,
+        |_| ell,
+    )
+    .ok_or_else(|| {
+        format!(
+            "gravity_stiffness: set-up '{}' no longer reads as cords",
+            spec.setups[slot.setup].id
+        )
+    })?;
+    let d = length_changes(&contrasts[slot.start..slot.start + slot.cords - 1]);
+    Ok(Some((
+        slot.setup,
+        cords
+            .iter()
+            .zip(d)
+            .map(|(c, d)| c.unstretched_length + d)
+            .collect(),
+    )))
 }
 
 /// The hanging equilibrium of set-up `i`'s cords and springs for a body of mass matrix
@@ -243,4 +449,38 @@ pub fn vertical_axis_doubt(spec: &CampaignSpec) -> Option<String> {
             axis.x, axis.y, axis.z
         )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::length_changes;
+
+    /// The contrasts are an orthonormal basis of the zero-sum free-length changes: each
+    /// pattern sums to 0, the patterns are orthonormal, and the changes of a contrast
+    /// vector have its norm.
+    #[test]
+    fn length_contrasts_are_orthonormal_and_zero_sum() {
+        for n in 2..7 {
+            let basis: Vec<Vec<f64>> = (0..n - 1)
+                .map(|k| {
+                    let mut c = vec![0.0; n - 1];
+                    c[k] = 1.0;
+                    length_changes(&c)
+                })
+                .collect();
+            for (a, ba) in basis.iter().enumerate() {
+                assert_eq!(ba.len(), n);
+                assert!(ba.iter().sum::<f64>().abs() < 1e-15, "n {n}: {ba:?}");
+                for (b, bb) in basis.iter().enumerate() {
+                    let dot: f64 = ba.iter().zip(bb).map(|(x, y)| x * y).sum();
+                    let want = if a == b { 1.0 } else { 0.0 };
+                    assert!((dot - want).abs() < 1e-15, "n {n}: ⟨b{a}, b{b}⟩ = {dot}");
+                }
+            }
+        }
+        // Four cords: the second contrast sets cords 0 and 1 against cord 2.
+        let d = length_changes(&[0.0, 6f64.sqrt(), 0.0]);
+        assert!((d[0] - 1.0).abs() < 1e-15 && (d[1] - 1.0).abs() < 1e-15);
+        assert!((d[2] + 2.0).abs() < 1e-15 && d[3] == 0.0);
+    }
 }

@@ -8,7 +8,8 @@
 //!   load-term factor (physical value 1). The catalogue's own parameter (ℓ, with ℓ → ∞
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //!   Two tilts of the vertical and φ₅, the fraction by which springs (rather than cords)
-//!   turn with the sagged body, complete it (see `gravity_stiffness`).
+//!   turn with the sagged body, complete it, and for cords written as axial springs the
+//!   n − 1 contrasts of their free lengths (see `gravity_stiffness`).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
@@ -22,7 +23,10 @@
 //! Every other catalogue effect is screened in the catalogue's own form, from the neutral
 //! table its descriptor gives.
 
-use super::gravity::{free_direction_note, gravity_profile, gravity_stiffness, springs_can_sag};
+use super::gravity::{
+    free_direction_note, gravity_names, gravity_profile, gravity_stiffness, ContrastSlot,
+    GravityPhi, CONTRAST, SPRING_TURN,
+};
 use super::{describe, Candidate, Screening};
 use rbprops_sim::effects::gravity::GravityStiffness;
 
@@ -71,10 +75,10 @@ pub struct LocalEffect {
     values: Vec<f64>,
     /// Top of the band (Hz): the residual flexibility's modes sit at f_top/√q.
     band_top_hz: f64,
+    /// Gravity: where each set-up's cord-length contrasts sit among the contrasts (see
+    /// [`gravity_stiffness`]).
+    slots: Vec<ContrastSlot>,
 }
-
-/// Name of the gravity candidate's fifth parameter φ₅ (see [`gravity_stiffness`]).
-const SPRING_TURN: &str = "spring_turn_fraction";
 
 /// Name of the residual flexibility's frequency parameter q = (f_top/f_e)².
 const RESIDUAL_MODE_Q: &str = "band_top_over_mode_frequency_squared";
@@ -89,18 +93,7 @@ const RESIDUAL_MODE_DAMPING: &str = "mode_damping_ratio";
 impl LocalEffect {
     fn neutral(kind: Kind, spec: &CampaignSpec, g: &Geometry) -> LocalEffect {
         let names: Vec<String> = match kind {
-            Kind::GravityStiffness => {
-                let mut v: Vec<String> = vec![
-                    "inverse_cord_length_per_m".into(),
-                    "load_term_factor".into(),
-                    "up_tilt1_rad".into(),
-                    "up_tilt2_rad".into(),
-                ];
-                if springs_can_sag(spec, g) {
-                    v.push(SPRING_TURN.into());
-                }
-                v
-            }
+            Kind::GravityStiffness => gravity_names(spec, g).0,
             Kind::ResidualFlexibility => g
                 .excitations
                 .iter()
@@ -112,6 +105,10 @@ impl LocalEffect {
                 .chain([RESIDUAL_MODE_Q, RESIDUAL_MODE_DAMPING].map(String::from))
                 .collect(),
         };
+        let slots = match kind {
+            Kind::GravityStiffness => gravity_names(spec, g).1,
+            Kind::ResidualFlexibility => Vec::new(),
+        };
         let mut values = vec![0.0; names.len()];
         if kind == Kind::ResidualFlexibility {
             values[names.len() - 2] = RESIDUAL_MODE_Q_NEUTRAL;
@@ -121,6 +118,7 @@ impl LocalEffect {
             values,
             names,
             band_top_hz: spec.frequency.stop_hz,
+            slots,
         }
     }
 
@@ -136,7 +134,9 @@ impl LocalEffect {
             // 0: the springs' stiffness stays along the spec's axes (cords); 1: it turns
             // with the sagged body (linear springs to the ground). Bounds wide enough
             // that neither end is pinned.
-            Kind::GravityStiffness if i == 4 => ("1", -2.0, 3.0, (-0.5, 1.5)),
+            Kind::GravityStiffness if self.names[i] == SPRING_TURN => ("1", -2.0, 3.0, (-0.5, 1.5)),
+            // Cord-length contrasts: a tester measures cords to a few centimetres.
+            Kind::GravityStiffness if self.names[i].contains(CONTRAST) => ("m", -0.5, 0.5, (-0.1, 0.1)),
             Kind::GravityStiffness => ("rad", -0.5, 0.5, (-0.1, 0.1)),
         };
         ParamInfo {
@@ -158,7 +158,7 @@ impl LocalEffect {
                     let w = std::f64::consts::TAU * spec.frequency.stop_hz.max(1e-3);
                     1e-3 / (m * w * w)
                 }
-                Kind::GravityStiffness if i < 2 || i == 4 => 1.0,
+                Kind::GravityStiffness if i < 2 || self.names[i] == SPRING_TURN => 1.0,
                 Kind::GravityStiffness => 0.01,
             })
             .collect()
@@ -218,7 +218,8 @@ impl Effect for LocalEffect {
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         match self.kind {
             Kind::GravityStiffness => {
-                model.stiffness += gravity_stiffness(ctx, model, &self.values)?;
+                let phi = GravityPhi::from_named(&self.names, &self.values);
+                model.stiffness += gravity_stiffness(ctx, model, &phi, &self.slots)?;
                 model.stiffness = (model.stiffness + model.stiffness.transpose()) * 0.5;
             }
             Kind::ResidualFlexibility => {

@@ -290,17 +290,16 @@ pub fn catalogue_entry(
     let parameters = if e.id() == GravityStiffness::ID
         && e.parameters()
             .first()
-            .is_some_and(|p| p.name == "inverse_cord_length_per_m")
+            .is_some_and(|p| p.name == gravity::INVERSE_LENGTH)
     {
         let v = e.values();
-        if !(v[0] > 0.0) {
+        let names: Vec<String> = e.parameters().into_iter().map(|p| p.name).collect();
+        let phi = gravity::GravityPhi::from_named(&names, &v);
+        if !(phi.inverse_length > 0.0) {
             return Err("gravity_stiffness: fitted 1/ℓ is not positive".into());
         }
         let mut t = toml::Table::new();
-        let (a, b) = (
-            v.get(2).copied().unwrap_or(0.0),
-            v.get(3).copied().unwrap_or(0.0),
-        );
+        let (a, b) = phi.tilt;
         if let Some(i) = spec.setups.iter().position(|s| !s.cords.is_empty()) {
             // Hanging lengths scaled by ρ = (1/φ₁)/L̄, written as unstretched lengths
             // L₀ = ρL − T/k (tensions of the nominal body: the fitted mass moves T/k by
@@ -308,7 +307,7 @@ pub fn catalogue_entry(
             let z = tilted_direction(&spec.up_vector(), a, b);
             let eq = hanging(spec, i, &spec.properties().mass_matrix().0, &z)?;
             let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
-            let rho = 1.0 / (v[0] * lbar);
+            let rho = 1.0 / (phi.inverse_length * lbar);
             let l0: Vec<toml::Value> = spec
                 .cords(i)
                 .iter()
@@ -322,8 +321,17 @@ pub fn catalogue_entry(
         } else {
             t.insert(
                 "cord_length_m".into(),
-                toml::Value::Array(vec![(1.0 / v[0]).into()]),
+                toml::Value::Array(vec![(1.0 / phi.inverse_length).into()]),
             );
+            if let Some((i, l0)) = gravity::axial_free_lengths(spec, &phi)? {
+                t.insert(
+                    "unstretched_length_m".into(),
+                    toml::Value::Array(l0.into_iter().map(toml::Value::from).collect()),
+                );
+                if spec.setups.len() > 1 {
+                    t.insert("setup".into(), spec.setups[i].id.clone().into());
+                }
+            }
         }
         if a != 0.0 || b != 0.0 {
             let u = tilted_direction(&spec.up_vector(), a, b);

@@ -598,7 +598,9 @@ impl<'p, 'a> Finish<'p, 'a> {
                 })
                 .collect();
             let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
-            match effect_spec(eff.as_ref(), self.spec) {
+            // Written for the fitted body (the improved spec's): a cord's free length
+            // `ℓ − T/k` depends on the weight it carries.
+            match effect_spec(eff.as_ref(), &p.baseline.apply(&theta[..p.n_base()])) {
                 Ok(e) => improved_effects.push(e),
                 Err(e) => warnings.push(diagnostic(
                     DiagnosticKind::CheckProcedure,

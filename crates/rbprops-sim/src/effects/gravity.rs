@@ -30,8 +30,10 @@
 //! tilt the body; the sensors and forces stay where the spec puts them on the body. For
 //! vertical cords whose reference pose is their equilibrium this is the springs plus the
 //! `K_geo` above, with `ℓ = L₀ + T/k` (tested). `unstretched_length_m`, when given,
-//! replaces the cords' L₀ (the model check fits it); `cord_length_m` is for set-ups of
-//! springs only. The gravity direction of the other gravity effects stays the spec's
+//! replaces the cords' L₀ (the model check fits it), also for cords written as axial
+//! springs, which otherwise hang in the drawn pose ([`axial_spring_cords`]): unequal
+//! free lengths of splayed cords move and tilt the body; `cord_length_m` is for set-ups
+//! of springs only. The gravity direction of the other gravity effects stays the spec's
 //! `up` (its tilt with the body at equilibrium is second order for them).
 
 use super::{BuildContext, Effect, ParamInfo};
@@ -55,7 +57,9 @@ pub struct GravityStiffness {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cord_length_m: Vec<f64>,
     /// Unstretched length L₀ per cord (m), or one value for all, replacing the spec's:
-    /// set-ups with `[[setup.cord]]` (empty: the spec's own).
+    /// set-ups with `[[setup.cord]]` (empty: the spec's own), or the cords written as
+    /// axial springs (empty: the lengths at which the body hangs in the drawn pose,
+    /// `ℓ − T/k`; given, the body moves to the equilibrium they make).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unstretched_length_m: Vec<f64>,
     /// Gravitational acceleration (m/s²).
@@ -494,6 +498,20 @@ pub fn axial_spring_cords(
     Some((anchored, springs))
 }
 
+/// How many of set-up `i`'s springs are cords written as axial springs
+/// ([`axial_spring_cords`] for the spec's body, vertical and standard gravity).
+pub fn axial_cord_count(spec: &CampaignSpec, i: usize) -> usize {
+    axial_spring_cords(
+        spec,
+        i,
+        &spec.properties().mass_matrix().0,
+        STANDARD_GRAVITY,
+        &spec.up_vector(),
+        |_| 1.0,
+    )
+    .map_or(0, |(c, _)| c.len())
+}
+
 impl GravityStiffness {
     fn up(&self) -> Vec3 {
         Vec3::from(self.up)
@@ -595,6 +613,14 @@ impl Effect for GravityStiffness {
                 continue;
             }
             if s.cords.is_empty() {
+                let n_axial = axial_cord_count(spec, i);
+                let nu = per_item(&self.unstretched_length_m, n_axial).len();
+                if nu != 0 && nu != n_axial {
+                    return Err(format!(
+                        "unstretched_length_m has {nu} lengths but set-up '{}' (setup[{i}]) has {n_axial} cords written as axial springs",
+                        s.id
+                    ));
+                }
                 let n = self.lengths(s.springs.len()).len();
                 if n != s.springs.len() {
                     return Err(format!(
@@ -646,7 +672,15 @@ impl Effect for GravityStiffness {
             &up,
             |j| lengths.get(j).copied().unwrap_or(lengths[0]),
         ) {
-            // Cords written as axial springs: the body hangs on them.
+            // Cords written as axial springs: the body hangs on them (at the given free
+            // lengths, else in the drawn pose).
+            let mut cords = cords;
+            if !self.unstretched_length_m.is_empty() {
+                let l0 = per_item(&self.unstretched_length_m, cords.len());
+                for (c, l) in cords.iter_mut().zip(l0) {
+                    c.unstretched_length = l;
+                }
+            }
             let eq = hanging_equilibrium(&model.mass, &cords, &springs, self.g_m_per_s2, &up)
                 .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
             model.stiffness += eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
@@ -710,7 +744,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         rank: 0,
         title: "gravity (pendulum) stiffness of the suspension",
         reveal: "a second suspension length, or the measured cord geometry",
-        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance), or the set-up's cords hanging at their static equilibrium",
+        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance, or their free lengths `unstretched_length_m`), or the set-up's cords hanging at their static equilibrium",
         parse: parse_gravity_stiffness,
         neutral: super::NeutralForm::Reparametrised,
         follows_spec_up: true,

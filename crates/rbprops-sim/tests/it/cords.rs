@@ -273,6 +273,64 @@ fn splayed_cords_stiffness_is_the_hessian_at_equilibrium() {
         .all(|m| m.frequency_hz > 0.1));
 }
 
+/// Splayed cords written as their axial springs `k e eᵀ` (as testers write them) with the
+/// gravity effect given the cords' anchor distance (`cord_length_m`) and free lengths
+/// (`unstretched_length_m`) hang as the same cords given as cords: the body moves and
+/// tilts to the same equilibrium, and the model's stiffness is the same to rounding.
+#[test]
+fn cords_written_as_springs_hang_at_their_free_lengths() {
+    let as_cords = spec(
+        &cords_toml(0.25, 0.97),
+        1.0,
+        "[[effect]]\nid = \"gravity_stiffness\"\n",
+    );
+    let cords = as_cords.cords(0);
+    let mut springs = String::new();
+    for c in &cords {
+        let e = c.direction();
+        let k = c.axial_stiffness * e * e.transpose();
+        let rows: Vec<String> = (0..3)
+            .map(|i| format!("[{:?}, {:?}, {:?}]", k[(i, 0)], k[(i, 1)], k[(i, 2)]))
+            .collect();
+        springs += &format!(
+            "[[setup.spring]]\nat_m = [{:?}, {:?}, {:?}]\nstiffness_matrix_n_per_m = [{}]\n",
+            c.at.x,
+            c.at.y,
+            c.at.z,
+            rows.join(", ")
+        );
+    }
+    let lengths: Vec<String> = cords
+        .iter()
+        .map(|c| format!("{:?}", (c.anchor - c.at).norm()))
+        .collect();
+    let as_springs = spec(
+        &springs,
+        1.0,
+        &format!(
+            "[[effect]]\nid = \"gravity_stiffness\"\ncord_length_m = [{}]\nunstretched_length_m = [0.97]\n",
+            lengths.join(", ")
+        ),
+    );
+    let k = |s: &CampaignSpec| {
+        let k = simulate(s).unwrap().truth.setups[0].stiffness;
+        Mat6::from_fn(|i, j| k[i][j])
+    };
+    let (k1, k2) = (k(&as_cords), k(&as_springs));
+    let d = (k1 - k2).norm() / k1.norm();
+    assert!(d < 1e-10, "relative stiffness difference {d:.3e}\n{k1}\n{k2}");
+    // Without the free lengths the springs hang in the drawn pose: another body.
+    let drawn = spec(
+        &springs,
+        1.0,
+        &format!(
+            "[[effect]]\nid = \"gravity_stiffness\"\ncord_length_m = [{}]\n",
+            lengths.join(", ")
+        ),
+    );
+    assert!((k(&drawn) - k1).norm() > 1e-3 * k1.norm());
+}
+
 /// Vertical cords whose reference pose is their equilibrium (L₀ = ℓ − T/k with the
 /// vertical-cord tensions) reproduce the springs-as-cords model: axial springs plus
 /// [`geometric_stiffness`] at the hanging length ℓ, and the body does not move.
