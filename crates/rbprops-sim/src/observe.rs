@@ -62,18 +62,30 @@ fn mode_state_at(wm: f64, zeta: f64, t: f64) -> Result<Vector2<f64>, String> {
     Ok(finite_then(a * t, t)?.exp() * Vector2::new(0.0, 1.0))
 }
 
-/// `A·T`, refused when an entry is not finite: nalgebra's matrix exponential (scaling
-/// and squaring) never returns for such a matrix (its squaring count has no bound), so
-/// a fit that strays to a non-finite state must get an error, not a hung evaluation.
+/// Largest 1-norm of `A·T` handed to the matrix exponential: its tenth power stays
+/// far below overflow (1e150), so the squaring count (≈ log₂ of the norm, 50 here) is
+/// finite. A physical state matrix over a record is ω T ≲ 1e6.
+const MAX_STATE_NORM: f64 = 1e15;
+
+/// `A·T`, refused when an entry is not finite or its norm exceeds [`MAX_STATE_NORM`]:
+/// nalgebra's matrix exponential (scaling and squaring) never returns for such a matrix
+/// (a power overflows, and the squaring count `ceil(log₂ ∞)` saturates to u64::MAX), so
+/// a fit that strays to such a state must get an error, not a hung evaluation (seen: a
+/// record-truncation refit stuck for minutes on a stray stiffness).
 fn finite_then<const N: usize>(
     at: nalgebra::SMatrix<f64, N, N>,
     t: f64,
 ) -> Result<nalgebra::SMatrix<f64, N, N>, String> {
-    if at.iter().all(|x| x.is_finite()) {
-        Ok(at)
-    } else {
-        Err(format!("the state matrix over T = {t} s is not finite"))
+    if !at.iter().all(|x| x.is_finite()) {
+        return Err(format!("the state matrix over T = {t} s is not finite"));
     }
+    let norm = at.column_iter().map(|c| c.abs().sum()).fold(0.0, f64::max);
+    if norm > MAX_STATE_NORM {
+        return Err(format!(
+            "the state matrix over T = {t} s is too large to integrate (1-norm {norm:.3e})"
+        ));
+    }
+    Ok(at)
 }
 
 /// `Y_k` from the untruncated transform `x` and, when truncated, the tail transform
@@ -281,6 +293,9 @@ mod exponential_tests {
             let e = mode_state_at(wm, zeta, t).unwrap_err();
             assert!(e.contains("not finite"), "{e}");
         }
+        // Finite but huge (ω² T = 1e40): its powers overflow inside the exponential.
+        let e = mode_state_at(1e20, 0.01, 1.0).unwrap_err();
+        assert!(e.contains("too large"), "{e}");
         // A finite one is the impulse response: η(T) = e^{−ζωT} sin(ω_d T)/ω_d.
         let (wm, zeta, t): (f64, f64, f64) = (10.0, 0.02, 0.7);
         let wd = wm * (1.0 - zeta * zeta).sqrt();
