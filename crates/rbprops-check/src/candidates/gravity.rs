@@ -248,7 +248,10 @@ const MIN_SPLAY_RAD: f64 = 0.01;
 /// non-proportional damping in the study, ±2.7 cm with two cords nearly slack)
 /// (positions in the contrast parameters, from `start` on), and their names
 /// (`{set-up}.cord_length_contrast{k}_m`).
-pub(super) fn contrast_slots(spec: &CampaignSpec, start: usize) -> (Vec<ContrastSlot>, Vec<String>) {
+pub(super) fn contrast_slots(
+    spec: &CampaignSpec,
+    start: usize,
+) -> (Vec<ContrastSlot>, Vec<String>) {
     let (mut slots, mut names) = (Vec::new(), Vec::new());
     let mass = spec.properties().mass_matrix().0;
     for (i, s) in spec.setups.iter().enumerate() {
@@ -316,7 +319,10 @@ pub(super) fn axial_free_lengths(
         return Ok(None);
     }
     let z = phi.up(spec);
-    let ell = 1.0 / phi.inverse_length.clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
+    let ell = 1.0
+        / phi
+            .inverse_length
+            .clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
     let (cords, _) = rbprops_sim::effects::gravity::axial_spring_cords(
         spec,
         slot.setup,

@@ -136,7 +136,9 @@ impl LocalEffect {
             // that neither end is pinned.
             Kind::GravityStiffness if self.names[i] == SPRING_TURN => ("1", -2.0, 3.0, (-0.5, 1.5)),
             // Cord-length contrasts: a tester measures cords to a few centimetres.
-            Kind::GravityStiffness if self.names[i].contains(CONTRAST) => ("m", -0.5, 0.5, (-0.1, 0.1)),
+            Kind::GravityStiffness if self.names[i].contains(CONTRAST) => {
+                ("m", -0.5, 0.5, (-0.1, 0.1))
+            }
             Kind::GravityStiffness => ("rad", -0.5, 0.5, (-0.1, 0.1)),
         };
         ParamInfo {

@@ -59,6 +59,17 @@ pub struct Candidate {
     pub follows: Option<String>,
 }
 
+impl Candidate {
+    /// Half of parameter `j`'s plausible range (∞ where the effect gives none): how far a
+    /// coordinate can move as that physics, the scale of "resolvable" in screening and
+    /// in the refit's freeing of dropped coordinates (docs/physics.md, M5).
+    pub fn half_range(&self, j: usize) -> f64 {
+        self.effect.parameters().get(j).map_or(f64::INFINITY, |i| {
+            0.5 * (i.plausible.1 - i.plausible.0).abs()
+        })
+    }
+}
+
 /// How a candidate is screened: its first-order evidence at the current model.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Screening {

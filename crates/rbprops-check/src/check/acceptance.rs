@@ -104,39 +104,24 @@ pub(super) type Accepted = Evidence<()>;
 impl Evidence {
     /// The refit, for the model's current fit, and the evidence accepted at `step`.
     pub(super) fn accept(self, step: usize) -> (Fit, Accepted) {
-        let Evidence {
-            c,
-            fit,
-            kept,
-            dchi2,
-            dbic,
-            rank,
-            threshold,
-            why,
-            held_out,
-            held_out_exc,
-            practical,
-            inertia_change,
-            items_at_neutral,
-            accepted_at: _,
-        } = self;
+        // Moved field by field out of `self` (a change of the type parameter).
         let accepted = Evidence {
-            c,
+            c: self.c,
             fit: (),
-            kept,
-            dchi2,
-            dbic,
-            rank,
-            threshold,
-            why,
-            held_out,
-            held_out_exc,
-            practical,
-            inertia_change,
-            items_at_neutral,
+            kept: self.kept,
+            dchi2: self.dchi2,
+            dbic: self.dbic,
+            rank: self.rank,
+            threshold: self.threshold,
+            why: self.why,
+            held_out: self.held_out,
+            held_out_exc: self.held_out_exc,
+            practical: self.practical,
+            inertia_change: self.inertia_change,
+            items_at_neutral: self.items_at_neutral,
             accepted_at: step,
         };
-        (fit, accepted)
+        (self.fit, accepted)
     }
 }
 

@@ -150,11 +150,7 @@ pub(super) fn identifiable_at(
     let Ok(jd) = lm::jacobian(&g, &x0, &steps, &fit.residual) else {
         return Vec::new();
     };
-    let infos = cand.effect.parameters();
-    let half_range: Vec<f64> = dropped
-        .iter()
-        .map(|&j| 0.5 * (infos[j].plausible.1 - infos[j].plausible.0).abs())
-        .collect();
+    let half_range: Vec<f64> = dropped.iter().map(|&j| cand.half_range(j)).collect();
     let (q, _) = span_basis(&fit.jacobian, 1e-10);
     let jp = project_out(&jd, &q);
     let strength = |k: usize| jp.column(k).norm() * half_range[k];

@@ -515,18 +515,6 @@ pub(super) const NO_SIGNATURE: f64 = 1e-6;
 /// at first order and stay free in the refit, where the non-linear model can use them.
 pub(super) const GAUGE: f64 = 1e-7;
 
-/// Half of each parameter's plausible range (∞ where the catalogue gives none).
-fn half_ranges(at: AtModel, c: usize, np: usize) -> Vec<f64> {
-    let infos = at.p.cands[c].effect.parameters();
-    (0..np)
-        .map(|k| {
-            infos.get(k).map_or(f64::INFINITY, |i| {
-                0.5 * (i.plausible.1 - i.plausible.0).abs()
-            })
-        })
-        .collect()
-}
-
 /// `norms` (the candidate's Jacobian column norms) with 0 for each coordinate that
 /// cannot move the residual by [`REOPEN_SIGNATURE`] noise units anywhere in half its
 /// plausible range once the current model's parameters compensate: the data cannot
@@ -629,7 +617,9 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
     // One projection serves both the unresolvable test (raw columns) and the score
     // (normalised ones): a column's projection scales with the column.
     let jp = project_out(&jc, at.q0);
-    let half_range = half_ranges(at, c, norms.len());
+    let half_range: Vec<f64> = (0..norms.len())
+        .map(|k| at.p.cands[c].half_range(k))
+        .collect();
     let mut norms = unresolvable_as_gauges(&jp, norms, &half_range);
     let svd = svd_without_own_gauges(&jp, &mut norms, &half_range);
     let u = svd.u.as_ref().expect("requested");

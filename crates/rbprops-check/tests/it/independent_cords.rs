@@ -295,7 +295,10 @@ fn cords_case(splayed: bool, as_springs: bool) {
     // length (the model is exact at φ = (1/L̄, 1) when the cords' L₀ are right, as
     // here; 4 SE: a two-sided 6e-5 false-alarm rate for a Gaussian estimate).
     for q in &grav.parameters {
-        eprintln!("  {} = {:.6} ± {:.6} {}", q.name, q.value, q.standard_error, q.unit);
+        eprintln!(
+            "  {} = {:.6} ± {:.6} {}",
+            q.name, q.value, q.standard_error, q.unit
+        );
     }
     let p = &grav.parameters[0];
     assert_eq!(p.name, "inverse_cord_length_per_m");

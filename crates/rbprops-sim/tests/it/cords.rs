@@ -318,7 +318,10 @@ fn cords_written_as_springs_hang_at_their_free_lengths() {
     };
     let (k1, k2) = (k(&as_cords), k(&as_springs));
     let d = (k1 - k2).norm() / k1.norm();
-    assert!(d < 1e-10, "relative stiffness difference {d:.3e}\n{k1}\n{k2}");
+    assert!(
+        d < 1e-10,
+        "relative stiffness difference {d:.3e}\n{k1}\n{k2}"
+    );
     // Without the free lengths the springs hang in the drawn pose: another body.
     let drawn = spec(
         &springs,
