@@ -67,7 +67,8 @@ fn axial_springs_hang(spec: &CampaignSpec, i: usize) -> bool {
 /// Cords written as axial springs hang from anchors at ℓ = 1/φ₁ along their axes
 /// ([`CORD_INVERSE_LENGTH`] bounds it), so `φ₁ ℓ Lat` is the cords' own tension part at
 /// the fitted length, and their free lengths `ℓ − T/k + δ` carry the set-up's
-/// cord-length contrasts δ ([`length_changes`] of its slot of `slots` in `contrasts`):
+/// cord-length (pose) contrasts δ ([`length_changes`] of its slot of `slots` in
+/// `contrasts`, [`pose_contrasts`]):
 /// at δ = 0 the body hangs in the drawn pose (the tensions of the elastic balance, and
 /// then ℓ only scales `Lat`, exactly as before); unequal cords move and tilt it to the
 /// equilibrium they make, as splayed cords of unequal lengths do.
@@ -100,7 +101,8 @@ pub(super) fn gravity_stiffness(
         // cords above, from anchors at ℓ, their axes turned with the tilted vertical
         // (φ₃, φ₄), their free lengths changed by the set-up's contrasts.
         if let Some(slot) = slots.iter().find(|s| s.setup == ctx.setup_index) {
-            let d = length_changes(&contrasts[slot.start..slot.start + slot.cords - 1]);
+            let m = slot.patterns.len();
+            let d = length_changes(&contrasts[slot.start..slot.start + m], &slot.patterns);
             for (c, d) in cords.iter_mut().zip(d) {
                 c.unstretched_length += d;
             }
@@ -202,9 +204,10 @@ impl<'a> GravityPhi<'a> {
 
 /// The gravity candidate's parameter names for `spec`, and where each set-up's contrasts
 /// sit: φ₁, φ₂; the two tilts unless every set-up that hangs is of cords written as
-/// springs with contrasts (their contrasts move the body to its equilibrium, and a tilt
-/// of the vertical would be nearly the same turn of the body, a gauge the fit slides
-/// along: measured, a tilt pinned at its bound of 0.5 rad); φ₅ where springs
+/// springs (their pose contrasts move the body to its equilibrium, and a tilt of the
+/// vertical would be nearly the same turn of the body, a gauge the fit slides along:
+/// measured, a tilt pinned at its bound of 0.5 rad; and the tilt turns the cords by the
+/// body's whole turn, where its attachments' sideways move leans them less); φ₅ where springs
 /// can sag ([`springs_can_sag`]); the contrasts.
 pub(super) fn gravity_names(spec: &CampaignSpec, g: &Geometry) -> (Vec<String>, Vec<ContrastSlot>) {
     let (slots, contrasts) = contrast_slots(spec, 0);
@@ -229,23 +232,16 @@ pub(super) fn gravity_names(spec: &CampaignSpec, g: &Geometry) -> (Vec<String>, 
 pub(super) const CORD_INVERSE_LENGTH: (f64, f64) = (0.1, 20.0);
 
 /// Where a set-up's cord-length contrasts sit in the gravity candidate's φ: set-up
-/// index, first parameter, number of cords (n cords have n − 1 contrasts).
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// index, first parameter, and the contrasts' patterns of free-length change (one
+/// n-vector per contrast, orthonormal; see [`pose_contrasts`]).
+#[derive(Debug, Clone, PartialEq)]
 pub(super) struct ContrastSlot {
     pub setup: usize,
     pub start: usize,
-    pub cords: usize,
+    pub patterns: Vec<Vec<f64>>,
 }
 
-/// The smallest angle between two cords' axes for the cords to count as splayed (rad):
-/// below it their pose is the drawn one turned by the tilts of the vertical, which the
-/// candidate fits without contrasts.
-const MIN_SPLAY_RAD: f64 = 0.01;
-
-/// The contrast slots of the set-ups whose springs are splayed cords written as axial
-/// springs (parallel cords: the tilts of the vertical turn their body, and their one
-/// self-stress pattern, a warp of the free lengths that moves no pose, stood in for
-/// non-proportional damping in the study, ±2.7 cm with two cords nearly slack)
+/// The contrast slots of the set-ups whose springs are cords written as axial springs
 /// (positions in the contrast parameters, from `start` on), and their names
 /// (`{set-up}.cord_length_contrast{k}_m`).
 pub(super) fn contrast_slots(
@@ -265,38 +261,84 @@ pub(super) fn contrast_slots(
         ) else {
             continue;
         };
-        let e0 = cords[0].direction();
-        let splayed = cords
-            .iter()
-            .any(|c| c.direction().angle(&e0) > MIN_SPLAY_RAD);
-        let n = cords.len();
-        if n < 2 || !splayed {
+        let axes: Vec<(Vec3, Vec3)> = cords.iter().map(|c| (c.at, c.direction())).collect();
+        let patterns = pose_contrasts(&axes);
+        if patterns.is_empty() {
             continue;
         }
+        let m = patterns.len();
         slots.push(ContrastSlot {
             setup: i,
             start: start + names.len(),
-            cords: n,
+            patterns,
         });
-        names.extend((1..n).map(|k| format!("{}.cord_length_contrast{k}_m", s.id)));
+        names.extend((1..=m).map(|k| format!("{}.cord_length_contrast{k}_m", s.id)));
     }
     (slots, names)
 }
 
-/// The free-length changes δ (m) of n cords from their n − 1 contrasts `c`, in the
-/// orthonormal zero-sum (Helmert) basis: contrast k sets cords 0..k against cord k,
-/// `b_k = (1, …, 1, −k, 0, …)/√(k(k+1))`. Zero-sum, because a common change of every
-/// free length is the cord length ℓ's (for vertical cords exactly: the body only hangs
-/// lower), which φ₁ fits.
-pub(super) fn length_changes(c: &[f64]) -> Vec<f64> {
-    let n = c.len() + 1;
-    let mut d = vec![0.0; n];
-    for (k, ck) in (1..n).zip(c) {
-        let norm = ((k * (k + 1)) as f64).sqrt();
-        for dj in d.iter_mut().take(k) {
-            *dj += ck / norm;
+/// The contrasts of cords (attachment, unit axis) in the drawn pose: an orthonormal
+/// basis of the free-length changes δ that sum to zero and that a small rigid motion
+/// (u, θ) of the body would make, `δ_j = e_jᵀ u + (a_j × e_j)ᵀ θ`. Those are the changes
+/// that move the pose: four splayed cords span all three zero-sum patterns; four
+/// parallel cords two (roll and pitch), not their warp, a self-stress that moves no
+/// pose and that stood in for non-proportional damping in the study (±2.7 cm with two
+/// cords nearly slack). Zero-sum, because a common change of every free length is the
+/// cord length ℓ's (for parallel cords exactly: the body only hangs lower), which φ₁
+/// fits. Each pattern's largest entry is positive (a deterministic sign).
+pub(super) fn pose_contrasts(cords: &[(Vec3, Vec3)]) -> Vec<Vec<f64>> {
+    let n = cords.len();
+    if n < 2 {
+        return Vec::new();
+    }
+    let a = nalgebra::DMatrix::from_fn(n, 6, |j, k| {
+        let (at, e) = cords[j];
+        if k < 3 {
+            e[k]
+        } else {
+            at.cross(&e)[k - 3]
         }
-        d[k] -= ck * k as f64 / norm;
+    });
+    let svd = a.svd(true, false);
+    let u = svd.u.expect("requested");
+    let smax = svd.singular_values.max();
+    // The range of the rigid motions' stretches, orthonormal (n × r).
+    let range: Vec<nalgebra::DVector<f64>> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > 1e-9 * smax)
+        .map(|k| u.column(k).into_owned())
+        .collect();
+    // Within it, the complement of the uniform change: Gram–Schmidt of the range's
+    // vectors against 1/√n and each other.
+    let mut basis: Vec<nalgebra::DVector<f64>> =
+        vec![nalgebra::DVector::from_element(n, 1.0 / (n as f64).sqrt())];
+    for v in range {
+        let mut w = v;
+        for b in &basis {
+            w -= b * b.dot(&w);
+        }
+        if w.norm() > 1e-6 {
+            basis.push(w.normalize());
+        }
+    }
+    basis
+        .into_iter()
+        .skip(1)
+        .map(|b| {
+            let k = b.iamax();
+            let sign = if b[k] < 0.0 { -1.0 } else { 1.0 };
+            b.iter().map(|x| sign * x).collect()
+        })
+        .collect()
+}
+
+/// The free-length changes δ (m) of the contrasts `c` along `patterns`.
+pub(super) fn length_changes(c: &[f64], patterns: &[Vec<f64>]) -> Vec<f64> {
+    let n = patterns.first().map_or(0, Vec::len);
+    let mut d = vec![0.0; n];
+    for (ck, b) in c.iter().zip(patterns) {
+        for (dj, bj) in d.iter_mut().zip(b) {
+            *dj += ck * bj;
+        }
     }
     d
 }
@@ -337,7 +379,8 @@ pub(super) fn axial_free_lengths(
             spec.setups[slot.setup].id
         )
     })?;
-    let d = length_changes(&contrasts[slot.start..slot.start + slot.cords - 1]);
+    let m = slot.patterns.len();
+    let d = length_changes(&contrasts[slot.start..slot.start + m], &slot.patterns);
     Ok(Some((
         slot.setup,
         cords
@@ -459,34 +502,56 @@ pub fn vertical_axis_doubt(spec: &CampaignSpec) -> Option<String> {
 
 #[cfg(test)]
 mod tests {
-    use super::length_changes;
+    use super::pose_contrasts;
+    use rbprops_core::Vec3;
 
-    /// The contrasts are an orthonormal basis of the zero-sum free-length changes: each
-    /// pattern sums to 0, the patterns are orthonormal, and the changes of a contrast
-    /// vector have its norm.
-    #[test]
-    fn length_contrasts_are_orthonormal_and_zero_sum() {
-        for n in 2..7 {
-            let basis: Vec<Vec<f64>> = (0..n - 1)
-                .map(|k| {
-                    let mut c = vec![0.0; n - 1];
-                    c[k] = 1.0;
-                    length_changes(&c)
-                })
-                .collect();
-            for (a, ba) in basis.iter().enumerate() {
-                assert_eq!(ba.len(), n);
-                assert!(ba.iter().sum::<f64>().abs() < 1e-15, "n {n}: {ba:?}");
-                for (b, bb) in basis.iter().enumerate() {
-                    let dot: f64 = ba.iter().zip(bb).map(|(x, y)| x * y).sum();
-                    let want = if a == b { 1.0 } else { 0.0 };
-                    assert!((dot - want).abs() < 1e-15, "n {n}: ⟨b{a}, b{b}⟩ = {dot}");
-                }
+    fn check_orthonormal_zero_sum(p: &[Vec<f64>]) {
+        for (a, pa) in p.iter().enumerate() {
+            assert!(pa.iter().sum::<f64>().abs() < 1e-12, "{pa:?}");
+            for (b, pb) in p.iter().enumerate() {
+                let dot: f64 = pa.iter().zip(pb).map(|(x, y)| x * y).sum();
+                let want = if a == b { 1.0 } else { 0.0 };
+                assert!((dot - want).abs() < 1e-12, "⟨b{a}, b{b}⟩ = {dot}");
             }
         }
-        // Four cords: the second contrast sets cords 0 and 1 against cord 2.
-        let d = length_changes(&[0.0, 6f64.sqrt(), 0.0]);
-        assert!((d[0] - 1.0).abs() < 1e-15 && (d[1] - 1.0).abs() < 1e-15);
-        assert!((d[2] + 2.0).abs() < 1e-15 && d[3] == 0.0);
+    }
+
+    /// Four parallel cords at a rectangle's corners: the contrasts are roll and pitch
+    /// (two), orthogonal to the warp (+, −, −, +) that moves no pose; four splayed cords:
+    /// all three zero-sum patterns. Orthonormal and zero-sum either way.
+    #[test]
+    fn pose_contrasts_are_the_zero_sum_stretches_of_rigid_motions() {
+        let at = [
+            Vec3::new(0.02, -0.13, 0.17),
+            Vec3::new(0.34, -0.13, 0.17),
+            Vec3::new(0.02, 0.20, 0.17),
+            Vec3::new(0.34, 0.20, 0.17),
+        ];
+        let parallel: Vec<(Vec3, Vec3)> = at.iter().map(|a| (*a, Vec3::z())).collect();
+        let p = pose_contrasts(&parallel);
+        assert_eq!(p.len(), 2);
+        check_orthonormal_zero_sum(&p);
+        for b in &p {
+            let warp = (b[0] - b[1] - b[2] + b[3]) / 2.0;
+            assert!(warp.abs() < 1e-12, "{b:?}");
+        }
+        let anchors = [
+            Vec3::new(-0.13, -0.28, 1.2),
+            Vec3::new(0.49, -0.28, 1.2),
+            Vec3::new(-0.13, 0.35, 1.2),
+            Vec3::new(0.49, 0.35, 1.2),
+        ];
+        let splayed: Vec<(Vec3, Vec3)> = at
+            .iter()
+            .zip(&anchors)
+            .map(|(a, b)| (*a, (b - a).normalize()))
+            .collect();
+        let p = pose_contrasts(&splayed);
+        assert_eq!(p.len(), 3);
+        check_orthonormal_zero_sum(&p);
+        // Two cords: one contrast, the one against the other.
+        let p = pose_contrasts(&parallel[..2]);
+        assert_eq!(p.len(), 1);
+        assert!((p[0][0] + p[0][1]).abs() < 1e-12 && (p[0][0].abs() - 0.5f64.sqrt()).abs() < 1e-12);
     }
 }

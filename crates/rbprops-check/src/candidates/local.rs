@@ -9,7 +9,7 @@
 //!   still leaving the load term) has no neutral value, so a score test needs this form.
 //!   Two tilts of the vertical and φ₅, the fraction by which springs (rather than cords)
 //!   turn with the sagged body, complete it, and for cords written as axial springs the
-//!   n − 1 contrasts of their free lengths (see `gravity_stiffness`).
+//!   pose contrasts of their free lengths (see `gravity_stiffness`).
 //! - `residual_flexibility` (E13): elastic modes above the band seen as a general
 //!   residual flexibility matrix R (channels × excitations, m/N): one mode at f_e per
 //!   excitation, `H += R_ce ω_e²/(ω_e² − ω² + 2iζ_e ω_e ω)`, with q =
