@@ -26,15 +26,7 @@ pub(super) fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
 /// [`rbprops_sim::effects::gravity::axial_spring_cords`]): the gravity candidate hangs
 /// the body on them as on cords.
 fn axial_springs_hang(spec: &CampaignSpec, i: usize) -> bool {
-    rbprops_sim::effects::gravity::axial_spring_cords(
-        spec,
-        i,
-        &spec.properties().mass_matrix().0,
-        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
-        &spec.up_vector(),
-        |_| 1.0,
-    )
-    .is_some()
+    rbprops_sim::effects::gravity::axial_cord_count(spec, i) > 0
 }
 
 /// Geometric stiffness of cords along the spec's `up`, tilted by (φ₃, φ₄)
@@ -79,34 +71,19 @@ pub(super) fn gravity_stiffness(
     slots: &[ContrastSlot],
 ) -> Result<Mat6, String> {
     use rbprops_sim::effects::gravity::{geometric_stiffness, Cord, STANDARD_GRAVITY};
-    let contrasts = phi.contrasts;
     let z = phi.up(ctx.spec);
-    let phi = [phi.inverse_length, phi.load, 0.0, 0.0, phi.turn];
     if !ctx.spec.setups[ctx.setup_index].cords.is_empty() {
         let eq = hanging(ctx.spec, ctx.setup_index, &model.mass, &z)?;
         let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
-        return Ok(eq.lateral * (phi[0] * lbar) + (dk - eq.lateral) * phi[1]);
+        return Ok(eq.lateral * (phi.inverse_length * lbar) + (dk - eq.lateral) * phi.load);
     }
-    let ell = 1.0 / phi[0].clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
-    if let Some((mut cords, springs)) = rbprops_sim::effects::gravity::axial_spring_cords(
-        ctx.spec,
-        ctx.setup_index,
-        &model.mass,
-        STANDARD_GRAVITY,
-        &z,
-        |_| ell,
-    ) {
+    if let Some((cords, springs)) =
+        contrasted_cords(ctx.spec, ctx.setup_index, &model.mass, phi, slots)
+    {
         // Cords written as axial springs (vertical or splayed): hung like the set-up's
-        // cords above, from anchors at ℓ, their axes turned with the tilted vertical
-        // (φ₃, φ₄), their free lengths changed by the set-up's contrasts.
-        if let Some(slot) = slots.iter().find(|s| s.setup == ctx.setup_index) {
-            let m = slot.patterns.len();
-            let d = length_changes(&contrasts[slot.start..slot.start + m], &slot.patterns);
-            for (c, d) in cords.iter_mut().zip(d) {
-                c.unstretched_length += d;
-            }
-        }
+        // cords above, from anchors at ℓ, their free lengths changed by the set-up's
+        // contrasts.
         let eq = rbprops_sim::effects::gravity::hanging_equilibrium(
             &model.mass,
             &cords,
@@ -116,7 +93,8 @@ pub(super) fn gravity_stiffness(
         )
         .map_err(|e| format!("set-up '{}': {e}", ctx.spec.setups[ctx.setup_index].id))?;
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
-        return Ok(eq.lateral * (phi[0] * ell) + (dk - eq.lateral) * phi[1]);
+        let ell = phi.anchor_length();
+        return Ok(eq.lateral * (phi.inverse_length * ell) + (dk - eq.lateral) * phi.load);
     }
     // Springs with no stiffness along the vertical (side springs) hold no weight: they
     // are not cords and add no pendulum stiffness.
@@ -139,7 +117,7 @@ pub(super) fn gravity_stiffness(
     let (k1, _) = geometric_stiffness(&model.mass, &cords(1.0), STANDARD_GRAVITY, &z)?;
     let (kinf, _) = geometric_stiffness(&model.mass, &cords(1e12), STANDARD_GRAVITY, &z)?;
     let mut load = kinf;
-    let turn = phi[4];
+    let turn = phi.turn;
     if turn != 0.0 {
         // The springs as linear springs to the ground (not cords): at the body's sagged
         // equilibrium their stiffness axes turn with it, `Σ T(a)ᵀ Rᵀk R T(a)`, and their
@@ -152,7 +130,39 @@ pub(super) fn gravity_stiffness(
             load += (dk - kinf) * turn;
         }
     }
-    Ok((k1 - kinf) * phi[0] + load * phi[1])
+    Ok((k1 - kinf) * phi.inverse_length + load * phi.load)
+}
+
+/// Set-up `i`'s springs read as cords ([`rbprops_sim::effects::gravity::axial_spring_cords`]
+/// for a body of mass matrix `mass` along the fitted vertical), anchored at
+/// [`GravityPhi::anchor_length`], with free lengths `ℓ − T/k + δ`, δ the set-up's
+/// contrasts of `slots` ([`length_changes`]); `None` when its springs are not cords.
+fn contrasted_cords(
+    spec: &CampaignSpec,
+    i: usize,
+    mass: &Mat6,
+    phi: &GravityPhi,
+    slots: &[ContrastSlot],
+) -> Option<(
+    Vec<rbprops_sim::effects::gravity::AnchoredCord>,
+    Vec<rbprops_sim::suspension::Spring>,
+)> {
+    let ell = phi.anchor_length();
+    let (mut cords, springs) = rbprops_sim::effects::gravity::axial_spring_cords(
+        spec,
+        i,
+        mass,
+        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
+        &phi.up(spec),
+        |_| ell,
+    )?;
+    if let Some(slot) = slots.iter().find(|s| s.setup == i) {
+        let c = &phi.contrasts[slot.start..slot.start + slot.patterns.len()];
+        for (cord, d) in cords.iter_mut().zip(length_changes(c, &slot.patterns)) {
+            cord.unstretched_length += d;
+        }
+    }
+    Some((cords, springs))
 }
 
 /// Names of the gravity candidate's parameters (see [`gravity_stiffness`]).
@@ -196,6 +206,13 @@ impl<'a> GravityPhi<'a> {
             contrasts: &phi[start..],
         }
     }
+    /// The anchors' distance ℓ = 1/φ₁ of cords written as axial springs, φ₁ held in
+    /// [`CORD_INVERSE_LENGTH`].
+    pub fn anchor_length(&self) -> f64 {
+        1.0 / self
+            .inverse_length
+            .clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1)
+    }
     /// The spec's vertical tilted by (φ₃, φ₄) ([`tilted_direction`]).
     pub fn up(&self, spec: &CampaignSpec) -> Vec3 {
         tilted_direction(&spec.up_vector(), self.tilt.0, self.tilt.1)
@@ -210,7 +227,7 @@ impl<'a> GravityPhi<'a> {
 /// body's whole turn, where its attachments' sideways move leans them less); φ₅ where springs
 /// can sag ([`springs_can_sag`]); the contrasts.
 pub(super) fn gravity_names(spec: &CampaignSpec, g: &Geometry) -> (Vec<String>, Vec<ContrastSlot>) {
-    let (slots, contrasts) = contrast_slots(spec, 0);
+    let (slots, contrasts) = contrast_slots(spec);
     let mut names = vec![INVERSE_LENGTH.to_string(), LOAD_FACTOR.to_string()];
     let tilted = spec.setups.iter().enumerate().any(|(i, s)| {
         (!s.springs.is_empty() || !s.cords.is_empty()) && !slots.iter().any(|c| c.setup == i)
@@ -242,12 +259,9 @@ pub(super) struct ContrastSlot {
 }
 
 /// The contrast slots of the set-ups whose springs are cords written as axial springs
-/// (positions in the contrast parameters, from `start` on), and their names
+/// (positions among the contrast parameters), and their names
 /// (`{set-up}.cord_length_contrast{k}_m`).
-pub(super) fn contrast_slots(
-    spec: &CampaignSpec,
-    start: usize,
-) -> (Vec<ContrastSlot>, Vec<String>) {
+pub(super) fn contrast_slots(spec: &CampaignSpec) -> (Vec<ContrastSlot>, Vec<String>) {
     let (mut slots, mut names) = (Vec::new(), Vec::new());
     let mass = spec.properties().mass_matrix().0;
     for (i, s) in spec.setups.iter().enumerate() {
@@ -269,7 +283,7 @@ pub(super) fn contrast_slots(
         let m = patterns.len();
         slots.push(ContrastSlot {
             setup: i,
-            start: start + names.len(),
+            start: names.len(),
             patterns,
         });
         names.extend((1..=m).map(|k| format!("{}.cord_length_contrast{k}_m", s.id)));
@@ -352,42 +366,23 @@ pub(super) fn axial_free_lengths(
     spec: &CampaignSpec,
     phi: &GravityPhi,
 ) -> Result<Option<(usize, Vec<f64>)>, String> {
-    let contrasts = phi.contrasts;
-    let (slots, _) = contrast_slots(spec, 0);
+    let slots = contrast_slots(spec).0;
     let [slot] = slots.as_slice() else {
         return Ok(None);
     };
-    if contrasts.iter().all(|c| *c == 0.0) {
+    if phi.contrasts.iter().all(|c| *c == 0.0) {
         return Ok(None);
     }
-    let z = phi.up(spec);
-    let ell = 1.0
-        / phi
-            .inverse_length
-            .clamp(CORD_INVERSE_LENGTH.0, CORD_INVERSE_LENGTH.1);
-    let (cords, _) = rbprops_sim::effects::gravity::axial_spring_cords(
-        spec,
-        slot.setup,
-        &spec.properties().mass_matrix().0,
-        rbprops_sim::effects::gravity::STANDARD_GRAVITY,
-        &z,
-        |_| ell,
-    )
-    .ok_or_else(|| {
+    let mass = spec.properties().mass_matrix().0;
+    let (cords, _) = contrasted_cords(spec, slot.setup, &mass, phi, &slots).ok_or_else(|| {
         format!(
             "gravity_stiffness: set-up '{}' no longer reads as cords",
             spec.setups[slot.setup].id
         )
     })?;
-    let m = slot.patterns.len();
-    let d = length_changes(&contrasts[slot.start..slot.start + m], &slot.patterns);
     Ok(Some((
         slot.setup,
-        cords
-            .iter()
-            .zip(d)
-            .map(|(c, d)| c.unstretched_length + d)
-            .collect(),
+        cords.iter().map(|c| c.unstretched_length).collect(),
     )))
 }
 

@@ -92,22 +92,20 @@ const RESIDUAL_MODE_DAMPING: &str = "mode_damping_ratio";
 
 impl LocalEffect {
     fn neutral(kind: Kind, spec: &CampaignSpec, g: &Geometry) -> LocalEffect {
-        let names: Vec<String> = match kind {
-            Kind::GravityStiffness => gravity_names(spec, g).0,
-            Kind::ResidualFlexibility => g
-                .excitations
-                .iter()
-                .flat_map(|e| {
-                    g.channels
-                        .iter()
-                        .map(move |c| format!("{}.{}.receptance_m_per_n", c.id, e.id))
-                })
-                .chain([RESIDUAL_MODE_Q, RESIDUAL_MODE_DAMPING].map(String::from))
-                .collect(),
-        };
-        let slots = match kind {
-            Kind::GravityStiffness => gravity_names(spec, g).1,
-            Kind::ResidualFlexibility => Vec::new(),
+        let (names, slots): (Vec<String>, Vec<ContrastSlot>) = match kind {
+            Kind::GravityStiffness => gravity_names(spec, g),
+            Kind::ResidualFlexibility => (
+                g.excitations
+                    .iter()
+                    .flat_map(|e| {
+                        g.channels
+                            .iter()
+                            .map(move |c| format!("{}.{}.receptance_m_per_n", c.id, e.id))
+                    })
+                    .chain([RESIDUAL_MODE_Q, RESIDUAL_MODE_DAMPING].map(String::from))
+                    .collect(),
+                Vec::new(),
+            ),
         };
         let mut values = vec![0.0; names.len()];
         if kind == Kind::ResidualFlexibility {

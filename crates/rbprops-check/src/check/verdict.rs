@@ -574,6 +574,9 @@ impl<'p, 'a> Finish<'p, 'a> {
         let mut accepted = Vec::new();
         let mut offset = p.n_base();
         let mut improved_effects = Vec::new();
+        // Entries are written for the fitted body (the improved spec's): a cord's free
+        // length `ℓ − T/k` depends on the weight it carries.
+        let fitted_spec = p.baseline.apply(&theta[..p.n_base()]);
         let mut final_effects = Vec::new();
         for (a, ev) in active.iter().zip(evidence) {
             let cand = &p.cands[a.c];
@@ -598,9 +601,7 @@ impl<'p, 'a> Finish<'p, 'a> {
                 })
                 .collect();
             let eff = cand.effect.with_values(&phi).map_err(CheckError::Model)?;
-            // Written for the fitted body (the improved spec's): a cord's free length
-            // `ℓ − T/k` depends on the weight it carries.
-            match effect_spec(eff.as_ref(), &p.baseline.apply(&theta[..p.n_base()])) {
+            match effect_spec(eff.as_ref(), &fitted_spec) {
                 Ok(e) => improved_effects.push(e),
                 Err(e) => warnings.push(diagnostic(
                     DiagnosticKind::CheckProcedure,

@@ -664,7 +664,7 @@ impl Effect for GravityStiffness {
             return Ok(());
         }
         let lengths = self.lengths(ctx.spec.springs(ctx.setup_index).len());
-        if let Some((cords, springs)) = axial_spring_cords(
+        if let Some((mut cords, springs)) = axial_spring_cords(
             ctx.spec,
             ctx.setup_index,
             &model.mass,
@@ -674,7 +674,6 @@ impl Effect for GravityStiffness {
         ) {
             // Cords written as axial springs: the body hangs on them (at the given free
             // lengths, else in the drawn pose).
-            let mut cords = cords;
             if !self.unstretched_length_m.is_empty() {
                 let l0 = per_item(&self.unstretched_length_m, cords.len());
                 for (c, l) in cords.iter_mut().zip(l0) {
