@@ -34,12 +34,17 @@ fn main() {
     let mut total = f64::INFINITY;
     for _ in 0..runs {
         let t0 = Instant::now();
-        let (mut data, _digest) =
+        let mut th =
             rbprops_cli::read_time_histories(std::path::Path::new(path)).expect("readable");
-        keep(0, "read + parse + SHA-256", t0.elapsed().as_secs_f64());
+        keep(
+            0,
+            "read + parse + SHA-256 + set aside",
+            t0.elapsed().as_secs_f64(),
+        );
         let mut times = PhaseTimes::default();
         let est = estimate_uff_timed(
-            &mut data,
+            &mut th.data,
+            th.samples.as_ref(),
             &Default::default(),
             &EstimationOptions::default(),
             &mut times,

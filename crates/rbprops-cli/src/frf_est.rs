@@ -4,6 +4,7 @@
 //! (`rbprops_uff::timehist`), runs the chain per excitation and builds the run record
 //! through the same UFF mapping an FRF export takes (units, DOFs, set-ups).
 
+use crate::samples::SampleSource;
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 use rbprops_core::records::{
@@ -97,19 +98,45 @@ impl Default for EstimationOptions {
     }
 }
 
-/// One hit's records and what the checks found. The samples are borrowed from the
-/// parsed file (a per-hit record, or a hit's stretch of a throughput record): a hit is
-/// never copied, so the recording is held once (its samples as f64).
-struct Hit<'a> {
+/// One hit: where its samples are and what the checks found. The samples are read from
+/// the [`SampleSource`] when they are needed (the checks, then the average) and let go,
+/// so the recording is held at most a hit per thread beside the spectral sums.
+struct Hit {
     number: usize,
-    force: Cow<'a, [f64]>,
-    responses: Vec<Cow<'a, [f64]>>,
+    /// `None` for a hit cut by the record's edge (no samples to average).
+    records: Option<HitRecords>,
     report: HitReport,
+    /// The smallest `rbprops_frfest::auto_tau` over the hit's responses (when the window
+    /// is `auto`).
+    tau_bound: Option<f64>,
 }
 
-impl Hit<'_> {
+impl Hit {
     fn accepted(&self, keep_rejected: bool) -> bool {
         keep_rejected || self.report.accepted()
+    }
+}
+
+/// A hit's records: dataset indices of the force and the responses, and the hit's
+/// stretch of them (`None`: the whole record, the per-hit layout).
+struct HitRecords {
+    force: usize,
+    responses: Vec<usize>,
+    range: Option<std::ops::Range<usize>>,
+}
+
+/// A hit's force and response samples.
+type HitSamples<'a> = (Cow<'a, [f64]>, Vec<Cow<'a, [f64]>>);
+
+impl HitRecords {
+    fn load<'a>(&self, data: &'a UffFile, src: &'a dyn SampleSource) -> Result<HitSamples<'a>> {
+        let read = |i: usize| src.record(data, i, self.range.clone());
+        let responses = self
+            .responses
+            .iter()
+            .map(|&i| read(i))
+            .collect::<Result<_>>()?;
+        Ok((read(self.force)?, responses))
     }
 }
 
@@ -153,10 +180,11 @@ impl PhaseTimes {
 /// the output is not built beside the recording.
 pub fn estimate_uff(
     data: &mut UffFile,
+    samples: &dyn SampleSource,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
 ) -> Result<Estimated> {
-    estimate_uff_timed(data, uff_opts, opts, &mut PhaseTimes::default())
+    estimate_uff_timed(data, samples, uff_opts, opts, &mut PhaseTimes::default())
 }
 
 /// [`estimate_uff`], timing its phases into `times`. The excitations are independent
@@ -165,6 +193,7 @@ pub fn estimate_uff(
 /// the same whatever the number of threads.
 pub fn estimate_uff_timed(
     data: &mut UffFile,
+    samples: &dyn SampleSource,
     uff_opts: &crate::UffInputOptions,
     opts: &EstimationOptions,
     times: &mut PhaseTimes,
@@ -178,12 +207,12 @@ pub fn estimate_uff_timed(
     )?;
     let fs = index.sample_rate_hz;
     times.lap("index");
-    let (hits, n) = checked_hits(&*data, &index, opts)?;
+    let (hits, n) = checked_hits(&*data, samples, &index, opts)?;
     times.lap("hit checks");
     let tau = match opts.response_window {
         WindowChoice::None => None,
         WindowChoice::Exponential(t) => Some(t),
-        WindowChoice::Auto => auto_tau(&hits, fs, opts.keep_rejected),
+        WindowChoice::Auto => auto_tau(&hits, fs, n, opts.keep_rejected),
     };
     let response_window = tau.map_or(ResponseWindow::None, |tau_s| ResponseWindow::Exponential {
         tau_s,
@@ -191,12 +220,11 @@ pub fn estimate_uff_timed(
     times.lap("window τ");
     let averaged: Vec<Averaged> = hits
         .par_iter()
-        .map(|hs| average(hs, fs, n, opts, &response_window))
+        .map(|hs| average(hs, (&*data, samples), (fs, n), opts, &response_window))
         .collect::<Result<_>>()?;
     times.lap("windows, FFT, spectral sums");
-    // The samples are no longer needed: only the hits' reports and the records'
-    // headers are, and the output's buffers should not sit beside the recording.
-    let hits = without_samples(hits);
+    // The samples are no longer needed (only the records' headers are), and the output's
+    // buffers should not sit beside a recording held in memory.
     release_samples(data);
     let data = &*data;
     let sums: Vec<&SpectralSums> = averaged.iter().map(|a| &a.sums).collect();
@@ -224,10 +252,18 @@ pub fn estimate_uff_timed(
         .collect::<Result<_>>()?;
     drop(averaged);
     times.lap("H1, coherence, variances");
-    let estimates: Vec<EstimatedFrfs> = per_excitation.iter().map(|e| e.frfs.clone()).collect();
+    let Split {
+        frfs: estimates,
+        variances,
+        dof,
+        mut averages,
+    } = split_estimates(per_excitation);
     let step = fs / n as f64;
-    let synthetic = timehist::frf_file(data, &index, &estimates, band.start as f64 * step, step);
+    let synthetic = timehist::frf_file(data, &index, estimates, band.start as f64 * step, step);
     let (campaign, side_digest) = crate::uff_campaign_of(&synthetic, uff_opts)?;
+    let sigma2 = variance_in_si((data, &synthetic), &index, &variances, &campaign)?;
+    // The output is built from here on: what it no longer needs is let go first.
+    drop((synthetic, variances));
     times.lap("UFF mapping to SI");
     let mut record = RunRecord::default();
     record.set_geometry(&campaign.geometry);
@@ -236,10 +272,6 @@ pub fn estimate_uff_timed(
     }
     // The campaign's excitation ids (tags, set-ups) replace the force DOFs in the tables.
     let names = campaign_ids(data, &index, &campaign);
-    let variances: Vec<Option<Vec<f64>>> =
-        per_excitation.iter().map(|e| e.variance.clone()).collect();
-    let sigma2 = variance_in_si(data, &index, &estimates, &variances, &campaign)?;
-    let dof: Vec<f64> = per_excitation.iter().map(|e| e.dof).collect();
     let min_dof = dof.iter().fold(f64::INFINITY, |m: f64, &d| m.min(d));
     if min_dof.is_finite() {
         let set = crate::variance::LineVarianceSet {
@@ -248,8 +280,6 @@ pub fn estimate_uff_timed(
         };
         crate::variance::set(&mut record, &campaign.geometry, &campaign.frf, &set);
     }
-    let mut averages: Vec<ExcitationAveragesRecord> =
-        per_excitation.into_iter().map(|e| e.averages).collect();
     for (a, id) in averages.iter_mut().zip(&names) {
         a.excitation = id.clone();
     }
@@ -325,11 +355,12 @@ fn processing_record(
 
 /// Every excitation's hits, checked, and the record length; an excitation with fewer
 /// than `min_hits` accepted is an error listing its rejections.
-fn checked_hits<'a>(
-    data: &'a UffFile,
+fn checked_hits(
+    data: &UffFile,
+    samples: &dyn SampleSource,
     index: &TimeHistoryIndex,
     opts: &EstimationOptions,
-) -> Result<(Vec<Vec<Hit<'a>>>, usize)> {
+) -> Result<(Vec<Vec<Hit>>, usize)> {
     if opts.min_hits < 2 {
         bail!(
             "--min-hits {}: at least 2 hits are needed for a variance",
@@ -337,11 +368,11 @@ fn checked_hits<'a>(
         );
     }
     let fs = index.sample_rate_hz;
-    let (n, pre) = record_samples(data, index, opts)?;
-    let hits: Vec<Vec<Hit<'a>>> = index
+    let (n, pre) = record_samples(data, samples, index, opts)?;
+    let hits: Vec<Vec<Hit>> = index
         .excitations
         .par_iter()
-        .map(|ex| excitation_hits(data, ex, fs, (n, pre), opts))
+        .map(|ex| excitation_hits((data, samples), ex, fs, (n, pre), opts))
         .collect::<Result<_>>()?;
     for (hs, ex) in hits.iter().zip(&index.excitations) {
         let ok = hs.iter().filter(|h| h.accepted(opts.keep_rejected)).count();
@@ -411,6 +442,30 @@ fn estimate_excitation(a: &Averaged, hs: &[Hit], c: &Chain) -> Result<Excitation
     })
 }
 
+/// The excitations' estimates, each part in its own list (moved, not copied).
+struct Split {
+    frfs: Vec<EstimatedFrfs>,
+    variances: Vec<Option<Vec<f64>>>,
+    dof: Vec<f64>,
+    averages: Vec<ExcitationAveragesRecord>,
+}
+
+fn split_estimates(per_excitation: Vec<ExcitationEstimate>) -> Split {
+    let mut out = Split {
+        frfs: Vec::new(),
+        variances: Vec::new(),
+        dof: Vec::new(),
+        averages: Vec::new(),
+    };
+    for e in per_excitation {
+        out.frfs.push(e.frfs);
+        out.variances.push(e.variance);
+        out.dof.push(e.dof);
+        out.averages.push(e.averages);
+    }
+    out
+}
+
 /// Per-excitation values (index order, named `names`) in the geometry's excitation order.
 fn in_campaign_order(values: &[f64], names: &[String], g: &rbprops_core::Geometry) -> Vec<f64> {
     let mut out = vec![f64::INFINITY; g.excitations.len()];
@@ -472,6 +527,7 @@ fn dir_name(d: i64) -> String {
 /// triggers on any excitation and 5 % of it (less when the first trigger comes earlier).
 fn record_samples(
     data: &UffFile,
+    samples: &dyn SampleSource,
     index: &TimeHistoryIndex,
     opts: &EstimationOptions,
 ) -> Result<(usize, f64)> {
@@ -489,9 +545,9 @@ fn record_samples(
         let HitLayout::Throughput(h) = &e.layout else {
             continue;
         };
-        let force = timehist::samples(data, h.force);
+        let force = samples.record(data, h.force, None)?;
         let t = rbprops_frfest::find_hits(
-            force,
+            &force,
             fs,
             &TriggerOptions {
                 level: opts.trigger,
@@ -526,55 +582,54 @@ fn record_samples(
     Ok((spacing, pre))
 }
 
-/// The hits of one excitation, each checked.
-fn excitation_hits<'a>(
-    data: &'a UffFile,
+/// The hits of one excitation, each checked (its samples read and let go).
+fn excitation_hits(
+    (data, src): (&UffFile, &dyn SampleSource),
     ex: &timehist::ExcitationRecords,
     fs: f64,
     (n, pre): (usize, f64),
     opts: &EstimationOptions,
-) -> Result<Vec<Hit<'a>>> {
+) -> Result<Vec<Hit>> {
     let check = HitCheckOptions {
         trigger: opts.trigger,
         force_range: opts.force_range,
         response_ranges: vec![opts.response_range; ex.responses.len()],
         ..Default::default()
     };
-    let inspect = |number: usize, force: Cow<'a, [f64]>, responses: Vec<Cow<'a, [f64]>>| {
-        let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_ref()).collect();
-        let report = rbprops_frfest::inspect_hit(&force, &refs, fs, &check);
-        Hit {
-            number,
-            force,
-            responses,
-            report,
-        }
-    };
+    let auto = matches!(opts.response_window, WindowChoice::Auto);
+    let inspect =
+        |number: usize, records: Option<HitRecords>, force: &[f64], responses: &[Cow<[f64]>]| {
+            let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_ref()).collect();
+            let report = rbprops_frfest::inspect_hit(force, &refs, fs, &check);
+            let tau_bound = refs
+                .iter()
+                .filter(|_| auto)
+                .filter_map(|r| rbprops_frfest::auto_tau(r, fs, report.trigger))
+                .reduce(f64::min);
+            Hit {
+                number,
+                records,
+                report,
+                tau_bound,
+            }
+        };
     match &ex.layout {
-        HitLayout::PerHit(hits) => Ok(hits
+        HitLayout::PerHit(hits) => hits
             .iter()
             .map(|h| {
-                let responses = h
-                    .responses
-                    .iter()
-                    .map(|&i| Cow::Borrowed(timehist::samples(data, i)))
-                    .collect();
-                inspect(
-                    h.hit,
-                    Cow::Borrowed(timehist::samples(data, h.force)),
-                    responses,
-                )
+                let records = HitRecords {
+                    force: h.force,
+                    responses: h.responses.clone(),
+                    range: None,
+                };
+                let (force, responses) = records.load(data, src)?;
+                Ok(inspect(h.hit, Some(records), &force, &responses))
             })
-            .collect()),
+            .collect(),
         HitLayout::Throughput(h) => {
-            let force: &'a [f64] = timehist::samples(data, h.force);
-            let responses: Vec<&'a [f64]> = h
-                .responses
-                .iter()
-                .map(|&i| timehist::samples(data, i))
-                .collect();
+            let force = src.record(data, h.force, None)?;
             let triggers = rbprops_frfest::find_hits(
-                force,
+                &force,
                 fs,
                 &TriggerOptions {
                     level: opts.trigger,
@@ -583,48 +638,29 @@ fn excitation_hits<'a>(
                     holdoff_s: None,
                 },
             );
-            Ok(triggers
+            triggers
                 .iter()
                 .enumerate()
                 .map(|(k, t)| match t.range(n) {
-                    Some(r) => inspect(
-                        k + 1,
-                        Cow::Borrowed(&force[r.clone()]),
-                        responses
-                            .iter()
-                            .map(|x| Cow::Borrowed(&x[r.clone()]))
-                            .collect(),
-                    ),
+                    Some(r) => {
+                        let records = HitRecords {
+                            force: h.force,
+                            responses: h.responses.clone(),
+                            range: Some(r.clone()),
+                        };
+                        let responses = records.load(data, src)?.1;
+                        Ok(inspect(k + 1, Some(records), &force[r], &responses))
+                    }
                     None => {
-                        let zeros = || Cow::Owned(vec![0.0; n]);
-                        let mut hit = inspect(
-                            k + 1,
-                            zeros(),
-                            (0..responses.len()).map(|_| zeros()).collect(),
-                        );
+                        let zeros = vec![Cow::Owned(vec![0.0; n]); h.responses.len()];
+                        let mut hit = inspect(k + 1, None, &vec![0.0; n], &zeros);
                         hit.report.reasons = vec![RejectReason::AtRecordEdge];
-                        hit
+                        Ok(hit)
                     }
                 })
-                .collect())
+                .collect()
         }
     }
-}
-
-/// The hits' numbers and reports, their samples let go.
-fn without_samples(hits: Vec<Vec<Hit>>) -> Vec<Vec<Hit<'static>>> {
-    hits.into_iter()
-        .map(|hs| {
-            hs.into_iter()
-                .map(|h| Hit {
-                    number: h.number,
-                    force: Cow::Owned(Vec::new()),
-                    responses: Vec::new(),
-                    report: h.report,
-                })
-                .collect()
-        })
-        .collect()
 }
 
 /// Frees the samples of every time record (their headers stay, for the FRF datasets
@@ -645,19 +681,16 @@ fn release_samples(data: &mut UffFile) {
 /// ringing, and the ringing left at the end leaks. Measured on Test Case II through the
 /// independent generator (32 s records, five hits): no window 1.6 % mass error, τ = 20 s
 /// 0.08 %, τ = 8 s 0.04 %, τ = 4 s 0.01 % (`modal-fit` removes the window's damping).
-fn auto_tau(hits: &[Vec<Hit>], fs: f64, keep_rejected: bool) -> Option<f64> {
+fn auto_tau(hits: &[Vec<Hit>], fs: f64, n: usize, keep_rejected: bool) -> Option<f64> {
     let accepted = || hits.iter().flatten().filter(|h| h.accepted(keep_rejected));
-    let n = accepted().next()?.force.len();
     let t0 = accepted().map(|h| h.report.trigger).min()?;
     let record = (n - 1).saturating_sub(t0) as f64 / fs;
-    accepted()
-        .flat_map(|h| {
-            h.responses
-                .iter()
-                .filter_map(move |r| rbprops_frfest::auto_tau(r, fs, h.report.trigger))
-        })
-        .fold(Some(record / 100f64.ln()), |m, t| m.map(|m| m.min(t)))
-        .filter(|t| *t > 0.0)
+    Some(
+        accepted()
+            .filter_map(|h| h.tau_bound)
+            .fold(record / 100f64.ln(), f64::min),
+    )
+    .filter(|t| *t > 0.0)
 }
 
 /// One excitation's accepted hits averaged: the spectral sums of the windowed records and
@@ -668,18 +701,25 @@ struct Averaged {
     force_noise_energy: f64,
 }
 
+/// A hit cut by the record's edge has no samples and is never averaged, even with
+/// `--keep-rejected`.
 fn average(
     hits: &[Hit],
-    fs: f64,
-    n: usize,
+    (data, src): (&UffFile, &dyn SampleSource),
+    (fs, n): (f64, usize),
     opts: &EstimationOptions,
     response_window: &ResponseWindow,
 ) -> Result<Averaged> {
-    let n_resp = hits[0].responses.len();
+    let n_resp = hits
+        .iter()
+        .find_map(|h| h.records.as_ref())
+        .map_or(0, |r| r.responses.len());
     let mut sums = SpectralSums::new(n, fs, 1, n_resp)?;
     let mut w = HitWindows::new(n);
     let mut energy = 0.0;
     for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
+        let Some(records) = &h.records else { continue };
+        let (force, responses) = records.load(data, src)?;
         w.set(
             fs,
             h.report.trigger,
@@ -688,13 +728,8 @@ fn average(
             response_window,
             opts.exponential_on_force,
         );
-        let refs: Vec<&[f64]> = h.responses.iter().map(|r| r.as_ref()).collect();
-        sums.add_windowed_hit(
-            &[h.force.as_ref()],
-            &refs,
-            Some(&w.force),
-            Some(&w.response),
-        )?;
+        let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_ref()).collect();
+        sums.add_windowed_hit(&[force.as_ref()], &refs, Some(&w.force), Some(&w.response))?;
         energy += h.report.noise_rms.powi(2) * w.force.iter().map(|x| x * x).sum::<f64>();
     }
     let force_noise_energy = energy / sums.count().max(1) as f64;
@@ -773,9 +808,8 @@ fn line_correlation(tau: Option<f64>, fs: f64, n: usize) -> Vec<c64> {
 /// scale is read off its values (`|H_SI|/|H_file|` at its largest line: the UFF mapping
 /// multiplies each record by one real factor), squared.
 fn variance_in_si(
-    data: &UffFile,
+    (data, synthetic): (&UffFile, &UffFile),
     index: &TimeHistoryIndex,
-    estimates: &[EstimatedFrfs],
     variances: &[Option<Vec<f64>>],
     campaign: &rbprops_uff::UffCampaign,
 ) -> Result<Vec<f64>> {
@@ -798,7 +832,16 @@ fn variance_in_si(
             );
         };
         let Some(v) = &variances[e] else { continue };
-        let file = &estimates[e].frf[k];
+        let file = synthetic
+            .datasets
+            .iter()
+            .find_map(|d| match &d.record {
+                rbprops_uff::Record::Function(f) if f.function_type == 4 && d.location == *at => {
+                    Some(&f.ordinate)
+                }
+                _ => None,
+            })
+            .expect("frf_file writes each estimate at its response record's location");
         let si = &frf.values[cell * nl..(cell + 1) * nl];
         let j = (0..nl)
             .max_by(|&a, &b| file[a].norm().total_cmp(&file[b].norm()))
@@ -836,28 +879,94 @@ fn reason_text(r: &RejectReason) -> String {
     }
 }
 
+/// Why a hit was rejected, its overloads in one clause ("overload: 7 samples at the range
+/// on the force, 5 on response 2").
+fn hit_reasons(h: &Hit) -> String {
+    let mut parts: Vec<String> = Vec::new();
+    let mut overloads: Vec<String> = Vec::new();
+    for r in &h.report.reasons {
+        match r {
+            RejectReason::Overload { .. } if !overloads.is_empty() => {
+                let text = reason_text(r);
+                overloads.push(
+                    text.replace("overload: ", "")
+                        .replace(" samples at the range", ""),
+                );
+            }
+            RejectReason::Overload { .. } => overloads.push(reason_text(r)),
+            _ => parts.push(reason_text(r)),
+        }
+    }
+    if !overloads.is_empty() {
+        parts.push(overloads.join(", "));
+    }
+    parts.join("; ")
+}
+
+/// Every rejected hit of an excitation and why (the error when too few are left).
 fn rejections(hits: &[Hit]) -> String {
     let v: Vec<String> = hits
         .iter()
         .filter(|h| !h.report.accepted())
-        .map(|h| {
-            format!(
-                "hit {}: {}",
-                h.number,
-                h.report
-                    .reasons
-                    .iter()
-                    .map(reason_text)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        })
+        .map(|h| format!("hit {}: {}", h.number, hit_reasons(h)))
         .collect();
     if v.is_empty() {
         "none rejected".into()
     } else {
         v.join("; ")
     }
+}
+
+/// Hits listed by name in the summary line, per excitation; the rest are counted (the
+/// hit table has them all).
+const SUMMARY_HITS: usize = 3;
+
+/// An excitation's rejections for the one summary line: how many and of which kind, the
+/// first few by name.
+fn rejections_brief(hits: &[Hit]) -> String {
+    let rejected: Vec<&Hit> = hits.iter().filter(|h| !h.report.accepted()).collect();
+    let mut kinds: Vec<(&str, usize)> = Vec::new();
+    for h in &rejected {
+        let mut seen: Vec<&str> = Vec::new();
+        for r in &h.report.reasons {
+            let kind = match r {
+                RejectReason::DoubleHit { .. } => "double hit",
+                RejectReason::Overload { .. } => "overload",
+                RejectReason::AtRecordEdge => "at the edge",
+                RejectReason::TooWeak { .. } => "too weak",
+                _ => "bad samples",
+            };
+            if !seen.contains(&kind) {
+                seen.push(kind);
+                match kinds.iter_mut().find(|(k, _)| *k == kind) {
+                    Some((_, c)) => *c += 1,
+                    None => kinds.push((kind, 1)),
+                }
+            }
+        }
+    }
+    let named: Vec<String> = rejected
+        .iter()
+        .take(SUMMARY_HITS)
+        .map(|h| format!("hit {}: {}", h.number, hit_reasons(h)))
+        .collect();
+    let more = rejected.len().saturating_sub(SUMMARY_HITS);
+    format!(
+        "{} of {} ({}): {}{}",
+        rejected.len(),
+        hits.len(),
+        kinds
+            .iter()
+            .map(|(k, c)| format!("{c} {k}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        named.join("; "),
+        if more > 0 {
+            format!("; {more} more in the hit table (rbprops report)")
+        } else {
+            String::new()
+        }
+    )
 }
 
 fn hit_records(
@@ -908,7 +1017,7 @@ fn summary_line(
         .iter()
         .zip(averages)
         .filter(|(h, _)| h.iter().any(|h| !h.report.accepted()))
-        .map(|(h, a)| format!("{} {}", a.excitation, rejections(h)))
+        .map(|(h, a)| format!("{} {}", a.excitation, rejections_brief(h)))
         .collect();
     format!(
         "frf-est: {:?} over {used} of {total} hits in {} excitation(s){}; window {}; {} lines {:.4}–{:.4} Hz; relative standard error up to {:.2} % (4× the hits to halve it){}",

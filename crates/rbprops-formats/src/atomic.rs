@@ -23,7 +23,7 @@
 //! executables) removes what is left.
 
 use crate::FormatError;
-use std::io::{Read, Write};
+use std::io::{Read, Seek, Write};
 use std::os::unix::fs::{FileTypeExt, MetadataExt};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -317,15 +317,30 @@ fn stream(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
 /// Writes `bytes` to `path` via a temporary file in the same directory and a rename,
 /// after [`check_output`]; straight through for a device or FIFO.
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
+    write_file_with(path, |w| w.write_all(bytes).map_err(|e| io(path, e)))
+}
+
+/// A file being written: seekable (MCAP's writer needs it).
+pub trait SeekWrite: Write + Seek {}
+impl<T: Write + Seek> SeekWrite for T {}
+
+/// [`write_file`] of what `fill` writes, streamed into the temporary file rather than
+/// built in memory first (a device or FIFO, which cannot seek, gets it built in memory).
+pub fn write_file_with(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn SeekWrite) -> Result<(), FormatError>,
+) -> Result<(), FormatError> {
     let path = &resolve_link(path);
     if check_output(path, Kind::File)? == Target::Stream {
-        return stream(path, bytes);
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        fill(&mut bytes)?;
+        return stream(path, bytes.get_ref());
     }
     create_parent(path)?;
     let tmp = sibling(path, "tmp");
     let t = Temp::Remove(tmp.clone());
     register(t.clone());
-    let res = write_synced(&tmp, bytes).and_then(|()| {
+    let res = write_synced(&tmp, fill).and_then(|()| {
         fault_hold();
         // Re-checked just before the rename: the target may have appeared meanwhile.
         check_output(path, Kind::File)?;
@@ -349,10 +364,14 @@ fn fault_hold() {
     }
 }
 
-fn write_synced(tmp: &Path, bytes: &[u8]) -> Result<(), FormatError> {
-    let mut f = std::fs::File::create(tmp).map_err(|e| io(tmp, e))?;
-    f.write_all(bytes).map_err(|e| io(tmp, e))?;
-    f.flush().map_err(|e| io(tmp, e))
+fn write_synced(
+    tmp: &Path,
+    fill: impl FnOnce(&mut dyn SeekWrite) -> Result<(), FormatError>,
+) -> Result<(), FormatError> {
+    let f = std::fs::File::create(tmp).map_err(|e| io(tmp, e))?;
+    let mut w = std::io::BufWriter::new(f);
+    fill(&mut w)?;
+    w.flush().map_err(|e| io(tmp, e))
 }
 
 /// A symbolic link to an existing path: its target (so the link itself stays).

@@ -331,7 +331,7 @@ pub fn read_path(path: &Path) -> Result<RunRecord, FormatError> {
 /// Writes a run to a path atomically (temp file/dir, then rename).
 pub fn write_path(rec: &RunRecord, path: &Path) -> Result<(), FormatError> {
     match Format::from_path(path)? {
-        Format::Mcap => atomic::write_file(path, &mcap_file::write(rec)?),
+        Format::Mcap => atomic::write_file_with(path, |w| mcap_file::write_to(rec, w).map(drop)),
         // A device or FIFO (`-o /dev/null`) cannot hold a directory: it gets the stream.
         Format::CsvDir if is_stream(path) => atomic::write_file(path, &mcap_file::write(rec)?),
         Format::CsvDir => csv_dir::write(rec, path),

@@ -4,7 +4,7 @@ use crate::wire::{self, FrfAxisMsg, FrfMsg};
 use crate::{topics, FormatError, JsonTopic, RawTopic, RunRecord};
 use rbprops_core::FrfSet;
 use std::collections::BTreeMap;
-use std::io::Cursor;
+use std::io::{Cursor, Seek, Write};
 
 /// Profile written in the MCAP header.
 pub const PROFILE: &str = "rbprops";
@@ -16,12 +16,12 @@ fn mcap_err(e: mcap::McapError) -> FormatError {
     }
 }
 
-struct Out {
-    w: mcap::Writer<Cursor<Vec<u8>>>,
+struct Out<W: Write + Seek> {
+    w: mcap::Writer<W>,
     seq: u32,
 }
 
-impl Out {
+impl<W: Write + Seek> Out<W> {
     fn channel(
         &mut self,
         topic: &str,
@@ -107,6 +107,12 @@ impl Out {
 /// included) and the footer that of the summary section; [`read`] verifies all three.
 /// (These are the `mcap` crate's defaults, stated here so that they cannot silently go.)
 pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
+    Ok(write_to(rec, Cursor::new(Vec::new()))?.into_inner())
+}
+
+/// [`write`] into `sink` (a file: the run is never held as bytes beside the record),
+/// returned when the MCAP is finished.
+pub fn write_to<W: Write + Seek>(rec: &RunRecord, sink: W) -> Result<W, FormatError> {
     let opts = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("rbprops {}", env!("CARGO_PKG_VERSION")))
@@ -116,7 +122,7 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
         .calculate_chunk_crcs(true)
         .calculate_data_section_crc(true)
         .calculate_summary_section_crc(true);
-    let w = opts.create(Cursor::new(Vec::new())).map_err(mcap_err)?;
+    let w = opts.create(sink).map_err(mcap_err)?;
     let mut out = Out { w, seq: 0 };
     let geometry = if rec.frf.is_some() {
         rec.geometry()?
@@ -124,7 +130,7 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
         None
     };
     let mut frf_written = false;
-    let write_frf = |out: &mut Out, frf: &FrfSet| -> Result<(), FormatError> {
+    let write_frf = |out: &mut Out<W>, frf: &FrfSet| -> Result<(), FormatError> {
         let g = geometry.as_ref().ok_or_else(|| {
             FormatError::other("<output>", "an FRF set needs a geometry topic for its ids")
         })?;
@@ -157,7 +163,7 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
         out.end_topic()?;
     }
     out.w.finish().map_err(mcap_err)?;
-    Ok(out.w.into_inner().into_inner())
+    Ok(out.w.into_inner())
 }
 
 /// Parses MCAP bytes, verifying every CRC they carry. `file` names the source in errors.

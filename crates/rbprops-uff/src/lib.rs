@@ -120,5 +120,5 @@ pub use dof::{channel_map_template, ChannelMap};
 pub use error::{DatasetLocation, UffError};
 pub use inventory::inventory;
 pub use model::*;
-pub use read::{parse, parse_reader};
+pub use read::{parse, parse_reader, parse_reader_each};
 pub use write::{from_campaign, WriteOptions};

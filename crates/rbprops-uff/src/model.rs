@@ -296,6 +296,10 @@ pub struct Function {
     /// `abscissa` and `ordinate` left empty — a third of the memory (a recording holds
     /// millions of samples, an FRF thousands of lines). Empty for every other function.
     pub samples: Vec<f64>,
+    /// The number of samples of a time history whose samples a reader has set aside
+    /// (`samples` is then empty; `frf-est` keeps a recording's samples in a temporary file
+    /// so that they are never all in memory); 0 otherwise.
+    pub samples_set_aside: usize,
 }
 
 impl Function {
@@ -336,12 +340,16 @@ impl Function {
             abscissa: Vec::new(),
             ordinate: Vec::new(),
             samples: Vec::new(),
+            samples_set_aside: 0,
         }
     }
 
     /// Number of points (samples or abscissa values).
     pub fn len(&self) -> usize {
-        self.ordinate.len().max(self.samples.len())
+        self.ordinate
+            .len()
+            .max(self.samples.len())
+            .max(self.samples_set_aside)
     }
 
     /// True when the function holds no point.

@@ -146,9 +146,21 @@ fn finish(file_name: &str, datasets: Vec<Dataset>, end_line: usize) -> Result<Uf
 /// delimiter line) and parsed as [`parse`] parses them, with the same errors and line
 /// numbers. `seen` gets every byte read, in order (for a digest of the file).
 pub fn parse_reader(
+    reader: impl std::io::BufRead,
+    file_name: &str,
+    seen: impl FnMut(&[u8]),
+) -> Result<UffFile, UffError> {
+    parse_reader_each(reader, file_name, seen, |_| Ok(()))
+}
+
+/// [`parse_reader`], handing each dataset to `each` as soon as it is parsed (before the
+/// next is read): a caller can set a time history's samples aside there
+/// ([`Function::samples_set_aside`]), so that the file's samples are never all held.
+pub fn parse_reader_each(
     mut reader: impl std::io::BufRead,
     file_name: &str,
     mut seen: impl FnMut(&[u8]),
+    mut each: impl FnMut(&mut Dataset) -> Result<(), UffError>,
 ) -> Result<UffFile, UffError> {
     let io = |e: std::io::Error| UffError::Structure {
         file: file_name.to_string(),
@@ -230,7 +242,11 @@ pub fn parse_reader(
             }
         }
         seen(&chunk);
+        let parsed = datasets.len();
         next_line = parse_into(&chunk, file_name, next_line, &mut datasets)?;
+        for d in &mut datasets[parsed..] {
+            each(d)?;
+        }
         if !opened {
             // Only blank lines were left (stray text is the parser's error).
             return finish(file_name, datasets, next_line);
@@ -920,6 +936,7 @@ fn parse_58(
         abscissa,
         ordinate,
         samples,
+        samples_set_aside: 0,
     })
 }
 

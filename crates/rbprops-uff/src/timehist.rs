@@ -525,7 +525,7 @@ pub struct EstimatedFrfs {
 pub fn frf_file(
     uff: &UffFile,
     index: &TimeHistoryIndex,
-    estimates: &[EstimatedFrfs],
+    estimates: Vec<EstimatedFrfs>,
     first_hz: f64,
     step_hz: f64,
 ) -> UffFile {
@@ -535,7 +535,9 @@ pub fn frf_file(
         .filter(|d| !matches!(d.record, Record::Function(_)))
         .cloned()
         .collect();
-    for (ex, est) in index.excitations.iter().zip(estimates) {
+    // The estimates are moved into the datasets, not copied (a recording's FRFs are
+    // megabytes, issue 36's memory bound).
+    for (ex, mut est) in index.excitations.iter().zip(estimates) {
         let template = ex.template();
         let force = function(uff, template.force);
         for (k, &ri) in template.responses.iter().enumerate() {
@@ -563,14 +565,11 @@ pub fn frf_file(
                 denominator: force.numerator.clone(),
                 binary: None,
                 abscissa: (0..n).map(|l| first_hz + l as f64 * step_hz).collect(),
-                ordinate: est.frf[k].clone(),
+                ordinate: std::mem::take(&mut est.frf[k]),
                 ..resp.header()
             };
             let coherence = est.coherence.as_ref().map(|coh| {
-                let mut c = f.clone();
-                c.function_type = 6;
-                c.ordinate_type = OrdinateType::RealDouble;
-                c.numerator = AxisInfo {
+                let axis = AxisInfo {
                     data_type: 0,
                     length_exp: 0,
                     force_exp: 0,
@@ -578,9 +577,15 @@ pub fn frf_file(
                     label: "Coherence".into(),
                     units_label: "NONE".into(),
                 };
-                c.denominator = c.numerator.clone();
-                c.ordinate = coh[k].iter().map(|&g| c64::new(g, 0.0)).collect();
-                c
+                Function {
+                    function_type: 6,
+                    ordinate_type: OrdinateType::RealDouble,
+                    numerator: axis.clone(),
+                    denominator: axis,
+                    abscissa: f.abscissa.clone(),
+                    ordinate: coh[k].iter().map(|&g| c64::new(g, 0.0)).collect(),
+                    ..f.header()
+                }
             });
             f.function_id = resp.function_id;
             datasets.push(Dataset {

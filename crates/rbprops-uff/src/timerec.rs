@@ -361,6 +361,7 @@ fn time_function(
         abscissa: Vec::new(),
         ordinate: Vec::new(),
         samples: s.to_vec(),
+        samples_set_aside: 0,
     }
 }
 

@@ -83,19 +83,29 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    rbprops_cli::return_large_buffers();
     rbprops_cli::run("frf-est", || {
         let args = Args::parse();
         rbprops_formats::atomic::set_force(args.force);
         let opts = options(&args);
         let name = args.input.display().to_string();
-        let (mut data, mut digest) = rbprops_cli::read_time_histories(&args.input)?;
+        let rbprops_cli::TimeHistories {
+            mut data,
+            samples,
+            mut digest,
+        } = rbprops_cli::read_time_histories(&args.input)?;
         if !rbprops_uff::timehist::has_time_histories(&data) {
             bail!(
                 "{name}: no time histories (dataset 58 with function type 1). It holds:\n{}",
                 rbprops_uff::inventory(&data)
             );
         }
-        let est = rbprops_cli::frf_est::estimate_uff(&mut data, &args.uff.options(), &opts)?;
+        let est = rbprops_cli::frf_est::estimate_uff(
+            &mut data,
+            samples.as_ref(),
+            &args.uff.options(),
+            &opts,
+        )?;
         digest.update(&est.side_digest);
         let mut rec = est.record;
         rec.push_provenance(rbprops_cli::provenance("frf-est", &digest.hex()))?;

@@ -244,7 +244,7 @@ fn convert(a: ConvertArgs) -> anyhow::Result<()> {
     if a.list || a.channel_template.is_some() {
         let path = a.input.as_deref().expect("clap requires the input");
         let uff = if rbprops_cli::is_time_history_recording(path) {
-            rbprops_cli::read_time_histories(path)?.0
+            rbprops_cli::read_time_histories(path)?.data
         } else {
             rbprops_cli::parse_uff(path)?
         };
