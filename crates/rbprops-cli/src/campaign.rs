@@ -64,6 +64,7 @@ impl Item {
 /// # "rig-a/*.uff" = "rig-a.toml"
 /// # "rig-b/*.uff" = "rig-b.toml"
 /// geometry = "geometry.unv"      # node coordinates in a separate UFF file
+/// averages = 8                   # FRF exports with coherence: the averages behind them
 ///
 /// [frf_est]                      # time-history exports: frf-est's options (see FrfEstConfig)
 /// estimator = "h1"               # h1, h2 or hv
@@ -94,6 +95,11 @@ pub struct CampaignConfig {
     pub geometry: Option<PathBuf>,
     /// How time-history exports are made into FRFs (`frf-est`'s options).
     pub frf_est: Option<FrfEstConfig>,
+    /// FRF exports with coherence (UFF function type 6): the number of averages behind
+    /// them, as `--averages` (each line's variance from its coherence). Recordings that
+    /// already carry line variances (time histories, frf-est output, an export that names
+    /// its averages) or no coherence are read as they are.
+    pub averages: Option<usize>,
 }
 
 /// The `[frf_est]` table: `frf-est`'s options for the campaign's time-history exports
@@ -371,6 +377,8 @@ pub struct CampaignOptions {
     pub geometry: Option<PathBuf>,
     /// How time-history exports are made into FRFs (`[frf_est]`; frf-est's defaults without).
     pub estimation: crate::frf_est::EstimationOptions,
+    /// `averages`: the averages behind FRF exports with coherence.
+    pub averages: Option<usize>,
     /// Files the options name (excluded from the items).
     pub named_files: Vec<PathBuf>,
 }
@@ -464,6 +472,11 @@ impl CampaignConfig {
         }
         if let Some(f) = &self.frf_est {
             o.estimation = f.options(source)?;
+        }
+        if let Some(n) = self.averages {
+            crate::args::averages(&n.to_string())
+                .map_err(|e| anyhow::anyhow!("{source}: averages = {n}: {e}"))?;
+            o.averages = Some(n);
         }
         Ok(o)
     }
@@ -681,6 +694,28 @@ pub fn run_dir(runs: &Path, rel: &str) -> PathBuf {
     runs.join(crate::plots::sanitize(rel))
 }
 
+/// A recording item read as the campaign reads it: the campaign's geometry file for its
+/// UFF exports, `[frf_est]` for time histories, and `averages` for an FRF export with
+/// coherence and no line variances.
+pub fn read_recording(p: &Path, opts: &CampaignOptions) -> Result<crate::Input> {
+    let uff = crate::UffInputOptions {
+        geometry: opts.geometry.clone().filter(|_| is_uff(p)),
+        channels: None,
+        estimation: opts.estimation.clone(),
+    };
+    let checks = crate::InputChecks::default();
+    let mut inp = crate::read_stage_input_quiet("read", Some(p), &checks, &uff)?;
+    let without_variance = inp
+        .record
+        .topic(rbprops_formats::topics::FRF_VARIANCE)
+        .is_none();
+    if without_variance && crate::coherence::get(&inp.record)?.is_some() {
+        let source = p.display().to_string();
+        crate::variance::declare_averages(&mut inp.record, opts.averages, &source)?;
+    }
+    Ok(inp)
+}
+
 /// Runs one item through the pipeline with the campaign's options. `rel` is the item's
 /// path relative to the campaign directory (its label and the key of the nominal globs).
 ///
@@ -703,14 +738,7 @@ pub fn run_item(
             (rec, sha)
         }
         Item::Recording(p) => {
-            // The campaign's geometry file applies to its UFF exports only.
-            let uff = crate::UffInputOptions {
-                geometry: opts.geometry.clone().filter(|_| is_uff(p)),
-                channels: None,
-                estimation: opts.estimation.clone(),
-            };
-            let checks = crate::InputChecks::default();
-            let inp = crate::read_stage_input_quiet("read", Some(p), &checks, &uff)?;
+            let inp = read_recording(p, opts)?;
             read_warnings = inp.warnings;
             (inp.record, inp.sha256)
         }

@@ -139,7 +139,10 @@ mod tests {
     use super::*;
 
     fn fixture() -> (String, Vec<u8>) {
-        let p = concat!(env!("CARGO_MANIFEST_DIR"), "/../../fixtures/timehist/small-per-hit.uff");
+        let p = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../fixtures/timehist/small-per-hit.uff"
+        );
         (p.to_string(), std::fs::read(p).expect("the fixture"))
     }
 
@@ -153,7 +156,9 @@ mod tests {
                 .expect("parses");
         let mut records = 0;
         for (i, d) in whole.datasets.iter().enumerate() {
-            let Record::Function(f) = &d.record else { continue };
+            let Record::Function(f) = &d.record else {
+                continue;
+            };
             if f.samples.is_empty() {
                 continue;
             }
@@ -166,7 +171,9 @@ mod tests {
             let back = store.record(&headers, i, None).expect("read back");
             assert_eq!(back.as_ref(), &f.samples[..], "dataset {i}");
             let n = f.samples.len();
-            let stretch = store.record(&headers, i, Some(n / 3..n / 2)).expect("read back");
+            let stretch = store
+                .record(&headers, i, Some(n / 3..n / 2))
+                .expect("read back");
             assert_eq!(stretch.as_ref(), &f.samples[n / 3..n / 2], "dataset {i}");
         }
         assert!(records > 10, "the fixture holds time records ({records})");
@@ -181,10 +188,15 @@ mod tests {
             .iter_mut()
             .find(|d| matches!(&d.record, Record::Function(f) if !f.samples.is_empty()))
             .expect("a time record");
-        let Record::Function(f) = &mut d.record else { unreachable!() };
+        let Record::Function(f) = &mut d.record else {
+            unreachable!()
+        };
         f.samples[5] = f64::NAN;
         let mut store = SetAside::new().expect("a temporary file");
         let e = store.take(d, &name).expect_err("NaN refused").to_string();
-        assert!(e.contains("record 12 value 6") && e.contains("not a finite number"), "{e}");
+        assert!(
+            e.contains("record 12 value 6") && e.contains("not a finite number"),
+            "{e}"
+        );
     }
 }

@@ -386,6 +386,62 @@ fn averages_give_the_line_variance_from_coherence() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("already has"));
 }
 
+/// A campaign file's `averages = N` gives a coherence export the line variances
+/// `--averages N` gives it (bit for bit), and a bad count is refused naming the file.
+#[test]
+fn campaign_averages_are_the_option_averages() {
+    let Some(py) = python(NUMPY_PYUFF) else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (uff, _) = export(&py, dir.path(), "floor", 3);
+    let single = dir.path().join("single.mcap");
+    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(&uff)
+        .args(["--averages", "8", "-o"])
+        .arg(&single)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let want = rbprops_cli::variance::get(&rbprops_formats::read_path(&single).unwrap())
+        .unwrap()
+        .expect("--averages gives line variances");
+    let options = |toml: &str| {
+        std::fs::write(dir.path().join("campaign.toml"), toml).unwrap();
+        rbprops_cli::campaign::CampaignConfig::read(&dir.path().join("campaign.toml"))
+            .unwrap()
+            .resolve(dir.path(), "campaign.toml", None)
+    };
+    let opts = options("averages = 8\n").unwrap();
+    let rec = rbprops_cli::campaign::read_recording(&uff, &opts)
+        .unwrap()
+        .record;
+    let got = rbprops_cli::variance::get(&rec)
+        .unwrap()
+        .expect("the campaign's averages give line variances");
+    assert_eq!(got.degrees_of_freedom, want.degrees_of_freedom);
+    assert_eq!(got.sigma2.len(), want.sigma2.len());
+    assert!(
+        got.sigma2
+            .iter()
+            .zip(&want.sigma2)
+            .all(|(a, b)| a.to_bits() == b.to_bits()),
+        "line variances differ"
+    );
+    // Without the key, none.
+    let opts = options("").unwrap();
+    let rec = rbprops_cli::campaign::read_recording(&uff, &opts)
+        .unwrap()
+        .record;
+    assert!(rbprops_cli::variance::get(&rec).unwrap().is_none());
+    let err = format!("{:#}", options("averages = 2\n").unwrap_err());
+    assert!(
+        err.contains("campaign.toml") && err.contains("averages = 2"),
+        "{err}"
+    );
+}
+
 /// `bytes` (a universal file) with the first ID line of every dataset 58/58b replaced by
 /// `text` (padded to the line's 80 columns, so binary byte counts stay right).
 fn with_first_id_line(bytes: &[u8], text: &str) -> Vec<u8> {
