@@ -16,7 +16,8 @@ the same `modal-fit | ni-select | rb-solve` on
   exact: the generator's exact FRFs (no time simulation, no noise), the floor.
 
 Errors against the truth: mass (%), centre of mass (mm, Euclidean), inertia about the
-centre of mass (% of the largest principal moment, max over the six entries). Prints one
+centre of mass (% of the largest moment about the centre-of-mass axes, max over the six
+entries). Prints one
 line per seed and the RMS over the seeds of each error, and raw/ideal ratios.
 
     python3 scripts/refgen/frfest_pipeline_study.py --seeds 2001:2020 --bin target/release
