@@ -776,10 +776,11 @@ fn stage(bin: &str, args: &[&str], out: &Path) {
 /// autoranged ADC, force and response noise) through `frf-est | modal-fit | ni-select |
 /// rb-solve` with every default (the window `auto`, no `--exp-window`): the mass within
 /// 0.2 % (issue 36), the centre of mass within 1 mm and the inertia within 0.5 % of the
-/// largest moment about the centre-of-mass axes. The generator's own H1 over the same hits gives RMS errors
-/// of 0.30 %, 0.79 mm and 0.15 % on seeds 2001–2020 (docs/results.md, session 26); the
-/// frf-est pipeline 0.011 %, 0.049 mm and 0.045 %. Seeds 2004 and 2013 gave 1.7 t and
-/// 14 t before the forward model-order test stopped splitting runaway partners.
+/// largest moment about the centre-of-mass axes. On seeds 2001–2020 the generator's own
+/// H1 over the same hits gives RMS errors of 0.30 %, 0.79 mm and 0.15 % (worst 0.59 %,
+/// 1.6 mm, 0.26 %), this pipeline 0.011 %, 0.051 mm and 0.047 % (worst 0.020 %,
+/// 0.14 mm, 0.091 %; docs/results.md, session 26). Seeds 2004 and 2013 gave 1.7 t and
+/// 14 t while modal-fit's forward model-order test split its own partners.
 #[test]
 fn raw_impact_time_histories_give_the_properties_through_the_pipeline() {
     let Some(py) = rbprops_testkit::python(rbprops_testkit::NUMPY_PYUFF) else {
