@@ -324,6 +324,19 @@ fn weight_coherence_without_coherence_is_refused() {
     assert!(!out.exists());
 }
 
+/// `rbprops convert UFF --averages 8 -o OUT`, which must succeed, read back.
+fn convert_with_eight_averages(uff: &Path, out: &Path) -> rbprops_formats::RunRecord {
+    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
+        .arg("convert")
+        .arg(uff)
+        .args(["--averages", "8", "-o"])
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    rbprops_formats::read_path(out).unwrap()
+}
+
 /// `--averages 8` on an H1 export with coherence (`rbprops convert`, as on `modal-fit` and
 /// `model-check`): the line-variance topic holds |H|²(1 − γ²)/(n_d γ²) per line, equal to
 /// the script's numpy computation from the file as pyuff reads it back (1e-12 relative:
@@ -337,15 +350,7 @@ fn averages_give_the_line_variance_from_coherence() {
     let dir = tempfile::tempdir().unwrap();
     let (uff, truth) = export(&py, dir.path(), "floor", 3);
     let out = dir.path().join("run.mcap");
-    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
-        .arg("convert")
-        .arg(&uff)
-        .args(["--averages", "8", "-o"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let rec = rbprops_formats::read_path(&out).unwrap();
+    let rec = convert_with_eight_averages(&uff, &out);
     let v = rbprops_cli::variance::get(&rec)
         .unwrap()
         .expect("variance topic");
@@ -395,16 +400,8 @@ fn campaign_averages_are_the_option_averages() {
     };
     let dir = tempfile::tempdir().unwrap();
     let (uff, _) = export(&py, dir.path(), "floor", 3);
-    let single = dir.path().join("single.mcap");
-    let o = Command::new(env!("CARGO_BIN_EXE_rbprops"))
-        .arg("convert")
-        .arg(&uff)
-        .args(["--averages", "8", "-o"])
-        .arg(&single)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let want = rbprops_cli::variance::get(&rbprops_formats::read_path(&single).unwrap())
+    let single = convert_with_eight_averages(&uff, &dir.path().join("single.mcap"));
+    let want = rbprops_cli::variance::get(&single)
         .unwrap()
         .expect("--averages gives line variances");
     let options = |toml: &str| {

@@ -103,18 +103,9 @@ fn h1_equals_the_generators_numpy_h1_with_the_same_windows() {
 
 /// `frf-est INPUT ARGS -o out`, which must succeed.
 fn estimate_to(input: &str, args: &[String], out: &Path) {
-    let st = frf_est()
-        .arg(input)
-        .args(args)
-        .arg("-o")
-        .arg(out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{input}: {}",
-        String::from_utf8_lossy(&st.stderr)
-    );
+    let mut all = vec![input];
+    all.extend(args.iter().map(String::as_str));
+    stage(env!("CARGO_BIN_EXE_frf-est"), &all, out);
 }
 
 fn processing(mcap: &Path) -> ProcessingRecord {
