@@ -175,9 +175,10 @@ impl PhaseTimes {
     }
 }
 
-/// FRFs from the time histories of a parsed universal file (module docs). The time
-/// records' samples are let go once the hits are averaged (`data` keeps every header), so
-/// the output is not built beside the recording.
+/// FRFs from the time histories of a parsed universal file (module docs), each record's
+/// samples read from `samples` (the file itself, or where the reader set them aside) a
+/// hit at a time. Samples held in `data` are let go once the hits are averaged (`data`
+/// keeps every header), so the output is not built beside the recording.
 pub fn estimate_uff(
     data: &mut UffFile,
     samples: &dyn SampleSource,

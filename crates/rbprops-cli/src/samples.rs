@@ -123,8 +123,15 @@ impl SampleSource for SetAside {
         let mut bytes = vec![0u8; 8 * r.len()];
         {
             let mut file = self.file.lock().expect("not poisoned");
-            file.seek(SeekFrom::Start(start + 8 * r.start as u64))?;
-            file.read_exact(&mut bytes)?;
+            file.seek(SeekFrom::Start(start + 8 * r.start as u64))
+                .and_then(|_| file.read_exact(&mut bytes))
+                .with_context(|| {
+                    format!(
+                        "{}: dataset {}: reading back its samples from the temporary file",
+                        data.file_name,
+                        i + 1
+                    )
+                })?;
         }
         let samples = bytes
             .chunks_exact(8)
