@@ -130,13 +130,20 @@ type HitSamples<'a> = (Cow<'a, [f64]>, Vec<Cow<'a, [f64]>>);
 
 impl HitRecords {
     fn load<'a>(&self, data: &'a UffFile, src: &'a dyn SampleSource) -> Result<HitSamples<'a>> {
-        let read = |i: usize| src.record(data, i, self.range.clone());
-        let responses = self
-            .responses
+        let force = src.record(data, self.force, self.range.clone())?;
+        Ok((force, self.responses(data, src)?))
+    }
+
+    /// The responses only (the throughput checks hold the force record already).
+    fn responses<'a>(
+        &self,
+        data: &'a UffFile,
+        src: &'a dyn SampleSource,
+    ) -> Result<Vec<Cow<'a, [f64]>>> {
+        self.responses
             .iter()
-            .map(|&i| read(i))
-            .collect::<Result<_>>()?;
-        Ok((read(self.force)?, responses))
+            .map(|&i| src.record(data, i, self.range.clone()))
+            .collect()
     }
 }
 
@@ -649,7 +656,7 @@ fn excitation_hits(
                             responses: h.responses.clone(),
                             range: Some(r.clone()),
                         };
-                        let responses = records.load(data, src)?.1;
+                        let responses = records.responses(data, src)?;
                         Ok(inspect(k + 1, Some(records), &force[r], &responses))
                     }
                     None => {
@@ -868,10 +875,7 @@ fn reason_text(r: &RejectReason) -> String {
         ),
         RejectReason::Overload { channel, samples } => format!(
             "overload: {samples} samples at the range on {}",
-            match channel {
-                rbprops_frfest::Channel::Force => "the force".to_string(),
-                rbprops_frfest::Channel::Response(i) => format!("response {}", i + 1),
-            }
+            channel_name(channel)
         ),
         RejectReason::AtRecordEdge => "at the record's edge".into(),
         RejectReason::TooWeak { peak, min } => format!("too weak (peak {peak:.3e} < {min:.3e})"),
@@ -887,21 +891,24 @@ fn hit_reasons(h: &Hit) -> String {
     let mut overloads: Vec<String> = Vec::new();
     for r in &h.report.reasons {
         match r {
-            RejectReason::Overload { .. } if !overloads.is_empty() => {
-                let text = reason_text(r);
-                overloads.push(
-                    text.replace("overload: ", "")
-                        .replace(" samples at the range", ""),
-                );
+            RejectReason::Overload { channel, samples } if !overloads.is_empty() => {
+                overloads.push(format!("{samples} on {}", channel_name(channel)));
             }
-            RejectReason::Overload { .. } => overloads.push(reason_text(r)),
-            _ => parts.push(reason_text(r)),
+            _ if !matches!(r, RejectReason::Overload { .. }) => parts.push(reason_text(r)),
+            _ => overloads.push(reason_text(r)),
         }
     }
     if !overloads.is_empty() {
         parts.push(overloads.join(", "));
     }
     parts.join("; ")
+}
+
+fn channel_name(c: &rbprops_frfest::Channel) -> String {
+    match c {
+        rbprops_frfest::Channel::Force => "the force".into(),
+        rbprops_frfest::Channel::Response(i) => format!("response {}", i + 1),
+    }
 }
 
 /// Every rejected hit of an excitation and why (the error when too few are left).
