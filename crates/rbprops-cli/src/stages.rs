@@ -248,5 +248,12 @@ pub fn rb_solve_with(
     }
     rec.push_provenance(crate::provenance("rb-solve", input_sha256))?;
     rec.set::<InertiaEstimate>(topics::ESTIMATES, &out.estimates);
+    // The solve's own diagnostics travel with the record, so a campaign, `rbprops report`
+    // and a later reader see what rb-solve printed (an empty list writes no topic).
+    if out.diagnostics.is_empty() {
+        rec.remove(topics::SOLVE_DIAGNOSTICS);
+    } else {
+        rec.set(topics::SOLVE_DIAGNOSTICS, &out.diagnostics);
+    }
     Ok((out, boot))
 }

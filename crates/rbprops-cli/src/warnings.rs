@@ -39,7 +39,7 @@ pub fn note_of(
 }
 
 /// Every diagnostic a run record carries, in pipeline order: modal-fit, ni-select, rb-solve
-/// (per estimate), model-check. The same diagnostic on several estimates is kept once.
+/// (the solve's, then per estimate), model-check. The same diagnostic on several estimates is kept once.
 /// Records written before diagnostics were typed give their strings as
 /// [`DiagnosticKind::Text`], stage filled in.
 pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<Diagnostic>> {
@@ -60,6 +60,9 @@ pub fn from_record(rec: &RunRecord) -> anyhow::Result<Vec<Diagnostic>> {
         for d in s.diagnostics {
             out.add_from("ni-select", d);
         }
+    }
+    for d in rec.get::<Diagnostic>(topics::SOLVE_DIAGNOSTICS)? {
+        out.add_from("rb-solve", d);
     }
     for e in rec.get::<InertiaEstimate>(topics::ESTIMATES)? {
         for d in e.diagnostics {

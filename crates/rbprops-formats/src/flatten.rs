@@ -153,6 +153,12 @@ impl<'a> Schema<'a> {
     fn is_array(&self) -> bool {
         self.types() == ["array"]
     }
+    /// An array or null (`Option<[T; N]>`, `Option<Vec<T>>`): written as a fixed array,
+    /// digits for positions, so its columns index an array when read back.
+    fn is_array_or_null(&self) -> bool {
+        let t = self.types();
+        t.contains(&"array") && t.iter().all(|x| *x == "array" || *x == "null")
+    }
     fn property(&self, name: &str) -> Schema<'a> {
         let required = self
             .node
@@ -543,7 +549,7 @@ fn is_key_cell(t: &str) -> bool {
 fn segments(path: &str, mut s: Schema, mut re_im: bool) -> Result<Vec<Seg>, String> {
     let mut out = Vec::new();
     for part in path.split('.') {
-        if s.is_array() {
+        if s.is_array_or_null() {
             let len = s.fixed_len();
             let names = len.and_then(|n| position_names(n, re_im));
             if let Some(k) = MATRIX3.iter().position(|m| *m == part) {
@@ -1016,6 +1022,32 @@ mod tests {
         bad[0].rows[0][c] = "3".into();
         let e = from_tables("topic", &bad, &s).unwrap_err();
         assert!(e.contains("warnings_count is 3"), "{e}");
+    }
+
+    /// An optional fixed array (`Option<[[f64; 6]; 6]>`, schemars' `"type": ["array",
+    /// "null"]`) is written with digit positions and reads back as the array, not as an
+    /// object keyed by digits; absent, it stays absent.
+    #[test]
+    fn optional_fixed_arrays_round_trip() {
+        let row6 =
+            json!({"type": "array", "items": {"type": "number"}, "minItems": 6, "maxItems": 6});
+        let s = json!({"type": "object", "properties": {
+            "id": {"type": "string"},
+            "k": {"type": ["array", "null"], "items": row6, "minItems": 6, "maxItems": 6}}});
+        let k: Vec<Vec<f64>> = (0..6)
+            .map(|i| (0..6).map(|j| (6 * i + j) as f64 - 0.5).collect())
+            .collect();
+        let msgs = vec![json!({"id": "a", "k": k}), json!({"id": "b", "k": null})];
+        let mut tables = Vec::new();
+        to_tables("t", &msgs, &s, &mut tables);
+        assert!(
+            tables[0].header.iter().any(|h| h == "k.5.4"),
+            "{:?}",
+            tables[0].header
+        );
+        let back = from_tables("t", &tables, &s).unwrap();
+        assert_eq!(back[0], msgs[0]);
+        assert_eq!(back[1], json!({"id": "b"}));
     }
 
     /// The empty-text rule: an empty cell is the empty string where the text is always

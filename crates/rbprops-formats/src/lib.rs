@@ -43,6 +43,10 @@ pub mod topics {
     pub const SELECTION: &str = "/rbprops/selection";
     /// Rigid-body property estimates from `rb-solve`.
     pub const ESTIMATES: &str = "/rbprops/estimates";
+    /// What `rb-solve` noticed about the whole solve rather than one estimate (a missing
+    /// mode, a set-up's rigid-body inconsistency, an estimator that failed), one
+    /// [`rbprops_core::records::Diagnostic`] per message; absent when there is none.
+    pub const SOLVE_DIAGNOSTICS: &str = "/rbprops/solve_diagnostics";
     /// Verdict of the model check: which effects the recording shows beyond the nominal model.
     pub const MODEL_CHECK: &str = "/rbprops/model_check";
     /// Ordinary coherence γ² per FRF line, from the measurement (UFF import).
@@ -207,6 +211,12 @@ impl RunRecord {
             Some(t) => *t = topic,
             None => self.topics.push(topic),
         }
+    }
+
+    /// Removes a topic (nothing when it is absent): a stage that has nothing to say in a
+    /// topic it owns removes what an earlier run of it wrote there.
+    pub fn remove(&mut self, name: &str) {
+        self.topics.retain(|t| t.name != name);
     }
 
     /// Appends a stage's provenance to the provenance topic.

@@ -17,6 +17,7 @@ mod mutation;
 mod plan;
 mod refgen_pipeline;
 mod report_html;
+mod solve_diagnostics;
 mod uff_campaign;
 mod uff_exports;
 mod warnings_null;
