@@ -403,7 +403,7 @@ pub fn sensor_groups(geometry: &Geometry) -> Vec<(String, Vec<usize>)> {
 
 /// The warning for an inconsistent check: names the suspects (or the largest
 /// contributors when no single item explains it) and suggests `model-check`.
-pub fn warning(setup: &str, c: &RigidBodyCheckRecord) -> Option<String> {
+pub fn warning(c: &RigidBodyCheckRecord) -> Option<String> {
     if c.rigid_body_consistent {
         return None;
     }
@@ -443,7 +443,7 @@ pub fn warning(setup: &str, c: &RigidBodyCheckRecord) -> Option<String> {
         format!("suspect {}", parts.join("; "))
     };
     Some(format!(
-        "set-up '{setup}': the modes are not rigid-body consistent with the geometry (χ²/dof = {:.3e} > {:.3} for noise alone; shapes {:.3e}, participations {:.3e}): {suspects}. Sensor orientation, position or gain errors, force direction errors, or two close modes fitted as one (participations inconsistent across excitations) bias the estimates beyond their noise intervals (see the systematic interval); run model-check to locate them",
+        "the modes are not rigid-body consistent with the geometry (χ²/dof = {:.3e} > {:.3} for noise alone; shapes {:.3e}, participations {:.3e}): {suspects}. Sensor orientation, position or gain errors, force direction errors, or two close modes fitted as one (participations inconsistent across excitations) bias the estimates beyond their noise intervals (see the systematic interval); run model-check to locate them",
         c.statistic, c.threshold, c.shape_statistic, c.participation_statistic
     ))
 }

@@ -305,7 +305,7 @@ impl Solver<'_> {
         let (observations, check) = if opts.rigid_body_check {
             let obs = matched_observations(frame, self.modal, &used);
             let check = rigid_body_check(frame, self.geometry, &obs);
-            if let Some(w) = check.as_ref().and_then(|c| rigid_check::warning(setup, c)) {
+            if let Some(w) = check.as_ref().and_then(|c| rigid_check::warning(c)) {
                 out.warnings.push(diagnostic(
                     DiagnosticKind::RigidBodyInconsistent,
                     Severity::Warning,
