@@ -164,7 +164,7 @@ fn sweep_and_select(
             .map(|o| dec.iter().map(|b| b.channels[o].as_slice()).collect())
             .collect(),
     };
-    let orders = plscf::sweep(&data, n_here);
+    let orders = plscf::sweep_on_used_references(&data, n_here);
     let band_w = (dec[0].omega[0], *dec[0].omega.last().unwrap());
     let shared = plscf::stabilisation_shapes(&orders);
     let mut sel = stabilisation::select(&shared, band_w, &opts.tolerances, opts.n_modes);
