@@ -84,16 +84,18 @@ impl PrincipalReferences {
     /// data) or the data are zero.
     pub fn of(data: &PolyData, r: usize) -> Option<Self> {
         let ni = data.n_references();
+        let nl = data.omega.len();
+        // Every output's and line's row H_o(ω_k) stacked; G = XᴴX (one product, sequential).
+        let x = Mat::<c64>::from_fn(data.n_outputs() * nl, ni, |i, e| data.h[i / nl][e][i % nl]);
         let mut g = Mat::<c64>::zeros(ni, ni);
-        for row in &data.h {
-            for e in 0..ni {
-                for f in 0..=e {
-                    let s: c64 = row[e].iter().zip(row[f]).map(|(a, b)| a * b.conj()).sum();
-                    // G_fe = Σ conj(H_f) H_e, lower triangle (e ≥ f).
-                    g[(e, f)] += s.conj();
-                }
-            }
-        }
+        faer::linalg::matmul::matmul(
+            g.as_mut(),
+            faer::Accum::Replace,
+            x.adjoint(),
+            x.as_ref(),
+            c64::new(1.0, 0.0),
+            Par::Seq,
+        );
         let mut vals = faer::diag::Diag::<c64>::zeros(ni);
         let mut vecs = Mat::<c64>::zeros(ni, ni);
         let mut buf =
