@@ -645,6 +645,49 @@ pub fn sweep(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
 mod tests {
     use super::*;
 
+    /// `n` lines 0.01 Hz apart from 0.01 Hz, as ω (rad/s).
+    fn omega_lines(n: usize) -> Vec<f64> {
+        (1..=n)
+            .map(|k| 2.0 * std::f64::consts::PI * k as f64 * 0.01)
+            .collect()
+    }
+
+    /// Noise-free receptances `h[o][e][k] = Σ_r R(ψ_or l_re; λ_r, ω_k)` of `(outputs,
+    /// references)`.
+    fn pole_residue_frfs(
+        poles: &[Pole],
+        psi: impl Fn(usize, usize) -> c64,
+        l: impl Fn(usize, usize) -> c64,
+        (n_out, n_ref): (usize, usize),
+        omega: &[f64],
+    ) -> Vec<Vec<Vec<c64>>> {
+        (0..n_out)
+            .map(|o| {
+                (0..n_ref)
+                    .map(|e| {
+                        omega
+                            .iter()
+                            .map(|&w| {
+                                (0..poles.len())
+                                    .map(|r| poles[r].receptance(psi(r, o) * l(r, e), w))
+                                    .sum()
+                            })
+                            .collect()
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn as_data<'a>(omega: &'a [f64], h: &'a [Vec<Vec<c64>>]) -> PolyData<'a> {
+        PolyData {
+            omega,
+            h: h.iter()
+                .map(|r| r.iter().map(|v| v.as_slice()).collect())
+                .collect(),
+        }
+    }
+
     /// Noise-free pole–residue data with residues `ψ lᵀ`: the sweep converges with the
     /// order to the poles and the participation vectors.
     #[test]
@@ -662,31 +705,9 @@ mod tests {
             [c64::new(1.0, 0.0), c64::new(0.3, 0.0)],
             [c64::new(-0.4, 0.0), c64::new(1.0, 0.0)],
         ];
-        let omega: Vec<f64> = (1..=400)
-            .map(|k| 2.0 * std::f64::consts::PI * k as f64 * 0.01)
-            .collect();
-        let h: Vec<Vec<Vec<c64>>> = (0..3)
-            .map(|o| {
-                (0..2)
-                    .map(|e| {
-                        omega
-                            .iter()
-                            .map(|&w| {
-                                (0..2)
-                                    .map(|r| poles[r].receptance(psi[r][o] * l[r][e], w))
-                                    .sum()
-                            })
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect();
-        let data = PolyData {
-            omega: &omega,
-            h: h.iter()
-                .map(|r| r.iter().map(|v| v.as_slice()).collect())
-                .collect(),
-        };
+        let omega = omega_lines(400);
+        let h = pole_residue_frfs(&poles, |r, o| psi[r][o], |r, e| l[r][e], (3, 2), &omega);
+        let data = as_data(&omega, &h);
         // The z-domain model is not the s-domain pole–residue model: its poles converge
         // with the order (here 8e-1, 1e-2, 3e-4, 4e-6 and 7e-9 at orders 2, 4, 6, 8, 12).
         let sw = sweep(&data, 12);
@@ -745,31 +766,9 @@ mod tests {
                     .collect()
             })
             .collect();
-        let omega: Vec<f64> = (1..=300)
-            .map(|k| 2.0 * std::f64::consts::PI * k as f64 * 0.01)
-            .collect();
-        let h: Vec<Vec<Vec<c64>>> = (0..4)
-            .map(|o| {
-                (0..ni)
-                    .map(|e| {
-                        omega
-                            .iter()
-                            .map(|&w| {
-                                (0..3)
-                                    .map(|r| poles[r].receptance(psi(r, o) * l[r][e], w))
-                                    .sum()
-                            })
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect();
-        let data = PolyData {
-            omega: &omega,
-            h: h.iter()
-                .map(|r| r.iter().map(|v| v.as_slice()).collect())
-                .collect(),
-        };
+        let omega = omega_lines(300);
+        let h = pole_residue_frfs(&poles, psi, |r, e| l[r][e], (4, ni), &omega);
+        let data = as_data(&omega, &h);
         let p = PrincipalReferences::of(&data, ni).unwrap();
         let normalised = |v: &[c64]| {
             let mut v = v.to_vec();
