@@ -12,7 +12,7 @@
 //! `--features phase-timing` it prints where the poly-reference time goes (`prof`);
 //! with `PLSCF_50_DUMP=prefix` it writes each fit's records to `prefix-<method>-<threads>.txt`.
 
-use rbprops_core::{Quantity, Vec3};
+use rbprops_core::Quantity;
 use rbprops_modal::{fit_campaign, prof, FitOptions, Method, ModalFitOutput};
 use rbprops_testkit::synthetic::{self, Synthetic};
 use std::time::Instant;
@@ -24,15 +24,7 @@ const LINES: usize = 1000;
 /// accelerometer points in turn: every rigid-body mode is excited by many of them.
 fn workload() -> Synthetic {
     let body = synthetic::test_case_body();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let forces: Vec<(usize, Vec3)> = (0..EXCITATIONS)
-        .map(|i| {
-            let z = 1.0 - (2 * i + 1) as f64 / EXCITATIONS as f64;
-            let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            (i % 3, Vec3::new(r * a.cos(), r * a.sin(), z))
-        })
-        .collect();
+    let forces = synthetic::fibonacci_forces(EXCITATIONS);
     let geometry = synthetic::test_case_geometry(&body, &forces);
     let modes = synthetic::spring_modes(
         &body,

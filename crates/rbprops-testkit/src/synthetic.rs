@@ -26,6 +26,21 @@ pub fn test_case_body() -> RigidBodyProperties {
     )
 }
 
+/// `n` force directions spread over the sphere (a Fibonacci spiral), at the Test Case
+/// body's three accelerometer points in turn: every rigid-body mode is driven by many of
+/// them (the poly-reference workloads of many excitations).
+pub fn fibonacci_forces(n: usize) -> Vec<(usize, Vec3)> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - (2 * i + 1) as f64 / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            (i % 3, Vec3::new(r * a.cos(), r * a.sin(), z))
+        })
+        .collect()
+}
+
 /// Three triaxial accelerometers placed so that the CoM sits where Test Case II lists
 /// it relative to each (mm), plus a set-up `A` and the given excitations.
 pub fn test_case_geometry(body: &RigidBodyProperties, forces: &[(usize, Vec3)]) -> Geometry {

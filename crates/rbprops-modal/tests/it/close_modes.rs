@@ -132,15 +132,7 @@ fn model_order_of_a_close_pair_is_right_neither_merged_nor_over_split() {
 /// three accelerometer points in turn, 1,000 lines to 5 Hz.
 fn fifty_excitations() -> synthetic::Synthetic {
     let body = synthetic::test_case_body();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let forces: Vec<(usize, rbprops_core::Vec3)> = (0..50)
-        .map(|i| {
-            let z = 1.0 - (2 * i + 1) as f64 / 50.0;
-            let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
-            (i % 3, rbprops_core::Vec3::new(r * a.cos(), r * a.sin(), z))
-        })
-        .collect();
+    let forces = synthetic::fibonacci_forces(50);
     let geometry = synthetic::test_case_geometry(&body, &forces);
     let close = synthetic::close_modes(5.0, 16);
     let frf = synthetic::synthesise(
