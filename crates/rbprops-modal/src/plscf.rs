@@ -55,21 +55,22 @@ impl PolyData<'_> {
     }
 }
 
-/// The FRF matrix on `r` principal references: `H V_r`, `V_r` the dominant right
-/// singular vectors of every output's and line's rows `H_o(ω_k)` stacked (from the
-/// eigen-decomposition of the Gram matrix `Σ_{o,k} H_o(ω_k)ᴴ H_o(ω_k)`).
-///
-/// The model's rows are `H_o(ω) = Σ_r ψ_or l_rᵀ/(iω − λ_r) + c.c.`, so the rows lie in the
-/// span of the `l_r` and `l̄_r`, which is the span of `V̄`; on the principal references a
-/// pole's participation vector is `V_rᵀ l` and `l = V̄_r (V_rᵀ l)` is exact while the
-/// kept directions hold that span. The poles are those of the same FRFs (a projection
-/// of the references does not move a pole); directions the FRFs barely use (noise) go.
 /// Gram eigenvalue (a squared singular value), relative to the largest, below which a
 /// principal direction carries nothing of the data: a singular value 1e-6 of the largest
 /// (120 dB down), above the Gram eigen-solver's round-off (about 1e-16 of the largest
 /// eigenvalue) and below any measured noise floor (16-bit data: about 1e-10).
 const UNUSED_DIRECTION: f64 = 1e-12;
 
+/// The FRF matrix on its principal references: `H V_r`, `V_r` the right singular vectors
+/// of every output's and line's rows `H_o(ω_k)` stacked whose squared singular values,
+/// relative to the largest, are above [`UNUSED_DIRECTION`] (from the eigen-decomposition of the Gram matrix
+/// `Σ_{o,k} H_o(ω_k)ᴴ H_o(ω_k)`).
+///
+/// The model's rows are `H_o(ω) = Σ_r ψ_or l_rᵀ/(iω − λ_r) + c.c.`, so the rows lie in the
+/// span of the `l_r` and `l̄_r`, which is the span of `V̄`; on the principal references a
+/// pole's participation vector is `V_rᵀ l` and `l = V̄_r (V_rᵀ l)` is exact while the
+/// kept directions hold that span. The poles are those of the same FRFs (a projection
+/// of the references does not move a pole).
 #[derive(Debug, Clone)]
 pub struct PrincipalReferences {
     /// `h[o][q]`: output `o` on principal reference `q`, every line.
@@ -79,10 +80,10 @@ pub struct PrincipalReferences {
 }
 
 impl PrincipalReferences {
-    /// The `r` principal references of `data` (`r ≤ Ni`; fewer when the data use fewer
-    /// directions); `None` when the Gram matrix's eigen-decomposition fails (non-finite
-    /// data) or the data are zero.
-    pub fn of(data: &PolyData, r: usize) -> Option<Self> {
+    /// The principal references of `data`; `None` when the data use every direction
+    /// (nothing to reduce), are zero, or the Gram matrix's eigen-decomposition fails
+    /// (non-finite data).
+    pub fn of(data: &PolyData) -> Option<Self> {
         let ni = data.n_references();
         let nl = data.omega.len();
         // Every output's and line's row H_o(ω_k) stacked; G = XᴴX (one product, sequential).
@@ -114,15 +115,13 @@ impl PrincipalReferences {
             Default::default(),
         )
         .ok()?;
-        // Eigenvalues ascend: the dominant directions are the last r columns, less those
-        // the data do not use (noise-free data of fewer modes than references), which
-        // would make the normal equations singular.
+        // Eigenvalues ascend: the used directions, largest first.
         let top = vals[ni - 1].re;
-        let cols: Vec<usize> = (ni - r..ni)
+        let cols: Vec<usize> = (0..ni)
             .rev()
             .filter(|&q| vals[q].re > UNUSED_DIRECTION * top)
             .collect();
-        if cols.is_empty() {
+        if cols.is_empty() || cols.len() == ni {
             return None;
         }
         let h = data
@@ -177,9 +176,8 @@ impl PrincipalReferences {
 /// to the measured references. Data that use every direction (any measured noise) are
 /// swept as they are.
 pub fn sweep_on_used_references(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
-    let ni = data.n_references();
-    match PrincipalReferences::of(data, ni) {
-        Some(p) if p.back.first().is_some_and(|b| b.len() < ni) => {
+    match PrincipalReferences::of(data) {
+        Some(p) => {
             let mut orders = sweep(&p.data(data.omega), n_max);
             for o in &mut orders {
                 for l in &mut o.shapes {
@@ -188,7 +186,7 @@ pub fn sweep_on_used_references(data: &PolyData, n_max: usize) -> Vec<OrderPoles
             }
             orders
         }
-        _ => sweep(data, n_max),
+        None => sweep(data, n_max),
     }
 }
 
@@ -769,7 +767,7 @@ mod tests {
         let omega = omega_lines(300);
         let h = pole_residue_frfs(&poles, psi, |r, e| l[r][e], (4, ni), &omega);
         let data = as_data(&omega, &h);
-        let p = PrincipalReferences::of(&data, ni).unwrap();
+        let p = PrincipalReferences::of(&data).unwrap();
         let normalised = |v: &[c64]| {
             let mut v = v.to_vec();
             normalise_phase(&mut v);
