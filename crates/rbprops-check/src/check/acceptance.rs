@@ -64,6 +64,10 @@ pub(super) struct RefitBaseline {
     cur_pred: Vec<c64>,
     cv_without: crate::cv::HeldOut,
     loeo_without: crate::cv::HeldOut,
+    /// χ² of the current model with `excitation_gain` refitted alone (`None`: the refit
+    /// failed), for [`Selection::beyond_excitation_gain`]: it depends only on the
+    /// current model, so it is fitted once per step, when a candidate first needs it.
+    gain_alone: std::sync::OnceLock<Option<f64>>,
 }
 
 /// The evidence for one refitted candidate, and its decision: accepted if `why` is
@@ -156,6 +160,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 Default::default()
             },
             cur_pred,
+            gain_alone: std::sync::OnceLock::new(),
         })
     }
 
@@ -169,8 +174,6 @@ impl<'p, 'a> Selection<'p, 'a> {
         base: &RefitBaseline,
     ) -> Result<Vec<Evidence>, CheckError> {
         let p = self.p;
-        let (cur_pred, cv_without, loeo_without) =
-            (&base.cur_pred, &base.cv_without, &base.loeo_without);
         let mut evals: Vec<Evidence> = Vec::new();
         for (c, f, kept) in fits {
             let s = &refit.iter().find(|x| x.0 == c).expect("refitted").1;
@@ -185,7 +188,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                     continue;
                 }
             };
-            let e = self.evaluate(c, s.n_tests, f, kept, cur_pred, cv_without, loeo_without);
+            let e = self.evaluate(c, s.n_tests, f, kept, base);
             for entry in self.findings.screening.iter_mut().rev() {
                 if entry.step == step && entry.id == p.cands[c].id {
                     entry.refit_delta_chi2 = Some(e.dchi2);
@@ -199,39 +202,17 @@ impl<'p, 'a> Selection<'p, 'a> {
         Ok(evals)
     }
 
-    /// [`Selection::evaluate`] against a step's refit baseline.
-    pub(super) fn evaluate_against(
+    /// The evidence for candidate `c` refitted to `f` with coordinates `kept`, its
+    /// screening statistic the best of `n_tests`, weighed against the step's `base`.
+    /// The held-out checks run only where every other test passed (their verdict
+    /// matters only then).
+    pub(super) fn evaluate(
         &self,
         c: usize,
         n_tests: usize,
         f: Fit,
         kept: Vec<usize>,
         base: &RefitBaseline,
-    ) -> Evidence {
-        self.evaluate(
-            c,
-            n_tests,
-            f,
-            kept,
-            &base.cur_pred,
-            &base.cv_without,
-            &base.loeo_without,
-        )
-    }
-
-    /// The evidence for candidate `c` refitted to `f` with coordinates `kept`, its
-    /// screening statistic the best of `n_tests`. The held-out checks run only where
-    /// every other test passed (their verdict matters only then).
-    #[allow(clippy::too_many_arguments)]
-    fn evaluate(
-        &self,
-        c: usize,
-        n_tests: usize,
-        f: Fit,
-        kept: Vec<usize>,
-        cur_pred: &[c64],
-        cv_without: &crate::cv::HeldOut,
-        loeo_without: &crate::cv::HeldOut,
     ) -> Evidence {
         let (p, cur, options) = (self.p, &self.model.cur, self.options);
         let cand = &p.cands[c];
@@ -282,12 +263,12 @@ impl<'p, 'a> Selection<'p, 'a> {
         if !(wald > wthr) {
             why.push(format!("Wald {wald:.1} ≤ {wthr:.1}"));
         }
-        let practical = self.practical_tests(c, &f, k0, &kept, cur_pred, &mut why);
+        let practical = self.practical_tests(c, &f, k0, &kept, &base.cur_pred, &mut why);
         if why.is_empty() {
-            why.extend(self.beyond_excitation_gain(c, &f, &kept, thr));
+            why.extend(self.beyond_excitation_gain(c, &f, &kept, thr, &base.gain_alone));
         }
         let (held_out, held_out_exc) =
-            self.held_out_tests(&f, nu, cv_without, loeo_without, &mut why);
+            self.held_out_tests(&f, nu, &base.cv_without, &base.loeo_without, &mut why);
         Evidence {
             c,
             fit: f,
@@ -382,14 +363,16 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// the data beyond a per-excitation gain: `excitation_gain` is refitted alone and with
     /// the effect (both from the current model), and the effect's Δχ² over the gain alone
     /// must pass its own likelihood-ratio threshold `thr`. `excitation_gain` itself, and
-    /// recordings without an estimator's force noise, are not tested so. Returns the
-    /// failure, if any.
+    /// recordings without an estimator's force noise, are not tested so. The gain's fit
+    /// alone is the step's (`gain_alone`, fitted by the first candidate that needs it).
+    /// Returns the failure, if any.
     fn beyond_excitation_gain(
         &self,
         c: usize,
         f: &Fit,
         kept: &[usize],
         thr: f64,
+        gain_alone: &std::sync::OnceLock<Option<f64>>,
     ) -> Option<String> {
         let (p, options) = (self.p, self.options);
         options.estimator_resolution.filter(|&r| r > 0.0)?;
@@ -399,31 +382,35 @@ impl<'p, 'a> Selection<'p, 'a> {
         }
         let neutral = &p.cands[g].neutral;
         let gain = Act::full(g, neutral.len());
-        let mut act_gain = self.model.active.clone();
-        act_gain.push(gain.clone());
-        let theta_gain: Vec<f64> = self
-            .model
-            .cur
-            .theta
-            .iter()
-            .chain(neutral)
-            .copied()
-            .collect();
+        let n = options.max_iterations;
+        let fit_alone = || {
+            let mut act = self.model.active.clone();
+            act.push(gain.clone());
+            let theta: Vec<f64> = self
+                .model
+                .cur
+                .theta
+                .iter()
+                .chain(neutral)
+                .copied()
+                .collect();
+            let stage = format!("{} alone", ExcitationGain::ID);
+            p.fit(&stage, &theta, &act, n).ok().map(|f| f.chi2)
+        };
         let mut act_both = self.model.active.clone();
         act_both.push(Act {
             c,
             kept: kept.to_vec(),
             gauge: Vec::new(),
         });
-        act_both.push(gain);
+        act_both.push(gain.clone());
         let theta_both: Vec<f64> = f.theta.iter().chain(neutral).copied().collect();
         let stage = format!("{} beyond an excitation gain", p.cands[c].id);
-        let n = options.max_iterations;
         let (alone, both) = rayon::join(
-            || p.fit(&stage, &theta_gain, &act_gain, n),
+            || *gain_alone.get_or_init(fit_alone),
             || p.fit(&stage, &theta_both, &act_both, n),
         );
-        let d = alone.ok()?.chi2 - both.ok()?.chi2;
+        let d = alone? - both.ok()?.chi2;
         (!(d > thr)).then(|| {
             format!(
                 "beyond a per-excitation gain (the FRF estimator's force noise puts one on all of an excitation's FRFs) the effect gains Δχ² {d:.1} ≤ {thr:.1}"

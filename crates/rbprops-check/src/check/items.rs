@@ -152,7 +152,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             // A retry that fails to converge leaves the original evidence standing.
             let Ok(fit) = fit else { continue };
             let n_tests = round.iter().find(|x| x.0 == c).expect("refitted").1.n_tests;
-            let mut e = self.evaluate_against(c, n_tests, fit, keep, base);
+            let mut e = self.evaluate(c, n_tests, fit, keep, base);
             e.items_at_neutral = true;
             let id = &self.p.cands[c].id;
             self.options.progress.say(|| {
