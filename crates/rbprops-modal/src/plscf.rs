@@ -61,21 +61,45 @@ impl PolyData<'_> {
 /// eigenvalue) and below any measured noise floor (16-bit data: about 1e-10).
 const UNUSED_DIRECTION: f64 = 1e-12;
 
-/// The FRF matrix on its principal references: `H V_r`, `V_r` the right singular vectors
-/// of every output's and line's rows `H_o(ω_k)` stacked whose squared singular values,
-/// relative to the largest, are above [`UNUSED_DIRECTION`] (from the eigen-decomposition of the Gram matrix
-/// `Σ_{o,k} H_o(ω_k)ᴴ H_o(ω_k)`).
+/// At most this many principal references in the sweep (see [`PrincipalReferences`]).
+///
+/// Why: the denominator needs one reference direction per real mode in the band and two
+/// per complex one; a rigid-body test's band holds the six rigid modes and a few
+/// elastic ones, so 16 directions hold them with room. Beyond them the data's
+/// directions are noise (fifty references of the six rigid modes at 1 % noise: the
+/// Gram eigenvalues of the six modes are 1 to 3e-4 of the largest, the other 44 below
+/// 1.2e-5), and each costs: a sweep of order `n` on `q` references eigen-decomposes
+/// companion matrices of size `n·q`, whose cost grows as `q³` (50 → 16 references:
+/// 30 times less).
+pub const MAX_PRINCIPAL_REFERENCES: usize = 16;
+
+/// The directions beyond [`MAX_PRINCIPAL_REFERENCES`] are left out only when together
+/// they hold at most this fraction of the FRFs' energy (the Gram matrix's trace): data
+/// with more directions of signal than that are swept on every reference. At 1 % noise
+/// the 34 noise directions of fifty references hold about 2e-4 of it.
+const MAX_LEFT_OUT_ENERGY: f64 = 1e-2;
+
+/// The FRF matrix on its principal references: `H V_r`, `V_r` the real right singular
+/// vectors of every output's and line's rows `H_o(ω_k)` stacked as real and imaginary
+/// parts (the eigen-decomposition of the real Gram matrix
+/// `Σ_{o,k} Re H_o(ω_k)ᵀ Re H_o(ω_k) + Im H_o(ω_k)ᵀ Im H_o(ω_k)`), largest first: those
+/// whose eigenvalues, relative to the largest, are above [`UNUSED_DIRECTION`], and of
+/// them at most [`MAX_PRINCIPAL_REFERENCES`] when the rest hold at most
+/// [`MAX_LEFT_OUT_ENERGY`] of the trace.
 ///
 /// The model's rows are `H_o(ω) = Σ_r ψ_or l_rᵀ/(iω − λ_r) + c.c.`, so the rows lie in the
-/// span of the `l_r` and `l̄_r`, which is the span of `V̄`; on the principal references a
-/// pole's participation vector is `V_rᵀ l` and `l = V̄_r (V_rᵀ l)` is exact while the
-/// kept directions hold that span. The poles are those of the same FRFs (a projection
-/// of the references does not move a pole).
+/// span of the `l_r` and `l̄_r`, which is the span of the real `Re l_r`, `Im l_r`; on the
+/// principal references a pole's participation vector is `V_rᵀ l` and `l = V_r (V_rᵀ l)`
+/// is exact while the kept directions hold that span. The poles are those of the same
+/// FRFs (a projection of the references does not move a pole). The directions are real
+/// so that the projected FRFs keep `H(−ω) = H̄(ω)`, the symmetry of the sweep's real
+/// coefficients (a complex basis breaks it: on fifty references of two close pairs at
+/// 1 % noise, 16 complex principal references found 3 of the 6 modes).
 #[derive(Debug, Clone)]
 pub struct PrincipalReferences {
     /// `h[o][q]`: output `o` on principal reference `q`, every line.
     pub h: Vec<Vec<Vec<c64>>>,
-    /// `v̄[e][q]`: the conjugated principal directions, reference `e`, direction `q`.
+    /// `v[e][q]`: the (real) principal directions, reference `e`, direction `q`.
     back: Vec<Vec<c64>>,
 }
 
@@ -86,21 +110,32 @@ impl PrincipalReferences {
     pub fn of(data: &PolyData) -> Option<Self> {
         let ni = data.n_references();
         let nl = data.omega.len();
-        // Every output's and line's row H_o(ω_k) stacked; G = XᴴX (one product, sequential).
-        let x = Mat::<c64>::from_fn(data.n_outputs() * nl, ni, |i, e| data.h[i / nl][e][i % nl]);
-        let mut g = Mat::<c64>::zeros(ni, ni);
+        let no = data.n_outputs();
+        // Every output's and line's row H_o(ω_k) stacked, real and imaginary parts as
+        // separate rows: G = Re(XᴴX), whose eigenvectors are real (so the projected
+        // FRFs keep H(−ω) = H̄(ω), which the real-coefficient model needs).
+        let x = Mat::<f64>::from_fn(2 * no * nl, ni, |i, e| {
+            let (part, i) = (i / (no * nl), i % (no * nl));
+            let h = data.h[i / nl][e][i % nl];
+            if part == 0 {
+                h.re
+            } else {
+                h.im
+            }
+        });
+        let mut g = Mat::<f64>::zeros(ni, ni);
         faer::linalg::matmul::matmul(
             g.as_mut(),
             faer::Accum::Replace,
-            x.adjoint(),
+            x.transpose(),
             x.as_ref(),
-            c64::new(1.0, 0.0),
+            1.0,
             Par::Seq,
         );
-        let mut vals = faer::diag::Diag::<c64>::zeros(ni);
-        let mut vecs = Mat::<c64>::zeros(ni, ni);
+        let mut vals = faer::diag::Diag::<f64>::zeros(ni);
+        let mut vecs = Mat::<f64>::zeros(ni, ni);
         let mut buf =
-            faer::dyn_stack::MemBuffer::new(faer::linalg::evd::self_adjoint_evd_scratch::<c64>(
+            faer::dyn_stack::MemBuffer::new(faer::linalg::evd::self_adjoint_evd_scratch::<f64>(
                 ni,
                 faer::linalg::evd::ComputeEigenvectors::Yes,
                 Par::Seq,
@@ -116,11 +151,20 @@ impl PrincipalReferences {
         )
         .ok()?;
         // Eigenvalues ascend: the used directions, largest first.
-        let top = vals[ni - 1].re;
-        let cols: Vec<usize> = (0..ni)
+        let top = vals[ni - 1];
+        let mut cols: Vec<usize> = (0..ni)
             .rev()
-            .filter(|&q| vals[q].re > UNUSED_DIRECTION * top)
+            .filter(|&q| vals[q] > UNUSED_DIRECTION * top)
             .collect();
+        let total: f64 = (0..ni).map(|q| vals[q].max(0.0)).sum();
+        let left_out: f64 = cols
+            .iter()
+            .skip(MAX_PRINCIPAL_REFERENCES)
+            .map(|&q| vals[q])
+            .sum();
+        if left_out <= MAX_LEFT_OUT_ENERGY * total {
+            cols.truncate(MAX_PRINCIPAL_REFERENCES);
+        }
         if cols.is_empty() || cols.len() == ni {
             return None;
         }
@@ -138,7 +182,7 @@ impl PrincipalReferences {
             })
             .collect();
         let back = (0..ni)
-            .map(|e| cols.iter().map(|&q| vecs[(e, q)].conj()).collect())
+            .map(|e| cols.iter().map(|&q| c64::new(vecs[(e, q)], 0.0)).collect())
             .collect();
         Some(PrincipalReferences { h, back })
     }
@@ -155,7 +199,7 @@ impl PrincipalReferences {
         }
     }
 
-    /// A participation vector on the measured references (`l = V̄_r l_q`, unit norm,
+    /// A participation vector on the measured references (`l = V_r l_q`, unit norm,
     /// largest entry real positive) from one on the principal references.
     pub fn participation(&self, l_q: &[c64]) -> Vec<c64> {
         let mut l: Vec<c64> = self
@@ -173,8 +217,9 @@ impl PrincipalReferences {
 /// references: 6 modes seen by 50 excitations span at most 12), the normal equations of
 /// the measured references are singular and the sweep finds nothing, so it runs on the
 /// principal references that hold the data, each pole's participation vector mapped back
-/// to the measured references. Data that use every direction (any measured noise) are
-/// swept as they are.
+/// to the measured references. More than [`MAX_PRINCIPAL_REFERENCES`] references whose
+/// directions beyond that hold only noise are swept on that many principal ones. Other
+/// data (any measured noise on up to 16 references) are swept as they are.
 pub fn sweep_on_used_references(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
     match PrincipalReferences::of(data) {
         Some(p) => {
@@ -745,6 +790,8 @@ mod tests {
     /// hold each participation vector exactly, and the sweep on them finds the poles and
     /// the measured-reference vectors (on the 24 references as measured it finds nothing
     /// at the higher orders: the normal equations are singular).
+    /// The principal directions are real (the projected FRFs keep the symmetry of the
+    /// sweep's real coefficients).
     #[test]
     fn principal_references_keep_poles_and_participation_vectors() {
         let ni = 24;
@@ -776,10 +823,10 @@ mod tests {
         let distance =
             |a: &[c64], b: &[c64]| -> f64 { a.iter().zip(b).map(|(x, y)| (x - y).norm()).sum() };
         for lr in &l {
-            // On the principal references: l_q = V_rᵀ l (back holds V̄_r).
+            // On the principal references: l_q = V_rᵀ l (back holds the real V_r).
             assert_eq!(p.back[0].len(), 6, "three complex modes use six directions");
             let lq: Vec<c64> = (0..6)
-                .map(|q| (0..ni).map(|e| p.back[e][q].conj() * lr[e]).sum())
+                .map(|q| (0..ni).map(|e| p.back[e][q] * lr[e]).sum())
                 .collect();
             let d = distance(&p.participation(&lq), &normalised(lr));
             assert!(
@@ -787,30 +834,40 @@ mod tests {
                 "participation vector back from the principal references: {d:e}"
             );
         }
-        // The z-domain model converges with the order (as in the test above): at order 10
-        // the poles are within 2e-6 here, and the participation vectors (from the same
-        // companion matrix) about as close per entry; the map back itself is exact (above).
+        // The sweep on the principal references. The z-domain model is not exact for
+        // s-domain poles; what the sweep must give is poles and participation vectors
+        // the selection takes as stable (consecutive orders within the stabilisation
+        // tolerances), which the joint refinement then makes exact (end to end:
+        // `close_modes::fifty_excitations_resolve_the_close_pairs`, 1e-8). So at each of
+        // the two highest orders every mode has a pole within half of those tolerances
+        // of the truth (so the two orders agree within them). Noise-free
+        // on six real directions, the normal equations become singular above order 4
+        // (the model fits the data to rounding) and those orders are left out.
+        let tol = crate::options::StabilisationTolerances::default();
         let sw = sweep_on_used_references(&data, 10);
-        let o = sw.iter().find(|o| o.order == 10).unwrap();
-        assert_eq!(o.shapes[0].len(), ni);
-        for (r, pole) in poles.iter().enumerate() {
-            let (i, q) = o
-                .poles
-                .iter()
-                .enumerate()
-                .min_by(|a, b| {
-                    (a.1 .0 - pole.0)
-                        .norm()
-                        .total_cmp(&(b.1 .0 - pole.0).norm())
-                })
-                .unwrap();
-            let dp = (q.0 - pole.0).norm() / pole.0.norm();
-            let d = distance(&o.shapes[i], &normalised(&l[r]));
-            assert!(dp < 2e-6, "{q:?} vs {pole:?}");
-            assert!(
-                d < 1e-5 * ni as f64,
-                "mode {r}: participation vector off by {d:e}"
-            );
+        assert!(sw.len() >= 3, "orders swept: {}", sw.len());
+        for o in &sw[sw.len() - 2..] {
+            assert_eq!(o.shapes[0].len(), ni);
+            for (r, pole) in poles.iter().enumerate() {
+                let (i, q) = o
+                    .poles
+                    .iter()
+                    .enumerate()
+                    .min_by(|a, b| {
+                        (a.1 .0 - pole.0)
+                            .norm()
+                            .total_cmp(&(b.1 .0 - pole.0).norm())
+                    })
+                    .unwrap();
+                let df = (q.frequency_hz() / pole.frequency_hz() - 1.0).abs();
+                let dz = (q.damping() / pole.damping() - 1.0).abs();
+                let dm = 1.0 - crate::pole::mac(&o.shapes[i], &l[r]);
+                assert!(
+                    df < 0.5 * tol.frequency && dz < 0.5 * tol.damping && dm < 0.5 * tol.shape,
+                    "order {} mode {r}: frequency {df:e}, damping {dz:e}, 1 − MAC {dm:e}",
+                    o.order
+                );
+            }
         }
     }
 }
