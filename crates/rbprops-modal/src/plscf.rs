@@ -132,24 +132,7 @@ impl PrincipalReferences {
             1.0,
             Par::Seq,
         );
-        let mut vals = faer::diag::Diag::<f64>::zeros(ni);
-        let mut vecs = Mat::<f64>::zeros(ni, ni);
-        let mut buf =
-            faer::dyn_stack::MemBuffer::new(faer::linalg::evd::self_adjoint_evd_scratch::<f64>(
-                ni,
-                faer::linalg::evd::ComputeEigenvectors::Yes,
-                Par::Seq,
-                Default::default(),
-            ));
-        faer::linalg::evd::self_adjoint_evd(
-            g.as_ref(),
-            vals.as_mut(),
-            Some(vecs.as_mut()),
-            Par::Seq,
-            faer::dyn_stack::MemStack::new(&mut buf),
-            Default::default(),
-        )
-        .ok()?;
+        let (vals, vecs) = linalg::symmetric_eigen(&g)?;
         // Eigenvalues ascend: the used directions, largest first.
         let top = vals[ni - 1];
         let mut cols: Vec<usize> = (0..ni)
@@ -487,27 +470,7 @@ fn companion_poles(
     if (0..d).any(|i| (0..d).any(|j| !c[(i, j)].is_finite())) {
         return None;
     }
-    let mut re = faer::diag::Diag::<f64>::zeros(d);
-    let mut im = faer::diag::Diag::<f64>::zeros(d);
-    let mut u = Mat::<f64>::zeros(d, d);
-    let mut buf = faer::dyn_stack::MemBuffer::new(faer::linalg::evd::evd_scratch::<f64>(
-        d,
-        faer::linalg::evd::ComputeEigenvectors::No,
-        faer::linalg::evd::ComputeEigenvectors::Yes,
-        Par::Seq,
-        Default::default(),
-    ));
-    faer::linalg::evd::evd_real(
-        c.as_ref(),
-        re.as_mut(),
-        im.as_mut(),
-        None,
-        Some(u.as_mut()),
-        Par::Seq,
-        faer::dyn_stack::MemStack::new(&mut buf),
-        Default::default(),
-    )
-    .ok()?;
+    let (re, im, u) = linalg::eigen_with_vectors(&c)?;
     let mut poles = Vec::new();
     let mut parts = Vec::new();
     let mut j = 0;

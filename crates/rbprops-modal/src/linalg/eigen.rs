@@ -8,36 +8,83 @@ use rbprops_core::c64;
 
 /// Eigenvalues of a small real square matrix (companion matrices of pole polynomials).
 pub fn eigenvalues(a: &Mat<f64>) -> Option<Vec<c64>> {
+    let (re, im, _) = real_evd(a, false)?;
+    Some(
+        re.iter()
+            .zip(&im)
+            .map(|(&r, &i)| c64::new(r, i))
+            .filter(|z| z.re.is_finite() && z.im.is_finite())
+            .collect(),
+    )
+}
+
+/// Eigenvalues (real and imaginary parts, faer's order) and real right eigenvectors of a
+/// real square matrix: a complex pair's eigenvalue `re[j] ± i·im[j]` has the vector
+/// `u[:, j] ± i·u[:, j+1]` (LAPACK's convention). `None` when the solver fails.
+pub fn eigen_with_vectors(a: &Mat<f64>) -> Option<(Vec<f64>, Vec<f64>, Mat<f64>)> {
+    let (re, im, u) = real_evd(a, true)?;
+    Some((re, im, u?))
+}
+
+/// faer's real non-symmetric eigen-decomposition, sequential, right vectors on request.
+fn real_evd(a: &Mat<f64>, vectors: bool) -> Option<(Vec<f64>, Vec<f64>, Option<Mat<f64>>)> {
+    use faer::linalg::evd::ComputeEigenvectors;
     let n = a.nrows();
-    if n == 0 {
-        return Some(Vec::new());
-    }
     let mut re = faer::diag::Diag::<f64>::zeros(n);
     let mut im = faer::diag::Diag::<f64>::zeros(n);
-    let mut buf = MemBuffer::new(faer::linalg::evd::evd_scratch::<f64>(
+    let mut u = vectors.then(|| Mat::<f64>::zeros(n, n));
+    if n > 0 {
+        let right = if vectors {
+            ComputeEigenvectors::Yes
+        } else {
+            ComputeEigenvectors::No
+        };
+        let mut buf = MemBuffer::new(faer::linalg::evd::evd_scratch::<f64>(
+            n,
+            ComputeEigenvectors::No,
+            right,
+            Par::Seq,
+            Default::default(),
+        ));
+        faer::linalg::evd::evd_real(
+            a.as_ref(),
+            re.as_mut(),
+            im.as_mut(),
+            None,
+            u.as_mut().map(|u| u.as_mut()),
+            Par::Seq,
+            MemStack::new(&mut buf),
+            Default::default(),
+        )
+        .ok()?;
+    }
+    let v = |d: &faer::diag::Diag<f64>| (0..n).map(|i| d[i]).collect();
+    Some((v(&re), v(&im), u))
+}
+
+/// Eigenvalues (ascending) and orthonormal eigenvectors (columns) of a real symmetric
+/// matrix, from its lower triangle. `None` when the solver fails (non-finite entries).
+pub fn symmetric_eigen(a: &Mat<f64>) -> Option<(Vec<f64>, Mat<f64>)> {
+    use faer::linalg::evd::ComputeEigenvectors;
+    let n = a.nrows();
+    let mut vals = faer::diag::Diag::<f64>::zeros(n);
+    let mut vecs = Mat::<f64>::zeros(n, n);
+    let mut buf = MemBuffer::new(faer::linalg::evd::self_adjoint_evd_scratch::<f64>(
         n,
-        faer::linalg::evd::ComputeEigenvectors::No,
-        faer::linalg::evd::ComputeEigenvectors::No,
+        ComputeEigenvectors::Yes,
         Par::Seq,
         Default::default(),
     ));
-    faer::linalg::evd::evd_real(
+    faer::linalg::evd::self_adjoint_evd(
         a.as_ref(),
-        re.as_mut(),
-        im.as_mut(),
-        None,
-        None,
+        vals.as_mut(),
+        Some(vecs.as_mut()),
         Par::Seq,
         MemStack::new(&mut buf),
         Default::default(),
     )
     .ok()?;
-    Some(
-        (0..n)
-            .map(|i| c64::new(re[i], im[i]))
-            .filter(|z| z.re.is_finite() && z.im.is_finite())
-            .collect(),
-    )
+    Some(((0..n).map(|i| vals[i]).collect(), vecs))
 }
 
 /// Roots of the monic real polynomial `z^n + c_{n−1} z^{n−1} + … + c_0` (`coef[j] = c_j`,
