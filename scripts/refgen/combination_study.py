@@ -305,7 +305,8 @@ def main():
                     json.dump(results, f, indent=1)
     print("\n| effects | recordings | named | false claims (per recording) | χ²/ν in band | median s | worst s |")
     print("|---|---|---|---|---|---|---|")
-    for n in range(7):
+    # Cords add gravity_stiffness to the 0–6 drawn effects: up to 7.
+    for n in range(max((len(r["concealed"]) for r in results), default=0) + 1):
         rs = [r for r in results if len(r["concealed"]) == n and "error" not in r]
         if not rs:
             continue
