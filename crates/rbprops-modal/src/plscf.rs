@@ -100,7 +100,7 @@ pub struct PrincipalReferences {
     /// `h[o][q]`: output `o` on principal reference `q`, every line.
     pub h: Vec<Vec<Vec<c64>>>,
     /// `v[e][q]`: the (real) principal directions, reference `e`, direction `q`.
-    back: Vec<Vec<c64>>,
+    back: Vec<Vec<f64>>,
 }
 
 impl PrincipalReferences {
@@ -165,7 +165,7 @@ impl PrincipalReferences {
             })
             .collect();
         let back = (0..ni)
-            .map(|e| cols.iter().map(|&q| c64::new(vecs[(e, q)], 0.0)).collect())
+            .map(|e| cols.iter().map(|&q| vecs[(e, q)]).collect())
             .collect();
         Some(PrincipalReferences { h, back })
     }
