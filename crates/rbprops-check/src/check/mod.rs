@@ -27,6 +27,7 @@ mod acceptance;
 mod gauges;
 mod items;
 mod problem;
+mod restart;
 mod screening;
 mod selection;
 mod take_back;
@@ -729,6 +730,7 @@ fn check_with(
     });
     let base = baseline_fit(&p, &theta_nom, options, &mut warnings)?;
     let free_base = p.n_base() - usize::from(options.weighed_mass_kg.is_some());
+    let theta_base = base.theta.clone();
     // Stages 3–4: forward selection with backward checks.
     let mut sel = Selection::new(
         &p,
@@ -736,6 +738,7 @@ fn check_with(
         Start {
             prior,
             theta_nom: &theta_nom,
+            theta_base: &theta_base,
             sigma_precision: &sigma_precision,
         },
         base.clone(),
@@ -875,6 +878,9 @@ fn run_selection(
     let step = forward(sel, max_effects, 0, true)?;
     take_back::take_back(sel, step, floor, |branch, from, steps| {
         forward(branch, steps.min(max_effects), from, false)
+    })?;
+    restart::fresh_start(sel, step, floor, |sel, from, steps| {
+        forward(sel, steps.min(max_effects), from, false)
     })
 }
 

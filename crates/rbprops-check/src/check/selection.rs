@@ -56,6 +56,8 @@ pub(super) struct Start<'p> {
     pub(super) prior: Option<&'p Prior>,
     /// The nominal spec's parameters (the refit's second start while nothing is accepted).
     pub(super) theta_nom: &'p [f64],
+    /// The baseline fit's parameters (where a fresh start of the accepted set begins).
+    pub(super) theta_base: &'p [f64],
     /// σ of the precision floor alone (the yardstick of practical significance).
     pub(super) sigma_precision: &'p [f64],
 }

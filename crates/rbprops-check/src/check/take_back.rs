@@ -155,13 +155,14 @@ pub(super) fn take_back<'p, 'a>(
     readmit(sel, step, &taken, forward)
 }
 
-/// Forward steps after the take-back, with the effects it took back open to screening
-/// again: a branch gets more steps than the selection it is compared with, so it can
+/// Forward steps after the take-back in which only the effects it took back are
+/// screened: a branch gets more steps than the selection it is compared with, so it can
 /// take back a true effect that was only waiting for the others (seed 5176: a true
 /// excitation gain taken back for a branch that then found the force location and the
 /// channel gain the original had not reached; the gain was then missing and a residual
 /// flexibility stood in, χ²/ν 1.77). Given the branch's model, an effect that belongs
-/// enters again; one that does not stays out.
+/// enters again; one that does not stays out. Nothing else is screened in these steps:
+/// the branch has already had its own.
 fn readmit<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
@@ -172,10 +173,19 @@ fn readmit<'p, 'a>(
         return Ok(());
     }
     sel.findings.excluded.retain(|c| !taken.contains(c));
+    let held: Vec<usize> = (0..sel.p.cands.len())
+        .filter(|c| {
+            !taken.contains(c)
+                && !sel.findings.excluded.contains(c)
+                && !sel.model.active.iter().any(|a| a.c == *c)
+        })
+        .collect();
+    sel.findings.excluded.extend(&held);
     forward(sel, step, READMIT_STEPS)?;
+    sel.findings.excluded.retain(|c| !held.contains(c));
     Ok(())
 }
 
-/// Forward steps open to the effects taken back (each may enter once more, and one
-/// wrong effect it stood beside may be dropped by the final re-test).
+/// Forward steps open to the effects taken back (each may enter once more, and the
+/// final re-test may then drop what stood in for it).
 const READMIT_STEPS: usize = 2;
