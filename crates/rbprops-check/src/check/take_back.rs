@@ -51,6 +51,19 @@ impl FloorYardstick {
 }
 
 impl<'p, 'a> Selection<'p, 'a> {
+    /// A copy of the selection's state to run a branch on.
+    fn fork(&self) -> Selection<'p, 'a> {
+        Selection {
+            p: self.p,
+            options: self.options,
+            start: self.start,
+            model: self.model.clone(),
+            findings: self.findings.clone(),
+            held_out: self.held_out.clone(),
+            charges: self.charges.clone(),
+        }
+    }
+
     /// BIC of the current model (up to the constant shared by every model of the data).
     fn bic(&self) -> f64 {
         self.model.cur.chi2 + active_dims(&self.model.active) as f64 * self.charges.ln_n
@@ -60,15 +73,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     /// from screening.
     fn without(&self, k: usize) -> Result<Selection<'p, 'a>, CheckError> {
         let p = self.p;
-        let mut branch = Selection {
-            p,
-            options: self.options,
-            start: self.start,
-            model: self.model.clone(),
-            findings: self.findings.clone(),
-            held_out: self.held_out.clone(),
-            charges: self.charges.clone(),
-        };
+        let mut branch = self.fork();
         let c = branch.model.active[k].c;
         let theta = drop_params(p, &branch.model.cur.theta, &branch.model.active, k);
         branch.model.active.remove(k);
@@ -152,7 +157,7 @@ pub(super) fn take_back<'p, 'a>(
             taken.push(c);
         }
     }
-    readmit(sel, step, &taken, forward)
+    readmit(sel, step, &taken, floor, forward)
 }
 
 /// Forward steps after the take-back in which only the effects it took back are
@@ -162,16 +167,38 @@ pub(super) fn take_back<'p, 'a>(
 /// channel gain the original had not reached; the gain was then missing and a residual
 /// flexibility stood in, χ²/ν 1.77). Given the branch's model, an effect that belongs
 /// enters again; one that does not stays out. Nothing else is screened in these steps:
-/// the branch has already had its own.
+/// the branch has already had its own. The readmission overrules the take-back's
+/// judgement, so it stands only when it brings the model to the noise band (on 6022's
+/// cords, still above it either way, it readmitted two stinger stand-ins the branches
+/// had taken back).
 fn readmit<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
     taken: &[usize],
+    floor: FloorYardstick,
     forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
 ) -> Result<(), CheckError> {
     if taken.is_empty() {
         return Ok(());
     }
+    let mut trial = sel.fork();
+    readmit_steps(&mut trial, step, taken, forward)?;
+    if !floor.above(&trial) {
+        sel.options
+            .progress
+            .say(|| "readmitted effects bring the model to the noise band: kept".into());
+        *sel = trial;
+    }
+    Ok(())
+}
+
+/// [`READMIT_STEPS`] forward steps screening only `taken` (with the others held back).
+fn readmit_steps<'p, 'a>(
+    sel: &mut Selection<'p, 'a>,
+    step: usize,
+    taken: &[usize],
+    forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
+) -> Result<(), CheckError> {
     sel.findings.excluded.retain(|c| !taken.contains(c));
     let held: Vec<usize> = (0..sel.p.cands.len())
         .filter(|c| {
