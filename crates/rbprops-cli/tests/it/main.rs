@@ -6,6 +6,7 @@ mod campaign;
 mod campaign_frf_est;
 mod campaign_shards;
 mod coherence_weight;
+mod combination_seeds;
 mod common;
 mod exp_window;
 mod faults;

@@ -1,0 +1,66 @@
+//! Recordings of issue 37's combination study (`scripts/refgen/combination_study.py`,
+//! the independent generator) on which the model check once claimed false physics,
+//! checked by the study's own procedure and scoring: every concealed effect named,
+//! nothing else, χ²/ν in the noise band (docs/results.md, session 29).
+
+use std::process::Command;
+
+/// The study's JSON results of `seeds` (`extra` selects the stream), run on this
+/// build's `frf-est` and `model-check`.
+fn study(extra: &[&str], seeds: &str) -> Option<Vec<serde_json::Value>> {
+    let py = rbprops_testkit::python(rbprops_testkit::NUMPY_PYUFF)?;
+    let root = format!("{}/../..", env!("CARGO_MANIFEST_DIR"));
+    let bin = std::path::PathBuf::from(env!("CARGO_BIN_EXE_model-check"));
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("study.json");
+    let o = Command::new(py)
+        .arg(format!("{root}/scripts/refgen/combination_study.py"))
+        .args(extra)
+        .args(["--seeds", seeds, "--bin"])
+        .arg(bin.parent().unwrap())
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    Some(serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap())
+}
+
+fn assert_exact(results: &[serde_json::Value]) {
+    for r in results {
+        assert!(r.get("error").is_none(), "{r}");
+        let empty = |k: &str| r[k].as_array().is_some_and(|a| a.is_empty());
+        assert!(
+            empty("missed") && empty("false") && r["in_band"] == true,
+            "seed {}: missed {}, false {}, χ²/ν {} (band {})",
+            r["seed"],
+            r["missed"],
+            r["false"],
+            r["chi2_nu"],
+            r["band"]
+        );
+    }
+}
+
+/// Impact tests through frf-est, six effects each on dashpots. 7056: an "elastic mode"
+/// 3 % above the top suspension mode with ζ 7.7 % stood in for a force location and kept
+/// four false effects in (χ²/ν 17.7); its half-power band now has to clear that mode.
+/// 7048: the six concealed effects, exactly those, ended at χ²/ν 99.8 in a basin every
+/// drop-one refit shared; the fresh start of the accepted set leaves it (M6g).
+#[test]
+fn impact_seeds_7048_and_7056_are_named_exactly() {
+    if let Some(results) = study(&["--impact"], "7048,7056") {
+        assert_exact(&results);
+    }
+}
+
+/// Six effects on the springs with an elastic mode at 10 Hz. A take-back branch took back
+/// the true excitation gain (it had more steps than the selection it was compared with)
+/// and residual flexibility stood in, χ²/ν 1.77; readmitted alone, the gain enters again
+/// and the stand-in leaves (M6f).
+#[test]
+fn springs_seed_5176_gets_back_what_a_branch_took() {
+    if let Some(results) = study(&[], "5176") {
+        assert_exact(&results);
+    }
+}
