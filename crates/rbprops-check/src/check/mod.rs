@@ -876,7 +876,9 @@ fn run_selection(
     floor: take_back::FloorYardstick,
 ) -> Result<(), CheckError> {
     let step = forward(sel, max_effects, 0, true)?;
-    take_back::take_back(sel, step, floor, |branch, from, steps| {
+    // Later stages number their steps after the take-back's, so that each step's
+    // screening entries stay apart in the report.
+    let step = take_back::take_back(sel, step, floor, |branch, from, steps| {
         forward(branch, steps.min(max_effects), from, false)
     })?;
     restart::fresh_start(sel, step, floor, |sel, from, steps| {

@@ -104,13 +104,14 @@ impl<'p, 'a> Selection<'p, 'a> {
 /// Stage 4b: branches without one accepted effect each (module doc), `forward(branch,
 /// from, steps)` running a branch from step `from` for at most `steps` steps; the
 /// first branch whose BIC is lower by the acceptance margin replaces the selection.
-/// The effects taken back are then screened once more ([`readmit`]).
+/// The effects taken back are then screened once more ([`readmit`]). Returns the last
+/// step taken.
 pub(super) fn take_back<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
     floor: FloorYardstick,
     forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
-) -> Result<(), CheckError> {
+) -> Result<usize, CheckError> {
     let mut tried: Vec<usize> = Vec::new();
     let mut taken: Vec<usize> = Vec::new();
     let mut step = step;
@@ -170,35 +171,37 @@ pub(super) fn take_back<'p, 'a>(
 /// the branch has already had its own. The readmission overrules the take-back's
 /// judgement, so it stands only when it brings the model to the noise band (on 6022's
 /// cords, still above it either way, it readmitted two stinger stand-ins the branches
-/// had taken back).
+/// had taken back). Returns the last step taken.
 fn readmit<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
     taken: &[usize],
     floor: FloorYardstick,
     forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
-) -> Result<(), CheckError> {
+) -> Result<usize, CheckError> {
     if taken.is_empty() {
-        return Ok(());
+        return Ok(step);
     }
     let mut trial = sel.fork();
-    readmit_steps(&mut trial, step, taken, forward)?;
-    if !floor.above(&trial) {
-        sel.options
-            .progress
-            .say(|| "readmitted effects bring the model to the noise band: kept".into());
-        *sel = trial;
+    let end = readmit_steps(&mut trial, step, taken, forward)?;
+    if floor.above(&trial) {
+        return Ok(step);
     }
-    Ok(())
+    sel.options
+        .progress
+        .say(|| "readmitted effects bring the model to the noise band: kept".into());
+    *sel = trial;
+    Ok(end)
 }
 
-/// [`READMIT_STEPS`] forward steps screening only `taken` (with the others held back).
+/// [`READMIT_STEPS`] forward steps screening only `taken` (with the others held back);
+/// the last step's number.
 fn readmit_steps<'p, 'a>(
     sel: &mut Selection<'p, 'a>,
     step: usize,
     taken: &[usize],
     forward: impl Fn(&mut Selection<'p, 'a>, usize, usize) -> Result<usize, CheckError>,
-) -> Result<(), CheckError> {
+) -> Result<usize, CheckError> {
     sel.findings.excluded.retain(|c| !taken.contains(c));
     let held: Vec<usize> = (0..sel.p.cands.len())
         .filter(|c| {
@@ -208,9 +211,9 @@ fn readmit_steps<'p, 'a>(
         })
         .collect();
     sel.findings.excluded.extend(&held);
-    forward(sel, step, READMIT_STEPS)?;
+    let end = forward(sel, step, READMIT_STEPS)?;
     sel.findings.excluded.retain(|c| !held.contains(c));
-    Ok(())
+    Ok(end)
 }
 
 /// Forward steps open to the effects taken back (each may enter once more, and the
