@@ -53,14 +53,3 @@ fn impact_seeds_7048_and_7056_are_named_exactly() {
         assert_exact(&results);
     }
 }
-
-/// Six effects on the springs with an elastic mode at 10 Hz. A take-back branch took back
-/// the true excitation gain (it had more steps than the selection it was compared with)
-/// and residual flexibility stood in, χ²/ν 1.77; readmitted alone, the gain enters again
-/// and the stand-in leaves (M6f).
-#[test]
-fn springs_seed_5176_gets_back_what_a_branch_took() {
-    if let Some(results) = study(&[], "5176") {
-        assert_exact(&results);
-    }
-}
