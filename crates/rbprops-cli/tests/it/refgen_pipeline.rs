@@ -59,13 +59,26 @@ fn generate(
     seeds: std::ops::RangeInclusive<u64>,
     sets: &[&str],
 ) -> Vec<(std::path::PathBuf, std::path::PathBuf)> {
+    let path = format!("{REPO}/scripts/refgen/examples/{case}.toml");
+    generate_from(py, dir, Path::new(&path), case, seeds, sets)
+}
+
+/// [`generate`] of the case or spec file `case`, its outputs named `{stem}-{seed}`.
+fn generate_from(
+    py: &str,
+    dir: &Path,
+    case: &Path,
+    stem: &str,
+    seeds: std::ops::RangeInclusive<u64>,
+    sets: &[&str],
+) -> Vec<(std::path::PathBuf, std::path::PathBuf)> {
     let mut cmd = refgen(py);
-    cmd.arg(format!("{REPO}/scripts/refgen/examples/{case}.toml"))
+    cmd.arg(case)
         .args(["--seeds", &format!("{}:{}", seeds.start(), seeds.end())])
         .arg("-o")
-        .arg(dir.join(format!("{case}-{{seed}}.uff")))
+        .arg(dir.join(format!("{stem}-{{seed}}.uff")))
         .arg("--truth")
-        .arg(dir.join(format!("{case}-{{seed}}.json")))
+        .arg(dir.join(format!("{stem}-{{seed}}.json")))
         .args(["--binary", "--quiet"]);
     for s in sets {
         cmd.args(["--set", s]);
@@ -73,14 +86,14 @@ fn generate(
     let out = cmd.output().unwrap();
     assert!(
         out.status.success(),
-        "refgen {case}: {}",
+        "refgen {stem}: {}",
         String::from_utf8_lossy(&out.stderr)
     );
     seeds
         .map(|s| {
             (
-                dir.join(format!("{case}-{s}.uff")),
-                dir.join(format!("{case}-{s}.json")),
+                dir.join(format!("{stem}-{s}.uff")),
+                dir.join(format!("{stem}-{s}.json")),
             )
         })
         .collect()
@@ -498,19 +511,8 @@ fn close_pairs_every_mode_in_every_excitation_on_generator_recordings() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let mut cmd = refgen(&py);
-    cmd.arg(format!("{REPO}/fixtures/specs/close-modes.toml"))
-        .args(["--seeds", "1:2", "-o"])
-        .arg(dir.path().join("cm-{seed}.uff"))
-        .arg("--truth")
-        .arg(dir.path().join("cm-{seed}.json"))
-        .args(["--binary", "--quiet"]);
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let spec = format!("{REPO}/fixtures/specs/close-modes.toml");
+    generate_from(&py, dir.path(), Path::new(&spec), "cm", 1..=2, &[]);
     for s in 1..=2 {
         let rec = dir.path().join(format!("cm-{s}.uff"));
         let t = read_truth(&dir.path().join(format!("cm-{s}.json")));
@@ -605,19 +607,7 @@ fn close_pairs_with_fifty_excitations_on_generator_recordings() {
         fifty_excitations(include_str!("../../../../fixtures/specs/close-modes.toml")),
     )
     .unwrap();
-    let mut cmd = refgen(&py);
-    cmd.arg(&spec)
-        .args(["--seeds", "1:1", "-o"])
-        .arg(dir.path().join("cm50-{seed}.uff"))
-        .arg("--truth")
-        .arg(dir.path().join("cm50-{seed}.json"))
-        .args(["--binary", "--quiet"]);
-    let out = cmd.output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    generate_from(&py, dir.path(), &spec, "cm50", 1..=1, &[]);
     let t = read_truth(&dir.path().join("cm50-1.json"));
     let input = rbprops_cli::read_input(Some(&dir.path().join("cm50-1.uff"))).unwrap();
     let (geometry, frf) = input.record.require_geometry_and_frf().unwrap();
