@@ -722,20 +722,47 @@ fn parse_gravity_stiffness(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Eff
     Ok(Box::new(g))
 }
 
-/// This module's effects in the physics catalogue ([`super::registry`]).
-/// Plausible: cords 5 cm to 10 m long (a laboratory's ceiling).
+/// Plausible: cords 5 cm to 10 m long (a laboratory's ceiling). Springs that are not
+/// cords (a set-up of three-axis springs, read as vertical cords of length
+/// `cord_length_m`) 5 cm and up, without end: a point spring to the ground has no
+/// pendulum term at all (ℓ → ∞, only the load term is left), and the hardware between
+/// the body and a coil spring's top is not a cord a tester measures.
 fn plausible_gravity(
     entry: &crate::spec::EffectSpec,
-    _spec: &CampaignSpec,
+    spec: &CampaignSpec,
 ) -> Result<Vec<super::Plausible>, String> {
     let e: GravityStiffness = super::params(entry)?;
-    Ok(e.cord_length_m
-        .iter()
-        .chain(&e.unstretched_length_m)
+    let read_as_cords = if springs_read_as_cords(spec, e.setup.as_deref()) {
+        f64::INFINITY
+    } else {
+        10.0
+    };
+    let spring_lengths = e.cord_length_m.iter().map(|l| (*l, [0.05, read_as_cords]));
+    let free_lengths = e.unstretched_length_m.iter().map(|l| (*l, [0.05, 10.0]));
+    Ok(spring_lengths
+        .chain(free_lengths)
         .enumerate()
-        .map(|(i, l)| super::Plausible::new(format!("cord {i}: length"), "m", *l, [0.05, 10.0]))
+        .map(|(i, (l, range))| super::Plausible::new(format!("cord {i}: length"), "m", l, range))
         .collect())
 }
+
+/// Every set-up the effect acts on (`setup`, or all) hangs on springs that are neither
+/// cords (`[[setup.cord]]`) nor cords written as axial springs ([`axial_cord_count`]):
+/// the catalogue reads them as vertical cords of a length no tester measured.
+fn springs_read_as_cords(spec: &CampaignSpec, setup: Option<&str>) -> bool {
+    let mut acted_on = spec
+        .setups
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| setup.is_none_or(|id| id == s.id))
+        .peekable();
+    acted_on.peek().is_some()
+        && acted_on.all(|(i, s)| {
+            s.cords.is_empty() && !s.springs.is_empty() && axial_cord_count(spec, i) == 0
+        })
+}
+
+/// This module's effects in the physics catalogue ([`super::registry`]).
 
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {

@@ -285,21 +285,7 @@ fn cords_written_as_springs_hang_at_their_free_lengths() {
         "[[effect]]\nid = \"gravity_stiffness\"\n",
     );
     let cords = as_cords.cords(0);
-    let mut springs = String::new();
-    for c in &cords {
-        let e = c.direction();
-        let k = c.axial_stiffness * e * e.transpose();
-        let rows: Vec<String> = (0..3)
-            .map(|i| format!("[{:?}, {:?}, {:?}]", k[(i, 0)], k[(i, 1)], k[(i, 2)]))
-            .collect();
-        springs += &format!(
-            "[[setup.spring]]\nat_m = [{:?}, {:?}, {:?}]\nstiffness_matrix_n_per_m = [{}]\n",
-            c.at.x,
-            c.at.y,
-            c.at.z,
-            rows.join(", ")
-        );
-    }
+    let springs = axial_springs_toml(&cords);
     let lengths: Vec<String> = cords
         .iter()
         .map(|c| format!("{:?}", (c.anchor - c.at).norm()))
@@ -332,6 +318,66 @@ fn cords_written_as_springs_hang_at_their_free_lengths() {
         ),
     );
     assert!((k(&drawn) - k1).norm() > 1e-3 * k1.norm());
+}
+
+/// `cords` written as their axial springs `k e eᵀ` (`[[setup.spring]]` tables), as
+/// testers write cords.
+fn axial_springs_toml(cords: &[AnchoredCord]) -> String {
+    let mut springs = String::new();
+    for c in cords {
+        let e = c.direction();
+        let k = c.axial_stiffness * e * e.transpose();
+        let rows: Vec<String> = (0..3)
+            .map(|i| format!("[{:?}, {:?}, {:?}]", k[(i, 0)], k[(i, 1)], k[(i, 2)]))
+            .collect();
+        springs += &format!(
+            "[[setup.spring]]\nat_m = [{:?}, {:?}, {:?}]\nstiffness_matrix_n_per_m = [{}]\n",
+            c.at.x,
+            c.at.y,
+            c.at.z,
+            rows.join(", ")
+        );
+    }
+    springs
+}
+
+/// The gravity effect's cord lengths are plausible from 5 cm to 10 m where the set-up
+/// hangs on cords (given as cords or written as axial springs), and from 5 cm without
+/// end on three-axis springs: a point spring to the ground has no pendulum term (ℓ → ∞,
+/// the load term alone), which a rigid body on a refgen spring set-up under gravity
+/// shows (the `gravity-window-gain` bench recording fits 1/ℓ = 0).
+#[test]
+fn gravity_lengths_are_bounded_on_cords_and_not_on_three_axis_springs() {
+    let entry = |lengths: &str| rbprops_sim::spec::EffectSpec {
+        id: "gravity_stiffness".into(),
+        parameters: toml::from_str(&format!("cord_length_m = [{lengths}]")).unwrap(),
+    };
+    let holds = |s: &CampaignSpec, lengths: &str| -> Vec<bool> {
+        rbprops_sim::effects::plausibility(&entry(lengths), s)
+            .unwrap()
+            .iter()
+            .map(|q| q.holds())
+            .collect()
+    };
+    let three_axis = spec(
+        &(0..4)
+            .map(|i| {
+                format!(
+                    "[[setup.spring]]\nat_m = [{:?}, 0.1, 0.12]\nstiffness_n_per_m = [150.0, 220.0, 2500.0]\n",
+                    0.1 * i as f64
+                )
+            })
+            .collect::<String>(),
+        1.0,
+        "",
+    );
+    assert_eq!(holds(&three_axis, "1.0, 1500.0"), [true, true]);
+    assert_eq!(holds(&three_axis, "0.01"), [false]);
+    let cords = spec(&cords_toml(0.25, 0.97), 1.0, "").cords(0);
+    let axial = spec(&axial_springs_toml(&cords), 1.0, "");
+    assert_eq!(holds(&axial, "1.0, 1500.0"), [true, false]);
+    let as_cords = spec(&cords_toml(0.25, 0.97), 1.0, "");
+    assert_eq!(holds(&as_cords, "1.0, 1500.0"), [true, false]);
 }
 
 /// Vertical cords whose reference pose is their equilibrium (L₀ = ℓ − T/k with the
