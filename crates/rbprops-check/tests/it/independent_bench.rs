@@ -15,37 +15,18 @@ use rbprops_check::{check, CheckOptions};
 /// named, nothing else, χ²/ν ends in the noise band, and the fitted φ₅ and load factor
 /// φ₂ are the generator's 1 within 4 SE.
 ///
-/// Measured (release, 2 cores shared with other builds, load 14–22): `exponential_window`,
-/// `gravity_stiffness`, `channel_gain`; χ²/ν 156.956 → 0.995 (band 0.968–1.050);
-/// φ₂ = 0.99905 ± 0.00069, φ₅ = 1.00302 ± 0.00278, 1/ℓ = 0.0000 ± 0.0045 1/m (springs,
-/// no pendulum); 74 s wall for the check at load 14 (26.6 CPU s), 306 s at load 22.
+/// Measured (release, 2 cores, session 30): `exponential_window`, `gravity_stiffness`,
+/// `channel_gain`; χ²/ν 156.956 → 0.995 (band 0.968–1.050); φ₂ = 0.99905 ± 0.00069,
+/// φ₅ = 1.00302 ± 0.00278, 1/ℓ = 0.0000 ± 0.0045 1/m (springs, no pendulum); 19 s.
+///
+/// It was an ignored study, and between sessions 28 and 30 the check lost the gravity
+/// here unseen (a cord length of 15 km judged implausible, six false claims): it runs in
+/// CI now, as do the bench's other two three-hit cases
+/// ([`three_hit_bench_recordings_are_named_exactly`]).
 #[test]
-#[ignore = "study (74–306 s release on 2 shared cores): one 1000-line bench recording"]
 fn spring_hung_body_under_gravity_needs_no_elastic_mode() {
-    let (stem, concealed) = CASES[2];
+    let (stem, r) = named_exactly(2);
     assert_eq!(stem, "gravity-window-gain");
-    let (g, frf) = recording(stem);
-    let t0 = std::time::Instant::now();
-    let r = check(&nominal(), &g, &frf, &CheckOptions::default())
-        .unwrap()
-        .report;
-    let mut named: Vec<&str> = r.accepted.iter().map(|a| a.id.as_str()).collect();
-    for f in &r.ambiguous {
-        named.extend(f.ids.iter().map(|s| s.as_str()));
-    }
-    eprintln!(
-        "{stem}: named {named:?}; χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}); {:.1} s",
-        r.chi2_nu_before,
-        r.chi2_nu_after,
-        r.noise_band[0],
-        r.noise_band[1],
-        t0.elapsed().as_secs_f64()
-    );
-    let mut want: Vec<&str> = concealed.to_vec();
-    want.sort_unstable();
-    named.sort_unstable();
-    assert_eq!(named, want, "{}", r.verdict);
-    crate::common::assert_chi2_in_band(stem, &r);
     let gravity = r
         .accepted
         .iter()
@@ -70,4 +51,45 @@ fn spring_hung_body_under_gravity_needs_no_elastic_mode() {
             p.standard_error
         );
     }
+}
+
+/// The bench's other two three-hit recordings (`gain-orient-gauge`: channel 1y's gain,
+/// sensor 2 misoriented, a 50 g gauge under force 3; `position-force-elastic`: sensor 3
+/// displaced, force 2's direction off, an elastic mode at 10 Hz) name exactly their
+/// three effects, nothing else, with χ²/ν in the noise band, as the bench asserts
+/// (`benches/check_speed.rs`, which CI does not run).
+#[test]
+fn three_hit_bench_recordings_are_named_exactly() {
+    for case in [0, 1] {
+        named_exactly(case);
+    }
+}
+
+/// Checks bench case `case` ([`CASES`]) with default options and asserts the exact set
+/// named and χ²/ν in the noise band; returns the case's stem and report.
+fn named_exactly(case: usize) -> (&'static str, rbprops_check::ModelCheckReport) {
+    let (stem, concealed) = CASES[case];
+    let (g, frf) = recording(stem);
+    let t0 = std::time::Instant::now();
+    let r = check(&nominal(), &g, &frf, &CheckOptions::default())
+        .unwrap()
+        .report;
+    let mut named: Vec<&str> = r.accepted.iter().map(|a| a.id.as_str()).collect();
+    for f in &r.ambiguous {
+        named.extend(f.ids.iter().map(|s| s.as_str()));
+    }
+    eprintln!(
+        "{stem}: named {named:?}; χ²/ν {:.3} → {:.3} (band {:.3}–{:.3}); {:.1} s",
+        r.chi2_nu_before,
+        r.chi2_nu_after,
+        r.noise_band[0],
+        r.noise_band[1],
+        t0.elapsed().as_secs_f64()
+    );
+    let mut want: Vec<&str> = concealed.to_vec();
+    want.sort_unstable();
+    named.sort_unstable();
+    assert_eq!(named, want, "{stem}: {}", r.verdict);
+    crate::common::assert_chi2_in_band(stem, &r);
+    (stem, r)
 }
