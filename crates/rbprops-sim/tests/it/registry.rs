@@ -141,7 +141,8 @@ fn neutral_tables_parse_and_change_nothing() {
             "record_truncation",
             "transducer_highpass",
             "cord_mass",
-            "added_mass"
+            "added_mass",
+            "residual_flexibility"
         ]
     );
 }
