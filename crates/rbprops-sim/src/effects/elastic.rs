@@ -842,7 +842,6 @@ mod tests {
     /// non-positive q.
     #[test]
     fn residual_flexibility_spec_is_checked() {
-        use super::Effect;
         let (s, _) = quiet_tc2();
         let parse = |t: toml::Table| {
             super::parse_residual_flexibility(&EffectSpec {

@@ -374,9 +374,11 @@ fn contrasted_cords(
     Some((cords, springs))
 }
 
-/// Names of the gravity candidate's parameters (see [`gravity_stiffness`]).
+/// Name of φ₁ = 1/ℓ (see [`gravity_stiffness`]).
 pub const INVERSE_LENGTH: &str = "inverse_cord_length_per_m";
+/// Name of φ₂, the load-term factor.
 pub const LOAD_FACTOR: &str = "load_term_factor";
+/// Names of (φ₃, φ₄), the tilts of the vertical.
 pub const TILTS: [&str; 2] = ["up_tilt1_rad", "up_tilt2_rad"];
 /// φ₅ (see [`gravity_stiffness`]).
 pub const SPRING_TURN: &str = "spring_turn_fraction";
@@ -462,8 +464,11 @@ pub const CORD_INVERSE_LENGTH: (f64, f64) = (0.1, 20.0);
 /// n-vector per contrast, orthonormal; see [`pose_contrasts`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContrastSlot {
+    /// Index of the set-up.
     pub setup: usize,
+    /// Index of its first contrast among the contrasts.
     pub start: usize,
+    /// The free-length change of every cord per unit of each contrast.
     pub patterns: Vec<Vec<f64>>,
 }
 
