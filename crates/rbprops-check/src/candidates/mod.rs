@@ -18,7 +18,6 @@ pub use lag::delay_peaks;
 pub use rbprops_sim::effects::screening::ScreeningKind as Screening;
 
 use rbprops_core::Geometry;
-use rbprops_sim::effects::elastic::{ElasticMode, ResidualFlexibility};
 use rbprops_sim::effects::screening::ScreeningForm;
 use rbprops_sim::effects::{Effect, NeutralForm};
 use rbprops_sim::CampaignSpec;
@@ -85,20 +84,17 @@ pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, 
     screened_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
     let further: Vec<Candidate> = out
         .iter()
-        .filter(|c| REPEATABLE.contains(&c.id.as_str()))
+        .filter(|c| rbprops_sim::effects::descriptor(&c.id).is_some_and(|d| d.repeatable))
         .flat_map(|c| further_instances(c, FURTHER_INSTANCES))
         .collect();
     out.extend(further);
     (out, notes)
 }
 
-/// Physics a recording may hold more than once, each occurrence its own term: elastic
-/// modes (a pole with its residues, in or above the band) and out-of-band terms (one
-/// pole per excitation with a general residue matrix). Several modes just above the band
-/// with different shapes are not one residual flexibility: each needs its own pole.
-const REPEATABLE: [&str; 2] = [ElasticMode::ID, ResidualFlexibility::ID];
-
-/// Further instances of each repeatable candidate beyond the first. They open one at a
+/// Further instances of each repeatable candidate
+/// ([`rbprops_sim::effects::EffectDescriptor::repeatable`]: elastic modes and out-of-band
+/// terms; several modes just above the band with different shapes are not one residual
+/// flexibility, each needs its own pole) beyond the first. They open one at a
 /// time ([`Candidate::follows`]); a recording that uses the last one is told so.
 pub const FURTHER_INSTANCES: usize = 3;
 

@@ -945,6 +945,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             form: screen_cord_mass,
         }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/cord_mass.toml"),
         plausible: None,
     },

@@ -752,6 +752,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             form: screening::screen_gravity,
         }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/gravity_stiffness.toml"),
         plausible: Some(plausible_gravity),
     },

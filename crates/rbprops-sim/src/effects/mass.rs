@@ -382,6 +382,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_sensor_table(spec, "masses_kg", 0.0.into())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
         plausible: Some(plausible_sensor_mass),
     },
@@ -397,6 +398,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             form: screen_added_mass,
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/added_mass.toml"),
         plausible: Some(plausible_added_mass),
     },

@@ -274,6 +274,10 @@ pub struct EffectDescriptor {
     /// Its physics depends on the direction of gravity: an entry without its own `up`
     /// takes the spec's ([`CampaignSpec::up`]).
     pub follows_spec_up: bool,
+    /// Physics a recording may hold more than once, each occurrence its own term (elastic
+    /// modes, a pole with its residues; out-of-band terms): the model check also screens
+    /// further instances of it (`{id}_2`, …), each its own term.
+    pub repeatable: bool,
     /// Its example campaign (`fixtures/specs/effects/<id>.toml`: test-case-2 with this
     /// effect alone and 1 % noise).
     pub example: &'static str,

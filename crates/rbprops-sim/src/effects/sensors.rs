@@ -424,6 +424,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             form: screen_transducer_highpass,
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/transducer_highpass.toml"),
         plausible: Some(plausible_highpass),
     },
@@ -442,6 +443,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             t
         }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
         plausible: None,
     },
@@ -458,6 +460,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             t
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_delay.toml"),
         plausible: Some(plausible_delay),
     },
