@@ -25,7 +25,7 @@ use rbprops_sim::CampaignSpec;
 /// The catalogue entry of a candidate: what it is and how to reveal or separate it.
 #[derive(Debug)]
 pub struct Candidate {
-    /// The effect's id (the simulator's catalogue id, or a local one).
+    /// The effect's catalogue id (`{id}_k` for a further instance).
     pub id: String,
     /// One-line title for reports.
     pub title: String,
