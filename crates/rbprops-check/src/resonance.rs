@@ -6,7 +6,8 @@
 //! shapes, so at its neutral point (ψ = 0) neither the shapes nor (ω_m, ζ_m) have a
 //! first-order signature and a score test sees nothing; (ω_m, ζ_m) also enter
 //! non-linearly, on the scale of the mode's half-bandwidth. So the check fits it as
-//! [`InBandResonance`]: one pole with a free real residue `A_ce` per channel and
+//! `InBandResonance` (the effect's screening form, in rbprops-sim's `elastic` module):
+//! one pole with a free real residue `A_ce` per channel and
 //! excitation (linear in `A`, no scale gauge between ψ_c and ψ_e, and general enough for
 //! a resonance local to one sensor mount), screened by a profile over (ω_m, ζ_m)
 //! ([`profile_starts`], over the band's lines and a few frequencies above it, where a
@@ -17,10 +18,6 @@ use crate::predict::Layout;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use rbprops_core::c64;
-use rbprops_sim::effects::elastic::ElasticMode;
-use rbprops_sim::effects::{BuildContext, Effect, ParamInfo, Reach};
-use rbprops_sim::model::{DynamicModel, ExtraMode};
-use rbprops_sim::CampaignSpec;
 use std::f64::consts::TAU;
 
 /// Damping ratios of the (ω_m, ζ_m) profile: light structural damping to a
@@ -46,190 +43,8 @@ fn above_band(frequency_hz: &[f64]) -> Vec<f64> {
     ABOVE_BAND_Q.iter().map(|q| top / q.sqrt()).collect()
 }
 
-/// One in-band mode: `Δ H_ce(ω) = A_ce / (ω_m² − ω² + 2iζ_m ω_m ω)` (receptance, before
-/// the other output effects and the quantity conversion), spec channels × excitations.
-#[derive(Debug, Clone)]
-pub struct InBandResonance {
-    channels: Vec<String>,
-    excitations: Vec<String>,
-    /// `[f_m (Hz), ζ_m, A_ce …]` with `A` channel-major (1/kg).
-    values: Vec<f64>,
-    /// Finite-difference scale of the residues (1/kg).
-    residue_scale: f64,
-}
-
-impl InBandResonance {
-    /// The neutral resonance (all residues zero) of `spec`, at mid-band.
-    pub fn neutral(spec: &CampaignSpec) -> Self {
-        let channels: Vec<String> = spec.channels().iter().map(|c| c.id.clone()).collect();
-        let excitations: Vec<String> = spec.excitations.iter().map(|e| e.id.clone()).collect();
-        let fr = &spec.frequency;
-        let mut values = vec![0.5 * (fr.start_hz + fr.stop_hz).max(1e-3), 0.01];
-        values.resize(2 + channels.len() * excitations.len(), 0.0);
-        Self {
-            channels,
-            excitations,
-            values,
-            residue_scale: 1e-3 / spec.body.mass_kg.max(1e-9),
-        }
-    }
-
-    /// Finite-difference scales, in [`Effect::values`] order.
-    pub fn scales(&self) -> Vec<f64> {
-        let mut s = vec![0.01 * self.values[0], 1e-3];
-        s.resize(self.values.len(), self.residue_scale);
-        s
-    }
-
-    fn residue(&self, c: usize, e: usize) -> f64 {
-        self.values[2 + c * self.excitations.len() + e]
-    }
-
-    /// Rank-1 factors of `A` (ψ_c, ψ_e) and the fraction of ‖A‖²_F they carry.
-    pub fn rank_one(&self) -> (Vec<f64>, Vec<f64>, f64) {
-        let (nc, ne) = (self.channels.len(), self.excitations.len());
-        let a = DMatrix::from_fn(nc, ne, |c, e| self.residue(c, e));
-        let total = a.norm_squared();
-        let svd = a.svd(true, true);
-        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-        let k = svd.singular_values.imax();
-        let s = svd.singular_values[k];
-        // Sign: the largest channel entry positive (ψ → −ψ on both sides is no change).
-        let col = u.column(k);
-        let sign = if col[col.iamax()] < 0.0 { -1.0 } else { 1.0 };
-        let root = s.sqrt();
-        let psi_c = col.iter().map(|x| sign * root * x).collect();
-        let psi_e = vt.row(k).iter().map(|x| sign * root * x).collect();
-        let fraction = if total > 0.0 { s * s / total } else { 0.0 };
-        (psi_c, psi_e, fraction)
-    }
-}
-
-impl Effect for InBandResonance {
-    fn id(&self) -> &'static str {
-        ElasticMode::ID
-    }
-    fn parameters(&self) -> Vec<ParamInfo> {
-        let mut v = vec![
-            ParamInfo {
-                name: "frequency_hz".into(),
-                unit: "Hz",
-                lower: 1e-6,
-                upper: f64::INFINITY,
-                plausible: (0.0, f64::INFINITY),
-            },
-            ParamInfo {
-                name: "damping_ratio".into(),
-                unit: "1",
-                // A resonance, not a broadband correction: beyond ζ = 0.25 the pole
-                // would only soak up misfit of other origin (pinned there = rejected).
-                lower: 1e-5,
-                upper: 0.25,
-                plausible: (0.001, 0.1),
-            },
-        ];
-        for c in &self.channels {
-            for e in &self.excitations {
-                v.push(ParamInfo {
-                    name: format!("residues.{c}.{e}"),
-                    unit: "1/kg",
-                    lower: f64::NEG_INFINITY,
-                    upper: f64::INFINITY,
-                    plausible: (f64::NEG_INFINITY, f64::INFINITY),
-                });
-            }
-        }
-        v
-    }
-    fn values(&self) -> Vec<f64> {
-        self.values.clone()
-    }
-    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
-        if values.len() != self.values.len() {
-            return Err(format!(
-                "elastic_mode expects {} values, got {}",
-                self.values.len(),
-                values.len()
-            ));
-        }
-        if let Some(v) = values.iter().find(|v| !v.is_finite()) {
-            return Err(format!("elastic_mode: non-finite value {v}"));
-        }
-        if !(values[0] > 0.0 && (0.0..1.0).contains(&values[1])) {
-            return Err(format!(
-                "elastic_mode: need f > 0 and 0 ≤ ζ < 1, got f = {}, ζ = {}",
-                values[0], values[1]
-            ));
-        }
-        let mut e = self.clone();
-        e.values = values.to_vec();
-        Ok(Box::new(e))
-    }
-    /// The catalogue's rank-1 form (what the improved spec receives).
-    fn parameters_json(&self) -> serde_json::Value {
-        let (psi_c, psi_e, _) = self.rank_one();
-        let map = |ids: &[String], v: &[f64]| -> serde_json::Map<String, serde_json::Value> {
-            ids.iter()
-                .zip(v)
-                .map(|(k, x)| (k.clone(), (*x).into()))
-                .collect()
-        };
-        serde_json::json!({
-            "frequency_hz": self.values[0],
-            "damping_ratio": self.values[1],
-            "channels": map(&self.channels, &psi_c),
-            "excitations": map(&self.excitations, &psi_e),
-        })
-    }
-    /// One catalogue extra mode per excitation (`ψ_e` a unit vector, `ψ_c = A_{·e}`):
-    /// their sum is the full residue matrix, through the simulator's own extra-mode path
-    /// (so windows and record truncation act on it as on any mode).
-    fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
-        let g = ctx.geometry;
-        let index = |ids: &[String], id: &str| ids.iter().position(|x| x == id);
-        for (e, _) in self.excitations.iter().enumerate() {
-            let at_channels = g
-                .channels
-                .iter()
-                .map(|c| index(&self.channels, &c.id).map_or(0.0, |ci| self.residue(ci, e)))
-                .collect();
-            let at_excitations = g
-                .excitations
-                .iter()
-                .map(|x| f64::from(x.id == self.excitations[e]))
-                .collect();
-            model.extra_modes.push(ExtraMode {
-                frequency_hz: self.values[0],
-                damping_ratio: self.values[1],
-                at_channels,
-                at_excitations,
-            });
-        }
-        Ok(())
-    }
-    /// A residue `A_ce` reaches the FRF of channel c and excitation e alone: it is
-    /// `at_channels[c]` of the extra mode driven by excitation e only
-    /// ([`Self::modify_structure`]); the pole (f_m, ζ_m) reaches every FRF.
-    fn parameter_reach(&self, g: &rbprops_core::Geometry) -> Vec<Reach> {
-        let mut v = vec![Reach::Any; 2];
-        for c in &self.channels {
-            let channel = g.channels.iter().position(|x| &x.id == c);
-            for e in &self.excitations {
-                let mut at = g.excitations.iter().enumerate().filter(|(_, x)| &x.id == e);
-                v.push(match (channel, at.next(), at.next()) {
-                    (Some(channel), Some((excitation, _)), None) => Reach::Cell {
-                        channel,
-                        excitation,
-                    },
-                    _ => Reach::Any,
-                });
-            }
-        }
-        v
-    }
-}
-
-/// Starting points for [`InBandResonance`] from the current normalised residual
+/// Starting points for rbprops-sim's `InBandResonance` (`elastic_mode`'s screening
+/// form) from the current normalised residual
 /// `r = √2 (y − ŷ)/σ` (re, im interleaved over `used`): for every line frequency f_m of
 /// the recording and every ζ_m of `PROFILE_DAMPING`, the residue of each cell is the
 /// linear least-squares coefficient of `b = √2 Q(ω)/(σ (ω_m² − ω² + 2iζ_m ω_m ω))`
@@ -345,6 +160,9 @@ pub fn profile_starts(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rbprops_sim::effects::elastic::InBandResonance;
+    use rbprops_sim::effects::{Effect, Reach};
+    use rbprops_sim::CampaignSpec;
 
     /// The declared reach holds: a residue `A_ce` moved, every FRF but that of c and e
     /// is bit for bit what it was (and that one moved); the pole reaches every FRF.
@@ -452,32 +270,5 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    fn rank_one_factors_reproduce_a_rank_one_residue_matrix() {
-        let psi_c = [0.1, -0.2, 0.05];
-        let psi_e = [0.3, 0.0];
-        let mut values = vec![12.0, 0.01];
-        for c in psi_c {
-            for e in psi_e {
-                values.push(c * e);
-            }
-        }
-        let r = InBandResonance {
-            channels: vec!["a".into(), "b".into(), "c".into()],
-            excitations: vec!["x".into(), "y".into()],
-            values,
-            residue_scale: 1e-3,
-        };
-        let (uc, ue, frac) = r.rank_one();
-        assert!((frac - 1.0).abs() < 1e-12);
-        for c in 0..3 {
-            for e in 0..2 {
-                assert!((uc[c] * ue[e] - psi_c[c] * psi_e[e]).abs() < 1e-14);
-            }
-        }
-        // Sign convention: the largest channel entry is positive.
-        assert!(uc[1] > 0.0);
     }
 }

@@ -1,41 +1,31 @@
-//! Candidate effects for screening: rbprops-sim's physics catalogue, completed by local
-//! implementations (of rbprops-sim's own [`Effect`] trait) for ids the catalogue does
-//! not offer yet. Each candidate starts at its neutral ("absent") parameter values.
+//! Candidate effects for screening: rbprops-sim's physics catalogue, each effect at its
+//! neutral ("absent") parameter values. An effect with a neutral table
+//! ([`NeutralForm::Table`]) is screened in the catalogue's own form by a score test; the
+//! others bring their screening form from their own module in rbprops-sim
+//! ([`NeutralForm::Screened`]: gravity stiffness reparametrised, high-pass, record length
+//! and cord mass through reciprocals, added mass through its non-rigid part, elastic
+//! modes in their in-band form and as a residual flexibility).
 //!
-//! The per-effect screening forms live in the submodules: `local` (effects the check
-//! implements itself), `gravity`, `reciprocal` (catalogue effects through another
-//! parametrisation), `non_rigid` (`added_mass`), and `lag` (the residual's delay scan).
+//! What stays here is the check's own reasoning: the notes on a spec whose vertical or
+//! free directions are in doubt (`gravity`) and the residual's delay scan (`lag`).
 
-use rbprops_sim::effects::elastic::ElasticMode;
-use rbprops_sim::effects::gravity::GravityStiffness;
-use rbprops_sim::effects::mass::AddedMass;
-use rbprops_sim::effects::processing::RecordTruncation;
-use rbprops_sim::effects::sensors::TransducerHighpass;
 mod gravity;
 mod lag;
-mod local;
-mod non_rigid;
-mod reciprocal;
 
 pub use gravity::{free_direction_note, vertical_axis_doubt};
 pub use lag::delay_peaks;
-pub use local::{local_effect, tilted_direction, LocalEffect};
-pub use non_rigid::NonRigidMass;
-pub use reciprocal::Reciprocal;
-
-use gravity::hanging;
-use local::{local_candidates, Kind, RESIDUAL_FLEXIBILITY_TEXT};
-use non_rigid::added_mass_candidate;
-use reciprocal::{cord_mass_candidate, record_truncation_candidate, transducer_highpass_candidate};
+/// How a candidate is screened (rbprops-sim's [`rbprops_sim::effects::screening::ScreeningKind`]).
+pub use rbprops_sim::effects::screening::ScreeningKind as Screening;
 
 use rbprops_core::Geometry;
+use rbprops_sim::effects::screening::ScreeningForm;
 use rbprops_sim::effects::{Effect, NeutralForm};
 use rbprops_sim::CampaignSpec;
 
 /// The catalogue entry of a candidate: what it is and how to reveal or separate it.
 #[derive(Debug)]
 pub struct Candidate {
-    /// The effect's id (the simulator's catalogue id, or a local one).
+    /// The effect's catalogue id (`{id}_k` for a further instance).
     pub id: String,
     /// One-line title for reports.
     pub title: String,
@@ -45,7 +35,8 @@ pub struct Candidate {
     pub neutral: Vec<f64>,
     /// Typical parameter magnitude (finite-difference step scale).
     pub scales: Vec<f64>,
-    /// "rbprops-sim" or "rbprops-check (local)".
+    /// Where its form comes from: "rbprops-sim" for a neutral table, else its screening
+    /// form's ([`ScreeningForm::source`]).
     pub source: &'static str,
     /// What measurement or side information would reveal it when the free parameters
     /// absorb it.
@@ -70,99 +61,40 @@ impl Candidate {
     }
 }
 
-/// How a candidate is screened: its first-order evidence at the current model.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Screening {
-    /// Score (Lagrange-multiplier) test at the neutral point.
-    Score,
-    /// The signature vanishes to every order at the neutral point (a record length →
-    /// ∞, a cord mass → 0 whose modes leave the band), so no score exists: a profile
-    /// over these parameter points (linearised likelihood ratio with the current
-    /// model's parameters re-adjusted). With `delay_scan`, a record length seen through
-    /// φ = 1/T: the profile also tries the lags [`delay_peaks`] finds in the residual.
-    Profile {
-        /// Parameter points of the profile, each a full parameter vector of the candidate.
-        grid: Vec<Vec<f64>>,
-        /// Also try the lags the residual's delay scan finds (a record length via `φ = 1/T`).
-        delay_scan: bool,
-    },
-    /// An in-band resonance ([`crate::resonance`]), bilinear in its shapes: the profile
-    /// over (ω, ζ) of the linear residue fit to the residual proposes its points.
-    Resonance,
-}
-
 /// Human title and "what would reveal or separate it" for a catalogue id (from
-/// rbprops-sim's registry) or the local residual flexibility.
+/// rbprops-sim's registry).
 pub fn describe(id: &str) -> (&'static str, &'static str) {
-    if let Some(d) = rbprops_sim::effects::descriptor(id) {
-        return (d.title, d.reveal);
+    match rbprops_sim::effects::descriptor(id) {
+        Some(d) => (d.title, d.reveal),
+        None => ("catalogue effect", "side information on this effect"),
     }
-    if id == Kind::ResidualFlexibility.id() {
-        return RESIDUAL_FLEXIBILITY_TEXT;
-    }
-    ("catalogue effect", "side information on this effect")
-}
-
-/// The parameter table of a neutral ("absent") instance of a catalogue effect, from
-/// rbprops-sim's registry; `None` for an id screened through a local reparametrised
-/// form ([`NeutralForm::Reparametrised`]: `record_truncation` and `transducer_highpass`
-/// through reciprocals, `cord_mass` by a profile, `gravity_stiffness`, `added_mass`,
-/// `elastic_mode` as residual flexibility and an in-band resonance; module docs) or
-/// unknown.
-fn neutral_entry(id: &str, spec: &CampaignSpec, g: &Geometry) -> Option<toml::Table> {
-    match rbprops_sim::effects::descriptor(id)?.neutral {
-        NeutralForm::Table(build) => Some(build(spec, g)),
-        NeutralForm::Reparametrised => None,
-    }
-}
-
-/// Whether the model check screens a catalogue id through its own local form, because
-/// the catalogue's parametrisation has no neutral point (see module docs).
-fn reparametrised(id: &str) -> bool {
-    rbprops_sim::effects::descriptor(id)
-        .is_some_and(|d| matches!(d.neutral, NeutralForm::Reparametrised))
 }
 
 /// The candidate list for a spec: rbprops-sim's catalogue
-/// ([`rbprops_sim::effects::registry`], in its order) at neutral parameter values, completed by
-/// the local effects the catalogue does not offer (yet). Effects already switched on in
-/// the nominal spec are not candidates. Also returns notes on catalogue effects that
-/// could not be screened.
+/// ([`rbprops_sim::effects::registry`]) at neutral parameter values, those with a neutral
+/// table first in its order, then those with a screening form in theirs
+/// ([`rbprops_sim::effects::screening::Screened::rank`]), then the further instances of
+/// repeatable physics. Effects already switched on in the nominal spec are not
+/// candidates. Also returns notes on catalogue effects that could not be screened.
 pub fn candidates(spec: &CampaignSpec, geometry: &Geometry) -> (Vec<Candidate>, Vec<String>) {
     let mut out: Vec<Candidate> = Vec::new();
     let mut notes = Vec::new();
     let in_spec: Vec<&str> = spec.effects.iter().map(|e| e.id.as_str()).collect();
     catalogue_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
-    local_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
-    if reparametrised(TransducerHighpass::ID) && !in_spec.contains(&TransducerHighpass::ID) {
-        out.push(transducer_highpass_candidate(geometry));
-    }
-    if !in_spec.contains(&RecordTruncation::ID) {
-        out.push(record_truncation_candidate(spec));
-    }
-    out.extend(cord_mass_candidate(spec, &in_spec, &mut notes));
-    if !in_spec.contains(&AddedMass::ID) {
-        out.push(added_mass_candidate());
-    }
-    if !in_spec.contains(&ElasticMode::ID) && !spec.channels().is_empty() {
-        out.push(elastic_mode_candidate(spec));
-    }
+    screened_candidates(spec, geometry, &in_spec, &mut out, &mut notes);
     let further: Vec<Candidate> = out
         .iter()
-        .filter(|c| REPEATABLE.contains(&c.id.as_str()))
+        .filter(|c| rbprops_sim::effects::descriptor(&c.id).is_some_and(|d| d.repeatable))
         .flat_map(|c| further_instances(c, FURTHER_INSTANCES))
         .collect();
     out.extend(further);
     (out, notes)
 }
 
-/// Physics a recording may hold more than once, each occurrence its own term: elastic
-/// modes (a pole with its residues, in or above the band) and out-of-band terms (one
-/// pole per excitation with a general residue matrix). Several modes just above the band
-/// with different shapes are not one residual flexibility: each needs its own pole.
-const REPEATABLE: [&str; 2] = [ElasticMode::ID, "residual_flexibility"];
-
-/// Further instances of each repeatable candidate beyond the first. They open one at a
+/// Further instances of each repeatable candidate
+/// ([`rbprops_sim::effects::EffectDescriptor::repeatable`]: elastic modes and out-of-band
+/// terms; several modes just above the band with different shapes are not one residual
+/// flexibility, each needs its own pole) beyond the first. They open one at a
 /// time ([`Candidate::follows`]); a recording that uses the last one is told so.
 pub const FURTHER_INSTANCES: usize = 3;
 
@@ -195,9 +127,9 @@ fn further_instances(first: &Candidate, n: usize) -> Vec<Candidate> {
         .collect()
 }
 
-/// The catalogue's effects, in its order, at their neutral values and screened by a score;
-/// skipped when the spec switches them on or the check reparametrises them, and noted when
-/// they have no neutral form or no parameters.
+/// The catalogue's effects with a neutral table, in its order, at their neutral values and
+/// screened by a score; skipped when the spec switches them on, and noted when they have
+/// no parameters.
 fn catalogue_candidates(
     spec: &CampaignSpec,
     geometry: &Geometry,
@@ -207,15 +139,13 @@ fn catalogue_candidates(
 ) {
     for d in rbprops_sim::effects::registry() {
         let id = d.id;
-        if in_spec.contains(&id) || reparametrised(id) {
-            continue;
-        }
-        let Some(parameters) = neutral_entry(id, spec, geometry) else {
-            notes.push(format!(
-                "catalogue effect '{id}' is not screened: its parametrisation has no neutral (\"absent\") value the model check can start from"
-            ));
+        let NeutralForm::Table(build) = d.neutral else {
             continue;
         };
+        if in_spec.contains(&id) {
+            continue;
+        }
+        let parameters = build(spec, geometry);
         let entry = rbprops_sim::spec::EffectSpec {
             id: id.to_string(),
             parameters,
@@ -249,29 +179,51 @@ fn catalogue_candidates(
     }
 }
 
-/// An elastic mode in the band, in its in-band form (one pole, a residue per channel and
-/// excitation), screened by the resonance search.
-fn elastic_mode_candidate(spec: &CampaignSpec) -> Candidate {
-    let (title, reveal) = describe(ElasticMode::ID);
-    let e = crate::resonance::InBandResonance::neutral(spec);
-    Candidate {
-        id: ElasticMode::ID.into(),
-        title: title.into(),
-        neutral: e.values(),
-        scales: e.scales(),
-        effect: Box::new(e),
-        source: "rbprops-sim (in-band form: one pole, a residue per channel and excitation; screened by a profile)",
-        reveal,
-        screening: Screening::Resonance,
-        follows: None,
+/// The catalogue's effects with a screening form, in the forms' order, each at its
+/// neutral point; skipped when the spec switches them on or the form has nothing to
+/// screen, and noted when the form says why it is not screened.
+fn screened_candidates(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    in_spec: &[&str],
+    out: &mut Vec<Candidate>,
+    notes: &mut Vec<String>,
+) {
+    let mut screened: Vec<_> = rbprops_sim::effects::registry()
+        .iter()
+        .filter_map(|d| match d.neutral {
+            NeutralForm::Screened(s) => Some((*d, s)),
+            NeutralForm::Table(_) => None,
+        })
+        .collect();
+    screened.sort_by_key(|(_, s)| s.rank);
+    for (d, s) in screened {
+        if in_spec.contains(&d.id) {
+            continue;
+        }
+        match (s.form)(spec, geometry) {
+            Ok(Some(form)) => out.push(Candidate {
+                id: d.id.to_string(),
+                title: d.title.to_string(),
+                effect: form.effect,
+                neutral: form.neutral,
+                scales: form.scales,
+                source: form.source,
+                reveal: d.reveal,
+                screening: form.screening,
+                follows: None,
+            }),
+            Ok(None) => {}
+            Err(note) => notes.push(note),
+        }
     }
 }
 
-/// The spec entry of a fitted effect: the catalogue's own form where one exists
-/// (`gravity_stiffness` → `cord_length_m = [1/φ₁]`), else the effect's parameters (the
-/// per-sensor high-pass writes its catalogue form, `time_constants_s` per channel). The
-/// gravity entry gets `up`: the spec's vertical tilted by the fitted (φ₃, φ₄)
-/// ([`tilted_direction`]) when they are not zero, else the spec's `up` if it gives one.
+/// The spec entry of a fitted effect: its own [`Effect::spec_entry`], the catalogue's
+/// form where the screening form has another parametrisation (`gravity_stiffness` →
+/// `cord_length_m = [1/φ₁]`, `record_truncation` → `record_length_s = 1/φ`), else the
+/// effect's parameters (the per-sensor high-pass writes its catalogue form,
+/// `time_constants_s` per channel).
 pub fn catalogue_entry(
     e: &dyn Effect,
     spec: &CampaignSpec,
@@ -282,81 +234,18 @@ pub fn catalogue_entry(
             e.id()
         ));
     }
-    if e.id() == RecordTruncation::ID
-        && e.parameters()
-            .first()
-            .is_some_and(|p| p.name == "inverse_record_length_per_s")
-    {
-        let v = e.values();
-        if !(v[0] > 0.0) {
-            return Err("record_truncation: fitted 1/T is not positive".into());
-        }
-        let mut t = toml::Table::new();
-        t.insert("record_length_s".into(), (1.0 / v[0]).into());
-        return Ok(rbprops_sim::spec::EffectSpec {
-            id: e.id().to_string(),
-            parameters: t,
-        });
-    }
-    let parameters = if e.id() == GravityStiffness::ID
-        && e.parameters()
-            .first()
-            .is_some_and(|p| p.name == gravity::INVERSE_LENGTH)
-    {
-        let v = e.values();
-        let names: Vec<String> = e.parameters().into_iter().map(|p| p.name).collect();
-        let phi = gravity::GravityPhi::from_named(&names, &v);
-        if !(phi.inverse_length > 0.0) {
-            return Err("gravity_stiffness: fitted 1/ℓ is not positive".into());
-        }
-        let mut t = toml::Table::new();
-        let (a, b) = phi.tilt;
-        if let Some(i) = spec.setups.iter().position(|s| !s.cords.is_empty()) {
-            // Hanging lengths scaled by ρ = (1/φ₁)/L̄, written as unstretched lengths
-            // L₀ = ρL − T/k (tensions of the nominal body: the fitted mass moves T/k by
-            // the same fraction, well below the length's standard error).
-            let z = tilted_direction(&spec.up_vector(), a, b);
-            let eq = hanging(spec, i, &spec.properties().mass_matrix().0, &z)?;
-            let lbar = eq.lengths.iter().sum::<f64>() / eq.lengths.len() as f64;
-            let rho = 1.0 / (phi.inverse_length * lbar);
-            let l0: Vec<toml::Value> = spec
-                .cords(i)
-                .iter()
-                .zip(eq.lengths.iter().zip(&eq.tensions))
-                .map(|(c, (l, tn))| (rho * l - tn / c.axial_stiffness).into())
-                .collect();
-            t.insert("unstretched_length_m".into(), toml::Value::Array(l0));
-            if spec.setups.len() > 1 {
-                t.insert("setup".into(), spec.setups[i].id.clone().into());
-            }
-        } else {
-            t.insert(
-                "cord_length_m".into(),
-                toml::Value::Array(vec![(1.0 / phi.inverse_length).into()]),
-            );
-            if let Some((i, l0)) = gravity::axial_free_lengths(spec, &phi)? {
-                t.insert(
-                    "unstretched_length_m".into(),
-                    toml::Value::Array(l0.into_iter().map(toml::Value::from).collect()),
-                );
-                if spec.setups.len() > 1 {
-                    t.insert("setup".into(), spec.setups[i].id.clone().into());
-                }
-            }
-        }
-        if a != 0.0 || b != 0.0 {
-            let u = tilted_direction(&spec.up_vector(), a, b);
-            t.insert("up".into(), rbprops_sim::spec::up_value([u.x, u.y, u.z]));
-        } else if let Some(up) = spec.up {
-            t.insert("up".into(), rbprops_sim::spec::up_value(up));
-        }
-        t
-    } else {
-        toml::Table::try_from(e.parameters_json())
-            .map_err(|err| format!("effect '{}': parameters do not map to TOML: {err}", e.id()))?
-    };
-    Ok(rbprops_sim::spec::EffectSpec {
-        id: e.id().to_string(),
-        parameters,
-    })
+    e.spec_entry(spec)
+}
+
+/// The screening form of catalogue effect `id` for `spec` at `values` (for fixtures and
+/// tests: the recording side of a concealed effect in its screening parametrisation).
+pub fn screening_effect(
+    id: &str,
+    spec: &CampaignSpec,
+    values: &[f64],
+) -> Result<Box<dyn Effect>, String> {
+    let g = spec.geometry().map_err(|e| e.to_string())?;
+    let form: ScreeningForm = rbprops_sim::effects::screening_form(id, spec, &g)?
+        .ok_or_else(|| format!("no screening form of '{id}' for this spec"))?;
+    form.effect.with_values(values)
 }

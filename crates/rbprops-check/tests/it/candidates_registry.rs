@@ -134,7 +134,8 @@ fn gravity_candidate_with_turned_springs_is_the_generators_hanging_stiffness() {
     spec.body.mass_kg = truth["properties"]["mass_kg"].as_f64().unwrap();
     let g = spec.geometry().unwrap();
     let stiffness = |phi: &[f64]| {
-        let e = rbprops_check::candidates::local_effect("gravity_stiffness", &spec, phi).unwrap();
+        let e =
+            rbprops_check::candidates::screening_effect("gravity_stiffness", &spec, phi).unwrap();
         rbprops_sim::build_models(&spec, &g, &[e]).unwrap()[0]
             .model
             .stiffness

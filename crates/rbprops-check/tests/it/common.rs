@@ -1,7 +1,7 @@
 //! Fixture helpers: recordings simulated with concealed effects.
 #![allow(dead_code)]
 
-use rbprops_check::candidates::local_effect;
+use rbprops_check::candidates::screening_effect;
 use rbprops_check::predict::{predict, Layout};
 use rbprops_check::{CheckOptions, RecordingNoise};
 use rbprops_core::{FrfSet, Geometry};
@@ -29,7 +29,7 @@ pub fn record(
     let g = truth.geometry().unwrap();
     let effs: Vec<Box<dyn Effect>> = effects
         .iter()
-        .map(|(id, v)| local_effect(id, truth, v).unwrap())
+        .map(|(id, v)| screening_effect(id, truth, v).unwrap())
         .collect();
     let mut frf = FrfSet::zeros(
         truth.quantity,

@@ -49,11 +49,14 @@
 //! effect's neutral value).
 
 use super::gravity::{cord_tensions, Cord};
+use super::screening::{
+    Build, Reciprocal, Screened, ScreeningForm, ScreeningKind, ScreeningResult,
+};
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::{DynamicModel, ExtraMode};
 use crate::spec::CampaignSpec;
 use nalgebra::{DMatrix, Matrix6xX};
-use rbprops_core::{rigid_transform, MassMatrix6, Mat6, Vec3, Vec6};
+use rbprops_core::{rigid_transform, Geometry, MassMatrix6, Mat6, Vec3, Vec6};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
@@ -778,6 +781,148 @@ impl Effect for CordMass {
     }
 }
 
+/// The `cord_mass` entry with one mass per length μ (kg/m) and one length ℓ (m) for
+/// every cord hanging along `up` (the spec's; the catalogue's defaults for the cord
+/// modes: 8 per direction, 1 % damping).
+fn cord_entry(mu: f64, l: f64, up: Option<[f64; 3]>) -> crate::spec::EffectSpec {
+    let mut t = toml::Table::new();
+    if let Some(up) = up {
+        t.insert("up".into(), crate::spec::up_value(up));
+    }
+    t.insert(
+        "mass_per_length_kg_per_m".into(),
+        toml::Value::Array(vec![mu.into()]),
+    );
+    t.insert("cord_length_m".into(), toml::Value::Array(vec![l.into()]));
+    crate::spec::EffectSpec {
+        id: CordMass::ID.into(),
+        parameters: t,
+    }
+}
+
+/// `cord_mass` through [`cord_entry`]; μ = 0 is "absent" whatever ℓ.
+fn cord_build(v: &[f64], up: Option<[f64; 3]>) -> Result<Option<Box<dyn Effect>>, String> {
+    if !(v[0] >= 0.0 && v[0].is_finite() && v[1] > 0.0 && v[1].is_finite()) {
+        return Err(format!(
+            "cord μ = {} kg/m, ℓ = {} m: need μ ≥ 0, ℓ > 0",
+            v[0], v[1]
+        ));
+    }
+    if v[0] == 0.0 {
+        return Ok(None);
+    }
+    super::parse_effect(&cord_entry(v[0], v[1], up)).map(Some)
+}
+
+/// Cord masses `m = μℓ` (kg) of the `cord_mass` profile, a factor 2.5 apart.
+const CORD_MASSES_KG: [f64; 4] = [0.015, 0.04, 0.1, 0.25];
+
+/// Ratio of neighbouring first string frequencies on the `cord_mass` profile: the
+/// half-power width `2ζ` of a cord mode at the catalogue's ζ = 1 %, so that any string
+/// mode is within half a width of a profile frequency.
+const CORD_FREQUENCY_RATIO: f64 = 1.02;
+
+/// Cord lengths ℓ (m) and masses per length μ (kg/m) the profile spans.
+const CORD_LENGTHS_M: (f64, f64) = (0.2, 5.0);
+
+const CORD_MASSES_PER_LENGTH: (f64, f64) = (0.005, 0.3);
+
+/// Mean static tension T̄ (N) of the cords of every set-up with springs, for the spec's
+/// body (the statics of rbprops-sim's `cord_mass`); `None` when it has no positive one.
+fn mean_cord_tension(spec: &CampaignSpec) -> Option<f64> {
+    let cm: CordMass = toml::Value::Table(cord_entry(1.0, 1.0, spec.up).parameters)
+        .try_into()
+        .ok()?;
+    let props = spec.properties();
+    let mut tensions = Vec::new();
+    for (si, s) in spec.setups.iter().enumerate() {
+        if !s.springs.is_empty() {
+            let cords = cm.cords(spec, si, props.mass, &props.com).ok()?;
+            tensions.extend(cords.iter().map(|c| c.tension));
+        }
+    }
+    let t = tensions.iter().sum::<f64>() / tensions.len() as f64;
+    (t > 0.0 && t.is_finite()).then_some(t)
+}
+
+/// The `cord_mass` profile over (μ, ℓ), laid out as cord mass `m = μℓ` × first string
+/// frequency `f = (1/2ℓ)√(T̄/μ) = ½√(T̄/(mℓ))` at the mean tension T̄, i.e.
+/// `ℓ = T̄/(4f²m)`, `μ = m/ℓ`: the string modes are narrow peaks, so the frequencies step
+/// by [`CORD_FREQUENCY_RATIO`] from the band's start (or the longest cord) to 1.2× its
+/// stop, while the cord mass, which only scales them, steps coarsely. Points outside
+/// [`CORD_LENGTHS_M`] × [`CORD_MASSES_PER_LENGTH`] are left out.
+fn cord_grid(tension: f64, start_hz: f64, stop_hz: f64) -> Vec<Vec<f64>> {
+    let mut grid = Vec::new();
+    for m in CORD_MASSES_KG {
+        let length = |f: f64| tension / (4.0 * f * f * m);
+        let f0 = start_hz.max(0.5 * (tension / (m * CORD_LENGTHS_M.1)).sqrt());
+        let points = (0..)
+            .map(|k| f0 * CORD_FREQUENCY_RATIO.powi(k))
+            .take_while(|&f| f <= 1.2 * stop_hz && length(f) >= CORD_LENGTHS_M.0);
+        for f in points {
+            let (mu, l) = (m / length(f), length(f));
+            if (CORD_MASSES_PER_LENGTH.0..=CORD_MASSES_PER_LENGTH.1).contains(&mu) {
+                grid.push(vec![mu, l]);
+            }
+        }
+    }
+    grid
+}
+
+/// `cord_mass`'s screening form: one mass per length μ and one length ℓ for all cords
+/// ([`Reciprocal`] through μ, 0 meaning absent). At first order in μ a massive cord is a
+/// point mass μℓ/3 at its attachment (absorbed by the free inertia); its visible part,
+/// the string modes `f_n = (n/2ℓ)√(T/μ)`, is non-analytic at μ = 0, so it is screened by
+/// a profile over (μ, ℓ) ([`cord_grid`]). Only when the spec has springs whose tension
+/// puts a plausible cord's string mode in (or just above) the band, with a note when it
+/// has springs but no such cord.
+fn screen_cord_mass(spec: &CampaignSpec, _g: &Geometry) -> ScreeningResult {
+    let has_springs = spec.setups.iter().any(|s| !s.springs.is_empty());
+    if !has_springs {
+        return Ok(None);
+    }
+    let grid = mean_cord_tension(spec)
+        .map(|t| cord_grid(t, spec.frequency.start_hz, spec.frequency.stop_hz))
+        .unwrap_or_default();
+    if grid.is_empty() {
+        return Err("cord_mass is not screened: the springs hold no cord tension, or no cord of plausible length and mass has a string mode below 1.2× the band's top".into());
+    }
+    let infos = vec![
+        ParamInfo {
+            name: "mass_per_length_kg_per_m".into(),
+            unit: "kg/m",
+            lower: 0.0,
+            upper: 10.0,
+            plausible: (0.01, 0.15),
+        },
+        ParamInfo {
+            name: "cord_length_m".into(),
+            unit: "m",
+            lower: 0.05,
+            upper: 50.0,
+            plausible: (0.2, 5.0),
+        },
+    ];
+    let build: Build = {
+        let up = spec.up;
+        std::sync::Arc::new(move |v: &[f64]| cord_build(v, up))
+    };
+    Ok(Some(ScreeningForm {
+        effect: Box::new(Reciprocal::new(CordMass::ID, infos, vec![0.0, 1.0], build)),
+        neutral: vec![0.0, 1.0],
+        // The parameters' own magnitudes, so the finite-difference step is 1e-7 of
+        // μ and ℓ: the string modes make some FRF values (antiresonances, cross
+        // terms near 0 Hz) 1e-9 of the largest, where the model's roundoff is ~1e-7
+        // of the value, and a smaller step turns that into Jacobian noise.
+        scales: vec![0.1, 1.0],
+        source: "rbprops-sim (screened by a parameter profile)",
+        screening: ScreeningKind::Profile {
+            grid,
+            delay_scan: false,
+        },
+    }))
+}
+
 /// [`super::EffectDescriptor::parse`] of `cord_mass`: the table, checked.
 fn parse_cord_mass(spec: &crate::spec::EffectSpec) -> Result<Box<dyn Effect>, String> {
     let c: CordMass = super::params(spec)?;
@@ -795,8 +940,12 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "the cords' mass and length, or a suspension with lighter or shorter cords",
         docs: "E3: the suspension cords' mass and their string and surge modes, `mass_per_length_kg_per_m`, `cord_length_m`",
         parse: parse_cord_mass,
-        neutral: super::NeutralForm::Reparametrised,
+        neutral: super::NeutralForm::Screened(Screened {
+            rank: 4,
+            form: screen_cord_mass,
+        }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/cord_mass.toml"),
         plausible: None,
     },

@@ -253,6 +253,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::table([("gains", super::per_id(super::channel_ids(g), 1.0.into()))])
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_gain.toml"),
         plausible: Some(plausible_channel_gain),
     },
@@ -268,6 +269,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::table([("gains", super::per_id(super::excitation_ids(g), 1.0.into()))])
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/excitation_gain.toml"),
         plausible: Some(plausible_excitation_gain),
     },
@@ -280,6 +282,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         parse: super::parse_as::<GlobalGain>,
         neutral: super::NeutralForm::Table(|_, _| super::table([("gain", 1.0.into())])),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/global_gain.toml"),
         plausible: Some(plausible_global_gain),
     },

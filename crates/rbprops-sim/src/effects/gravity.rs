@@ -36,6 +36,8 @@
 //! of springs only. The gravity direction of the other gravity effects stays the spec's
 //! `up` (its tilt with the body at equilibrium is second order for them).
 
+pub mod screening;
+
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
@@ -772,8 +774,12 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "a second suspension length, or the measured cord geometry",
         docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance, or their free lengths `unstretched_length_m`), or the set-up's cords hanging at their static equilibrium",
         parse: parse_gravity_stiffness,
-        neutral: super::NeutralForm::Reparametrised,
+        neutral: super::NeutralForm::Screened(super::screening::Screened {
+            rank: 1,
+            form: screening::screen_gravity,
+        }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/gravity_stiffness.toml"),
         plausible: Some(plausible_gravity),
     },

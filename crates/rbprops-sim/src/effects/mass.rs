@@ -11,6 +11,7 @@
 //! R. Its rigid-structured part is what a free inertia absorbs; the rest (11 of its 21
 //! entries) is what a 21-parameter mass sees beyond a 10-parameter rigid one.
 
+use super::screening::{Screened, ScreeningForm, ScreeningKind, ScreeningResult};
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
@@ -280,6 +281,95 @@ fn plausible_added_mass(
     )])
 }
 
+/// `added_mass` restricted to the complement of the rigid-body mass structure (see the
+/// module docs): `A = [[a_xx, a_xy, a_xz], [a_xy, a_yy, a_yz], [a_xz, a_yz, −a_xx − a_yy]]`
+/// (traceless, kg) and `B` symmetric (kg m), `C = 0`.
+#[derive(Debug, Clone)]
+pub struct NonRigidMass {
+    /// a_xx, a_yy, a_xy, a_xz, a_yz, then b_xx, b_yy, b_zz, b_xy, b_xz, b_yz.
+    values: [f64; 11],
+}
+
+impl NonRigidMass {
+    fn catalogue(&self) -> AddedMass {
+        let v = &self.values;
+        let a = [
+            [v[0], v[2], v[3]],
+            [v[2], v[1], v[4]],
+            [v[3], v[4], -v[0] - v[1]],
+        ];
+        let b = [[v[5], v[8], v[9]], [v[8], v[6], v[10]], [v[9], v[10], v[7]]];
+        AddedMass {
+            translational_kg: a,
+            coupling_kg_m: b,
+            rotational_kg_m2: [[0.0; 3]; 3],
+        }
+    }
+}
+
+impl Effect for NonRigidMass {
+    fn id(&self) -> &'static str {
+        AddedMass::ID
+    }
+    fn order(&self) -> u8 {
+        0
+    }
+    fn parameters(&self) -> Vec<ParamInfo> {
+        let info = |name: &str, unit: &'static str| ParamInfo {
+            name: name.to_string(),
+            unit,
+            lower: f64::NEG_INFINITY,
+            upper: f64::INFINITY,
+            plausible: (-1.0, 1.0),
+        };
+        let a = ["xx", "yy", "xy", "xz", "yz"]
+            .map(|k| info(&format!("translational_deviator_kg.{k}"), "kg"));
+        let b = ["xx", "yy", "zz", "xy", "xz", "yz"]
+            .map(|k| info(&format!("coupling_symmetric_kg_m.{k}"), "kg m"));
+        a.into_iter().chain(b).collect()
+    }
+    fn values(&self) -> Vec<f64> {
+        self.values.to_vec()
+    }
+    fn with_values(&self, values: &[f64]) -> Result<Box<dyn Effect>, String> {
+        let values: [f64; 11] = values
+            .try_into()
+            .map_err(|_| format!("added_mass expects 11 values, got {}", values.len()))?;
+        if values.iter().any(|x| !x.is_finite()) {
+            return Err("added_mass: values must be finite".into());
+        }
+        Ok(Box::new(NonRigidMass { values }))
+    }
+    /// The catalogue's form (`translational_kg`, `coupling_kg_m`, `rotational_kg_m2`).
+    fn parameters_json(&self) -> serde_json::Value {
+        self.catalogue().parameters_json()
+    }
+    fn modify_structure(
+        &self,
+        _ctx: &BuildContext,
+        model: &mut DynamicModel,
+    ) -> Result<(), String> {
+        model.mass += self.catalogue().matrix();
+        Ok(())
+    }
+}
+
+/// `added_mass`'s screening form: its non-rigid part ([`NonRigidMass`]). Of a symmetric
+/// 6×6 `M_a = [[A, B], [Bᵀ, C]]`, the rigid-structured part (A ∝ I, B antisymmetric, any
+/// C: 10 directions) is exactly what the free inertia absorbs, so only the rest is
+/// fitted: A traceless, B symmetric, C = 0 (11 parameters), screened by a score. The
+/// rigid part stays in the reported inertia, which is then that of the body with it.
+fn screen_added_mass(_spec: &CampaignSpec, _g: &rbprops_core::Geometry) -> ScreeningResult {
+    let e = NonRigidMass { values: [0.0; 11] };
+    Ok(Some(ScreeningForm {
+        neutral: e.values(),
+        scales: [vec![0.05; 5], vec![0.01; 6]].concat(),
+        effect: Box::new(e),
+        source: "rbprops-sim (its non-rigid part; the rigid part is the free inertia's)",
+        screening: ScreeningKind::Score,
+    }))
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: SensorMass::ID,
@@ -292,6 +382,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_sensor_table(spec, "masses_kg", 0.0.into())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_mass.toml"),
         plausible: Some(plausible_sensor_mass),
     },
@@ -302,8 +393,12 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "a test in a lighter fluid or vacuum, or the article's face areas (potential-flow added mass ≈ (8/3)ρR³ per face)",
         docs: "E15: a symmetric 6×6 mass about the origin without the rigid structure (air on large faces, fluid)",
         parse: super::parse_as::<AddedMass>,
-        neutral: super::NeutralForm::Reparametrised,
+        neutral: super::NeutralForm::Screened(Screened {
+            rank: 5,
+            form: screen_added_mass,
+        }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/added_mass.toml"),
         plausible: Some(plausible_added_mass),
     },

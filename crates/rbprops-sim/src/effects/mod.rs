@@ -18,6 +18,7 @@ pub mod mounts;
 pub mod orientation;
 pub mod placement;
 pub mod processing;
+pub mod screening;
 pub mod sensors;
 
 use crate::model::DynamicModel;
@@ -131,6 +132,12 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn parameter_reach(&self, _geometry: &Geometry) -> Vec<Reach> {
         vec![Reach::Any; self.values().len()]
     }
+    /// Its catalogue entry (`[[effect]]` table) in `spec`: by default its parameters as
+    /// the spec writes them ([`Self::parameters_json`]). A screening form in another
+    /// parametrisation ([`screening`]) writes the catalogue's own.
+    fn spec_entry(&self, _spec: &CampaignSpec) -> Result<EffectSpec, String> {
+        table_entry(self.id(), self.parameters_json())
+    }
     /// The effect as the truth records it: its id and parameters.
     fn record(&self) -> EffectRecord {
         EffectRecord {
@@ -210,16 +217,38 @@ pub(crate) fn excitation_reach<'a>(
     .collect()
 }
 
+/// The catalogue entry of effect `id` whose spec parameters are `json` (an object).
+pub(crate) fn table_entry(id: &str, json: serde_json::Value) -> Result<EffectSpec, String> {
+    let parameters = toml::Table::try_from(json)
+        .map_err(|err| format!("effect '{id}': parameters do not map to TOML: {err}"))?;
+    Ok(EffectSpec {
+        id: id.to_string(),
+        parameters,
+    })
+}
+
 /// What the model check starts an effect's screening from (docs/physics.md, M5).
 #[derive(Clone, Copy)]
 pub enum NeutralForm {
     /// The spec parameter table of the effect switched on but absent (every gain 1,
     /// every added stiffness 0), for a spec and its geometry: a score test starts there.
     Table(fn(&CampaignSpec, &Geometry) -> toml::Table),
-    /// The catalogue's parametrisation has no neutral point (a length or time constant
-    /// absent only at infinity, a shape bilinear at zero): the model check screens the
-    /// effect through its own reparametrised local form.
-    Reparametrised,
+    /// The catalogue's parametrisation has no usable neutral point (a length or time
+    /// constant absent only at infinity, a shape bilinear at zero), or the effect needs
+    /// its own scales or profile: its module builds a screening form in another
+    /// parametrisation ([`screening::Screened`]).
+    Screened(screening::Screened),
+}
+
+/// The screening form of effect `id` for a spec and its geometry: its descriptor's
+/// [`NeutralForm::Screened`] form (`Ok(None)`: nothing to screen, or the effect is
+/// screened from its neutral table); unknown ids are an error.
+pub fn screening_form(id: &str, spec: &CampaignSpec, g: &Geometry) -> screening::ScreeningResult {
+    match descriptor(id).map(|d| d.neutral) {
+        Some(NeutralForm::Screened(s)) => (s.form)(spec, g),
+        Some(NeutralForm::Table(_)) => Ok(None),
+        None => Err(format!("no effect '{id}'")),
+    }
 }
 
 /// One effect of the physics catalogue: everything the crates need to know about it,
@@ -245,6 +274,10 @@ pub struct EffectDescriptor {
     /// Its physics depends on the direction of gravity: an entry without its own `up`
     /// takes the spec's ([`CampaignSpec::up`]).
     pub follows_spec_up: bool,
+    /// Physics a recording may hold more than once, each occurrence its own term (elastic
+    /// modes, a pole with its residues; out-of-band terms): the model check also screens
+    /// further instances of it (`{id}_2`, …), each its own term.
+    pub repeatable: bool,
     /// Its example campaign (`fixtures/specs/effects/<id>.toml`: test-case-2 with this
     /// effect alone and 1 % noise).
     pub example: &'static str,

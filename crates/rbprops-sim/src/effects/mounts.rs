@@ -432,6 +432,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             ("lateral_n_per_m", 0.0.into()),
         ])),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_coupling.toml"),
         plausible: None,
     },
@@ -446,6 +447,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_excitation_table(g, "stiffness_factors", 1.0.into())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/suspension_drift.toml"),
         plausible: Some(plausible_drift),
     },
@@ -458,6 +460,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         parse: super::parse_as::<StingerStiffness>,
         neutral: STINGER_NEUTRAL,
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_stiffness.toml"),
         plausible: None,
     },
@@ -472,6 +475,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_excitation_table(g, "axial_n_per_m", 0.0.into())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/stinger_axial_stiffness.toml"),
         plausible: None,
     },

@@ -120,6 +120,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[super::EffectDescri
         super::per_sensor_table(spec, "rotations_rad", super::zero3_value())
     }),
     follows_spec_up: false,
+    repeatable: false,
     example: include_str!("../../../../fixtures/specs/effects/sensor_misorientation.toml"),
     plausible: Some(plausible_misorientation),
 }];

@@ -388,6 +388,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_sensor_table(spec, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_position.toml"),
         plausible: Some(plausible_sensor_position),
     },
@@ -402,6 +403,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_excitation_table(g, "rotations_rad", super::zero3_value())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/force_direction.toml"),
         plausible: Some(plausible_force_direction),
     },
@@ -416,6 +418,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_excitation_table(g, "offsets_m", super::zero3_value())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/force_location.toml"),
         plausible: Some(plausible_force_location),
     },
@@ -430,6 +433,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             super::per_excitation_table(g, "masses_kg", 0.0.into())
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/force_gauge_mass.toml"),
         plausible: Some(plausible_force_gauge_mass),
     },

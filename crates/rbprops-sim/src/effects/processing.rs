@@ -17,8 +17,13 @@
 //! Both change how the data are observed, not the structure: the truth modes stay the
 //! physical ones.
 
+use super::screening::{
+    Build, Reciprocal, Screened, ScreeningForm, ScreeningKind, ScreeningResult,
+};
 use super::{BuildContext, Effect, ParamInfo};
 use crate::model::DynamicModel;
+use crate::spec::CampaignSpec;
+use rbprops_core::Geometry;
 use serde::{Deserialize, Serialize};
 
 /// `exponential_window`: records multiplied by `e^{−σt}`, so every FRF is its transfer function at `s = iω + σ`.
@@ -157,6 +162,78 @@ impl Effect for RecordTruncation {
     }
 }
 
+/// `record_truncation` through φ = 1/T (record length T).
+fn truncation_build(v: &[f64]) -> Result<Option<Box<dyn Effect>>, String> {
+    if v[0] < 0.0 || !v[0].is_finite() {
+        return Err(format!("1/T must be finite and ≥ 0, got {}", v[0]));
+    }
+    if v[0] == 0.0 {
+        return Ok(None);
+    }
+    let mut t = toml::Table::new();
+    t.insert("record_length_s".into(), (1.0 / v[0]).into());
+    super::parse_effect(&crate::spec::EffectSpec {
+        id: RecordTruncation::ID.into(),
+        parameters: t,
+    })
+    .map(Some)
+}
+
+/// The catalogue table of a fitted φ = 1/T: `record_length_s = 1/φ`.
+fn truncation_entry(v: &[f64]) -> Result<toml::Table, String> {
+    if !(v[0] > 0.0) {
+        return Err("record_truncation: fitted 1/T is not positive".into());
+    }
+    let mut t = toml::Table::new();
+    t.insert("record_length_s".into(), (1.0 / v[0]).into());
+    Ok(t)
+}
+
+/// `record_truncation`'s screening form: reparametrised by the inverse record length
+/// φ = 1/T (neutral: 0, an endless record, [`Reciprocal`]). Its signature (residues
+/// scaled by 1 − e^{λT}, leakage ripple) vanishes faster than any power of 1/T at
+/// 1/T = 0, so no score test can see it: it is screened by a profile over the record
+/// lengths zero padding can give, T = 1/(kΔf), k = 1..8 (the DFT record of the
+/// recording's line spacing Δf, zero-padded k times), completed by the lags where the
+/// residual's lag transform rises or peaks (the model check's delay scan): any
+/// 1/(8Δf) < T < 1/Δf, the refit then optimises 1/T continuously.
+fn screen_record_truncation(spec: &CampaignSpec, _g: &Geometry) -> ScreeningResult {
+    // The record length is 1/Δf of the recording's lines, or a fraction of it
+    // when the records were zero-padded: T = 1/(kΔf), k = 1..8. The leakage
+    // ripple's phase ωT makes χ² oscillate in T on a scale of 1/ω_max, so a
+    // record padded by a non-integer factor (to a power of two) is off this grid
+    // and outside the refit's reach from it: such a T is located by the lag scan
+    // of the residual (`delay_scan`) and added to the profile.
+    let fr = &spec.frequency;
+    let df = if fr.lines > 1 && fr.stop_hz > fr.start_hz {
+        (fr.stop_hz - fr.start_hz) / (fr.lines - 1) as f64
+    } else {
+        1.0 / 16.0
+    };
+    let grid: Vec<Vec<f64>> = (1..=8).map(|k| vec![k as f64 * df]).collect();
+    let infos = vec![ParamInfo {
+        name: "inverse_record_length_per_s".into(),
+        unit: "1/s",
+        lower: 0.0,
+        upper: 10.0,
+        plausible: (1.0 / 64.0, 0.25),
+    }];
+    let build: Build = std::sync::Arc::new(truncation_build);
+    Ok(Some(ScreeningForm {
+        effect: Box::new(
+            Reciprocal::new(RecordTruncation::ID, infos, vec![0.0], build)
+                .with_entry(truncation_entry),
+        ),
+        neutral: vec![0.0],
+        scales: vec![0.005],
+        source: "rbprops-sim (reparametrised for screening)",
+        screening: ScreeningKind::Profile {
+            grid,
+            delay_scan: true,
+        },
+    }))
+}
+
 /// This module's effects in the physics catalogue ([`super::registry`]).
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
@@ -168,6 +245,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         parse: super::parse_as::<ExponentialWindow>,
         neutral: super::NeutralForm::Table(|_, _| super::table([("decay_per_s", 0.0.into())])),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/exponential_window.toml"),
         plausible: None,
     },
@@ -178,8 +256,12 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "the record length, or a longer record",
         docs: "E6: records of length `record_length_s` without a window (leakage)",
         parse: super::parse_as::<RecordTruncation>,
-        neutral: super::NeutralForm::Reparametrised,
+        neutral: super::NeutralForm::Screened(Screened {
+            rank: 3,
+            form: screen_record_truncation,
+        }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/record_truncation.toml"),
         plausible: None,
     },

@@ -23,12 +23,15 @@
 //!   `e^{−σ(τ_c − τ_e)}` is a channel gain within σ|τ_c − τ_e| (3·10⁻⁴ for σ = 0.3/s,
 //!   1 ms) of 1, and is left out.
 
+use super::screening::{
+    Build, Reciprocal, Screened, ScreeningForm, ScreeningKind, ScreeningResult,
+};
 use super::{BuildContext, Effect, OutputBlock, ParamInfo};
 use crate::model::DynamicModel;
 use crate::spec::CampaignSpec;
 use nalgebra::RowVector6;
 use rbprops_core::c64;
-use rbprops_core::{cross_matrix, Vec3};
+use rbprops_core::{cross_matrix, Geometry, Vec3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -336,6 +339,78 @@ fn plausible_delay(
         .collect())
 }
 
+/// The sensors of a geometry: the channels at each point, in first-channel order. The
+/// channels of one sensor share its conditioner, so they share a high-pass.
+fn sensor_channels(g: &Geometry) -> Vec<(String, Vec<String>)> {
+    let mut out: Vec<(String, Vec<String>)> = Vec::new();
+    for c in &g.channels {
+        match out.iter_mut().find(|(p, _)| *p == c.point) {
+            Some((_, ids)) => ids.push(c.id.clone()),
+            None => out.push((c.point.clone(), vec![c.id.clone()])),
+        }
+    }
+    out
+}
+
+/// `transducer_highpass` with one time constant τ_j per sensor (the channels at one
+/// point), through φ_j = 1/τ_j: mixed sensor types (an IEPE triaxial with τ = 1 s among
+/// DC-coupled ones) are as common as one τ for all, which is the case φ_j all equal.
+fn highpass_build(sensors: Vec<(String, Vec<String>)>) -> Build {
+    std::sync::Arc::new(move |v: &[f64]| {
+        if let Some(x) = v.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+            return Err(format!("1/τ must be finite and ≥ 0, got {x}"));
+        }
+        let mut per_channel = toml::Table::new();
+        for ((_, channels), &phi) in sensors.iter().zip(v) {
+            if phi > 0.0 {
+                for c in channels {
+                    per_channel.insert(c.clone(), (1.0 / phi).into());
+                }
+            }
+        }
+        if per_channel.is_empty() {
+            return Ok(None);
+        }
+        let mut t = toml::Table::new();
+        t.insert("time_constants_s".into(), per_channel.into());
+        super::parse_effect(&crate::spec::EffectSpec {
+            id: TransducerHighpass::ID.into(),
+            parameters: t,
+        })
+        .map(Some)
+    })
+}
+
+/// `transducer_highpass`'s screening form: reparametrised by inverse time constants (one
+/// per sensor, [`Reciprocal`]), so that its neutral value, no high-pass, is 0 rather than
+/// an infinite time constant; screened by a score.
+fn screen_transducer_highpass(_spec: &CampaignSpec, geometry: &Geometry) -> ScreeningResult {
+    let groups = sensor_channels(geometry);
+    let infos: Vec<ParamInfo> = groups
+        .iter()
+        .map(|(sensor, _)| ParamInfo {
+            name: format!("inverse_time_constant_per_s.{sensor}"),
+            unit: "1/s",
+            lower: 0.0,
+            upper: f64::INFINITY,
+            plausible: (0.0, 2.0),
+        })
+        .collect();
+    let n = infos.len();
+    Ok(Some(ScreeningForm {
+        effect: Box::new(Reciprocal::new(
+            TransducerHighpass::ID,
+            infos,
+            vec![0.0; n],
+            highpass_build(groups),
+        )),
+        neutral: vec![0.0; n],
+        scales: vec![0.05; n],
+        source: "rbprops-sim (reparametrised for screening)",
+        screening: ScreeningKind::Score,
+    }))
+}
+
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: TransducerHighpass::ID,
@@ -344,8 +419,12 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         reveal: "the channels' time constants, or data below the suspension modes",
         docs: "E11: a first-order high-pass per channel, `time_constant_s` or `time_constants_s`",
         parse: super::parse_as::<TransducerHighpass>,
-        neutral: super::NeutralForm::Reparametrised,
+        neutral: super::NeutralForm::Screened(Screened {
+            rank: 2,
+            form: screen_transducer_highpass,
+        }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/transducer_highpass.toml"),
         plausible: Some(plausible_highpass),
     },
@@ -364,6 +443,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             t
         }),
         follows_spec_up: true,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/sensor_tilt_gravity.toml"),
         plausible: None,
     },
@@ -380,6 +460,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
             t
         }),
         follows_spec_up: false,
+        repeatable: false,
         example: include_str!("../../../../fixtures/specs/effects/channel_delay.toml"),
         plausible: Some(plausible_delay),
     },

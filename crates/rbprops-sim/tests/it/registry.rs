@@ -141,7 +141,8 @@ fn neutral_tables_parse_and_change_nothing() {
             "record_truncation",
             "transducer_highpass",
             "cord_mass",
-            "added_mass"
+            "added_mass",
+            "residual_flexibility"
         ]
     );
 }
@@ -222,4 +223,85 @@ fn effect_examples_are_plausible_and_gross_values_are_not() {
         let q = rbprops_sim::effects::plausibility(&entry(id, toml), &spec).unwrap();
         assert!(q.iter().any(|q| !q.holds()), "{id}: {q:?}");
     }
+}
+
+/// Every screening form ([`NeutralForm::Screened`]) builds on Test Case II, in a distinct
+/// place of the screened order, for the effect it belongs to; at its neutral values it
+/// leaves the FRFs as they are (to roundoff), and a parameter moved off neutral by ten
+/// of its scales changes them (but for the profiles', absent at neutral to every order,
+/// moved to their first profile point instead), so "absent" is absent and the form acts.
+#[test]
+fn screening_forms_are_neutral_at_their_neutral_values() {
+    use rbprops_sim::effects::screening::ScreeningKind;
+    let mut s = tc2();
+    s.noise.relative = 0.0;
+    s.noise.floor = 0.0;
+    s.frequency.lines = 201;
+    let g = s.geometry().unwrap();
+    let freq: Vec<f64> = s
+        .frequency_axis()
+        .into_iter()
+        .filter(|&f| f > 0.0)
+        .collect();
+    let frfs = |effects: &[Box<dyn rbprops_sim::effects::Effect>]| {
+        rbprops_sim::predict(&s, &g, effects, &freq, &Default::default())
+            .unwrap()
+            .0
+            .values
+    };
+    let nominal = frfs(&[]);
+    let scale = nominal.iter().map(|v| v.norm()).fold(0.0, f64::max);
+    let mut ranks = Vec::new();
+    for d in registry() {
+        let NeutralForm::Screened(screened) = d.neutral else {
+            continue;
+        };
+        ranks.push(screened.rank);
+        let Some(form) = (screened.form)(&s, &g).unwrap_or_else(|n| panic!("{}: {n}", d.id)) else {
+            panic!("{}: no form for Test Case II", d.id);
+        };
+        assert_eq!(form.effect.id(), d.id);
+        assert_eq!(form.effect.values(), form.neutral, "{}", d.id);
+        assert_eq!(form.scales.len(), form.neutral.len(), "{}", d.id);
+        let at = |v: &[f64]| frfs(&[form.effect.with_values(v).unwrap()]);
+        let off = |v: &[f64]| {
+            at(v)
+                .iter()
+                .zip(&nominal)
+                .map(|(a, b)| (a - b).norm())
+                .fold(0.0, f64::max)
+        };
+        assert!(
+            off(&form.neutral) <= 1e-10 * scale,
+            "{}: neutral is not absent",
+            d.id
+        );
+        let moved = match &form.screening {
+            ScreeningKind::Profile { grid, .. } => grid[0].clone(),
+            ScreeningKind::Score | ScreeningKind::Resonance => {
+                // A parameter with a first-order signature: the first of a score's, a
+                // residue of the resonance's (its pole has none while they are zero).
+                let mut v = form.neutral.clone();
+                let j = match form.screening {
+                    ScreeningKind::Resonance => v.len() - 1,
+                    _ => 0,
+                };
+                v[j] += 10.0 * form.scales[j];
+                v
+            }
+        };
+        assert!(
+            off(&moved) > 1e-6 * scale,
+            "{}: moved off neutral, no change",
+            d.id
+        );
+    }
+    let mut sorted = ranks.clone();
+    sorted.sort();
+    sorted.dedup();
+    assert_eq!(
+        sorted.len(),
+        ranks.len(),
+        "screened ranks repeat: {ranks:?}"
+    );
 }
