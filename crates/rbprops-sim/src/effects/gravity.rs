@@ -734,12 +734,12 @@ fn plausible_gravity(
     spec: &CampaignSpec,
 ) -> Result<Vec<super::Plausible>, String> {
     let e: GravityStiffness = super::params(entry)?;
-    let read_as_cords = if springs_read_as_cords(spec, e.setup.as_deref()) {
+    let longest_m = if only_three_axis_springs(spec, e.setup.as_deref()) {
         f64::INFINITY
     } else {
         10.0
     };
-    let spring_lengths = e.cord_length_m.iter().map(|l| (*l, [0.05, read_as_cords]));
+    let spring_lengths = e.cord_length_m.iter().map(|l| (*l, [0.05, longest_m]));
     let free_lengths = e.unstretched_length_m.iter().map(|l| (*l, [0.05, 10.0]));
     Ok(spring_lengths
         .chain(free_lengths)
@@ -748,24 +748,24 @@ fn plausible_gravity(
         .collect())
 }
 
-/// Every set-up the effect acts on (`setup`, or all) hangs on springs that are neither
-/// cords (`[[setup.cord]]`) nor cords written as axial springs ([`axial_cord_count`]):
-/// the catalogue reads them as vertical cords of a length no tester measured.
-fn springs_read_as_cords(spec: &CampaignSpec, setup: Option<&str>) -> bool {
-    let mut acted_on = spec
-        .setups
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| setup.is_none_or(|id| id == s.id))
+/// Set-up `i` hangs on springs that are neither cords (`[[setup.cord]]`) nor cords
+/// written as axial springs ([`axial_cord_count`]): three-axis springs, which the
+/// catalogue reads as vertical cords of a length no tester measured.
+pub(crate) fn on_three_axis_springs(spec: &CampaignSpec, i: usize) -> bool {
+    let s = &spec.setups[i];
+    s.cords.is_empty() && !s.springs.is_empty() && axial_cord_count(spec, i) == 0
+}
+
+/// Every set-up the effect acts on (`setup`, or all) hangs on three-axis springs
+/// ([`on_three_axis_springs`]).
+fn only_three_axis_springs(spec: &CampaignSpec, setup: Option<&str>) -> bool {
+    let mut acted_on = (0..spec.setups.len())
+        .filter(|&i| setup.is_none_or(|id| id == spec.setups[i].id))
         .peekable();
-    acted_on.peek().is_some()
-        && acted_on.all(|(i, s)| {
-            s.cords.is_empty() && !s.springs.is_empty() && axial_cord_count(spec, i) == 0
-        })
+    acted_on.peek().is_some() && acted_on.all(|i| on_three_axis_springs(spec, i))
 }
 
 /// This module's effects in the physics catalogue ([`super::registry`]).
-
 pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
     super::EffectDescriptor {
         id: GravityStiffness::ID,

@@ -236,15 +236,8 @@ pub fn springs_can_sag(spec: &CampaignSpec, g: &Geometry) -> bool {
     spec.setups
         .iter()
         .enumerate()
-        .any(|(i, s)| s.cords.is_empty() && !s.springs.is_empty() && !axial_springs_hang(spec, i))
+        .any(|(i, _)| super::on_three_axis_springs(spec, i))
         && nominal_free_directions(spec, g).is_empty()
-}
-
-/// Set-up `i`'s springs are cords written as axial springs (rbprops-sim's
-/// [`super::axial_spring_cords`]): the gravity candidate hangs
-/// the body on them as on cords.
-fn axial_springs_hang(spec: &CampaignSpec, i: usize) -> bool {
-    super::axial_cord_count(spec, i) > 0
 }
 
 /// Geometric stiffness of cords along the spec's `up`, tilted by (φ₃, φ₄)
