@@ -828,10 +828,12 @@ impl<'p, 'a> Selection<'p, 'a> {
                 &self.model.cur.theta[offset..offset + d],
             );
             offset += d;
-            let Some(f_wo) = f_wo else {
+            // Not re-tested (decisively in), or the model without it cannot be
+            // evaluated (a suspension left unstable): it is needed.
+            let Some(Ok(f_wo)) = f_wo else {
                 continue;
             };
-            let dchi2 = f_wo?.chi2 - self.model.cur.chi2;
+            let dchi2 = f_wo.chi2 - self.model.cur.chi2;
             let dbic = dchi2 - d as f64 * self.charges.ln_n;
             let thr = self.model.accepted[k].threshold;
             let mut why = Vec::new();
@@ -881,7 +883,13 @@ impl<'p, 'a> Selection<'p, 'a> {
             }
             let without = without_act(&self.model.active, k);
             let theta_wo = drop_params(p, &self.model.cur.theta, &self.model.active, k);
-            let f_wo = p.fit("backward", &theta_wo, &without, self.options.max_iterations)?;
+            // A model that cannot even be evaluated without the effect (a suspension
+            // left unstable) needs it: kept, as a costly removal is.
+            let Ok(f_wo) = p.fit("backward", &theta_wo, &without, self.options.max_iterations)
+            else {
+                k += 1;
+                continue;
+            };
             if f_wo.chi2 - self.model.cur.chi2 < must_cost {
                 set_decision(
                     &mut self.findings.screening,

@@ -135,7 +135,14 @@ pub(super) fn take_back<'p, 'a>(
         // BRANCH_EXTRA_STEPS more (one wrong effect standing in for two true ones needs
         // one); a branch that needs more is not the simple exchange this move is for.
         let accepted_at = sel.model.accepted[k].accepted_at;
-        let mut branch = sel.without(k)?;
+        // A selection that cannot be evaluated without the effect (a suspension left
+        // unstable) cannot take it back.
+        let Ok(mut branch) = sel.without(k) else {
+            sel.options
+                .progress
+                .say(|| format!("without {id}: the model cannot be evaluated (kept)"));
+            continue;
+        };
         let end = forward(
             &mut branch,
             step,
