@@ -140,3 +140,34 @@ pub fn assert_chi2_in_band(label: &str, r: &rbprops_check::ModelCheckReport) {
         r.verdict
     );
 }
+
+/// The improved spec stands for the check's final model: simulated by rbprops-sim as it
+/// stands, its χ²/ν against the recording (the check's σ, 2 real values per complex
+/// one) lies below the upper end of the report's noise band, as the final model's does.
+/// A spec entry that drops a fitted freedom of the check's screening form moves it far
+/// out (gravity's load-term factor fitted at 1.04: 15 956 against the report's 20.6,
+/// docs/results.md, session 31).
+pub fn assert_improved_spec_is_the_final_model(label: &str, out: &rbprops_check::CheckOutcome) {
+    let r = &out.report;
+    let spec = CampaignSpec::from_toml_str(&out.improved_spec.to_toml_string())
+        .unwrap_or_else(|e| panic!("{label}: improved spec does not parse: {e}"));
+    let sim = rbprops_sim::simulate(&spec)
+        .unwrap_or_else(|e| panic!("{label}: improved spec does not simulate: {e}"));
+    assert_eq!(sim.frf.values.len(), out.measured.len(), "{label}: layout");
+    let (mut chi2, mut apart, mut n) = (0.0, 0.0, 0usize);
+    for (i, s) in out.sigma.iter().enumerate() {
+        if *s > 0.0 {
+            chi2 += 2.0 * (out.measured[i] - sim.frf.values[i]).norm_sqr() / (s * s);
+            apart += (sim.frf.values[i] - out.improved[i]).norm_sqr() / (s * s);
+            n += 2;
+        }
+    }
+    let chi2_nu = chi2 / n.max(1) as f64;
+    assert!(
+        chi2_nu <= r.noise_band[1],
+        "{label}: the improved spec's χ²/ν {chi2_nu:.4} is above the band {:?} (report {:.4}; spec and final model {:.2e} σ² apart per value)",
+        r.noise_band,
+        r.chi2_nu_after,
+        2.0 * apart / n.max(1) as f64
+    );
+}

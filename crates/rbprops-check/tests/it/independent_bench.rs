@@ -71,9 +71,9 @@ fn named_exactly(case: usize) -> (&'static str, rbprops_check::ModelCheckReport)
     let (stem, concealed) = CASES[case];
     let (g, frf) = recording(stem);
     let t0 = std::time::Instant::now();
-    let r = check(&nominal(), &g, &frf, &CheckOptions::default())
-        .unwrap()
-        .report;
+    let out = check(&nominal(), &g, &frf, &CheckOptions::default()).unwrap();
+    crate::common::assert_improved_spec_is_the_final_model(stem, &out);
+    let r = out.report;
     let mut named: Vec<&str> = r.accepted.iter().map(|a| a.id.as_str()).collect();
     for f in &r.ambiguous {
         named.extend(f.ids.iter().map(|s| s.as_str()));

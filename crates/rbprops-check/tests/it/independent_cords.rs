@@ -297,6 +297,7 @@ fn cords_case_with(splayed: bool, as_springs: bool, lines: usize) {
         .unwrap_or_else(|| panic!("gravity_stiffness not named: {accepted:?} {ambiguous:?}"));
     // No false claim: every other accepted effect is absent from the truth.
     assert_eq!(accepted, ["gravity_stiffness"], "false claims");
+    crate::common::assert_improved_spec_is_the_final_model(&format!("splayed {splayed}"), &out);
     // The fitted 1/L̄ within 4 of its standard errors of the truth's mean hanging
     // length (the model is exact at φ = (1/L̄, 1) when the cords' L₀ are right, as
     // here; 4 SE: a two-sided 6e-5 false-alarm rate for a Gaussian estimate).

@@ -64,6 +64,14 @@ pub struct GravityStiffness {
     /// `ℓ − T/k`; given, the body moves to the equilibrium they make).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub unstretched_length_m: Vec<f64>,
+    /// Set-ups of springs read as cords only: the fraction by which the springs turn
+    /// with the sagged body, as linear springs to the ground do (1), rather than keep the
+    /// spec's axes as cords do (0, the default). The springs' exact Hessian at the
+    /// body's sagged equilibrium replaces that part of the cords' load term: `K =
+    /// K_cords(ℓ) + s (K_sagged − K_spec − K_load)`, `K_load` the cords' load term
+    /// (ℓ → ∞). A body on three-axis springs to the ground has s = 1 and ℓ → ∞.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub spring_turn_fraction: f64,
     /// Gravitational acceleration (m/s²).
     #[serde(default = "super::default_g")]
     pub g_m_per_s2: f64,
@@ -605,6 +613,12 @@ impl Effect for GravityStiffness {
                 ));
             }
         }
+        if !self.spring_turn_fraction.is_finite() {
+            return Err(format!(
+                "spring_turn_fraction must be finite, got {}",
+                self.spring_turn_fraction
+            ));
+        }
         check_weight(self.g_m_per_s2, self.up, "")
     }
     fn check(&self, spec: &CampaignSpec) -> Result<(), String> {
@@ -713,8 +727,49 @@ impl Effect for GravityStiffness {
         let (k, _) = geometric_stiffness(&model.mass, &cords, self.g_m_per_s2, &up)
             .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
         model.stiffness += k;
+        if self.spring_turn_fraction != 0.0 {
+            model.stiffness += self.turned_springs(ctx, model, &cords, &up)?;
+            model.stiffness = (model.stiffness + model.stiffness.transpose()) / 2.0;
+        }
         Ok(())
     }
+}
+
+impl GravityStiffness {
+    /// The springs' turn with the sagged body ([`Self::spring_turn_fraction`] s):
+    /// `s (K_sagged − K_spec − K_load)`, with `K_sagged` the Hessian of the body hanging
+    /// on the set-up's springs alone and `K_load` the load term of `cords` (their
+    /// geometric stiffness as ℓ → ∞).
+    fn turned_springs(
+        &self,
+        ctx: &BuildContext,
+        model: &DynamicModel,
+        cords: &[Cord],
+        up: &Vec3,
+    ) -> Result<Mat6, String> {
+        let far: Vec<Cord> = cords.iter().map(|c| Cord { length: 1e12, ..*c }).collect();
+        let (load, _) = geometric_stiffness(&model.mass, &far, self.g_m_per_s2, up)
+            .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
+        let sagged = hanging_equilibrium(
+            &model.mass,
+            &[],
+            &ctx.spec.plain_springs(ctx.setup_index),
+            self.g_m_per_s2,
+            up,
+        )
+        .map_err(|e| {
+            format!(
+                "set-up '{}': the springs turning with the body: {e}",
+                model.setup
+            )
+        })?;
+        let turn = sagged.stiffness - ctx.spec.setup_stiffness(ctx.setup_index) - load;
+        Ok(turn * self.spring_turn_fraction)
+    }
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// [`super::EffectDescriptor::parse`] of `gravity_stiffness`: the table, checked.

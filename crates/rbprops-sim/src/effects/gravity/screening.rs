@@ -170,6 +170,9 @@ impl Effect for GravityForm {
                 "cord_length_m".into(),
                 toml::Value::Array(vec![(1.0 / phi.inverse_length).into()]),
             );
+            if phi.turn != 0.0 {
+                t.insert("spring_turn_fraction".into(), phi.turn.into());
+            }
             if let Some((i, l0)) = axial_free_lengths(spec, &phi)? {
                 t.insert(
                     "unstretched_length_m".into(),
