@@ -727,6 +727,11 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitC
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Every stage: a stage's large buffers (an excitation's FRFs, the reader's decoded
+    // messages, a fit's matrices) return to the system when freed (issue 41: modal-fit
+    // on 3 excitations × 102,401 lines peaked at 215 MB resident with 133 MB of live
+    // allocations, 114 MB with this; the same time).
+    return_large_buffers();
     #[cfg(unix)]
     signals::install();
     let res = body();
