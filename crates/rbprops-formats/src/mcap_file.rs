@@ -64,9 +64,9 @@ impl<W: Write + Seek> Out<W> {
     fn end_topic(&mut self) -> Result<(), FormatError> {
         self.w.flush().map_err(mcap_err)
     }
-    /// The FRF topic one excitation at a time: each message's base64 values are encoded,
-    /// serialised and handed to the chunk before the next is made, instead of all of them
-    /// at once as JSON values (two more copies of the whole set). The bytes are those of
+    /// The FRF topic one excitation at a time: each message's JSON is written straight
+    /// ([`wire::frf_message_json`]) and handed to the chunk before the next is made,
+    /// instead of all of them at once as JSON values (two more copies of the whole set). The bytes are those of
     /// [`Out::typed`]: the schema through a JSON value, each message's fields in order.
     fn frf_topic(&mut self, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(), FormatError> {
         let schema =
@@ -80,11 +80,8 @@ impl<W: Write + Seek> Out<W> {
             "json",
         )?;
         for e in 0..frf.n_excitations {
-            let msg = FrfMsg {
-                excitation: g.excitations[e].id.clone(),
-                values_f64le: wire::encode_values(frf.excitation_block(e)),
-            };
-            self.message(id, &serde_json::to_vec(&msg).expect("json serialises"))?;
+            let msg = wire::frf_message_json(&g.excitations[e].id, frf.excitation_block(e));
+            self.message(id, &msg)?;
         }
         self.end_topic()
     }
