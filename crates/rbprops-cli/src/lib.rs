@@ -229,6 +229,16 @@ pub fn read_stage_input_quiet(
                     notes,
                     warnings: Vec::new(),
                 }
+            } else if is_mcap_file(p) {
+                // A regular MCAP file is parsed as it is read, never held whole (issue 41).
+                let (record, notes, sha256) = mcap_file::read_file_checked(p, &name)?;
+                Input {
+                    record,
+                    sha256,
+                    name,
+                    notes,
+                    warnings: Vec::new(),
+                }
             } else {
                 // Read once (a FIFO or `<(zcat …)` cannot be opened twice); the format
                 // from the bytes first, then the name.
@@ -260,6 +270,20 @@ pub fn read_stage_input_quiet(
         }
     };
     finish(tool, input, checks)
+}
+
+/// True for a regular file (not a FIFO, which cannot be read twice) that begins with
+/// the MCAP magic bytes.
+fn is_mcap_file(p: &Path) -> bool {
+    use std::io::Read;
+    if !std::fs::metadata(p).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    let mut head = [0u8; 8];
+    std::fs::File::open(p)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && head[..] == *MCAP_MAGIC
 }
 
 fn finish(tool: &str, input: Input, checks: &InputChecks) -> Result<Input> {

@@ -176,10 +176,118 @@ pub fn read(bytes: &[u8], file: &str) -> Result<RunRecord, FormatError> {
 /// known (it precedes them in rbprops' files): the set's base64 text, a third more than
 /// the set, is never held whole (issue 41).
 pub fn read_checked(bytes: &[u8], file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
+    read_source(&Source::Bytes(bytes), file)
+}
+
+/// [`read_checked`] of the MCAP file at `path`, read as it is parsed: its bytes are never
+/// held whole (issue 41; a 42 MB record at 3 excitations × 102,401 lines). Also returns
+/// the file's SHA-256, taken in the same reading (the file must not change meanwhile).
+pub fn read_file_checked(
+    path: &std::path::Path,
+    file: &str,
+) -> Result<(RunRecord, Vec<String>, String), FormatError> {
+    let io = |source| FormatError::Io {
+        file: file.into(),
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len() as usize;
+    let src = Source::File {
+        file: std::cell::RefCell::new(f),
+        len,
+        digest: std::cell::RefCell::new((0, crate::Sha256Stream::default())),
+    };
+    let (rec, notes) = read_source(&src, file)?;
+    let Source::File {
+        digest, file: f, ..
+    } = src
+    else {
+        unreachable!("a file source")
+    };
+    // The bytes the linear reading did not reach (none for a well-formed file).
+    let (mut at, mut h) = digest.into_inner();
+    let mut f = f.into_inner();
+    let mut buf = vec![0u8; 1 << 16];
+    while at < len {
+        let n = (len - at).min(buf.len());
+        read_exact_at(&mut f, at, &mut buf[..n]).map_err(io)?;
+        h.update(&buf[..n]);
+        at += n;
+    }
+    Ok((rec, notes, h.hex()))
+}
+
+/// `buf.len()` bytes of `f` from `offset`.
+fn read_exact_at(f: &mut std::fs::File, offset: usize, buf: &mut [u8]) -> std::io::Result<()> {
+    use std::io::{Read, Seek, SeekFrom};
+    f.seek(SeekFrom::Start(offset as u64))?;
+    f.read_exact(buf)
+}
+
+/// Where the MCAP bytes come from: memory, or a file read at offsets as they are needed
+/// (its digest taken as the linear reading goes: `(bytes hashed, state)`).
+enum Source<'a> {
+    Bytes(&'a [u8]),
+    File {
+        file: std::cell::RefCell<std::fs::File>,
+        len: usize,
+        digest: std::cell::RefCell<(usize, crate::Sha256Stream)>,
+    },
+}
+
+impl Source<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Source::Bytes(b) => b.len(),
+            Source::File { len, .. } => *len,
+        }
+    }
+
+    /// Bytes `offset..offset + len`, `None` past the end (or when the file cannot be
+    /// read: the reading then stops at a truncated record, named as such).
+    fn get(&self, offset: usize, len: usize) -> Option<std::borrow::Cow<'_, [u8]>> {
+        let end = offset.checked_add(len)?;
+        if end > self.len() {
+            return None;
+        }
+        match self {
+            Source::Bytes(b) => Some(std::borrow::Cow::Borrowed(&b[offset..end])),
+            Source::File { file, .. } => {
+                let mut buf = vec![0u8; len];
+                read_exact_at(&mut file.borrow_mut(), offset, &mut buf).ok()?;
+                Some(std::borrow::Cow::Owned(buf))
+            }
+        }
+    }
+
+    /// The linear reading's next bytes `pos..pos + out.len()` into `out` (hashed in
+    /// order for a file).
+    fn read_linear(&self, pos: usize, out: &mut [u8]) -> Result<(), String> {
+        match self {
+            Source::Bytes(b) => {
+                out.copy_from_slice(&b[pos..pos + out.len()]);
+                Ok(())
+            }
+            Source::File { file, digest, .. } => {
+                read_exact_at(&mut file.borrow_mut(), pos, out)
+                    .map_err(|e| format!("byte {pos}: {e}"))?;
+                let mut d = digest.borrow_mut();
+                if d.0 == pos {
+                    d.1.update(out);
+                    d.0 += out.len();
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// [`read_checked`] from either source.
+fn read_source(src: &Source, file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
     let mut rec = RunRecord::default();
     let mut frf = FrfMessages::default();
     let mut i = 0usize;
-    let notes = messages(bytes, |m| {
+    let notes = messages(src, |m| {
         let r = take_message(&mut rec, &mut frf, i, m, file);
         i += 1;
         r
@@ -487,19 +595,30 @@ impl Layout {
         self.records.get(i.checked_sub(1)?).copied()
     }
 
-    fn body<'a>(&self, bytes: &'a [u8], r: TopRecord) -> &'a [u8] {
-        &bytes[r.offset + 9..r.offset + 9 + r.len]
+    /// Bytes `from..from + len` of the body of `r` (`None` past its end).
+    fn field<'a>(
+        &self,
+        src: &'a Source,
+        r: TopRecord,
+        from: usize,
+        len: usize,
+    ) -> Option<std::borrow::Cow<'a, [u8]>> {
+        if from + len > r.len {
+            return None;
+        }
+        src.get(r.offset + 9 + from, len)
     }
 
     /// Topics of the messages in the chunk `chunk`, from the message index records that
     /// follow it and the channel records (the summary repeats them; a chunk's own channel
     /// records are inside it and so not trusted here). Empty when the file has no index.
-    fn chunk_topics(&self, bytes: &[u8], chunk: TopRecord) -> Vec<String> {
+    fn chunk_topics(&self, src: &Source, chunk: TopRecord) -> Vec<String> {
         let mut channels = BTreeMap::new();
         for r in self.records.iter().filter(|r| r.opcode == op::CHANNEL) {
-            if let Ok(mcap::records::Record::Channel(c)) =
-                mcap::parse_record(op::CHANNEL, self.body(bytes, *r))
-            {
+            let Some(body) = self.field(src, *r, 0, r.len) else {
+                continue;
+            };
+            if let Ok(mcap::records::Record::Channel(c)) = mcap::parse_record(op::CHANNEL, &body) {
                 channels.insert(c.id, c.topic);
             }
         }
@@ -508,8 +627,8 @@ impl Layout {
             .iter()
             .take_while(|r| r.opcode == op::MESSAGE_INDEX)
             .filter_map(|r| {
-                let b = self.body(bytes, *r);
-                let id = u16::from_le_bytes(b.get(..2)?.try_into().ok()?);
+                let b = self.field(src, *r, 0, 2)?;
+                let id = u16::from_le_bytes(b[..2].try_into().ok()?);
                 Some(
                     channels
                         .get(&id)
@@ -524,13 +643,13 @@ impl Layout {
 
     /// Where an error met after reading up to byte `pos` lies: the record, its kind and,
     /// for a chunk, the topics it holds.
-    fn describe(&self, bytes: &[u8], pos: usize) -> String {
+    fn describe(&self, src: &Source, pos: usize) -> String {
         let Some(r) = self.at(pos.saturating_sub(1)) else {
             return format!("byte {pos}");
         };
         match r.opcode {
             op::CHUNK => {
-                let topics = self.chunk_topics(bytes, r);
+                let topics = self.chunk_topics(src, r);
                 if topics.is_empty() {
                     format!(
                         "chunk at byte {} (topics unknown: no message index)",
@@ -561,7 +680,7 @@ impl Layout {
 
     /// What the file leaves unverified: chunks and sections whose CRC field is 0 (the MCAP
     /// convention for "not computed", used by some writers).
-    fn unverified(&self, bytes: &[u8]) -> Vec<String> {
+    fn unverified(&self, src: &Source) -> Vec<String> {
         let mut notes = Vec::new();
         let chunks: Vec<_> = self
             .records
@@ -570,7 +689,7 @@ impl Layout {
             .collect();
         let no_crc = chunks
             .iter()
-            .filter(|r| self.body(bytes, ***r).get(24..28) == Some(&[0u8; 4][..]))
+            .filter(|r| self.field(src, ***r, 24, 4).as_deref() == Some(&[0u8; 4][..]))
             .count();
         if no_crc > 0 {
             notes.push(format!(
@@ -580,7 +699,7 @@ impl Layout {
         }
         match self.records.iter().find(|r| r.opcode == op::DATA_END) {
             None => notes.push("no DataEnd record: the data section is not verified".into()),
-            Some(r) if self.body(bytes, *r).get(..4) == Some(&[0u8; 4][..]) => notes.push(
+            Some(r) if self.field(src, *r, 0, 4).as_deref() == Some(&[0u8; 4][..]) => notes.push(
                 "data-section CRC is 0 (not computed): record headers and indexes are not verified"
                     .into(),
             ),
@@ -593,20 +712,21 @@ impl Layout {
 /// Walks the top-level records before the mcap crate does: every length must lie inside
 /// the file and chunk sizes must be sane, because a corrupt length field would otherwise
 /// make the reader try to allocate exabytes and abort the process.
-fn layout(bytes: &[u8]) -> Result<Layout, String> {
-    if bytes.len() < 2 * MAGIC.len() || !bytes.starts_with(MAGIC) {
+fn layout(src: &Source) -> Result<Layout, String> {
+    if src.len() < 2 * MAGIC.len() || src.get(0, MAGIC.len()).as_deref() != Some(MAGIC) {
         return Err("missing MCAP magic bytes".into());
     }
     let u64_at = |p: usize| -> Option<u64> {
-        bytes
-            .get(p..p + 8)
-            .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+        src.get(p, 8)
+            .map(|b| u64::from_le_bytes(b[..].try_into().unwrap()))
     };
     let mut records = Vec::new();
     let mut pos = MAGIC.len();
-    let end = bytes.len() - MAGIC.len();
+    let end = src.len() - MAGIC.len();
     while pos < end {
-        let op = bytes[pos];
+        let op = src
+            .get(pos, 1)
+            .ok_or_else(|| format!("record at byte {pos}: unreadable"))?[0];
         let len =
             u64_at(pos + 1).ok_or_else(|| format!("record at byte {pos}: truncated header"))?;
         let body = pos + 9;
@@ -663,13 +783,13 @@ struct RawMsg<'a> {
 /// record's byte offset and, for a chunk, its topics. A record-length limit keeps corrupt
 /// length fields from causing huge allocations.
 fn messages(
-    bytes: &[u8],
+    src: &Source,
     mut each: impl FnMut(RawMsg) -> Result<(), FormatError>,
 ) -> Result<Vec<String>, Stop> {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    let layout = layout(bytes).map_err(Stop::Mcap)?;
-    let limit = (256usize << 20).saturating_add(bytes.len().saturating_mul(16));
+    let layout = layout(src).map_err(Stop::Mcap)?;
+    let limit = (256usize << 20).saturating_add(src.len().saturating_mul(16));
     let mut reader = LinearReader::new_with_options(
         LinearReaderOptions::default()
             .with_record_length_limit(limit)
@@ -682,13 +802,12 @@ fn messages(
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, u16)> = BTreeMap::new();
     let mut count = 0usize;
-    let at =
-        |pos: usize, e: &dyn std::fmt::Display| format!("{}: {e}", layout.describe(bytes, pos));
+    let at = |pos: usize, e: &dyn std::fmt::Display| format!("{}: {e}", layout.describe(src, pos));
     while let Some(event) = reader.next_event() {
         match event.map_err(|e| Stop::Mcap(at(pos, &crc_detail(e))))? {
             LinearReadEvent::ReadRequest(need) => {
-                let n = need.min(bytes.len() - pos);
-                reader.insert(n).copy_from_slice(&bytes[pos..pos + n]);
+                let n = need.min(src.len() - pos);
+                src.read_linear(pos, reader.insert(n)).map_err(Stop::Mcap)?;
                 reader.notify_read(n);
                 pos += n;
             }
@@ -741,7 +860,7 @@ fn messages(
             }
         }
     }
-    Ok(layout.unverified(bytes))
+    Ok(layout.unverified(src))
 }
 
 /// The mcap crate's CRC errors in words (the others as they are).
