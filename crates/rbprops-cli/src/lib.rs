@@ -730,6 +730,12 @@ pub fn progress(len: u64, what: &str) -> indicatif::ProgressBar {
 /// and topics) then add up. Measured on Test Case II's 3.07 M samples (docs/results.md):
 /// peak RSS 25.3–26.7 MB → 22.7–22.8 MB, wall time unchanged; with 64 KiB the peak is
 /// 20 MB but the per-hit records' page faults cost 40 % more time.
+///
+/// Also `modal-fit` and `ni-select` (issue 41): at 3 excitations × 102,401 lines
+/// `modal-fit` peaked at 215 MB resident with 133 MB of live allocations, 114 MB with
+/// this, at the same time. Not `rb-solve`: its linearised propagation at 192
+/// excitations allocates many dense matrices of 4–16 MB, whose fresh pages then cost
+/// twice the wall time (17.6 → 37 s, 35 s of it in the kernel).
 pub fn return_large_buffers() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: mallopt only sets an allocator parameter; called before any thread starts.
@@ -751,11 +757,6 @@ pub fn run(tool: &str, body: impl FnOnce() -> Result<()>) -> std::process::ExitC
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    // Every stage: a stage's large buffers (an excitation's FRFs, the reader's decoded
-    // messages, a fit's matrices) return to the system when freed (issue 41: modal-fit
-    // on 3 excitations × 102,401 lines peaked at 215 MB resident with 133 MB of live
-    // allocations, 114 MB with this; the same time).
-    return_large_buffers();
     #[cfg(unix)]
     signals::install();
     let res = body();

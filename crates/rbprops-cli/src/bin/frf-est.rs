@@ -83,6 +83,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    rbprops_cli::return_large_buffers();
     rbprops_cli::run("frf-est", || {
         let args = Args::parse();
         rbprops_formats::atomic::set_force(args.force);
