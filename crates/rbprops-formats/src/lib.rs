@@ -326,6 +326,10 @@ impl Sha256Stream {
 /// Reads a run from a path (MCAP file or CSV directory).
 pub fn read_path(path: &Path) -> Result<RunRecord, FormatError> {
     match Format::from_path(path)? {
+        Format::Mcap if std::fs::metadata(path).is_ok_and(|m| m.is_file()) => {
+            let name = path.display().to_string();
+            mcap_file::read_file_checked(path, &name).map(|(rec, _, _)| rec)
+        }
         Format::Mcap => {
             let name = path.display().to_string();
             let bytes = std::fs::read(path).map_err(|e| FormatError::Io {

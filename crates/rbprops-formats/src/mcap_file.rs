@@ -64,9 +64,9 @@ impl<W: Write + Seek> Out<W> {
     fn end_topic(&mut self) -> Result<(), FormatError> {
         self.w.flush().map_err(mcap_err)
     }
-    /// The FRF topic one excitation at a time: each message's base64 values are encoded,
-    /// serialised and handed to the chunk before the next is made, instead of all of them
-    /// at once as JSON values (two more copies of the whole set). The bytes are those of
+    /// The FRF topic one excitation at a time: each message's JSON is written straight
+    /// ([`wire::frf_message_json`]) and handed to the chunk before the next is made,
+    /// instead of all of them at once as JSON values (two more copies of the whole set). The bytes are those of
     /// [`Out::typed`]: the schema through a JSON value, each message's fields in order.
     fn frf_topic(&mut self, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(), FormatError> {
         let schema =
@@ -80,11 +80,8 @@ impl<W: Write + Seek> Out<W> {
             "json",
         )?;
         for e in 0..frf.n_excitations {
-            let msg = FrfMsg {
-                excitation: g.excitations[e].id.clone(),
-                values_f64le: wire::encode_values(frf.excitation_block(e)),
-            };
-            self.message(id, &serde_json::to_vec(&msg).expect("json serialises"))?;
+            let msg = wire::frf_message_json(&g.excitations[e].id, frf.excitation_block(e));
+            self.message(id, &msg)?;
         }
         self.end_topic()
     }
@@ -173,94 +170,138 @@ pub fn read(bytes: &[u8], file: &str) -> Result<RunRecord, FormatError> {
 
 /// [`read`], also returning the notes of the integrity check: which parts of the file
 /// carry no CRC (another writer's file with CRC fields 0) and so could not be verified.
+///
+/// Each message is taken as the reader yields it (no copy of the file's messages is
+/// held), and each FRF message's values are decoded as it arrives once the FRF axis is
+/// known (it precedes them in rbprops' files): the set's base64 text, a third more than
+/// the set, is never held whole (issue 41).
 pub fn read_checked(bytes: &[u8], file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
-    let (msgs, notes) = messages(bytes).map_err(|detail| FormatError::Mcap {
+    read_source(&Source::Bytes(bytes), file)
+}
+
+/// [`read_checked`] of the MCAP file at `path`, read as it is parsed: its bytes are never
+/// held whole (issue 41; a 42 MB record at 3 excitations × 102,401 lines). Also returns
+/// the file's SHA-256, taken in the same reading (the file must not change meanwhile).
+pub fn read_file_checked(
+    path: &std::path::Path,
+    file: &str,
+) -> Result<(RunRecord, Vec<String>, String), FormatError> {
+    let io = |source| FormatError::Io {
         file: file.into(),
-        detail,
-    })?;
-    let mut rec = RunRecord::default();
-    let mut axis: Option<FrfAxisMsg> = None;
-    let mut frf_msgs: Vec<FrfMsg> = Vec::new();
-    for (i, m) in msgs.into_iter().enumerate() {
-        let topic = m.topic.clone();
-        let schema = m.schema.clone();
-        let is_json = m.encoding == "json";
-        if !is_json {
-            let pos = rec
-                .raw_topics
-                .iter()
-                .position(|t| t.name == topic)
-                .unwrap_or_else(|| {
-                    rec.raw_topics.push(RawTopic {
-                        name: topic.clone(),
-                        schema_name: schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
-                        schema_encoding: schema
-                            .as_ref()
-                            .map(|s| s.encoding.clone())
-                            .unwrap_or_default(),
-                        schema_data: schema.as_ref().map(|s| s.data.clone()).unwrap_or_default(),
-                        message_encoding: m.encoding.clone(),
-                        messages: Vec::new(),
-                    });
-                    rec.raw_topics.len() - 1
-                });
-            rec.raw_topics[pos].messages.push(m.data);
-            continue;
+        source,
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let len = f.metadata().map_err(io)?.len() as usize;
+    let src = Source::File {
+        file: std::cell::RefCell::new(f),
+        len,
+        digest: std::cell::RefCell::new((0, crate::Sha256Stream::default())),
+    };
+    let (rec, notes) = read_source(&src, file)?;
+    let Source::File {
+        digest, file: f, ..
+    } = src
+    else {
+        unreachable!("a file source")
+    };
+    // The bytes the linear reading did not reach (none for a well-formed file).
+    let (mut at, mut h) = digest.into_inner();
+    let mut f = f.into_inner();
+    let mut buf = vec![0u8; 1 << 16];
+    while at < len {
+        let n = (len - at).min(buf.len());
+        read_exact_at(&mut f, at, &mut buf[..n]).map_err(io)?;
+        h.update(&buf[..n]);
+        at += n;
+    }
+    Ok((rec, notes, h.hex()))
+}
+
+/// `buf.len()` bytes of `f` from `offset`.
+fn read_exact_at(f: &mut std::fs::File, offset: usize, buf: &mut [u8]) -> std::io::Result<()> {
+    use std::io::{Read, Seek, SeekFrom};
+    f.seek(SeekFrom::Start(offset as u64))?;
+    f.read_exact(buf)
+}
+
+/// Where the MCAP bytes come from: memory, or a file read at offsets as they are needed
+/// (its digest taken as the linear reading goes: `(bytes hashed, state)`).
+enum Source<'a> {
+    Bytes(&'a [u8]),
+    File {
+        file: std::cell::RefCell<std::fs::File>,
+        len: usize,
+        digest: std::cell::RefCell<(usize, crate::Sha256Stream)>,
+    },
+}
+
+impl Source<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Source::Bytes(b) => b.len(),
+            Source::File { len, .. } => *len,
         }
-        let value: serde_json::Value = serde_json::from_slice(&m.data).map_err(|e| {
-            FormatError::record(
-                file,
-                format!("topic {topic}, message {i}"),
-                format!("invalid JSON: {e}"),
-            )
-        })?;
-        let ctx = || format!("topic {topic}, message {i}");
-        match topic.as_str() {
-            topics::FRF_AXIS => {
-                if axis.is_some() {
-                    return Err(FormatError::record(
-                        file,
-                        ctx(),
-                        "a second FRF axis message",
-                    ));
-                }
-                axis = Some(
-                    serde_json::from_value(value)
-                        .map_err(|e| FormatError::record(file, ctx(), e))?,
-                );
-            }
-            topics::FRF => frf_msgs.push(
-                serde_json::from_value(value).map_err(|e| FormatError::record(file, ctx(), e))?,
-            ),
-            _ => {
-                let pos = rec
-                    .topics
-                    .iter()
-                    .position(|t| t.name == topic)
-                    .unwrap_or_else(|| {
-                        let schema_json = schema
-                            .as_ref()
-                            .filter(|s| s.encoding == "jsonschema")
-                            .and_then(|s| serde_json::from_slice(&s.data).ok())
-                            .unwrap_or(serde_json::Value::Bool(true));
-                        rec.topics.push(JsonTopic {
-                            name: topic.clone(),
-                            schema_name: schema
-                                .as_ref()
-                                .map(|s| s.name.clone())
-                                .unwrap_or_default(),
-                            schema: schema_json,
-                            messages: Vec::new(),
-                        });
-                        rec.topics.len() - 1
-                    });
-                rec.topics[pos].messages.push(value);
+    }
+
+    /// Bytes `offset..offset + len`, `None` past the end (or when the file cannot be
+    /// read: the reading then stops at a truncated record, named as such).
+    fn get(&self, offset: usize, len: usize) -> Option<std::borrow::Cow<'_, [u8]>> {
+        let end = offset.checked_add(len)?;
+        if end > self.len() {
+            return None;
+        }
+        match self {
+            Source::Bytes(b) => Some(std::borrow::Cow::Borrowed(&b[offset..end])),
+            Source::File { file, .. } => {
+                let mut buf = vec![0u8; len];
+                read_exact_at(&mut file.borrow_mut(), offset, &mut buf).ok()?;
+                Some(std::borrow::Cow::Owned(buf))
             }
         }
     }
-    if let Some(axis) = axis {
-        rec.frf = Some(assemble_frf(&rec, axis, frf_msgs, file)?);
-    } else if !frf_msgs.is_empty() {
+
+    /// The linear reading's next bytes `pos..pos + out.len()` into `out` (hashed in
+    /// order for a file).
+    fn read_linear(&self, pos: usize, out: &mut [u8]) -> Result<(), String> {
+        match self {
+            Source::Bytes(b) => {
+                out.copy_from_slice(&b[pos..pos + out.len()]);
+                Ok(())
+            }
+            Source::File { file, digest, .. } => {
+                read_exact_at(&mut file.borrow_mut(), pos, out)
+                    .map_err(|e| format!("byte {pos}: {e}"))?;
+                let mut d = digest.borrow_mut();
+                if d.0 == pos {
+                    d.1.update(out);
+                    d.0 += out.len();
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// [`read_checked`] from either source.
+fn read_source(src: &Source, file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
+    let mut rec = RunRecord::default();
+    let mut frf = FrfMessages::default();
+    let mut i = 0usize;
+    let notes = messages(src, |m| {
+        let r = take_message(&mut rec, &mut frf, i, m, file);
+        i += 1;
+        r
+    })
+    .map_err(|e| match e {
+        Stop::Mcap(detail) => FormatError::Mcap {
+            file: file.into(),
+            detail,
+        },
+        Stop::Record(e) => e,
+    })?;
+    if let Some(axis) = frf.axis.take() {
+        rec.frf = Some(assemble_frf(&rec, axis, frf, file)?);
+    } else if !frf.pending.is_empty() {
         return Err(FormatError::record(
             file,
             topics::FRF,
@@ -270,10 +311,186 @@ pub fn read_checked(bytes: &[u8], file: &str) -> Result<(RunRecord, Vec<String>)
     Ok((rec, notes))
 }
 
+/// The FRF topic as it is read: the axis, the values of the messages decoded so far (in
+/// file order) and the messages that came before the axis (decoded at the end).
+#[derive(Default)]
+struct FrfMessages {
+    axis: Option<FrfAxisMsg>,
+    decoded: Vec<(String, Vec<rbprops_core::c64>)>,
+    pending: Vec<FrfMsg>,
+}
+
+impl FrfMessages {
+    /// Values per FRF message of `axis` (channels × lines), `None` when not addressable.
+    fn values_per_message(axis: &FrfAxisMsg) -> Option<usize> {
+        axis.channels
+            .len()
+            .checked_mul(axis.frequency_hz.len())
+            .filter(|n| n.checked_mul(16 * axis.excitations.len().max(1)).is_some())
+    }
+
+    /// Message `k` of the topic: its base64 text's length is checked against the axis
+    /// before it is decoded (a small file declaring a huge set is an error, not an
+    /// allocation failure), then the text is dropped.
+    fn decode(
+        axis: &FrfAxisMsg,
+        k: usize,
+        excitation: String,
+        text: &str,
+        file: &str,
+    ) -> Result<(String, Vec<rbprops_core::c64>), FormatError> {
+        let n = Self::values_per_message(axis);
+        let want = n.map(|n| (n * 16).div_ceil(3) * 4);
+        if want != Some(text.len()) {
+            return Err(FormatError::record(
+                file,
+                format!("{} message {k}", topics::FRF),
+                format!(
+                    "{} base64 characters of values, but {} channels × {} lines need {}",
+                    text.len(),
+                    axis.channels.len(),
+                    axis.frequency_hz.len(),
+                    want.map_or("more than addressable".into(), |w| w.to_string())
+                ),
+            ));
+        }
+        let v = wire::decode_values(text, n.unwrap_or(0)).map_err(|e| {
+            FormatError::record(
+                file,
+                format!("{} excitation '{}'", topics::FRF, excitation),
+                e,
+            )
+        })?;
+        Ok((excitation, v))
+    }
+
+    /// An FRF message: decoded now when the axis is known, else kept for the end.
+    fn take(&mut self, excitation: String, text: &str, file: &str) -> Result<(), FormatError> {
+        match &self.axis {
+            Some(axis) => {
+                let k = self.decoded.len();
+                let d = Self::decode(axis, k, excitation, text, file)?;
+                self.decoded.push(d);
+            }
+            None => self.pending.push(FrfMsg {
+                excitation,
+                values_f64le: text.to_owned(),
+            }),
+        }
+        Ok(())
+    }
+}
+
+/// [`FrfMsg`] with its values' text borrowed from the message where it has no escapes.
+#[derive(serde::Deserialize)]
+struct FrfMsgText<'a> {
+    excitation: String,
+    #[serde(borrow)]
+    values_f64le: std::borrow::Cow<'a, str>,
+}
+
+/// Why the walk over a file's messages stopped: the MCAP itself (a CRC, a record), or
+/// a message the run cannot take.
+enum Stop {
+    Mcap(String),
+    Record(FormatError),
+}
+
+/// Message `i` of the file into `rec` (FRF messages into `frf`).
+fn take_message(
+    rec: &mut RunRecord,
+    frf: &mut FrfMessages,
+    i: usize,
+    m: RawMsg<'_>,
+    file: &str,
+) -> Result<(), FormatError> {
+    let topic = m.topic;
+    if m.encoding == "json" && topic == topics::FRF {
+        // The values' text borrowed from the message, not copied into a JSON value; any
+        // message this does not take (a duplicate key, invalid JSON) goes the general way
+        // below, which names its error.
+        if let Ok(msg) = serde_json::from_slice::<FrfMsgText>(m.data) {
+            return frf.take(msg.excitation, &msg.values_f64le, file);
+        }
+    }
+    let schema = m.schema;
+    if m.encoding != "json" {
+        let pos = rec
+            .raw_topics
+            .iter()
+            .position(|t| t.name == topic)
+            .unwrap_or_else(|| {
+                rec.raw_topics.push(RawTopic {
+                    name: topic.clone(),
+                    schema_name: schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+                    schema_encoding: schema
+                        .as_ref()
+                        .map(|s| s.encoding.clone())
+                        .unwrap_or_default(),
+                    schema_data: schema.as_ref().map(|s| s.data.clone()).unwrap_or_default(),
+                    message_encoding: m.encoding.clone(),
+                    messages: Vec::new(),
+                });
+                rec.raw_topics.len() - 1
+            });
+        rec.raw_topics[pos].messages.push(m.data.to_vec());
+        return Ok(());
+    }
+    let value: serde_json::Value = serde_json::from_slice(&m.data).map_err(|e| {
+        FormatError::record(
+            file,
+            format!("topic {topic}, message {i}"),
+            format!("invalid JSON: {e}"),
+        )
+    })?;
+    let ctx = || format!("topic {topic}, message {i}");
+    match topic.as_str() {
+        topics::FRF_AXIS => {
+            if frf.axis.is_some() {
+                return Err(FormatError::record(
+                    file,
+                    ctx(),
+                    "a second FRF axis message",
+                ));
+            }
+            frf.axis = Some(
+                serde_json::from_value(value).map_err(|e| FormatError::record(file, ctx(), e))?,
+            );
+        }
+        topics::FRF => {
+            let msg: FrfMsg =
+                serde_json::from_value(value).map_err(|e| FormatError::record(file, ctx(), e))?;
+            frf.take(msg.excitation, &msg.values_f64le, file)?;
+        }
+        _ => {
+            let pos = rec
+                .topics
+                .iter()
+                .position(|t| t.name == topic)
+                .unwrap_or_else(|| {
+                    let schema_json = schema
+                        .as_ref()
+                        .filter(|s| s.encoding == "jsonschema")
+                        .and_then(|s| serde_json::from_slice(&s.data).ok())
+                        .unwrap_or(serde_json::Value::Bool(true));
+                    rec.topics.push(JsonTopic {
+                        name: topic.clone(),
+                        schema_name: schema.as_ref().map(|s| s.name.clone()).unwrap_or_default(),
+                        schema: schema_json,
+                        messages: Vec::new(),
+                    });
+                    rec.topics.len() - 1
+                });
+            rec.topics[pos].messages.push(value);
+        }
+    }
+    Ok(())
+}
+
 fn assemble_frf(
     rec: &RunRecord,
     axis: FrfAxisMsg,
-    msgs: Vec<FrfMsg>,
+    frf: FrfMessages,
     file: &str,
 ) -> Result<FrfSet, FormatError> {
     let g = rec
@@ -281,70 +498,57 @@ fn assemble_frf(
         .map_err(|e| FormatError::other(file, e))?
         .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
     wire::check_ids_match(&axis, &g, file)?;
-    if msgs.len() != axis.excitations.len() {
+    let FrfMessages {
+        decoded, pending, ..
+    } = frf;
+    let count = pending.len() + decoded.len();
+    if count != axis.excitations.len() {
         return Err(FormatError::record(
             file,
             topics::FRF,
             format!(
                 "{} FRF messages for {} excitations",
-                msgs.len(),
+                count,
                 axis.excitations.len()
             ),
         ));
     }
-    // The declared size (channels × lines per excitation) is checked against the base64
-    // text actually present before the set is allocated: a small file declaring a huge
-    // set is an error, not an allocation failure.
-    let n = axis
-        .channels
-        .len()
-        .checked_mul(axis.frequency_hz.len())
-        .filter(|n| n.checked_mul(16 * axis.excitations.len().max(1)).is_some());
-    for (k, m) in msgs.iter().enumerate() {
-        let want = n.map(|n| (n * 16).div_ceil(3) * 4);
-        if want != Some(m.values_f64le.len()) {
-            return Err(FormatError::record(
-                file,
-                format!("{} message {k}", topics::FRF),
-                format!(
-                    "{} base64 characters of values, but {} channels × {} lines need {}",
-                    m.values_f64le.len(),
-                    axis.channels.len(),
-                    axis.frequency_hz.len(),
-                    want.map_or("more than addressable".into(), |w| w.to_string())
-                ),
-            ));
-        }
+    let n = FrfMessages::values_per_message(&axis).unwrap_or(0);
+    // Messages before the axis (another writer's order) in file order, then the rest.
+    let mut all = Vec::with_capacity(count);
+    for (k, m) in pending.into_iter().enumerate() {
+        all.push(FrfMessages::decode(
+            &axis,
+            k,
+            m.excitation,
+            &m.values_f64le,
+            file,
+        )?);
     }
-    let n = n.unwrap_or(0);
-    let mut frf = FrfSet::zeros(
-        axis.quantity,
-        axis.frequency_hz.clone(),
-        axis.excitations.len(),
-        axis.channels.len(),
-    );
-    // Each message's base64 text is dropped once decoded (the whole set's would be a
-    // third more than the set itself).
-    for (k, m) in msgs.into_iter().enumerate() {
-        if m.excitation != axis.excitations[k] {
+    all.extend(decoded);
+    // The set filled excitation by excitation, each message's values dropped once
+    // copied: the decoded values and the set are never both whole.
+    let mut values = Vec::with_capacity(n * count);
+    for (k, (excitation, v)) in all.into_iter().enumerate() {
+        if excitation != axis.excitations[k] {
             return Err(FormatError::record(
                 file,
                 format!("{} message {k}", topics::FRF),
                 format!(
                     "excitation '{}' where '{}' was expected",
-                    m.excitation, axis.excitations[k]
+                    excitation, axis.excitations[k]
                 ),
             ));
         }
-        let v = wire::decode_values(&m.values_f64le, n).map_err(|e| {
-            FormatError::record(
-                file,
-                format!("{} excitation '{}'", topics::FRF, m.excitation),
-                e,
-            )
-        })?;
-        frf.values[k * n..(k + 1) * n].copy_from_slice(&v);
+        values.extend_from_slice(&v);
     }
+    let frf = FrfSet {
+        quantity: axis.quantity,
+        frequency_hz: axis.frequency_hz,
+        n_excitations: axis.excitations.len(),
+        n_channels: axis.channels.len(),
+        values,
+    };
     frf.validate()
         .map_err(|e| FormatError::record(file, topics::FRF, e))?;
     Ok(frf)
@@ -391,19 +595,30 @@ impl Layout {
         self.records.get(i.checked_sub(1)?).copied()
     }
 
-    fn body<'a>(&self, bytes: &'a [u8], r: TopRecord) -> &'a [u8] {
-        &bytes[r.offset + 9..r.offset + 9 + r.len]
+    /// Bytes `from..from + len` of the body of `r` (`None` past its end).
+    fn field<'a>(
+        &self,
+        src: &'a Source,
+        r: TopRecord,
+        from: usize,
+        len: usize,
+    ) -> Option<std::borrow::Cow<'a, [u8]>> {
+        if from + len > r.len {
+            return None;
+        }
+        src.get(r.offset + 9 + from, len)
     }
 
     /// Topics of the messages in the chunk `chunk`, from the message index records that
     /// follow it and the channel records (the summary repeats them; a chunk's own channel
     /// records are inside it and so not trusted here). Empty when the file has no index.
-    fn chunk_topics(&self, bytes: &[u8], chunk: TopRecord) -> Vec<String> {
+    fn chunk_topics(&self, src: &Source, chunk: TopRecord) -> Vec<String> {
         let mut channels = BTreeMap::new();
         for r in self.records.iter().filter(|r| r.opcode == op::CHANNEL) {
-            if let Ok(mcap::records::Record::Channel(c)) =
-                mcap::parse_record(op::CHANNEL, self.body(bytes, *r))
-            {
+            let Some(body) = self.field(src, *r, 0, r.len) else {
+                continue;
+            };
+            if let Ok(mcap::records::Record::Channel(c)) = mcap::parse_record(op::CHANNEL, &body) {
                 channels.insert(c.id, c.topic);
             }
         }
@@ -412,8 +627,8 @@ impl Layout {
             .iter()
             .take_while(|r| r.opcode == op::MESSAGE_INDEX)
             .filter_map(|r| {
-                let b = self.body(bytes, *r);
-                let id = u16::from_le_bytes(b.get(..2)?.try_into().ok()?);
+                let b = self.field(src, *r, 0, 2)?;
+                let id = u16::from_le_bytes(b[..2].try_into().ok()?);
                 Some(
                     channels
                         .get(&id)
@@ -428,13 +643,13 @@ impl Layout {
 
     /// Where an error met after reading up to byte `pos` lies: the record, its kind and,
     /// for a chunk, the topics it holds.
-    fn describe(&self, bytes: &[u8], pos: usize) -> String {
+    fn describe(&self, src: &Source, pos: usize) -> String {
         let Some(r) = self.at(pos.saturating_sub(1)) else {
             return format!("byte {pos}");
         };
         match r.opcode {
             op::CHUNK => {
-                let topics = self.chunk_topics(bytes, r);
+                let topics = self.chunk_topics(src, r);
                 if topics.is_empty() {
                     format!(
                         "chunk at byte {} (topics unknown: no message index)",
@@ -465,7 +680,7 @@ impl Layout {
 
     /// What the file leaves unverified: chunks and sections whose CRC field is 0 (the MCAP
     /// convention for "not computed", used by some writers).
-    fn unverified(&self, bytes: &[u8]) -> Vec<String> {
+    fn unverified(&self, src: &Source) -> Vec<String> {
         let mut notes = Vec::new();
         let chunks: Vec<_> = self
             .records
@@ -474,7 +689,7 @@ impl Layout {
             .collect();
         let no_crc = chunks
             .iter()
-            .filter(|r| self.body(bytes, ***r).get(24..28) == Some(&[0u8; 4][..]))
+            .filter(|r| self.field(src, ***r, 24, 4).as_deref() == Some(&[0u8; 4][..]))
             .count();
         if no_crc > 0 {
             notes.push(format!(
@@ -484,7 +699,7 @@ impl Layout {
         }
         match self.records.iter().find(|r| r.opcode == op::DATA_END) {
             None => notes.push("no DataEnd record: the data section is not verified".into()),
-            Some(r) if self.body(bytes, *r).get(..4) == Some(&[0u8; 4][..]) => notes.push(
+            Some(r) if self.field(src, *r, 0, 4).as_deref() == Some(&[0u8; 4][..]) => notes.push(
                 "data-section CRC is 0 (not computed): record headers and indexes are not verified"
                     .into(),
             ),
@@ -497,20 +712,21 @@ impl Layout {
 /// Walks the top-level records before the mcap crate does: every length must lie inside
 /// the file and chunk sizes must be sane, because a corrupt length field would otherwise
 /// make the reader try to allocate exabytes and abort the process.
-fn layout(bytes: &[u8]) -> Result<Layout, String> {
-    if bytes.len() < 2 * MAGIC.len() || !bytes.starts_with(MAGIC) {
+fn layout(src: &Source) -> Result<Layout, String> {
+    if src.len() < 2 * MAGIC.len() || src.get(0, MAGIC.len()).as_deref() != Some(MAGIC) {
         return Err("missing MCAP magic bytes".into());
     }
     let u64_at = |p: usize| -> Option<u64> {
-        bytes
-            .get(p..p + 8)
-            .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+        src.get(p, 8)
+            .map(|b| u64::from_le_bytes(b[..].try_into().unwrap()))
     };
     let mut records = Vec::new();
     let mut pos = MAGIC.len();
-    let end = bytes.len() - MAGIC.len();
+    let end = src.len() - MAGIC.len();
     while pos < end {
-        let op = bytes[pos];
+        let op = src
+            .get(pos, 1)
+            .ok_or_else(|| format!("record at byte {pos}: unreadable"))?[0];
         let len =
             u64_at(pos + 1).ok_or_else(|| format!("record at byte {pos}: truncated header"))?;
         let body = pos + 9;
@@ -549,25 +765,31 @@ struct SchemaInfo {
     data: Vec<u8>,
 }
 
-struct RawMsg {
+/// One message as the reader yields it: its data borrowed from the decompressed chunk
+/// (copied only where it is kept as it is).
+struct RawMsg<'a> {
     topic: String,
     encoding: String,
     schema: Option<SchemaInfo>,
-    data: Vec<u8>,
+    data: &'a [u8],
 }
 
-/// All messages in file order, with the notes of the integrity check.
+/// Every message in file order, handed to `each` as it is read; returns the notes of
+/// the integrity check.
 ///
 /// Read with the sans-I/O reader, which computes the CRCs as the bytes go in: each chunk's
 /// CRC is checked before any of its records is used, the data-section CRC at the
 /// `DataEnd` record and the summary CRC at the footer. A mismatch is an error naming the
 /// record's byte offset and, for a chunk, its topics. A record-length limit keeps corrupt
 /// length fields from causing huge allocations.
-fn messages(bytes: &[u8]) -> Result<(Vec<RawMsg>, Vec<String>), String> {
+fn messages(
+    src: &Source,
+    mut each: impl FnMut(RawMsg) -> Result<(), FormatError>,
+) -> Result<Vec<String>, Stop> {
     use mcap::records::Record;
     use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
-    let layout = layout(bytes)?;
-    let limit = (256usize << 20).saturating_add(bytes.len().saturating_mul(16));
+    let layout = layout(src).map_err(Stop::Mcap)?;
+    let limit = (256usize << 20).saturating_add(src.len().saturating_mul(16));
     let mut reader = LinearReader::new_with_options(
         LinearReaderOptions::default()
             .with_record_length_limit(limit)
@@ -579,19 +801,18 @@ fn messages(bytes: &[u8]) -> Result<(Vec<RawMsg>, Vec<String>), String> {
     let mut pos = 0usize;
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (String, String, u16)> = BTreeMap::new();
-    let mut out = Vec::new();
-    let at =
-        |pos: usize, e: &dyn std::fmt::Display| format!("{}: {e}", layout.describe(bytes, pos));
+    let mut count = 0usize;
+    let at = |pos: usize, e: &dyn std::fmt::Display| format!("{}: {e}", layout.describe(src, pos));
     while let Some(event) = reader.next_event() {
-        match event.map_err(|e| at(pos, &crc_detail(e)))? {
+        match event.map_err(|e| Stop::Mcap(at(pos, &crc_detail(e))))? {
             LinearReadEvent::ReadRequest(need) => {
-                let n = need.min(bytes.len() - pos);
-                reader.insert(n).copy_from_slice(&bytes[pos..pos + n]);
+                let n = need.min(src.len() - pos);
+                src.read_linear(pos, reader.insert(n)).map_err(Stop::Mcap)?;
                 reader.notify_read(n);
                 pos += n;
             }
             LinearReadEvent::Record { opcode, data } => {
-                match mcap::parse_record(opcode, data).map_err(|e| at(pos, &e))? {
+                match mcap::parse_record(opcode, data).map_err(|e| Stop::Mcap(at(pos, &e)))? {
                     Record::Schema { header, data } => {
                         schemas.insert(
                             header.id,
@@ -606,34 +827,40 @@ fn messages(bytes: &[u8]) -> Result<(Vec<RawMsg>, Vec<String>), String> {
                         channels.insert(c.id, (c.topic, c.message_encoding, c.schema_id));
                     }
                     Record::Message { header, data } => {
-                        let (topic, encoding, sid) =
-                            channels.get(&header.channel_id).cloned().ok_or_else(|| {
+                        let (topic, encoding, sid) = channels
+                            .get(&header.channel_id)
+                            .cloned()
+                            .ok_or_else(|| {
                                 format!(
                                     "message {} refers to channel {} which was never defined",
-                                    out.len(),
-                                    header.channel_id
+                                    count, header.channel_id
                                 )
-                            })?;
+                            })
+                            .map_err(Stop::Mcap)?;
                         let schema = if sid == 0 {
                             None
                         } else {
                             Some(schemas.get(&sid).cloned().ok_or_else(|| {
-                                format!("channel '{topic}' refers to undefined schema {sid}")
+                                Stop::Mcap(format!(
+                                    "channel '{topic}' refers to undefined schema {sid}"
+                                ))
                             })?)
                         };
-                        out.push(RawMsg {
+                        count += 1;
+                        each(RawMsg {
                             topic,
                             encoding,
                             schema,
-                            data: data.into_owned(),
-                        });
+                            data: &data,
+                        })
+                        .map_err(Stop::Record)?;
                     }
                     _ => {}
                 }
             }
         }
     }
-    Ok((out, layout.unverified(bytes)))
+    Ok(layout.unverified(src))
 }
 
 /// The mcap crate's CRC errors in words (the others as they are).

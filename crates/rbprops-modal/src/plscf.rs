@@ -132,7 +132,41 @@ impl PrincipalReferences {
             1.0,
             Par::Seq,
         );
-        let (vals, vecs) = linalg::symmetric_eigen(&g)?;
+        Self::from_gram(data, &g)
+    }
+
+    /// As [`PrincipalReferences::of`], the Gram matrix summed pair by pair of references
+    /// over the data as they are, instead of from the stacked real matrix (`2·No·N × Ni`,
+    /// as large as the data): for the refinement on every line of a set-up of many
+    /// excitations ([`crate::plsfd_refine::refine_set_up`]). The same entries, summed in
+    /// another order (so not bitwise those of `of`).
+    pub fn of_pairwise(data: &PolyData) -> Option<Self> {
+        let ni = data.n_references();
+        let mut g = Mat::<f64>::zeros(ni, ni);
+        for e in 0..ni {
+            for f in 0..=e {
+                let v: f64 = data
+                    .h
+                    .iter()
+                    .map(|row| {
+                        row[e]
+                            .iter()
+                            .zip(row[f])
+                            .map(|(a, b)| a.re * b.re + a.im * b.im)
+                            .sum::<f64>()
+                    })
+                    .sum();
+                g[(e, f)] = v;
+                g[(f, e)] = v;
+            }
+        }
+        Self::from_gram(data, &g)
+    }
+
+    /// The principal references of `data` from the real Gram matrix `g` of its references.
+    fn from_gram(data: &PolyData, g: &Mat<f64>) -> Option<Self> {
+        let ni = data.n_references();
+        let (vals, vecs) = linalg::symmetric_eigen(g)?;
         // Eigenvalues ascend: the used directions, largest first.
         let top = vals[ni - 1];
         let mut cols: Vec<usize> = (0..ni)
@@ -180,6 +214,20 @@ impl PrincipalReferences {
                 .map(|row| row.iter().map(Vec::as_slice).collect())
                 .collect(),
         }
+    }
+
+    /// Number of principal references.
+    pub fn n_directions(&self) -> usize {
+        self.back.first().map_or(0, Vec::len)
+    }
+
+    /// A participation vector on the principal references, `V_rᵀ l`, from one on the
+    /// measured references (the inverse of [`PrincipalReferences::participation`] on the
+    /// span of `V_r`, up to its normalisation).
+    pub fn project(&self, l: &[c64]) -> Vec<c64> {
+        (0..self.n_directions())
+            .map(|q| self.back.iter().zip(l).map(|(row, x)| x * row[q]).sum())
+            .collect()
     }
 
     /// A participation vector on the measured references (`l = V_r l_q`, unit norm,

@@ -227,7 +227,7 @@ fn root_indices(n: usize, groups: &[Vec<usize>]) -> Vec<usize> {
 }
 
 /// Joint refinement of the sweep's poles and participation vectors on every line of
-/// the set-up ([`plsfd_refine::refine`]); the sweep's values are kept when it fails to
+/// the set-up ([`plsfd_refine::refine_set_up`]); the sweep's values are kept when it fails to
 /// lower the cost or moves a pole by more than a half-bandwidth (a mode lost to a
 /// neighbour), with a warning.
 fn refine_poles(
@@ -240,7 +240,7 @@ fn refine_poles(
 ) {
     let roots = root_indices(pp.poles.len(), groups);
     let rf = crate::prof::time(2, || {
-        plsfd_refine::refine(&pp.poles, &pp.parts, &roots, bands, res)
+        plsfd_refine::refine_set_up(&pp.poles, &pp.parts, &roots, bands, res)
     });
     let moved = pp
         .poles
@@ -253,6 +253,14 @@ fn refine_poles(
             rf.cost.0, rf.cost.1
         ));
         return;
+    }
+    if rf.references < bands.len() {
+        warnings.push(format!(
+            "{name}: poles refined on {} principal references of the {} excitations (more than {} excitations)",
+            rf.references,
+            bands.len(),
+            plsfd_refine::MAX_REFINEMENT_REFERENCES
+        ));
     }
     if !rf.converged {
         warnings.push(format!(

@@ -69,6 +69,7 @@ struct Args {
 }
 
 fn main() -> std::process::ExitCode {
+    rbprops_cli::return_large_buffers();
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
         let input = args.io.read("modal-fit", &args.uff.options())?;

@@ -50,6 +50,7 @@ fn manual(s: &str) -> Result<ManualSet> {
 }
 
 fn main() -> std::process::ExitCode {
+    rbprops_cli::return_large_buffers();
     rbprops_cli::run("ni-select", || {
         let args = Args::parse();
         let input = args.io.read("ni-select", &Default::default())?;

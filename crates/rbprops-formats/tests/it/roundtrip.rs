@@ -414,3 +414,41 @@ fn empty_text_is_an_empty_cell_and_a_missing_required_field_an_error() {
         .to_string();
     assert!(e.contains("description"), "{e}");
 }
+
+/// A file read as it is parsed (`read_file_checked`) gives what its bytes give: the same
+/// record, the same notes, the SHA-256 of its bytes; and for every mutated or truncated
+/// file the same result, error text (file, record, offset) included.
+#[test]
+fn mcap_file_read_as_it_streams_equals_the_bytes_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.mcap");
+    let bytes = mcap_file::write(&record()).unwrap();
+    let same = |b: &[u8]| {
+        std::fs::write(&path, b).unwrap();
+        let from_bytes = mcap_file::read_checked(b, "run.mcap");
+        let from_file = mcap_file::read_file_checked(&path, "run.mcap");
+        match (from_bytes, from_file) {
+            (Ok((r0, n0)), Ok((r1, n1, sha))) => {
+                assert_eq!(r0, r1);
+                assert_eq!(n0, n1);
+                assert_eq!(sha, rbprops_formats::sha256_hex(b));
+            }
+            (Err(e0), Err(e1)) => assert_eq!(e0.to_string(), e1.to_string()),
+            (a, b) => panic!("bytes {:?} but file {:?}", a.err(), b.err()),
+        }
+    };
+    same(&bytes);
+    for cut in [0, 8, 100, bytes.len() / 2, bytes.len() - 1] {
+        same(&bytes[..cut]);
+    }
+    let mut lcg = 12345u64;
+    for _ in 0..200 {
+        lcg = lcg
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let mut b = bytes.clone();
+        let p = (lcg >> 33) as usize % b.len();
+        b[p] ^= 1 << ((lcg >> 20) % 8);
+        same(&b);
+    }
+}
