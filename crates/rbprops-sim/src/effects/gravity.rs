@@ -827,7 +827,7 @@ pub(crate) const DESCRIPTORS: &[super::EffectDescriptor] = &[
         rank: 0,
         title: "gravity (pendulum) stiffness of the suspension",
         reveal: "a second suspension length, or the measured cord geometry",
-        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance, or their free lengths `unstretched_length_m`), or the set-up's cords hanging at their static equilibrium",
+        docs: "E1: the pendulum (geometric) stiffness of cords, each spring read as a vertical cord of length `cord_length_m` (axial springs, as cords are written: cords along their axes, tensions from the static balance, or their free lengths `unstretched_length_m`), or the set-up's cords hanging at their static equilibrium; on springs read as cords, `spring_turn_fraction` s (default 0) adds s times the springs' turn with the sagged body (their exact Hessian at the sagged equilibrium less the spec's springs and the cords' load term): a body on three-axis springs to the ground is s = 1 with ℓ → ∞, as the model check fits it and writes it in the improved spec",
         parse: parse_gravity_stiffness,
         neutral: super::NeutralForm::Screened(super::screening::Screened {
             rank: 1,

@@ -233,22 +233,9 @@ fn effect_examples_are_plausible_and_gross_values_are_not() {
 #[test]
 fn screening_forms_are_neutral_at_their_neutral_values() {
     use rbprops_sim::effects::screening::ScreeningKind;
-    let mut s = tc2();
-    s.noise.relative = 0.0;
-    s.noise.floor = 0.0;
-    s.frequency.lines = 201;
-    let g = s.geometry().unwrap();
-    let freq: Vec<f64> = s
-        .frequency_axis()
-        .into_iter()
-        .filter(|&f| f > 0.0)
-        .collect();
-    let frfs = |effects: &[Box<dyn rbprops_sim::effects::Effect>]| {
-        rbprops_sim::predict(&s, &g, effects, &freq, &Default::default())
-            .unwrap()
-            .0
-            .values
-    };
+    let (s, g, freq) = quiet_tc2();
+    let frfs =
+        |effects: &[Box<dyn rbprops_sim::effects::Effect>]| predicted(&s, &g, &freq, effects);
     let nominal = frfs(&[]);
     let scale = nominal.iter().map(|v| v.norm()).fold(0.0, f64::max);
     let mut ranks = Vec::new();
@@ -315,22 +302,9 @@ fn screening_forms_are_neutral_at_their_neutral_values() {
 /// dropped φ₅ and the bench's improved spec re-simulated at χ²/ν 14.1 for the check's 0.995.
 #[test]
 fn gravity_form_on_springs_is_its_spec_entry() {
-    let mut s = tc2();
-    s.noise.relative = 0.0;
-    s.noise.floor = 0.0;
-    s.frequency.lines = 201;
-    let g = s.geometry().unwrap();
-    let freq: Vec<f64> = s
-        .frequency_axis()
-        .into_iter()
-        .filter(|&f| f > 0.0)
-        .collect();
-    let frfs = |effects: &[Box<dyn rbprops_sim::effects::Effect>]| {
-        rbprops_sim::predict(&s, &g, effects, &freq, &Default::default())
-            .unwrap()
-            .0
-            .values
-    };
+    let (s, g, freq) = quiet_tc2();
+    let frfs =
+        |effects: &[Box<dyn rbprops_sim::effects::Effect>]| predicted(&s, &g, &freq, effects);
     let form = rbprops_sim::effects::screening_form("gravity_stiffness", &s, &g)
         .unwrap()
         .expect("a form on springs");
@@ -381,4 +355,32 @@ fn gravity_form_on_springs_is_its_spec_entry() {
             "1/ℓ {inverse_length}, turn {turn}: gravity acts"
         );
     }
+}
+
+/// Test Case II without noise on 201 lines, its geometry and its lines above 0 Hz.
+fn quiet_tc2() -> (CampaignSpec, rbprops_core::Geometry, Vec<f64>) {
+    let mut s = tc2();
+    s.noise.relative = 0.0;
+    s.noise.floor = 0.0;
+    s.frequency.lines = 201;
+    let g = s.geometry().unwrap();
+    let freq = s
+        .frequency_axis()
+        .into_iter()
+        .filter(|&f| f > 0.0)
+        .collect();
+    (s, g, freq)
+}
+
+/// The FRF values `effects` give on `s` at the lines `freq`.
+fn predicted(
+    s: &CampaignSpec,
+    g: &rbprops_core::Geometry,
+    freq: &[f64],
+    effects: &[Box<dyn rbprops_sim::effects::Effect>],
+) -> Vec<rbprops_core::c64> {
+    rbprops_sim::predict(s, g, effects, freq, &Default::default())
+        .unwrap()
+        .0
+        .values
 }
