@@ -737,9 +737,8 @@ impl Effect for GravityStiffness {
 
 impl GravityStiffness {
     /// The springs' turn with the sagged body ([`Self::spring_turn_fraction`] s):
-    /// `s (K_sagged − K_spec − K_load)`, with `K_sagged` the Hessian of the body hanging
-    /// on the set-up's springs alone and `K_load` the load term of `cords` (their
-    /// geometric stiffness as ℓ → ∞).
+    /// s × [`springs_turn`], against the load term of `cords` (their geometric stiffness
+    /// as ℓ → ∞).
     fn turned_springs(
         &self,
         ctx: &BuildContext,
@@ -750,22 +749,39 @@ impl GravityStiffness {
         let far: Vec<Cord> = cords.iter().map(|c| Cord { length: 1e12, ..*c }).collect();
         let (load, _) = geometric_stiffness(&model.mass, &far, self.g_m_per_s2, up)
             .map_err(|e| format!("set-up '{}': {e}", model.setup))?;
-        let sagged = hanging_equilibrium(
+        let turn = springs_turn(
+            ctx.spec,
+            ctx.setup_index,
             &model.mass,
-            &[],
-            &ctx.spec.plain_springs(ctx.setup_index),
             self.g_m_per_s2,
             up,
-        )
-        .map_err(|e| {
-            format!(
-                "set-up '{}': the springs turning with the body: {e}",
-                model.setup
-            )
-        })?;
-        let turn = sagged.stiffness - ctx.spec.setup_stiffness(ctx.setup_index) - load;
+            &load,
+        )?;
         Ok(turn * self.spring_turn_fraction)
     }
+}
+
+/// Set-up `i`'s springs turning with the sagged body, as linear springs to the ground
+/// do, in place of the cords' load term `load`: `K_sagged − K_spec − K_load`, with
+/// `K_sagged` the Hessian of the body (mass matrix `mass`) hanging on the set-up under
+/// gravity `g` along `−up`. Shared by the catalogue effect (`spring_turn_fraction`) and
+/// the model check's gravity form (φ₅), so the improved spec is the fitted model.
+pub(crate) fn springs_turn(
+    spec: &CampaignSpec,
+    i: usize,
+    mass: &Mat6,
+    g: f64,
+    up: &Vec3,
+    load: &Mat6,
+) -> Result<Mat6, String> {
+    let eq =
+        hanging_equilibrium(mass, &spec.cords(i), &spec.plain_springs(i), g, up).map_err(|e| {
+            format!(
+                "set-up '{}': the springs turning with the body: {e}",
+                spec.setups[i].id
+            )
+        })?;
+    Ok(eq.stiffness - spec.setup_stiffness(i) - load)
 }
 
 fn is_zero(x: &f64) -> bool {

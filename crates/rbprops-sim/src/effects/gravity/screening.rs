@@ -333,9 +333,15 @@ pub fn gravity_stiffness(
         // springs, against the cords' load term. Springs that cannot hold the body
         // alone (a free direction) have no sagged equilibrium to turn about: there φ₅
         // has no signature, and the other parameters keep theirs.
-        if let Ok(eq) = hanging(ctx.spec, ctx.setup_index, &model.mass, &z) {
-            let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
-            load += (dk - kinf) * turn;
+        if let Ok(t) = super::springs_turn(
+            ctx.spec,
+            ctx.setup_index,
+            &model.mass,
+            STANDARD_GRAVITY,
+            &z,
+            &kinf,
+        ) {
+            load += t * turn;
         }
     }
     Ok((k1 - kinf) * phi.inverse_length + load * phi.load)
