@@ -310,6 +310,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             c,
             kept: kept.to_vec(),
             gauge: Vec::new(),
+            held: Vec::new(),
         });
         // The resolution rule weighs the effect's own change: the fitted model against
         // the same parameters with the effect at neutral. (Against the current model, the
@@ -402,6 +403,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             c,
             kept: kept.to_vec(),
             gauge: Vec::new(),
+            held: Vec::new(),
         });
         act_both.push(gain.clone());
         let theta_both: Vec<f64> = f.theta.iter().chain(neutral).copied().collect();

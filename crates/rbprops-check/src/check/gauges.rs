@@ -93,6 +93,7 @@ pub(super) fn reopen_dropped(
         c,
         kept: kept2.clone(),
         gauge: Vec::new(),
+        held: Vec::new(),
     });
     match p.fit(stage, &theta, &act, max_iter) {
         Ok(f2) if f2.chi2 < fit.chi2 => (f2, kept2),
@@ -113,6 +114,7 @@ pub(super) fn last_effect_phi(
         c,
         kept: kept.to_vec(),
         gauge: Vec::new(),
+        held: Vec::new(),
     };
     (k0, act.phi(&p.cands[c].neutral, &theta[k0..]))
 }

@@ -138,6 +138,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                     c: e.c,
                     kept: keep.clone(),
                     gauge: Vec::new(),
+                    held: Vec::new(),
                 });
                 let stage = format!("refit {} (plausible items)", self.p.cands[e.c].id);
                 (
@@ -211,6 +212,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             c: a.c,
             kept: keep.clone(),
             gauge: Vec::new(),
+            held: a.held.clone(),
         };
         let id = &p.cands[a.c].id;
         let Ok(fit) = p.fit(

@@ -60,7 +60,7 @@ impl Prior {
 }
 
 /// An effect in the model. Its free parameters are the `kept` coordinates of φ; the
-/// others stay at their neutral values. A coordinate is dropped for each exact gauge
+/// others stay at their neutral values (or where `held` puts them). A coordinate is dropped for each exact gauge
 /// of the effect (a direction with no signature once the current model's parameters
 /// are free: a common gain the mass absorbs, a rotation of a force about itself), so a
 /// gauge can neither drift nor take over the inertia parameters, while the kept
@@ -71,6 +71,9 @@ pub(super) struct Act {
     pub(super) kept: Vec<usize>,
     /// Unit directions in φ-space the data cannot see at first order (reported).
     pub(super) gauge: Vec<Vec<f64>>,
+    /// Coordinates outside `kept` held at a value other than neutral: the effect's
+    /// physical holds once accepted ([`Effect::physical_holds`]).
+    pub(super) held: Vec<(usize, f64)>,
 }
 
 impl Act {
@@ -79,6 +82,7 @@ impl Act {
             c,
             kept: (0..n).collect(),
             gauge: Vec::new(),
+            held: Vec::new(),
         }
     }
     pub(super) fn dim(&self) -> usize {
@@ -86,6 +90,9 @@ impl Act {
     }
     pub(super) fn phi(&self, neutral: &[f64], alpha: &[f64]) -> Vec<f64> {
         let mut phi = neutral.to_vec();
+        for &(j, v) in &self.held {
+            phi[j] = v;
+        }
         for (&j, a) in self.kept.iter().zip(alpha) {
             phi[j] = *a;
         }

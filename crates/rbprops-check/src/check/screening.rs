@@ -750,6 +750,7 @@ fn gauss_newton_start(
         c,
         kept: kept.clone(),
         gauge: Vec::new(),
+        held: Vec::new(),
     };
     let at = |step: &[f64]| -> Vec<f64> {
         kept.iter()

@@ -138,6 +138,15 @@ pub trait Effect: Send + Sync + std::fmt::Debug {
     fn spec_entry(&self, _spec: &CampaignSpec) -> Result<EffectSpec, String> {
         table_entry(self.id(), self.parameters_json())
     }
+    /// Coordinates free only so that a score test sees the effect from its neutral
+    /// point, each with the physical value it takes once the effect is in a model at
+    /// these values (the gravity form's load-term factor, 1 once its cords have a
+    /// length): a fitter that has accepted the effect holds them there, so the model it
+    /// reports is the one [`Self::spec_entry`] writes. Indices in [`Self::values`] order.
+    /// Default: none.
+    fn physical_holds(&self) -> Vec<(usize, f64)> {
+        Vec::new()
+    }
     /// The effect as the truth records it: its id and parameters.
     fn record(&self) -> EffectRecord {
         EffectRecord {

@@ -194,6 +194,18 @@ impl Effect for GravityForm {
             parameters: t,
         })
     }
+    /// φ₂ = 1 once 1/ℓ > 0: the load term is free at φ = 0 only so that the score test
+    /// sees gravity's moment before any cord length is fitted; with cords in the model
+    /// a factor other than 1 is no physics the catalogue (or [`Self::spec_entry`],
+    /// which writes cord lengths only) can state, and left free it takes up what
+    /// another effect should explain.
+    fn physical_holds(&self) -> Vec<(usize, f64)> {
+        let phi = GravityPhi::from_named(&self.names, &self.values);
+        match self.names.iter().position(|n| n == LOAD_FACTOR) {
+            Some(i) if phi.inverse_length > 0.0 => vec![(i, 1.0)],
+            _ => Vec::new(),
+        }
+    }
     fn modify_structure(&self, ctx: &BuildContext, model: &mut DynamicModel) -> Result<(), String> {
         let phi = GravityPhi::from_named(&self.names, &self.values);
         model.stiffness += gravity_stiffness(ctx, model, &phi, &self.slots)?;
@@ -292,9 +304,11 @@ pub fn gravity_stiffness(
         let dk = eq.stiffness - ctx.spec.setup_stiffness(ctx.setup_index);
         return Ok(eq.lateral * (phi.inverse_length * lbar) + (dk - eq.lateral) * phi.load);
     }
-    if let Some((cords, springs)) =
-        contrasted_cords(ctx.spec, ctx.setup_index, &model.mass, phi, slots)
-    {
+    // The cords' free lengths are cut for the spec's body: a mass an effect adds (a
+    // force gauge's, a sensor's) loads and sags them as it would the real cords, as
+    // the improved spec's `unstretched_length_m` ([`axial_free_lengths`]) states.
+    let body = ctx.spec.properties().mass_matrix().0;
+    if let Some((cords, springs)) = contrasted_cords(ctx.spec, ctx.setup_index, &body, phi, slots) {
         // Cords written as axial springs (vertical or splayed): hung like the set-up's
         // cords above, from anchors at ℓ, their free lengths changed by the set-up's
         // contrasts.
