@@ -25,6 +25,7 @@ use verdict::{at_noise_floor, Finish, Finished};
 
 mod acceptance;
 mod gauges;
+mod holds;
 mod items;
 mod problem;
 mod restart;
@@ -875,14 +876,16 @@ fn run_selection(
     max_effects: usize,
     floor: take_back::FloorYardstick,
 ) -> Result<(), CheckError> {
-    let step = forward(sel, max_effects, 0, true)?;
-    // Later stages number their steps after the take-back's, so that each step's
-    // screening entries stay apart in the report.
-    let step = take_back::take_back(sel, step, floor, |branch, from, steps| {
-        forward(branch, steps.min(max_effects), from, false)
-    })?;
-    restart::fresh_start(sel, step, floor, |sel, from, steps| {
-        forward(sel, steps.min(max_effects), from, false)
+    holds::with_hold_timing(sel, floor, |sel| {
+        let step = forward(sel, max_effects, 0, true)?;
+        // Later stages number their steps after the take-back's, so that each step's
+        // screening entries stay apart in the report.
+        let step = take_back::take_back(sel, step, floor, |branch, from, steps| {
+            forward(branch, steps.min(max_effects), from, false)
+        })?;
+        restart::fresh_start(sel, step, floor, |sel, from, steps| {
+            forward(sel, steps.min(max_effects), from, false)
+        })
     })
 }
 
@@ -899,7 +902,7 @@ fn forward(
     let mut step = from;
     while step < from + max_steps {
         step += 1;
-        if !sel.step(step)? && !sel.final_retest(step)? {
+        if !sel.step(step)? && !sel.final_retest(step)? && !sel.hold_at_end(step) {
             capped = false;
             break;
         }

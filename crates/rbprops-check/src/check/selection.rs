@@ -8,6 +8,7 @@ use super::acceptance::{
     FittedEffect,
 };
 use super::gauges::{centre_gauges, reopen_dropped};
+use super::holds::HoldTiming;
 use super::items::Narrowed;
 use super::problem::{active_dims, drop_params, span_basis, without_act, Act, Prior, Problem};
 use super::screening::{
@@ -120,6 +121,10 @@ pub(super) struct Selection<'p, 'a> {
     pub(super) findings: Findings,
     pub(super) held_out: HeldOutPlan,
     pub(super) charges: Charges,
+    /// When accepted effects' screening-only coordinates are held ([`HoldTiming`]).
+    pub(super) hold: HoldTiming,
+    /// Some coordinate was held as its effect was accepted.
+    pub(super) held_early: bool,
 }
 
 impl<'p, 'a> Selection<'p, 'a> {
@@ -157,6 +162,8 @@ impl<'p, 'a> Selection<'p, 'a> {
                 ln_n: p.n_real().ln(),
                 free_base,
             },
+            hold: HoldTiming::AtAcceptance,
+            held_early: false,
         }
     }
 
@@ -697,7 +704,9 @@ impl<'p, 'a> Selection<'p, 'a> {
         let (fit, accepted) = evidence.accept(step);
         self.model.cur = fit;
         self.model.accepted.push(accepted);
-        self.hold_physical(step);
+        if self.hold == HoldTiming::AtAcceptance {
+            self.held_early |= self.hold_physical(self.model.active.len() - 1, step);
+        }
         let cand = &p.cands[best.c];
         if cand.follows.is_some() && !p.cands.iter().any(|x| x.follows.as_ref() == Some(&cand.id)) {
             self.findings.warnings.push(diagnostic(DiagnosticKind::CheckProcedure, Severity::Warning, format!(
@@ -706,77 +715,6 @@ impl<'p, 'a> Selection<'p, 'a> {
                 cand.effect.id()
             )));
         }
-    }
-
-    /// Holds the effect just accepted at its physical values where its screening form
-    /// left coordinates free only for the score test ([`Effect::physical_holds`]: the
-    /// gravity form's load-term factor, 1 once its cords have a length) and refits the
-    /// model so. Left free, such a coordinate takes up what another effect should
-    /// explain, and the model reported is not the one the improved spec states. The
-    /// held model stands even when its χ² is higher: later steps and the backward
-    /// check weigh it as it is.
-    ///
-    /// [`Effect::physical_holds`]: rbprops_sim::effects::Effect::physical_holds
-    fn hold_physical(&mut self, step: usize) {
-        let p = self.p;
-        let k = self.model.active.len() - 1;
-        let k0 = p.n_base() + active_dims(&self.model.active[..k]);
-        let a = &self.model.active[k];
-        let cand = &p.cands[a.c];
-        let phi = a.phi(&cand.neutral, &self.model.cur.theta[k0..k0 + a.dim()]);
-        let Ok(effect) = cand.effect.with_values(&phi) else {
-            return;
-        };
-        let holds: Vec<(usize, f64)> = effect
-            .physical_holds()
-            .into_iter()
-            .filter(|(j, _)| a.kept.contains(j))
-            .collect();
-        if holds.is_empty() {
-            return;
-        }
-        let mut held = a.clone();
-        held.kept.retain(|j| holds.iter().all(|(h, _)| h != j));
-        held.held.extend_from_slice(&holds);
-        let mut theta = self.model.cur.theta[..k0].to_vec();
-        theta.extend(held.kept.iter().map(|&j| phi[j]));
-        let mut act = self.model.active.clone();
-        act[k] = held;
-        let Ok(fit) = p.fit(
-            &format!("{} held at its physical values", cand.id),
-            &theta,
-            &act,
-            self.options.max_iterations,
-        ) else {
-            return;
-        };
-        let infos = cand.effect.parameters();
-        let what: Vec<String> = holds
-            .iter()
-            .map(|(j, v)| format!("{} held at {v} (fitted {:.3})", infos[*j].name, phi[*j]))
-            .collect();
-        let note = format!(
-            "{}; χ² {:+.1} for it",
-            what.join(", "),
-            fit.chi2 - self.model.cur.chi2
-        );
-        self.options
-            .progress
-            .say(|| format!("step {step}: {}: {note}", cand.id));
-        if let Some(e) = self
-            .findings
-            .screening
-            .iter_mut()
-            .rev()
-            .find(|e| e.step == step && e.id == cand.id)
-        {
-            e.decision.push_str(&format!(" ({note})"));
-        }
-        let ev = &mut self.model.accepted[k];
-        ev.kept = act[k].kept.clone();
-        ev.rank = ev.rank.min(ev.kept.len());
-        self.model.active = act;
-        self.model.cur = fit;
     }
 
     /// Active effect `k` passes the final re-test without its refit: its fitted values

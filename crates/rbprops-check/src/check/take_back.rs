@@ -52,7 +52,7 @@ impl FloorYardstick {
 
 impl<'p, 'a> Selection<'p, 'a> {
     /// A copy of the selection's state to run a branch on.
-    fn fork(&self) -> Selection<'p, 'a> {
+    pub(super) fn fork(&self) -> Selection<'p, 'a> {
         Selection {
             p: self.p,
             options: self.options,
@@ -61,11 +61,13 @@ impl<'p, 'a> Selection<'p, 'a> {
             findings: self.findings.clone(),
             held_out: self.held_out.clone(),
             charges: self.charges.clone(),
+            hold: self.hold,
+            held_early: self.held_early,
         }
     }
 
     /// BIC of the current model (up to the constant shared by every model of the data).
-    fn bic(&self) -> f64 {
+    pub(super) fn bic(&self) -> f64 {
         self.model.cur.chi2 + active_dims(&self.model.active) as f64 * self.charges.ln_n
     }
 
