@@ -306,12 +306,7 @@ impl<'p, 'a> Selection<'p, 'a> {
         // Practical significance: the fitted change to the FRFs against the
         // precision floor (see `PRACTICAL_MARGIN`).
         let mut act = self.model.active.clone();
-        act.push(Act {
-            c,
-            kept: kept.to_vec(),
-            gauge: Vec::new(),
-            held: Vec::new(),
-        });
+        act.push(Act::new(c, kept.to_vec()));
         // The resolution rule weighs the effect's own change: the fitted model against
         // the same parameters with the effect at neutral. (Against the current model, the
         // refit's re-adjustment of everything else would count as the effect's.)
@@ -399,12 +394,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             p.fit(&stage, &theta, &act, n).ok().map(|f| f.chi2)
         };
         let mut act_both = self.model.active.clone();
-        act_both.push(Act {
-            c,
-            kept: kept.to_vec(),
-            gauge: Vec::new(),
-            held: Vec::new(),
-        });
+        act_both.push(Act::new(c, kept.to_vec()));
         act_both.push(gain.clone());
         let theta_both: Vec<f64> = f.theta.iter().chain(neutral).copied().collect();
         let stage = format!("{} beyond an excitation gain", p.cands[c].id);

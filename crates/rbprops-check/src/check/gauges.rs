@@ -89,12 +89,7 @@ pub(super) fn reopen_dropped(
     let mut theta = fit.theta[..k0].to_vec();
     theta.extend(kept2.iter().map(|&j| phi[j]));
     let mut act = active.to_vec();
-    act.push(Act {
-        c,
-        kept: kept2.clone(),
-        gauge: Vec::new(),
-        held: Vec::new(),
-    });
+    act.push(Act::new(c, kept2.clone()));
     match p.fit(stage, &theta, &act, max_iter) {
         Ok(f2) if f2.chi2 < fit.chi2 => (f2, kept2),
         _ => (fit, kept.to_vec()),
@@ -110,12 +105,7 @@ pub(super) fn last_effect_phi(
     kept: &[usize],
 ) -> (usize, Vec<f64>) {
     let k0 = theta.len() - kept.len();
-    let act = Act {
-        c,
-        kept: kept.to_vec(),
-        gauge: Vec::new(),
-        held: Vec::new(),
-    };
+    let act = Act::new(c, kept.to_vec());
     (k0, act.phi(&p.cands[c].neutral, &theta[k0..]))
 }
 

@@ -134,12 +134,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 let mut t0 = self.model.cur.theta.clone();
                 t0.extend(keep.iter().map(|&j| value_at(&e.kept, fitted(e), j)));
                 let mut act = self.model.active.clone();
-                act.push(Act {
-                    c: e.c,
-                    kept: keep.clone(),
-                    gauge: Vec::new(),
-                    held: Vec::new(),
-                });
+                act.push(Act::new(e.c, keep.clone()));
                 let stage = format!("refit {} (plausible items)", self.p.cands[e.c].id);
                 (
                     e.c,

@@ -60,11 +60,11 @@ impl Prior {
 }
 
 /// An effect in the model. Its free parameters are the `kept` coordinates of φ; the
-/// others stay at their neutral values (or where `held` puts them). A coordinate is dropped for each exact gauge
-/// of the effect (a direction with no signature once the current model's parameters
-/// are free: a common gain the mass absorbs, a rotation of a force about itself), so a
-/// gauge can neither drift nor take over the inertia parameters, while the kept
-/// parameters keep their own units and bounds.
+/// others stay at their neutral values (or where `held` puts them). A coordinate is
+/// dropped for each exact gauge of the effect (a direction with no signature once the
+/// current model's parameters are free: a common gain the mass absorbs, a rotation of a
+/// force about itself), so a gauge can neither drift nor take over the inertia
+/// parameters, while the kept parameters keep their own units and bounds.
 #[derive(Debug, Clone)]
 pub(super) struct Act {
     pub(super) c: usize,
@@ -77,13 +77,17 @@ pub(super) struct Act {
 }
 
 impl Act {
-    pub(super) fn full(c: usize, n: usize) -> Act {
+    /// Candidate `c` with the coordinates `kept` free, no gauge and nothing held.
+    pub(super) fn new(c: usize, kept: Vec<usize>) -> Act {
         Act {
             c,
-            kept: (0..n).collect(),
+            kept,
             gauge: Vec::new(),
             held: Vec::new(),
         }
+    }
+    pub(super) fn full(c: usize, n: usize) -> Act {
+        Act::new(c, (0..n).collect())
     }
     pub(super) fn dim(&self) -> usize {
         self.kept.len()

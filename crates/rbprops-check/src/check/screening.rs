@@ -746,12 +746,7 @@ fn gauss_newton_start(
         })
         .collect();
     let infos = cand.effect.parameters();
-    let probe = Act {
-        c,
-        kept: kept.clone(),
-        gauge: Vec::new(),
-        held: Vec::new(),
-    };
+    let probe = Act::new(c, kept.clone());
     let at = |step: &[f64]| -> Vec<f64> {
         kept.iter()
             .zip(step)

@@ -530,12 +530,7 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn refit_start(&self, c: usize, s: &Score) -> (Vec<f64>, Vec<Act>, usize) {
         let (p, cur) = (self.p, &self.model.cur);
         let mut act = self.model.active.clone();
-        act.push(Act {
-            c,
-            kept: s.kept.clone(),
-            gauge: Vec::new(),
-            held: Vec::new(),
-        });
+        act.push(Act::new(c, s.kept.clone()));
         // The Gauss–Newton start can overshoot when the effect is strongly
         // non-linear: halve it until it is no worse than the current model.
         let cand = &p.cands[c];

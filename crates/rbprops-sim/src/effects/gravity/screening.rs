@@ -679,6 +679,33 @@ pub fn gravity_profile(spec: &CampaignSpec, n_params: usize) -> ScreeningKind {
 
 #[cfg(test)]
 mod tests {
+    /// φ₂ is held at 1 only once the cords have a length (1/ℓ > 0): at the neutral point
+    /// and at 1/ℓ ≤ 0 it stays free, as the score test needs.
+    #[test]
+    fn load_factor_is_held_at_one_once_the_cords_have_a_length() {
+        use super::{GravityForm, LOAD_FACTOR};
+        use crate::effects::Effect;
+        let text = crate::examples::example("test-case-2").expect("built-in");
+        let spec = crate::CampaignSpec::from_toml_str(text).expect("valid spec");
+        let form = GravityForm::neutral(&spec, &spec.geometry().expect("geometry"));
+        let i = form
+            .parameters()
+            .iter()
+            .position(|p| p.name == LOAD_FACTOR)
+            .expect("a load-term factor");
+        let at = |inv_len: f64, load: f64| {
+            let mut v = form.values();
+            v[0] = inv_len;
+            v[i] = load;
+            form.with_values(&v).expect("values").physical_holds()
+        };
+        assert!(at(0.0, 0.0).is_empty());
+        assert!(at(0.0, 0.8).is_empty());
+        assert!(at(-0.1, 0.8).is_empty());
+        assert_eq!(at(0.5, 0.8), vec![(i, 1.0)]);
+        assert_eq!(at(1e-6, 1.3), vec![(i, 1.0)]);
+    }
+
     use super::pose_contrasts;
     use rbprops_core::Vec3;
 
