@@ -237,8 +237,10 @@ fn min_norm_solve(
     b: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>, usize, Vec<Vec<f64>>), InertiaError> {
     let (n, m) = (a.nrows(), a.ncols());
-    let svd = a
-        .svd()
+    // Tall systems (the mass line stacks six rows per excitation) need only the first m
+    // columns of U: the full n×n factor made the cost grow as n³ with the excitations.
+    // V stays whole either way (m ≤ n), so the null directions are still all there.
+    let svd = if n >= m { a.thin_svd() } else { a.svd() }
         .map_err(|e| InertiaError::LinearAlgebra(format!("SVD of the design matrix: {e:?}")))?;
     let s = svd.S().column_vector();
     let ns = n.min(m);
