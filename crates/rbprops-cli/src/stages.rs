@@ -5,12 +5,9 @@ use anyhow::{Context, Result};
 use rbprops_core::records::{InertiaEstimate, ModalFitRecord, SelectionRecord, TruthRecord};
 use rbprops_formats::{topics, RunRecord};
 
-/// `frf-sim`: a campaign spec (TOML text) to a fresh record. `source` names it in errors.
-pub fn simulate(
-    text: &str,
-    source: &str,
-    seed: Option<u64>,
-) -> Result<(RunRecord, rbprops_sim::Simulation)> {
+/// `frf-sim`: a campaign spec (TOML text) to a fresh record and the simulator's notes.
+/// `source` names it in errors.
+pub fn simulate(text: &str, source: &str, seed: Option<u64>) -> Result<(RunRecord, Vec<String>)> {
     let mut spec = rbprops_sim::CampaignSpec::from_toml_str(text)
         .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     if let Some(seed) = seed {
@@ -23,9 +20,10 @@ pub fn simulate(
         &rbprops_formats::sha256_hex(text.as_bytes()),
     ))?;
     rec.set_geometry(&sim.geometry);
-    rec.frf = Some(sim.frf.clone());
+    // Moved, not copied: the FRF set is the record's bulk (issue 41's memory bound).
+    rec.frf = Some(sim.frf);
     rec.set(topics::TRUTH, std::slice::from_ref(&sim.truth));
-    Ok((rec, sim))
+    Ok((rec, sim.notes))
 }
 
 /// `modal-fit` on a record: adds the `modal_fit` topic. When the recording's processing

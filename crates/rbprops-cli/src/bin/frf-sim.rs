@@ -66,9 +66,9 @@ fn main() -> std::process::ExitCode {
         if args.print_spec {
             return rbprops_cli::out(&text);
         }
-        let (rec, sim) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
+        let (rec, sim_notes) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
         let mut notes = rbprops_cli::warnings::Collector::default();
-        for note in &sim.notes {
+        for note in &sim_notes {
             notes.add(rbprops_cli::warnings::note_of(
                 "frf-sim",
                 rbprops_cli::warnings::DiagnosticKind::Simulation,
@@ -78,10 +78,8 @@ fn main() -> std::process::ExitCode {
         }
         notes.print(args.verbose);
         if let Some(dir) = &args.plot {
-            rbprops_cli::write_plots(
-                dir,
-                &rbprops_cli::plots::frf_magnitudes(&sim.geometry, &sim.frf)?,
-            )?;
+            let (geometry, frf) = rec.require_geometry_and_frf()?;
+            rbprops_cli::write_plots(dir, &rbprops_cli::plots::frf_magnitudes(&geometry, frf)?)?;
         }
         rbprops_cli::write_output(&rec, args.output.as_deref())
     })
