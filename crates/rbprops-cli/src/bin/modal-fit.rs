@@ -155,6 +155,7 @@ fn main() -> std::process::ExitCode {
                 &rbprops_cli::plots::modal_fit_shaded(&geometry, frf, &out, shading)?,
             )?;
         }
+        drop(out); // its plot data is not written: freed before the output is encoded
         args.io.write(&rec)
     })
 }

@@ -104,6 +104,9 @@ fn main() -> std::process::ExitCode {
         if let Some(dir) = &args.plot {
             rbprops_cli::write_plots(dir, &rbprops_cli::plots::indicators(&out)?)?;
         }
+        // The indicator curves (several values per line and excitation) are not written:
+        // freed before the output is encoded (issue 41's memory bound).
+        drop(out);
         args.io.write(&rec)
     })
 }
