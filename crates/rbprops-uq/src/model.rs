@@ -29,10 +29,11 @@ pub struct ExcitationModel {
     pub poles: Vec<Pole>,
     /// `ModeEstimate.mode` of each pole.
     pub mode_numbers: Vec<usize>,
-    /// LSFD synthesis `[channel][line]` of the measured band with these poles.
-    pub synthesised: Vec<Vec<c64>>,
-    /// The bootstrap's centre: the synthesis, except on lines of structured misfit where
-    /// it is the measured value (so every replicate carries the misfit the data carry).
+    /// The bootstrap's centre `[channel][line]`: the LSFD synthesis of the measured band
+    /// with these poles, except on lines of structured misfit where it is the measured
+    /// value (so every replicate carries the misfit the data carry). Built in place from
+    /// the synthesis by the noise fit, so that the band is never held three times
+    /// (measured, synthesised, centre: issue 41's memory bound).
     pub centre: Vec<Vec<c64>>,
     /// Noise model per channel, estimated from the fit residuals (docs/conventions.md §8).
     pub noise: Vec<NoiseModel>,
@@ -391,28 +392,22 @@ impl FittedModel {
                     + 2.0 * nm / live.max(1) as f64;
                 // Channel by channel in parallel, collected in channel order (each fit
                 // depends only on its channel: the same for any thread count).
+                // `e.centre` holds the synthesis until the misfit lines are set below.
                 let fits: Vec<_> = e
                     .band
                     .channels
                     .par_iter()
-                    .zip(e.synthesised.par_iter())
+                    .zip(e.centre.par_iter())
                     .map(|(h, s)| fit_channel(h, s, p))
                     .collect();
-                e.centre = fits
-                    .iter()
-                    .enumerate()
-                    .map(|(c, f)| {
-                        (0..e.band.n_lines())
-                            .map(|l| {
-                                if f.misfit[l] {
-                                    e.band.channels[c][l]
-                                } else {
-                                    e.synthesised[c][l]
-                                }
-                            })
-                            .collect()
-                    })
-                    .collect();
+                for ((centre, measured), f) in e.centre.iter_mut().zip(&e.band.channels).zip(&fits)
+                {
+                    for ((z, h), misfit) in centre.iter_mut().zip(measured).zip(&f.misfit) {
+                        if *misfit {
+                            *z = *h;
+                        }
+                    }
+                }
                 e.misfit_lines = fits
                     .iter()
                     .map(|f| f.misfit.iter().filter(|m| **m).count())
@@ -494,9 +489,8 @@ fn excitation_model(
         live,
         mode_numbers: modes.iter().map(|m| m.mode).collect(),
         poles,
-        // Filled by the noise fit (the synthesis with the misfit lines measured).
-        centre: Vec::new(),
-        synthesised,
+        // The synthesis; the noise fit sets its misfit lines to the measured values.
+        centre: synthesised,
         noise: Vec::new(),
         misfit_lines: Vec::new(),
         draw_band: BandData {
