@@ -311,12 +311,14 @@ fn read_source(src: &Source, file: &str) -> Result<(RunRecord, Vec<String>), For
     Ok((rec, notes))
 }
 
-/// The FRF topic as it is read: the axis, the values of the messages decoded so far (in
-/// file order) and the messages that came before the axis (decoded at the end).
+/// The FRF topic as it is read: the axis, the excitation ids and values of the messages
+/// decoded so far (in file order, the values appended to one buffer that becomes the
+/// set's) and the messages that came before the axis (decoded at the end).
 #[derive(Default)]
 struct FrfMessages {
     axis: Option<FrfAxisMsg>,
-    decoded: Vec<(String, Vec<rbprops_core::c64>)>,
+    decoded_ids: Vec<String>,
+    decoded: Vec<rbprops_core::c64>,
     pending: Vec<FrfMsg>,
 }
 
@@ -368,9 +370,19 @@ impl FrfMessages {
     fn take(&mut self, excitation: String, text: &str, file: &str) -> Result<(), FormatError> {
         match &self.axis {
             Some(axis) => {
-                let k = self.decoded.len();
-                let d = Self::decode(axis, k, excitation, text, file)?;
-                self.decoded.push(d);
+                let k = self.decoded_ids.len();
+                let (id, v) = Self::decode(axis, k, excitation, text, file)?;
+                if k == 0 {
+                    // The declared set's room at once (pages are only touched as they are
+                    // filled), so that growing it never copies it: the values are held
+                    // once plus one message (issue 41). A declared size the system
+                    // refuses falls back to growing.
+                    let n = Self::values_per_message(axis).unwrap_or(0);
+                    let declared = n.saturating_mul(axis.excitations.len());
+                    let _ = self.decoded.try_reserve_exact(declared);
+                }
+                self.decoded.extend_from_slice(&v);
+                self.decoded_ids.push(id);
             }
             None => self.pending.push(FrfMsg {
                 excitation,
@@ -499,9 +511,12 @@ fn assemble_frf(
         .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
     wire::check_ids_match(&axis, &g, file)?;
     let FrfMessages {
-        decoded, pending, ..
+        decoded_ids,
+        decoded,
+        pending,
+        ..
     } = frf;
-    let count = pending.len() + decoded.len();
+    let count = pending.len() + decoded_ids.len();
     if count != axis.excitations.len() {
         return Err(FormatError::record(
             file,
@@ -514,22 +529,23 @@ fn assemble_frf(
         ));
     }
     let n = FrfMessages::values_per_message(&axis).unwrap_or(0);
-    // Messages before the axis (another writer's order) in file order, then the rest.
-    let mut all = Vec::with_capacity(count);
-    for (k, m) in pending.into_iter().enumerate() {
-        all.push(FrfMessages::decode(
-            &axis,
-            k,
-            m.excitation,
-            &m.values_f64le,
-            file,
-        )?);
-    }
-    all.extend(decoded);
-    // The set filled excitation by excitation, each message's values dropped once
-    // copied: the decoded values and the set are never both whole.
-    let mut values = Vec::with_capacity(n * count);
-    for (k, (excitation, v)) in all.into_iter().enumerate() {
+    // Messages before the axis (another writer's order) in file order, then the rest;
+    // only then is the set copied once.
+    let mut ids = Vec::with_capacity(count);
+    let values = if pending.is_empty() {
+        decoded
+    } else {
+        let mut values = Vec::with_capacity(n * count);
+        for (k, m) in pending.into_iter().enumerate() {
+            let (id, v) = FrfMessages::decode(&axis, k, m.excitation, &m.values_f64le, file)?;
+            values.extend_from_slice(&v);
+            ids.push(id);
+        }
+        values.extend_from_slice(&decoded);
+        values
+    };
+    ids.extend(decoded_ids);
+    for (k, excitation) in ids.into_iter().enumerate() {
         if excitation != axis.excitations[k] {
             return Err(FormatError::record(
                 file,
@@ -540,7 +556,6 @@ fn assemble_frf(
                 ),
             ));
         }
-        values.extend_from_slice(&v);
     }
     let frf = FrfSet {
         quantity: axis.quantity,
