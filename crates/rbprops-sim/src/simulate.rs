@@ -678,14 +678,6 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
 mod tests {
     use super::*;
 
-    /// The column solve agrees with the inverse to rounding on every effect fixture
-    /// (Test Case II with each effect on: attached masses and stiffness, hysteretic and
-    /// non-proportional damping, extra modes, output effects, an exponential window
-    /// against the observed path; the other observed ones take the same path under
-    /// both methods). Both are backward-stable solves of the same 6×6
-    /// systems; the worst relative difference measured is 2.5e-15 of the row's
-    /// largest value (hysteretic_damping, added_mass), so 1e-13 leaves room for other platforms and still fails on any
-    /// wrong column, sign or attached matrix (those differ at 1e-3 and above).
     /// The largest difference of two FRF sets on one axis, relative to the largest value
     /// of the first set's row (excitation and channel) it is in.
     fn worst_relative_difference(a: &FrfSet, b: &FrfSet) -> f64 {
@@ -700,6 +692,14 @@ mod tests {
         worst
     }
 
+    /// The column solve agrees with the inverse to rounding on every effect fixture
+    /// (Test Case II with each effect on: attached masses and stiffness, hysteretic and
+    /// non-proportional damping, extra modes, output effects, an exponential window
+    /// against the observed path; the other observed ones take the same path under
+    /// both methods). Both are backward-stable solves of the same 6×6
+    /// systems; the worst relative difference measured is 2.5e-15 of the row's
+    /// largest value (hysteretic_damping, added_mass), so 1e-13 leaves room for other platforms and still fails on any
+    /// wrong column, sign or attached matrix (those differ at 1e-3 and above).
     #[test]
     fn column_solve_equals_the_inverse_to_rounding() {
         // Plus a window over an extra mode, an attached mass and an output gain together
