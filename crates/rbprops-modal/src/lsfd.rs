@@ -438,6 +438,23 @@ pub struct Refined {
     pub cost: (f64, f64),
     /// The LSFD solution at the final poles, kept for [`screen_extra_poles`].
     fit: std::sync::Arc<Trial>,
+    /// The RMS of each input channel (the refinement fits them scaled to unit RMS).
+    rms: Vec<f64>,
+}
+
+impl Refined {
+    /// The residues `R` per mode and input channel at the refined poles, in the units of
+    /// the channels given to [`refine`]: its last LSFD solution scaled back from unit
+    /// RMS. The line weights are invariant to that scaling ([`line_weights`] levels each
+    /// channel by its RMS), so these are [`fit_residues`] of the refined poles on the same
+    /// channels, up to rounding, without fitting them again.
+    pub fn residues(&self) -> Vec<Vec<c64>> {
+        self.fit
+            .residues
+            .iter()
+            .map(|r| r.iter().zip(&self.rms).map(|(r, s)| r * s).collect())
+            .collect()
+    }
 }
 
 /// The LSFD solution for one trial pole set (weighted data).
@@ -546,15 +563,16 @@ fn trial(
     }
 }
 
-/// Channels scaled to unit RMS: the data [`refine`] and [`screen_extra_poles`] fit.
-fn unit_rms(chans: &[Vec<c64>]) -> Vec<Vec<c64>> {
+/// Channels scaled to unit RMS (the data [`refine`] and [`screen_extra_poles`] fit), and
+/// each channel's RMS.
+fn unit_rms(chans: &[Vec<c64>]) -> (Vec<Vec<c64>>, Vec<f64>) {
     chans
         .iter()
         .map(|h| {
             let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt();
-            h.iter().map(|z| z / rms).collect()
+            (h.iter().map(|z| z / rms).collect(), rms)
         })
-        .collect()
+        .unzip()
 }
 
 /// The weighted cost `Σ_o ‖w (h_o/rms_o − Φ c_o)‖²` that [`refine`] minimised (at the
@@ -622,7 +640,7 @@ pub fn screen_extra_poles(
 pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> Refined {
     let n = band.n_lines();
     let no = chans.len();
-    let data = unit_rms(chans);
+    let (data, rms) = unit_rms(chans);
     let lw = std::sync::Arc::new(band_line_weights(band, &data));
     let bw = stack_data(&data, &lw);
     let (qre, qim) = weighted_quantity_factor(band, &lw);
@@ -729,6 +747,7 @@ pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residual
         converged,
         cost: (cost0, t.cost),
         fit: std::sync::Arc::new(t),
+        rms,
     }
 }
 
