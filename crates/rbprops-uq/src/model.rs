@@ -3,10 +3,10 @@
 
 use crate::error::UqError;
 use crate::noise::fit_channel;
-use rand_chacha::ChaCha8Rng;
-use rayon::prelude::*;
 use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
+use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
 use rbprops_core::{c64, FrfSet, Geometry};

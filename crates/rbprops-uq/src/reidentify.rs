@@ -124,10 +124,7 @@ pub fn refine_group(
                 .iter()
                 .find(|x| x.excitation == e.id && x.mode == number)
                 .expect("the model was built from these modes");
-            let residues: Vec<c64> = fitted[m]
-                .iter()
-                .map(|r| p.modal_constant(*r))
-                .collect();
+            let residues: Vec<c64> = fitted[m].iter().map(|r| p.modal_constant(*r)).collect();
             modes.push(ModeEstimate {
                 frequency_hz: p.frequency_hz(),
                 damping_ratio: p.damping(),
@@ -153,7 +150,11 @@ pub fn refine_group(
 /// [`lsfd::fit_residues`] would compute again (issue 41: that second fit was a sixth of a
 /// replicate's cost). `None` for a group of several excitations, whose refinement
 /// weighted the lines by all of them.
-fn own_residues(refined: &lsfd::Refined, e: &ExcitationModel, band: &BandData) -> Option<Vec<Vec<c64>>> {
+fn own_residues(
+    refined: &lsfd::Refined,
+    e: &ExcitationModel,
+    band: &BandData,
+) -> Option<Vec<Vec<c64>>> {
     let dead_are_zero = band
         .channels
         .iter()

@@ -7,4 +7,5 @@ mod common;
 mod noise_free;
 mod noisy;
 mod plscf;
+mod refine;
 mod robustness;
