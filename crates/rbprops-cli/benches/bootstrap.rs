@@ -6,10 +6,9 @@
 //!
 //! `cargo bench -p rbprops-cli --bench bootstrap`
 //!
-//! Measured (2 shared cores, load about 15, beside a test build): linearised 0.49 s,
-//! bootstrap 6.45 s, modal fit 0.73 s (medians of 10). The whole processes (with reading
-//! the 44 MB record) are timed by `scripts/membench.py`; figures in docs/results.md
-//! ("rb-solve's bootstrap at scale").
+//! Measured (2 cores, quiet, session 34): linearised 50 ms, bootstrap 442 ms, modal fit
+//! 96 ms (medians of 10). The whole processes (with reading the 44 MB record) are timed
+//! as in docs/results.md ("rb-solve's bootstrap at scale"): 0.24 s and 0.65 s.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rbprops_cli::stages;
