@@ -57,7 +57,7 @@ pub fn fit_channel(
     assert_eq!(n, synthesised.len());
     let mut misfit = vec![false; n];
     let mut noise = fit_lines(
-        noise_lines(measured, synthesised, &misfit),
+        noise_lines(measured, synthesised, None),
         parameters_per_channel,
     );
     let rms2 = synthesised.iter().map(|z| z.norm_sqr()).sum::<f64>() / n.max(1) as f64;
@@ -80,7 +80,7 @@ pub fn fit_channel(
         }
         misfit = flag;
         noise = fit_lines(
-            noise_lines(measured, synthesised, &misfit),
+            noise_lines(measured, synthesised, Some(&misfit)),
             parameters_per_channel,
         );
     }
@@ -119,16 +119,17 @@ fn structured_windows(u: impl Iterator<Item = f64>, n: usize) -> Vec<bool> {
     flag
 }
 
-/// `(|S|², |r|²)` of every line not `skip`ped, leaving out lines where both the
-/// measurement and the synthesis are exactly zero (e.g. 0 Hz of an accelerance): they
-/// carry no information.
-fn noise_lines(measured: &[c64], synthesised: &[c64], skip: &[bool]) -> Vec<(f64, f64)> {
+/// `(|S|², |r|²)` of every line not `skip`ped (none without a mask), leaving out lines
+/// where both the measurement and the synthesis are exactly zero (e.g. 0 Hz of an
+/// accelerance): they carry no information.
+fn noise_lines(measured: &[c64], synthesised: &[c64], skip: Option<&[bool]>) -> Vec<(f64, f64)> {
+    let skipped = |l: usize| skip.is_some_and(|s| s[l]);
     measured
         .iter()
         .zip(synthesised)
-        .zip(skip)
-        .filter(|((h, s), skip)| !**skip && (h.norm_sqr() > 0.0 || s.norm_sqr() > 0.0))
-        .map(|((h, s), _)| (s.norm_sqr(), (h - s).norm_sqr()))
+        .enumerate()
+        .filter(|&(l, (h, s))| !skipped(l) && (h.norm_sqr() > 0.0 || s.norm_sqr() > 0.0))
+        .map(|(_, (h, s))| (s.norm_sqr(), (h - s).norm_sqr()))
         .collect()
 }
 
@@ -142,9 +143,8 @@ pub fn fit_channel_noise(
     parameters_per_channel: f64,
 ) -> NoiseModel {
     assert_eq!(measured.len(), synthesised.len());
-    let none = vec![false; measured.len()];
     fit_lines(
-        noise_lines(measured, synthesised, &none),
+        noise_lines(measured, synthesised, None),
         parameters_per_channel,
     )
 }
