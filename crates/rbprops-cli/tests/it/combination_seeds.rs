@@ -66,7 +66,12 @@ fn impact_seeds_7048_and_7056_are_named_exactly() {
 /// claims `elastic_mode_2` and `force_direction` (χ²/ν 81.7), while the release build
 /// names the four exactly. The check's path on this seed hangs on floating-point detail
 /// (a defect of issue 37, not of the code this session changed); run it with
-/// `cargo nextest run --release --run-ignored all cords_seed_6027`.
+/// `cargo nextest run --release --run-ignored all cords_seed_6027`. Traced in session 35
+/// (docs/results.md, "Seed 6027 on a knife edge"): the two builds' step-1 screening
+/// gains differ at 1e-12 relative, not the thread count (1 and 2 threads give the same
+/// bits in each build); the step-1 refits from χ²/ν 1.2·10⁶ end where the Jacobian's
+/// accuracy stops them and amplify that to 17 % in χ² after gravity's hold; a stopping
+/// rule on the Gauss–Newton step instead swapped which build passes.
 #[test]
 #[ignore = "machine- and build-dependent result on seed 6027 (issue 37, session 34)"]
 fn cords_seed_6027_is_named_exactly() {
