@@ -58,23 +58,12 @@ pub fn weight_fit(
     source: &str,
 ) -> Result<()> {
     use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
-    let Some(grid) = get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))? else {
+    let Some(weighting) = weighting(rec, source)? else {
         bail!(
             "{source}: --weight coherence, but the recording holds no coherence (a UFF export needs coherence datasets, function type 6, beside its FRFs; an MCAP or CSV run the {} topic)",
             topics::COHERENCE
         );
     };
-    let (geometry, frf) = rec.require_geometry_and_frf()?;
-    let weighting = rbprops_modal::CoherenceWeighting::new(
-        grid,
-        frf.n_channels,
-        frf.n_lines(),
-        rbprops_core::CoherenceNoise::SINGLE_PRECISION_FLOOR,
-    )
-    .map_err(|e| {
-        // Name the excitation and channel by their ids, not their indices.
-        anyhow::anyhow!("{source}: coherence topic: {}", name_ids(&e, &geometry))
-    })?;
     let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     processing.line_weighting = Some(LineWeightingRecord {
         weight: "coherence".into(),
@@ -85,6 +74,29 @@ pub fn weight_fit(
     rec.set(PROCESSING_TOPIC, std::slice::from_ref(&processing));
     opts.coherence_weighting = Some(std::sync::Arc::new(weighting));
     Ok(())
+}
+
+/// The line weighting of `modal-fit --weight coherence` from a record read from
+/// `source` (see [`weight_fit`]); `None` when the record holds no coherence.
+pub fn weighting(
+    rec: &RunRecord,
+    source: &str,
+) -> Result<Option<rbprops_modal::CoherenceWeighting>> {
+    let Some(grid) = get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))? else {
+        return Ok(None);
+    };
+    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    rbprops_modal::CoherenceWeighting::new(
+        grid,
+        frf.n_channels,
+        frf.n_lines(),
+        rbprops_core::CoherenceNoise::SINGLE_PRECISION_FLOOR,
+    )
+    .map(Some)
+    .map_err(|e| {
+        // Name the excitation and channel by their ids, not their indices.
+        anyhow::anyhow!("{source}: coherence topic: {}", name_ids(&e, &geometry))
+    })
 }
 
 /// `excitation E, channel C, …` with the ids of excitation index E and channel index C.

@@ -210,13 +210,17 @@ pub fn rb_solve_with(
         ),
         Uncertainty::Bootstrap(b) => {
             let given = crate::variance::for_bootstrap(rec)?;
+            let mut b = b.clone();
+            if b.fit_weighting.is_none() {
+                b.fit_weighting = crate::variance::fit_weighting(rec)?.map(std::sync::Arc::new);
+            }
             rbprops_uq::solve_with_bootstrap(
                 &geometry,
                 &modal,
                 &selection,
                 frf,
                 &opts,
-                b,
+                &b,
                 given.as_ref(),
             )?
         }

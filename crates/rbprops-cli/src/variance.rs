@@ -243,19 +243,14 @@ pub fn declared_by_export(
 /// everywhere, which gives uniform factors and the default fit.
 pub const RELATIVE_VARIANCE_FLOOR: f64 = 1e-12;
 
-/// Weights `modal-fit`'s least squares by the run's line variances (the topic; `frf-est`
-/// output, or an export's coherence with `--averages`): `1/σ²` through the relative
-/// variance `σ²/|H|²` of every line and channel (`rbprops_modal::CoherenceWeighting::
-/// from_variance`), and says so in the processing topic's `line_weighting`. Returns
-/// false, changing nothing, when the run has no line variances.
-pub fn weight_fit(
-    rec: &mut RunRecord,
-    opts: &mut rbprops_modal::FitOptions,
+/// The line weighting of `modal-fit --weight variance` from a record read from `source`
+/// (see [`weight_fit`]); `None` when the record has no line variances.
+pub fn weighting(
+    rec: &RunRecord,
     source: &str,
-) -> Result<bool> {
-    use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
+) -> Result<Option<rbprops_modal::CoherenceWeighting>> {
     let Some(v) = get(rec).map_err(|e| anyhow::anyhow!("{source}: {e}"))? else {
-        return Ok(false);
+        return Ok(None);
     };
     let (geometry, frf) = rec.require_geometry_and_frf()?;
     let n = frf.n_lines();
@@ -276,14 +271,48 @@ pub fn weight_fit(
         })
         .collect();
     let floor = RELATIVE_VARIANCE_FLOOR;
-    let weighting = rbprops_modal::CoherenceWeighting::from_variance(sigma2, &values, floor)
+    rbprops_modal::CoherenceWeighting::from_variance(sigma2, &values, floor)
+        .map(Some)
         .map_err(|e| {
             anyhow::anyhow!(
                 "{source}: {} topic: {}",
                 topics::FRF_VARIANCE,
                 crate::coherence::name_ids(&e, &geometry)
             )
-        })?;
+        })
+}
+
+/// The line weighting `modal-fit` recorded in `rec`'s processing topic, rebuilt from the
+/// record (`variance` or `coherence`); `None` for the default weights.
+pub fn fit_weighting(rec: &RunRecord) -> Result<Option<rbprops_modal::CoherenceWeighting>> {
+    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    let processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
+    match processing
+        .line_weighting
+        .as_ref()
+        .map(|w| w.weight.as_str())
+    {
+        Some("variance") => weighting(rec, "the record"),
+        Some("coherence") => crate::coherence::weighting(rec, "the record"),
+        _ => Ok(None),
+    }
+}
+
+/// Weights `modal-fit`'s least squares by the run's line variances (the topic; `frf-est`
+/// output, or an export's coherence with `--averages`): `1/σ²` through the relative
+/// variance `σ²/|H|²` of every line and channel (`rbprops_modal::CoherenceWeighting::
+/// from_variance`), and says so in the processing topic's `line_weighting`. Returns
+/// false, changing nothing, when the run has no line variances.
+pub fn weight_fit(
+    rec: &mut RunRecord,
+    opts: &mut rbprops_modal::FitOptions,
+    source: &str,
+) -> Result<bool> {
+    use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
+    let Some(weighting) = weighting(rec, source)? else {
+        return Ok(false);
+    };
+    let floor = RELATIVE_VARIANCE_FLOOR;
     let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     processing.line_weighting = Some(LineWeightingRecord {
         weight: "variance".into(),

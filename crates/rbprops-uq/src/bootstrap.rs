@@ -44,6 +44,11 @@ pub struct BootstrapOptions {
     /// `rbprops_uq::decimation`, docs/results.md): the same spread at a q-th of the cost.
     /// Only with [`Reidentify::Refine`] (a full refit takes every line).
     pub decimate: bool,
+    /// The line weighting the modal fit used (`modal-fit --weight variance|coherence`,
+    /// recorded in its processing topic), which the model's residues and every
+    /// replicate's refit take too: the bootstrap then spreads the estimator that made
+    /// the record. `None`: the default relative weights.
+    pub fit_weighting: Option<std::sync::Arc<rbprops_modal::CoherenceWeighting>>,
 }
 
 impl Default for BootstrapOptions {
@@ -57,6 +62,7 @@ impl Default for BootstrapOptions {
             tolerances: MatchTolerances::default(),
             failure_warning_fraction: 0.05,
             decimate: true,
+            fit_weighting: None,
         }
     }
 }
@@ -208,6 +214,7 @@ pub fn bootstrap(
             window: windowed.as_ref().map(|(w, _)| w),
             // A full refit runs the modal fit on the whole FRF set: every line.
             decimate: opts.decimate && opts.reidentify == Reidentify::Refine,
+            fit_weighting: opts.fit_weighting.as_deref(),
         },
     )?;
     let replication = Replication {

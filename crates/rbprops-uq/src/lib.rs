@@ -13,7 +13,12 @@
 //!    and LSFD residues (`rbprops_modal::lsfd::fit_residues`, residual terms as in the
 //!    modal fit) give the synthesised FRFs `S_kil` on the fit's band (`band_hz` of the
 //!    record). This is the modal fit's own synthesis (its final residues are an LSFD
-//!    solution for its final poles).
+//!    solution for its final poles). When the modal fit weighted its lines by measured
+//!    quality (`modal-fit --weight variance|coherence`, the default on `frf-est` output),
+//!    the model and every replicate's refit take the same weights
+//!    ([`BootstrapOptions::fit_weighting`]): the bootstrap spreads the estimator that made
+//!    the record, not an unweighted one (which on impact tests was 30× wider and lost its
+//!    replicates to poles it does not hold optimal).
 //! 2. **Noise model** ([`noise`]): per excitation k and channel i,
 //!    `E|H − S|² = σ²_kil = a²_ki |S_kil|² + b²_ki`, fitted by maximum likelihood to the
 //!    residual measured − synthesised, with a degrees-of-freedom correction for the
@@ -41,7 +46,9 @@
 //!    on the replicate (`Refine`); or the whole modal fit with given `FitOptions` and each
 //!    selected mode found again by MAC ≥ 0.9 and the nearest pole (`Full`). A pole that
 //!    moves more than 10 half-power half-bandwidths, leaves the band or the damping range
-//!    fails the replicate.
+//!    fails the replicate when the selection takes a shape from it; a pole it does not
+//!    use (a spurious or weakly excited estimate the record keeps) is held at the
+//!    record's value instead, and the residues fitted at the poles so held.
 //! 5. **Estimation**: `rbprops_inertia::solve` with the caller's options (modal
 //!    estimators only, no reference, no propagation) on the replicate's modal record and
 //!    the same selection (mode numbers re-mapped). A replicate fails for an estimator when

@@ -31,6 +31,8 @@ pub struct ExcitationModel {
     pub poles: Vec<Pole>,
     /// `ModeEstimate.mode` of each pole.
     pub mode_numbers: Vec<usize>,
+    /// Per pole: the selection takes a mode shape from it (for this excitation).
+    pub selected: Vec<bool>,
     /// The bootstrap's centre `[channel][line]`: the LSFD synthesis of the measured band
     /// with these poles, except on lines of structured misfit where it is the measured
     /// value (so every replicate carries the misfit the data carry). Built in place from
@@ -55,6 +57,21 @@ pub struct ExcitationModel {
 }
 
 impl ExcitationModel {
+    /// Sets [`ExcitationModel::selected`]: the poles whose modes the selection takes a
+    /// shape from on this excitation.
+    fn mark_selected(&mut self, selection: &SelectionRecord) {
+        self.selected = self
+            .mode_numbers
+            .iter()
+            .map(|&n| {
+                selection
+                    .selected
+                    .iter()
+                    .any(|s| s.excitation == self.id && s.excitation_mode == n)
+            })
+            .collect();
+    }
+
     /// The centre plus one noise draw on the replicates' grid, `[channel][grid line]`,
     /// drawn channel by channel and line by line from `rng` (so a replicate's data depend
     /// only on its seed). The normals come from `rand_distr`'s ziggurat, about 4× cheaper
@@ -130,6 +147,49 @@ impl ExcitationModel {
     }
 }
 
+/// The FRF set's shape against the geometry's excitations and channels.
+fn check_shape(geometry: &Geometry, frf: &FrfSet) -> Result<(), UqError> {
+    if frf.n_excitations == geometry.excitations.len()
+        && frf.n_channels == geometry.channels.len()
+        && frf.values.len() == frf.n_excitations * frf.n_channels * frf.n_lines()
+    {
+        return Ok(());
+    }
+    Err(UqError::Shape {
+        frf: format!(
+            "{} excitations × {} channels × {} lines, {} values",
+            frf.n_excitations,
+            frf.n_channels,
+            frf.n_lines(),
+            frf.values.len()
+        ),
+        geometry: format!(
+            "{} excitations × {} channels",
+            geometry.excitations.len(),
+            geometry.channels.len()
+        ),
+    })
+}
+
+/// Every excitation id of `groups` with the geometry indices of its group's excitations:
+/// the modal fit weighted a pole set's lines by all of them
+/// (`BandData::with_line_factors`).
+fn with_group_members<'g>(
+    geometry: &Geometry,
+    groups: &'g [Vec<String>],
+) -> Vec<(&'g String, Vec<usize>)> {
+    groups
+        .iter()
+        .flat_map(|g| {
+            let members: Vec<usize> = g
+                .iter()
+                .filter_map(|id| geometry.excitations.iter().position(|e| &e.id == id))
+                .collect();
+            g.iter().map(move |id| (id, members.clone()))
+        })
+        .collect()
+}
+
 /// Fewest lines per half-power half-bandwidth `ζω_n` of the narrowest mode that the
 /// replicates' grid keeps. A sum over lines of a function that varies on the scale of a
 /// half-bandwidth (a Lorentzian) is reproduced by every q-th line to about `e^{−2πk}`
@@ -169,6 +229,8 @@ pub struct Draws<'a> {
     pub window: Option<&'a rbprops_core::WindowCorrection>,
     /// Draw on every q-th line ([`decimation`]) instead of every line.
     pub decimate: bool,
+    /// The modal fit's line weighting ([`crate::BootstrapOptions::fit_weighting`]).
+    pub fit_weighting: Option<&'a rbprops_modal::CoherenceWeighting>,
 }
 
 /// The FRF estimator's variance of every FRF line (`frf-est`'s line-variance topic, or an
@@ -229,25 +291,7 @@ impl FittedModel {
         pole_mode: Option<PoleMode>,
         draws: &Draws,
     ) -> Result<Self, UqError> {
-        if frf.n_excitations != geometry.excitations.len()
-            || frf.n_channels != geometry.channels.len()
-            || frf.values.len() != frf.n_excitations * frf.n_channels * frf.n_lines()
-        {
-            return Err(UqError::Shape {
-                frf: format!(
-                    "{} excitations × {} channels × {} lines, {} values",
-                    frf.n_excitations,
-                    frf.n_channels,
-                    frf.n_lines(),
-                    frf.values.len()
-                ),
-                geometry: format!(
-                    "{} excitations × {} channels",
-                    geometry.excitations.len(),
-                    geometry.channels.len()
-                ),
-            });
-        }
+        check_shape(geometry, frf)?;
         let mut used: Vec<String> = Vec::new();
         for s in &selection.selected {
             if !used.contains(&s.excitation) {
@@ -295,14 +339,27 @@ impl FittedModel {
         }
         // Every excitation's model in parallel (one group per excitation is the common
         // case), collected in group order: the same for any thread count.
-        let ids: Vec<&String> = groups_ids.iter().flatten().collect();
+        let ids = with_group_members(geometry, &groups_ids);
+        let weighting = draws.fit_weighting;
         // The first failure in that order is reported, whichever thread met it first.
-        let excitations: Vec<ExcitationModel> = ids
+        let mut excitations: Vec<ExcitationModel> = ids
             .par_iter()
-            .map(|id| excitation_model(geometry, frf, modal, id, residual_terms))
+            .map(|(id, members)| {
+                excitation_model(
+                    geometry,
+                    frf,
+                    modal,
+                    id,
+                    residual_terms,
+                    (weighting, members),
+                )
+            })
             .collect::<Vec<_>>()
             .into_iter()
             .collect::<Result<_, _>>()?;
+        for e in &mut excitations {
+            e.mark_selected(selection);
+        }
         let mut groups = Vec::new();
         let mut next = 0;
         for g in &groups_ids {
@@ -345,6 +402,7 @@ impl FittedModel {
             line_variance: given,
             window,
             decimate,
+            ..
         } = *draws;
         let nl = frf.n_lines();
         let nc = frf.n_channels;
@@ -439,6 +497,7 @@ fn excitation_model(
     modal: &ModalFitRecord,
     id: &str,
     residual_terms: bool,
+    (weighting, members): (Option<&rbprops_modal::CoherenceWeighting>, &[usize]),
 ) -> Result<ExcitationModel, UqError> {
     let bad = |reason: String| UqError::Excitation {
         excitation: id.to_string(),
@@ -457,12 +516,12 @@ fn excitation_model(
     if rec.model_order == 0 {
         return Err(bad("its modal fit failed (model order 0)".into()));
     }
-    let band = BandData::extract(frf, k, Some((rec.band_hz[0], rec.band_hz[1])), id).map_err(
-        |source| UqError::Modal {
+    let band = BandData::extract(frf, k, Some((rec.band_hz[0], rec.band_hz[1])), id)
+        .map_err(|source| UqError::Modal {
             excitation: id.to_string(),
             source,
-        },
-    )?;
+        })?
+        .with_line_factors(weighting, members);
     if band.n_lines() != rec.n_lines {
         return Err(bad(format!(
             "the fit's band {:?} Hz holds {} lines of the FRF set, the modal fit used {}",
@@ -504,6 +563,7 @@ fn excitation_model(
         setup: rec.setup.clone(),
         live,
         mode_numbers: modes.iter().map(|m| m.mode).collect(),
+        selected: Vec::new(),
         poles,
         // The synthesis; the noise fit sets its misfit lines to the measured values.
         centre: synthesised,
