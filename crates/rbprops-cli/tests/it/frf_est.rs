@@ -762,6 +762,18 @@ fn stage(bin: &str, args: &[&str], out: &Path) {
     );
 }
 
+/// The generator's Python and its impact-test case (`examples/tc2-impact-time.toml`:
+/// five hits per excitation, anti-alias filter, 24-bit autoranged ADC, force and
+/// response noise); `None` without numpy and pyuff.
+fn impact_case() -> Option<(String, String)> {
+    let py = rbprops_testkit::python(rbprops_testkit::NUMPY_PYUFF)?;
+    let case = format!(
+        "{}/../../scripts/refgen/examples/tc2-impact-time.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    Some((py, case))
+}
+
 /// An impact test of the independent generator (`case`, `seed`) written as per-hit
 /// time histories and run through `frf-est | modal-fit | ni-select` with their defaults
 /// (band 0.01–12.5 Hz) in `d`: the selection's MCAP and the truth file.
@@ -818,13 +830,9 @@ fn sibling(name: &str) -> String {
 /// estimate one scatter from different approximations (docs/results.md, session 35).
 #[test]
 fn the_bootstrap_refits_impact_tests_as_modal_fit_weighted_them() {
-    let Some(py) = rbprops_testkit::python(rbprops_testkit::NUMPY_PYUFF) else {
+    let Some((py, case)) = impact_case() else {
         return;
     };
-    let case = format!(
-        "{}/../../scripts/refgen/examples/tc2-impact-time.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
     let dir = tempfile::tempdir().unwrap();
     let (ni, _) = impact_selection(&py, &case, "9001", dir.path());
     let solve = |u: &str| -> serde_json::Value {
@@ -868,13 +876,9 @@ fn the_bootstrap_refits_impact_tests_as_modal_fit_weighted_them() {
 /// 14 t while modal-fit's forward model-order test split its own partners.
 #[test]
 fn raw_impact_time_histories_give_the_properties_through_the_pipeline() {
-    let Some(py) = rbprops_testkit::python(rbprops_testkit::NUMPY_PYUFF) else {
+    let Some((py, case)) = impact_case() else {
         return;
     };
-    let case = format!(
-        "{}/../../scripts/refgen/examples/tc2-impact-time.toml",
-        env!("CARGO_MANIFEST_DIR")
-    );
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     for seed in ["2001", "2004", "2013"] {
