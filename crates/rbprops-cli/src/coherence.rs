@@ -66,7 +66,7 @@ pub fn weight_fit(
     };
     let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     processing.line_weighting = Some(LineWeightingRecord {
-        weight: "coherence".into(),
+        weight: LineWeightingRecord::COHERENCE.into(),
         method: "least squares weighted by 1/σ² with σ²/|H|² ∝ (1 − γ²)/γ² from the measured coherence, averaged over each excitation's channels per line (one weight per line), times 1/|H|² per channel in the pole estimate".into(),
         one_minus_coherence_floor: weighting.floor(),
         unweighted_excitations: weighting.unweighted_excitations(),

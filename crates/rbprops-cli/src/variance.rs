@@ -263,15 +263,8 @@ pub fn weighting(
         let at = (e * frf.n_channels + c) * n;
         v.sigma2[at..at + n].to_vec()
     });
-    let values: Vec<Vec<Vec<rbprops_core::c64>>> = (0..frf.n_excitations)
-        .map(|e| {
-            (0..frf.n_channels)
-                .map(|c| frf.frf(e, c).to_vec())
-                .collect()
-        })
-        .collect();
     let floor = RELATIVE_VARIANCE_FLOOR;
-    rbprops_modal::CoherenceWeighting::from_variance(sigma2, &values, floor)
+    rbprops_modal::CoherenceWeighting::from_variance(sigma2, |e, c| frf.frf(e, c), floor)
         .map(Some)
         .map_err(|e| {
             anyhow::anyhow!(
@@ -285,15 +278,15 @@ pub fn weighting(
 /// The line weighting `modal-fit` recorded in `rec`'s processing topic, rebuilt from the
 /// record (`variance` or `coherence`); `None` for the default weights.
 pub fn fit_weighting(rec: &RunRecord) -> Result<Option<rbprops_modal::CoherenceWeighting>> {
-    use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
+    use rbprops_core::records::{LineWeightingRecord, ProcessingRecord, PROCESSING_TOPIC};
     let processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     match processing
         .line_weighting
         .as_ref()
         .map(|w| w.weight.as_str())
     {
-        Some("variance") => weighting(rec, "the record"),
-        Some("coherence") => crate::coherence::weighting(rec, "the record"),
+        Some(LineWeightingRecord::VARIANCE) => weighting(rec, "the record"),
+        Some(LineWeightingRecord::COHERENCE) => crate::coherence::weighting(rec, "the record"),
         _ => Ok(None),
     }
 }
@@ -315,7 +308,7 @@ pub fn weight_fit(
     let floor = RELATIVE_VARIANCE_FLOOR;
     let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     processing.line_weighting = Some(LineWeightingRecord {
-        weight: "variance".into(),
+        weight: LineWeightingRecord::VARIANCE.into(),
         method: format!(
             "least squares weighted by 1/σ², σ² the estimator's variance of every line and channel ({}): its relative variance σ²/|H|² (floored at {floor:e}) averaged over each excitation's channels per line (one weight per line), times 1/|H|² per channel in the pole estimate",
             topics::FRF_VARIANCE

@@ -579,6 +579,13 @@ pub struct LineWeightingRecord {
     pub unweighted_excitations: usize,
 }
 
+impl LineWeightingRecord {
+    /// [`LineWeightingRecord::weight`] of a fit weighted by the estimator's line variances.
+    pub const VARIANCE: &'static str = "variance";
+    /// [`LineWeightingRecord::weight`] of a fit weighted by the measured coherence.
+    pub const COHERENCE: &'static str = "coherence";
+}
+
 /// Topic name of [`ProcessingRecord`].
 pub const PROCESSING_TOPIC: &str = "/rbprops/processing";
 

@@ -103,13 +103,14 @@ impl CoherenceWeighting {
 
     /// Weights from the estimator's own line variances (the `frf_variance` topic):
     /// `r = σ²/|H|²` per excitation, channel and line, floored at `floor` like `1 − γ²`
-    /// (exact data, σ² = 0, give uniform factors: the default fit). `sigma2` and `frf`
-    /// are `[excitation][channel]` on the FRF axis; a channel whose σ² is NaN on every
+    /// (exact data, σ² = 0, give uniform factors: the default fit). `sigma2` is
+    /// `[excitation][channel]` on the FRF axis and `frf(e, c)` that FRF (borrowed: the
+    /// set is not copied); a channel whose σ² is NaN on every
     /// line is unknown (`None`); a NaN, or σ² > 0 where |H| = 0, drops the line (r = ∞).
     /// Errors name the excitation, channel and line of a negative or infinite variance.
-    pub fn from_variance(
+    pub fn from_variance<'f>(
         sigma2: Vec<Vec<Option<Vec<f64>>>>,
-        frf: &[Vec<Vec<rbprops_core::c64>>],
+        frf: impl Fn(usize, usize) -> &'f [rbprops_core::c64],
         floor: f64,
     ) -> Result<Self, String> {
         if !(floor > 0.0 && floor < 1.0) {
@@ -123,7 +124,7 @@ impl CoherenceWeighting {
                     out.push(None);
                     continue;
                 };
-                let h = &frf[e][c];
+                let h = frf(e, c);
                 if h.len() != v.len() {
                     return Err(format!(
                         "excitation {e}, channel {c}: {} variance lines, the FRF axis has {}",
