@@ -14,7 +14,7 @@ use rbprops_core::records::{
 use rbprops_core::{c64, FrfSet};
 use rbprops_formats::RunRecord;
 use rbprops_frfest::{
-    ConditioningOptions, Estimator, ForceWindow, HitCheckOptions, HitReport, HitWindows,
+    ConditioningOptions, Estimator, ForceNoiseBins, ForceWindow, HitCheckOptions, HitReport, HitWindows,
     RejectReason, ResponseWindow, SpectralSums, TriggerLevel, TriggerOptions,
 };
 use rbprops_uff::timehist::{self, EstimatedFrfs, HitLayout, TimeHistoryIndex};
@@ -264,6 +264,7 @@ pub fn estimate_uff_timed(
         frfs: estimates,
         variances,
         dof,
+        common,
         mut averages,
     } = split_estimates(per_excitation);
     let step = fs / n as f64;
@@ -284,7 +285,8 @@ pub fn estimate_uff_timed(
     if min_dof.is_finite() {
         let set = crate::variance::LineVarianceSet {
             sigma2,
-            degrees_of_freedom: in_campaign_order(&dof, &names, &campaign.geometry),
+            degrees_of_freedom: in_campaign_order(&dof, &names, &campaign.geometry, f64::INFINITY),
+            common: in_campaign_order(&common, &names, &campaign.geometry, None),
         };
         crate::variance::set(&mut record, &campaign.geometry, &campaign.frf, &set);
     }
@@ -413,6 +415,8 @@ struct ExcitationEstimate {
     frfs: EstimatedFrfs,
     variance: Option<Vec<f64>>,
     dof: f64,
+    /// The force noise's error common to the responses (with the variance only).
+    common: Option<rbprops_core::CommonRelativeError>,
     averages: ExcitationAveragesRecord,
 }
 
@@ -444,6 +448,9 @@ fn estimate_excitation(a: &Averaged, hs: &[Hit], c: &Chain) -> Result<Excitation
                     .collect(),
             ),
         },
+        common: pooled
+            .as_ref()
+            .and_then(|_| common_force_error(a, c.band.clone())),
         variance: pooled.map(|p| p.variance),
         dof,
         averages,
@@ -455,6 +462,7 @@ struct Split {
     frfs: Vec<EstimatedFrfs>,
     variances: Vec<Option<Vec<f64>>>,
     dof: Vec<f64>,
+    common: Vec<Option<rbprops_core::CommonRelativeError>>,
     averages: Vec<ExcitationAveragesRecord>,
 }
 
@@ -463,23 +471,31 @@ fn split_estimates(per_excitation: Vec<ExcitationEstimate>) -> Split {
         frfs: Vec::new(),
         variances: Vec::new(),
         dof: Vec::new(),
+        common: Vec::new(),
         averages: Vec::new(),
     };
     for e in per_excitation {
         out.frfs.push(e.frfs);
         out.variances.push(e.variance);
         out.dof.push(e.dof);
+        out.common.push(e.common);
         out.averages.push(e.averages);
     }
     out
 }
 
 /// Per-excitation values (index order, named `names`) in the geometry's excitation order.
-fn in_campaign_order(values: &[f64], names: &[String], g: &rbprops_core::Geometry) -> Vec<f64> {
-    let mut out = vec![f64::INFINITY; g.excitations.len()];
+/// (`missing` where the index has none).
+fn in_campaign_order<T: Clone>(
+    values: &[T],
+    names: &[String],
+    g: &rbprops_core::Geometry,
+    missing: T,
+) -> Vec<T> {
+    let mut out = vec![missing; g.excitations.len()];
     for (v, id) in values.iter().zip(names) {
         if let Some(ce) = g.excitations.iter().position(|x| &x.id == id) {
-            out[ce] = *v;
+            out[ce] = v.clone();
         }
     }
     out
@@ -707,6 +723,9 @@ fn auto_tau(hits: &[Vec<Hit>], fs: f64, n: usize, keep_rejected: bool) -> Option
 struct Averaged {
     sums: SpectralSums,
     force_noise_energy: f64,
+    /// The force noise's binned window (`rbprops_frfest::ForceNoiseBins`): times from the
+    /// pulse centroid and weights.
+    force_noise_window: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 /// A hit cut by the record's edge has no samples and is never averaged, even with
@@ -725,6 +744,7 @@ fn average(
     let mut sums = SpectralSums::new(n, fs, 1, n_resp)?;
     let mut w = HitWindows::new(n);
     let mut energy = 0.0;
+    let mut bins: Option<ForceNoiseBins> = None;
     for h in hits.iter().filter(|h| h.accepted(opts.keep_rejected)) {
         let Some(records) = &h.records else { continue };
         let (force, responses) = records.load(data, src)?;
@@ -738,12 +758,43 @@ fn average(
         );
         let refs: Vec<&[f64]> = responses.iter().map(|r| r.as_ref()).collect();
         sums.add_windowed_hit(&[force.as_ref()], &refs, Some(&w.force), Some(&w.response))?;
-        energy += h.report.noise_rms.powi(2) * w.force.iter().map(|x| x * x).sum::<f64>();
+        let noise_var = h.report.noise_rms.powi(2);
+        energy += noise_var * w.force.iter().map(|x| x * x).sum::<f64>();
+        if let Some(centroid) = rbprops_frfest::pulse_centroid(&force, &w.force) {
+            let bins = bins.get_or_insert_with(|| {
+                let first = w.force.iter().position(|&x| x != 0.0).unwrap_or(0);
+                let last = w.force.iter().rposition(|&x| x != 0.0).unwrap_or(0);
+                ForceNoiseBins::new(fs, (last + 1 - first) as f64 / fs)
+            });
+            bins.add_hit(&w.force, noise_var, centroid, fs);
+        }
     }
     let force_noise_energy = energy / sums.count().max(1) as f64;
     Ok(Averaged {
         sums,
         force_noise_energy,
+        force_noise_window: bins.and_then(|b| b.finish()),
+    })
+}
+
+/// The error the force channel's noise puts into every FRF of the excitation alike over
+/// `band` (`rbprops_core::CommonRelativeError`): `ρ² = E_N/S_ff` per line with the hits'
+/// mean noise energy through the window, and the window's binned energy. None without
+/// force noise (or a single reference: the MIMO error is a matrix, not a common factor).
+fn common_force_error(
+    a: &Averaged,
+    band: std::ops::Range<usize>,
+) -> Option<rbprops_core::CommonRelativeError> {
+    let (times_s, weights) = a.force_noise_window.clone()?;
+    if a.sums.n_refs() != 1 || !(a.force_noise_energy > 0.0) {
+        return None;
+    }
+    Some(rbprops_core::CommonRelativeError {
+        relative_variance: band
+            .map(|k| a.force_noise_energy / a.sums.sff(k, 0, 0).re)
+            .collect(),
+        times_s,
+        weights,
     })
 }
 

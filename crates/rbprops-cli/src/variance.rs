@@ -6,7 +6,7 @@
 
 use anyhow::{bail, Result};
 use rbprops_core::{FrfSet, Geometry};
-use rbprops_formats::wire::FrfVarianceMsg;
+use rbprops_formats::wire::{ForceNoiseMsg, FrfVarianceMsg};
 use rbprops_formats::{topics, RunRecord};
 use rbprops_sim::effects::processing::ExponentialWindow;
 use rbprops_sim::effects::processing::RecordTruncation;
@@ -23,6 +23,10 @@ pub struct LineVarianceSet {
     pub sigma2: Vec<f64>,
     /// Real χ² degrees of freedom of the σ² of each excitation (∞ where none is known).
     pub degrees_of_freedom: Vec<f64>,
+    /// Per excitation, the force noise's error common to its FRFs, when the estimator
+    /// knows it (`frf-est`; its ρ² on the FRF set's axis). σ² holds its part too, as each
+    /// channel sees it.
+    pub common: Vec<Option<rbprops_core::CommonRelativeError>>,
 }
 
 impl LineVarianceSet {
@@ -73,12 +77,63 @@ pub fn set(rec: &mut RunRecord, geometry: &Geometry, frf: &FrfSet, v: &LineVaria
     .into_iter()
     .map(|r| FrfVarianceMsg {
         degrees_of_freedom: v.degrees_of_freedom[r.index],
+        force_noise: v.common[r.index].as_ref().map(force_noise_msg),
         excitation: r.excitation,
         channels: r.channels,
         values_f64le: r.values_f64le,
     })
     .collect();
     rec.set(topics::FRF_VARIANCE, &msgs);
+}
+
+fn force_noise_msg(c: &rbprops_core::CommonRelativeError) -> ForceNoiseMsg {
+    let values: Vec<rbprops_core::c64> = c
+        .relative_variance
+        .iter()
+        .map(|&v| rbprops_core::c64::new(v, 0.0))
+        .collect();
+    ForceNoiseMsg {
+        relative_variance_f64le: rbprops_formats::wire::encode_values(&values),
+        window_times_s: c.times_s.clone(),
+        window_weights: c.weights.clone(),
+    }
+}
+
+/// The common error of one message (`at` names it in errors): ρ² finite and ≥ 0 on
+/// every line, one weight per time, the weights ≥ 0 summing to 1.
+fn common_error(
+    m: &ForceNoiseMsg,
+    n_lines: usize,
+    at: &str,
+) -> Result<rbprops_core::CommonRelativeError> {
+    let values = rbprops_formats::wire::decode_values(&m.relative_variance_f64le, n_lines)
+        .map_err(|e| anyhow::anyhow!("{at}, force_noise.relative_variance_f64le: {e}"))?;
+    let relative_variance: Vec<f64> = values.iter().map(|v| v.re).collect();
+    if let Some((l, v)) = relative_variance
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+    {
+        bail!("{at}, force_noise, line {l}: relative variance {v} (must be finite and ≥ 0)");
+    }
+    let total: f64 = m.window_weights.iter().sum();
+    if m.window_times_s.len() != m.window_weights.len()
+        || m.window_weights.is_empty()
+        || m.window_weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
+        || m.window_times_s.iter().any(|t| !t.is_finite())
+        || (total - 1.0).abs() > 1e-9
+    {
+        bail!(
+            "{at}, force_noise: {} window times and {} weights summing to {total} (one finite time per weight, weights ≥ 0 summing to 1)",
+            m.window_times_s.len(),
+            m.window_weights.len()
+        );
+    }
+    Ok(rbprops_core::CommonRelativeError {
+        relative_variance,
+        times_s: m.window_times_s.clone(),
+        weights: m.window_weights.clone(),
+    })
 }
 
 /// The topic on the record's FRF layout; `None` when the record has none. Errors name the
@@ -92,6 +147,7 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     let n = frf.n_lines();
     let mut sigma2 = vec![f64::NAN; frf.values.len()];
     let mut dof = vec![f64::INFINITY; frf.n_excitations];
+    let mut common = vec![None; frf.n_excitations];
     for m in &msgs {
         let what = format!("{} topic", topics::FRF_VARIANCE);
         let at = format!("{what}, excitation '{}'", m.excitation);
@@ -110,6 +166,9 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
             );
         }
         dof[e] = m.degrees_of_freedom;
+        if let Some(f) = &m.force_noise {
+            common[e] = Some(common_error(f, n, &at)?);
+        }
         for (c, values) in channels {
             let id = &geometry.channels[c].id;
             for (l, &v) in values.iter().enumerate() {
@@ -125,6 +184,7 @@ pub fn get(rec: &RunRecord) -> Result<Option<LineVarianceSet>> {
     Ok(Some(LineVarianceSet {
         sigma2,
         degrees_of_freedom: dof,
+        common,
     }))
 }
 
@@ -171,6 +231,7 @@ pub fn from_coherence(rec: &RunRecord, n_averages: usize, source: &str) -> Resul
     Ok(LineVarianceSet {
         sigma2,
         degrees_of_freedom: vec![2.0 * (n_averages as f64 - 1.0); frf.n_excitations],
+        common: vec![None; frf.n_excitations],
     })
 }
 
@@ -366,6 +427,7 @@ pub fn for_bootstrap(rec: &RunRecord) -> Result<Option<rbprops_uq::LineVariance>
         sigma2: v.sigma2,
         correlation_factor,
         source,
+        common: v.common,
     }))
 }
 

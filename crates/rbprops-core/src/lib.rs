@@ -39,7 +39,7 @@ pub use geometry::{
 };
 pub use inertia::{MassMatrix6, RigidBodyProperties};
 pub use modal::{rigid_body_modes, RigidMode};
-pub use noise::{CoherenceNoise, NoiseModel, NormalStream};
+pub use noise::{CoherenceNoise, CommonRelativeError, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
 pub use properties::InertiaProperties;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};

@@ -200,6 +200,118 @@ pub fn standard_normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
     standard_normal_pair(rng).0
 }
 
+/// The relative error one noisy force signal puts into every FRF of its excitation alike.
+///
+/// H1 over hits `d` whose measured force `F_d` carries the noise `N_d` (white, through
+/// the force window `w`) is `Ĥ_c = H_c (1 + ε)` on every response c, with
+///
+/// ```text
+///   ε(f) = −Σ_d F̄_d N_d / Σ_d |F_d|²,     E|ε(f)|² = ρ²(f) = E_N / S_ff(f)
+///   E[ε(f) ε̄(f′)] = ρ(f) ρ(f′) γ(f − f′),  γ(Δf) = Σ_b W_b e^{−2πi Δf τ_b},  Σ_b W_b = 1
+/// ```
+///
+/// (`E_N = σ_n² Σ w²` the noise energy through the window, `S_ff = Σ_d |F_d|²`; `W_b` the
+/// window's `σ_n² w²` binned at times `τ_b` measured from the pulse's centroid). The
+/// response noise is independent per channel; this part is not, and a short force window
+/// makes it smooth over the whole band, so it does not average out over lines as the
+/// per-channel noise does: to a fit it is a small gain and delay of the excitation.
+///
+/// A draw ([`CommonRelativeError::draw`]) is `ε(f) = ρ(f) Σ_b √W_b z_b e^{−2πi f τ_b}` with
+/// real standard normals `z_b`: the noise is real, and with the times taken from the
+/// pulse's centroid the pulse's own phase (`F̄` above) is removed to first order, so a short
+/// window's error is a real gain at low frequency, as it is in H1.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommonRelativeError {
+    /// `ρ²` per line of the FRF axis (dimensionless).
+    pub relative_variance: Vec<f64>,
+    /// `τ_b` (s from the pulse's centroid).
+    pub times_s: Vec<f64>,
+    /// `W_b`, summing to 1.
+    pub weights: Vec<f64>,
+}
+
+impl CommonRelativeError {
+    /// `γ(Δf)`, the correlation of the error at two lines `Δf` apart (type docs).
+    pub fn correlation(&self, df_hz: f64) -> c64 {
+        self.times_s
+            .iter()
+            .zip(&self.weights)
+            .map(|(&t, &w)| c64::from_polar(w, -std::f64::consts::TAU * df_hz * t))
+            .sum()
+    }
+
+    /// The variance factor of one line of a grid that keeps every q-th line, standing for
+    /// its run of q lines `line_spacing_hz` apart (a fit on the grid weighs each of its
+    /// lines as q): `κ² = (1/q) Σ_{|m|<q} (1 − |m|/q) Re γ(m Δf)`, the variance of the
+    /// run's mean error over ρ². 1 for an error constant over the run, `1/q` for
+    /// independent lines.
+    pub fn run_variance_factor(&self, line_spacing_hz: f64, q: usize) -> f64 {
+        let q = q.max(1);
+        let sum: f64 = (1..q)
+            .map(|m| (1.0 - m as f64 / q as f64) * self.correlation(m as f64 * line_spacing_hz).re)
+            .sum();
+        (1.0 + 2.0 * sum) / q as f64
+    }
+
+    /// The same process with `ρ²` on `lines` of the axis only.
+    pub fn on_lines(&self, lines: std::ops::Range<usize>) -> Self {
+        CommonRelativeError {
+            relative_variance: self.relative_variance[lines].to_vec(),
+            times_s: self.times_s.clone(),
+            weights: self.weights.clone(),
+        }
+    }
+
+    /// At most `max_bins` bins: runs of consecutive bins merged, each into its total weight
+    /// at its weighted mean time (the correlation is kept at line spacings small against
+    /// the inverse of the merged bins' span).
+    pub fn coarsened(&self, max_bins: usize) -> Self {
+        let k = self.weights.len().div_ceil(max_bins.max(1)).max(1);
+        if k == 1 {
+            return self.clone();
+        }
+        let (times_s, weights) = self
+            .times_s
+            .chunks(k)
+            .zip(self.weights.chunks(k))
+            .map(|(t, w)| {
+                let total: f64 = w.iter().sum();
+                let mean = if total > 0.0 {
+                    t.iter().zip(w).map(|(t, w)| t * w).sum::<f64>() / total
+                } else {
+                    t.iter().sum::<f64>() / t.len() as f64
+                };
+                (mean, total)
+            })
+            .unzip();
+        CommonRelativeError {
+            relative_variance: self.relative_variance.clone(),
+            times_s,
+            weights,
+        }
+    }
+
+    /// One draw of `ε` at `freqs_hz` with standard deviation `sd` per line (`ρ`, times
+    /// [`Self::run_variance_factor`]'s root on a decimated grid) from the real standard
+    /// normals `z` (one per bin).
+    pub fn draw(&self, freqs_hz: &[f64], sd: &[f64], z: &[f64]) -> Vec<c64> {
+        let amp: Vec<f64> = self.weights.iter().zip(z).map(|(w, z)| w.sqrt() * z).collect();
+        freqs_hz
+            .iter()
+            .zip(sd)
+            .map(|(&f, &s)| {
+                let e: c64 = self
+                    .times_s
+                    .iter()
+                    .zip(&amp)
+                    .map(|(&t, &a)| c64::from_polar(a, -std::f64::consts::TAU * f * t))
+                    .sum();
+                e * s
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

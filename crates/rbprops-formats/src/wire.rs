@@ -214,6 +214,25 @@ pub struct FrfVarianceMsg {
     /// FRF set's frequency axis (the FRF layout, imaginary parts zero).
     #[schemars(extend("contentEncoding" = "base64"))]
     pub values_f64le: String,
+    /// The part of the error the force channel's noise puts into every FRF of this
+    /// excitation alike (`frf-est`, one force channel; docs/conventions.md, FRF
+    /// estimation). Absent from other writers' files and without force noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub force_noise: Option<ForceNoiseMsg>,
+}
+
+/// The force noise's error common to an excitation's FRFs, `Ĥ_c = H_c (1 + ε)`:
+/// `E|ε|² = ρ²` per line and the line correlation of the window's binned noise energy
+/// (`rbprops_core::CommonRelativeError`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ForceNoiseMsg {
+    /// Base64 of little-endian IEEE-754 f64, `[line][ρ², 0]` on the FRF set's axis.
+    #[schemars(extend("contentEncoding" = "base64"))]
+    pub relative_variance_f64le: String,
+    /// The bins' times (s from the pulse's centroid).
+    pub window_times_s: Vec<f64>,
+    /// The bins' shares of the noise energy through the force window (sum 1).
+    pub window_weights: Vec<f64>,
 }
 
 /// The recorded time histories of one excitation (topic `/rbprops/time_history`, one

@@ -49,8 +49,8 @@ pub use hit::{
 pub use rbprops_core::c64;
 pub use spectra::SpectralSums;
 pub use window::{
-    auto_tau, exponential_line_correlation, line_correlation, ForceWindow, HitWindows,
-    ResponseWindow,
+    auto_tau, exponential_line_correlation, line_correlation, pulse_centroid, ForceNoiseBins,
+    ForceWindow, HitWindows, ResponseWindow, MAX_FORCE_NOISE_BINS,
 };
 
 /// Errors of the estimators. Each names what is wrong and where.

@@ -223,6 +223,70 @@ pub fn line_correlation(window: &[f64], max_lag: usize) -> Vec<c64> {
         .collect()
 }
 
+/// Most bins of [`ForceNoiseBins`]: a window longer than this many steps is binned more
+/// coarsely (its error is then nearly independent between lines anyway).
+pub const MAX_FORCE_NOISE_BINS: usize = 1024;
+
+/// The force noise's energy through each accepted hit's force window, `σ_n² w²[n]`,
+/// binned at times from the hit's pulse centroid: the line correlation of the error it
+/// puts into every FRF of the excitation alike ([`rbprops_core::CommonRelativeError`]).
+/// Bins of `step_s`, centred at `(b + ½) step_s`.
+#[derive(Debug, Clone)]
+pub struct ForceNoiseBins {
+    step_s: f64,
+    bins: std::collections::BTreeMap<i64, f64>,
+}
+
+impl ForceNoiseBins {
+    /// One bin per sample, or coarser so that a window of `support_s` takes at most
+    /// [`MAX_FORCE_NOISE_BINS`] (the consumer coarsens further for its band).
+    pub fn new(fs: f64, support_s: f64) -> Self {
+        let step = (1.0 / fs).max(support_s / MAX_FORCE_NOISE_BINS as f64);
+        ForceNoiseBins {
+            step_s: step,
+            bins: Default::default(),
+        }
+    }
+
+    /// Adds one hit: its force window `w` (times the exponential when it is on the force),
+    /// the force noise's variance per sample and the pulse centroid (a fractional sample,
+    /// [`pulse_centroid`]).
+    pub fn add_hit(&mut self, w: &[f64], noise_var: f64, centroid: f64, fs: f64) {
+        for (n, &x) in w.iter().enumerate() {
+            if x != 0.0 {
+                let t = (n as f64 - centroid) / fs;
+                *self.bins.entry((t / self.step_s).floor() as i64).or_default() += noise_var * x * x;
+            }
+        }
+    }
+
+    /// The bins' times (s from the centroid) and weights summing to 1; None when no noise
+    /// went in.
+    pub fn finish(&self) -> Option<(Vec<f64>, Vec<f64>)> {
+        let total: f64 = self.bins.values().sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        Some(
+            self.bins
+                .iter()
+                .map(|(&b, &v)| ((b as f64 + 0.5) * self.step_s, v / total))
+                .unzip(),
+        )
+    }
+}
+
+/// The centroid of a hit's windowed force, `Σ n f[n] w[n] / Σ f[n] w[n]` (a fractional
+/// sample): the pulse's group delay at low frequency. None when the sum is zero.
+pub fn pulse_centroid(force: &[f64], w: &[f64]) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (n, (&f, &x)) in force.iter().zip(w).enumerate() {
+        num += n as f64 * f * x;
+        den += f * x;
+    }
+    (den != 0.0 && (num / den).is_finite()).then_some(num / den)
+}
+
 /// The exponential window's closed form `γ_m = (1 − q)/(1 − q e^{−2πim/N})`,
 /// `q = e^{−2/(τ f_s)}` (module docs), for a record of `n` samples.
 pub fn exponential_line_correlation(tau_s: f64, fs: f64, n: usize, m: usize) -> c64 {

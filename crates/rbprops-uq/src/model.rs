@@ -9,7 +9,7 @@ use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
-use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_core::{c64, CommonRelativeError, FrfSet, Geometry};
 use rbprops_modal::band::BandData;
 use rbprops_modal::lsfd::{self, Residuals};
 use rbprops_modal::{Pole, PoleMode};
@@ -54,7 +54,25 @@ pub struct ExcitationModel {
     pub decimation: usize,
     /// Per channel: its noise comes from the given line variances (not the residuals).
     pub given_variance: Vec<bool>,
+    /// The force noise's error common to every channel, drawn once per replicate on the
+    /// grid ([`CommonDraw`]); None when the estimator gave none.
+    pub common: Option<CommonDraw>,
 }
+
+/// The common relative error of one excitation on the replicates' grid: its process
+/// (bins merged to at most [`MAX_COMMON_TERMS`] grid-line × bin products) and the
+/// standard deviation per grid line, `ρ κ` (`CommonRelativeError::run_variance_factor`:
+/// a grid line stands for its run of lines).
+#[derive(Debug, Clone)]
+pub struct CommonDraw {
+    /// The process, bins possibly merged.
+    pub error: CommonRelativeError,
+    /// `ρ κ` per grid line.
+    pub sd: Vec<f64>,
+}
+
+/// Most grid lines × bins of a common draw (a draw costs one complex term each).
+pub const MAX_COMMON_TERMS: usize = 1 << 20;
 
 impl ExcitationModel {
     /// Sets [`ExcitationModel::selected`]: the poles whose modes the selection takes a
@@ -77,8 +95,12 @@ impl ExcitationModel {
     /// only on its seed). The normals come from `rand_distr`'s ziggurat, about 4× cheaper
     /// than Box–Muller's logarithm and sine per pair: at 102,401 lines the draws were 15 %
     /// of the bootstrap's time (issue 41's bound on it).
+    ///
+    /// With a common error ([`ExcitationModel::common`]) one draw `ε` of it follows, after
+    /// every channel's, and every channel's centre takes `H ε` more (`Ĥ = H (1 + ε)`).
     pub fn draw(&self, rng: &mut ChaCha8Rng) -> Vec<Vec<c64>> {
-        self.draw_band
+        let mut out: Vec<Vec<c64>> = self
+            .draw_band
             .channels
             .iter()
             .zip(&self.draw_sd)
@@ -92,12 +114,29 @@ impl ExcitationModel {
                     })
                     .collect()
             })
-            .collect()
+            .collect();
+        if let Some(c) = &self.common {
+            let z: Vec<f64> = (0..c.error.weights.len())
+                .map(|_| rng.sample(StandardNormal))
+                .collect();
+            let eps = c.error.draw(&self.draw_band.frequency_hz, &c.sd, &z);
+            for (y, h) in out.iter_mut().zip(&self.draw_band.channels) {
+                for ((y, h), e) in y.iter_mut().zip(h).zip(&eps) {
+                    *y += h * e;
+                }
+            }
+        }
+        out
     }
 
     /// Fills the replicates' grid and noise ([`FittedModel::prepare_draws`]): `sigma2(c, l)`
     /// is the given variance of channel c at band line l, if known.
-    fn prepare_draws(&mut self, q: usize, given: Option<&dyn Fn(usize, usize) -> Option<f64>>) {
+    fn prepare_draws(
+        &mut self,
+        q: usize,
+        given: Option<&dyn Fn(usize, usize) -> Option<f64>>,
+        common: Option<&CommonRelativeError>,
+    ) {
         let n = self.band.n_lines();
         let q = q.max(1);
         let runs: Vec<(usize, usize)> = (0..n)
@@ -144,6 +183,32 @@ impl ExcitationModel {
         self.draw_sd = draw_sd;
         self.decimation = q;
         self.given_variance = given_variance;
+        self.common = common.map(|c| self.common_draw(c, &runs));
+    }
+
+    /// The common error on the grid: `ρ²` the mean over each run, times `κ²` of the run
+    /// length at the band's line spacing; `common.relative_variance` is on the band's
+    /// lines.
+    fn common_draw(&self, common: &CommonRelativeError, runs: &[(usize, usize)]) -> CommonDraw {
+        let f = &self.band.frequency_hz;
+        let spacing = if f.len() > 1 {
+            (f[f.len() - 1] - f[0]) / (f.len() - 1) as f64
+        } else {
+            0.0
+        };
+        let kappa2 = common.run_variance_factor(spacing, self.decimation);
+        let sd = runs
+            .iter()
+            .map(|&(a, b)| {
+                let mean = common.relative_variance[a..b].iter().sum::<f64>() / (b - a) as f64;
+                (mean * kappa2).sqrt()
+            })
+            .collect();
+        let max_bins = (MAX_COMMON_TERMS / runs.len().max(1)).max(1);
+        CommonDraw {
+            error: common.coarsened(max_bins),
+            sd,
+        }
     }
 }
 
@@ -247,6 +312,10 @@ pub struct LineVariance {
     pub correlation_factor: f64,
     /// Where the variances come from, for the method text.
     pub source: String,
+    /// Per excitation (the FRF set's order): the force noise's error common to its
+    /// channels, `ρ²` on the set's lines, if the estimator gave it. `sigma2` holds its
+    /// part as each channel sees it; the bootstrap draws this part once for all channels.
+    pub common: Vec<Option<CommonRelativeError>>,
 }
 
 /// The models of the excitations a bootstrap has to refit, grouped by shared poles.
@@ -425,6 +494,7 @@ impl FittedModel {
                 let e = &mut self.excitations[i];
                 let (ex, first_line) = (e.excitation, e.band.first_line);
                 let freqs = e.band.frequency_hz.clone();
+                let n_band = freqs.len();
                 let lookup = given.map(|v| {
                     move |c: usize, l: usize| -> Option<f64> {
                         let s = v.sigma2[(ex * nc + c) * nl + first_line + l];
@@ -432,11 +502,17 @@ impl FittedModel {
                             .then(|| s * v.correlation_factor * prefilter(freqs[l]))
                     }
                 });
+                // The common error's ρ² on the band's lines.
+                let common = given
+                    .and_then(|v| v.common.get(ex))
+                    .and_then(Option::as_ref)
+                    .map(|c| c.on_lines(first_line..first_line + n_band));
                 e.prepare_draws(
                     q,
                     lookup
                         .as_ref()
                         .map(|f| f as &dyn Fn(usize, usize) -> Option<f64>),
+                    common.as_ref(),
                 );
             }
         }
@@ -580,6 +656,7 @@ fn excitation_model(
         draw_sd: Vec::new(),
         decimation: 1,
         given_variance: Vec::new(),
+        common: None,
         band,
     })
 }

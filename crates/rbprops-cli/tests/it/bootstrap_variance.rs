@@ -39,6 +39,7 @@ fn the_bootstrap_names_its_noise() {
     let v = rbprops_cli::variance::LineVarianceSet {
         sigma2: frf.values.iter().map(|h| 1e-4 * h.norm_sqr()).collect(),
         degrees_of_freedom: vec![10.0; frf.n_excitations],
+        common: vec![None; frf.n_excitations],
     };
     rbprops_cli::variance::set(&mut with, &geometry, &frf, &v);
     let given = sources(&mut with);

@@ -174,6 +174,7 @@ fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
         sigma2,
         correlation_factor: 1.0,
         source: "test".into(),
+        common: Vec::new(),
     }
 }
 
