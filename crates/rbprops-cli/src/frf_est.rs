@@ -14,8 +14,8 @@ use rbprops_core::records::{
 use rbprops_core::{c64, FrfSet};
 use rbprops_formats::RunRecord;
 use rbprops_frfest::{
-    ConditioningOptions, Estimator, ForceNoiseBins, ForceWindow, HitCheckOptions, HitReport, HitWindows,
-    RejectReason, ResponseWindow, SpectralSums, TriggerLevel, TriggerOptions,
+    ConditioningOptions, Estimator, ForceNoiseBins, ForceWindow, HitCheckOptions, HitReport,
+    HitWindows, RejectReason, ResponseWindow, SpectralSums, TriggerLevel, TriggerOptions,
 };
 use rbprops_uff::timehist::{self, EstimatedFrfs, HitLayout, TimeHistoryIndex};
 use rbprops_uff::UffFile;

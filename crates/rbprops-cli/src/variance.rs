@@ -119,7 +119,9 @@ fn common_error(
     let total: f64 = m.window_weights.iter().sum();
     if m.window_times_s.len() != m.window_weights.len()
         || m.window_weights.is_empty()
-        || m.window_weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
+        || m.window_weights
+            .iter()
+            .any(|w| !(w.is_finite() && *w >= 0.0))
         || m.window_times_s.iter().any(|t| !t.is_finite())
         || (total - 1.0).abs() > 1e-9
     {

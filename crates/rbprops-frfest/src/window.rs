@@ -255,7 +255,10 @@ impl ForceNoiseBins {
         for (n, &x) in w.iter().enumerate() {
             if x != 0.0 {
                 let t = (n as f64 - centroid) / fs;
-                *self.bins.entry((t / self.step_s).floor() as i64).or_default() += noise_var * x * x;
+                *self
+                    .bins
+                    .entry((t / self.step_s).floor() as i64)
+                    .or_default() += noise_var * x * x;
             }
         }
     }
@@ -293,4 +296,40 @@ pub fn exponential_line_correlation(tau_s: f64, fs: f64, n: usize, m: usize) -> 
     let q = (-2.0 / (tau_s * fs)).exp();
     let e = c64::from_polar(q, -std::f64::consts::TAU * (m % n) as f64 / n as f64);
     c64::new(1.0 - q, 0.0) / (c64::new(1.0, 0.0) - e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A window of ones on samples 100..110 at 1 kHz, its pulse centred at 104.5: ten bins
+    /// of one sample at −4.5 … 4.5 ms, a tenth of the energy each; a symmetric pulse's
+    /// centroid is its centre.
+    #[test]
+    fn force_noise_bins_are_the_window_energy_about_the_centroid() {
+        let fs = 1000.0;
+        let mut w = vec![0.0; 300];
+        w[100..110].iter_mut().for_each(|x| *x = 1.0);
+        let force: Vec<f64> = (0..300)
+            .map(|n| {
+                if (100..110).contains(&n) {
+                    1.0 - ((n as f64 - 104.5) / 6.0).powi(2)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let centroid = pulse_centroid(&force, &w).unwrap();
+        assert!((centroid - 104.5).abs() < 1e-12, "{centroid}");
+        let mut bins = ForceNoiseBins::new(fs, 0.01);
+        bins.add_hit(&w, 2.0, centroid, fs);
+        let (t, wt) = bins.finish().unwrap();
+        assert_eq!(t.len(), 10);
+        for (i, (t, wt)) in t.iter().zip(&wt).enumerate() {
+            assert!((t - (i as f64 - 4.5) * 1e-3).abs() < 1e-12, "{i}: {t}");
+            assert!((wt - 0.1).abs() < 1e-12);
+        }
+        assert!(ForceNoiseBins::new(fs, 0.01).finish().is_none());
+        assert!(pulse_centroid(&force, &[0.0; 300]).is_none());
+    }
 }

@@ -296,7 +296,7 @@ fn noise_source(model: &FittedModel, line_variance: Option<&LineVariance>) -> St
             format!("the FRF estimator's line variances ({})", v.source)
         }
     };
-    match line_variance {
+    let text = match line_variance {
         Some(v) if flags.iter().all(|f| *f) => given(v),
         Some(v) if flags.iter().any(|f| *f) => format!(
             "{} on {} of {} channels, elsewhere {residuals}",
@@ -305,7 +305,19 @@ fn noise_source(model: &FittedModel, line_variance: Option<&LineVariance>) -> St
             flags.len()
         ),
         _ => residuals.to_string(),
+    };
+    let common = model
+        .excitations
+        .iter()
+        .filter(|e| e.common.is_some())
+        .count();
+    if common == 0 {
+        return text;
     }
+    format!(
+        "{text}; on {common} of {} excitations also the force noise's error common to their channels (Ĥ = H(1 + ε), ε drawn once per replicate with the force window's line correlation)",
+        model.excitations.len()
+    )
 }
 
 /// The estimates' method text of a bootstrap: replicates, lines, noise source.

@@ -178,6 +178,104 @@ fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
     }
 }
 
+/// The force noise's common error moves every channel of its excitation by the same
+/// relative amount: with no per-channel noise and one bin at the pulse's centroid (a pure
+/// real gain), a replicate is `H (1 + ε)` with one real ε on every channel and line of
+/// that excitation, and the other excitations are drawn as before (here: exactly their
+/// centre). The method text says so.
+#[test]
+fn a_common_error_moves_every_channel_of_its_excitation_alike() {
+    let c = common::case("demo", 8, None);
+    let mut given = model_line_variance(&c, 1.0);
+    given.sigma2.iter_mut().for_each(|s| {
+        if s.is_finite() {
+            *s = 0.0
+        }
+    });
+    let nl = c.frf.n_lines();
+    let plain = FittedModel::new(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        true,
+        None,
+        &Draws::default(),
+    )
+    .unwrap();
+    let ex0 = plain.excitations[0].excitation;
+    given.common = vec![None; c.frf.n_excitations];
+    given.common[ex0] = Some(rbprops_core::CommonRelativeError {
+        relative_variance: vec![1e-6; nl],
+        times_s: vec![0.0],
+        weights: vec![1.0],
+    });
+    let model = FittedModel::new(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        true,
+        None,
+        &Draws {
+            line_variance: Some(&given),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut gains = Vec::new();
+    for e in &model.excitations {
+        let y = e.draw(&mut rng);
+        let mut eps: Vec<rbprops_core::c64> = Vec::new();
+        for (y, h) in y.iter().zip(&e.draw_band.channels) {
+            for (y, h) in y.iter().zip(h) {
+                if h.norm() > 0.0 {
+                    eps.push(y / h - 1.0);
+                }
+            }
+        }
+        if e.excitation != ex0 {
+            assert!(e.common.is_none());
+            assert!(eps.iter().all(|x| x.norm() == 0.0), "{}", e.id);
+            continue;
+        }
+        let first = eps[0];
+        assert!(first.re.abs() > 1e-9 && first.im.abs() < 1e-15, "{first}");
+        assert!(eps
+            .iter()
+            .all(|x| (x - first).norm() < 1e-12 * first.norm().max(1.0)));
+        gains.push(first.re);
+    }
+    assert_eq!(gains.len(), 1);
+    let out =
+        rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
+    let text = method_text(
+        &bootstrap(
+            &c.geometry,
+            &c.frf,
+            &c.modal,
+            &c.selection,
+            &c.solve_opts,
+            &out.estimates,
+            &BootstrapOptions {
+                replicates: 2,
+                ..Default::default()
+            },
+            Some(&given),
+        )
+        .unwrap(),
+    );
+    assert!(
+        text.contains(&format!(
+            "on 1 of {} excitations also the force noise's error common to their channels",
+            model.excitations.len()
+        )),
+        "{text}"
+    );
+}
+
 /// Given line variances replace the residuals' noise model: each line's draw has
 /// `√(σ² κ/2)` per part exactly, a channel with an unknown (NaN) line falls back to the
 /// noise model, and the method text says which was used.
