@@ -587,6 +587,14 @@ fn target_statistics(
             }
         }
     }
+    for (k, reason) in ran_wide(&samples).into_iter().enumerate().rev() {
+        let Some(reason) = reason else { continue };
+        samples.remove(k);
+        failed += 1;
+        if reasons.len() < 5 && !reasons.contains(&reason) {
+            reasons.push(reason);
+        }
+    }
     let id = format!("{} (set-up '{}')", t.method, t.setup);
     if samples.len() < 2 {
         warnings.push(uncertainty_incomplete(
@@ -610,6 +618,46 @@ fn target_statistics(
         ));
     }
     Some(statistics(t, samples, failed, reasons))
+}
+
+/// Robust standard deviations (`1.4826 × MAD`) from the replicates' median beyond which a
+/// replicate is taken to have run wide. Normal replicates reach 8 on one of ten
+/// properties of a hundred replicates with probability below 10⁻¹¹; replicates that do are the estimator
+/// failing on a draw (a mass line that is unreliable on the recording, a mode that
+/// changes partner), and one of them carries the standard deviation of a hundred: one
+/// replicate at 10³ σ makes it 100 σ.
+pub const RAN_WIDE_SIGMAS: f64 = 8.0;
+
+/// Fewest replicates for a median and MAD to judge the others by.
+const RAN_WIDE_MIN_SAMPLES: usize = 20;
+
+/// Per replicate: why it ran wide ([`RAN_WIDE_SIGMAS`] on some property), else None.
+fn ran_wide(samples: &[[f64; N_PROPS]]) -> Vec<Option<String>> {
+    let mut out = vec![None; samples.len()];
+    if samples.len() < RAN_WIDE_MIN_SAMPLES {
+        return out;
+    }
+    for k in 0..N_PROPS {
+        let mut v: Vec<f64> = samples.iter().map(|s| s[k]).collect();
+        v.sort_by(f64::total_cmp);
+        let median = quantile(&v, 0.5);
+        let mut dev: Vec<f64> = v.iter().map(|x| (x - median).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let robust_sd = 1.4826 * quantile(&dev, 0.5);
+        if !(robust_sd > 0.0) {
+            continue;
+        }
+        for (s, o) in samples.iter().zip(&mut out) {
+            let z = (s[k] - median).abs() / robust_sd;
+            if o.is_none() && !(z <= RAN_WIDE_SIGMAS) {
+                *o = Some(format!(
+                    "ran wide: {} beyond {RAN_WIDE_SIGMAS} robust standard deviations of the other replicates",
+                    PROPERTY_NAMES[k]
+                ));
+            }
+        }
+    }
+    out
 }
 
 /// The source named in a replicate's window correction (the original record's).
@@ -685,9 +733,10 @@ pub fn apply(estimates: &mut [InertiaEstimate], boot: &BootstrapOutput) -> usize
             e.diagnostics.push(uncertainty_incomplete(
                 &e.setup,
                 format!(
-                    "bootstrap: {} of {} replicates failed; standard errors from the other {}",
+                    "bootstrap: {} of {} replicates failed ({}); standard errors from the other {}",
                     b.failed,
                     b.failed + b.samples.len(),
+                    b.failure_reasons.join("; "),
                     b.samples.len()
                 ),
             ));
@@ -758,4 +807,45 @@ fn uncertainty_incomplete(setup: &str, message: String) -> Diagnostic {
         subject,
         message,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+    use rand_distr::StandardNormal;
+
+    /// 100 normal replicates: none runs wide. The same with one replicate's Jzz moved to
+    /// 10³ of its spread (as an estimator failing on one draw puts it): that one alone is
+    /// named, on Jzz, and without it the standard deviation is the normal one's again
+    /// (with it, about 100 times that).
+    #[test]
+    fn one_replicate_far_out_is_named_and_the_others_keep_their_spread() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut samples: Vec<[f64; N_PROPS]> = (0..100)
+            .map(|_| {
+                std::array::from_fn(|k| {
+                    1.0 + k as f64 + 1e-3 * rng.sample::<f64, _>(StandardNormal)
+                })
+            })
+            .collect();
+        assert!(ran_wide(&samples).iter().all(Option::is_none));
+        let sd = |s: &[[f64; N_PROPS]], k: usize| {
+            let n = s.len() as f64;
+            let m = s.iter().map(|x| x[k]).sum::<f64>() / n;
+            (s.iter().map(|x| (x[k] - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+        };
+        let normal = sd(&samples, 6);
+        samples[37][6] += 1.0;
+        assert!(sd(&samples, 6) > 50.0 * normal);
+        let wide = ran_wide(&samples);
+        for (i, w) in wide.iter().enumerate() {
+            assert_eq!(w.is_some(), i == 37, "replicate {i}: {w:?}");
+        }
+        assert!(wide[37].as_ref().unwrap().contains(PROPERTY_NAMES[6]));
+        samples.remove(37);
+        assert!((sd(&samples, 6) / normal - 1.0).abs() < 0.05);
+        // Too few replicates to judge by: nothing is named.
+        assert!(ran_wide(&samples[..10]).iter().all(Option::is_none));
+    }
 }
