@@ -147,19 +147,35 @@ fn apply_fills_the_records() {
     }
 }
 
-/// The line variances of `c` that the residuals' noise model gives every line of the fitted
-/// band, times `scale`, on the FRF layout (NaN off the band).
-fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
-    let model = FittedModel::new(
+/// The fitted model of `c` (residual terms on, pole mode from the record) with `draws`.
+fn fitted(c: &common::Case, draws: &Draws) -> FittedModel {
+    FittedModel::new(
         &c.geometry,
         &c.frf,
         &c.modal,
         &c.selection,
         true,
         None,
-        &Draws::default(),
+        draws,
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// [`model_line_variance`]'s lines (the fitted band's) all set to `sigma2`.
+fn constant_line_variance(c: &common::Case, sigma2: f64) -> LineVariance {
+    let mut given = model_line_variance(c, 1.0);
+    given.sigma2.iter_mut().for_each(|s| {
+        if s.is_finite() {
+            *s = sigma2
+        }
+    });
+    given
+}
+
+/// The line variances of `c` that the residuals' noise model gives every line of the fitted
+/// band, times `scale`, on the FRF layout (NaN off the band).
+fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
+    let model = fitted(&c, &Draws::default());
     let (nc, nl) = (c.frf.n_channels, c.frf.n_lines());
     let mut sigma2 = vec![f64::NAN; c.frf.values.len()];
     for e in &model.excitations {
@@ -186,23 +202,9 @@ fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
 #[test]
 fn a_common_error_moves_every_channel_of_its_excitation_alike() {
     let c = common::case("demo", 8, None);
-    let mut given = model_line_variance(&c, 1.0);
-    given.sigma2.iter_mut().for_each(|s| {
-        if s.is_finite() {
-            *s = 0.0
-        }
-    });
+    let mut given = constant_line_variance(&c, 0.0);
     let nl = c.frf.n_lines();
-    let plain = FittedModel::new(
-        &c.geometry,
-        &c.frf,
-        &c.modal,
-        &c.selection,
-        true,
-        None,
-        &Draws::default(),
-    )
-    .unwrap();
+    let plain = fitted(&c, &Draws::default());
     let ex0 = plain.excitations[0].excitation;
     given.common = vec![None; c.frf.n_excitations];
     given.common[ex0] = Some(rbprops_core::CommonRelativeError {
@@ -210,19 +212,13 @@ fn a_common_error_moves_every_channel_of_its_excitation_alike() {
         times_s: vec![0.0],
         weights: vec![1.0],
     });
-    let model = FittedModel::new(
-        &c.geometry,
-        &c.frf,
-        &c.modal,
-        &c.selection,
-        true,
-        None,
+    let model = fitted(
+        &c,
         &Draws {
             line_variance: Some(&given),
             ..Default::default()
         },
-    )
-    .unwrap();
+    );
     use rand::SeedableRng;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let mut gains = Vec::new();
@@ -282,40 +278,20 @@ fn a_common_error_moves_every_channel_of_its_excitation_alike() {
 #[test]
 fn line_variances_set_the_draws() {
     let c = common::case("demo", 8, None);
-    let mut given = model_line_variance(&c, 1.0);
-    given.sigma2.iter_mut().for_each(|s| {
-        if s.is_finite() {
-            *s = 3e-6
-        }
-    });
+    let mut given = constant_line_variance(&c, 3e-6);
     given.correlation_factor = 2.5;
     // One unknown line on channel 4 of the first fitted excitation.
-    let plain = FittedModel::new(
-        &c.geometry,
-        &c.frf,
-        &c.modal,
-        &c.selection,
-        true,
-        None,
-        &Draws::default(),
-    )
-    .unwrap();
+    let plain = fitted(&c, &Draws::default());
     let e0 = &plain.excitations[0];
     let (nc, nl) = (c.frf.n_channels, c.frf.n_lines());
     given.sigma2[(e0.excitation * nc + 4) * nl + e0.band.first_line + 10] = f64::NAN;
-    let model = FittedModel::new(
-        &c.geometry,
-        &c.frf,
-        &c.modal,
-        &c.selection,
-        true,
-        None,
+    let model = fitted(
+        &c,
         &Draws {
             line_variance: Some(&given),
             ..Default::default()
         },
-    )
-    .unwrap();
+    );
     let want = (3e-6 * 2.5 / 2.0f64).sqrt();
     for (i, e) in model.excitations.iter().enumerate() {
         assert_eq!(e.decimation, 1);
