@@ -161,6 +161,26 @@ fn fitted(c: &common::Case, draws: &Draws) -> FittedModel {
     .unwrap()
 }
 
+/// [`bootstrap`] of `c`'s estimates `out` with `opts` and the line variances `given`.
+fn run_bootstrap(
+    c: &common::Case,
+    out: &rbprops_inertia::SolveOutput,
+    opts: &BootstrapOptions,
+    given: Option<&LineVariance>,
+) -> BootstrapOutput {
+    bootstrap(
+        &c.geometry,
+        &c.frf,
+        &c.modal,
+        &c.selection,
+        &c.solve_opts,
+        &out.estimates,
+        opts,
+        given,
+    )
+    .unwrap()
+}
+
 /// [`model_line_variance`]'s lines (the fitted band's) all set to `sigma2`.
 fn constant_line_variance(c: &common::Case, sigma2: f64) -> LineVariance {
     let mut given = model_line_variance(c, 1.0);
@@ -247,22 +267,15 @@ fn a_common_error_moves_every_channel_of_its_excitation_alike() {
     assert_eq!(gains.len(), 1);
     let out =
         rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
-    let text = method_text(
-        &bootstrap(
-            &c.geometry,
-            &c.frf,
-            &c.modal,
-            &c.selection,
-            &c.solve_opts,
-            &out.estimates,
-            &BootstrapOptions {
-                replicates: 2,
-                ..Default::default()
-            },
-            Some(&given),
-        )
-        .unwrap(),
-    );
+    let text = method_text(&run_bootstrap(
+        &c,
+        &out,
+        &BootstrapOptions {
+            replicates: 2,
+            ..Default::default()
+        },
+        Some(&given),
+    ));
     assert!(
         text.contains(&format!(
             "on 1 of {} excitations also the force noise's error common to their channels",
@@ -311,19 +324,7 @@ fn line_variances_set_the_draws() {
     };
     let out =
         rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
-    let run = |v: Option<&LineVariance>| {
-        bootstrap(
-            &c.geometry,
-            &c.frf,
-            &c.modal,
-            &c.selection,
-            &c.solve_opts,
-            &out.estimates,
-            &opts,
-            v,
-        )
-        .unwrap()
-    };
+    let run = |v: Option<&LineVariance>| run_bootstrap(&c, &out, &opts, v);
     let with = method_text(&run(Some(&given)));
     assert!(
         with.contains("the FRF estimator's line variances (test) times 2.500")
@@ -351,19 +352,7 @@ fn line_variances_scale_the_standard_errors() {
     };
     let out =
         rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
-    let run = |v: Option<&LineVariance>| {
-        bootstrap(
-            &c.geometry,
-            &c.frf,
-            &c.modal,
-            &c.selection,
-            &c.solve_opts,
-            &out.estimates,
-            &opts,
-            v,
-        )
-        .unwrap()
-    };
+    let run = |v: Option<&LineVariance>| run_bootstrap(&c, &out, &opts, v);
     let four = model_line_variance(&c, 4.0);
     let (a, b) = (run(None), run(Some(&four)));
     for (x, y) in a.estimates.iter().zip(&b.estimates) {
@@ -393,13 +382,9 @@ fn decimated_replicates_spread_as_every_line() {
     let out =
         rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
     let run = |decimate: bool| {
-        bootstrap(
-            &c.geometry,
-            &c.frf,
-            &c.modal,
-            &c.selection,
-            &c.solve_opts,
-            &out.estimates,
+        run_bootstrap(
+            &c,
+            &out,
             &BootstrapOptions {
                 replicates: 60,
                 decimate,
@@ -407,7 +392,6 @@ fn decimated_replicates_spread_as_every_line() {
             },
             None,
         )
-        .unwrap()
     };
     let (dec, full) = (run(true), run(false));
     assert!(dec.decimation >= 4, "q = {}", dec.decimation);
