@@ -6,17 +6,7 @@ use rbprops_uq::*;
 fn run(c: &common::Case, opts: &BootstrapOptions) -> BootstrapOutput {
     let out =
         rbprops_inertia::solve(&c.geometry, &c.modal, &c.selection, None, &c.solve_opts).unwrap();
-    bootstrap(
-        &c.geometry,
-        &c.frf,
-        &c.modal,
-        &c.selection,
-        &c.solve_opts,
-        &out.estimates,
-        opts,
-        None,
-    )
-    .unwrap()
+    run_bootstrap(c, &out, opts, None)
 }
 
 /// Identical output (bit for bit) with 1 and 2 rayon threads.
