@@ -728,6 +728,14 @@ struct Averaged {
     force_noise_window: Option<(Vec<f64>, Vec<f64>)>,
 }
 
+impl Averaged {
+    /// `ρ² = E_N/S_ff` at line k: the variance of the relative error the force noise puts
+    /// into every FRF of the excitation (docs/conventions.md, FRF estimation).
+    fn force_noise_rho2(&self, k: usize) -> f64 {
+        self.force_noise_energy / self.sums.sff(k, 0, 0).re
+    }
+}
+
 /// A hit cut by the record's edge has no samples and is never averaged, even with
 /// `--keep-rejected`.
 fn average(
@@ -790,9 +798,7 @@ fn common_force_error(
         return None;
     }
     Some(rbprops_core::CommonRelativeError {
-        relative_variance: band
-            .map(|k| a.force_noise_energy / a.sums.sff(k, 0, 0).re)
-            .collect(),
+        relative_variance: band.map(|k| a.force_noise_rho2(k)).collect(),
         times_s,
         weights,
     })
@@ -805,11 +811,7 @@ fn force_noise_error(a: &Averaged, band: std::ops::Range<usize>) -> f64 {
     if band.is_empty() {
         return 0.0;
     }
-    let mean: f64 = band
-        .clone()
-        .map(|k| a.force_noise_energy / a.sums.sff(k, 0, 0).re)
-        .sum::<f64>()
-        / band.len() as f64;
+    let mean: f64 = band.clone().map(|k| a.force_noise_rho2(k)).sum::<f64>() / band.len() as f64;
     mean.sqrt()
 }
 
