@@ -157,6 +157,86 @@ impl StageIo {
         rbprops_formats::atomic::set_force(self.force);
         write_output(rec, self.output.as_deref())
     }
+
+    /// [`Self::read`] for a stage that works one excitation at a time: a regular MCAP
+    /// file's FRF set is left in the file ([`mcap_file::read_file_deferred`]) and given
+    /// by the [`mcap_file::DeferredFrf`]; any other input (stdin, CSV, UFF) is read
+    /// whole, its set in the record (issue 41).
+    pub fn read_deferring(
+        &self,
+        tool: &str,
+        uff: &UffInputOptions,
+    ) -> Result<(Input, Option<mcap_file::DeferredFrf>)> {
+        rbprops_formats::atomic::set_force(self.force);
+        let plain = self.input.as_deref().filter(|p| p.as_os_str() != "-");
+        match plain {
+            Some(p) if is_mcap_file(p) && uff.geometry.is_none() && uff.channels.is_none() => {
+                let name = p.display().to_string();
+                rbprops_formats::atomic::register_input(p);
+                let (record, deferred, notes, sha256) = mcap_file::read_file_deferred(p, &name)?;
+                let input = Input {
+                    record,
+                    sha256,
+                    name,
+                    notes,
+                    warnings: Vec::new(),
+                };
+                Ok((finish(tool, input, &self.checks)?, deferred))
+            }
+            _ => Ok((self.read(tool, uff)?, None)),
+        }
+    }
+
+    /// [`Self::write`] with the FRF set of a [`Self::read_deferring`] input, copied through
+    /// one excitation at a time to an MCAP output (a CSV or UFF output takes it whole).
+    pub fn write_with(
+        &self,
+        rec: &RunRecord,
+        deferred: Option<&mcap_file::DeferredFrf>,
+    ) -> Result<()> {
+        let Some(d) = deferred else {
+            return self.write(rec);
+        };
+        rbprops_formats::atomic::set_force(self.force);
+        let res = write_deferred(rec, d, self.output.as_deref());
+        if res.is_err() {
+            rbprops_formats::atomic::remove_temporaries();
+        }
+        res
+    }
+}
+
+/// [`write_output`] of a record whose FRF set is `d`'s.
+fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Path>) -> Result<()> {
+    let src = Some(d as &dyn rbprops_core::FrfSource);
+    match path.filter(|p| p.as_os_str() != "-") {
+        Some(p) if rbprops_formats::Format::from_path(p)? == rbprops_formats::Format::Mcap => {
+            Ok(rbprops_formats::atomic::write_file_with(p, |w| {
+                mcap_file::write_to_with(rec, src, w).map(drop)
+            })?)
+        }
+        Some(p) => {
+            let mut whole = rec.clone();
+            whole.frf = Some(d.load()?);
+            write_output_inner(&whole, Some(p))
+        }
+        None => write_stdout(|| {
+            Ok(mcap_file::write_to_with(rec, src, std::io::Cursor::new(Vec::new()))?.into_inner())
+        }),
+    }
+}
+
+/// The MCAP bytes `encode` makes, on stdout (refused when stdout is a terminal).
+fn write_stdout(encode: impl FnOnce() -> Result<Vec<u8>>) -> Result<()> {
+    let stdout = std::io::stdout();
+    if stdout.is_terminal() {
+        bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
+    }
+    let bytes = encode()?;
+    let mut lock = stdout.lock();
+    lock.write_all(&bytes).context("writing stdout")?;
+    lock.flush().context("writing stdout")?;
+    Ok(())
 }
 
 /// The integrity options of every stage that reads a run (flattened into its arguments).
@@ -665,17 +745,7 @@ fn write_output_inner(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
             }
             Ok(rbprops_formats::write_path(rec, p)?)
         }
-        _ => {
-            let stdout = std::io::stdout();
-            if stdout.is_terminal() {
-                bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
-            }
-            let bytes = mcap_file::write(rec)?;
-            let mut lock = stdout.lock();
-            lock.write_all(&bytes).context("writing stdout")?;
-            lock.flush().context("writing stdout")?;
-            Ok(())
-        }
+        _ => write_stdout(|| Ok(mcap_file::write(rec)?)),
     }
 }
 

@@ -113,7 +113,24 @@ pub fn ni_select(
     opts: &rbprops_ni::SelectOptions,
     input_sha256: &str,
 ) -> Result<rbprops_ni::SelectionOutput> {
-    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    ni_select_from(rec, None, opts, input_sha256)
+}
+
+/// [`ni_select`] with the FRFs from `frf` (an input's set left in its file,
+/// `StageIo::read_deferring`) instead of the record's: one excitation is held at a time.
+pub fn ni_select_from(
+    rec: &mut RunRecord,
+    frf: Option<&dyn rbprops_core::FrfSource>,
+    opts: &rbprops_ni::SelectOptions,
+    input_sha256: &str,
+) -> Result<rbprops_ni::SelectionOutput> {
+    let (geometry, frf) = match frf {
+        Some(f) => (require_geometry(rec)?, f),
+        None => {
+            let (g, f) = rec.require_geometry_and_frf()?;
+            (g, f as &dyn rbprops_core::FrfSource)
+        }
+    };
     let modal: ModalFitRecord = rec
         .get_one(topics::MODAL_FIT)?
         .context("no modal_fit topic (run modal-fit first)")?;
@@ -122,6 +139,11 @@ pub fn ni_select(
     rec.push_provenance(crate::provenance("ni-select", input_sha256))?;
     rec.set(topics::SELECTION, std::slice::from_ref(&out.record));
     Ok(out)
+}
+
+/// The record's geometry, required.
+fn require_geometry(rec: &RunRecord) -> Result<rbprops_core::Geometry> {
+    rec.geometry()?.context("no geometry topic in the input")
 }
 
 /// How `rb-solve` obtains the standard errors of the modal estimates.

@@ -33,6 +33,10 @@ pub enum CoreError {
     /// FRF values whose count does not match excitations × channels × lines.
     #[error("FRF set: {0}")]
     FrfShape(String),
+    /// An [`crate::FrfSource`] that could not give an excitation's values (the file it
+    /// reads them from changed or cannot be read); the message names the file and record.
+    #[error("{0}")]
+    FrfSource(String),
     /// Inertia properties that are not physical (non-positive mass, indefinite tensor).
     #[error("inertia: {0}")]
     Inertia(String),

@@ -255,6 +255,91 @@ impl FrfSet {
     }
 }
 
+/// The FRFs of a run as a stage reads them: the layout (quantity, axis, counts) at once,
+/// each excitation's values when asked. A set in memory lends its own; a reader may
+/// decode them from the file one excitation at a time, so that a stage which works per
+/// excitation never holds the whole set (issue 41's memory bound).
+pub trait FrfSource: Sync {
+    /// What the values are per newton.
+    fn quantity(&self) -> Quantity;
+    /// Spectral lines (Hz), strictly ascending.
+    fn frequency_hz(&self) -> &[f64];
+    /// Number of excitations.
+    fn n_excitations(&self) -> usize;
+    /// Number of response channels.
+    fn n_channels(&self) -> usize;
+    /// Checks what can be checked without the values (a set in memory checks them too;
+    /// a reader checks each excitation's as it decodes them).
+    fn validate(&self) -> Result<(), CoreError>;
+    /// The FRFs of excitation `e` (all channels), checked finite.
+    fn excitation(&self, e: usize) -> Result<ExcitationFrf<'_>, CoreError>;
+}
+
+/// One excitation's FRFs from an [`FrfSource`]: excitation [`Self::index`] of
+/// [`Self::set`] (the whole set when it was in memory, else a set of this one).
+#[derive(Debug)]
+pub struct ExcitationFrf<'a> {
+    set: std::borrow::Cow<'a, FrfSet>,
+    index: usize,
+}
+
+impl<'a> ExcitationFrf<'a> {
+    /// Excitation `index` of a set in memory (borrowed, not copied).
+    pub fn borrowed(set: &'a FrfSet, index: usize) -> Self {
+        Self {
+            set: std::borrow::Cow::Borrowed(set),
+            index,
+        }
+    }
+    /// A set holding one excitation.
+    pub fn owned(set: FrfSet) -> Self {
+        debug_assert_eq!(set.n_excitations, 1);
+        Self {
+            set: std::borrow::Cow::Owned(set),
+            index: 0,
+        }
+    }
+    /// The set the excitation's values live in.
+    pub fn set(&self) -> &FrfSet {
+        &self.set
+    }
+    /// The excitation's index in [`Self::set`].
+    pub fn index(&self) -> usize {
+        self.index
+    }
+    /// All channels, `[channel][line]`.
+    pub fn block(&self) -> &[c64] {
+        self.set.excitation_block(self.index)
+    }
+}
+
+impl FrfSource for FrfSet {
+    fn quantity(&self) -> Quantity {
+        self.quantity
+    }
+    fn frequency_hz(&self) -> &[f64] {
+        &self.frequency_hz
+    }
+    fn n_excitations(&self) -> usize {
+        self.n_excitations
+    }
+    fn n_channels(&self) -> usize {
+        self.n_channels
+    }
+    fn validate(&self) -> Result<(), CoreError> {
+        FrfSet::validate(self)
+    }
+    fn excitation(&self, e: usize) -> Result<ExcitationFrf<'_>, CoreError> {
+        if e >= self.n_excitations {
+            return Err(CoreError::FrfShape(format!(
+                "excitation {e} of a set of {}",
+                self.n_excitations
+            )));
+        }
+        Ok(ExcitationFrf::borrowed(self, e))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -2,9 +2,12 @@
 
 use crate::wire::{self, FrfAxisMsg, FrfMsg};
 use crate::{topics, FormatError, JsonTopic, RawTopic, RunRecord};
-use rbprops_core::FrfSet;
+use rbprops_core::{FrfSet, FrfSource};
 use std::collections::BTreeMap;
 use std::io::{Cursor, Seek, Write};
+
+mod deferred;
+pub use deferred::{read_file_deferred, DeferredFrf};
 
 /// Profile written in the MCAP header.
 pub const PROFILE: &str = "rbprops";
@@ -68,7 +71,11 @@ impl<W: Write + Seek> Out<W> {
     /// ([`wire::frf_message_json`]) and handed to the chunk before the next is made,
     /// instead of all of them at once as JSON values (two more copies of the whole set). The bytes are those of
     /// [`Out::typed`]: the schema through a JSON value, each message's fields in order.
-    fn frf_topic(&mut self, frf: &FrfSet, g: &rbprops_core::Geometry) -> Result<(), FormatError> {
+    fn frf_topic(
+        &mut self,
+        frf: &dyn FrfSource,
+        g: &rbprops_core::Geometry,
+    ) -> Result<(), FormatError> {
         let schema =
             serde_json::to_value(schemars::schema_for!(FrfMsg)).expect("schema serialises");
         let schema = serde_json::to_vec(&schema).expect("schema serialises");
@@ -79,8 +86,12 @@ impl<W: Write + Seek> Out<W> {
             &schema,
             "json",
         )?;
-        for e in 0..frf.n_excitations {
-            let msg = wire::frf_message_json(&g.excitations[e].id, frf.excitation_block(e));
+        for e in 0..frf.n_excitations() {
+            let x = frf
+                .excitation(e)
+                .map_err(|err| FormatError::other("<output>", err))?;
+            let msg = wire::frf_message_json(&g.excitations[e].id, x.block());
+            drop(x);
             self.message(id, &msg)?;
         }
         self.end_topic()
@@ -110,6 +121,16 @@ pub fn write(rec: &RunRecord) -> Result<Vec<u8>, FormatError> {
 /// [`write`] into `sink` (a file: the run is never held as bytes beside the record),
 /// returned when the MCAP is finished.
 pub fn write_to<W: Write + Seek>(rec: &RunRecord, sink: W) -> Result<W, FormatError> {
+    write_to_with(rec, rec.frf.as_ref().map(|f| f as &dyn FrfSource), sink)
+}
+
+/// [`write_to`] with the FRFs from `frf` instead of the record's (a [`DeferredFrf`]: the
+/// input's set copied through one excitation at a time, never held whole; issue 41).
+pub fn write_to_with<W: Write + Seek>(
+    rec: &RunRecord,
+    frf: Option<&dyn FrfSource>,
+    sink: W,
+) -> Result<W, FormatError> {
     let opts = mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("rbprops {}", env!("CARGO_PKG_VERSION")))
@@ -121,13 +142,9 @@ pub fn write_to<W: Write + Seek>(rec: &RunRecord, sink: W) -> Result<W, FormatEr
         .calculate_summary_section_crc(true);
     let w = opts.create(sink).map_err(mcap_err)?;
     let mut out = Out { w, seq: 0 };
-    let geometry = if rec.frf.is_some() {
-        rec.geometry()?
-    } else {
-        None
-    };
+    let geometry = if frf.is_some() { rec.geometry()? } else { None };
     let mut frf_written = false;
-    let write_frf = |out: &mut Out<W>, frf: &FrfSet| -> Result<(), FormatError> {
+    let write_frf = |out: &mut Out<W>, frf: &dyn FrfSource| -> Result<(), FormatError> {
         let g = geometry.as_ref().ok_or_else(|| {
             FormatError::other("<output>", "an FRF set needs a geometry topic for its ids")
         })?;
@@ -137,13 +154,13 @@ pub fn write_to<W: Write + Seek>(rec: &RunRecord, sink: W) -> Result<W, FormatEr
     for t in &rec.topics {
         out.json_topic(t)?;
         if t.name == topics::GEOMETRY {
-            if let Some(frf) = &rec.frf {
+            if let Some(frf) = frf {
                 write_frf(&mut out, frf)?;
                 frf_written = true;
             }
         }
     }
-    if let (Some(frf), false) = (&rec.frf, frf_written) {
+    if let (Some(frf), false) = (frf, frf_written) {
         write_frf(&mut out, frf)?;
     }
     for r in &rec.raw_topics {
@@ -186,6 +203,18 @@ pub fn read_file_checked(
     path: &std::path::Path,
     file: &str,
 ) -> Result<(RunRecord, Vec<String>, String), FormatError> {
+    let ((rec, notes), sha256, _) = with_file_source(path, file, |src| read_source(src, file))?;
+    Ok((rec, notes, sha256))
+}
+
+/// Runs `read` on the MCAP file at `path` as a [`Source`] that is read at offsets as it
+/// is parsed; returns its result, the file's SHA-256 (the bytes the linear reading did
+/// not reach hashed after it) and the open file.
+fn with_file_source<T>(
+    path: &std::path::Path,
+    file: &str,
+    read: impl FnOnce(&Source) -> Result<T, FormatError>,
+) -> Result<(T, String, std::fs::File), FormatError> {
     let io = |source| FormatError::Io {
         file: file.into(),
         source,
@@ -197,7 +226,7 @@ pub fn read_file_checked(
         len,
         digest: std::cell::RefCell::new((0, crate::Sha256Stream::default())),
     };
-    let (rec, notes) = read_source(&src, file)?;
+    let out = read(&src)?;
     let Source::File {
         digest, file: f, ..
     } = src
@@ -214,7 +243,7 @@ pub fn read_file_checked(
         h.update(&buf[..n]);
         at += n;
     }
-    Ok((rec, notes, h.hex()))
+    Ok((out, h.hex(), f))
 }
 
 /// `buf.len()` bytes of `f` from `offset`.
@@ -284,8 +313,25 @@ impl Source<'_> {
 
 /// [`read_checked`] from either source.
 fn read_source(src: &Source, file: &str) -> Result<(RunRecord, Vec<String>), FormatError> {
+    let (mut rec, mut frf, notes) = walk(src, file, false)?;
+    if let Some(axis) = frf.axis.take() {
+        rec.frf = Some(assemble_frf(&rec, axis, frf, file)?);
+    }
+    Ok((rec, notes))
+}
+
+/// Every message of `src` into a record, the FRF messages into [`FrfMessages`] (their
+/// values decoded and checked, and kept unless `defer`).
+fn walk(
+    src: &Source,
+    file: &str,
+    defer: bool,
+) -> Result<(RunRecord, FrfMessages, Vec<String>), FormatError> {
     let mut rec = RunRecord::default();
-    let mut frf = FrfMessages::default();
+    let mut frf = FrfMessages {
+        defer,
+        ..Default::default()
+    };
     let mut i = 0usize;
     let notes = messages(src, |m| {
         let r = take_message(&mut rec, &mut frf, i, m, file);
@@ -299,16 +345,14 @@ fn read_source(src: &Source, file: &str) -> Result<(RunRecord, Vec<String>), For
         },
         Stop::Record(e) => e,
     })?;
-    if let Some(axis) = frf.axis.take() {
-        rec.frf = Some(assemble_frf(&rec, axis, frf, file)?);
-    } else if !frf.pending.is_empty() {
+    if frf.axis.is_none() && !frf.pending.is_empty() {
         return Err(FormatError::record(
             file,
             topics::FRF,
             "FRF messages without an FRF axis message",
         ));
     }
-    Ok((rec, notes))
+    Ok((rec, frf, notes))
 }
 
 /// The FRF topic as it is read: the axis, the excitation ids and values of the messages
@@ -320,6 +364,20 @@ struct FrfMessages {
     decoded_ids: Vec<String>,
     decoded: Vec<rbprops_core::c64>,
     pending: Vec<FrfMsg>,
+    /// Decode and check the values, then drop them: the set stays in the file
+    /// ([`DeferredFrf`]) and `places` says where each message lies.
+    defer: bool,
+    /// Where each decoded message lies (file order).
+    places: Vec<FrfPlace>,
+}
+
+/// Where an FRF message lies in the file: the top-level record holding it, its channel
+/// and how many messages of that channel come before it in the record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FrfPlace {
+    record: usize,
+    channel: u16,
+    ordinal: usize,
 }
 
 impl FrfMessages {
@@ -367,8 +425,29 @@ impl FrfMessages {
     }
 
     /// An FRF message: decoded now when the axis is known, else kept for the end.
-    fn take(&mut self, excitation: String, text: &str, file: &str) -> Result<(), FormatError> {
+    fn take(
+        &mut self,
+        excitation: String,
+        text: &str,
+        file: &str,
+        (record, channel): (usize, u16),
+    ) -> Result<(), FormatError> {
+        let ordinal = match self.places.last() {
+            Some(p) if p.record == record && p.channel == channel => p.ordinal + 1,
+            _ => 0,
+        };
         match &self.axis {
+            Some(axis) if self.defer => {
+                let k = self.decoded_ids.len();
+                let (id, v) = Self::decode(axis, k, excitation, text, file)?;
+                check_finite(&v, &id, axis, file)?;
+                self.places.push(FrfPlace {
+                    record,
+                    channel,
+                    ordinal,
+                });
+                self.decoded_ids.push(id);
+            }
             Some(axis) => {
                 let k = self.decoded_ids.len();
                 let (id, v) = Self::decode(axis, k, excitation, text, file)?;
@@ -422,7 +501,7 @@ fn take_message(
         // message this does not take (a duplicate key, invalid JSON) goes the general way
         // below, which names its error.
         if let Ok(msg) = serde_json::from_slice::<FrfMsgText>(m.data) {
-            return frf.take(msg.excitation, &msg.values_f64le, file);
+            return frf.take(msg.excitation, &msg.values_f64le, file, m.place);
         }
     }
     let schema = m.schema;
@@ -448,7 +527,7 @@ fn take_message(
         rec.raw_topics[pos].messages.push(m.data.to_vec());
         return Ok(());
     }
-    let value: serde_json::Value = serde_json::from_slice(&m.data).map_err(|e| {
+    let value: serde_json::Value = serde_json::from_slice(m.data).map_err(|e| {
         FormatError::record(
             file,
             format!("topic {topic}, message {i}"),
@@ -472,7 +551,7 @@ fn take_message(
         topics::FRF => {
             let msg: FrfMsg =
                 serde_json::from_value(value).map_err(|e| FormatError::record(file, ctx(), e))?;
-            frf.take(msg.excitation, &msg.values_f64le, file)?;
+            frf.take(msg.excitation, &msg.values_f64le, file, m.place)?;
         }
         _ => {
             let pos = rec
@@ -505,29 +584,14 @@ fn assemble_frf(
     frf: FrfMessages,
     file: &str,
 ) -> Result<FrfSet, FormatError> {
-    let g = rec
-        .geometry()
-        .map_err(|e| FormatError::other(file, e))?
-        .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
-    wire::check_ids_match(&axis, &g, file)?;
     let FrfMessages {
         decoded_ids,
         decoded,
         pending,
         ..
     } = frf;
+    check_message_count(rec, &axis, pending.len() + decoded_ids.len(), file)?;
     let count = pending.len() + decoded_ids.len();
-    if count != axis.excitations.len() {
-        return Err(FormatError::record(
-            file,
-            topics::FRF,
-            format!(
-                "{} FRF messages for {} excitations",
-                count,
-                axis.excitations.len()
-            ),
-        ));
-    }
     let n = FrfMessages::values_per_message(&axis).unwrap_or(0);
     // Messages before the axis (another writer's order) in file order, then the rest;
     // only then is the set copied once.
@@ -545,18 +609,7 @@ fn assemble_frf(
         values
     };
     ids.extend(decoded_ids);
-    for (k, excitation) in ids.into_iter().enumerate() {
-        if excitation != axis.excitations[k] {
-            return Err(FormatError::record(
-                file,
-                format!("{} message {k}", topics::FRF),
-                format!(
-                    "excitation '{}' where '{}' was expected",
-                    excitation, axis.excitations[k]
-                ),
-            ));
-        }
-    }
+    check_message_order(&axis, &ids, file)?;
     let frf = FrfSet {
         quantity: axis.quantity,
         frequency_hz: axis.frequency_hz,
@@ -567,6 +620,77 @@ fn assemble_frf(
     frf.validate()
         .map_err(|e| FormatError::record(file, topics::FRF, e))?;
     Ok(frf)
+}
+
+/// The axis's ids are the geometry's and there is one FRF message per excitation.
+fn check_message_count(
+    rec: &RunRecord,
+    axis: &FrfAxisMsg,
+    count: usize,
+    file: &str,
+) -> Result<(), FormatError> {
+    let g = rec
+        .geometry()
+        .map_err(|e| FormatError::other(file, e))?
+        .ok_or_else(|| FormatError::record(file, topics::FRF, "FRFs without a geometry topic"))?;
+    wire::check_ids_match(axis, &g, file)?;
+    if count != axis.excitations.len() {
+        return Err(FormatError::record(
+            file,
+            topics::FRF,
+            format!(
+                "{} FRF messages for {} excitations",
+                count,
+                axis.excitations.len()
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The FRF messages come in the axis's excitation order.
+fn check_message_order(axis: &FrfAxisMsg, ids: &[String], file: &str) -> Result<(), FormatError> {
+    for (k, excitation) in ids.iter().enumerate() {
+        if *excitation != axis.excitations[k] {
+            return Err(FormatError::record(
+                file,
+                format!("{} message {k}", topics::FRF),
+                format!(
+                    "excitation '{}' where '{}' was expected",
+                    excitation, axis.excitations[k]
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The values of an FRF message are finite (the check [`FrfSet::validate`] makes of a
+/// whole set, for one message whose values are not kept).
+fn check_finite(
+    v: &[rbprops_core::c64],
+    id: &str,
+    axis: &FrfAxisMsg,
+    file: &str,
+) -> Result<(), FormatError> {
+    let nl = axis.frequency_hz.len().max(1);
+    match v
+        .iter()
+        .position(|v| !(v.re.is_finite() && v.im.is_finite()))
+    {
+        None => Ok(()),
+        Some(i) => Err(FormatError::record(
+            file,
+            format!("{} excitation '{id}'", topics::FRF),
+            format!(
+                "channel {}, line {} ({} Hz): value {} is not finite",
+                i / nl,
+                i % nl,
+                axis.frequency_hz[i % nl],
+                v[i]
+            ),
+        )),
+    }
 }
 
 /// Largest decompressed chunk accepted (a corrupt size field must not exhaust memory).
@@ -787,6 +911,9 @@ struct RawMsg<'a> {
     encoding: String,
     schema: Option<SchemaInfo>,
     data: &'a [u8],
+    /// Where the message lies: the top-level record holding it (a chunk, or the
+    /// message itself) and its channel, so that it can be read again.
+    place: (usize, u16),
 }
 
 /// Every message in file order, handed to `each` as it is read; returns the notes of
@@ -862,11 +989,15 @@ fn messages(
                             })?)
                         };
                         count += 1;
+                        // The reader yields a record's messages once it has read the
+                        // whole record: the last byte read lies in it.
+                        let record = layout.at(pos.saturating_sub(1)).map_or(0, |r| r.offset);
                         each(RawMsg {
                             topic,
                             encoding,
                             schema,
                             data: &data,
+                            place: (record, header.channel_id),
                         })
                         .map_err(Stop::Record)?;
                     }

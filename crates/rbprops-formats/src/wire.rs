@@ -3,9 +3,7 @@
 
 use crate::FormatError;
 use base64::Engine;
-use rbprops_core::{
-    c64, Channel, Excitation, FrfSet, Geometry, Point, Quantity, SuspensionSetup, Vec3,
-};
+use rbprops_core::{c64, Channel, Excitation, Geometry, Point, Quantity, SuspensionSetup, Vec3};
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
@@ -443,13 +441,13 @@ fn decode_values_by_block(s: &str, expect: usize) -> Option<Vec<c64>> {
 }
 
 /// Header for an FRF set with the geometry's ids.
-pub fn frf_axis(frf: &FrfSet, geometry: &Geometry) -> FrfAxisMsg {
+pub fn frf_axis(frf: &dyn rbprops_core::FrfSource, geometry: &Geometry) -> FrfAxisMsg {
     FrfAxisMsg {
-        quantity: frf.quantity,
-        unit: frf.quantity.unit().into(),
+        quantity: frf.quantity(),
+        unit: frf.quantity().unit().into(),
         excitations: geometry.excitations.iter().map(|e| e.id.clone()).collect(),
         channels: geometry.channels.iter().map(|c| c.id.clone()).collect(),
-        frequency_hz: frf.frequency_hz.clone(),
+        frequency_hz: frf.frequency_hz().to_vec(),
     }
 }
 

@@ -19,7 +19,7 @@ pub use output::{
 use pool::{mode_half_width, process_pool};
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{MissingMode, ModalFitRecord, SelectedMode, SelectionRecord};
-use rbprops_core::{FrfSet, Geometry, Mat6, RigidBasis, Vec6};
+use rbprops_core::{FrfSource, Geometry, Mat6, RigidBasis, Vec6};
 use reduction::RigidReduction;
 use scope::{plan_pools, validate_estimates};
 use summary::{db10, excitation_curves, excitation_summaries, strength_matrix};
@@ -46,18 +46,18 @@ struct Pool {
 }
 
 /// The FRF set and the geometry agree on the numbers of excitations and channels.
-fn check_dimensions(geometry: &Geometry, frf: &FrfSet) -> Result<(), NiError> {
-    if frf.n_excitations != geometry.excitations.len() {
+fn check_dimensions(geometry: &Geometry, frf: &dyn FrfSource) -> Result<(), NiError> {
+    if frf.n_excitations() != geometry.excitations.len() {
         return Err(NiError::Inconsistent(format!(
             "the FRF set has {} excitations, the geometry {}",
-            frf.n_excitations,
+            frf.n_excitations(),
             geometry.excitations.len()
         )));
     }
-    if frf.n_channels != geometry.channels.len() {
+    if frf.n_channels() != geometry.channels.len() {
         return Err(NiError::Inconsistent(format!(
             "the FRF set has {} channels, the geometry {}",
-            frf.n_channels,
+            frf.n_channels(),
             geometry.channels.len()
         )));
     }
@@ -65,26 +65,29 @@ fn check_dimensions(geometry: &Geometry, frf: &FrfSet) -> Result<(), NiError> {
 }
 
 /// The indicator curves of every excitation in scope (pool order), and the position of
-/// each excitation's curves among them (geometry order; `usize::MAX` out of scope).
+/// each excitation's curves among them (geometry order; `usize::MAX` out of scope). One
+/// excitation's FRFs are asked for at a time: a source that reads them from the file
+/// holds one excitation, not the set (issue 41).
 fn indicator_curves(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     pools: &[Pool],
     opts: &SelectOptions,
-) -> (IndicatorCurves, Vec<usize>) {
+) -> Result<(IndicatorCurves, Vec<usize>), NiError> {
     let mut curves = IndicatorCurves {
-        frequency_hz: frf.frequency_hz.clone(),
-        quantity: frf.quantity,
+        frequency_hz: frf.frequency_hz().to_vec(),
+        quantity: frf.quantity(),
         excitations: Vec::new(),
     };
     let mut curve_of = vec![usize::MAX; geometry.excitations.len()];
     for k in pools.iter().flat_map(|p| p.excitations.iter().copied()) {
         curve_of[k] = curves.excitations.len();
+        let x = frf.excitation(k)?;
         curves
             .excitations
-            .push(excitation_curves(geometry, frf, k, opts));
+            .push(excitation_curves(geometry, x.set(), x.index(), k, opts));
     }
-    (curves, curve_of)
+    Ok((curves, curve_of))
 }
 
 /// Decides, for every physical mode, which excitation gives its best shape.
@@ -99,7 +102,7 @@ fn indicator_curves(
 /// and why each failed, and the others are still selected.
 pub fn select_modes(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     modal: &ModalFitRecord,
     opts: &SelectOptions,
 ) -> Result<SelectionOutput, NiError> {
@@ -116,7 +119,7 @@ pub fn select_modes(
 
     let (pools, mut warnings) = plan_pools(geometry, opts)?;
 
-    let (curves, curve_of) = indicator_curves(geometry, frf, &pools, opts);
+    let (curves, curve_of) = indicator_curves(geometry, frf, &pools, opts)?;
 
     let mut out = SelectionOutput {
         record: SelectionRecord::default(),
@@ -212,7 +215,7 @@ struct PoolResult {
 struct PoolInputs<'a> {
     pool: &'a Pool,
     geometry: &'a Geometry,
-    frf: &'a FrfSet,
+    frf: &'a dyn FrfSource,
     modal: &'a ModalFitRecord,
     opts: &'a SelectOptions,
     members: &'a [Member],

@@ -53,7 +53,8 @@ fn main() -> std::process::ExitCode {
     rbprops_cli::return_large_buffers();
     rbprops_cli::run("ni-select", || {
         let args = Args::parse();
-        let input = args.io.read("ni-select", &Default::default())?;
+        // The FRFs stay in the input file and are read one excitation at a time.
+        let (input, deferred) = args.io.read_deferring("ni-select", &Default::default())?;
         let mut rec = input.record;
         let mut opts = SelectOptions {
             criterion: args.criterion,
@@ -67,7 +68,8 @@ fn main() -> std::process::ExitCode {
         if let Some(m) = args.mac_threshold {
             opts.mac_threshold = m;
         }
-        let out = rbprops_cli::stages::ni_select(&mut rec, &opts, &input.sha256)
+        let frf = deferred.as_ref().map(|d| d as &dyn rbprops_core::FrfSource);
+        let out = rbprops_cli::stages::ni_select_from(&mut rec, frf, &opts, &input.sha256)
             .with_context(|| input.name.clone())?;
         let mut warnings = rbprops_cli::warnings::Collector::default();
         warnings.extend(out.record.diagnostics.iter().cloned());
@@ -107,6 +109,6 @@ fn main() -> std::process::ExitCode {
         // The indicator curves (several values per line and excitation) are not written:
         // freed before the output is encoded (issue 41's memory bound).
         drop(out);
-        args.io.write(&rec)
+        args.io.write_with(&rec, deferred.as_ref())
     })
 }

@@ -10,7 +10,7 @@ use rbprops_core::{
 };
 use rbprops_formats::{csv_dir, mcap_file, topics, RunRecord};
 
-fn geometry() -> Geometry {
+pub(crate) fn geometry() -> Geometry {
     let mut g = Geometry::default();
     g.setups.push(SuspensionSetup {
         id: "A".into(),
@@ -55,7 +55,7 @@ fn geometry() -> Geometry {
     g
 }
 
-fn record() -> RunRecord {
+pub(crate) fn record() -> RunRecord {
     let g = geometry();
     let mut frf = FrfSet::zeros(
         Quantity::Accelerance,

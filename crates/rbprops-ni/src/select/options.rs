@@ -95,6 +95,11 @@ pub struct SelectOptions {
     /// pole's halves share the true residue and have low confidence.
     #[serde(default = "default_min_confidence")]
     pub min_confidence: f64,
+    /// Keep each excitation's principal response curves (`ExcitationCurves::prf_db`,
+    /// rank × lines, the bulk of the curves) in the output; default false (no plot or
+    /// stage reads them, and at 192 excitations they were 15 MB of ni-select's memory).
+    #[serde(default)]
+    pub principal_response_curves: bool,
 }
 
 fn default_min_confidence() -> f64 {
@@ -116,6 +121,7 @@ impl Default for SelectOptions {
             peak_prominence_db: 3.0,
             prf_rank_tolerance: DEFAULT_PRF_RANK_TOLERANCE,
             min_confidence: default_min_confidence(),
+            principal_response_curves: false,
         }
     }
 }

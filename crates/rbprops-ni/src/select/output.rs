@@ -124,7 +124,8 @@ pub struct ExcitationCurves {
     pub prf_singular_values: Vec<f64>,
     /// Number of principal responses kept.
     pub prf_rank: usize,
-    /// `20 log10 |PRF_j(ω)|` of the kept principal response functions.
+    /// `20 log10 |PRF_j(ω)|` of the kept principal response functions (empty unless
+    /// `SelectOptions::principal_response_curves`).
     pub prf_db: Vec<Vec<f64>>,
 }
 

@@ -181,8 +181,8 @@ pub(super) fn mode_table(
     let rest = p.estimate(rm);
     let (f_r, zeta) = (rest.frequency_hz, rest.damping_ratio);
     let phi_ref = (rm.strength > 0.0).then(|| rm.q / rm.strength.sqrt());
-    let half_width = mode_half_width(f_r, zeta, local_spacing(&p.frf.frequency_hz, f_r));
-    let lines = window_lines(&p.frf.frequency_hz, f_r, half_width);
+    let half_width = mode_half_width(f_r, zeta, local_spacing(p.frf.frequency_hz(), f_r));
+    let lines = window_lines(p.frf.frequency_hz(), f_r, half_width);
     let mut table: Vec<ModeExcitation> = Vec::with_capacity(p.pool.excitations.len());
     for &k in &p.pool.excitations {
         let c = p.curves_of(k);

@@ -5,12 +5,12 @@ use super::{Pool, SelectOptions};
 use crate::{diagnostic, NiError};
 use rbprops_core::records::ModalFitRecord;
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
-use rbprops_core::{FrfSet, Geometry};
+use rbprops_core::{FrfSource, Geometry};
 
 /// Checks every estimate against the geometry; returns each one's excitation index.
 pub(super) fn validate_estimates(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     modal: &ModalFitRecord,
 ) -> Result<Vec<usize>, NiError> {
     let mut out = Vec::with_capacity(modal.modes.len());
@@ -34,11 +34,11 @@ pub(super) fn validate_estimates(
         if !seen.insert((k, est.mode)) {
             return Err(bad("appears twice in the modal record".into()));
         }
-        if est.residues.len() != frf.n_channels {
+        if est.residues.len() != frf.n_channels() {
             return Err(bad(format!(
                 "{} residues for {} channels",
                 est.residues.len(),
-                frf.n_channels
+                frf.n_channels()
             )));
         }
         if !(est.frequency_hz.is_finite() && est.frequency_hz > 0.0) {
@@ -61,7 +61,7 @@ pub(super) fn validate_estimates(
             return Err(bad("a residue is not finite".into()));
         }
         if !est.residue_std.is_empty()
-            && (est.residue_std.len() != frf.n_channels
+            && (est.residue_std.len() != frf.n_channels()
                 || est
                     .residue_std
                     .iter()
@@ -69,7 +69,7 @@ pub(super) fn validate_estimates(
         {
             return Err(bad(format!(
                 "residue_std must be empty or {} finite non-negative values",
-                frf.n_channels
+                frf.n_channels()
             )));
         }
         out.push(k);

@@ -13,24 +13,30 @@ use crate::peaks::find_peaks;
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::{FrfSet, Geometry};
 
+/// The curves of the geometry's excitation `k`, whose FRFs are excitation `index` of `frf`.
 pub(super) fn excitation_curves(
     geometry: &Geometry,
     frf: &FrfSet,
+    index: usize,
     k: usize,
     opts: &SelectOptions,
 ) -> ExcitationCurves {
-    let prf = principal_responses(frf, k);
+    let prf = principal_responses(frf, index);
     let rank = prf.rank(opts.prf_rank_tolerance);
     ExcitationCurves {
         excitation: geometry.excitations[k].id.clone(),
         setup: geometry.excitations[k].setup.clone(),
-        ni_db: norm_indicator(frf, k),
-        hybrid_mif: hybrid_mif(frf, k),
+        ni_db: norm_indicator(frf, index),
+        hybrid_mif: hybrid_mif(frf, index),
         prf_mif: prf_mif_from(frf, &prf, opts.prf_rank_tolerance),
-        prf_db: prf.responses[..rank]
-            .iter()
-            .map(|p| p.iter().map(|h| power_db(h.norm_sqr())).collect())
-            .collect(),
+        prf_db: if opts.principal_response_curves {
+            prf.responses[..rank]
+                .iter()
+                .map(|p| p.iter().map(|h| power_db(h.norm_sqr())).collect())
+                .collect()
+        } else {
+            Vec::new()
+        },
         prf_singular_values: prf.singular_values,
         prf_rank: rank,
     }
@@ -73,8 +79,8 @@ pub(super) fn excitation_summaries(
             .into_iter()
             .filter(|pk| c.ni_db[pk.line] >= top - opts.min_strength_db)
             .map(|pk| {
-                let f = p.frf.frequency_hz[pk.line];
-                let spacing = local_spacing(&p.frf.frequency_hz, f);
+                let f = p.frf.frequency_hz()[pk.line];
+                let spacing = local_spacing(p.frf.frequency_hz(), f);
                 NiPeak {
                     frequency_hz: f,
                     level_db: c.ni_db[pk.line],

@@ -808,7 +808,11 @@ fn selection_does_not_depend_on_the_frf_quantity() {
 fn principal_responses_count_the_excited_modes() {
     let m = test_case_one();
     let rec = estimates(&m, EstimateSpec::default());
-    let out = run(&m, &rec, &SelectOptions::default());
+    let opts = SelectOptions {
+        principal_response_curves: true,
+        ..Default::default()
+    };
+    let out = run(&m, &rec, &opts);
     let rank = |ex: &str| {
         out.curves
             .excitations
@@ -823,5 +827,15 @@ fn principal_responses_count_the_excited_modes() {
     assert_eq!(rank("F2y"), 6);
     for c in &out.curves.excitations {
         assert_eq!(c.prf_db.len(), c.prf_rank);
+    }
+    // Without the curves: the same selection and indicators, no principal responses.
+    let lean = run(&m, &rec, &SelectOptions::default());
+    assert_eq!(lean.record, out.record);
+    for (a, b) in lean.curves.excitations.iter().zip(&out.curves.excitations) {
+        assert!(a.prf_db.is_empty());
+        assert_eq!(
+            (&a.ni_db, &a.prf_mif, a.prf_rank),
+            (&b.ni_db, &b.prf_mif, b.prf_rank)
+        );
     }
 }

@@ -1,0 +1,129 @@
+//! An MCAP file's FRF set left in the file (`read_file_deferred`): the same record, the
+//! same values one excitation at a time, the same output bytes; a file changed under it
+//! is an error naming it; another writer's order falls back to the whole read.
+
+use crate::roundtrip::{geometry, record};
+use rbprops_core::{c64, Excitation, FrfSet, FrfSource, Quantity, Vec3};
+use rbprops_formats::{mcap_file, topics, wire, JsonTopic, RunRecord};
+
+/// `record()` with `n` excitations of `lines` lines (values that differ everywhere).
+fn record_of(n: usize, lines: usize) -> RunRecord {
+    let mut rec = record();
+    let mut g = geometry();
+    let first = g.excitations[0].clone();
+    g.excitations = (0..n)
+        .map(|k| Excitation {
+            id: format!("F{k}"),
+            position: first.position + Vec3::new(0.001 * k as f64, 0.0, 0.0),
+            ..first.clone()
+        })
+        .collect();
+    rec.set_geometry(&g);
+    let mut frf = FrfSet::zeros(
+        Quantity::Mobility,
+        (0..lines).map(|l| 0.5 + l as f64 * 0.01).collect(),
+        n,
+        9,
+    );
+    for (i, v) in frf.values.iter_mut().enumerate() {
+        *v = c64::new((i as f64 * 0.37).sin(), (i as f64 * 1e-3).cos() * 1e-9);
+    }
+    rec.frf = Some(frf);
+    rec
+}
+
+/// Reads `rec` written to a file both ways and checks that they agree, value for value
+/// and byte for byte when written again.
+fn agrees(rec: &RunRecord) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.mcap");
+    std::fs::write(&path, mcap_file::write(rec).unwrap()).unwrap();
+    let (whole, notes, sha) = mcap_file::read_file_checked(&path, "run.mcap").unwrap();
+    let (lean, deferred, lean_notes, lean_sha) =
+        mcap_file::read_file_deferred(&path, "run.mcap").unwrap();
+    let d = deferred.expect("rbprops' own file is read deferred");
+    let set = whole.frf.as_ref().unwrap();
+    assert!(lean.frf.is_none());
+    assert_eq!((lean_notes, lean_sha), (notes, sha));
+    assert_eq!(lean.topics, whole.topics);
+    assert_eq!(
+        (d.n_excitations(), d.n_channels()),
+        (set.n_excitations, set.n_channels)
+    );
+    assert_eq!(
+        (d.quantity(), d.frequency_hz()),
+        (set.quantity, &set.frequency_hz[..])
+    );
+    // In reverse order: each is found from its own place, not from the reading's order.
+    for e in (0..set.n_excitations).rev() {
+        let x = d.excitation(e).unwrap();
+        assert_eq!(x.block(), set.excitation_block(e), "excitation {e}");
+    }
+    assert_eq!(&d.load().unwrap(), set);
+    let again = mcap_file::write_to_with(&lean, Some(&d), std::io::Cursor::new(Vec::new()))
+        .unwrap()
+        .into_inner();
+    assert!(
+        again == mcap_file::write(&whole).unwrap(),
+        "written bytes differ"
+    );
+}
+
+#[test]
+fn deferred_excitations_are_the_whole_reads_in_one_chunk_and_across_many() {
+    // Two messages in one chunk (the second found by its ordinal) …
+    agrees(&record());
+    // … and 40 messages of 270 kB of values over many chunks.
+    agrees(&record_of(40, 1500));
+}
+
+#[test]
+fn a_file_changed_after_it_was_read_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.mcap");
+    std::fs::write(&path, mcap_file::write(&record_of(6, 400)).unwrap()).unwrap();
+    let (_, d, _, _) = mcap_file::read_file_deferred(&path, "run.mcap").unwrap();
+    let d = d.unwrap();
+    assert!(d.excitation(3).is_ok());
+    std::fs::write(&path, mcap_file::write(&record_of(7, 300)).unwrap()).unwrap();
+    let e = d.excitation(3).unwrap_err().to_string();
+    assert!(
+        e.contains("run.mcap") && e.contains("excitation 'F3'"),
+        "{e}"
+    );
+    assert!(e.contains("changed"), "{e}");
+    std::fs::write(&path, b"").unwrap();
+    let e = d.excitation(0).unwrap_err().to_string();
+    assert!(e.contains("run.mcap") && e.contains("'F0'"), "{e}");
+}
+
+#[test]
+fn frf_messages_before_their_axis_are_read_whole() {
+    // Another writer's order: the FRF messages as a topic before the axis.
+    let full = record();
+    let set = full.frf.clone().unwrap();
+    let g = geometry();
+    let mut rec = full.clone();
+    rec.frf = None;
+    let frf_msgs: Vec<wire::FrfMsg> = g
+        .excitations
+        .iter()
+        .enumerate()
+        .map(|(e, x)| wire::FrfMsg {
+            excitation: x.id.clone(),
+            values_f64le: wire::encode_values(set.excitation_block(e)),
+        })
+        .collect();
+    rec.set(topics::FRF, &frf_msgs);
+    rec.set(topics::FRF_AXIS, &[wire::frf_axis(&set, &g)]);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("other.mcap");
+    std::fs::write(&path, mcap_file::write(&rec).unwrap()).unwrap();
+    let (lean, d, _, _) = mcap_file::read_file_deferred(&path, "other.mcap").unwrap();
+    assert!(d.is_none());
+    assert_eq!(lean.frf.as_ref(), Some(&set));
+    let no_frf: Vec<&JsonTopic> = lean.topics.iter().collect();
+    assert!(no_frf
+        .iter()
+        .all(|t| t.name != topics::FRF && t.name != topics::FRF_AXIS));
+}
