@@ -194,16 +194,26 @@ impl StageIo {
         rec: &RunRecord,
         deferred: Option<&mcap_file::DeferredFrf>,
     ) -> Result<()> {
-        let Some(d) = deferred else {
-            return self.write(rec);
-        };
         rbprops_formats::atomic::set_force(self.force);
-        let res = write_deferred(rec, d, self.output.as_deref());
-        if res.is_err() {
-            rbprops_formats::atomic::remove_temporaries();
-        }
-        res
+        write_output_with(rec, deferred, self.output.as_deref())
     }
+}
+
+/// [`write_output`] of a record whose FRF set, when `deferred` is given, is that input's
+/// ([`StageIo::read_deferring`]): copied through one excitation at a time to MCAP.
+pub fn write_output_with(
+    rec: &RunRecord,
+    deferred: Option<&mcap_file::DeferredFrf>,
+    path: Option<&Path>,
+) -> Result<()> {
+    let Some(d) = deferred else {
+        return write_output(rec, path);
+    };
+    let res = write_deferred(rec, d, path);
+    if res.is_err() {
+        rbprops_formats::atomic::remove_temporaries();
+    }
+    res
 }
 
 /// [`write_output`] of a record whose FRF set is `d`'s.

@@ -45,6 +45,19 @@ pub fn modal_fit_windowed(
     exp_window_s: Option<f64>,
     input_sha256: &str,
 ) -> Result<rbprops_modal::ModalFitOutput> {
+    modal_fit_from(rec, None, opts, exp_window_s, input_sha256)
+}
+
+/// [`modal_fit_windowed`] with the FRFs from `frf` (an input's set left in its file,
+/// `StageIo::read_deferring`) instead of the record's: each fit asks for its
+/// excitation's FRFs and keeps only its band.
+pub fn modal_fit_from(
+    rec: &mut RunRecord,
+    frf: Option<&dyn rbprops_core::FrfSource>,
+    opts: &rbprops_modal::FitOptions,
+    exp_window_s: Option<f64>,
+    input_sha256: &str,
+) -> Result<rbprops_modal::ModalFitOutput> {
     use rbprops_core::records::{ProcessingRecord, PROCESSING_TOPIC};
     let mut processing: ProcessingRecord = rec.get_one(PROCESSING_TOPIC)?.unwrap_or_default();
     let source = if exp_window_s.is_some() {
@@ -59,14 +72,16 @@ pub fn modal_fit_windowed(
         .map(rbprops_core::WindowCorrection::new)
         .transpose()
         .context("exponential window")?;
-    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let (geometry, frf) = geometry_and_frf(rec, frf)?;
     if let Some(b) = opts.band_hz {
-        crate::args::check_band("--band", b, &frf.frequency_hz)?;
+        crate::args::check_band("--band", b, frf.frequency_hz())?;
     }
     let out = match window {
         None => rbprops_modal::fit_campaign(&geometry, frf, opts)?,
         Some(w) => {
-            let mut out = rbprops_modal::fit_campaign(&geometry, &w.prefilter(frf), opts)?;
+            // Each excitation prefiltered as the fit asks for it (never the whole set).
+            let prefiltered = rbprops_core::Prefiltered { window: &w, frf };
+            let mut out = rbprops_modal::fit_campaign(&geometry, &prefiltered, opts)?;
             w.correct_modal_fit(&mut out.record, source)?;
             out.record
                 .diagnostics
@@ -124,13 +139,7 @@ pub fn ni_select_from(
     opts: &rbprops_ni::SelectOptions,
     input_sha256: &str,
 ) -> Result<rbprops_ni::SelectionOutput> {
-    let (geometry, frf) = match frf {
-        Some(f) => (require_geometry(rec)?, f),
-        None => {
-            let (g, f) = rec.require_geometry_and_frf()?;
-            (g, f as &dyn rbprops_core::FrfSource)
-        }
-    };
+    let (geometry, frf) = geometry_and_frf(rec, frf)?;
     let modal: ModalFitRecord = rec
         .get_one(topics::MODAL_FIT)?
         .context("no modal_fit topic (run modal-fit first)")?;
@@ -141,9 +150,22 @@ pub fn ni_select_from(
     Ok(out)
 }
 
-/// The record's geometry, required.
-fn require_geometry(rec: &RunRecord) -> Result<rbprops_core::Geometry> {
-    rec.geometry()?.context("no geometry topic in the input")
+/// The record's geometry and the FRFs: `frf` when given (a deferred input's), else the
+/// record's set (both required).
+fn geometry_and_frf<'a>(
+    rec: &'a RunRecord,
+    frf: Option<&'a dyn rbprops_core::FrfSource>,
+) -> Result<(rbprops_core::Geometry, &'a dyn rbprops_core::FrfSource)> {
+    Ok(match frf {
+        Some(f) => (
+            rec.geometry()?.context("no geometry topic in the input")?,
+            f,
+        ),
+        None => {
+            let (g, f) = rec.require_geometry_and_frf()?;
+            (g, f as &dyn rbprops_core::FrfSource)
+        }
+    })
 }
 
 /// How `rb-solve` obtains the standard errors of the modal estimates.
@@ -205,9 +227,26 @@ pub fn rb_solve_with(
     rbprops_inertia::SolveOutput,
     Option<rbprops_uq::BootstrapOutput>,
 )> {
+    rb_solve_from(rec, None, opts, uncertainty, use_truth, input_sha256)
+}
+
+/// [`rb_solve_with`] with the FRFs from `frf` (an input's set left in its file,
+/// `StageIo::read_deferring`) instead of the record's. The linearised errors read one
+/// excitation at a time (the mass line); the bootstrap needs the set in the record.
+pub fn rb_solve_from(
+    rec: &mut RunRecord,
+    frf: Option<&dyn rbprops_core::FrfSource>,
+    opts: &rbprops_inertia::SolveOptions,
+    uncertainty: &Uncertainty,
+    use_truth: bool,
+    input_sha256: &str,
+) -> Result<(
+    rbprops_inertia::SolveOutput,
+    Option<rbprops_uq::BootstrapOutput>,
+)> {
     // The FRFs stay borrowed from the record (no copy: at 102,401 lines × 3 excitations
     // one is 44 MB) until the estimates are written back.
-    let (geometry, frf) = rec.require_geometry_and_frf()?;
+    let (geometry, frf) = geometry_and_frf(rec, frf)?;
     let modal: ModalFitRecord = rec
         .get_one(topics::MODAL_FIT)?
         .context("no modal_fit topic (run modal-fit first)")?;
@@ -217,7 +256,7 @@ pub fn rb_solve_with(
     crate::validate::modal_fit(&modal, geometry.channels.len())?;
     crate::validate::selection(&selection, &modal)?;
     if let Some(b) = opts.mass_line.band_hz {
-        crate::args::check_band("--mass-line-band", b, &frf.frequency_hz)?;
+        crate::args::check_band("--mass-line-band", b, frf.frequency_hz())?;
     }
     let mut opts = opts.clone();
     if opts.reference.is_none() && use_truth {
@@ -231,6 +270,10 @@ pub fn rb_solve_with(
             None,
         ),
         Uncertainty::Bootstrap(b) => {
+            let frf = rec
+                .frf
+                .as_ref()
+                .context("the bootstrap needs the FRF set in the record")?;
             let given = crate::variance::for_bootstrap(rec)?;
             let mut b = b.clone();
             if b.fit_weighting.is_none() {

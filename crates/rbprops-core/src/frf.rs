@@ -311,6 +311,34 @@ impl<'a> ExcitationFrf<'a> {
     pub fn block(&self) -> &[c64] {
         self.set.excitation_block(self.index)
     }
+    /// This excitation's lines with `fmin ≤ f ≤ fmax`, as a set of one excitation
+    /// ([`FrfSet::band`] of it, without copying the rest of a borrowed set).
+    pub fn band(&self, fmin: f64, fmax: f64) -> FrfSet {
+        let set = self.set();
+        let keep: Vec<usize> = (0..set.n_lines())
+            .filter(|&l| set.frequency_hz[l] >= fmin && set.frequency_hz[l] <= fmax)
+            .collect();
+        let mut out = FrfSet::zeros(
+            set.quantity,
+            keep.iter().map(|&l| set.frequency_hz[l]).collect(),
+            1,
+            set.n_channels,
+        );
+        for c in 0..set.n_channels {
+            let src = set.frf(self.index, c);
+            for (d, &l) in out.frf_mut(0, c).iter_mut().zip(&keep) {
+                *d = src[l];
+            }
+        }
+        out
+    }
+    /// A set of this excitation alone (moved when it is one, copied out of a borrowed set).
+    pub fn into_set(self) -> FrfSet {
+        match self.set {
+            std::borrow::Cow::Owned(s) if s.n_excitations == 1 => s,
+            set => set.select_excitations(&[self.index]),
+        }
+    }
 }
 
 impl FrfSource for FrfSet {
@@ -334,6 +362,16 @@ impl FrfSource for FrfSet {
             return Err(CoreError::FrfShape(format!(
                 "excitation {e} of a set of {}",
                 self.n_excitations
+            )));
+        }
+        let expect = self.n_excitations * self.n_channels * self.n_lines();
+        if self.values.len() != expect {
+            return Err(CoreError::FrfShape(format!(
+                "{} values for {} excitations × {} channels × {} lines (expected {expect})",
+                self.values.len(),
+                self.n_excitations,
+                self.n_channels,
+                self.n_lines()
             )));
         }
         Ok(ExcitationFrf::borrowed(self, e))

@@ -43,7 +43,7 @@ pub use noise::{CoherenceNoise, CommonRelativeError, NoiseModel, NormalStream};
 pub use precision::DataPrecision;
 pub use properties::InertiaProperties;
 pub use rigid::{mass_normalise, real_modal_constants, RigidBasis, RigidFit};
-pub use window::WindowCorrection;
+pub use window::{Prefiltered, WindowCorrection};
 
 /// Complex double, the same type faer (`faer::c64`) and nalgebra use.
 #[allow(non_camel_case_types)]

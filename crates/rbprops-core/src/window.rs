@@ -105,6 +105,37 @@ impl WindowCorrection {
     }
 }
 
+/// An [`FrfSource`](crate::FrfSource) whose excitations come [`WindowCorrection::prefilter`]ed,
+/// one at a time as they are asked for (the prefiltered set is never made whole).
+pub struct Prefiltered<'a> {
+    /// The window whose damping is taken out.
+    pub window: &'a WindowCorrection,
+    /// The windowed FRFs.
+    pub frf: &'a dyn crate::FrfSource,
+}
+
+impl crate::FrfSource for Prefiltered<'_> {
+    fn quantity(&self) -> crate::Quantity {
+        self.frf.quantity()
+    }
+    fn frequency_hz(&self) -> &[f64] {
+        self.frf.frequency_hz()
+    }
+    fn n_excitations(&self) -> usize {
+        self.frf.n_excitations()
+    }
+    fn n_channels(&self) -> usize {
+        self.frf.n_channels()
+    }
+    fn validate(&self) -> Result<(), crate::CoreError> {
+        self.frf.validate()
+    }
+    fn excitation(&self, e: usize) -> Result<crate::ExcitationFrf<'_>, crate::CoreError> {
+        let one = self.frf.excitation(e)?.into_set();
+        Ok(crate::ExcitationFrf::owned(self.window.prefilter(&one)))
+    }
+}
+
 impl WindowCorrection {
     /// Moves every pole of a modal fit made on [`WindowCorrection::prefilter`]ed windowed
     /// data back to the physical pole (modal constants unchanged, see the type's

@@ -20,7 +20,7 @@ use crate::error::InertiaError;
 use crate::lsq::{solve_parameters, LinearConstraint, PropertiesEstimate};
 use crate::params::{action_block, basis_matrices, N_PARAMS};
 use crate::shapes::RigidFrame;
-use rbprops_core::{FrfSet, Quantity, Vec6};
+use rbprops_core::{ExcitationFrf, FrfSource, Quantity, Vec6};
 use serde::{Deserialize, Serialize};
 
 /// Band selection for the mass line.
@@ -72,6 +72,11 @@ pub struct MassLineBand {
     pub n_lines: usize,
 }
 
+/// Excitation `e`'s FRFs from the source (a reader's are decoded now).
+fn excitation(frf: &dyn FrfSource, e: usize) -> Result<ExcitationFrf<'_>, InertiaError> {
+    Ok(frf.excitation(e)?)
+}
+
 /// Minimum number of spectral lines for the three-term fit to have noise degrees of freedom.
 pub const MIN_LINES: usize = 6;
 
@@ -80,12 +85,12 @@ pub const MIN_LINES: usize = 6;
 /// above the band start, of `P(ω) = Σ |accelerance|²` over all FRFs that exceeds
 /// `elastic_threshold ×` `P` at the band start.
 pub fn choose_band(
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     highest_rigid_hz: f64,
     opts: &MassLineOptions,
 ) -> Result<MassLineBand, InertiaError> {
     let count = |lo: f64, hi: f64| {
-        frf.frequency_hz
+        frf.frequency_hz()
             .iter()
             .filter(|&&f| f >= lo && f <= hi)
             .count()
@@ -111,20 +116,28 @@ pub fn choose_band(
         ));
     }
     let lo = opts.rigid_factor * highest_rigid_hz;
-    let top = *frf.frequency_hz.last().unwrap_or(&0.0);
-    let acc = frf
-        .band(lo, top)
-        .to_quantity(Quantity::Accelerance)
-        .map_err(|e| InertiaError::MassLine(e.to_string()))?;
-    let nl = acc.n_lines();
-    let power: Vec<f64> = (0..nl)
-        .map(|l| {
-            (0..acc.n_excitations)
-                .flat_map(|e| (0..acc.n_channels).map(move |c| (e, c)))
-                .map(|(e, c)| acc.frf(e, c)[l].norm_sqr())
-                .sum()
-        })
-        .collect();
+    let top = *frf.frequency_hz().last().unwrap_or(&0.0);
+    // P(ω) summed excitation by excitation (one held at a time), each line's terms in
+    // the order excitation, channel.
+    let mut power: Vec<f64> = Vec::new();
+    let mut axis: Vec<f64> = Vec::new();
+    for e in 0..frf.n_excitations() {
+        let acc = excitation(frf, e)?
+            .band(lo, top)
+            .to_quantity(Quantity::Accelerance)
+            .map_err(|e| InertiaError::MassLine(e.to_string()))?;
+        if e == 0 {
+            power = vec![-0.0; acc.n_lines()];
+            axis = acc.frequency_hz.clone();
+        }
+        for c in 0..acc.n_channels {
+            for (p, h) in power.iter_mut().zip(acc.frf(0, c)) {
+                *p += h.norm_sqr();
+            }
+        }
+    }
+    let acc_frequency_hz = axis;
+    let nl = power.len();
     let mut first_elastic = None;
     if nl > 0 {
         let base = power[0];
@@ -133,7 +146,7 @@ pub fn choose_band(
             while l + 1 < nl && power[l + 1] >= power[l] {
                 l += 1;
             }
-            first_elastic = Some(acc.frequency_hz[l]);
+            first_elastic = Some(acc_frequency_hz[l]);
         }
     }
     let hi = first_elastic.map_or(top, |fe| fe / opts.elastic_factor);
@@ -176,13 +189,14 @@ pub struct MassLineValues {
 /// `s √[(XᵀX)⁻¹]₀₀`. The elastic pole term is used when the band knows the first elastic
 /// resonance (automatic band).
 pub fn mass_line_values(
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     band: &MassLineBand,
     rigid_terms: usize,
     flex_terms: usize,
 ) -> Result<MassLineValues, InertiaError> {
-    let sub = frf.band(band.lo_hz, band.hi_hz);
-    let n = sub.n_lines();
+    let in_band = |f: &&f64| **f >= band.lo_hz && **f <= band.hi_hz;
+    let band_hz: Vec<f64> = frf.frequency_hz().iter().filter(in_band).copied().collect();
+    let n = band_hz.len();
     let nb = 1 + rigid_terms + flex_terms;
     if n < MIN_LINES.max(nb + 3) {
         return Err(InertiaError::MassLine(format!(
@@ -192,12 +206,15 @@ pub fn mass_line_values(
             MIN_LINES.max(nb + 3)
         )));
     }
-    let acc = sub
-        .to_quantity(Quantity::Accelerance)
-        .map_err(|e| InertiaError::MassLine(e.to_string()))?;
+    // Each excitation's band in accelerance, one at a time.
+    let accelerance = |e: usize| {
+        excitation(frf, e)?
+            .band(band.lo_hz, band.hi_hz)
+            .to_quantity(Quantity::Accelerance)
+            .map_err(|e| InertiaError::MassLine(e.to_string()))
+    };
     // Basis in x = ω²/ω_c², scaled to the band centre for conditioning.
-    let w: Vec<f64> = acc
-        .frequency_hz
+    let w: Vec<f64> = band_hz
         .iter()
         .map(|f| 2.0 * std::f64::consts::PI * f)
         .collect();
@@ -236,10 +253,11 @@ pub fn mass_line_values(
     let mut values = Vec::new();
     let mut std = Vec::new();
     let mut fit_residual = Vec::new();
-    for e in 0..acc.n_excitations {
+    for e in 0..frf.n_excitations() {
+        let acc = accelerance(e)?;
         let (mut v, mut s, mut r) = (Vec::new(), Vec::new(), Vec::new());
         for c in 0..acc.n_channels {
-            let y = nalgebra::DVector::from_iterator(n, acc.frf(e, c).iter().map(|z| z.re));
+            let y = nalgebra::DVector::from_iterator(n, acc.frf(0, c).iter().map(|z| z.re));
             let coef = svd
                 .solve(&y, 0.0)
                 .map_err(|m| InertiaError::MassLine(m.to_string()))?;

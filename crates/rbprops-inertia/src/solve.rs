@@ -21,7 +21,7 @@ use rbprops_core::records::{
     UncertaintyMethod,
 };
 use rbprops_core::{
-    c64, FrfSet, Geometry, InertiaProperties, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6,
+    c64, FrfSource, Geometry, InertiaProperties, MassMatrix6, Mat6, RigidBodyProperties, Vec3, Vec6,
 };
 use serde::{Deserialize, Serialize};
 
@@ -154,7 +154,7 @@ pub fn solve(
     geometry: &Geometry,
     modal: &ModalFitRecord,
     selection: &SelectionRecord,
-    frf: Option<&FrfSet>,
+    frf: Option<&dyn FrfSource>,
     opts: &SolveOptions,
 ) -> Result<SolveOutput, InertiaError> {
     geometry.validate()?;

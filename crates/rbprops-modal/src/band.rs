@@ -23,6 +23,20 @@ pub struct BandData {
 }
 
 impl BandData {
+    /// [`Self::extract`] of excitation `e` of a source: its values are asked for, the
+    /// band copied out and the rest let go (a reader's excitation is not held beyond).
+    pub fn extract_from(
+        frf: &dyn rbprops_core::FrfSource,
+        e: usize,
+        band: Option<(f64, f64)>,
+        name: &str,
+    ) -> Result<Self, ModalError> {
+        let x = frf
+            .excitation(e)
+            .map_err(|err| ModalError::Source(err.to_string()))?;
+        Self::extract(x.set(), x.index(), band, name)
+    }
+
     /// Lines of excitation `e` inside `band` (Hz, inclusive). Refuses empty bands and
     /// non-finite values, naming the channel and line.
     pub fn extract(

@@ -50,6 +50,10 @@ pub enum ModalError {
         /// Which step failed.
         reason: String,
     },
+    /// The FRF source could not give an excitation's values (its file changed or cannot be
+    /// read): the run stops, it is not one excitation's failed fit.
+    #[error("{0}")]
+    Source(String),
     /// An option is out of range (the message names it).
     #[error("invalid options: {0}")]
     Options(String),

@@ -480,7 +480,7 @@ struct Pair {
 /// the pole search's adjustments. `fits[e]` is excitation `e`'s kept result.
 pub(crate) fn campaign_diagnostics(
     geometry: &rbprops_core::Geometry,
-    frf: &rbprops_core::FrfSet,
+    frf: &dyn rbprops_core::FrfSource,
     fits: &[Result<ExcitationFit, crate::ModalError>],
     choices: &[SetupChoice],
     setups: &[String],
@@ -557,21 +557,35 @@ fn failed_excitations(
 /// the band, naming the excitations where it is.
 fn dead_channels(
     geometry: &rbprops_core::Geometry,
-    frf: &rbprops_core::FrfSet,
+    frf: &dyn rbprops_core::FrfSource,
     members: &[usize],
     (setup, opts): (&str, &crate::FitOptions),
     out: &mut Vec<Diagnostic>,
 ) {
+    // Each member's FRFs asked for once (a reader gives one excitation at a time); an
+    // excitation it cannot give has already stopped the fit.
+    let is_dead: Vec<Vec<bool>> = members
+        .iter()
+        .map(|&e| {
+            let Ok(x) = frf.excitation(e) else {
+                return vec![false; geometry.channels.len()];
+            };
+            (0..geometry.channels.len())
+                .map(|c| {
+                    let h = x.set().frf(x.index(), c);
+                    frf.frequency_hz().iter().zip(h).all(|(f, z)| {
+                        z.norm_sqr() == 0.0 || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
+                    })
+                })
+                .collect()
+        })
+        .collect();
     for (c, ch) in geometry.channels.iter().enumerate() {
         let dead: Vec<String> = members
             .iter()
-            .filter(|&&e| {
-                let h = frf.frf(e, c);
-                frf.frequency_hz.iter().zip(h).all(|(f, z)| {
-                    z.norm_sqr() == 0.0 || opts.band_hz.is_some_and(|(a, b)| *f < a || *f > b)
-                })
-            })
-            .map(|&e| geometry.excitations[e].id.clone())
+            .zip(&is_dead)
+            .filter(|(_, d)| d[c])
+            .map(|(&e, _)| geometry.excitations[e].id.clone())
             .collect();
         if !dead.is_empty() {
             out.push(diag(

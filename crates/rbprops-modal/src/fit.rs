@@ -18,7 +18,7 @@ use crate::stabilisation::StabilisationDiagram;
 use crate::ModalError;
 use rayon::prelude::*;
 use rbprops_core::records::{ExcitationFitRecord, ModalFitRecord, ModeEstimate};
-use rbprops_core::{c64, FrfSet, Geometry, Quantity};
+use rbprops_core::{c64, FrfSource, Geometry, Quantity};
 use std::f64::consts::PI;
 
 /// The residue convention written into every [`ModalFitRecord`].
@@ -117,28 +117,19 @@ struct PoleSet {
     multiplicity: Vec<MultiplicityWarning>,
 }
 
-fn check_shapes(geometry: &Geometry, frf: &FrfSet) -> Result<(), ModalError> {
-    if frf.n_excitations != geometry.excitations.len() {
+fn check_shapes(geometry: &Geometry, frf: &dyn FrfSource) -> Result<(), ModalError> {
+    if frf.n_excitations() != geometry.excitations.len() {
         return Err(ModalError::Shape(format!(
             "{} excitations in the FRF set, {} in the geometry",
-            frf.n_excitations,
+            frf.n_excitations(),
             geometry.excitations.len()
         )));
     }
-    if frf.n_channels != geometry.channels.len() {
+    if frf.n_channels() != geometry.channels.len() {
         return Err(ModalError::Shape(format!(
             "{} channels in the FRF set, {} in the geometry",
-            frf.n_channels,
+            frf.n_channels(),
             geometry.channels.len()
-        )));
-    }
-    if frf.values.len() != frf.n_excitations * frf.n_channels * frf.n_lines() {
-        return Err(ModalError::Shape(format!(
-            "{} values for {}×{}×{}",
-            frf.values.len(),
-            frf.n_excitations,
-            frf.n_channels,
-            frf.n_lines()
         )));
     }
     Ok(())
@@ -213,16 +204,16 @@ fn modal_std(p: &Pole, cov: &[[f64; 2]; 2]) -> (f64, f64) {
 /// excitations of its set-up (recomputed here; [`fit_campaign`] shares them).
 pub fn fit_excitation(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     excitation: usize,
     opts: &FitOptions,
 ) -> Result<ExcitationFit, ModalError> {
     opts.validate()?;
     check_shapes(geometry, frf)?;
-    if excitation >= frf.n_excitations {
+    if excitation >= frf.n_excitations() {
         return Err(ModalError::NoSuchExcitation {
             index: excitation,
-            n: frf.n_excitations,
+            n: frf.n_excitations(),
         });
     }
     if opts.method == Method::Plscf {
@@ -245,7 +236,7 @@ pub fn fit_excitation(
 
 fn setup_poles(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     setup: &str,
     opts: &FitOptions,
 ) -> Result<PoleSet, ModalError> {
@@ -257,7 +248,7 @@ fn setup_poles(
     let mut chans = Vec::new();
     for &e in &members {
         let ename = &geometry.excitations[e].id;
-        let b = BandData::extract(frf, e, opts.band_hz, ename)?;
+        let b = BandData::extract_from(frf, e, opts.band_hz, ename)?;
         let (live, _) = live_channels(&b, geometry, ename);
         chans.extend(live.iter().map(|&c| b.channels[c].clone()));
         all.get_or_insert(b);
@@ -278,14 +269,14 @@ fn setup_poles(
 
 fn fit_one(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     e: usize,
     opts: &FitOptions,
     shared: Option<&PoleSet>,
 ) -> Result<ExcitationFit, ModalError> {
     let ex = &geometry.excitations[e];
     let name = ex.id.as_str();
-    let band = BandData::extract(frf, e, opts.band_hz, name)?
+    let band = BandData::extract_from(frf, e, opts.band_hz, name)?
         .with_line_factors(opts.coherence_weighting.as_deref(), &[e]);
     let (live, mut warnings) = live_channels(&band, geometry, name);
     if live.is_empty() {
@@ -382,11 +373,11 @@ fn fit_one(
 /// Every excitation fitted with its own (or its set-up's shared) poles, in parallel.
 fn single_reference_fits(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     opts: &FitOptions,
     shared: &[(String, Result<PoleSet, ModalError>)],
 ) -> Vec<Result<ExcitationFit, ModalError>> {
-    (0..frf.n_excitations)
+    (0..frf.n_excitations())
         .into_par_iter()
         .map(|e| {
             let setup = &geometry.excitations[e].setup;
@@ -407,7 +398,7 @@ fn single_reference_fits(
 /// and explains every excitation as well. Returns what was decided per set-up.
 fn choose_by_evidence(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     setups: &[String],
     opts: &FitOptions,
     results: &mut [Result<ExcitationFit, ModalError>],
@@ -489,7 +480,7 @@ fn choose_by_evidence(
 /// in excitation order.
 fn poly_reference_fits(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     setups: &[String],
     opts: &FitOptions,
 ) -> Vec<Result<ExcitationFit, ModalError>> {
@@ -506,7 +497,7 @@ fn poly_reference_fits(
         .map(|m| crate::poly::fit_setup(geometry, frf, m, opts))
         .collect();
     let mut out: Vec<Option<Result<ExcitationFit, ModalError>>> =
-        (0..frf.n_excitations).map(|_| None).collect();
+        (0..frf.n_excitations()).map(|_| None).collect();
     for (m, f) in members.iter().zip(fits) {
         match f {
             Ok(v) => {
@@ -531,7 +522,7 @@ fn poly_reference_fits(
 /// Errors only for invalid options or a geometry that does not match the FRF set.
 pub fn fit_campaign(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     opts: &FitOptions,
 ) -> Result<ModalFitOutput, ModalError> {
     opts.validate()?;
@@ -567,6 +558,13 @@ pub fn fit_campaign(
         }
         r
     };
+    // A source that could not give an excitation stops the run (its file changed).
+    if let Some(Err(e)) = results
+        .iter()
+        .find(|r| matches!(r, Err(ModalError::Source(_))))
+    {
+        return Err(e.clone());
+    }
     let diagnostics_typed =
         crate::evidence::campaign_diagnostics(geometry, frf, &results, &choices, &setups, opts);
     let mut record = ModalFitRecord {
@@ -592,8 +590,8 @@ pub fn fit_campaign(
                     method: opts.method.record_name(),
                     model_order: 0,
                     band_hz: opts.band_hz.map(|(a, b)| [a, b]).unwrap_or([
-                        frf.frequency_hz.first().copied().unwrap_or(0.0),
-                        frf.frequency_hz.last().copied().unwrap_or(0.0),
+                        frf.frequency_hz().first().copied().unwrap_or(0.0),
+                        frf.frequency_hz().last().copied().unwrap_or(0.0),
                     ]),
                     n_lines: 0,
                     fit_error: Vec::new(),
@@ -602,7 +600,7 @@ pub fn fit_campaign(
                 diagnostics.push(ExcitationDiagnostics {
                     excitation: ex.id.clone(),
                     stabilisation: StabilisationDiagram::default(),
-                    quantity: frf.quantity,
+                    quantity: frf.quantity(),
                     frequency_hz: Vec::new(),
                     synthesised: Vec::new(),
                     poles_rad_s: Vec::new(),

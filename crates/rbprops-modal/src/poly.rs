@@ -17,7 +17,7 @@ use crate::pole::Pole;
 use crate::reciprocity;
 use crate::stabilisation::{self, Selection};
 use crate::ModalError;
-use rbprops_core::{c64, FrfSet, Geometry};
+use rbprops_core::{c64, FrfSource, Geometry};
 
 /// The method name written into the records.
 pub const METHOD: rbprops_core::records::FitMethod = rbprops_core::records::FitMethod::Plscf;
@@ -285,7 +285,7 @@ const MAX_REFINEMENT_BANDWIDTHS: f64 = 1.0;
 /// per excitation ([`excitation_records`]).
 pub(crate) fn fit_setup(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     members: &[usize],
     opts: &FitOptions,
 ) -> Result<Vec<ExcitationFit>, ModalError> {
@@ -293,7 +293,7 @@ pub(crate) fn fit_setup(
     let name = format!("set-up {setup}");
     let bands: Vec<BandData> = members
         .iter()
-        .map(|&e| BandData::extract(frf, e, opts.band_hz, &geometry.excitations[e].id))
+        .map(|&e| BandData::extract_from(frf, e, opts.band_hz, &geometry.excitations[e].id))
         .collect::<Result<_, _>>()?;
     let mut warnings = zero_channel_warnings(geometry, &bands, &name)?;
     let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;

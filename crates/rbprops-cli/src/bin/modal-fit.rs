@@ -1,6 +1,6 @@
 //! `modal-fit`: modal identification of every excitation (SIMO), in parallel.
 
-use anyhow::bail;
+use anyhow::{bail, Context};
 use clap::{Parser, ValueEnum};
 use rbprops_modal::{FitOptions, Method, PoleMode};
 use std::path::PathBuf;
@@ -72,8 +72,18 @@ fn main() -> std::process::ExitCode {
     rbprops_cli::return_large_buffers();
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
-        let input = args.io.read("modal-fit", &args.uff.options())?;
+        // The FRFs stay in an MCAP input file and each fit reads its own excitation ...
+        let (input, mut deferred) = args.io.read_deferring("modal-fit", &args.uff.options())?;
         let mut rec = input.record;
+        // ... unless line weights are made from the set's values (variances, coherence).
+        let weights_from_values = args.averages.averages.is_some()
+            || rec.topic(rbprops_formats::topics::FRF_VARIANCE).is_some()
+            || rec.topic(rbprops_formats::topics::COHERENCE).is_some();
+        if weights_from_values {
+            if let Some(d) = deferred.take() {
+                rec.frf = Some(d.load()?);
+            }
+        }
         rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let mut opts = FitOptions {
             method: args.method.unwrap_or(Method::Lscf),
@@ -106,8 +116,10 @@ fn main() -> std::process::ExitCode {
             }
             Some(WeightArg::None) | None => {}
         }
-        let out = rbprops_cli::stages::modal_fit_windowed(
+        let frf = deferred.as_ref().map(|d| d as &dyn rbprops_core::FrfSource);
+        let out = rbprops_cli::stages::modal_fit_from(
             &mut rec,
+            frf,
             &opts,
             args.exp_window,
             &input.sha256,
@@ -147,7 +159,15 @@ fn main() -> std::process::ExitCode {
         }
         warnings.print(verbose);
         if let Some(dir) = &args.plot {
-            let (geometry, frf) = rec.require_geometry_and_frf()?;
+            // The overlays draw every excitation's FRFs: the set is read whole for them.
+            let mut whole = None;
+            if let Some(d) = &deferred {
+                whole = Some(d.load()?);
+            }
+            let (geometry, frf) = match &whole {
+                Some(f) => (rec.geometry()?.context("no geometry topic")?, f),
+                None => rec.require_geometry_and_frf()?,
+            };
             let coherence = rbprops_cli::coherence::get(&rec)?;
             let shading = coherence.as_ref().map(|g| (g, args.low_coherence));
             rbprops_cli::write_plots(
@@ -156,6 +176,6 @@ fn main() -> std::process::ExitCode {
             )?;
         }
         drop(out); // its plot data is not written: freed before the output is encoded
-        args.io.write(&rec)
+        args.io.write_with(&rec, deferred.as_ref())
     })
 }

@@ -99,8 +99,15 @@ fn origin(s: &str) -> Result<OriginChoice> {
 fn main() -> std::process::ExitCode {
     rbprops_cli::run("rb-solve", || {
         let args = Args::parse();
-        let input = args.io.read("rb-solve", &Default::default())?;
+        // The linearised errors read the FRFs one excitation at a time from an MCAP
+        // input file; the bootstrap draws from the whole set.
+        let (input, mut deferred) = args.io.read_deferring("rb-solve", &Default::default())?;
         let mut rec = input.record;
+        if args.uncertainty == UncertaintyChoice::Bootstrap {
+            if let Some(d) = deferred.take() {
+                rec.frf = Some(d.load()?);
+            }
+        }
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
             opts.estimators = args.method.clone();
@@ -128,8 +135,10 @@ fn main() -> std::process::ExitCode {
                 })
             }
         };
-        let (out, _) = rbprops_cli::stages::rb_solve_with(
+        let frf = deferred.as_ref().map(|d| d as &dyn rbprops_core::FrfSource);
+        let (out, _) = rbprops_cli::stages::rb_solve_from(
             &mut rec,
+            frf,
             &opts,
             &uncertainty,
             !args.no_reference,
@@ -156,7 +165,7 @@ fn main() -> std::process::ExitCode {
             },
         );
         if let Some(p) = &args.io.output {
-            rbprops_cli::write_output(&rec, Some(p))?;
+            rbprops_cli::write_output_with(&rec, deferred.as_ref(), Some(p))?;
         }
         match format {
             OutFormat::Table => rbprops_cli::out(&rbprops_cli::table::estimates(&out.estimates))?,
@@ -164,7 +173,7 @@ fn main() -> std::process::ExitCode {
                 "{}\n",
                 serde_json::to_string_pretty::<Vec<InertiaEstimate>>(&out.estimates)?
             ))?,
-            OutFormat::Mcap => rbprops_cli::write_output(&rec, None)?,
+            OutFormat::Mcap => rbprops_cli::write_output_with(&rec, deferred.as_ref(), None)?,
         }
         Ok(())
     })

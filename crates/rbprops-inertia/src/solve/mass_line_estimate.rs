@@ -15,7 +15,7 @@ use crate::shapes::RigidFrame;
 use crate::uncertainty::{property_vector, Propagation, N_PROPS};
 use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Severity};
 use rbprops_core::records::{ModalFitRecord, SelectionRecord};
-use rbprops_core::{FrfSet, Geometry};
+use rbprops_core::{FrfSource, Geometry};
 
 /// The mass-line estimate (mass line, Eq. 2, on the band above the rigid-body modes, all
 /// excitations jointly) with its standard errors, the truncation bias joined to them;
@@ -27,18 +27,18 @@ pub(super) fn mass_line_estimate(
     geometry: &Geometry,
     modal: &ModalFitRecord,
     selection: &SelectionRecord,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     opts: &SolveOptions,
     side: &SideConstraints,
     how: Propagation,
 ) -> Result<(EstimateParts, MassLineBand), InertiaError> {
     frf.validate()?;
-    if frf.n_excitations != geometry.excitations.len() || frf.n_channels != geometry.channels.len()
+    if frf.n_excitations() != geometry.excitations.len() || frf.n_channels() != geometry.channels.len()
     {
         return Err(InertiaError::MassLine(format!(
             "the FRF set has {} excitations × {} channels, the geometry {} × {}",
-            frf.n_excitations,
-            frf.n_channels,
+            frf.n_excitations(),
+            frf.n_channels(),
             geometry.excitations.len(),
             geometry.channels.len()
         )));
@@ -56,7 +56,7 @@ pub(super) fn mass_line_estimate(
     )?;
     let fit = MassLineFit {
         frame,
-        excitations: (0..frf.n_excitations).collect(),
+        excitations: (0..frf.n_excitations()).collect(),
         side,
     };
     let mut warnings = Vec::new();
@@ -87,7 +87,7 @@ pub(super) fn mass_line_estimate(
             ));
         }
     }
-    let nch = frf.n_channels;
+    let nch = frf.n_channels();
     let x: Vec<f64> = ml.values.iter().flatten().copied().collect();
     let sigma: Vec<f64> = ml.std.iter().flatten().copied().collect();
     let f = |xs: &[f64]| -> Result<[f64; N_PROPS], InertiaError> {
@@ -222,7 +222,7 @@ impl MassLineFit<'_> {
     /// shifted band gives no fit).
     pub(super) fn add_truncation_bias(
         &self,
-        frf: &FrfSet,
+        frf: &dyn FrfSource,
         band: &MassLineBand,
         opts: &MassLineOptions,
         sol: &MlSolution,
