@@ -12,9 +12,12 @@ its defaults, and per excitation and line the relative error of the noisy FRFs,
 - common: the spread of ε over the channels at a line against its mean (a common error
   has them equal up to the response-free residue, ADC rounding);
 - size: `mean |ε̄|²` over lines against `mean ρ²` (a ratio near 1 over many seeds);
-- correlation: `E[ε̄_l ε̄*_{l+m}]/E|ε̄|²` at lags m against `γ(m Δf)` of the stated bins.
+- correlation: `E[ε̄_l ε̄*_{l+m}]/E|ε̄|²` at lags m against `γ(m Δf)` of the stated bins;
+- the null: the `ρ²` frf-est states for the noise-free hits (the force's pretrigger
+  holds only ADC rounding) against the `ρ²` of the noisy ones.
 
-Usage: force_noise_study.py --seeds 9501:9520 [--bin target/release]
+Usage: force_noise_study.py --seeds 9501:9520 [--bin target/release] [--json]
+(`--json`: one JSON object of the figures on stdout instead of the tables.)
 """
 import argparse
 import base64
@@ -72,14 +75,16 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="9501:9520")
     ap.add_argument("--bin", default=os.path.join(HERE, "..", "..", "target", "release"))
+    ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     s0, s1 = (int(x) for x in a.seeds.split(":"))
     lags = [1, 4, 16, 64, 160]
     ratios, spreads, corr, pred = [], [], {m: [] for m in lags}, {m: [] for m in lags}
+    null_ratios = []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(s0, s1 + 1):
             noisy, common, f = estimate(seed, a.bin, tmp, "noisy", ["--set", "time.response_noise=0"])
-            clean, _, _ = estimate(seed, a.bin, tmp, "clean",
+            clean, clean_common, _ = estimate(seed, a.bin, tmp, "clean",
                                    ["--set", "time.force_noise=0", "--set", "time.response_noise=0"])
             df = f[1] - f[0]
             for ex, chans in noisy.items():
@@ -88,15 +93,31 @@ def main():
                 spreads.append(np.sqrt(np.mean(np.abs(eps - mean) ** 2) / np.mean(np.abs(mean) ** 2)))
                 rho2 = common[ex]["rho2"]
                 ratios.append(np.mean(np.abs(mean) ** 2) / np.mean(rho2))
+                # No force_noise written for the noise-free hits counts as ρ² = 0.
+                null_rho2 = clean_common[ex]["rho2"]
+                null_ratios.append(0.0 if null_rho2 is None else np.mean(null_rho2) / np.mean(rho2))
                 for m in lags:
                     corr[m].append(np.mean(mean[:-m] * np.conj(mean[m:])) / np.mean(np.abs(mean) ** 2))
                     pred[m].append(gamma(common[ex], m * df))
             print(json.dumps({"seed": seed, "size_ratio": ratios[-3:]}), file=sys.stderr, flush=True)
     r = np.array(ratios)
+    if a.json:
+        print(json.dumps({
+            "excitations": len(r),
+            "size_ratio_mean": float(r.mean()),
+            "size_ratio_se": float(r.std(ddof=1) / np.sqrt(len(r))),
+            "spread_median": float(np.median(spreads)),
+            "spread_worst": float(max(spreads)),
+            "null_ratio_worst": float(max(null_ratios)),
+            "correlation": {str(m): [float(np.mean(np.real(corr[m]))),
+                                     float(np.mean(np.real(pred[m])))] for m in lags},
+        }))
+        return
     print(f"\n{len(r)} excitations over {s1 - s0 + 1} seeds")
     print(f"channel spread of ε about its mean / |ε̄| (RMS): median {np.median(spreads):.2e}, worst {max(spreads):.2e}")
     print(f"mean |ε̄|² / mean ρ²: mean {r.mean():.3f}, median {np.median(r):.3f}, "
           f"5–95 % {np.quantile(r, 0.05):.3f}–{np.quantile(r, 0.95):.3f}")
+    print(f"stated ρ² of the noise-free hits / of the noisy ones: worst {max(null_ratios):.2e}")
     print("\n| lag (lines) | Re of measured correlation (mean over excitations) | stated γ (mean) |")
     print("|---|---|---|")
     for m in lags:

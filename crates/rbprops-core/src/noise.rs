@@ -295,21 +295,44 @@ impl CommonRelativeError {
     /// [`Self::run_variance_factor`]'s root on a decimated grid) from the real standard
     /// normals `z` (one per bin).
     pub fn draw(&self, freqs_hz: &[f64], sd: &[f64], z: &[f64]) -> Vec<c64> {
+        self.draw_on(&self.phasors(freqs_hz), sd, z)
+    }
+
+    /// The bins' phase factors `e^{−2πi f τ_b}` at every line of `freqs_hz`, line by
+    /// line: the same for every draw on that grid, so a caller drawing many times makes
+    /// them once ([`Self::draw_on`]).
+    pub fn phasors(&self, freqs_hz: &[f64]) -> Vec<c64> {
+        freqs_hz
+            .iter()
+            .flat_map(|&f| {
+                self.times_s
+                    .iter()
+                    .map(move |&t| c64::from_polar(1.0, -std::f64::consts::TAU * f * t))
+            })
+            .collect()
+    }
+
+    /// [`Self::draw`] with the grid's [`Self::phasors`] made beforehand. Each term is
+    /// `(a cos θ, a sin θ)`, what `c64::from_polar(a, θ)` computes, so the draw is the
+    /// same to the bit.
+    pub fn draw_on(&self, phasors: &[c64], sd: &[f64], z: &[f64]) -> Vec<c64> {
         let amp: Vec<f64> = self
             .weights
             .iter()
             .zip(z)
             .map(|(w, z)| w.sqrt() * z)
             .collect();
-        freqs_hz
-            .iter()
+        if self.times_s.is_empty() {
+            return vec![c64::new(0.0, 0.0); sd.len()];
+        }
+        phasors
+            .chunks(self.times_s.len())
             .zip(sd)
-            .map(|(&f, &s)| {
-                let e: c64 = self
-                    .times_s
+            .map(|(p, &s)| {
+                let e: c64 = p
                     .iter()
                     .zip(&amp)
-                    .map(|(&t, &a)| c64::from_polar(a, -std::f64::consts::TAU * f * t))
+                    .map(|(p, &a)| c64::new(a * p.re, a * p.im))
                     .sum();
                 e * s
             })
@@ -327,6 +350,46 @@ mod tests {
             times_s,
             weights,
         }
+    }
+
+    /// A draw on precomputed phase factors is, to the bit, the sum of
+    /// `from_polar(√W_b z_b, −2πfτ_b)` over the bins (the form the replicates were drawn
+    /// in before the factors were kept), and no bins draw zeros.
+    #[test]
+    fn a_draw_on_precomputed_phasors_is_the_polar_sum_to_the_bit() {
+        let c = common(vec![-0.013, 0.0, 0.021, 0.057], vec![0.1, 0.4, 0.3, 0.2]);
+        let freqs: Vec<f64> = (0..300).map(|l| 0.37 + l as f64 * 0.0931).collect();
+        let sd: Vec<f64> = (0..300).map(|l| 1e-4 * (1.0 + (l as f64).sin())).collect();
+        let z = [0.3, -1.7, 0.9, 2.2];
+        let polar: Vec<c64> = freqs
+            .iter()
+            .zip(&sd)
+            .map(|(&f, &s)| {
+                let e: c64 = c
+                    .times_s
+                    .iter()
+                    .zip(c.weights.iter().zip(&z))
+                    .map(|(&t, (w, z))| {
+                        c64::from_polar(w.sqrt() * z, -std::f64::consts::TAU * f * t)
+                    })
+                    .sum();
+                e * s
+            })
+            .collect();
+        let drawn = c.draw_on(&c.phasors(&freqs), &sd, &z);
+        assert_eq!(drawn.len(), polar.len());
+        for (a, b) in drawn.iter().zip(&polar) {
+            assert_eq!(
+                (a.re.to_bits(), a.im.to_bits()),
+                (b.re.to_bits(), b.im.to_bits())
+            );
+        }
+        assert_eq!(c.draw(&freqs, &sd, &z), drawn);
+        let none = common(Vec::new(), Vec::new());
+        assert_eq!(
+            none.draw(&freqs[..3], &sd[..3], &[]),
+            vec![c64::new(0.0, 0.0); 3]
+        );
     }
 
     /// The draws' second moments are the stated ones, `E[ε_i ε̄_j] = ρ_i ρ_j γ(f_i − f_j)`:

@@ -69,6 +69,9 @@ pub struct CommonDraw {
     pub error: CommonRelativeError,
     /// `ρ κ` per grid line.
     pub sd: Vec<f64>,
+    /// The bins' phase factors on the grid (`CommonRelativeError::phasors`), made once
+    /// for every replicate.
+    pub phasors: Vec<c64>,
 }
 
 /// Most grid lines × bins of a common draw (a draw costs one complex term each).
@@ -119,7 +122,7 @@ impl ExcitationModel {
             let z: Vec<f64> = (0..c.error.weights.len())
                 .map(|_| rng.sample(StandardNormal))
                 .collect();
-            let eps = c.error.draw(&self.draw_band.frequency_hz, &c.sd, &z);
+            let eps = c.error.draw_on(&c.phasors, &c.sd, &z);
             for (y, h) in out.iter_mut().zip(&self.draw_band.channels) {
                 for ((y, h), e) in y.iter_mut().zip(h).zip(&eps) {
                     *y += h * e;
@@ -205,8 +208,10 @@ impl ExcitationModel {
             })
             .collect();
         let max_bins = (MAX_COMMON_TERMS / runs.len().max(1)).max(1);
+        let error = common.coarsened(max_bins);
         CommonDraw {
-            error: common.coarsened(max_bins),
+            phasors: error.phasors(&self.draw_band.frequency_hz),
+            error,
             sd,
         }
     }

@@ -33,7 +33,8 @@ pub(super) fn mass_line_estimate(
     how: Propagation,
 ) -> Result<(EstimateParts, MassLineBand), InertiaError> {
     frf.validate()?;
-    if frf.n_excitations() != geometry.excitations.len() || frf.n_channels() != geometry.channels.len()
+    if frf.n_excitations() != geometry.excitations.len()
+        || frf.n_channels() != geometry.channels.len()
     {
         return Err(InertiaError::MassLine(format!(
             "the FRF set has {} excitations × {} channels, the geometry {} × {}",
