@@ -101,13 +101,13 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         // The linearised errors read the FRFs one excitation at a time from an MCAP
         // input file; the bootstrap draws from the whole set.
-        let (input, mut deferred) = args.io.read_deferring("rb-solve", &Default::default())?;
-        let mut rec = input.record;
-        if args.uncertainty == UncertaintyChoice::Bootstrap {
-            if let Some(d) = deferred.take() {
-                rec.frf = Some(d.load()?);
+        let (input, deferred) = match args.uncertainty {
+            UncertaintyChoice::Bootstrap => (args.io.read("rb-solve", &Default::default())?, None),
+            UncertaintyChoice::Linearised => {
+                args.io.read_deferring("rb-solve", &Default::default())?
             }
-        }
+        };
+        let mut rec = input.record;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
             opts.estimators = args.method.clone();

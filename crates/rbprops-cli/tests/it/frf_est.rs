@@ -929,11 +929,11 @@ fn bootstrap_intervals_cover_impact_tests() {
 /// `/rbprops/frf_variance`) against the error it makes, on hits of the independent
 /// generator recorded with its force noise only and with no noise
 /// (`scripts/refgen/force_noise_study.py --seeds 9501:9530 --json`, 90 excitations):
-/// - the error is common to the channels: their spread about the mean below 1 % of it
-///   (measured 6·10⁻⁴; per-channel noise would make it about 1);
+/// - the error is common to the channels: their spread about the mean below 5 % of it
+///   (measured: median 6·10⁻⁴, worst 7·10⁻³; per-channel errors would make it about 1);
 /// - its power `mean |ε̄|²` over the stated `mean ρ²` is 1 within 3.5 standard errors of
 ///   the mean over excitations (each is a χ²₂/2-like ratio; SE about 0.1, so a ρ² off by
-///   2× either way fails; 40 seeds gave 1.13 ± 0.09);
+///   2× either way fails; these 30 seeds give 1.13 ± 0.11, 40 gave 1.13 ± 0.09);
 /// - the null: the noise-free hits state no common error above 10⁻⁶ of the noisy ones'.
 #[test]
 fn the_stated_force_noise_error_is_the_error_it_makes() {
@@ -951,7 +951,7 @@ fn the_stated_force_noise_error_is_the_error_it_makes() {
     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let f = |k: &str| r[k].as_f64().unwrap();
     assert_eq!(r["excitations"].as_u64(), Some(90));
-    assert!(f("spread_worst") < 0.01, "{r}");
+    assert!(f("spread_worst") < 0.05, "{r}");
     let (ratio, se) = (f("size_ratio_mean"), f("size_ratio_se"));
     assert!(se > 0.0 && se < 0.2, "{r}");
     assert!(
