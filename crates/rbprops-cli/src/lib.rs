@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use rbprops_core::records::StageProvenance;
 use rbprops_formats::digest::DigestCheck;
 use rbprops_formats::{mcap_file, RunRecord};
-use std::io::{IsTerminal, Read, Write};
+use std::io::{IsTerminal, Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
 pub mod args;
@@ -170,6 +170,22 @@ impl StageIo {
         rbprops_formats::atomic::set_force(self.force);
         let plain = self.input.as_deref().filter(|p| p.as_os_str() != "-");
         match plain {
+            None if uff.geometry.is_none() && uff.channels.is_none() => {
+                // A pipe cannot be read twice: its bytes go to an unnamed temporary file
+                // (removed once open), which is then read like any MCAP file.
+                let spool = spool_stdin()?;
+                let (record, deferred, notes, sha256) =
+                    mcap_file::read_file_deferred(spool.path(), "<stdin>")?;
+                drop(spool);
+                let input = Input {
+                    record,
+                    sha256,
+                    name: "<stdin>".into(),
+                    notes,
+                    warnings: Vec::new(),
+                };
+                Ok((finish(tool, input, &self.checks)?, deferred))
+            }
             Some(p) if is_mcap_file(p) && uff.geometry.is_none() && uff.channels.is_none() => {
                 let name = p.display().to_string();
                 rbprops_formats::atomic::register_input(p);
@@ -230,9 +246,22 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
             whole.frf = Some(d.load()?);
             write_output_inner(&whole, Some(p))
         }
-        None => write_stdout(|| {
-            Ok(mcap_file::write_to_with(rec, src, std::io::Cursor::new(Vec::new()))?.into_inner())
-        }),
+        None => {
+            let stdout = std::io::stdout();
+            if stdout.is_terminal() {
+                bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
+            }
+            // MCAP is written with seeks: into an unnamed temporary file, then copied out
+            // (the output's bytes are never held whole).
+            let tmp = tempfile::tempfile().context("a temporary file for stdout")?;
+            let mut tmp = mcap_file::write_to_with(rec, src, tmp)?;
+            tmp.seek(std::io::SeekFrom::Start(0))
+                .context("a temporary file for stdout")?;
+            let mut lock = stdout.lock();
+            std::io::copy(&mut tmp, &mut lock).context("writing stdout")?;
+            lock.flush().context("writing stdout")?;
+            Ok(())
+        }
     }
 }
 
@@ -703,6 +732,33 @@ fn digest_dir(p: &Path) -> Result<String> {
         all.extend_from_slice(&std::fs::read(&n)?);
     }
     Ok(rbprops_formats::sha256_hex(&all))
+}
+
+/// Stdin copied to a temporary file (`$TMPDIR`), checked to be a non-empty MCAP stream
+/// with the errors [`read_stdin`] gives.
+fn spool_stdin() -> Result<tempfile::NamedTempFile> {
+    let stdin = std::io::stdin();
+    if stdin.is_terminal() {
+        bail!("no input: name an input file, or pipe an MCAP stream into stdin (e.g. `frf-sim --example demo | …`)");
+    }
+    let mut spool = tempfile::NamedTempFile::new().context("a temporary file for stdin")?;
+    let n = std::io::copy(&mut stdin.lock(), spool.as_file_mut()).context("reading stdin")?;
+    if n == 0 {
+        bail!("<stdin>: empty input (did the previous stage fail?)");
+    }
+    spool
+        .as_file_mut()
+        .flush()
+        .context("a temporary file for stdin")?;
+    let mut head = [0u8; 8];
+    let magic = std::fs::File::open(spool.path())
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok()
+        && head[..] == *MCAP_MAGIC;
+    if !magic {
+        bail!("<stdin>: not an MCAP stream (stdin carries MCAP; name CSV directories or UFF files as paths)");
+    }
+    Ok(spool)
 }
 
 fn read_stdin() -> Result<Input> {
