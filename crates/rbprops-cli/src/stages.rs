@@ -215,6 +215,12 @@ pub fn rb_solve(
     rb_solve_with(rec, opts, &Uncertainty::Linearised, use_truth, input_sha256).map(|(o, _)| o)
 }
 
+/// What `rb-solve` gives: the solve's output and, with the bootstrap, the bootstrap's.
+pub type SolveWithBootstrap = (
+    rbprops_inertia::SolveOutput,
+    Option<rbprops_uq::BootstrapOutput>,
+);
+
 /// [`rb_solve`] with a choice of [`Uncertainty`]; with the bootstrap, also its output
 /// (`None` when it could not run: the warnings say why and the linearised errors stay).
 pub fn rb_solve_with(
@@ -223,10 +229,7 @@ pub fn rb_solve_with(
     uncertainty: &Uncertainty,
     use_truth: bool,
     input_sha256: &str,
-) -> Result<(
-    rbprops_inertia::SolveOutput,
-    Option<rbprops_uq::BootstrapOutput>,
-)> {
+) -> Result<SolveWithBootstrap> {
     rb_solve_from(rec, None, opts, uncertainty, use_truth, input_sha256)
 }
 
@@ -240,10 +243,7 @@ pub fn rb_solve_from(
     uncertainty: &Uncertainty,
     use_truth: bool,
     input_sha256: &str,
-) -> Result<(
-    rbprops_inertia::SolveOutput,
-    Option<rbprops_uq::BootstrapOutput>,
-)> {
+) -> Result<SolveWithBootstrap> {
     // The FRFs stay borrowed from the record (no copy: at 102,401 lines × 3 excitations
     // one is 44 MB) until the estimates are written back.
     let (geometry, frf) = geometry_and_frf(rec, frf)?;

@@ -218,21 +218,25 @@ impl FrfSet {
 
     /// Restricts to lines with `fmin ≤ f ≤ fmax`.
     pub fn band(&self, fmin: f64, fmax: f64) -> FrfSet {
+        self.band_of(0..self.n_excitations, fmin, fmax)
+    }
+
+    /// The excitations `which` restricted to lines with `fmin ≤ f ≤ fmax`.
+    fn band_of(&self, which: std::ops::Range<usize>, fmin: f64, fmax: f64) -> FrfSet {
         let keep: Vec<usize> = (0..self.n_lines())
             .filter(|&l| self.frequency_hz[l] >= fmin && self.frequency_hz[l] <= fmax)
             .collect();
         let mut out = FrfSet::zeros(
             self.quantity,
             keep.iter().map(|&l| self.frequency_hz[l]).collect(),
-            self.n_excitations,
+            which.len(),
             self.n_channels,
         );
-        for e in 0..self.n_excitations {
+        for (k, e) in which.enumerate() {
             for c in 0..self.n_channels {
                 let src = self.frf(e, c);
-                let dst = out.frf_mut(e, c);
-                for (k, &l) in keep.iter().enumerate() {
-                    dst[k] = src[l];
+                for (d, &l) in out.frf_mut(k, c).iter_mut().zip(&keep) {
+                    *d = src[l];
                 }
             }
         }
@@ -314,23 +318,7 @@ impl<'a> ExcitationFrf<'a> {
     /// This excitation's lines with `fmin ≤ f ≤ fmax`, as a set of one excitation
     /// ([`FrfSet::band`] of it, without copying the rest of a borrowed set).
     pub fn band(&self, fmin: f64, fmax: f64) -> FrfSet {
-        let set = self.set();
-        let keep: Vec<usize> = (0..set.n_lines())
-            .filter(|&l| set.frequency_hz[l] >= fmin && set.frequency_hz[l] <= fmax)
-            .collect();
-        let mut out = FrfSet::zeros(
-            set.quantity,
-            keep.iter().map(|&l| set.frequency_hz[l]).collect(),
-            1,
-            set.n_channels,
-        );
-        for c in 0..set.n_channels {
-            let src = set.frf(self.index, c);
-            for (d, &l) in out.frf_mut(0, c).iter_mut().zip(&keep) {
-                *d = src[l];
-            }
-        }
-        out
+        self.set.band_of(self.index..self.index + 1, fmin, fmax)
     }
     /// A set of this excitation alone (moved when it is one, copied out of a borrowed set).
     pub fn into_set(self) -> FrfSet {
@@ -381,6 +369,40 @@ impl FrfSource for FrfSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn three_excitations() -> FrfSet {
+        let mut s = FrfSet::zeros(
+            Quantity::Mobility,
+            (0..40).map(|l| 0.1 + 0.25 * l as f64).collect(),
+            3,
+            4,
+        );
+        for (i, v) in s.values.iter_mut().enumerate() {
+            *v = c64::new((i as f64 * 0.31).sin(), (i as f64 * 0.17).cos());
+        }
+        s
+    }
+
+    /// A set in memory lends each excitation as it is: its block, its band and a set of
+    /// it alone are those of the whole set's excitation; an index beyond the set and a
+    /// set whose values do not fill its shape are errors, not panics.
+    #[test]
+    fn a_set_lends_each_excitation_as_it_is() {
+        let s = three_excitations();
+        for e in 0..3 {
+            let x = FrfSource::excitation(&s, e).unwrap();
+            assert_eq!(x.block(), s.excitation_block(e));
+            assert_eq!(x.band(1.0, 6.0), s.select_excitations(&[e]).band(1.0, 6.0));
+            assert_eq!(x.band(1.0, 6.0).n_lines(), 20); // 1.1 … 5.85 Hz
+            assert_eq!(x.into_set(), s.select_excitations(&[e]));
+        }
+        assert!(FrfSource::excitation(&s, 3).is_err());
+        let mut short = s.clone();
+        short.values.pop();
+        assert!(FrfSource::excitation(&short, 0).is_err());
+        let one = ExcitationFrf::owned(s.select_excitations(&[1]));
+        assert_eq!((one.index(), one.block()), (0, s.excitation_block(1)));
+    }
 
     #[test]
     fn quantity_conversion_round_trips() {

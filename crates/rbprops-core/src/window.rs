@@ -216,6 +216,26 @@ fn pole_from_parts(decay: f64, wd: f64) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Prefiltering each excitation as it is asked for gives the whole set's prefilter
+    /// to the bit.
+    #[test]
+    fn each_excitation_prefiltered_is_the_set_prefiltered() {
+        use crate::{FrfSet, FrfSource, Quantity};
+        let mut s = FrfSet::zeros(Quantity::Accelerance, vec![0.5, 1.0, 2.5, 7.0], 3, 2);
+        for (i, v) in s.values.iter_mut().enumerate() {
+            *v = c64::new(1.0 + i as f64, -0.3 * i as f64);
+        }
+        let w = WindowCorrection::new(4.0).unwrap();
+        let whole = w.prefilter(&s);
+        let p = Prefiltered {
+            window: &w,
+            frf: &s,
+        };
+        for e in 0..3 {
+            assert_eq!(p.excitation(e).unwrap().block(), whole.excitation_block(e));
+        }
+    }
     /// Exact pole shift: the impulse response of a windowed mode is `R e^{(λ − σ)t}`;
     /// windowed_pole is checked against the pole written from that definition, and
     /// corrected_pole inverts it to rounding.
