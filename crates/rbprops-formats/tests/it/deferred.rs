@@ -127,3 +127,38 @@ fn frf_messages_before_their_axis_are_read_whole() {
         .iter()
         .all(|t| t.name != topics::FRF && t.name != topics::FRF_AXIS));
 }
+
+/// Another writer's layouts of the same messages: every message a top-level record (no
+/// chunks), and chunks closed at 4 kB (each FRF message, 43 kB, alone in its chunk).
+/// Each excitation is found again where it lies.
+#[test]
+fn unchunked_and_small_chunked_files_are_read_one_excitation_at_a_time() {
+    let rec = record_of(5, 300);
+    let bytes = mcap_file::write(&rec).unwrap();
+    let messages: Vec<mcap::Message> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    for opts in [
+        mcap::WriteOptions::new().use_chunks(false),
+        mcap::WriteOptions::new().chunk_size(Some(4096)),
+    ] {
+        let mut w = opts.create(std::io::Cursor::new(Vec::new())).unwrap();
+        for m in &messages {
+            w.write(m).unwrap();
+        }
+        w.finish().unwrap();
+        let other = w.into_inner().into_inner();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("other.mcap");
+        std::fs::write(&path, &other).unwrap();
+        let (whole, _, _) = mcap_file::read_file_checked(&path, "other.mcap").unwrap();
+        let (lean, d, _, _) = mcap_file::read_file_deferred(&path, "other.mcap").unwrap();
+        let (d, set) = (d.expect("deferred"), whole.frf.as_ref().unwrap());
+        assert_eq!(set, rec.frf.as_ref().unwrap());
+        assert_eq!(lean.topics, whole.topics);
+        for e in (0..5).rev() {
+            assert_eq!(d.excitation(e).unwrap().block(), set.excitation_block(e));
+        }
+    }
+}
