@@ -172,8 +172,11 @@ impl StageIo {
         match plain {
             None if uff.geometry.is_none() && uff.channels.is_none() => {
                 // A pipe cannot be read twice: its bytes go to an unnamed temporary file
-                // (removed once open), which is then read like any MCAP file.
-                let spool = spool_stdin()?;
+                // (removed once open), which is then read like any MCAP file; without a
+                // writable temporary directory stdin is read whole, as before.
+                let Some(spool) = spool_stdin()? else {
+                    return Ok((self.read(tool, uff)?, None));
+                };
                 let (record, deferred, notes, sha256) =
                     mcap_file::read_file_deferred(spool.path(), "<stdin>")?;
                 drop(spool);
@@ -252,8 +255,13 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
                 bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
             }
             // MCAP is written with seeks: into an unnamed temporary file, then copied out
-            // (the output's bytes are never held whole).
-            let tmp = tempfile::tempfile().context("a temporary file for stdout")?;
+            // (the output's bytes are never held whole); in memory when none can be made.
+            let Ok(tmp) = tempfile::tempfile() else {
+                return write_stdout(|| {
+                    let sink = std::io::Cursor::new(Vec::new());
+                    Ok(mcap_file::write_to_with(rec, src, sink)?.into_inner())
+                });
+            };
             let mut tmp = mcap_file::write_to_with(rec, src, tmp)?;
             tmp.seek(std::io::SeekFrom::Start(0))
                 .context("a temporary file for stdout")?;
@@ -735,13 +743,16 @@ fn digest_dir(p: &Path) -> Result<String> {
 }
 
 /// Stdin copied to a temporary file (`$TMPDIR`), checked to be a non-empty MCAP stream
-/// with the errors [`read_stdin`] gives.
-fn spool_stdin() -> Result<tempfile::NamedTempFile> {
+/// with the errors [`read_stdin`] gives; `None` (stdin untouched) when no temporary
+/// file can be made.
+fn spool_stdin() -> Result<Option<tempfile::NamedTempFile>> {
     let stdin = std::io::stdin();
     if stdin.is_terminal() {
         bail!("no input: name an input file, or pipe an MCAP stream into stdin (e.g. `frf-sim --example demo | …`)");
     }
-    let mut spool = tempfile::NamedTempFile::new().context("a temporary file for stdin")?;
+    let Ok(mut spool) = tempfile::NamedTempFile::new() else {
+        return Ok(None);
+    };
     let n = std::io::copy(&mut stdin.lock(), spool.as_file_mut()).context("reading stdin")?;
     if n == 0 {
         bail!("<stdin>: empty input (did the previous stage fail?)");
@@ -758,7 +769,7 @@ fn spool_stdin() -> Result<tempfile::NamedTempFile> {
     if !magic {
         bail!("<stdin>: not an MCAP stream (stdin carries MCAP; name CSV directories or UFF files as paths)");
     }
-    Ok(spool)
+    Ok(Some(spool))
 }
 
 fn read_stdin() -> Result<Input> {

@@ -407,6 +407,48 @@ fn a_stage_reading_one_excitation_at_a_time_writes_what_a_whole_read_writes() {
     no_temporaries(d);
 }
 
+/// On a pipe the stages spool stdin to a temporary file and read it one excitation at a
+/// time; with no usable temporary directory they read it whole. Both write the same
+/// bytes to stdout (`modal-fit`, `ni-select`, `rb-solve --uncertainty linearised`).
+#[test]
+fn a_stage_on_a_pipe_writes_what_a_whole_read_writes() {
+    let dir = fixture(true);
+    let d = dir.path();
+    for (tool, input, args) in [
+        ("modal-fit", "sim.mcap", &[][..]),
+        ("ni-select", "fit.mcap", &[][..]),
+        (
+            "rb-solve",
+            "sel.mcap",
+            &["--uncertainty", "linearised", "--format", "mcap"][..],
+        ),
+    ] {
+        let run = |tmpdir: &Path| {
+            let o = Command::new(exe(tool))
+                .args(args)
+                .current_dir(d)
+                .env("TMPDIR", tmpdir)
+                .stdin(std::fs::File::open(d.join(input)).unwrap())
+                .output()
+                .unwrap();
+            assert!(
+                o.status.success(),
+                "{tool}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            o.stdout
+        };
+        let spooled = run(d);
+        let whole = run(&d.join("no-such-directory"));
+        assert!(spooled.starts_with(b"\x89MCAP0\r\n"), "{tool}");
+        assert!(
+            spooled == whole,
+            "{tool}: the spooled read wrote other bytes"
+        );
+    }
+    no_temporaries(d);
+}
+
 // ---------------------------------------------------------------- signals
 
 #[test]
