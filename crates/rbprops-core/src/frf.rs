@@ -155,9 +155,8 @@ impl FrfSet {
         &self.values[o..o + self.n_channels * self.n_lines()]
     }
 
-    /// Checks shape, axis and finiteness; errors name the excitation, channel and line.
-    pub fn validate(&self) -> Result<(), CoreError> {
-        validate_frequency_axis(&self.frequency_hz)?;
+    /// The values fill excitations × channels × lines.
+    fn check_shape(&self) -> Result<(), CoreError> {
         let expect = self.n_excitations * self.n_channels * self.n_lines();
         if self.values.len() != expect {
             return Err(CoreError::FrfShape(format!(
@@ -168,6 +167,13 @@ impl FrfSet {
                 self.n_lines()
             )));
         }
+        Ok(())
+    }
+
+    /// Checks shape, axis and finiteness; errors name the excitation, channel and line.
+    pub fn validate(&self) -> Result<(), CoreError> {
+        validate_frequency_axis(&self.frequency_hz)?;
+        self.check_shape()?;
         if let Some(i) = self
             .values
             .iter()
@@ -352,16 +358,7 @@ impl FrfSource for FrfSet {
                 self.n_excitations
             )));
         }
-        let expect = self.n_excitations * self.n_channels * self.n_lines();
-        if self.values.len() != expect {
-            return Err(CoreError::FrfShape(format!(
-                "{} values for {} excitations × {} channels × {} lines (expected {expect})",
-                self.values.len(),
-                self.n_excitations,
-                self.n_channels,
-                self.n_lines()
-            )));
-        }
+        self.check_shape()?;
         Ok(ExcitationFrf::borrowed(self, e))
     }
 }
