@@ -160,8 +160,9 @@ impl StageIo {
 
     /// [`Self::read`] for a stage that works one excitation at a time: a regular MCAP
     /// file's FRF set is left in the file ([`mcap_file::read_file_deferred`]) and given
-    /// by the [`mcap_file::DeferredFrf`]; any other input (stdin, CSV, UFF) is read
-    /// whole, its set in the record (issue 41).
+    /// by the [`mcap_file::DeferredFrf`], and so is MCAP on stdin once copied to a
+    /// temporary file; any other input (a named FIFO, CSV, UFF) is read whole, its set in
+    /// the record (issue 41).
     pub fn read_deferring(
         &self,
         tool: &str,
@@ -250,10 +251,6 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
             write_output_inner(&whole, Some(p))
         }
         None => {
-            let stdout = std::io::stdout();
-            if stdout.is_terminal() {
-                bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
-            }
             // MCAP is written with seeks: into an unnamed temporary file, then copied out
             // (the output's bytes are never held whole); in memory when none can be made.
             let Ok(tmp) = tempfile::tempfile() else {
@@ -262,6 +259,7 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
                     Ok(mcap_file::write_to_with(rec, src, sink)?.into_inner())
                 });
             };
+            let stdout = mcap_stdout()?;
             let mut tmp = mcap_file::write_to_with(rec, src, tmp)?;
             tmp.seek(std::io::SeekFrom::Start(0))
                 .context("a temporary file for stdout")?;
@@ -273,12 +271,18 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
     }
 }
 
-/// The MCAP bytes `encode` makes, on stdout (refused when stdout is a terminal).
-fn write_stdout(encode: impl FnOnce() -> Result<Vec<u8>>) -> Result<()> {
+/// Stdout for binary MCAP: refused when it is a terminal.
+fn mcap_stdout() -> Result<std::io::Stdout> {
     let stdout = std::io::stdout();
     if stdout.is_terminal() {
         bail!("stdout is a terminal: name an output with -o FILE.mcap or -o DIR (CSV), or pipe into the next stage");
     }
+    Ok(stdout)
+}
+
+/// The MCAP bytes `encode` makes, on stdout (refused when stdout is a terminal).
+fn write_stdout(encode: impl FnOnce() -> Result<Vec<u8>>) -> Result<()> {
+    let stdout = mcap_stdout()?;
     let bytes = encode()?;
     let mut lock = stdout.lock();
     lock.write_all(&bytes).context("writing stdout")?;
