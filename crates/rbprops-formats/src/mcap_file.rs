@@ -432,12 +432,12 @@ impl FrfMessages {
         file: &str,
         (record, channel): (usize, u16),
     ) -> Result<(), FormatError> {
-        let ordinal = match self.places.last() {
-            Some(p) if p.record == record && p.channel == channel => p.ordinal + 1,
-            _ => 0,
-        };
         match &self.axis {
             Some(axis) if self.defer => {
+                let ordinal = match self.places.last() {
+                    Some(p) if p.record == record && p.channel == channel => p.ordinal + 1,
+                    _ => 0,
+                };
                 let k = self.decoded_ids.len();
                 let (id, v) = Self::decode(axis, k, excitation, text, file)?;
                 check_finite(&v, &id, axis, file)?;

@@ -76,8 +76,14 @@ fn main() -> std::process::ExitCode {
         let (input, mut deferred) = args.io.read_deferring("modal-fit", &args.uff.options())?;
         let mut rec = input.record;
         // ... unless line weights are made from the set's values (variances, coherence).
+        let method = args.method.unwrap_or(Method::Lscf);
+        let variance_weights = match args.weight {
+            Some(WeightArg::Variance) => true,
+            None => matches!(method, Method::Lscf | Method::Lsce),
+            Some(WeightArg::None) | Some(WeightArg::Coherence) => false,
+        };
         let weights_from_values = args.averages.averages.is_some()
-            || rec.topic(rbprops_formats::topics::FRF_VARIANCE).is_some()
+            || (variance_weights && rec.topic(rbprops_formats::topics::FRF_VARIANCE).is_some())
             || rec.topic(rbprops_formats::topics::COHERENCE).is_some();
         if weights_from_values {
             if let Some(d) = deferred.take() {
@@ -86,7 +92,7 @@ fn main() -> std::process::ExitCode {
         }
         rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
         let mut opts = FitOptions {
-            method: args.method.unwrap_or(Method::Lscf),
+            method,
             poles: args.poles,
             n_modes: args.modes,
             residual_terms: !args.no_residuals,
