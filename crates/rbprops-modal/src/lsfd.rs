@@ -565,10 +565,11 @@ fn trial(
 
 /// Channels scaled to unit RMS (the data [`refine`] and [`screen_extra_poles`] fit), and
 /// each channel's RMS.
-fn unit_rms(chans: &[Vec<c64>]) -> (Vec<Vec<c64>>, Vec<f64>) {
+fn unit_rms<C: AsRef<[c64]>>(chans: &[C]) -> (Vec<Vec<c64>>, Vec<f64>) {
     chans
         .iter()
         .map(|h| {
+            let h = h.as_ref();
             let rms = (h.iter().map(|z| z.norm_sqr()).sum::<f64>() / h.len() as f64).sqrt();
             (h.iter().map(|z| z / rms).collect(), rms)
         })
@@ -637,12 +638,20 @@ pub fn screen_extra_poles(
 /// (`d1 = q(u + u')`, `d2 = q·i(u − u')`, `u = (iω−λ)⁻²`, `u' = (iω−λ*)⁻²`, `R = a + ib`),
 /// `JᵀJ` and `Jᵀr` only need the Gram matrix `DᵀP⊥D` of the `2M` vectors `d` and `Dᵀr_o`:
 /// O(N·M·(M + p + channels)) per iteration instead of forming J.
-pub fn refine(poles: &[Pole], band: &BandData, chans: &[Vec<c64>], res: Residuals) -> Refined {
+pub fn refine<C: AsRef<[c64]>>(
+    poles: &[Pole],
+    band: &BandData,
+    chans: &[C],
+    res: Residuals,
+) -> Refined {
     let n = band.n_lines();
     let no = chans.len();
     let (data, rms) = unit_rms(chans);
     let lw = std::sync::Arc::new(band_line_weights(band, &data));
     let bw = stack_data(&data, &lw);
+    // The iterations read only the stacked copy: a bootstrap replicate refines a whole
+    // set-up's channels at once (issue 41's memory bound).
+    drop(data);
     let (qre, qim) = weighted_quantity_factor(band, &lw);
     let nm = poles.len();
     let np = 2 * nm;

@@ -399,13 +399,13 @@ impl Replication<'_> {
     /// into copies of the records, and solves again for the targets.
     fn run(&self, b: usize) -> ReplicateResult {
         let mut rng = replicate_rng(self.opts.seed, b);
-        let data: Vec<_> = self
+        let mut data: Vec<_> = self
             .model
             .excitations
             .iter()
             .map(|e| e.draw(&mut rng))
             .collect();
-        let modes = self.reidentify(&data)?;
+        let modes = self.reidentify(&mut data)?;
         let (mut modal_b, selection_b) = replicate_records(self.modal, self.selection, &modes)?;
         if let Some((w, _)) = self.windowed {
             w.correct_modal_fit(&mut modal_b, &self.window_source)
@@ -427,8 +427,8 @@ impl Replication<'_> {
     }
 
     /// The modes of a replicate's band data `data` (one entry per model excitation), by
-    /// the options' [`Reidentify`] method.
-    fn reidentify(&self, data: &[Vec<Vec<c64>>]) -> Result<Vec<ReplicateModes>, String> {
+    /// the options' [`Reidentify`] method ([`Reidentify::Refine`] takes the entries).
+    fn reidentify(&self, data: &mut [Vec<Vec<c64>>]) -> Result<Vec<ReplicateModes>, String> {
         let opts = self.opts;
         match &opts.reidentify {
             Reidentify::Refine => {

@@ -23,7 +23,8 @@ pub struct ExcitationModel {
     pub id: String,
     /// Its suspension set-up.
     pub setup: String,
-    /// The measured lines of the fit's band.
+    /// The fit's band: its lines and their quality. Its measured values (`channels`) are
+    /// empty once the model is built ([`FittedModel::new`]).
     pub band: BandData,
     /// Channels with signal (the pole refinement uses only these, as the modal fit does).
     pub live: Vec<usize>,
@@ -37,7 +38,8 @@ pub struct ExcitationModel {
     /// with these poles, except on lines of structured misfit where it is the measured
     /// value (so every replicate carries the misfit the data carry). Built in place from
     /// the synthesis by the noise fit, so that the band is never held three times
-    /// (measured, synthesised, centre: issue 41's memory bound).
+    /// (measured, synthesised, centre: issue 41's memory bound). Empty once the model is
+    /// built: the replicates read its values on their grid ([`Self::draw_band`]).
     pub centre: Vec<Vec<c64>>,
     /// Noise model per channel, estimated from the fit residuals (docs/conventions.md §8).
     pub noise: Vec<NoiseModel>,
@@ -171,15 +173,20 @@ impl ExcitationModel {
             );
         }
         let pick = |v: &[f64]| -> Vec<f64> { grid.iter().map(|&l| v[l]).collect() };
+        // On every line the grid's values are the centre itself: moved, not copied.
+        let channels = if q == 1 {
+            std::mem::take(&mut self.centre)
+        } else {
+            self.centre
+                .iter()
+                .map(|h| grid.iter().map(|&l| h[l]).collect())
+                .collect()
+        };
         self.draw_band = BandData {
             quantity: self.band.quantity,
             frequency_hz: pick(&self.band.frequency_hz),
             omega: pick(&self.band.omega),
-            channels: self
-                .centre
-                .iter()
-                .map(|h| grid.iter().map(|&l| h[l]).collect())
-                .collect(),
+            channels,
             first_line: self.band.first_line,
             line_quality: self.band.line_quality.as_deref().map(pick),
         };
@@ -462,6 +469,12 @@ impl FittedModel {
         };
         model.fit_noise();
         model.prepare_draws(frf, draws);
+        // The replicates read only the grid (`draw_band`): the measured band values and
+        // the centre on every line are let go (issue 41's memory bound).
+        for e in &mut model.excitations {
+            e.band.channels = Vec::new();
+            e.centre = Vec::new();
+        }
         Ok(model)
     }
 

@@ -57,36 +57,47 @@ pub struct ReplicateModes {
     pub mode_map: Vec<(usize, usize)>,
 }
 
-fn band_with(band: &BandData, data: &[Vec<c64>]) -> BandData {
+/// The replicate's grid `band` with the replicate's values `channels` (moved in, not
+/// copied: a replicate holds its set-up's data once, issue 41's memory bound).
+fn band_with(band: &BandData, channels: Vec<Vec<c64>>) -> BandData {
     BandData {
-        channels: data.to_vec(),
-        ..band.clone()
+        quantity: band.quantity,
+        frequency_hz: band.frequency_hz.clone(),
+        omega: band.omega.clone(),
+        channels,
+        first_line: band.first_line,
+        line_quality: band.line_quality.clone(),
     }
 }
 
 /// Re-identifies one group of [`FittedModel::groups`] by [`Reidentify::Refine`].
 /// `data[i]` is the replicate's data of `model.excitations[i]` on its replicates' grid
-/// (`ExcitationModel::draw_band`).
+/// (`ExcitationModel::draw_band`); the group's entries are taken.
 pub fn refine_group(
     model: &FittedModel,
     group: &[usize],
-    data: &[Vec<Vec<c64>>],
+    data: &mut [Vec<Vec<c64>>],
     modal: &ModalFitRecord,
     tol: &MatchTolerances,
 ) -> Result<Vec<ReplicateModes>, String> {
     let first = &model.excitations[group[0]];
     let bands: Vec<BandData> = group
         .iter()
-        .map(|&i| band_with(&model.excitations[i].draw_band, &data[i]))
+        .map(|&i| {
+            band_with(
+                &model.excitations[i].draw_band,
+                std::mem::take(&mut data[i]),
+            )
+        })
         .collect();
-    let chans: Vec<Vec<c64>> = group
+    let chans: Vec<&[c64]> = group
         .iter()
         .zip(&bands)
         .flat_map(|(&i, b)| {
             model.excitations[i]
                 .live
                 .iter()
-                .map(|&c| b.channels[c].clone())
+                .map(|&c| b.channels[c].as_slice())
         })
         .collect();
     let res = Residuals::for_band(model.residuals_enabled, &bands[0]);

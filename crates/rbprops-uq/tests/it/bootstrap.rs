@@ -190,7 +190,8 @@ fn model_line_variance(c: &common::Case, scale: f64) -> LineVariance {
     let mut sigma2 = vec![f64::NAN; c.frf.values.len()];
     for e in &model.excitations {
         for (ch, nz) in e.noise.iter().enumerate() {
-            for (l, z) in e.centre[ch].iter().enumerate() {
+            // Every line is on the grid (no decimation): the grid's values are the centre.
+            for (l, z) in e.draw_band.channels[ch].iter().enumerate() {
                 sigma2[(e.excitation * nc + ch) * nl + e.band.first_line + l] =
                     scale * nz.variance(*z);
             }
