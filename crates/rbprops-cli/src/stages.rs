@@ -233,9 +233,19 @@ pub fn rb_solve_with(
     rb_solve_from(rec, None, opts, uncertainty, use_truth, input_sha256)
 }
 
+/// Whether `rb-solve` with `uncertainty` needs the input's FRF set in the record rather
+/// than left in its file: the bootstrap of a record whose line variances or weights are
+/// made from the set's values (a variance or coherence topic).
+pub fn rb_solve_needs_the_set(rec: &RunRecord, uncertainty: &Uncertainty) -> bool {
+    matches!(uncertainty, Uncertainty::Bootstrap(_))
+        && (rec.topic(rbprops_formats::topics::FRF_VARIANCE).is_some()
+            || rec.topic(rbprops_formats::topics::COHERENCE).is_some())
+}
+
 /// [`rb_solve_with`] with the FRFs from `frf` (an input's set left in its file,
-/// `StageIo::read_deferring`) instead of the record's. The linearised errors read one
-/// excitation at a time (the mass line); the bootstrap needs the set in the record.
+/// `StageIo::read_deferring`) instead of the record's: both the linearised errors (the
+/// mass line) and the bootstrap (its model) read one excitation at a time, unless
+/// [`rb_solve_needs_the_set`].
 pub fn rb_solve_from(
     rec: &mut RunRecord,
     frf: Option<&dyn rbprops_core::FrfSource>,
@@ -270,10 +280,8 @@ pub fn rb_solve_from(
             None,
         ),
         Uncertainty::Bootstrap(b) => {
-            let frf = rec
-                .frf
-                .as_ref()
-                .context("the bootstrap needs the FRF set in the record")?;
+            // Line variances and weights are made from the set's values: a record with
+            // them must carry its set (`rb_solve_needs_the_set`).
             let given = crate::variance::for_bootstrap(rec)?;
             let mut b = b.clone();
             if b.fit_weighting.is_none() {

@@ -265,6 +265,25 @@ impl FrfSet {
     }
 }
 
+impl FrfSet {
+    /// The whole set of a source, excitation by excitation (for a method that needs every
+    /// value at once; a set in memory is copied).
+    pub fn from_source(frf: &dyn FrfSource) -> Result<Self, CoreError> {
+        let mut out = Self::zeros(
+            frf.quantity(),
+            frf.frequency_hz().to_vec(),
+            frf.n_excitations(),
+            frf.n_channels(),
+        );
+        let n = out.n_channels * out.n_lines();
+        for e in 0..out.n_excitations {
+            let x = frf.excitation(e)?;
+            out.values[e * n..(e + 1) * n].copy_from_slice(x.block());
+        }
+        Ok(out)
+    }
+}
+
 /// The FRFs of a run as a stage reads them: the layout (quantity, axis, counts) at once,
 /// each excitation's values when asked. A set in memory lends its own; a reader may
 /// decode them from the file one excitation at a time, so that a stage which works per

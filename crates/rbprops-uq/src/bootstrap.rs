@@ -12,7 +12,7 @@ use rbprops_core::records::{Diagnostic, DiagnosticKind, DiagnosticSubject, Sever
 use rbprops_core::records::{
     EstimateMethod, InertiaEstimate, ModalFitRecord, SelectionRecord, UncertaintyMethod,
 };
-use rbprops_core::{c64, FrfSet, Geometry, InertiaProperties};
+use rbprops_core::{c64, FrfSet, FrfSource, Geometry, InertiaProperties};
 use rbprops_inertia::{solve, Estimator, SolveOptions, SolveOutput};
 use rbprops_modal::PoleMode;
 
@@ -160,7 +160,7 @@ fn replicate_rng(seed: u64, b: usize) -> ChaCha8Rng {
 #[allow(clippy::too_many_arguments)]
 pub fn bootstrap(
     geometry: &Geometry,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     modal: &ModalFitRecord,
     selection: &SelectionRecord,
     solve_opts: &SolveOptions,
@@ -175,11 +175,11 @@ pub fn bootstrap(
         )));
     }
     if let Some(v) = line_variance {
-        if v.sigma2.len() != frf.values.len() {
+        let values = frf.n_excitations() * frf.n_channels() * frf.frequency_hz().len();
+        if v.sigma2.len() != values {
             return Err(UqError::Options(format!(
-                "{} line variances for {} FRF values",
+                "{} line variances for {values} FRF values",
                 v.sigma2.len(),
-                frf.values.len()
             )));
         }
         if !(v.correlation_factor >= 1.0 && v.correlation_factor.is_finite()) {
@@ -198,8 +198,9 @@ pub fn bootstrap(
     let (frf, modal) = match &windowed {
         None => (frf, modal),
         Some((w, m)) => {
-            prefiltered = w.prefilter(frf);
-            (&prefiltered, m)
+            // Each excitation prefiltered as it is read.
+            prefiltered = rbprops_core::Prefiltered { window: w, frf };
+            (&prefiltered as &dyn FrfSource, m)
         }
     };
     let model = FittedModel::new(
@@ -219,7 +220,10 @@ pub fn bootstrap(
     )?;
     let replication = Replication {
         geometry,
-        frf,
+        whole: match opts.reidentify {
+            Reidentify::Full(_) => Some(FrfSet::from_source(frf).map_err(UqError::Source)?),
+            Reidentify::Refine => None,
+        },
         modal,
         selection,
         model: &model,
@@ -381,7 +385,9 @@ fn replicate_solve_options(solve_opts: &SolveOptions) -> SolveOptions {
 /// model to draw from, and the targets to re-estimate.
 struct Replication<'a> {
     geometry: &'a Geometry,
-    frf: &'a FrfSet,
+    /// The (prefiltered) FRF set whole, for [`Reidentify::Full`] only: a refinement
+    /// replicate reads only the model.
+    whole: Option<FrfSet>,
     modal: &'a ModalFitRecord,
     selection: &'a SelectionRecord,
     model: &'a FittedModel,
@@ -446,7 +452,7 @@ impl Replication<'_> {
             }
             Reidentify::Full(fo) => full_refit(
                 self.geometry,
-                self.frf,
+                self.whole.as_ref().expect("made whole for the full refit"),
                 self.model,
                 data,
                 self.modal,
@@ -754,7 +760,7 @@ pub fn solve_with_bootstrap(
     geometry: &Geometry,
     modal: &ModalFitRecord,
     selection: &SelectionRecord,
-    frf: &FrfSet,
+    frf: &dyn FrfSource,
     solve_opts: &SolveOptions,
     opts: &BootstrapOptions,
     line_variance: Option<&LineVariance>,

@@ -35,6 +35,9 @@ pub enum UqError {
         #[source]
         source: ModalError,
     },
+    /// The FRFs could not be read (a reader's excitation: the file changed, …).
+    #[error("reading the FRFs: {0}")]
+    Source(#[from] rbprops_core::CoreError),
     /// The inertia estimate of the measured data failed.
     #[error("the estimate on the measured data failed: {0}")]
     Inertia(#[from] InertiaError),

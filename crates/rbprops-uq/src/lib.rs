@@ -18,7 +18,10 @@
 //!    the model and every replicate's refit take the same weights
 //!    ([`BootstrapOptions::fit_weighting`]): the bootstrap spreads the estimator that made
 //!    the record, not an unweighted one (which on impact tests was 30× wider and lost its
-//!    replicates to poles it does not hold optimal).
+//!    replicates to poles it does not hold optimal). The FRFs come as an
+//!    `rbprops_core::FrfSource`: each excitation's model is made whole (steps 1–2 and its
+//!    replicates' grid) from that excitation alone and its measured values let go, so the
+//!    set is never held (a reader may decode it from a file one excitation at a time).
 //! 2. **Noise model** ([`noise`]): per excitation k and channel i,
 //!    `E|H − S|² = σ²_kil = a²_ki |S_kil|² + b²_ki`, fitted by maximum likelihood to the
 //!    residual measured − synthesised, with a degrees-of-freedom correction for the

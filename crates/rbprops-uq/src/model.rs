@@ -8,8 +8,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use rbprops_core::noise::NoiseModel;
-use rbprops_core::records::{ModalFitRecord, SelectionRecord};
-use rbprops_core::{c64, CommonRelativeError, FrfSet, Geometry};
+use rbprops_core::records::{ExcitationFitRecord, ModalFitRecord, ModeEstimate, SelectionRecord};
+use rbprops_core::{c64, CommonRelativeError, FrfSource, Geometry};
 use rbprops_modal::band::BandData;
 use rbprops_modal::lsfd::{self, Residuals};
 use rbprops_modal::{Pole, PoleMode};
@@ -224,22 +224,26 @@ impl ExcitationModel {
     }
 }
 
-/// The FRF set's shape against the geometry's excitations and channels.
-fn check_shape(geometry: &Geometry, frf: &FrfSet) -> Result<(), UqError> {
-    if frf.n_excitations == geometry.excitations.len()
-        && frf.n_channels == geometry.channels.len()
-        && frf.values.len() == frf.n_excitations * frf.n_channels * frf.n_lines()
-    {
+/// The FRF set's shape against the geometry's excitations and channels, and what the
+/// source can check without its values (a set in memory: its values' count).
+fn check_shape(geometry: &Geometry, frf: &dyn FrfSource) -> Result<(), UqError> {
+    let counts = frf.n_excitations() == geometry.excitations.len()
+        && frf.n_channels() == geometry.channels.len();
+    let layout = frf.validate();
+    if counts && layout.is_ok() {
         return Ok(());
     }
+    let mut described = format!(
+        "{} excitations × {} channels × {} lines",
+        frf.n_excitations(),
+        frf.n_channels(),
+        frf.frequency_hz().len()
+    );
+    if let Err(e) = layout {
+        described.push_str(&format!(": {e}"));
+    }
     Err(UqError::Shape {
-        frf: format!(
-            "{} excitations × {} channels × {} lines, {} values",
-            frf.n_excitations,
-            frf.n_channels,
-            frf.n_lines(),
-            frf.values.len()
-        ),
+        frf: described,
         geometry: format!(
             "{} excitations × {} channels",
             geometry.excitations.len(),
@@ -266,6 +270,11 @@ fn with_group_members<'g>(
         })
         .collect()
 }
+
+/// Largest excitation (channels × lines × 16 bytes) whose models are built in parallel:
+/// two builds in flight hold about eight copies of an excitation, so beyond 4 MB they go
+/// one after the other (the noise fits of a build's channels still run in parallel).
+pub const PARALLEL_BUILD_BYTES: usize = 4 << 20;
 
 /// Fewest lines per half-power half-bandwidth `ζω_n` of the narrowest mode that the
 /// replicates' grid keeps. A sum over lines of a function that varies on the scale of a
@@ -365,7 +374,7 @@ impl FittedModel {
     /// poles.
     pub fn new(
         geometry: &Geometry,
-        frf: &FrfSet,
+        frf: &dyn FrfSource,
         modal: &ModalFitRecord,
         selection: &SelectionRecord,
         residual_terms: bool,
@@ -418,36 +427,85 @@ impl FittedModel {
                 }
             }
         }
-        // Every excitation's model in parallel (one group per excitation is the common
-        // case), collected in group order: the same for any thread count.
         let ids = with_group_members(geometry, &groups_ids);
+        let mut groups: Vec<Vec<usize>> = Vec::new();
+        let mut group_of = Vec::with_capacity(ids.len());
+        for g in &groups_ids {
+            let first = groups.iter().map(Vec::len).sum::<usize>();
+            group_of.extend(std::iter::repeat_n(groups.len(), g.len()));
+            groups.push((first..first + g.len()).collect());
+        }
         let weighting = draws.fit_weighting;
-        // The first failure in that order is reported, whichever thread met it first.
-        let mut excitations: Vec<ExcitationModel> = ids
-            .par_iter()
-            .map(|(id, members)| {
-                excitation_model(
-                    geometry,
-                    frf,
-                    modal,
-                    id,
-                    residual_terms,
-                    (weighting, members),
-                )
-            })
-            .collect::<Vec<_>>()
-            .into_iter()
-            .collect::<Result<_, _>>()?;
+        // The noise fit counts each channel's share of its group's poles, so the live
+        // channels of a group of several are counted first (each band is read again
+        // below); a group of one counts its own.
+        let live: Vec<Option<usize>> =
+            in_order(ids.par_iter().enumerate().map(|(i, (id, members))| {
+                if groups[group_of[i]].len() == 1 {
+                    return Ok(None);
+                }
+                measured_band(geometry, frf, modal, id, (weighting, members))
+                    .map(|(_, _, band)| Some(live_channels(&band).len()))
+            }))?;
+        let group_live: Vec<Option<usize>> = groups
+            .iter()
+            .map(|g| g.iter().map(|&i| live[i]).sum())
+            .collect();
+        let axis = (
+            frf.frequency_hz().len(),
+            frf.n_channels(),
+            frf.quantity().order(),
+        );
+        let build = |i: usize, id: &str, members: &[usize]| -> Result<ExcitationModel, UqError> {
+            let g = group_of[i];
+            let mut e = excitation_model(
+                geometry,
+                frf,
+                modal,
+                id,
+                residual_terms,
+                (weighting, members),
+            )?;
+            let shared_by = group_live[g].unwrap_or(e.live.len());
+            e.fit_noise(residual_terms, shared_by);
+            let q = if draws.decimate {
+                let first = ids[groups[g][0]].0;
+                decimation(&record_poles(modal, first).1, &e.band)
+            } else {
+                1
+            };
+            e.prepare_draws_given(q, axis, draws);
+            // The replicates read only the grid (`draw_band`).
+            e.band.channels = Vec::new();
+            e.centre = Vec::new();
+            Ok(e)
+        };
+        // Every excitation's model built whole (noise, replicates' grid) and its band let
+        // go before the next: the set's values are never held together (issue 41's
+        // memory bound). In parallel (one group per excitation is the common case) while
+        // an excitation is small: a build holds about four copies of its excitation at
+        // once (the values read, the band, the synthesis, the residue fit's blocks).
+        // Collected in order: the same for any thread count; the first failure in that
+        // order is reported, whichever thread met it first.
+        let excitation_bytes = frf.n_channels() * frf.frequency_hz().len() * 16;
+        let mut excitations: Vec<ExcitationModel> = if excitation_bytes <= PARALLEL_BUILD_BYTES {
+            in_order(
+                ids.par_iter()
+                    .enumerate()
+                    .map(|(i, (id, m))| build(i, id, m)),
+            )?
+        } else {
+            ids.iter()
+                .enumerate()
+                .map(|(i, (id, m))| build(i, id, m))
+                .collect::<Result<_, _>>()?
+        };
         for e in &mut excitations {
             e.mark_selected(selection);
         }
-        let mut groups = Vec::new();
-        let mut next = 0;
-        for g in &groups_ids {
-            let idx: Vec<usize> = (next..next + g.len()).collect();
-            next += g.len();
-            let first = &excitations[idx[0]];
-            for &i in &idx[1..] {
+        for g in &groups {
+            let first = &excitations[g[0]];
+            for &i in &g[1..] {
                 let e: &ExcitationModel = &excitations[i];
                 if e.band.frequency_hz != first.band.frequency_hz {
                     return Err(UqError::Excitation {
@@ -459,41 +517,38 @@ impl FittedModel {
                     });
                 }
             }
-            groups.push(idx);
         }
-        let mut model = Self {
+        Ok(Self {
             excitations,
             groups,
             pole_mode,
             residuals_enabled: residual_terms,
-        };
-        model.fit_noise();
-        model.prepare_draws(frf, draws);
-        // The replicates read only the grid (`draw_band`): the measured band values and
-        // the centre on every line are let go (issue 41's memory bound).
-        for e in &mut model.excitations {
-            e.band.channels = Vec::new();
-            e.centre = Vec::new();
-        }
-        Ok(model)
+        })
     }
+}
 
-    /// The replicates' grid and noise of every excitation ([`Draws`]): with `decimate`, every q-th line
-    /// of the band ([`decimation`] of the group's poles) with the noise of its run of q
-    /// lines, else every line. A channel whose every band line has a finite variance in
-    /// `given` (and `window`: the exponential window the FRFs were prefiltered for, whose
-    /// factor `|(iω/(iω + σ))^k|²` the variances take too) draws from it times its
-    /// correlation factor; the others from the noise model of the residuals.
-    fn prepare_draws(&mut self, frf: &FrfSet, draws: &Draws) {
+/// The results of a parallel map, collected in order; the first error in that order.
+fn in_order<T: Send>(
+    results: impl IndexedParallelIterator<Item = Result<T, UqError>>,
+) -> Result<Vec<T>, UqError> {
+    results.collect::<Vec<_>>().into_iter().collect()
+}
+
+impl ExcitationModel {
+    /// Fills the replicates' grid and noise ([`Draws`]): every q-th line of the band (1:
+    /// every line) with the noise of its run of q lines. A channel whose every band line
+    /// has a finite variance in `draws.line_variance` (and `draws.window`: the exponential
+    /// window the FRFs were prefiltered for, whose factor `|(iω/(iω + σ))^k|²` the
+    /// variances take too) draws from it times its correlation factor; the others from
+    /// the noise model of the residuals. `axis`: the FRF set's lines, channels and
+    /// quantity order.
+    fn prepare_draws_given(&mut self, q: usize, axis: (usize, usize, i32), draws: &Draws) {
         let Draws {
             line_variance: given,
             window,
-            decimate,
             ..
         } = *draws;
-        let nl = frf.n_lines();
-        let nc = frf.n_channels;
-        let k = frf.quantity.order();
+        let (nl, nc, k) = axis;
         let prefilter = |f: f64| match window {
             Some(w) if k != 0 => {
                 let w2 = (std::f64::consts::TAU * f).powi(2);
@@ -501,98 +556,93 @@ impl FittedModel {
             }
             _ => 1.0,
         };
-        for g in &self.groups {
-            let first = &self.excitations[g[0]];
-            let q = if decimate {
-                decimation(&first.poles, &first.band)
-            } else {
-                1
-            };
-            for &i in g {
-                let e = &mut self.excitations[i];
-                let (ex, first_line) = (e.excitation, e.band.first_line);
-                let freqs = e.band.frequency_hz.clone();
-                let n_band = freqs.len();
-                let lookup = given.map(|v| {
-                    move |c: usize, l: usize| -> Option<f64> {
-                        let s = v.sigma2[(ex * nc + c) * nl + first_line + l];
-                        s.is_finite()
-                            .then(|| s * v.correlation_factor * prefilter(freqs[l]))
-                    }
-                });
-                // The common error's ρ² on the band's lines.
-                let common = given
-                    .and_then(|v| v.common.get(ex))
-                    .and_then(Option::as_ref)
-                    .map(|c| c.on_lines(first_line..first_line + n_band));
-                e.prepare_draws(
-                    q,
-                    lookup
-                        .as_ref()
-                        .map(|f| f as &dyn Fn(usize, usize) -> Option<f64>),
-                    common.as_ref(),
-                );
+        let (ex, first_line) = (self.excitation, self.band.first_line);
+        let freqs = self.band.frequency_hz.clone();
+        let n_band = freqs.len();
+        let lookup = given.map(|v| {
+            move |c: usize, l: usize| -> Option<f64> {
+                let s = v.sigma2[(ex * nc + c) * nl + first_line + l];
+                s.is_finite()
+                    .then(|| s * v.correlation_factor * prefilter(freqs[l]))
             }
-        }
+        });
+        // The common error's ρ² on the band's lines.
+        let common = given
+            .and_then(|v| v.common.get(ex))
+            .and_then(Option::as_ref)
+            .map(|c| c.on_lines(first_line..first_line + n_band));
+        self.prepare_draws(
+            q,
+            lookup
+                .as_ref()
+                .map(|f| f as &dyn Fn(usize, usize) -> Option<f64>),
+            common.as_ref(),
+        );
     }
 
-    /// Noise model per excitation and channel (see [`crate::noise`]). The modal fit's
-    /// parameters per channel: 2 per mode (residue), the residual terms, and the channel's
-    /// share of the 2 per mode of the poles its group estimated jointly.
-    fn fit_noise(&mut self) {
-        let mut parameters = vec![0.0; self.excitations.len()];
-        for g in &self.groups {
-            let live: usize = g.iter().map(|&i| self.excitations[i].live.len()).sum();
-            for &i in g {
-                let e = &self.excitations[i];
-                let nm = e.poles.len() as f64;
-                let res = Residuals::for_band(self.residuals_enabled, &e.band);
-                parameters[i] = 2.0 * nm
-                    + (res.upper as usize + res.lower as usize) as f64
-                    + 2.0 * nm / live.max(1) as f64;
-            }
-        }
-        // Every channel of every excitation in parallel (27 fits balance over the threads
-        // where one excitation's 9 did not), collected in order: each fit depends only on
-        // its channel, so the result is the same for any thread count. `e.centre` holds
-        // the synthesis until the misfit lines are set below.
-        let jobs: Vec<(usize, usize)> = (0..self.excitations.len())
-            .flat_map(|i| (0..self.excitations[i].centre.len()).map(move |c| (i, c)))
-            .collect();
-        let fits: Vec<_> = jobs
+    /// Noise model per channel (see [`crate::noise`]), from the residuals of the modal
+    /// fit (the synthesis in `centre`), whose misfit lines then take the measured values.
+    /// The fit's parameters per channel: 2 per mode (residue), the residual terms, and the
+    /// channel's share of the 2 per mode of the poles its group estimated jointly over
+    /// its `group_live` live channels. Each fit depends only on its channel.
+    fn fit_noise(&mut self, residual_terms: bool, group_live: usize) {
+        let nm = self.poles.len() as f64;
+        let res = Residuals::for_band(residual_terms, &self.band);
+        let parameters = 2.0 * nm
+            + (res.upper as usize + res.lower as usize) as f64
+            + 2.0 * nm / group_live.max(1) as f64;
+        let fits: Vec<_> = self
+            .band
+            .channels
             .par_iter()
-            .map(|&(i, c)| {
-                let e = &self.excitations[i];
-                fit_channel(&e.band.channels[c], &e.centre[c], parameters[i])
-            })
+            .zip(&self.centre)
+            .map(|(measured, synthesised)| fit_channel(measured, synthesised, parameters))
             .collect();
-        let mut fits = fits.into_iter();
-        for e in &mut self.excitations {
-            let fits: Vec<_> = fits.by_ref().take(e.centre.len()).collect();
-            for ((centre, measured), f) in e.centre.iter_mut().zip(&e.band.channels).zip(&fits) {
-                for ((z, h), misfit) in centre.iter_mut().zip(measured).zip(&f.misfit) {
-                    if *misfit {
-                        *z = *h;
-                    }
+        for ((centre, measured), f) in self.centre.iter_mut().zip(&self.band.channels).zip(&fits) {
+            for ((z, h), misfit) in centre.iter_mut().zip(measured).zip(&f.misfit) {
+                if *misfit {
+                    *z = *h;
                 }
             }
-            e.misfit_lines = fits
-                .iter()
-                .map(|f| f.misfit.iter().filter(|m| **m).count())
-                .collect();
-            e.noise = fits.into_iter().map(|f| f.noise).collect();
         }
+        self.misfit_lines = fits
+            .iter()
+            .map(|f| f.misfit.iter().filter(|m| **m).count())
+            .collect();
+        self.noise = fits.into_iter().map(|f| f.noise).collect();
     }
 }
 
-fn excitation_model(
+/// The modal fit's modes of excitation `id`, in mode order, and their poles.
+fn record_poles<'m>(modal: &'m ModalFitRecord, id: &str) -> (Vec<&'m ModeEstimate>, Vec<Pole>) {
+    let mut modes: Vec<_> = modal.modes.iter().filter(|m| m.excitation == id).collect();
+    modes.sort_by_key(|m| m.mode);
+    let poles = modes
+        .iter()
+        .map(|m| Pole::from_modal(m.frequency_hz, m.damping_ratio))
+        .collect();
+    (modes, poles)
+}
+
+/// The channels with signal on `band`.
+fn live_channels(band: &BandData) -> Vec<usize> {
+    band.channel_rms()
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| **r > 0.0)
+        .map(|(c, _)| c)
+        .collect()
+}
+
+/// Excitation `id`'s geometry index, its modal-fit record and the measured lines of the
+/// fit's band (weighted as the fit weighted them), checked against the record.
+fn measured_band<'m>(
     geometry: &Geometry,
-    frf: &FrfSet,
-    modal: &ModalFitRecord,
+    frf: &dyn FrfSource,
+    modal: &'m ModalFitRecord,
     id: &str,
-    residual_terms: bool,
     (weighting, members): (Option<&rbprops_modal::CoherenceWeighting>, &[usize]),
-) -> Result<ExcitationModel, UqError> {
+) -> Result<(usize, &'m ExcitationFitRecord, BandData), UqError> {
     let bad = |reason: String| UqError::Excitation {
         excitation: id.to_string(),
         reason,
@@ -610,7 +660,7 @@ fn excitation_model(
     if rec.model_order == 0 {
         return Err(bad("its modal fit failed (model order 0)".into()));
     }
-    let band = BandData::extract(frf, k, Some((rec.band_hz[0], rec.band_hz[1])), id)
+    let band = BandData::extract_from(frf, k, Some((rec.band_hz[0], rec.band_hz[1])), id)
         .map_err(|source| UqError::Modal {
             excitation: id.to_string(),
             source,
@@ -624,15 +674,26 @@ fn excitation_model(
             rec.n_lines
         )));
     }
-    let mut modes: Vec<_> = modal.modes.iter().filter(|m| m.excitation == id).collect();
-    modes.sort_by_key(|m| m.mode);
+    Ok((k, rec, band))
+}
+
+fn excitation_model(
+    geometry: &Geometry,
+    frf: &dyn FrfSource,
+    modal: &ModalFitRecord,
+    id: &str,
+    residual_terms: bool,
+    weighting: (Option<&rbprops_modal::CoherenceWeighting>, &[usize]),
+) -> Result<ExcitationModel, UqError> {
+    let bad = |reason: String| UqError::Excitation {
+        excitation: id.to_string(),
+        reason,
+    };
+    let (k, rec, band) = measured_band(geometry, frf, modal, id, weighting)?;
+    let (modes, poles) = record_poles(modal, id);
     if modes.is_empty() {
         return Err(bad("the modal fit has no modes for it".into()));
     }
-    let poles: Vec<Pole> = modes
-        .iter()
-        .map(|m| Pole::from_modal(m.frequency_hz, m.damping_ratio))
-        .collect();
     let res = Residuals::for_band(residual_terms, &band);
     // The fit's own synthesis (the measured lines less its residuals): synthesising the
     // band again from the residues would cost as much once more.
@@ -644,13 +705,7 @@ fn excitation_model(
     {
         return Err(bad("the synthesised FRFs are not finite".into()));
     }
-    let live = band
-        .channel_rms()
-        .iter()
-        .enumerate()
-        .filter(|(_, r)| **r > 0.0)
-        .map(|(c, _)| c)
-        .collect();
+    let live = live_channels(&band);
     Ok(ExcitationModel {
         excitation: k,
         id: id.to_string(),

@@ -97,16 +97,13 @@ fn origin(s: &str) -> Result<OriginChoice> {
 }
 
 fn main() -> std::process::ExitCode {
-    rbprops_cli::run("rb-solve", || {
-        let args = Args::parse();
-        // The linearised errors read the FRFs one excitation at a time from an MCAP
-        // input file; the bootstrap draws from the whole set.
-        let (input, deferred) = match args.uncertainty {
-            UncertaintyChoice::Bootstrap => (args.io.read("rb-solve", &Default::default())?, None),
-            UncertaintyChoice::Linearised => {
-                args.io.read_deferring("rb-solve", &Default::default())?
-            }
-        };
+    let args = Args::parse();
+    if args.uncertainty == UncertaintyChoice::Bootstrap {
+        rbprops_cli::return_large_buffers();
+    }
+    rbprops_cli::run("rb-solve", move || {
+        // The FRFs stay in an MCAP input file and are read one excitation at a time ...
+        let (input, mut deferred) = args.io.read_deferring("rb-solve", &Default::default())?;
         let mut rec = input.record;
         let mut opts = SolveOptions::default();
         if !args.method.is_empty() {
@@ -135,6 +132,12 @@ fn main() -> std::process::ExitCode {
                 })
             }
         };
+        // ... unless the bootstrap makes line variances from the set's values.
+        if rbprops_cli::stages::rb_solve_needs_the_set(&rec, &uncertainty) {
+            if let Some(d) = deferred.take() {
+                rec.frf = Some(d.load()?);
+            }
+        }
         let frf = deferred.as_ref().map(|d| d as &dyn rbprops_core::FrfSource);
         let (out, _) = rbprops_cli::stages::rb_solve_from(
             &mut rec,

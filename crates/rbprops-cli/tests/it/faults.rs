@@ -409,7 +409,7 @@ fn a_stage_reading_one_excitation_at_a_time_writes_what_a_whole_read_writes() {
 
 /// On a pipe the stages spool stdin to a temporary file and read it one excitation at a
 /// time; with no usable temporary directory they read it whole. Both write the same
-/// bytes to stdout (`modal-fit`, `ni-select`, `rb-solve --uncertainty linearised`).
+/// bytes to stdout (`modal-fit`, `ni-select`, `rb-solve` with either error method).
 #[test]
 fn a_stage_on_a_pipe_writes_what_a_whole_read_writes() {
     let dir = fixture(true);
@@ -421,6 +421,11 @@ fn a_stage_on_a_pipe_writes_what_a_whole_read_writes() {
             "rb-solve",
             "sel.mcap",
             &["--uncertainty", "linearised", "--format", "mcap"][..],
+        ),
+        (
+            "rb-solve",
+            "sel.mcap",
+            &["--bootstrap", "6", "--format", "mcap"][..],
         ),
     ] {
         let run = |tmpdir: &Path| {
