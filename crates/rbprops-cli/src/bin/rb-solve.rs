@@ -100,6 +100,7 @@ fn main() -> std::process::ExitCode {
     let args = Args::parse();
     if args.uncertainty == UncertaintyChoice::Bootstrap {
         rbprops_cli::return_large_buffers();
+        rbprops_cli::keep_heap_top();
     }
     rbprops_cli::run("rb-solve", move || {
         // The FRFs stay in an MCAP input file and are read one excitation at a time ...
