@@ -284,6 +284,20 @@ impl FrfSet {
     }
 }
 
+/// Largest excitation (channels × lines × 16 bytes) that the stages work on in parallel
+/// with another. Working on one excitation holds a few copies of it at once (the values
+/// read and their message text, the band, a fit's blocks or synthesis), so two in flight
+/// beyond this would break issue 41's memory bound (2 × one excitation + 50 MB); above
+/// it the excitations go one after the other (at 3 × 102,401 lines `modal-fit` 71 → 57 MB
+/// for 1.44 → 1.62 s).
+pub const PARALLEL_EXCITATION_BYTES: usize = 4 << 20;
+
+/// Whether a stage may work on the excitations of `frf` in parallel
+/// ([`PARALLEL_EXCITATION_BYTES`]).
+pub fn excitations_in_parallel(frf: &dyn FrfSource) -> bool {
+    frf.n_channels() * frf.frequency_hz().len() * 16 <= PARALLEL_EXCITATION_BYTES
+}
+
 /// The FRFs of a run as a stage reads them: the layout (quantity, axis, counts) at once,
 /// each excitation's values when asked. A set in memory lends its own; a reader may
 /// decode them from the file one excitation at a time, so that a stage which works per

@@ -33,7 +33,7 @@ pub mod stats;
 pub mod window;
 
 pub use error::CoreError;
-pub use frf::{ExcitationFrf, FrfSet, FrfSource, Quantity};
+pub use frf::{excitations_in_parallel, ExcitationFrf, FrfSet, FrfSource, Quantity};
 pub use geometry::{
     cross_matrix, rigid_transform, Channel, Excitation, Geometry, Point, SuspensionSetup,
 };

@@ -370,24 +370,28 @@ fn fit_one(
     Ok(assemble(ex, &band, parts, opts, opts.method.record_name()))
 }
 
-/// Every excitation fitted with its own (or its set-up's shared) poles, in parallel.
+/// Every excitation fitted with its own (or its set-up's shared) poles, in parallel
+/// unless an excitation is large (`rbprops_core::excitations_in_parallel`); each fit
+/// depends only on its excitation, so the results are the same either way.
 fn single_reference_fits(
     geometry: &Geometry,
     frf: &dyn FrfSource,
     opts: &FitOptions,
     shared: &[(String, Result<PoleSet, ModalError>)],
 ) -> Vec<Result<ExcitationFit, ModalError>> {
-    (0..frf.n_excitations())
-        .into_par_iter()
-        .map(|e| {
-            let setup = &geometry.excitations[e].setup;
-            match shared.iter().find(|(s, _)| s == setup) {
-                None => fit_one(geometry, frf, e, opts, None),
-                Some((_, Ok(ps))) => fit_one(geometry, frf, e, opts, Some(ps)),
-                Some((_, Err(err))) => Err(err.clone()),
-            }
-        })
-        .collect()
+    let fit = |e: usize| {
+        let setup = &geometry.excitations[e].setup;
+        match shared.iter().find(|(s, _)| s == setup) {
+            None => fit_one(geometry, frf, e, opts, None),
+            Some((_, Ok(ps))) => fit_one(geometry, frf, e, opts, Some(ps)),
+            Some((_, Err(err))) => Err(err.clone()),
+        }
+    };
+    if rbprops_core::excitations_in_parallel(frf) {
+        (0..frf.n_excitations()).into_par_iter().map(fit).collect()
+    } else {
+        (0..frf.n_excitations()).map(fit).collect()
+    }
 }
 
 /// The automatic choice of [`FitOptions::auto_poly_reference`], by evidence (see

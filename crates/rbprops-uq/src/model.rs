@@ -271,11 +271,6 @@ fn with_group_members<'g>(
         .collect()
 }
 
-/// Largest excitation (channels × lines × 16 bytes) whose models are built in parallel:
-/// two builds in flight hold about eight copies of an excitation, so beyond 4 MB they go
-/// one after the other (the noise fits of a build's channels still run in parallel).
-pub const PARALLEL_BUILD_BYTES: usize = 4 << 20;
-
 /// Fewest lines per half-power half-bandwidth `ζω_n` of the narrowest mode that the
 /// replicates' grid keeps. A sum over lines of a function that varies on the scale of a
 /// half-bandwidth (a Lorentzian) is reproduced by every q-th line to about `e^{−2πk}`
@@ -483,12 +478,11 @@ impl FittedModel {
         // Every excitation's model built whole (noise, replicates' grid) and its band let
         // go before the next: the set's values are never held together (issue 41's
         // memory bound). In parallel (one group per excitation is the common case) while
-        // an excitation is small: a build holds about four copies of its excitation at
-        // once (the values read, the band, the synthesis, the residue fit's blocks).
-        // Collected in order: the same for any thread count; the first failure in that
-        // order is reported, whichever thread met it first.
-        let excitation_bytes = frf.n_channels() * frf.frequency_hz().len() * 16;
-        let mut excitations: Vec<ExcitationModel> = if excitation_bytes <= PARALLEL_BUILD_BYTES {
+        // an excitation is small (`rbprops_core::excitations_in_parallel`: a build holds
+        // about four copies of its excitation at once; the noise fits of its channels
+        // still run in parallel). Collected in order: the same for any thread count; the
+        // first failure in that order is reported, whichever thread met it first.
+        let mut excitations: Vec<ExcitationModel> = if rbprops_core::excitations_in_parallel(frf) {
             in_order(
                 ids.par_iter()
                     .enumerate()
