@@ -649,9 +649,7 @@ pub fn refine<C: AsRef<[c64]>>(
     let (data, rms) = unit_rms(chans);
     let lw = std::sync::Arc::new(band_line_weights(band, &data));
     let bw = stack_data(&data, &lw);
-    // The iterations read only the stacked copy: a bootstrap replicate refines a whole
-    // set-up's channels at once (issue 41's memory bound).
-    drop(data);
+    drop(data); // only the stacked copy from here (a replicate refines a whole set-up)
     let (qre, qim) = weighted_quantity_factor(band, &lw);
     let nm = poles.len();
     let np = 2 * nm;

@@ -175,19 +175,7 @@ pub fn bootstrap(
         )));
     }
     if let Some(v) = line_variance {
-        let values = frf.n_excitations() * frf.n_channels() * frf.frequency_hz().len();
-        if v.sigma2.len() != values {
-            return Err(UqError::Options(format!(
-                "{} line variances for {values} FRF values",
-                v.sigma2.len(),
-            )));
-        }
-        if !(v.correlation_factor >= 1.0 && v.correlation_factor.is_finite()) {
-            return Err(UqError::Options(format!(
-                "line-variance correlation factor {} (must be finite and ≥ 1)",
-                v.correlation_factor
-            )));
-        }
+        check_line_variance(v, frf)?;
     }
     let targets = modal_targets(original)?;
     // A record whose poles were corrected for an exponential window describes the physical
@@ -278,6 +266,25 @@ pub fn bootstrap(
             .unwrap_or(1),
         noise_source: noise_source(&model, line_variance),
     })
+}
+
+/// The line variances against the FRFs' layout: one per value, and a correlation
+/// factor that is finite and at least 1.
+fn check_line_variance(v: &LineVariance, frf: &dyn FrfSource) -> Result<(), UqError> {
+    let values = frf.n_excitations() * frf.n_channels() * frf.frequency_hz().len();
+    if v.sigma2.len() != values {
+        return Err(UqError::Options(format!(
+            "{} line variances for {values} FRF values",
+            v.sigma2.len(),
+        )));
+    }
+    if !(v.correlation_factor >= 1.0 && v.correlation_factor.is_finite()) {
+        return Err(UqError::Options(format!(
+            "line-variance correlation factor {} (must be finite and ≥ 1)",
+            v.correlation_factor
+        )));
+    }
+    Ok(())
 }
 
 /// What the replicates' noise was drawn from, in words: the estimator's line variances,

@@ -377,51 +377,7 @@ impl FittedModel {
         draws: &Draws,
     ) -> Result<Self, UqError> {
         check_shape(geometry, frf)?;
-        let mut used: Vec<String> = Vec::new();
-        for s in &selection.selected {
-            if !used.contains(&s.excitation) {
-                used.push(s.excitation.clone());
-            }
-        }
-        let fitted = |setup: &str| -> Vec<String> {
-            modal
-                .excitations
-                .iter()
-                .filter(|x| x.setup == setup && x.model_order > 0)
-                .map(|x| x.excitation.clone())
-                .collect()
-        };
-        let pole_mode = pole_mode.unwrap_or_else(|| {
-            let mut setups: Vec<&str> = selection
-                .selected
-                .iter()
-                .map(|s| s.setup.as_str())
-                .collect();
-            setups.dedup();
-            if !setups.is_empty() && setups.iter().all(|s| poles_shared(modal, &fitted(s))) {
-                PoleMode::PerSetup
-            } else {
-                PoleMode::PerExcitation
-            }
-        });
-        let mut groups_ids: Vec<Vec<String>> = Vec::new();
-        for id in &used {
-            if groups_ids.iter().any(|g| g.contains(id)) {
-                continue;
-            }
-            match pole_mode {
-                PoleMode::PerExcitation => groups_ids.push(vec![id.clone()]),
-                PoleMode::PerSetup => {
-                    let setup = geometry
-                        .excitations
-                        .iter()
-                        .find(|e| &e.id == id)
-                        .map(|e| e.setup.clone())
-                        .unwrap_or_default();
-                    groups_ids.push(fitted(&setup));
-                }
-            }
-        }
+        let (pole_mode, groups_ids) = pole_groups(geometry, modal, selection, pole_mode);
         let ids = with_group_members(geometry, &groups_ids);
         let mut groups: Vec<Vec<usize>> = Vec::new();
         let mut group_of = Vec::with_capacity(ids.len());
@@ -497,21 +453,7 @@ impl FittedModel {
         for e in &mut excitations {
             e.mark_selected(selection);
         }
-        for g in &groups {
-            let first = &excitations[g[0]];
-            for &i in &g[1..] {
-                let e: &ExcitationModel = &excitations[i];
-                if e.band.frequency_hz != first.band.frequency_hz {
-                    return Err(UqError::Excitation {
-                        excitation: e.id.clone(),
-                        reason: format!(
-                            "shares its poles with '{}' but was fitted on other lines",
-                            first.id
-                        ),
-                    });
-                }
-            }
-        }
+        same_lines(&excitations, &groups)?;
         Ok(Self {
             excitations,
             groups,
@@ -519,6 +461,84 @@ impl FittedModel {
             residuals_enabled: residual_terms,
         })
     }
+}
+
+/// The excitations whose poles are refitted together, as ids, and the pole mode: one
+/// group per excitation the selection uses, or with shared poles (given, or inferred
+/// from the record: all fitted excitations of a set-up carry bit-identical poles) every
+/// fitted excitation of its set-up.
+fn pole_groups(
+    geometry: &Geometry,
+    modal: &ModalFitRecord,
+    selection: &SelectionRecord,
+    pole_mode: Option<PoleMode>,
+) -> (PoleMode, Vec<Vec<String>>) {
+    let mut used: Vec<String> = Vec::new();
+    for s in &selection.selected {
+        if !used.contains(&s.excitation) {
+            used.push(s.excitation.clone());
+        }
+    }
+    let fitted = |setup: &str| -> Vec<String> {
+        modal
+            .excitations
+            .iter()
+            .filter(|x| x.setup == setup && x.model_order > 0)
+            .map(|x| x.excitation.clone())
+            .collect()
+    };
+    let pole_mode = pole_mode.unwrap_or_else(|| {
+        let mut setups: Vec<&str> = selection
+            .selected
+            .iter()
+            .map(|s| s.setup.as_str())
+            .collect();
+        setups.dedup();
+        if !setups.is_empty() && setups.iter().all(|s| poles_shared(modal, &fitted(s))) {
+            PoleMode::PerSetup
+        } else {
+            PoleMode::PerExcitation
+        }
+    });
+    let mut groups_ids: Vec<Vec<String>> = Vec::new();
+    for id in &used {
+        if groups_ids.iter().any(|g| g.contains(id)) {
+            continue;
+        }
+        match pole_mode {
+            PoleMode::PerExcitation => groups_ids.push(vec![id.clone()]),
+            PoleMode::PerSetup => {
+                let setup = geometry
+                    .excitations
+                    .iter()
+                    .find(|e| &e.id == id)
+                    .map(|e| e.setup.clone())
+                    .unwrap_or_default();
+                groups_ids.push(fitted(&setup));
+            }
+        }
+    }
+    (pole_mode, groups_ids)
+}
+
+/// Every excitation of a group sharing poles was fitted on its first's lines.
+fn same_lines(excitations: &[ExcitationModel], groups: &[Vec<usize>]) -> Result<(), UqError> {
+    for g in groups {
+        let first = &excitations[g[0]];
+        for &i in &g[1..] {
+            let e: &ExcitationModel = &excitations[i];
+            if e.band.frequency_hz != first.band.frequency_hz {
+                return Err(UqError::Excitation {
+                    excitation: e.id.clone(),
+                    reason: format!(
+                        "shares its poles with '{}' but was fitted on other lines",
+                        first.id
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The results of a parallel map, collected in order; the first error in that order.
