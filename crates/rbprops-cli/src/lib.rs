@@ -247,7 +247,7 @@ fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Pat
         }
         Some(p) => {
             let mut whole = rec.clone();
-            whole.frf = Some(d.load()?);
+            whole.frf = Some(rbprops_core::FrfSet::from_source(d)?);
             write_output_inner(&whole, Some(p))
         }
         None => {

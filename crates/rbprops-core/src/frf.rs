@@ -266,21 +266,25 @@ impl FrfSet {
 }
 
 impl FrfSet {
-    /// The whole set of a source, excitation by excitation (for a method that needs every
-    /// value at once; a set in memory is copied).
+    /// The whole set of a source, excitation by excitation (for a method or an output that
+    /// needs every value at once; a set in memory is copied).
     pub fn from_source(frf: &dyn FrfSource) -> Result<Self, CoreError> {
-        let mut out = Self::zeros(
-            frf.quantity(),
-            frf.frequency_hz().to_vec(),
+        let (ne, nc, nl) = (
             frf.n_excitations(),
             frf.n_channels(),
+            frf.frequency_hz().len(),
         );
-        let n = out.n_channels * out.n_lines();
-        for e in 0..out.n_excitations {
-            let x = frf.excitation(e)?;
-            out.values[e * n..(e + 1) * n].copy_from_slice(x.block());
+        let mut values = Vec::with_capacity(ne * nc * nl);
+        for e in 0..ne {
+            values.extend_from_slice(frf.excitation(e)?.block());
         }
-        Ok(out)
+        Ok(Self {
+            quantity: frf.quantity(),
+            frequency_hz: frf.frequency_hz().to_vec(),
+            n_excitations: ne,
+            n_channels: nc,
+            values,
+        })
     }
 }
 

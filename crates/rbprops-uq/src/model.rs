@@ -23,8 +23,8 @@ pub struct ExcitationModel {
     pub id: String,
     /// Its suspension set-up.
     pub setup: String,
-    /// The fit's band: its lines and their quality. Its measured values (`channels`) are
-    /// empty once the model is built ([`FittedModel::new`]).
+    /// The fit's band: its lines and their quality, without its values (`channels` is
+    /// empty: the measured values are read only while the model is built, `Measured`).
     pub band: BandData,
     /// Channels with signal (the pole refinement uses only these, as the modal fit does).
     pub live: Vec<usize>,
@@ -34,20 +34,14 @@ pub struct ExcitationModel {
     pub mode_numbers: Vec<usize>,
     /// Per pole: the selection takes a mode shape from it (for this excitation).
     pub selected: Vec<bool>,
-    /// The bootstrap's centre `[channel][line]`: the LSFD synthesis of the measured band
-    /// with these poles, except on lines of structured misfit where it is the measured
-    /// value (so every replicate carries the misfit the data carry). Built in place from
-    /// the synthesis by the noise fit, so that the band is never held three times
-    /// (measured, synthesised, centre: issue 41's memory bound). Empty once the model is
-    /// built: the replicates read its values on their grid ([`Self::draw_band`]).
-    pub centre: Vec<Vec<c64>>,
     /// Noise model per channel, estimated from the fit residuals (docs/conventions.md §8).
     pub noise: Vec<NoiseModel>,
     /// Per channel, the number of misfit lines.
     pub misfit_lines: Vec<usize>,
-    /// The replicates' grid (see [`FittedModel::prepare_draws`]): every `decimation`-th
-    /// line of the band, the middle of each run of `decimation` lines, with the centre's
-    /// values there as its channels.
+    /// The replicates' grid (made by [`FittedModel::new`]): every `decimation`-th line of
+    /// the band, the middle of each run of `decimation` lines, with the bootstrap's centre
+    /// there as its channels (the modal fit's synthesis, the measured values on lines of
+    /// structured misfit).
     pub draw_band: BandData,
     /// Per channel and grid line: the standard deviation of each of the real and imaginary
     /// parts of a replicate's noise.
@@ -59,6 +53,19 @@ pub struct ExcitationModel {
     /// The force noise's error common to every channel, drawn once per replicate on the
     /// grid ([`CommonDraw`]); None when the estimator gave none.
     pub common: Option<CommonDraw>,
+}
+
+/// What building an excitation's model reads and lets go (issue 41's memory bound: the
+/// set's values are never held together).
+struct Measured {
+    /// The measured band values `[channel][line]`.
+    values: Vec<Vec<c64>>,
+    /// The bootstrap's centre `[channel][line]`: the LSFD synthesis of the measured band
+    /// with the record's poles, except on lines of structured misfit where it is the
+    /// measured value (so every replicate carries the misfit the data carry). Built in
+    /// place from the synthesis by the noise fit, so that the band is never held three
+    /// times (measured, synthesised, centre). The replicates' grid takes its values.
+    centre: Vec<Vec<c64>>,
 }
 
 /// The common relative error of one excitation on the replicates' grid: its process
@@ -134,13 +141,15 @@ impl ExcitationModel {
         out
     }
 
-    /// Fills the replicates' grid and noise ([`FittedModel::prepare_draws`]): `sigma2(c, l)`
-    /// is the given variance of channel c at band line l, if known.
+    /// Fills the replicates' grid and noise (`prepare_draws_given`) from the `centre`
+    /// (`Measured::centre`), which the grid takes: `sigma2(c, l)` is the given variance of
+    /// channel c at band line l, if known.
     fn prepare_draws(
         &mut self,
         q: usize,
         given: Option<&dyn Fn(usize, usize) -> Option<f64>>,
         common: Option<&CommonRelativeError>,
+        centre: Vec<Vec<c64>>,
     ) {
         let n = self.band.n_lines();
         let q = q.max(1);
@@ -149,7 +158,7 @@ impl ExcitationModel {
             .map(|start| (start, (start + q).min(n)))
             .collect();
         let grid: Vec<usize> = runs.iter().map(|(a, b)| a + (b - a) / 2).collect();
-        let n_channels = self.centre.len();
+        let n_channels = centre.len();
         let mut draw_sd = Vec::with_capacity(n_channels);
         let mut given_variance = Vec::with_capacity(n_channels);
         for c in 0..n_channels {
@@ -157,7 +166,7 @@ impl ExcitationModel {
             given_variance.push(known.is_some());
             let variance = |l: usize| match &known {
                 Some(v) => v[l],
-                None => self.noise[c].variance(self.centre[c][l]),
+                None => self.noise[c].variance(centre[c][l]),
             };
             // One grid line stands for its run of q lines: the estimators' normal equations
             // are sums over lines, and a sum over every q-th line of noise with variance
@@ -175,9 +184,9 @@ impl ExcitationModel {
         let pick = |v: &[f64]| -> Vec<f64> { grid.iter().map(|&l| v[l]).collect() };
         // On every line the grid's values are the centre itself: moved, not copied.
         let channels = if q == 1 {
-            std::mem::take(&mut self.centre)
+            centre
         } else {
-            self.centre
+            centre
                 .iter()
                 .map(|h| grid.iter().map(|&l| h[l]).collect())
                 .collect()
@@ -409,7 +418,7 @@ impl FittedModel {
         );
         let build = |i: usize, id: &str, members: &[usize]| -> Result<ExcitationModel, UqError> {
             let g = group_of[i];
-            let mut e = excitation_model(
+            let (mut e, mut measured) = excitation_model(
                 geometry,
                 frf,
                 modal,
@@ -418,17 +427,15 @@ impl FittedModel {
                 (weighting, members),
             )?;
             let shared_by = group_live[g].unwrap_or(e.live.len());
-            e.fit_noise(residual_terms, shared_by);
+            e.fit_noise(&mut measured, residual_terms, shared_by);
             let q = if draws.decimate {
                 let first = ids[groups[g][0]].0;
                 decimation(&record_poles(modal, first).1, &e.band)
             } else {
                 1
             };
-            e.prepare_draws_given(q, axis, draws);
-            // The replicates read only the grid (`draw_band`).
-            e.band.channels = Vec::new();
-            e.centre = Vec::new();
+            // The replicates read only the grid (`draw_band`); the band's values go here.
+            e.prepare_draws_given(q, axis, draws, measured.centre);
             Ok(e)
         };
         // Every excitation's model built whole (noise, replicates' grid) and its band let
@@ -556,7 +563,13 @@ impl ExcitationModel {
     /// variances take too) draws from it times its correlation factor; the others from
     /// the noise model of the residuals. `axis`: the FRF set's lines, channels and
     /// quantity order.
-    fn prepare_draws_given(&mut self, q: usize, axis: (usize, usize, i32), draws: &Draws) {
+    fn prepare_draws_given(
+        &mut self,
+        q: usize,
+        axis: (usize, usize, i32),
+        draws: &Draws,
+        centre: Vec<Vec<c64>>,
+    ) {
         let Draws {
             line_variance: given,
             window,
@@ -591,28 +604,28 @@ impl ExcitationModel {
                 .as_ref()
                 .map(|f| f as &dyn Fn(usize, usize) -> Option<f64>),
             common.as_ref(),
+            centre,
         );
     }
 
     /// Noise model per channel (see [`crate::noise`]), from the residuals of the modal
-    /// fit (the synthesis in `centre`), whose misfit lines then take the measured values.
+    /// fit (the synthesis in `m.centre`), whose misfit lines then take the measured values.
     /// The fit's parameters per channel: 2 per mode (residue), the residual terms, and the
     /// channel's share of the 2 per mode of the poles its group estimated jointly over
     /// its `group_live` live channels. Each fit depends only on its channel.
-    fn fit_noise(&mut self, residual_terms: bool, group_live: usize) {
+    fn fit_noise(&mut self, m: &mut Measured, residual_terms: bool, group_live: usize) {
         let nm = self.poles.len() as f64;
         let res = Residuals::for_band(residual_terms, &self.band);
         let parameters = 2.0 * nm
             + (res.upper as usize + res.lower as usize) as f64
             + 2.0 * nm / group_live.max(1) as f64;
-        let fits: Vec<_> = self
-            .band
-            .channels
+        let fits: Vec<_> = m
+            .values
             .par_iter()
-            .zip(&self.centre)
+            .zip(&m.centre)
             .map(|(measured, synthesised)| fit_channel(measured, synthesised, parameters))
             .collect();
-        for ((centre, measured), f) in self.centre.iter_mut().zip(&self.band.channels).zip(&fits) {
+        for ((centre, measured), f) in m.centre.iter_mut().zip(&m.values).zip(&fits) {
             for ((z, h), misfit) in centre.iter_mut().zip(measured).zip(&f.misfit) {
                 if *misfit {
                     *z = *h;
@@ -698,12 +711,12 @@ fn excitation_model(
     id: &str,
     residual_terms: bool,
     weighting: (Option<&rbprops_modal::CoherenceWeighting>, &[usize]),
-) -> Result<ExcitationModel, UqError> {
+) -> Result<(ExcitationModel, Measured), UqError> {
     let bad = |reason: String| UqError::Excitation {
         excitation: id.to_string(),
         reason,
     };
-    let (k, rec, band) = measured_band(geometry, frf, modal, id, weighting)?;
+    let (k, rec, mut band) = measured_band(geometry, frf, modal, id, weighting)?;
     let (modes, poles) = record_poles(modal, id);
     if modes.is_empty() {
         return Err(bad("the modal fit has no modes for it".into()));
@@ -720,7 +733,12 @@ fn excitation_model(
         return Err(bad("the synthesised FRFs are not finite".into()));
     }
     let live = live_channels(&band);
-    Ok(ExcitationModel {
+    let measured = Measured {
+        values: std::mem::take(&mut band.channels),
+        // The synthesis; the noise fit sets its misfit lines to the measured values.
+        centre: synthesised,
+    };
+    let model = ExcitationModel {
         excitation: k,
         id: id.to_string(),
         setup: rec.setup.clone(),
@@ -728,8 +746,6 @@ fn excitation_model(
         mode_numbers: modes.iter().map(|m| m.mode).collect(),
         selected: Vec::new(),
         poles,
-        // The synthesis; the noise fit sets its misfit lines to the measured values.
-        centre: synthesised,
         noise: Vec::new(),
         misfit_lines: Vec::new(),
         draw_band: BandData {
@@ -745,5 +761,6 @@ fn excitation_model(
         given_variance: Vec::new(),
         common: None,
         band,
-    })
+    };
+    Ok((model, measured))
 }

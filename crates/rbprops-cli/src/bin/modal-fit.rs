@@ -87,7 +87,7 @@ fn main() -> std::process::ExitCode {
             || rec.topic(rbprops_formats::topics::COHERENCE).is_some();
         if weights_from_values {
             if let Some(d) = deferred.take() {
-                rec.frf = Some(d.load()?);
+                rec.frf = Some(rbprops_core::FrfSet::from_source(&d)?);
             }
         }
         rbprops_cli::variance::declare_averages(&mut rec, args.averages.averages, &input.name)?;
@@ -168,7 +168,7 @@ fn main() -> std::process::ExitCode {
             // The overlays draw every excitation's FRFs: the set is read whole for them.
             let mut whole = None;
             if let Some(d) = &deferred {
-                whole = Some(d.load()?);
+                whole = Some(rbprops_core::FrfSet::from_source(d)?);
             }
             let (geometry, frf) = match &whole {
                 Some(f) => (rec.geometry()?.context("no geometry topic")?, f),

@@ -136,7 +136,7 @@ fn main() -> std::process::ExitCode {
         // ... unless the bootstrap makes line variances from the set's values.
         if rbprops_cli::stages::rb_solve_needs_the_set(&rec, &uncertainty) {
             if let Some(d) = deferred.take() {
-                rec.frf = Some(d.load()?);
+                rec.frf = Some(rbprops_core::FrfSet::from_source(&d)?);
             }
         }
         let frf = deferred.as_ref().map(|d| d as &dyn rbprops_core::FrfSource);

@@ -63,23 +63,6 @@ pub fn read_file_deferred(
 }
 
 impl DeferredFrf {
-    /// The whole set in memory (for an output that is not MCAP, or a stage that needs it
-    /// all at once).
-    pub fn load(&self) -> Result<FrfSet, FormatError> {
-        let n = self.axis.channels.len() * self.axis.frequency_hz.len();
-        let mut values = Vec::with_capacity(n * self.places.len());
-        for e in 0..self.places.len() {
-            values.extend_from_slice(&self.values(e)?);
-        }
-        Ok(FrfSet {
-            quantity: self.axis.quantity,
-            frequency_hz: self.axis.frequency_hz.clone(),
-            n_excitations: self.places.len(),
-            n_channels: self.axis.channels.len(),
-            values,
-        })
-    }
-
     /// Excitation `e`'s values, `[channel][line]`, read again from the file.
     fn values(&self, e: usize) -> Result<Vec<c64>, FormatError> {
         let id = &self.axis.excitations[e];

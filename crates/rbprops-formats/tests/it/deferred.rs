@@ -59,7 +59,7 @@ fn agrees(rec: &RunRecord) {
         let x = d.excitation(e).unwrap();
         assert_eq!(x.block(), set.excitation_block(e), "excitation {e}");
     }
-    assert_eq!(&d.load().unwrap(), set);
+    assert_eq!(&rbprops_core::FrfSet::from_source(&d).unwrap(), set);
     let again = mcap_file::write_to_with(&lean, Some(&d), std::io::Cursor::new(Vec::new()))
         .unwrap()
         .into_inner();
