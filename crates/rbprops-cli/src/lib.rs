@@ -215,15 +215,17 @@ impl StageIo {
         deferred: Option<&mcap_file::DeferredFrf>,
     ) -> Result<()> {
         rbprops_formats::atomic::set_force(self.force);
+        let deferred = deferred.map(|d| d as &dyn rbprops_core::FrfSource);
         write_output_with(rec, deferred, self.output.as_deref())
     }
 }
 
-/// [`write_output`] of a record whose FRF set, when `deferred` is given, is that input's
-/// ([`StageIo::read_deferring`]): copied through one excitation at a time to MCAP.
+/// [`write_output`] of a record whose FRF set, when `deferred` is given, comes from that
+/// source (an input left in its file, [`StageIo::read_deferring`], or a simulation made
+/// excitation by excitation): copied through one excitation at a time to MCAP.
 pub fn write_output_with(
     rec: &RunRecord,
-    deferred: Option<&mcap_file::DeferredFrf>,
+    deferred: Option<&dyn rbprops_core::FrfSource>,
     path: Option<&Path>,
 ) -> Result<()> {
     let Some(d) = deferred else {
@@ -237,8 +239,12 @@ pub fn write_output_with(
 }
 
 /// [`write_output`] of a record whose FRF set is `d`'s.
-fn write_deferred(rec: &RunRecord, d: &mcap_file::DeferredFrf, path: Option<&Path>) -> Result<()> {
-    let src = Some(d as &dyn rbprops_core::FrfSource);
+fn write_deferred(
+    rec: &RunRecord,
+    d: &dyn rbprops_core::FrfSource,
+    path: Option<&Path>,
+) -> Result<()> {
+    let src = Some(d);
     match path.filter(|p| p.as_os_str() != "-") {
         Some(p) if rbprops_formats::Format::from_path(p)? == rbprops_formats::Format::Mcap => {
             Ok(rbprops_formats::atomic::write_file_with(p, |w| {

@@ -8,22 +8,57 @@ use rbprops_formats::{topics, RunRecord};
 /// `frf-sim`: a campaign spec (TOML text) to a fresh record and the simulator's notes.
 /// `source` names it in errors.
 pub fn simulate(text: &str, source: &str, seed: Option<u64>) -> Result<(RunRecord, Vec<String>)> {
+    let spec = simulated_spec(text, source, seed)?;
+    let sim = rbprops_sim::simulate(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let mut rec = simulation_record(text, &sim.geometry, &sim.truth)?;
+    // Moved, not copied: the FRF set is the record's bulk (issue 41's memory bound).
+    rec.frf = Some(sim.frf);
+    Ok((rec, sim.notes))
+}
+
+/// [`simulate`] with the FRFs made one excitation at a time as the output asks for them
+/// (issue 41): the record without its FRF set, and the simulation that gives it
+/// ([`crate::write_output_with`] writes the two as [`simulate`]'s record).
+pub fn simulate_deferred(
+    text: &str,
+    source: &str,
+    seed: Option<u64>,
+) -> Result<(RunRecord, rbprops_sim::DeferredSimulation)> {
+    let spec = simulated_spec(text, source, seed)?;
+    let sim =
+        rbprops_sim::simulate_deferred(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    let rec = simulation_record(text, &sim.geometry, &sim.truth)?;
+    Ok((rec, sim))
+}
+
+/// The campaign spec of `text` with the seed given on the command line.
+fn simulated_spec(
+    text: &str,
+    source: &str,
+    seed: Option<u64>,
+) -> Result<rbprops_sim::CampaignSpec> {
     let mut spec = rbprops_sim::CampaignSpec::from_toml_str(text)
         .map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
     if let Some(seed) = seed {
         spec.seed = seed;
     }
-    let sim = rbprops_sim::simulate(&spec).map_err(|e| anyhow::anyhow!("{source}: {e}"))?;
+    Ok(spec)
+}
+
+/// A simulation's record without its FRFs: provenance, geometry and truth.
+fn simulation_record(
+    text: &str,
+    geometry: &rbprops_core::Geometry,
+    truth: &TruthRecord,
+) -> Result<RunRecord> {
     let mut rec = RunRecord::default();
     rec.push_provenance(crate::provenance(
         "frf-sim",
         &rbprops_formats::sha256_hex(text.as_bytes()),
     ))?;
-    rec.set_geometry(&sim.geometry);
-    // Moved, not copied: the FRF set is the record's bulk (issue 41's memory bound).
-    rec.frf = Some(sim.frf);
-    rec.set(topics::TRUTH, std::slice::from_ref(&sim.truth));
-    Ok((rec, sim.notes))
+    rec.set_geometry(geometry);
+    rec.set(topics::TRUTH, std::slice::from_ref(truth));
+    Ok(rec)
 }
 
 /// `modal-fit` on a record: adds the `modal_fit` topic. When the recording's processing

@@ -14,6 +14,7 @@
 
 #![warn(missing_docs)]
 
+mod deferred;
 pub mod effects;
 pub mod error;
 pub mod examples;
@@ -24,6 +25,7 @@ pub mod simulate;
 pub mod spec;
 pub mod suspension;
 
+pub use deferred::{simulate_deferred, DeferredSimulation};
 pub use error::{SimError, SpecError, SpecIssue};
 pub use examples::{effect_examples, example, example_names};
 pub use model::DynamicModel;

@@ -170,7 +170,8 @@ fn effect_err(index: usize, e: &dyn Effect, problem: String) -> SimError {
 
 /// Per set-up, the channel-by-coordinate receptance `P(ω) = S G(ω)` on every line,
 /// stored `[channel][coordinate][line]` so an excitation's FRF is `P f` line by line.
-struct TransferTable {
+#[derive(Debug)]
+pub(crate) struct TransferTable {
     n_lines: usize,
     values: Vec<c64>,
 }
@@ -235,9 +236,22 @@ impl TransferTable {
     }
 }
 
+/// Set-up `sm`'s transfer tables over the whole axis `omegas`, one per [`TABLE_LINES`]
+/// lines (built as [`ExcitationBlocks::tabled_receptances`] builds them).
+pub(crate) fn transfer_tables(
+    sm: &SetupModel,
+    omegas: &[f64],
+    method: SolveMethod,
+) -> Result<Vec<TransferTable>, SimError> {
+    omegas
+        .chunks(TABLE_LINES)
+        .map(|lines| TransferTable::build(sm, lines, method))
+        .collect()
+}
+
 /// Lines of a transfer table built at a time ([`ExcitationBlocks::tabled_receptances`]):
 /// 8,192 lines of 9 channels are 7 MB.
-const TABLE_LINES: usize = 8192;
+pub(crate) const TABLE_LINES: usize = 8192;
 
 /// Lines per parallel task of [`input_responses`].
 const LINES_PER_TASK: usize = 64;
@@ -360,46 +374,11 @@ pub fn predict(
     let n_ch = geometry.channels.len();
     let n_ex = geometry.excitations.len();
     let nl = freq.len();
-    let total = n_ch.saturating_mul(n_ex).saturating_mul(nl);
-    if total > MAX_VALUES {
-        return Err(SimError::TooLarge(format!(
-            "{n_ex} excitations × {n_ch} channels × {nl} lines = {total} values (limit {MAX_VALUES})"
-        )));
-    }
-    let omegas: Vec<f64> = freq.iter().map(|f| std::f64::consts::TAU * f).collect();
+    check_size(geometry, nl)?;
+    let omegas = omegas_of(&freq);
     let models = build_models(spec, geometry, effects)?;
-    if options.method == SolveMethod::Modal {
-        check_classical_damping(&models)?;
-    }
-    let columns = options.method == SolveMethod::Columns;
-    let tabled: Vec<bool> = models
-        .iter()
-        .map(|sm| sm.model.observation.is_plain() && !columns)
-        .collect();
-    let responses = column_responses(&models, &omegas, columns)?;
-    // Which set-up and input serve each excitation.
-    let mut route = vec![(0usize, 0usize); n_ex];
-    for (si, sm) in models.iter().enumerate() {
-        for (ii, inp) in sm.model.inputs.iter().enumerate() {
-            route[inp.excitation] = (si, ii);
-        }
-    }
-    let blocks = ExcitationBlocks {
-        spec,
-        geometry,
-        effects,
-        freq: &freq,
-        omegas: &omegas,
-        factors: omegas
-            .iter()
-            .map(|&w| spec.quantity.from_receptance_factor(w))
-            .collect(),
-        models: &models,
-        tabled,
-        responses,
-        route,
-        line_factors: models.iter().map(|_| std::sync::OnceLock::new()).collect(),
-    };
+    let blocks =
+        ExcitationBlocks::new(spec, geometry, effects, (&freq, &omegas), &models, options)?;
     let mut frf = FrfSet::zeros(spec.quantity, freq.clone(), n_ex, n_ch);
     let block = n_ch * nl;
     if block > 0 {
@@ -411,6 +390,23 @@ pub fn predict(
             .collect::<Result<(), SimError>>()?;
     }
     Ok((frf, models))
+}
+
+/// Refuses a campaign of more than [`MAX_VALUES`] values on `nl` lines.
+pub(crate) fn check_size(geometry: &Geometry, nl: usize) -> Result<(), SimError> {
+    let (n_ch, n_ex) = (geometry.channels.len(), geometry.excitations.len());
+    let total = n_ch.saturating_mul(n_ex).saturating_mul(nl);
+    if total > MAX_VALUES {
+        return Err(SimError::TooLarge(format!(
+            "{n_ex} excitations × {n_ch} channels × {nl} lines = {total} values (limit {MAX_VALUES})"
+        )));
+    }
+    Ok(())
+}
+
+/// `ω = 2πf` of every line.
+pub(crate) fn omegas_of(freq: &[f64]) -> Vec<f64> {
+    freq.iter().map(|f| std::f64::consts::TAU * f).collect()
 }
 
 /// The modal solve needs classical damping (modes that decouple it): refused otherwise.
@@ -454,7 +450,7 @@ fn column_responses(
 }
 
 /// What [`predict`] computes each excitation's block of FRFs from.
-struct ExcitationBlocks<'a> {
+pub(crate) struct ExcitationBlocks<'a> {
     spec: &'a CampaignSpec,
     geometry: &'a Geometry,
     effects: &'a [Box<dyn Effect>],
@@ -476,7 +472,88 @@ struct ExcitationBlocks<'a> {
     line_factors: Vec<std::sync::OnceLock<ModeLineFactors>>,
 }
 
-impl ExcitationBlocks<'_> {
+impl<'a> ExcitationBlocks<'a> {
+    /// What every excitation's block is computed from, for `models` on the lines
+    /// `(freq, omegas)` (Hz, rad/s).
+    pub(crate) fn new(
+        spec: &'a CampaignSpec,
+        geometry: &'a Geometry,
+        effects: &'a [Box<dyn Effect>],
+        (freq, omegas): (&'a [f64], &'a [f64]),
+        models: &'a [SetupModel],
+        options: &SimOptions,
+    ) -> Result<Self, SimError> {
+        if options.method == SolveMethod::Modal {
+            check_classical_damping(models)?;
+        }
+        let columns = options.method == SolveMethod::Columns;
+        let tabled: Vec<bool> = models
+            .iter()
+            .map(|sm| sm.model.observation.is_plain() && !columns)
+            .collect();
+        let responses = column_responses(models, omegas, columns)?;
+        // Which set-up and input serve each excitation.
+        let mut route = vec![(0usize, 0usize); geometry.excitations.len()];
+        for (si, sm) in models.iter().enumerate() {
+            for (ii, inp) in sm.model.inputs.iter().enumerate() {
+                route[inp.excitation] = (si, ii);
+            }
+        }
+        Ok(Self {
+            spec,
+            geometry,
+            effects,
+            freq,
+            omegas,
+            factors: omegas
+                .iter()
+                .map(|&w| spec.quantity.from_receptance_factor(w))
+                .collect(),
+            models,
+            tabled,
+            responses,
+            route,
+            line_factors: models.iter().map(|_| std::sync::OnceLock::new()).collect(),
+        })
+    }
+
+    /// Whether excitation `e`'s receptances come from its set-up's transfer table: its
+    /// set-up index when they do.
+    pub(crate) fn tabled_setup(&self, e: usize) -> Option<usize> {
+        let (si, ii) = self.route[e];
+        (self.tabled[si] && self.models[si].model.inputs[ii].is_plain()).then_some(si)
+    }
+
+    /// Excitation `e`'s receptances from its set-up's transfer tables, one per
+    /// [`TABLE_LINES`] lines (`tables`, as [`transfer_tables`] makes them; built here
+    /// when `None`), written into its block `out` as [`Self::tabled_receptances`] writes
+    /// them; nothing for an excitation the tables do not serve.
+    pub(crate) fn tabled_receptance(
+        &self,
+        e: usize,
+        method: SolveMethod,
+        out: &mut [c64],
+        tables: Option<&[TransferTable]>,
+    ) -> Result<(), SimError> {
+        let Some(si) = self.tabled_setup(e) else {
+            return Ok(());
+        };
+        let nl = self.freq.len();
+        let column = &self.models[si].model.inputs[self.route[e].1].column;
+        for (t, first) in (0..nl).step_by(TABLE_LINES).enumerate() {
+            match tables {
+                Some(tables) => tables[t].apply(column, out, nl, first),
+                None => {
+                    let lines = first..(first + TABLE_LINES).min(nl);
+                    let table =
+                        TransferTable::build(&self.models[si], &self.omegas[lines], method)?;
+                    table.apply(column, out, nl, first);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The receptances of every excitation served by a set-up's transfer table, written
     /// into its block of `values` (`[excitation][channel][line]`). The table is built
     /// for [`TABLE_LINES`] lines at a time, so it never holds the whole axis (six
@@ -489,10 +566,7 @@ impl ExcitationBlocks<'_> {
             if !self.tabled[si] {
                 continue;
             }
-            let served = |e: usize| {
-                let (s, i) = self.route[e];
-                s == si && sm.model.inputs[i].is_plain()
-            };
+            let served = |e: usize| self.tabled_setup(e) == Some(si);
             for first in (0..nl).step_by(TABLE_LINES) {
                 let lines = first..(first + TABLE_LINES).min(nl);
                 let table = TransferTable::build(sm, &self.omegas[lines], method)?;
@@ -512,7 +586,7 @@ impl ExcitationBlocks<'_> {
     /// Excitation `e`'s FRFs (channel-major, `values`): by the column solve under a
     /// window, by receptance (table or columns) then effects and the quantity factor, or
     /// by the observed block.
-    fn fill(&self, e: usize, values: &mut [c64]) -> Result<(), SimError> {
+    pub(crate) fn fill(&self, e: usize, values: &mut [c64]) -> Result<(), SimError> {
         let (si, ii) = self.route[e];
         let sm = &self.models[si];
         let input = &sm.model.inputs[ii];
@@ -600,6 +674,30 @@ impl ExcitationBlocks<'_> {
 /// output effects and noise, and records the truth. Excitations are computed in
 /// parallel; the result is bit-identical for any number of threads.
 pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simulation, SimError> {
+    let (geometry, effects) = parsed(spec)?;
+    let (freq, notes) = simulated_axis(spec, &geometry, &effects)?;
+    let (mut frf, models) = predict(spec, &geometry, &effects, &freq, options)?;
+    let block = geometry.channels.len() * freq.len();
+    if block > 0 {
+        frf.values
+            .par_chunks_mut(block)
+            .enumerate()
+            .for_each(|(e, values)| {
+                let mut rng = excitation_rng(spec.seed, e);
+                add_noise(values, spec.noise.relative, spec.noise.floor, &mut rng);
+            });
+    }
+    frf.validate()?;
+    Ok(Simulation {
+        truth: truth_of(spec, &models, &effects),
+        geometry,
+        frf,
+        notes,
+    })
+}
+
+/// The spec validated, its geometry and its effects.
+pub(crate) fn parsed(spec: &CampaignSpec) -> Result<(Geometry, Vec<Box<dyn Effect>>), SimError> {
     spec.validate()?;
     let geometry = spec.geometry()?;
     let effects = parse_effects(spec).map_err(|(index, problem)| SimError::Effect {
@@ -607,12 +705,21 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         id: spec.effects[index].id.clone(),
         problem,
     })?;
+    Ok((geometry, effects))
+}
+
+/// The lines simulated, and a note when the spec's 0 Hz line is left out.
+pub(crate) fn simulated_axis(
+    spec: &CampaignSpec,
+    geometry: &Geometry,
+    effects: &[Box<dyn Effect>],
+) -> Result<(Vec<f64>, Vec<String>), SimError> {
     let mut freq = spec.frequency_axis();
     let mut notes = Vec::new();
     // A free direction has no static stiffness: the receptance is infinite at 0 Hz, so
     // that line (only the first can be 0) is left out of the simulation.
     if freq.first() == Some(&0.0) {
-        let free = free_directions(&build_models(spec, &geometry, &effects)?);
+        let free = free_directions(&build_models(spec, geometry, effects)?);
         if !free.is_empty() {
             freq.remove(0);
             let list: Vec<String> = free
@@ -626,19 +733,17 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
             ));
         }
     }
-    let (mut frf, models) = predict(spec, &geometry, &effects, &freq, options)?;
-    let block = geometry.channels.len() * freq.len();
-    if block > 0 {
-        frf.values
-            .par_chunks_mut(block)
-            .enumerate()
-            .for_each(|(e, values)| {
-                let mut rng = excitation_rng(spec.seed, e);
-                add_noise(values, spec.noise.relative, spec.noise.floor, &mut rng);
-            });
-    }
-    frf.validate()?;
-    let truth = TruthRecord {
+    Ok((freq, notes))
+}
+
+/// The truth of a simulated campaign: properties, true modes per set-up, effects, seed,
+/// noise.
+pub(crate) fn truth_of(
+    spec: &CampaignSpec,
+    models: &[SetupModel],
+    effects: &[Box<dyn Effect>],
+) -> TruthRecord {
+    TruthRecord {
         campaign: spec.name.clone(),
         properties: PropertiesRecord::from_properties(&spec.properties()),
         setups: models
@@ -665,13 +770,7 @@ pub fn simulate_with(spec: &CampaignSpec, options: &SimOptions) -> Result<Simula
         seed: spec.seed,
         noise_relative: spec.noise.relative,
         noise_floor: spec.noise.floor,
-    };
-    Ok(Simulation {
-        geometry,
-        frf,
-        truth,
-        notes,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -66,9 +66,10 @@ fn main() -> std::process::ExitCode {
         if args.print_spec {
             return rbprops_cli::out(&text);
         }
-        let (rec, sim_notes) = rbprops_cli::stages::simulate(&text, &source, args.seed)?;
+        // The FRFs are made one excitation at a time as the output is written.
+        let (rec, sim) = rbprops_cli::stages::simulate_deferred(&text, &source, args.seed)?;
         let mut notes = rbprops_cli::warnings::Collector::default();
-        for note in &sim_notes {
+        for note in &sim.notes {
             notes.add(rbprops_cli::warnings::note_of(
                 "frf-sim",
                 rbprops_cli::warnings::DiagnosticKind::Simulation,
@@ -78,9 +79,10 @@ fn main() -> std::process::ExitCode {
         }
         notes.print(args.verbose);
         if let Some(dir) = &args.plot {
-            let (geometry, frf) = rec.require_geometry_and_frf()?;
-            rbprops_cli::write_plots(dir, &rbprops_cli::plots::frf_magnitudes(&geometry, frf)?)?;
+            let frf = rbprops_core::FrfSet::from_source(&sim)?;
+            let plots = rbprops_cli::plots::frf_magnitudes(&sim.geometry, &frf)?;
+            rbprops_cli::write_plots(dir, &plots)?;
         }
-        rbprops_cli::write_output(&rec, args.output.as_deref())
+        rbprops_cli::write_output_with(&rec, Some(&sim), args.output.as_deref())
     })
 }

@@ -169,7 +169,7 @@ fn main() -> std::process::ExitCode {
             },
         );
         if let Some(p) = &args.io.output {
-            rbprops_cli::write_output_with(&rec, deferred.as_ref(), Some(p))?;
+            rbprops_cli::write_output_with(&rec, frf, Some(p))?;
         }
         match format {
             OutFormat::Table => rbprops_cli::out(&rbprops_cli::table::estimates(&out.estimates))?,
@@ -177,7 +177,7 @@ fn main() -> std::process::ExitCode {
                 "{}\n",
                 serde_json::to_string_pretty::<Vec<InertiaEstimate>>(&out.estimates)?
             ))?,
-            OutFormat::Mcap => rbprops_cli::write_output_with(&rec, deferred.as_ref(), None)?,
+            OutFormat::Mcap => rbprops_cli::write_output_with(&rec, frf, None)?,
         }
         Ok(())
     })
