@@ -7,5 +7,4 @@ mod common;
 mod noise_free;
 mod noisy;
 mod plscf;
-mod refine;
 mod robustness;
