@@ -559,7 +559,11 @@ impl<'a, C: AsRef<[c64]>> Weighted<'a, C> {
 
     /// The same data with the scaling and weights of an earlier refinement of `chans`.
     fn of_refined(fit: &'a Refined, chans: &'a [C]) -> Self {
-        debug_assert_eq!(chans.len(), fit.rms.len(), "the refined channels");
+        assert_eq!(
+            chans.len(),
+            fit.rms.len(),
+            "the channels the refinement was given"
+        );
         Self {
             chans,
             rms: fit.rms.clone(),

@@ -67,7 +67,7 @@ fn main() -> std::process::ExitCode {
             return rbprops_cli::out(&text);
         }
         // The FRFs are made one excitation at a time as the output is written.
-        let (rec, sim) = rbprops_cli::stages::simulate_deferred(&text, &source, args.seed)?;
+        let (mut rec, sim) = rbprops_cli::stages::simulate_deferred(&text, &source, args.seed)?;
         let mut notes = rbprops_cli::warnings::Collector::default();
         for note in &sim.notes {
             notes.add(rbprops_cli::warnings::note_of(
@@ -79,9 +79,13 @@ fn main() -> std::process::ExitCode {
         }
         notes.print(args.verbose);
         if let Some(dir) = &args.plot {
+            // The plots need the whole set: made once, and written as it is (not
+            // simulated again for the output).
             let frf = rbprops_core::FrfSet::from_source(&sim)?;
             let plots = rbprops_cli::plots::frf_magnitudes(&sim.geometry, &frf)?;
             rbprops_cli::write_plots(dir, &plots)?;
+            rec.frf = Some(frf);
+            return rbprops_cli::write_output(&rec, args.output.as_deref());
         }
         rbprops_cli::write_output_with(&rec, Some(&sim), args.output.as_deref())
     })
