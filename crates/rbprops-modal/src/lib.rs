@@ -45,6 +45,7 @@ mod poly;
 pub mod prof;
 pub(crate) mod reciprocity;
 pub(crate) mod roots;
+pub(crate) mod setup_bands;
 #[macro_use]
 pub mod stabilisation;
 mod tallmul;

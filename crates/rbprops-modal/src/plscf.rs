@@ -32,7 +32,9 @@
 use crate::linalg;
 use crate::lscf::OrderPoles;
 use crate::pole::Pole;
-use faer::{Mat, Par};
+use crate::setup_bands::Bands;
+use crate::ModalError;
+use faer::Mat;
 use rbprops_core::c64;
 
 /// FRFs of one set-up on one band: `h[o][e][k]`, output `o`, reference `e`, line `k`.
@@ -104,104 +106,94 @@ pub struct PrincipalReferences {
 }
 
 impl PrincipalReferences {
-    /// The principal references of `data`; `None` when the data use every direction
-    /// (nothing to reduce), are zero, or the Gram matrix's eigen-decomposition fails
-    /// (non-finite data).
-    pub fn of(data: &PolyData) -> Option<Self> {
-        let ni = data.n_references();
-        let nl = data.omega.len();
-        let no = data.n_outputs();
-        // Every output's and line's row H_o(ω_k) stacked, real and imaginary parts as
-        // separate rows: G = Re(XᴴX), whose eigenvectors are real (so the projected
-        // FRFs keep H(−ω) = H̄(ω), which the real-coefficient model needs).
-        let x = Mat::<f64>::from_fn(2 * no * nl, ni, |i, e| {
-            let (part, i) = (i / (no * nl), i % (no * nl));
-            let h = data.h[i / nl][e][i % nl];
-            if part == 0 {
-                h.re
-            } else {
-                h.im
+    /// The principal references of the bands `bands` (one per reference, same axis and
+    /// outputs) on their lines `keep` (the projected FRFs hold those lines only); `None`
+    /// when the data use every direction (nothing to reduce), are zero, or the Gram
+    /// matrix's eigen-decomposition fails (non-finite data).
+    ///
+    /// Made one reference at a time (issue 41): the Gram matrix by blocks of references
+    /// ([`Bands::held_at_once`]), each block against itself and against every later
+    /// reference, and the projection as a running sum over the references. Each entry
+    /// `G_ef` is the same sum whatever the blocks (the products' order is fixed by the
+    /// rows alone, [`crate::tallmul`]), so held and read-again bands agree bit for bit.
+    pub(crate) fn of_bands(bands: &dyn Bands, keep: &[usize]) -> Result<Option<Self>, ModalError> {
+        let ni = bands.len();
+        let first = bands.band(0)?;
+        let no = first.channels.len();
+        let per_ref = 2 * keep.len() * no * std::mem::size_of::<f64>();
+        drop(first);
+        let block = bands.held_at_once(per_ref);
+        // G = Re(XᴴX) over every output's and line's row H_o(ω_k), real and imaginary
+        // parts as separate rows (real eigenvectors: the projected FRFs keep
+        // H(−ω) = H̄(ω), which the real-coefficient model needs); summed output by
+        // output for each pair of references.
+        let mut g = Mat::<f64>::zeros(ni, ni);
+        for a0 in (0..ni).step_by(block) {
+            let a1 = (a0 + block).min(ni);
+            let xa = stacked_rows(bands, a0..a1, keep)?;
+            for x in &xa {
+                linalg::t_mul_add_into(
+                    g.as_mut().submatrix_mut(a0, a0, a1 - a0, a1 - a0),
+                    x.as_ref(),
+                    x.as_ref(),
+                );
             }
-        });
-        let mut g = Mat::<f64>::zeros(ni, ni);
-        faer::linalg::matmul::matmul(
-            g.as_mut(),
-            faer::Accum::Replace,
-            x.transpose(),
-            x.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        Self::from_gram(data, &g)
-    }
-
-    /// As [`PrincipalReferences::of`], the Gram matrix summed pair by pair of references
-    /// over the data as they are, instead of from the stacked real matrix (`2·No·N × Ni`,
-    /// as large as the data): for the refinement on every line of a set-up of many
-    /// excitations ([`crate::plsfd_refine::refine_set_up`]). The same entries, summed in
-    /// another order (so not bitwise those of `of`).
-    pub fn of_pairwise(data: &PolyData) -> Option<Self> {
-        let ni = data.n_references();
-        let mut g = Mat::<f64>::zeros(ni, ni);
+            for f in a1..ni {
+                let xf = stacked_rows(bands, f..f + 1, keep)?;
+                for (x, y) in xa.iter().zip(&xf) {
+                    linalg::t_mul_add_into(
+                        g.as_mut().submatrix_mut(a0, f, a1 - a0, 1),
+                        x.as_ref(),
+                        y.as_ref(),
+                    );
+                }
+            }
+        }
+        for j in 0..ni {
+            for i in j + 1..ni {
+                g[(i, j)] = g[(j, i)];
+            }
+        }
+        let Some((cols, vecs)) = principal_directions(&g) else {
+            return Ok(None);
+        };
+        // H V_r, the sum over the references in their order.
+        let mut h = vec![vec![vec![c64::new(0.0, 0.0); keep.len()]; cols.len()]; no];
         for e in 0..ni {
-            for f in 0..=e {
-                let v: f64 = data
-                    .h
-                    .iter()
-                    .map(|row| {
-                        row[e]
-                            .iter()
-                            .zip(row[f])
-                            .map(|(a, b)| a.re * b.re + a.im * b.im)
-                            .sum::<f64>()
-                    })
-                    .sum();
-                g[(e, f)] = v;
-                g[(f, e)] = v;
+            let b = bands.band(e)?;
+            for (row, hb) in h.iter_mut().zip(&b.channels) {
+                for (hq, &q) in row.iter_mut().zip(&cols) {
+                    let v = vecs[(e, q)];
+                    for (z, &k) in hq.iter_mut().zip(keep) {
+                        *z += hb[k] * v;
+                    }
+                }
             }
         }
-        Self::from_gram(data, &g)
-    }
-
-    /// The principal references of `data` from the real Gram matrix `g` of its references.
-    fn from_gram(data: &PolyData, g: &Mat<f64>) -> Option<Self> {
-        let ni = data.n_references();
-        let (vals, vecs) = linalg::symmetric_eigen(g)?;
-        // Eigenvalues ascend: the used directions, largest first.
-        let top = vals[ni - 1];
-        let mut cols: Vec<usize> = (0..ni)
-            .rev()
-            .filter(|&q| vals[q] > UNUSED_DIRECTION * top)
-            .collect();
-        let total: f64 = (0..ni).map(|q| vals[q].max(0.0)).sum();
-        let left_out: f64 = cols
-            .iter()
-            .skip(MAX_PRINCIPAL_REFERENCES)
-            .map(|&q| vals[q])
-            .sum();
-        if left_out <= MAX_LEFT_OUT_ENERGY * total {
-            cols.truncate(MAX_PRINCIPAL_REFERENCES);
-        }
-        if cols.is_empty() || cols.len() == ni {
-            return None;
-        }
-        let h = data
-            .h
-            .iter()
-            .map(|row| {
-                cols.iter()
-                    .map(|&q| {
-                        (0..data.omega.len())
-                            .map(|k| (0..ni).map(|e| row[e][k] * vecs[(e, q)]).sum())
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect();
         let back = (0..ni)
             .map(|e| cols.iter().map(|&q| vecs[(e, q)]).collect())
             .collect();
-        Some(PrincipalReferences { h, back })
+        Ok(Some(PrincipalReferences { h, back }))
+    }
+
+    /// The sweep ([`sweep`]) on the principal references, on the lines `omega` they
+    /// were made on, each pole's participation vector mapped back to the measured
+    /// references.
+    ///
+    /// Why: when the FRF rows span fewer directions than there are references
+    /// (noise-free data of fewer modes than references: 6 modes seen by 50 excitations
+    /// span at most 12), the normal equations of the measured references are singular
+    /// and the sweep finds nothing; and more than [`MAX_PRINCIPAL_REFERENCES`]
+    /// references whose further directions hold only noise cost `q³` for nothing.
+    /// Other data (any measured noise on up to 16 references) are swept as they are.
+    pub fn sweep(&self, omega: &[f64], n_max: usize) -> Vec<OrderPoles> {
+        let mut orders = sweep(&self.data(omega), n_max);
+        for o in &mut orders {
+            for l in &mut o.shapes {
+                *l = self.participation(l);
+            }
+        }
+        orders
     }
 
     /// The sweep's data on the principal references (same lines as the original).
@@ -243,27 +235,57 @@ impl PrincipalReferences {
     }
 }
 
-/// The pLSCF sweep ([`sweep`]) on the references the data use: when the FRF rows span
-/// fewer directions than there are references (noise-free data of fewer modes than
-/// references: 6 modes seen by 50 excitations span at most 12), the normal equations of
-/// the measured references are singular and the sweep finds nothing, so it runs on the
-/// principal references that hold the data, each pole's participation vector mapped back
-/// to the measured references. More than [`MAX_PRINCIPAL_REFERENCES`] references whose
-/// directions beyond that hold only noise are swept on that many principal ones. Other
-/// data (any measured noise on up to 16 references) are swept as they are.
-pub fn sweep_on_used_references(data: &PolyData, n_max: usize) -> Vec<OrderPoles> {
-    match PrincipalReferences::of(data) {
-        Some(p) => {
-            let mut orders = sweep(&p.data(data.omega), n_max);
-            for o in &mut orders {
-                for l in &mut o.shapes {
-                    *l = p.participation(l);
-                }
-            }
-            orders
-        }
-        None => sweep(data, n_max),
+/// The principal directions of the real Gram matrix `g` of the references: the
+/// columns of its eigenvectors kept (largest first) and the eigenvectors; `None` when
+/// every direction is kept, none is, or the eigen-decomposition fails.
+fn principal_directions(g: &Mat<f64>) -> Option<(Vec<usize>, Mat<f64>)> {
+    let ni = g.nrows();
+    let (vals, vecs) = linalg::symmetric_eigen(g)?;
+    // Eigenvalues ascend: the used directions, largest first.
+    let top = vals[ni - 1];
+    let mut cols: Vec<usize> = (0..ni)
+        .rev()
+        .filter(|&q| vals[q] > UNUSED_DIRECTION * top)
+        .collect();
+    let total: f64 = (0..ni).map(|q| vals[q].max(0.0)).sum();
+    let left_out: f64 = cols
+        .iter()
+        .skip(MAX_PRINCIPAL_REFERENCES)
+        .map(|&q| vals[q])
+        .sum();
+    if left_out <= MAX_LEFT_OUT_ENERGY * total {
+        cols.truncate(MAX_PRINCIPAL_REFERENCES);
     }
+    if cols.is_empty() || cols.len() == ni {
+        return None;
+    }
+    Some((cols, vecs))
+}
+
+/// Per output, the references `refs` on the lines `keep` as the columns of a real
+/// matrix, real parts over imaginary parts (`2·keep × refs`).
+fn stacked_rows(
+    bands: &dyn Bands,
+    refs: std::ops::Range<usize>,
+    keep: &[usize],
+) -> Result<Vec<Mat<f64>>, ModalError> {
+    let nl = keep.len();
+    let mut out: Vec<Mat<f64>> = Vec::new();
+    for (j, e) in refs.clone().enumerate() {
+        let b = bands.band(e)?;
+        if out.is_empty() {
+            out = (0..b.channels.len())
+                .map(|_| Mat::zeros(2 * nl, refs.len()))
+                .collect();
+        }
+        for (x, hb) in out.iter_mut().zip(&b.channels) {
+            for (i, &k) in keep.iter().enumerate() {
+                x[(i, j)] = hb[k].re;
+                x[(nl + i, j)] = hb[k].im;
+            }
+        }
+    }
+    Ok(out)
 }
 
 /// Per-output, per-line weights `w²_ok = 1/mean_e |H_oe(ω_k)|²` (floored at 1e-12 of
@@ -733,6 +755,25 @@ mod tests {
             .collect()
     }
 
+    /// The principal references of `h[o][e]` on every line, from one band per reference.
+    fn principal(omega: &[f64], h: &[Vec<Vec<c64>>]) -> Option<PrincipalReferences> {
+        let bands: Vec<crate::band::BandData> = (0..h[0].len())
+            .map(|e| crate::band::BandData {
+                quantity: rbprops_core::Quantity::Receptance,
+                frequency_hz: omega
+                    .iter()
+                    .map(|w| w / (2.0 * std::f64::consts::PI))
+                    .collect(),
+                omega: omega.to_vec(),
+                channels: h.iter().map(|row| row[e].clone()).collect(),
+                first_line: 0,
+                line_quality: None,
+            })
+            .collect();
+        let all: Vec<usize> = (0..omega.len()).collect();
+        PrincipalReferences::of_bands(&bands, &all).unwrap()
+    }
+
     fn as_data<'a>(omega: &'a [f64], h: &'a [Vec<Vec<c64>>]) -> PolyData<'a> {
         PolyData {
             omega,
@@ -824,8 +865,7 @@ mod tests {
             .collect();
         let omega = omega_lines(300);
         let h = pole_residue_frfs(&poles, psi, |r, e| l[r][e], (4, ni), &omega);
-        let data = as_data(&omega, &h);
-        let p = PrincipalReferences::of(&data).unwrap();
+        let p = principal(&omega, &h).unwrap();
         let normalised = |v: &[c64]| {
             let mut v = v.to_vec();
             normalise_phase(&mut v);
@@ -855,7 +895,7 @@ mod tests {
         // on six real directions, the normal equations become singular above order 4
         // (the model fits the data to rounding) and those orders are left out.
         let tol = crate::options::StabilisationTolerances::default();
-        let sw = sweep_on_used_references(&data, 10);
+        let sw = p.sweep(&omega, 10);
         assert!(sw.len() >= 3, "orders swept: {}", sw.len());
         for o in &sw[sw.len() - 2..] {
             assert_eq!(o.shapes[0].len(), ni);
@@ -922,9 +962,9 @@ mod tests {
     #[test]
     fn many_references_are_cut_to_the_principal_ones_only_when_the_rest_is_noise() {
         let (omega, h) = noisy_24(3, false);
-        let p = PrincipalReferences::of(&as_data(&omega, &h)).expect("cut");
+        let p = principal(&omega, &h).expect("cut");
         assert_eq!(p.back[0].len(), MAX_PRINCIPAL_REFERENCES);
         let (omega, h) = noisy_24(24, true);
-        assert!(PrincipalReferences::of(&as_data(&omega, &h)).is_none());
+        assert!(principal(&omega, &h).is_none());
     }
 }

@@ -34,6 +34,8 @@ use crate::lsfd::Residuals;
 use crate::plscf::{self, normalise_phase};
 use crate::plsfd::{self, SetupBasis, SetupLs};
 use crate::pole::Pole;
+use crate::setup_bands::Bands;
+use crate::ModalError;
 use faer::Mat;
 use rbprops_core::c64;
 
@@ -72,59 +74,67 @@ pub const MAX_REFINEMENT_REFERENCES: usize = plscf::MAX_PRINCIPAL_REFERENCES;
 
 /// [`refine`] on a set-up of any number of excitations: up to
 /// [`MAX_REFINEMENT_REFERENCES`] on the excitations themselves; above it on the set-up's
-/// principal references ([`plscf::PrincipalReferences::of_pairwise`], every line) when
+/// principal references ([`plscf::PrincipalReferences::of`], every line) when
 /// at most that many hold the data, each participation vector mapped to them (`V_rᵀ l`)
 /// and back (`V_r l_q`). The projection keeps the model's form (real directions: `H V_r`
 /// has the poles of `H`, participations `V_rᵀ l_r` and residual terms `U V_r`, `L V_r`),
 /// so on data the kept directions hold it is the same least-squares problem in fewer
 /// unknowns. Data with more directions of signal than that are refined on every
 /// excitation.
-pub fn refine_set_up(
+pub(crate) fn refine_set_up(
     poles: &[Pole],
     parts: &[Vec<c64>],
     roots: &[usize],
-    bands: &[&BandData],
+    bands: &dyn Bands,
     res: Residuals,
-) -> PolyRefined {
+) -> Result<PolyRefined, ModalError> {
     if bands.len() > MAX_REFINEMENT_REFERENCES {
-        let no = bands[0].channels.len();
-        let data = plscf::PolyData {
-            omega: &bands[0].omega,
-            h: (0..no)
-                .map(|o| bands.iter().map(|b| b.channels[o].as_slice()).collect())
-                .collect(),
-        };
-        if let Some(pr) = plscf::PrincipalReferences::of_pairwise(&data)
+        let all: Vec<usize> = (0..bands.band(0)?.n_lines()).collect();
+        if let Some(pr) = plscf::PrincipalReferences::of_bands(bands, &all)?
             .filter(|pr| pr.n_directions() <= MAX_REFINEMENT_REFERENCES)
         {
-            let virtual_bands = principal_bands(bands, &pr);
+            let virtual_bands = principal_bands(bands, &pr)?;
             let refs: Vec<&BandData> = virtual_bands.iter().collect();
             let projected: Vec<Vec<c64>> = parts.iter().map(|l| pr.project(l)).collect();
             let mut rf = refine(poles, &projected, roots, &refs, res);
             rf.parts = rf.parts.iter().map(|l| pr.participation(l)).collect();
-            return rf;
+            return Ok(rf);
         }
     }
-    refine(poles, parts, roots, bands, res)
+    // At most MAX_REFINEMENT_REFERENCES (or data of more directions): held.
+    let held: Vec<std::borrow::Cow<'_, BandData>> = (0..bands.len())
+        .map(|e| bands.band(e))
+        .collect::<Result<_, _>>()?;
+    let refs: Vec<&BandData> = held.iter().map(|b| b.as_ref()).collect();
+    Ok(refine(poles, parts, roots, &refs, res))
 }
 
 /// One band per principal reference of `pr`: the FRFs `H V_r` on the axis of `bands`.
 /// The line-quality factors, where given, are the mean of the excitations' (a principal
 /// reference mixes them all).
-fn principal_bands(bands: &[&BandData], pr: &plscf::PrincipalReferences) -> Vec<BandData> {
-    let first = bands[0];
-    let line_quality = first.line_quality.as_ref().map(|_| {
-        (0..first.n_lines())
-            .map(|k| {
-                bands
-                    .iter()
-                    .map(|b| b.line_quality.as_ref().map_or(1.0, |v| v[k]))
-                    .sum::<f64>()
-                    / bands.len() as f64
-            })
-            .collect()
-    });
-    (0..pr.n_directions())
+fn principal_bands(
+    bands: &dyn Bands,
+    pr: &plscf::PrincipalReferences,
+) -> Result<Vec<BandData>, ModalError> {
+    let first = bands.band(0)?.into_owned();
+    let line_quality = match first.line_quality {
+        None => None,
+        Some(_) => {
+            let mut sum = vec![0.0; first.n_lines()];
+            for e in 0..bands.len() {
+                let b = bands.band(e)?;
+                for (s, k) in sum.iter_mut().zip(0..) {
+                    *s += b.line_quality.as_ref().map_or(1.0, |v| v[k]);
+                }
+            }
+            Some(
+                sum.iter()
+                    .map(|s| s / bands.len() as f64)
+                    .collect::<Vec<f64>>(),
+            )
+        }
+    };
+    Ok((0..pr.n_directions())
         .map(|q| BandData {
             quantity: first.quantity,
             frequency_hz: first.frequency_hz.clone(),
@@ -133,7 +143,7 @@ fn principal_bands(bands: &[&BandData], pr: &plscf::PrincipalReferences) -> Vec<
             first_line: first.first_line,
             line_quality: line_quality.clone(),
         })
-        .collect()
+        .collect())
 }
 
 /// Most Levenberg–Marquardt iterations.
@@ -696,6 +706,91 @@ mod tests {
         (bands, poles, roots, parts)
     }
 
+    /// The poly-reference passes read a set-up's bands one at a time
+    /// ([`crate::setup_bands`]): held, or read again with 1, 5 or all 24 held at once by
+    /// the Gram matrix's pass, the principal references, the refinement and the shape
+    /// fit (shapes, residues, fitted FRFs) are the same bit for bit (1 % noise, so that
+    /// every direction carries something and the cut is the noise's).
+    #[test]
+    fn bands_read_again_by_blocks_fit_as_held() {
+        let res = Residuals {
+            upper: true,
+            lower: true,
+        };
+        let (mut bands, poles, roots, parts) = synthetic_many(24);
+        let mut rng = rbprops_testkit::Lcg::new(3);
+        for v in bands
+            .iter_mut()
+            .flat_map(|b| b.channels.iter_mut().flatten())
+        {
+            *v *= c64::new(1.0 + 0.01 * rng.centred(), 0.01 * rng.centred());
+        }
+        let bits = |z: &[c64]| -> Vec<(u64, u64)> {
+            z.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+        };
+        let flat = |v: &[Vec<c64>]| -> Vec<(u64, u64)> { v.iter().flat_map(|x| bits(x)).collect() };
+        let keep: Vec<usize> = (0..bands[0].n_lines()).step_by(3).collect();
+        let held = &bands;
+        let pr = plscf::PrincipalReferences::of_bands(held, &keep)
+            .unwrap()
+            .expect("cut");
+        let rf = refine_set_up(&poles, &parts, &roots, held, res).unwrap();
+        let sf = plsfd::fit_shapes(&poles, &parts, held, res).unwrap();
+        assert!(rf.references < 24, "refined on the principal references");
+        // The normal equations summed excitation by excitation against Householder QR
+        // of the whole basis: the same shapes to rounding.
+        let dense = plsfd::fit_shapes_whole(&poles, &parts, held, res).unwrap();
+        for (a, b) in sf
+            .shapes
+            .iter()
+            .flatten()
+            .zip(dense.shapes.iter().flatten())
+        {
+            assert!(
+                (a - b).norm() <= 1e-9 * b.norm().max(1e-3),
+                "{a} against {b}"
+            );
+        }
+        for block in [1, 5, 24] {
+            let again = crate::setup_bands::ReadAgain {
+                bands: &bands,
+                block,
+            };
+            let p2 = plscf::PrincipalReferences::of_bands(&again, &keep)
+                .unwrap()
+                .unwrap();
+            let h = |p: &plscf::PrincipalReferences| -> Vec<(u64, u64)> {
+                p.h.iter().flat_map(|row| flat(row)).collect()
+            };
+            assert!(h(&p2) == h(&pr), "principal references, block {block}");
+            for l in &parts {
+                assert_eq!(bits(&p2.project(l)), bits(&pr.project(l)), "block {block}");
+            }
+            let r2 = refine_set_up(&poles, &parts, &roots, &again, res).unwrap();
+            let poles_bits = |p: &[Pole]| bits(&p.iter().map(|p| p.0).collect::<Vec<_>>());
+            assert_eq!(
+                poles_bits(&r2.poles),
+                poles_bits(&rf.poles),
+                "block {block}"
+            );
+            assert_eq!(flat(&r2.parts), flat(&rf.parts), "block {block}");
+            let s2 = plsfd::fit_shapes(&poles, &parts, &again, res).unwrap();
+            assert_eq!(flat(&s2.shapes), flat(&sf.shapes), "block {block}");
+            for e in [0, 11, 23] {
+                assert_eq!(
+                    flat(&s2.residues[e]),
+                    flat(&sf.residues[e]),
+                    "block {block}"
+                );
+                assert_eq!(
+                    flat(&s2.synthesised(e, &bands[e])),
+                    flat(&sf.synthesised(e, &bands[e])),
+                    "block {block}"
+                );
+            }
+        }
+    }
+
     /// Above [`MAX_REFINEMENT_REFERENCES`] excitations the refinement runs on the
     /// principal references and still lands on the exact poles (1e-10 relative) from a
     /// start 0.3 half-bandwidths away, with the exact participation vectors of the
@@ -728,7 +823,7 @@ mod tests {
                         .collect()
                 })
                 .collect();
-            let rf = refine_set_up(&moved, &tilted, &roots, &refs, res);
+            let rf = refine_set_up(&moved, &tilted, &roots, &refs, res).unwrap();
             assert!(
                 rf.references <= MAX_REFINEMENT_REFERENCES,
                 "{ni}: {}",
@@ -763,7 +858,7 @@ mod tests {
             lower: false,
         };
         let a = refine(&poles, &parts, &roots, &refs, res);
-        let b = refine_set_up(&poles, &parts, &roots, &refs, res);
+        let b = refine_set_up(&poles, &parts, &roots, &refs, res).unwrap();
         assert_eq!(b.references, 3);
         assert_eq!(format!("{:?}", a), format!("{:?}", b));
     }

@@ -15,6 +15,7 @@ use crate::plsfd;
 use crate::plsfd_refine;
 use crate::pole::Pole;
 use crate::reciprocity;
+use crate::setup_bands::{Bands, SetupBands};
 use crate::stabilisation::{self, Selection};
 use crate::ModalError;
 use rbprops_core::{c64, FrfSource, Geometry};
@@ -47,14 +48,15 @@ pub(crate) struct PolyPoles {
 /// sits low in the band, the sweep is repeated on the lines up to twice the highest one
 /// (polynomial z-domain models need far higher orders for modes crowded near z = 1).
 pub(crate) fn estimate(
-    bands: &[BandData],
+    bands: &dyn Bands,
     opts: &FitOptions,
     name: &str,
 ) -> Result<PolyPoles, ModalError> {
     let ni = bands.len();
+    let axis = bands.band(0)?.frequency_hz.clone();
     let n_max = max_matrix_order(opts.max_order, ni);
     let mut warnings = Vec::new();
-    let mut top_hz = *bands[0].frequency_hz.last().unwrap();
+    let mut top_hz = *axis.last().unwrap();
     let mut pass = 0;
     let mut sel = loop {
         let sel = sweep_and_select(bands, top_hz, n_max, opts, name)?;
@@ -64,11 +66,11 @@ pub(crate) fn estimate(
             .map(|m| m.pole.frequency_hz())
             .reduce(f64::max);
         let target = 2.0 * f_top.unwrap_or(0.25 * top_hz);
-        let lines = bands[0].frequency_hz.partition_point(|&f| f <= target);
+        let lines = axis.partition_point(|&f| f <= target);
         if pass < 2 && target < 0.6 * top_hz && lines >= 4 * n_max.max(8) {
             warnings.push(format!(
                 "{name}: poles estimated on {:.4}–{target:.4} Hz, where the modes are (shapes on the whole band)",
-                bands[0].frequency_hz[0]
+                axis[0]
             ));
             top_hz = target;
             pass += 1;
@@ -87,7 +89,7 @@ pub(crate) fn estimate(
     if opts.n_modes.is_none() {
         let low_top = 0.25 * top_hz;
         let cut = 0.8 * low_top;
-        let lines = bands[0].frequency_hz.partition_point(|&f| f <= low_top);
+        let lines = axis.partition_point(|&f| f <= low_top);
         if lines >= 4 * n_max.max(8) {
             if let Ok(low) = sweep_and_select(bands, low_top, n_max, opts, name) {
                 let low_modes: Vec<_> = low
@@ -103,7 +105,7 @@ pub(crate) fn estimate(
                 if low_modes.len() > before {
                     warnings.push(format!(
                         "{name}: poles below {cut:.4} Hz from a sweep on {:.4}–{low_top:.4} Hz ({} modes there instead of {before})",
-                        bands[0].frequency_hz[0],
+                        axis[0],
                         low_modes.len()
                     ));
                     sel.modes.retain(|m| m.pole.frequency_hz() >= cut);
@@ -138,18 +140,23 @@ pub(crate) fn estimate(
 /// One pLSCF sweep of `bands` cut at `top_hz` (decimated to [`SWEEP_LINES`]) and its
 /// automatic pole selection, each selected pole with its own participation vector.
 fn sweep_and_select(
-    bands: &[BandData],
+    bands: &dyn Bands,
     top_hz: f64,
     n_max: usize,
     opts: &FitOptions,
     name: &str,
 ) -> Result<Selection, ModalError> {
-    let subs: Vec<BandData> = bands.iter().map(|b| b.up_to(top_hz)).collect();
-    let keep = BandData::decimation_indices(subs[0].n_lines(), SWEEP_LINES);
-    let dec: Vec<BandData> = subs.iter().map(|b| b.lines(&keep)).collect();
-    let nl = dec[0].n_lines();
-    // 2·lines·refs real equations per output for (n+1)(1 + refs)·… unknowns: keep
-    // the orders well below the line count.
+    // The lines up to `top_hz`, decimated, as indices into the bands: on many
+    // references the sweep's data are their principal references on those lines, made
+    // without a decimated copy of every band (issue 41).
+    let (keep, omega) = {
+        let first = bands.band(0)?;
+        let below = first.frequency_hz.partition_point(|&f| f <= top_hz);
+        let keep = BandData::decimation_indices(below, SWEEP_LINES);
+        let omega: Vec<f64> = keep.iter().map(|&k| first.omega[k]).collect();
+        (keep, omega)
+    };
+    let nl = omega.len();
     let n_here = n_max.min(nl.saturating_sub(2) / 2);
     if n_here < 1 || nl < 4 {
         return Err(ModalError::BadInput {
@@ -157,15 +164,24 @@ fn sweep_and_select(
             reason: format!("{nl} lines in the band: too few for a poly-reference fit"),
         });
     }
-    let no = dec[0].channels.len();
-    let data = PolyData {
-        omega: &dec[0].omega,
-        h: (0..no)
-            .map(|o| dec.iter().map(|b| b.channels[o].as_slice()).collect())
-            .collect(),
+    let orders = match plscf::PrincipalReferences::of_bands(bands, &keep)? {
+        Some(p) => p.sweep(&omega, n_here),
+        None => {
+            // Every reference swept (at most 16, or data of more directions): held.
+            let dec: Vec<BandData> = (0..bands.len())
+                .map(|e| Ok(bands.band(e)?.lines(&keep)))
+                .collect::<Result<_, ModalError>>()?;
+            let no = dec[0].channels.len();
+            let data = PolyData {
+                omega: &omega,
+                h: (0..no)
+                    .map(|o| dec.iter().map(|b| b.channels[o].as_slice()).collect())
+                    .collect(),
+            };
+            plscf::sweep(&data, n_here)
+        }
     };
-    let orders = plscf::sweep_on_used_references(&data, n_here);
-    let band_w = (dec[0].omega[0], *dec[0].omega.last().unwrap());
+    let band_w = (omega[0], *omega.last().unwrap());
     let shared = plscf::stabilisation_shapes(&orders);
     let mut sel = stabilisation::select(&shared, band_w, &opts.tolerances, opts.n_modes);
     // Back to each selected pole's own participation vector (the representative is
@@ -233,15 +249,15 @@ fn root_indices(n: usize, groups: &[Vec<usize>]) -> Vec<usize> {
 fn refine_poles(
     pp: &mut PolyPoles,
     groups: &[Vec<usize>],
-    bands: &[&BandData],
+    bands: &dyn Bands,
     res: Residuals,
     name: &str,
     warnings: &mut Vec<String>,
-) {
+) -> Result<(), ModalError> {
     let roots = root_indices(pp.poles.len(), groups);
     let rf = crate::prof::time(2, || {
         plsfd_refine::refine_set_up(&pp.poles, &pp.parts, &roots, bands, res)
-    });
+    })?;
     let moved = pp
         .poles
         .iter()
@@ -252,7 +268,7 @@ fn refine_poles(
             "{name}: the poly-reference pole refinement was not used (cost {:.3e} → {:.3e}, a pole moved more than {MAX_REFINEMENT_BANDWIDTHS} half-bandwidths: {moved}); poles from the sweep",
             rf.cost.0, rf.cost.1
         ));
-        return;
+        return Ok(());
     }
     if rf.references < bands.len() {
         warnings.push(format!(
@@ -270,6 +286,7 @@ fn refine_poles(
     }
     pp.poles = rf.poles;
     pp.parts = rf.parts;
+    Ok(())
 }
 
 /// A refined pole further than this many half-bandwidths from the sweep's has been
@@ -291,21 +308,15 @@ pub(crate) fn fit_setup(
 ) -> Result<Vec<ExcitationFit>, ModalError> {
     let setup = &geometry.excitations[members[0]].setup;
     let name = format!("set-up {setup}");
-    let bands: Vec<BandData> = members
-        .iter()
-        .map(|&e| BandData::extract_from(frf, e, opts.band_hz, &geometry.excitations[e].id))
-        .collect::<Result<_, _>>()?;
+    let bands = SetupBands::new(geometry, frf, members, opts.band_hz)?;
     let mut warnings = zero_channel_warnings(geometry, &bands, &name)?;
     let mut pp = crate::prof::time(0, || estimate(&bands, opts, &name))?;
     warnings.extend(pp.warnings.iter().cloned());
-    let res = Residuals::for_band(opts.residual_terms, &bands[0]);
-    let band_refs: Vec<&BandData> = bands.iter().collect();
+    let res = Residuals::for_band(opts.residual_terms, bands.first());
     // Repeated roots: one pole per group from here on.
     let groups = repeated_groups(&pp.poles);
-    refine_poles(&mut pp, &groups, &band_refs, res, &name, &mut warnings);
-    let mut sf = crate::prof::time(6, || {
-        plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
-    });
+    refine_poles(&mut pp, &groups, &bands, res, &name, &mut warnings)?;
+    let mut sf = crate::prof::time(6, || plsfd::fit_shapes(&pp.poles, &pp.parts, &bands, res))?;
     if !groups.is_empty() {
         let fit = SetupFit {
             geometry,
@@ -313,9 +324,7 @@ pub(crate) fn fit_setup(
             name: &name,
         };
         warnings.extend(make_repeated_roots_reciprocal(&fit, &groups, &sf, &mut pp));
-        sf = crate::prof::time(6, || {
-            plsfd::fit_shapes(&pp.poles, &pp.parts, &band_refs, res)
-        });
+        sf = crate::prof::time(6, || plsfd::fit_shapes(&pp.poles, &pp.parts, &bands, res))?;
     }
     if sf.basis_conditioning < 1e-8 {
         warnings.push(format!(
@@ -329,13 +338,7 @@ pub(crate) fn fit_setup(
         members,
         name: &name,
     };
-    Ok(excitation_records(
-        &fit,
-        &bands,
-        (&pp, &sf),
-        (mode_warnings, warnings),
-        opts,
-    ))
+    excitation_records(&fit, &bands, (&pp, &sf), (mode_warnings, warnings), opts)
 }
 
 /// The set-up being fitted: its geometry, its excitations and its name in messages.
@@ -349,22 +352,26 @@ struct SetupFit<'a> {
 /// residues are 0); an error when every channel is.
 fn zero_channel_warnings(
     geometry: &Geometry,
-    bands: &[BandData],
+    bands: &dyn Bands,
     name: &str,
 ) -> Result<Vec<String>, ModalError> {
-    let no = bands[0].channels.len();
-    let mut warnings = Vec::new();
-    for o in 0..no {
-        if bands
-            .iter()
-            .all(|b| b.channels[o].iter().all(|z| z.norm_sqr() == 0.0))
-        {
-            warnings.push(format!(
-                "{name}: channel '{}' is identically zero in the band for every excitation; its residues are 0",
-                geometry.channels[o].id
-            ));
+    let no = bands.band(0)?.channels.len();
+    let mut zero = vec![true; no];
+    for e in 0..bands.len() {
+        let b = bands.band(e)?;
+        for (z, h) in zero.iter_mut().zip(&b.channels) {
+            *z = *z && h.iter().all(|v| v.norm_sqr() == 0.0);
         }
     }
+    let warnings: Vec<String> = (0..no)
+        .filter(|&o| zero[o])
+        .map(|o| {
+            format!(
+                "{name}: channel '{}' is identically zero in the band for every excitation; its residues are 0",
+                geometry.channels[o].id
+            )
+        })
+        .collect();
     if warnings.len() == no {
         return Err(ModalError::BadInput {
             excitation: name.into(),
@@ -441,16 +448,17 @@ fn close_pair_notes(poles: &[Pole]) -> Vec<Vec<String>> {
 /// constants `A = 2iω_d R` (standard errors scaled alike) and its fitted FRFs.
 fn excitation_records(
     fit: &SetupFit,
-    bands: &[BandData],
+    bands: &dyn Bands,
     (pp, sf): (&PolyPoles, &plsfd::ShapeFit),
     (mode_warnings, warnings): (Vec<Vec<String>>, Vec<String>),
     opts: &FitOptions,
-) -> Vec<ExcitationFit> {
+) -> Result<Vec<ExcitationFit>, ModalError> {
     let nm = pp.poles.len();
     let diagram = pp.selection.diagram.clone();
     let mut out = Vec::with_capacity(fit.members.len());
     for (ei, &e) in fit.members.iter().enumerate() {
         let ex = &fit.geometry.excitations[e];
+        let band = bands.band(ei)?;
         let a: Vec<Vec<c64>> = (0..nm)
             .map(|r| {
                 sf.residues[ei][r]
@@ -474,13 +482,13 @@ fn excitation_records(
             mode_warnings: mode_warnings.clone(),
             modal_constants: a,
             modal_constant_std: a_std,
-            synthesised: sf.synthesised[ei].clone(),
+            synthesised: sf.synthesised(ei, &band),
             warnings: warnings.clone(),
             // The poly-reference fit is what a multiplicity switches to: none to report.
             multiplicity: Vec::new(),
             diagram: diagram.clone(),
         };
-        out.push(assemble(ex, &bands[ei], parts, opts, METHOD));
+        out.push(assemble(ex, &band, parts, opts, METHOD));
     }
-    out
+    Ok(out)
 }

@@ -162,3 +162,69 @@ fn unchunked_and_small_chunked_files_are_read_one_excitation_at_a_time() {
         }
     }
 }
+
+/// With a scratch file ([`mcap_file::DeferredFrf::keep_values_in`]) an excitation asked
+/// for again comes back from its raw copy with the same values, bit for bit (signed zeros,
+/// subnormals and the extremes included), whatever the order of the asking; and the copy
+/// is made only from the second time (a stage that reads each excitation once writes
+/// nothing).
+#[test]
+fn excitations_asked_for_again_come_back_from_the_scratch_file_unchanged() {
+    let mut rec = record_of(6, 300);
+    let extremes = [
+        0.0,
+        -0.0,
+        f64::MIN_POSITIVE / 8.0,
+        f64::MAX,
+        -f64::MAX,
+        1e-300,
+    ];
+    let frf = rec.frf.as_mut().unwrap();
+    let per = frf.excitation_block(0).len();
+    for (i, x) in extremes.iter().enumerate() {
+        frf.values[i] = c64::new(*x, -*x);
+        frf.values[5 * per + i] = c64::new(-*x, *x);
+    }
+    let set = rec.frf.clone().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("run.mcap");
+    std::fs::write(&path, mcap_file::write(&rec).unwrap()).unwrap();
+    let (_, deferred, _, _) = mcap_file::read_file_deferred(&path, "run.mcap").unwrap();
+    let mut d = deferred.unwrap();
+    let scratch_path = dir.path().join("scratch");
+    let scratch = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&scratch_path)
+        .unwrap();
+    d.keep_values_in(scratch);
+    let bits = |b: &[c64]| -> Vec<(u64, u64)> {
+        b.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect()
+    };
+    for e in [3, 0, 5] {
+        d.excitation(e).unwrap();
+    }
+    assert_eq!(
+        std::fs::metadata(&scratch_path).unwrap().len(),
+        0,
+        "read once: no copy"
+    );
+    for round in 0..3 {
+        for e in [5, 2, 3, 0, 1, 4] {
+            let x = d.excitation(e).unwrap();
+            assert_eq!(
+                bits(x.block()),
+                bits(set.excitation_block(e)),
+                "round {round}, excitation {e}"
+            );
+        }
+    }
+    let per_excitation = 16 * set.n_channels * set.frequency_hz.len();
+    assert_eq!(
+        std::fs::metadata(&scratch_path).unwrap().len() as usize,
+        6 * per_excitation,
+        "each excitation copied once"
+    );
+}

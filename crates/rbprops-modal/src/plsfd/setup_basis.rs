@@ -135,6 +135,33 @@ impl SetupBasis {
         scale
     }
 
+    /// Sum of squares of each pole column (in row order), for the column scales of a
+    /// set-up built one excitation at a time ([`crate::plsfd::fit_shapes`]): carried
+    /// over the excitations in order, these are the sums
+    /// [`SetupBasis::normalise_columns`] takes over the whole block.
+    pub fn add_pole_sumsq(&self, acc: &mut [f64]) {
+        for (j, a) in acc.iter_mut().enumerate() {
+            for &v in column(self.poles.as_ref(), j) {
+                *a += v * v;
+            }
+        }
+    }
+
+    /// Divides the pole columns by `pole_scale` (the set-up's column norms, 1 for a zero
+    /// column) and scales the residual columns to unit norm; returns the residual
+    /// columns' scales.
+    pub fn scale_columns(&mut self, pole_scale: &[f64]) -> Vec<f64> {
+        for (j, &s) in pole_scale.iter().enumerate() {
+            if s != 1.0 {
+                self.poles.col_mut(j).iter_mut().for_each(|v| *v /= s);
+            }
+        }
+        self.residuals
+            .iter_mut()
+            .flat_map(crate::plsfd::normalise_columns)
+            .collect()
+    }
+
     /// `ΦᵀΦ` (symmetric): the pole block's Gram matrix, each excitation's residual
     /// terms against its pole rows and against themselves; zero between excitations.
     pub fn gram(&self) -> Mat<f64> {
