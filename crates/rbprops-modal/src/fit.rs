@@ -7,7 +7,7 @@ mod records;
 mod sweeps;
 
 use poles::estimate_poles;
-pub(crate) use records::{assemble, ModeParts};
+pub(crate) use records::{assemble, fit_error, ModeParts};
 
 use crate::band::BandData;
 use crate::circle;
@@ -363,6 +363,7 @@ fn fit_one(
         modal_constants: a_all,
         modal_constant_std: a_std,
         synthesised: synth,
+        fit_error: None,
         warnings,
         multiplicity,
         diagram: ps.diagram.clone(),

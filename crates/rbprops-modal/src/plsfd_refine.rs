@@ -90,10 +90,10 @@ pub(crate) fn refine_set_up(
 ) -> Result<PolyRefined, ModalError> {
     if bands.len() > MAX_REFINEMENT_REFERENCES {
         let all: Vec<usize> = (0..bands.band(0)?.n_lines()).collect();
-        if let Some(pr) = plscf::PrincipalReferences::of_bands(bands, &all)?
+        if let Some(mut pr) = plscf::PrincipalReferences::of_bands(bands, &all)?
             .filter(|pr| pr.n_directions() <= MAX_REFINEMENT_REFERENCES)
         {
-            let virtual_bands = principal_bands(bands, &pr)?;
+            let virtual_bands = principal_bands(bands, std::mem::take(&mut pr.h))?;
             let refs: Vec<&BandData> = virtual_bands.iter().collect();
             let projected: Vec<Vec<c64>> = parts.iter().map(|l| pr.project(l)).collect();
             let mut rf = refine(poles, &projected, roots, &refs, res);
@@ -109,13 +109,14 @@ pub(crate) fn refine_set_up(
     Ok(refine(poles, parts, roots, &refs, res))
 }
 
-/// One band per principal reference of `pr`: the FRFs `H V_r` on the axis of `bands`.
-/// The line-quality factors, where given, are the mean of the excitations' (a principal
-/// reference mixes them all).
+/// One band per principal reference: the FRFs `H V_r` (`h[o][q]`, moved in) on the axis
+/// of `bands`. The line-quality factors, where given, are the mean of the excitations'
+/// (a principal reference mixes them all).
 fn principal_bands(
     bands: &dyn Bands,
-    pr: &plscf::PrincipalReferences,
+    mut h: Vec<Vec<Vec<c64>>>,
 ) -> Result<Vec<BandData>, ModalError> {
+    let nq = h.first().map_or(0, Vec::len);
     let first = bands.band(0)?.into_owned();
     let line_quality = match first.line_quality {
         None => None,
@@ -134,12 +135,15 @@ fn principal_bands(
             )
         }
     };
-    Ok((0..pr.n_directions())
+    Ok((0..nq)
         .map(|q| BandData {
             quantity: first.quantity,
             frequency_hz: first.frequency_hz.clone(),
             omega: first.omega.clone(),
-            channels: pr.h.iter().map(|row| row[q].clone()).collect(),
+            channels: h
+                .iter_mut()
+                .map(|row| std::mem::take(&mut row[q]))
+                .collect(),
             first_line: first.first_line,
             line_quality: line_quality.clone(),
         })
@@ -216,19 +220,24 @@ pub fn refine(
         lambda,
         parts: parts.to_vec(),
     };
-    let mut t = crate::prof::time(8, || trial(&p, &s));
-    let cost0 = t.cost;
+    let first = crate::prof::time(8, || trial(&p, &s));
+    let (cost0, mut cost) = (first.cost, first.cost);
+    let mut t = Some(first);
     let mut mu = 1e-3;
     let mut converged = false;
     let mut iterations = 0;
     for it in 0..MAX_ITERATIONS {
         iterations = it + 1;
-        let (jtj, g) = crate::prof::time(9, || normal_equations(&p, &s, &t));
+        // The accepted trial's basis and residuals serve its normal equations only:
+        // let go before the candidates are tried (one trial held at a time, not two).
+        let current = t.take().expect("an accepted trial");
+        let (jtj, g) = crate::prof::time(9, || normal_equations(&p, &s, &current));
+        drop(current);
         let rhs = Mat::from_fn(p.n_params, 1, |i, _| g[i]);
         // Converged when even the undamped Gauss–Newton step predicts a negligible drop.
         if let Some(gn) = crate::prof::time(10, || linalg::solve_square(&jtj, &rhs)) {
             let predicted: f64 = (0..p.n_params).map(|i| gn[(i, 0)] * g[i]).sum();
-            if predicted.is_finite() && predicted >= 0.0 && predicted <= 1e-10 * t.cost {
+            if predicted.is_finite() && predicted >= 0.0 && predicted <= 1e-10 * cost {
                 converged = true;
                 break;
             }
@@ -256,14 +265,15 @@ pub fn refine(
                 continue;
             }
             let t2 = crate::prof::time(8, || trial(&p, &cand));
-            if t2.cost <= t.cost {
+            if t2.cost <= cost {
                 let rel_step = (0..p.n_roots)
                     .map(|g| (cand.lambda[g] - s.lambda[g]).norm() / (-s.lambda[g].re))
                     .fold(0.0, f64::max);
                 // As `lsfd::refine`: a negligible pole step or a stalled cost.
-                converged = rel_step < 1e-9 || (t.cost - t2.cost) <= 1e-10 * t.cost;
+                converged = rel_step < 1e-9 || (cost - t2.cost) <= 1e-10 * cost;
                 s = cand;
-                t = t2;
+                cost = t2.cost;
+                t = Some(t2);
                 mu = (mu / 10.0).max(1e-12);
                 accepted = true;
                 break;
@@ -288,7 +298,7 @@ pub fn refine(
         parts,
         iterations,
         converged,
-        cost: (cost0, t.cost),
+        cost: (cost0, cost),
         references: bands.len(),
     }
 }
@@ -394,37 +404,34 @@ fn apply(p: &Problem, s: &State, step: &Mat<f64>) -> State {
     out
 }
 
-/// Per excitation `e`, the output-independent vectors of every mode `r`, real-stacked
+/// Excitation `e`'s output-independent vectors of every mode `r`, real-stacked
 /// (`2N` rows, columns `4r..4r + 4`): `d1 = qw(u² + v²)`, `d2 = qw·i(u² − v²)`,
 /// `b1 = qw(u + v)`, `b2 = qw·i(u − v)` (`qw = q(ω)·w_e`). Every column of `D_o` on
 /// excitation `e`'s rows is a combination of them (see [`coefficients`]).
-fn line_vectors(p: &Problem, poles: &[Pole]) -> Vec<Mat<f64>> {
+fn line_vectors(p: &Problem, poles: &[Pole], e: usize) -> Mat<f64> {
     let n = p.bands[0].n_lines();
     let omega = &p.bands[0].omega;
-    p.qw.iter()
-        .map(|qw| {
-            let mut m = Mat::<f64>::zeros(2 * n, 4 * poles.len());
-            for (r, pole) in poles.iter().enumerate() {
-                for (k, (&w, &q)) in omega.iter().zip(qw).enumerate() {
-                    let s = c64::new(0.0, w);
-                    let (u, v) = (1.0 / (s - pole.0), 1.0 / (s - pole.0.conj()));
-                    let (u2, v2) = (u * u, v * v);
-                    let i1 = c64::new(0.0, 1.0);
-                    let cols = [
-                        q * (u2 + v2),
-                        q * i1 * (u2 - v2),
-                        q * (u + v),
-                        q * i1 * (u - v),
-                    ];
-                    for (j, z) in cols.iter().enumerate() {
-                        m[(k, 4 * r + j)] = z.re;
-                        m[(n + k, 4 * r + j)] = z.im;
-                    }
-                }
+    let qw = &p.qw[e];
+    let mut m = Mat::<f64>::zeros(2 * n, 4 * poles.len());
+    for (r, pole) in poles.iter().enumerate() {
+        for (k, (&w, &q)) in omega.iter().zip(qw).enumerate() {
+            let s = c64::new(0.0, w);
+            let (u, v) = (1.0 / (s - pole.0), 1.0 / (s - pole.0.conj()));
+            let (u2, v2) = (u * u, v * v);
+            let i1 = c64::new(0.0, 1.0);
+            let cols = [
+                q * (u2 + v2),
+                q * i1 * (u2 - v2),
+                q * (u + v),
+                q * i1 * (u - v),
+            ];
+            for (j, z) in cols.iter().enumerate() {
+                m[(k, 4 * r + j)] = z.re;
+                m[(n + k, 4 * r + j)] = z.im;
             }
-            m
-        })
-        .collect()
+        }
+    }
+    m
 }
 
 /// The parameters excitation `e`'s rows of `D_o` depend on, in order: every root's
@@ -503,17 +510,21 @@ fn normal_equations(p: &Problem, s: &State, t: &Trial) -> (Mat<f64>, Vec<f64>) {
     use rayon::prelude::*;
     let n2 = 2 * p.bands[0].n_lines();
     let basis = t.ls.basis();
-    let ev = line_vectors(p, &s.poles(&p.roots));
-    let prods: Vec<LineProducts> = ev
-        .par_iter()
-        .enumerate()
-        .map(|(e, em)| LineProducts {
-            gram: linalg::gram(em),
-            basis: basis.block_t_mul(e, em.as_ref()),
-            resid: linalg::t_mul(em, &t.resid.as_ref().subrows(n2 * e, n2).to_owned()),
+    let poles = s.poles(&p.roots);
+    // Each excitation's line vectors made, used and let go (one per thread at a time,
+    // not all: 10 MB at 16 references × 1,601 lines; issue 41).
+    let prods: Vec<LineProducts> = (0..p.bands.len())
+        .into_par_iter()
+        .map(|e| {
+            let em = line_vectors(p, &poles, e);
+            LineProducts {
+                gram: linalg::gram(&em),
+                basis: basis.block_t_mul(e, em.as_ref()),
+                resid: linalg::t_mul(&em, &t.resid.as_ref().subrows(n2 * e, n2).to_owned()),
+            }
         })
         .collect();
-    let acts: Vec<Active> = (0..ev.len()).map(|e| active(p, e)).collect();
+    let acts: Vec<Active> = (0..p.bands.len()).map(|e| active(p, e)).collect();
     // The outputs in parallel, added in output order: the same sums for any thread count.
     let terms: Vec<(Mat<f64>, Vec<f64>)> = (0..p.b.ncols())
         .into_par_iter()

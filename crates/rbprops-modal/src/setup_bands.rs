@@ -48,15 +48,13 @@ impl Bands for Vec<BandData> {
     }
 }
 
-/// Bytes of bands a set-up holds whole, and a pass that pairs excitations holds at
-/// once: above it they are extracted again from the source per pass. 16 MB keeps the
-/// fit's peak within issue 41's bound (twice one excitation's data plus 50 MB) beside
-/// the process's own 20 MB; set-ups of up to about 70 excitations of 9 channels ×
-/// 1,601 lines are held.
-pub(crate) const HELD_BYTES: usize = 16 << 20;
-
-/// Bytes of a block of held bands that a pass pairing them copies at once.
-pub(crate) const BLOCK_BYTES: usize = 4 << 20;
+/// Bytes of bands a set-up holds whole, and that a pass pairing excitations holds at
+/// once: above it they are extracted again from the source for each pass (from a
+/// scratch copy when the source keeps one, `DeferredFrf::keep_values_in`: 0.1 ms an
+/// excitation of 9 channels × 1,601 lines against 2.3 ms decoded). 4 MB, a few times
+/// one excitation of a long record, keeps the fit's peak within issue 41's bound (twice
+/// one excitation's data plus 50 MB) whatever the number of excitations.
+pub(crate) const HELD_BYTES: usize = 4 << 20;
 
 /// The bands of the excitations `members` of an FRF source.
 pub(crate) struct SetupBands<'a> {
@@ -128,11 +126,7 @@ impl Bands for SetupBands<'_> {
         }
     }
     fn held_at_once(&self, bytes: usize) -> usize {
-        let budget = match &self.held {
-            Some(_) => BLOCK_BYTES,
-            None => HELD_BYTES,
-        };
-        (budget / bytes.max(1)).clamp(1, self.members.len())
+        (HELD_BYTES / bytes.max(1)).clamp(1, self.members.len())
     }
 }
 

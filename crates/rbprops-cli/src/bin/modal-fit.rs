@@ -70,6 +70,7 @@ struct Args {
 
 fn main() -> std::process::ExitCode {
     rbprops_cli::return_large_buffers();
+    rbprops_cli::one_malloc_arena();
     rbprops_cli::run("modal-fit", || {
         let args = Args::parse();
         // The FRFs stay in an MCAP input file and each fit reads its own excitation ...

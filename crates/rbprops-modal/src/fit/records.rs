@@ -24,10 +24,30 @@ pub(crate) struct ModeParts {
     pub modal_constant_std: Vec<Vec<f64>>,
     /// Fitted FRFs `[channel][line]` in the measured quantity.
     pub synthesised: Vec<Vec<c64>>,
+    /// The fit error per channel ([`fit_error`]), when made before the records (then
+    /// `synthesised` may be empty).
+    pub fit_error: Option<Vec<f64>>,
     pub warnings: Vec<String>,
     /// The multiplicity warnings among `warnings`, in order.
     pub multiplicity: Vec<MultiplicityWarning>,
     pub diagram: StabilisationDiagram,
+}
+
+/// The fit error of each channel of `band`: `‖h − ĥ‖² / ‖h‖²` against the fitted FRFs
+/// `synthesised` (0 for a channel that is zero in the band).
+pub(crate) fn fit_error(band: &BandData, synthesised: &[Vec<c64>]) -> Vec<f64> {
+    band.channels
+        .iter()
+        .zip(synthesised)
+        .map(|(h, s)| {
+            let (meas, err) = (linalg::cdot(h, h), linalg::cdist_sqr(h, s));
+            if meas > 0.0 {
+                err / meas
+            } else {
+                0.0
+            }
+        })
+        .collect()
 }
 
 /// The records of one excitation: fit error per channel, each mode's peak Norm
@@ -35,28 +55,17 @@ pub(crate) struct ModeParts {
 pub(crate) fn assemble(
     ex: &rbprops_core::Excitation,
     band: &BandData,
-    parts: ModeParts,
+    mut parts: ModeParts,
     opts: &FitOptions,
     method: rbprops_core::records::FitMethod,
 ) -> ExcitationFit {
     let name = ex.id.as_str();
-    let no = band.channels.len();
     let nm = parts.poles.len();
     let k = band.quantity.order();
-    let fit_error: Vec<f64> = (0..no)
-        .map(|o| {
-            let h = &band.channels[o];
-            let (meas, err) = (
-                linalg::cdot(h, h),
-                linalg::cdist_sqr(h, &parts.synthesised[o]),
-            );
-            if meas > 0.0 {
-                err / meas
-            } else {
-                0.0
-            }
-        })
-        .collect();
+    let fit_error = match parts.fit_error.take() {
+        Some(e) => e,
+        None => fit_error(band, &parts.synthesised),
+    };
 
     // Peak Norm Indicator of each mode alone in the measured quantity.
     let ni: Vec<f64> = (0..nm)
