@@ -903,6 +903,16 @@ pub fn return_large_buffers() {
     }
 }
 
+/// Lets a deferred MCAP input keep raw copies of the excitations a stage asks for more
+/// than once, in an unnamed temporary file
+/// ([`mcap_file::DeferredFrf::keep_values_in`]); without a writable temporary directory
+/// they are decoded again.
+pub fn keep_reread_values(deferred: &mut Option<mcap_file::DeferredFrf>) {
+    if let (Some(d), Ok(scratch)) = (deferred.as_mut(), tempfile::tempfile()) {
+        d.keep_values_in(scratch);
+    }
+}
+
 /// One malloc arena for every thread. glibc gives each thread that allocates its own
 /// arena, and memory one arena freed serves no other: `modal-fit`'s poly-reference fit
 /// of a set-up, run on whichever pool thread takes it, met fresh pages for what the

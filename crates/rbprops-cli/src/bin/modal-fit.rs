@@ -75,11 +75,8 @@ fn main() -> std::process::ExitCode {
         let args = Args::parse();
         // The FRFs stay in an MCAP input file and each fit reads its own excitation ...
         let (input, mut deferred) = args.io.read_deferring("modal-fit", &args.uff.options())?;
-        // The poly-reference fit of a set-up of many excitations reads them again on
-        // every pass: from the second read on, from raw copies in a temporary file.
-        if let (Some(d), Ok(scratch)) = (deferred.as_mut(), tempfile::tempfile()) {
-            d.keep_values_in(scratch);
-        }
+        // The poly-reference fit reads a large set-up's excitations again on every pass.
+        rbprops_cli::keep_reread_values(&mut deferred);
         let mut rec = input.record;
         // ... unless line weights are made from the set's values (variances, coherence).
         let method = args.method.unwrap_or(Method::Lscf);
