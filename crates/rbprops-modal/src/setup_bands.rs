@@ -62,24 +62,28 @@ pub(crate) struct SetupBands<'a> {
     geometry: &'a Geometry,
     members: &'a [usize],
     band_hz: Option<(f64, f64)>,
-    /// Every band, when they fit in [`HELD_BYTES`].
+    /// Bytes of bands held whole, and held at once by a pass pairing them.
+    held_bytes: usize,
+    /// Every band, when they fit in `held_bytes`.
     held: Option<Vec<BandData>>,
     /// The first excitation's band (its axis is every band's).
     first: BandData,
 }
 
 impl<'a> SetupBands<'a> {
-    /// Extracts the first band (and every band, when they are small enough to hold).
+    /// Extracts the first band (and every band, when they fit in `held_bytes`:
+    /// [`HELD_BYTES`] but in tests).
     pub fn new(
         geometry: &'a Geometry,
         frf: &'a dyn FrfSource,
         members: &'a [usize],
         band_hz: Option<(f64, f64)>,
+        held_bytes: usize,
     ) -> Result<Self, ModalError> {
         let extract =
             |e: usize| BandData::extract_from(frf, e, band_hz, &geometry.excitations[e].id);
         let first = extract(members[0])?;
-        let held = if bytes_of(&first) * members.len() <= HELD_BYTES {
+        let held = if bytes_of(&first) * members.len() <= held_bytes {
             Some(
                 members
                     .iter()
@@ -94,6 +98,7 @@ impl<'a> SetupBands<'a> {
             geometry,
             members,
             band_hz,
+            held_bytes,
             held,
             first,
         })
@@ -126,7 +131,7 @@ impl Bands for SetupBands<'_> {
         }
     }
     fn held_at_once(&self, bytes: usize) -> usize {
-        (HELD_BYTES / bytes.max(1)).clamp(1, self.members.len())
+        (self.held_bytes / bytes.max(1)).clamp(1, self.members.len())
     }
 }
 
