@@ -9,7 +9,6 @@
 use anyhow::{Context, Result};
 use rbprops_uff::{timehist, Dataset, Record, UffError, UffFile};
 use std::borrow::Cow;
-use std::io::{Read, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::sync::Mutex;
 
@@ -45,11 +44,8 @@ impl SampleSource for InMemory {
 /// Time records' samples set aside, as little-endian f64, in an anonymous temporary file
 /// (deleted when dropped): the operating system's page cache holds them, not the process.
 pub struct SetAside {
-    file: Mutex<std::fs::File>,
-    /// Per dataset index: the byte offset of its first sample and its sample count.
-    at: Vec<Option<(u64, usize)>>,
-    end: u64,
-    bytes: Vec<u8>,
+    /// Dataset index `i`'s samples under key `i`.
+    values: Mutex<rbprops_formats::scratch::ScratchValues>,
 }
 
 impl SetAside {
@@ -57,10 +53,7 @@ impl SetAside {
     pub fn new() -> Result<Self> {
         let file = tempfile::tempfile().context("a temporary file for the recording's samples")?;
         Ok(SetAside {
-            file: Mutex::new(file),
-            at: Vec::new(),
-            end: 0,
-            bytes: Vec::new(),
+            values: Mutex::new(rbprops_formats::scratch::ScratchValues::new(file)),
         })
     }
 
@@ -83,25 +76,16 @@ impl SetAside {
                 problem: "not a finite number".into(),
             });
         }
-        self.bytes.clear();
-        self.bytes
-            .extend(f.samples.iter().flat_map(|v| v.to_le_bytes()));
         let io = |e: std::io::Error| UffError::Structure {
             file: file_name.to_string(),
             line: d.location.line,
             problem: format!("cannot set the samples aside in a temporary file: {e}"),
         };
-        self.file
+        self.values
             .get_mut()
             .expect("not poisoned")
-            .write_all(&self.bytes)
+            .put(d.location.index - 1, f.samples.iter().copied())
             .map_err(io)?;
-        let i = d.location.index - 1;
-        if self.at.len() <= i {
-            self.at.resize(i + 1, None);
-        }
-        self.at[i] = Some((self.end, f.samples.len()));
-        self.end += self.bytes.len() as u64;
         f.samples_set_aside = f.samples.len();
         f.samples = Vec::new();
         Ok(())
@@ -115,29 +99,21 @@ impl SampleSource for SetAside {
         i: usize,
         range: Option<Range<usize>>,
     ) -> Result<Cow<'a, [f64]>> {
-        let Some((start, n)) = self.at.get(i).copied().flatten() else {
-            return InMemory.record(data, i, range);
-        };
-        let r = range.unwrap_or(0..n);
-        assert!(r.end <= n, "a range within the record");
-        let mut bytes = vec![0u8; 8 * r.len()];
-        {
-            let mut file = self.file.lock().expect("not poisoned");
-            file.seek(SeekFrom::Start(start + 8 * r.start as u64))
-                .and_then(|_| file.read_exact(&mut bytes))
-                .with_context(|| {
-                    format!(
-                        "{}: dataset {}: reading back its samples from the temporary file",
-                        data.file_name,
-                        i + 1
-                    )
-                })?;
+        let kept = self
+            .values
+            .lock()
+            .expect("not poisoned")
+            .get(i, range.clone());
+        match kept {
+            None => InMemory.record(data, i, range),
+            Some(read) => Ok(Cow::Owned(read.with_context(|| {
+                format!(
+                    "{}: dataset {}: reading back its samples from the temporary file",
+                    data.file_name,
+                    i + 1
+                )
+            })?)),
         }
-        let samples = bytes
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
-            .collect();
-        Ok(Cow::Owned(samples))
     }
 }
 

@@ -17,6 +17,7 @@ pub mod csv_dir;
 pub mod digest;
 pub mod flatten;
 pub mod mcap_file;
+pub mod scratch;
 pub mod wire;
 
 use rbprops_core::records::StageProvenance;

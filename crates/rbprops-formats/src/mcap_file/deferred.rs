@@ -26,14 +26,13 @@ pub struct DeferredFrf {
     scratch: Option<Mutex<Scratch>>,
 }
 
-/// A scratch file of decoded values: excitation `e`'s at byte `at[e]`, when written.
+/// Decoded values of the excitations asked for more than once.
 #[derive(Debug)]
 struct Scratch {
-    file: std::fs::File,
-    at: Vec<Option<u64>>,
+    /// Excitation `e`'s values as `re, im` pairs under key `e`.
+    values: crate::scratch::ScratchValues,
     /// Times each excitation was asked for.
     asked: Vec<u32>,
-    end: u64,
 }
 
 /// [`super::read_file_checked`] with the FRF values left in the file: the record has no
@@ -84,12 +83,9 @@ impl DeferredFrf {
     /// copies live in the page cache, not in the stage's memory. A failed write leaves
     /// the excitation to be decoded again.
     pub fn keep_values_in(&mut self, file: std::fs::File) {
-        let n = self.places.len();
         self.scratch = Some(Mutex::new(Scratch {
-            file,
-            at: vec![None; n],
-            asked: vec![0; n],
-            end: 0,
+            values: crate::scratch::ScratchValues::new(file),
+            asked: vec![0; self.places.len()],
         }));
     }
 
@@ -99,36 +95,18 @@ impl DeferredFrf {
         let Some(scratch) = &self.scratch else {
             return self.decoded(e);
         };
-        let n = self.axis.channels.len() * self.axis.frequency_hz.len();
         {
             let mut s = scratch.lock().unwrap_or_else(|p| p.into_inner());
             s.asked[e] = s.asked[e].saturating_add(1);
-            if let Some(at) = s.at[e] {
-                let mut bytes = vec![0u8; 16 * n];
-                if read_exact_at(&mut s.file, at as usize, &mut bytes).is_ok() {
-                    return Ok(bytes
-                        .chunks_exact(16)
-                        .map(|b| {
-                            let re = f64::from_le_bytes(b[..8].try_into().expect("8 bytes"));
-                            let im = f64::from_le_bytes(b[8..].try_into().expect("8 bytes"));
-                            c64::new(re, im)
-                        })
-                        .collect());
-                }
+            if let Some(Ok(v)) = s.values.get(e, None) {
+                return Ok(v.chunks_exact(2).map(|p| c64::new(p[0], p[1])).collect());
             }
         }
         let v = self.decoded(e)?;
         let mut s = scratch.lock().unwrap_or_else(|p| p.into_inner());
-        if s.asked[e] > 1 && s.at[e].is_none() {
-            let bytes: Vec<u8> = v
-                .iter()
-                .flat_map(|z| z.re.to_le_bytes().into_iter().chain(z.im.to_le_bytes()))
-                .collect();
-            let at = s.end;
-            if write_all_at(&mut s.file, at, &bytes).is_ok() {
-                s.at[e] = Some(at);
-                s.end += bytes.len() as u64;
-            }
+        if s.asked[e] > 1 && s.values.count(e).is_none() {
+            // A failed write leaves the excitation to be decoded again.
+            let _ = s.values.put(e, v.iter().flat_map(|z| [z.re, z.im]));
         }
         Ok(v)
     }
@@ -211,13 +189,6 @@ impl DeferredFrf {
             place.record
         ))
     }
-}
-
-/// Writes `bytes` at `offset` of `f`.
-fn write_all_at(f: &mut std::fs::File, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::{Seek, SeekFrom, Write};
-    f.seek(SeekFrom::Start(offset))?;
-    f.write_all(bytes)
 }
 
 impl FrfSource for DeferredFrf {
