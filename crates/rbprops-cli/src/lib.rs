@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use rbprops_core::records::StageProvenance;
 use rbprops_formats::digest::DigestCheck;
 use rbprops_formats::{mcap_file, RunRecord};
-use std::io::{IsTerminal, Read, Seek, Write};
+use std::io::{IsTerminal, Read, Write};
 use std::path::{Path, PathBuf};
 
 pub mod args;
@@ -256,24 +256,7 @@ fn write_deferred(
             whole.frf = Some(rbprops_core::FrfSet::from_source(d)?);
             write_output_inner(&whole, Some(p))
         }
-        None => {
-            // MCAP is written with seeks: into an unnamed temporary file, then copied out
-            // (the output's bytes are never held whole); in memory when none can be made.
-            let Ok(tmp) = tempfile::tempfile() else {
-                return write_stdout(|| {
-                    let sink = std::io::Cursor::new(Vec::new());
-                    Ok(mcap_file::write_to_with(rec, src, sink)?.into_inner())
-                });
-            };
-            let stdout = mcap_stdout()?;
-            let mut tmp = mcap_file::write_to_with(rec, src, tmp)?;
-            tmp.seek(std::io::SeekFrom::Start(0))
-                .context("a temporary file for stdout")?;
-            let mut lock = stdout.lock();
-            std::io::copy(&mut tmp, &mut lock).context("writing stdout")?;
-            lock.flush().context("writing stdout")?;
-            Ok(())
-        }
+        None => write_mcap_stdout(rec, src),
     }
 }
 
@@ -286,13 +269,14 @@ fn mcap_stdout() -> Result<std::io::Stdout> {
     Ok(stdout)
 }
 
-/// The MCAP bytes `encode` makes, on stdout (refused when stdout is a terminal).
-fn write_stdout(encode: impl FnOnce() -> Result<Vec<u8>>) -> Result<()> {
+/// The run as MCAP on stdout (refused when stdout is a terminal), its FRFs from `frf`:
+/// written as it is made, chunk by chunk, never held whole (the bytes are a file's,
+/// `mcap_file::write_stream_with`).
+fn write_mcap_stdout(rec: &RunRecord, frf: Option<&dyn rbprops_core::FrfSource>) -> Result<()> {
     let stdout = mcap_stdout()?;
-    let bytes = encode()?;
-    let mut lock = stdout.lock();
-    lock.write_all(&bytes).context("writing stdout")?;
-    lock.flush().context("writing stdout")?;
+    let sink = std::io::BufWriter::with_capacity(1 << 16, stdout.lock());
+    let mut sink = mcap_file::write_stream_with(rec, frf, sink).context("writing stdout")?;
+    sink.flush().context("writing stdout")?;
     Ok(())
 }
 
@@ -832,7 +816,10 @@ fn write_output_inner(rec: &RunRecord, path: Option<&Path>) -> Result<()> {
             }
             Ok(rbprops_formats::write_path(rec, p)?)
         }
-        _ => write_stdout(|| Ok(mcap_file::write(rec)?)),
+        _ => write_mcap_stdout(
+            rec,
+            rec.frf.as_ref().map(|f| f as &dyn rbprops_core::FrfSource),
+        ),
     }
 }
 

@@ -183,3 +183,36 @@ mod tests {
         );
     }
 }
+
+/// The bootstrap's scratch stores (issue 41's memory bound): raw values in unnamed
+/// temporary files, for a model or a replicate's set-up larger than
+/// [`rbprops_uq::Scratch::HELD_BYTES`].
+pub fn bootstrap_scratch() -> rbprops_uq::Scratch {
+    rbprops_uq::Scratch::new(
+        || {
+            let values = rbprops_formats::scratch::ScratchValues::new(tempfile::tempfile()?);
+            Ok(Box::new(BootstrapStore(values)) as Box<dyn rbprops_uq::ValueStore>)
+        },
+        rbprops_uq::Scratch::HELD_BYTES,
+    )
+}
+
+/// A [`rbprops_uq::ValueStore`] in a scratch file.
+struct BootstrapStore(rbprops_formats::scratch::ScratchValues);
+
+impl rbprops_uq::ValueStore for BootstrapStore {
+    fn put(&mut self, key: usize, values: &[f64]) -> std::io::Result<()> {
+        self.0.put_slice(key, values)
+    }
+    fn get_into(&mut self, key: usize, start: usize, out: &mut [f64]) -> std::io::Result<()> {
+        if self.0.count(key).is_none_or(|n| start + out.len() > n) {
+            return Err(std::io::Error::other(format!(
+                "values {start}..{} under key {key} were not kept",
+                start + out.len()
+            )));
+        }
+        self.0
+            .get_into(key, start, out)
+            .expect("kept, as checked above")
+    }
+}

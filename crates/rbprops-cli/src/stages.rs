@@ -322,6 +322,9 @@ pub fn rb_solve_from(
             if b.fit_weighting.is_none() {
                 b.fit_weighting = crate::variance::fit_weighting(rec)?.map(std::sync::Arc::new);
             }
+            if b.scratch.is_none() {
+                b.scratch = Some(crate::samples::bootstrap_scratch());
+            }
             rbprops_uq::solve_with_bootstrap(
                 &geometry,
                 &modal,

@@ -131,7 +131,30 @@ pub fn write_to_with<W: Write + Seek>(
     frf: Option<&dyn FrfSource>,
     sink: W,
 ) -> Result<W, FormatError> {
-    let opts = mcap::WriteOptions::new()
+    let w = write_options().create(sink).map_err(mcap_err)?;
+    write_records(rec, frf, w)
+}
+
+/// [`write_to_with`] into a sink that cannot seek (stdout on a pipe): each chunk is
+/// finished in memory, then written whole, so the bytes are a file's, and they leave as
+/// they are made: a stage on a pipe passes its FRFs on excitation by excitation (issue
+/// 41; `frf-sim` simulates each as it is written). A failure midway leaves the reader a
+/// file without its footer, which it refuses.
+pub fn write_stream_with<W: Write>(
+    rec: &RunRecord,
+    frf: Option<&dyn FrfSource>,
+    sink: W,
+) -> Result<W, FormatError> {
+    let w = write_options()
+        .disable_seeking(true)
+        .create(mcap::write::NoSeek::new(sink))
+        .map_err(mcap_err)?;
+    Ok(write_records(rec, frf, w)?.into_inner())
+}
+
+/// The options of every MCAP rbprops writes.
+fn write_options() -> mcap::WriteOptions {
+    mcap::WriteOptions::new()
         .profile(PROFILE)
         .library(format!("rbprops {}", env!("CARGO_PKG_VERSION")))
         .compression(Some(mcap::Compression::Zstd))
@@ -139,8 +162,15 @@ pub fn write_to_with<W: Write + Seek>(
         .use_chunks(true)
         .calculate_chunk_crcs(true)
         .calculate_data_section_crc(true)
-        .calculate_summary_section_crc(true);
-    let w = opts.create(sink).map_err(mcap_err)?;
+        .calculate_summary_section_crc(true)
+}
+
+/// The run's topics (the FRFs from `frf`) through the MCAP writer `w`, finished.
+fn write_records<W: Write + Seek>(
+    rec: &RunRecord,
+    frf: Option<&dyn FrfSource>,
+    w: mcap::Writer<W>,
+) -> Result<W, FormatError> {
     let mut out = Out { w, seq: 0 };
     let geometry = if frf.is_some() { rec.geometry()? } else { None };
     let mut frf_written = false;

@@ -46,6 +46,46 @@ impl ScratchValues {
         Ok(())
     }
 
+    /// Writes `values` under `key`, as [`ScratchValues::put`] does, straight from the slice.
+    pub fn put_slice(&mut self, key: usize, values: &[f64]) -> std::io::Result<()> {
+        if cfg!(target_endian = "big") {
+            return self.put(key, values.iter().copied());
+        }
+        self.file.seek(SeekFrom::Start(self.end))?;
+        self.file.write_all(bytemuck::cast_slice(values))?;
+        if self.at.len() <= key {
+            self.at.resize(key + 1, None);
+        }
+        self.at[key] = Some((self.end, values.len()));
+        self.end += 8 * values.len() as u64;
+        Ok(())
+    }
+
+    /// Reads the `out.len()` values from value `start` of those under `key` into `out`,
+    /// straight from the file (no copy between); `None` when none are kept under it.
+    ///
+    /// # Panics
+    /// When the values run past the key's.
+    pub fn get_into(
+        &mut self,
+        key: usize,
+        start: usize,
+        out: &mut [f64],
+    ) -> Option<std::io::Result<()>> {
+        let (at, n) = self.at.get(key).copied().flatten()?;
+        assert!(start + out.len() <= n, "a range within the values kept");
+        let read = self
+            .file
+            .seek(SeekFrom::Start(at + 8 * start as u64))
+            .and_then(|_| self.file.read_exact(bytemuck::cast_slice_mut(out)));
+        if cfg!(target_endian = "big") {
+            for x in out.iter_mut() {
+                *x = f64::from_le_bytes(x.to_ne_bytes());
+            }
+        }
+        Some(read)
+    }
+
     /// Values `range` of those under `key` (all of them when `None`); `None` when none
     /// are kept under it.
     ///
@@ -107,5 +147,13 @@ mod tests {
         assert!(s.get(3, None).is_none() && s.get(99, None).is_none());
         s.put(7, [1.5].into_iter()).unwrap();
         assert_eq!(s.get(7, None).unwrap().unwrap(), vec![1.5]);
+        // Straight from and into slices: the same values.
+        s.put_slice(4, &odd).unwrap();
+        let mut back = vec![9.0; 3];
+        s.get_into(4, 2, &mut back).unwrap().unwrap();
+        assert_eq!(bits(&back), bits(&odd[2..5]));
+        s.get_into(2, 300, &mut back).unwrap().unwrap();
+        assert_eq!(bits(&back), bits(&a[300..303]));
+        assert!(s.get_into(5, 0, &mut back).is_none());
     }
 }

@@ -57,26 +57,48 @@ impl Residuals {
 /// variance meaningless for a model-order test. A weight common to all channels keeps
 /// the basis shared (one QR for all channels) while equalising the lines.
 pub fn line_weights(chans: &[Vec<c64>]) -> Vec<f64> {
-    let refs: Vec<&[c64]> = chans.iter().map(|h| h.as_slice()).collect();
-    scaled_line_weights(&refs, None)
+    scaled_line_weights(&Slices(chans), None)
+}
+
+/// The channels a refinement reads ([`refine_channels`]), one at a time and possibly
+/// more than once (once per trial): held, or made again on request (issue 41: a
+/// bootstrap replicate of a set-up of many excitations keeps its draws out of memory).
+/// Every read of channel `o` must give the same values.
+pub trait Channels {
+    /// The number of channels.
+    fn count(&self) -> usize;
+    /// Channel `o`'s values, one per line of the band.
+    fn channel(&self, o: usize) -> std::borrow::Cow<'_, [c64]>;
+}
+
+/// Channels held as slices (anything that is one).
+struct Slices<'a, C>(&'a [C]);
+
+impl<C: AsRef<[c64]>> Channels for Slices<'_, C> {
+    fn count(&self) -> usize {
+        self.0.len()
+    }
+    fn channel(&self, o: usize) -> std::borrow::Cow<'_, [c64]> {
+        std::borrow::Cow::Borrowed(self.0[o].as_ref())
+    }
 }
 
 rbprops_core::avx_fn! {
 /// [`line_weights`] of the channels `chans[o] / scale[o]` (each channel divided as it is
 /// read, one at a time: the values of a scaled copy without the copy of them all), or
 /// of `chans` as they are without `scale`.
-fn scaled_line_weights(chans: &[&[c64]], scale: Option<&[f64]>) -> Vec<f64> {
-    let n = chans[0].len();
+fn scaled_line_weights(chans: &dyn Channels, scale: Option<&[f64]>) -> Vec<f64> {
+    let n = chans.channel(0).len();
     let channel = |o: usize| -> std::borrow::Cow<'_, [c64]> {
         match scale {
-            Some(s) => chans[o].iter().map(|z| z / s[o]).collect(),
-            None => std::borrow::Cow::Borrowed(chans[o]),
+            Some(s) => chans.channel(o).iter().map(|z| z / s[o]).collect(),
+            None => chans.channel(o),
         }
     };
-    let rms: Vec<f64> = (0..chans.len())
+    let rms: Vec<f64> = (0..chans.count())
         .map(|o| (channel(o).iter().map(|z| z.norm_sqr()).sum::<f64>() / n as f64).sqrt())
         .collect();
-    let live: Vec<usize> = (0..chans.len()).filter(|&o| rms[o] > 0.0).collect();
+    let live: Vec<usize> = (0..chans.count()).filter(|&o| rms[o] > 0.0).collect();
     if live.is_empty() {
         return vec![1.0; n];
     }
@@ -534,8 +556,8 @@ fn block_channels(n_lines: usize) -> usize {
 /// weights, made block by block of channels from the channels as given (no copy of them
 /// all: see [`BLOCK_BYTES`]). The scaling is done as each block is made, with the same
 /// operations as a scaled copy, so the blocks hold the values a copy would.
-struct Weighted<'a, C> {
-    chans: &'a [C],
+struct Weighted<'a> {
+    chans: &'a dyn Channels,
     /// RMS of each channel.
     rms: Vec<f64>,
     /// The line weights of the unit-RMS channels ([`band_line_weights`]).
@@ -544,11 +566,12 @@ struct Weighted<'a, C> {
     block: usize,
 }
 
-impl<'a, C: AsRef<[c64]>> Weighted<'a, C> {
-    fn new(band: &BandData, chans: &'a [C], block: usize) -> Self {
-        let rms: Vec<f64> = chans.iter().map(|h| channel_rms(h.as_ref())).collect();
-        let refs: Vec<&[c64]> = chans.iter().map(|h| h.as_ref()).collect();
-        let w = scaled_line_weights(&refs, Some(&rms));
+impl<'a> Weighted<'a> {
+    fn new(band: &BandData, chans: &'a dyn Channels, block: usize) -> Self {
+        let rms: Vec<f64> = (0..chans.count())
+            .map(|o| channel_rms(&chans.channel(o)))
+            .collect();
+        let w = scaled_line_weights(chans, Some(&rms));
         Self {
             chans,
             rms,
@@ -558,9 +581,9 @@ impl<'a, C: AsRef<[c64]>> Weighted<'a, C> {
     }
 
     /// The same data with the scaling and weights of an earlier refinement of `chans`.
-    fn of_refined(fit: &'a Refined, chans: &'a [C]) -> Self {
+    fn of_refined(fit: &'a Refined, chans: &'a dyn Channels) -> Self {
         assert_eq!(
-            chans.len(),
+            chans.count(),
             fit.rms.len(),
             "the channels the refinement was given"
         );
@@ -573,7 +596,7 @@ impl<'a, C: AsRef<[c64]>> Weighted<'a, C> {
     }
 
     fn blocks(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
-        let no = self.chans.len();
+        let no = self.chans.count();
         (0..no)
             .step_by(self.block)
             .map(move |s| s..(s + self.block).min(no))
@@ -592,7 +615,8 @@ impl<'a, C: AsRef<[c64]>> Weighted<'a, C> {
             let col = b.col_mut(j).try_as_col_major_mut().unwrap().as_slice_mut();
             let (re, im) = col.split_at_mut(n);
             let s = self.rms[o];
-            let line = self.chans[o].as_ref().iter().zip(self.lw.iter());
+            let h = self.chans.channel(o);
+            let line = h.iter().zip(self.lw.iter());
             for ((r, i), (z, wk)) in re.iter_mut().zip(im.iter_mut()).zip(line) {
                 let z = (z / s) * *wk;
                 *r = z.re;
@@ -650,10 +674,10 @@ impl Spares {
 /// start, and after each accepted step). Why not one per trial: at 1,601 lines and
 /// eight poles it is 400 kB, and each fresh one costs page faults (issue 41's bench:
 /// twice the system time).
-fn trial<C: AsRef<[c64]>>(
+fn trial(
     poles: &[Pole],
     band: &BandData,
-    data: &Weighted<C>,
+    data: &Weighted,
     q: &(Vec<f64>, Vec<f64>),
     res: Residuals,
     spares: &mut Spares,
@@ -670,7 +694,7 @@ fn trial<C: AsRef<[c64]>>(
     let p = phi.ncols();
     let qr = TallLs::new(phi);
     derivative_columns(d, poles, &band.omega, &q.0, &q.1);
-    let no = data.chans.len();
+    let no = data.chans.count();
     let mut residues = vec![Vec::with_capacity(no); poles.len()];
     let mut dtr = Mat::<f64>::zeros(d.ncols(), no);
     let mut rss = Vec::with_capacity(no);
@@ -725,11 +749,15 @@ pub fn screen_extra_poles<C: AsRef<[c64]>>(
     // y = QᵀN by forward substitution on Rᵀ; Nᵀr per channel.
     let y = r_inv_t(&t.qr, &tmul(t.qr.matrix(), &nm));
     let mut nr = Mat::<f64>::zeros(nm.ncols(), chans.len());
-    Weighted::of_refined(fit, chans).solve_blocks(&t.qr, &mut None, |range, _, resid, _| {
-        nr.as_mut()
-            .subcols_mut(range.start, range.len())
-            .copy_from(tmul(&nm, resid));
-    });
+    Weighted::of_refined(fit, &Slices(chans)).solve_blocks(
+        &t.qr,
+        &mut None,
+        |range, _, resid, _| {
+            nr.as_mut()
+                .subcols_mut(range.start, range.len())
+                .copy_from(tmul(&nm, resid));
+        },
+    );
     let pc = t.n_cols;
     let with = (0..candidates.len())
         .map(|c| {
@@ -776,19 +804,30 @@ pub fn refine<C: AsRef<[c64]>>(
     chans: &[C],
     res: Residuals,
 ) -> Refined {
+    refine_channels(poles, band, &Slices(chans), res)
+}
+
+/// [`refine`] of channels read through [`Channels`] (each once per trial, a block at a
+/// time): bit for bit what [`refine`] gives for the same values held.
+pub fn refine_channels(
+    poles: &[Pole],
+    band: &BandData,
+    chans: &dyn Channels,
+    res: Residuals,
+) -> Refined {
     refine_in_blocks(poles, band, chans, res, block_channels(band.n_lines()))
 }
 
 /// [`refine`] with `block` channels per block of data.
-fn refine_in_blocks<C: AsRef<[c64]>>(
+fn refine_in_blocks(
     poles: &[Pole],
     band: &BandData,
-    chans: &[C],
+    chans: &dyn Channels,
     res: Residuals,
     block: usize,
 ) -> Refined {
     let n = band.n_lines();
-    let no = chans.len();
+    let no = chans.count();
     let data = Weighted::new(band, chans, block);
     let q = weighted_quantity_factor(band, &data.lw);
     let nm = poles.len();

@@ -49,6 +49,9 @@ pub struct BootstrapOptions {
     /// replicate's refit take too: the bootstrap then spreads the estimator that made
     /// the record. `None`: the default relative weights.
     pub fit_weighting: Option<std::sync::Arc<rbprops_modal::CoherenceWeighting>>,
+    /// Where the model's grids and each replicate's draws go when they are larger than
+    /// it holds (issue 41's memory bound); `None` (default): held in memory.
+    pub scratch: Option<crate::Scratch>,
 }
 
 impl Default for BootstrapOptions {
@@ -63,6 +66,7 @@ impl Default for BootstrapOptions {
             failure_warning_fraction: 0.05,
             decimate: true,
             fit_weighting: None,
+            scratch: None,
         }
     }
 }
@@ -204,6 +208,7 @@ pub fn bootstrap(
             // A full refit runs the modal fit on the whole FRF set: every line.
             decimate: opts.decimate && opts.reidentify == Reidentify::Refine,
             fit_weighting: opts.fit_weighting.as_deref(),
+            scratch: opts.scratch.as_ref(),
         },
     )?;
     let replication = Replication {
@@ -412,13 +417,7 @@ impl Replication<'_> {
     /// into copies of the records, and solves again for the targets.
     fn run(&self, b: usize) -> ReplicateResult {
         let mut rng = replicate_rng(self.opts.seed, b);
-        let mut data: Vec<_> = self
-            .model
-            .excitations
-            .iter()
-            .map(|e| e.draw(&mut rng))
-            .collect();
-        let modes = self.reidentify(&mut data)?;
+        let modes = self.reidentify(&mut rng)?;
         let (mut modal_b, selection_b) = replicate_records(self.modal, self.selection, &modes)?;
         if let Some((w, _)) = self.windowed {
             w.correct_modal_fit(&mut modal_b, &self.window_source)
@@ -439,9 +438,10 @@ impl Replication<'_> {
             .collect())
     }
 
-    /// The modes of a replicate's band data `data` (one entry per model excitation), by
-    /// the options' [`Reidentify`] method ([`Reidentify::Refine`] takes the entries).
-    fn reidentify(&self, data: &mut [Vec<Vec<c64>>]) -> Result<Vec<ReplicateModes>, String> {
+    /// The modes of a replicate drawn from `rng`, by the options' [`Reidentify`] method.
+    /// The model's excitations are drawn in their order (group by group: the groups
+    /// list them in that order), so a replicate's data depend only on its seed.
+    fn reidentify(&self, rng: &mut ChaCha8Rng) -> Result<Vec<ReplicateModes>, String> {
         let opts = self.opts;
         match &opts.reidentify {
             Reidentify::Refine => {
@@ -450,7 +450,7 @@ impl Replication<'_> {
                     v.extend(refine_group(
                         self.model,
                         g,
-                        data,
+                        (&mut *rng, opts.scratch.as_ref()),
                         self.modal,
                         &opts.tolerances,
                     )?);
@@ -461,13 +461,28 @@ impl Replication<'_> {
                 self.geometry,
                 self.whole.as_ref().expect("made whole for the full refit"),
                 self.model,
-                data,
+                &self.draw_all(rng)?,
                 self.modal,
                 fo,
                 &self.required,
                 &opts.tolerances,
             ),
         }
+    }
+}
+
+impl Replication<'_> {
+    /// Every model excitation's draws, held (a full refit takes the whole set).
+    fn draw_all(&self, rng: &mut ChaCha8Rng) -> Result<Vec<Vec<Vec<c64>>>, String> {
+        (0..self.model.excitations.len())
+            .map(|i| {
+                let grid = self
+                    .model
+                    .grid(i)
+                    .map_err(|e| format!("bootstrap scratch store: {e}"))?;
+                Ok(self.model.excitations[i].draw(&grid, rng))
+            })
+            .collect()
     }
 }
 

@@ -41,6 +41,9 @@ pub enum UqError {
     /// The inertia estimate of the measured data failed.
     #[error("the estimate on the measured data failed: {0}")]
     Inertia(#[from] InertiaError),
+    /// The scratch store the bootstrap keeps a large set in failed (`crate::Scratch`).
+    #[error("bootstrap scratch store: {0}")]
+    Scratch(String),
     /// No estimate survived resampling; one message per estimate.
     #[error("no estimate could be bootstrapped: {}", .0.join("; "))]
     Nothing(Vec<String>),

@@ -111,13 +111,15 @@ pub mod error;
 pub mod model;
 pub mod noise;
 pub mod reidentify;
+pub mod scratch;
 
 pub use bootstrap::{
     apply, bootstrap, estimate_vector, method_text, solve_with_bootstrap, BootstrapEstimate,
     BootstrapOptions, BootstrapOutput, ExcitationNoise, N_PROPS, PROPERTY_NAMES, RAN_WIDE_SIGMAS,
 };
 pub use error::UqError;
-pub use model::{decimation, CommonDraw, Draws, ExcitationModel, FittedModel, LineVariance};
+pub use model::{decimation, CommonDraw, Draws, ExcitationModel, FittedModel, Grid, LineVariance};
 pub use noise::{fit_channel, fit_channel_noise, ChannelFit};
 pub use rbprops_core::noise::NoiseModel;
 pub use reidentify::{MatchTolerances, Reidentify, ReplicateModes};
+pub use scratch::{MemoryStore, Scratch, ValueStore};

@@ -3,6 +3,7 @@
 
 use crate::error::UqError;
 use crate::noise::fit_channel;
+use crate::scratch::SharedStore;
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -13,6 +14,8 @@ use rbprops_core::{c64, CommonRelativeError, FrfSource, Geometry};
 use rbprops_modal::band::BandData;
 use rbprops_modal::lsfd::{self, Residuals};
 use rbprops_modal::{Pole, PoleMode};
+use std::borrow::Cow;
+use std::sync::Arc;
 
 /// One excitation's fitted model.
 #[derive(Debug, Clone)]
@@ -25,6 +28,8 @@ pub struct ExcitationModel {
     pub setup: String,
     /// The fit's band: its lines and their quality, without its values (`channels` is
     /// empty: the measured values are read only while the model is built, `Measured`).
+    /// A model that keeps its grids in a store lets the lines go too (its first line and
+    /// the line quality stay).
     pub band: BandData,
     /// Channels with signal (the pole refinement uses only these, as the modal fit does).
     pub live: Vec<usize>,
@@ -41,11 +46,14 @@ pub struct ExcitationModel {
     /// The replicates' grid (made by [`FittedModel::new`]): every `decimation`-th line of
     /// the band, the middle of each run of `decimation` lines, with the bootstrap's centre
     /// there as its channels (the modal fit's synthesis, the measured values on lines of
-    /// structured misfit).
+    /// structured misfit). Empty when the model keeps it in its store: read it with
+    /// [`FittedModel::grid`].
     pub draw_band: BandData,
     /// Per channel and grid line: the standard deviation of each of the real and imaginary
-    /// parts of a replicate's noise.
+    /// parts of a replicate's noise (empty when stored, as `draw_band`).
     pub draw_sd: Vec<Vec<f64>>,
+    /// Lines of the replicates' grid when it is in the model's store.
+    pub stored_lines: Option<usize>,
     /// Lines of the band per line of the replicates' grid.
     pub decimation: usize,
     /// Per channel: its noise comes from the given line variances (not the residuals).
@@ -83,6 +91,16 @@ pub struct CommonDraw {
     pub phasors: Vec<c64>,
 }
 
+/// An excitation's replicates' grid as a replicate reads it ([`FittedModel::grid`]): its
+/// lines with the bootstrap's centre as channels, and the noise's standard deviations.
+#[derive(Debug, Clone)]
+pub struct Grid<'a> {
+    /// [`ExcitationModel::draw_band`].
+    pub band: Cow<'a, BandData>,
+    /// [`ExcitationModel::draw_sd`].
+    pub sd: Cow<'a, [Vec<f64>]>,
+}
+
 /// Most grid lines × bins of a common draw (a draw costs one complex term each).
 pub const MAX_COMMON_TERMS: usize = 1 << 20;
 
@@ -102,7 +120,8 @@ impl ExcitationModel {
             .collect();
     }
 
-    /// The centre plus one noise draw on the replicates' grid, `[channel][grid line]`,
+    /// The centre plus one noise draw on the replicates' grid `grid` (this excitation's,
+    /// [`FittedModel::grid`]), `[channel][grid line]`,
     /// drawn channel by channel and line by line from `rng` (so a replicate's data depend
     /// only on its seed). The normals come from `rand_distr`'s ziggurat, about 4× cheaper
     /// than Box–Muller's logarithm and sine per pair: at 102,401 lines the draws were 15 %
@@ -110,12 +129,12 @@ impl ExcitationModel {
     ///
     /// With a common error ([`ExcitationModel::common`]) one draw `ε` of it follows, after
     /// every channel's, and every channel's centre takes `H ε` more (`Ĥ = H (1 + ε)`).
-    pub fn draw(&self, rng: &mut ChaCha8Rng) -> Vec<Vec<c64>> {
-        let mut out: Vec<Vec<c64>> = self
-            .draw_band
+    pub fn draw(&self, grid: &Grid, rng: &mut ChaCha8Rng) -> Vec<Vec<c64>> {
+        let mut out: Vec<Vec<c64>> = grid
+            .band
             .channels
             .iter()
-            .zip(&self.draw_sd)
+            .zip(grid.sd.iter())
             .map(|(s, sd)| {
                 s.iter()
                     .zip(sd)
@@ -132,7 +151,7 @@ impl ExcitationModel {
                 .map(|_| rng.sample(StandardNormal))
                 .collect();
             let eps = c.error.draw_on(&c.phasors, &c.sd, &z);
-            for (y, h) in out.iter_mut().zip(&self.draw_band.channels) {
+            for (y, h) in out.iter_mut().zip(&grid.band.channels) {
                 for ((y, h), e) in y.iter_mut().zip(h).zip(&eps) {
                     *y += h * e;
                 }
@@ -321,6 +340,8 @@ pub struct Draws<'a> {
     pub decimate: bool,
     /// The modal fit's line weighting ([`crate::BootstrapOptions::fit_weighting`]).
     pub fit_weighting: Option<&'a rbprops_modal::CoherenceWeighting>,
+    /// Where the grids go when the model is larger than it holds (`None`: held).
+    pub scratch: Option<&'a crate::Scratch>,
 }
 
 /// The FRF estimator's variance of every FRF line (`frf-est`'s line-variance topic, or an
@@ -355,6 +376,63 @@ pub struct FittedModel {
     pub pole_mode: PoleMode,
     /// Whether the refits carry residual terms, as the measured fit did.
     pub residuals_enabled: bool,
+    /// The store of the replicates' grids when the model is too large to hold
+    /// ([`Draws::scratch`]); `None`: every excitation holds its own.
+    pub(crate) grids: Option<Arc<SharedStore>>,
+}
+
+impl FittedModel {
+    /// Excitation `i`'s replicates' grid: held, or read from the model's store.
+    pub fn grid(&self, i: usize) -> std::io::Result<Grid<'_>> {
+        let e = &self.excitations[i];
+        let (Some(store), Some(n)) = (&self.grids, e.stored_lines) else {
+            return Ok(Grid {
+                band: Cow::Borrowed(&e.draw_band),
+                sd: Cow::Borrowed(&e.draw_sd),
+            });
+        };
+        let nc = e.noise.len();
+        let quality = e.band.line_quality.is_some() as usize;
+        let (channels, extra) = store.channels(i, nc, n, (2 + quality + nc) * n)?;
+        let mut parts = extra.chunks_exact(n.max(1)).map(<[f64]>::to_vec);
+        let mut next = || parts.next().unwrap_or_default();
+        let (frequency_hz, omega) = (next(), next());
+        let line_quality = (quality == 1).then(&mut next);
+        let sd = (0..nc).map(|_| next()).collect();
+        Ok(Grid {
+            band: Cow::Owned(BandData {
+                quantity: e.draw_band.quantity,
+                frequency_hz,
+                omega,
+                channels,
+                first_line: e.draw_band.first_line,
+                line_quality,
+            }),
+            sd: Cow::Owned(sd),
+        })
+    }
+}
+
+impl ExcitationModel {
+    /// Moves the replicates' grid into `store` under `key` ([`FittedModel::grid`] reads it).
+    fn store_grid(&mut self, store: &SharedStore, key: usize) -> std::io::Result<()> {
+        let b = &self.draw_band;
+        let mut extra: Vec<f64> = b.frequency_hz.iter().chain(&b.omega).copied().collect();
+        extra.extend(b.line_quality.iter().flatten());
+        extra.extend(self.draw_sd.iter().flatten());
+        store.put_channels(key, &b.channels, &extra)?;
+        self.stored_lines = Some(b.n_lines());
+        self.draw_band = BandData {
+            frequency_hz: Vec::new(),
+            omega: Vec::new(),
+            channels: Vec::new(),
+            line_quality: None,
+            quantity: b.quantity,
+            first_line: b.first_line,
+        };
+        self.draw_sd = Vec::new();
+        Ok(())
+    }
 }
 
 /// True when every excitation of the set-up that was fitted carries the same poles: the
@@ -416,6 +494,11 @@ impl FittedModel {
             frf.n_channels(),
             frf.quantity().order(),
         );
+        // The grids' values at most (every line of every model excitation): kept in a
+        // store when more than the scratch holds, each as its excitation is built.
+        let grids = crate::Scratch::store_for(draws.scratch, ids.len() * axis.0 * axis.1 * 24)
+            .map_err(|e| UqError::Scratch(e.to_string()))?
+            .map(Arc::new);
         let build = |i: usize, id: &str, members: &[usize]| -> Result<ExcitationModel, UqError> {
             let g = group_of[i];
             let (mut e, mut measured) = excitation_model(
@@ -436,6 +519,10 @@ impl FittedModel {
             };
             // The replicates read only the grid (`draw_band`); the band's values go here.
             e.prepare_draws_given(q, axis, draws, measured.centre);
+            if let Some(store) = &grids {
+                e.store_grid(store, i)
+                    .map_err(|err| UqError::Scratch(err.to_string()))?;
+            }
             Ok(e)
         };
         // Every excitation's model built whole (noise, replicates' grid) and its band let
@@ -461,11 +548,20 @@ impl FittedModel {
             e.mark_selected(selection);
         }
         same_lines(&excitations, &groups)?;
+        if grids.is_some() {
+            // A stored model's replicates read their lines from the store (issue 41: the
+            // band's lines were 25 kB an excitation at 1,601 lines, 5 MB at 192).
+            for e in &mut excitations {
+                e.band.frequency_hz = Vec::new();
+                e.band.omega = Vec::new();
+            }
+        }
         Ok(Self {
             excitations,
             groups,
             pole_mode,
             residuals_enabled: residual_terms,
+            grids,
         })
     }
 }
@@ -757,6 +853,7 @@ fn excitation_model(
             first_line: band.first_line,
         },
         draw_sd: Vec::new(),
+        stored_lines: None,
         decimation: 1,
         given_variance: Vec::new(),
         common: None,

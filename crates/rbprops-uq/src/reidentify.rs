@@ -1,11 +1,14 @@
 //! Modal re-identification of one bootstrap replicate.
 
 use crate::model::{ExcitationModel, FittedModel};
+use crate::scratch::{Scratch, SharedStore};
+use rand_chacha::ChaCha8Rng;
 use rbprops_core::records::{ModalFitRecord, ModeEstimate};
 use rbprops_core::{c64, FrfSet, Geometry};
 use rbprops_modal::band::BandData;
 use rbprops_modal::lsfd::{self, Residuals};
 use rbprops_modal::{fit_campaign, fit_excitation, mac, mpc, FitOptions, PoleMode};
+use std::borrow::Cow;
 
 /// How a replicate's modes are identified.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,8 +60,7 @@ pub struct ReplicateModes {
     pub mode_map: Vec<(usize, usize)>,
 }
 
-/// The replicate's grid `band` with the replicate's values `channels` (moved in, not
-/// copied: a replicate holds its set-up's data once, issue 41's memory bound).
+/// The replicate's grid `band` with the replicate's values `channels`.
 fn band_with(band: &BandData, channels: Vec<Vec<c64>>) -> BandData {
     BandData {
         quantity: band.quantity,
@@ -70,42 +72,123 @@ fn band_with(band: &BandData, channels: Vec<Vec<c64>>) -> BandData {
     }
 }
 
-/// Re-identifies one group of [`FittedModel::groups`] by [`Reidentify::Refine`].
-/// `data[i]` is the replicate's data of `model.excitations[i]` on its replicates' grid
-/// (`ExcitationModel::draw_band`); the group's entries are taken.
+/// One replicate's draws of a group's excitations, `[member][channel][grid line]`: held,
+/// or, when more than the scratch holds, in a store of the replicate's own (issue 41's
+/// memory bound: a set-up of 192 excitations drew 44 MB per replicate in flight).
+struct GroupDraws {
+    held: Vec<Vec<Vec<c64>>>,
+    store: Option<SharedStore>,
+    /// Channels and grid lines of every member.
+    shape: (usize, usize),
+}
+
+impl GroupDraws {
+    /// Draws the members of `group` in turn from `rng` (the order [`FittedModel`] lists
+    /// them in, so the values do not depend on where they are kept); with the first
+    /// member's grid (its lines; its values are the draws').
+    fn draw(
+        model: &FittedModel,
+        group: &[usize],
+        rng: &mut ChaCha8Rng,
+        scratch: Option<&Scratch>,
+    ) -> std::io::Result<(Self, BandData)> {
+        let e = &model.excitations[group[0]];
+        let n = e.stored_lines.unwrap_or(e.draw_band.n_lines());
+        let shape = (e.noise.len(), n);
+        let store = Scratch::store_for(scratch, group.len() * shape.0 * n * 16)?;
+        let mut first = None;
+        let mut held = Vec::new();
+        for &i in group {
+            let grid = model.grid(i)?;
+            let d = model.excitations[i].draw(&grid, rng);
+            if first.is_none() {
+                first = Some(band_with(&grid.band, Vec::new()));
+            }
+            match &store {
+                Some(s) => {
+                    s.put_channels(held.len(), &d, &[])?;
+                    held.push(Vec::new());
+                }
+                None => held.push(d),
+            }
+        }
+        let first = first.expect("a group has a member");
+        Ok((Self { held, store, shape }, first))
+    }
+
+    /// Member `k`'s draws, taken (a held member's are moved out).
+    fn take(&mut self, k: usize) -> std::io::Result<Vec<Vec<c64>>> {
+        match &self.store {
+            None => Ok(std::mem::take(&mut self.held[k])),
+            Some(s) => Ok(s.channels(k, self.shape.0, self.shape.1, 0)?.0),
+        }
+    }
+}
+
+/// The live channels of a group's draws, as the joint refinement reads them (one at a
+/// time, once per trial); a failed store read is kept and reported after the refinement.
+struct LiveChannels<'a> {
+    draws: &'a GroupDraws,
+    /// `(member, channel)` of each.
+    live: Vec<(usize, usize)>,
+    failed: std::sync::Mutex<Option<String>>,
+}
+
+impl lsfd::Channels for LiveChannels<'_> {
+    fn count(&self) -> usize {
+        self.live.len()
+    }
+    fn channel(&self, o: usize) -> Cow<'_, [c64]> {
+        let (k, c) = self.live[o];
+        let Some(s) = &self.draws.store else {
+            return Cow::Borrowed(&self.draws.held[k][c]);
+        };
+        let n = self.draws.shape.1;
+        s.channel(k, c, n).map(Cow::Owned).unwrap_or_else(|e| {
+            let mut f = self.failed.lock().unwrap_or_else(|p| p.into_inner());
+            f.get_or_insert_with(|| e.to_string());
+            Cow::Owned(vec![c64::new(0.0, 0.0); n])
+        })
+    }
+}
+
+/// Re-identifies one group of [`FittedModel::groups`] by [`Reidentify::Refine`] on a
+/// replicate's draws of its members from `rng` (held, or kept in a store of `scratch`'s
+/// when larger than it holds: the same values either way, so the same modes).
 pub fn refine_group(
     model: &FittedModel,
     group: &[usize],
-    data: &mut [Vec<Vec<c64>>],
+    (rng, scratch): (&mut ChaCha8Rng, Option<&Scratch>),
     modal: &ModalFitRecord,
     tol: &MatchTolerances,
 ) -> Result<Vec<ReplicateModes>, String> {
+    let scratch_error = |e: std::io::Error| format!("bootstrap scratch store: {e}");
     let first = &model.excitations[group[0]];
-    let bands: Vec<BandData> = group
-        .iter()
-        .map(|&i| {
-            band_with(
-                &model.excitations[i].draw_band,
-                std::mem::take(&mut data[i]),
-            )
-        })
-        .collect();
-    let chans: Vec<&[c64]> = group
-        .iter()
-        .zip(&bands)
-        .flat_map(|(&i, b)| {
-            model.excitations[i]
-                .live
-                .iter()
-                .map(|&c| b.channels[c].as_slice())
-        })
-        .collect();
-    let res = Residuals::for_band(model.residuals_enabled, &bands[0]);
-    let refined = lsfd::refine(&first.poles, &bands[0], &chans, res);
-    let poles = checked_poles(model, group, &refined.poles, &bands[0], tol)?;
+    let (mut draws, band0) = GroupDraws::draw(model, group, rng, scratch).map_err(scratch_error)?;
+    let chans = LiveChannels {
+        live: group
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &i)| model.excitations[i].live.iter().map(move |&c| (k, c)))
+            .collect(),
+        draws: &draws,
+        failed: Default::default(),
+    };
+    let res = Residuals::for_band(model.residuals_enabled, &band0);
+    let refined = lsfd::refine_channels(&first.poles, &band0, &chans, res);
+    if let Some(e) = chans.failed.into_inner().unwrap_or_else(|p| p.into_inner()) {
+        return Err(format!("bootstrap scratch store: {e}"));
+    }
+    let poles = checked_poles(model, group, &refined.poles, &band0, tol)?;
     let mut out = Vec::with_capacity(group.len());
-    for (&i, band) in group.iter().zip(&bands) {
+    for (k, &i) in group.iter().enumerate() {
         let e = &model.excitations[i];
+        let data = draws.take(k).map_err(scratch_error)?;
+        let band = match k {
+            0 => band_with(&band0, data),
+            _ => band_with(&model.grid(i).map_err(scratch_error)?.band, data),
+        };
+        let band = &band;
         let own =
             (group.len() == 1 && poles == refined.poles).then(|| own_residues(&refined, e, band));
         let fitted = own

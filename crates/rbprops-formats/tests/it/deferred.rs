@@ -67,6 +67,9 @@ fn agrees(rec: &RunRecord) {
         again == mcap_file::write(&whole).unwrap(),
         "written bytes differ"
     );
+    // Into a sink that cannot seek (stdout on a pipe), chunk by chunk: the same bytes.
+    let streamed = mcap_file::write_stream_with(&lean, Some(&d), Vec::new()).unwrap();
+    assert!(again == streamed, "streamed bytes differ");
 }
 
 #[test]

@@ -103,12 +103,12 @@ fn seven_channels() -> (Vec<Pole>, BandData) {
 fn blocks_of_channels_refine_as_the_whole_set() {
     let (start, band) = seven_channels();
     let res = Residuals::for_band(true, &band);
-    let whole = refine_in_blocks(&start, &band, &band.channels, res, 7);
+    let whole = refine_in_blocks(&start, &band, &Slices(&band.channels), res, 7);
     assert!(whole.converged && whole.iterations > 1);
     let extra = [Pole::from_modal(7.0, 0.02), Pole::from_modal(10.5, 0.01)];
     let screen = screen_extra_poles(&whole, &extra, &band, &band.channels);
     for block in [1, 2, 3, 6] {
-        let r = refine_in_blocks(&start, &band, &band.channels, res, block);
+        let r = refine_in_blocks(&start, &band, &Slices(&band.channels), res, block);
         assert_eq!(r.poles, whole.poles, "block of {block}");
         assert_eq!(r.cost, whole.cost, "block of {block}");
         assert_eq!(r.covariance, whole.covariance, "block of {block}");
@@ -134,7 +134,8 @@ fn blocks_of_channels_refine_as_the_whole_set_by_householder() {
     start.insert(1, Pole(start[0].0 * c64::new(1.000001, 0.0)));
     let res = Residuals::for_band(true, &band);
     let first = |block: usize| {
-        let data = Weighted::new(&band, &band.channels, block);
+        let slices = Slices(&band.channels);
+        let data = Weighted::new(&band, &slices, block);
         let q = weighted_quantity_factor(&band, &data.lw);
         let mut d = linalg::mat_for_overwrite(2 * band.n_lines(), 2 * start.len());
         trial(
