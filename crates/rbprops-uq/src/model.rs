@@ -497,7 +497,6 @@ impl FittedModel {
         // The grids' values at most (every line of every model excitation): kept in a
         // store when more than the scratch holds, each as its excitation is built.
         let grids = crate::Scratch::store_for(draws.scratch, ids.len() * axis.0 * axis.1 * 24)
-            .map_err(|e| UqError::Scratch(e.to_string()))?
             .map(Arc::new);
         let build = |i: usize, id: &str, members: &[usize]| -> Result<ExcitationModel, UqError> {
             let g = group_of[i];

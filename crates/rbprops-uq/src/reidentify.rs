@@ -95,7 +95,7 @@ impl GroupDraws {
         let e = &model.excitations[group[0]];
         let n = e.stored_lines.unwrap_or(e.draw_band.n_lines());
         let shape = (e.noise.len(), n);
-        let store = Scratch::store_for(scratch, group.len() * shape.0 * n * 16)?;
+        let store = Scratch::store_for(scratch, group.len() * shape.0 * n * 16);
         let mut first = None;
         let mut held = Vec::new();
         for &i in group {

@@ -52,14 +52,15 @@ impl Scratch {
         }
     }
 
-    /// A store for data of `bytes` bytes, or `None` when they are held.
-    pub(crate) fn store_for(
-        scratch: Option<&Self>,
-        bytes: usize,
-    ) -> std::io::Result<Option<SharedStore>> {
+    /// A store for data of `bytes` bytes, or `None` when they are held: within the
+    /// limit, or when no store can be made (no writable temporary directory: the same
+    /// values held, as the modal fit decodes an excitation again rather than fail).
+    pub(crate) fn store_for(scratch: Option<&Self>, bytes: usize) -> Option<SharedStore> {
         match scratch {
-            Some(s) if bytes > s.held_bytes => Ok(Some(SharedStore(Mutex::new((s.make)()?)))),
-            _ => Ok(None),
+            Some(s) if bytes > s.held_bytes => {
+                (s.make)().ok().map(|store| SharedStore(Mutex::new(store)))
+            }
+            _ => None,
         }
     }
 }

@@ -141,7 +141,7 @@ fn apply_fills_the_records() {
 /// nothing) give the bootstrap bit for bit as held, with poles per excitation and per
 /// set-up (a group of several excitations refined jointly, its draws read channel by
 /// channel); the stores were made (the model's, and one per replicate and group), and
-/// the model's grids read back are those held.
+/// the model's grids read back are those held. Stores that cannot be made: held.
 #[test]
 fn kept_in_scratch_stores_the_bootstrap_is_the_same_bit_for_bit() {
     use std::sync::atomic::{AtomicUsize, Ordering};
@@ -181,6 +181,12 @@ fn kept_in_scratch_stores_the_bootstrap_is_the_same_bit_for_bit() {
         let a = run(&c, &held);
         let b = run(&c, &stored);
         assert_eq!(a, b, "{poles:?}");
+        // No store can be made (no writable temporary directory): held, the same.
+        let none = BootstrapOptions {
+            scratch: Some(Scratch::new(|| Err(std::io::Error::other("no store")), 0)),
+            ..held.clone()
+        };
+        assert_eq!(run(&c, &none), a, "{poles:?}");
         let groups = fitted(&c, &Draws::default()).groups.len();
         assert!(groups >= 1);
         assert_eq!(made.load(Ordering::Relaxed), 1 + 6 * groups, "{poles:?}");
