@@ -64,10 +64,15 @@ pub(crate) struct SetupBands<'a> {
     band_hz: Option<(f64, f64)>,
     /// Bytes of bands held whole, and held at once by a pass pairing them.
     held_bytes: usize,
-    /// Every band, when they fit in `held_bytes`.
-    held: Option<Vec<BandData>>,
-    /// The first excitation's band (its axis is every band's).
-    first: BandData,
+    held: Held,
+}
+
+/// What a set-up's bands hold.
+enum Held {
+    /// Every band (they fit in the holding limit).
+    All(Vec<BandData>),
+    /// The first excitation's band alone (its axis is every band's).
+    First(BandData),
 }
 
 impl<'a> SetupBands<'a> {
@@ -84,14 +89,14 @@ impl<'a> SetupBands<'a> {
             |e: usize| BandData::extract_from(frf, e, band_hz, &geometry.excitations[e].id);
         let first = extract(members[0])?;
         let held = if bytes_of(&first) * members.len() <= held_bytes {
-            Some(
-                members
-                    .iter()
-                    .map(|&e| extract(e))
+            let rest = members[1..].iter().map(|&e| extract(e));
+            Held::All(
+                std::iter::once(Ok(first))
+                    .chain(rest)
                     .collect::<Result<_, _>>()?,
             )
         } else {
-            None
+            Held::First(first)
         };
         Ok(Self {
             frf,
@@ -100,13 +105,15 @@ impl<'a> SetupBands<'a> {
             band_hz,
             held_bytes,
             held,
-            first,
         })
     }
 
     /// The first excitation's band.
     pub fn first(&self) -> &BandData {
-        &self.first
+        match &self.held {
+            Held::All(bands) => &bands[0],
+            Held::First(first) => first,
+        }
     }
 }
 
@@ -121,9 +128,9 @@ impl Bands for SetupBands<'_> {
     }
     fn band(&self, i: usize) -> Result<Cow<'_, BandData>, ModalError> {
         match &self.held {
-            Some(b) => Ok(Cow::Borrowed(&b[i])),
-            None if i == 0 => Ok(Cow::Borrowed(&self.first)),
-            None => {
+            Held::All(b) => Ok(Cow::Borrowed(&b[i])),
+            Held::First(first) if i == 0 => Ok(Cow::Borrowed(first)),
+            Held::First(_) => {
                 let e = self.members[i];
                 let id = &self.geometry.excitations[e].id;
                 BandData::extract_from(self.frf, e, self.band_hz, id).map(Cow::Owned)
