@@ -148,17 +148,26 @@ impl<'p, 'a> Selection<'p, 'a> {
         let held_out = |folds: &[usize], n: usize| {
             crate::cv::held_out_residuals(&cur.residual, &cur.jacobian, folds, n)
         };
+        // The two held-out predictions are independent: side by side.
+        let (cv_without, loeo_without) = rayon::join(
+            || {
+                if self.options.cross_validation {
+                    held_out(&self.held_out.folds, crate::cv::FOLDS)
+                } else {
+                    Default::default()
+                }
+            },
+            || {
+                if self.held_out.loeo {
+                    held_out(&self.held_out.exc_folds, self.held_out.n_excitations)
+                } else {
+                    Default::default()
+                }
+            },
+        );
         Ok(RefitBaseline {
-            cv_without: if self.options.cross_validation {
-                held_out(&self.held_out.folds, crate::cv::FOLDS)
-            } else {
-                Default::default()
-            },
-            loeo_without: if self.held_out.loeo {
-                held_out(&self.held_out.exc_folds, self.held_out.n_excitations)
-            } else {
-                Default::default()
-            },
+            cv_without,
+            loeo_without,
             cur_pred,
             gain_alone: std::sync::OnceLock::new(),
         })

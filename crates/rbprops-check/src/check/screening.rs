@@ -50,6 +50,29 @@ impl<'f> Chord<'f> {
     fn svd(&self) -> &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
         self.svd.get_or_init(|| lm::thin_svd(self.jacobian))
     }
+
+    /// The chord steps `J⁺(−r)` of several residuals at once: each column is nalgebra's
+    /// `svd.solve(&(−r), 1e-10)` bit for bit (`Uᵀb` by [`lm::tr_mul`], nalgebra's dot
+    /// products in cache-sized row blocks, then the same division and `V` product).
+    ///
+    /// Why: one solve reads all of U (52 MB at 60 parameters) for 2np flops, from memory;
+    /// a profile's refinements took 64 of them per candidate and step. Together they read
+    /// U once.
+    fn steps(&self, rs: &[&nalgebra::DVector<f64>]) -> Vec<nalgebra::DVector<f64>> {
+        let svd = self.svd();
+        let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
+            unreachable!("lm::thin_svd computes U and Vᵀ")
+        };
+        let b = DMatrix::from_fn(u.nrows(), rs.len(), |i, k| -rs[k][i]);
+        let mut ut_b = lm::tr_mul(u, &b);
+        for mut col in ut_b.column_iter_mut() {
+            for (x, &sv) in col.iter_mut().zip(svd.singular_values.iter()) {
+                *x = if sv > 1e-10 { *x / sv } else { 0.0 };
+            }
+        }
+        let d = v_t.ad_mul(&ut_b);
+        d.column_iter().map(|c| c.into_owned()).collect()
+    }
 }
 
 /// The current model a candidate is screened at: the problem, the current fit with its
@@ -187,7 +210,6 @@ pub(super) fn profile_candidate(
     // Chord (fixed-Jacobian Gauss–Newton) re-adjustment of the current parameters at
     // the most promising grid points: a few model evaluations, enough when the effect
     // moves them far.
-    let svd = chord.svd();
     let nb = cur.theta.len();
     let eval = |t: &[f64]| -> Option<nalgebra::DVector<f64>> {
         p.residual(t, &act).ok().map(nalgebra::DVector::from_vec)
@@ -251,23 +273,37 @@ pub(super) fn profile_candidate(
         };
         lin.max(r0.norm_squared() - chi)
     };
-    // The refinements are independent of each other: they run in parallel (a profile
-    // of slow models, cords with their string modes, was the last candidate of the
-    // screening to finish), and the best is then taken in the order of the points, the
-    // first of equal gains, as a loop over them takes it.
-    let refined: Vec<Option<ProfilePoint>> = (0..points.len())
+    // The refinements are independent of each other: they step together (one pass over
+    // the chord's U per step, [`Chord::steps`]) with the points' models evaluated in
+    // parallel (a profile of slow models, cords with their string modes, was the last
+    // candidate of the screening to finish), and the best is then taken in the order of
+    // the points, the first of equal gains, as a loop over them takes it.
+    let to_refine: Vec<(usize, Vec<f64>, nalgebra::DVector<f64>)> = (0..points.len())
         .into_par_iter()
-        .map(|i| {
+        .filter(|&i| refine[i] && first[i].is_some())
+        .filter_map(|i| {
+            let t = theta_at(points[i]);
+            let rg = match kept.iter().find(|(j, _)| *j == i) {
+                Some((_, r)) => r.clone(),
+                None => eval(&t)?,
+            };
+            Some((i, t, rg))
+        })
+        .collect();
+    let mut chorded: Vec<Option<(f64, Vec<f64>, nalgebra::DVector<f64>)>> =
+        (0..points.len()).map(|_| None).collect();
+    for (i, chi, t, rg) in chord_refine(chord, &eval, to_refine) {
+        chorded[i] = Some((chi, t, rg));
+    }
+    let refined: Vec<Option<ProfilePoint>> = chorded
+        .into_iter()
+        .enumerate()
+        .map(|(i, c)| {
             let (chi0, _) = first[i]?;
             if !refine[i] {
                 return Some((gain_of(i, chi0), i, None));
             }
-            let mut t = theta_at(points[i]);
-            let mut rg = match kept.iter().find(|(j, _)| *j == i) {
-                Some((_, r)) => r.clone(),
-                None => eval(&t)?,
-            };
-            let chi = chord_refine(svd, &eval, &mut t, &mut rg);
+            let (chi, t, rg) = c?;
             Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
@@ -404,32 +440,47 @@ fn best_profile_point(
     Ok((gain, i, theta_best, rg))
 }
 
-/// Up to four chord (fixed-Jacobian Gauss–Newton) steps from `t` with residual `rg`,
-/// each kept only if it lowers χ²: `t` and `rg` end at the last improvement; returns
-/// its χ².
+/// Up to four chord (fixed-Jacobian Gauss–Newton) steps from each point `(i, t, r)`
+/// (its index, parameters and residual), each kept only if it lowers that point's χ²:
+/// every point ends at its last improvement, returned as `(i, χ², t, r)`. A point's
+/// steps do not depend on the others'; they are taken together so that each step
+/// reads the chord's U once for all of them.
 fn chord_refine(
-    svd: &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
-    eval: &dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>>,
-    t: &mut Vec<f64>,
-    rg: &mut nalgebra::DVector<f64>,
-) -> f64 {
-    let mut chi = rg.norm_squared();
+    chord: &Chord,
+    eval: &(dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>> + Sync),
+    points: Vec<(usize, Vec<f64>, nalgebra::DVector<f64>)>,
+) -> Vec<(usize, f64, Vec<f64>, nalgebra::DVector<f64>)> {
+    let mut at: Vec<(usize, f64, Vec<f64>, nalgebra::DVector<f64>)> = points
+        .into_iter()
+        .map(|(i, t, r)| (i, r.norm_squared(), t, r))
+        .collect();
+    let mut live: Vec<usize> = (0..at.len()).collect();
     for _ in 0..4 {
-        let Ok(d) = svd.solve(&(-&*rg), 1e-10) else {
+        if live.is_empty() {
             break;
-        };
-        let mut t1 = t.clone();
-        t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
-        match eval(&t1) {
-            Some(r1) if r1.norm_squared() < chi => {
-                chi = r1.norm_squared();
-                *rg = r1;
-                *t = t1;
-            }
-            _ => break,
         }
+        let rs: Vec<&nalgebra::DVector<f64>> = live.iter().map(|&k| &at[k].3).collect();
+        let steps = chord.steps(&rs);
+        let tried: Vec<Option<(Vec<f64>, nalgebra::DVector<f64>)>> = live
+            .par_iter()
+            .zip(steps.par_iter())
+            .map(|(&k, d)| {
+                let mut t1 = at[k].2.clone();
+                t1.iter_mut().zip(d.iter()).for_each(|(x, d)| *x += d);
+                let r1 = eval(&t1)?;
+                (r1.norm_squared() < at[k].1).then_some((t1, r1))
+            })
+            .collect();
+        let mut next = Vec::new();
+        for (k, better) in live.into_iter().zip(tried) {
+            if let Some((t1, r1)) = better {
+                at[k] = (at[k].0, r1.norm_squared(), t1, r1);
+                next.push(k);
+            }
+        }
+        live = next;
     }
-    chi
+    at
 }
 
 /// The score of a profiled candidate with `np` parameters from its best point: the
@@ -848,7 +899,31 @@ fn absorbed_by(at: AtModel, jc: &DMatrix<f64>, norms: &[f64]) -> Vec<(String, f6
 
 #[cfg(test)]
 mod tests {
-    use super::{most_promising, PROFILE_REFINED};
+    use super::{most_promising, Chord, PROFILE_REFINED};
+    use nalgebra::{DMatrix, DVector};
+
+    /// The chord steps of several residuals together are nalgebra's `svd.solve` of each
+    /// bit for bit (rows not a multiple of 8 nor of the row block; a rank-deficient
+    /// Jacobian, so that a singular value falls under the solve's threshold).
+    #[test]
+    fn chord_steps_together_are_each_solve_bit_for_bit() {
+        let (n, p) = (5 * 1024 + 13, 7);
+        let mut j = DMatrix::from_fn(n, p, |i, k| ((i * (k + 3)) as f64 * 0.37).sin());
+        let dup = j.column(1) * 2.0;
+        j.set_column(4, &dup);
+        let chord = Chord::new(&j);
+        let rs: Vec<DVector<f64>> = (0..5)
+            .map(|m| DVector::from_fn(n, |i, _| ((i + 31 * m) as f64 * 0.011).cos()))
+            .collect();
+        let refs: Vec<&DVector<f64>> = rs.iter().collect();
+        let together = chord.steps(&refs);
+        assert!(chord.svd().singular_values.iter().any(|&s| s <= 1e-10));
+        for (r, d) in rs.iter().zip(&together) {
+            let alone = chord.svd().solve(&(-r), 1e-10).unwrap();
+            let bits = |v: &DVector<f64>| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(d), bits(&alone));
+        }
+    }
 
     /// Per start, the evaluated points with the smallest predicted χ², the first of equal
     /// ones, at most `PROFILE_REFINED`; points not evaluated are never chosen.
