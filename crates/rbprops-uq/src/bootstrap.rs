@@ -445,6 +445,18 @@ impl Replication<'_> {
         let opts = self.opts;
         match &opts.reidentify {
             Reidentify::Refine => {
+                // The draws' order is the excitations' only if the groups list them
+                // in order from 0 (as `FittedModel::new` makes them): a held and a
+                // stored replicate are then the same bit for bit.
+                debug_assert!(
+                    self.model
+                        .groups
+                        .iter()
+                        .flatten()
+                        .copied()
+                        .eq(0..self.model.excitations.len()),
+                    "the model's groups list its excitations in order"
+                );
                 let mut v = Vec::new();
                 for g in &self.model.groups {
                     v.extend(refine_group(
@@ -469,9 +481,7 @@ impl Replication<'_> {
             ),
         }
     }
-}
 
-impl Replication<'_> {
     /// Every model excitation's draws, held (a full refit takes the whole set).
     fn draw_all(&self, rng: &mut ChaCha8Rng) -> Result<Vec<Vec<Vec<c64>>>, String> {
         (0..self.model.excitations.len())

@@ -290,10 +290,10 @@ pub(super) fn profile_candidate(
             Some((i, t, rg))
         })
         .collect();
-    let mut chorded: Vec<Option<(f64, Vec<f64>, nalgebra::DVector<f64>)>> =
-        (0..points.len()).map(|_| None).collect();
-    for (i, chi, t, rg) in chord_refine(chord, &eval, to_refine) {
-        chorded[i] = Some((chi, t, rg));
+    let mut chorded: Vec<Option<ChordPoint>> = (0..points.len()).map(|_| None).collect();
+    for point in chord_refine(chord, &eval, to_refine) {
+        let i = point.0;
+        chorded[i] = Some(point);
     }
     let refined: Vec<Option<ProfilePoint>> = chorded
         .into_iter()
@@ -303,7 +303,7 @@ pub(super) fn profile_candidate(
             if !refine[i] {
                 return Some((gain_of(i, chi0), i, None));
             }
-            let (chi, t, rg) = c?;
+            let (_, chi, t, rg) = c?;
             Some((gain_of(i, chi), i, Some((t[..nb].to_vec(), rg))))
         })
         .collect();
@@ -440,6 +440,9 @@ fn best_profile_point(
     Ok((gain, i, theta_best, rg))
 }
 
+/// A chord-refined profile point: its index, χ², parameters and residual.
+type ChordPoint = (usize, f64, Vec<f64>, nalgebra::DVector<f64>);
+
 /// Up to four chord (fixed-Jacobian Gauss–Newton) steps from each point `(i, t, r)`
 /// (its index, parameters and residual), each kept only if it lowers that point's χ²:
 /// every point ends at its last improvement, returned as `(i, χ², t, r)`. A point's
@@ -449,8 +452,8 @@ fn chord_refine(
     chord: &Chord,
     eval: &(dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>> + Sync),
     points: Vec<(usize, Vec<f64>, nalgebra::DVector<f64>)>,
-) -> Vec<(usize, f64, Vec<f64>, nalgebra::DVector<f64>)> {
-    let mut at: Vec<(usize, f64, Vec<f64>, nalgebra::DVector<f64>)> = points
+) -> Vec<ChordPoint> {
+    let mut at: Vec<ChordPoint> = points
         .into_iter()
         .map(|(i, t, r)| (i, r.norm_squared(), t, r))
         .collect();

@@ -494,6 +494,11 @@ impl<'p, 'a> Selection<'p, 'a> {
             .map(|(c, s, _)| {
                 let (c, stage) = (*c, format!("refit {}", self.p.cands[*c].id));
                 let (t0, act, iterations) = self.refit_start(c, s);
+                let iterations = if self.implausible_resonance(c, &t0, &act) {
+                    0
+                } else {
+                    iterations
+                };
                 let mut fit = self
                     .p
                     .fit(&stage, &t0, &act, iterations)
@@ -524,6 +529,23 @@ impl<'p, 'a> Selection<'p, 'a> {
                 }
             })
             .collect()
+    }
+
+    /// Candidate `c` is an in-band resonance (`elastic_mode`) whose refit would start at
+    /// `t0` (for `act`, `c` last) outside its plausible range: its profile's best point
+    /// lies among the suspension modes. Such a refit is judged where it starts, not
+    /// iterated: from there it stays among them and ends implausible (on the six-effects
+    /// bench three such refits, started at 0.95–5.3 Hz against a range from 5.9 Hz, took
+    /// 12 of its 58 s and all failed so), and its evidence fails the plausibility test as
+    /// the full refit's did (docs/physics.md, M6 in practice).
+    fn implausible_resonance(&self, c: usize, t0: &[f64], act: &[Act]) -> bool {
+        let cand = &self.p.cands[c];
+        if !matches!(cand.screening, Screening::Resonance) {
+            return false;
+        }
+        let own = act.last().expect("the refitted effect");
+        let phi = own.phi(&cand.neutral, &t0[t0.len() - own.dim()..]);
+        self.p.plausibility(t0, c, &phi).iter().any(|q| !holds(q))
     }
 
     /// The refit's start θ, its active set and its iteration budget.
