@@ -278,23 +278,7 @@ pub(super) fn profile_candidate(
     // parallel (a profile of slow models, cords with their string modes, was the last
     // candidate of the screening to finish), and the best is then taken in the order of
     // the points, the first of equal gains, as a loop over them takes it.
-    let to_refine: Vec<(usize, Vec<f64>, nalgebra::DVector<f64>)> = (0..points.len())
-        .into_par_iter()
-        .filter(|&i| refine[i] && first[i].is_some())
-        .filter_map(|i| {
-            let t = theta_at(points[i]);
-            let rg = match kept.iter().find(|(j, _)| *j == i) {
-                Some((_, r)) => r.clone(),
-                None => eval(&t)?,
-            };
-            Some((i, t, rg))
-        })
-        .collect();
-    let mut chorded: Vec<Option<ChordPoint>> = (0..points.len()).map(|_| None).collect();
-    for point in chord_refine(chord, &eval, to_refine) {
-        let i = point.0;
-        chorded[i] = Some(point);
-    }
+    let chorded = refine_points(chord, &eval, &refine, &kept, &|i| theta_at(points[i]));
     let refined: Vec<Option<ProfilePoint>> = chorded
         .into_iter()
         .enumerate()
@@ -438,6 +422,36 @@ fn best_profile_point(
         }
     };
     Ok((gain, i, theta_best, rg))
+}
+
+/// The chord-refined points of a profile by index (`None` where not refined, or where
+/// its model cannot be evaluated): each point `i` with `refine[i]` (an evaluated one)
+/// from its kept residual, else evaluated again at `theta_of(i)` (see [`chord_refine`]).
+fn refine_points(
+    chord: &Chord,
+    eval: &(dyn Fn(&[f64]) -> Option<nalgebra::DVector<f64>> + Sync),
+    refine: &[bool],
+    kept: &[(usize, nalgebra::DVector<f64>)],
+    theta_of: &(dyn Fn(usize) -> Vec<f64> + Sync),
+) -> Vec<Option<ChordPoint>> {
+    let starts: Vec<(usize, Vec<f64>, nalgebra::DVector<f64>)> = (0..refine.len())
+        .into_par_iter()
+        .filter(|&i| refine[i])
+        .filter_map(|i| {
+            let t = theta_of(i);
+            let rg = match kept.iter().find(|(j, _)| *j == i) {
+                Some((_, r)) => r.clone(),
+                None => eval(&t)?,
+            };
+            Some((i, t, rg))
+        })
+        .collect();
+    let mut chorded: Vec<Option<ChordPoint>> = (0..refine.len()).map(|_| None).collect();
+    for point in chord_refine(chord, eval, starts) {
+        let i = point.0;
+        chorded[i] = Some(point);
+    }
+    chorded
 }
 
 /// A chord-refined profile point: its index, χ², parameters and residual.
