@@ -270,10 +270,14 @@ def one(seed, bindir, tmp, suspension, impact=False):
             false.append("{" + "|".join(members) + "}")
     lo, hi = out["noise_band"]
     chi = out["chi2_nu_after"]
+    # Every full refit against its screening score: how far a refit's Δχ² reaches beyond
+    # the score is what lets the selection skip refits that could not win.
+    refits = [[e["step"], e["id"], e["score"], e["refit_delta_chi2"], e["decision"]]
+              for e in out.get("screening", []) if e.get("refit_delta_chi2") is not None]
     return dict(seed=seed, concealed=ids, named=named, found=sorted(hit),
                 missed=[i for i in ids if i not in hit], false=false, chi2_nu=chi,
                 band=[lo, hi], in_band=lo <= chi <= hi, floor=out.get("noise_floor_reached"),
-                check_s=round(dt, 2))
+                check_s=round(dt, 2), refits=refits)
 
 
 def main():
@@ -299,7 +303,7 @@ def main():
             except RuntimeError as e:
                 r = dict(seed=seed, concealed=draw(seed, a.suspension, a.impact)[0], error=str(e))
             results.append(r)
-            print(json.dumps(r), flush=True)
+            print(json.dumps({k: v for k, v in r.items() if k != "refits"}), flush=True)
             if a.out:
                 with open(a.out, "w") as f:
                     json.dump(results, f, indent=1)

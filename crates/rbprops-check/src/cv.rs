@@ -151,14 +151,13 @@ fn row_dot(x: &[f64], y: &DVector<f64>) -> f64 {
 /// Per fold, the information `C_f = Σ_{rows in f} jᵣᵀjᵣ` and the gradient
 /// `Σ_{rows in f} jᵣᵀ rᵣ` of the column-scaled Jacobian, from `rows`, its row-major
 /// copy (column `row` of `rows` is row `row` of the Jacobian; a row of the column-major
-/// matrix is strided by its 54 000 rows).
+/// matrix is strided by its 108 000 rows): `X_fᵀX_f` and `X_fᵀr_f` of the fold's rows
+/// gathered in order, by faer's matrix product (sequential), C_f exactly symmetric.
 ///
-/// Row by row in the order of the rows, each entry adding the single product
-/// `j[a]·j[b]` (resp. `j[a]·r`): the sums of an outer product per row, bit for bit,
-/// without forming it. The folds are summed in parallel, each over its own rows in
-/// order, so the sums do not depend on the thread count. Entry (b, a) receives the
-/// same products as (a, b) in the same order (`x·y = y·x` exactly), so only a ≤ b is
-/// summed and the other triangle copied.
+/// Why: summed row by row as outer products, one product at a time, the ten folds took
+/// most of the held-out criterion (a tenth of the six-effects bench); a matrix product
+/// keeps the fold's rows in cache for every pair. The folds are computed in parallel,
+/// each in one piece, so the sums do not depend on the thread count.
 fn fold_information(
     rows: &DMatrix<f64>,
     r: &[f64],
@@ -173,24 +172,27 @@ fn fold_information(
     rows_of
         .par_iter()
         .map(|list| {
-            let mut c = vec![0.0f64; p * p];
-            let mut g = vec![0.0f64; p];
+            let mut x = Vec::with_capacity(list.len() * p);
             for &row in list {
-                let jr = &rows.as_slice()[row * p..(row + 1) * p];
-                for b in 0..p {
-                    let cb = &mut c[b * p..=b * p + b];
-                    for (x, &ja) in cb.iter_mut().zip(&jr[..=b]) {
-                        *x += ja * jr[b];
-                    }
-                    g[b] += jr[b] * r[row];
-                }
+                x.extend_from_slice(&rows.as_slice()[row * p..(row + 1) * p]);
             }
-            for b in 0..p {
-                for a in b + 1..p {
-                    c[b * p + a] = c[a * p + b];
-                }
+            let x = faer::MatRef::from_row_major_slice(&x, list.len(), p);
+            let rf: Vec<f64> = list.iter().map(|&row| r[row]).collect();
+            let rf = faer::MatRef::from_column_major_slice(&rf, list.len(), 1);
+            let mut c = faer::Mat::<f64>::zeros(p, p);
+            let mut g = faer::Mat::<f64>::zeros(p, 1);
+            for (dst, rhs) in [(c.as_mut(), x), (g.as_mut(), rf)] {
+                faer::linalg::matmul::matmul(
+                    dst,
+                    faer::Accum::Replace,
+                    x.transpose(),
+                    rhs,
+                    1.0,
+                    faer::Par::Seq,
+                );
             }
-            (DMatrix::from_vec(p, p, c), DVector::from_vec(g))
+            let c = DMatrix::from_fn(p, p, |a, b| if a <= b { c[(a, b)] } else { c[(b, a)] });
+            (c, DVector::from_fn(p, |a, _| g[(a, 0)]))
         })
         .unzip()
 }
@@ -347,10 +349,11 @@ mod tests {
     }
 
     /// The per-fold information and gradient are the sums of each row's outer product
-    /// `jᵣᵀjᵣ` and `jᵣᵀrᵣ`, bit for bit (values of mixed sign and magnitude, so a
-    /// change of summation order would show in the last bits).
+    /// `jᵣᵀjᵣ` and `jᵣᵀrᵣ` to rounding: every entry within the dot product's error bound
+    /// `n ε Σ|xᵣyᵣ|` of both (twice it between them), for values of mixed sign and
+    /// magnitude; C_f exactly symmetric.
     #[test]
-    fn fold_information_is_the_sum_of_row_outer_products_bit_for_bit() {
+    fn fold_information_is_the_sum_of_row_outer_products() {
         let mut rnd = uniform(99);
         for (n, p, k) in [(0, 3, 2), (2, 1, 1), (40, 4, 3), (301, 9, FOLDS)] {
             let js = DMatrix::from_fn(n, p, |_, c| rnd() * 10f64.powi(c as i32 % 5 - 2));
@@ -358,18 +361,25 @@ mod tests {
             let fold: Vec<usize> = (0..n.div_ceil(2)).map(|i| (i * 7 + i / 3) % k).collect();
             let (jk, gk) = fold_information(&js.transpose(), &r, &fold, k);
             let mut want_c = vec![DMatrix::<f64>::zeros(p, p); k];
+            let mut abs_c = vec![DMatrix::<f64>::zeros(p, p); k];
             let mut want_g = vec![DVector::<f64>::zeros(p); k];
+            let mut abs_g = vec![DVector::<f64>::zeros(p); k];
             for row in 0..n {
                 let jr = js.row(row);
-                want_c[fold[row / 2]] += jr.transpose() * jr;
-                want_g[fold[row / 2]] += jr.transpose() * r[row];
+                let f = fold[row / 2];
+                want_c[f] += jr.transpose() * jr;
+                abs_c[f] += jr.abs().transpose() * jr.abs();
+                want_g[f] += jr.transpose() * r[row];
+                abs_g[f] += jr.abs().transpose() * r[row].abs();
             }
+            let tol = 2.0 * n.max(1) as f64 * f64::EPSILON;
             for f in 0..k {
-                for (a, b) in jk[f].iter().zip(want_c[f].iter()) {
-                    assert_eq!(a.to_bits(), b.to_bits(), "C, n = {n}, p = {p}: {a} vs {b}");
+                assert_eq!(jk[f], jk[f].transpose(), "C_{f} not symmetric");
+                for ((a, b), m) in jk[f].iter().zip(want_c[f].iter()).zip(abs_c[f].iter()) {
+                    assert!((a - b).abs() <= tol * m, "C, n = {n}, p = {p}: {a} vs {b}");
                 }
-                for (a, b) in gk[f].iter().zip(want_g[f].iter()) {
-                    assert_eq!(a.to_bits(), b.to_bits(), "g, n = {n}, p = {p}: {a} vs {b}");
+                for ((a, b), m) in gk[f].iter().zip(want_g[f].iter()).zip(abs_g[f].iter()) {
+                    assert!((a - b).abs() <= tol * m, "g, n = {n}, p = {p}: {a} vs {b}");
                 }
             }
         }
