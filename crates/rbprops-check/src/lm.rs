@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 mod tall;
-pub use tall::{gram, r_factor, thin_qr, thin_svd, tr_mul};
+pub use tall::{gram, mul, r_factor, sub_mul, thin_qr, thin_sv, thin_svd, tr_mul};
 
 /// A residual function of the parameters.
 pub type ResidualFn<'a> = dyn Fn(&[f64]) -> Result<Vec<f64>, CheckError> + Sync + 'a;

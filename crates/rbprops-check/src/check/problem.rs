@@ -362,13 +362,15 @@ pub(super) fn span_basis(j: &DMatrix<f64>, tol: f64) -> (DMatrix<f64>, Vec<f64>)
 }
 
 /// Removes the span of `q` (orthonormal columns) from the columns of `j`: `j − q (qᵀ j)`,
-/// `qᵀ j` by [`crate::lm::tr_mul`]. The check's one projection: a Jacobian's columns,
-/// a profile's signature and the Wald statistic's change (a vector as an n × 1 matrix).
+/// `qᵀ j` by [`crate::lm::tr_mul`], the product subtracted in place
+/// ([`crate::lm::sub_mul`]). The check's one projection: a Jacobian's columns, a
+/// profile's signature and the Wald statistic's change (a vector as an n × 1 matrix).
 pub(super) fn project_out(j: &DMatrix<f64>, q: &DMatrix<f64>) -> DMatrix<f64> {
-    if q.ncols() == 0 {
-        return j.clone();
+    let mut out = j.clone();
+    if q.ncols() > 0 {
+        crate::lm::sub_mul(&mut out, q, &crate::lm::tr_mul(q, j));
     }
-    j - q * crate::lm::tr_mul(q, j)
+    out
 }
 
 pub(super) fn active_dims(active: &[Act]) -> usize {

@@ -142,8 +142,11 @@ fn projected_norms(q0: &DMatrix<f64>, rs: &[&nalgebra::DVector<f64>]) -> Vec<f64
     if q0.ncols() == 0 || rs.is_empty() {
         return vec![0.0; rs.len()];
     }
-    let rt = DMatrix::from_fn(rs.len(), q0.nrows(), |k, i| rs[k][i]);
-    let c = rt * q0;
+    let mut rm = DMatrix::zeros(q0.nrows(), rs.len());
+    for (mut col, r) in rm.column_iter_mut().zip(rs) {
+        col.copy_from(r);
+    }
+    let c = lm::tr_mul(&rm, q0);
     (0..rs.len()).map(|k| c.row(k).norm_squared()).collect()
 }
 
@@ -622,18 +625,22 @@ fn unresolvable_as_gauges(jp: &DMatrix<f64>, norms: Vec<f64>, half_range: &[f64]
 /// are left to [`gauge_pivots`], which keeps one coordinate of each. The smallest own
 /// signature goes first and the rest is judged again without it, so a pair that is
 /// nearly one direction loses one member, not both. `d_k` comes from the SVD of the
-/// normalised columns, `d_k = 1/√(Σᵢ V_ki²/σᵢ²)`.
+/// normalised columns, `d_k = 1/√(Σᵢ V_ki²/σᵢ²)`. Returned with the normalised columns
+/// it is of (its singular values and `Vᵀ`, no U: [`lm::thin_sv`]).
 fn svd_without_own_gauges(
     jp: &DMatrix<f64>,
     norms: &mut [f64],
     half_range: &[f64],
-) -> nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
+) -> (
+    nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    DMatrix<f64>,
+) {
     loop {
         let mut jt = jp.clone();
         normalise_columns(&mut jt, norms);
-        let svd = lm::thin_svd(&jt);
+        let svd = lm::thin_sv(&jt);
         let Some(k) = weakest_own_signature(&svd, norms, half_range) else {
-            return svd;
+            return (svd, jt);
         };
         norms[k] = 0.0;
     }
@@ -689,13 +696,19 @@ pub(super) fn score_candidate(at: AtModel, c: usize) -> Result<Score, CheckError
         .map(|k| at.p.cands[c].half_range(k))
         .collect();
     let mut norms = unresolvable_as_gauges(&jp, norms, &half_range);
-    let svd = svd_without_own_gauges(&jp, &mut norms, &half_range);
-    let u = svd.u.as_ref().expect("requested");
+    let (svd, jt) = svd_without_own_gauges(&jp, &mut norms, &half_range);
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&k| svd.singular_values[k] > ABSORBED)
         .collect();
-    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, k| u[(r, keep[k])]);
-    let proj = basis.tr_mul(&nalgebra::DVector::from_column_slice(&at.cur.residual));
+    // The detectable directions' basis U = J̃ V S⁻¹ (kept σ > ABSORBED: at most 1e4 ε
+    // from orthonormal), and the residual's projections on them, S⁻¹ Vᵀ (J̃ᵀ r).
+    let vt = svd.v_t.as_ref().expect("requested");
+    let v_over_s = DMatrix::from_fn(jt.ncols(), keep.len(), |j, k| {
+        vt[(keep[k], j)] / svd.singular_values[keep[k]]
+    });
+    let basis = lm::mul(&jt, &v_over_s);
+    let jtr = jt.tr_mul(&nalgebra::DVector::from_column_slice(&at.cur.residual));
+    let proj = v_over_s.tr_mul(&jtr);
     let (kept, start) = gauss_newton_start(cand, c, &svd, &keep, &proj, &norms);
     let absorbed_by = if keep.is_empty() {
         absorbed_by(at, &jc, &norms)

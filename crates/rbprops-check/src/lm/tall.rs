@@ -90,6 +90,22 @@ pub fn thin_svd(a: &DMatrix<f64>) -> nalgebra::SVD<f64, nalgebra::Dyn, nalgebra:
     svd
 }
 
+/// The singular values and right singular vectors (`Vᵀ`; no U) of a tall matrix (n ≥ p)
+/// from its R factor alone ([`r_factor`]): A = Q R and R = U_R S Vᵀ give A = (Q U_R) S
+/// Vᵀ, so A's S and V are R's (to rounding). A wide or empty matrix takes nalgebra's
+/// SVD directly.
+///
+/// Why: the score test needs U only through `Uᵀr` and the kept directions' basis, both
+/// `A V S⁻¹` over singular values far from zero; forming Q and U (two n × p passes and
+/// an n × p × p product) cost more than the factorisation.
+pub fn thin_sv(a: &DMatrix<f64>) -> nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
+    if a.ncols() == 0 || a.nrows() < a.ncols() {
+        return a.clone().svd(false, true);
+    }
+    let cols: Vec<usize> = (0..a.ncols()).collect();
+    r_factor(a, &cols, &vec![1.0; a.ncols()]).svd(false, true)
+}
+
 /// Rows per block of [`r_factor`]: 2 048 × 60 × 8 bytes ≈ 1 MB, factorised within the L2
 /// cache.
 const R_BLOCK: usize = 2048;
@@ -204,6 +220,30 @@ pub fn gram(j: &DMatrix<f64>) -> DMatrix<f64> {
         }
     }
     g
+}
+
+/// `C − A B` in place of `C` (A tall), by faer's matrix product (sequential, so the same
+/// whatever the thread count): the check's projections `J − Q (QᵀJ)`, whose n × p × k
+/// product nalgebra's (matrixmultiply) took at half faer's speed, with a copy for the
+/// difference.
+pub fn sub_mul(c: &mut DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) {
+    assert_eq!(
+        (c.nrows(), c.ncols(), a.ncols()),
+        (a.nrows(), b.ncols(), b.nrows()),
+        "C − AB: shapes differ"
+    );
+    let (n, k, m) = (a.nrows(), a.ncols(), b.ncols());
+    let av = faer::MatRef::from_column_major_slice(a.as_slice(), n, k);
+    let bv = faer::MatRef::from_column_major_slice(b.as_slice(), k, m);
+    let cv = faer::MatMut::from_column_major_slice_mut(c.as_mut_slice(), n, m);
+    faer::linalg::matmul::matmul(cv, faer::Accum::Add, av, bv, -1.0, faer::Par::Seq);
+}
+
+/// `A B` (A tall) by faer's matrix product ([`sub_mul`]).
+pub fn mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let mut c = DMatrix::zeros(a.nrows(), b.ncols());
+    sub_mul(&mut c, a, &(-b));
+    c
 }
 
 /// `AᵀB` by row blocks of [`PRODUCT_BLOCK`]: per block, the columns of A and of B that
@@ -472,6 +512,59 @@ mod tests {
                 .iter()
                 .zip(r2.iter())
                 .all(|(x, y)| x.to_bits() == y.to_bits()));
+        }
+    }
+
+    /// `thin_sv` has `thin_svd`'s singular values and right vectors (to rounding; a
+    /// nearly dependent column, so that the smallest is 1e-8 of the largest), no U; and
+    /// `sub_mul`, `mul` are nalgebra's `C − A B`, `A B` within the dot product's error
+    /// bound `k ε Σ|aᵢₗ bₗⱼ|` (twice it between them).
+    #[test]
+    fn thin_sv_and_products_match_nalgebra() {
+        let mut state = 0x51ed270b27e3a7d5u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let (n, p) = (3 * R_BLOCK + 45, 8);
+        let mut a = DMatrix::from_fn(n, p, |_, _| next());
+        for r in 0..n {
+            a[(r, 5)] = a[(r, 0)] + 1e-8 * a[(r, 5)];
+        }
+        let (want, got) = (thin_svd(&a), thin_sv(&a));
+        assert!(got.u.is_none());
+        let smax = want.singular_values[0];
+        assert!(want.singular_values[p - 1] < 1e-7 * smax);
+        for (g, w) in got.singular_values.iter().zip(want.singular_values.iter()) {
+            assert!((g - w).abs() <= 1e-13 * smax, "{g:e} vs {w:e}");
+        }
+        let (vw, vg) = (want.v_t.unwrap(), got.v_t.unwrap());
+        for k in 0..p - 1 {
+            let dot = vw.row(k).dot(&vg.row(k)).abs();
+            assert!((dot - 1.0).abs() < 1e-10, "v_{k}: {dot}");
+        }
+        let b = DMatrix::from_fn(p, 3, |_, _| next() * 1e3);
+        let c0 = DMatrix::from_fn(n, 3, |_, _| next());
+        let mut c = c0.clone();
+        sub_mul(&mut c, &a, &b);
+        let (want_c, want_ab) = (&c0 - &a * &b, &a * &b);
+        let ab = mul(&a, &b);
+        let abs_ab = a.abs() * b.abs();
+        let tol = 2.0 * (p + 1) as f64 * f64::EPSILON;
+        for i in 0..n {
+            for j in 0..3 {
+                let m = abs_ab[(i, j)] + c0[(i, j)].abs();
+                assert!(
+                    (c[(i, j)] - want_c[(i, j)]).abs() <= tol * m,
+                    "C − AB ({i}, {j})"
+                );
+                assert!(
+                    (ab[(i, j)] - want_ab[(i, j)]).abs() <= tol * abs_ab[(i, j)],
+                    "AB ({i}, {j})"
+                );
+            }
         }
     }
 
