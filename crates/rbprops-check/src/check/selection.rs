@@ -813,6 +813,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                 &without,
                 self.options.max_iterations,
             )?;
+            self.forget_family(self.model.active[k].c);
             self.findings.excluded.push(self.model.active[k].c);
             self.model.accepted.remove(k);
             self.model.active = without;
@@ -926,6 +927,7 @@ impl<'p, 'a> Selection<'p, 'a> {
                     &p.cands[self.model.active[k].c].id,
                     "dropped in the backward check".into(),
                 );
+                self.forget_family(self.model.active[k].c);
                 self.model.accepted.remove(k);
                 self.model.active = without;
                 self.model.cur = f_wo;
@@ -935,6 +937,28 @@ impl<'p, 'a> Selection<'p, 'a> {
             }
         }
         Ok(())
+    }
+
+    /// Effect `c` has left the model: the ambiguous family it was accepted for leaves the
+    /// findings with it (the report would otherwise claim a family the final model does
+    /// not hold), and its rivals, excluded from screening only as ambiguous with it, are
+    /// screened again.
+    pub(super) fn forget_family(&mut self, c: usize) {
+        let p = self.p;
+        let Some(i) = self
+            .findings
+            .ambiguous
+            .iter()
+            .position(|f| f.ids.first() == Some(&p.cands[c].id))
+        else {
+            return;
+        };
+        let family = self.findings.ambiguous.remove(i);
+        for rival in &family.ids[1..] {
+            if let Some(k) = p.cands.iter().position(|x| &x.id == rival) {
+                self.findings.excluded.retain(|&e| e != k);
+            }
+        }
     }
 
     /// The current fit's covariance (scaled by χ²/ν when above 1).

@@ -86,6 +86,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             &branch.model.active,
             self.options.max_iterations,
         )?;
+        branch.forget_family(c);
         branch.findings.excluded.push(c);
         if let Some(e) = branch
             .findings

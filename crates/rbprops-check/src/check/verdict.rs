@@ -408,6 +408,12 @@ impl<'p, 'a> Finish<'p, 'a> {
             ambiguous,
             ..
         } = sel.findings;
+        debug_assert!(
+            ambiguous.iter().all(|f| active
+                .iter()
+                .any(|a| Some(&p.cands[a.c].id) == f.ids.first())),
+            "an ambiguous family whose accepted member left the model (Selection::forget_family)"
+        );
         let cur = centre_gauges(p, cur, &mut active, self.options.max_iterations);
         let free_final = self.free_base + active_dims(&active);
         let nu_after = n_real - free_final as f64;
