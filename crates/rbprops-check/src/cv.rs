@@ -99,9 +99,7 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
     let rv = DVector::from_column_slice(r);
     let jtj = crate::lm::gram(&js);
     let jtr = js.tr_mul(&rv);
-    let rows = js.transpose(); // column `row` of `rows` is row `row` of `js`
-    drop(js);
-    let (jk, gk) = fold_information(&rows, r, fold, k);
+    let (jk, gk) = fold_information(&js, r, fold, k);
     // The folds' one-step refits are independent (each its own p × p solve).
     let per_fold: Vec<(DVector<f64>, f64, f64)> = (0..k)
         .into_par_iter()
@@ -125,48 +123,49 @@ pub fn held_out_residuals(r: &[f64], j: &DMatrix<f64>, fold: &[usize], k: usize)
     }
     out.residuals = (0..r.len())
         .into_par_iter()
-        .map(|row| {
-            r[row]
-                + row_dot(
-                    &rows.as_slice()[row * p..(row + 1) * p],
-                    &deltas[fold[row / 2]],
-                )
-        })
+        .with_min_len(HELD_OUT_ROWS_PER_TASK)
+        .map(|row| r[row] + row_dot(&js, row, &deltas[fold[row / 2]]))
         .collect();
     out
 }
 
-/// `Σ_j x_j y_j` summed left to right from 0: nalgebra's dot product of a 1 × p row
-/// (its unrolled accumulators only take whole groups of 8 rows, and a row has one), so
-/// the held-out residuals read from the row-major copy are those of `js.row(i).dot(…)`
-/// bit for bit.
-fn row_dot(x: &[f64], y: &DVector<f64>) -> f64 {
+/// Rows per parallel task of the held-out residuals: consecutive rows read neighbouring
+/// entries of each column, so a task's rows share their cache lines.
+const HELD_OUT_ROWS_PER_TASK: usize = 512;
+
+/// `Σ_c m[row, c] y_c` summed left to right from 0: nalgebra's dot product of a 1 × p
+/// row (its unrolled accumulators only take whole groups of 8 rows, and a row has one),
+/// so the held-out residuals are those of `js.row(i).dot(…)` bit for bit, read from the
+/// column-major matrix without a row-major copy (which was the held-out criterion's
+/// peak memory: another n × p matrix beside the Jacobian and its scaled copy).
+fn row_dot(m: &DMatrix<f64>, row: usize, y: &DVector<f64>) -> f64 {
+    let n = m.nrows();
     let mut s = 0.0;
-    for (a, b) in x.iter().zip(y.iter()) {
-        s += a * b;
+    for (c, b) in y.iter().enumerate() {
+        s += m.as_slice()[c * n + row] * b;
     }
     s
 }
 
 /// Per fold, the information `C_f = Σ_{rows in f} jᵣᵀjᵣ` and the gradient
-/// `Σ_{rows in f} jᵣᵀ rᵣ` of the column-scaled Jacobian, from `rows`, its row-major
-/// copy (column `row` of `rows` is row `row` of the Jacobian; a row of the column-major
-/// matrix is strided by its 108 000 rows): `X_fᵀX_f` and `X_fᵀr_f` of the fold's rows
-/// gathered in order, by faer's matrix product (sequential), C_f exactly symmetric.
+/// `Σ_{rows in f} jᵣᵀ rᵣ` of the column-scaled Jacobian `js`: `X_fᵀX_f` and `X_fᵀr_f` of
+/// the fold's rows gathered in order (row-major; a fold's rows come in runs of
+/// neighbours, so the gather reads each column's cache lines once), by faer's matrix
+/// product (sequential), C_f exactly symmetric.
 ///
 /// Why: summed row by row as outer products, one product at a time, the ten folds took
 /// most of the held-out criterion (a tenth of the six-effects bench); a matrix product
 /// keeps the fold's rows in cache for every pair. The folds are computed in parallel,
 /// each in one piece, so the sums do not depend on the thread count.
 fn fold_information(
-    rows: &DMatrix<f64>,
+    js: &DMatrix<f64>,
     r: &[f64],
     fold: &[usize],
     k: usize,
 ) -> (Vec<DMatrix<f64>>, Vec<DVector<f64>>) {
-    let p = rows.nrows();
+    let (n, p) = js.shape();
     let mut rows_of: Vec<Vec<usize>> = vec![Vec::new(); k];
-    for row in 0..r.len().min(rows.ncols()) {
+    for row in 0..r.len().min(n) {
         rows_of[fold[row / 2]].push(row);
     }
     rows_of
@@ -174,7 +173,7 @@ fn fold_information(
         .map(|list| {
             let mut x = Vec::with_capacity(list.len() * p);
             for &row in list {
-                x.extend_from_slice(&rows.as_slice()[row * p..(row + 1) * p]);
+                x.extend((0..p).map(|c| js.as_slice()[c * n + row]));
             }
             let x = faer::MatRef::from_row_major_slice(&x, list.len(), p);
             let rf: Vec<f64> = list.iter().map(|&row| r[row]).collect();
@@ -359,7 +358,7 @@ mod tests {
             let js = DMatrix::from_fn(n, p, |_, c| rnd() * 10f64.powi(c as i32 % 5 - 2));
             let r: Vec<f64> = (0..n).map(|_| rnd() * 7.0).collect();
             let fold: Vec<usize> = (0..n.div_ceil(2)).map(|i| (i * 7 + i / 3) % k).collect();
-            let (jk, gk) = fold_information(&js.transpose(), &r, &fold, k);
+            let (jk, gk) = fold_information(&js, &r, &fold, k);
             let mut want_c = vec![DMatrix::<f64>::zeros(p, p); k];
             let mut abs_c = vec![DMatrix::<f64>::zeros(p, p); k];
             let mut want_g = vec![DVector::<f64>::zeros(p); k];
@@ -385,19 +384,18 @@ mod tests {
         }
     }
 
-    /// A row's dot product taken from the row-major copy is nalgebra's `row.dot(…)` of
-    /// the column-major matrix bit for bit (values of mixed sign and magnitude; rows of
-    /// 1 to 70 entries, across the 8-wide unrolling).
+    /// A row's dot product read from the column-major matrix is nalgebra's `row.dot(…)`
+    /// bit for bit (values of mixed sign and magnitude; rows of 1 to 70 entries, across
+    /// the 8-wide unrolling).
     #[test]
     fn row_dot_is_nalgebras_row_dot_bit_for_bit() {
         let mut rnd = uniform(7);
         for p in [1, 7, 8, 9, 17, 70] {
             let js = DMatrix::from_fn(5, p, |_, c| rnd() * 10f64.powi(c as i32 % 7 - 3));
             let d = DVector::from_fn(p, |_, _| rnd() * 1e3);
-            let rows = js.transpose();
             for row in 0..5 {
                 let want = js.row(row).dot(&d.transpose());
-                let got = row_dot(&rows.as_slice()[row * p..(row + 1) * p], &d);
+                let got = row_dot(&js, row, &d);
                 assert_eq!(got.to_bits(), want.to_bits(), "p = {p}, row {row}");
             }
         }

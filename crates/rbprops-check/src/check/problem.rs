@@ -340,25 +340,63 @@ impl<'a> Problem<'a> {
 }
 
 /// Orthonormal basis of the column span of `j` (columns normalised first; directions
-/// with relative singular value below `tol` dropped).
+/// with relative singular value below `tol` dropped) and those singular values
+/// ([`ScaledSpan`]).
 pub(super) fn span_basis(j: &DMatrix<f64>, tol: f64) -> (DMatrix<f64>, Vec<f64>) {
-    let mut js = j.clone();
-    for k in 0..js.ncols() {
-        let n = js.column(k).norm();
-        if n > 0.0 {
-            js.column_mut(k).scale_mut(1.0 / n);
+    let span = ScaledSpan::of(j, tol);
+    (span.basis, span.singular_values)
+}
+
+/// The thin SVD of a Jacobian with unit columns, `J D⁻¹ = U S Vᵀ` (D the column norms),
+/// over the directions whose singular value exceeds a tolerance: U's columns are the
+/// orthonormal basis of J's span, and with S, V and D they give J's pseudo-inverse in
+/// the scaled coordinates, `J⁺ = D⁻¹ V S⁻¹ Uᵀ` (the screening's chord solver).
+pub(super) struct ScaledSpan {
+    /// U over the kept directions (n × rank).
+    pub(super) basis: DMatrix<f64>,
+    /// Their singular values.
+    pub(super) singular_values: Vec<f64>,
+    /// `D⁻¹ V S⁻¹` over the kept directions (p × rank; a zero column of J a zero row).
+    pub(super) pseudo_inverse_right: DMatrix<f64>,
+}
+
+impl ScaledSpan {
+    pub(super) fn of(j: &DMatrix<f64>, tol: f64) -> Self {
+        let mut js = j.clone();
+        let mut norms = vec![0.0; js.ncols()];
+        for (k, norm) in norms.iter_mut().enumerate() {
+            *norm = js.column(k).norm();
+            if *norm > 0.0 {
+                js.column_mut(k).scale_mut(1.0 / *norm);
+            }
+        }
+        let svd = lm::thin_svd(&js);
+        drop(js);
+        let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+            unreachable!("lm::thin_svd computes U and Vᵀ")
+        };
+        let keep: Vec<usize> = (0..svd.singular_values.len())
+            .filter(|&k| svd.singular_values[k] > tol)
+            .collect();
+        let basis = if keep.len() == u.ncols() {
+            u
+        } else {
+            DMatrix::from_fn(u.nrows(), keep.len(), |r, c| u[(r, keep[c])])
+        };
+        let singular_values: Vec<f64> = keep.iter().map(|&k| svd.singular_values[k]).collect();
+        let pseudo_inverse_right = DMatrix::from_fn(norms.len(), keep.len(), |a, c| {
+            if norms[a] > 0.0 {
+                v_t[(keep[c], a)] / singular_values[c] / norms[a]
+            } else {
+                0.0
+            }
+        });
+        ScaledSpan {
+            basis,
+            singular_values,
+            pseudo_inverse_right,
         }
     }
-    let svd = lm::thin_svd(&js);
-    let u = svd.u.expect("requested");
-    let keep: Vec<usize> = (0..svd.singular_values.len())
-        .filter(|&k| svd.singular_values[k] > tol)
-        .collect();
-    let basis = DMatrix::from_fn(u.nrows(), keep.len(), |r, c| u[(r, keep[c])]);
-    (
-        basis,
-        keep.iter().map(|&k| svd.singular_values[k]).collect(),
-    )
 }
 
 /// Removes the span of `q` (orthonormal columns) from the columns of `j`: `j − q (qᵀ j)`,

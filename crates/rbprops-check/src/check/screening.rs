@@ -1,5 +1,5 @@
 use super::gauges::{gauge_pivots, REOPEN_SIGNATURE};
-use super::problem::{project_out, span_basis, Act, Problem};
+use super::problem::{project_out, span_basis, Act, Problem, ScaledSpan};
 use crate::error::CheckError;
 use crate::lm;
 use crate::lm::Fit;
@@ -31,46 +31,32 @@ pub(super) struct Score {
     pub(super) theta_start: Option<Vec<f64>>,
 }
 
-/// The chord (fixed-Jacobian Gauss–Newton) solver of a screening: the SVD of the
-/// current model's Jacobian, taken on first use and shared by every profile-screened
-/// candidate of the step (the same factorisation each of them took on its own before).
-pub(super) struct Chord<'f> {
-    jacobian: &'f DMatrix<f64>,
-    svd: std::sync::OnceLock<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+/// The chord (fixed-Jacobian Gauss–Newton) solver of a screening: the pseudo-inverse of
+/// the current model's Jacobian from the SVD that gives the span's basis
+/// ([`ScaledSpan`]), shared by every profile-screened candidate of the step.
+///
+/// Why from the span's SVD: the solver took a second SVD of the same Jacobian (unscaled)
+/// at every step, a tenth of a profile's time; its pseudo-inverse over the directions
+/// the span keeps is also the better conditioned one (a near-gauge, dropped from the
+/// span, no longer takes a long step).
+pub(super) struct Chord<'s> {
+    span: &'s ScaledSpan,
 }
 
-impl<'f> Chord<'f> {
-    pub(super) fn new(jacobian: &'f DMatrix<f64>) -> Self {
-        Chord {
-            jacobian,
-            svd: std::sync::OnceLock::new(),
-        }
+impl<'s> Chord<'s> {
+    pub(super) fn new(span: &'s ScaledSpan) -> Self {
+        Chord { span }
     }
 
-    fn svd(&self) -> &nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn> {
-        self.svd.get_or_init(|| lm::thin_svd(self.jacobian))
-    }
-
-    /// The chord steps `J⁺(−r)` of several residuals at once: each column is nalgebra's
-    /// `svd.solve(&(−r), 1e-10)` to rounding (`Uᵀb` by [`lm::tr_mul`], then the same
-    /// division and `V` product).
+    /// The chord steps `J⁺(−r)` of several residuals at once, `D⁻¹ V S⁻¹ (Uᵀ(−r))`
+    /// ([`ScaledSpan`]), `Uᵀ(−r)` one product for all of them ([`lm::tr_mul`]).
     ///
-    /// Why: one solve reads all of U (52 MB at 60 parameters) for 2np flops, from memory;
-    /// a profile's refinements took 64 of them per candidate and step. Together they read
-    /// U once.
+    /// Why together: one solve reads all of U (52 MB at 60 parameters) for 2np flops,
+    /// from memory; a profile's refinements took 64 of them per candidate and step.
     fn steps(&self, rs: &[&nalgebra::DVector<f64>]) -> Vec<nalgebra::DVector<f64>> {
-        let svd = self.svd();
-        let (Some(u), Some(v_t)) = (&svd.u, &svd.v_t) else {
-            unreachable!("lm::thin_svd computes U and Vᵀ")
-        };
+        let u = &self.span.basis;
         let b = DMatrix::from_fn(u.nrows(), rs.len(), |i, k| -rs[k][i]);
-        let mut ut_b = lm::tr_mul(u, &b);
-        for mut col in ut_b.column_iter_mut() {
-            for (x, &sv) in col.iter_mut().zip(svd.singular_values.iter()) {
-                *x = if sv > 1e-10 { *x / sv } else { 0.0 };
-            }
-        }
-        let d = v_t.ad_mul(&ut_b);
+        let d = &self.span.pseudo_inverse_right * lm::tr_mul(u, &b);
         d.column_iter().map(|c| c.into_owned()).collect()
     }
 }
@@ -142,10 +128,11 @@ fn projected_norms(q0: &DMatrix<f64>, rs: &[&nalgebra::DVector<f64>]) -> Vec<f64
     if q0.ncols() == 0 || rs.is_empty() {
         return vec![0.0; rs.len()];
     }
-    let mut rm = DMatrix::zeros(q0.nrows(), rs.len());
-    for (mut col, r) in rm.column_iter_mut().zip(rs) {
-        col.copy_from(r);
-    }
+    let rm = DMatrix::from_iterator(
+        q0.nrows(),
+        rs.len(),
+        rs.iter().flat_map(|r| r.iter().copied()),
+    );
     let c = lm::tr_mul(&rm, q0);
     (0..rs.len()).map(|k| c.row(k).norm_squared()).collect()
 }
@@ -929,43 +916,53 @@ fn absorbed_by(at: AtModel, jc: &DMatrix<f64>, norms: &[f64]) -> Vec<(String, f6
 
 #[cfg(test)]
 mod tests {
-    use super::{most_promising, Chord, PROFILE_REFINED};
+    use super::{most_promising, Chord, ScaledSpan, PROFILE_REFINED};
     use nalgebra::{DMatrix, DVector};
 
-    /// The chord steps of several residuals together are nalgebra's `svd.solve` of each
-    /// to rounding (rows not a multiple of the row block; a rank-deficient Jacobian, so
-    /// that a singular value falls under the solve's threshold): `Uᵀb` differs by at
-    /// most `n ε ‖b‖` per entry between the two, divided by the kept singular values.
+    /// The chord steps of several residuals together are each the minimum-norm
+    /// least-squares step in the scaled coordinates, `D⁻¹ (J D⁻¹)⁺ (−r)`, of nalgebra's
+    /// SVD of the scaled Jacobian (rows not a multiple of the row block; a column twice
+    /// another, so that a direction falls under the threshold and is dropped, and
+    /// columns of scales 1e-3 to 1e3). Two backward-stable solutions differ by at most
+    /// the perturbation bound of least squares, `c ε (κ ‖x‖ + κ² ‖res‖ / s₁)` per
+    /// scaled coordinate (κ = s₁/s_min over the kept directions), with `c = 10 p`.
     #[test]
-    fn chord_steps_together_are_each_solve_to_rounding() {
+    fn chord_steps_together_are_each_scaled_minimum_norm_solve() {
         let (n, p) = (5 * 1024 + 13, 7);
-        let mut j = DMatrix::from_fn(n, p, |i, k| ((i * (k + 3)) as f64 * 0.37).sin());
+        let mut j = DMatrix::from_fn(n, p, |i, k| {
+            ((i * (k + 3)) as f64 * 0.37).sin() * 10f64.powi(k as i32 % 7 - 3)
+        });
         let dup = j.column(1) * 2.0;
         j.set_column(4, &dup);
-        let chord = Chord::new(&j);
+        let span = ScaledSpan::of(&j, 1e-10);
+        assert_eq!(
+            span.basis.ncols(),
+            p - 1,
+            "the duplicate direction is dropped"
+        );
+        let chord = Chord::new(&span);
         let rs: Vec<DVector<f64>> = (0..5)
             .map(|m| DVector::from_fn(n, |i, _| ((i + 31 * m) as f64 * 0.011).cos()))
             .collect();
         let refs: Vec<&DVector<f64>> = rs.iter().collect();
         let together = chord.steps(&refs);
-        let sv = &chord.svd().singular_values;
-        assert!(sv.iter().any(|&s| s <= 1e-10));
-        let smallest_kept = sv
-            .iter()
-            .copied()
-            .filter(|&s| s > 1e-10)
-            .fold(f64::INFINITY, f64::min);
+        let norms: Vec<f64> = (0..p).map(|k| j.column(k).norm()).collect();
+        let js = DMatrix::from_fn(n, p, |i, k| j[(i, k)] / norms[k]);
+        let svd = js.clone().svd(true, true);
+        let s1 = span.singular_values[0];
+        let kappa = s1 / span.singular_values.last().unwrap();
         for (r, d) in rs.iter().zip(&together) {
-            let alone = chord.svd().solve(&(-r), 1e-10).unwrap();
+            let x = svd.solve(&(-r), 1e-10).unwrap();
+            let res = (&js * &x + r).norm();
             let bound =
-                2.0 * (n as f64) * f64::EPSILON * r.norm() * (p as f64).sqrt() / smallest_kept;
-            let err = (d - &alone).norm();
-            assert!(err <= bound, "{err:e} > {bound:e}");
+                10.0 * p as f64 * f64::EPSILON * (kappa * x.norm() + kappa * kappa * res / s1);
+            for k in 0..p {
+                let err = (d[k] * norms[k] - x[k]).abs();
+                assert!(err <= bound, "coordinate {k}: {err:e} > {bound:e}");
+            }
         }
     }
 
-    /// Per start, the evaluated points with the smallest predicted χ², the first of equal
-    /// ones, at most `PROFILE_REFINED`; points not evaluated are never chosen.
     #[test]
     fn most_promising_takes_the_smallest_predictions_per_start() {
         let n = PROFILE_REFINED + 4;

@@ -10,7 +10,7 @@ use super::acceptance::{
 use super::gauges::{centre_gauges, reopen_dropped};
 use super::holds::HoldTiming;
 use super::items::Narrowed;
-use super::problem::{active_dims, drop_params, span_basis, without_act, Act, Prior, Problem};
+use super::problem::{active_dims, drop_params, without_act, Act, Prior, Problem, ScaledSpan};
 use super::screening::{
     grid_candidate, resonance_candidate, score_candidate, AtModel, Chord, Score,
 };
@@ -238,8 +238,9 @@ impl<'p, 'a> Selection<'p, 'a> {
     fn screen(&mut self, step: usize) -> Vec<(usize, Score, f64)> {
         let (p, cur, active) = (self.p, &self.model.cur, &self.model.active);
         let span_timer = crate::prof::span(crate::prof::SCREEN_SPAN);
-        let (q0, _) = span_basis(&cur.jacobian, 1e-10);
-        let chord = Chord::new(&cur.jacobian);
+        let span = ScaledSpan::of(&cur.jacobian, 1e-10);
+        let q0 = &span.basis;
+        let chord = Chord::new(&span);
         drop(span_timer);
         let todo: Vec<usize> = (0..p.cands.len())
             .filter(|&c| self.waiting(c) && self.opened(c))
@@ -248,7 +249,7 @@ impl<'p, 'a> Selection<'p, 'a> {
             p,
             cur,
             active,
-            q0: &q0,
+            q0,
             chord: &chord,
         };
         // The profile-screened candidates (the cords' string modes, the record length's

@@ -206,9 +206,10 @@ fn householder_factor(
     (q, r)
 }
 
-/// Rows per block of [`tr_mul`]: a block of a 108 000 × 60 Jacobian (2 048 × 60 × 8
-/// bytes ≈ 1 MB) is gathered and multiplied within the L2 cache.
-const PRODUCT_BLOCK: usize = 2048;
+/// Rows per block of [`tr_mul`]: large enough that faer's product runs at its speed
+/// (4 096 rows were as fast as one product over all 108 000), small enough that the
+/// blocks share two threads evenly.
+const PRODUCT_BLOCK: usize = 4096;
 
 /// The normal matrix `JᵀJ` ([`tr_mul`] of `J` with itself), exactly symmetric (the upper
 /// triangle mirrored).
@@ -239,107 +240,90 @@ pub fn sub_mul(c: &mut DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) {
     faer::linalg::matmul::matmul(cv, faer::Accum::Add, av, bv, -1.0, faer::Par::Seq);
 }
 
-/// `A B` (A tall) by faer's matrix product ([`sub_mul`]).
+/// `A B` (A tall) by faer's matrix product, sequential as in [`sub_mul`].
 pub fn mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
-    let mut c = DMatrix::zeros(a.nrows(), b.ncols());
-    sub_mul(&mut c, a, &(-b));
+    assert_eq!(a.ncols(), b.nrows(), "AB: shapes differ");
+    let (n, k, m) = (a.nrows(), a.ncols(), b.ncols());
+    let mut c = DMatrix::zeros(n, m);
+    faer::linalg::matmul::matmul(
+        faer::MatMut::from_column_major_slice_mut(c.as_mut_slice(), n, m),
+        faer::Accum::Replace,
+        faer::MatRef::from_column_major_slice(a.as_slice(), n, k),
+        faer::MatRef::from_column_major_slice(b.as_slice(), k, m),
+        1.0,
+        faer::Par::Seq,
+    );
     c
 }
 
-/// `AᵀB` by row blocks of [`PRODUCT_BLOCK`]: per block, the columns of A and of B that
-/// are not zero there are gathered and multiplied by faer's matrix product (sequential),
-/// and the blocks' products are summed in order. Equal to nalgebra's `a.tr_mul(b)` to
-/// rounding (each entry a dot product, `|error| ≤ n ε ‖aᵢ‖ ‖bⱼ‖`), and the same bits
-/// whatever the thread count (the blocks are fixed and summed in order).
+/// `AᵀB` by row blocks of [`PRODUCT_BLOCK`]: each block's product by faer (sequential),
+/// read in place from both matrices, and the blocks' products summed in order. Equal
+/// to nalgebra's `a.tr_mul(b)` to rounding (each entry a dot product, `|error| ≤ n ε
+/// ‖aᵢ‖ ‖bⱼ‖`), and the same bits whatever the thread count (the blocks are fixed and
+/// summed in order). Every entry takes part, so a non-finite one makes its row's
+/// products NaN or ∞ as nalgebra's would.
 ///
 /// Why: nalgebra takes each entry as a separate dot product of two whole columns, from
-/// memory for the check's Jacobians (108 000 rows × 20–60 parameters, 17–52 MB): the
-/// LM fits' normal equations, the held-out criterion and the projections of candidate
-/// columns spent a sixth of the six-effects bench there. A matrix product keeps a
-/// block in cache for all its pairs (14 times faster at 60 dense columns), and grouped
-/// finite-difference columns (an elastic mode's residues, a channel's gain) are zero
-/// outside their own FRFs, so most of their pairs are skipped. A block with a
-/// non-finite entry takes every column, so that 0 · ∞ is summed as NaN.
+/// memory for the check's Jacobians and bases (108 000 rows × 20–150 columns, 17–130
+/// MB); a matrix product keeps a block in cache for all its pairs. Skipping the columns
+/// that are zero in a block (grouped finite-difference columns) was measured slower
+/// than taking them: the scan for zeros and non-finite entries and the gather of the
+/// rest cost more than the flops saved (a projection's `RᵀQ` of 16 residuals on a
+/// 100-column basis: 55 ms skipping, 11 ms in place; a 150-column Jacobian with 60
+/// grouped columns: 110 ms, 90 ms; one thread).
 pub fn tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     assert_eq!(a.nrows(), b.nrows(), "AᵀB: row counts differ");
     let n = a.nrows();
-    let same = std::ptr::eq(a, b);
-    let partial: Vec<Option<DMatrix<f64>>> = (0..n.div_ceil(PRODUCT_BLOCK))
+    let partial: Vec<faer::Mat<f64>> = (0..n.div_ceil(PRODUCT_BLOCK))
         .into_par_iter()
         .map(|k| {
             let rows = k * PRODUCT_BLOCK..((k + 1) * PRODUCT_BLOCK).min(n);
-            block_tr_mul(a, b, same, rows)
+            let mut prod = faer::Mat::<f64>::zeros(a.ncols(), b.ncols());
+            faer::linalg::matmul::matmul(
+                prod.as_mut(),
+                faer::Accum::Replace,
+                row_block(a, &rows).transpose(),
+                row_block(b, &rows),
+                1.0,
+                faer::Par::Seq,
+            );
+            prod
         })
         .collect();
     let mut out = DMatrix::zeros(a.ncols(), b.ncols());
-    for p in partial.into_iter().flatten() {
-        out += p;
+    for p in &partial {
+        for j in 0..out.ncols() {
+            for i in 0..out.nrows() {
+                out[(i, j)] += p[(i, j)];
+            }
+        }
     }
     out
 }
 
-/// `A[rows]ᵀ B[rows]` over the columns not zero in `rows` (all of them when a block
-/// holds a non-finite entry); `None` when one side has none. `same`: B is A.
-fn block_tr_mul(
-    a: &DMatrix<f64>,
-    b: &DMatrix<f64>,
-    same: bool,
-    rows: std::ops::Range<usize>,
-) -> Option<DMatrix<f64>> {
-    let finite = |m: &DMatrix<f64>| {
-        (0..m.ncols()).all(|c| column_block(m, c, &rows).iter().all(|x| x.is_finite()))
-    };
-    let dense = !(finite(a) && (same || finite(b)));
-    let live = |m: &DMatrix<f64>| -> Vec<usize> {
-        (0..m.ncols())
-            .filter(|&c| dense || column_block(m, c, &rows).iter().any(|&x| x != 0.0))
-            .collect()
-    };
-    let ca = live(a);
-    let cb = if same { ca.clone() } else { live(b) };
-    if ca.is_empty() || cb.is_empty() {
-        return None;
-    }
-    let m = rows.len();
-    let gather = |mat: &DMatrix<f64>, cols: &[usize]| {
-        let mut g = faer::Mat::<f64>::zeros(m, cols.len());
-        for (k, &c) in cols.iter().enumerate() {
-            g.col_mut(k)
-                .iter_mut()
-                .zip(column_block(mat, c, &rows))
-                .for_each(|(d, &x)| *d = x);
-        }
-        g
-    };
-    let ga = gather(a, &ca);
-    let gb = if same { None } else { Some(gather(b, &cb)) };
-    let mut prod = faer::Mat::<f64>::zeros(ca.len(), cb.len());
-    faer::linalg::matmul::matmul(
-        prod.as_mut(),
-        faer::Accum::Replace,
-        ga.transpose(),
-        gb.as_ref().unwrap_or(&ga).as_ref(),
-        1.0,
-        faer::Par::Seq,
-    );
-    let mut out = DMatrix::zeros(a.ncols(), b.ncols());
-    for (k, &j) in cb.iter().enumerate() {
-        for (i, &r) in ca.iter().enumerate() {
-            out[(r, j)] = prod[(i, k)];
-        }
-    }
-    Some(out)
-}
-
-/// Rows `rows` of column `c` of `m`.
-fn column_block<'m>(m: &'m DMatrix<f64>, c: usize, rows: &std::ops::Range<usize>) -> &'m [f64] {
-    let n = m.nrows();
-    &m.as_slice()[c * n + rows.start..c * n + rows.end]
+/// Rows `rows` of every column of `m`, in place (column stride: `m`'s row count).
+fn row_block<'m>(m: &'m DMatrix<f64>, rows: &std::ops::Range<usize>) -> faer::MatRef<'m, f64> {
+    faer::MatRef::from_column_major_slice_with_stride(
+        &m.as_slice()[rows.start.min(m.as_slice().len())..],
+        rows.len(),
+        m.ncols(),
+        m.nrows(),
+    )
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Uniform draws on [−½, ½) from a xorshift generator started at `state`.
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        }
+    }
 
     /// `r_factor` over several row blocks (and a remainder) is the R of one Householder QR
     /// of the selected, scaled columns: rows equal up to their sign, to 1e-12 of R's
@@ -369,17 +353,11 @@ mod tests {
     /// dot product's error bound `n ε ‖aᵢ‖ ‖bⱼ‖` of both (twice it between them), for row
     /// counts below, at and across the block size, values of mixed sign and magnitude, and
     /// zero runs as grouped finite differences leave them (whole blocks, a column zero but
-    /// in one row, an all-zero column), whose blocks are skipped; `gram` exactly
+    /// in one row, an all-zero column); `gram` exactly
     /// symmetric; the same bits on one and two threads.
     #[test]
     fn gram_and_tr_mul_are_nalgebras_to_rounding() {
-        let mut state = 0x2545f4914f6cdd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = xorshift(0x2545f4914f6cdd1du64);
         let close =
             |got: &DMatrix<f64>, want: &DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>| {
                 assert_eq!(got.shape(), want.shape());
@@ -440,13 +418,7 @@ mod tests {
     /// singular values are apart; the same bits on one and two threads.
     #[test]
     fn thin_qr_and_svd_match_a_dense_factorisation() {
-        let mut state = 0x9e3779b97f4a7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = xorshift(0x9e3779b97f4a7c15u64);
         // Several blocks, and one block alone (its Q and R are the answer).
         for (n, p) in [(5 * QR_BLOCK + 77, 9), (QR_BLOCK / 2 + 3, 9)] {
             let mut a = DMatrix::from_fn(n, p, |_, _| next());
@@ -521,13 +493,7 @@ mod tests {
     /// bound `k ε Σ|aᵢₗ bₗⱼ|` (twice it between them).
     #[test]
     fn thin_sv_and_products_match_nalgebra() {
-        let mut state = 0x51ed270b27e3a7d5u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
+        let mut next = xorshift(0x51ed270b27e3a7d5u64);
         let (n, p) = (3 * R_BLOCK + 45, 8);
         let mut a = DMatrix::from_fn(n, p, |_, _| next());
         for r in 0..n {
@@ -572,7 +538,7 @@ mod tests {
     /// the entries NaN and infinite where nalgebra's are, the others equal to rounding.
     #[test]
     fn gram_sums_a_zero_block_against_an_infinite_entry() {
-        // Column 0 zero over the first block (skipped there were it not for the ∞).
+        // Column 0 zero over the first block, against the ∞ of column 1 there.
         let mut j = DMatrix::from_fn(PRODUCT_BLOCK + 600, 3, |r, c| {
             (r + 3 * c) as f64 * 0.01 + 1.0
         });
