@@ -153,13 +153,28 @@ pub fn predict(
     .map_err(|e| CheckError::Model(e.to_string()))?;
     let nl = layout.n_lines();
     let n_rch = layout.channel_map.len();
-    let mut out = vec![c64::new(0.0, 0.0); layout.n_values()];
-    for (re, &se) in layout.excitation_map.iter().enumerate() {
-        for (rc, &sc) in layout.channel_map.iter().enumerate() {
-            out[(re * n_rch + rc) * nl + skip..(re * n_rch + rc + 1) * nl]
-                .copy_from_slice(frf.frf(se, sc));
+    let in_order =
+        |map: &[usize], n: usize| map.len() == n && map.iter().enumerate().all(|(i, &m)| i == m);
+    // The recording's channels and excitations in the spec's order, every line
+    // computed: the model's values are the recording's layout already.
+    let out = if skip == 0
+        && in_order(&layout.excitation_map, frf.n_excitations)
+        && in_order(&layout.channel_map, frf.n_channels)
+    {
+        frf.values
+    } else {
+        // Block by block in the recording's order (excitation, then channel), the
+        // skipped lines 0: each value written once.
+        let mut out = Vec::with_capacity(layout.n_values());
+        for &se in &layout.excitation_map {
+            for &sc in &layout.channel_map {
+                out.resize(out.len() + skip, c64::new(0.0, 0.0));
+                out.extend_from_slice(frf.frf(se, sc));
+            }
         }
-    }
+        debug_assert_eq!(out.len(), n_rch * layout.excitation_map.len() * nl);
+        out
+    };
     if let Some(i) = out
         .iter()
         .position(|v| !(v.re.is_finite() && v.im.is_finite()))

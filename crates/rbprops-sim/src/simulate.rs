@@ -282,7 +282,7 @@ fn input_responses(sm: &SetupModel, s: &[c64]) -> Result<Vec<Vec<c64>>, SimError
     let model = &sm.model;
     let n_ch = model.outputs.len();
     let nl = s.len();
-    let mut out = vec![vec![c64::new(0.0, 0.0); n_ch * nl]; model.inputs.len()];
+    let mut out = vec![Vec::new(); model.inputs.len()];
     let mut done = vec![false; model.inputs.len()];
     for first in 0..model.inputs.len() {
         if done[first] {
@@ -346,11 +346,11 @@ fn input_responses(sm: &SetupModel, s: &[c64]) -> Result<Vec<Vec<c64>>, SimError
         }
         for (g, &i) in group.iter().enumerate() {
             done[i] = true;
-            for (c, dst) in out[i].chunks_exact_mut(nl).enumerate() {
-                for (l, d) in dst.iter_mut().enumerate() {
-                    *d = y[(l * ng + g) * n_ch + c];
-                }
+            let mut block = Vec::with_capacity(n_ch * nl);
+            for c in 0..n_ch {
+                block.extend((0..nl).map(|l| y[(l * ng + g) * n_ch + c]));
             }
+            out[i] = block;
         }
     }
     Ok(out)

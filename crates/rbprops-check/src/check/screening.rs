@@ -55,8 +55,14 @@ impl<'s> Chord<'s> {
     /// from memory; a profile's refinements took 64 of them per candidate and step.
     fn steps(&self, rs: &[&nalgebra::DVector<f64>]) -> Vec<nalgebra::DVector<f64>> {
         let u = &self.span.basis;
-        let b = DMatrix::from_fn(u.nrows(), rs.len(), |i, k| -rs[k][i]);
-        let d = &self.span.pseudo_inverse_right * lm::tr_mul(u, &b);
+        let b = DMatrix::from_iterator(
+            u.nrows(),
+            rs.len(),
+            rs.iter().flat_map(|r| r.iter().copied()),
+        );
+        // −Uᵀr negated after the product: the same values as the product of −r (IEEE
+        // negation is exact), without a negated copy of the residuals.
+        let d = &self.span.pseudo_inverse_right * -lm::tr_mul(u, &b);
         d.column_iter().map(|c| c.into_owned()).collect()
     }
 }

@@ -233,27 +233,35 @@ pub fn sub_mul(c: &mut DMatrix<f64>, a: &DMatrix<f64>, b: &DMatrix<f64>) {
         (a.nrows(), b.ncols(), b.nrows()),
         "C − AB: shapes differ"
     );
-    let (n, k, m) = (a.nrows(), a.ncols(), b.ncols());
-    let av = faer::MatRef::from_column_major_slice(a.as_slice(), n, k);
-    let bv = faer::MatRef::from_column_major_slice(b.as_slice(), k, m);
-    let cv = faer::MatMut::from_column_major_slice_mut(c.as_mut_slice(), n, m);
-    faer::linalg::matmul::matmul(cv, faer::Accum::Add, av, bv, -1.0, faer::Par::Seq);
+    product_into(c, faer::Accum::Add, a, b, -1.0);
 }
 
 /// `A B` (A tall) by faer's matrix product, sequential as in [`sub_mul`].
 pub fn mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
     assert_eq!(a.ncols(), b.nrows(), "AB: shapes differ");
+    let mut c = DMatrix::zeros(a.nrows(), b.ncols());
+    product_into(&mut c, faer::Accum::Replace, a, b, 1.0);
+    c
+}
+
+/// `C = α A B` (`Replace`) or `C += α A B` (`Add`) by faer over the nalgebra matrices'
+/// storage, sequential.
+fn product_into(
+    c: &mut DMatrix<f64>,
+    accum: faer::Accum,
+    a: &DMatrix<f64>,
+    b: &DMatrix<f64>,
+    alpha: f64,
+) {
     let (n, k, m) = (a.nrows(), a.ncols(), b.ncols());
-    let mut c = DMatrix::zeros(n, m);
     faer::linalg::matmul::matmul(
         faer::MatMut::from_column_major_slice_mut(c.as_mut_slice(), n, m),
-        faer::Accum::Replace,
+        accum,
         faer::MatRef::from_column_major_slice(a.as_slice(), n, k),
         faer::MatRef::from_column_major_slice(b.as_slice(), k, m),
-        1.0,
+        alpha,
         faer::Par::Seq,
     );
-    c
 }
 
 /// `AᵀB` by row blocks of [`PRODUCT_BLOCK`]: each block's product by faer (sequential),
@@ -349,11 +357,42 @@ mod tests {
         }
     }
 
+    /// Columns whose plain sum of squares over- or underflows (entries near 1e±170) and
+    /// an all-zero column: `R(A D) = R(A) D` for a positive diagonal D, so each column of
+    /// R is the unscaled one's times its scale, to 1e-12 of that column's largest entry;
+    /// the zero column's R column zero.
+    #[test]
+    fn r_factor_keeps_columns_beyond_the_plain_sum_of_squares() {
+        let mut g = rbprops_testkit::Lcg::new(7);
+        let mut a = DMatrix::from_fn(2 * R_BLOCK + 33, 4, |_, _| g.centred());
+        a.column_mut(2).fill(0.0);
+        let cols = [0, 1, 2, 3];
+        let plain = r_factor(&a, &cols, &[1.0; 4]);
+        let d = [1e170, 1e-170, 1.0, 1.0];
+        let scaled = r_factor(&a, &cols, &d.map(|x| 1.0 / x));
+        for k in 0..4 {
+            let want = plain.column(k) * d[k];
+            let tol = 1e-12 * want.amax();
+            for i in 0..=k {
+                let sign = (scaled[(i, i)] * plain[(i, i)]).signum();
+                let sign = if sign == 0.0 { 1.0 } else { sign };
+                let diff = (scaled[(i, k)] - sign * want[i]).abs();
+                assert!(
+                    diff <= tol,
+                    "R[{i},{k}] {:e} vs {:e}",
+                    scaled[(i, k)],
+                    want[i]
+                );
+            }
+        }
+        assert!(scaled.column(2).iter().all(|&x| x == 0.0));
+    }
+
     /// `gram` and `tr_mul` are nalgebra's `tr_mul` to rounding: every entry within the
     /// dot product's error bound `n ε ‖aᵢ‖ ‖bⱼ‖` of both (twice it between them), for row
     /// counts below, at and across the block size, values of mixed sign and magnitude, and
-    /// zero runs as grouped finite differences leave them (whole blocks, a column zero but
-    /// in one row, an all-zero column); `gram` exactly
+    /// zero runs (whole blocks, a column zero but in one row, an all-zero column: the
+    /// block boundaries and signed zeros a product must keep); `gram` exactly
     /// symmetric; the same bits on one and two threads.
     #[test]
     fn gram_and_tr_mul_are_nalgebras_to_rounding() {
